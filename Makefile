@@ -1,0 +1,46 @@
+# fuelid: the set-up path on Linux. `make demo` and `make test` create .venv when it is missing,
+# install fuelid with its dev extras (once; again only when pyproject.toml changes) and run.
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.fuelid-installed
+DEMO_DIR ?= demo-output
+
+.PHONY: help install demo test lint typecheck pytest bench clean
+
+help:
+	@echo "make demo   - install if needed, run the reference-plant demo (writes $(DEMO_DIR)/)"
+	@echo "make test   - install if needed, run ruff, mypy and the whole pytest suite"
+	@echo "make bench  - run the benchmarks (on demand, prints tables)"
+	@echo "make clean  - remove the virtual environment and generated files"
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+
+$(STAMP): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check --upgrade pip
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev]'
+	@touch $(STAMP)
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/python examples/demo.py --out $(DEMO_DIR)
+
+lint: $(STAMP)
+	$(BIN)/ruff check src tests benchmarks examples
+	$(BIN)/ruff format --check src tests benchmarks examples
+
+typecheck: $(STAMP)
+	$(BIN)/mypy
+
+pytest: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+test: lint typecheck pytest
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/bench_simulate.py
+
+clean:
+	rm -rf $(VENV) $(DEMO_DIR) .pytest_cache .mypy_cache .ruff_cache

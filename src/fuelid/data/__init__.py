@@ -1,0 +1,1 @@
+"""Data shipped with fuelid: the reference plant configuration."""
