@@ -79,7 +79,11 @@ class LinearPlant:
         The dead time is deliberately not Padé-approximated; apply
         ``control.pade(plant.delay, n)`` explicitly if a rational approximation is wanted.
         """
-        return control.ss2tf(self.to_state_space())
+        tf = control.ss2tf(self.to_state_space())
+        # ss2tf leaves rounding residue (~1e-13) in the numerator's high-order terms: drop it
+        num = np.asarray(tf.num[0][0], dtype=float)
+        num[np.abs(num) < 1e-9 * np.max(np.abs(num))] = 0.0
+        return control.tf(np.trim_zeros(num, "f"), tf.den[0][0])
 
     @property
     def static_gain(self) -> float:

@@ -31,9 +31,10 @@ from fuelid.fuel import fuel_properties
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.nozzle import orifice_pressure_drop, orifice_resistance
 from fuelid.plant.pipeline import (
+    darcy_friction_factor,
+    laminar_resistance,
     pipe_capacitance,
     pipe_inductance,
-    pipe_pressure_drop,
     pipe_pressure_drop_slope,
 )
 from fuelid.plant.pump import leakage_coefficient, pump_torque
@@ -78,6 +79,24 @@ class PlantCoefficients:
     p_back: float
     T_f: float
     delay: float
+    # derived once so the ODE right-hand side is a handful of multiplications
+    Re_per_flow: float = 0.0
+    """Reynolds number per unit flow 4ρ/(π d μ) [s/m³]."""
+    friction_per_flow2: float = 0.0
+    """Δp_pipe/(f_D·q|q|) = (l/d)·ρ/2·(4/(π d²))² [Pa·s²/m⁶]."""
+    R_laminar: float = 0.0
+    """Hagen–Poiseuille resistance [Pa·s/m³]."""
+    nozzle_per_flow2: float = 0.0
+    """Δp_nozzle/(q|q|) = ρ/(2 (C_d A_0)²) [Pa·s²/m⁶]."""
+
+    def __post_init__(self) -> None:
+        area = math.pi * self.d**2 / 4.0
+        object.__setattr__(self, "Re_per_flow", self.rho * self.d / (area * self.mu))
+        object.__setattr__(
+            self, "friction_per_flow2", (self.length / self.d) * 0.5 * self.rho / area**2
+        )
+        object.__setattr__(self, "R_laminar", laminar_resistance(self.mu, self.length, self.d))
+        object.__setattr__(self, "nozzle_per_flow2", 0.5 * self.rho / self.Cd_A0**2)
 
     def frequency_command(self, u: float) -> float:
         """Commanded drive frequency [Hz] for command ``u`` [V], clipped to the drive range."""
@@ -85,14 +104,19 @@ class PlantCoefficients:
         return min(max(f, self.f_min), self.f_max)
 
     def line_pressure_drop(self, q: float) -> float:
-        """Friction drop along the line plus nozzle pressure (with back pressure) [Pa]."""
-        return (
-            pipe_pressure_drop(
-                q, self.rho, self.mu, self.length, self.d, self.roughness, self.friction_method
-            )
-            + orifice_pressure_drop(q, self.rho, 1.0, self.Cd_A0)
-            + self.p_back
-        )
+        """Friction drop along the line plus nozzle pressure (with back pressure) [Pa].
+
+        The same as :func:`~fuelid.plant.pipeline.pipe_pressure_drop` +
+        :func:`~fuelid.plant.nozzle.orifice_pressure_drop` + back pressure, with the constant
+        factors precomputed (this runs in the ODE's inner loop).
+        """
+        Re = self.Re_per_flow * abs(q)
+        if Re < 1e-6:
+            friction = self.R_laminar * q
+        else:
+            f_D = darcy_friction_factor(Re, self.roughness / self.d, self.friction_method)
+            friction = f_D * self.friction_per_flow2 * q * abs(q)
+        return friction + self.nozzle_per_flow2 * q * abs(q) + self.p_back
 
     def line_resistance(self, q: float) -> float:
         """Incremental resistance of line plus nozzles d(Δp)/dq at flow q [Pa·s/m³]."""
@@ -121,9 +145,16 @@ def plant_coefficients(config: PlantConfig, T_fuel: float) -> PlantCoefficients:
         If T_fuel lies outside the fuel correlation's range and the config does not allow
         extrapolation.
     """
-    props = fuel_properties(
-        T_fuel, config.fuel.name, allow_extrapolation=config.fuel.allow_extrapolation
-    )
+    try:
+        props = fuel_properties(
+            T_fuel, config.fuel.name, allow_extrapolation=config.fuel.allow_extrapolation
+        )
+    except OutOfRangeError as exc:
+        reason = str(exc).split("; pass allow_extrapolation")[0]
+        raise OutOfRangeError(
+            f"{reason} (to extrapolate, set allow_extrapolation = true in the plant config's "
+            "[fuel] table)"
+        ) from None
     vfd, motor, pump = config.vfd, config.motor, config.pump
     line, nozzle, meter = config.pipeline, config.nozzle, config.flowmeter
     return PlantCoefficients(
@@ -176,7 +207,7 @@ def plant_rhs(t: float, x: NDArray[np.float64], u: float, c: PlantCoefficients) 
     list of float
         dx/dt.
     """
-    f, omega, p, q, q_m = x[0], x[1], x[2], x[3], x[4]
+    f, omega, p, q, q_m = x
     df = (c.frequency_command(u) - f) / c.T_vfd
     if c.max_rate is not None:
         df = min(max(df, -c.max_rate), c.max_rate)

@@ -1,0 +1,5 @@
+"""``python -m fuelid`` runs the command line."""
+
+from fuelid.cli import run
+
+run()

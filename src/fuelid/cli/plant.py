@@ -1,0 +1,159 @@
+"""``fuelid plant …``: the mechanism model of a plant (operating point, linearised model)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from fuelid.cli._common import celsius_to_kelvin, emit_json, guarded, provenance
+from fuelid.plant import linearise, load_plant_config
+from fuelid.plant.pump import LPM_PER_M3S
+
+app = typer.Typer(help="The plant's physics model: operating point and linearised model.")
+
+ConfigOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--config",
+        "-c",
+        help="Plant TOML file (default: the packaged reference plant).",
+        show_default=False,
+    ),
+]
+
+UNITS = {
+    "u": "V",
+    "fuel_temperature": "degC",
+    "flow": "L/min",
+    "pump_pressure": "MPa",
+    "nozzle_pressure": "MPa",
+    "speed": "rpm",
+    "torque": "N*m",
+    "frequency": "Hz",
+    "leakage": "L/min",
+    "reynolds": "1",
+    "K": "(L/min)/V",
+    "T": "s",
+    "T2": "s",
+    "T_f": "s",
+    "delay": "s",
+    "settling_time": "s",
+    "model_settling_time": "s",
+    "reduction_rms": "fraction of K",
+}
+
+
+def plant_summary(config_path: Path | None, fuel_temp: float, u: float | None) -> dict[str, Any]:
+    """Operating point and equivalent model as the JSON object ``plant info --json`` prints."""
+    config = load_plant_config(config_path)
+    command = 0.5 * (config.vfd.u_min_V + config.vfd.u_max_V) if u is None else u
+    linear = linearise(config, command, celsius_to_kelvin(fuel_temp))
+    op = linear.operating_point
+    equivalent = linear.equivalent_model()
+    model = equivalent.model
+    tf = linear.to_control()
+    return {
+        "plant": config.name,
+        "fuel": config.fuel.name,
+        "fuel_temperature": fuel_temp,
+        "u": command,
+        "operating_point": {
+            "flow": op.q * LPM_PER_M3S,
+            "pump_pressure": op.p_pump * 1e-6,
+            "nozzle_pressure": op.p_nozzle * 1e-6,
+            "speed": op.speed_rpm,
+            "torque": op.torque,
+            "frequency": op.f,
+            "leakage": op.q_leak * LPM_PER_M3S,
+            "reynolds": op.reynolds,
+        },
+        "model": {
+            "K": model.K,
+            "T": model.T,
+            "T2": model.T2,
+            "T_f": model.T_f,
+            "delay": model.delay,
+            "settling_time": equivalent.settling_time,
+            "model_settling_time": equivalent.model_settling_time,
+            "reduction_rms": equivalent.fit_rms,
+        },
+        "linear_model": {
+            "num": [float(v) for v in tf.num[0][0]],
+            "den": [float(v) for v in tf.den[0][0]],
+            "delay": linear.delay,
+            "poles": sorted(
+                ([float(p.real), float(p.imag)] for p in tf.poles()), key=lambda p: -p[0]
+            ),
+        },
+        "units": UNITS,
+        "config": str(config_path) if config_path else "reference",
+    }
+
+
+def _table(summary: dict[str, Any]) -> Table:
+    op, model = summary["operating_point"], summary["model"]
+    table = Table(
+        title=(
+            f"plant {summary['plant']}: u = {summary['u']:g} V, "
+            f"{summary['fuel']} at {summary['fuel_temperature']:g} °C"
+        ),
+        show_header=True,
+    )
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    table.add_column("unit")
+    rows = [
+        ("flow", op["flow"], "L/min", ".3f"),
+        ("pump outlet pressure", op["pump_pressure"], "MPa", ".4f"),
+        ("nozzle pressure", op["nozzle_pressure"], "MPa", ".4f"),
+        ("shaft speed", op["speed"], "rpm", ".1f"),
+        ("shaft torque", op["torque"], "N·m", ".3f"),
+        ("drive frequency", op["frequency"], "Hz", ".2f"),
+        ("pump leakage", op["leakage"], "L/min", ".3f"),
+        ("Reynolds number (line)", op["reynolds"], "-", ".0f"),
+        ("K (static gain)", model["K"], "(L/min)/V", ".4f"),
+        ("T (process lag, fitted)", model["T"], "s", ".4f"),
+        ("T2", model["T2"], "s", ".4f"),
+        ("T_f (flowmeter lag)", model["T_f"], "s", ".4f"),
+        ("delay (flowmeter)", model["delay"], "s", ".4f"),
+        ("98 % settling time", model["settling_time"], "s", ".3f"),
+        ("reduction RMS error", 100 * model["reduction_rms"], "% of K", ".3f"),
+    ]
+    for name, value, unit, fmt in rows:
+        table.add_row(name, format(value, fmt), unit)
+    return table
+
+
+@app.command("info")
+@guarded
+def info(
+    config: ConfigOption = None,
+    fuel_temp: Annotated[float, typer.Option("--fuel-temp", help="Fuel temperature [°C].")] = 20.0,
+    u: Annotated[
+        float | None,
+        typer.Option(
+            "--u",
+            help="Command [V] (default: the middle of the drive's signal range).",
+            show_default=False,
+        ),
+    ] = None,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print one JSON object instead of a table.")
+    ] = False,
+) -> None:
+    """Operating point and linearised model of a plant at one command and fuel temperature.
+
+    The model is the equivalent K·e^(−τs)/((T·s+1)(T_f·s+1)): K the exact static gain of the
+    linearised plant [(L/min)/V], T a least-squares fit of its step response [s], T_f and τ the
+    flowmeter's [s]; the settling time is that of the full linearised plant (98 %).
+    """
+    summary = plant_summary(config, fuel_temp, u)
+    if as_json:
+        options = {"config": str(config) if config else None, "fuel_temp": fuel_temp, "u": u}
+        emit_json(summary | provenance(options, config))
+    else:
+        Console().print(_table(summary))
