@@ -25,7 +25,10 @@ $(STAMP): pyproject.toml | $(BIN)/python
 install: $(STAMP)
 
 demo: $(STAMP)
+	$(BIN)/fuelid plant info --u 1.25
 	$(BIN)/python examples/demo.py --out $(DEMO_DIR)
+	$(BIN)/fuelid simulate $(DEMO_DIR)/random_binary.parquet --profile random --levels 1.0,2.0 \
+		--hold 5 --duration 600 --seed 7 --force --quiet
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples

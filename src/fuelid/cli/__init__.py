@@ -21,6 +21,7 @@ app = typer.Typer(
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=False,
+    rich_markup_mode=None,  # help texts carry units in brackets: [s], [V] are not markup
 )
 app.add_typer(plant.app, name="plant")
 app.command("simulate")(simulate_command)

@@ -141,9 +141,9 @@ def simulate_command(
 ) -> None:
     """Simulate the nonlinear plant and write a PLC-like log (t_s, u_V, q_Lpm, T_fuel_degC).
 
-    The plant starts at rest at the first command. Profiles: ``step`` (the article's 1 V → 1.5 V
-    step by default), ``steps`` (each of --levels for --dwell s), ``random`` (a random binary
-    or multilevel sequence over --levels with minimum hold --hold s), ``file`` (read from
+    The plant starts at rest at the first command. Profiles: 'step' (the article's 1 V to 1.5 V
+    step by default), 'steps' (each of --levels for --dwell s), 'random' (a random binary or
+    multilevel sequence over --levels with minimum hold --hold s), 'file' (read from
     --input-file). The controller output is held for --control-period s (sample-and-hold).
     """
     out = check_output_path(output, overwrite=force)

@@ -1,0 +1,422 @@
+"""Plant components against hand calculations and textbook laws.
+
+Every expected value is computed here from the textbook formula (or the ``fluids`` library for a
+friction factor), never read back from the function under test. The fuel state used for the
+pipe and nozzle checks is RP-3 (TS-1 correlations) at 20 °C, worked by hand:
+ρ = 794 − 0.72·20 = 779.6 kg/m³, ν = 1.3096 mm²/s, μ = ρ·ν = 1.02096e-3 Pa·s.
+"""
+
+from __future__ import annotations
+
+import math
+
+import fluids.friction
+import numpy as np
+import pytest
+
+from fuelid.plant.flowmeter import measure_flow
+from fuelid.plant.motor import (
+    MotorConfig,
+    electromagnetic_torque,
+    slip_torque_constant,
+    torque_constant_from_circuit,
+)
+from fuelid.plant.nozzle import (
+    NozzleConfig,
+    orifice_flow,
+    orifice_pressure_drop,
+    orifice_resistance,
+)
+from fuelid.plant.pipeline import (
+    darcy_friction_factor,
+    laminar_resistance,
+    pipe_capacitance,
+    pipe_inductance,
+    pipe_pressure_drop,
+    pipe_pressure_drop_slope,
+    reynolds_number,
+)
+from fuelid.plant.pump import (
+    LPM_PER_M3S,
+    PumpConfig,
+    leakage_coefficient,
+    pump_flow,
+    pump_torque,
+)
+from fuelid.plant.shaft import shaft_acceleration
+from fuelid.plant.vfd import VFDConfig, vfd_frequency_command, vfd_frequency_rate
+
+RHO = 794.0 - 0.72 * 20.0  # 779.6 kg/m³
+MU = RHO * 1.3096e-6  # 1.02096e-3 Pa·s
+LENGTH = 80.0  # m
+D = 0.032  # m
+EPS = 0.045e-3  # m, commercial steel
+TWO_PI = 2.0 * math.pi
+
+
+def _q_for_reynolds(Re: float) -> float:
+    """Volume flow [m³/s] giving Reynolds number Re in the 32 mm line: Re = 4ρq/(πdμ)."""
+    return Re * math.pi * D * MU / (4.0 * RHO)
+
+
+# --------------------------------------------------------------------------------------------
+# pipeline
+
+
+def test_reynolds_number_by_hand() -> None:
+    q = 1e-3  # 60 L/min
+    v = q / (math.pi * D**2 / 4.0)  # 1.2434 m/s
+    assert reynolds_number(q, D, RHO, MU) == pytest.approx(RHO * v * D / MU, rel=1e-14)
+    # ≈ 30 400: the line is turbulent at realistic flows, as theory §1.5 says
+    assert 3.0e4 < reynolds_number(q, D, RHO, MU) < 3.1e4
+
+
+@pytest.mark.parametrize("method", ["Clamond", "Colebrook", "Haaland", "Swamee_Jain_1976"])
+@pytest.mark.parametrize("q", [4e-4, 1e-3, 2.5e-3])
+def test_darcy_weisbach_by_hand(method: str, q: float) -> None:
+    # Δp = f·(l/d)·ρv²/2 with f taken straight from the fluids correlation of that name
+    v = 4.0 * q / (math.pi * D**2)
+    Re = RHO * v * D / MU
+    f = getattr(fluids.friction, method)(Re, EPS / D)
+    expected = f * (LENGTH / D) * RHO * v**2 / 2.0
+    got = pipe_pressure_drop(q, RHO, MU, LENGTH, D, EPS, method=method)
+    assert got == pytest.approx(expected, rel=1e-12)
+
+
+def test_darcy_weisbach_default_is_churchill() -> None:
+    q = 1e-3
+    v = 4.0 * q / (math.pi * D**2)
+    f = fluids.friction.Churchill_1977(RHO * v * D / MU, EPS / D)
+    expected = f * (LENGTH / D) * RHO * v**2 / 2.0
+    assert pipe_pressure_drop(q, RHO, MU, LENGTH, D, EPS) == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("Re", [1e4, 3e4, 1e5, 1e6])
+@pytest.mark.parametrize("eD", [0.0, 1e-4, 1.4e-3])
+def test_churchill_matches_colebrook_in_turbulent_flow(Re: float, eD: float) -> None:
+    # Churchill (1977) reproduces the Colebrook–White equation within ~1 % in fully turbulent
+    # flow (Re ≥ 1e4) for the roughness of drawn to commercial pipe (ε/d ≤ 1.4e-3).
+    assert darcy_friction_factor(Re, eD) == pytest.approx(
+        fluids.friction.Colebrook(Re, eD), rel=0.02
+    )
+
+
+@pytest.mark.parametrize("Re", [10.0, 100.0, 500.0, 1000.0])
+def test_churchill_laminar_limit_is_64_over_re(Re: float) -> None:
+    assert darcy_friction_factor(Re, 1e-3) == pytest.approx(64.0 / Re, rel=1e-9)
+
+
+def test_laminar_resistance_hagen_poiseuille() -> None:
+    # R = 128 μ l/(π d⁴) = 128·1e-3·80/(π·0.032⁴) = 10.24/(π·1.048576e-6) = 3.1085e6 Pa·s/m³
+    assert laminar_resistance(1e-3, 80.0, 0.032) == pytest.approx(3.1085e6, rel=1e-4)
+    assert laminar_resistance(MU, LENGTH, D) == pytest.approx(
+        128.0 * MU * LENGTH / (math.pi * D**4), rel=1e-14
+    )
+
+
+@pytest.mark.parametrize("method", ["Churchill_1977", "Clamond"])
+@pytest.mark.parametrize("Re", [1.0, 200.0, 1500.0])
+def test_laminar_pressure_drop_is_hagen_poiseuille(method: str, Re: float) -> None:
+    q = _q_for_reynolds(Re)
+    # Δp = 128 μ l q/(π d⁴), the same as f = 64/Re in Darcy–Weisbach
+    expected = 128.0 * MU * LENGTH * q / (math.pi * D**4)
+    got = pipe_pressure_drop(q, RHO, MU, LENGTH, D, EPS, method=method)
+    assert got == pytest.approx(expected, rel=1e-7)
+
+
+def test_pressure_drop_is_odd_in_flow_and_zero_at_rest() -> None:
+    q = 1.2e-3
+    assert pipe_pressure_drop(-q, RHO, MU, LENGTH, D, EPS) == pytest.approx(
+        -pipe_pressure_drop(q, RHO, MU, LENGTH, D, EPS), rel=1e-14
+    )
+    assert pipe_pressure_drop(0.0, RHO, MU, LENGTH, D, EPS) == 0.0
+
+
+def test_pipe_inductance_by_hand() -> None:
+    # L = 4ρl/(πd²) = 4·800·80/(π·0.001024) = 256000/3.21699e-3 = 7.9577e7 kg/m⁴
+    assert pipe_inductance(800.0, 80.0, 0.032) == pytest.approx(7.9577e7, rel=1e-4)
+    # equivalently ρl/A: the mass of the fuel column per area squared
+    area = math.pi * D**2 / 4.0
+    assert pipe_inductance(RHO, LENGTH, D) == pytest.approx(RHO * LENGTH / area, rel=1e-14)
+
+
+def test_pipe_capacitance_by_hand() -> None:
+    # C = πd²l/(4β) = π·0.001024·80/(4·1.2e9) = 0.257359/4.8e9 = 5.3617e-11 m³/Pa
+    assert pipe_capacitance(80.0, 0.032, 1.2e9) == pytest.approx(5.3617e-11, rel=1e-4)
+    # equivalently V/β: 1 MPa compresses 64.3 L of fuel by 1e6/1.2e9 = 0.083 % (theory: ~0.1 %)
+    volume = math.pi * D**2 / 4.0 * LENGTH
+    dV = pipe_capacitance(LENGTH, D, 1.2e9) * 1e6
+    assert dV / volume == pytest.approx(1e6 / 1.2e9, rel=1e-14)
+
+
+def test_slope_is_laminar_resistance_in_laminar_flow() -> None:
+    # Churchill's turbulent/transition term is below 1e-13 of f for Re ≤ 1000
+    R_L = 128.0 * MU * LENGTH / (math.pi * D**4)
+    for Re in (0.5, 300.0, 1000.0):
+        slope = pipe_pressure_drop_slope(_q_for_reynolds(Re), RHO, MU, LENGTH, D, EPS)
+        assert slope == pytest.approx(R_L, rel=1e-6)
+
+
+def test_slope_tends_to_quadratic_law_when_fully_rough() -> None:
+    # fully rough (ε/d = 0.05, Re = 1e7): f no longer depends on Re, so Δp ∝ q² and the
+    # incremental resistance is 2Δp/q
+    eps = 0.05 * D
+    q = _q_for_reynolds(1e7)
+    dp = pipe_pressure_drop(q, RHO, MU, LENGTH, D, eps)
+    assert pipe_pressure_drop_slope(q, RHO, MU, LENGTH, D, eps) == pytest.approx(
+        2.0 * dp / q, rel=1e-3
+    )
+
+
+@pytest.mark.parametrize("Re", [1e4, 3e4, 1e5, 1e6])
+def test_slope_exponent_between_blasius_and_quadratic(Re: float) -> None:
+    # turbulent: Δp ∝ q^n, n = 2 + d ln f/d ln Re, from about 1.75 (smooth, Blasius f ∝ Re^−¼)
+    # to 2 (fully rough); near Re = 1e4 the Colebrook curve is a little steeper than Blasius,
+    # so the lower bound is 1.7
+    q = _q_for_reynolds(Re)
+    n = (
+        q
+        * pipe_pressure_drop_slope(q, RHO, MU, LENGTH, D, EPS)
+        / pipe_pressure_drop(q, RHO, MU, LENGTH, D, EPS)
+    )
+    assert 1.7 < n < 2.0
+
+
+@pytest.mark.parametrize("q", [2.5e-4, 1e-3, 2e-3])
+def test_slope_agrees_with_richardson_difference(q: float) -> None:
+    # independent derivative: Richardson extrapolation of central differences with h = 1e-3·q
+    def dp(x: float) -> float:
+        return pipe_pressure_drop(x, RHO, MU, LENGTH, D, EPS)
+
+    h = 1e-3 * q
+    d1 = (dp(q + h) - dp(q - h)) / (2 * h)
+    d2 = (dp(q + h / 2) - dp(q - h / 2)) / h
+    expected = (4.0 * d2 - d1) / 3.0
+    assert pipe_pressure_drop_slope(q, RHO, MU, LENGTH, D, EPS) == pytest.approx(expected, rel=1e-7)
+
+
+# --------------------------------------------------------------------------------------------
+# nozzle
+
+
+def test_nozzle_area_by_hand() -> None:
+    # 8 nozzles of 2.25 mm: 8·π·(2.25e-3)²/4 = 8·3.97608e-6 = 3.18086e-5 m²
+    nozzle = NozzleConfig(count=8, diameter_mm=2.25, discharge_coefficient=0.7)
+    area = nozzle.A0
+    assert area == pytest.approx(3.18086e-5, rel=1e-5)
+    assert nozzle.p_back == 0.0
+
+
+def test_orifice_flow_by_hand() -> None:
+    # 1 MPa, ρ = 800: v = √(2·1e6/800) = 50 m/s; q = 0.7·30e-6·50 = 1.05e-3 m³/s = 63 L/min
+    assert orifice_flow(1e6, 800.0, 0.7, 30e-6) == pytest.approx(1.05e-3, rel=1e-14)
+    assert orifice_flow(-1e6, 800.0, 0.7, 30e-6) == pytest.approx(-1.05e-3, rel=1e-14)
+
+
+@pytest.mark.parametrize("q", [1e-6, 2.5e-4, 1e-3, -7e-4])
+def test_orifice_round_trip(q: float) -> None:
+    cd, a0 = 0.7, 3.18086e-5
+    dp = orifice_pressure_drop(q, RHO, cd, a0)
+    # inverse law by hand: Δp = ρ q|q| /(2 (C_d A_0)²)
+    assert dp == pytest.approx(RHO * q * abs(q) / (2.0 * (cd * a0) ** 2), rel=1e-14)
+    assert orifice_flow(dp, RHO, cd, a0) == pytest.approx(q, rel=1e-12)
+
+
+@pytest.mark.parametrize("q", [2.5e-4, 1e-3])
+def test_orifice_resistance_is_twice_dp_over_q(q: float) -> None:
+    cd, a0 = 0.7, 3.18086e-5
+    dp = RHO * q**2 / (2.0 * (cd * a0) ** 2)
+    assert orifice_resistance(q, RHO, cd, a0) == pytest.approx(2.0 * dp / q, rel=1e-13)
+    # and it is the derivative of the square law (central difference exact for a parabola)
+    h = 1e-3 * q
+    fd = (orifice_pressure_drop(q + h, RHO, cd, a0) - orifice_pressure_drop(q - h, RHO, cd, a0)) / (
+        2 * h
+    )
+    assert orifice_resistance(q, RHO, cd, a0) == pytest.approx(fd, rel=1e-8)
+
+
+# --------------------------------------------------------------------------------------------
+# pump
+
+
+def test_pump_geometric_flow() -> None:
+    # 50 cm³/rev at 1450 rpm: 50e-3 L · 1450 /min = 72.5 L/min
+    omega = TWO_PI * 1450.0 / 60.0
+    assert pump_flow(omega, 0.0, 50e-6, 1e-10) * LPM_PER_M3S == pytest.approx(72.5, rel=1e-13)
+
+
+def test_pump_leakage_from_config() -> None:
+    pump = PumpConfig(
+        displacement_cm3_per_rev=50.0,
+        leakage_Lpm_per_MPa=7.0,
+        leakage_ref_viscosity_mPa_s=1.0,
+        mechanical_efficiency=0.9,
+    )
+    # 7 (L/min)/MPa = 7/60000 m³/s per 1e6 Pa = 1.16667e-10 m³/(s·Pa)
+    assert pump.C_p_ref == pytest.approx(7.0 / 60_000.0 / 1e6, rel=1e-14)
+    assert pump.D_p == pytest.approx(50e-6, rel=1e-14)
+    assert pump.mu_ref == pytest.approx(1e-3, rel=1e-14)
+    omega = TWO_PI * 1450.0 / 60.0
+    # at 1 MPa and the reference viscosity: 72.5 − 7 = 65.5 L/min
+    q = pump_flow(omega, 1e6, pump.D_p, pump.C_p_ref) * LPM_PER_M3S
+    assert q == pytest.approx(65.5, rel=1e-12)
+
+
+@pytest.mark.parametrize("mu", [0.5e-3, 1e-3, 2.3e-3, 4e-3])
+def test_leakage_inversely_proportional_to_viscosity(mu: float) -> None:
+    c_ref, mu_ref = 1.16667e-10, 1e-3
+    # laminar clearance flow: C_p·μ is constant
+    assert leakage_coefficient(mu, c_ref, mu_ref) * mu == pytest.approx(c_ref * mu_ref, rel=1e-14)
+    assert leakage_coefficient(mu_ref / 2.0, c_ref, mu_ref) == pytest.approx(2.0 * c_ref, rel=1e-14)
+
+
+def test_pump_torque_by_hand_and_energy_balance() -> None:
+    # D·p/(2π·η) = 50e-6·1e6/(2π·0.9) = 50/5.65487 = 8.8419 N·m
+    assert pump_torque(1e6, 50e-6, 0.9) == pytest.approx(8.8419, rel=1e-4)
+    # shaft power times η_m equals the ideal hydraulic power D·n·p
+    p, omega, eta = 0.8e6, TWO_PI * 1400.0 / 60.0, 0.88
+    shaft_power = pump_torque(p, 50e-6, eta) * omega
+    assert shaft_power * eta == pytest.approx(50e-6 * (1400.0 / 60.0) * p, rel=1e-13)
+
+
+# --------------------------------------------------------------------------------------------
+# motor and shaft
+
+T_RATED = 7500.0 / (TWO_PI * 1450.0 / 60.0)  # 7500/151.844 = 49.393 N·m
+SLIP_SPEED = TWO_PI * 50.0 / 2 - TWO_PI * 1450.0 / 60.0  # 157.080 − 151.844 = 5.236 rad/s
+
+
+def test_slip_torque_constant_from_nameplate() -> None:
+    assert pytest.approx(49.393, rel=1e-4) == T_RATED
+    assert pytest.approx(5.2360, rel=1e-4) == SLIP_SPEED
+    # 49.393/5.2360 = 9.4333 N·m·s/rad
+    assert slip_torque_constant(7500.0, 1450.0, 50.0, 2) == pytest.approx(9.4333, rel=1e-4)
+    assert slip_torque_constant(7500.0, 1450.0, 50.0, 2) == pytest.approx(
+        T_RATED / SLIP_SPEED, rel=1e-13
+    )
+    motor = MotorConfig(
+        rated_power_kW=7.5, rated_speed_rpm=1450.0, pole_pairs=2, inertia_kg_m2=0.06
+    )
+    k_t = motor.K_T
+    assert k_t == pytest.approx(T_RATED / SLIP_SPEED, rel=1e-13)
+
+
+def test_torque_linear_in_slip_reproduces_nameplate() -> None:
+    K_T = T_RATED / SLIP_SPEED
+    omega_rated = TWO_PI * 1450.0 / 60.0
+    assert electromagnetic_torque(50.0, omega_rated, K_T, 2) == pytest.approx(T_RATED, rel=1e-12)
+    # no torque at synchronous speed, braking above it
+    assert electromagnetic_torque(50.0, TWO_PI * 25.0, K_T, 2) == pytest.approx(0.0, abs=1e-12)
+    assert electromagnetic_torque(50.0, TWO_PI * 25.0 + 1.0, K_T, 2) == pytest.approx(-K_T)
+
+
+def _circuit_torque(U1: float, f: float, slip_speed: float, R_re: float, m_p: int) -> float:
+    """Air-gap torque of the equivalent circuit at small slip, independent of the code.
+
+    Rotor current I₂ ≈ U₁·s/R_re, air-gap power P = 3·U₁²·s/R_re, T = P/(ω₁/m_p), with slip
+    s = slip_speed/(ω₁/m_p).
+    """
+    omega_sync = TWO_PI * f / m_p
+    s = slip_speed / omega_sync
+    return 3.0 * U1**2 * s / R_re / omega_sync
+
+
+def test_circuit_constant_consistent_with_nameplate() -> None:
+    K_int = 400.0 / math.sqrt(3.0) / 50.0  # 230.9 V phase at 50 Hz: 4.6188 V/Hz
+    # choose R_re so that the circuit delivers the rated torque at the rated slip:
+    # T = 3 U² s m_p/(ω₁ R_re)  →  R_re = 3 U² s m_p/(ω₁ T_rated) ≈ 0.687 Ω
+    U1, s = K_int * 50.0, (1500.0 - 1450.0) / 1500.0
+    R_re = 3.0 * U1**2 * s * 2 / (TWO_PI * 50.0 * T_RATED)
+    assert R_re == pytest.approx(0.687, rel=2e-3)
+    k_t = torque_constant_from_circuit(K_int, R_re, 2)
+    assert k_t == pytest.approx(slip_torque_constant(7500.0, 1450.0, 50.0, 2), rel=1e-12)
+    # constant V/f: the same slip speed gives the same torque at any frequency
+    for f in (10.0, 25.0, 50.0):
+        omega_m = TWO_PI * f / 2 - SLIP_SPEED
+        expected = _circuit_torque(K_int * f, f, SLIP_SPEED, R_re, 2)
+        assert electromagnetic_torque(f, omega_m, k_t, 2) == pytest.approx(expected, rel=1e-12)
+        assert expected == pytest.approx(T_RATED, rel=1e-12)
+
+
+def test_shaft_acceleration_by_hand() -> None:
+    # J ω̇ = T_e − B ω − T_load:  (49.393 − 0.02·151.844 − 8.842)/0.06 = 625.2 rad/s²
+    omega = TWO_PI * 1450.0 / 60.0
+    expected = (T_RATED - 0.02 * omega - 8.842) / 0.06
+    assert shaft_acceleration(T_RATED, 8.842, omega, 0.06, 0.02) == pytest.approx(
+        expected, rel=1e-14
+    )
+    assert expected == pytest.approx(625.2, rel=1e-3)
+    # balanced torques: no acceleration
+    assert shaft_acceleration(10.0 + 0.02 * omega, 10.0, omega, 0.06, 0.02) == pytest.approx(
+        0.0, abs=1e-12
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# drive
+
+
+@pytest.mark.parametrize(
+    ("u", "f"),
+    [(0.0, 10.0), (1.0, 10.0), (1.5, 15.0), (2.5, 25.0), (3.0, 30.0), (5.0, 50.0), (7.0, 50.0)],
+)
+def test_vfd_mapping_and_clipping(u: float, f: float) -> None:
+    # K_f = (50 − 10)/(5 − 1) = 10 Hz/V, f = 10 + 10(u − 1), clipped to 10…50 Hz
+    assert float(vfd_frequency_command(u, 1.0, 5.0, 10.0, 50.0)) == pytest.approx(f, rel=1e-14)
+
+
+def test_vfd_gain_from_config() -> None:
+    vfd = VFDConfig(f_min_Hz=10.0, f_max_Hz=50.0, lag_s=1.2)
+    assert vfd.K_f == pytest.approx(10.0, rel=1e-14)
+    vfd2 = VFDConfig(u_min_V=0.0, u_max_V=10.0, f_min_Hz=5.0, f_max_Hz=60.0, lag_s=1.0)
+    assert vfd2.K_f == pytest.approx(5.5, rel=1e-14)  # 55 Hz over 10 V
+
+
+def test_vfd_rate_first_order_lag() -> None:
+    # ḟ = (f* − f)/T: (15 − 10)/1.2 = 4.1667 Hz/s
+    assert vfd_frequency_rate(10.0, 15.0, 1.2) == pytest.approx(5.0 / 1.2, rel=1e-14)
+    assert vfd_frequency_rate(30.0, 30.0, 1.2) == 0.0
+
+
+def test_vfd_rate_limit() -> None:
+    # unlimited rate would be ±40 Hz/s; the 20 Hz/s ramp binds both ways
+    assert vfd_frequency_rate(10.0, 50.0, 1.0, max_rate=20.0) == 20.0
+    assert vfd_frequency_rate(50.0, 10.0, 1.0, max_rate=20.0) == -20.0
+    # inside the limit the lag is untouched: (12 − 10)/1 = 2 Hz/s
+    assert vfd_frequency_rate(10.0, 12.0, 1.0, max_rate=20.0) == pytest.approx(2.0, rel=1e-14)
+
+
+# --------------------------------------------------------------------------------------------
+# flowmeter
+
+
+def test_flowmeter_noise_statistics() -> None:
+    n, sigma, level = 400_000, 0.1, 30.0
+    y = measure_flow(np.full(n, level), noise_std=sigma, rng=np.random.default_rng(12345))
+    # sample mean: sd σ/√n; sample sd: relative sd 1/√(2(n−1)); allow 5 standard errors
+    assert abs(y.mean() - level) < 5.0 * sigma / math.sqrt(n)
+    assert y.std(ddof=1) == pytest.approx(sigma, rel=5.0 / math.sqrt(2.0 * (n - 1)))
+
+
+def test_flowmeter_quantisation_grid_and_error() -> None:
+    r = 0.05
+    x = np.linspace(10.0, 20.0, 10_001)
+    y = measure_flow(x, resolution=r)
+    k = y / r
+    assert np.max(np.abs(k - np.round(k))) < 1e-9  # every reading on the grid
+    assert np.max(np.abs(y - x)) <= r / 2.0 + 1e-12  # rounding to nearest
+
+
+def test_flowmeter_noise_then_quantisation_sheppard() -> None:
+    # quantising Gaussian noise with step r ≤ σ adds a nearly uniform error: var = σ² + r²/12
+    # (Sheppard's correction; the residual term ∝ exp(−2π²σ²/r²) ≈ 3e-9 here)
+    n, sigma, r = 400_000, 0.1, 0.1
+    y = measure_flow(np.full(n, 25.03), noise_std=sigma, resolution=r, rng=np.random.default_rng(7))
+    expected_var = sigma**2 + r**2 / 12.0  # 0.0108333, 8.3 % above σ²
+    # relative sd of a sample variance: √(2/(n−1)) = 0.22 %; allow 5 of them
+    assert y.var(ddof=1) == pytest.approx(expected_var, rel=5.0 * math.sqrt(2.0 / (n - 1)))
+
+
+def test_flowmeter_without_noise_is_identity() -> None:
+    x = np.array([1.0, 2.5, 99.99])
+    assert np.array_equal(measure_flow(x), x)
