@@ -229,6 +229,7 @@ def test_profile_file_missing_column_names_the_columns(tmp_path: Path):
 def test_main_turns_usage_errors_into_one_line(capsys):
     assert main(["plant", "info", "--fuel-temp", "warm"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error:") and err.count("\n") == 1
+    assert err.startswith("error:")
+    assert err.count("\n") == 1
     assert main(["plant", "info", "--no-such-option"]) == 2
     assert main(["--version"]) == 0
