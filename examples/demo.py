@@ -37,18 +37,10 @@ def main() -> None:
     console = Console()
     config = load_plant_config()
 
-    table = Table(title=f"reference plant, RP-3 fuel, operating point u = {U_ARTICLE} V")
-    for column in (
-        "fuel °C",
-        "q L/min",
-        "p_pump MPa",
-        "rpm",
-        "K (L/min)/V",
-        "T s",
-        "T_f s",
-        "delay s",
-        "t98 s",
-    ):
+    table = Table(
+        title=f"reference plant, RP-3 fuel, u = {U_ARTICLE} V (K in (L/min)/V, times in s)"
+    )
+    for column in ("fuel °C", "q L/min", "p MPa", "rpm", "K", "T", "T_f", "delay", "t98"):
         table.add_column(column, justify="right")
     models = {}
     for t_degC in TEMPERATURES_DEGC:

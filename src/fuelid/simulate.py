@@ -5,7 +5,8 @@ segment between input changes with LSODA (scipy's ``odeint``, which switches to 
 motor and hydraulic modes make the problem stiff) and the analytic Jacobian. The meter's dead time
 is applied exactly by evaluating the meter state at ``t_k − τ``; noise and quantisation are added
 to the sampled reading. The fuel temperature may follow a trajectory; it is held constant within
-each segment, and segments are at most ``temperature_step`` long while it changes.
+each segment, and a new segment starts whenever it has moved by ``temperature_resolution``
+(0.05 K by default: the flow error of holding it is then far below any meter's resolution).
 """
 
 from __future__ import annotations
@@ -127,7 +128,7 @@ def simulate(
     noise_std: float | None = None,
     resolution: float | None = None,
     seed: int | None = None,
-    temperature_step: float = 10.0,
+    temperature_resolution: float = 0.05,
     progress: ProgressCallback | None = None,
 ) -> SimulationResult:
     """Simulate the nonlinear plant and sample it as the PLC does.
@@ -152,8 +153,9 @@ def simulate(
         Quantisation step of the reading [m³/s]; the config's ``resolution_Lpm`` when None.
     seed : int, optional
         Seed of the noise, for reproducible logs.
-    temperature_step : float
-        Longest interval over which a changing fuel temperature is held constant [s].
+    temperature_resolution : float
+        Largest change of a varying fuel temperature within one integration segment [K]; the
+        plant uses the temperature at the middle of each segment.
     progress : callable, optional
         Called with the fraction of simulated time done, after every segment.
 
@@ -169,6 +171,10 @@ def simulate(
     """
     if not (math.isfinite(sample_time) and sample_time > 0.0):
         raise FuelidError(f"sample time must be positive, got {sample_time:g} s")
+    if not (math.isfinite(temperature_resolution) and temperature_resolution > 0.0):
+        raise FuelidError(
+            f"temperature resolution must be positive, got {temperature_resolution:g} K"
+        )
     if not (math.isfinite(control_period) and control_period >= 0.0):
         raise FuelidError(f"control period must be zero or positive, got {control_period:g} s")
     lo, hi = profile.u_range
@@ -190,7 +196,7 @@ def simulate(
     c0 = coefficients.at(float(temperature.at(0.0)))
     delay = c0.delay
     q_meter = _integrate(
-        applied, temperature, coefficients, time - delay, temperature_step, progress
+        applied, temperature, coefficients, time - delay, temperature_resolution, progress
     )
     meter = config.flowmeter
     std = meter.noise_std_Lpm / LPM_PER_M3S if noise_std is None else noise_std
@@ -224,13 +230,22 @@ class _CoefficientCache:
 
 
 def _segment_bounds(
-    profile: InputProfile, temperature: FuelTemperature, temperature_step: float
+    profile: InputProfile, temperature: FuelTemperature, resolution: float
 ) -> FloatArray:
-    """Times where the integration restarts: input changes, plus a grid while T_fuel changes."""
+    """Times where the integration restarts.
+
+    Every input change, and while T_fuel changes, every time it has moved by ``resolution`` [K]
+    since the last restart (found on a 0.1 s grid).
+    """
     bounds: list[FloatArray] = [profile.t, np.array([profile.duration])]
     if not temperature.is_constant:
-        n = max(1, math.ceil(profile.duration / temperature_step))
-        bounds.append(np.linspace(0.0, profile.duration, n + 1))
+        grid = np.linspace(0.0, profile.duration, max(2, math.ceil(profile.duration / 0.1) + 1))
+        T = np.asarray(temperature.at(grid), dtype=float)
+        cuts = [0]
+        for k in range(1, grid.size):
+            if abs(T[k] - T[cuts[-1]]) >= resolution:
+                cuts.append(k)
+        bounds.append(grid[cuts])
     return np.unique(np.round(np.concatenate(bounds), 12))
 
 
@@ -239,14 +254,14 @@ def _integrate(
     temperature: FuelTemperature,
     coefficients: _CoefficientCache,
     t_eval: FloatArray,
-    temperature_step: float,
+    temperature_resolution: float,
     progress: ProgressCallback | None,
 ) -> FloatArray:
     """Meter state q_m at the (sorted) times ``t_eval``; before t = 0 the plant is at rest."""
     c = coefficients.at(float(temperature.at(0.0)))
     x = steady_state(float(profile.u[0]), c).state
     out = np.full(t_eval.shape, x[4])
-    bounds = _segment_bounds(profile, temperature, temperature_step)
+    bounds = _segment_bounds(profile, temperature, temperature_resolution)
     total = float(bounds[-1])
     for a, b in itertools.pairwise(bounds):
         mid = 0.5 * (a + b)
