@@ -22,3 +22,7 @@ class OutOfRangeError(FuelidError):
 
 class DataError(FuelidError):
     """A data file or time series cannot be read, written or used."""
+
+
+class NotExcitingError(DataError):
+    """The data do not carry enough excitation to identify the requested model."""

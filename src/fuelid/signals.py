@@ -204,3 +204,89 @@ def numeric_column(frame: pd.DataFrame, name: str, source: str = "table") -> Flo
             f"first at data row {int(bad[0]) + 1}"
         )
     return values
+
+
+@dataclass(frozen=True)
+class IOData:
+    """One input and one output, uniformly sampled: what the estimators fit.
+
+    Parameters
+    ----------
+    u : array
+        Input samples (for the fuel loop the VFD command [V]), held between samples.
+    y : array
+        Output samples (the measured flow [L/min]).
+    sample_time : float
+        Sampling interval h [s]; sample k is at ``t0 + k·h``.
+    t0 : float
+        Time of the first sample [s].
+    u_unit, y_unit : str
+        Units of u and y (K is reported in y_unit/u_unit).
+    source : str
+        Where the data came from (file name), for messages.
+    notes : tuple of str
+        What loading and preprocessing did or noticed (warnings to pass on to the user).
+
+    Examples
+    --------
+    >>> d = IOData(u=[1.0, 1.0, 1.5], y=[10.0, 10.0, 10.2], sample_time=0.02)
+    >>> d.n_samples, d.t.tolist()
+    (3, [0.0, 0.02, 0.04])
+    """
+
+    u: FloatArray
+    y: FloatArray
+    sample_time: float
+    t0: float = 0.0
+    u_unit: str = "V"
+    y_unit: str = "L/min"
+    source: str = ""
+    notes: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        u = np.asarray(self.u, dtype=float)
+        y = np.asarray(self.y, dtype=float)
+        object.__setattr__(self, "u", u)
+        object.__setattr__(self, "y", y)
+        if u.ndim != 1 or u.shape != y.shape:
+            raise DataError("input and output must be one-dimensional and equally long")
+        if not (np.isfinite(self.sample_time) and self.sample_time > 0.0):
+            raise DataError(f"sample time must be positive, got {self.sample_time}")
+        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
+            raise DataError("input and output must be finite")
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples."""
+        return int(self.u.size)
+
+    @property
+    def t(self) -> FloatArray:
+        """Sample times [s]."""
+        return self.t0 + self.sample_time * np.arange(self.u.size)
+
+    def segment(self, start: int, stop: int | None = None) -> IOData:
+        """Samples ``start:stop`` as a new record (time origin kept)."""
+        return IOData(
+            u=self.u[start:stop],
+            y=self.y[start:stop],
+            sample_time=self.sample_time,
+            t0=self.t0 + start * self.sample_time,
+            u_unit=self.u_unit,
+            y_unit=self.y_unit,
+            source=self.source,
+            notes=self.notes,
+        )
+
+    def with_notes(self, *notes: str) -> IOData:
+        """The same record with more notes."""
+        return IOData(
+            self.u,
+            self.y,
+            self.sample_time,
+            self.t0,
+            self.u_unit,
+            self.y_unit,
+            self.source,
+            self.notes + notes,
+        )
