@@ -263,7 +263,7 @@ class IOData:
     @property
     def t(self) -> FloatArray:
         """Sample times [s]."""
-        return self.t0 + self.sample_time * np.arange(self.u.size)
+        return self.t0 + self.sample_time * np.arange(self.u.size, dtype=np.float64)
 
     def segment(self, start: int, stop: int | None = None) -> IOData:
         """Samples ``start:stop`` as a new record (time origin kept)."""
