@@ -1,0 +1,130 @@
+"""Output-error estimator: exact recovery, recovery within the Cramér–Rao bound, coverage.
+
+Also the initial state and refusals. Truth is simulated from the fitted model structure (exact
+ZOH), so any error is the estimator's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fuelid.errors import NotExcitingError
+from fuelid.identify.discrete import discretise
+from fuelid.identify.oe import OutputError, cramer_rao_bound, nrmse_fit, simulate_model
+from fuelid.model import ProcessModel
+from fuelid.signals import IOData
+
+H = 0.02
+# the reference plant's equivalent model at 3 V, 20 °C (fuelid plant info): K, T, T_f, delay
+TRUTH = ProcessModel(K=13.12, T=1.268, T_f=0.3, delay=0.2)
+
+
+def _steps(seed: int, n_steps: int = 12, dwell: float = 10.0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    levels = np.r_[3.0, rng.uniform(2.5, 3.5, n_steps - 1)]
+    return np.repeat(levels, round(dwell / H))
+
+
+def test_discretisation_is_exact_for_a_fractional_delay():
+    # a step through the ZOH model equals the continuous step response at every sample
+    lags, delay = [1.268, 0.3], 0.237
+    n = 500
+    y = discretise(lags, delay, H).response(np.ones(n))
+    exact = ProcessModel(K=1.0, T=1.268, T_f=0.3, delay=delay).step_response(np.arange(n) * H)
+    assert np.max(np.abs(y - exact)) < 1e-12
+
+
+def test_noise_free_recovery_is_exact():
+    u = _steps(0)
+    y = 40.0 + simulate_model(TRUTH, u, H)
+    est = OutputError(order=1, T_f=0.3).fit(IOData(u=u, y=y, sample_time=H))
+    assert pytest.approx(TRUTH.K, rel=1e-7) == est.K_
+    assert pytest.approx(TRUTH.T, rel=1e-6) == est.T_
+    assert est.delay_ == pytest.approx(TRUTH.delay, abs=1e-6)
+    assert est.offset_ == pytest.approx(40.0, abs=1e-6)
+    assert est.fit_percent_ == pytest.approx(100.0, abs=1e-4)
+    assert est.fixed_ == ("T2", "T_f")
+
+
+def test_recovery_within_cramer_rao_bound():
+    sigma = 0.1
+    u = _steps(1)
+    names, crb = cramer_rao_bound(TRUTH, u, H, sigma, initial="estimate")
+    sd = dict(zip(names, np.sqrt(np.diag(crb)), strict=True))
+    rng = np.random.default_rng(7)
+    y = 40.0 + simulate_model(TRUTH, u, H) + rng.normal(0.0, sigma, u.size)
+    est = OutputError(order=1, T_f=0.3, delay=0.2).fit(IOData(u=u, y=y, sample_time=H))
+    # within four bound standard deviations (fails by chance with probability ~6e-5 per param)
+    assert abs(est.K_ - TRUTH.K) < 4 * sd["K"]
+    assert abs(est.T_ - TRUTH.T) < 4 * sd["T"]
+    # the estimator's own standard errors agree with the bound (σ̂ ≈ σ, same Jacobian)
+    assert est.stderr_["K"] == pytest.approx(sd["K"], rel=0.1)
+    assert est.stderr_["T"] == pytest.approx(sd["T"], rel=0.1)
+    assert est.sigma_ == pytest.approx(sigma, rel=0.05)
+    assert est.stderr_["delay"] is None
+
+
+def test_confidence_intervals_cover_at_about_their_nominal_rate():
+    # 60 seeded records: a 95 % interval misses about 3 times; allow 0…8 (binomial 99.9 % range)
+    sigma, u = 0.2, _steps(2, n_steps=6)
+    y0 = simulate_model(TRUTH, u, H)
+    rng = np.random.default_rng(11)
+    misses = 0
+    for _ in range(60):
+        y = y0 + rng.normal(0.0, sigma, u.size)
+        est = OutputError(order=1, T_f=0.3, delay=0.2).fit(IOData(u=u, y=y, sample_time=H))
+        misses += abs(est.T_ - TRUTH.T) > 1.96 * est.stderr_["T"]
+    assert misses <= 8
+
+
+def test_record_not_at_rest_is_not_fitted_as_if_it_were():
+    # the plant was at rest at u = 2.0 before the record; the record starts at u = 3.0
+    u = _steps(3)
+    u_pre = np.full(round(30 / H), 2.0)
+    full = simulate_model(TRUTH, np.r_[u_pre, u], H)[u_pre.size :]
+    data = IOData(u=u, y=full, sample_time=H)
+    at_rest = OutputError(order=1, T_f=0.3, delay=0.2, initial="rest").fit(data)
+    estimated = OutputError(order=1, T_f=0.3, delay=0.2).fit(data)
+    told = OutputError(order=1, T_f=0.3, delay=0.2, u_before=2.0).fit(data)
+    # the free-response basis cannot represent the first θ = 0.2 s, while the step into the
+    # record (2 → 3 V at t = 0) is still in the dead time: a small, bounded error
+    assert pytest.approx(TRUTH.K, rel=1e-3) == estimated.K_
+    assert pytest.approx(TRUTH.K, rel=1e-6) == told.K_
+    assert told.fit_percent_ > 99.99
+    assert at_rest.fit_percent_ < estimated.fit_percent_ - 1.0
+
+
+def test_order_auto_prefers_the_true_structure():
+    truth2 = ProcessModel(K=2.0, T=3.0, T2=1.0, delay=0.5)
+    rng = np.random.default_rng(5)
+    u = np.repeat(rng.choice([0.0, 1.0], 40), 250)
+    y = simulate_model(truth2, u, 0.05) + rng.normal(0.0, 0.01, u.size)
+    est = OutputError(order="auto", delay=0.5).fit(IOData(u=u, y=y, sample_time=0.05))
+    assert est.aic_[2] < est.aic_[1]
+    assert pytest.approx(1.0, rel=0.05) == est.T2_
+    assert pytest.approx(3.0, rel=0.05) == est.T_
+
+
+def test_warm_start_from_a_previous_model():
+    u = _steps(4)
+    y = simulate_model(TRUTH, u, H)
+    est = OutputError(order=1, T_f=0.3, delay=0.2).fit(
+        IOData(u=u, y=y, sample_time=H), init=ProcessModel(K=10.0, T=2.0)
+    )
+    assert pytest.approx(TRUTH.T, rel=1e-6) == est.T_
+
+
+def test_predict_and_nrmse():
+    u = _steps(6)
+    y = 12.0 + simulate_model(TRUTH, u, H)
+    data = IOData(u=u, y=y, sample_time=H)
+    est = OutputError(order=1, T_f=0.3, delay=0.2).fit(data)
+    assert nrmse_fit(y, est.predict(data)) == pytest.approx(100.0, abs=1e-4)
+    assert est.to_control().dcgain() == pytest.approx(TRUTH.K, rel=1e-7)
+
+
+def test_constant_input_is_refused():
+    data = IOData(u=np.full(500, 3.0), y=np.full(500, 40.0), sample_time=H)
+    with pytest.raises(NotExcitingError, match="never changes"):
+        OutputError().fit(data)
