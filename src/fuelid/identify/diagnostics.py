@@ -1,0 +1,181 @@
+"""Diagnostics of a fitted model.
+
+Residual whiteness, input–residual correlation, steady-state error on steps, feedback
+(closed-loop) suspicion and sample-time advice.
+
+The correlation tests follow Ljung, *System Identification* (2nd ed., 1999), §16.6: for white
+residuals uncorrelated with the input, every normalised correlation is asymptotically N(0, 1/N),
+so ±1.96/√N bounds 95 % of them, and N·Σr² over M lags is χ²(M).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.stats
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class CorrelationTest:
+    """Normalised correlation at lags, with its 95 % bound and a χ² whiteness statistic."""
+
+    lags: FloatArray
+    """Lags [samples]."""
+    values: FloatArray
+    """Normalised correlation at each lag [-]."""
+    bound: float
+    """95 % confidence bound ±1.96/√N [-]."""
+    statistic: float
+    """N·Σ r² over the lags tested (lag 0 excluded for the autocorrelation) [-]."""
+    p_value: float
+    """Probability of a statistic this large for white, uncorrelated residuals [-]."""
+
+    @property
+    def passed(self) -> bool:
+        """True unless the χ² test rejects at the 1 % level."""
+        return self.p_value >= 0.01
+
+    @property
+    def fraction_outside(self) -> float:
+        """Share of lags outside the bound (about 5 % expected when the test passes)."""
+        return float(np.mean(np.abs(self.values) > self.bound))
+
+
+def _normalised_xcorr(a: FloatArray, b: FloatArray, lags: FloatArray) -> FloatArray:
+    """r_ab(τ) = Σ_k a[k+τ]·b[k] / (N·σ_a·σ_b) for integer lags τ."""
+    a = a - a.mean()
+    b = b - b.mean()
+    n = a.size
+    denom = n * a.std() * b.std()
+    out = np.empty(lags.size)
+    for i, lag in enumerate(lags.astype(int)):
+        if lag >= 0:
+            out[i] = a[lag:] @ b[: n - lag]
+        else:
+            out[i] = a[: n + lag] @ b[-lag:]
+    return out / denom if denom > 0.0 else np.zeros(lags.size)
+
+
+def residual_whiteness(residuals: ArrayLike, max_lag: int = 25) -> CorrelationTest:
+    """Autocorrelation of the residuals at lags 1…max_lag.
+
+    Examples
+    --------
+    >>> e = np.random.default_rng(0).normal(size=5000)
+    >>> residual_whiteness(e).passed
+    True
+    """
+    e = np.asarray(residuals, dtype=float)
+    lags = np.arange(1, max_lag + 1, dtype=float)
+    r = _normalised_xcorr(e, e, lags)
+    n = e.size
+    stat = float(n * np.sum(r**2))
+    return CorrelationTest(
+        lags, r, 1.96 / math.sqrt(n), stat, float(scipy.stats.chi2.sf(stat, lags.size))
+    )
+
+
+def input_residual_correlation(
+    u: ArrayLike, residuals: ArrayLike, max_lag: int = 25
+) -> CorrelationTest:
+    """Cross-correlation r_εu(τ) of residuals ε[k+τ] with input u[k], τ = −max_lag…max_lag.
+
+    Positive lags (residual after the input) test for unmodelled dynamics; significant negative
+    lags (input after the residual) mean the input reacts to the output: feedback.
+    The input is differenced first (a held command is strongly autocorrelated, which would inflate
+    the correlations; its changes are nearly white in a test sequence).
+    """
+    du = np.diff(np.asarray(u, dtype=float))
+    e = np.asarray(residuals, dtype=float)[1:]
+    lags = np.arange(-max_lag, max_lag + 1, dtype=float)
+    r = _normalised_xcorr(e, du, lags)
+    n = e.size
+    positive = r[lags >= 0]
+    stat = float(n * np.sum(positive**2))
+    return CorrelationTest(
+        lags, r, 1.96 / math.sqrt(n), stat, float(scipy.stats.chi2.sf(stat, positive.size))
+    )
+
+
+def feedback_suspected(test: CorrelationTest) -> bool:
+    """True when the residual correlates with LATER inputs beyond chance (χ², 1 % level)."""
+    negative = test.values[test.lags < 0]
+    n = (1.96 / test.bound) ** 2
+    stat = float(n * np.sum(negative**2))
+    return float(scipy.stats.chi2.sf(stat, negative.size)) < 0.01
+
+
+@dataclass(frozen=True)
+class StepError:
+    """Steady-state error of the model at the end of one constant-input plateau."""
+
+    t_end: float
+    """End of the plateau [s]."""
+    measured: float
+    """Mean measured output over the plateau's last fifth [output unit]."""
+    model: float
+    """Mean model output over the same samples [output unit]."""
+
+    @property
+    def error_percent(self) -> float:
+        """100·|model − measured|/|measured| (the article's criterion: about 1 %)."""
+        return (
+            100.0 * abs(self.model - self.measured) / abs(self.measured)
+            if self.measured
+            else math.nan
+        )
+
+
+def steady_state_errors(
+    u: ArrayLike, y: ArrayLike, y_hat: ArrayLike, sample_time: float, settle: float
+) -> list[StepError]:
+    """Steady-state error at the end of every plateau that lasts longer than ``settle`` [s].
+
+    Examples
+    --------
+    >>> u = np.repeat([1.0, 2.0], 100)
+    >>> errs = steady_state_errors(u, 10 * u, 10.1 * u, 0.1, 5.0)
+    >>> [round(e.error_percent, 6) for e in errs]
+    [1.0, 1.0]
+    """
+    u = np.asarray(u, dtype=float)
+    y = np.asarray(y, dtype=float)
+    y_hat = np.asarray(y_hat, dtype=float)
+    edges = np.r_[0, np.flatnonzero(np.diff(u) != 0.0) + 1, u.size]
+    out = []
+    for a, b in itertools.pairwise(edges):
+        if (b - a) * sample_time < settle:
+            continue
+        tail = slice(b - max(1, (b - a) // 5), b)
+        out.append(
+            StepError((b - 1) * sample_time, float(y[tail].mean()), float(y_hat[tail].mean()))
+        )
+    return out
+
+
+def sample_time_advice(settling_time: float, sample_time: float) -> str | None:
+    """Advice when the settling time spans too few or very many samples (None when fine).
+
+    theory.md: a settling time over 60–120 samples is comfortable; the article's 1 s period gives
+    only 5–6, one reason to fit the raw PLC samples.
+    """
+    if not (math.isfinite(settling_time) and settling_time > 0.0):
+        return None
+    per_settle = settling_time / sample_time
+    if per_settle < 20:
+        return (
+            f"the settling time ({settling_time:.3g} s) spans only {per_settle:.1f} samples: "
+            "fit the raw PLC samples (e.g. 0.02 s) rather than decimated data"
+        )
+    if per_settle > 5000:
+        return (
+            f"the settling time spans {per_settle:.0f} samples: decimating (with anti-alias "
+            "filtering) would fit as well and faster"
+        )
+    return None
