@@ -1,0 +1,545 @@
+r"""The source article's method: truncated step-response least squares, then K and T by Newton.
+
+Stage 1 (theory.md §3.1). The input is held between control periods, so it is a sum of steps;
+with the unit step response sampled at the control period, :math:`a_i = s(i\,T_s)`, and N chosen
+so that the response has settled after N periods (:math:`a_i = a_N` for i ≥ N), superposition
+gives, in deviations from the initial steady state,
+
+.. math:: y(k) = \sum_{i=1}^{N-1} a_i\,\Delta u(k-i) + a_N\,u(k-N) + e(k),
+          \qquad \Delta u(k) = u(k) - u(k-1),
+
+for the rows k = N … n−1 (each needs N past inputs). The rows are stacked into
+:math:`Y = \Phi\theta + e`, :math:`\theta = [a_1 \dots a_N]^T`, and solved by least squares.
+
+Stage 2. The model step response with the flowmeter's T_f and dead time τ known,
+
+.. math:: s(t) = K\left[1 - \frac{T e^{-t'/T} - T_f e^{-t'/T_f}}{T - T_f}\right],
+          \qquad t' = t - \tau \;(s = 0 \text{ for } t' \le 0),
+
+is fitted to :math:`\hat a_i` at :math:`t_i = i\,T_s` (K(1 − e^(−t'/T)) when T_f = 0, and the
+repeated-root limit when T → T_f). K enters linearly and is eliminated in closed form for each T;
+T solves the nonlinear normal equation of the concentrated cost by a safeguarded Newton
+iteration.
+
+Choices made here (the article's equations are lost; theory.md leaves these open):
+
+- **Deviations.** u is taken relative to ``u0 = u[0]`` and y relative to ``y0``, the mean of y
+  over the samples up to and including the first input change (the output cannot react at the
+  sample where the input changes: a_0 = s(0) = 0). The record must start at rest; the plant is
+  assumed to have been at rest at u0 before it (Δu = 0 before the record).
+- **Rows used.** Every row k = N … n−1 whose regressor is not identically zero. Rows with some
+  input change in their window (the *exciting* rows) inform a_1 … a_{N−1}; steady rows after a
+  change, [0 … 0, u(k−N) − u0], are exact equations for a_N (the static gain) and are kept.
+  Only all-zero rows (steady at u0) are dropped: they carry no information on θ. Both counts
+  are reported (``n_rows_used_``, ``n_exciting_rows_``).
+- **Refusal.** :class:`~fuelid.errors.NotExcitingError` with the reason when the input is
+  constant, the record is too short, rank(Φ) < N (the unexcited coefficients are named) or the
+  condition number of Φ exceeds ``min_condition``.
+- **Known weakness** (measured, theory.md): if the true response has not settled at N·T_s, the
+  truncation biases a_N and hence K and T whatever the noise level; a warning is issued when the
+  fitted model's 98 % settling time exceeds N·T_s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import control
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+from numpy.typing import ArrayLike, NDArray
+
+from fuelid import lti
+from fuelid.errors import FuelidError, NotExcitingError
+from fuelid.model import ProcessModel
+from fuelid.signals import IOData
+
+FloatArray = NDArray[np.float64]
+
+#: relative gap |T − T_f|/T_f below which the shape uses its Taylor series about T = T_f
+_NEAR_TF = 1e-3
+#: N above which the method is warned to be a poor fit for the sample time
+_MANY_COEFFICIENTS = 60
+#: search range of T relative to T_s (lower) and N·T_s (upper)
+_T_LOWER, _T_UPPER = 1e-3, 1e3
+#: Newton: maximum iterations, step limit in ln T, convergence tolerance in ln T
+_MAX_ITER, _MAX_STEP, _TOL = 100, 1.0, 1e-13
+
+
+def step_shape(t: ArrayLike, T: float, T_f: float = 0.0, delay: float = 0.0) -> FloatArray:
+    """Unit-gain step response of e^(−τs)/((T s+1)(T_f s+1)) at the times ``t``.
+
+    Parameters
+    ----------
+    t : array
+        Times after the step [s].
+    T : float
+        Process time constant [s], > 0.
+    T_f : float
+        Flowmeter time constant [s], ≥ 0 (0: first order).
+    delay : float
+        Dead time τ [s].
+
+    Returns
+    -------
+    ndarray
+        s(t)/K [-], 0 for t ≤ τ; robust for T close to or equal to T_f.
+
+    Examples
+    --------
+    >>> [round(float(v), 6) for v in step_shape([0.5, 2.0], T=1.0, delay=1.0)]
+    [0.0, 0.632121]
+    >>> a = step_shape([3.0], T=2.0, T_f=2.0)  # repeated root: 1 − (1 + t/T)·e^(−t/T)
+    >>> round(float(a[0]), 9) == round(1 - 2.5 * math.exp(-1.5), 9)
+    True
+    """
+    x = np.maximum(np.asarray(t, dtype=float) - delay, 0.0)
+    return _shape(x, T, T_f)[0]
+
+
+def _shape(x: FloatArray, T: float, T_f: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Unit-gain shape g(x; T) and its first two derivatives with respect to T.
+
+    ``x`` is the time since the delayed step [s] (≥ 0). With h(T) = T·e^(−x/T) the shape is
+    g = 1 − D, D = (h(T) − h(T_f))/(T − T_f), a divided difference; near T = T_f it is evaluated
+    from its Taylor series about T_f (cancellation-free), at T_f = 0 it is 1 − e^(−x/T).
+    """
+    if T_f == 0.0:
+        z = x / T
+        e = np.exp(-z)
+        return 1.0 - e, -e * z / T, -e * z * (z - 2.0) / T**2
+    delta = T - T_f
+    if abs(delta) < _NEAR_TF * T_f:
+        # derivatives of h at T_f: h1 = E(1+z), h2 = E z²/T_f, h3 = E z²(z−3)/T_f²,
+        # h4 = E z²(z²−8z+12)/T_f³ with z = x/T_f, E = e^(−z)
+        z = x / T_f
+        e = np.exp(-z)
+        h1 = e * (1.0 + z)
+        h2 = e * z**2 / T_f
+        h3 = e * z**2 * (z - 3.0) / T_f**2
+        h4 = e * z**2 * (z**2 - 8.0 * z + 12.0) / T_f**3
+        d0 = h1 + delta * h2 / 2.0 + delta**2 * h3 / 6.0 + delta**3 * h4 / 24.0
+        d1 = h2 / 2.0 + delta * h3 / 3.0 + delta**2 * h4 / 8.0
+        d2 = h3 / 3.0 + delta * h4 / 4.0
+        return 1.0 - d0, -d1, -d2
+    z = x / T
+    e = np.exp(-z)
+    h_t = T * e
+    h1_t = e * (1.0 + z)
+    h2_t = e * z**2 / T
+    d0 = (h_t - T_f * np.exp(-x / T_f)) / delta
+    d1 = (h1_t - d0) / delta
+    d2 = (h2_t - 2.0 * d1) / delta
+    return 1.0 - d0, -d1, -d2
+
+
+@dataclass
+class _Profile:
+    """Concentrated cost J(φ) = min_K Σ(â − K g)², φ = ln T, with its derivatives in φ."""
+
+    cost: float
+    grad: float
+    hess: float
+    K: float
+    g: FloatArray
+    g1: FloatArray
+
+
+def _profile(a: FloatArray, x: FloatArray, T: float, T_f: float) -> _Profile:
+    g, g1, g2 = _shape(x, T, T_f)
+    Q = float(g @ g)
+    if Q <= 0.0:
+        return _Profile(float(a @ a), 0.0, 0.0, 0.0, g, g1)
+    P = float(a @ g)
+    K = P / Q
+    P1, P2 = float(a @ g1), float(a @ g2)
+    Q1, Q2 = 2.0 * float(g @ g1), 2.0 * float(g1 @ g1 + g @ g2)
+    r = a - K * g
+    dJ = -2.0 * K * P1 + K**2 * Q1  # dJ/dT (envelope theorem: K(T) is optimal)
+    dK = (P1 - K * Q1) / Q
+    d2J = -2.0 * dK * P1 - 2.0 * K * P2 + 2.0 * K * dK * Q1 + K**2 * Q2
+    return _Profile(float(r @ r), T * dJ, T**2 * d2J + T * dJ, K, g, g1)
+
+
+def _cost(a: FloatArray, x: FloatArray, T: float, T_f: float) -> float:
+    g = _shape(x, T, T_f)[0]
+    Q = float(g @ g)
+    K = float(a @ g) / Q if Q > 0.0 else 0.0
+    r = a - K * g
+    return float(r @ r)
+
+
+def _initial_T(a: FloatArray, t: FloatArray, T_f: float, delay: float, T_s: float) -> float:
+    """T from the time â first reaches 63 % of â_N (minus the known lags), at least T_s/10."""
+    if a[-1] == 0.0:
+        return float(t[-1]) / 4.0
+    r = np.concatenate(([0.0], a / a[-1]))
+    tt = np.concatenate(([0.0], t))
+    above = np.flatnonzero(r >= 1.0 - math.exp(-1.0))
+    if above.size == 0 or above[0] == 0:
+        return float(t[-1]) / 4.0
+    i = int(above[0])
+    frac = (1.0 - math.exp(-1.0) - r[i - 1]) / (r[i] - r[i - 1])
+    t63 = float(tt[i - 1] + frac * (tt[i] - tt[i - 1]))
+    return max(t63 - delay - T_f, 0.1 * T_s)
+
+
+@dataclass
+class StepResponseLS:
+    r"""The article's two-stage estimator of K·e^(−τs)/((T s+1)(T_f s+1)), T_f and τ known.
+
+    Parameters
+    ----------
+    N : int or None
+        Number of step-response coefficients (the response must have settled after N·T_s).
+    T_f : float
+        Flowmeter time constant [s], a fixed prior (0: first-order model).
+    delay : float
+        Dead time τ [s], a fixed prior.
+    settling_time : float or None
+        98 % settling time of a prior model [s] (e.g. the plant TOML's); used for
+        ``N = ceil(settling_time / T_s)`` when N is not given.
+    min_condition : float
+        Largest accepted condition number of the regressor matrix Φ (a bound, despite the name).
+
+    Attributes
+    ----------
+    a_, a_stderr_ : ndarray
+        Step-response coefficients a_1 … a_N [output unit / input unit] and their standard errors.
+    cov_a_ : ndarray
+        Covariance σ²(ΦᵀΦ)⁻¹ of ``a_`` (NaN when the rows leave no degree of freedom).
+    K_, T_ : float
+        Fitted static gain [output unit / input unit] and time constant [s].
+    K_stderr_, T_stderr_ : float
+        Their standard errors, ``cov_a_`` propagated through the stage-2 fit (linearised).
+    T_f_, delay_ : float
+        The priors used [s].
+    N_ : int
+        Number of coefficients used.
+    offset_, u0_ : float
+        Output and input at the initial steady state (deviations are taken from these).
+    n_rows_used_, n_exciting_rows_ : int
+        Regression rows used, and how many of them contain an input change in their window.
+    condition_number_ : float
+        Condition number of the regressor matrix.
+    residual_std_ : float
+        Standard deviation of the stage-1 residuals [output unit].
+    fit_rms_ : float
+        RMS of â − s(t_i) in stage 2 [output unit / input unit].
+    newton_iterations_ : int
+        Newton iterations of stage 2.
+    model_ : ProcessModel
+        The fitted model.
+    warnings_ : list of str
+        The data's notes, then what the fit noticed (truncation bias, …).
+
+    Examples
+    --------
+    >>> from fuelid.model import ProcessModel
+    >>> u = np.repeat([0.0, 1.0, 0.0, 2.0, 1.0], 10)
+    >>> s = ProcessModel(K=2.0, T=1.5).step_response(np.arange(50.0))
+    >>> y = 5.0 + np.convolve(np.diff(u, prepend=0.0), s)[:50]
+    >>> est = StepResponseLS(N=20).fit(IOData(u=u, y=y, sample_time=1.0))
+    >>> round(est.K_, 4), round(est.T_, 4), est.warnings_
+    (2.0, 1.5, [])
+    """
+
+    N: int | None = None
+    T_f: float = 0.0
+    delay: float = 0.0
+    settling_time: float | None = None
+    min_condition: float = 1e8
+
+    a_: FloatArray = field(init=False, repr=False)
+    a_stderr_: FloatArray = field(init=False, repr=False)
+    cov_a_: FloatArray = field(init=False, repr=False)
+    K_: float = field(init=False, default=math.nan)
+    T_: float = field(init=False, default=math.nan)
+    K_stderr_: float = field(init=False, default=math.nan)
+    T_stderr_: float = field(init=False, default=math.nan)
+    T_f_: float = field(init=False, default=math.nan)
+    delay_: float = field(init=False, default=math.nan)
+    N_: int = field(init=False, default=0)
+    offset_: float = field(init=False, default=math.nan)
+    u0_: float = field(init=False, default=math.nan)
+    n_rows_used_: int = field(init=False, default=0)
+    n_exciting_rows_: int = field(init=False, default=0)
+    condition_number_: float = field(init=False, default=math.nan)
+    residual_std_: float = field(init=False, default=math.nan)
+    fit_rms_: float = field(init=False, default=math.nan)
+    newton_iterations_: int = field(init=False, default=0)
+    sample_time_: float = field(init=False, default=math.nan)
+    warnings_: list[str] = field(init=False, default_factory=list)
+    _model: ProcessModel | None = field(init=False, default=None, repr=False)
+
+    # ------------------------------------------------------------------ public API
+    def fit(self, data: IOData) -> StepResponseLS:
+        """Estimate a_1 … a_N by least squares, then K and T from them.
+
+        Parameters
+        ----------
+        data : IOData
+            A record at the control period (e.g. 1 s), starting at rest.
+
+        Returns
+        -------
+        StepResponseLS
+            ``self``, with the fitted attributes (ending in ``_``) set.
+
+        Raises
+        ------
+        NotExcitingError
+            The input does not excite all N coefficients (the reason is in the message).
+        FuelidError
+            Bad settings (no N and no settling time, negative priors, …).
+        """
+        T_s = float(data.sample_time)
+        N = self._resolve_N(T_s)
+        self._validate(N, T_s)
+        self.warnings_ = list(data.notes)
+        u, y = data.u, data.y
+        n = u.size
+        du = np.diff(u)
+        changes = np.flatnonzero(du != 0.0)
+        if changes.size == 0:
+            raise NotExcitingError(
+                f"input is constant over the record (no input change): the N={N} step-response "
+                "coefficients are not identifiable; log a record with input steps"
+            )
+        if n - N < N:
+            raise NotExcitingError(
+                f"record too short: {n} samples give {max(n - N, 0)} regression rows, fewer than "
+                f"N={N} coefficients"
+            )
+        # deviations from the initial steady state (samples 0 … first change, inclusive)
+        self.u0_ = float(u[0])
+        self.offset_ = float(np.mean(y[: int(changes[0]) + 2]))
+        ud = u - self.u0_
+        yd = y - self.offset_
+
+        # Φ rows k = N … n−1: [Δu(k−1) … Δu(k−N+1), u(k−N)]; Δu(j) = du[j−1]
+        window = sliding_window_view(du, N - 1)[: n - N, ::-1]
+        phi = np.column_stack((window, ud[: n - N]))
+        target = yd[N:]
+        active = np.any(phi != 0.0, axis=1)
+        exciting = np.any(window != 0.0, axis=1)
+        phi, target = phi[active], target[active]
+        self.n_rows_used_ = int(active.sum())
+        self.n_exciting_rows_ = int(exciting.sum())
+        self._check_excitation(phi, N, changes.size)
+
+        U, sv, Vt = np.linalg.svd(phi, full_matrices=False)
+        self.condition_number_ = float(sv[0] / sv[-1])
+        a = Vt.T @ ((U.T @ target) / sv)
+        resid = target - phi @ a
+        dof = self.n_rows_used_ - N
+        if dof > 0:
+            sigma2 = float(resid @ resid) / dof
+            self.cov_a_ = sigma2 * (Vt.T / sv**2) @ Vt
+            self.residual_std_ = math.sqrt(sigma2)
+        else:
+            self.cov_a_ = np.full((N, N), np.nan)
+            self.residual_std_ = math.nan
+            self.warnings_.append(
+                f"{self.n_rows_used_} rows for N={N} coefficients: no residual degree of "
+                "freedom, standard errors unavailable"
+            )
+        self.a_ = a
+        self.a_stderr_ = np.sqrt(np.diag(self.cov_a_))
+        self.N_, self.sample_time_ = N, T_s
+        self.T_f_, self.delay_ = float(self.T_f), float(self.delay)
+
+        self._fit_model(a, T_s)
+        self._diagnose(N, T_s)
+        return self
+
+    @property
+    def model_(self) -> ProcessModel:
+        """The fitted model K·e^(−τs)/((T s+1)(T_f s+1)) (K in output per input unit, s)."""
+        if self._model is None:
+            raise FuelidError("StepResponseLS is not fitted: call fit() first")
+        return self._model
+
+    def predict(self, data: IOData) -> FloatArray:
+        """Free-run simulation of the fitted model on ``data.u``, at rest at u[0] before it.
+
+        Uses the truncated step-response (FIR) form of the regression, with the coefficients
+        s(i·T_s), i = 1 … N, of the fitted model: ŷ(k) = y_rest + Σ_{i<N} s_i Δu(k−i) +
+        s_N (u(k−N) − u[0]), y_rest = ``offset_`` + K (u[0] − ``u0_``).
+
+        Parameters
+        ----------
+        data : IOData
+            Input record at the sample time of the fit (``y`` is not used).
+
+        Returns
+        -------
+        ndarray
+            Predicted output [output unit].
+        """
+        model = self.model_
+        if not math.isclose(data.sample_time, self.sample_time_, rel_tol=1e-9):
+            raise FuelidError(
+                f"predict needs data at the fitted sample time {self.sample_time_:g} s, got "
+                f"{data.sample_time:g} s"
+            )
+        s = model.step_response(self.sample_time_ * np.arange(self.N_ + 1, dtype=float))
+        s[0] = 0.0
+        impulse = np.concatenate(([0.0], np.diff(s)))  # h_0 = 0, h_i = s_i − s_{i−1}
+        u0 = float(data.u[0])
+        y_rest = self.offset_ + self.K_ * (u0 - self.u0_)
+        return y_rest + np.convolve(data.u - u0, impulse)[: data.n_samples]
+
+    def to_control(self) -> control.TransferFunction:
+        """Delay-free part as a :class:`control.TransferFunction` (dead time in ``delay_``)."""
+        return self.model_.to_control()
+
+    # ------------------------------------------------------------------ internals
+    def _resolve_N(self, T_s: float) -> int:
+        if self.N is not None:
+            return int(self.N)
+        if self.settling_time is None:
+            raise FuelidError(
+                "step-ls needs the number of step-response coefficients: pass N or the prior "
+                "model's 98 % settling time (settling_time)"
+            )
+        if not (math.isfinite(self.settling_time) and self.settling_time > 0.0):
+            raise FuelidError(f"settling time must be positive, got {self.settling_time}")
+        return max(math.ceil(self.settling_time / T_s - 1e-9), 2)
+
+    def _validate(self, N: int, T_s: float) -> None:
+        if N < 2:
+            raise FuelidError(f"N must be at least 2 (a_1 … a_N), got {N}")
+        for name in ("T_f", "delay"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise FuelidError(f"{name} must be finite and non-negative, got {value}")
+        if not self.min_condition > 1.0:
+            raise FuelidError(f"min_condition must exceed 1, got {self.min_condition}")
+        if np.count_nonzero(T_s * np.arange(1, N + 1) > self.delay) < 2:
+            raise FuelidError(
+                f"delay {self.delay:g} s leaves fewer than two of the N={N} coefficients "
+                f"(t = {T_s:g} … {N * T_s:g} s) after the dead time: increase N"
+            )
+
+    def _check_excitation(self, phi: FloatArray, N: int, n_changes: int) -> None:
+        rows = phi.shape[0]
+        changes = f"{n_changes} input change{'' if n_changes == 1 else 's'}"
+        if rows < N:
+            raise NotExcitingError(
+                f"only {rows} regression rows carry input information ({changes}): at least "
+                f"N={N} needed"
+            )
+        sv = np.linalg.svd(phi, compute_uv=False)
+        rank = int(np.count_nonzero(sv > sv[0] * max(phi.shape) * np.finfo(float).eps))
+        if rank < N:
+            dead = np.flatnonzero(~np.any(phi != 0.0, axis=0)) + 1
+            which = (
+                f": a_{', a_'.join(str(i) for i in dead)} not excited (a_i needs an input change "
+                "i samples before a row k ≥ N)"
+                if dead.size
+                else ""
+            )
+            raise NotExcitingError(f"regressor matrix rank {rank} < N={N} ({changes}){which}")
+        cond = float(sv[0] / sv[-1])
+        if cond > self.min_condition:
+            raise NotExcitingError(
+                f"regressor condition number {cond:.3g} exceeds {self.min_condition:.3g}: the "
+                f"input changes do not separate the N={N} coefficients"
+            )
+
+    def _fit_model(self, a: FloatArray, T_s: float) -> None:
+        """Stage 2: K closed-form, T by safeguarded Newton on the concentrated cost in ln T."""
+        N = a.size
+        t = T_s * np.arange(1, N + 1, dtype=float)
+        x = np.maximum(t - self.delay, 0.0)
+        T_f = float(self.T_f)
+        lo, hi = math.log(_T_LOWER * T_s), math.log(_T_UPPER * N * T_s)
+
+        # start: the 63 % estimate, or the best point of a coarse ln-T grid if that is better
+        start = min(max(math.log(_initial_T(a, t, T_f, self.delay, T_s)), lo), hi)
+        grid = np.linspace(lo, hi, 49)
+        costs = [_cost(a, x, math.exp(p), T_f) for p in grid]
+        best = int(np.argmin(costs))
+        if costs[best] < _cost(a, x, math.exp(start), T_f):
+            start = float(grid[best])
+
+        phi = start
+        prof = _profile(a, x, math.exp(phi), T_f)
+        self.newton_iterations_ = 0
+        converged = False
+        while not converged and self.newton_iterations_ < _MAX_ITER:
+            self.newton_iterations_ += 1
+            if prof.hess > 0.0:
+                step = -prof.grad / prof.hess
+            else:  # not convex here: go downhill
+                step = -math.copysign(0.5, prof.grad) if prof.grad != 0.0 else 0.0
+            step = max(-_MAX_STEP, min(_MAX_STEP, step))
+            lam = 1.0
+            while True:  # backtracking (Armijo) within the bounds
+                new = min(max(phi + lam * step, lo), hi)
+                trial = _profile(a, x, math.exp(new), T_f)
+                if trial.cost <= prof.cost + 1e-4 * (new - phi) * prof.grad:
+                    break
+                lam *= 0.5
+                if lam < 1e-12:  # no decrease along the step: at the minimum to rounding
+                    new, trial = phi, prof
+                    break
+            converged = abs(new - phi) < _TOL
+            phi, prof = new, trial
+        if not converged:
+            self.warnings_.append(
+                f"Newton iteration for T did not converge in {_MAX_ITER} steps (T = "
+                f"{math.exp(phi):.4g} s)"
+            )
+
+        T = math.exp(phi)
+        K = prof.K
+        if phi <= lo + 1e-9 or phi >= hi - 1e-9:
+            self.warnings_.append(
+                f"T reached the search bound ({T:.3g} s): the coefficients do not determine T "
+                f"(too fast or too slow for T_s = {T_s:g} s and N = {N})"
+            )
+        # linearised propagation of cov(â) to (K, T): J = [g, K·dg/dT]
+        J = np.column_stack((prof.g, K * prof.g1))
+        gain = np.linalg.pinv(J)
+        cov_kt = gain @ self.cov_a_ @ gain.T
+        resid = a - K * prof.g
+        self.K_, self.T_ = float(K), float(T)
+        self.K_stderr_ = float(np.sqrt(cov_kt[0, 0]))
+        self.T_stderr_ = float(np.sqrt(cov_kt[1, 1]))
+        self.fit_rms_ = float(np.sqrt(np.mean(resid**2)))
+        self._model = ProcessModel(K=self.K_, T=self.T_, T_f=T_f, delay=float(self.delay))
+
+    def _diagnose(self, N: int, T_s: float) -> None:
+        # = ProcessModel.settling_time() (same grid and rule), with the closed-form response
+        grid = np.linspace(0.0, self.delay_ + 12.0 * (self.T_ + self.T_f_), 24_001)
+        shape = step_shape(grid, self.T_, self.T_f_, self.delay_)
+        settle = lti.settling_time(grid, shape, 1.0)
+        horizon = N * T_s
+        if not settle <= horizon:
+            self.warnings_.append(
+                f"fitted model's 98 % settling time {settle:.3g} s exceeds N·T_s = {horizon:g} s: "
+                "the truncated step response biases a_N, K and T; refit with "
+                f"N ≥ {math.ceil(settle / T_s)}"
+            )
+        if N > _MANY_COEFFICIENTS:
+            self.warnings_.append(
+                f"N={N} coefficients at T_s = {T_s:g} s: the article's method runs at the control "
+                "period (N about 5); decimate the record first or use the output-error fit"
+            )
+        sign = 1.0 if self.a_[-1] >= 0.0 else -1.0
+        steps = sign * np.diff(self.a_, prepend=0.0)
+        cov = self.cov_a_
+        var = np.diag(cov).copy()
+        var[1:] += np.diag(cov)[:-1] - 2.0 * np.diag(cov, k=-1)
+        with np.errstate(invalid="ignore"):
+            falls = np.flatnonzero(steps < -3.0 * np.sqrt(np.maximum(var, 0.0)))
+        if falls.size:
+            where = ", ".join(f"a_{i + 1}" for i in falls)
+            self.warnings_.append(
+                f"step-response coefficients fall significantly at {where} (overshoot, an "
+                "unmodelled mode or a record not starting at rest): the over-damped model may "
+                "not fit"
+            )
