@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fuelid import lti
 from fuelid.errors import FuelidError
+from fuelid.identify.discrete import discretise
 
 
 @dataclass(frozen=True)
@@ -111,8 +112,15 @@ class ProcessModel:
         ndarray
             Output deviation [output unit].
         """
+        times = np.asarray(t, dtype=float)
+        if times.size > 2 and times[0] == 0.0:
+            dt = np.diff(times)
+            if np.all(np.abs(dt - dt[0]) <= 1e-9 * dt[0]):
+                # uniform grid from 0: the exact ZOH recursion as one lfilter pass
+                shape = discretise(self.time_constants, self.delay, float(dt[0]))
+                return self.K * shape.response(np.ones(times.size))
         A, B, C, _ = self.state_space()
-        return lti.step_response(A, B, C, 0.0, t, delay=self.delay)
+        return lti.step_response(A, B, C, 0.0, times, delay=self.delay)
 
     def settling_time(self, band: float = 0.02) -> float:
         """Time for a unit step response to enter and stay within ``band`` of K [s].

@@ -75,3 +75,43 @@ def plot_step_responses(
     if title:
         ax.set_title(title)
     return fig
+
+
+def plot_identification(
+    t: FloatArray,
+    y: FloatArray,
+    curves: Sequence[tuple[str, FloatArray]],
+    split_time: float | None = None,
+    title: str = "",
+    ylabel: str = "flow q [L/min]",
+) -> Figure:
+    """Measured output against model outputs (the article's comparison figure) and residuals.
+
+    Parameters
+    ----------
+    t, y : arrays
+        Sample times [s] and measured output.
+    curves : sequence of (label, array)
+        Model outputs (free-run simulations) on the same samples.
+    split_time : float, optional
+        Where held-out validation data begin [s] (shaded).
+    """
+    fig = Figure(figsize=(9, 6))
+    ax, ax_res = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    ax.plot(t, y, lw=0.6, color="0.55", label="measured")
+    for label, y_hat in curves:
+        ax.plot(t, y_hat, lw=1.3, label=label)
+        ax_res.plot(t, y - y_hat, lw=0.6, label=label)
+    for axis in (ax, ax_res):
+        axis.grid(True, alpha=0.3)
+        if split_time is not None:
+            axis.axvspan(split_time, float(t[-1]), color="tab:olive", alpha=0.08)
+    if split_time is not None:
+        ax.text(split_time, ax.get_ylim()[1], " validation", va="top", fontsize=8)
+    ax.set_ylabel(ylabel)
+    ax.legend(loc="best")
+    ax_res.set_ylabel("residual")
+    ax_res.set_xlabel("time [s]")
+    if title:
+        ax.set_title(title)
+    return fig

@@ -12,6 +12,7 @@ import typer
 
 from fuelid import __version__
 from fuelid.cli import plant
+from fuelid.cli.identify import identify_command
 from fuelid.cli.simulate import simulate_command
 from fuelid.errors import FuelidError
 
@@ -25,6 +26,7 @@ app = typer.Typer(
 )
 app.add_typer(plant.app, name="plant")
 app.command("simulate")(simulate_command)
+app.command("identify")(identify_command)
 
 
 def _version(value: bool) -> None:

@@ -184,6 +184,7 @@ class OutputError:
     n_samples_: int = field(init=False, default=0)
     sample_time_: float = field(init=False, default=math.nan)
     warnings_: list[str] = field(init=False, default_factory=list)
+    _fitted: tuple[_Structure, FloatArray] | None = field(init=False, default=None, repr=False)
 
     # ------------------------------------------------------------------ public API
     def fit(self, data: IOData, init: ProcessModel | None = None) -> OutputError:
@@ -222,6 +223,18 @@ class OutputError:
         """Free-run simulation of the fitted model on ``data.u``, starting at rest at u[0]."""
         y_rest = self.offset_ + self.K_ * (float(data.u[0]) - self.u_ref_)
         return y_rest + simulate_model(self.model_, data.u, data.sample_time)
+
+    def simulate(self, data: IOData) -> FloatArray:
+        """Free-run output over a record that STARTS WHERE THE FITTED ONE STARTED.
+
+        Same initial state, offset and reference input as the fit, so fitting on the first part
+        of a log and simulating the whole log scores the held-out rest honestly (validation).
+        """
+        if self._fitted is None:
+            raise FuelidError("the estimator is not fitted")
+        st, beta = self._fitted
+        Phi = _regressors(st, self.T_, self.T2_, self.delay_, data.u, data.sample_time, self.u_ref_)
+        return np.asarray(Phi @ beta, dtype=float)
 
     def to_control(self) -> control.TransferFunction:
         """Delay-free part as a :class:`control.TransferFunction` (dead time in ``delay_``)."""
@@ -357,6 +370,7 @@ class OutputError:
             st.T_f,
         )
         self.offset_ = float(ev.beta[1])
+        self._fitted = (st, ev.beta.copy())
         self.u_ref_ = u_ref
         self.initial_response_ = ev.Phi[:, 2:] @ ev.beta[2:] if ev.beta.size > 2 else np.zeros(n)
         self.y_hat_ = data.y - ev.residual

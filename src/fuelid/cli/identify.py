@@ -1,0 +1,258 @@
+"""``fuelid identify``: the equivalent model from a PLC log, with error bars and diagnostics."""
+
+from __future__ import annotations
+
+import enum
+import math
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from fuelid.cli._common import emit_json, guarded, provenance, warn
+from fuelid.errors import FuelidError
+from fuelid.identify.pipeline import IdentifyOptions, identify
+from fuelid.logs import load_log, parse_scale
+from fuelid.plant import linearise, load_plant_config
+from fuelid.report import plot_identification, save_figure
+
+
+class MethodChoice(enum.StrEnum):
+    """Estimators of ``fuelid identify``."""
+
+    oe = "oe"
+    step_ls = "step-ls"
+
+
+def _order(text: str) -> int | str:
+    if text in ("1", "2"):
+        return int(text)
+    if text == "auto":
+        return "auto"
+    raise FuelidError(f"--order must be 1, 2 or auto, got {text!r}")
+
+
+def _delay(text: str | None) -> float | str | None:
+    if text is None or text == "auto":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        raise FuelidError(f"--delay must be 'auto' or seconds, got {text!r}") from None
+    if not (math.isfinite(value) and value >= 0.0):
+        raise FuelidError(f"--delay must be a non-negative number of seconds, got {text!r}")
+    return value
+
+
+UNITS = {
+    "K": "output unit per input unit ((L/min)/V for the fuel loop)",
+    "T": "s",
+    "T2": "s",
+    "delay": "s",
+    "T_f": "s",
+    "sample_time": "s",
+    "fit_percent": "%",
+    "validation_fit_percent": "%",
+    "noise_std": "output unit",
+}
+
+
+@guarded
+def identify_command(
+    file: Annotated[Path, typer.Argument(help="PLC log: CSV (any of , ; tab) or Parquet.")],
+    method: Annotated[
+        MethodChoice,
+        typer.Option(
+            help="oe: output-error fit on the raw samples; step-ls: the "
+            "article's step-response least squares at the control "
+            "period."
+        ),
+    ] = MethodChoice.oe,
+    order: Annotated[str, typer.Option(help="Process time constants: 1, 2 or auto (AIC).")] = "1",
+    delay: Annotated[
+        str | None,
+        typer.Option(
+            help="Dead time: 'auto' estimates it, a number [s] fixes it (default: the "
+            "flowmeter delay when given, else auto).",
+            show_default=False,
+        ),
+    ] = None,
+    flowmeter_T: Annotated[
+        float | None,
+        typer.Option(
+            "--flowmeter-T", help="Flowmeter time constant T_f [s], held fixed.", show_default=False
+        ),
+    ] = None,
+    flowmeter_delay: Annotated[
+        float | None,
+        typer.Option(
+            help="Flowmeter dead time [s], the model's delay unless --delay.", show_default=False
+        ),
+    ] = None,
+    n_steps: Annotated[
+        int | None,
+        typer.Option(
+            "--N",
+            help="step-ls: step-response length N [control periods] (default: "
+            "from --config's settling time).",
+            show_default=False,
+        ),
+    ] = None,
+    control_period: Annotated[
+        float, typer.Option(help="step-ls: controller period to decimate to [s].")
+    ] = 1.0,
+    validate_split: Annotated[
+        float | None,
+        typer.Option(
+            help="Hold out the last fraction F of the record for validation.", show_default=False
+        ),
+    ] = None,
+    config: Annotated[
+        Path | None,
+        typer.Option(
+            "--config",
+            "-c",
+            help="Plant TOML: its flowmeter gives T_f and the delay "
+            "priors, its settling time gives N.",
+            show_default=False,
+        ),
+    ] = None,
+    u_before: Annotated[
+        float | None,
+        typer.Option(
+            help="oe: steady input before the record [input unit] (default: estimate "
+            "the initial state).",
+            show_default=False,
+        ),
+    ] = None,
+    time_col: Annotated[str, typer.Option(help="Time column (s or date-time).")] = "t_s",
+    input_col: Annotated[str, typer.Option(help="Input column.")] = "u_V",
+    output_col: Annotated[str, typer.Option(help="Output column.")] = "q_Lpm",
+    sample_time: Annotated[
+        float | None,
+        typer.Option(help="Sample time [s] for a log without a time column.", show_default=False),
+    ] = None,
+    input_scale: Annotated[
+        str | None,
+        typer.Option(
+            help="Linear scaling raw_lo:raw_hi:eng_lo:eng_hi of the input, e.g. "
+            "4:20:1:5 for 4-20 mA to 1-5 V.",
+            show_default=False,
+        ),
+    ] = None,
+    output_scale: Annotated[
+        str | None,
+        typer.Option(
+            help="Linear scaling of the output, e.g. 0:27648:0:100 for counts to L/min.",
+            show_default=False,
+        ),
+    ] = None,
+    plot: Annotated[
+        Path | None,
+        typer.Option(
+            help="Write the measured-versus-model figure (PNG, SVG, PDF).", show_default=False
+        ),
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """Identify K·e^(−θs)/((T·s+1)(T2·s+1)(T_f·s+1)) from a logged input and output.
+
+    A flowmeter time constant or delay that is given is prior knowledge and stays fixed; what is
+    not given is estimated. Non-exciting data are refused (exit code 2).
+    """
+    if plot is not None and not plot.parent.is_dir():
+        raise FuelidError(f"figure folder {str(plot.parent)!r} does not exist")
+    settling = None
+    T_f, meter_delay = flowmeter_T, flowmeter_delay
+    if config is not None:
+        plant = load_plant_config(config)
+        mid = 0.5 * (plant.vfd.u_min_V + plant.vfd.u_max_V)
+        settling = linearise(plant, mid, 293.15).settling_time()
+        T_f = plant.flowmeter.time_constant_s if T_f is None else T_f
+        meter_delay = plant.flowmeter.delay_s if meter_delay is None else meter_delay
+    for name, value in (("--flowmeter-T", T_f), ("--flowmeter-delay", meter_delay)):
+        if value is not None and not (math.isfinite(value) and value >= 0.0):
+            raise FuelidError(f"{name} must be a non-negative number of seconds")
+    data = load_log(
+        file,
+        time_col=None if sample_time is not None else time_col,
+        input_col=input_col,
+        output_col=output_col,
+        sample_time=sample_time,
+        input_scale=parse_scale(input_scale) if input_scale else None,
+        output_scale=parse_scale(output_scale) if output_scale else None,
+    )
+    options = IdentifyOptions(
+        method="step-ls" if method is MethodChoice.step_ls else "oe",
+        order=_order(order),  # type: ignore[arg-type]
+        delay=_delay(delay),  # type: ignore[arg-type]
+        flowmeter_T=T_f,
+        flowmeter_delay=meter_delay,
+        N=n_steps,
+        settling_time=settling,
+        control_period=control_period,
+        validate_split=validate_split,
+        u_before=u_before,
+    )
+    result = identify(data, options)
+    for message in result.warnings:
+        warn(message)
+    if plot is not None:
+        fig = plot_identification(
+            result.time,
+            result.y,
+            [(f"{result.method} model", result.y_hat)],
+            result.split_time,
+            f"{file.name}: measured and {result.method} model output",
+            ylabel=output_col,
+        )
+        save_figure(fig, plot)
+    if as_json:
+        payload: dict[str, Any] = result.to_json() | {"units": UNITS}
+        opts = {
+            "method": method.value,
+            "order": order,
+            "delay": delay,
+            "flowmeter_T": flowmeter_T,
+            "flowmeter_delay": flowmeter_delay,
+            "N": n_steps,
+            "control_period": control_period,
+            "validate_split": validate_split,
+            "config": str(config) if config else None,
+            "u_before": u_before,
+            "time_col": time_col,
+            "input_col": input_col,
+            "output_col": output_col,
+            "sample_time": sample_time,
+            "input_scale": input_scale,
+            "output_scale": output_scale,
+        }
+        emit_json(payload | provenance(opts, file))
+        return
+    _print_table(result.to_json(), file)
+
+
+def _print_table(data: dict[str, Any], file: Path) -> None:
+    table = Table(
+        title=f"{data['method']} on {file.name} ({data['n_samples']} samples every "
+        f"{data['sample_time']:g} s)"
+    )
+    for column in ("parameter", "value", "std. error", "95 % interval", "unit"):
+        table.add_column(column, justify="right")
+    for key in ("K", "T", "T2", "delay", "T_f"):
+        value, se, ci = data["model"][key], data["stderr"][key], data["ci95"][key]
+        fixed = key in data["fixed"]
+        table.add_row(
+            key,
+            f"{value:.5g}",
+            "fixed" if fixed or se is None else f"{se:.2g}",
+            "" if ci is None else f"{ci[0]:.5g} … {ci[1]:.5g}",
+            "(out)/(in)" if key == "K" else "s",
+        )
+    console = Console()
+    console.print(table)
+    console.print(f"fit {data['fit_percent']:.2f} % (NRMSE, free-run simulation)")
+    if data["validation_fit_percent"] is not None:
+        console.print(f"validation fit {data['validation_fit_percent']:.2f} % (held-out data)")

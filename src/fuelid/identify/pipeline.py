@@ -1,0 +1,248 @@
+"""From a loaded log to an identified model with diagnostics: what ``fuelid identify`` runs.
+
+The CLI only parses options and prints; everything computed lives here, so scripts get the same
+numbers through :func:`identify`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fuelid.errors import FuelidError
+from fuelid.identify import diagnostics
+from fuelid.identify.oe import OutputError, nrmse_fit
+from fuelid.identify.step_ls import StepResponseLS
+from fuelid.model import ProcessModel
+from fuelid.preprocess import decimate
+from fuelid.signals import IOData
+
+FloatArray = NDArray[np.float64]
+Method = Literal["oe", "step-ls"]
+MODEL_KEYS = ("K", "T", "T2", "delay", "T_f")
+Z95 = 1.959963984540054
+
+
+@dataclass(frozen=True)
+class IdentifyOptions:
+    """Settings of one identification (see ``fuelid identify --help`` for their meaning)."""
+
+    method: Method = "oe"
+    order: Literal[1, 2, "auto"] = 1
+    delay: float | Literal["auto"] | None = None
+    """Fixed dead time [s], "auto" to estimate it, None: the flowmeter delay if given, else auto."""
+    flowmeter_T: float | None = None
+    flowmeter_delay: float | None = None
+    N: int | None = None
+    settling_time: float | None = None
+    """Prior model's 98 % settling time [s] (chooses N for step-ls)."""
+    control_period: float = 1.0
+    validate_split: float | None = None
+    u_before: float | None = None
+
+    def resolved_delay(self) -> float | None:
+        """The fixed dead time [s], or None when it is to be estimated."""
+        if self.delay == "auto":
+            return None
+        if self.delay is not None:
+            return float(self.delay)
+        return self.flowmeter_delay
+
+
+@dataclass
+class IdentificationResult:
+    """Everything ``identify`` found, ready for JSON (:meth:`to_json`) and plots."""
+
+    method: Method
+    model: ProcessModel
+    fixed: tuple[str, ...]
+    stderr: dict[str, float | None]
+    cov_names: tuple[str, ...]
+    cov: FloatArray
+    fit_percent: float
+    validation_fit_percent: float | None
+    n_samples: int
+    sample_time: float
+    warnings: list[str]
+    time: FloatArray
+    y: FloatArray
+    y_hat: FloatArray
+    split_time: float | None
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def ci95(self) -> dict[str, list[float] | None]:
+        """95 % confidence intervals (normal approximation) of the model parameters."""
+        values = self.model.as_dict()
+        out: dict[str, list[float] | None] = {}
+        for key in MODEL_KEYS:
+            se = self.stderr.get(key)
+            out[key] = (
+                None
+                if se is None or not math.isfinite(se)
+                else [values[key] - Z95 * se, values[key] + Z95 * se]
+            )
+        return out
+
+    def to_json(self) -> dict[str, Any]:
+        """The documented JSON object of ``fuelid identify --json`` (without provenance)."""
+        return {
+            "method": self.method,
+            "model": {key: self.model.as_dict()[key] for key in MODEL_KEYS},
+            "fixed": list(self.fixed),
+            "stderr": {key: self.stderr.get(key) for key in MODEL_KEYS},
+            "ci95": self.ci95(),
+            "cov": {"names": list(self.cov_names), "matrix": self.cov.tolist()},
+            "fit_percent": self.fit_percent,
+            "validation_fit_percent": self.validation_fit_percent,
+            "n_samples": self.n_samples,
+            "sample_time": self.sample_time,
+            "diagnostics": self.diagnostics,
+            "warnings": self.warnings,
+            **self.extra,
+        }
+
+
+def _split(data: IOData, fraction: float | None) -> tuple[IOData, int]:
+    if fraction is None:
+        return data, data.n_samples
+    if not 0.0 < fraction < 1.0:
+        raise FuelidError(f"--validate-split must lie strictly between 0 and 1, got {fraction:g}")
+    n_fit = round(data.n_samples * (1.0 - fraction))
+    if n_fit < 20 or data.n_samples - n_fit < 10:
+        raise FuelidError(
+            f"--validate-split {fraction:g} leaves {n_fit} samples to fit and "
+            f"{data.n_samples - n_fit} to validate: too few"
+        )
+    return data.segment(0, n_fit), n_fit
+
+
+def _decimated(data: IOData, control_period: float) -> IOData:
+    if control_period <= data.sample_time * (1.0 + 1e-9):
+        return data
+    return decimate(data, control_period)
+
+
+def identify(data: IOData, options: IdentifyOptions) -> IdentificationResult:
+    """Identify the model family on ``data`` with ``options``.
+
+    ``oe`` fits the raw samples; ``step-ls`` first low-passes (zero phase) and decimates to the
+    control period, as the article does. With ``validate_split`` the last fraction of the record
+    is held out: the model is fitted on the rest and simulated on through it.
+    """
+    T_f = options.flowmeter_T or 0.0
+    delay = options.resolved_delay()
+    warnings: list[str] = []
+    if options.method == "step-ls":
+        work = _decimated(data, options.control_period)
+        if delay is None:
+            warnings.append(
+                "step-ls needs the dead time as prior knowledge: none given (--flowmeter-delay or "
+                "--delay SECONDS), assumed 0"
+            )
+            delay = 0.0
+        fit_data, n_fit = _split(work, options.validate_split)
+        ls = StepResponseLS(
+            N=options.N, T_f=T_f, delay=delay, settling_time=options.settling_time
+        ).fit(fit_data)
+        y_hat = ls.predict(work)
+        model = ls.model_
+        stderr: dict[str, float | None] = {"K": ls.K_stderr_, "T": ls.T_stderr_}
+        cov_names: tuple[str, ...] = ("K", "T")
+        cov = np.diag([ls.K_stderr_**2, ls.T_stderr_**2])
+        cov[0, 1] = cov[1, 0] = np.nan  # the two-stage method gives no joint covariance
+        fixed: tuple[str, ...] = ("T2", "delay", "T_f")
+        # what decimation did is information, not a warning; the loader's notes stay warnings
+        preprocessing = [n for n in work.notes if n not in data.notes]
+        warnings.extend(w for w in ls.warnings_ if w not in preprocessing)
+        extra: dict[str, Any] = {
+            "N": ls.N_,
+            "step_coefficients": ls.a_.tolist(),
+            "preprocessing": preprocessing,
+        }
+        residual_model = y_hat
+    else:
+        work = data
+        if options.order not in (1, 2, "auto"):
+            raise FuelidError(f"--order must be 1, 2 or auto, got {options.order!r}")
+        fit_data, n_fit = _split(work, options.validate_split)
+        oe = OutputError(order=options.order, delay=delay, T_f=T_f, u_before=options.u_before).fit(
+            fit_data
+        )
+        y_hat = oe.simulate(work)
+        model = oe.model_
+        stderr = dict(oe.stderr_)
+        cov_names, cov = oe.param_names_, oe.cov_
+        fixed = oe.fixed_
+        warnings.extend(oe.warnings_)
+        extra = {"aic": {str(k): v for k, v in oe.aic_.items()}, "noise_std": oe.sigma_}
+        residual_model = y_hat
+    time = work.t
+    y = work.y
+    fit_percent = nrmse_fit(y[:n_fit], residual_model[:n_fit])
+    validation = nrmse_fit(y[n_fit:], residual_model[n_fit:]) if n_fit < work.n_samples else None
+    residuals = y[:n_fit] - residual_model[:n_fit]
+    white = diagnostics.residual_whiteness(residuals)
+    cross = diagnostics.input_residual_correlation(work.u[:n_fit], residuals)
+    settle = model.settling_time()
+    steps = diagnostics.steady_state_errors(work.u, y, residual_model, work.sample_time, settle)
+    diag: dict[str, Any] = {
+        "residual_whiteness": {
+            "p_value": white.p_value,
+            "passed": white.passed,
+            "fraction_outside": white.fraction_outside,
+            "bound": white.bound,
+        },
+        "input_residual_correlation": {
+            "p_value": cross.p_value,
+            "passed": cross.passed,
+            "fraction_outside": cross.fraction_outside,
+            "bound": cross.bound,
+        },
+        "steady_state_error_percent": [e.error_percent for e in steps],
+        "settling_time": settle,
+    }
+    if not white.passed:
+        warnings.append(
+            f"residuals are not white (p = {white.p_value:.2g}): coloured noise or unmodelled "
+            "dynamics; standard errors may be optimistic"
+        )
+    # a zero-phase filter smears each output step backwards in time, which looks like feedback
+    # to the test below: it is only meaningful on unfiltered (oe) data
+    if options.method == "oe" and diagnostics.feedback_suspected(cross):
+        warnings.append(
+            "the input reacts to the output residual: the data look closed-loop; an output-error "
+            "fit is then biased when the noise is coloured (excite with setpoint steps, or log "
+            "open-loop steps)"
+        )
+    elif not cross.passed:
+        warnings.append(
+            f"residuals correlate with past inputs (p = {cross.p_value:.2g}): unmodelled "
+            "dynamics, try --order 2 or --delay auto"
+        )
+    advice = diagnostics.sample_time_advice(settle, work.sample_time)
+    if advice:
+        warnings.append(advice)
+    return IdentificationResult(
+        method=options.method,
+        model=model,
+        fixed=fixed,
+        stderr=stderr,
+        cov_names=cov_names,
+        cov=cov,
+        fit_percent=fit_percent,
+        validation_fit_percent=validation,
+        n_samples=fit_data.n_samples,
+        sample_time=work.sample_time,
+        warnings=list(dict.fromkeys(warnings)),
+        time=time,
+        y=y,
+        y_hat=residual_model,
+        split_time=float(time[n_fit]) if n_fit < work.n_samples else None,
+        diagnostics=diag,
+        extra=extra,
+    )

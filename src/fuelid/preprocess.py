@@ -1,0 +1,462 @@
+"""Preprocessing of PLC records before identification (theory.md section 3.1).
+
+Every function takes an :class:`~fuelid.signals.IOData` and returns a new one (the input is never
+modified) with a short note appended to ``notes`` saying what was done or noticed.
+
+* :func:`lowpass` — zero-phase Butterworth low-pass of the output y (never of the held command u),
+  so no filter lag leaks into the fitted time constant or dead time.
+* :func:`decimate` — from the PLC sample time (0.02 s) to the control period (1 s), anti-aliased
+  with :func:`lowpass` and aligned with the controller's update instants.
+* :func:`select` — a time window of the record.
+* :func:`remove_offsets` — deviations from the initial steady state (u0, y0), with a check
+  (:func:`starts_at_rest`) that the record really starts at rest.
+* :func:`detrend` — removal of a slow linear drift of y.
+
+Examples
+--------
+>>> import numpy as np
+>>> t = np.arange(0.0, 30.0, 0.02)
+>>> u = np.where(t >= 5.0, 1.5, 1.0)
+>>> y = 14.6 + 8.0 * (u - 1.0) * (1.0 - np.exp(-np.clip(t - 5.0, 0.0, None) / 2.0))
+>>> d = decimate(IOData(u, y, 0.02), 1.0)
+>>> d.sample_time, d.n_samples, float(d.u[4]), float(d.u[5])
+(1.0, 30, 1.0, 1.5)
+>>> base, u0, y0 = remove_offsets(d)  # y0: the filter rings slightly before the step
+>>> u0, round(y0, 2), round(float(base.y[-1]), 2)
+(1.0, 14.6, 4.0)
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import signal
+
+from fuelid.errors import DataError
+from fuelid.signals import FloatArray, IOData
+
+__all__ = ["decimate", "detrend", "lowpass", "remove_offsets", "select", "starts_at_rest"]
+
+MIN_SELECTED_SAMPLES = 10
+"""Fewest samples :func:`select` accepts."""
+
+INTEGER_FACTOR_TOLERANCE = 1e-6
+"""How far control_period/sample_time may be from an integer and still count as one."""
+
+ANTIALIAS_FRACTION = 0.8
+"""Anti-aliasing cutoff of :func:`decimate` as a fraction of the new Nyquist frequency."""
+
+REST_THRESHOLD = 3.0
+"""Initial drift, in noise standard deviations, above which a record does not start at rest."""
+
+MAX_INITIAL_FRACTION = 0.1
+"""Largest fraction of the record the default initial (offset) window may take."""
+
+
+def _replace(
+    data: IOData,
+    note: str,
+    *,
+    u: FloatArray | None = None,
+    y: FloatArray | None = None,
+    sample_time: float | None = None,
+    t0: float | None = None,
+) -> IOData:
+    """A new record with some fields replaced and ``note`` appended (the input is untouched)."""
+    return IOData(
+        u=data.u.copy() if u is None else u,
+        y=data.y.copy() if y is None else y,
+        sample_time=data.sample_time if sample_time is None else sample_time,
+        t0=data.t0 if t0 is None else t0,
+        u_unit=data.u_unit,
+        y_unit=data.y_unit,
+        source=data.source,
+        notes=(*data.notes, note),
+    )
+
+
+def _span(data: IOData) -> str:
+    """The record's time span for messages."""
+    t_last = data.t0 + (data.n_samples - 1) * data.sample_time
+    return (
+        f"the record spans t = {data.t0:g} … {t_last:g} s "
+        f"({data.n_samples} samples of {data.sample_time:g} s)"
+    )
+
+
+def lowpass(data: IOData, cutoff_hz: float, order: int = 4) -> IOData:
+    """Zero-phase Butterworth low-pass filter of the output y.
+
+    The filter runs forward and backward (:func:`scipy.signal.sosfiltfilt`), so it has no phase
+    lag at all: the filtered output is not delayed, and no lag leaks into the identified time
+    constant or dead time. Its magnitude response is the Butterworth one squared,
+    ``|H(f)|² = 1 / (1 + (f/f_c)^(2·order))``. The input u is a held command and is never
+    filtered. The ends are padded by odd reflection over about two cutoff periods (``2/f_c``,
+    at most the record length) so that the end transients of the filter stay small.
+
+    Parameters
+    ----------
+    data : IOData
+        The record.
+    cutoff_hz : float
+        Cutoff (−3 dB of one pass) frequency f_c [Hz]; strictly between 0 and the Nyquist
+        frequency 1/(2h).
+    order : int
+        Butterworth order of one pass (the effective order is twice this).
+
+    Returns
+    -------
+    IOData
+        The record with y filtered, u unchanged.
+
+    Raises
+    ------
+    DataError
+        If the cutoff is not strictly between 0 and Nyquist, the order is below 1, or the record
+        is too short for the filter's end padding.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = 0.02 * np.arange(500)
+    >>> d = IOData(np.ones(500), np.sin(2 * np.pi * 0.1 * t), 0.02)
+    >>> f = lowpass(d, 2.0)
+    >>> bool(np.max(np.abs(f.y - d.y)[100:-100]) < 1e-6), f.notes[-1]
+    (True, 'y low-passed: zero-phase Butterworth, order 4, cutoff 2 Hz')
+    """
+    h = data.sample_time
+    nyquist = 0.5 / h
+    if not (math.isfinite(cutoff_hz) and 0.0 < cutoff_hz < nyquist):
+        raise DataError(
+            f"low-pass cutoff must lie strictly between 0 and the Nyquist frequency "
+            f"{nyquist:g} Hz (sample time {h:g} s), got {cutoff_hz:g} Hz"
+        )
+    if order < 1:
+        raise DataError(f"low-pass order must be at least 1, got {order}")
+    sos = np.asarray(signal.butter(order, cutoff_hz, fs=1.0 / h, output="sos"), dtype=np.float64)
+    # sosfiltfilt's own minimum padding; the record must be longer than it.
+    n_zero = min(int(np.sum(sos[:, 2] == 0.0)), int(np.sum(sos[:, 5] == 0.0)))
+    min_pad = 3 * (2 * sos.shape[0] + 1 - n_zero)
+    n = data.n_samples
+    if n <= min_pad:
+        raise DataError(
+            f"record too short to low-pass: the order-{order} zero-phase filter pads each end "
+            f"with {min_pad} samples and needs more than that ({n} given)"
+        )
+    padlen = min(n - 1, max(min_pad, math.ceil(2.0 / (cutoff_hz * h))))
+    y = np.asarray(signal.sosfiltfilt(sos, data.y, padlen=padlen), dtype=np.float64)
+    return _replace(
+        data, f"y low-passed: zero-phase Butterworth, order {order}, cutoff {cutoff_hz:g} Hz", y=y
+    )
+
+
+def _update_phase(u: FloatArray, factor: int) -> int:
+    """Index (0…factor−1, modulo factor) at which most changes of u occur; 0 if u never changes."""
+    changes = np.flatnonzero(u[1:] != u[:-1]) + 1
+    if changes.size == 0:
+        return 0
+    counts = np.bincount(changes % factor, minlength=factor)
+    return int(np.argmax(counts))  # ties: the earliest phase
+
+
+def decimate(
+    data: IOData,
+    control_period: float,
+    *,
+    phase: int | None = None,
+    antialias: bool = True,
+) -> IOData:
+    """Reduce PLC samples to the control period, aligned with the controller's updates.
+
+    The decimation factor m = control_period/h must be an integer (within 1e-6). With
+    ``antialias`` the output is first low-passed by :func:`lowpass` (zero phase, cutoff
+    0.8 × the new Nyquist frequency 1/(2·control_period)); then every m-th sample is kept, starting
+    at index ``phase``.
+
+    Convention: the kept samples are the controller's update instants t_j = t0 + (phase + j·m)·h.
+    The PLC's controller output changes only at those instants, and the logged u[k] at an update
+    instant is already the new command, so the decimated u[j] is the command held from t_j to
+    t_j + control_period (exactly the sample-and-hold input of the step-response regression),
+    and the decimated y[j] is the (filtered) output measured at t_j.
+
+    Parameters
+    ----------
+    data : IOData
+        The record at the PLC sample time h [s].
+    control_period : float
+        New sample time T_s [s], an integer multiple of h.
+    phase : int, optional
+        Index (0 … m−1) of the first kept sample. By default it is the residue modulo m at which
+        most of u's changes occur (index k with u[k] ≠ u[k−1]), i.e. the controller's update
+        instants; 0 if u never changes.
+    antialias : bool
+        Low-pass y before keeping every m-th sample.
+
+    Returns
+    -------
+    IOData
+        The decimated record: ``sample_time = control_period``, ``t0`` the time of the first
+        kept sample.
+
+    Raises
+    ------
+    DataError
+        If the factor is not an integer, the phase is out of range, or fewer than two samples
+        would remain.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> u = np.repeat([1.0, 1.2, 1.5], 10)[3:]  # updates every 10 samples, record starts late
+    >>> d = decimate(IOData(u, u, 0.1), 1.0, antialias=False)
+    >>> d.t0, d.u.tolist()
+    (0.7, [1.2, 1.5])
+    """
+    h = data.sample_time
+    if not (math.isfinite(control_period) and control_period > 0.0):
+        raise DataError(f"control period must be positive, got {control_period:g} s")
+    ratio = control_period / h
+    factor = round(ratio)
+    if factor < 1 or abs(ratio - factor) >= INTEGER_FACTOR_TOLERANCE:
+        raise DataError(
+            f"cannot decimate: the control period {control_period:g} s is not an integer "
+            f"multiple of the sample time {h:g} s (ratio {ratio:.9g})"
+        )
+    if factor == 1:
+        return _replace(data, f"not decimated: the sample time is already {h:g} s")
+    if phase is None:
+        phase = _update_phase(data.u, factor)
+        how = "at the controller's update instants"
+    elif not 0 <= phase < factor:
+        raise DataError(f"decimation phase must lie in 0 … {factor - 1}, got {phase}")
+    else:
+        how = "as requested"
+    n_kept = len(range(phase, data.n_samples, factor))
+    if n_kept < 2:
+        raise DataError(
+            f"cannot decimate by {factor}: fewer than 2 samples would remain; {_span(data)}"
+        )
+    source = data
+    if antialias:
+        source = lowpass(data, ANTIALIAS_FRACTION * 0.5 / control_period)
+    t0 = round(data.t0 + phase * h, 12)  # no 0.7000000000000001 in messages and reports
+    return _replace(
+        source,
+        f"decimated by {factor} to {control_period:g} s, phase {phase} ({how}; first sample at "
+        f"t = {t0:g} s); u[j] is the command held from t_j to t_j + {control_period:g} s",
+        u=data.u[phase::factor].copy(),
+        y=source.y[phase::factor].copy(),
+        sample_time=control_period,
+        t0=t0,
+    )
+
+
+def select(data: IOData, t_start: float | None = None, t_stop: float | None = None) -> IOData:
+    """Samples with ``t_start <= t < t_stop``.
+
+    Sample times that lie within 1e-9 samples of a bound count as on it.
+
+    Parameters
+    ----------
+    data : IOData
+        The record.
+    t_start : float, optional
+        First time kept [s] (inclusive); default the start of the record.
+    t_stop : float, optional
+        End of the window [s] (exclusive); default the end of the record.
+
+    Returns
+    -------
+    IOData
+        The selected samples, time origin kept.
+
+    Raises
+    ------
+    DataError
+        If the window is empty, inverted, or holds fewer than 10 samples; the message names the
+        record's time span.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> d = select(IOData(np.zeros(100), np.zeros(100), 0.5), 10.0, 20.0)
+    >>> d.t0, d.n_samples
+    (10.0, 20)
+    """
+    h = data.sample_time
+    n = data.n_samples
+    k_start = 0 if t_start is None else math.ceil((t_start - data.t0) / h - 1e-9)
+    k_stop = n if t_stop is None else math.ceil((t_stop - data.t0) / h - 1e-9)
+    k_start, k_stop = max(k_start, 0), min(k_stop, n)
+    window = f"[{'start' if t_start is None else f'{t_start:g}'}, "
+    window += f"{'end' if t_stop is None else f'{t_stop:g}'}) s"
+    if k_stop <= k_start:
+        raise DataError(f"the time window {window} selects no samples; {_span(data)}")
+    if k_stop - k_start < MIN_SELECTED_SAMPLES:
+        raise DataError(
+            f"the time window {window} selects only {k_stop - k_start} samples "
+            f"(at least {MIN_SELECTED_SAMPLES} needed); {_span(data)}"
+        )
+    part = data.segment(k_start, k_stop)
+    t_last = part.t0 + (part.n_samples - 1) * h
+    return _replace(part, f"selected t = {part.t0:g} … {t_last:g} s ({part.n_samples} samples)")
+
+
+def _initial_window(data: IOData, n_initial: int | None) -> int:
+    """Number of initial samples taken as the steady state (see :func:`remove_offsets`)."""
+    n = data.n_samples
+    if n_initial is not None:
+        if not 1 <= n_initial <= n:
+            raise DataError(f"n_initial must lie in 1 … {n} (the record length), got {n_initial}")
+        return n_initial
+    changes = np.flatnonzero(data.u[1:] != data.u[:-1])
+    before = int(changes[0]) + 1 if changes.size else n
+    return max(1, min(before, int(MAX_INITIAL_FRACTION * n)))
+
+
+def _initial_drift(data: IOData, n0: int) -> tuple[float, float]:
+    """Drift of y over the first ``n0`` samples and the noise standard deviation [y units].
+
+    The drift is the change of the least-squares straight line through those samples from the
+    first to the last one; the noise is std(diff(y))/√2 over the same samples. Fewer than four
+    samples give (0, 0): no evidence of drift.
+    """
+    if n0 < 4:
+        return 0.0, 0.0
+    y = data.y[:n0]
+    k = np.arange(n0, dtype=np.float64)
+    k_c = k - k.mean()
+    slope = float(np.dot(k_c, y - y.mean()) / np.dot(k_c, k_c))  # per sample
+    drift = slope * (n0 - 1)
+    sigma = float(np.std(np.diff(y)) / math.sqrt(2.0))
+    return drift, sigma
+
+
+def _is_at_rest(drift: float, sigma: float, scale: float) -> bool:
+    """Whether a drift is within the noise (with a rounding floor for noise-free data)."""
+    return abs(drift) <= max(REST_THRESHOLD * sigma, 1e-12 * max(scale, 1.0))
+
+
+def starts_at_rest(data: IOData, n_initial: int | None = None) -> bool:
+    """Whether y is steady over the initial window, before the input first changes.
+
+    The window is the one :func:`remove_offsets` averages. y is at rest when its drift over the
+    window (the rise of the least-squares line through it) is at most 3 noise standard
+    deviations, the noise being estimated from first differences as std(diff(y))/√2.
+
+    Parameters
+    ----------
+    data : IOData
+        The record.
+    n_initial : int, optional
+        Window length [samples]; default as in :func:`remove_offsets`.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = 0.02 * np.arange(1000)
+    >>> u = np.where(t >= 5.0, 1.5, 1.0)
+    >>> starts_at_rest(IOData(u, 14.6 + 0.0 * t, 0.02))
+    True
+    >>> starts_at_rest(IOData(u, 14.6 + 2.0 * np.exp(-t / 3.0), 0.02))
+    False
+    """
+    n0 = _initial_window(data, n_initial)
+    drift, sigma = _initial_drift(data, n0)
+    return _is_at_rest(drift, sigma, float(np.max(np.abs(data.y[:n0]))))
+
+
+def remove_offsets(data: IOData, n_initial: int | None = None) -> tuple[IOData, float, float]:
+    """Deviations from the initial steady state: u − u0 and y − y0.
+
+    u0 and y0 are the means of the first ``n_initial`` samples (computed as the first sample
+    plus the mean deviation from it, so a constant start gives its value exactly). By default
+    the window is the samples before the first change of u, at least 1 and at most 10 % of the
+    record. If y drifts over that window by more than 3 noise standard deviations (see
+    :func:`starts_at_rest`) a note says the record does not start at rest: then y0 is not a
+    steady value and the fitted gain is biased.
+
+    Parameters
+    ----------
+    data : IOData
+        The record.
+    n_initial : int, optional
+        Number of initial samples averaged.
+
+    Returns
+    -------
+    data : IOData
+        The record in deviations.
+    u0 : float
+        Input offset [u_unit].
+    y0 : float
+        Output offset [y_unit].
+
+    Raises
+    ------
+    DataError
+        If ``n_initial`` is not within 1 … the record length.
+
+    Examples
+    --------
+    >>> d, u0, y0 = remove_offsets(IOData([1.0, 1.0, 1.5, 1.5], [14.6, 14.6, 14.6, 15.0], 1.0))
+    >>> u0, y0, d.u.tolist()
+    (1.0, 14.6, [0.0, 0.0, 0.5, 0.5])
+    """
+    n0 = _initial_window(data, n_initial)
+    u0 = float(data.u[0] + np.mean(data.u[:n0] - data.u[0]))
+    y0 = float(data.y[0] + np.mean(data.y[:n0] - data.y[0]))
+    notes = [
+        f"offsets removed: u0 = {u0:.6g} {data.u_unit}, y0 = {y0:.6g} {data.y_unit} "
+        f"(mean of the first {n0} samples)"
+    ]
+    drift, sigma = _initial_drift(data, n0)
+    if not _is_at_rest(drift, sigma, float(np.max(np.abs(data.y[:n0])))):
+        window = "before the first input change" if n_initial is None else "used for the offsets"
+        notes.append(
+            f"the record does not start at rest (y drifts by {drift:.3g} {data.y_unit} over the "
+            f"first {(n0 - 1) * data.sample_time:.3g} s {window}; noise sd {sigma:.2g}): "
+            "y0 is not a steady value and the gain may be biased"
+        )
+    out = _replace(data, notes[0], u=data.u - u0, y=data.y - y0)
+    return out.with_notes(*notes[1:]), u0, y0
+
+
+def detrend(data: IOData) -> IOData:
+    """Remove a linear trend from y, keeping its mean level.
+
+    The least-squares straight line through y (:func:`scipy.signal.detrend`) is removed and the
+    mean of y is added back, i.e. y − slope·(t − mean(t)). Use this only for records with slow
+    drift (sensor drift, slowly changing fuel temperature) around a steady operating point: on a
+    record with steps the line also takes away part of the step responses and biases the gain.
+
+    Parameters
+    ----------
+    data : IOData
+        The record.
+
+    Returns
+    -------
+    IOData
+        The record with y detrended; u unchanged.
+
+    Examples
+    --------
+    >>> d = detrend(IOData([1.0] * 5, [10.0, 10.1, 10.2, 10.3, 10.4], 1.0))
+    >>> [round(v, 12) for v in d.y.tolist()]
+    [10.2, 10.2, 10.2, 10.2, 10.2]
+    """
+    if data.n_samples < 2:
+        raise DataError("cannot detrend a record of fewer than 2 samples")
+    residual = np.asarray(signal.detrend(data.y, type="linear"), dtype=np.float64)
+    y = residual + float(np.mean(data.y))
+    trend = data.y - residual
+    slope = float(trend[-1] - trend[0]) / ((data.n_samples - 1) * data.sample_time)
+    return _replace(
+        data, f"linear trend removed from y: {slope:.4g} {data.y_unit}/s (mean level kept)", y=y
+    )
