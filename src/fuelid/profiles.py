@@ -165,4 +165,6 @@ def random_levels(
     t = np.r_[0.0, starts] if settle > 0.0 else starts
     u = np.r_[levels[0], draws] if settle > 0.0 else draws
     change = np.r_[True, u[1:] != u[:-1]]
-    return InputProfile(t[change], u[change], duration)
+    return InputProfile(
+        np.asarray(t[change], dtype=float), np.asarray(u[change], dtype=float), duration
+    )

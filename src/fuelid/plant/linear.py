@@ -98,7 +98,7 @@ class LinearPlant:
     def settling_time(self, band: float = 0.02, dt: float = 0.005) -> float:
         """98 % (for ``band`` = 0.02) settling time of the step response [s]."""
         slowest = 1.0 / float(np.min(np.abs(np.linalg.eigvals(self.A).real)))
-        t = np.arange(0.0, self.delay + 12.0 * slowest, dt)
+        t = np.arange(0.0, self.delay + 12.0 * slowest, dt, dtype=np.float64)
         return lti.settling_time(t, self.step_response(t), self.static_gain, band)
 
     def equivalent_model(self, band: float = 0.02) -> EquivalentModel:
@@ -106,7 +106,7 @@ class LinearPlant:
         K = self.static_gain
         settle = self.settling_time(band)
         window = 3.0 * settle
-        t = np.arange(0.0, window, 0.01)
+        t = np.arange(0.0, window, 0.01, dtype=np.float64)
         y_full = self.step_response(t)
         T_f = self._meter_lag()
 
