@@ -214,3 +214,98 @@ def test_step_ls_refuses_data_that_do_not_excite(tmp_path: Path):
     assert result.exit_code == 2
     assert "N=8" in result.stderr
     assert result.stderr.count("\n") == 1
+
+
+def test_time_range_selects_samples(tmp_path: Path):
+    data = _json(
+        str(_log(tmp_path / "log.csv")),
+        "--flowmeter-T",
+        "0.3",
+        "--flowmeter-delay",
+        "0.2",
+        "--t-start",
+        "20",
+        "--t-stop",
+        "80",
+    )
+    assert data["n_samples"] == 3000
+    empty = runner.invoke(app, ["identify", str(tmp_path / "log.csv"), "--t-start", "500"])
+    assert empty.exit_code == 2
+    assert "spans" in empty.stderr
+
+
+def _frame(seed: int = 0) -> pd.DataFrame:
+    rng = np.random.default_rng(seed)
+    u = np.repeat(np.r_[3.0, rng.uniform(2.5, 3.5, 5)], 500)
+    y = 40.0 + simulate_model(TRUTH, u, H) + rng.normal(0.0, 0.05, u.size)
+    return pd.DataFrame({"t_s": np.round(np.arange(u.size) * H, 6), "u_V": u, "q_Lpm": y})
+
+
+def test_real_plc_export_gbk_datetime_decimal_comma(tmp_path: Path):
+    frame = _frame()
+    stamps = pd.Timestamp("2026-03-01 12:00:00") + pd.to_timedelta(frame["t_s"], unit="s")
+    export = pd.DataFrame(
+        {
+            "时间": stamps.dt.strftime("%Y-%m-%d %H:%M:%S.%f").str[:-3],
+            "给定电压": frame["u_V"],
+            "流量": frame["q_Lpm"],
+        }
+    )
+    path = tmp_path / "plc.csv"
+    path.write_bytes(export.to_csv(sep=";", decimal=",", index=False).encode("gbk"))
+    data = _json(
+        str(path),
+        "--time-col",
+        "时间",
+        "--input-col",
+        "给定电压",
+        "--output-col",
+        "流量",
+        "--flowmeter-T",
+        "0.3",
+        "--flowmeter-delay",
+        "0.2",
+    )
+    assert data["sample_time"] == pytest.approx(H)
+    assert abs(data["model"]["K"] - TRUTH.K) < 4 * data["stderr"]["K"]
+
+
+def test_unsorted_log_loads_with_a_warning(tmp_path: Path):
+    frame = _frame()
+    shuffled = frame.sample(frac=1.0, random_state=3)
+    path = tmp_path / "unsorted.csv"
+    shuffled.to_csv(path, index=False)
+    result = runner.invoke(app, ["identify", str(path), "--flowmeter-T", "0.3", "--json"])
+    assert result.exit_code == 0, result.stderr
+    data = json.loads(result.stdout)
+    assert any("sort" in w for w in data["warnings"])
+    assert "sort" in result.stderr
+
+
+@pytest.mark.parametrize(
+    ("damage", "expected"),
+    [
+        ("gap", "gap"),
+        ("conflicting duplicate", "t ="),
+        ("nan", "q_Lpm"),
+        ("text", "q_Lpm"),
+    ],
+)
+def test_messy_logs_are_refused_with_the_place(tmp_path: Path, damage: str, expected: str):
+    frame = _frame().astype({"q_Lpm": object})
+    if damage == "gap":
+        frame = frame.drop(index=range(1000, 1300))
+    elif damage == "conflicting duplicate":
+        extra = frame.iloc[[700]].copy()
+        extra["q_Lpm"] = 99.0
+        frame = pd.concat([frame, extra])
+    elif damage == "nan":
+        frame.loc[1234, "q_Lpm"] = np.nan
+    else:
+        frame.loc[1234, "q_Lpm"] = "E#07"
+    path = tmp_path / "messy.csv"
+    frame.to_csv(path, index=False)
+    result = runner.invoke(app, ["identify", str(path)])
+    assert result.exit_code == 2
+    assert expected in result.stderr
+    assert result.stderr.count("\n") == 1

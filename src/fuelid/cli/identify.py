@@ -16,6 +16,7 @@ from fuelid.errors import FuelidError
 from fuelid.identify.pipeline import IdentifyOptions, identify
 from fuelid.logs import load_log, parse_scale
 from fuelid.plant import linearise, load_plant_config
+from fuelid.preprocess import select
 from fuelid.report import plot_identification, save_figure
 
 
@@ -127,6 +128,14 @@ def identify_command(
             show_default=False,
         ),
     ] = None,
+    t_start: Annotated[
+        float | None,
+        typer.Option(help="Use samples from this time on [s, log time].", show_default=False),
+    ] = None,
+    t_stop: Annotated[
+        float | None,
+        typer.Option(help="Use samples before this time [s, log time].", show_default=False),
+    ] = None,
     time_col: Annotated[str, typer.Option(help="Time column (s or date-time).")] = "t_s",
     input_col: Annotated[str, typer.Option(help="Input column.")] = "u_V",
     output_col: Annotated[str, typer.Option(help="Output column.")] = "q_Lpm",
@@ -184,6 +193,8 @@ def identify_command(
         input_scale=parse_scale(input_scale) if input_scale else None,
         output_scale=parse_scale(output_scale) if output_scale else None,
     )
+    if t_start is not None or t_stop is not None:
+        data = select(data, t_start, t_stop)
     options = IdentifyOptions(
         method="step-ls" if method is MethodChoice.step_ls else "oe",
         order=_order(order),  # type: ignore[arg-type]
