@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.signal
 
 from fuelid.errors import NotExcitingError
 from fuelid.identify.discrete import discretise
@@ -128,3 +129,50 @@ def test_constant_input_is_refused():
     data = IOData(u=np.full(500, 3.0), y=np.full(500, 40.0), sample_time=H)
     with pytest.raises(NotExcitingError, match="never changes"):
         OutputError().fit(data)
+
+
+def _closed_loop(seed: int, pole: float = 0.0, sigma: float = 0.1) -> IOData:
+    """A PI (1 s period) following setpoint steps; it reads the same noisy samples as logged.
+
+    ``pole`` > 0 makes the noise a slow AR(1) disturbance of standard deviation ``sigma``.
+    """
+    rng = np.random.default_rng(seed)
+    per, n_periods = 50, 120
+    model = discretise([TRUTH.T, TRUTH.T_f], TRUTH.delay, H)
+    noise = rng.normal(0.0, sigma, per * n_periods)
+    if pole:
+        noise = scipy.signal.lfilter([np.sqrt(1 - pole**2)], [1.0, -pole], noise)
+    setpoints = np.repeat([40.0, 46.0, 36.0, 44.0, 38.0, 42.0], 20)
+    u = np.empty(per * n_periods)
+    y = np.empty(per * n_periods)
+    v = np.zeros(u.size + model.shift)
+    zi = np.zeros(model.a.size - 1)
+    u_prev, e_prev, Kc, Ti = 3.0, 0.0, 0.048, 1.268
+    for j, r in enumerate(setpoints):
+        k0 = j * per
+        e = r - ((y[k0 - 1] + noise[k0 - 1]) if k0 else 40.0 + noise[0])
+        u_j = u_prev + Kc * (e - e_prev + e / Ti)
+        u[k0 : k0 + per] = u_j
+        v[k0 + model.shift : k0 + per + model.shift] = u_j - 3.0
+        out, zi = scipy.signal.lfilter(model.b, model.a, v[k0 : k0 + per], zi=zi)
+        y[k0 : k0 + per] = 40.0 + TRUTH.K * out
+        u_prev, e_prev = u_j, e
+    return IOData(u=u, y=y + noise, sample_time=H)
+
+
+def test_closed_loop_data_are_flagged_and_still_fitted():
+    from fuelid.identify.pipeline import IdentifyOptions, identify
+
+    options = IdentifyOptions(flowmeter_T=0.3, flowmeter_delay=0.2)
+    # white noise: output error stays consistent in closed loop (a few standard errors)
+    white = identify(_closed_loop(0), options)
+    assert abs(white.model.K - TRUTH.K) < 4 * white.stderr["K"]
+    # a slow 3 L/min disturbance the controller works against: the input follows the residual,
+    # the fit is biased (K off by several standard errors), and the user is told
+    coloured = identify(_closed_loop(0, pole=0.99, sigma=3.0), options)
+    assert any("closed-loop" in w for w in coloured.warnings)
+    assert abs(coloured.model.K - TRUTH.K) > 4 * coloured.stderr["K"]
+    u = _steps(8)
+    y = 40.0 + simulate_model(TRUTH, u, H) + np.random.default_rng(1).normal(0.0, 0.1, u.size)
+    open_loop = identify(IOData(u=u, y=y, sample_time=H), options)
+    assert not any("closed-loop" in w for w in open_loop.warnings)

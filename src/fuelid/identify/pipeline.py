@@ -187,7 +187,10 @@ def identify(data: IOData, options: IdentifyOptions) -> IdentificationResult:
     validation = nrmse_fit(y[n_fit:], residual_model[n_fit:]) if n_fit < work.n_samples else None
     residuals = y[:n_fit] - residual_model[:n_fit]
     white = diagnostics.residual_whiteness(residuals)
-    cross = diagnostics.input_residual_correlation(work.u[:n_fit], residuals)
+    # lags must span the controller's reaction: two control periods at least
+    max_lag = max(25, round(2.0 * options.control_period / work.sample_time))
+    max_lag = min(max_lag, n_fit // 4)
+    cross = diagnostics.input_residual_correlation(work.u[:n_fit], residuals, max_lag)
     settle = model.settling_time()
     steps = diagnostics.steady_state_errors(work.u, y, residual_model, work.sample_time, settle)
     diag: dict[str, Any] = {
