@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fuelid import lti
 from fuelid.errors import FuelidError
-from fuelid.identify.discrete import discretise
+from fuelid.identify.discrete import discretise, lag_chain
 
 
 @dataclass(frozen=True)
@@ -85,19 +85,8 @@ class ProcessModel:
 
     def state_space(self) -> tuple[NDArray[np.float64], ...]:
         """(A, B, C, D) of the delay-free part as a chain of first-order lags."""
-        lags = self.time_constants
-        n = len(lags)
-        A = np.zeros((n, n))
-        B = np.zeros((n, 1))
-        C = np.zeros((1, n))
-        for i, tc in enumerate(lags):
-            A[i, i] = -1.0 / tc
-            if i == 0:
-                B[0, 0] = self.K / tc
-            else:
-                A[i, i - 1] = 1.0 / tc
-        C[0, n - 1] = 1.0
-        return A, B, C, np.zeros((1, 1))
+        A, B, C = lag_chain(self.time_constants)
+        return A, self.K * B, C, np.zeros((1, 1))
 
     def step_response(self, t: ArrayLike) -> NDArray[np.float64]:
         """Response to a unit step at t = 0, exact, dead time included.
