@@ -309,3 +309,30 @@ def test_messy_logs_are_refused_with_the_place(tmp_path: Path, damage: str, expe
     assert result.exit_code == 2
     assert expected in result.stderr
     assert result.stderr.count("\n") == 1
+
+
+def test_second_file_validates(tmp_path: Path):
+    fit_log = _log(tmp_path / "fit.csv", seed=1)
+    other = _log(tmp_path / "other.csv", seed=2)
+    data = _json(
+        str(fit_log),
+        "--flowmeter-T",
+        "0.3",
+        "--flowmeter-delay",
+        "0.2",
+        "--validate-file",
+        str(other),
+    )
+    y = pd.read_csv(other)["q_Lpm"].to_numpy()
+    expected = 100 * (1 - 0.05 * np.sqrt(y.size) / np.linalg.norm(y - y.mean()))
+    assert data["validation_fit_percent"] == pytest.approx(expected, abs=0.3)
+    both = runner.invoke(
+        app, ["identify", str(fit_log), "--validate-file", str(other), "--validate-split", "0.3"]
+    )
+    assert both.exit_code == 2
+
+
+def test_order_2_reports_the_t2_delay_correlation(tmp_path: Path):
+    data = _json(str(_log(tmp_path / "log.csv")), "--order", "2", "--delay", "auto")
+    assert -1.0 <= data["correlation_T2_delay"] <= 1.0
+    assert data["model"]["T2"] > 0.0

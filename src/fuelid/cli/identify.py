@@ -18,6 +18,7 @@ from fuelid.logs import load_log, parse_scale
 from fuelid.plant import linearise, load_plant_config
 from fuelid.preprocess import select
 from fuelid.report import plot_identification, save_figure
+from fuelid.signals import IOData
 
 
 class MethodChoice(enum.StrEnum):
@@ -110,6 +111,14 @@ def identify_command(
             help="Hold out the last fraction F of the record for validation.", show_default=False
         ),
     ] = None,
+    validate_file: Annotated[
+        Path | None,
+        typer.Option(
+            help="A second log (same columns) to validate on, simulated from rest at its "
+            "first input.",
+            show_default=False,
+        ),
+    ] = None,
     config: Annotated[
         Path | None,
         typer.Option(
@@ -184,15 +193,20 @@ def identify_command(
     for name, value in (("--flowmeter-T", T_f), ("--flowmeter-delay", meter_delay)):
         if value is not None and not (math.isfinite(value) and value >= 0.0):
             raise FuelidError(f"{name} must be a non-negative number of seconds")
-    data = load_log(
-        file,
-        time_col=None if sample_time is not None else time_col,
-        input_col=input_col,
-        output_col=output_col,
-        sample_time=sample_time,
-        input_scale=parse_scale(input_scale) if input_scale else None,
-        output_scale=parse_scale(output_scale) if output_scale else None,
-    )
+
+    def read(path: Path) -> IOData:
+        return load_log(
+            path,
+            time_col=None if sample_time is not None else time_col,
+            input_col=input_col,
+            output_col=output_col,
+            sample_time=sample_time,
+            input_scale=parse_scale(input_scale) if input_scale else None,
+            output_scale=parse_scale(output_scale) if output_scale else None,
+        )
+
+    data = read(file)
+    validation = read(validate_file) if validate_file is not None else None
     if t_start is not None or t_stop is not None:
         data = select(data, t_start, t_stop)
     options = IdentifyOptions(
@@ -207,7 +221,7 @@ def identify_command(
         validate_split=validate_split,
         u_before=u_before,
     )
-    result = identify(data, options)
+    result = identify(data, options, validation)
     for message in result.warnings:
         warn(message)
     if plot is not None:

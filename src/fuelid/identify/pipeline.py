@@ -7,6 +7,7 @@ numbers through :func:`identify`.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -127,13 +128,18 @@ def _decimated(data: IOData, control_period: float) -> IOData:
     return decimate(data, control_period)
 
 
-def identify(data: IOData, options: IdentifyOptions) -> IdentificationResult:
+def identify(
+    data: IOData, options: IdentifyOptions, validation: IOData | None = None
+) -> IdentificationResult:
     """Identify the model family on ``data`` with ``options``.
 
     ``oe`` fits the raw samples; ``step-ls`` first low-passes (zero phase) and decimates to the
     control period, as the article does. With ``validate_split`` the last fraction of the record
-    is held out: the model is fitted on the rest and simulated on through it.
+    is held out: the model is fitted on the rest and simulated on through it. A separate
+    ``validation`` record is scored by a free-run simulation from rest at its first input.
     """
+    if validation is not None and options.validate_split is not None:
+        raise FuelidError("give either a validation split or a validation file, not both")
     T_f = options.flowmeter_T or 0.0
     delay = options.resolved_delay()
     warnings: list[str] = []
@@ -149,6 +155,7 @@ def identify(data: IOData, options: IdentifyOptions) -> IdentificationResult:
         ls = StepResponseLS(
             N=options.N, T_f=T_f, delay=delay, settling_time=options.settling_time
         ).fit(fit_data)
+        predict: Callable[[IOData], FloatArray] = ls.predict
         y_hat = ls.predict(work)
         model = ls.model_
         stderr: dict[str, float | None] = {"K": ls.K_stderr_, "T": ls.T_stderr_}
@@ -173,6 +180,7 @@ def identify(data: IOData, options: IdentifyOptions) -> IdentificationResult:
         oe = OutputError(order=options.order, delay=delay, T_f=T_f, u_before=options.u_before).fit(
             fit_data
         )
+        predict = oe.predict
         y_hat = oe.simulate(work)
         model = oe.model_
         stderr = dict(oe.stderr_)
@@ -180,11 +188,22 @@ def identify(data: IOData, options: IdentifyOptions) -> IdentificationResult:
         fixed = oe.fixed_
         warnings.extend(oe.warnings_)
         extra = {"aic": {str(k): v for k, v in oe.aic_.items()}, "noise_std": oe.sigma_}
+        if "T2" in oe.param_names_ and "delay" in oe.param_names_:
+            names = oe.param_names_
+            extra["correlation_T2_delay"] = float(
+                oe.correlation_[names.index("T2"), names.index("delay")]
+            )
         residual_model = y_hat
     time = work.t
     y = work.y
     fit_percent = nrmse_fit(y[:n_fit], residual_model[:n_fit])
-    validation = nrmse_fit(y[n_fit:], residual_model[n_fit:]) if n_fit < work.n_samples else None
+    validation_fit = (
+        nrmse_fit(y[n_fit:], residual_model[n_fit:]) if n_fit < work.n_samples else None
+    )
+    if validation is not None:
+        if options.method == "step-ls":
+            validation = _decimated(validation, options.control_period)
+        validation_fit = nrmse_fit(validation.y, predict(validation))
     residuals = y[:n_fit] - residual_model[:n_fit]
     white = diagnostics.residual_whiteness(residuals)
     # lags must span the controller's reaction: two control periods at least
@@ -238,7 +257,7 @@ def identify(data: IOData, options: IdentifyOptions) -> IdentificationResult:
         cov_names=cov_names,
         cov=cov,
         fit_percent=fit_percent,
-        validation_fit_percent=validation,
+        validation_fit_percent=validation_fit,
         n_samples=fit_data.n_samples,
         sample_time=work.sample_time,
         warnings=list(dict.fromkeys(warnings)),
