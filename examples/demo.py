@@ -18,6 +18,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from fuelid.fuel import T0 as KELVIN
 from fuelid.identify.pipeline import IdentifyOptions, identify
 from fuelid.logs import load_log
 from fuelid.plant import linearise, load_plant_config
@@ -26,7 +27,6 @@ from fuelid.profiles import step_profile, step_sequence
 from fuelid.report import plot_identification, plot_log, plot_step_responses, save_figure
 from fuelid.simulate import simulate
 
-KELVIN = 273.15
 TEMPERATURES_DEGC = (-20.0, 0.0, 20.0, 35.0, 50.0)
 U_ARTICLE = 1.25  # middle of the article's 1 V → 1.5 V step
 

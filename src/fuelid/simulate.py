@@ -22,6 +22,7 @@ import scipy.integrate
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid.errors import FuelidError
+from fuelid.fuel import T0 as KELVIN
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.flowmeter import measure_flow
 from fuelid.plant.pump import LPM_PER_M3S
@@ -41,7 +42,6 @@ from fuelid.signals import (
 )
 
 FloatArray = NDArray[np.float64]
-KELVIN = 273.15
 #: absolute tolerances per state [Hz, rad/s, Pa, m³/s, m³/s]: far below noise and quantisation
 ATOL = np.array([1e-6, 1e-5, 1e-1, 1e-10, 1e-10])
 RTOL = 1e-7

@@ -15,12 +15,12 @@ import typer
 
 from fuelid import __version__
 from fuelid.errors import FuelidError
+from fuelid.fuel import T0 as KELVIN
 
 P = ParamSpec("P")
 R = TypeVar("R")
 
 EXIT_BAD_INPUT = 2
-KELVIN = 273.15
 
 
 def fail(message: str) -> typer.Exit:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import enum
 import math
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import typer
 from rich.console import Console
@@ -28,17 +28,21 @@ class MethodChoice(enum.StrEnum):
     step_ls = "step-ls"
 
 
-def _order(text: str) -> int | str:
-    if text in ("1", "2"):
-        return int(text)
+def _order(text: str) -> Literal[1, 2, "auto"]:
+    if text == "1":
+        return 1
+    if text == "2":
+        return 2
     if text == "auto":
         return "auto"
     raise FuelidError(f"--order must be 1, 2 or auto, got {text!r}")
 
 
-def _delay(text: str | None) -> float | str | None:
-    if text is None or text == "auto":
-        return text
+def _delay(text: str | None) -> float | Literal["auto"] | None:
+    if text is None:
+        return None
+    if text == "auto":
+        return "auto"
     try:
         value = float(text)
     except ValueError:
@@ -211,8 +215,8 @@ def identify_command(
         data = select(data, t_start, t_stop)
     options = IdentifyOptions(
         method="step-ls" if method is MethodChoice.step_ls else "oe",
-        order=_order(order),  # type: ignore[arg-type]
-        delay=_delay(delay),  # type: ignore[arg-type]
+        order=_order(order),
+        delay=_delay(delay),
         flowmeter_T=T_f,
         flowmeter_delay=meter_delay,
         N=n_steps,

@@ -14,6 +14,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from fuelid.cli._common import celsius_to_kelvin, emit_json, guarded, provenance
 from fuelid.errors import DataError, FuelidError
+from fuelid.fuel import T0 as KELVIN
 from fuelid.plant import load_plant_config
 from fuelid.plant.pump import LPM_PER_M3S
 from fuelid.profiles import InputProfile, random_levels, step_profile, step_sequence
@@ -67,7 +68,7 @@ def _profile_from_file(path: Path, duration: float | None) -> tuple[InputProfile
     temperature = None
     if FUEL_TEMPERATURE_COLUMN in frame.columns:
         temps = numeric_column(frame, FUEL_TEMPERATURE_COLUMN, str(path))
-        temperature = FuelTemperature(t, temps + 273.15)
+        temperature = FuelTemperature(t, temps + KELVIN)
     return profile, temperature
 
 
