@@ -41,11 +41,16 @@ LoopFunction = Callable[[FloatArray], ComplexArray]
 class StateSpacePlant(Protocol):
     """Anything with a delay-free state-space part and an explicit dead time (a LinearPlant)."""
 
-    A: FloatArray
-    B: FloatArray
-    C: FloatArray
-    D: FloatArray
-    delay: float
+    @property
+    def A(self) -> FloatArray: ...  # noqa: D102
+    @property
+    def B(self) -> FloatArray: ...  # noqa: D102
+    @property
+    def C(self) -> FloatArray: ...  # noqa: D102
+    @property
+    def D(self) -> FloatArray: ...  # noqa: D102
+    @property
+    def delay(self) -> float: ...  # noqa: D102
 
 
 def process_response(model: ProcessModel, omega: ArrayLike, h: float = 0.0) -> ComplexArray:
