@@ -14,6 +14,7 @@ from fuelid import __version__
 from fuelid.cli import plant
 from fuelid.cli.identify import identify_command
 from fuelid.cli.simulate import simulate_command
+from fuelid.cli.tune import tune_command
 from fuelid.errors import FuelidError
 
 app = typer.Typer(
@@ -27,6 +28,7 @@ app = typer.Typer(
 app.add_typer(plant.app, name="plant")
 app.command("simulate")(simulate_command)
 app.command("identify")(identify_command)
+app.command("tune")(tune_command)
 
 
 def _version(value: bool) -> None:

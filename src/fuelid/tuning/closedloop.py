@@ -492,3 +492,37 @@ def _event_metrics(
             r = float(run.setpoint[window][0])
             out.append(disturbance_metrics(t, y, r, after - before, start))
     return out
+
+
+def standard_scenario(
+    flow: float,
+    step: float,
+    load: float = 0.2,
+    t_step: float = 5.0,
+    t_load: float = 45.0,
+    duration: float = 90.0,
+) -> tuple[InputProfile, InputProfile]:
+    """The standard closed-loop test: a setpoint step, then a load step at the plant input.
+
+    Parameters
+    ----------
+    flow : float
+        Initial flow (the plant starts at rest there) [L/min].
+    step : float
+        Setpoint step at ``t_step`` [L/min].
+    load : float
+        Load disturbance step at the plant input at ``t_load`` [V].
+
+    Returns
+    -------
+    (setpoint, disturbance) : InputProfile, InputProfile
+
+    Examples
+    --------
+    >>> r, d = standard_scenario(30.0, 10.0)
+    >>> r.u.tolist(), d.t.tolist(), d.u.tolist()
+    ([30.0, 40.0], [0.0, 45.0], [0.0, 0.2])
+    """
+    setpoint = InputProfile(np.array([0.0, t_step]), np.array([flow, flow + step]), duration)
+    disturbance = InputProfile(np.array([0.0, t_load]), np.array([0.0, load]), duration)
+    return setpoint, disturbance

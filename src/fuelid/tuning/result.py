@@ -1,0 +1,184 @@
+"""One tuning, evaluated: the gains, their robustness on the model and the linear closed loop.
+
+What ``fuelid tune``, ``fuelid report`` and the demo share, with the documented JSON object.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from fuelid.errors import DataError, FuelidError
+from fuelid.model import ProcessModel
+from fuelid.tuning.closedloop import LinearResponse, linear_closed_loop
+from fuelid.tuning.frequency import Robustness, robustness
+from fuelid.tuning.rules import PISettings, tune
+
+MODEL_KEYS = ("K", "T", "T2", "T_f", "delay")
+
+UNITS = {
+    "Kc": "V/(L/min)",
+    "Ti": "s",
+    "Ki": "V/((L/min)*s)",
+    "control_period": "s",
+    "tuning_parameter": "s",
+    "K": "(L/min)/V",
+    "T": "s",
+    "T2": "s",
+    "T_f": "s",
+    "delay": "s",
+    "T1": "s",
+    "theta": "s",
+    "percent_of_span.Kc": "%/%",
+    "u_span": "V",
+    "y_span": "L/min",
+    "gain_margin": "ratio",
+    "phase_margin_deg": "deg",
+    "Ms": "1",
+    "Mt": "1",
+    "crossover_frequency": "rad/s",
+    "overshoot_percent": "% of the setpoint step",
+    "settling_time": "s (2 % band)",
+    "iae": "(L/min)*s per L/min of setpoint step, or per V of load step",
+    "peak_deviation": "L/min per L/min of step, or per V of load step",
+    "fuel_temperature": "degC",
+    "flow": "L/min",
+    "u": "V",
+}
+
+
+@dataclass(frozen=True)
+class TuningResult:
+    """PI settings with their margins and unit-step closed-loop metrics on the model."""
+
+    model: ProcessModel
+    pi: PISettings
+    robustness: Robustness
+    closed_loop: LinearResponse
+    u_span: float
+    y_span: float
+
+    def to_json(self) -> dict[str, Any]:
+        """The documented JSON object of ``fuelid tune --json`` (without provenance)."""
+        reduced = self.pi.reduced
+        return {
+            "rule": self.pi.rule,
+            "Kc": self.pi.Kc,
+            "Ti": self.pi.Ti,
+            "Ki": self.pi.Ki,
+            "control_period": self.pi.control_period,
+            "tuning_parameter": self.pi.tuning_parameter,
+            "model": self.model.as_dict(),
+            "reduced_model": None
+            if reduced is None
+            else {"K": reduced.K, "T1": reduced.T1, "theta": reduced.theta},
+            "plc": self.pi.plc_form(self.u_span, self.y_span),
+            "gain_margin": self.robustness.gain_margin,
+            "phase_margin_deg": self.robustness.phase_margin_deg,
+            "Ms": self.robustness.Ms,
+            "robustness": self.robustness.as_dict(),
+            "closed_loop": {
+                "model": "linear (the process model, exact ZOH)",
+                "setpoint_step": self.closed_loop.setpoint.as_dict(),
+                "load_step": self.closed_loop.disturbance.as_dict(),
+            },
+        }
+
+
+def evaluate_tuning(
+    model: ProcessModel,
+    rule: str = "simc",
+    control_period: float = 1.0,
+    speed: float | None = None,
+    u_span: float = 4.0,
+    y_span: float = 100.0,
+) -> TuningResult:
+    """Tune ``model`` by ``rule`` and evaluate the gains on it (see :func:`~.rules.tune`).
+
+    Examples
+    --------
+    >>> res = evaluate_tuning(ProcessModel(K=1.0, T=2.0, delay=1.0), "amigo", control_period=0.0)
+    >>> round(res.pi.Kc, 3), round(res.robustness.Ms, 2)
+    (0.406, 1.21)
+    """
+    pi = tune(model, rule, control_period, speed)
+    return TuningResult(
+        model=model,
+        pi=pi,
+        robustness=robustness(model, pi),
+        closed_loop=linear_closed_loop(model, pi),
+        u_span=u_span,
+        y_span=y_span,
+    )
+
+
+@dataclass(frozen=True)
+class ModelFile:
+    """A process model read from a JSON result, with its covariance when there is one."""
+
+    model: ProcessModel
+    cov_names: tuple[str, ...]
+    cov: list[list[float]] | None
+    source: str
+
+
+def load_model_file(path: str | Path) -> ModelFile:
+    """Read the model of a ``fuelid identify --json`` (or ``plant info --json``) result.
+
+    Raises
+    ------
+    DataError
+        If the file is missing, not JSON, not such a result, or its model is incomplete or
+        physically impossible (non-positive T, negative delay).
+    """
+    file = Path(path)
+    try:
+        data = json.loads(file.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise DataError(f"model file {str(file)!r} does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(f"cannot read model file {str(file)!r}: {exc}") from None
+    except json.JSONDecodeError as exc:
+        msg = f"model file {str(file)!r} is not JSON ({exc.msg}, line {exc.lineno})"
+        raise DataError(msg) from None
+    if not isinstance(data, dict) or not isinstance(data.get("model"), dict):
+        raise DataError(
+            f"model file {str(file)!r} is not a fuelid identification result: it has no "
+            "'model' object (write one with fuelid identify --json > ident.json)"
+        )
+    raw = data["model"]
+    missing = [key for key in ("K", "T") if key not in raw]
+    if missing:
+        raise DataError(f"model file {str(file)!r}: the model lacks {', '.join(missing)}")
+    values: dict[str, float] = {}
+    for key in MODEL_KEYS:
+        value = raw.get(key, 0.0)
+        if value is None:
+            value = 0.0
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise DataError(f"model file {str(file)!r}: model {key} is not a number: {value!r}")
+        if not math.isfinite(value):
+            raise DataError(f"model file {str(file)!r}: model {key} is not finite")
+        values[key] = float(value)
+    try:
+        model = ProcessModel(**values)
+    except FuelidError as exc:
+        raise DataError(f"model file {str(file)!r}: {exc}") from None
+    cov_names: tuple[str, ...] = ()
+    cov = None
+    block = data.get("cov")
+    if isinstance(block, dict) and isinstance(block.get("names"), list):
+        names = tuple(str(n) for n in block["names"])
+        matrix = block.get("matrix")
+        if (
+            names
+            and set(names) <= set(MODEL_KEYS)
+            and isinstance(matrix, list)
+            and len(matrix) == len(names)
+            and all(isinstance(r, list) and len(r) == len(names) for r in matrix)
+        ):
+            cov_names, cov = names, [[float(v) for v in row] for row in matrix]
+    return ModelFile(model=model, cov_names=cov_names, cov=cov, source=str(file))
