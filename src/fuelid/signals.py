@@ -98,6 +98,32 @@ class TimeSeries:
         return write_table(self.to_pandas(), path, overwrite=overwrite)
 
 
+def _publish(temporary: str, target: Path) -> None:
+    """Give a finished temporary file the usual permissions and rename it onto the target.
+
+    ``mkstemp`` creates files readable by their owner only; a log or a report is meant to be
+    shared like any file the user creates, so the umask decides, as for ``open()``.
+    """
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(temporary, 0o666 & ~umask)
+    os.replace(temporary, target)
+
+
+def atomic_write_bytes(path: str | Path, payload: bytes) -> Path:
+    """Write bytes to a temporary file beside ``path``, then rename: never a half-written file."""
+    out = Path(path)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent or ".")
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(payload)
+        _publish(tmp_name, out)
+    except BaseException:
+        Path(tmp_name).unlink(missing_ok=True)
+        raise
+    return out
+
+
 def table_format(path: str | Path) -> str:
     """``"csv"`` or ``"parquet"`` from a file name, or a :class:`DataError` naming the choices."""
     suffix = Path(path).suffix.lower()
@@ -156,7 +182,7 @@ def write_table(frame: pd.DataFrame, path: str | Path, overwrite: bool = False) 
             frame.to_csv(tmp_name, index=False, float_format="%.10g")
         else:
             frame.to_parquet(tmp_name, index=False)
-        os.replace(tmp_name, out)
+        _publish(tmp_name, out)
     except Exception:
         Path(tmp_name).unlink(missing_ok=True)
         raise
