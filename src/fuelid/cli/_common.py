@@ -9,13 +9,15 @@ import math
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, ParamSpec, TypeVar
+from typing import Annotated, Any, ParamSpec, TypeVar
 
 import typer
 
 from fuelid import __version__
 from fuelid.errors import FuelidError
 from fuelid.fuel import T0 as KELVIN
+from fuelid.logs import load_log, parse_scale
+from fuelid.signals import IOData
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -87,3 +89,49 @@ def celsius_to_kelvin(t_degC: float) -> float:
     if not math.isfinite(t_degC):
         raise FuelidError(f"fuel temperature must be finite, got {t_degC}")
     return t_degC + KELVIN
+
+
+# the options every command that reads a PLC log shares (identify, report)
+TimeColumn = Annotated[str, typer.Option(help="Time column (s or date-time).")]
+InputColumn = Annotated[str, typer.Option(help="Input column.")]
+OutputColumn = Annotated[str, typer.Option(help="Output column.")]
+SampleTime = Annotated[
+    float | None,
+    typer.Option(help="Sample time [s] for a log without a time column.", show_default=False),
+]
+InputScale = Annotated[
+    str | None,
+    typer.Option(
+        help="Linear scaling raw_lo:raw_hi:eng_lo:eng_hi of the input, e.g. 4:20:1:5 for 4-20 mA "
+        "to 1-5 V.",
+        show_default=False,
+    ),
+]
+OutputScale = Annotated[
+    str | None,
+    typer.Option(
+        help="Linear scaling of the output, e.g. 0:27648:0:100 for counts to L/min.",
+        show_default=False,
+    ),
+]
+
+
+def read_log(
+    path: Path,
+    time_col: str,
+    input_col: str,
+    output_col: str,
+    sample_time: float | None,
+    input_scale: str | None,
+    output_scale: str | None,
+) -> IOData:
+    """Load a log with the shared column and scaling options (a sample time replaces the time)."""
+    return load_log(
+        path,
+        time_col=None if sample_time is not None else time_col,
+        input_col=input_col,
+        output_col=output_col,
+        sample_time=sample_time,
+        input_scale=parse_scale(input_scale) if input_scale else None,
+        output_scale=parse_scale(output_scale) if output_scale else None,
+    )

@@ -11,10 +11,21 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from fuelid.cli._common import emit_json, guarded, provenance, warn
+from fuelid.cli._common import (
+    InputColumn,
+    InputScale,
+    OutputColumn,
+    OutputScale,
+    SampleTime,
+    TimeColumn,
+    emit_json,
+    guarded,
+    provenance,
+    read_log,
+    warn,
+)
 from fuelid.errors import FuelidError
 from fuelid.identify.pipeline import IdentifyOptions, identify
-from fuelid.logs import load_log, parse_scale
 from fuelid.plant import linearise, load_plant_config
 from fuelid.preprocess import select
 from fuelid.report import plot_identification, save_figure
@@ -149,28 +160,12 @@ def identify_command(
         float | None,
         typer.Option(help="Use samples before this time [s, log time].", show_default=False),
     ] = None,
-    time_col: Annotated[str, typer.Option(help="Time column (s or date-time).")] = "t_s",
-    input_col: Annotated[str, typer.Option(help="Input column.")] = "u_V",
-    output_col: Annotated[str, typer.Option(help="Output column.")] = "q_Lpm",
-    sample_time: Annotated[
-        float | None,
-        typer.Option(help="Sample time [s] for a log without a time column.", show_default=False),
-    ] = None,
-    input_scale: Annotated[
-        str | None,
-        typer.Option(
-            help="Linear scaling raw_lo:raw_hi:eng_lo:eng_hi of the input, e.g. "
-            "4:20:1:5 for 4-20 mA to 1-5 V.",
-            show_default=False,
-        ),
-    ] = None,
-    output_scale: Annotated[
-        str | None,
-        typer.Option(
-            help="Linear scaling of the output, e.g. 0:27648:0:100 for counts to L/min.",
-            show_default=False,
-        ),
-    ] = None,
+    time_col: TimeColumn = "t_s",
+    input_col: InputColumn = "u_V",
+    output_col: OutputColumn = "q_Lpm",
+    sample_time: SampleTime = None,
+    input_scale: InputScale = None,
+    output_scale: OutputScale = None,
     plot: Annotated[
         Path | None,
         typer.Option(
@@ -199,14 +194,8 @@ def identify_command(
             raise FuelidError(f"{name} must be a non-negative number of seconds")
 
     def read(path: Path) -> IOData:
-        return load_log(
-            path,
-            time_col=None if sample_time is not None else time_col,
-            input_col=input_col,
-            output_col=output_col,
-            sample_time=sample_time,
-            input_scale=parse_scale(input_scale) if input_scale else None,
-            output_scale=parse_scale(output_scale) if output_scale else None,
+        return read_log(
+            path, time_col, input_col, output_col, sample_time, input_scale, output_scale
         )
 
     data = read(file)
