@@ -241,8 +241,9 @@ def plot_closed_loop_runs(
     colors = ("tab:blue", "tab:red", "tab:green", "tab:purple")
     for i, (label, t, r, q, u) in enumerate(runs):
         color = colors[i % len(colors)]
-        if i == 0:
-            ax_q.step(t, r, where="post", color="k", lw=0.8, ls="--", label="setpoint")
+        ax_q.step(
+            t, r, where="post", color=color, lw=0.8, ls="--", label="setpoint" if i == 0 else None
+        )
         ax_q.plot(t, q, color=color, lw=1.0, label=label)
         ax_u.step(t, u, where="post", color=color, lw=1.0, label=label)
     ax_q.set_ylabel("flow [L/min]")

@@ -14,21 +14,16 @@ from rich.table import Table
 
 from fuelid.cli._common import emit_json, guarded, provenance
 from fuelid.errors import FuelidError
-from fuelid.fuel import T0 as KELVIN
 from fuelid.model import ProcessModel
 from fuelid.plant import load_plant_config
-from fuelid.plant.config import PlantConfig
-from fuelid.plant.pump import LPM_PER_M3S
-from fuelid.plant.system import operating_point
 from fuelid.report import plot_closed_loop_runs, plot_linear_closed_loop, save_figure
 from fuelid.tuning.closedloop import (
     ClosedLoopResult,
-    simulate_closed_loop,
-    standard_scenario,
-    steady_command,
+    flow_at,
+    standard_runs,
 )
 from fuelid.tuning.result import UNITS, TuningResult, evaluate_tuning, load_model_file
-from fuelid.tuning.rules import TUNING_RULES, PISettings
+from fuelid.tuning.rules import TUNING_RULES
 from fuelid.tuning.schedule import (
     Anchor,
     FixedPIEvaluation,
@@ -83,7 +78,8 @@ def _model_from_options(
     return model, (), None
 
 
-def _speed(rule: RuleChoice, tau_c: float | None, lam: float | None) -> float | None:
+def rule_speed(rule: RuleChoice, tau_c: float | None, lam: float | None) -> float | None:
+    """The rule's tuning parameter from ``--tau-c`` or ``--lambda``, refusing a mismatch."""
     if tau_c is not None and lam is not None:
         raise FuelidError("give --tau-c (SIMC) or --lambda (lambda rule), not both")
     if tau_c is not None and rule not in (RuleChoice.simc, RuleChoice.isimc):
@@ -91,27 +87,6 @@ def _speed(rule: RuleChoice, tau_c: float | None, lam: float | None) -> float | 
     if lam is not None and rule is not RuleChoice.lambda_:
         raise FuelidError(f"--lambda belongs to the lambda rule, not {rule.value}")
     return tau_c if tau_c is not None else lam
-
-
-def _closed_loop_runs(
-    config: PlantConfig,
-    pi: PISettings,
-    temperatures: tuple[float, ...],
-    u_op: float,
-    y_span: float,
-) -> list[ClosedLoopResult]:
-    """The standard test on the nonlinear plant: setpoint step of 10 % span, 0.2 V load step."""
-    runs = []
-    for t_degC in temperatures:
-        flow = operating_point(config, u_op, t_degC + KELVIN).q * LPM_PER_M3S
-        setpoint, load = standard_scenario(flow, 0.1 * y_span)
-        steady_command(config, flow + 0.1 * y_span, t_degC + KELVIN)  # refuse unreachable steps
-        runs.append(
-            simulate_closed_loop(
-                config, pi, setpoint, fuel_temperature=t_degC + KELVIN, disturbance=load
-            )
-        )
-    return runs
 
 
 def _run_json(run: ClosedLoopResult) -> dict[str, Any]:
@@ -260,7 +235,7 @@ def tune_command(
             raise FuelidError(f"{name} must be a finite temperature")
     if not t_min < t_max:
         raise FuelidError(f"--t-min must be below --t-max, got {t_min:g} and {t_max:g} °C")
-    speed = _speed(rule, tau_c, lam)
+    speed = rule_speed(rule, tau_c, lam)
     model, cov_names, cov = _model_from_options(model_file, K, T, T2, T_f, delay)
     plant = load_plant_config(config)
     u_span = plant.vfd.u_max_V - plant.vfd.u_min_V
@@ -325,7 +300,10 @@ def tune_command(
     temps = tuple(float(t) for t in band_edges(t_min, t_max, band_width))
     commands = (plant.vfd.u_min_V, u_op, plant.vfd.u_max_V)
     check = evaluate_fixed(result.pi, plant_cases(plant, temps, commands, anchor))
-    runs = _closed_loop_runs(plant, result.pi, (t_min, t_max), u_op, y_span) if simulate else []
+    runs = []
+    if simulate:
+        start = flow_at(plant, u_op, fuel_temp)
+        runs = standard_runs(plant, result.pi, (t_min, t_max), start, 0.1 * y_span)
     sweep_summary = None
     if sweep is not None:
         assert anchor is not None

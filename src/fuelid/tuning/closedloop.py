@@ -31,11 +31,18 @@ from numpy.typing import NDArray
 
 from fuelid import lti
 from fuelid.errors import FuelidError
+from fuelid.fuel import T0 as KELVIN
 from fuelid.identify.discrete import discretise
 from fuelid.model import ProcessModel
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.pump import LPM_PER_M3S
-from fuelid.plant.system import plant_coefficients, plant_jacobian, plant_rhs, steady_state
+from fuelid.plant.system import (
+    operating_point,
+    plant_coefficients,
+    plant_jacobian,
+    plant_rhs,
+    steady_state,
+)
 from fuelid.profiles import InputProfile
 from fuelid.simulate import ATOL, RTOL
 from fuelid.tuning.rules import PISettings
@@ -526,3 +533,44 @@ def standard_scenario(
     setpoint = InputProfile(np.array([0.0, t_step]), np.array([flow, flow + step]), duration)
     disturbance = InputProfile(np.array([0.0, t_load]), np.array([0.0, load]), duration)
     return setpoint, disturbance
+
+
+def standard_runs(
+    config: PlantConfig,
+    pi: PISettings,
+    temperatures_degC: tuple[float, ...],
+    flow: float,
+    step: float,
+) -> list[ClosedLoopResult]:
+    """The standard test (:func:`standard_scenario`) on the nonlinear plant at each temperature.
+
+    Every run starts at rest at the same flow, so the runs differ only by the fuel.
+
+    Parameters
+    ----------
+    config : PlantConfig
+        The plant.
+    pi : PISettings
+        The controller.
+    temperatures_degC : tuple of float
+        Fuel temperatures [°C], one run each.
+    flow : float
+        Flow the runs start at [L/min].
+    step : float
+        Setpoint step [L/min]; a flow the drive cannot reach is refused (:class:`FuelidError`).
+    """
+    runs = []
+    for t_degC in temperatures_degC:
+        T_fuel = t_degC + KELVIN
+        for target in (flow, flow + step):
+            steady_command(config, target, T_fuel)  # refuses an unreachable flow
+        setpoint, load = standard_scenario(flow, step)
+        runs.append(
+            simulate_closed_loop(config, pi, setpoint, fuel_temperature=T_fuel, disturbance=load)
+        )
+    return runs
+
+
+def flow_at(config: PlantConfig, u: float, t_degC: float) -> float:
+    """Steady flow [L/min] the command ``u`` [V] gives with fuel at ``t_degC`` [°C]."""
+    return float(operating_point(config, u, t_degC + KELVIN).q * LPM_PER_M3S)
