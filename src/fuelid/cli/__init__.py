@@ -13,6 +13,7 @@ import typer
 from fuelid import __version__
 from fuelid.cli import plant
 from fuelid.cli.identify import identify_command
+from fuelid.cli.report import report_command
 from fuelid.cli.simulate import simulate_command
 from fuelid.cli.tune import tune_command
 from fuelid.errors import FuelidError
@@ -29,6 +30,7 @@ app.add_typer(plant.app, name="plant")
 app.command("simulate")(simulate_command)
 app.command("identify")(identify_command)
 app.command("tune")(tune_command)
+app.command("report")(report_command)
 
 
 def _version(value: bool) -> None:

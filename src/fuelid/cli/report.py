@@ -1,0 +1,199 @@
+"""``fuelid report``: one self-contained HTML page from a PLC log, from the data to the gains."""
+
+from __future__ import annotations
+
+import enum
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+
+from fuelid.cli._common import (
+    InputColumn,
+    InputScale,
+    OutputColumn,
+    OutputScale,
+    SampleTime,
+    TimeColumn,
+    emit_json,
+    file_sha256,
+    guarded,
+    provenance,
+    read_log,
+    warn,
+)
+from fuelid.cli.tune import RuleChoice, rule_speed
+from fuelid.htmlreport import check_report_path, write_report
+from fuelid.plant import load_plant_config
+from fuelid.tuning.result import UNITS
+from fuelid.workflow import AnalysisSettings, LogAnalysis, analyse_log
+
+
+class TuneFrom(enum.StrEnum):
+    """Which identification the gains are computed from."""
+
+    oe = "oe"
+    step_ls = "step-ls"
+
+
+@guarded
+def report_command(
+    file: Annotated[Path, typer.Argument(help="PLC log: CSV (any of , ; tab) or Parquet.")],
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="The HTML report; its figures go beside it.")
+    ] = Path("report.html"),
+    force: Annotated[
+        bool, typer.Option("--force", help="Replace an existing report and its figures.")
+    ] = False,
+    config: Annotated[
+        Path | None,
+        typer.Option(
+            "--config",
+            "-c",
+            help="Plant TOML: flowmeter priors, spans, temperature physics, the nonlinear plant "
+            "of the closed-loop runs (default: the reference plant).",
+            show_default=False,
+        ),
+    ] = None,
+    method: Annotated[
+        TuneFrom, typer.Option(help="Identification the gains come from (both are shown).")
+    ] = TuneFrom.oe,
+    rule: Annotated[
+        RuleChoice, typer.Option(help="Tuning rule (see fuelid tune --list-rules).")
+    ] = (RuleChoice.simc),
+    tau_c: Annotated[
+        float | None,
+        typer.Option("--tau-c", help="SIMC closed-loop time constant [s].", show_default=False),
+    ] = None,
+    lam: Annotated[
+        float | None,
+        typer.Option(
+            "--lambda", help="Lambda-rule closed-loop time constant [s].", show_default=False
+        ),
+    ] = None,
+    control_period: Annotated[
+        float,
+        typer.Option(help="PLC control period h [s]; 0 for a continuous controller."),
+    ] = 1.0,
+    fuel_temp: Annotated[float, typer.Option(help="Fuel temperature during the log [°C].")] = 20.0,
+    t_min: Annotated[float, typer.Option(help="Coldest fuel [°C].")] = -20.0,
+    t_max: Annotated[float, typer.Option(help="Warmest fuel [°C].")] = 50.0,
+    band_width: Annotated[
+        float, typer.Option(help="Temperature band of the schedule [°C].")
+    ] = 10.0,
+    ms_target: Annotated[
+        float, typer.Option(help="Largest Ms the schedule accepts in any band [-].")
+    ] = 1.7,
+    flow_bands: Annotated[
+        int, typer.Option(help="Flow bands where the gain depends on the flow (1: none).")
+    ] = 3,
+    validate_split: Annotated[
+        float | None,
+        typer.Option(help="Hold out the last fraction F of the log for validation (0: none)."),
+    ] = 0.3,
+    time_col: TimeColumn = "t_s",
+    input_col: InputColumn = "u_V",
+    output_col: OutputColumn = "q_Lpm",
+    sample_time: SampleTime = None,
+    input_scale: InputScale = None,
+    output_scale: OutputScale = None,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print one JSON object (the numbers and the paths).")
+    ] = False,
+) -> None:
+    """Identify, tune and check a log; write an HTML report with every figure embedded.
+
+    The page holds the data overview, measured versus model (step-ls and oe side by side), the
+    residual tests, the Bode plot with the margins, the closed loop on the nonlinear plant at the
+    coldest and warmest fuel, the gains in every PLC form and the gain schedule. The figures are
+    also written as PNG files beside the page (REPORT_overview.png, ...).
+    """
+    check_report_path(out, force)  # before any work: a typo must not cost a minute
+    settings = AnalysisSettings(
+        tune_from="oe" if method is TuneFrom.oe else "step-ls",
+        rule=rule.value,
+        speed=rule_speed(rule, tau_c, lam),
+        control_period=control_period,
+        fuel_temperature=fuel_temp,
+        t_range=(t_min, t_max),
+        band_width=band_width,
+        ms_target=ms_target,
+        flow_bands=flow_bands,
+        validate_split=validate_split or None,
+    )
+    plant = load_plant_config(config)
+    data = read_log(file, time_col, input_col, output_col, sample_time, input_scale, output_scale)
+    analysis = analyse_log(data, plant, settings)
+    for message in analysis.warnings:
+        warn(message)
+    digest = file_sha256(file)
+    written = write_report(analysis, out, overwrite=force, source_sha256=digest)
+    if as_json:
+        options = {
+            "out": str(out),
+            "config": str(config) if config else None,
+            "method": settings.tune_from,
+            "rule": rule.value,
+            "tau_c": tau_c,
+            "lambda": lam,
+            "control_period": control_period,
+            "fuel_temp": fuel_temp,
+            "t_min": t_min,
+            "t_max": t_max,
+            "band_width": band_width,
+            "ms_target": ms_target,
+            "flow_bands": flow_bands,
+            "validate_split": validate_split,
+            "time_col": time_col,
+            "input_col": input_col,
+            "output_col": output_col,
+            "sample_time": sample_time,
+            "input_scale": input_scale,
+            "output_scale": output_scale,
+        }
+        emit_json(_payload(analysis, written) | provenance(options, file))
+        return
+    _print_summary(analysis, written)
+
+
+def _payload(analysis: LogAnalysis, written: list[Path]) -> dict[str, Any]:
+    check = analysis.check
+    return {
+        "report": str(written[0]),
+        "figures": [str(p) for p in written[1:]],
+        "identification": {m: r.to_json() for m, r in analysis.identifications.items()},
+        "tuned_from": analysis.settings.tune_from,
+        "tuning": analysis.tuning.to_json(),
+        "temperature_check": {
+            "worst_Ms": check.worst_Ms,
+            "worst_overshoot_percent": check.worst_overshoot,
+            "worst_gain_margin": check.worst_gain_margin,
+            "worst_phase_margin_deg": check.worst_phase_margin,
+            "all_stable": check.all_stable,
+        },
+        "closed_loop_plant": [
+            {"fuel_temperature": r.fuel_temperature, "summary": r.summary()} for r in analysis.runs
+        ],
+        "schedule": analysis.schedule.as_dict(),
+        "warnings": analysis.warnings,
+        "units": UNITS,
+    }
+
+
+def _print_summary(analysis: LogAnalysis, written: list[Path]) -> None:
+    console = Console()
+    pi = analysis.tuning.pi
+    rob = analysis.tuning.robustness
+    model = analysis.model_result.model
+    console.print(
+        f"{analysis.settings.tune_from} model: K = {model.K:.4g} (L/min)/V, T = {model.T:.3g} s, "
+        f"delay = {model.delay:.3g} s (fit {analysis.model_result.fit_percent:.1f} %)"
+    )
+    console.print(
+        f"{pi.rule} PI: Kc = {pi.Kc:.4g} V/(L/min), Ti = {pi.Ti:.3g} s; GM {rob.gain_margin:.2f}, "
+        f"PM {rob.phase_margin_deg:.1f}°, Ms {rob.Ms:.2f}; over temperature worst Ms "
+        f"{analysis.check.worst_Ms:.2f}; schedule of {len(analysis.schedule.bands)} bands, "
+        f"worst Ms {analysis.schedule.worst_Ms:.2f}"
+    )
+    console.print(f"report: {written[0]}")

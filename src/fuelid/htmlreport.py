@@ -1,0 +1,335 @@
+"""The HTML report of one log: figures embedded, rendered from a jinja2 template.
+
+:func:`report_figures` draws the figures of a :class:`~fuelid.workflow.LogAnalysis` with the
+functions of :mod:`fuelid.report`; :func:`render_report` fills ``templates/report.html.j2`` with
+the numbers (autoescaped, never string-built); :func:`write_report` writes the page and the same
+figures as PNG files beside it, refusing to overwrite anything unless asked. Computation never
+lives here: everything shown was computed by :func:`~fuelid.workflow.analyse_log`.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import math
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import jinja2
+import numpy as np
+from matplotlib.figure import Figure
+
+from fuelid import __version__
+from fuelid.errors import DataError
+from fuelid.report import (
+    plot_bode,
+    plot_closed_loop_runs,
+    plot_correlation_tests,
+    plot_identification,
+    plot_log,
+    plot_schedule,
+)
+from fuelid.signals import TimeSeries, atomic_write_bytes
+from fuelid.workflow import LogAnalysis
+
+TEMPLATE = "report.html.j2"
+
+
+@dataclass(frozen=True)
+class ReportFigure:
+    """One figure of the report: its file-name key, caption and PNG bytes."""
+
+    key: str
+    caption: str
+    png: bytes
+
+    @property
+    def data_uri(self) -> str:
+        """The PNG as a ``data:`` URI, so the page needs no other file."""
+        return "data:image/png;base64," + base64.b64encode(self.png).decode("ascii")
+
+
+FIGURE_KEYS = ("overview", "comparison", "residuals", "bode", "closed_loop", "schedule")
+"""Every report has these figures, in this order (also the PNG file suffixes)."""
+
+
+def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
+    """The report's figures with their captions, keyed as :data:`FIGURE_KEYS`."""
+    data = analysis.data
+    s = analysis.settings
+    chosen = analysis.model_result
+    overview = plot_log(
+        TimeSeries(data.t, {"u_V": data.u, "q_Lpm": data.y}),
+        f"{data.source or 'log'}: {data.n_samples} samples every {data.sample_time:g} s",
+    )
+    oe = analysis.identifications["oe"]
+    curves = [
+        (
+            f"{method} model (K = {r.model.K:.4g}, T = {r.model.T:.3g} s)",
+            np.interp(oe.time, r.time, r.y_hat),
+        )
+        for method, r in analysis.identifications.items()
+    ]
+    comparison = plot_identification(
+        oe.time, oe.y, curves, oe.split_time, "measured flow and the identified models"
+    )
+    residuals = plot_correlation_tests(
+        [
+            (
+                f"residual autocorrelation ({chosen.method}, fitted samples; "
+                f"p = {analysis.whiteness.p_value:.2g})",
+                analysis.whiteness.lags,
+                analysis.whiteness.values,
+                analysis.whiteness.bound,
+            ),
+            (
+                "input-residual cross-correlation (positive lag: residual after input change; "
+                f"p = {analysis.input_correlation.p_value:.2g})",
+                analysis.input_correlation.lags,
+                analysis.input_correlation.values,
+                analysis.input_correlation.bound,
+            ),
+        ]
+    )
+    rob = analysis.tuning.robustness
+    bode = plot_bode(
+        analysis.bode_frequency,
+        analysis.bode_loop,
+        rob.gain_margin,
+        rob.phase_margin_deg,
+        rob.Ms,
+        rob.crossover_frequency,
+        rob.phase_crossover_frequency,
+        f"loop L = C·G on the {chosen.method} model, "
+        + (f"PI sampled every {s.control_period:g} s" if s.control_period > 0 else "continuous PI"),
+    )
+    closed = plot_closed_loop_runs(
+        [
+            (f"fuel at {r.fuel_temperature:g} °C", r.time, r.setpoint, r.flow, r.command)
+            for r in analysis.runs
+        ],
+        f"{analysis.tuning.pi.rule} gains on the nonlinear plant: setpoint step, then a "
+        "0.2 V load step",
+    )
+    schedule = plot_schedule(
+        [
+            (b.t_low, b.t_high, f"{b.u_low:.2f}…{b.u_high:.2f} V", b.pi.Kc, b.pi.Ti)
+            for b in analysis.schedule.bands
+        ],
+        f"gain schedule ({analysis.schedule.rule}, Ms ≤ {analysis.schedule.ms_target:g})",
+    )
+    return {
+        "overview": (overview, "The log: VFD command and measured flow."),
+        "comparison": (
+            comparison,
+            "Measured flow against the free-run simulation of each identified model (as in the "
+            "article's comparison figure), and the residuals; the shaded part was held out.",
+        ),
+        "residuals": (
+            residuals,
+            "Residual tests of the model the gains come from: inside the band means "
+            "consistent with white noise (autocorrelation) and no unmodelled dynamics "
+            "(cross-correlation at positive lags).",
+        ),
+        "bode": (
+            bode,
+            "Bode plot of the loop with the gain and phase margins marked, and the "
+            "sensitivity |S| whose peak is Ms.",
+        ),
+        "closed_loop": (
+            closed,
+            "The same gains on the nonlinear plant at the coldest and the warmest fuel.",
+        ),
+        "schedule": (schedule, "Gains per fuel-temperature band (one line per flow band)."),
+    }
+
+
+def _png(fig: Figure) -> bytes:
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=110, bbox_inches="tight")
+    return buffer.getvalue()
+
+
+def _fmt(value: float | None, spec: str = ".4g") -> str:
+    """A number for the page; non-finite values read as a dash."""
+    if value is None or not math.isfinite(value):
+        return "–"
+    return format(value, spec)
+
+
+def _context(
+    analysis: LogAnalysis, figures: list[ReportFigure], source_sha256: str | None
+) -> dict[str, Any]:
+    s = analysis.settings
+    data = analysis.data
+    tuning = analysis.tuning.to_json()
+    plc = tuning["plc"]
+    rows_ident = []
+    for method, r in analysis.identifications.items():
+        d = r.to_json()
+        rows_ident.append(
+            {
+                "method": method,
+                "K": _fmt(r.model.K),
+                "K_se": _fmt(d["stderr"]["K"], ".2g"),
+                "T": _fmt(r.model.T, ".3g"),
+                "T_se": _fmt(d["stderr"]["T"], ".2g"),
+                "T_f": _fmt(r.model.T_f, ".3g"),
+                "delay": _fmt(r.model.delay, ".3g"),
+                "fit": _fmt(r.fit_percent, ".2f"),
+                "validation": _fmt(r.validation_fit_percent, ".2f"),
+                "white_p": _fmt(d["diagnostics"]["residual_whiteness"]["p_value"], ".2g"),
+                "chosen": method == s.tune_from,
+            }
+        )
+    check = analysis.check
+    cases = [
+        {k: _fmt(v, ".3g") if isinstance(v, float) else v for k, v in row.items()}
+        for row in check.rows()
+    ]
+    runs = []
+    for run in analysis.runs:
+        summary = run.summary()
+        runs.append(
+            {
+                "fuel_temperature": _fmt(run.fuel_temperature, "g"),
+                "overshoot": _fmt(summary["overshoot_percent"], ".1f"),
+                "settling": _fmt(summary["settling_time"], ".1f"),
+                "load_peak": _fmt(summary["disturbance_peak"], ".2f"),
+                "load_settling": _fmt(summary["disturbance_settling_time"], ".1f"),
+                "iae": _fmt(summary["iae"], ".3g"),
+                "at_limits": _fmt(summary["time_at_limits"], "g"),
+            }
+        )
+    bands = [
+        {k: _fmt(v, ".4g") if isinstance(v, float) else v for k, v in b.as_dict().items()}
+        for b in analysis.schedule.bands
+    ]
+    rob = analysis.tuning.robustness
+    linear = tuning["closed_loop"]
+    return {
+        "title": f"fuelid report: {data.source or 'log'}",
+        "generated": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        "version": __version__,
+        "source": data.source or "log",
+        "sha256": source_sha256,
+        "data": {
+            "n": data.n_samples,
+            "h": _fmt(data.sample_time, "g"),
+            "duration": _fmt(data.n_samples * data.sample_time, ".4g"),
+            "u_range": f"{np.min(data.u):.3g}…{np.max(data.u):.3g}",
+            "y_range": f"{np.min(data.y):.4g}…{np.max(data.y):.4g}",
+            "u_unit": data.u_unit,
+            "y_unit": data.y_unit,
+            "notes": list(data.notes),
+            "u_operating": _fmt(analysis.u_operating, ".3g"),
+            "fuel_temperature": _fmt(s.fuel_temperature, "g"),
+        },
+        "settings": s,
+        "t_range": f"{s.t_range[0]:g}…{s.t_range[1]:g}",
+        "identifications": rows_ident,
+        "warnings": analysis.warnings,
+        "pi": {
+            "rule": tuning["rule"],
+            "Kc": _fmt(tuning["Kc"], ".5g"),
+            "Ti": _fmt(tuning["Ti"], ".4g"),
+            "Ki": _fmt(tuning["Ki"], ".5g"),
+            "h": _fmt(tuning["control_period"], "g"),
+            "span_Kc": _fmt(plc["percent_of_span"]["Kc"], ".4g"),
+            "u_span": _fmt(plc["percent_of_span"]["u_span"], "g"),
+            "y_span": _fmt(plc["percent_of_span"]["y_span"], "g"),
+            "discrete": None
+            if plc["discrete"] is None
+            else {
+                k: _fmt(v, ".5g") if isinstance(v, float) else v for k, v in plc["discrete"].items()
+            },
+            "gain_margin": _fmt(rob.gain_margin, ".2f"),
+            "phase_margin": _fmt(rob.phase_margin_deg, ".1f"),
+            "Ms": _fmt(rob.Ms, ".2f"),
+            "crossover": _fmt(rob.crossover_frequency, ".3g"),
+            "overshoot": _fmt(linear["setpoint_step"]["overshoot_percent"], ".1f"),
+            "settling": _fmt(linear["setpoint_step"]["settling_time"], ".1f"),
+        },
+        "check": {
+            "worst_Ms": _fmt(check.worst_Ms, ".2f"),
+            "worst_overshoot": _fmt(check.worst_overshoot, ".1f"),
+            "worst_gain_margin": _fmt(check.worst_gain_margin, ".2f"),
+            "worst_phase_margin": _fmt(check.worst_phase_margin, ".1f"),
+            "all_stable": check.all_stable,
+            "cases": cases,
+        },
+        "runs": runs,
+        "schedule": {
+            "ms_target": _fmt(analysis.schedule.ms_target, "g"),
+            "worst_Ms": _fmt(analysis.schedule.worst_Ms, ".2f"),
+            "bands": bands,
+        },
+        "figures": figures,
+    }
+
+
+def _environment() -> jinja2.Environment:
+    return jinja2.Environment(
+        loader=jinja2.PackageLoader("fuelid", "templates"),
+        autoescape=True,
+        undefined=jinja2.StrictUndefined,  # a misspelt field fails loudly, not as a blank
+        trim_blocks=True,
+        lstrip_blocks=True,
+    )
+
+
+def render_report(
+    analysis: LogAnalysis, figures: list[ReportFigure], source_sha256: str | None = None
+) -> str:
+    """The report page as HTML text, every figure embedded as a data URI."""
+    template = _environment().get_template(TEMPLATE)
+    return template.render(**_context(analysis, figures, source_sha256))
+
+
+def figure_paths(html_path: Path) -> dict[str, Path]:
+    """Where the PNG copies of the figures go: ``<stem>_<key>.png`` beside the page."""
+    return {key: html_path.with_name(f"{html_path.stem}_{key}.png") for key in FIGURE_KEYS}
+
+
+def check_report_path(path: str | Path, overwrite: bool = False) -> Path:
+    """Validate the report's path (and its figures') before any work is done."""
+    out = Path(path)
+    if out.suffix.lower() not in (".html", ".htm"):
+        raise DataError(
+            f"the report is an HTML file: give a name ending in .html, not {out.name!r}"
+        )
+    parent = out.parent if str(out.parent) else Path(".")
+    if not parent.is_dir():
+        raise DataError(f"report folder {str(parent)!r} does not exist")
+    if out.is_dir():
+        raise DataError(f"report path {str(out)!r} is a folder, not a file")
+    if not overwrite:
+        taken = [p for p in (out, *figure_paths(out).values()) if p.exists()]
+        if taken:
+            raise DataError(f"{str(taken[0])!r} exists; pass --force to replace the report")
+    return out
+
+
+def write_report(
+    analysis: LogAnalysis,
+    path: str | Path,
+    overwrite: bool = False,
+    source_sha256: str | None = None,
+) -> list[Path]:
+    """Write the page and its figures as PNGs beside it; return every path written.
+
+    Each file is written to a temporary name and renamed, so an interrupted run never leaves a
+    half-written report nor destroys an earlier one.
+    """
+    out = check_report_path(path, overwrite)
+    drawn = report_figures(analysis)
+    figures = [ReportFigure(key, caption, _png(fig)) for key, (fig, caption) in drawn.items()]
+    written = []
+    targets = figure_paths(out)
+    for figure in figures:
+        written.append(atomic_write_bytes(targets[figure.key], figure.png))
+    html = render_report(analysis, figures, source_sha256)
+    written.insert(0, atomic_write_bytes(out, html.encode("utf-8")))
+    return written
