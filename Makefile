@@ -29,6 +29,11 @@ demo: $(STAMP)
 	$(BIN)/python examples/demo.py --out $(DEMO_DIR)
 	$(BIN)/fuelid simulate $(DEMO_DIR)/random_binary.parquet --profile random --levels 1.0,2.0 \
 		--hold 5 --duration 600 --seed 7 --force --quiet
+	@echo "--- the same chain from the command line: identify to JSON, tune from it ---"
+	$(BIN)/fuelid identify $(DEMO_DIR)/step_sequence.csv --flowmeter-T 0.3 --flowmeter-delay 0.2 \
+		--json > $(DEMO_DIR)/ident.json
+	$(BIN)/fuelid tune --model $(DEMO_DIR)/ident.json --rule simc --control-period 1 --simulate \
+		--plot $(DEMO_DIR)/tune_closed_loop.png
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples
@@ -48,6 +53,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_identify_speed.py
 	$(BIN)/python benchmarks/bench_identify_accuracy.py
 	$(BIN)/python benchmarks/bench_refdata.py
+	$(BIN)/python benchmarks/bench_tuning_sweep.py
 
 clean:
 	rm -rf $(VENV) $(DEMO_DIR) .pytest_cache .mypy_cache .ruff_cache

@@ -5,8 +5,11 @@
 2. PLC-like logs from the nonlinear plant: the article's 1 V → 1.5 V step and a step sequence.
 3. Identification of the step-sequence log with the article's step-response least squares and
    the output-error fit, side by side.
-4. Figures: step responses (nonlinear plant, linearisation, equivalent model) at the coldest and
-   warmest fuel, and the simulated logs.
+4. PI gains (SIMC, 1 s PLC period) from the output-error model, in every PLC form, with their
+   margins; the same gains checked over −20…50 °C fuel, on the nonlinear plant at the coldest and
+   warmest fuel, and a gain schedule that keeps Ms ≤ 1.7 everywhere.
+5. Figures (step responses at the coldest and warmest fuel, the simulated logs) and the HTML
+   report of the step-sequence log with its figures.
 """
 
 from __future__ import annotations
@@ -19,13 +22,14 @@ from rich.console import Console
 from rich.table import Table
 
 from fuelid.fuel import T0 as KELVIN
-from fuelid.identify.pipeline import IdentifyOptions, identify
+from fuelid.htmlreport import write_report
 from fuelid.logs import load_log
 from fuelid.plant import linearise, load_plant_config
 from fuelid.plant.pump import LPM_PER_M3S
 from fuelid.profiles import step_profile, step_sequence
-from fuelid.report import plot_identification, plot_log, plot_step_responses, save_figure
+from fuelid.report import plot_log, plot_step_responses, save_figure
 from fuelid.simulate import simulate
+from fuelid.workflow import AnalysisSettings, LogAnalysis, analyse_log
 
 TEMPERATURES_DEGC = (-20.0, 0.0, 20.0, 35.0, 50.0)
 U_ARTICLE = 1.25  # middle of the article's 1 V → 1.5 V step
@@ -111,24 +115,14 @@ def main() -> None:
             plot_log(sequence_log, "simulated PLC log: step sequence"), out / "sequence_log.png"
         ),
     ]
-    # identification of the step-sequence log, the article's method beside the output-error fit
+    # the whole chain on the step-sequence log: identify (the article's method beside the
+    # output-error fit), tune, check over fuel temperature, schedule, report
     data = load_log(out / "step_sequence.csv")
-    meter = config.flowmeter
-    settle = models[20.0][1].settling_time
-    results = {}
-    for method in ("step-ls", "oe"):
-        options = IdentifyOptions(
-            method=method,  # type: ignore[arg-type]
-            flowmeter_T=meter.time_constant_s,
-            flowmeter_delay=meter.delay_s,
-            settling_time=settle,
-            validate_split=0.3,
-        )
-        results[method] = identify(data, options)
+    analysis = analyse_log(data, config, AnalysisSettings(fuel_temperature=20.0))
     ident = Table(title="identified from step_sequence.csv (fit on 70 %, validated on 30 %)")
     for column in ("method", "K (L/min)/V", "± se", "T s", "± se", "fit %", "validation %"):
         ident.add_column(column, justify="right")
-    for method, result in results.items():
+    for method, result in analysis.identifications.items():
         m = result.model
         ident.add_row(
             method,
@@ -147,22 +141,56 @@ def main() -> None:
         )
         + " (L/min)/V; the identified K is an average over the levels visited."
     )
-    oe, ls = results["oe"], results["step-ls"]
-    ls_on_raw = np.interp(oe.time, ls.time, ls.y_hat)
-    figures.append(
-        save_figure(
-            plot_identification(
-                oe.time,
-                oe.y,
-                [("step-ls (1 s, N from the plant)", ls_on_raw), ("oe", oe.y_hat)],
-                oe.split_time,
-                "step sequence: measured and identified models",
-            ),
-            out / "identification.png",
-        )
-    )
+    console.print(_summary(analysis))
+    report = out / "report.html"
+    written = write_report(analysis, report, overwrite=True)
     console.print(f"logs:    {out / 'step_1V_to_1.5V.csv'}, {out / 'step_sequence.csv'}")
-    console.print("figures: " + ", ".join(str(f) for f in figures))
+    console.print("figures: " + ", ".join(str(f) for f in [*figures, *written[1:]]))
+    console.print(f"report:  {report}")
+
+
+def _summary(analysis: LogAnalysis) -> Table:
+    """The story in one table: model, gains, margins, the check over temperature, the plant."""
+    pi, rob, check = analysis.tuning.pi, analysis.tuning.robustness, analysis.check
+    model = analysis.model_result.model
+    plc = pi.plc_form(4.0, analysis.tuning.y_span)
+    table = Table(title="from the log to the PLC (SIMC, PLC period 1 s)", show_header=False)
+    table.add_column("what", justify="left")
+    table.add_column("result", justify="left")
+    table.add_row(
+        "model (oe)",
+        f"K = {model.K:.3f} (L/min)/V, T = {model.T:.3f} s, T_f = {model.T_f:g} s, "
+        f"delay = {model.delay:g} s",
+    )
+    table.add_row(
+        "PI gains",
+        f"Kc = {pi.Kc:.4f} V/(L/min) ({plc['percent_of_span']['Kc']:.3f} %/%), Ti = {pi.Ti:.2f} s",
+    )
+    table.add_row(
+        "on the model",
+        f"GM {rob.gain_margin:.2f}, PM {rob.phase_margin_deg:.1f}°, Ms {rob.Ms:.2f}",
+    )
+    low, high = analysis.settings.t_range
+    table.add_row(
+        f"fixed gains, {low:g}…{high:g} °C",
+        f"worst Ms {check.worst_Ms:.2f}, worst overshoot {check.worst_overshoot:.1f} %, "
+        + ("stable everywhere" if check.all_stable else "UNSTABLE somewhere"),
+    )
+    for run in analysis.runs:
+        s = run.summary()
+        table.add_row(
+            f"nonlinear plant, {run.fuel_temperature:g} °C",
+            f"overshoot {s['overshoot_percent']:.1f} %, settling {s['settling_time']:.1f} s, "
+            f"load peak {s['disturbance_peak']:.2f} L/min",
+        )
+    schedule = analysis.schedule
+    table.add_row(
+        "gain schedule",
+        f"{len(schedule.bands)} bands, Kc {min(b.pi.Kc for b in schedule.bands):.4f}…"
+        f"{max(b.pi.Kc for b in schedule.bands):.4f} V/(L/min), worst Ms {schedule.worst_Ms:.2f} "
+        f"(target {schedule.ms_target:g})",
+    )
+    return table
 
 
 if __name__ == "__main__":
