@@ -1,0 +1,209 @@
+"""``fuelid report`` and the chain behind it (workflow.analyse_log, htmlreport).
+
+One simulated step-sequence log of the reference plant is analysed once; the tests then check the
+numbers against what the plant's physics and the tuning formulas fix, and the page against its
+contract: every figure embedded and written beside it, nothing overwritten, user text escaped.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from fuelid.cli import app, main
+from fuelid.errors import DataError, FuelidError
+from fuelid.htmlreport import FIGURE_KEYS, figure_paths, write_report
+from fuelid.logs import load_log
+from fuelid.plant import linearise, load_plant_config
+from fuelid.profiles import step_sequence
+from fuelid.simulate import simulate
+from fuelid.tuning.frequency import robustness
+from fuelid.workflow import AnalysisSettings, LogAnalysis, analyse_log
+
+runner = CliRunner()
+LEVELS = [1.0, 1.5, 2.5, 2.0, 3.5, 3.0, 1.5]
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+SETTINGS = AnalysisSettings(t_range=(-20.0, 50.0), band_width=35.0)
+
+
+@pytest.fixture(scope="module")
+def log_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    config = load_plant_config()
+    run = simulate(config, step_sequence(LEVELS, dwell=30.0), seed=2)
+    return run.to_log().write(tmp_path_factory.mktemp("log") / "sequence.csv")
+
+
+@pytest.fixture(scope="module")
+def analysis(log_path: Path) -> LogAnalysis:
+    return analyse_log(load_log(log_path), load_plant_config(), SETTINGS)
+
+
+def test_both_methods_find_the_plant_gain_over_the_levels_visited(analysis: LogAnalysis):
+    # the plant's small-signal gain at 20 °C varies over the logged commands; an equivalent
+    # linear model must land inside that range (physics, not a stored number)
+    config = load_plant_config()
+    gains = [linearise(config, u, 293.15).static_gain for u in np.linspace(1.0, 3.5, 11)]
+    assert set(analysis.identifications) == {"step-ls", "oe"}
+    for result in analysis.identifications.values():
+        assert min(gains) * 0.98 <= result.model.K <= max(gains) * 1.02
+        assert result.model.T_f == pytest.approx(config.flowmeter.time_constant_s)
+        assert result.model.delay == pytest.approx(config.flowmeter.delay_s)
+
+
+def test_gains_follow_simc_with_the_half_rule_and_half_a_period(analysis: LogAnalysis):
+    m = analysis.model_result.model
+    h = SETTINGS.control_period
+    T1 = m.T + m.T_f / 2 if m.T_f <= m.T else m.T_f + m.T / 2
+    theta = m.delay + min(m.T, m.T_f) / 2 + h / 2
+    tau_c = theta  # SIMC's default
+    assert analysis.tuning.pi.Kc == pytest.approx(T1 / (m.K * (tau_c + theta)), rel=1e-12)
+    assert analysis.tuning.pi.Ti == pytest.approx(min(T1, 4 * (tau_c + theta)), rel=1e-12)
+
+
+def test_closed_loop_at_the_coldest_and_warmest_fuel(analysis: LogAnalysis):
+    temps = [run.fuel_temperature for run in analysis.runs]
+    assert temps == [-20.0, 50.0]
+    for run in analysis.runs:
+        summary = run.summary()
+        assert summary["overshoot_percent"] < 25.0
+        assert summary["settling_time"] < 15.0
+        assert summary["disturbance_settling_time"] < 15.0
+        assert np.all((run.command >= 1.0 - 1e-12) & (run.command <= 5.0 + 1e-12))
+
+
+def test_schedule_meets_its_target_and_the_fixed_gains_are_stable(analysis: LogAnalysis):
+    assert analysis.check.all_stable
+    assert analysis.schedule.worst_Ms <= SETTINGS.ms_target + 1e-9
+    # the Bode data shown are the loop whose margins are reported
+    rob = robustness(analysis.model_result.model, analysis.tuning.pi)
+    at_crossover = np.interp(
+        rob.crossover_frequency, analysis.bode_frequency, np.abs(analysis.bode_loop)
+    )
+    assert at_crossover == pytest.approx(1.0, abs=0.02)
+
+
+def test_report_embeds_every_figure_and_writes_them_beside(analysis: LogAnalysis, tmp_path: Path):
+    out = tmp_path / "report.html"
+    written = write_report(analysis, out)
+    assert written[0] == out
+    html = out.read_text(encoding="utf-8")
+    embedded = re.findall(
+        r'<figure id="fig-([a-z_]+)">\s*<img src="data:image/png;base64,([^"]+)"', html
+    )
+    assert [key for key, _ in embedded] == list(FIGURE_KEYS)
+    beside = figure_paths(out)
+    for key, payload in embedded:
+        png = base64.b64decode(payload)
+        assert png.startswith(PNG_MAGIC)
+        assert beside[key].read_bytes() == png  # the PNG beside is the figure in the page
+    # self-contained: nothing fetched from anywhere
+    assert "http://" not in html
+    assert "https://" not in html
+    assert f"Kc = {analysis.tuning.pi.Kc:.5g}" in html
+
+
+def test_report_refuses_to_overwrite_and_keeps_the_old_one(analysis: LogAnalysis, tmp_path: Path):
+    out = tmp_path / "report.html"
+    out.write_text("an earlier report", encoding="utf-8")
+    with pytest.raises(DataError, match="exists"):
+        write_report(analysis, out)
+    assert out.read_text(encoding="utf-8") == "an earlier report"
+    figure_paths(out)["bode"].write_bytes(b"earlier figure")
+    out.unlink()
+    with pytest.raises(DataError, match="bode"):
+        write_report(analysis, out)  # a figure beside it is protected too
+    write_report(analysis, out, overwrite=True)
+    assert figure_paths(out)["bode"].read_bytes().startswith(PNG_MAGIC)
+
+
+def test_text_from_the_log_is_escaped(analysis: LogAnalysis, tmp_path: Path):
+    hostile = type(analysis.data)(
+        u=analysis.data.u,
+        y=analysis.data.y,
+        sample_time=analysis.data.sample_time,
+        source="<script>alert(1)</script>.csv",
+        notes=("<b>note</b>",),
+    )
+    analysis_copy = LogAnalysis(**{**analysis.__dict__, "data": hostile})
+    out = tmp_path / "escaped.html"
+    write_report(analysis_copy, out)
+    html = out.read_text(encoding="utf-8")
+    assert "<script>" not in html
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;.csv" in html
+    assert "&lt;b&gt;note&lt;/b&gt;" in html
+
+
+def test_settings_are_validated():
+    with pytest.raises(FuelidError, match="low < high"):
+        AnalysisSettings(t_range=(50.0, -20.0))
+    with pytest.raises(FuelidError, match="tune from"):
+        AnalysisSettings(tune_from="arx")  # type: ignore[arg-type]
+
+
+def test_cli_report_json(log_path: Path, tmp_path: Path):
+    out = tmp_path / "r.html"
+    result = runner.invoke(
+        app, ["report", str(log_path), "--out", str(out), "--band-width", "35", "--json"]
+    )
+    assert result.exit_code == 0, result.stderr
+    data = json.loads(result.stdout)
+    assert set(data) >= {
+        "report",
+        "figures",
+        "identification",
+        "tuned_from",
+        "tuning",
+        "temperature_check",
+        "closed_loop_plant",
+        "schedule",
+        "units",
+        "fuelid_version",
+        "input_sha256",
+        "options",
+    }
+    assert Path(data["report"]) == out
+    assert sorted(Path(p).name for p in data["figures"]) == sorted(
+        f"r_{key}.png" for key in FIGURE_KEYS
+    )
+    assert set(data["identification"]) == {"step-ls", "oe"}
+    m = data["tuning"]["model"]
+    T1, theta = m["T"] + m["T_f"] / 2, m["delay"] + m["T_f"] / 2 + 0.5  # half rule, h/2 = 0.5 s
+    assert data["tuning"]["Kc"] == pytest.approx(T1 / (m["K"] * 2 * theta), rel=1e-9)
+    assert data["temperature_check"]["all_stable"] is True
+    assert data["schedule"]["worst_Ms"] <= 1.7 + 1e-9
+
+
+@pytest.mark.parametrize(
+    ("args", "reason"),
+    [
+        (["missing.csv"], "does not exist"),
+        (["LOG", "--out", "report.pdf"], ".html"),
+        (["LOG", "--out", "no/such/folder/r.html"], "does not exist"),
+        (["LOG", "--t-min", "50", "--t-max", "-20"], "low < high"),
+        (["LOG", "--rule", "ziegler"], "ziegler"),
+        (["LOG", "--tau-c", "1", "--rule", "amigo"], "tau-c"),
+    ],
+)
+def test_cli_report_bad_input(
+    args: list[str],
+    reason: str,
+    log_path: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+):
+    monkeypatch.chdir(tmp_path)
+    args = [str(log_path) if a == "LOG" else a for a in args]
+    assert main(["report", *args]) == 2
+    captured = capsys.readouterr()
+    assert "Traceback" not in captured.err
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1
+    assert reason in lines[0]
+    assert not list(tmp_path.iterdir())  # refused before anything was written
