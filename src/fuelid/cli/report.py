@@ -23,7 +23,19 @@ from fuelid.cli._common import (
     read_log,
     warn,
 )
-from fuelid.cli.tune import RuleChoice, rule_speed
+from fuelid.cli.tune import (
+    BandWidthOption,
+    ControlPeriodOption,
+    FlowBandsOption,
+    LambdaOption,
+    MsTargetOption,
+    RuleChoice,
+    RuleOption,
+    TauCOption,
+    TMaxOption,
+    TMinOption,
+    rule_speed,
+)
 from fuelid.htmlreport import check_report_path, write_report
 from fuelid.plant import load_plant_config
 from fuelid.tuning.result import UNITS
@@ -59,35 +71,16 @@ def report_command(
     method: Annotated[
         TuneFrom, typer.Option(help="Identification the gains come from (both are shown).")
     ] = TuneFrom.oe,
-    rule: Annotated[
-        RuleChoice, typer.Option(help="Tuning rule (see fuelid tune --list-rules).")
-    ] = (RuleChoice.simc),
-    tau_c: Annotated[
-        float | None,
-        typer.Option("--tau-c", help="SIMC closed-loop time constant [s].", show_default=False),
-    ] = None,
-    lam: Annotated[
-        float | None,
-        typer.Option(
-            "--lambda", help="Lambda-rule closed-loop time constant [s].", show_default=False
-        ),
-    ] = None,
-    control_period: Annotated[
-        float,
-        typer.Option(help="PLC control period h [s]; 0 for a continuous controller."),
-    ] = 1.0,
+    rule: RuleOption = RuleChoice.simc,
+    tau_c: TauCOption = None,
+    lam: LambdaOption = None,
+    control_period: ControlPeriodOption = 1.0,
     fuel_temp: Annotated[float, typer.Option(help="Fuel temperature during the log [°C].")] = 20.0,
-    t_min: Annotated[float, typer.Option(help="Coldest fuel [°C].")] = -20.0,
-    t_max: Annotated[float, typer.Option(help="Warmest fuel [°C].")] = 50.0,
-    band_width: Annotated[
-        float, typer.Option(help="Temperature band of the schedule [°C].")
-    ] = 10.0,
-    ms_target: Annotated[
-        float, typer.Option(help="Largest Ms the schedule accepts in any band [-].")
-    ] = 1.7,
-    flow_bands: Annotated[
-        int, typer.Option(help="Flow bands where the gain depends on the flow (1: none).")
-    ] = 3,
+    t_min: TMinOption = -20.0,
+    t_max: TMaxOption = 50.0,
+    band_width: BandWidthOption = 10.0,
+    ms_target: MsTargetOption = 1.7,
+    flow_bands: FlowBandsOption = 3,
     validate_split: Annotated[
         float | None,
         typer.Option(help="Hold out the last fraction F of the log for validation (0: none)."),

@@ -45,6 +45,42 @@ class RuleChoice(enum.StrEnum):
     amigo = "amigo"
 
 
+# options fuelid report shares with fuelid tune
+RuleOption = Annotated[
+    RuleChoice,
+    typer.Option(
+        help="simc (Skogestad), isimc (improved SIMC), lambda (IMC-PI), amigo "
+        "(Åström-Hägglund); see fuelid tune --list-rules."
+    ),
+]
+TauCOption = Annotated[
+    float | None,
+    typer.Option(
+        "--tau-c", help="SIMC closed-loop time constant [s] (default: θ).", show_default=False
+    ),
+]
+LambdaOption = Annotated[
+    float | None,
+    typer.Option(
+        "--lambda",
+        help="Lambda-rule closed-loop time constant [s] (default: T1).",
+        show_default=False,
+    ),
+]
+ControlPeriodOption = Annotated[
+    float, typer.Option(help="PLC control period h [s]; 0 for a continuous controller.")
+]
+TMinOption = Annotated[float, typer.Option(help="Coldest fuel [°C].")]
+TMaxOption = Annotated[float, typer.Option(help="Warmest fuel [°C].")]
+BandWidthOption = Annotated[float, typer.Option(help="Temperature band of the schedule [°C].")]
+MsTargetOption = Annotated[
+    float, typer.Option(help="Largest Ms the schedule accepts in any band [-].")
+]
+FlowBandsOption = Annotated[
+    int, typer.Option(help="Flow bands where the gain depends on the flow (1: none).")
+]
+
+
 def _model_from_options(
     model_file: Path | None,
     K: float | None,
@@ -126,31 +162,10 @@ def tune_command(
         float | None,
         typer.Option("--delay", help="Total dead time [s] (default 0).", show_default=False),
     ] = None,
-    rule: Annotated[
-        RuleChoice,
-        typer.Option(
-            help="simc (Skogestad), isimc (improved SIMC), lambda (IMC-PI), amigo "
-            "(Åström-Hägglund); see --list-rules."
-        ),
-    ] = RuleChoice.simc,
-    tau_c: Annotated[
-        float | None,
-        typer.Option(
-            "--tau-c", help="SIMC closed-loop time constant [s] (default: θ).", show_default=False
-        ),
-    ] = None,
-    lam: Annotated[
-        float | None,
-        typer.Option(
-            "--lambda",
-            help="Lambda-rule closed-loop time constant [s] (default: T1).",
-            show_default=False,
-        ),
-    ] = None,
-    control_period: Annotated[
-        float,
-        typer.Option(help="PLC control period h [s]; 0 for a continuous controller."),
-    ] = 1.0,
+    rule: RuleOption = RuleChoice.simc,
+    tau_c: TauCOption = None,
+    lam: LambdaOption = None,
+    control_period: ControlPeriodOption = 1.0,
     config: Annotated[
         Path | None,
         typer.Option(
@@ -179,17 +194,11 @@ def tune_command(
             show_default=False,
         ),
     ] = None,
-    t_min: Annotated[float, typer.Option(help="Coldest fuel [°C].")] = -20.0,
-    t_max: Annotated[float, typer.Option(help="Warmest fuel [°C].")] = 50.0,
-    band_width: Annotated[
-        float, typer.Option(help="Temperature band of the schedule [°C].")
-    ] = 10.0,
-    ms_target: Annotated[
-        float, typer.Option(help="Largest Ms the schedule accepts in any band [-].")
-    ] = 1.7,
-    flow_bands: Annotated[
-        int, typer.Option(help="Flow bands where the gain depends on the flow (1: none).")
-    ] = 3,
+    t_min: TMinOption = -20.0,
+    t_max: TMaxOption = 50.0,
+    band_width: BandWidthOption = 10.0,
+    ms_target: MsTargetOption = 1.7,
+    flow_bands: FlowBandsOption = 3,
     schedule: Annotated[
         bool, typer.Option("--schedule", help="Print the gain schedule over fuel temperature.")
     ] = False,
