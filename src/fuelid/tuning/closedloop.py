@@ -461,7 +461,7 @@ def simulate_closed_loop(
         flow=measured,
         command=commands[k_of],
         disturbance=d_held[k_of],
-        fuel_temperature=fuel_temperature - 273.15,
+        fuel_temperature=fuel_temperature - KELVIN,
         control_period=pi.control_period,
         time_at_limits=at_limits * h,
     )

@@ -1,0 +1,219 @@
+"""The PLC's PI and the closed loop: control law, anti-windup, bumpless changes, metrics, plant.
+
+Numbers come from the control law written out by hand, from closed-form step responses, from an
+independent time-stepping of the sampled loop, and from the reference plant's schedule.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from fuelid.model import ProcessModel
+from fuelid.plant import load_plant_config
+from fuelid.plant.pump import LPM_PER_M3S
+from fuelid.plant.system import operating_point
+from fuelid.profiles import InputProfile
+from fuelid.tuning import PISettings, tune
+from fuelid.tuning.closedloop import (
+    DiscretePI,
+    closed_loop_poles,
+    disturbance_metrics,
+    flow_at,
+    linear_closed_loop,
+    setpoint_step_metrics,
+    simulate_closed_loop,
+    standard_runs,
+    steady_command,
+)
+from fuelid.tuning.schedule import gain_schedule
+
+CONFIG = load_plant_config()
+PI = PISettings(rule="simc", Kc=0.1, Ti=2.0, control_period=1.0)
+
+# --- the discrete PI -------------------------------------------------------------------------
+
+
+def test_positional_forward_euler_law():
+    # u[k] = u0 + Kc·e[k] + Kc·h/Ti·Σ_{j<k} e[j] while inside the limits
+    e = np.random.default_rng(1).normal(0.0, 2.0, 40)
+    pi = DiscretePI(PI, 1.0, 5.0, u0=3.0)
+    got = [pi.update(setpoint=50.0, measurement=50.0 - ek) for ek in e]
+    expected = 3.0 + 0.1 * e + 0.1 * 1.0 / 2.0 * np.r_[0.0, np.cumsum(e)[:-1]]
+    assert np.all((expected > 1.0) & (expected < 5.0))  # the case really is unsaturated
+    assert got == pytest.approx(expected, abs=1e-12)
+
+
+def _naive_pi(errors: np.ndarray, u0: float) -> list[float]:
+    """The same PI with the output clipped but no anti-windup: the integral runs away."""
+    integral, out = u0, []
+    for e in errors:
+        out.append(min(max(0.1 * e + integral, 1.0), 5.0))
+        integral += 0.1 * 1.0 / 2.0 * e
+    return out
+
+
+def test_anti_windup_no_runaway_and_fast_release():
+    errors = np.r_[np.full(60, 100.0), np.full(30, -1.0)]  # 60 s saturated, then a small reversal
+    pi = DiscretePI(PI, 1.0, 5.0, u0=3.0)
+    out, integrals = [], []
+    for e in errors:
+        out.append(pi.update(0.0, -e))
+        integrals.append(pi.integral)
+    assert out[:60] == [5.0] * 60
+    # while saturated the integral is held where the output just meets the limit (Tt = h):
+    # I = u_max − Kc·e·(1 − h/Ti) = 5 − 10·0.5, it never grows
+    assert integrals[1:60] == pytest.approx([5.0 - 10.0 * 0.5] * 59)
+    # after the reversal the output leaves the limit at once ...
+    assert out[60] < 5.0
+    # ... whereas without anti-windup it stays stuck (the integral grew by 5 V per period)
+    naive = _naive_pi(errors, 3.0)
+    assert naive[60:] == [5.0] * 30
+
+
+def test_bumpless_gain_change():
+    a = DiscretePI(PI, 1.0, 5.0, u0=2.5)
+    b = DiscretePI(PI, 1.0, 5.0, u0=2.5)
+    errors = [1.5, 0.8, 0.4]
+    for e in errors:
+        a.update(0.0, -e)
+        b.update(0.0, -e)
+    a.set_gains(0.3, 0.7)  # three times the gain, a third of the integral time
+    # for the same error as before the switch, the output is what it would have been
+    assert a.update(0.0, -errors[-1]) == pytest.approx(b.update(0.0, -errors[-1]), abs=1e-12)
+
+
+def test_bumpless_gain_change_on_the_plant():
+    """A gain change mid-transient moves the command only by ΔKc·(e[k] − e[k−1])."""
+    pi = tune(ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2), "simc", 1.0)
+    flow = flow_at(CONFIG, 3.0, 20.0)
+    setpoint = InputProfile(np.array([0.0, 5.0]), np.array([flow, flow + 5.0]), 30.0)
+    new_Kc = 2 * pi.Kc
+    kwargs = {"fuel_temperature": 293.15}
+    changed = simulate_closed_loop(
+        CONFIG, pi, setpoint, **kwargs, gain_changes={7.0: (new_Kc, pi.Ti)}
+    )
+    same = simulate_closed_loop(CONFIG, pi, setpoint, **kwargs)
+    k6, k7 = np.searchsorted(same.time, [6.0, 7.0])
+    error = same.setpoint - same.flow  # what the controller read at its instants (no noise)
+    assert error[k7] > 1.0  # mid-transient: a non-bumpless change would kick by ΔKc·e[k]
+    kick = changed.command[k7] - same.command[k7]
+    assert kick == pytest.approx((new_Kc - pi.Kc) * (error[k7] - error[k6]), abs=1e-9)
+
+
+# --- metrics on signals with known answers ---------------------------------------------------
+
+
+def test_first_order_metrics():
+    tau = 2.0
+    t = np.linspace(0.0, 40.0, 400_001)
+    m = setpoint_step_metrics(t, 10.0 + 5.0 * (1 - np.exp(-t / tau)), 10.0, 15.0)
+    assert m.overshoot_percent == 0.0
+    assert m.settling_time == pytest.approx(tau * math.log(50.0), abs=1e-3)
+    assert m.iae == pytest.approx(5.0 * tau, rel=1e-6)
+
+
+@pytest.mark.parametrize("zeta", [0.2, 0.5, 0.7])
+def test_second_order_overshoot(zeta: float):
+    wn = 1.5
+    wd = wn * math.sqrt(1 - zeta**2)
+    t = np.linspace(0.0, 60.0, 600_001)
+    phi = math.acos(zeta)
+    y = 1 - np.exp(-zeta * wn * t) * np.sin(wd * t + phi) / math.sqrt(1 - zeta**2)
+    m = setpoint_step_metrics(t, y, 0.0, 1.0)
+    assert m.overshoot_percent == pytest.approx(
+        100 * math.exp(-math.pi * zeta / math.sqrt(1 - zeta**2)), rel=1e-6
+    )
+
+
+def test_disturbance_metrics():
+    # a deviation e = 0.4·e^(−t) from a setpoint of 10: peak 0.4, back in 2 % (0.2) at ln 2
+    t = np.linspace(0.0, 20.0, 200_001)
+    m = disturbance_metrics(t, 10.0 - 0.4 * np.exp(-t), 10.0, 0.2)
+    assert m.peak_deviation == pytest.approx(0.4)
+    assert m.settling_time == pytest.approx(math.log(2.0), abs=1e-3)
+    assert m.iae == pytest.approx(0.4, rel=1e-6)
+
+
+# --- the linear closed loop ------------------------------------------------------------------
+
+
+def _time_stepped(K: float, T: float, d: int, Kc: float, Ti: float, h: float, n: int):
+    """Sampled loop stepped by hand: y[k+1] = a·y[k] + K(1−a)·u[k−d], forward-Euler PI."""
+    a = math.exp(-h / T)
+    y, u, integral = np.zeros(n), np.zeros(n), 0.0
+    for k in range(n):
+        e = 1.0 - y[k]
+        u[k] = Kc * e + integral
+        integral += Kc * h / Ti * e
+        if k + 1 < n:
+            y[k + 1] = a * y[k] + K * (1 - a) * (u[k - d] if k >= d else 0.0)
+    return y, u
+
+
+@pytest.mark.parametrize("d", [0, 1, 2])
+def test_linear_closed_loop_against_a_time_stepped_loop(d: int):
+    K, T, h = 2.0, 3.0, 0.5
+    model = ProcessModel(K=K, T=T, delay=d * h)
+    pi = PISettings(rule="x", Kc=0.6, Ti=2.5, control_period=h)
+    res = linear_closed_loop(model, pi, duration=30.0, oversample=10)
+    y, u = _time_stepped(K, T, d, pi.Kc, pi.Ti, h, 60)
+    assert res.setpoint_response[::10] == pytest.approx(y, abs=1e-10)
+    assert res.setpoint_command[::10] == pytest.approx(u, abs=1e-10)
+
+
+def test_closed_loop_poles_inside_and_outside_the_unit_circle():
+    model = ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2)
+    pi = tune(model, "simc", 1.0)
+    assert np.max(closed_loop_poles(model, pi)) < 1.0
+    assert np.max(closed_loop_poles(model, pi.with_gain_factor(10.0))) > 1.0
+
+
+# --- the nonlinear plant ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("u", "t_degC"), [(1.5, -20.0), (3.0, 20.0), (4.5, 50.0)])
+def test_steady_command_inverts_the_operating_point(u: float, t_degC: float):
+    flow = operating_point(CONFIG, u, t_degC + 273.15).q * LPM_PER_M3S
+    assert steady_command(CONFIG, flow, t_degC + 273.15) == pytest.approx(u, abs=1e-6)
+
+
+@pytest.fixture(scope="module")
+def schedule():
+    return gain_schedule(CONFIG, "simc", 1.0)
+
+
+def test_scheduled_gains_on_the_plant_at_every_band(schedule):
+    """Each band's gains, on the nonlinear plant in the middle of its band, meet the targets."""
+    for band in schedule.bands:
+        t_mid = 0.5 * (band.t_low + band.t_high)
+        u_mid = 0.5 * (band.u_low + band.u_high)
+        flow = flow_at(CONFIG, u_mid, t_mid)
+        step = (
+            0.05 * CONFIG.flowmeter.span_Lpm if u_mid < 4.0 else -0.05 * CONFIG.flowmeter.span_Lpm
+        )
+        (run,) = standard_runs(CONFIG, band.pi, (t_mid,), flow, step)
+        s = run.summary()
+        where = f"band {band.t_low:g}…{band.t_high:g} °C, {band.u_low:.2f}…{band.u_high:.2f} V"
+        assert s["overshoot_percent"] < 25.0, where
+        assert s["settling_time"] < 15.0, where
+        assert s["disturbance_settling_time"] < 15.0, where
+        assert s["time_at_limits"] == 0.0, where
+
+
+def test_saturation_and_recovery_on_the_plant():
+    pi = tune(ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2), "simc", 1.0)
+    flow = flow_at(CONFIG, 3.0, 20.0)
+    # demand far beyond what 5 V can deliver for 40 s, then back to the start
+    setpoint = InputProfile(np.array([0.0, 5.0, 45.0]), np.array([flow, 500.0, flow]), 90.0)
+    run = simulate_closed_loop(CONFIG, pi, setpoint, fuel_temperature=293.15)
+    assert run.time_at_limits >= 35.0
+    assert run.command.max() == pytest.approx(5.0)
+    back = run.events[-1]
+    assert back.kind == "setpoint"
+    # with anti-windup the recovery is as quick as an ordinary step: no minutes of wind-down
+    assert back.settling_time < 15.0
+    max_flow = flow_at(CONFIG, 5.0, 20.0)
+    assert np.max(run.flow) <= max_flow * 1.001  # the drive's limit, not more
