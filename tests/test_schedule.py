@@ -1,0 +1,135 @@
+"""The loop over fuel temperature: plant cases, one fixed PI, the gain schedule, the sweep."""
+
+from __future__ import annotations
+
+import itertools
+import json
+
+import numpy as np
+import pytest
+
+from fuelid.errors import FuelidError
+from fuelid.model import ProcessModel
+from fuelid.plant import load_plant_config
+from fuelid.tuning import robustness, tune
+from fuelid.tuning.schedule import (
+    Anchor,
+    band_edges,
+    evaluate_fixed,
+    gain_schedule,
+    plant_cases,
+    uncertainty_sweep,
+)
+
+CONFIG = load_plant_config()
+TEMPS = (-20.0, 0.0, 20.0, 35.0, 50.0)
+IDENTIFIED = ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2)
+ANCHOR = Anchor(IDENTIFIED, fuel_temperature=20.0, u=3.0)
+
+
+def test_gain_falls_as_the_fuel_warms():
+    # theory.md §1: the pump's leakage grows as viscosity falls, so less flow per volt
+    cases = plant_cases(CONFIG, TEMPS, (3.0,))
+    gains = [c.model.K for c in cases]
+    assert np.all(np.diff(gains) < 0.0)
+    assert [c.fuel_temperature for c in cases] == list(TEMPS)
+
+
+def test_anchor_reproduces_the_identified_model_at_its_conditions():
+    (case,) = plant_cases(CONFIG, (20.0,), (3.0,), ANCHOR)
+    assert pytest.approx(IDENTIFIED.K, rel=1e-12) == case.model.K
+    assert pytest.approx(IDENTIFIED.T, rel=1e-12) == case.model.T
+    assert case.anchored
+    assert case.margin_plant is case.model
+    # and moves with temperature as the physics does (same ratio)
+    cold_phys, ref_phys = plant_cases(CONFIG, (-20.0, 20.0), (3.0,))
+    (cold,) = plant_cases(CONFIG, (-20.0,), (3.0,), ANCHOR)
+    assert (
+        pytest.approx(cold_phys.model.K / ref_phys.model.K, rel=1e-12)
+        == cold.model.K / IDENTIFIED.K
+    )
+
+
+def test_fixed_pi_over_temperature_and_a_gain_three_times_larger():
+    pi = tune(IDENTIFIED, "simc", 1.0)
+    cases = plant_cases(CONFIG, TEMPS, (1.0, 3.0, 5.0), ANCHOR)
+    check = evaluate_fixed(pi, cases)
+    nominal = robustness(IDENTIFIED, pi)
+    assert check.all_stable
+    assert check.worst_Ms >= nominal.Ms - 1e-9  # the nominal case is among them
+    hot = evaluate_fixed(pi.with_gain_factor(3.0), cases)
+    assert hot.worst_Ms > check.worst_Ms
+    # a gain margin is a ratio: three times the gain leaves a third of it, case by case
+    assert hot.worst_gain_margin == pytest.approx(check.worst_gain_margin / 3.0, rel=1e-6)
+    rows = check.rows()
+    assert len(rows) == len(cases)
+    json.dumps(rows)
+
+
+@pytest.fixture(scope="module")
+def schedule():
+    return gain_schedule(CONFIG, "simc", 1.0, ms_target=1.6, band_width=20.0, anchor=ANCHOR)
+
+
+def test_schedule_meets_its_target_when_checked_independently(schedule):
+    assert schedule.bands
+    for band in schedule.bands:
+        t_mid = 0.5 * (band.t_low + band.t_high)
+        u_mid = 0.5 * (band.u_low + band.u_high)
+        cases = plant_cases(
+            CONFIG, (band.t_low, t_mid, band.t_high), (band.u_low, u_mid, band.u_high), ANCHOR
+        )
+        worst = max(robustness(c.margin_plant, band.pi).Ms for c in cases)
+        assert worst <= 1.6 + 1e-6
+        assert band.detune <= 1.0
+
+
+def test_a_tight_target_detunes_and_still_holds():
+    tight = gain_schedule(CONFIG, "simc", 1.0, ms_target=1.45, band_width=35.0, flow_bands=1)
+    assert any(b.detune < 1.0 for b in tight.bands)
+    assert tight.worst_Ms <= 1.45 + 1e-6
+    with pytest.raises(FuelidError, match="greater than 1"):
+        gain_schedule(CONFIG, ms_target=1.0)
+
+
+def test_schedule_covers_the_range_and_lookup_finds_the_band(schedule):
+    temps = sorted({(b.t_low, b.t_high) for b in schedule.bands})
+    assert temps[0][0] == -20.0
+    assert temps[-1][1] == 50.0
+    assert all(a[1] == b[0] for a, b in itertools.pairwise(temps))
+    for t in (-20.0, -3.0, 17.5, 50.0):
+        for u in (1.2, 3.0, 4.9):
+            band = schedule.lookup(t, u)
+            assert band.t_low <= t <= band.t_high
+            assert band.u_low <= u <= band.u_high
+    # beyond the range the nearest end applies
+    assert schedule.lookup(70.0, 3.0).t_high == 50.0
+    data = json.loads(json.dumps(schedule.as_dict()))
+    assert data["worst_Ms"] <= 1.6 + 1e-6
+    assert len(data["bands"]) == len(schedule.bands)
+
+
+def test_band_edges():
+    assert band_edges(-20.0, 50.0, 10.0).tolist() == [-20, -10, 0, 10, 20, 30, 40, 50]
+    edges = band_edges(0.0, 10.0, 4.0)  # 2.5 bands rounds to 2 equal ones
+    assert edges.tolist() == [0.0, 5.0, 10.0]
+    with pytest.raises(FuelidError):
+        band_edges(10.0, 0.0, 1.0)
+    with pytest.raises(FuelidError):
+        band_edges(0.0, 10.0, 0.0)
+
+
+def test_uncertainty_sweep():
+    pi = tune(IDENTIFIED, "simc", 1.0)
+    names = ("K", "T")
+    none = uncertainty_sweep(pi, ANCHOR, names, np.zeros((2, 2)), CONFIG, n=60, seed=3)
+    # no parameter uncertainty: only temperature moves the plant, as the physics says
+    lo, hi = (c.model.K for c in plant_cases(CONFIG, (50.0, -20.0), (3.0,), ANCHOR))
+    assert np.all((lo - 1e-9 <= none.K) & (hi + 1e-9 >= none.K))
+    wide_cov = np.diag([(0.15 * IDENTIFIED.K) ** 2, (0.15 * IDENTIFIED.T) ** 2])
+    wide = uncertainty_sweep(pi, ANCHOR, names, wide_cov, CONFIG, n=60, seed=3)
+    assert wide.summary()["worst_Ms"] > none.summary()["worst_Ms"]
+    assert np.std(wide.K) > 3 * np.std(none.K)
+    again = uncertainty_sweep(pi, ANCHOR, names, wide_cov, CONFIG, n=60, seed=3)
+    assert np.array_equal(again.Ms, wide.Ms)  # reproducible with a seed
+    assert set(wide.summary()) >= {"worst_Ms", "Ms_p95", "unstable_fraction"}
