@@ -1,0 +1,184 @@
+"""``fuelid tune`` through the CLI: JSON contract, worked numbers, model file, refusals."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from fuelid.cli import app, main
+
+runner = CliRunner()
+WORKED = ["--K", "1", "--T", "2", "--delay", "1", "--control-period", "0"]
+JSON_KEYS = {
+    "rule",
+    "Kc",
+    "Ti",
+    "Ki",
+    "control_period",
+    "tuning_parameter",
+    "model",
+    "reduced_model",
+    "plc",
+    "gain_margin",
+    "phase_margin_deg",
+    "Ms",
+    "robustness",
+    "closed_loop",
+    "temperature_check",
+    "units",
+    "fuelid_version",
+    "input_sha256",
+    "options",
+}
+
+
+def _json(*args: str) -> dict:
+    result = runner.invoke(app, ["tune", *args, "--json"])
+    assert result.exit_code == 0, result.stderr
+    return json.loads(result.stdout)
+
+
+def test_worked_example_json():
+    simc = _json(*WORKED, "--rule", "simc", "--tau-c", "1")
+    assert set(simc) >= JSON_KEYS
+    assert (simc["rule"], simc["Kc"], simc["Ti"]) == (
+        "simc",
+        pytest.approx(1.0),
+        pytest.approx(2.0),
+    )
+    assert simc["control_period"] == 0.0
+    assert round(simc["Ms"], 2) == 1.59
+    assert simc["plc"]["discrete"] is None  # continuous
+    assert simc["units"]["Kc"] == "V/(L/min)"
+    assert simc["units"]["Ti"] == "s"
+    assert simc["units"]["gain_margin"] == "ratio"
+    amigo = _json(*WORKED, "--rule", "amigo")
+    assert (round(amigo["Kc"], 2), round(amigo["Ti"], 2), round(amigo["Ms"], 2)) == (
+        0.41,
+        1.84,
+        1.21,
+    )
+
+
+def test_percent_of_span_uses_the_meter_span():
+    data = _json(
+        "--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2", "--flow-span", "80"
+    )
+    span = data["plc"]["percent_of_span"]
+    assert span["Kc"] == pytest.approx(data["Kc"] * 80.0 / 4.0, rel=1e-12)
+    d = data["plc"]["discrete"]
+    assert d["h"] == 1.0
+    assert d["q1"] == pytest.approx(-data["Kc"] * (1.0 - 1.0 / data["Ti"]), rel=1e-12)
+
+
+def test_flowmeter_lag_enters_the_half_rule():
+    without = _json("--K", "13.5", "--T", "1.26", "--delay", "0.2")
+    with_meter = _json("--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2")
+    # half of T_f goes to T1 and half to θ (plus h/2 = 0.5 s): SIMC's Kc = T1/(2Kθ)
+    assert without["Kc"] == pytest.approx(1.26 / (2 * 13.5 * 0.7), rel=1e-12)
+    assert with_meter["Kc"] == pytest.approx(1.41 / (2 * 13.5 * 0.85), rel=1e-12)
+    assert with_meter["Kc"] < without["Kc"]
+
+
+def _ident_file(tmp_path: Path, model: dict, **extra: object) -> Path:
+    path = tmp_path / "ident.json"
+    path.write_text(json.dumps({"method": "oe", "model": model, **extra}), encoding="utf-8")
+    return path
+
+
+def test_model_file_equals_the_same_model_from_flags(tmp_path: Path):
+    model = {"K": 13.5, "T": 1.26, "T2": 0.0, "delay": 0.2, "T_f": 0.3}
+    cov = {"names": ["K", "T"], "matrix": [[0.01, 0.0], [0.0, 1e-4]]}
+    path = _ident_file(tmp_path, model, cov=cov)
+    from_file = _json("--model", str(path))
+    from_flags = _json("--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2")
+    for key in ("Kc", "Ti", "Ms", "gain_margin", "phase_margin_deg"):
+        assert from_file[key] == pytest.approx(from_flags[key], rel=1e-12)
+    assert len(from_file["input_sha256"]) == 64
+    swept = _json("--model", str(path), "--sweep", "20")
+    assert swept["sweep"]["n"] == 20
+    assert swept["sweep"]["worst_Ms"] >= swept["Ms"] - 0.2
+
+
+def test_schedule_json_and_table():
+    data = _json("--schedule", "--band-width", "35", "--ms-target", "1.65")
+    assert set(data) >= {"rule", "control_period", "ms_target", "worst_Ms", "bands", "units"}
+    assert data["bands"]
+    assert all(b["Ms"] <= 1.65 + 1e-6 for b in data["bands"])
+    assert {b["t_low"] for b in data["bands"]} == {-20.0, 15.0}
+    table = runner.invoke(app, ["tune", "--schedule", "--band-width", "35"])
+    assert table.exit_code == 0
+    assert "Kc V/(L/min)" in table.stdout
+
+
+def test_simulate_adds_the_nonlinear_runs(tmp_path: Path):
+    fig = tmp_path / "cl.png"
+    data = _json(
+        "--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2", "--simulate",
+        "--plot", str(fig),
+    )  # fmt: skip
+    runs = data["closed_loop_plant"]
+    assert [r["fuel_temperature"] for r in runs] == [-20.0, 50.0]
+    for run in runs:
+        assert 0.0 <= run["summary"]["overshoot_percent"] < 25.0
+        assert run["summary"]["settling_time"] < 15.0
+    assert fig.read_bytes().startswith(b"\x89PNG")
+
+
+def test_list_rules():
+    result = runner.invoke(app, ["tune", "--list-rules", "--json"])
+    assert result.exit_code == 0
+    names = [r["name"] for r in json.loads(result.stdout)["rules"]]
+    assert names == ["simc", "isimc", "lambda", "amigo"]
+
+
+@pytest.mark.parametrize(
+    ("args", "reason"),
+    [
+        (["--model", 'FILE:{"fit": 1}'], "no 'model'"),
+        (["--model", "FILE:not json"], "not JSON"),
+        (["--model", 'FILE:{"model": {"K": 1.0}}'], "lacks T"),
+        (["--model", 'FILE:{"model": {"K": 1.0, "T": -2}}'], "T"),
+        (["--model", 'FILE:{"model": {"K": 1.0, "T": 2, "delay": "x"}}'], "not a number"),
+        (["--model", "missing.json"], "does not exist"),
+        (["--K", "1", "--T", "-2"], "--T must be a positive"),
+        (["--K", "1", "--T", "0"], "--T must be a positive"),
+        (["--K", "1", "--T", "2", "--delay", "-0.1"], "--delay must not be negative"),
+        (["--K", "1", "--T", "2", "--T-f", "-1"], "--T-f"),
+        (["--K", "1", "--T", "2", "--rule", "ziegler"], "ziegler"),
+        (["--K", "1", "--T", "2", "--delay", "1", "--tau-c", "0"], "tau_c"),
+        (["--K", "1", "--T", "2", "--control-period", "-1"], "control period"),
+        (["--K", "1", "--T", "2", "--lambda", "3"], "--lambda belongs"),
+        (["--K", "1"], "at least --K and --T"),
+        ([], "give a model"),
+        (["--K", "1", "--T", "2", "--t-min", "50", "--t-max", "0"], "--t-min"),
+        (["--K", "1", "--T", "2", "--plot", "no/such/dir/f.png"], "does not exist"),
+    ],
+)
+def test_bad_input_one_line_exit_2(
+    args: list[str], reason: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    resolved = []
+    for arg in args:
+        if arg.startswith("FILE:"):
+            path = tmp_path / "other.json"
+            path.write_text(arg[5:], encoding="utf-8")
+            arg = str(path)
+        resolved.append(arg)
+    if "--model" in args and resolved[resolved.index("--model") + 1] == "missing.json":
+        resolved[resolved.index("--model") + 1] = str(tmp_path / "missing.json")
+    assert main(["tune", *resolved]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1
+    assert reason in lines[0]
+
+
+def test_model_and_flags_together_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    path = _ident_file(tmp_path, {"K": 1.0, "T": 2.0})
+    assert main(["tune", "--model", str(path), "--K", "2"]) == 2
+    assert "not both" in capsys.readouterr().err
