@@ -12,6 +12,7 @@ from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
 from fuelid.plant import load_plant_config
 from fuelid.tuning import robustness, tune
+from fuelid.tuning.result import model_covariance
 from fuelid.tuning.schedule import (
     Anchor,
     band_edges,
@@ -133,3 +134,24 @@ def test_uncertainty_sweep():
     again = uncertainty_sweep(pi, ANCHOR, names, wide_cov, CONFIG, n=60, seed=3)
     assert np.array_equal(again.Ms, wide.Ms)  # reproducible with a seed
     assert set(wide.summary()) >= {"worst_Ms", "Ms_p95", "unstable_fraction"}
+
+
+def test_model_covariance_is_the_model_parameters_block():
+    cov = np.array([[4.0, np.nan, 0.5], [np.nan, 9.0, 0.1], [0.5, 0.1, 1.0]])
+    names, block = model_covariance(["K", "T", "offset"], cov)
+    assert names == ["K", "T"]
+    assert block.tolist() == [[4.0, 0.0], [0.0, 9.0]]  # unknown correlation taken as zero
+    names, block = model_covariance(["K", "delay"], np.diag([1.0, np.nan]))
+    assert names == ["K"]  # no variance known: held at its estimate
+    # a sweep given the nuisance parameters draws exactly what the block alone draws
+    pi = tune(IDENTIFIED, "simc", 1.0)
+    kt = np.diag([(0.1 * IDENTIFIED.K) ** 2, (0.1 * IDENTIFIED.T) ** 2])
+    full = np.zeros((4, 4))
+    full[:2, :2] = kt
+    full[2, 2] = full[3, 3] = 1.0
+    with_nuisance = uncertainty_sweep(
+        pi, ANCHOR, ("K", "T", "offset", "c0"), full, CONFIG, n=30, seed=5
+    )
+    block_only = uncertainty_sweep(pi, ANCHOR, ("K", "T"), kt, CONFIG, n=30, seed=5)
+    assert np.array_equal(with_nuisance.K, block_only.K)
+    assert np.array_equal(with_nuisance.Ms, block_only.Ms)

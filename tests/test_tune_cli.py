@@ -103,6 +103,27 @@ def test_model_file_equals_the_same_model_from_flags(tmp_path: Path):
     assert swept["sweep"]["worst_Ms"] >= swept["Ms"] - 0.2
 
 
+def test_identification_covariance_with_nuisance_parameters_and_nulls(tmp_path: Path):
+    # `fuelid identify --json` writes the offset and initial-state amplitudes into the
+    # covariance (oe), and null for the unknown K–T correlation (step-ls): the sweep must use
+    # the model parameters' variances, not drop them or crash on the nulls
+    model = {"K": 13.5, "T": 1.26, "T2": 0.0, "delay": 0.2, "T_f": 0.3}
+    var_k, var_t = (0.15 * 13.5) ** 2, (0.15 * 1.26) ** 2
+    cov = {
+        "names": ["K", "T", "offset", "c0"],
+        "matrix": [
+            [var_k, None, 0.0, 0.0],
+            [None, var_t, 0.0, 0.0],
+            [0, 0, 1.0, 0],
+            [0, 0, 0, 1.0],
+        ],
+    }
+    wide = _json("--model", str(_ident_file(tmp_path, model, cov=cov)), "--sweep", "40")
+    (tmp_path / "bare").mkdir()
+    bare = _json("--model", str(_ident_file(tmp_path / "bare", model)), "--sweep", "40")
+    assert wide["sweep"]["worst_Ms"] > bare["sweep"]["worst_Ms"] + 0.05
+
+
 def test_schedule_json_and_table():
     data = _json("--schedule", "--band-width", "35", "--ms-target", "1.65")
     assert set(data) >= {"rule", "control_period", "ms_target", "worst_Ms", "bands", "units"}

@@ -7,9 +7,13 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from fuelid.errors import DataError, FuelidError
 from fuelid.model import ProcessModel
@@ -115,9 +119,47 @@ def evaluate_tuning(
     )
 
 
+def model_covariance(names: Sequence[str], cov: ArrayLike) -> tuple[list[str], NDArray[np.float64]]:
+    """The model parameters' block of an identification covariance.
+
+    An identification estimates nuisance parameters too (the output offset, initial-state
+    amplitudes); the marginal distribution of the model parameters is the matching block of the
+    covariance. A parameter with no variance (NaN or ≤ 0 on the diagonal) is left out (held at its
+    estimate); an unknown correlation (NaN off the diagonal, as ``step-ls`` reports for K and T)
+    is taken as zero.
+
+    Examples
+    --------
+    >>> names, block = model_covariance(["K", "T", "offset"], np.diag([1.0, 4.0, 9.0]))
+    >>> names, block.tolist()
+    (['K', 'T'], [[1.0, 0.0], [0.0, 4.0]])
+    """
+    full = np.asarray(cov, dtype=float).reshape(len(names), len(names))
+    keep = [
+        i
+        for i, name in enumerate(names)
+        if name in MODEL_KEYS and np.isfinite(full[i, i]) and full[i, i] > 0.0
+    ]
+    block = np.nan_to_num(full[np.ix_(keep, keep)], nan=0.0)
+    return [str(names[i]) for i in keep], block
+
+
+def _covariance_entry(value: Any) -> float:
+    """One covariance entry from JSON: a number, or null for "not known" (NaN)."""
+    if value is None:
+        return math.nan
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise TypeError(value)
+    return float(value)
+
+
 @dataclass(frozen=True)
 class ModelFile:
-    """A process model read from a JSON result, with its covariance when there is one."""
+    """A process model read from a JSON result, with its covariance when there is one.
+
+    ``cov`` is the model parameters' block (:func:`model_covariance`) of the file's covariance;
+    nuisance parameters (offset, initial state) are dropped, unknown correlations taken as zero.
+    """
 
     model: ProcessModel
     cov_names: tuple[str, ...]
@@ -171,14 +213,21 @@ def load_model_file(path: str | Path) -> ModelFile:
     cov = None
     block = data.get("cov")
     if isinstance(block, dict) and isinstance(block.get("names"), list):
-        names = tuple(str(n) for n in block["names"])
+        # a covariance block that cannot be read is ignored: the model alone still tunes
+        names = [str(n) for n in block["names"]]
         matrix = block.get("matrix")
         if (
             names
-            and set(names) <= set(MODEL_KEYS)
             and isinstance(matrix, list)
             and len(matrix) == len(names)
             and all(isinstance(r, list) and len(r) == len(names) for r in matrix)
         ):
-            cov_names, cov = names, [[float(v) for v in row] for row in matrix]
+            try:
+                full = [[_covariance_entry(v) for v in row] for row in matrix]
+            except TypeError:
+                full = None
+            if full is not None:
+                kept, model_block = model_covariance(names, full)
+                if kept:
+                    cov_names, cov = tuple(kept), model_block.tolist()
     return ModelFile(model=model, cov_names=cov_names, cov=cov, source=str(file))

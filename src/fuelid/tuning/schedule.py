@@ -27,6 +27,7 @@ from fuelid.plant.linear import LinearPlant, linearise
 from fuelid.plant.pump import LPM_PER_M3S
 from fuelid.tuning.closedloop import linear_closed_loop
 from fuelid.tuning.frequency import Robustness, robustness
+from fuelid.tuning.result import model_covariance
 from fuelid.tuning.rules import PISettings, tune
 
 FloatArray = NDArray[np.float64]
@@ -433,15 +434,15 @@ def uncertainty_sweep(
     """Evaluate one PI on ``n`` variants of the identified model.
 
     Each variant draws a fuel temperature uniformly over ``t_range`` and the estimated
-    parameters from N(estimate, cov) (the identification's covariance); the physics model then
+    parameters from N(estimate, cov) (the identification's covariance, its model-parameter block:
+    :func:`model_covariance`); the physics model then
     moves K and T from the identification's temperature to the drawn one (by ratio, interpolated
     on a 2 °C grid). Draws with T ≤ 0 are redrawn; a negative delay is set to 0. Margins and the
     step overshoot come from the linear models (exact ZOH, exact delay).
     """
     rng = np.random.default_rng(seed)
-    names = list(cov_names)
+    names, cov = model_covariance(cov_names, cov)
     mean = np.array([getattr(anchor.model, name) for name in names], dtype=float)
-    cov = np.asarray(cov, dtype=float).reshape(len(names), len(names))
     grid = np.arange(t_range[0], t_range[1] + 1e-9, 2.0)
     if grid[-1] < t_range[1]:
         grid = np.append(grid, t_range[1])
