@@ -216,6 +216,23 @@ def test_simulate_refuses_to_overwrite_without_force(tmp_path: Path):
     assert out.read_text().startswith("t_s,u_V,q_Lpm,T_fuel_degC")
 
 
+def test_profile_file_as_a_plc_exports_it(tmp_path: Path):
+    # semicolons, decimal commas and a byte-order mark, as the log reader accepts them
+    profile = tmp_path / "p.csv"
+    profile.write_bytes("\ufeffT_s;U_V\n0;1,0\n10;1,5\n".encode("utf-8-sig"))
+    out = tmp_path / "o.csv"
+    args = ("simulate", str(out), "--profile", "file", "--input-file", str(profile))
+    result = invoke(*args, "--duration", "20", "--noise-std", "0", "--resolution", "0")
+    assert result.exit_code == 0, result.stderr
+    log = pd.read_csv(out)
+    assert log["u_V"].iloc[0] == 1.0
+    assert log["u_V"].iloc[-1] == 1.5
+    profile.write_text("t_s;u_V\n0;1,0\n10;high\n", encoding="utf-8")
+    result = invoke(*args, "--force")
+    assert result.exit_code == 2
+    assert "first at data row 2 ('high')" in result.stderr
+
+
 def test_profile_file_missing_column_names_the_columns(tmp_path: Path):
     profile = tmp_path / "p.csv"
     pd.DataFrame({"time": [0.0, 1.0], "volts": [1.0, 2.0]}).to_csv(profile, index=False)

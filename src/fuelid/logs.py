@@ -7,7 +7,7 @@ jittered sampling, gaps and empty cells. :func:`load_log` handles what can be ha
 records it in ``IOData.notes``; everything else is refused with a one-line
 :class:`~fuelid.errors.DataError` that says what is wrong and where (column, data row, time).
 
-Data rows are numbered from 1 after the header line, as in :func:`fuelid.signals.numeric_column`.
+Data rows are numbered from 1 after the header line.
 """
 
 from __future__ import annotations
@@ -265,6 +265,42 @@ class _Table:
 
 
 # --- reading -------------------------------------------------------------------------------------
+
+
+def read_table(path: str | Path) -> tuple[pd.DataFrame, list[str]]:
+    """Read a CSV-like text table or a Parquet file as :func:`load_log` does.
+
+    For tables that are not logs (a command profile): the same encodings, separators and
+    refusals. Text cells stay strings; :func:`table_column` turns a column into numbers.
+
+    Returns
+    -------
+    frame, notes
+        The table and what reading it noticed (encoding, separator).
+    """
+    file = Path(path)
+    return _read_frame(file, repr(str(file)))
+
+
+def table_column(frame: pd.DataFrame, name: str, source: str) -> FloatArray:
+    """One column of :func:`read_table`'s frame as floats (decimal point or comma).
+
+    Raises
+    ------
+    DataError
+        If the column is missing (naming those present) or a cell is empty or not a number.
+    """
+    column = _find_column(frame, name, "required", source)
+    values = _to_float(frame[column])
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        cell = str(frame[column].iloc[int(bad[0])])
+        shown = repr(cell if len(cell) <= 24 else cell[:21] + "...")
+        raise DataError(
+            f"{source}: column {name!r} has {bad.size} empty, non-numeric or infinite cell(s), "
+            f"first at data row {int(bad[0]) + 1} ({shown})"
+        )
+    return values
 
 
 def _read_frame(file: Path, source: str) -> tuple[pd.DataFrame, list[str]]:

@@ -189,49 +189,6 @@ def write_table(frame: pd.DataFrame, path: str | Path, overwrite: bool = False) 
     return out
 
 
-def read_table(path: str | Path) -> pd.DataFrame:
-    """Read a CSV or Parquet table, refusing unreadable input with a one-line reason.
-
-    Parameters
-    ----------
-    path : str or Path
-        ``.csv``, ``.parquet`` or ``.pq`` file.
-
-    Returns
-    -------
-    DataFrame
-    """
-    file = Path(path)
-    fmt = table_format(file)
-    if not file.is_file():
-        raise DataError(f"{str(file)!r} does not exist or is not a file")
-    try:
-        frame = pd.read_csv(file) if fmt == "csv" else pd.read_parquet(file)
-    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError, OSError) as exc:
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise DataError(f"cannot read {str(file)!r} as {fmt}: {reason}") from None
-    except Exception as exc:  # pyarrow raises its own types for a corrupt Parquet file
-        raise DataError(f"cannot read {str(file)!r} as {fmt}: {exc}") from None
-    if frame.empty:
-        raise DataError(f"{str(file)!r} holds no rows")
-    return frame
-
-
-def numeric_column(frame: pd.DataFrame, name: str, source: str = "table") -> FloatArray:
-    """One column as floats; refuses a missing column (naming those present) or bad cells."""
-    if name not in frame.columns:
-        present = ", ".join(map(str, frame.columns))
-        raise DataError(f"{source} has no column {name!r}; columns present: {present}")
-    values = pd.to_numeric(frame[name], errors="coerce").to_numpy(dtype=float)
-    bad = np.flatnonzero(~np.isfinite(values))
-    if bad.size:
-        raise DataError(
-            f"{source}: column {name!r} has {bad.size} empty, non-numeric or infinite cell(s), "
-            f"first at data row {int(bad[0]) + 1}"
-        )
-    return values
-
-
 @dataclass(frozen=True)
 class IOData:
     """One input and one output, uniformly sampled: what the estimators fit.

@@ -15,6 +15,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from fuelid.cli._common import celsius_to_kelvin, emit_json, guarded, provenance
 from fuelid.errors import DataError, FuelidError
 from fuelid.fuel import T0 as KELVIN
+from fuelid.logs import read_table, table_column
 from fuelid.plant import load_plant_config
 from fuelid.plant.pump import LPM_PER_M3S
 from fuelid.profiles import InputProfile, random_levels, step_profile, step_sequence
@@ -23,8 +24,6 @@ from fuelid.signals import (
     INPUT_COLUMN,
     TIME_COLUMN,
     check_output_path,
-    numeric_column,
-    read_table,
 )
 from fuelid.simulate import FuelTemperature, simulate
 
@@ -53,9 +52,10 @@ def _levels(text: str) -> list[float]:
 
 def _profile_from_file(path: Path, duration: float | None) -> tuple[InputProfile, Any]:
     """A command profile (``t_s``, ``u_V`` and optionally ``T_fuel_degC``) read from a table."""
-    frame = read_table(path)
-    t = numeric_column(frame, TIME_COLUMN, str(path))
-    u = numeric_column(frame, INPUT_COLUMN, str(path))
+    frame, _ = read_table(path)
+    source = repr(str(path))
+    t = table_column(frame, TIME_COLUMN, source)
+    u = table_column(frame, INPUT_COLUMN, source)
     if t.size < 1 or t[0] != 0.0 or np.any(np.diff(t) <= 0.0):
         raise DataError(f"{path}: {TIME_COLUMN} must start at 0 and increase strictly")
     end = (
@@ -67,7 +67,7 @@ def _profile_from_file(path: Path, duration: float | None) -> tuple[InputProfile
     profile = InputProfile(t[change], u[change], end)
     temperature = None
     if FUEL_TEMPERATURE_COLUMN in frame.columns:
-        temps = numeric_column(frame, FUEL_TEMPERATURE_COLUMN, str(path))
+        temps = table_column(frame, FUEL_TEMPERATURE_COLUMN, source)
         temperature = FuelTemperature(t, temps + KELVIN)
     return profile, temperature
 
