@@ -164,6 +164,25 @@ def test_linear_closed_loop_against_a_time_stepped_loop(d: int):
     assert res.setpoint_command[::10] == pytest.approx(u, abs=1e-10)
 
 
+def test_linear_load_step_recovery():
+    # a unit load at the plant input: the integral must end at −1 V, and it grows by
+    # Kc·h/Ti per sample of error, so the summed deviation is exactly Ti/Kc [output unit·s]
+    model = ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2)
+    pi = PISettings(rule="x", Kc=0.0613, Ti=1.41, control_period=1.0)
+    res = linear_closed_loop(model, pi, oversample=10)
+    deviation_at_samples = res.disturbance_response[::10]
+    assert np.sum(deviation_at_samples) * 1.0 == pytest.approx(pi.Ti / pi.Kc, rel=1e-6)
+    # recovery: within 2 % of the uncontrolled effect (K per volt) from settling_time on
+    m = res.disturbance
+    band = 0.02 * model.K
+    assert math.isfinite(m.settling_time)
+    assert m.settling_time > 0.0
+    after = res.time >= m.settling_time - 1e-9
+    assert np.all(np.abs(res.disturbance_response[after]) <= band)
+    just_before = np.flatnonzero(~after)[-1]
+    assert abs(res.disturbance_response[just_before]) > band
+
+
 def test_closed_loop_poles_inside_and_outside_the_unit_circle():
     model = ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2)
     pi = tune(model, "simc", 1.0)
