@@ -23,6 +23,8 @@ from fuelid.tuning.closedloop import (
     disturbance_metrics,
     flow_at,
     linear_closed_loop,
+    place_step,
+    reachable_flows,
     setpoint_step_metrics,
     simulate_closed_loop,
     standard_runs,
@@ -220,6 +222,54 @@ def test_scheduled_gains_on_the_plant_at_every_band(schedule):
         assert s["settling_time"] < 15.0, where
         assert s["disturbance_settling_time"] < 15.0, where
         assert s["time_at_limits"] == 0.0, where
+
+
+def test_reachable_flows_are_held_at_every_temperature():
+    lo, hi = reachable_flows(CONFIG, (-20.0, 50.0), headroom=0.0)
+    # the common range: the higher of the two minimum flows, the lower of the two maximum flows
+    assert lo == pytest.approx(max(flow_at(CONFIG, 1.0, t) for t in (-20.0, 50.0)))
+    assert hi == pytest.approx(min(flow_at(CONFIG, 5.0, t) for t in (-20.0, 50.0)))
+    for t_degC in (-20.0, 50.0):
+        for flow in (lo, hi):
+            u = steady_command(CONFIG, flow, t_degC + 273.15)
+            assert 1.0 - 1e-9 <= u <= 5.0 + 1e-9
+    narrowed = reachable_flows(CONFIG, (-20.0, 50.0), headroom=0.05)
+    assert narrowed == pytest.approx((lo + 0.05 * (hi - lo), hi - 0.05 * (hi - lo)))
+
+
+@pytest.mark.parametrize(
+    ("flow", "step", "expected"),
+    [
+        (30.0, 10.0, (30.0, 10.0)),  # fits as asked
+        (30.0, -10.0, (30.0, -10.0)),  # downward as asked
+        (18.0, -10.0, (18.0, 10.0)),  # no room below: turns round
+        (55.0, 10.0, (55.0, -10.0)),  # no room above: turns round
+        (5.0, 10.0, (15.0, 10.0)),  # start below the range: from its bottom
+        (70.0, 10.0, (60.0, -10.0)),  # start above the range: from its top
+        (40.0, 100.0, (15.0, 45.0)),  # wider than the range: the whole range, upward
+        (40.0, -100.0, (60.0, -45.0)),
+    ],
+)
+def test_place_step_stays_in_range(flow, step, expected):
+    start, signed = place_step(flow, step, 15.0, 60.0)
+    assert (start, signed) == pytest.approx(expected)
+    assert 15.0 <= start <= 60.0
+    assert 15.0 <= start + signed <= 60.0
+
+
+def test_standard_runs_near_the_top_of_the_drive():
+    """A start the warm fuel cannot reach is brought inside, and the step goes down."""
+    pi = tune(ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2), "simc", 1.0)
+    lo, hi = reachable_flows(CONFIG, (-20.0, 50.0))
+    runs = standard_runs(CONFIG, pi, (-20.0, 50.0), flow_at(CONFIG, 5.0, -20.0), 10.0)
+    for run in runs:
+        assert run.setpoint[0] == pytest.approx(hi)
+        assert run.setpoint[-1] == pytest.approx(hi - 10.0)
+        assert lo <= run.setpoint[-1]
+        s = run.summary()
+        assert s["overshoot_percent"] < 25.0
+        assert s["settling_time"] < 15.0
+        assert s["time_at_limits"] == 0.0
 
 
 def test_saturation_and_recovery_on_the_plant():

@@ -9,8 +9,11 @@ import pytest
 from typer.testing import CliRunner
 
 from fuelid.cli import app, main
+from fuelid.plant import load_plant_config
+from fuelid.tuning.closedloop import flow_at
 
 runner = CliRunner()
+CONFIG = load_plant_config()
 WORKED = ["--K", "1", "--T", "2", "--delay", "1", "--control-period", "0"]
 JSON_KEYS = {
     "rule",
@@ -147,6 +150,21 @@ def test_simulate_adds_the_nonlinear_runs(tmp_path: Path):
         assert 0.0 <= run["summary"]["overshoot_percent"] < 25.0
         assert run["summary"]["settling_time"] < 15.0
     assert fig.read_bytes().startswith(b"\x89PNG")
+
+
+def test_simulate_near_the_top_of_the_drive_steps_down():
+    """At 4.8 V the 20 °C flow is more than warm fuel can reach: the runs start lower, step down."""
+    data = _json(
+        "--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2", "--u", "4.8",
+        "--simulate",
+    )  # fmt: skip
+    warm_top = flow_at(CONFIG, 5.0, 50.0)
+    for run in data["closed_loop_plant"]:
+        assert run["start_flow"] < warm_top
+        (step,) = [e for e in run["events"] if e["kind"] == "setpoint"]
+        assert step["size"] == pytest.approx(-10.0)  # 10 % of the 100 L/min span, downward
+        assert run["summary"]["settling_time"] < 15.0
+        assert run["summary"]["time_at_limits"] == 0.0
 
 
 def test_list_rules():

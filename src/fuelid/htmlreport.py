@@ -195,6 +195,7 @@ def _context(
         runs.append(
             {
                 "fuel_temperature": _fmt(run.fuel_temperature, "g"),
+                "setpoint": f"{run.setpoint[0]:.1f} → {run.setpoint[-1]:.1f}",
                 "overshoot": _fmt(summary["overshoot_percent"], ".1f"),
                 "settling": _fmt(summary["settling_time"], ".1f"),
                 "load_peak": _fmt(summary["disturbance_peak"], ".2f"),

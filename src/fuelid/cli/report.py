@@ -166,7 +166,12 @@ def _payload(analysis: LogAnalysis, written: list[Path]) -> dict[str, Any]:
             "all_stable": check.all_stable,
         },
         "closed_loop_plant": [
-            {"fuel_temperature": r.fuel_temperature, "summary": r.summary()} for r in analysis.runs
+            {
+                "fuel_temperature": r.fuel_temperature,
+                "start_flow": float(r.setpoint[0]),
+                "summary": r.summary(),
+            }
+            for r in analysis.runs
         ],
         "schedule": analysis.schedule.as_dict(),
         "warnings": analysis.warnings,

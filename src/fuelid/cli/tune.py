@@ -128,6 +128,7 @@ def rule_speed(rule: RuleChoice, tau_c: float | None, lam: float | None) -> floa
 def _run_json(run: ClosedLoopResult) -> dict[str, Any]:
     return {
         "fuel_temperature": run.fuel_temperature,
+        "start_flow": float(run.setpoint[0]),
         "summary": run.summary(),
         "events": [e.as_dict() for e in run.events],
     }
@@ -434,7 +435,8 @@ def _print_tuning(
     for run in runs:
         s = run.summary()
         console.print(
-            f"nonlinear plant at {run.fuel_temperature:g} °C: overshoot "
+            f"nonlinear plant at {run.fuel_temperature:g} °C, setpoint "
+            f"{run.setpoint[0]:.1f} → {run.setpoint[-1]:.1f} L/min: overshoot "
             f"{s['overshoot_percent']:.1f} %, settling {s['settling_time']:.1f} s, load peak "
             f"{s['disturbance_peak']:.2f} L/min, at the limits {s['time_at_limits']:g} s"
         )

@@ -548,6 +548,54 @@ def standard_scenario(
     return setpoint, disturbance
 
 
+def reachable_flows(
+    config: PlantConfig, temperatures_degC: tuple[float, ...], headroom: float = 0.05
+) -> tuple[float, float]:
+    """Flows [L/min] the drive holds at rest at every one of the fuel temperatures [°C].
+
+    The common range of the steady flows at the lowest and highest command, narrowed by
+    ``headroom`` (a fraction of it) at each end so that a controller holding a flow there still
+    has room to act on a load disturbance.
+    """
+    lows = [flow_at(config, config.vfd.u_min_V, t) for t in temperatures_degC]
+    highs = [flow_at(config, config.vfd.u_max_V, t) for t in temperatures_degC]
+    lo, hi = max(lows), min(highs)
+    if not hi > lo:
+        raise FuelidError(
+            f"no flow is reachable at every fuel temperature {list(temperatures_degC)} °C "
+            f"({lo:.2f}…{hi:.2f} L/min)"
+        )
+    margin = headroom * (hi - lo)
+    return lo + margin, hi - margin
+
+
+def place_step(flow: float, step: float, lo: float, hi: float) -> tuple[float, float]:
+    """A start flow and setpoint step [L/min] that stay within ``lo``…``hi``.
+
+    The start is ``flow`` brought inside the range; the step keeps its size and, where the
+    range allows, its direction, else it turns round; a step wider than the range shrinks to it.
+
+    Examples
+    --------
+    >>> place_step(30.0, 10.0, 15.0, 60.0)  # fits as asked
+    (30.0, 10.0)
+    >>> place_step(55.0, 10.0, 15.0, 60.0)  # no room above: step down
+    (55.0, -10.0)
+    >>> place_step(70.0, 10.0, 15.0, 60.0)  # start beyond the drive: from its top, down
+    (60.0, -10.0)
+    >>> place_step(20.0, 10.0, 15.0, 22.0)  # range narrower than the step
+    (15.0, 7.0)
+    """
+    start = min(max(flow, lo), hi)
+    for signed in (step, -step):
+        if lo <= start + signed <= hi:
+            return start, signed
+    size = min(abs(step), hi - lo)
+    if step > 0:
+        return min(start, hi - size), size
+    return max(start, lo + size), -size
+
+
 def standard_runs(
     config: PlantConfig,
     pi: PISettings,
@@ -557,7 +605,10 @@ def standard_runs(
 ) -> list[ClosedLoopResult]:
     """The standard test (:func:`standard_scenario`) on the nonlinear plant at each temperature.
 
-    Every run starts at rest at the same flow, so the runs differ only by the fuel.
+    Every run starts at rest at the same flow, so the runs differ only by the fuel. The start
+    and the step are placed within what the drive delivers at every one of the temperatures
+    (:func:`reachable_flows`, :func:`place_step`): near the top of the range the step goes
+    down; each run's ``setpoint`` says what was run.
 
     Parameters
     ----------
@@ -568,18 +619,18 @@ def standard_runs(
     temperatures_degC : tuple of float
         Fuel temperatures [°C], one run each.
     flow : float
-        Flow the runs start at [L/min].
+        Flow the runs start at [L/min] (moved into the reachable range if outside it).
     step : float
-        Setpoint step [L/min]; a flow the drive cannot reach is refused (:class:`FuelidError`).
+        Setpoint step [L/min] (turned round or shrunk if it leaves the reachable range).
     """
+    start, signed = place_step(flow, step, *reachable_flows(config, temperatures_degC))
     runs = []
     for t_degC in temperatures_degC:
-        T_fuel = t_degC + KELVIN
-        for target in (flow, flow + step):
-            steady_command(config, target, T_fuel)  # refuses an unreachable flow
-        setpoint, load = standard_scenario(flow, step)
+        setpoint, load = standard_scenario(start, signed)
         runs.append(
-            simulate_closed_loop(config, pi, setpoint, fuel_temperature=T_fuel, disturbance=load)
+            simulate_closed_loop(
+                config, pi, setpoint, fuel_temperature=t_degC + KELVIN, disturbance=load
+            )
         )
     return runs
 
