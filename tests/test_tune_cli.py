@@ -195,6 +195,18 @@ def test_list_rules():
         ([], "give a model"),
         (["--K", "1", "--T", "2", "--t-min", "50", "--t-max", "0"], "--t-min"),
         (["--K", "1", "--T", "2", "--plot", "no/such/dir/f.png"], "does not exist"),
+        (["--K", "1", "--T", "2", "--plot", "DIR"], "is a folder"),
+        (["--K", "1", "--T", "2", "--plot", "FIG:f.xyz"], "name it .png"),
+        # far outside any flow loop: refused at once, not minutes of work or an overflow
+        (["--model", 'FILE:{"model": {"K": 13.5, "T": 1e300}}'], "exceeds 100000 s"),
+        (["--model", 'FILE:{"model": {"K": 13.5, "T": 1e-300}}'], "below 1e-06 s"),
+        (["--K", "1e300", "--T", "2"], "process gain K"),
+        (["--K", "13.5", "--T", "1.26", "--delay", "1e6"], "exceeds 100000 s"),
+        (["--K", "13.5", "--T", "1.26", "--delay", "5000"], "more than 1000 control periods"),
+        (["--K", "13.5", "--T", "1.26", "--control-period", "1e6", "--simulate"], "up to 10 s"),
+        (["--K", "13.5", "--T", "1.26", "--sweep", "10000000"], "1 to 20,000"),
+        (["--schedule", "--band-width", "0.001"], "at most 50"),
+        (["--schedule", "--flow-bands", "1000"], "1 to 10"),
     ],
 )
 def test_bad_input_one_line_exit_2(
@@ -207,6 +219,11 @@ def test_bad_input_one_line_exit_2(
             path.write_text(arg[5:], encoding="utf-8")
             arg = str(path)
         resolved.append(arg)
+    for i, arg in enumerate(args):
+        if arg == "DIR":
+            resolved[i] = str(tmp_path)
+        elif arg.startswith("FIG:"):
+            resolved[i] = str(tmp_path / arg[4:])
     if "--model" in args and resolved[resolved.index("--model") + 1] == "missing.json":
         resolved[resolved.index("--model") + 1] = str(tmp_path / "missing.json")
     assert main(["tune", *resolved]) == 2

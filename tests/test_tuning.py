@@ -250,3 +250,20 @@ def test_a_gain_beyond_the_margin_is_unstable():
     assert too_much.gain_margin < 1.0
     just_inside = robustness(WORKED, pi.with_gain_factor(0.9 * nominal.gain_margin))
     assert just_inside.stable
+
+
+@pytest.mark.parametrize("h", [0.0, 1.0])
+def test_heavily_detuned_loop_is_stable(h: float):
+    """Kc → 0: L ≈ K·Kc/(Ti·s) crosses over at ω ≈ K·Kc/Ti, far below every plant pole.
+
+    The loop is then an almost pure integrator at its crossover: phase margin → 90°, Ms → 1,
+    gain margin ≈ (the margin of Kc = 1 at the same Ti) / Kc, and it is stable.
+    """
+    model = ProcessModel(K=1.0, T=2.0, delay=1.0)
+    pi = PISettings(rule="simc", Kc=1e-5, Ti=2.0, control_period=h)
+    r = robustness(model, pi)
+    assert r.stable
+    assert r.phase_margin_deg == pytest.approx(90.0, abs=0.01)
+    assert r.Ms == pytest.approx(1.0, abs=1e-3)
+    assert r.crossover_frequency == pytest.approx(1e-5 / 2.0, rel=1e-3)
+    assert r.gain_margin > 1e4

@@ -32,6 +32,23 @@ def fail(message: str) -> typer.Exit:
     return typer.Exit(EXIT_BAD_INPUT)
 
 
+FIGURE_FORMATS = ("png", "svg", "pdf")
+
+
+def check_figure_path(path: Path | None) -> None:
+    """Refuse a figure path that cannot be written, before any work is done."""
+    if path is None:
+        return
+    if path.is_dir():
+        raise FuelidError(f"figure path {str(path)!r} is a folder; give a file name")
+    if not path.parent.is_dir():
+        raise FuelidError(f"figure folder {str(path.parent)!r} does not exist")
+    if path.suffix.lower().lstrip(".") not in FIGURE_FORMATS:
+        raise FuelidError(
+            f"figure {str(path)!r}: name it .png, .svg or .pdf (the suffix picks the format)"
+        )
+
+
 def guarded(command: Callable[P, R]) -> Callable[P, R]:
     """Turn every :class:`FuelidError` raised by a command into a one-line message and exit 2."""
 

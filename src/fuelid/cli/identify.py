@@ -18,6 +18,7 @@ from fuelid.cli._common import (
     OutputScale,
     SampleTime,
     TimeColumn,
+    check_figure_path,
     emit_json,
     guarded,
     provenance,
@@ -179,8 +180,7 @@ def identify_command(
     A flowmeter time constant or delay that is given is prior knowledge and stays fixed; what is
     not given is estimated. Non-exciting data are refused (exit code 2).
     """
-    if plot is not None and not plot.parent.is_dir():
-        raise FuelidError(f"figure folder {str(plot.parent)!r} does not exist")
+    check_figure_path(plot)
     settling = None
     T_f, meter_delay = flowmeter_T, flowmeter_delay
     if config is not None:

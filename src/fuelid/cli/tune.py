@@ -12,7 +12,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from fuelid.cli._common import emit_json, guarded, provenance
+from fuelid.cli._common import check_figure_path, emit_json, guarded, provenance
 from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
 from fuelid.plant import load_plant_config
@@ -22,7 +22,14 @@ from fuelid.tuning.closedloop import (
     flow_at,
     standard_runs,
 )
-from fuelid.tuning.result import UNITS, TuningResult, evaluate_tuning, load_model_file
+from fuelid.tuning.result import (
+    UNITS,
+    TuningResult,
+    check_control_period,
+    check_tunable,
+    evaluate_tuning,
+    load_model_file,
+)
 from fuelid.tuning.rules import TUNING_RULES
 from fuelid.tuning.schedule import (
     Anchor,
@@ -34,6 +41,9 @@ from fuelid.tuning.schedule import (
     plant_cases,
     uncertainty_sweep,
 )
+
+MAX_SWEEP = 20_000
+"""Most plant variants of --sweep (about 30 s on two cores)."""
 
 
 class RuleChoice(enum.StrEnum):
@@ -236,10 +246,10 @@ def tune_command(
     if list_rules:
         _print_rules(as_json)
         return
-    if plot is not None and not plot.parent.is_dir():
-        raise FuelidError(f"figure folder {str(plot.parent)!r} does not exist")
-    if sweep is not None and sweep < 1:
-        raise FuelidError(f"--sweep needs a positive number of variants, got {sweep}")
+    check_figure_path(plot)
+    if sweep is not None and not 1 <= sweep <= MAX_SWEEP:
+        raise FuelidError(f"--sweep takes 1 to {MAX_SWEEP:,} variants, got {sweep}")
+    check_control_period(control_period)
     for name, value in (("--fuel-temp", fuel_temp), ("--t-min", t_min), ("--t-max", t_max)):
         if not math.isfinite(value):
             raise FuelidError(f"{name} must be a finite temperature")
@@ -247,6 +257,8 @@ def tune_command(
         raise FuelidError(f"--t-min must be below --t-max, got {t_min:g} and {t_max:g} °C")
     speed = rule_speed(rule, tau_c, lam)
     model, cov_names, cov = _model_from_options(model_file, K, T, T2, T_f, delay)
+    if model is not None:
+        check_tunable(model, control_period)
     plant = load_plant_config(config)
     u_span = plant.vfd.u_max_V - plant.vfd.u_min_V
     y_span = plant.flowmeter.span_Lpm if flow_span is None else flow_span

@@ -231,6 +231,17 @@ class LinearResponse:
     disturbance: StepMetrics
 
 
+def linear_period(model: ProcessModel, pi: PISettings) -> float:
+    """Step [s] of the linear closed loop.
+
+    The control period; for a continuous controller 0.02 s, coarser for a slow loop so that its
+    delay and lags span at most about 500 steps.
+    """
+    if pi.control_period > 0.0:
+        return pi.control_period
+    return max(CONTINUOUS_PERIOD, (model.delay + sum(model.time_constants) + pi.Ti) / 500.0)
+
+
 def _closed_loop_polynomials(
     model: ProcessModel, pi: PISettings, h: float
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -260,7 +271,7 @@ def linear_closed_loop(
     The controller output follows from the closed loop at the control instants (exact ZOH,
     fractional delay included); the plant output is then computed on a grid ``oversample`` times
     finer with the same held command, so overshoot between samples is not missed. A continuous
-    controller is simulated at 0.02 s.
+    controller is simulated at 0.02 s (coarser for a slow loop, :func:`linear_period`).
 
     Examples
     --------
@@ -270,7 +281,7 @@ def linear_closed_loop(
     >>> 0.0 <= res.setpoint.overshoot_percent < 20.0 and res.setpoint.settling_time < 15.0
     True
     """
-    h = pi.control_period if pi.control_period > 0.0 else CONTINUOUS_PERIOD
+    h = linear_period(model, pi)
     if duration is None:
         duration = 10.0 * (pi.Ti + model.delay + sum(model.time_constants)) + 20.0 * h
     n = max(math.ceil(duration / h), 4)
@@ -296,7 +307,7 @@ def linear_closed_loop(
 
 def closed_loop_poles(model: ProcessModel, pi: PISettings) -> FloatArray:
     """Magnitudes of the closed-loop poles at the control instants (all < 1 when stable)."""
-    h = pi.control_period if pi.control_period > 0.0 else CONTINUOUS_PERIOD
+    h = linear_period(model, pi)
     char = _closed_loop_polynomials(model, pi, h)[2]
     return np.asarray(np.abs(np.roots(np.trim_zeros(char, "b"))), dtype=np.float64)
 

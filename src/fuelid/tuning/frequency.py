@@ -212,9 +212,16 @@ def frequency_grid(
     """
     if isinstance(plant, ProcessModel):
         rates = [1.0 / tc for tc in plant.time_constants]
+        dc_gain = abs(plant.K)
     else:
-        rates = [float(r) for r in np.abs(np.linalg.eigvals(np.asarray(plant.A)).real) if r > 0]
+        A = np.asarray(plant.A)
+        rates = [float(r) for r in np.abs(np.linalg.eigvals(A).real) if r > 0]
+        dc_gain = float(np.abs(np.asarray(plant.D) - plant.C @ np.linalg.solve(A, plant.B)).sum())
     rates.append(1.0 / pi.Ti)
+    # a heavily detuned loop crosses over near K·Kc/Ti, where L ≈ K·Kc/(Ti·s): far below 1/Ti
+    # and the plant's poles; the grid must start well below it for the winding to count
+    if dc_gain > 0.0:
+        rates.append(dc_gain * pi.Kc / pi.Ti)
     if plant.delay > 0.0:
         rates.append(1.0 / plant.delay)
     lo = 1e-3 * min(rates)

@@ -92,6 +92,66 @@ class TuningResult:
         }
 
 
+MAX_CONTROL_PERIOD = 10.0
+"""Longest PLC control period [s] fuelid tunes for (a flow loop's PLC runs in 0.01…1 s)."""
+MAX_TIME_SCALE = 1e5
+"""Longest time constant or delay [s] of a model fuelid tunes (about a day)."""
+MIN_TIME_CONSTANT = 1e-6
+"""Shortest non-zero time constant [s]."""
+GAIN_RANGE = (1e-6, 1e6)
+"""Process gains [output unit per input unit] fuelid tunes."""
+MAX_PERIODS = (1000, 10_000)
+"""Largest delay and largest sum of time constants, in control periods, of a sampled loop."""
+
+
+def check_control_period(control_period: float) -> None:
+    """Refuse a control period that is negative, not finite or beyond 10 s."""
+    if not (math.isfinite(control_period) and 0.0 <= control_period <= MAX_CONTROL_PERIOD):
+        raise FuelidError(
+            f"control period must be 0 (continuous) or up to {MAX_CONTROL_PERIOD:g} s, "
+            f"got {control_period:g} s"
+        )
+
+
+def check_tunable(model: ProcessModel, control_period: float) -> None:
+    """Refuse a model or control period far outside any flow loop, before any work is done.
+
+    Such numbers come from a unit mix-up (ms for s) or a failed identification; tuning them
+    would take minutes or overflow, and the gains would mean nothing.
+
+    Raises
+    ------
+    FuelidError
+        With the reason, e.g. a delay of more than 1,000 control periods.
+    """
+    check_control_period(control_period)
+    lo, hi = GAIN_RANGE
+    if model.K > 0.0 and not lo <= model.K <= hi:
+        raise FuelidError(f"process gain K = {model.K:g} is outside {lo:g}…{hi:g}: check its units")
+    for name in ("T", "T2", "T_f", "delay"):
+        value = getattr(model, name)
+        if value > MAX_TIME_SCALE:
+            raise FuelidError(
+                f"model {name} = {value:g} s exceeds {MAX_TIME_SCALE:g} s: check its units"
+            )
+        if name != "delay" and 0.0 < value < MIN_TIME_CONSTANT:
+            raise FuelidError(
+                f"model {name} = {value:g} s is below {MIN_TIME_CONSTANT:g} s: give 0 for no lag"
+            )
+    if control_period > 0.0:
+        max_delay, max_lags = MAX_PERIODS
+        if model.delay > max_delay * control_period:
+            raise FuelidError(
+                f"delay {model.delay:g} s is more than {max_delay} control periods of "
+                f"{control_period:g} s: check the units or --control-period"
+            )
+        if sum(model.time_constants) > max_lags * control_period:
+            raise FuelidError(
+                f"time constants of {sum(model.time_constants):g} s span more than {max_lags} "
+                f"control periods of {control_period:g} s: check the units or --control-period"
+            )
+
+
 def evaluate_tuning(
     model: ProcessModel,
     rule: str = "simc",
@@ -108,6 +168,7 @@ def evaluate_tuning(
     >>> round(res.pi.Kc, 3), round(res.robustness.Ms, 2)
     (0.406, 1.21)
     """
+    check_tunable(model, control_period)
     pi = tune(model, rule, control_period, speed)
     return TuningResult(
         model=model,

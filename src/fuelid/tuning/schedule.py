@@ -273,6 +273,12 @@ class GainSchedule:
         }
 
 
+MAX_BANDS = 50
+"""Most temperature bands of a schedule (each band is a tuning)."""
+MAX_FLOW_BANDS = 10
+"""Most flow (command) bands per temperature band."""
+
+
 def band_edges(low: float, high: float, width: float) -> FloatArray:
     """Edges from ``low`` to ``high`` in steps of about ``width`` (equal bands).
 
@@ -286,6 +292,10 @@ def band_edges(low: float, high: float, width: float) -> FloatArray:
     if not (math.isfinite(width) and width > 0.0):
         raise FuelidError(f"a band width must be positive, got {width:g}")
     n = max(1, round((high - low) / width))
+    if n > MAX_BANDS:
+        raise FuelidError(
+            f"a band width of {width:g} makes {n} bands of {low:g}…{high:g}; at most {MAX_BANDS}"
+        )
     return np.linspace(low, high, n + 1)
 
 
@@ -331,8 +341,10 @@ def gain_schedule(
     """
     if not (math.isfinite(ms_target) and ms_target > 1.0):
         raise FuelidError(f"the Ms target must be greater than 1, got {ms_target:g}")
-    if flow_bands < 1:
-        raise FuelidError(f"the number of flow bands must be at least 1, got {flow_bands}")
+    if not 1 <= flow_bands <= MAX_FLOW_BANDS:
+        raise FuelidError(
+            f"the number of flow bands must be 1 to {MAX_FLOW_BANDS}, got {flow_bands}"
+        )
     edges = band_edges(t_range[0], t_range[1], band_width)
     u_lo, u_hi = config.vfd.u_min_V, config.vfd.u_max_V
     schedule = GainSchedule(rule=rule, control_period=control_period, ms_target=ms_target)
