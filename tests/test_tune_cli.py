@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -207,6 +208,8 @@ def test_list_rules():
         (["--K", "13.5", "--T", "1.26", "--sweep", "10000000"], "1 to 20,000"),
         (["--schedule", "--band-width", "0.001"], "at most 50"),
         (["--schedule", "--flow-bands", "1000"], "1 to 10"),
+        # a gain within 1.96 standard errors of zero: the log showed no response
+        (["--model", 'FILE:{"model": {"K": 0.1, "T": 2}, "stderr": {"K": 0.2}}'], "from zero"),
     ],
 )
 def test_bad_input_one_line_exit_2(
@@ -238,3 +241,22 @@ def test_model_and_flags_together_are_refused(tmp_path: Path, capsys: pytest.Cap
     path = _ident_file(tmp_path, {"K": 1.0, "T": 2.0})
     assert main(["tune", "--model", str(path), "--K", "2"]) == 2
     assert "not both" in capsys.readouterr().err
+
+
+def test_a_log_without_response_is_not_tuned(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    """Flow that is pure noise around a constant: identify warns, tune refuses its model."""
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 200.0, 0.1)
+    u = np.where((t // 20) % 2 == 0, 2.0, 3.0)  # steps every 20 s
+    q = 30.0 + rng.normal(0.0, 1.0, t.size)  # does not follow u
+    log = tmp_path / "flat.csv"
+    np.savetxt(log, np.column_stack([t, u, q]), delimiter=",", header="t_s,u_V,q_Lpm", comments="")
+    ident = runner.invoke(app, ["identify", str(log), "--method", "oe", "--json"])
+    assert ident.exit_code == 0
+    result = json.loads(ident.stdout)
+    assert any("does not differ from zero" in w for w in result["warnings"])
+    model_file = tmp_path / "ident.json"
+    model_file.write_text(ident.stdout, encoding="utf-8")
+    capsys.readouterr()
+    assert main(["tune", "--model", str(model_file)]) == 2
+    assert "does not differ from zero" in capsys.readouterr().err

@@ -29,7 +29,7 @@ from fuelid.plant.linear import linearise
 from fuelid.signals import IOData
 from fuelid.tuning.closedloop import ClosedLoopResult, flow_at, standard_runs
 from fuelid.tuning.frequency import frequency_grid, loop_function
-from fuelid.tuning.result import TuningResult, evaluate_tuning
+from fuelid.tuning.result import TuningResult, check_gain_identified, evaluate_tuning
 from fuelid.tuning.schedule import (
     Anchor,
     FixedPIEvaluation,
@@ -143,6 +143,7 @@ def analyse_log(data: IOData, config: PlantConfig, settings: AnalysisSettings) -
         identifications[method] = result
         warnings.extend(f"{method}: {w}" for w in result.warnings)
     chosen = identifications[settings.tune_from]
+    check_gain_identified(chosen.model.K, chosen.stderr.get("K"), f"{settings.tune_from} fit")
     u_op = float(np.clip(np.mean(data.u), config.vfd.u_min_V, config.vfd.u_max_V))
     u_span = config.vfd.u_max_V - config.vfd.u_min_V
     tuning = evaluate_tuning(

@@ -104,6 +104,19 @@ MAX_PERIODS = (1000, 10_000)
 """Largest delay and largest sum of time constants, in control periods, of a sampled loop."""
 
 
+def check_gain_identified(K: float, se_K: float | None, source: str) -> None:
+    """Refuse a model whose gain does not differ from zero (|K| < 1.96 standard errors).
+
+    A log in which the flow does not follow the command gives K ≈ 0 with a wide interval;
+    rules then return gains thousands of times too high.
+    """
+    if se_K is not None and math.isfinite(se_K) and abs(K) < 1.96 * se_K:
+        raise FuelidError(
+            f"{source}: K = {K:.3g} ± {1.96 * se_K:.2g} (95 %) does not differ from zero; the "
+            "output does not respond to the input, so no gains can be tuned from it"
+        )
+
+
 def check_control_period(control_period: float) -> None:
     """Refuse a control period that is negative, not finite or beyond 10 s."""
     if not (math.isfinite(control_period) and 0.0 <= control_period <= MAX_CONTROL_PERIOD):
@@ -270,6 +283,13 @@ def load_model_file(path: str | Path) -> ModelFile:
         model = ProcessModel(**values)
     except FuelidError as exc:
         raise DataError(f"model file {str(file)!r}: {exc}") from None
+    errors = data.get("stderr")
+    se_K = errors.get("K") if isinstance(errors, dict) else None
+    if isinstance(se_K, int | float) and not isinstance(se_K, bool):
+        try:
+            check_gain_identified(model.K, float(se_K), f"model file {str(file)!r}")
+        except FuelidError as exc:
+            raise DataError(str(exc)) from None
     cov_names: tuple[str, ...] = ()
     cov = None
     block = data.get("cov")
