@@ -175,6 +175,25 @@ def test_list_rules():
     assert names == ["simc", "isimc", "lambda", "amigo"]
 
 
+BAD_COV = json.dumps(
+    {
+        "model": {"K": 13.5, "T": 1.3},
+        "cov": {"names": ["K", "T"], "matrix": [[1e-4, 5e-5], [0, 1e-4]]},
+    }
+)
+SHORT_COV = json.dumps(
+    {"model": {"K": 13.5, "T": 1.3}, "cov": {"names": ["K", "T"], "matrix": [[1e-4]]}}
+)
+
+
+def test_unusable_covariance_only_matters_to_the_sweep(tmp_path: Path):
+    model_file = tmp_path / "m.json"
+    model_file.write_text(BAD_COV, encoding="utf-8")
+    result = runner.invoke(app, ["tune", "--model", str(model_file), "--json"])
+    assert result.exit_code == 0
+    assert json.loads(result.stdout)["Kc"] > 0.0
+
+
 @pytest.mark.parametrize(
     ("args", "reason"),
     [
@@ -208,6 +227,9 @@ def test_list_rules():
         (["--K", "13.5", "--T", "1.26", "--sweep", "10000000"], "1 to 20,000"),
         (["--schedule", "--band-width", "0.001"], "at most 50"),
         (["--schedule", "--flow-bands", "1000"], "1 to 10"),
+        # a covariance the sweep cannot draw from
+        (["--model", f"FILE:{BAD_COV}", "--sweep", "5"], "not symmetric"),
+        (["--model", f"FILE:{SHORT_COV}", "--sweep", "5"], "not 2×2 like its names"),
         # a gain within 1.96 standard errors of zero: the log showed no response
         (["--model", 'FILE:{"model": {"K": 0.1, "T": 2}, "stderr": {"K": 0.2}}'], "from zero"),
     ],

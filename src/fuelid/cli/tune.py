@@ -98,6 +98,7 @@ def _model_from_options(
     T2: float | None,
     T_f: float | None,
     delay: float | None,
+    need_cov: bool = False,
 ) -> tuple[ProcessModel | None, tuple[str, ...], Any]:
     flags = {"--K": K, "--T": T, "--T2": T2, "--T-f": T_f, "--delay": delay}
     given = [name for name, value in flags.items() if value is not None]
@@ -105,6 +106,11 @@ def _model_from_options(
         if given:
             raise FuelidError(f"give either --model or {', '.join(given)}, not both")
         loaded = load_model_file(model_file)
+        if need_cov and loaded.cov_problem is not None:
+            raise FuelidError(
+                f"--sweep draws from the covariance of {str(model_file)!r}, but "
+                f"{loaded.cov_problem}"
+            )
         return loaded.model, loaded.cov_names, loaded.cov
     if not given:
         return None, (), None
@@ -256,7 +262,9 @@ def tune_command(
     if not t_min < t_max:
         raise FuelidError(f"--t-min must be below --t-max, got {t_min:g} and {t_max:g} °C")
     speed = rule_speed(rule, tau_c, lam)
-    model, cov_names, cov = _model_from_options(model_file, K, T, T2, T_f, delay)
+    model, cov_names, cov = _model_from_options(
+        model_file, K, T, T2, T_f, delay, need_cov=sweep is not None
+    )
     if model is not None:
         check_tunable(model, control_period)
     plant = load_plant_config(config)

@@ -239,6 +239,8 @@ class ModelFile:
     cov_names: tuple[str, ...]
     cov: list[list[float]] | None
     source: str
+    cov_problem: str | None = None
+    """Why the file's ``cov`` could not be used (wrong shape, not symmetric, …), else None."""
 
 
 def load_model_file(path: str | Path) -> ModelFile:
@@ -292,23 +294,45 @@ def load_model_file(path: str | Path) -> ModelFile:
             raise DataError(str(exc)) from None
     cov_names: tuple[str, ...] = ()
     cov = None
+    # a covariance that cannot be used is noted, not fatal: the model alone still tunes, and
+    # only an uncertainty sweep needs it
+    cov_problem: str | None = None
     block = data.get("cov")
-    if isinstance(block, dict) and isinstance(block.get("names"), list):
-        # a covariance block that cannot be read is ignored: the model alone still tunes
+    if block is not None and not (isinstance(block, dict) and isinstance(block.get("names"), list)):
+        cov_problem = "its 'cov' is not an object with 'names' and 'matrix'"
+    elif block is not None:
         names = [str(n) for n in block["names"]]
         matrix = block.get("matrix")
-        if (
+        full = None
+        if not (
             names
             and isinstance(matrix, list)
             and len(matrix) == len(names)
             and all(isinstance(r, list) and len(r) == len(names) for r in matrix)
         ):
+            cov_problem = f"its covariance matrix is not {len(names)}×{len(names)} like its names"
+        else:
             try:
                 full = [[_covariance_entry(v) for v in row] for row in matrix]
             except TypeError:
-                full = None
-            if full is not None:
-                kept, model_block = model_covariance(names, full)
-                if kept:
-                    cov_names, cov = tuple(kept), model_block.tolist()
-    return ModelFile(model=model, cov_names=cov_names, cov=cov, source=str(file))
+                cov_problem = "its covariance matrix holds entries that are not numbers"
+        if full is not None:
+            kept, model_block = model_covariance(names, full)
+            cov_problem = _covariance_problem(kept, model_block)
+            if cov_problem is None:
+                cov_names, cov = tuple(kept), model_block.tolist()
+    return ModelFile(
+        model=model, cov_names=cov_names, cov=cov, source=str(file), cov_problem=cov_problem
+    )
+
+
+def _covariance_problem(names: list[str], block: NDArray[np.float64]) -> str | None:
+    """Why the model parameters' covariance block cannot be sampled, or None."""
+    if not names:
+        return "its covariance has no variance for any of K, T, T2, T_f, delay"
+    if not np.allclose(block, block.T, rtol=1e-6, atol=0.0):
+        return "its covariance matrix is not symmetric"
+    eigenvalues = np.linalg.eigvalsh(block)
+    if eigenvalues[0] < -1e-9 * max(eigenvalues[-1], 0.0):
+        return "its covariance matrix is not positive semi-definite"
+    return None
