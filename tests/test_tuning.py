@@ -267,3 +267,21 @@ def test_heavily_detuned_loop_is_stable(h: float):
     assert r.Ms == pytest.approx(1.0, abs=1e-3)
     assert r.crossover_frequency == pytest.approx(1e-5 / 2.0, rel=1e-3)
     assert r.gain_margin > 1e4
+
+
+def test_borderline_design_is_flagged():
+    """A lag far below the control period: SIMC's h/2 gives an integral gain of 1/K per period.
+
+    With the plant static between samples and the measurement one period late,
+    y[k] = K·u[k−1] and u[k] = u[k−1] + e[k−1]/K give z² − z + 1 = 0: poles on the unit circle,
+    gain margin 1. The result must say so, not only print the numbers.
+    """
+    from fuelid.tuning.result import evaluate_tuning
+
+    res = evaluate_tuning(ProcessModel(K=13.5, T=1e-6), "simc", control_period=1.0)
+    assert res.robustness.gain_margin == pytest.approx(1.0, abs=1e-3)
+    assert any("barely stable" in w for w in res.warnings)
+    assert res.to_json()["warnings"] == res.warnings
+    # the worked example is a sound design: nothing to flag
+    sound = evaluate_tuning(ProcessModel(K=1.0, T=2.0, delay=1.0), "simc", control_period=0.0)
+    assert sound.warnings == []

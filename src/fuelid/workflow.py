@@ -154,6 +154,7 @@ def analyse_log(data: IOData, config: PlantConfig, settings: AnalysisSettings) -
         u_span,
         meter.span_Lpm,
     )
+    warnings.extend(f"tuning: {w}" for w in tuning.warnings)
     fitted = chosen.time < (chosen.split_time if chosen.split_time is not None else math.inf)
     residuals = chosen.y[fitted] - chosen.y_hat[fitted]
     u_model = data.u if chosen.time.size == data.n_samples else _held(data, chosen.time)

@@ -12,7 +12,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from fuelid.cli._common import check_figure_path, emit_json, guarded, provenance
+from fuelid.cli._common import check_figure_path, emit_json, guarded, provenance, warn
 from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
 from fuelid.plant import load_plant_config
@@ -334,6 +334,8 @@ def tune_command(
     if simulate:
         start = flow_at(plant, u_op, fuel_temp)
         runs = standard_runs(plant, result.pi, (t_min, t_max), start, 0.1 * y_span)
+    for message in result.warnings:
+        warn(message)
     sweep_summary = None
     if sweep is not None:
         assert anchor is not None
@@ -440,11 +442,12 @@ def _print_tuning(
         )
     console.print(gains)
     rob = data["robustness"]
+    settle = data["closed_loop"]["setpoint_step"]["settling_time"]
     console.print(
         f"on the model: gain margin {rob['gain_margin']:.2f}, phase margin "
         f"{rob['phase_margin_deg']:.1f}°, Ms {rob['Ms']:.2f}; setpoint step overshoot "
-        f"{data['closed_loop']['setpoint_step']['overshoot_percent']:.1f} %, settling "
-        f"{data['closed_loop']['setpoint_step']['settling_time']:.1f} s"
+        f"{data['closed_loop']['setpoint_step']['overshoot_percent']:.1f} %, "
+        + ("does not settle" if math.isnan(settle) else f"settling {settle:.1f} s")
     )
     console.print(
         f"over {check.cases[0].case.fuel_temperature:g}…{check.cases[-1].case.fuel_temperature:g}"

@@ -54,6 +54,10 @@ UNITS = {
 }
 
 
+MS_WARNING = 2.0
+"""Ms above which the gains are flagged: a gain margin that can be below 2 (Åström–Hägglund)."""
+
+
 @dataclass(frozen=True)
 class TuningResult:
     """PI settings with their margins and unit-step closed-loop metrics on the model."""
@@ -64,6 +68,29 @@ class TuningResult:
     closed_loop: LinearResponse
     u_span: float
     y_span: float
+
+    @property
+    def warnings(self) -> list[str]:
+        """What makes these gains unfit to type into the PLC as they are."""
+        r = self.robustness
+        out = []
+        if not r.stable:
+            out.append(
+                "the loop is UNSTABLE on the model: check the model, or slow the loop down "
+                "(a larger --tau-c or --lambda)"
+            )
+        elif r.Ms > MS_WARNING:
+            out.append(
+                f"Ms {r.Ms:.3g} > {MS_WARNING:g} (gain margin {r.gain_margin:.3g}): the loop is "
+                "barely stable; a larger --tau-c or --lambda, or a shorter control period, "
+                "gives it margin"
+            )
+        if math.isnan(self.closed_loop.setpoint.settling_time):
+            out.append(
+                "the setpoint step does not settle within the "
+                f"{self.closed_loop.time[-1]:.3g} s simulated on the model"
+            )
+        return out
 
     def to_json(self) -> dict[str, Any]:
         """The documented JSON object of ``fuelid tune --json`` (without provenance)."""
@@ -89,6 +116,7 @@ class TuningResult:
                 "setpoint_step": self.closed_loop.setpoint.as_dict(),
                 "load_step": self.closed_loop.disturbance.as_dict(),
             },
+            "warnings": self.warnings,
         }
 
 
