@@ -139,6 +139,13 @@ def test_schedule_json_and_table():
     assert "Kc V/(L/min)" in table.stdout
 
 
+def test_schedule_plot(tmp_path: Path):
+    fig = tmp_path / "schedule.png"
+    result = runner.invoke(app, ["tune", "--schedule", "--band-width", "35", "--plot", str(fig)])
+    assert result.exit_code == 0
+    assert fig.read_bytes().startswith(b"\x89PNG")
+
+
 def test_simulate_adds_the_nonlinear_runs(tmp_path: Path):
     fig = tmp_path / "cl.png"
     data = _json(

@@ -32,6 +32,7 @@ from fuelid.report import (
     plot_schedule,
 )
 from fuelid.signals import TimeSeries, atomic_write_bytes
+from fuelid.tuning.schedule import GainSchedule
 from fuelid.workflow import LogAnalysis
 
 TEMPLATE = "report.html.j2"
@@ -53,6 +54,17 @@ class ReportFigure:
 
 FIGURE_KEYS = ("overview", "comparison", "residuals", "bode", "closed_loop", "schedule")
 """Every report has these figures, in this order (also the PNG file suffixes)."""
+
+
+def schedule_figure(schedule: GainSchedule) -> Figure:
+    """Kc and Ti per temperature band, one line per flow band."""
+    return plot_schedule(
+        [
+            (b.t_low, b.t_high, f"{b.u_low:.2f}…{b.u_high:.2f} V", b.pi.Kc, b.pi.Ti)
+            for b in schedule.bands
+        ],
+        f"gain schedule ({schedule.rule}, Ms ≤ {schedule.ms_target:g})",
+    )
 
 
 def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
@@ -113,13 +125,7 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
         f"{analysis.tuning.pi.rule} gains on the nonlinear plant: setpoint step, then a "
         "0.2 V load step",
     )
-    schedule = plot_schedule(
-        [
-            (b.t_low, b.t_high, f"{b.u_low:.2f}…{b.u_high:.2f} V", b.pi.Kc, b.pi.Ti)
-            for b in analysis.schedule.bands
-        ],
-        f"gain schedule ({analysis.schedule.rule}, Ms ≤ {analysis.schedule.ms_target:g})",
-    )
+    schedule = schedule_figure(analysis.schedule)
     return {
         "overview": (overview, "The log: VFD command and measured flow."),
         "comparison": (

@@ -14,6 +14,7 @@ from rich.table import Table
 
 from fuelid.cli._common import check_figure_path, emit_json, guarded, provenance, warn
 from fuelid.errors import FuelidError
+from fuelid.htmlreport import schedule_figure
 from fuelid.model import ProcessModel
 from fuelid.plant import load_plant_config
 from fuelid.report import plot_closed_loop_runs, plot_linear_closed_loop, save_figure
@@ -312,6 +313,8 @@ def tune_command(
             flow_bands=flow_bands,
             anchor=anchor,
         )
+        if plot is not None:
+            save_figure(schedule_figure(table), plot)
         if as_json:
             payload = table.as_dict() | {
                 "anchored_to_model": model.as_dict() if model is not None else None,
