@@ -149,6 +149,12 @@ def test_raw_units_are_scaled(tmp_path: Path):
         (None, ("--delay", "soon"), "--delay"),
         (None, ("--input-scale", "4:20"), "scale"),
         (None, ("--plot", "/no/such/dir/fig.png"), "does not exist"),
+        (None, ("--plot", "/tmp"), "is a folder"),
+        (None, ("--plot", "fig.xyz"), "name it .png"),
+        # priors the record contradicts: longer than the record, input far off its range
+        (None, ("--delay", "1e6"), "not shorter than the record"),
+        (None, ("--flowmeter-T", "1e6"), "not shorter than the record"),
+        (None, ("--method", "oe", "--u-before", "1e6"), "far outside the recorded input"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(tmp_path: Path, content, args, expected):

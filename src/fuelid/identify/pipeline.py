@@ -128,6 +128,39 @@ def _decimated(data: IOData, control_period: float) -> IOData:
     return decimate(data, control_period)
 
 
+def _check_priors(
+    data: IOData,
+    T_f: float,
+    delay: float | None,
+    meter_delay: float | None,
+    u_before: float | None,
+) -> None:
+    """Refuse priors the record contradicts (a unit mix-up, ms for s).
+
+    Lags and delays must be shorter than the record; the input before the record must lie
+    within the recorded input's range widened by that range on each side.
+    """
+    if u_before is not None:
+        lo, hi = float(np.min(data.u)), float(np.max(data.u))
+        span = hi - lo
+        if not (math.isfinite(u_before) and lo - span <= u_before <= hi + span):
+            raise FuelidError(
+                f"the input before the record {u_before:g} is far outside the recorded input "
+                f"({lo:g}…{hi:g}): check its units"
+            )
+    duration = data.n_samples * data.sample_time
+    for name, value in (
+        ("flowmeter time constant", T_f),
+        ("dead time", delay),
+        ("flowmeter delay", meter_delay),
+    ):
+        if value is not None and value >= duration:
+            raise FuelidError(
+                f"the {name} {value:g} s is not shorter than the record ({duration:g} s): "
+                "check its units"
+            )
+
+
 def identify(
     data: IOData, options: IdentifyOptions, validation: IOData | None = None
 ) -> IdentificationResult:
@@ -142,6 +175,7 @@ def identify(
         raise FuelidError("give either a validation split or a validation file, not both")
     T_f = options.flowmeter_T or 0.0
     delay = options.resolved_delay()
+    _check_priors(data, T_f, delay, options.flowmeter_delay, options.u_before)
     warnings: list[str] = []
     if options.method == "step-ls":
         work = _decimated(data, options.control_period)
