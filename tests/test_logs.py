@@ -460,3 +460,21 @@ def test_utf16_text_with_bom(tmp_path: Path) -> None:
     data = load_log(path)
     assert data.n_samples == N
     assert "read as UTF-16 text" in data.notes
+
+
+def test_sample_intervals_beyond_an_hour_are_refused(tmp_path: Path) -> None:
+    """Time stamps 1e298 s apart (or a sample time of 1e6 s) are a unit mix-up, not a flow log."""
+    _, u, y = step_response()
+    rows = [
+        (f"{k * 2e298:.6g}", f"{ui:g}", f"{yi:.6f}")
+        for k, (ui, yi) in enumerate(zip(u, y, strict=True))
+    ]
+    assert "(is the time column in seconds?)" in refused(write_csv(tmp_path / "t.csv", rows))
+    plain = write_csv(tmp_path / "log.csv", plain_rows())
+    assert "up to 3600" in refused(plain, sample_time=1e6)
+    assert load_log(plain, sample_time=3600.0).sample_time == 3600.0
+
+
+def test_input_and_output_from_one_column_is_refused(tmp_path: Path) -> None:
+    path = write_csv(tmp_path / "log.csv", plain_rows())
+    assert "the same column 'u_V'" in refused(path, output_col="u_V")

@@ -75,6 +75,10 @@ _UNITS = {
 _BRACKET_UNIT = re.compile(r"[\[(（]\s*([^\])）]+?)\s*[\])）]\s*$")
 
 
+MAX_SAMPLE_TIME = 3600.0
+"""Longest sample interval [s] of a log (an hour): longer is a unit mix-up, not a flow log."""
+
+
 def parse_scale(text: str) -> Scale:
     """Parse the command-line syntax of a linear scaling, ``raw_low:raw_high:eng_low:eng_high``.
 
@@ -183,8 +187,13 @@ def load_log(
         raise DataError(f"resample must be 'auto', 'always' or 'never', got {resample!r}")
     in_scale = None if input_scale is None else _check_scale(input_scale, "input scale")
     out_scale = None if output_scale is None else _check_scale(output_scale, "output scale")
-    if sample_time is not None and not (np.isfinite(sample_time) and sample_time > 0.0):
-        raise DataError(f"sample time must be a positive number of seconds, got {sample_time}")
+    if sample_time is not None and not (
+        np.isfinite(sample_time) and 0.0 < sample_time <= MAX_SAMPLE_TIME
+    ):
+        raise DataError(
+            f"sample time must be a positive number of seconds up to {MAX_SAMPLE_TIME:g}, "
+            f"got {sample_time}"
+        )
     if max_gap is not None and not (np.isfinite(max_gap) and max_gap > 0.0):
         raise DataError(f"max_gap must be a positive number of seconds, got {max_gap}")
 
@@ -192,6 +201,8 @@ def load_log(
     time_name = _time_column(frame, time_col, sample_time, source, notes)
     u_name = _find_column(frame, input_col, "input", source)
     y_name = _find_column(frame, output_col, "output", source)
+    if u_name == y_name:
+        raise DataError(f"{source}: the input and the output are the same column {u_name!r}")
 
     table = _Table(
         rows=np.arange(1, len(frame) + 1, dtype=np.int64),
@@ -226,6 +237,11 @@ def load_log(
         table = _sort_and_deduplicate(table, (u_name, y_name), source, notes)
         _check_count(table.u.size, source)
         u, y, h = _regularise(table, resample, max_gap, source, notes)
+        if h > MAX_SAMPLE_TIME:
+            raise DataError(
+                f"{source}: samples {h:g} s apart; a flow-loop log is sampled at least every "
+                f"{MAX_SAMPLE_TIME:g} s (is the time column in seconds?)"
+            )
         assert table.t is not None
         t0 = 0.0 if datetime_start is not None else float(table.t[0])
 
