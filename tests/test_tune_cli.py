@@ -104,6 +104,7 @@ def test_model_file_equals_the_same_model_from_flags(tmp_path: Path):
     assert len(from_file["input_sha256"]) == 64
     swept = _json("--model", str(path), "--sweep", "20")
     assert swept["sweep"]["n"] == 20
+    assert isinstance(swept["sweep"]["n"], int)
     assert swept["sweep"]["worst_Ms"] >= swept["Ms"] - 0.2
 
 
@@ -207,6 +208,7 @@ def test_unusable_covariance_only_matters_to_the_sweep(tmp_path: Path):
         (["--model", 'FILE:{"fit": 1}'], "no 'model'"),
         (["--model", "FILE:not json"], "not JSON"),
         (["--model", 'FILE:{"model": {"K": 1.0}}'], "lacks T"),
+        (["--model", 'FILE:{"model": {"K": 1.0, "T": null}}'], "lacks T"),
         (["--model", 'FILE:{"model": {"K": 1.0, "T": -2}}'], "T"),
         (["--model", 'FILE:{"model": {"K": 1.0, "T": 2, "delay": "x"}}'], "not a number"),
         (["--model", "missing.json"], "does not exist"),

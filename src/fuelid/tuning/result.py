@@ -296,7 +296,7 @@ def load_model_file(path: str | Path) -> ModelFile:
             "'model' object (write one with fuelid identify --json > ident.json)"
         )
     raw = data["model"]
-    missing = [key for key in ("K", "T") if key not in raw]
+    missing = [key for key in ("K", "T") if raw.get(key) is None]
     if missing:
         raise DataError(f"model file {str(file)!r}: the model lacks {', '.join(missing)}")
     values: dict[str, float] = {}

@@ -421,7 +421,7 @@ class SweepResult:
     def summary(self) -> dict[str, float]:
         """Worst case and 95th percentile of Ms and overshoot, the smallest margins."""
         return {
-            "n": float(self.Ms.size),
+            "n": self.Ms.size,
             "worst_Ms": float(np.max(self.Ms)),
             "Ms_p95": float(np.percentile(self.Ms, 95)),
             "worst_overshoot_percent": float(np.max(self.overshoot_percent)),
