@@ -286,3 +286,13 @@ def test_saturation_and_recovery_on_the_plant():
     assert back.settling_time < 15.0
     max_flow = flow_at(CONFIG, 5.0, 20.0)
     assert np.max(run.flow) <= max_flow * 1.001  # the drive's limit, not more
+
+
+def test_detuned_loop_is_simulated_until_it_settles():
+    """Kc·K ≪ 1: the loop is first order with τ = Ti/(K·Kc); 2 % settling is ln 50·τ."""
+    model = ProcessModel(K=1.0, T=2.0, delay=1.0)
+    pi = PISettings(rule="simc", Kc=1e-3, Ti=2.0, control_period=1.0)
+    res = linear_closed_loop(model, pi)
+    tau = pi.Ti / (model.K * pi.Kc)
+    assert res.setpoint.settling_time == pytest.approx(math.log(50.0) * tau, rel=0.01)
+    assert res.setpoint.overshoot_percent == 0.0

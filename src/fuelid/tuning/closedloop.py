@@ -231,6 +231,15 @@ class LinearResponse:
     disturbance: StepMetrics
 
 
+MAX_LINEAR_STEPS = 50_000
+"""Most control periods the linear closed loop is simulated for."""
+
+
+def _loop_time_scale(model: ProcessModel, pi: PISettings) -> float:
+    """Ti, or the closed loop's time constant Ti/(K·Kc) when the loop is detuned below that."""
+    return max(pi.Ti, pi.Ti / (abs(model.K) * pi.Kc))
+
+
 def linear_period(model: ProcessModel, pi: PISettings) -> float:
     """Step [s] of the linear closed loop.
 
@@ -239,7 +248,8 @@ def linear_period(model: ProcessModel, pi: PISettings) -> float:
     """
     if pi.control_period > 0.0:
         return pi.control_period
-    return max(CONTINUOUS_PERIOD, (model.delay + sum(model.time_constants) + pi.Ti) / 500.0)
+    scale = model.delay + sum(model.time_constants) + _loop_time_scale(model, pi)
+    return max(CONTINUOUS_PERIOD, scale / 500.0)
 
 
 def _closed_loop_polynomials(
@@ -283,8 +293,9 @@ def linear_closed_loop(
     """
     h = linear_period(model, pi)
     if duration is None:
-        duration = 10.0 * (pi.Ti + model.delay + sum(model.time_constants)) + 20.0 * h
-    n = max(math.ceil(duration / h), 4)
+        duration = 10.0 * (_loop_time_scale(model, pi) + model.delay + sum(model.time_constants))
+        duration += 20.0 * h
+    n = min(max(math.ceil(duration / h), 4), MAX_LINEAR_STEPS)
     r_to_u, d_to_u, char, _, _ = _closed_loop_polynomials(model, pi, h)
     ones = np.ones(n)
     u_r = scipy.signal.lfilter(r_to_u, char, ones)
