@@ -19,20 +19,12 @@ from typing import Any
 
 import numpy as np
 
+from _timing import best_of
 from fuelid.identify.oe import OutputError, nrmse_fit
 from fuelid.logs import load_log
 from fuelid.plant import load_plant_config
 from fuelid.profiles import step_sequence
 from fuelid.simulate import simulate
-
-
-def best_of(repeat: int, fn: Callable[[], Any]) -> tuple[float, Any]:
-    best, out = float("inf"), None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - start)
-    return best, out
 
 
 def peak_mb(fn: Callable[[], Any]) -> float:

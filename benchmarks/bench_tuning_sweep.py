@@ -15,12 +15,11 @@ reference plant (a step every 30 s around 3 V) fitted by ``oe`` with the meter's
 from __future__ import annotations
 
 import argparse
-import time
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
+from _timing import best_of
 from fuelid.fuel import T0 as KELVIN
 from fuelid.identify.oe import OutputError
 from fuelid.plant import load_plant_config
@@ -42,15 +41,6 @@ from fuelid.tuning.schedule import (
 TARGET_SECONDS = 10.0
 TARGET_VARIANTS = 1000
 FUEL_TEMPERATURE_DEGC = 20.0
-
-
-def best_of(repeat: int, fn: Callable[[], Any]) -> tuple[float, Any]:
-    best, out = float("inf"), None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - start)
-    return best, out
 
 
 def main() -> None:

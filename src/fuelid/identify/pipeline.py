@@ -280,12 +280,9 @@ def identify(
             f"residuals correlate with past inputs (p = {cross.p_value:.2g}): unmodelled "
             "dynamics, try --order 2 or --delay auto"
         )
-    se_K = stderr.get("K")
-    if se_K is not None and math.isfinite(se_K) and abs(model.K) < 1.96 * se_K:
-        warnings.append(
-            f"K = {model.K:.3g} ± {1.96 * se_K:.2g} (95 %) does not differ from zero: the output "
-            "does not respond to the input in this log; do not tune from it"
-        )
+    no_gain = diagnostics.gain_not_identified(model.K, stderr.get("K"))
+    if no_gain:
+        warnings.append(f"{no_gain} in this log; do not tune from it")
     advice = diagnostics.sample_time_advice(settle, work.sample_time)
     if advice:
         warnings.append(advice)

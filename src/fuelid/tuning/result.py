@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid.errors import DataError, FuelidError
+from fuelid.identify.diagnostics import gain_not_identified
 from fuelid.model import ProcessModel
 from fuelid.tuning.closedloop import LinearResponse, linear_closed_loop
 from fuelid.tuning.frequency import Robustness, robustness
@@ -133,16 +134,16 @@ MAX_PERIODS = (1000, 10_000)
 
 
 def check_gain_identified(K: float, se_K: float | None, source: str) -> None:
-    """Refuse a model whose gain does not differ from zero (|K| < 1.96 standard errors).
+    """Refuse a model whose gain does not differ from zero (:func:`gain_not_identified`).
 
-    A log in which the flow does not follow the command gives K ≈ 0 with a wide interval;
-    rules then return gains thousands of times too high.
+    Raises
+    ------
+    DataError
+        Saying so, with ``source`` (the model file or the fit).
     """
-    if se_K is not None and math.isfinite(se_K) and abs(K) < 1.96 * se_K:
-        raise FuelidError(
-            f"{source}: K = {K:.3g} ± {1.96 * se_K:.2g} (95 %) does not differ from zero; the "
-            "output does not respond to the input, so no gains can be tuned from it"
-        )
+    reason = gain_not_identified(K, se_K)
+    if reason:
+        raise DataError(f"{source}: {reason}, so no gains can be tuned from it")
 
 
 def check_control_period(control_period: float) -> None:
@@ -316,10 +317,7 @@ def load_model_file(path: str | Path) -> ModelFile:
     errors = data.get("stderr")
     se_K = errors.get("K") if isinstance(errors, dict) else None
     if isinstance(se_K, int | float) and not isinstance(se_K, bool):
-        try:
-            check_gain_identified(model.K, float(se_K), f"model file {str(file)!r}")
-        except FuelidError as exc:
-            raise DataError(str(exc)) from None
+        check_gain_identified(model.K, float(se_K), f"model file {str(file)!r}")
     cov_names: tuple[str, ...] = ()
     cov = None
     # a covariance that cannot be used is noted, not fatal: the model alone still tunes, and
