@@ -22,11 +22,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.signal
 
-from fuelid.identify.discrete import discretise
-from fuelid.identify.oe import OutputError, cramer_rao_bound, simulate_model
+from fuelid.identify.oe import OutputError, cramer_rao_bound
 from fuelid.identify.step_ls import StepResponseLS
-from fuelid.model import ProcessModel
-from fuelid.signals import IOData
+from fuelid.io.timeseries import IOData
+from fuelid.lti import discretise
+from fuelid.model import ProcessModel, simulate_model
 
 FloatArray = np.ndarray
 

@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 
 from _timing import best_of
-from fuelid.identify.oe import OutputError, nrmse_fit
-from fuelid.logs import load_log
+from fuelid.identify.oe import OutputError
+from fuelid.io.logs import load_log
+from fuelid.model import nrmse_fit
 from fuelid.plant import load_plant_config
 from fuelid.profiles import step_sequence
 from fuelid.simulate import simulate

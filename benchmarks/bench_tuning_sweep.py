@@ -20,15 +20,13 @@ from typing import Any
 import numpy as np
 
 from _timing import best_of
-from fuelid.fuel import T0 as KELVIN
 from fuelid.identify.oe import OutputError
+from fuelid.io.timeseries import IOData
+from fuelid.model import model_covariance
 from fuelid.plant import load_plant_config
-from fuelid.plant.pump import LPM_PER_M3S
 from fuelid.profiles import step_sequence
-from fuelid.signals import IOData
 from fuelid.simulate import simulate
 from fuelid.tuning.closedloop import flow_at, standard_runs
-from fuelid.tuning.result import model_covariance
 from fuelid.tuning.rules import tune
 from fuelid.tuning.schedule import (
     Anchor,
@@ -37,6 +35,8 @@ from fuelid.tuning.schedule import (
     plant_cases,
     uncertainty_sweep,
 )
+from fuelid.units import LPM_PER_M3S
+from fuelid.units import T0 as KELVIN
 
 TARGET_SECONDS = 10.0
 TARGET_VARIANTS = 1000

@@ -21,14 +21,14 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from fuelid.fuel import T0 as KELVIN
 from fuelid.htmlreport import write_report
-from fuelid.logs import load_log
+from fuelid.io.logs import load_log
 from fuelid.plant import linearise, load_plant_config
-from fuelid.plant.pump import LPM_PER_M3S
+from fuelid.plots import plot_log, plot_step_responses, save_figure
 from fuelid.profiles import step_profile, step_sequence
-from fuelid.report import plot_log, plot_step_responses, save_figure
 from fuelid.simulate import simulate
+from fuelid.units import LPM_PER_M3S
+from fuelid.units import T0 as KELVIN
 from fuelid.workflow import AnalysisSettings, LogAnalysis, analyse_log
 
 TEMPERATURES_DEGC = (-20.0, 0.0, 20.0, 35.0, 50.0)

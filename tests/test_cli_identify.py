@@ -11,8 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from fuelid.cli import app
-from fuelid.identify.oe import simulate_model
-from fuelid.model import ProcessModel
+from fuelid.model import ProcessModel, simulate_model
 
 runner = CliRunner()
 H = 0.02

@@ -13,7 +13,6 @@ import pytest
 
 from fuelid.model import ProcessModel
 from fuelid.plant import load_plant_config
-from fuelid.plant.pump import LPM_PER_M3S
 from fuelid.plant.system import operating_point
 from fuelid.profiles import InputProfile
 from fuelid.tuning import PISettings, tune
@@ -31,6 +30,7 @@ from fuelid.tuning.closedloop import (
     steady_command,
 )
 from fuelid.tuning.schedule import gain_schedule
+from fuelid.units import LPM_PER_M3S
 
 CONFIG = load_plant_config()
 PI = PISettings(rule="simc", Kc=0.1, Ti=2.0, control_period=1.0)

@@ -18,7 +18,6 @@ from fuelid.errors import FuelidError, OutOfRangeError
 from fuelid.fuel import (
     DEFAULT_FUEL,
     FUELS,
-    T0,
     Fuel,
     FuelProperties,
     fuel_properties,
@@ -31,6 +30,7 @@ from fuelid.fuel import (
     rho_JetA,
     rho_TS1,
 )
+from fuelid.units import T0
 
 MM2S = 1e-6  # 1 mm²/s in m²/s
 MPAS = 1e-3  # 1 mPa·s in Pa·s

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from fuelid.errors import DataError
-from fuelid.logs import load_log, parse_scale
+from fuelid.io.logs import load_log, parse_scale
 
 H = 0.02
 N = 200

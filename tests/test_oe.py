@@ -11,10 +11,10 @@ import pytest
 import scipy.signal
 
 from fuelid.errors import NotExcitingError
-from fuelid.identify.discrete import discretise
-from fuelid.identify.oe import OutputError, cramer_rao_bound, nrmse_fit, simulate_model
-from fuelid.model import ProcessModel
-from fuelid.signals import IOData
+from fuelid.identify.oe import OutputError, cramer_rao_bound
+from fuelid.io.timeseries import IOData
+from fuelid.lti import discretise
+from fuelid.model import ProcessModel, nrmse_fit, simulate_model
 
 H = 0.02
 # the reference plant's equivalent model at 3 V, 20 °C (fuelid plant info): K, T, T_f, delay
@@ -161,7 +161,7 @@ def _closed_loop(seed: int, pole: float = 0.0, sigma: float = 0.1) -> IOData:
 
 
 def test_closed_loop_data_are_flagged_and_still_fitted():
-    from fuelid.identify.pipeline import IdentifyOptions, identify
+    from fuelid.identify.procedure import IdentifyOptions, identify
 
     options = IdentifyOptions(flowmeter_T=0.3, flowmeter_delay=0.2)
     # white noise: output error stays consistent in closed loop (a few standard errors)

@@ -15,8 +15,8 @@ import pytest
 from numpy.typing import NDArray
 
 from fuelid.errors import DataError
+from fuelid.io.timeseries import IOData
 from fuelid.preprocess import decimate, detrend, lowpass, remove_offsets, select, starts_at_rest
-from fuelid.signals import IOData
 
 FloatArray = NDArray[np.float64]
 H = 0.02

@@ -6,8 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from fuelid.identify.oe import OutputError, nrmse_fit
-from fuelid.logs import load_log
+from fuelid.identify.oe import OutputError
+from fuelid.io.logs import load_log
+from fuelid.model import nrmse_fit
 
 REF = Path(__file__).resolve().parents[2] / "shared" / "ref-data"
 pytestmark = [

@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 from fuelid.cli import app, main
 from fuelid.errors import DataError, FuelidError
 from fuelid.htmlreport import FIGURE_KEYS, figure_paths, write_report
-from fuelid.logs import load_log
+from fuelid.io.logs import load_log
 from fuelid.plant import linearise, load_plant_config
 from fuelid.profiles import step_sequence
 from fuelid.simulate import simulate

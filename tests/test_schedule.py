@@ -9,10 +9,9 @@ import numpy as np
 import pytest
 
 from fuelid.errors import FuelidError
-from fuelid.model import ProcessModel
+from fuelid.model import ProcessModel, model_covariance
 from fuelid.plant import load_plant_config
 from fuelid.tuning import robustness, tune
-from fuelid.tuning.result import model_covariance
 from fuelid.tuning.schedule import (
     Anchor,
     band_edges,

@@ -14,8 +14,8 @@ from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError, NotExcitingError
 from fuelid.identify.step_ls import StepResponseLS, step_shape
+from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel
-from fuelid.signals import IOData
 
 FloatArray = NDArray[np.float64]
 T_S = 1.0

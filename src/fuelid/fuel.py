@@ -45,11 +45,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError, OutOfRangeError
+from fuelid.units import T0
 
 __all__ = [
     "DEFAULT_FUEL",
     "FUELS",
-    "T0",
     "Correlation",
     "Fuel",
     "FuelProperties",
@@ -63,9 +63,6 @@ __all__ = [
     "rho_JetA",
     "rho_TS1",
 ]
-
-T0: float = 273.15
-"""0 °C in kelvin [K]; a Celsius temperature t is T = t + T0."""
 
 _FloatOrArray = TypeVar("_FloatOrArray", float, NDArray[np.float64])
 

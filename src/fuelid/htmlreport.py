@@ -23,7 +23,9 @@ from matplotlib.figure import Figure
 
 from fuelid import __version__
 from fuelid.errors import DataError
-from fuelid.report import (
+from fuelid.io.files import atomic_write_bytes
+from fuelid.io.timeseries import TimeSeries
+from fuelid.plots import (
     plot_bode,
     plot_closed_loop_runs,
     plot_correlation_tests,
@@ -31,7 +33,6 @@ from fuelid.report import (
     plot_log,
     plot_schedule,
 )
-from fuelid.signals import TimeSeries, atomic_write_bytes
 from fuelid.tuning.schedule import GainSchedule
 from fuelid.workflow import LogAnalysis
 

@@ -10,15 +10,27 @@ the class itself is unit-agnostic (output unit per input unit).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid import lti
-from fuelid.errors import FuelidError
-from fuelid.identify.discrete import discretise, lag_chain
+from fuelid.errors import DataError, FuelidError
+from fuelid.lti import discretise, lag_chain
+
+if TYPE_CHECKING:
+    import control
+
+FloatArray = NDArray[np.float64]
+
+MODEL_KEYS = ("K", "T", "T2", "T_f", "delay")
+"""The model family's parameters, in the one order every JSON object and table uses."""
+
+Z95 = 1.959963984540054
+"""Two-sided 95 % quantile of the standard normal distribution."""
 
 
 @dataclass(frozen=True)
@@ -52,7 +64,7 @@ class ProcessModel:
     delay: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("K", "T", "T2", "T_f", "delay"):
+        for name in MODEL_KEYS:
             value = getattr(self, name)
             if not math.isfinite(value):
                 raise FuelidError(f"model parameter {name} must be finite, got {value}")
@@ -78,6 +90,8 @@ class ProcessModel:
         >>> ProcessModel(K=2.0, T=4.0, delay=1.0).to_control().num[0][0].tolist()
         [2.0]
         """
+        import control  # python-control is slow to import: only where a model is converted
+
         den = np.array([1.0])
         for tc in self.time_constants:
             den = np.polymul(den, [tc, 1.0])
@@ -101,15 +115,8 @@ class ProcessModel:
         ndarray
             Output deviation [output unit].
         """
-        times = np.asarray(t, dtype=float)
-        if times.size > 2 and times[0] == 0.0:
-            dt = np.diff(times)
-            if np.all(np.abs(dt - dt[0]) <= 1e-9 * dt[0]):
-                # uniform grid from 0: the exact ZOH recursion as one lfilter pass
-                shape = discretise(self.time_constants, self.delay, float(dt[0]))
-                return self.K * shape.response(np.ones(times.size))
         A, B, C, _ = self.state_space()
-        return lti.step_response(A, B, C, 0.0, times, delay=self.delay)
+        return lti.step_response(A, B, C, 0.0, t, delay=self.delay)
 
     def settling_time(self, band: float = 0.02) -> float:
         """Time for a unit step response to enter and stay within ``band`` of K [s].
@@ -119,10 +126,111 @@ class ProcessModel:
         >>> round(ProcessModel(K=1.0, T=1.0, delay=0.5).settling_time(), 3)
         4.412
         """
-        horizon = self.delay + 12.0 * sum(self.time_constants)
-        t = np.linspace(0.0, horizon, 24_001)
-        return lti.settling_time(t, self.step_response(t), self.K, band)
+        A, B, C, _ = self.state_space()
+        return lti.step_settling_time(A, B, C, 0.0, self.delay, band)
 
     def as_dict(self) -> dict[str, float]:
         """Parameters as a plain dictionary (for JSON)."""
         return asdict(self)
+
+
+def simulate_model(model: ProcessModel, u: ArrayLike, h: float) -> FloatArray:
+    """Exact ZOH response of ``model`` to ``u − u[0]`` sampled at ``h``, starting at rest.
+
+    Parameters
+    ----------
+    model : ProcessModel
+        The model.
+    u : array
+        Held input samples [input unit].
+    h : float
+        Sample interval [s].
+
+    Returns
+    -------
+    ndarray
+        Output deviation from the initial steady state [output unit].
+
+    Examples
+    --------
+    >>> y = simulate_model(ProcessModel(K=2.0, T=1.0), np.r_[0.0, np.ones(99)], 0.1)
+    >>> round(float(y[-1]), 4)
+    1.9999
+    """
+    u_arr = np.asarray(u, dtype=float)
+    discrete = discretise(model.time_constants, model.delay, h)
+    return model.K * discrete.response(u_arr - float(u_arr[0]))
+
+
+def nrmse_fit(y: ArrayLike, y_hat: ArrayLike) -> float:
+    """NRMSE fit [%]: 100·(1 − ‖y − ŷ‖/‖y − mean(y)‖); nan for a constant ``y``.
+
+    Examples
+    --------
+    >>> nrmse_fit([0.0, 1.0, 2.0], [0.0, 1.0, 2.0])
+    100.0
+    """
+    y_arr = np.asarray(y, dtype=float)
+    spread = float(np.linalg.norm(y_arr - y_arr.mean()))
+    if spread == 0.0:
+        return float("nan")
+    return 100.0 * (1.0 - float(np.linalg.norm(y_arr - np.asarray(y_hat, dtype=float))) / spread)
+
+
+def gain_not_identified(K: float, se_K: float | None) -> str | None:
+    """Why the gain does not differ from zero (|K| < 1.96 standard errors), or None.
+
+    A log in which the output does not follow the input gives K ≈ 0 with a wide interval;
+    tuning rules would then return gains thousands of times too high.
+
+    Examples
+    --------
+    >>> gain_not_identified(13.5, 0.1) is None
+    True
+    >>> gain_not_identified(0.04, 0.04)
+    'K = 0.04 ± 0.078 (95 %) does not differ from zero: the output does not respond to the input'
+    """
+    if se_K is None or not math.isfinite(se_K) or abs(K) >= Z95 * se_K:
+        return None
+    return (
+        f"K = {K:.3g} ± {Z95 * se_K:.2g} (95 %) does not differ from zero: the output does not "
+        "respond to the input"
+    )
+
+
+def model_covariance(names: Sequence[str], cov: ArrayLike) -> tuple[list[str], FloatArray]:
+    """The model parameters' block of an identification covariance.
+
+    An identification estimates nuisance parameters too (the output offset, initial-state
+    amplitudes); the marginal distribution of the model parameters is the matching block of the
+    covariance. A parameter with no variance (NaN or ≤ 0 on the diagonal) is left out (held at its
+    estimate); an unknown correlation (NaN off the diagonal, as ``step-ls`` reports for K and T)
+    is taken as zero.
+
+    Examples
+    --------
+    >>> names, block = model_covariance(["K", "T", "offset"], np.diag([1.0, 4.0, 9.0]))
+    >>> names, block.tolist()
+    (['K', 'T'], [[1.0, 0.0], [0.0, 4.0]])
+    """
+    full = np.asarray(cov, dtype=float).reshape(len(names), len(names))
+    keep = [
+        i
+        for i, name in enumerate(names)
+        if name in MODEL_KEYS and np.isfinite(full[i, i]) and full[i, i] > 0.0
+    ]
+    block = np.nan_to_num(full[np.ix_(keep, keep)], nan=0.0)
+    return [str(names[i]) for i in keep], block
+
+
+def check_gain_identified(K: float, se_K: float | None, source: str) -> None:
+    """Refuse a model whose gain does not differ from zero (:func:`gain_not_identified`).
+
+    Raises
+    ------
+    DataError
+        Saying so, with ``source`` (the model file or the fit).
+    """
+    reason = gain_not_identified(K, se_K)
+    if reason:
+        raise DataError(f"{source}: {reason}, so no gains can be tuned from it")

@@ -1,7 +1,7 @@
 """Preprocessing of PLC records before identification (theory.md section 3.1).
 
-Every function takes an :class:`~fuelid.signals.IOData` and returns a new one (the input is never
-modified) with a short note appended to ``notes`` saying what was done or noticed.
+Every function takes an :class:`~fuelid.io.timeseries.IOData` and returns a new one (the input
+is never modified) with a short note appended to ``notes`` saying what was done or noticed.
 
 * :func:`lowpass` — zero-phase Butterworth low-pass of the output y (never of the held command u),
   so no filter lag leaks into the fitted time constant or dead time.
@@ -34,7 +34,7 @@ import numpy as np
 from scipy import signal
 
 from fuelid.errors import DataError
-from fuelid.signals import FloatArray, IOData
+from fuelid.io.timeseries import FloatArray, IOData
 
 __all__ = ["decimate", "detrend", "lowpass", "remove_offsets", "select", "starts_at_rest"]
 

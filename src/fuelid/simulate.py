@@ -22,10 +22,14 @@ import scipy.integrate
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid.errors import FuelidError
-from fuelid.fuel import T0 as KELVIN
+from fuelid.io.timeseries import (
+    FUEL_TEMPERATURE_COLUMN,
+    INPUT_COLUMN,
+    OUTPUT_COLUMN,
+    TimeSeries,
+)
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.flowmeter import measure_flow
-from fuelid.plant.pump import LPM_PER_M3S
 from fuelid.plant.system import (
     PlantCoefficients,
     plant_coefficients,
@@ -34,12 +38,8 @@ from fuelid.plant.system import (
     steady_state,
 )
 from fuelid.profiles import InputProfile
-from fuelid.signals import (
-    FUEL_TEMPERATURE_COLUMN,
-    INPUT_COLUMN,
-    OUTPUT_COLUMN,
-    TimeSeries,
-)
+from fuelid.units import LPM_PER_M3S
+from fuelid.units import T0 as KELVIN
 
 FloatArray = NDArray[np.float64]
 #: absolute tolerances per state [Hz, rad/s, Pa, m³/s, m³/s]: far below noise and quantisation

@@ -1,7 +1,7 @@
 """From a PLC log to PI gains in one call: identify, tune, check over fuel temperature, schedule.
 
 This is the chain ``fuelid report`` and the demo run; each step is the library function the
-individual commands use (:func:`~fuelid.identify.pipeline.identify`,
+individual commands use (:func:`~fuelid.identify.procedure.identify`,
 :func:`~fuelid.tuning.result.evaluate_tuning`, :func:`~fuelid.tuning.schedule.evaluate_fixed`,
 :func:`~fuelid.tuning.closedloop.standard_runs`, :func:`~fuelid.tuning.schedule.gain_schedule`),
 so a report says exactly what the commands would.
@@ -17,19 +17,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError
-from fuelid.fuel import T0 as KELVIN
 from fuelid.identify.diagnostics import (
     CorrelationTest,
     input_residual_correlation,
     residual_whiteness,
 )
-from fuelid.identify.pipeline import IdentificationResult, IdentifyOptions, identify
+from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, identify
+from fuelid.io.timeseries import IOData
+from fuelid.model import check_gain_identified
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.linear import linearise
-from fuelid.signals import IOData
 from fuelid.tuning.closedloop import ClosedLoopResult, flow_at, standard_runs
 from fuelid.tuning.frequency import frequency_grid, loop_function
-from fuelid.tuning.result import TuningResult, check_gain_identified, evaluate_tuning
+from fuelid.tuning.result import TuningResult, evaluate_tuning
 from fuelid.tuning.schedule import (
     Anchor,
     FixedPIEvaluation,
@@ -39,6 +39,7 @@ from fuelid.tuning.schedule import (
     gain_schedule,
     plant_cases,
 )
+from fuelid.units import T0 as KELVIN
 
 FloatArray = NDArray[np.float64]
 Method = Literal["oe", "step-ls"]

@@ -15,9 +15,9 @@ import typer
 
 from fuelid import __version__
 from fuelid.errors import FuelidError
-from fuelid.fuel import T0 as KELVIN
-from fuelid.logs import load_log, parse_scale
-from fuelid.signals import IOData
+from fuelid.io.logs import load_log, parse_scale
+from fuelid.io.timeseries import IOData
+from fuelid.units import T0 as KELVIN
 
 P = ParamSpec("P")
 R = TypeVar("R")

@@ -26,11 +26,11 @@ from fuelid.cli._common import (
     warn,
 )
 from fuelid.errors import FuelidError
-from fuelid.identify.pipeline import IdentifyOptions, identify
+from fuelid.identify.procedure import IdentifyOptions, identify
+from fuelid.io.timeseries import IOData
 from fuelid.plant import linearise, load_plant_config
+from fuelid.plots import plot_identification, save_figure
 from fuelid.preprocess import select
-from fuelid.report import plot_identification, save_figure
-from fuelid.signals import IOData
 
 
 class MethodChoice(enum.StrEnum):

@@ -11,7 +11,7 @@ from rich.table import Table
 
 from fuelid.cli._common import celsius_to_kelvin, emit_json, guarded, provenance
 from fuelid.plant import linearise, load_plant_config
-from fuelid.plant.pump import LPM_PER_M3S
+from fuelid.units import LPM_PER_M3S
 
 app = typer.Typer(
     help="The plant's physics model: operating point and linearised model.",

@@ -14,18 +14,14 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from fuelid.cli._common import celsius_to_kelvin, emit_json, guarded, provenance
 from fuelid.errors import DataError, FuelidError
-from fuelid.fuel import T0 as KELVIN
-from fuelid.logs import read_table, table_column
+from fuelid.io.files import check_output_path
+from fuelid.io.tables import read_table, table_column
+from fuelid.io.timeseries import FUEL_TEMPERATURE_COLUMN, INPUT_COLUMN, TIME_COLUMN
 from fuelid.plant import load_plant_config
-from fuelid.plant.pump import LPM_PER_M3S
 from fuelid.profiles import InputProfile, random_levels, step_profile, step_sequence
-from fuelid.signals import (
-    FUEL_TEMPERATURE_COLUMN,
-    INPUT_COLUMN,
-    TIME_COLUMN,
-    check_output_path,
-)
 from fuelid.simulate import FuelTemperature, simulate
+from fuelid.units import LPM_PER_M3S
+from fuelid.units import T0 as KELVIN
 
 #: simulated time above which a progress bar is shown [s]
 PROGRESS_THRESHOLD = 600.0

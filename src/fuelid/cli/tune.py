@@ -15,9 +15,10 @@ from rich.table import Table
 from fuelid.cli._common import check_figure_path, emit_json, guarded, provenance, warn
 from fuelid.errors import FuelidError
 from fuelid.htmlreport import schedule_figure
+from fuelid.io.modelfile import load_model_file
 from fuelid.model import ProcessModel
 from fuelid.plant import load_plant_config
-from fuelid.report import plot_closed_loop_runs, plot_linear_closed_loop, save_figure
+from fuelid.plots import plot_closed_loop_runs, plot_linear_closed_loop, save_figure
 from fuelid.tuning.closedloop import (
     ClosedLoopResult,
     flow_at,
@@ -29,7 +30,6 @@ from fuelid.tuning.result import (
     check_control_period,
     check_tunable,
     evaluate_tuning,
-    load_model_file,
 )
 from fuelid.tuning.rules import TUNING_RULES
 from fuelid.tuning.schedule import (

@@ -103,27 +103,6 @@ def input_residual_correlation(
     )
 
 
-def gain_not_identified(K: float, se_K: float | None) -> str | None:
-    """Why the gain does not differ from zero (|K| < 1.96 standard errors), or None.
-
-    A log in which the output does not follow the input gives K ≈ 0 with a wide interval;
-    tuning rules would then return gains thousands of times too high.
-
-    Examples
-    --------
-    >>> gain_not_identified(13.5, 0.1) is None
-    True
-    >>> gain_not_identified(0.04, 0.04)
-    'K = 0.04 ± 0.078 (95 %) does not differ from zero: the output does not respond to the input'
-    """
-    if se_K is None or not math.isfinite(se_K) or abs(K) >= 1.96 * se_K:
-        return None
-    return (
-        f"K = {K:.3g} ± {1.96 * se_K:.2g} (95 %) does not differ from zero: the output does not "
-        "respond to the input"
-    )
-
-
 def feedback_suspected(test: CorrelationTest) -> bool:
     """True when the residual correlates with LATER inputs beyond chance (χ², 1 % level)."""
     negative = test.values[test.lags < 0]

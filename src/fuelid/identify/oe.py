@@ -30,9 +30,9 @@ from numpy.typing import NDArray
 from threadpoolctl import ThreadpoolController
 
 from fuelid.errors import FuelidError, NotExcitingError
-from fuelid.identify.discrete import discretise
-from fuelid.model import ProcessModel
-from fuelid.signals import IOData
+from fuelid.io.timeseries import IOData
+from fuelid.lti import discretise
+from fuelid.model import ProcessModel, nrmse_fit, simulate_model
 
 FloatArray = NDArray[np.float64]
 Order = Literal[1, 2, "auto"]
@@ -108,20 +108,6 @@ def _solve(Phi: FloatArray, y: FloatArray) -> _Evaluation:
     return _Evaluation(Phi=Phi, beta=beta, residual=y - Phi @ beta)
 
 
-def nrmse_fit(y: FloatArray, y_hat: FloatArray) -> float:
-    """NRMSE fit [%]: 100·(1 − ‖y − ŷ‖/‖y − mean(y)‖).
-
-    Examples
-    --------
-    >>> nrmse_fit(np.array([0.0, 1.0, 2.0]), np.array([0.0, 1.0, 2.0]))
-    100.0
-    """
-    spread = float(np.linalg.norm(y - y.mean()))
-    if spread == 0.0:
-        return float("nan")
-    return 100.0 * (1.0 - float(np.linalg.norm(y - y_hat)) / spread)
-
-
 @dataclass
 class OutputError:
     """Output-error estimator of K·e^(−θs)/((T s+1)(T2 s+1)(T_f s+1)).
@@ -146,7 +132,7 @@ class OutputError:
 
     Examples
     --------
-    >>> from fuelid.model import ProcessModel
+    >>> from fuelid.model import ProcessModel, nrmse_fit, simulate_model
     >>> u = np.repeat([1.0, 2.0, 1.5, 2.5], 250)
     >>> true = ProcessModel(K=3.0, T=2.0, delay=0.3)
     >>> y = 10.0 + simulate_model(true, u, 0.05)
@@ -482,16 +468,3 @@ def cramer_rao_bound(
     values = {"T": model.T, "T2": model.T2, "delay": model.delay}
     names, J = _jacobian(st, values, beta, u, sample_time, float(u[0]))
     return names, np.asarray(sigma**2 * np.linalg.inv(J.T @ J), dtype=float)
-
-
-def simulate_model(model: ProcessModel, u: FloatArray, h: float) -> FloatArray:
-    """Exact ZOH response of ``model`` to ``u − u[0]``, starting at rest [output unit].
-
-    Examples
-    --------
-    >>> y = simulate_model(ProcessModel(K=2.0, T=1.0), np.r_[0.0, np.ones(99)], 0.1)
-    >>> round(float(y[-1]), 4)
-    1.9999
-    """
-    discrete = discretise(model.time_constants, model.delay, h)
-    return model.K * discrete.response(np.asarray(u, dtype=float) - float(u[0]))

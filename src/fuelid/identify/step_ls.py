@@ -50,10 +50,9 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import ArrayLike, NDArray
 
-from fuelid import lti
 from fuelid.errors import FuelidError, NotExcitingError
+from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel
-from fuelid.signals import IOData
 
 FloatArray = NDArray[np.float64]
 
@@ -513,10 +512,7 @@ class StepResponseLS:
         self._model = ProcessModel(K=self.K_, T=self.T_, T_f=T_f, delay=float(self.delay))
 
     def _diagnose(self, N: int, T_s: float) -> None:
-        # = ProcessModel.settling_time() (same grid and rule), with the closed-form response
-        grid = np.linspace(0.0, self.delay_ + 12.0 * (self.T_ + self.T_f_), 24_001)
-        shape = step_shape(grid, self.T_, self.T_f_, self.delay_)
-        settle = lti.settling_time(grid, shape, 1.0)
+        settle = self.model_.settling_time()
         horizon = N * T_s
         if not settle <= horizon:
             self.warnings_.append(

@@ -13,9 +13,7 @@ import math
 from pydantic import Field
 
 from fuelid.plant._section import Section
-
-LPM_PER_M3S = 60_000.0
-"""L/min in one m³/s."""
+from fuelid.units import LPM_PER_M3S
 
 
 class PumpConfig(Section):

@@ -31,11 +31,9 @@ from numpy.typing import NDArray
 
 from fuelid import lti
 from fuelid.errors import FuelidError
-from fuelid.fuel import T0 as KELVIN
-from fuelid.identify.discrete import discretise
+from fuelid.lti import discretise
 from fuelid.model import ProcessModel
 from fuelid.plant.config import PlantConfig
-from fuelid.plant.pump import LPM_PER_M3S
 from fuelid.plant.system import (
     operating_point,
     plant_coefficients,
@@ -46,6 +44,8 @@ from fuelid.plant.system import (
 from fuelid.profiles import InputProfile
 from fuelid.simulate import ATOL, RTOL
 from fuelid.tuning.rules import PISettings
+from fuelid.units import LPM_PER_M3S
+from fuelid.units import T0 as KELVIN
 
 FloatArray = NDArray[np.float64]
 SETTLING_BAND = 0.02

@@ -4,7 +4,7 @@ For a continuous controller the loop is L(jω) = C(jω)·G(jω) with G's dead ti
 exact factor e^(−jωθ) (never a Padé approximation). For a controller with period h the loop is
 analysed as the sampled-data system it is at the sampling instants: the plant is discretised
 exactly with a zero-order hold and its fractional dead time (modified z-transform, see
-:mod:`fuelid.identify.discrete`), the controller is the PI the PLC runs, with the integral
+:mod:`fuelid.lti`), the controller is the PI the PLC runs, with the integral
 updated after the output (forward Euler, Åström & Hägglund's PID code),
 
 .. math:: C(z) = K_c\left(1 + \frac{h}{T_i}\,\frac{z^{-1}}{1 - z^{-1}}\right),
@@ -28,8 +28,7 @@ import numpy as np
 import scipy.optimize
 from numpy.typing import ArrayLike, NDArray
 
-from fuelid.identify.discrete import discretise
-from fuelid.lti import zoh_discretise
+from fuelid.lti import discretise, modified_z
 from fuelid.model import ProcessModel
 from fuelid.tuning.rules import PISettings
 
@@ -86,10 +85,7 @@ def process_response(model: ProcessModel, omega: ArrayLike, h: float = 0.0) -> C
             g = g / (tc * s + 1.0)
         return np.asarray(g, dtype=complex)
     d = discretise(model.time_constants, model.delay, h)
-    zi = np.exp(-1j * w * h)  # z⁻¹
-    num = np.polyval(d.b[::-1], zi)
-    den = np.polyval(d.a[::-1], zi)
-    return np.asarray(model.K * zi**d.shift * num / den, dtype=complex)
+    return np.asarray(model.K * d.frequency_response(w, h), dtype=complex)
 
 
 def state_space_response(plant: StateSpacePlant, omega: ArrayLike, h: float = 0.0) -> ComplexArray:
@@ -109,16 +105,12 @@ def state_space_response(plant: StateSpacePlant, omega: ArrayLike, h: float = 0.
         x = np.linalg.solve(M, np.broadcast_to(B.astype(complex), (w.size, n, 1)))
         g = (C @ x)[:, 0, 0] + float(np.asarray(plant.D).ravel()[0])
         return np.asarray(g * np.exp(-1j * w * plant.delay), dtype=complex)
-    d = math.floor(plant.delay / h + 1e-12)
-    frac = max(plant.delay - d * h, 0.0)
-    E1, G0 = zoh_discretise(A, B, h - frac)
-    E2, G2 = zoh_discretise(A, B, frac)
-    Ad, G1 = E1 @ E2, E1 @ G2
+    mz = modified_z(A, B, h, plant.delay)
     z = np.exp(1j * w * h)
-    M = z[:, None, None] * eye - Ad
-    rhs = G0[None, :, :] + G1[None, :, :] / z[:, None, None]
+    M = z[:, None, None] * eye - mz.Ad
+    rhs = mz.G0[None, :, :] + mz.G1[None, :, :] / z[:, None, None]
     x = np.linalg.solve(M, rhs)
-    return np.asarray((C @ x)[:, 0, 0] * z ** (-d), dtype=complex)
+    return np.asarray((C @ x)[:, 0, 0] * z ** (-mz.shift), dtype=complex)
 
 
 def controller_response(pi: PISettings, omega: ArrayLike) -> ComplexArray:
@@ -145,11 +137,10 @@ def loop_function(plant: ProcessModel | StateSpacePlant, pi: PISettings) -> Loop
         if h > 0.0:
             # discretise once; evaluating the rational function is then cheap
             d = discretise(plant.time_constants, plant.delay, h)
-            b, a, shift, K = d.b[::-1], d.a[::-1], d.shift, plant.K
+            K = plant.K
 
             def sampled(w: FloatArray) -> ComplexArray:
-                zi = np.exp(-1j * w * h)
-                g = K * zi**shift * np.polyval(b, zi) / np.polyval(a, zi)
+                g = K * d.frequency_response(w, h)
                 return np.asarray(g * controller_response(pi, w), dtype=complex)
 
             return sampled

@@ -20,15 +20,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError
-from fuelid.fuel import T0 as KELVIN
-from fuelid.model import ProcessModel
+from fuelid.model import ProcessModel, model_covariance
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.linear import LinearPlant, linearise
-from fuelid.plant.pump import LPM_PER_M3S
 from fuelid.tuning.closedloop import linear_closed_loop
 from fuelid.tuning.frequency import Robustness, robustness
-from fuelid.tuning.result import model_covariance
 from fuelid.tuning.rules import PISettings, tune
+from fuelid.units import LPM_PER_M3S
+from fuelid.units import T0 as KELVIN
 
 FloatArray = NDArray[np.float64]
 DEFAULT_TEMPERATURES_DEGC = (-20.0, 50.0)

@@ -16,16 +16,14 @@ from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError
 from fuelid.identify import diagnostics
-from fuelid.identify.oe import OutputError, nrmse_fit
+from fuelid.identify.oe import OutputError
 from fuelid.identify.step_ls import StepResponseLS
-from fuelid.model import ProcessModel
+from fuelid.io.timeseries import IOData
+from fuelid.model import MODEL_KEYS, Z95, ProcessModel, gain_not_identified, nrmse_fit
 from fuelid.preprocess import decimate
-from fuelid.signals import IOData
 
 FloatArray = NDArray[np.float64]
 Method = Literal["oe", "step-ls"]
-MODEL_KEYS = ("K", "T", "T2", "delay", "T_f")
-Z95 = 1.959963984540054
 
 
 @dataclass(frozen=True)
@@ -280,7 +278,7 @@ def identify(
             f"residuals correlate with past inputs (p = {cross.p_value:.2g}): unmodelled "
             "dynamics, try --order 2 or --delay auto"
         )
-    no_gain = diagnostics.gain_not_identified(model.K, stderr.get("K"))
+    no_gain = gain_not_identified(model.K, stderr.get("K"))
     if no_gain:
         warnings.append(f"{no_gain} in this log; do not tune from it")
     advice = diagnostics.sample_time_advice(settle, work.sample_time)

@@ -15,7 +15,7 @@ from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from fuelid.errors import DataError
-from fuelid.signals import TimeSeries
+from fuelid.io.timeseries import TimeSeries
 
 FloatArray = NDArray[np.float64]
 

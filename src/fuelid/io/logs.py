@@ -1,4 +1,4 @@
-"""Load real PLC logs into an :class:`~fuelid.signals.IOData`, or refuse them with the reason.
+"""Load real PLC logs into an :class:`~fuelid.io.timeseries.IOData`, or refuse them with the reason.
 
 PLC exports are messier than what ``fuelid simulate`` writes: ``;`` or tab separators, decimal
 commas, UTF-8 with a byte-order mark or GBK-encoded (Chinese) headers, date-time stamps instead of
@@ -13,10 +13,8 @@ Data rows are numbered from 1 after the header line.
 from __future__ import annotations
 
 import re
-import unicodedata
 from collections.abc import Sequence
 from dataclasses import dataclass
-from io import StringIO
 from pathlib import Path
 from typing import Literal
 
@@ -24,7 +22,8 @@ import numpy as np
 import pandas as pd
 
 from fuelid.errors import DataError
-from fuelid.signals import INPUT_COLUMN, OUTPUT_COLUMN, TIME_COLUMN, FloatArray, IOData
+from fuelid.io.tables import find_column, match_column, read_frame, to_float
+from fuelid.io.timeseries import INPUT_COLUMN, OUTPUT_COLUMN, TIME_COLUMN, FloatArray, IOData
 
 __all__ = ["ResampleMode", "Scale", "load_log", "parse_scale"]
 
@@ -46,11 +45,6 @@ UNIFORM_TOLERANCE = 1e-3
 DEFAULT_GAP_FACTOR = 3.0
 """Default ``max_gap``: this many median intervals."""
 
-_TEXT_SUFFIXES = (".csv", ".txt", ".tsv")
-_PARQUET_SUFFIXES = (".parquet", ".pq")
-_SEPARATORS = ("\t", ";", ",")
-_SEPARATOR_NAMES = {"\t": "tab", ";": "';'", ",": "','"}
-_ENCODINGS = ("utf-8-sig", "gbk")
 _UNITS = {
     "V": "V",
     "mV": "mV",
@@ -197,18 +191,18 @@ def load_log(
     if max_gap is not None and not (np.isfinite(max_gap) and max_gap > 0.0):
         raise DataError(f"max_gap must be a positive number of seconds, got {max_gap}")
 
-    frame, notes = _read_frame(Path(path), source)
+    frame, notes = read_frame(Path(path), source)
     time_name = _time_column(frame, time_col, sample_time, source, notes)
-    u_name = _find_column(frame, input_col, "input", source)
-    y_name = _find_column(frame, output_col, "output", source)
+    u_name = find_column(frame, input_col, "input", source)
+    y_name = find_column(frame, output_col, "output", source)
     if u_name == y_name:
         raise DataError(f"{source}: the input and the output are the same column {u_name!r}")
 
     table = _Table(
         rows=np.arange(1, len(frame) + 1, dtype=np.int64),
         t=None,
-        u=_to_float(frame[u_name]),
-        y=_to_float(frame[y_name]),
+        u=to_float(frame[u_name]),
+        y=to_float(frame[y_name]),
     )
     datetime_start = None
     if time_name is not None:
@@ -280,150 +274,6 @@ class _Table:
         )
 
 
-# --- reading -------------------------------------------------------------------------------------
-
-
-def read_table(path: str | Path) -> tuple[pd.DataFrame, list[str]]:
-    """Read a CSV-like text table or a Parquet file as :func:`load_log` does.
-
-    For tables that are not logs (a command profile): the same encodings, separators and
-    refusals. Text cells stay strings; :func:`table_column` turns a column into numbers.
-
-    Returns
-    -------
-    frame, notes
-        The table and what reading it noticed (encoding, separator).
-    """
-    file = Path(path)
-    return _read_frame(file, repr(str(file)))
-
-
-def table_column(frame: pd.DataFrame, name: str, source: str) -> FloatArray:
-    """One column of :func:`read_table`'s frame as floats (decimal point or comma).
-
-    Raises
-    ------
-    DataError
-        If the column is missing (naming those present) or a cell is empty or not a number.
-    """
-    column = _find_column(frame, name, "required", source)
-    values = _to_float(frame[column])
-    bad = np.flatnonzero(~np.isfinite(values))
-    if bad.size:
-        cell = str(frame[column].iloc[int(bad[0])])
-        shown = repr(cell if len(cell) <= 24 else cell[:21] + "...")
-        raise DataError(
-            f"{source}: column {name!r} has {bad.size} empty, non-numeric or infinite cell(s), "
-            f"first at data row {int(bad[0]) + 1} ({shown})"
-        )
-    return values
-
-
-def _read_frame(file: Path, source: str) -> tuple[pd.DataFrame, list[str]]:
-    """Read the file as a DataFrame (text cells as strings), with notes on how it was read."""
-    suffix = file.suffix.lower()
-    if suffix not in _TEXT_SUFFIXES + _PARQUET_SUFFIXES:
-        choices = ", ".join(_TEXT_SUFFIXES + _PARQUET_SUFFIXES)
-        raise DataError(
-            f"{source}: unknown log format {suffix or '(no extension)'!r}; use {choices}"
-        )
-    if not file.is_file():
-        raise DataError(f"{source} does not exist or is not a file")
-    try:
-        raw = file.read_bytes()
-    except OSError as exc:
-        raise DataError(f"cannot read {source}: {exc.strerror or exc}") from None
-    if not raw.strip():
-        raise DataError(f"{source} is empty")
-    if suffix in _PARQUET_SUFFIXES or raw.startswith(b"PAR1"):
-        return _read_parquet(file, source), []
-    return _read_text(raw, source)
-
-
-def _read_parquet(file: Path, source: str) -> pd.DataFrame:
-    """Read a Parquet file, refusing a corrupt one in one line."""
-    try:
-        frame = pd.read_parquet(file)
-    except Exception as exc:  # pyarrow raises its own exception types
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise DataError(f"cannot read {source} as Parquet: {reason}") from None
-    frame.columns = [str(name).strip() for name in frame.columns]
-    if frame.empty:
-        raise DataError(f"{source} holds no data rows")
-    return frame
-
-
-def _read_text(raw: bytes, source: str) -> tuple[pd.DataFrame, list[str]]:
-    """Decode, sniff the separator and parse a CSV-like text table (all cells as strings)."""
-    text, encoding = _decode(raw, source)
-    lines = text.splitlines()
-    while lines and not lines[-1].strip():
-        lines.pop()
-    while lines and not lines[0].strip():
-        lines.pop(0)
-    if not lines:
-        raise DataError(f"{source} is empty")
-    separator = _sniff_separator(lines, source)
-    try:
-        frame = pd.read_csv(
-            StringIO("\n".join(lines)),
-            sep=separator,
-            dtype=str,
-            keep_default_na=False,
-            skip_blank_lines=False,
-            skipinitialspace=True,
-            engine="c",
-        )
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
-        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise DataError(f"cannot read {source} as a table: {reason}") from None
-    frame.columns = [str(name).strip().lstrip("\ufeff").strip() for name in frame.columns]
-    if frame.empty:
-        raise DataError(f"{source} has a header but no data rows")
-    notes = []
-    if encoding != "utf-8-sig":
-        notes.append(f"read as {encoding.upper()} text")
-    if separator != ",":
-        notes.append(f"columns separated by {_SEPARATOR_NAMES[separator]}")
-    return frame, notes
-
-
-def _decode(raw: bytes, source: str) -> tuple[str, str]:
-    """Decode as UTF-16 (with its BOM), UTF-8 (BOM stripped) or GBK; refuse binary content."""
-    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
-        candidates: tuple[str, ...] = ("utf-16",)
-    elif b"\x00" in raw:
-        raise DataError(f"{source} is not a text table (it holds binary data)")
-    else:
-        candidates = _ENCODINGS
-    for encoding in candidates:
-        try:
-            text = raw.decode(encoding)
-        except UnicodeDecodeError:
-            continue
-        if any(unicodedata.category(ch) == "Cc" and ch not in "\t\r\n" for ch in text[:65536]):
-            raise DataError(f"{source} is not a text table (it holds control characters)")
-        return text, encoding
-    raise DataError(f"{source} is not a text table (neither UTF-8 nor GBK text)")
-
-
-def _sniff_separator(lines: Sequence[str], source: str) -> str:
-    """Tab, ``;`` or ``,``: the one found in the header, preferring one as frequent in row 1."""
-    header = lines[0]
-    found = [sep for sep in _SEPARATORS if sep in header]
-    if not found:
-        shown = header if len(header) <= 40 else header[:37] + "..."
-        raise DataError(
-            f"{source} is not a table of signals: its header {shown!r} has a single column "
-            "(no ',', ';' or tab separator)"
-        )
-    if len(lines) > 1:
-        for sep in found:
-            if lines[1].count(sep) == header.count(sep):
-                return sep
-    return found[0]
-
-
 # --- columns and cells ---------------------------------------------------------------------------
 
 
@@ -436,44 +286,12 @@ def _time_column(
 ) -> str | None:
     """The name of the time column, or None when ``sample_time`` replaces it."""
     if sample_time is not None:
-        if time_col is not None and _match_column(frame, time_col) is not None:
+        if time_col is not None and match_column(frame, time_col) is not None:
             notes.append(f"time column {time_col} ignored: sample time {sample_time:g} s given")
         return None
     if time_col is None:
         raise DataError(f"{source}: give a time column or a sample time")
-    return _find_column(frame, time_col, "time", source, hint="or give a sample time")
-
-
-def _match_column(frame: pd.DataFrame, name: str) -> str | None:
-    """The column called ``name`` (exactly, else ignoring case and spaces if unique), or None."""
-    columns = [str(column) for column in frame.columns]
-    if name in columns:
-        return name
-    key = name.strip().casefold()
-    matches = [column for column in columns if column.strip().casefold() == key]
-    return matches[0] if len(matches) == 1 else None
-
-
-def _find_column(frame: pd.DataFrame, name: str, role: str, source: str, hint: str = "") -> str:
-    """The column called ``name``, or a DataError naming the columns present."""
-    found = _match_column(frame, name)
-    if found is None:
-        present = ", ".join(str(column) for column in frame.columns)
-        tail = f" ({hint})" if hint else ""
-        raise DataError(f"{source} has no {role} column {name!r}; columns present: {present}{tail}")
-    return found
-
-
-def _to_float(series: pd.Series) -> FloatArray:
-    """Numbers (decimal point or comma) as floats; empty or non-numeric cells become NaN."""
-    if pd.api.types.is_bool_dtype(series.dtype) or pd.api.types.is_datetime64_any_dtype(
-        series.dtype
-    ):
-        return np.full(len(series), np.nan)
-    if not pd.api.types.is_numeric_dtype(series.dtype):
-        series = series.astype(str).str.strip().str.replace(",", ".", regex=False)
-    numbers = pd.to_numeric(series, errors="coerce")
-    return np.asarray(numbers.to_numpy(dtype=float, na_value=np.nan), dtype=np.float64)
+    return find_column(frame, time_col, "time", source, hint="or give a sample time")
 
 
 def _to_seconds(series: pd.Series) -> tuple[FloatArray, str | None]:
@@ -484,7 +302,7 @@ def _to_seconds(series: pd.Series) -> tuple[FloatArray, str | None]:
     """
     if pd.api.types.is_datetime64_any_dtype(series.dtype):
         return _stamps_to_seconds(pd.Series(pd.to_datetime(series)))
-    numbers = _to_float(series)
+    numbers = to_float(series)
     if pd.api.types.is_numeric_dtype(series.dtype):
         return numbers, None
     text = series.astype(str).str.strip()

@@ -1,4 +1,4 @@
-"""The one time-series container of fuelid and its CSV/Parquet edges.
+"""The one time-series container of fuelid, and the column names of its files.
 
 Inside the program a record is a :class:`TimeSeries`: time in seconds (rows), named signals with
 units. At the file edge the columns carry their unit as a suffix: ``t_s``, ``u_V``, ``q_Lpm``,
@@ -7,8 +7,6 @@ units. At the file edge the columns carry their unit as a suffix: ``t_s``, ``u_V
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,7 +23,6 @@ TIME_COLUMN = "t_s"
 INPUT_COLUMN = "u_V"
 OUTPUT_COLUMN = "q_Lpm"
 FUEL_TEMPERATURE_COLUMN = "T_fuel_degC"
-TABLE_SUFFIXES = {".csv": "csv", ".parquet": "parquet", ".pq": "parquet"}
 
 
 @dataclass(frozen=True)
@@ -95,98 +92,9 @@ class TimeSeries:
 
     def write(self, path: str | Path, overwrite: bool = False) -> Path:
         """Write as CSV or Parquet (chosen by the file extension); see :func:`write_table`."""
+        from fuelid.io.files import write_table
+
         return write_table(self.to_pandas(), path, overwrite=overwrite)
-
-
-def _publish(temporary: str, target: Path) -> None:
-    """Give a finished temporary file the usual permissions and rename it onto the target.
-
-    ``mkstemp`` creates files readable by their owner only; a log or a report is meant to be
-    shared like any file the user creates, so the umask decides, as for ``open()``.
-    """
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(temporary, 0o666 & ~umask)
-    os.replace(temporary, target)
-
-
-def atomic_write_bytes(path: str | Path, payload: bytes) -> Path:
-    """Write bytes to a temporary file beside ``path``, then rename: never a half-written file."""
-    out = Path(path)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent or ".")
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(payload)
-        _publish(tmp_name, out)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
-    return out
-
-
-def table_format(path: str | Path) -> str:
-    """``"csv"`` or ``"parquet"`` from a file name, or a :class:`DataError` naming the choices."""
-    suffix = Path(path).suffix.lower()
-    try:
-        return TABLE_SUFFIXES[suffix]
-    except KeyError:
-        choices = ", ".join(TABLE_SUFFIXES)
-        raise DataError(
-            f"cannot tell the table format of {str(path)!r}: use one of the extensions {choices}"
-        ) from None
-
-
-def check_output_path(path: str | Path, overwrite: bool = False) -> Path:
-    """Validate where a table will be written, before any work is done.
-
-    Refuses an unknown extension, a missing folder, a folder given as the file, and an existing
-    file unless ``overwrite`` (so a typo never destroys a log).
-    """
-    out = Path(path)
-    table_format(out)
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        raise DataError(f"output folder {str(parent)!r} does not exist")
-    if out.is_dir():
-        raise DataError(f"output path {str(out)!r} is a folder, not a file")
-    if out.exists() and not overwrite:
-        raise DataError(f"{str(out)!r} exists; pass --force (overwrite=True) to replace it")
-    return out
-
-
-def write_table(frame: pd.DataFrame, path: str | Path, overwrite: bool = False) -> Path:
-    """Write a table atomically: to a temporary file beside the target, then renamed.
-
-    A failed write never leaves a half-written file nor destroys an existing one.
-
-    Parameters
-    ----------
-    frame : DataFrame
-        The table.
-    path : str or Path
-        Target; ``.csv`` or ``.parquet``/``.pq``.
-    overwrite : bool
-        Replace an existing file.
-
-    Returns
-    -------
-    Path
-        The written file.
-    """
-    out = check_output_path(path, overwrite)
-    fmt = table_format(out)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent or ".")
-    os.close(fd)
-    try:
-        if fmt == "csv":
-            frame.to_csv(tmp_name, index=False, float_format="%.10g")
-        else:
-            frame.to_parquet(tmp_name, index=False)
-        _publish(tmp_name, out)
-    except Exception:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
-    return out
 
 
 @dataclass(frozen=True)
