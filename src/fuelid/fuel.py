@@ -21,17 +21,18 @@ raises :class:`~fuelid.errors.OutOfRangeError` unless ``allow_extrapolation=True
 RP-3 is the default fuel (:data:`DEFAULT_FUEL`). It is the kerosene the source article's wind
 tunnel burns; it is close to TS-1 and Jet A-1, so it uses the TS-1 (Dubovkin) correlations. The
 choice matters: at 20 °C the Jet A fit gives a kinematic viscosity 40 % above the TS-1 one, and the
-viscosity sets the pump leakage and so the loop gain K(T) (theory.md §1–2).
+viscosity sets the pump leakage and so the loop gain K(T) (docs/physics.md, "Fuel properties").
 
 Sources
 -------
 * TS-1: Dubovkin N.F. et al., *Physicochemical and operational properties of jet fuels*
-  (handbook, in Russian), Moscow: Khimiya, 1985, as quoted in theory.md §2.
+  (handbook, in Russian), Moscow: Khimiya, 1985.
 * Jet A viscosity: curve fit of the Jet A data of the CRC *Handbook of Aviation Fuel
-  Properties*, CRC report 663, 3rd ed., 2004 (AFRL-PR-WP-TR-2004-2127), as quoted in theory.md §2.
+  Properties*, CRC report 663, 3rd ed., 2004 (AFRL-PR-WP-TR-2004-2127).
 * Jet A density: typical 804 kg/m^3 at 15 °C (inside the ASTM D1655 limits 775–840 kg/m^3) with
   the jet-fuel thermal expansion coefficient of ASTM D1250 / API MPMS 11.1 (Table 54B).
-* JP-8 dynamic viscosity table and RP-3 Andrade fit: as given in theory.md §2.
+* JP-8 dynamic viscosity table (tabulated JP-8 data, 20–100 °C) and the RP-3 Andrade fit
+  μ ≈ 7.05e-6·exp(1480/T): the values listed in docs/physics.md, "Fuel properties".
 * RP-3 specification: GB 6537 (No. 3 jet fuel).
 """
 
@@ -283,7 +284,7 @@ def nu_JetA_CRC(T: _FloatOrArray, *, allow_extrapolation: bool = False) -> _Floa
     (:func:`mu_JP8_table` divided by :func:`rho_JetA`), the gap growing with temperature. Beyond,
     the linear term takes over and the fit falls towards zero near 340 °C, which no kerosene
     does. Checks: ν(−20 °C) = 5.76 mm^2/s (ASTM D1655 maximum 8.0 mm^2/s); at 20 °C the fit is
-    1.40 times the TS-1 value, the 40 % spread between fuels quoted in theory.md §2.
+    1.40 times the TS-1 value, the 40 % spread between these fuels at 20 °C.
 
     References
     ----------
@@ -671,8 +672,9 @@ FUELS: dict[str, Fuel] = {
         T_min=max(_JP8_RANGE_C[0], _JETA_RHO_RANGE_C[0]) + T0,
         T_max=min(_JP8_RANGE_C[1], _JETA_RHO_RANGE_C[1]) + T0,
         reference=(
-            "Dynamic viscosity: JP-8 table of theory.md §2 (Andrade interpolation); density: the "
-            "Jet A model (JP-8 is Jet A-1 with military additives, same 775–840 kg/m^3 band), "
+            "Dynamic viscosity: the tabulated JP-8 data of docs/physics.md (Andrade "
+            "interpolation); density: the Jet A model (JP-8 is Jet A-1 with military "
+            "additives, same 775–840 kg/m^3 band), "
             "not the table sample's own density, so ν carries the ±4 % band spread."
         ),
         rho_correlation=rho_JetA,

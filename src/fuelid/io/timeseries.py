@@ -10,10 +10,13 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 from fuelid.errors import DataError
 
@@ -88,6 +91,8 @@ class TimeSeries:
 
     def to_pandas(self) -> pd.DataFrame:
         """The record as a DataFrame: ``t_s`` first, then the signals in order."""
+        import pandas as pd  # only where a table is made: keeps `import fuelid` light
+
         return pd.DataFrame({TIME_COLUMN: self.time, **self.signals})
 
     def write(self, path: str | Path, overwrite: bool = False) -> Path:
