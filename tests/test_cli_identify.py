@@ -22,6 +22,7 @@ JSON_KEYS = {
     "fixed",
     "stderr",
     "ci95",
+    "ci95_method",
     "cov",
     "fit_percent",
     "validation_fit_percent",
@@ -62,12 +63,24 @@ def test_json_schema_and_priors_held_fixed(tmp_path: Path):
     for key in ("T2", "delay", "T_f"):
         assert data["stderr"][key] is None
         assert data["ci95"][key] is None
-    # the estimate is within a few standard errors of the truth, and the interval is ±1.96 se
+        assert data["ci95_method"][key] is None
+    # the estimate is within a few standard errors of the truth; K's interval is ±1.96 se, the
+    # positive T's the log-transformed exp(ln T ± 1.96 se/T)
     for key in ("K", "T"):
         est, se = data["model"][key], data["stderr"][key]
         assert abs(est - getattr(TRUTH, key)) < 4 * se
-        low, high = data["ci95"][key]
-        assert high - low == pytest.approx(2 * 1.959964 * se, rel=1e-5)
+    assert data["ci95_method"]["K"] == "normal"
+    K, se_K = data["model"]["K"], data["stderr"]["K"]
+    assert data["ci95"]["K"] == [
+        pytest.approx(K - 1.959964 * se_K, rel=1e-9),
+        pytest.approx(K + 1.959964 * se_K, rel=1e-9),
+    ]
+    assert data["ci95_method"]["T"] == "log"
+    T, se_T = data["model"]["T"], data["stderr"]["T"]
+    assert data["ci95"]["T"] == [
+        pytest.approx(T * np.exp(-1.959964 * se_T / T), rel=1e-9),
+        pytest.approx(T * np.exp(1.959964 * se_T / T), rel=1e-9),
+    ]
     assert data["cov"]["names"][:2] == ["K", "T"]
     assert len(data["cov"]["matrix"]) == len(data["cov"]["names"])
     assert data["n_samples"] == 5000

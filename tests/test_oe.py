@@ -27,13 +27,36 @@ def _steps(seed: int, n_steps: int = 12, dwell: float = 10.0) -> np.ndarray:
     return np.repeat(levels, round(dwell / H))
 
 
-def test_discretisation_is_exact_for_a_fractional_delay():
-    # a step through the ZOH model equals the continuous step response at every sample
-    lags, delay = [1.268, 0.3], 0.237
-    n = 500
-    y = discretise(lags, delay, H).response(np.ones(n))
-    exact = ProcessModel(K=1.0, T=1.268, T_f=0.3, delay=delay).step_response(np.arange(n) * H)
+def _lag_step(t: np.ndarray, K: float, T: float, T_f: float, delay: float) -> np.ndarray:
+    """Closed-form unit-step response of K·e^(−θs)/((T s+1)(T_f s+1)), written out (T ≠ T_f).
+
+    K(1 − (T e^(−t'/T) − T_f e^(−t'/T_f))/(T − T_f)), t' = t − θ; K(1 − e^(−t'/T)) for T_f = 0;
+    zero until the delay has passed.
+    """
+    x = np.maximum(t - delay, 0.0)
+    if T_f == 0.0:
+        return K * (1.0 - np.exp(-x / T))
+    return K * (1.0 - (T * np.exp(-x / T) - T_f * np.exp(-x / T_f)) / (T - T_f))
+
+
+@pytest.mark.parametrize(
+    ("lags", "delay"),
+    [
+        ((1.268, 0.3), 0.237),  # 11.85 samples: the delay ends inside a sample interval
+        ((1.268, 0.3), 0.2),  # a whole number of samples
+        ((0.8,), 0.05),  # first order, 2.5 samples
+        ((2.0, 0.01), 0.0),  # a lag shorter than one sample, no delay
+    ],
+)
+def test_discretisation_is_exact_for_a_fractional_delay(lags: tuple[float, ...], delay: float):
+    # a held step is exactly a zero-order-held input: the sampled model must reproduce the
+    # continuous step response at every sample instant, whatever the fractional delay
+    t = np.arange(500) * H
+    y = discretise(list(lags), delay, H).response(np.ones(t.size))
+    T, T_f = lags[0], lags[1] if len(lags) > 1 else 0.0
+    exact = _lag_step(t, 1.0, T, T_f, delay)
     assert np.max(np.abs(y - exact)) < 1e-12
+    assert exact[-1] > 0.99  # the comparison spans the whole rise
 
 
 def test_noise_free_recovery_is_exact():

@@ -8,7 +8,6 @@ updates on a 1 s grid: 1.0 V, then 1.5 V at t = 5 s, 1.2 V at 12 s and 1.6 V at 
 from __future__ import annotations
 
 import math
-import re
 
 import numpy as np
 import pytest
@@ -16,7 +15,7 @@ from numpy.typing import NDArray
 
 from fuelid.errors import DataError
 from fuelid.io.timeseries import IOData
-from fuelid.preprocess import decimate, detrend, lowpass, remove_offsets, select, starts_at_rest
+from fuelid.preprocess import decimate, lowpass, select
 
 FloatArray = NDArray[np.float64]
 H = 0.02
@@ -222,65 +221,7 @@ def test_select_refuses_empty_and_tiny_windows_naming_the_span(
 # ---------------------------------------------------------------- offsets
 
 
-def test_remove_offsets_of_a_record_at_rest() -> None:
-    data = loop_record()
-    out, u0, y0 = remove_offsets(data)
-    assert u0 == 1.0
-    assert y0 == 14.6
-    assert starts_at_rest(data)
-    assert not any("not start at rest" in note for note in out.notes)
-    assert "mean of the first 150 samples" in out.notes[-1]  # 250 before the step, 10 % cap
-    np.testing.assert_array_equal(out.u[:250], 0.0)
-    assert out.u[-1] == pytest.approx(0.6)
-    # at t = 29.98 s: K·Σ Δu_j·(1 − e^(−(29.98 − t_j)/T)), the first steps all but settled
-    t_end = out.t[-1]
-    levels = [U0] + [value for _, value in STEPS]
-    expected = sum(
-        K * (new - old) * (1.0 - math.exp(-(t_end - t_step) / T))
-        for (t_step, _), old, new in zip(STEPS, levels[:-1], levels[1:], strict=True)
-    )
-    assert out.y[-1] == pytest.approx(expected, abs=1e-12)
-
-
-def test_remove_offsets_with_noise_and_a_given_window() -> None:
-    sigma = 0.05
-    data = loop_record(noise=sigma, seed=3)
-    _, u0, y0 = remove_offsets(data, n_initial=200)
-    assert u0 == 1.0
-    assert abs(y0 - Y0) < 4 * sigma / math.sqrt(200)
-    assert starts_at_rest(data)
-    with pytest.raises(DataError, match=r"n_initial must lie in 1 … 1500"):
-        remove_offsets(data, n_initial=0)
-
-
-@pytest.mark.parametrize("sigma", [0.0, 0.05])
-def test_remove_offsets_reports_a_record_that_starts_mid_transient(sigma: float) -> None:
-    base = loop_record(noise=sigma, seed=5)
-    decay = 2.0 * np.exp(-base.t / 3.0)  # still settling from an earlier change
-    data = IOData(base.u, base.y + decay, H)
-    assert not starts_at_rest(data)
-    out, _, y0 = remove_offsets(data)
-    note = out.notes[-1]
-    assert note.startswith("the record does not start at rest (y drifts by ")
-    assert "over the first 2.98 s before the first input change" in note
-    drift = float(re.findall(r"drifts by (\S+) L/min", note)[0])
-    # the window's 150 samples cover 2.98 s: the decay falls by 2·(1 − e^(−2.98/3)) = 1.26
-    assert drift == pytest.approx(-2.0 * (1.0 - math.exp(-2.98 / 3.0)), rel=0.1)
-    assert y0 > Y0 + 0.5  # biased by the unsettled start, which is why the note is there
-
-
 # ---------------------------------------------------------------- detrend
-
-
-def test_detrend_removes_a_known_ramp() -> None:
-    t = H * np.arange(5000)  # 100 s: ten whole periods of the 0.1 Hz oscillation
-    wave = 0.3 * np.cos(2 * np.pi * 0.1 * t)
-    data = IOData(np.ones_like(t), 14.6 + 0.05 * t + wave, H)
-    out = detrend(data)
-    # what remains: the mean level 14.6 + 0.05·mean(t), plus the oscillation
-    np.testing.assert_allclose(out.y, 14.6 + 0.05 * t.mean() + wave, atol=2e-3)
-    assert np.polyfit(t, out.y, 1)[0] == pytest.approx(0.0, abs=1e-4)
-    assert out.notes[-1] == "linear trend removed from y: 0.05 L/min/s (mean level kept)"
 
 
 # ---------------------------------------------------------------- all
@@ -292,13 +233,11 @@ def test_nothing_is_mutated_and_each_step_adds_a_note() -> None:
     out = select(data, 1.0, 29.0)
     out = lowpass(out, 5.0)
     out = decimate(out, 1.0)
-    out = detrend(out)
-    out, _, _ = remove_offsets(out)
     np.testing.assert_array_equal(data.u, u)
     np.testing.assert_array_equal(data.y, y)
     assert data.notes == ("loaded",)
     assert out.notes[0] == "loaded"
-    assert len(out.notes) == 7  # select, lowpass, lowpass (anti-alias), decimate, detrend, offsets
+    assert len(out.notes) == 5  # loaded, select, lowpass, lowpass (anti-alias), decimate
     assert out.sample_time == 1.0
     assert out.t0 == 1.0
     assert out.source == "synthetic"

@@ -150,7 +150,7 @@ def test_refuses_step_too_late_and_short_record() -> None:
 def test_refuses_ill_conditioned_regressor() -> None:
     u = multilevel(5)
     with pytest.raises(NotExcitingError, match=r"condition number .* exceeds 1\.5"):
-        estimator(min_condition=1.5).fit(IOData(u=u, y=respond(ARTICLE, u), sample_time=T_S))
+        estimator(max_condition=1.5).fit(IOData(u=u, y=respond(ARTICLE, u), sample_time=T_S))
 
 
 def test_single_late_step_is_enough() -> None:

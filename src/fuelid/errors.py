@@ -26,3 +26,11 @@ class DataError(FuelidError):
 
 class NotExcitingError(DataError):
     """The data do not carry enough excitation to identify the requested model."""
+
+
+class NotFittedError(FuelidError, AttributeError):
+    """An estimator's fitted attribute or method was used before ``fit``.
+
+    Also an :class:`AttributeError`, as in scikit-learn, so ``hasattr(estimator, "K_")`` is False
+    before ``fit`` and attribute-probing tools (copy, pickle) keep working.
+    """

@@ -8,9 +8,9 @@ is never modified) with a short note appended to ``notes`` saying what was done 
 * :func:`decimate` — from the PLC sample time (0.02 s) to the control period (1 s), anti-aliased
   with :func:`lowpass` and aligned with the controller's update instants.
 * :func:`select` — a time window of the record.
-* :func:`remove_offsets` — deviations from the initial steady state (u0, y0), with a check
-  (:func:`starts_at_rest`) that the record really starts at rest.
-* :func:`detrend` — removal of a slow linear drift of y.
+
+Offsets need no preprocessing: both estimators fit a constant (and ``oe`` the initial state)
+alongside the model.
 
 Examples
 --------
@@ -21,9 +21,8 @@ Examples
 >>> d = decimate(IOData(u, y, 0.02), 1.0)
 >>> d.sample_time, d.n_samples, float(d.u[4]), float(d.u[5])
 (1.0, 30, 1.0, 1.5)
->>> base, u0, y0 = remove_offsets(d)  # y0: the filter rings slightly before the step
->>> u0, round(y0, 2), round(float(base.y[-1]), 2)
-(1.0, 14.6, 4.0)
+>>> round(float(d.y[0]), 2), round(float(d.y[-1]), 2)
+(14.6, 18.6)
 """
 
 from __future__ import annotations
@@ -36,7 +35,7 @@ from scipy import signal
 from fuelid.errors import DataError
 from fuelid.io.timeseries import FloatArray, IOData
 
-__all__ = ["decimate", "detrend", "lowpass", "remove_offsets", "select", "starts_at_rest"]
+__all__ = ["decimate", "lowpass", "select"]
 
 MIN_SELECTED_SAMPLES = 10
 """Fewest samples :func:`select` accepts."""
@@ -46,12 +45,6 @@ INTEGER_FACTOR_TOLERANCE = 1e-6
 
 ANTIALIAS_FRACTION = 0.8
 """Anti-aliasing cutoff of :func:`decimate` as a fraction of the new Nyquist frequency."""
-
-REST_THRESHOLD = 3.0
-"""Initial drift, in noise standard deviations, above which a record does not start at rest."""
-
-MAX_INITIAL_FRACTION = 0.1
-"""Largest fraction of the record the default initial (offset) window may take."""
 
 
 def _replace(
@@ -301,162 +294,3 @@ def select(data: IOData, t_start: float | None = None, t_stop: float | None = No
     part = data.segment(k_start, k_stop)
     t_last = part.t0 + (part.n_samples - 1) * h
     return _replace(part, f"selected t = {part.t0:g} … {t_last:g} s ({part.n_samples} samples)")
-
-
-def _initial_window(data: IOData, n_initial: int | None) -> int:
-    """Number of initial samples taken as the steady state (see :func:`remove_offsets`)."""
-    n = data.n_samples
-    if n_initial is not None:
-        if not 1 <= n_initial <= n:
-            raise DataError(f"n_initial must lie in 1 … {n} (the record length), got {n_initial}")
-        return n_initial
-    changes = np.flatnonzero(data.u[1:] != data.u[:-1])
-    before = int(changes[0]) + 1 if changes.size else n
-    return max(1, min(before, int(MAX_INITIAL_FRACTION * n)))
-
-
-def _initial_drift(data: IOData, n0: int) -> tuple[float, float]:
-    """Drift of y over the first ``n0`` samples and the noise standard deviation [y units].
-
-    The drift is the change of the least-squares straight line through those samples from the
-    first to the last one; the noise is std(diff(y))/√2 over the same samples. Fewer than four
-    samples give (0, 0): no evidence of drift.
-    """
-    if n0 < 4:
-        return 0.0, 0.0
-    y = data.y[:n0]
-    k = np.arange(n0, dtype=np.float64)
-    k_c = k - k.mean()
-    slope = float(np.dot(k_c, y - y.mean()) / np.dot(k_c, k_c))  # per sample
-    drift = slope * (n0 - 1)
-    sigma = float(np.std(np.diff(y)) / math.sqrt(2.0))
-    return drift, sigma
-
-
-def _is_at_rest(drift: float, sigma: float, scale: float) -> bool:
-    """Whether a drift is within the noise (with a rounding floor for noise-free data)."""
-    return abs(drift) <= max(REST_THRESHOLD * sigma, 1e-12 * max(scale, 1.0))
-
-
-def starts_at_rest(data: IOData, n_initial: int | None = None) -> bool:
-    """Whether y is steady over the initial window, before the input first changes.
-
-    The window is the one :func:`remove_offsets` averages. y is at rest when its drift over the
-    window (the rise of the least-squares line through it) is at most 3 noise standard
-    deviations, the noise being estimated from first differences as std(diff(y))/√2.
-
-    Parameters
-    ----------
-    data : IOData
-        The record.
-    n_initial : int, optional
-        Window length [samples]; default as in :func:`remove_offsets`.
-
-    Returns
-    -------
-    bool
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> t = 0.02 * np.arange(1000)
-    >>> u = np.where(t >= 5.0, 1.5, 1.0)
-    >>> starts_at_rest(IOData(u, 14.6 + 0.0 * t, 0.02))
-    True
-    >>> starts_at_rest(IOData(u, 14.6 + 2.0 * np.exp(-t / 3.0), 0.02))
-    False
-    """
-    n0 = _initial_window(data, n_initial)
-    drift, sigma = _initial_drift(data, n0)
-    return _is_at_rest(drift, sigma, float(np.max(np.abs(data.y[:n0]))))
-
-
-def remove_offsets(data: IOData, n_initial: int | None = None) -> tuple[IOData, float, float]:
-    """Deviations from the initial steady state: u − u0 and y − y0.
-
-    u0 and y0 are the means of the first ``n_initial`` samples (computed as the first sample
-    plus the mean deviation from it, so a constant start gives its value exactly). By default
-    the window is the samples before the first change of u, at least 1 and at most 10 % of the
-    record. If y drifts over that window by more than 3 noise standard deviations (see
-    :func:`starts_at_rest`) a note says the record does not start at rest: then y0 is not a
-    steady value and the fitted gain is biased.
-
-    Parameters
-    ----------
-    data : IOData
-        The record.
-    n_initial : int, optional
-        Number of initial samples averaged.
-
-    Returns
-    -------
-    data : IOData
-        The record in deviations.
-    u0 : float
-        Input offset [u_unit].
-    y0 : float
-        Output offset [y_unit].
-
-    Raises
-    ------
-    DataError
-        If ``n_initial`` is not within 1 … the record length.
-
-    Examples
-    --------
-    >>> d, u0, y0 = remove_offsets(IOData([1.0, 1.0, 1.5, 1.5], [14.6, 14.6, 14.6, 15.0], 1.0))
-    >>> u0, y0, d.u.tolist()
-    (1.0, 14.6, [0.0, 0.0, 0.5, 0.5])
-    """
-    n0 = _initial_window(data, n_initial)
-    u0 = float(data.u[0] + np.mean(data.u[:n0] - data.u[0]))
-    y0 = float(data.y[0] + np.mean(data.y[:n0] - data.y[0]))
-    notes = [
-        f"offsets removed: u0 = {u0:.6g} {data.u_unit}, y0 = {y0:.6g} {data.y_unit} "
-        f"(mean of the first {n0} samples)"
-    ]
-    drift, sigma = _initial_drift(data, n0)
-    if not _is_at_rest(drift, sigma, float(np.max(np.abs(data.y[:n0])))):
-        window = "before the first input change" if n_initial is None else "used for the offsets"
-        notes.append(
-            f"the record does not start at rest (y drifts by {drift:.3g} {data.y_unit} over the "
-            f"first {(n0 - 1) * data.sample_time:.3g} s {window}; noise sd {sigma:.2g}): "
-            "y0 is not a steady value and the gain may be biased"
-        )
-    out = _replace(data, notes[0], u=data.u - u0, y=data.y - y0)
-    return out.with_notes(*notes[1:]), u0, y0
-
-
-def detrend(data: IOData) -> IOData:
-    """Remove a linear trend from y, keeping its mean level.
-
-    The least-squares straight line through y (:func:`scipy.signal.detrend`) is removed and the
-    mean of y is added back, i.e. y − slope·(t − mean(t)). Use this only for records with slow
-    drift (sensor drift, slowly changing fuel temperature) around a steady operating point: on a
-    record with steps the line also takes away part of the step responses and biases the gain.
-
-    Parameters
-    ----------
-    data : IOData
-        The record.
-
-    Returns
-    -------
-    IOData
-        The record with y detrended; u unchanged.
-
-    Examples
-    --------
-    >>> d = detrend(IOData([1.0] * 5, [10.0, 10.1, 10.2, 10.3, 10.4], 1.0))
-    >>> [round(v, 12) for v in d.y.tolist()]
-    [10.2, 10.2, 10.2, 10.2, 10.2]
-    """
-    if data.n_samples < 2:
-        raise DataError("cannot detrend a record of fewer than 2 samples")
-    residual = np.asarray(signal.detrend(data.y, type="linear"), dtype=np.float64)
-    y = residual + float(np.mean(data.y))
-    trend = data.y - residual
-    slope = float(trend[-1] - trend[0]) / ((data.n_samples - 1) * data.sample_time)
-    return _replace(
-        data, f"linear trend removed from y: {slope:.4g} {data.y_unit}/s (mean level kept)", y=y
-    )

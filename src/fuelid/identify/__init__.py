@@ -4,5 +4,85 @@
   squares, then K and T by Newton iteration with the flowmeter's T_f and τ known);
 - :mod:`~fuelid.identify.oe`: output-error (maximum-likelihood under white noise) fit of the
   continuous-time gray-box model on the raw samples, with exact ZOH discretisation and a
-  fractional dead time.
+  fractional dead time;
+- :mod:`~fuelid.identify.diagnostics`: residual whiteness, input–residual correlation, feedback,
+  steady-state errors, sample-time advice;
+- :mod:`~fuelid.identify.procedure`: what ``fuelid identify`` runs (:func:`identify`).
+
+The methods, their assumptions and references: docs/identification.md.
+
+The estimator convention
+------------------------
+Every estimator (:class:`StepResponseLS`, :class:`OutputError`, and those to come: a
+prediction-error estimator with a noise model, a nonlinear gray-box estimator) follows
+scikit-learn's conventions, through the common base ``fuelid.identify._base.Estimator``:
+
+- ``__init__`` only stores its keyword settings, unchanged and unchecked; ``get_params()``
+  returns them (``type(est)(**est.get_params())`` is an unfitted copy), ``set_params(**kw)``
+  changes them;
+- ``fit(data, ...)`` checks the settings and the :class:`~fuelid.io.timeseries.IOData`,
+  estimates, and returns the estimator itself. A refit replaces every fitted attribute; a fit
+  that fails leaves the estimator unfitted;
+- what ``fit`` estimates is stored in attributes whose names end in an underscore and that exist
+  only after ``fit``: every estimator has ``model_`` (the fitted
+  :class:`~fuelid.model.ProcessModel`), ``K_``, ``T_``, ``T2_``, ``delay_``, ``T_f_``,
+  ``stderr_`` (standard error by model parameter, None for a fixed one), ``fixed_``,
+  ``fit_percent_``, ``n_samples_``, ``sample_time_`` and ``warnings_``. Before ``fit``, reading
+  one or calling ``simulate``, ``predict`` or ``score`` raises
+  :class:`~fuelid.errors.NotFittedError` (also an ``AttributeError``, so ``hasattr`` is False);
+- ``simulate(data, initial="fitted" | "rest" | "estimate")`` is the free-run response of the
+  fitted model to ``data.u``: from the initial conditions estimated by ``fit`` (only on the
+  fitting record or one that continues it, as a validation split does; refused on any other),
+  from rest at u[0] with the fitted output offset, or with the offset and the free response of
+  the initial state re-estimated by least squares on ``data`` (held-out records that do not
+  start at rest). ``fit_percent_``, ``fuelid identify``'s fit and validation-split fit score
+  ``simulate(..., initial="fitted")``; a separate validation record is scored from ``"rest"``;
+- ``predict(data, horizon=1, initial="rest")`` is the k-step-ahead prediction ŷ(t | t − k). For
+  the estimators here the noise model is H = 1, and the predictor is the simulation for every
+  k (Ljung 1999, §3.2); an estimator with a noise model uses past outputs and differs;
+- ``score(data, initial="fitted")`` is the NRMSE fit [%] of ``simulate(data, initial)``;
+- ``to_control()`` gives the delay-free part as a python-control transfer function (imported
+  only then: importing :mod:`fuelid.identify` loads neither python-control nor matplotlib).
+
+Methods are named in one registry, :data:`~fuelid.identify.procedure.METHODS`.
 """
+
+from __future__ import annotations
+
+from fuelid.identify.diagnostics import (
+    CorrelationTest,
+    StepError,
+    feedback_suspected,
+    input_residual_correlation,
+    residual_whiteness,
+    sample_time_advice,
+    steady_state_errors,
+)
+from fuelid.identify.oe import OutputError, cramer_rao_bound
+from fuelid.identify.procedure import (
+    METHODS,
+    IdentificationResult,
+    IdentifyOptions,
+    identify,
+    interval95,
+)
+from fuelid.identify.step_ls import StepResponseLS, step_shape
+
+__all__ = [
+    "METHODS",
+    "CorrelationTest",
+    "IdentificationResult",
+    "IdentifyOptions",
+    "OutputError",
+    "StepError",
+    "StepResponseLS",
+    "cramer_rao_bound",
+    "feedback_suspected",
+    "identify",
+    "input_residual_correlation",
+    "interval95",
+    "residual_whiteness",
+    "sample_time_advice",
+    "steady_state_errors",
+    "step_shape",
+]

@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.stats
+import scipy.special
 from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
@@ -47,6 +47,11 @@ class CorrelationTest:
         return float(np.mean(np.abs(self.values) > self.bound))
 
 
+def _chi2_sf(statistic: float, dof: int) -> float:
+    """P(χ²(dof) > statistic): ``scipy.stats.chi2.sf`` without importing scipy.stats (slow)."""
+    return float(scipy.special.chdtrc(dof, statistic))
+
+
 def _normalised_xcorr(a: FloatArray, b: FloatArray, lags: FloatArray) -> FloatArray:
     """r_ab(τ) = Σ_k a[k+τ]·b[k] / (N·σ_a·σ_b) for integer lags τ."""
     a = a - a.mean()
@@ -76,9 +81,7 @@ def residual_whiteness(residuals: ArrayLike, max_lag: int = 25) -> CorrelationTe
     r = _normalised_xcorr(e, e, lags)
     n = e.size
     stat = float(n * np.sum(r**2))
-    return CorrelationTest(
-        lags, r, 1.96 / math.sqrt(n), stat, float(scipy.stats.chi2.sf(stat, lags.size))
-    )
+    return CorrelationTest(lags, r, 1.96 / math.sqrt(n), stat, _chi2_sf(stat, lags.size))
 
 
 def input_residual_correlation(
@@ -98,9 +101,7 @@ def input_residual_correlation(
     n = e.size
     positive = r[lags >= 0]
     stat = float(n * np.sum(positive**2))
-    return CorrelationTest(
-        lags, r, 1.96 / math.sqrt(n), stat, float(scipy.stats.chi2.sf(stat, positive.size))
-    )
+    return CorrelationTest(lags, r, 1.96 / math.sqrt(n), stat, _chi2_sf(stat, positive.size))
 
 
 def feedback_suspected(test: CorrelationTest) -> bool:
@@ -108,15 +109,13 @@ def feedback_suspected(test: CorrelationTest) -> bool:
     negative = test.values[test.lags < 0]
     n = (1.96 / test.bound) ** 2
     stat = float(n * np.sum(negative**2))
-    return float(scipy.stats.chi2.sf(stat, negative.size)) < 0.01
+    return _chi2_sf(stat, negative.size) < 0.01
 
 
 @dataclass(frozen=True)
 class StepError:
     """Steady-state error of the model at the end of one constant-input plateau."""
 
-    t_end: float
-    """End of the plateau [s]."""
     measured: float
     """Mean measured output over the plateau's last fifth [output unit]."""
     model: float
@@ -153,17 +152,17 @@ def steady_state_errors(
         if (b - a) * sample_time < settle:
             continue
         tail = slice(b - max(1, (b - a) // 5), b)
-        out.append(
-            StepError((b - 1) * sample_time, float(y[tail].mean()), float(y_hat[tail].mean()))
-        )
+        out.append(StepError(float(y[tail].mean()), float(y_hat[tail].mean())))
     return out
 
 
 def sample_time_advice(settling_time: float, sample_time: float) -> str | None:
     """Advice when the settling time spans too few or very many samples (None when fine).
 
-    theory.md: a settling time over 60–120 samples is comfortable; the article's 1 s period gives
-    only 5–6, one reason to fit the raw PLC samples.
+    Below 20 samples per settling time the samples resolve the response poorly (the article's
+    1 s period gives only 5–6 for the fuel loop, one reason to fit the raw PLC samples); above
+    5000 decimating with anti-alias filtering fits as well and faster (docs/identification.md
+    §5, the sample-time check).
     """
     if not (math.isfinite(settling_time) and settling_time > 0.0):
         return None

@@ -1,6 +1,7 @@
 """Output-error fit of the continuous-time gray-box model on the raw samples.
 
-Model (design.md's family), for a record ``u, y`` sampled every ``h`` seconds::
+Model (the family of :mod:`fuelid.model`; docs/identification.md §3), for a record ``u, y``
+sampled every ``h`` seconds::
 
     ŷ[k] = b + K · s[k](T, T2, θ) + Σ_i c_i · p_i^k
 
@@ -18,28 +19,37 @@ projection), so the nonlinear search runs over one to three parameters only: log
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Literal
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal, Self
 
-import control
 import numpy as np
-import scipy.optimize
 from numpy.typing import NDArray
-from threadpoolctl import ThreadpoolController
 
 from fuelid.errors import FuelidError, NotExcitingError
+from fuelid.identify._base import Estimator, Initial
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel, nrmse_fit, simulate_model
+
+if TYPE_CHECKING:
+    import control
+    from threadpoolctl import ThreadpoolController
 
 FloatArray = NDArray[np.float64]
 Order = Literal[1, 2, "auto"]
 #: longest record used for the coarse grid of starting values (subsampled above this)
 GRID_SAMPLES = 20_000
-#: found once: scanning the loaded BLAS libraries costs tens of milliseconds per call
-_THREADPOOLS = ThreadpoolController()
+
+
+@functools.cache
+def _threadpools() -> ThreadpoolController:
+    """Found once, at the first fit: scanning the BLAS libraries costs tens of milliseconds."""
+    from threadpoolctl import ThreadpoolController
+
+    return ThreadpoolController()
 
 
 @dataclass(frozen=True)
@@ -108,8 +118,7 @@ def _solve(Phi: FloatArray, y: FloatArray) -> _Evaluation:
     return _Evaluation(Phi=Phi, beta=beta, residual=y - Phi @ beta)
 
 
-@dataclass
-class OutputError:
+class OutputError(Estimator):
     """Output-error estimator of K·e^(−θs)/((T s+1)(T2 s+1)(T_f s+1)).
 
     Parameters
@@ -130,6 +139,36 @@ class OutputError:
     max_delay : float or None
         Upper bound of the delay search [s] (default: a quarter of the record, at most 60 s).
 
+    Attributes
+    ----------
+    K_, T_, T2_, delay_, T_f_ : float
+        The fitted model's parameters [output unit / input unit, s] (T2_ = 0 for order 1).
+    model_ : ProcessModel
+        The same as a model.
+    offset_ : float
+        Output at rest at ``u_ref_`` [output unit].
+    u_ref_ : float
+        Input the model's rest state refers to: ``u_before``, else the fitting record's u[0].
+    param_names_, params_, cov_ : tuple, ndarray, ndarray
+        Every estimated parameter (K, the free nonlinear ones, the offset, the initial-state
+        amplitudes ``c0…``), their values and covariance σ̂²(JᵀJ)⁻¹.
+    stderr_ : dict
+        Standard error of each model parameter K, T, T2, delay, T_f (None for a fixed one).
+    fixed_ : tuple of str
+        The model parameters held fixed (priors and structural zeros).
+    sigma_, sse_ : float
+        Residual standard deviation and sum of squares [output unit, output unit²].
+    aic_ : dict
+        Akaike information criterion by order fitted.
+    y_hat_ : ndarray
+        ``simulate(data, initial="fitted")`` on the fitting record.
+    fit_percent_ : float
+        NRMSE fit [%] of ``y_hat_``: ``score(data, initial="fitted")`` on the fitting record.
+    n_samples_, sample_time_ : int, float
+        Size and sample time [s] of the fitting record.
+    warnings_ : list of str
+        The data's notes, then what the fit noticed.
+
     Examples
     --------
     >>> from fuelid.model import ProcessModel, nrmse_fit, simulate_model
@@ -141,63 +180,82 @@ class OutputError:
     (3.0, 2.0, 0.3)
     """
 
-    order: Order = 1
-    delay: float | None = None
-    T_f: float = 0.0
-    initial: Literal["estimate", "rest"] = "estimate"
-    u_before: float | None = None
-    max_delay: float | None = None
+    _SETTINGS = ("order", "delay", "T_f", "initial", "u_before", "max_delay")
 
-    # fitted attributes (set by fit)
-    K_: float = field(init=False, default=math.nan)
-    T_: float = field(init=False, default=math.nan)
-    T2_: float = field(init=False, default=0.0)
-    delay_: float = field(init=False, default=math.nan)
-    T_f_: float = field(init=False, default=0.0)
-    offset_: float = field(init=False, default=math.nan)
-    u_ref_: float = field(init=False, default=math.nan)
-    initial_response_: FloatArray = field(init=False, repr=False)
-    param_names_: tuple[str, ...] = field(init=False, default=())
-    params_: FloatArray = field(init=False, repr=False)
-    cov_: FloatArray = field(init=False, repr=False)
-    stderr_: dict[str, float | None] = field(init=False, default_factory=dict)
-    fixed_: tuple[str, ...] = field(init=False, default=())
-    sigma_: float = field(init=False, default=math.nan)
-    sse_: float = field(init=False, default=math.nan)
-    aic_: dict[int, float] = field(init=False, default_factory=dict)
-    fit_percent_: float = field(init=False, default=math.nan)
-    y_hat_: FloatArray = field(init=False, repr=False)
-    n_samples_: int = field(init=False, default=0)
-    sample_time_: float = field(init=False, default=math.nan)
-    warnings_: list[str] = field(init=False, default_factory=list)
-    _fitted: tuple[_Structure, FloatArray] | None = field(init=False, default=None, repr=False)
+    K_: float
+    T_: float
+    T2_: float
+    delay_: float
+    T_f_: float
+    offset_: float
+    u_ref_: float
+    param_names_: tuple[str, ...]
+    params_: FloatArray
+    cov_: FloatArray
+    stderr_: dict[str, float | None]
+    fixed_: tuple[str, ...]
+    sigma_: float
+    sse_: float
+    aic_: dict[int, float]
+    fit_percent_: float
+    y_hat_: FloatArray
+    n_samples_: int
+    sample_time_: float
+    warnings_: list[str]
+    _state: tuple[_Structure, FloatArray]
+
+    def __init__(
+        self,
+        *,
+        order: Order = 1,
+        delay: float | None = None,
+        T_f: float = 0.0,
+        initial: Literal["estimate", "rest"] = "estimate",
+        u_before: float | None = None,
+        max_delay: float | None = None,
+    ) -> None:
+        self.order = order
+        self.delay = delay
+        self.T_f = T_f
+        self.initial = initial
+        self.u_before = u_before
+        self.max_delay = max_delay
 
     # ------------------------------------------------------------------ public API
-    def fit(self, data: IOData, init: ProcessModel | None = None) -> OutputError:
+    def fit(self, data: IOData, init: ProcessModel | None = None) -> Self:
         """Fit the model to ``data``; ``init`` warm-starts the search (e.g. the last window).
 
         Returns
         -------
         OutputError
             ``self``, with the fitted attributes (ending in ``_``) set.
+
+        Raises
+        ------
+        NotExcitingError
+            Too few samples, or an input that never changes.
+        FuelidError
+            Bad settings.
         """
-        self._validate(data)
-        orders = (1, 2) if self.order == "auto" else (int(self.order),)
-        # one BLAS thread: the fit alternates long thin products with tiny matrix exponentials,
-        # and OpenBLAS's thread hand-over makes the tiny ones ~200x slower (measured: 0.49 s vs
-        # 0.15 s for one hour of 50 Hz data)
-        with _THREADPOOLS.limit(limits=1, user_api="blas"):
-            fits = {
-                order: self._fit_structure(data, self._structure(order), init) for order in orders
-            }
-            n = data.n_samples
-            self.aic_ = {
-                order: n * math.log(max(ev.sse, 1e-300) / n) + 2 * (ev.beta.size + z.size)
-                for order, (z, ev) in fits.items()
-            }
-            best = min(self.aic_, key=self.aic_.__getitem__)
-            z, ev = fits[best]
-            self._store(data, self._structure(best), z, ev)
+        with self._fitting(data):
+            self._validate(data)
+            orders = (1, 2) if self.order == "auto" else (int(self.order),)
+            # one BLAS thread: the fit alternates long thin products with tiny matrix
+            # exponentials, and OpenBLAS's thread hand-over makes the tiny ones ~200x slower
+            # (measured: 0.49 s vs 0.15 s for one hour of 50 Hz data)
+            with _threadpools().limit(limits=1, user_api="blas"):
+                fits = {
+                    order: self._fit_structure(data, self._structure(order), init)
+                    for order in orders
+                }
+                n = data.n_samples
+                self.aic_ = {
+                    order: n * math.log(max(ev.sse, 1e-300) / n) + 2 * (ev.beta.size + z.size)
+                    for order, (z, ev) in fits.items()
+                }
+                best = min(self.aic_, key=self.aic_.__getitem__)
+                z, ev = fits[best]
+                self._store(data, self._structure(best), z, ev)
         return self
 
     @property
@@ -205,22 +263,59 @@ class OutputError:
         """The fitted model (K in output unit per input unit, times in s)."""
         return ProcessModel(K=self.K_, T=self.T_, T2=self.T2_, T_f=self.T_f_, delay=self.delay_)
 
-    def predict(self, data: IOData) -> FloatArray:
-        """Free-run simulation of the fitted model on ``data.u``, starting at rest at u[0]."""
-        y_rest = self.offset_ + self.K_ * (float(data.u[0]) - self.u_ref_)
-        return y_rest + simulate_model(self.model_, data.u, data.sample_time)
+    def simulate(self, data: IOData, initial: Initial = "fitted") -> FloatArray:
+        """Free-run output of the fitted model for the input ``data.u`` [output unit].
 
-    def simulate(self, data: IOData) -> FloatArray:
-        """Free-run output over a record that STARTS WHERE THE FITTED ONE STARTED.
+        Parameters
+        ----------
+        data : IOData
+            The record; any sample time (the model is continuous-time). ``data.y`` is used only
+            by ``initial="estimate"``.
+        initial : "fitted", "rest" or "estimate"
+            The state at the record's first sample:
 
-        Same initial state, offset and reference input as the fit, so fitting on the first part
-        of a log and simulating the whole log scores the held-out rest honestly (validation).
+            - ``"fitted"`` (default): the initial state, offset and reference input estimated by
+              ``fit``. Valid only on the fitting record or on one that continues it (the whole
+              log after fitting its first part: the held-out rest is then scored honestly, as
+              ``fuelid identify --validate-split`` does); anything else is refused. This is
+              what ``fit_percent_`` scores.
+            - ``"rest"``: at rest at u[0] before the record, the output at the fitted offset
+              ``offset_ + K_·(u[0] − u_ref_)``. What a separate validation record is scored
+              with (``--validate-file``).
+            - ``"estimate"``: the offset and the free-response amplitudes of every lag
+              (c_i·e^(−k·h/T_i)) re-estimated by least squares on ``data``; for held-out
+              records that do not start at rest.
+
+        Returns
+        -------
+        ndarray
+            ŷ, one value per sample.
         """
-        if self._fitted is None:
-            raise FuelidError("the estimator is not fitted")
-        st, beta = self._fitted
-        Phi = _regressors(st, self.T_, self.T2_, self.delay_, data.u, data.sample_time, self.u_ref_)
-        return np.asarray(Phi @ beta, dtype=float)
+        self._check_simulation(data, initial)
+        u, h = data.u, data.sample_time
+        if initial == "fitted":
+            st, beta = self._state
+            Phi = _regressors(st, self.T_, self.T2_, self.delay_, u, h, self.u_ref_)
+            return np.asarray(Phi @ beta, dtype=float)
+        response = simulate_model(self.model_, u, h)
+        if initial == "rest":
+            return self.offset_ + self.K_ * (float(u[0]) - self.u_ref_) + response
+        discrete = discretise(self.model_.time_constants, self.delay_, h)
+        basis = np.column_stack((np.ones(u.size), discrete.modes(u.size)))
+        return np.asarray(response + basis @ _solve(basis, data.y - response).beta, dtype=float)
+
+    def predict(self, data: IOData, horizon: int = 1, initial: Initial = "rest") -> FloatArray:
+        """k-step-ahead prediction ŷ(t | t − k) of the output, k = ``horizon`` [output unit].
+
+        The output-error model has the noise model H = 1 (white noise added to the output), so
+        its k-step-ahead predictor W_k·G·u + (1 − W_k)·y, W_k = H̄_k·H⁻¹, reduces to G·u for
+        every k ≥ 1: the prediction does not use past outputs and equals the free-run
+        simulation (Ljung, *System Identification*, 2nd ed., 1999, §3.2). So this returns
+        ``simulate(data, initial)``; ``horizon`` is checked and otherwise has no effect.
+        ``initial`` defaults to ``"rest"`` (the record starts at rest at its first input).
+        """
+        self._check_horizon(horizon)
+        return self.simulate(data, initial)
 
     def to_control(self) -> control.TransferFunction:
         """Delay-free part as a :class:`control.TransferFunction` (dead time in ``delay_``)."""
@@ -242,8 +337,16 @@ class OutputError:
             raise FuelidError(f"order must be 1, 2 or 'auto', got {self.order!r}")
         if self.initial not in ("estimate", "rest"):
             raise FuelidError(f"initial must be 'estimate' or 'rest', got {self.initial!r}")
-        if self.T_f < 0.0 or (self.delay is not None and self.delay < 0.0):
-            raise FuelidError("the flowmeter lag and the delay must not be negative")
+        for name in ("T_f", "delay"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value >= 0.0):
+                raise FuelidError(f"{name} must be finite and non-negative, got {value}")
+        if self.max_delay is not None and not (
+            math.isfinite(self.max_delay) and self.max_delay > 0.0
+        ):
+            raise FuelidError(f"max_delay must be positive, got {self.max_delay}")
+        if self.u_before is not None and not math.isfinite(self.u_before):
+            raise FuelidError(f"u_before must be finite, got {self.u_before}")
         if data.n_samples < 20:
             raise NotExcitingError(f"{data.n_samples} samples are too few to fit the model")
         if np.ptp(data.u) == 0.0 and (self.u_before is None or self.u_before == data.u[0]):
@@ -256,6 +359,8 @@ class OutputError:
     def _fit_structure(
         self, data: IOData, st: _Structure, init: ProcessModel | None
     ) -> tuple[FloatArray, _Evaluation]:
+        from scipy.optimize import least_squares  # slow to import: only when fitting
+
         h = data.sample_time
         record = data.n_samples * h
         u_ref = st.u_before if st.u_before is not None else float(data.u[0])
@@ -281,7 +386,7 @@ class OutputError:
         best: tuple[FloatArray, _Evaluation] | None = None
         for z0 in starts:
             z0 = np.clip(z0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
-            sol = scipy.optimize.least_squares(
+            sol = least_squares(
                 residual,
                 z0,
                 bounds=(lo, hi),
@@ -356,9 +461,8 @@ class OutputError:
             st.T_f,
         )
         self.offset_ = float(ev.beta[1])
-        self._fitted = (st, ev.beta.copy())
+        self._state = (st, ev.beta.copy())
         self.u_ref_ = u_ref
-        self.initial_response_ = ev.Phi[:, 2:] @ ev.beta[2:] if ev.beta.size > 2 else np.zeros(n)
         self.y_hat_ = data.y - ev.residual
         self.sse_ = ev.sse
         self.n_samples_ = n
@@ -450,8 +554,9 @@ def cramer_rao_bound(
     Examples
     --------
     One step of amplitude a = K·Δu = 1, noise σ = 0.01, h = 0.1 s ≪ T = 10 s, delay known.
-    With T alone free, theory.md's guide gives sd(T̂)/T = √(4h/T)·σ/a = 0.0020; estimating K and
-    the offset as well costs a little (their columns correlate with ∂ŷ/∂T):
+    With T alone free, the hand estimate of docs/identification.md §4 gives
+    sd(T̂)/T = √(4h/T)·σ/a = 0.0020; estimating K and the offset as well costs a little (their
+    columns correlate with ∂ŷ/∂T):
 
     >>> u = np.r_[np.zeros(100), np.ones(2000)]
     >>> names, cov = cramer_rao_bound(ProcessModel(K=1.0, T=10.0), u, 0.1, 0.01)

@@ -7,9 +7,8 @@ numbers through :func:`identify`.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,6 +23,11 @@ from fuelid.preprocess import decimate
 
 FloatArray = NDArray[np.float64]
 Method = Literal["oe", "step-ls"]
+METHODS: tuple[Method, ...] = get_args(Method)
+"""The identification methods, the one registry of their names: ``("oe", "step-ls")``."""
+POSITIVE_PARAMETERS = frozenset({"T", "T2", "delay", "T_f"})
+"""Model parameters that cannot be negative: their 95 % intervals respect the bound 0."""
+CiMethod = Literal["normal", "log", "clipped"]
 
 
 @dataclass(frozen=True)
@@ -31,6 +35,7 @@ class IdentifyOptions:
     """Settings of one identification (see ``fuelid identify --help`` for their meaning)."""
 
     method: Method = "oe"
+    """One of :data:`METHODS`; anything else is refused."""
     order: Literal[1, 2, "auto"] = 1
     delay: float | Literal["auto"] | None = None
     """Fixed dead time [s], "auto" to estimate it, None: the flowmeter delay if given, else auto."""
@@ -43,6 +48,12 @@ class IdentifyOptions:
     validate_split: float | None = None
     u_before: float | None = None
 
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise FuelidError(
+                f"unknown identification method {self.method!r}: use one of {', '.join(METHODS)}"
+            )
+
     def resolved_delay(self) -> float | None:
         """The fixed dead time [s], or None when it is to be estimated."""
         if self.delay == "auto":
@@ -50,6 +61,44 @@ class IdentifyOptions:
         if self.delay is not None:
             return float(self.delay)
         return self.flowmeter_delay
+
+
+def interval95(
+    value: float, se: float | None, *, positive: bool = False
+) -> tuple[list[float], CiMethod] | None:
+    """95 % confidence interval [low, high] of one parameter, and the method that made it.
+
+    - ``"normal"``: value ± 1.96·se, for a parameter of either sign (K);
+    - ``"log"``: exp(ln value ± 1.96·se/value) for a positive parameter (T, T2, the delay): the
+      normal interval of ln value, whose standard error is se/value by the delta method. It lies
+      above 0, contains the estimate, and reaches further above it than below;
+    - ``"clipped"``: [max(0, value − 1.96·se), value + 1.96·se] for a positive parameter whose
+      estimate is 0 (a delay at its bound, where ln is undefined) or whose log interval is
+      unbounded (se far larger than the estimate).
+
+    None when there is no finite standard error (a fixed parameter).
+
+    Examples
+    --------
+    >>> def show(ci):
+    ...     return [round(v, 4) for v in ci[0]], ci[1]
+    >>> show(interval95(13.1, 0.1))
+    ([12.904, 13.296], 'normal')
+    >>> show(interval95(0.5, 0.5, positive=True))  # 0.5·e^(∓1.96)
+    ([0.0704, 3.5495], 'log')
+    >>> show(interval95(0.0, 0.7, positive=True))
+    ([0.0, 1.372], 'clipped')
+    """
+    if se is None or not math.isfinite(se):
+        return None
+    if not positive:
+        return [value - Z95 * se, value + Z95 * se], "normal"
+    if value > 0.0:
+        with np.errstate(over="ignore"):
+            spread = float(np.exp(Z95 * se / value))
+        if math.isfinite(value * spread):
+            return [value / spread, value * spread], "log"
+    return [max(0.0, value - Z95 * se), value + Z95 * se], "clipped"
 
 
 @dataclass
@@ -70,22 +119,28 @@ class IdentificationResult:
     time: FloatArray
     y: FloatArray
     y_hat: FloatArray
+    """The model output: the free-run simulation over the whole record (fit and held-out)."""
     split_time: float | None
     diagnostics: dict[str, Any] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
 
-    def ci95(self) -> dict[str, list[float] | None]:
-        """95 % confidence intervals (normal approximation) of the model parameters."""
+    def _intervals(self) -> dict[str, tuple[list[float], CiMethod] | None]:
         values = self.model.as_dict()
-        out: dict[str, list[float] | None] = {}
-        for key in MODEL_KEYS:
-            se = self.stderr.get(key)
-            out[key] = (
-                None
-                if se is None or not math.isfinite(se)
-                else [values[key] - Z95 * se, values[key] + Z95 * se]
-            )
-        return out
+        return {
+            key: interval95(values[key], self.stderr.get(key), positive=key in POSITIVE_PARAMETERS)
+            for key in MODEL_KEYS
+        }
+
+    def ci95(self) -> dict[str, list[float] | None]:
+        """95 % confidence intervals of the model parameters (:func:`interval95`).
+
+        Symmetric for K; log-transformed for the positive T, T2 and delay (never below 0).
+        """
+        return {key: None if ci is None else ci[0] for key, ci in self._intervals().items()}
+
+    def ci95_method(self) -> dict[str, CiMethod | None]:
+        """How each interval of :meth:`ci95` was made: "normal", "log" or "clipped"."""
+        return {key: None if ci is None else ci[1] for key, ci in self._intervals().items()}
 
     def to_json(self) -> dict[str, Any]:
         """The documented JSON object of ``fuelid identify --json`` (without provenance)."""
@@ -95,6 +150,7 @@ class IdentificationResult:
             "fixed": list(self.fixed),
             "stderr": {key: self.stderr.get(key) for key in MODEL_KEYS},
             "ci95": self.ci95(),
+            "ci95_method": self.ci95_method(),
             "cov": {"names": list(self.cov_names), "matrix": self.cov.tolist()},
             "fit_percent": self.fit_percent,
             "validation_fit_percent": self.validation_fit_percent,
@@ -165,9 +221,12 @@ def identify(
     """Identify the model family on ``data`` with ``options``.
 
     ``oe`` fits the raw samples; ``step-ls`` first low-passes (zero phase) and decimates to the
-    control period, as the article does. With ``validate_split`` the last fraction of the record
-    is held out: the model is fitted on the rest and simulated on through it. A separate
-    ``validation`` record is scored by a free-run simulation from rest at its first input.
+    control period, as the article does. The model output ``y_hat`` is the estimator's
+    ``simulate(work, initial="fitted")`` over the whole record: from the initial state
+    estimated by the fit, on through the held-out last fraction of the record when
+    ``validate_split`` is given; ``fit_percent`` scores it on the fitted part,
+    ``validation_fit_percent`` on the held-out part. A separate ``validation`` record is scored
+    by ``simulate(validation, initial="rest")``: from rest at its first input.
     """
     if validation is not None and options.validate_split is not None:
         raise FuelidError("give either a validation split or a validation file, not both")
@@ -175,6 +234,7 @@ def identify(
     delay = options.resolved_delay()
     _check_priors(data, T_f, delay, options.flowmeter_delay, options.u_before)
     warnings: list[str] = []
+    estimator: StepResponseLS | OutputError
     if options.method == "step-ls":
         work = _decimated(data, options.control_period)
         if delay is None:
@@ -187,14 +247,10 @@ def identify(
         ls = StepResponseLS(
             N=options.N, T_f=T_f, delay=delay, settling_time=options.settling_time
         ).fit(fit_data)
-        predict: Callable[[IOData], FloatArray] = ls.predict
-        y_hat = ls.predict(work)
-        model = ls.model_
-        stderr: dict[str, float | None] = {"K": ls.K_stderr_, "T": ls.T_stderr_}
+        estimator = ls
         cov_names: tuple[str, ...] = ("K", "T")
         cov = np.diag([ls.K_stderr_**2, ls.T_stderr_**2])
         cov[0, 1] = cov[1, 0] = np.nan  # the two-stage method gives no joint covariance
-        fixed: tuple[str, ...] = ("T2", "delay", "T_f")
         # what decimation did is information, not a warning; the loader's notes stay warnings
         preprocessing = [n for n in work.notes if n not in data.notes]
         warnings.extend(w for w in ls.warnings_ if w not in preprocessing)
@@ -203,7 +259,6 @@ def identify(
             "step_coefficients": ls.a_.tolist(),
             "preprocessing": preprocessing,
         }
-        residual_model = y_hat
     else:
         work = data
         if options.order not in (1, 2, "auto"):
@@ -212,12 +267,8 @@ def identify(
         oe = OutputError(order=options.order, delay=delay, T_f=T_f, u_before=options.u_before).fit(
             fit_data
         )
-        predict = oe.predict
-        y_hat = oe.simulate(work)
-        model = oe.model_
-        stderr = dict(oe.stderr_)
+        estimator = oe
         cov_names, cov = oe.param_names_, oe.cov_
-        fixed = oe.fixed_
         warnings.extend(oe.warnings_)
         extra = {"aic": {str(k): v for k, v in oe.aic_.items()}, "noise_std": oe.sigma_}
         if "T2" in oe.param_names_ and "delay" in oe.param_names_:
@@ -225,25 +276,25 @@ def identify(
             extra["correlation_T2_delay"] = float(
                 oe.correlation_[names.index("T2"), names.index("delay")]
             )
-        residual_model = y_hat
+    model = estimator.model_
+    stderr = dict(estimator.stderr_)
+    y_model = estimator.simulate(work, initial="fitted")
     time = work.t
     y = work.y
-    fit_percent = nrmse_fit(y[:n_fit], residual_model[:n_fit])
-    validation_fit = (
-        nrmse_fit(y[n_fit:], residual_model[n_fit:]) if n_fit < work.n_samples else None
-    )
+    fit_percent = nrmse_fit(y[:n_fit], y_model[:n_fit])
+    validation_fit = nrmse_fit(y[n_fit:], y_model[n_fit:]) if n_fit < work.n_samples else None
     if validation is not None:
         if options.method == "step-ls":
             validation = _decimated(validation, options.control_period)
-        validation_fit = nrmse_fit(validation.y, predict(validation))
-    residuals = y[:n_fit] - residual_model[:n_fit]
+        validation_fit = estimator.score(validation, initial="rest")
+    residuals = y[:n_fit] - y_model[:n_fit]
     white = diagnostics.residual_whiteness(residuals)
     # lags must span the controller's reaction: two control periods at least
     max_lag = max(25, round(2.0 * options.control_period / work.sample_time))
     max_lag = min(max_lag, n_fit // 4)
     cross = diagnostics.input_residual_correlation(work.u[:n_fit], residuals, max_lag)
     settle = model.settling_time()
-    steps = diagnostics.steady_state_errors(work.u, y, residual_model, work.sample_time, settle)
+    steps = diagnostics.steady_state_errors(work.u, y, y_model, work.sample_time, settle)
     diag: dict[str, Any] = {
         "residual_whiteness": {
             "p_value": white.p_value,
@@ -287,7 +338,7 @@ def identify(
     return IdentificationResult(
         method=options.method,
         model=model,
-        fixed=fixed,
+        fixed=estimator.fixed_,
         stderr=stderr,
         cov_names=cov_names,
         cov=cov,
@@ -298,7 +349,7 @@ def identify(
         warnings=list(dict.fromkeys(warnings)),
         time=time,
         y=y,
-        y_hat=residual_model,
+        y_hat=y_model,
         split_time=float(time[n_fit]) if n_fit < work.n_samples else None,
         diagnostics=diag,
         extra=extra,

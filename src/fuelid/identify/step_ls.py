@@ -1,9 +1,9 @@
 r"""The source article's method: truncated step-response least squares, then K and T by Newton.
 
-Stage 1 (theory.md §3.1). The input is held between control periods, so it is a sum of steps;
-with the unit step response sampled at the control period, :math:`a_i = s(i\,T_s)`, and N chosen
-so that the response has settled after N periods (:math:`a_i = a_N` for i ≥ N), superposition
-gives, in deviations from the initial steady state,
+Stage 1 (docs/identification.md §2.1). The input is held between control periods, so it is a
+sum of steps; with the unit step response sampled at the control period, :math:`a_i = s(i\,T_s)`,
+and N chosen so that the response has settled after N periods (:math:`a_i = a_N` for i ≥ N),
+superposition gives, in deviations from the initial steady state,
 
 .. math:: y(k) = \sum_{i=1}^{N-1} a_i\,\Delta u(k-i) + a_N\,u(k-N) + e(k),
           \qquad \Delta u(k) = u(k) - u(k-1),
@@ -21,7 +21,7 @@ repeated-root limit when T → T_f). K enters linearly and is eliminated in clos
 T solves the nonlinear normal equation of the concentrated cost by a safeguarded Newton
 iteration.
 
-Choices made here (the article's equations are lost; theory.md leaves these open):
+Choices made here (the article's equations are lost; docs/identification.md §2.1 records these):
 
 - **Deviations.** u is taken relative to ``u0 = u[0]`` and y relative to ``y0``, the mean of y
   over the samples up to and including the first input change (the output cannot react at the
@@ -34,25 +34,30 @@ Choices made here (the article's equations are lost; theory.md leaves these open
   are reported (``n_rows_used_``, ``n_exciting_rows_``).
 - **Refusal.** :class:`~fuelid.errors.NotExcitingError` with the reason when the input is
   constant, the record is too short, rank(Φ) < N (the unexcited coefficients are named) or the
-  condition number of Φ exceeds ``min_condition``.
-- **Known weakness** (measured, theory.md): if the true response has not settled at N·T_s, the
-  truncation biases a_N and hence K and T whatever the noise level; a warning is issued when the
-  fitted model's 98 % settling time exceeds N·T_s.
+  condition number of Φ exceeds ``max_condition``.
+- **Known weakness** (measured, docs/identification.md §2.4): if the true response has not
+  settled at N·T_s, the truncation biases a_N and hence K and T whatever the noise level; a
+  warning is issued when the fitted model's 98 % settling time exceeds N·T_s.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Self
 
-import control
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid.errors import FuelidError, NotExcitingError
+from fuelid.identify._base import Estimator, Initial
 from fuelid.io.timeseries import IOData
+from fuelid.lti import discretise
 from fuelid.model import ProcessModel
+
+if TYPE_CHECKING:
+    import control
 
 FloatArray = NDArray[np.float64]
 
@@ -184,8 +189,7 @@ def _initial_T(a: FloatArray, t: FloatArray, T_f: float, delay: float, T_s: floa
     return max(t63 - delay - T_f, 0.1 * T_s)
 
 
-@dataclass
-class StepResponseLS:
+class StepResponseLS(Estimator):
     r"""The article's two-stage estimator of K·e^(−τs)/((T s+1)(T_f s+1)), T_f and τ known.
 
     Parameters
@@ -199,8 +203,9 @@ class StepResponseLS:
     settling_time : float or None
         98 % settling time of a prior model [s] (e.g. the plant TOML's); used for
         ``N = ceil(settling_time / T_s)`` when N is not given.
-    min_condition : float
-        Largest accepted condition number of the regressor matrix Φ (a bound, despite the name).
+    max_condition : float
+        Largest accepted condition number of the regressor matrix Φ (above it the input
+        changes do not separate the N coefficients and the fit is refused).
 
     Attributes
     ----------
@@ -210,8 +215,14 @@ class StepResponseLS:
         Covariance σ²(ΦᵀΦ)⁻¹ of ``a_`` (NaN when the rows leave no degree of freedom).
     K_, T_ : float
         Fitted static gain [output unit / input unit] and time constant [s].
+    T2_ : float
+        0: the method fits one process time constant.
     K_stderr_, T_stderr_ : float
         Their standard errors, ``cov_a_`` propagated through the stage-2 fit (linearised).
+    stderr_ : dict
+        The same by model parameter K, T, T2, delay, T_f (None for the fixed ones).
+    fixed_ : tuple of str
+        The model parameters held fixed: T2, delay, T_f.
     T_f_, delay_ : float
         The priors used [s].
     N_ : int
@@ -230,6 +241,10 @@ class StepResponseLS:
         Newton iterations of stage 2.
     model_ : ProcessModel
         The fitted model.
+    fit_percent_ : float
+        NRMSE fit [%] of ``simulate(data, initial="fitted")`` on the fitting record.
+    n_samples_, sample_time_ : int, float
+        Size and sample time [s] of the fitting record.
     warnings_ : list of str
         The data's notes, then what the fit noticed (truncation bias, …).
 
@@ -244,36 +259,52 @@ class StepResponseLS:
     (2.0, 1.5, [])
     """
 
-    N: int | None = None
-    T_f: float = 0.0
-    delay: float = 0.0
-    settling_time: float | None = None
-    min_condition: float = 1e8
+    _SETTINGS = ("N", "T_f", "delay", "settling_time", "max_condition")
 
-    a_: FloatArray = field(init=False, repr=False)
-    a_stderr_: FloatArray = field(init=False, repr=False)
-    cov_a_: FloatArray = field(init=False, repr=False)
-    K_: float = field(init=False, default=math.nan)
-    T_: float = field(init=False, default=math.nan)
-    K_stderr_: float = field(init=False, default=math.nan)
-    T_stderr_: float = field(init=False, default=math.nan)
-    T_f_: float = field(init=False, default=math.nan)
-    delay_: float = field(init=False, default=math.nan)
-    N_: int = field(init=False, default=0)
-    offset_: float = field(init=False, default=math.nan)
-    u0_: float = field(init=False, default=math.nan)
-    n_rows_used_: int = field(init=False, default=0)
-    n_exciting_rows_: int = field(init=False, default=0)
-    condition_number_: float = field(init=False, default=math.nan)
-    residual_std_: float = field(init=False, default=math.nan)
-    fit_rms_: float = field(init=False, default=math.nan)
-    newton_iterations_: int = field(init=False, default=0)
-    sample_time_: float = field(init=False, default=math.nan)
-    warnings_: list[str] = field(init=False, default_factory=list)
-    _model: ProcessModel | None = field(init=False, default=None, repr=False)
+    a_: FloatArray
+    a_stderr_: FloatArray
+    cov_a_: FloatArray
+    K_: float
+    T_: float
+    T2_: float
+    K_stderr_: float
+    T_stderr_: float
+    stderr_: dict[str, float | None]
+    fixed_: tuple[str, ...]
+    T_f_: float
+    delay_: float
+    N_: int
+    offset_: float
+    u0_: float
+    n_rows_used_: int
+    n_exciting_rows_: int
+    condition_number_: float
+    residual_std_: float
+    fit_rms_: float
+    newton_iterations_: int
+    model_: ProcessModel
+    fit_percent_: float
+    n_samples_: int
+    sample_time_: float
+    warnings_: list[str]
+
+    def __init__(
+        self,
+        *,
+        N: int | None = None,
+        T_f: float = 0.0,
+        delay: float = 0.0,
+        settling_time: float | None = None,
+        max_condition: float = 1e8,
+    ) -> None:
+        self.N = N
+        self.T_f = T_f
+        self.delay = delay
+        self.settling_time = settling_time
+        self.max_condition = max_condition
 
     # ------------------------------------------------------------------ public API
-    def fit(self, data: IOData) -> StepResponseLS:
+    def fit(self, data: IOData) -> Self:
         """Estimate a_1 … a_N by least squares, then K and T from them.
 
         Parameters
@@ -293,6 +324,81 @@ class StepResponseLS:
         FuelidError
             Bad settings (no N and no settling time, negative priors, …).
         """
+        with self._fitting(data):
+            self._fit(data)
+        self.fit_percent_ = self.score(data, initial="fitted")
+        return self
+
+    def simulate(self, data: IOData, initial: Initial = "fitted") -> FloatArray:
+        """Free-run output of the fitted model for the input ``data.u`` [output unit].
+
+        Uses the truncated step-response (FIR) form of the regression with the coefficients
+        s_i = s(i·T_s), i = 1 … N, of the fitted model (:func:`step_shape`):
+        ŷ(k) = y_rest + Σ_{i<N} s_i Δu(k−i) + s_N (u(k−N) − u_rest).
+
+        Parameters
+        ----------
+        data : IOData
+            Record at the sample time of the fit; ``data.y`` is used only by
+            ``initial="estimate"``.
+        initial : "fitted", "rest" or "estimate"
+            The state at the record's first sample:
+
+            - ``"fitted"`` (default): what ``fit`` assumed, at rest at ``u0_`` with the output
+              at ``offset_``. Valid only on the fitting record or one that continues it
+              (refused otherwise); there it equals ``"rest"``. What ``fit_percent_`` scores.
+            - ``"rest"``: at rest at u[0] before the record, y_rest = ``offset_`` +
+              ``K_``·(u[0] − ``u0_``) (u_rest = u[0]). What a separate validation record is
+              scored with (``--validate-file``).
+            - ``"estimate"``: from rest at u[0], plus an offset and the free response
+              c_i·e^(−k·T_s/T_i) of the fitted model's lags, estimated by least squares on
+              ``data``: for records that do not start at rest.
+
+        Returns
+        -------
+        ndarray
+            ŷ, one value per sample.
+        """
+        self._check_simulation(data, initial)
+        if not math.isclose(data.sample_time, self.sample_time_, rel_tol=1e-9):
+            raise FuelidError(
+                f"simulate needs data at the fitted sample time {self.sample_time_:g} s, got "
+                f"{data.sample_time:g} s"
+            )
+        s = self.K_ * step_shape(
+            self.sample_time_ * np.arange(self.N_ + 1, dtype=float), self.T_, self.T_f_, self.delay_
+        )
+        s[0] = 0.0
+        impulse = np.concatenate(([0.0], np.diff(s)))  # h_0 = 0, h_i = s_i − s_{i−1}
+        u = data.u
+        u_rest = self.u0_ if initial == "fitted" else float(u[0])
+        response = np.convolve(u - u_rest, impulse)[: data.n_samples]
+        if initial != "estimate":
+            return np.asarray(self.offset_ + self.K_ * (u_rest - self.u0_) + response, dtype=float)
+        modes = discretise(self.model_.time_constants, self.delay_, self.sample_time_).modes(u.size)
+        basis = np.column_stack((np.ones(u.size), modes))
+        coefficients = np.linalg.lstsq(basis, data.y - response, rcond=None)[0]
+        return np.asarray(response + basis @ coefficients, dtype=float)
+
+    def predict(self, data: IOData, horizon: int = 1, initial: Initial = "rest") -> FloatArray:
+        """k-step-ahead prediction ŷ(t | t − k) of the output, k = ``horizon`` [output unit].
+
+        The regression's error is white and added to the output (noise model H = 1), so the
+        k-step-ahead predictor is the free-run simulation for every k ≥ 1 (Ljung, *System
+        Identification*, 2nd ed., 1999, §3.2): this returns ``simulate(data, initial)``;
+        ``horizon`` is checked and otherwise has no effect. ``initial`` defaults to ``"rest"``
+        (the record starts at rest at its first input).
+        """
+        self._check_horizon(horizon)
+        return self.simulate(data, initial)
+
+    def to_control(self) -> control.TransferFunction:
+        """Delay-free part as a :class:`control.TransferFunction` (dead time in ``delay_``)."""
+        return self.model_.to_control()
+
+    # ------------------------------------------------------------------ internals
+    def _fit(self, data: IOData) -> None:
+        """Stage 1 (the coefficients and their covariance), then stage 2 and the checks."""
         T_s = float(data.sample_time)
         N = self._resolve_N(T_s)
         self._validate(N, T_s)
@@ -349,52 +455,10 @@ class StepResponseLS:
         self.N_, self.sample_time_ = N, T_s
         self.T_f_, self.delay_ = float(self.T_f), float(self.delay)
 
+        self.n_samples_ = n
         self._fit_model(a, T_s)
         self._diagnose(N, T_s)
-        return self
 
-    @property
-    def model_(self) -> ProcessModel:
-        """The fitted model K·e^(−τs)/((T s+1)(T_f s+1)) (K in output per input unit, s)."""
-        if self._model is None:
-            raise FuelidError("StepResponseLS is not fitted: call fit() first")
-        return self._model
-
-    def predict(self, data: IOData) -> FloatArray:
-        """Free-run simulation of the fitted model on ``data.u``, at rest at u[0] before it.
-
-        Uses the truncated step-response (FIR) form of the regression, with the coefficients
-        s(i·T_s), i = 1 … N, of the fitted model: ŷ(k) = y_rest + Σ_{i<N} s_i Δu(k−i) +
-        s_N (u(k−N) − u[0]), y_rest = ``offset_`` + K (u[0] − ``u0_``).
-
-        Parameters
-        ----------
-        data : IOData
-            Input record at the sample time of the fit (``y`` is not used).
-
-        Returns
-        -------
-        ndarray
-            Predicted output [output unit].
-        """
-        model = self.model_
-        if not math.isclose(data.sample_time, self.sample_time_, rel_tol=1e-9):
-            raise FuelidError(
-                f"predict needs data at the fitted sample time {self.sample_time_:g} s, got "
-                f"{data.sample_time:g} s"
-            )
-        s = model.step_response(self.sample_time_ * np.arange(self.N_ + 1, dtype=float))
-        s[0] = 0.0
-        impulse = np.concatenate(([0.0], np.diff(s)))  # h_0 = 0, h_i = s_i − s_{i−1}
-        u0 = float(data.u[0])
-        y_rest = self.offset_ + self.K_ * (u0 - self.u0_)
-        return y_rest + np.convolve(data.u - u0, impulse)[: data.n_samples]
-
-    def to_control(self) -> control.TransferFunction:
-        """Delay-free part as a :class:`control.TransferFunction` (dead time in ``delay_``)."""
-        return self.model_.to_control()
-
-    # ------------------------------------------------------------------ internals
     def _resolve_N(self, T_s: float) -> int:
         if self.N is not None:
             return int(self.N)
@@ -414,8 +478,8 @@ class StepResponseLS:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise FuelidError(f"{name} must be finite and non-negative, got {value}")
-        if not self.min_condition > 1.0:
-            raise FuelidError(f"min_condition must exceed 1, got {self.min_condition}")
+        if not self.max_condition > 1.0:
+            raise FuelidError(f"max_condition must exceed 1, got {self.max_condition}")
         if np.count_nonzero(T_s * np.arange(1, N + 1) > self.delay) < 2:
             raise FuelidError(
                 f"delay {self.delay:g} s leaves fewer than two of the N={N} coefficients "
@@ -442,9 +506,9 @@ class StepResponseLS:
             )
             raise NotExcitingError(f"regressor matrix rank {rank} < N={N} ({changes}){which}")
         cond = float(sv[0] / sv[-1])
-        if cond > self.min_condition:
+        if cond > self.max_condition:
             raise NotExcitingError(
-                f"regressor condition number {cond:.3g} exceeds {self.min_condition:.3g}: the "
+                f"regressor condition number {cond:.3g} exceeds {self.max_condition:.3g}: the "
                 f"input changes do not separate the N={N} coefficients"
             )
 
@@ -509,7 +573,16 @@ class StepResponseLS:
         self.K_stderr_ = float(np.sqrt(cov_kt[0, 0]))
         self.T_stderr_ = float(np.sqrt(cov_kt[1, 1]))
         self.fit_rms_ = float(np.sqrt(np.mean(resid**2)))
-        self._model = ProcessModel(K=self.K_, T=self.T_, T_f=T_f, delay=float(self.delay))
+        self.T2_ = 0.0
+        self.stderr_ = {
+            "K": self.K_stderr_,
+            "T": self.T_stderr_,
+            "T2": None,
+            "delay": None,
+            "T_f": None,
+        }
+        self.fixed_ = ("T2", "delay", "T_f")
+        self.model_ = ProcessModel(K=self.K_, T=self.T_, T_f=T_f, delay=float(self.delay))
 
     def _diagnose(self, N: int, T_s: float) -> None:
         settle = self.model_.settling_time()
