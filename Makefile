@@ -55,6 +55,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_identify_accuracy.py
 	$(BIN)/python benchmarks/bench_refdata.py
 	$(BIN)/python benchmarks/bench_tuning_sweep.py
+	$(BIN)/python benchmarks/bench_cold_start.py
 
 clean:
 	rm -rf $(VENV) $(DEMO_DIR) .pytest_cache .mypy_cache .ruff_cache

@@ -99,25 +99,29 @@ def _read_parquet(file: Path, source: str) -> pd.DataFrame:
 
 
 def _read_text(raw: bytes, source: str) -> tuple[pd.DataFrame, list[str]]:
-    """Decode, sniff the separator and parse a CSV-like text table (all cells as strings)."""
+    """Decode, sniff the separator and parse a CSV-like text table.
+
+    Columns that are plain numbers come back as floats (parsed by pandas' C reader, the fast
+    path for a long log); anything else (decimal commas, date-time stamps, unit rows, bad cells)
+    stays as strings for :func:`to_float` and the log reader to interpret or refuse.
+    """
     text, encoding = _decode(raw, source)
-    lines = text.splitlines()
-    while lines and not lines[-1].strip():
-        lines.pop()
-    while lines and not lines[0].strip():
-        lines.pop(0)
-    if not lines:
+    text = text.strip("\r\n")
+    head = text[:65536].splitlines()
+    while head and not head[0].strip():
+        head.pop(0)
+    if not text.strip() or not head:
         raise DataError(f"{source} is empty")
-    separator = _sniff_separator(lines, source)
+    separator = _sniff_separator(head, source)
     try:
         frame = pd.read_csv(
-            StringIO("\n".join(lines)),
+            StringIO(text),
             sep=separator,
-            dtype=str,
             keep_default_na=False,
             skip_blank_lines=False,
             skipinitialspace=True,
             engine="c",
+            low_memory=False,
         )
     except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
