@@ -9,31 +9,46 @@ pipe and nozzle checks is RP-3 (TS-1 correlations) at 20 °C, worked by hand:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import fluids.friction
 import numpy as np
 import pytest
 
-from fuelid.plant.flowmeter import measure_flow
+from fuelid.plant.flowmeter import (
+    FlowmeterConfig,
+    flowmeter_rate,
+    flowmeter_rate_partials,
+    measure_flow,
+)
 from fuelid.plant.motor import (
     MotorConfig,
     electromagnetic_torque,
+    electromagnetic_torque_partials,
     slip_torque_constant,
+    synchronous_speed,
     torque_constant_from_circuit,
 )
 from fuelid.plant.nozzle import (
     NozzleConfig,
+    nozzle_inlet_pressure,
     orifice_flow,
     orifice_pressure_drop,
     orifice_resistance,
 )
 from fuelid.plant.pipeline import (
+    PipelineConfig,
     darcy_friction_factor,
+    darcy_friction_factor_log_slope,
     laminar_resistance,
     pipe_capacitance,
+    pipe_flow_rate,
+    pipe_flow_rate_partials,
     pipe_inductance,
     pipe_pressure_drop,
     pipe_pressure_drop_slope,
+    pipe_pressure_rate,
+    pipe_pressure_rate_partials,
     reynolds_number,
 )
 from fuelid.plant.pump import (
@@ -41,10 +56,19 @@ from fuelid.plant.pump import (
     PumpConfig,
     leakage_coefficient,
     pump_flow,
+    pump_flow_partials,
     pump_torque,
+    pump_torque_slope,
 )
-from fuelid.plant.shaft import shaft_acceleration
-from fuelid.plant.vfd import VFDConfig, vfd_frequency_command, vfd_frequency_rate
+from fuelid.plant.shaft import shaft_acceleration, shaft_acceleration_partials
+from fuelid.plant.vfd import (
+    VFDConfig,
+    vfd_command_slope,
+    vfd_frequency_command,
+    vfd_frequency_rate,
+    vfd_frequency_rate_partials,
+    vfd_gain,
+)
 
 RHO = 794.0 - 0.72 * 20.0  # 779.6 kg/m³
 MU = RHO * 1.3096e-6  # 1.02096e-3 Pa·s
@@ -67,7 +91,7 @@ def test_reynolds_number_by_hand() -> None:
     q = 1e-3  # 60 L/min
     v = q / (math.pi * D**2 / 4.0)  # 1.2434 m/s
     assert reynolds_number(q, D, RHO, MU) == pytest.approx(RHO * v * D / MU, rel=1e-14)
-    # ≈ 30 400: the line is turbulent at realistic flows, as theory §1.5 says
+    # ≈ 30 400: the line is turbulent at realistic flows, as docs/physics.md §3.5 says
     assert 3.0e4 < reynolds_number(q, D, RHO, MU) < 3.1e4
 
 
@@ -143,7 +167,8 @@ def test_pipe_inductance_by_hand() -> None:
 def test_pipe_capacitance_by_hand() -> None:
     # C = πd²l/(4β) = π·0.001024·80/(4·1.2e9) = 0.257359/4.8e9 = 5.3617e-11 m³/Pa
     assert pipe_capacitance(80.0, 0.032, 1.2e9) == pytest.approx(5.3617e-11, rel=1e-4)
-    # equivalently V/β: 1 MPa compresses 64.3 L of fuel by 1e6/1.2e9 = 0.083 % (theory: ~0.1 %)
+    # equivalently V/β: 1 MPa compresses 64.3 L of fuel by 1e6/1.2e9 = 0.083 %
+    # (docs/physics.md §3.4: ~0.1 %)
     volume = math.pi * D**2 / 4.0 * LENGTH
     dV = pipe_capacitance(LENGTH, D, 1.2e9) * 1e6
     assert dV / volume == pytest.approx(1e6 / 1.2e9, rel=1e-14)
@@ -420,3 +445,251 @@ def test_flowmeter_noise_then_quantisation_sheppard() -> None:
 def test_flowmeter_without_noise_is_identity() -> None:
     x = np.array([1.0, 2.5, 99.99])
     assert np.array_equal(measure_flow(x), x)
+
+
+# --------------------------------------------------------------------------------------------
+# derivatives next to their laws (the Jacobian of the plant is built from these)
+
+
+def _central(fn: Callable[[float], float], x: float, h: float) -> float:
+    """Central difference of fn at x with step h (exact for a linear or quadratic law)."""
+    return (fn(x + h) - fn(x - h)) / (2.0 * h)
+
+
+def test_vfd_gain_and_command_slope() -> None:
+    # K_f = (50 − 10) Hz/(5 − 1) V = 10 Hz/V
+    assert vfd_gain(1.0, 5.0, 10.0, 50.0) == 10.0
+    for u in (1.5, 3.0, 4.5):
+        slope = _central(lambda v: vfd_frequency_command(v, 1.0, 5.0, 10.0, 50.0), u, 1e-3)
+        assert slope == pytest.approx(10.0, rel=1e-9)
+        assert vfd_command_slope(u, 1.0, 5.0, 10.0, 50.0) == 10.0
+    # one-sided into the range at its ends, nothing where the drive clips
+    assert vfd_command_slope(1.0, 1.0, 5.0, 10.0, 50.0) == 10.0
+    assert vfd_command_slope(5.0, 1.0, 5.0, 10.0, 50.0) == 10.0
+    assert vfd_command_slope(0.5, 1.0, 5.0, 10.0, 50.0) == 0.0
+    assert vfd_command_slope(5.5, 1.0, 5.0, 10.0, 50.0) == 0.0
+
+
+def test_vfd_rate_partials() -> None:
+    # free lag: ∂ḟ/∂f = −1/T, ∂ḟ/∂f* = 1/T with T = 1.2 s
+    d_f, d_cmd = vfd_frequency_rate_partials(20.0, 25.0, 1.2, max_rate=10.0)
+    assert (d_f, d_cmd) == (pytest.approx(-1.0 / 1.2, rel=1e-15), pytest.approx(1.0 / 1.2))
+    assert _central(lambda f: vfd_frequency_rate(f, 25.0, 1.2, 10.0), 20.0, 1e-3) == pytest.approx(
+        d_f, rel=1e-9
+    )
+    # rate limit binding: (40 − 10)/1.2 = 25 Hz/s > 10 Hz/s, so ḟ is constant in f and f*
+    assert vfd_frequency_rate_partials(10.0, 40.0, 1.2, max_rate=10.0) == (0.0, 0.0)
+    assert _central(lambda f: vfd_frequency_rate(f, 40.0, 1.2, 10.0), 10.0, 1e-3) == 0.0
+
+
+def test_synchronous_speed_by_hand() -> None:
+    # 2 pole pairs at 50 Hz: 1500 rpm = 157.08 rad/s; 1 pole pair at 60 Hz: 3600 rpm
+    assert synchronous_speed(50.0, 2) == pytest.approx(TWO_PI * 1500.0 / 60.0, rel=1e-15)
+    assert synchronous_speed(60.0, 1) == pytest.approx(TWO_PI * 3600.0 / 60.0, rel=1e-15)
+
+
+def test_electromagnetic_torque_partials() -> None:
+    K_T = T_RATED / SLIP_SPEED  # 9.4333 N·m·s/rad
+    dT_df, dT_domega = electromagnetic_torque_partials(K_T, 2)
+    # ∂T_e/∂f = 2π·K_T/m_p = π·9.4333 = 29.635 N·m/Hz, ∂T_e/∂ω = −K_T
+    assert dT_df == pytest.approx(math.pi * K_T, rel=1e-14)
+    assert dT_df == pytest.approx(29.635, rel=1e-4)
+    assert dT_domega == -K_T
+    omega = TWO_PI * 1450.0 / 60.0
+    fd_f = _central(lambda f: electromagnetic_torque(f, omega, K_T, 2), 50.0, 1e-3)
+    fd_omega = _central(lambda w: electromagnetic_torque(50.0, w, K_T, 2), omega, 1e-3)
+    assert fd_f == pytest.approx(dT_df, rel=1e-9)
+    assert fd_omega == pytest.approx(dT_domega, rel=1e-9)
+
+
+def test_shaft_acceleration_partials() -> None:
+    # (1/J, −1/J, −B/J) for J = 0.06 kg·m², B = 0.02 N·m·s/rad
+    d_te, d_load, d_omega = shaft_acceleration_partials(0.06, 0.02)
+    assert d_te == pytest.approx(1.0 / 0.06, rel=1e-15)
+    assert d_load == pytest.approx(-1.0 / 0.06, rel=1e-15)
+    assert d_omega == pytest.approx(-0.02 / 0.06, rel=1e-15)
+    fd = _central(lambda w: shaft_acceleration(40.0, 8.0, w, 0.06, 0.02), 150.0, 1e-2)
+    assert fd == pytest.approx(d_omega, rel=1e-9)
+
+
+def test_pump_partials_by_hand() -> None:
+    D_p, C_p, eta = 50e-6, 1.16667e-10, 0.9
+    dq_domega, dq_dp = pump_flow_partials(D_p, C_p)
+    # 50 cm³/rev = 7.9577e-6 m³/rad of geometric flow; each Pa costs C_p of leakage
+    assert dq_domega == pytest.approx(D_p / TWO_PI, rel=1e-15)
+    assert dq_domega == pytest.approx(7.9577e-6, rel=1e-4)
+    assert dq_dp == -C_p
+    # D_p/(2π·η) = 50e-6/5.65487 = 8.8419e-6 N·m/Pa (8.84 N·m per MPa, as pump_torque says)
+    assert pump_torque_slope(D_p, eta) == pytest.approx(8.8419e-6, rel=1e-4)
+    assert pump_torque_slope(D_p, eta) == pytest.approx(
+        _central(lambda p: pump_torque(p, D_p, eta), 5e5, 1e3), rel=1e-9
+    )
+    assert _central(lambda p: pump_flow(150.0, p, D_p, C_p), 5e5, 1e3) == pytest.approx(
+        dq_dp, rel=1e-9
+    )
+
+
+@pytest.mark.parametrize("eD", [0.0, EPS / D, 0.05])
+@pytest.mark.parametrize("Re", [0.5, 300.0, 2000.0, 4000.0, 3e4, 1e6, 1e8])
+def test_churchill_log_slope_against_richardson(Re: float, eD: float) -> None:
+    # independent derivative: Richardson extrapolation of central differences in ln Re of the
+    # fluids library's own Churchill_1977
+    def ln_f(x: float) -> float:
+        return math.log(fluids.friction.Churchill_1977(math.exp(x), eD))
+
+    h, x = 1e-3, math.log(Re)
+    d1 = (ln_f(x + h) - ln_f(x - h)) / (2.0 * h)
+    d2 = (ln_f(x + h / 2) - ln_f(x - h / 2)) / h
+    expected = (4.0 * d2 - d1) / 3.0
+    assert darcy_friction_factor_log_slope(Re, eD) == pytest.approx(expected, abs=1e-9)
+
+
+def test_friction_log_slope_limits() -> None:
+    # laminar: f = 64/Re, slope −1; fully rough: f independent of Re, slope 0; smooth turbulent
+    # near Re = 1e5: close to Blasius' −1/4 (Colebrook's local exponent there is about −0.2)
+    for Re in (1.0, 100.0, 1000.0):
+        assert darcy_friction_factor_log_slope(Re, EPS / D) == pytest.approx(-1.0, abs=1e-9)
+    assert abs(darcy_friction_factor_log_slope(1e9, 0.05)) < 1e-3
+    assert -0.3 < darcy_friction_factor_log_slope(1e5, 0.0) < -0.15
+
+
+@pytest.mark.parametrize("Re", [5e3, 3e4, 1e6])
+def test_other_correlation_log_slope_against_richardson(Re: float) -> None:
+    def ln_f(x: float) -> float:
+        return math.log(fluids.friction.Clamond(math.exp(x), EPS / D))
+
+    h, x = 1e-3, math.log(Re)
+    d1 = (ln_f(x + h) - ln_f(x - h)) / (2.0 * h)
+    d2 = (ln_f(x + h / 2) - ln_f(x - h / 2)) / h
+    expected = (4.0 * d2 - d1) / 3.0
+    got = darcy_friction_factor_log_slope(Re, EPS / D, method="Clamond")
+    assert got == pytest.approx(expected, abs=1e-7)
+
+
+@pytest.mark.parametrize("q", [2.5e-4, 1e-3, 2e-3])
+def test_slope_of_other_correlation_agrees_with_richardson_difference(q: float) -> None:
+    def dp(x: float) -> float:
+        return pipe_pressure_drop(x, RHO, MU, LENGTH, D, EPS, method="Clamond")
+
+    h = 1e-3 * q
+    d1 = (dp(q + h) - dp(q - h)) / (2 * h)
+    d2 = (dp(q + h / 2) - dp(q - h / 2)) / h
+    expected = (4.0 * d2 - d1) / 3.0
+    got = pipe_pressure_drop_slope(q, RHO, MU, LENGTH, D, EPS, method="Clamond")
+    assert got == pytest.approx(expected, rel=1e-6)
+
+
+def test_other_correlations_switch_to_laminar_at_2040() -> None:
+    # fluids.friction.friction_factor returns 64/Re below LAMINAR_TRANSITION_PIPE = 2040 (Avila
+    # et al. 2011), not below the textbook 2320; Churchill's one expression has no switch
+    assert fluids.friction.LAMINAR_TRANSITION_PIPE == 2040.0
+    for Re in (1000.0, 2039.0):
+        assert darcy_friction_factor(Re, EPS / D, "Clamond") == pytest.approx(64.0 / Re, rel=1e-14)
+    for Re in (2041.0, 2320.0):
+        f = darcy_friction_factor(Re, EPS / D, "Clamond")
+        assert f == pytest.approx(fluids.friction.Clamond(Re, EPS / D), rel=1e-14)
+        assert f > 1.5 * 64.0 / Re  # the turbulent correlation, well above the laminar value
+    assert darcy_friction_factor(2039.0, EPS / D) == pytest.approx(
+        fluids.friction.Churchill_1977(2039.0, EPS / D), rel=1e-15
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# lumped line dynamics, nozzle inlet pressure, meter lag
+
+
+def test_line_continuity_by_hand() -> None:
+    # C ṗ = q_in − q_out: a 1 L/min surplus into the 80 m, 32 mm line at β = 1.2 GPa
+    # (C = 5.3617e-11 m³/Pa) raises the pressure by (1/60000)/5.3617e-11 = 3.108e5 Pa/s
+    C = math.pi * D**2 * LENGTH / (4.0 * 1.2e9)
+    rate = pipe_pressure_rate(31.0 / LPM_PER_M3S, 30.0 / LPM_PER_M3S, C)
+    assert rate == pytest.approx((1.0 / LPM_PER_M3S) / C, rel=1e-12)
+    assert rate == pytest.approx(3.108e5, rel=1e-3)
+    assert pipe_pressure_rate_partials(C) == (pytest.approx(1.0 / C), pytest.approx(-1.0 / C))
+
+
+def test_line_momentum_by_hand() -> None:
+    # L q̇ = p_in − p_out − Δp_f: 0.1 MPa net on the column of L = 4ρl/(πd²) = 7.755e7 kg/m⁴
+    inductance = 4.0 * RHO * LENGTH / (math.pi * D**2)
+    assert inductance == pytest.approx(7.755e7, rel=1e-3)
+    rate = pipe_flow_rate(1.0e6, 0.85e6, 0.05e6, inductance)
+    assert rate == pytest.approx(1e5 / inductance, rel=1e-12)
+    assert pipe_flow_rate_partials(inductance) == (
+        pytest.approx(1.0 / inductance),
+        pytest.approx(-1.0 / inductance),
+        pytest.approx(-1.0 / inductance),
+    )
+
+
+@pytest.mark.parametrize("p_back", [0.0, 0.3e6])
+def test_nozzle_inlet_pressure_by_hand(p_back: float) -> None:
+    cd, a0, q = 0.7, 3.18086e-5, 1e-3
+    # p₂ = p_back + ρ q|q|/(2 (C_d A_0)²)
+    expected = p_back + RHO * q**2 / (2.0 * (cd * a0) ** 2)
+    assert nozzle_inlet_pressure(q, RHO, cd, a0, p_back) == pytest.approx(expected, rel=1e-14)
+    # its derivative is the orifice resistance ρ|q|/(C_d A_0)² (central difference exact)
+    fd = _central(lambda x: nozzle_inlet_pressure(x, RHO, cd, a0, p_back), q, 1e-3 * q)
+    assert orifice_resistance(q, RHO, cd, a0) == pytest.approx(fd, rel=1e-8)
+
+
+def test_flowmeter_lag_by_hand() -> None:
+    # T_f q̇_m = q − q_m: 10 L/min behind with T_f = 0.3 s → 33.3 (L/min)/s
+    rate = flowmeter_rate(40.0 / LPM_PER_M3S, 30.0 / LPM_PER_M3S, 0.3)
+    assert rate * LPM_PER_M3S == pytest.approx(10.0 / 0.3, rel=1e-12)
+    assert flowmeter_rate_partials(0.3) == (pytest.approx(1.0 / 0.3), pytest.approx(-1.0 / 0.3))
+    # no lag: the reading is the flow itself, the lagged state stays put
+    assert flowmeter_rate(40.0 / LPM_PER_M3S, 30.0 / LPM_PER_M3S, 0.0) == 0.0
+    assert flowmeter_rate_partials(0.0) == (0.0, 0.0)
+
+
+# --------------------------------------------------------------------------------------------
+# config sections to the SI parameter blocks the ODE reads
+
+
+def test_sections_convert_to_si_blocks() -> None:
+    vfd = VFDConfig(f_min_Hz=10.0, f_max_Hz=50.0, lag_s=1.2, max_rate_Hz_per_s=20.0).coefficients()
+    assert (vfd.u_min, vfd.u_max, vfd.f_min, vfd.f_max) == (1.0, 5.0, 10.0, 50.0)
+    assert (vfd.lag, vfd.max_rate) == (1.2, 20.0)
+
+    motor_cfg = MotorConfig(
+        rated_power_kW=7.5,
+        rated_speed_rpm=1450.0,
+        pole_pairs=2,
+        inertia_kg_m2=0.06,
+        damping_N_m_s_per_rad=0.02,
+    )
+    motor, shaft = motor_cfg.coefficients(), motor_cfg.shaft_coefficients()
+    k_t = motor.K_T
+    assert k_t == pytest.approx(T_RATED / SLIP_SPEED, rel=1e-13)
+    assert motor.m_p == 2
+    assert (shaft.J, shaft.B) == (0.06, 0.02)
+
+    # 7 (L/min)/MPa at 1 mPa·s; fuel half as viscous leaks twice as much
+    pump = PumpConfig(
+        displacement_cm3_per_rev=50.0,
+        leakage_Lpm_per_MPa=7.0,
+        leakage_ref_viscosity_mPa_s=1.0,
+        mechanical_efficiency=0.9,
+    ).coefficients(mu=0.5e-3)
+    assert pump.C_p == pytest.approx(2.0 * 7.0 / 60_000.0 / 1e6, rel=1e-14)
+    assert pump.D_p == pytest.approx(50e-6, rel=1e-14)
+    assert pump.eta_m == 0.9
+
+    line = PipelineConfig(length_m=80.0, inner_diameter_mm=32.0).coefficients(RHO, MU)
+    inductance, capacitance = line.L, line.C
+    assert inductance == pytest.approx(4.0 * RHO * LENGTH / (math.pi * D**2), rel=1e-14)
+    assert capacitance == pytest.approx(math.pi * D**2 * LENGTH / (4.0 * 1.2e9), rel=1e-14)
+    assert (line.rho, line.mu, line.length, line.method) == (RHO, MU, 80.0, "Churchill_1977")
+    assert line.d == pytest.approx(D, rel=1e-15)
+    assert line.roughness == pytest.approx(EPS, rel=1e-15)
+
+    nozzle = NozzleConfig(
+        count=8, diameter_mm=2.25, discharge_coefficient=0.7, back_pressure_MPa=0.1
+    ).coefficients(RHO)
+    area = nozzle.A0
+    assert area == pytest.approx(8 * math.pi * 2.25e-3**2 / 4.0, rel=1e-14)
+    assert (nozzle.rho, nozzle.Cd) == (RHO, 0.7)
+    assert nozzle.p_back == pytest.approx(1e5, rel=1e-15)
+
+    meter = FlowmeterConfig(time_constant_s=0.3, delay_s=0.2, span_Lpm=100.0).coefficients()
+    assert (meter.T_f, meter.delay) == (0.3, 0.2)

@@ -7,12 +7,15 @@ that names the offending key.
 
 from __future__ import annotations
 
+import json
 import math
 from importlib import resources
 from pathlib import Path
 
 import pytest
+from typer.testing import CliRunner
 
+from fuelid.cli import app
 from fuelid.errors import ConfigError, FuelidError, OutOfRangeError
 from fuelid.fuel import fuel_properties
 from fuelid.plant import linearise, load_plant_config, operating_point, plant_coefficients
@@ -231,3 +234,28 @@ def test_command_outside_signal_range_refused() -> None:
             operating_point(cfg, u, 293.15)
         with pytest.raises(OutOfRangeError, match="signal range"):
             linearise(cfg, u, 293.15)
+
+
+# --------------------------------------------------------------------------------------------
+# a flowmeter without lag (time_constant_s = 0) is allowed, and every command handles it
+
+
+def test_meter_without_lag_through_the_cli(tmp_path: Path) -> None:
+    path = _write(tmp_path, "time_constant_s = 0.3", "time_constant_s = 0.0")
+    cfg = load_plant_config(path)
+    assert cfg.flowmeter.time_constant_s == 0.0
+    runner = CliRunner()
+    table = runner.invoke(app, ["plant", "info", "--config", str(path)])
+    assert table.exit_code == 0, table.output
+    assert "(L/min)/V" in table.stdout
+    result = runner.invoke(
+        app, ["plant", "info", "--json", "--config", str(path), "--u", "3", "--fuel-temp", "20"]
+    )
+    assert result.exit_code == 0, result.output
+    model = json.loads(result.stdout)["model"]
+    assert model["T_f"] == 0.0
+    assert math.isfinite(model["settling_time"])
+    # the gain is the slope of the steady-state curve: (q(3.001 V) − q(2.999 V))/2 mV
+    q_hi = operating_point(cfg, 3.001, 293.15).q
+    q_lo = operating_point(cfg, 2.999, 293.15).q
+    assert model["K"] == pytest.approx((q_hi - q_lo) / 2e-3 * 60_000.0, rel=1e-4)

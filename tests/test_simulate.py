@@ -64,6 +64,26 @@ def test_small_step_matches_linearisation(cfg: PlantConfig, u0: float, T: float)
     assert np.all(np.abs(y[r.time < t_step + DELAY]) <= 1e-8 * K)
 
 
+def test_meter_without_lag_matches_its_linearisation(cfg: PlantConfig) -> None:
+    # T_f = 0: the reading is the line flow itself (delayed); the linear model has four states
+    no_lag = cfg.model_copy(
+        update={"flowmeter": cfg.flowmeter.model_copy(update={"time_constant_s": 0.0})}
+    )
+    u0, du, t_step = 3.0, 0.01, 1.0
+    r = _clean(no_lag, step_profile(u0, u0 + du, t_step, t_step + 15.0))
+    q0 = operating_point(no_lag, u0, T20).q
+    assert np.all(np.abs(r.q_meter[r.time < t_step + DELAY] - q0) <= 1e-12 * q0)
+    lin = linearise(no_lag, u0, T20)
+    K = lin.static_gain
+    y = (r.q_meter - r.q_meter[0]) * LPM / du
+    # second-order terms ≲ 4e-4·K for a 0.01 V step (see the test above)
+    assert np.max(np.abs(y - lin.step_response(r.time - t_step))) < 1e-3 * K
+    # without the meter lag the reading leads the lagged one of the reference plant
+    lagged = _clean(cfg, step_profile(u0, u0 + du, t_step, t_step + 15.0))
+    half = (r.time > t_step + DELAY) & (r.time < t_step + 3.0)
+    assert np.all(r.q_meter[half] > lagged.q_meter[half])
+
+
 def test_large_step_departs_from_linearisation_in_proportion(cfg: PlantConfig) -> None:
     # the secant gain error grows ∝ Δu (second-order term): a 1 V step is ~100× worse than a
     # 0.01 V step, and below K because the static curve bends down (K' < 0)

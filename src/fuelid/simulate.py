@@ -32,6 +32,7 @@ from fuelid.plant.config import PlantConfig
 from fuelid.plant.flowmeter import measure_flow
 from fuelid.plant.system import (
     PlantCoefficients,
+    measured_state,
     plant_coefficients,
     plant_jacobian,
     plant_rhs,
@@ -260,7 +261,7 @@ def _integrate(
     """Meter state q_m at the (sorted) times ``t_eval``; before t = 0 the plant is at rest."""
     c = coefficients.at(float(temperature.at(0.0)))
     x = steady_state(float(profile.u[0]), c).state
-    out = np.full(t_eval.shape, x[4])
+    out = np.full(t_eval.shape, x[measured_state(c)])
     bounds = _segment_bounds(profile, temperature, temperature_resolution)
     total = float(bounds[-1])
     for a, b in itertools.pairwise(bounds):
@@ -270,7 +271,7 @@ def _integrate(
         # evaluation times closer than SNAP to a segment end count as that end (LSODA refuses
         # output times within rounding of its start)
         first, last = np.searchsorted(t_eval, [a - SNAP, b - SNAP], side="left")
-        meter_state = 4 if c.T_f > 0.0 else 3  # without a meter lag the reading is the flow
+        meter_state = measured_state(c)  # without a meter lag the reading is the flow q
         at_start = first + int(np.searchsorted(t_eval[first:last], a + SNAP, side="left"))
         out[first:at_start] = x[meter_state]
         inside = t_eval[at_start:last]

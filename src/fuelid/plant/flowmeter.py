@@ -4,16 +4,28 @@ The lag is the rotor's inertia and the meter's filtering; the delay τ is the me
 processing time plus the PLC's scan and sampling. It is not a transport delay: in an
 incompressible line a flow change travels at the speed of sound (about 0.1 s per 100 m).
 The turbine's lag shrinks as the flow grows (roughly T_f ∝ 1/q), so a fixed T_f is right near
-the operating point it was calibrated at.
+the operating point it was calibrated at. See ``docs/physics.md`` §3.7.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from pydantic import Field
 
 from fuelid.plant._section import Section
+
+
+@dataclass(frozen=True, slots=True)
+class FlowmeterCoefficients:
+    """The meter's dynamics in SI (:meth:`FlowmeterConfig.coefficients`)."""
+
+    T_f: float
+    """First-order lag [s]; 0 for none (the reading is then the line flow itself)."""
+    delay: float
+    """Pure delay τ, meter plus PLC [s]."""
 
 
 class FlowmeterConfig(Section):
@@ -28,6 +40,72 @@ class FlowmeterConfig(Section):
     resolution_Lpm: float = Field(
         0.0, ge=0.0, description="quantisation step of the value the PLC reads (0: none) [L/min]"
     )
+
+    def coefficients(self) -> FlowmeterCoefficients:
+        """The meter's lag and delay in SI."""
+        return FlowmeterCoefficients(T_f=self.time_constant_s, delay=self.delay_s)
+
+
+def flowmeter_rate(q: float, q_m: float, T_f: float) -> float:
+    r"""Rate of change of the meter's lagged flow (first-order lag).
+
+    .. math:: T_f\,\dot q_m = q - q_m
+
+    Parameters
+    ----------
+    q : float
+        Flow through the meter [m³/s].
+    q_m : float
+        The meter's lagged flow [m³/s].
+    T_f : float
+        Lag [s], zero or positive.
+
+    Returns
+    -------
+    float
+        dq_m/dt [m³/s²]; 0 when T_f = 0: without a lag the reading is q itself and q_m is not
+        used (see :func:`fuelid.plant.system.measured_state`).
+
+    References
+    ----------
+    ``docs/physics.md`` §3.7; Baker, R. C., *Flow Measurement Handbook*, 2nd ed., Cambridge
+    University Press 2016 (the chapter on turbine flowmeters).
+
+    Examples
+    --------
+    >>> flowmeter_rate(1.0e-3, 0.5e-3, 0.5)
+    0.001
+    >>> flowmeter_rate(1.0e-3, 0.5e-3, 0.0)
+    0.0
+    """
+    return (q - q_m) / T_f if T_f > 0.0 else 0.0
+
+
+def flowmeter_rate_partials(T_f: float) -> tuple[float, float]:
+    r"""Partial derivatives of :func:`flowmeter_rate` (constant).
+
+    .. math:: \left(\frac{\partial \dot q_m}{\partial q},\
+              \frac{\partial \dot q_m}{\partial q_m}\right)
+              = \left(\frac{1}{T_f},\ -\frac{1}{T_f}\right), \qquad (0, 0) \text{ for } T_f = 0
+
+    Parameters
+    ----------
+    T_f : float
+        Lag [s].
+
+    Returns
+    -------
+    tuple of float
+        (∂q̇_m/∂q, ∂q̇_m/∂q_m) [1/s].
+
+    Examples
+    --------
+    >>> flowmeter_rate_partials(0.5)
+    (2.0, -2.0)
+    """
+    if T_f > 0.0:
+        return (1.0 / T_f, -1.0 / T_f)
+    return (0.0, 0.0)
 
 
 def measure_flow(

@@ -9,13 +9,20 @@ as follows: K is the exact static gain of the full model; T_f and τ are the flo
 (calibration prior, taken from the config); T is the least-squares fit of the reduced model's unit
 step response to the full model's on a uniform grid over three settling times. The fast motor and
 hydraulic poles are thereby lumped into T. T2 = 0 (first-order process).
+
+A plant without a meter lag (``flowmeter.time_constant_s = 0``) reads the line flow q directly;
+its linear model drops the meter state and has four states, and its reduced model has T_f = 0.
+See ``docs/physics.md`` §7.
+
+python-control is imported only inside the methods that return or use its objects: importing it
+takes about a second, which the command line should not pay for every plant it loads.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 import scipy.optimize
 from numpy.typing import NDArray
@@ -24,15 +31,19 @@ from fuelid import lti
 from fuelid.model import ProcessModel
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.system import (
-    N_STATES,
+    STATE_NAMES,
     OperatingPoint,
     check_command,
     input_jacobian,
+    measured_state,
     plant_coefficients,
     plant_jacobian,
     steady_state,
 )
 from fuelid.units import LPM_PER_M3S
+
+if TYPE_CHECKING:
+    import control
 
 FloatArray = NDArray[np.float64]
 
@@ -57,9 +68,9 @@ class EquivalentModel:
 class LinearPlant:
     """Linearised plant from command u [V] to measured flow [L/min], dead time explicit.
 
-    ``A, B, C, D`` act on deviations of the SI state ``[f, ω_m, p, q, q_m]`` from the operating
-    point; ``C`` converts the flowmeter state to L/min, so ``B`` is per volt and gains come out
-    in (L/min)/V.
+    ``A, B, C, D`` act on deviations of the SI state named in ``states`` (``[f, ω_m, p, q, q_m]``,
+    without ``q_m`` when the meter has no lag) from the operating point; ``C`` converts the
+    measured flow to L/min, so ``B`` is per volt and gains come out in (L/min)/V.
     """
 
     A: FloatArray
@@ -68,9 +79,13 @@ class LinearPlant:
     D: FloatArray
     delay: float
     operating_point: OperatingPoint
+    states: tuple[str, ...] = STATE_NAMES
+    """Names of the states, in the order of the rows of A."""
 
     def to_state_space(self) -> control.StateSpace:
         """Delay-free part as a :class:`control.StateSpace` (the dead time is ``.delay``)."""
+        import control  # slow to import: only where its objects are wanted
+
         return control.ss(self.A, self.B, self.C, self.D)
 
     def to_control(self) -> control.TransferFunction:
@@ -79,6 +94,8 @@ class LinearPlant:
         The dead time is deliberately not Padé-approximated; apply
         ``control.pade(plant.delay, n)`` explicitly if a rational approximation is wanted.
         """
+        import control
+
         tf = control.ss2tf(self.to_state_space())
         # ss2tf leaves rounding residue (~1e-13) in the numerator's high-order terms: drop it
         num = np.asarray(tf.num[0][0], dtype=float)
@@ -87,9 +104,10 @@ class LinearPlant:
 
     @property
     def static_gain(self) -> float:
-        """Exact static gain −C·A⁻¹·B + D [(L/min)/V]."""
-        x = np.linalg.solve(self.A, self.B)
-        return float((-(self.C @ x) + self.D)[0, 0])
+        """Exact static gain −C·A⁻¹·B + D [(L/min)/V] (:func:`control.dcgain`)."""
+        import control
+
+        return float(np.real(control.dcgain(self.to_state_space())))
 
     def step_response(self, t: FloatArray) -> FloatArray:
         """Response to a unit (1 V) step at t = 0, dead time included [L/min]."""
@@ -133,7 +151,11 @@ class LinearPlant:
         )
 
     def _meter_lag(self) -> float:
-        a = -self.A[N_STATES - 1, N_STATES - 1]
+        """T_f [s] from the meter's row of A (−1/T_f); 0 without a meter state."""
+        if "q_m" not in self.states:
+            return 0.0
+        i = self.states.index("q_m")
+        a = -float(self.A[i, i])
         return 1.0 / a if a > 0.0 else 0.0
 
 
@@ -152,7 +174,9 @@ def linearise(config: PlantConfig, u: float, T_fuel: float) -> LinearPlant:
     Returns
     -------
     LinearPlant
-        From u [V] to measured flow [L/min], with the meter's dead time kept explicit.
+        From u [V] to measured flow [L/min], with the meter's dead time kept explicit. Without a
+        meter lag (T_f = 0) the reading is the line flow and the meter state is left out, so that
+        A stays non-singular.
 
     Examples
     --------
@@ -166,9 +190,18 @@ def linearise(config: PlantConfig, u: float, T_fuel: float) -> LinearPlant:
     op = steady_state(u, c)
     A = plant_jacobian(0.0, op.state, u, c)
     B = input_jacobian(u, c)
-    C = np.zeros((1, N_STATES))
-    if c.T_f > 0.0:
-        C[0, N_STATES - 1] = LPM_PER_M3S
-    else:
-        C[0, 3] = LPM_PER_M3S
-    return LinearPlant(A=A, B=B, C=C, D=np.zeros((1, 1)), delay=c.delay, operating_point=op)
+    # without a meter lag the reading is q and q_m (the last state) is no dynamics at all: its
+    # row and column of A are zero, so it is dropped
+    states = STATE_NAMES if c.meter.T_f > 0.0 else STATE_NAMES[:-1]
+    keep = len(states)
+    C = np.zeros((1, keep))
+    C[0, measured_state(c)] = LPM_PER_M3S
+    return LinearPlant(
+        A=A[:keep, :keep].copy(),
+        B=B[:keep].copy(),
+        C=C,
+        D=np.zeros((1, 1)),
+        delay=c.delay,
+        operating_point=op,
+        states=states,
+    )

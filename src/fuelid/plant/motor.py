@@ -8,15 +8,29 @@ is linear in the slip speed,
 
 with the same K_T at every frequency because the drive keeps U_1/f constant. K_T comes from the
 nameplate (rated torque over rated slip speed) or, equivalently, from the circuit parameters.
+See ``docs/physics.md`` §3.2. The motor section also carries the shaft's inertia and damping,
+which :mod:`fuelid.plant.shaft` uses.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from pydantic import Field, model_validator
 
 from fuelid.plant._section import Section
+from fuelid.plant.shaft import ShaftCoefficients
+
+
+@dataclass(frozen=True, slots=True)
+class MotorCoefficients:
+    """The motor's parameters in SI (:meth:`MotorConfig.coefficients`)."""
+
+    K_T: float
+    """Slip torque constant [N·m·s/rad]."""
+    m_p: int
+    """Pole pairs [-]."""
 
 
 class MotorConfig(Section):
@@ -57,6 +71,47 @@ class MotorConfig(Section):
             self.rated_frequency_Hz,
             self.pole_pairs,
         )
+
+    def coefficients(self) -> MotorCoefficients:
+        """The motor's electromagnetic parameters in SI."""
+        return MotorCoefficients(K_T=self.K_T, m_p=self.pole_pairs)
+
+    def shaft_coefficients(self) -> ShaftCoefficients:
+        """Inertia and damping of the motor–pump shaft in SI."""
+        return ShaftCoefficients(J=self.inertia_kg_m2, B=self.damping_N_m_s_per_rad)
+
+
+def synchronous_speed(f: float, m_p: int) -> float:
+    r"""Mechanical synchronous speed of an induction motor fed at frequency ``f``.
+
+    .. math:: \omega_{sync} = \frac{2\pi f}{m_p}
+
+    Parameters
+    ----------
+    f : float
+        Stator frequency [Hz].
+    m_p : int
+        Pole pairs [-], at least 1.
+
+    Returns
+    -------
+    float
+        ω_sync [rad/s].
+
+    References
+    ----------
+    Fitzgerald, Kingsley & Umans, *Electric Machinery*, 6th ed., ch. 4 (rotating magnetic
+    fields).
+
+    Examples
+    --------
+    Two pole pairs on 50 Hz turn at 1500 rpm:
+
+    >>> import math
+    >>> round(synchronous_speed(50.0, 2) * 60 / (2 * math.pi), 9)
+    1500.0
+    """
+    return 2.0 * math.pi * f / m_p
 
 
 def slip_torque_constant(P_rated: float, n_rated: float, f_rated: float, m_p: int) -> float:
@@ -100,7 +155,7 @@ def slip_torque_constant(P_rated: float, n_rated: float, f_rated: float, m_p: in
     9.433
     """
     omega_rated = 2.0 * math.pi * n_rated / 60.0
-    omega_sync = 2.0 * math.pi * f_rated / m_p
+    omega_sync = synchronous_speed(f_rated, m_p)
     return (P_rated / omega_rated) / (omega_sync - omega_rated)
 
 
@@ -139,7 +194,8 @@ def torque_constant_from_circuit(K_int: float, R_re: float, m_p: int) -> float:
 def electromagnetic_torque(f: float, omega_m: float, K_T: float, m_p: int) -> float:
     r"""Electromagnetic torque, linear in slip speed.
 
-    .. math:: T_e = K_T\left(\frac{2\pi f}{m_p} - \omega_m\right)
+    .. math:: T_e = K_T\left(\omega_{sync}(f) - \omega_m\right),
+              \qquad \omega_{sync} = \frac{2\pi f}{m_p}
 
     Parameters
     ----------
@@ -155,7 +211,16 @@ def electromagnetic_torque(f: float, omega_m: float, K_T: float, m_p: int) -> fl
     Returns
     -------
     float
-        Torque [N·m].
+        Torque [N·m]; negative (braking) above synchronous speed.
+
+    Notes
+    -----
+    Valid near the operating point, at small slip (well below breakdown torque).
+
+    References
+    ----------
+    Fitzgerald, Kingsley & Umans, *Electric Machinery*, 6th ed., ch. 6; ``docs/physics.md``
+    §3.2.
 
     Examples
     --------
@@ -164,4 +229,31 @@ def electromagnetic_torque(f: float, omega_m: float, K_T: float, m_p: int) -> fl
     >>> electromagnetic_torque(50.0, 2 * 3.141592653589793 * 25.0, 9.43, 2)
     0.0
     """
-    return K_T * (2.0 * math.pi * f / m_p - omega_m)
+    return K_T * (synchronous_speed(f, m_p) - omega_m)
+
+
+def electromagnetic_torque_partials(K_T: float, m_p: int) -> tuple[float, float]:
+    r"""Partial derivatives of :func:`electromagnetic_torque` (constant: the law is linear).
+
+    .. math:: \left(\frac{\partial T_e}{\partial f},\ \frac{\partial T_e}{\partial \omega_m}\right)
+              = \left(\frac{2\pi K_T}{m_p},\ -K_T\right)
+
+    Parameters
+    ----------
+    K_T : float
+        Slip torque constant [N·m·s/rad].
+    m_p : int
+        Pole pairs [-].
+
+    Returns
+    -------
+    tuple of float
+        (∂T_e/∂f [N·m/Hz], ∂T_e/∂ω_m [N·m·s/rad]).
+
+    Examples
+    --------
+    >>> dT_df, dT_domega = electromagnetic_torque_partials(10.0, 2)
+    >>> round(dT_df, 6), dT_domega
+    (31.415927, -10.0)
+    """
+    return (K_T * synchronous_speed(1.0, m_p), -K_T)

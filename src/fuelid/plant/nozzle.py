@@ -1,12 +1,32 @@
-"""Combustor nozzles: a sharp-edged orifice law."""
+"""Combustor nozzles: a sharp-edged orifice law (``docs/physics.md`` §3.6).
+
+All nozzles are lumped into one orifice of the total area A_0 discharging against the combustor's
+back pressure. :func:`nozzle_inlet_pressure` and its derivative :func:`orifice_resistance` are the
+only place the discharge coefficient, the area and the back pressure enter the plant model.
+"""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from pydantic import Field
 
 from fuelid.plant._section import Section
+
+
+@dataclass(frozen=True, slots=True)
+class NozzleCoefficients:
+    """The nozzles' parameters in SI at one fuel density (:meth:`NozzleConfig.coefficients`)."""
+
+    rho: float
+    """Fuel density [kg/m³]."""
+    Cd: float
+    """Discharge coefficient [-]."""
+    A0: float
+    """Total orifice area [m²]."""
+    p_back: float
+    """Back pressure downstream of the nozzles (gauge) [Pa]."""
 
 
 class NozzleConfig(Section):
@@ -28,6 +48,12 @@ class NozzleConfig(Section):
     def p_back(self) -> float:
         """Back pressure [Pa]."""
         return self.back_pressure_MPa * 1e6
+
+    def coefficients(self, rho: float) -> NozzleCoefficients:
+        """The nozzles' parameters in SI for fuel of density ``rho`` [kg/m³]."""
+        return NozzleCoefficients(
+            rho=rho, Cd=self.discharge_coefficient, A0=self.A0, p_back=self.p_back
+        )
 
 
 def orifice_flow(dp: float, rho: float, Cd: float, A0: float) -> float:
@@ -86,6 +112,10 @@ def orifice_pressure_drop(q: float, rho: float, Cd: float, A0: float) -> float:
     float
         Δp [Pa].
 
+    References
+    ----------
+    ISO 5167-1:2022, eq. (1), solved for the pressure difference.
+
     Examples
     --------
     >>> round(orifice_pressure_drop(63.0 / 60_000, 800.0, 0.7, 30e-6))
@@ -109,7 +139,8 @@ def orifice_resistance(q: float, rho: float, Cd: float, A0: float) -> float:
     Returns
     -------
     float
-        R_N [Pa·s/m³].
+        R_N [Pa·s/m³]; also the derivative of :func:`nozzle_inlet_pressure` (the back pressure
+        is constant).
 
     Examples
     --------
@@ -118,3 +149,40 @@ def orifice_resistance(q: float, rho: float, Cd: float, A0: float) -> float:
     1000000
     """
     return rho * abs(q) / (Cd * A0) ** 2
+
+
+def nozzle_inlet_pressure(q: float, rho: float, Cd: float, A0: float, p_back: float) -> float:
+    r"""Pressure upstream of the nozzles needed to pass flow ``q`` against the back pressure.
+
+    .. math:: p_2 = p_{back} + \frac{\rho}{2}\,\frac{q |q|}{(C_d A_0)^2}
+
+    Parameters
+    ----------
+    q : float
+        Volume flow through the nozzles [m³/s].
+    rho : float
+        Density [kg/m³].
+    Cd : float
+        Discharge coefficient [-].
+    A0 : float
+        Total orifice area [m²].
+    p_back : float
+        Combustor pressure downstream of the nozzles (gauge) [Pa].
+
+    Returns
+    -------
+    float
+        p_2 (gauge) [Pa]; its derivative with respect to q is :func:`orifice_resistance`.
+
+    References
+    ----------
+    ISO 5167-1:2022, eq. (1); ``docs/physics.md`` §3.6.
+
+    Examples
+    --------
+    63 L/min through 30 mm² (C_d = 0.7) into a combustor at 0.5 MPa:
+
+    >>> round(nozzle_inlet_pressure(63.0 / 60_000, 800.0, 0.7, 30e-6, 0.5e6))
+    1500000
+    """
+    return p_back + orifice_pressure_drop(q, rho, Cd, A0)

@@ -3,17 +3,30 @@
 Fuel compressibility is negligible at about 1 MPa (bulk modulus 1000–1300 MPa), so the pump is a
 flow source: geometric flow minus a leakage through the clearances that is laminar and therefore
 proportional to pressure and inversely proportional to viscosity. Warm, thin fuel leaks more; this
-is what makes the loop gain drift with fuel temperature.
+is what makes the loop gain drift with fuel temperature. See ``docs/physics.md`` §3.3–3.4.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from pydantic import Field
 
 from fuelid.plant._section import Section
 from fuelid.units import LPM_PER_M3S
+
+
+@dataclass(frozen=True, slots=True)
+class PumpCoefficients:
+    """The pump's parameters in SI at one fuel viscosity (:meth:`PumpConfig.coefficients`)."""
+
+    D_p: float
+    """Displacement [m³/rev]."""
+    C_p: float
+    """Leakage coefficient at the fuel's viscosity [m³/(s·Pa)], see :func:`leakage_coefficient`."""
+    eta_m: float
+    """Mechanical (torque) efficiency [-]."""
 
 
 class PumpConfig(Section):
@@ -48,6 +61,14 @@ class PumpConfig(Section):
     def mu_ref(self) -> float:
         """Reference viscosity of the leakage coefficient [Pa·s]."""
         return self.leakage_ref_viscosity_mPa_s * 1e-3
+
+    def coefficients(self, mu: float) -> PumpCoefficients:
+        """The pump's parameters in SI for fuel of dynamic viscosity ``mu`` [Pa·s]."""
+        return PumpCoefficients(
+            D_p=self.D_p,
+            C_p=leakage_coefficient(mu, self.C_p_ref, self.mu_ref),
+            eta_m=self.mechanical_efficiency,
+        )
 
 
 def leakage_coefficient(mu: float, C_p_ref: float, mu_ref: float) -> float:
@@ -102,7 +123,19 @@ def pump_flow(omega_m: float, p: float, D_p: float, C_p: float) -> float:
     Returns
     -------
     float
-        Flow [m³/s].
+        Flow [m³/s]. The internal leakage is the difference between the flows at zero pressure
+        (the geometric flow) and at ``p``.
+
+    Notes
+    -----
+    Valid where the fuel's compressibility inside the pump is negligible (p ≪ β) and the
+    clearance flow is laminar.
+
+    References
+    ----------
+    Merritt, *Hydraulic Control Systems*, Wiley 1967 (the chapter on hydraulic pumps
+    and motors: delivery with leakage);
+    ``docs/physics.md`` §3.4.
 
     Examples
     --------
@@ -114,6 +147,34 @@ def pump_flow(omega_m: float, p: float, D_p: float, C_p: float) -> float:
     72.5
     """
     return D_p * omega_m / (2.0 * math.pi) - C_p * p
+
+
+def pump_flow_partials(D_p: float, C_p: float) -> tuple[float, float]:
+    r"""Partial derivatives of :func:`pump_flow` (constant: the law is linear).
+
+    .. math:: \left(\frac{\partial q_p}{\partial \omega_m},\ \frac{\partial q_p}{\partial p}\right)
+              = \left(\frac{D_p}{2\pi},\ -C_p\right)
+
+    Parameters
+    ----------
+    D_p : float
+        Displacement [m³/rev].
+    C_p : float
+        Leakage coefficient [m³/(s·Pa)].
+
+    Returns
+    -------
+    tuple of float
+        (∂q_p/∂ω_m [m³/rad], ∂q_p/∂p [m³/(s·Pa)]).
+
+    Examples
+    --------
+    >>> import math
+    >>> dq_domega, dq_dp = pump_flow_partials(2 * math.pi * 1e-5, 1e-10)
+    >>> round(dq_domega, 15), dq_dp
+    (1e-05, -1e-10)
+    """
+    return (D_p / (2.0 * math.pi), -C_p)
 
 
 def pump_torque(p: float, D_p: float, eta_m: float) -> float:
@@ -135,6 +196,11 @@ def pump_torque(p: float, D_p: float, eta_m: float) -> float:
     float
         Torque [N·m].
 
+    References
+    ----------
+    Merritt, *Hydraulic Control Systems*, Wiley 1967 (the chapter on hydraulic pumps
+    and motors: torque with mechanical losses); ``docs/physics.md`` §3.3.
+
     Examples
     --------
     50 cm³/rev at 1 MPa with 90 % mechanical efficiency:
@@ -143,3 +209,29 @@ def pump_torque(p: float, D_p: float, eta_m: float) -> float:
     8.842
     """
     return D_p * p / (2.0 * math.pi * eta_m)
+
+
+def pump_torque_slope(D_p: float, eta_m: float) -> float:
+    r"""Derivative of :func:`pump_torque` with respect to the outlet pressure (constant).
+
+    .. math:: \frac{\partial T_p}{\partial p} = \frac{D_p}{2\pi\,\eta_m}
+
+    Parameters
+    ----------
+    D_p : float
+        Displacement [m³/rev].
+    eta_m : float
+        Mechanical efficiency [-], in (0, 1].
+
+    Returns
+    -------
+    float
+        ∂T_p/∂p [N·m/Pa = m³/rad].
+
+    Examples
+    --------
+    >>> import math
+    >>> round(pump_torque_slope(2 * math.pi * 1e-5, 0.5), 15)
+    2e-05
+    """
+    return D_p / (2.0 * math.pi * eta_m)

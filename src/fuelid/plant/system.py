@@ -9,17 +9,26 @@ State vector (SI), in this order::
         q    line (and nozzle) flow                 [m³/s]
         q_m  flowmeter's lagged flow                [m³/s]
 
-Input: u, the drive's command voltage [V]. Measured output: q_m delayed by the meter's τ.
+Input: u, the drive's command voltage [V]. Measured output: q_m delayed by the meter's τ (q itself
+when the meter has no lag, :func:`measured_state`).
 
 Topology: the pump discharges into the line's lumped capacitance C at its outlet; the fuel column
 (inductance L) is driven by the difference between p and the friction drop plus the nozzles'
 pressure. With the line capacitance the hydraulic mode sits at 1–3 Hz: the nonlinear simulation
-keeps it, the equivalent low-order model leaves it out.
+keeps it, the equivalent low-order model leaves it out. See ``docs/physics.md`` §4.
+
+This module writes no physical law itself: the right-hand side, its Jacobian and the steady state
+are composed of the law functions of the component modules (:mod:`~fuelid.plant.vfd`,
+:mod:`~fuelid.plant.motor`, :mod:`~fuelid.plant.shaft`, :mod:`~fuelid.plant.pump`,
+:mod:`~fuelid.plant.pipeline`, :mod:`~fuelid.plant.nozzle`, :mod:`~fuelid.plant.flowmeter`) and
+of the derivative functions next to them, fed with each component's SI parameter block built
+once per fuel temperature by :func:`plant_coefficients`.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,100 +38,90 @@ from numpy.typing import NDArray
 from fuelid.errors import OutOfRangeError
 from fuelid.fuel import fuel_properties
 from fuelid.plant.config import PlantConfig
-from fuelid.plant.nozzle import orifice_pressure_drop, orifice_resistance
-from fuelid.plant.pipeline import (
-    darcy_friction_factor,
-    laminar_resistance,
-    pipe_capacitance,
-    pipe_inductance,
-    pipe_pressure_drop_slope,
+from fuelid.plant.flowmeter import FlowmeterCoefficients, flowmeter_rate, flowmeter_rate_partials
+from fuelid.plant.motor import (
+    MotorCoefficients,
+    electromagnetic_torque,
+    electromagnetic_torque_partials,
+    synchronous_speed,
 )
-from fuelid.plant.pump import leakage_coefficient, pump_torque
+from fuelid.plant.nozzle import NozzleCoefficients, nozzle_inlet_pressure, orifice_resistance
+from fuelid.plant.pipeline import (
+    PipelineCoefficients,
+    pipe_flow_rate,
+    pipe_flow_rate_partials,
+    pipe_pressure_drop,
+    pipe_pressure_drop_slope,
+    pipe_pressure_rate,
+    pipe_pressure_rate_partials,
+    reynolds_number,
+)
+from fuelid.plant.pump import (
+    PumpCoefficients,
+    pump_flow,
+    pump_flow_partials,
+    pump_torque,
+    pump_torque_slope,
+)
+from fuelid.plant.shaft import ShaftCoefficients, shaft_acceleration, shaft_acceleration_partials
+from fuelid.plant.vfd import (
+    VFDCoefficients,
+    vfd_command_slope,
+    vfd_frequency_command,
+    vfd_frequency_rate,
+    vfd_frequency_rate_partials,
+)
 
 STATE_NAMES = ("f", "omega_m", "p", "q", "q_m")
 STATE_UNITS = ("Hz", "rad/s", "Pa", "m^3/s", "m^3/s")
 N_STATES = len(STATE_NAMES)
 TWO_PI = 2.0 * math.pi
+StateVector = NDArray[np.float64] | Sequence[float]
+"""A state ``[f, ω_m, p, q, q_m]`` as the ODE solvers pass it (an array) or as a plain sequence."""
 
 
 @dataclass(frozen=True, slots=True)
 class PlantCoefficients:
-    """SI numbers of the plant's ODE at one fuel temperature (everything the RHS needs).
+    """The plant's parameters in SI at one fuel temperature: one block per component.
 
-    Build it with :func:`plant_coefficients`; the fields are documented there by symbol.
+    Build it with :func:`plant_coefficients`. Each block is made by its component's config section
+    (``VFDConfig.coefficients()`` …) and read only by that component's law functions, which
+    :func:`plant_rhs`, :func:`plant_jacobian` and :func:`steady_state` compose.
     """
 
     T_fuel: float
+    """Fuel temperature [K]."""
     rho: float
+    """Fuel density [kg/m³]."""
     mu: float
-    u_min: float
-    u_max: float
-    f_min: float
-    f_max: float
-    K_f: float
-    T_vfd: float
-    max_rate: float | None
-    K_T: float
-    m_p: int
-    J: float
-    B: float
-    D_rad: float
-    eta_m: float
-    C_p: float
-    C_line: float
-    L_line: float
-    length: float
-    d: float
-    roughness: float
-    friction_method: str
-    Cd_A0: float
-    p_back: float
-    T_f: float
-    delay: float
-    # derived once so the ODE right-hand side is a handful of multiplications
-    Re_per_flow: float = 0.0
-    """Reynolds number per unit flow 4ρ/(π d μ) [s/m³]."""
-    friction_per_flow2: float = 0.0
-    """Δp_pipe/(f_D·q|q|) = (l/d)·ρ/2·(4/(π d²))² [Pa·s²/m⁶]."""
-    R_laminar: float = 0.0
-    """Hagen–Poiseuille resistance [Pa·s/m³]."""
-    nozzle_per_flow2: float = 0.0
-    """Δp_nozzle/(q|q|) = ρ/(2 (C_d A_0)²) [Pa·s²/m⁶]."""
+    """Fuel dynamic viscosity [Pa·s]."""
+    vfd: VFDCoefficients
+    motor: MotorCoefficients
+    shaft: ShaftCoefficients
+    pump: PumpCoefficients
+    line: PipelineCoefficients
+    nozzle: NozzleCoefficients
+    meter: FlowmeterCoefficients
 
-    def __post_init__(self) -> None:
-        area = math.pi * self.d**2 / 4.0
-        object.__setattr__(self, "Re_per_flow", self.rho * self.d / (area * self.mu))
-        object.__setattr__(
-            self, "friction_per_flow2", (self.length / self.d) * 0.5 * self.rho / area**2
-        )
-        object.__setattr__(self, "R_laminar", laminar_resistance(self.mu, self.length, self.d))
-        object.__setattr__(self, "nozzle_per_flow2", 0.5 * self.rho / self.Cd_A0**2)
+    @property
+    def u_min(self) -> float:
+        """Command at the bottom of the drive's signal range [V]."""
+        return self.vfd.u_min
 
-    def frequency_command(self, u: float) -> float:
-        """Commanded drive frequency [Hz] for command ``u`` [V], clipped to the drive range."""
-        f = self.f_min + self.K_f * (u - self.u_min)
-        return min(max(f, self.f_min), self.f_max)
+    @property
+    def u_max(self) -> float:
+        """Command at the top of the drive's signal range [V]."""
+        return self.vfd.u_max
 
-    def line_pressure_drop(self, q: float) -> float:
-        """Friction drop along the line plus nozzle pressure (with back pressure) [Pa].
+    @property
+    def T_f(self) -> float:
+        """Flowmeter lag [s] (0: none)."""
+        return self.meter.T_f
 
-        The same as :func:`~fuelid.plant.pipeline.pipe_pressure_drop` +
-        :func:`~fuelid.plant.nozzle.orifice_pressure_drop` + back pressure, with the constant
-        factors precomputed (this runs in the ODE's inner loop).
-        """
-        Re = self.Re_per_flow * abs(q)
-        if Re < 1e-6:
-            friction = self.R_laminar * q
-        else:
-            f_D = darcy_friction_factor(Re, self.roughness / self.d, self.friction_method)
-            friction = f_D * self.friction_per_flow2 * q * abs(q)
-        return friction + self.nozzle_per_flow2 * q * abs(q) + self.p_back
-
-    def line_resistance(self, q: float) -> float:
-        """Incremental resistance of line plus nozzles d(Δp)/dq at flow q [Pa·s/m³]."""
-        return pipe_pressure_drop_slope(
-            q, self.rho, self.mu, self.length, self.d, self.roughness, self.friction_method
-        ) + orifice_resistance(q, self.rho, 1.0, self.Cd_A0)
+    @property
+    def delay(self) -> float:
+        """Flowmeter plus PLC dead time [s]."""
+        return self.meter.delay
 
 
 def plant_coefficients(config: PlantConfig, T_fuel: float) -> PlantCoefficients:
@@ -155,47 +154,50 @@ def plant_coefficients(config: PlantConfig, T_fuel: float) -> PlantCoefficients:
             f"{reason} (to extrapolate, set allow_extrapolation = true in the plant config's "
             "[fuel] table)"
         ) from None
-    vfd, motor, pump = config.vfd, config.motor, config.pump
-    line, nozzle, meter = config.pipeline, config.nozzle, config.flowmeter
+    rho, mu = float(props.rho), float(props.mu)
     return PlantCoefficients(
         T_fuel=T_fuel,
-        rho=props.rho,
-        mu=props.mu,
-        u_min=vfd.u_min_V,
-        u_max=vfd.u_max_V,
-        f_min=vfd.f_min_Hz,
-        f_max=vfd.f_max_Hz,
-        K_f=vfd.K_f,
-        T_vfd=vfd.lag_s,
-        max_rate=vfd.max_rate_Hz_per_s,
-        K_T=motor.K_T,
-        m_p=motor.pole_pairs,
-        J=motor.inertia_kg_m2,
-        B=motor.damping_N_m_s_per_rad,
-        D_rad=pump.D_p / TWO_PI,
-        eta_m=pump.mechanical_efficiency,
-        C_p=leakage_coefficient(props.mu, pump.C_p_ref, pump.mu_ref),
-        C_line=pipe_capacitance(line.length_m, line.d, line.beta),
-        L_line=pipe_inductance(props.rho, line.length_m, line.d),
-        length=line.length_m,
-        d=line.d,
-        roughness=line.roughness,
-        friction_method=line.friction_method,
-        Cd_A0=nozzle.discharge_coefficient * nozzle.A0,
-        p_back=nozzle.p_back,
-        T_f=meter.time_constant_s,
-        delay=meter.delay_s,
+        rho=rho,
+        mu=mu,
+        vfd=config.vfd.coefficients(),
+        motor=config.motor.coefficients(),
+        shaft=config.motor.shaft_coefficients(),
+        pump=config.pump.coefficients(mu),
+        line=config.pipeline.coefficients(rho, mu),
+        nozzle=config.nozzle.coefficients(rho),
+        meter=config.flowmeter.coefficients(),
     )
 
 
-def plant_rhs(t: float, x: NDArray[np.float64], u: float, c: PlantCoefficients) -> list[float]:
-    """The nonlinear plant ODE dx/dt = f(t, x, u, params).
+def measured_state(c: PlantCoefficients) -> int:
+    """Index of the state the flowmeter reports: q_m, or the line flow q when T_f = 0."""
+    return STATE_NAMES.index("q_m") if c.meter.T_f > 0.0 else STATE_NAMES.index("q")
+
+
+def plant_rhs(t: float, x: StateVector, u: float, c: PlantCoefficients) -> list[float]:
+    """The nonlinear plant ODE dx/dt = f(t, x, u, params), composed of the component laws.
+
+    ===========  ==========================================================================
+    dx/dt        component laws
+    ===========  ==========================================================================
+    df/dt        :func:`~fuelid.plant.vfd.vfd_frequency_rate` of
+                 :func:`~fuelid.plant.vfd.vfd_frequency_command`
+    dω_m/dt      :func:`~fuelid.plant.shaft.shaft_acceleration` of
+                 :func:`~fuelid.plant.motor.electromagnetic_torque` and
+                 :func:`~fuelid.plant.pump.pump_torque`
+    dp/dt        :func:`~fuelid.plant.pipeline.pipe_pressure_rate` of
+                 :func:`~fuelid.plant.pump.pump_flow` and the line flow
+    dq/dt        :func:`~fuelid.plant.pipeline.pipe_flow_rate` of the pump pressure,
+                 :func:`~fuelid.plant.nozzle.nozzle_inlet_pressure` and
+                 :func:`~fuelid.plant.pipeline.pipe_pressure_drop`
+    dq_m/dt      :func:`~fuelid.plant.flowmeter.flowmeter_rate`
+    ===========  ==========================================================================
 
     Parameters
     ----------
     t : float
         Time [s] (the plant is time-invariant; kept for the solvers' signature).
-    x : array, shape (5,)
+    x : array or sequence, shape (5,)
         State ``[f, ω_m, p, q, q_m]`` in SI units (see the module docstring).
     u : float
         Drive command [V], held constant over the integration step.
@@ -207,26 +209,32 @@ def plant_rhs(t: float, x: NDArray[np.float64], u: float, c: PlantCoefficients) 
     list of float
         dx/dt.
     """
-    f, omega, p, q, q_m = x
-    df = (c.frequency_command(u) - f) / c.T_vfd
-    if c.max_rate is not None:
-        df = min(max(df, -c.max_rate), c.max_rate)
-    torque_e = c.K_T * (TWO_PI * f / c.m_p - omega)
-    domega = (torque_e - c.B * omega - c.D_rad * p / c.eta_m) / c.J
-    q_pump = c.D_rad * omega - c.C_p * p
-    dp = (q_pump - q) / c.C_line
-    dq = (p - c.line_pressure_drop(q)) / c.L_line
-    dq_m = (q - q_m) / c.T_f if c.T_f > 0.0 else 0.0
-    return [df, domega, dp, dq, dq_m]
+    # plain floats: arithmetic on numpy scalars is several times slower (this is the inner loop)
+    f, omega, p, q, q_m = x.tolist() if isinstance(x, np.ndarray) else x
+    vfd, pump, line, nozzle = c.vfd, c.pump, c.line, c.nozzle
+    f_command = vfd_frequency_command(u, vfd.u_min, vfd.u_max, vfd.f_min, vfd.f_max)
+    torque_e = electromagnetic_torque(f, omega, c.motor.K_T, c.motor.m_p)
+    torque_p = pump_torque(p, pump.D_p, pump.eta_m)
+    dp_line = pipe_pressure_drop(
+        q, line.rho, line.mu, line.length, line.d, line.roughness, line.method
+    )
+    p_nozzle = nozzle_inlet_pressure(q, nozzle.rho, nozzle.Cd, nozzle.A0, nozzle.p_back)
+    return [
+        vfd_frequency_rate(f, f_command, vfd.lag, vfd.max_rate),
+        shaft_acceleration(torque_e, torque_p, omega, c.shaft.J, c.shaft.B),
+        pipe_pressure_rate(pump_flow(omega, p, pump.D_p, pump.C_p), q, line.C),
+        pipe_flow_rate(p, p_nozzle, dp_line, line.L),
+        flowmeter_rate(q, q_m, c.meter.T_f),
+    ]
 
 
-def plant_jacobian(
-    t: float, x: NDArray[np.float64], u: float, c: PlantCoefficients
-) -> NDArray[np.float64]:
+def plant_jacobian(t: float, x: StateVector, u: float, c: PlantCoefficients) -> NDArray[np.float64]:
     """Analytic Jacobian ∂f/∂x of :func:`plant_rhs` (for the stiff solver and linearisation).
 
-    The only numerical piece is the pipe friction slope (a central difference of the friction
-    correlation). Where the drive's rate limit binds, the frequency row is zero.
+    The chain rule over the component laws' own derivatives (the ``*_partials``, ``*_slope`` and
+    :func:`~fuelid.plant.nozzle.orifice_resistance` functions next to each law). Only the pipe
+    friction slope for a correlation other than Churchill's is numerical. Where the drive's rate
+    limit binds, the frequency row is zero.
 
     Parameters
     ----------
@@ -237,34 +245,48 @@ def plant_jacobian(
     -------
     ndarray, shape (5, 5)
     """
+    f, q = float(x[0]), float(x[3])
+    vfd, motor, shaft, pump, line, nozzle = c.vfd, c.motor, c.shaft, c.pump, c.line, c.nozzle
     jac = np.zeros((N_STATES, N_STATES))
-    f, q = x[0], x[3]
-    rate = (c.frequency_command(u) - f) / c.T_vfd
-    if c.max_rate is None or abs(rate) < c.max_rate:
-        jac[0, 0] = -1.0 / c.T_vfd
-    jac[1, 0] = c.K_T * TWO_PI / (c.m_p * c.J)
-    jac[1, 1] = -(c.K_T + c.B) / c.J
-    jac[1, 2] = -c.D_rad / (c.eta_m * c.J)
-    jac[2, 1] = c.D_rad / c.C_line
-    jac[2, 2] = -c.C_p / c.C_line
-    jac[2, 3] = -1.0 / c.C_line
-    jac[3, 2] = 1.0 / c.L_line
-    jac[3, 3] = -c.line_resistance(q) / c.L_line
-    if c.T_f > 0.0:
-        jac[4, 3] = 1.0 / c.T_f
-        jac[4, 4] = -1.0 / c.T_f
+    # drive: ḟ(f, f*(u))
+    f_command = vfd_frequency_command(u, vfd.u_min, vfd.u_max, vfd.f_min, vfd.f_max)
+    jac[0, 0] = vfd_frequency_rate_partials(f, f_command, vfd.lag, vfd.max_rate)[0]
+    # shaft: ω̇(T_e(f, ω), T_p(p), ω)
+    dTe_df, dTe_domega = electromagnetic_torque_partials(motor.K_T, motor.m_p)
+    da_dTe, da_dTload, da_domega = shaft_acceleration_partials(shaft.J, shaft.B)
+    jac[1, 0] = da_dTe * dTe_df
+    jac[1, 1] = da_dTe * dTe_domega + da_domega
+    jac[1, 2] = da_dTload * pump_torque_slope(pump.D_p, pump.eta_m)
+    # line capacitance: ṗ(q_p(ω, p), q)
+    dqp_domega, dqp_dp = pump_flow_partials(pump.D_p, pump.C_p)
+    dpdot_dqin, dpdot_dqout = pipe_pressure_rate_partials(line.C)
+    jac[2, 1] = dpdot_dqin * dqp_domega
+    jac[2, 2] = dpdot_dqin * dqp_dp
+    jac[2, 3] = dpdot_dqout
+    # fuel column: q̇(p, p_nozzle(q), Δp_f(q))
+    dqdot_dpin, dqdot_dpout, dqdot_dfriction = pipe_flow_rate_partials(line.L)
+    friction_slope = pipe_pressure_drop_slope(
+        q, line.rho, line.mu, line.length, line.d, line.roughness, line.method
+    )
+    nozzle_slope = orifice_resistance(q, nozzle.rho, nozzle.Cd, nozzle.A0)
+    jac[3, 2] = dqdot_dpin
+    jac[3, 3] = dqdot_dpout * nozzle_slope + dqdot_dfriction * friction_slope
+    # meter: q̇_m(q, q_m)
+    jac[4, 3], jac[4, 4] = flowmeter_rate_partials(c.meter.T_f)
     return jac
 
 
 def input_jacobian(u: float, c: PlantCoefficients) -> NDArray[np.float64]:
     """∂f/∂u [per V]: only the drive's frequency equation depends on the command.
 
-    Inside the signal range the slope is K_f/T_vfd; outside it the drive clips and the slope is 0.
-    At the range ends the one-sided slope into the range is used.
+    The chain ∂ḟ/∂f* · ∂f*/∂u at rest (f = f*): K_f/T_vfd inside the signal range, 0 outside it
+    where the drive clips; at the range ends the one-sided slope into the range.
     """
+    vfd = c.vfd
+    f_command = vfd_frequency_command(u, vfd.u_min, vfd.u_max, vfd.f_min, vfd.f_max)
+    dfdot_dcommand = vfd_frequency_rate_partials(f_command, f_command, vfd.lag, vfd.max_rate)[1]
     b = np.zeros((N_STATES, 1))
-    if c.u_min <= u <= c.u_max:
-        b[0, 0] = c.K_f / c.T_vfd
+    b[0, 0] = dfdot_dcommand * vfd_command_slope(u, vfd.u_min, vfd.u_max, vfd.f_min, vfd.f_max)
     return b
 
 
@@ -320,9 +342,12 @@ def steady_state(u: float, c: PlantCoefficients) -> OperatingPoint:
     """Solve the steady state for command ``u`` with the plant coefficients ``c``.
 
     With every derivative zero the state reduces to one equation in the flow q: the line fixes
-    the pump pressure p(q), the torque balance then fixes the shaft speed ω(p), and the pump's
-    flow equation must deliver q. The residual is monotonic in q, so Brent's method on a
-    bracket [0, geometric flow at synchronous speed] finds the unique root.
+    the pump pressure p(q) (nozzle inlet pressure plus friction drop), the shaft's torque balance
+    then fixes the shaft speed ω(p), and the pump's flow at (ω, p) must be q. The residual is
+    monotonic in q, so Brent's method on a bracket [0, geometric flow at synchronous speed] finds
+    the unique root. Every term is a component law; the torque balance is affine in ω (torque
+    linear in slip, viscous damping), so one Newton step from ω = 0 with the laws' own partial
+    derivatives solves it exactly.
 
     Parameters
     ----------
@@ -335,28 +360,43 @@ def steady_state(u: float, c: PlantCoefficients) -> OperatingPoint:
     -------
     OperatingPoint
     """
-    f = c.frequency_command(u)
-    omega_sync = TWO_PI * f / c.m_p
+    vfd, motor, shaft, pump, line, nozzle = c.vfd, c.motor, c.shaft, c.pump, c.line, c.nozzle
+    f = vfd_frequency_command(u, vfd.u_min, vfd.u_max, vfd.f_min, vfd.f_max)
+    da_dTe, _, da_domega = shaft_acceleration_partials(shaft.J, shaft.B)
+    da_domega_total = da_dTe * electromagnetic_torque_partials(motor.K_T, motor.m_p)[1] + da_domega
+
+    def shaft_acceleration_at(omega: float, p: float) -> float:
+        torque_e = electromagnetic_torque(f, omega, motor.K_T, motor.m_p)
+        torque_p = pump_torque(p, pump.D_p, pump.eta_m)
+        return shaft_acceleration(torque_e, torque_p, omega, shaft.J, shaft.B)
 
     def shaft_speed(p: float) -> float:
-        # K_T(ω_s − ω) = B ω + D_rad p/η_m  →  ω
-        return (c.K_T * omega_sync - c.D_rad * p / c.eta_m) / (c.K_T + c.B)
+        # the torque balance is affine in ω: one Newton step from ω = 0 is exact
+        return -shaft_acceleration_at(0.0, p) / da_domega_total
+
+    def pump_pressure(q: float) -> float:
+        # at rest the line's momentum balance reads p = p_nozzle(q) + Δp_f(q)
+        return nozzle_inlet_pressure(
+            q, nozzle.rho, nozzle.Cd, nozzle.A0, nozzle.p_back
+        ) + pipe_pressure_drop(
+            q, line.rho, line.mu, line.length, line.d, line.roughness, line.method
+        )
 
     def residual(q: float) -> float:
-        p = c.line_pressure_drop(q)
-        return c.D_rad * shaft_speed(p) - c.C_p * p - q
+        p = pump_pressure(q)
+        return pump_flow(shaft_speed(p), p, pump.D_p, pump.C_p) - q
 
-    q_hi = c.D_rad * omega_sync
+    # geometric flow at synchronous speed: no slip, no back pressure, so no leakage
+    q_hi = pump_flow(synchronous_speed(f, motor.m_p), 0.0, pump.D_p, pump.C_p)
     if q_hi <= 0.0:
         q = 0.0
     else:
         q = float(
             scipy.optimize.brentq(residual, 0.0, q_hi, xtol=1e-15, rtol=4 * np.finfo(float).eps)
         )
-    p = c.line_pressure_drop(q)
+    p = pump_pressure(q)
     omega = shaft_speed(p)
-    torque_e = c.K_T * (omega_sync - omega)
-    q_leak = c.C_p * p
+    q_pump = pump_flow(omega, p, pump.D_p, pump.C_p)
     return OperatingPoint(
         u=u,
         T_fuel=c.T_fuel,
@@ -364,12 +404,13 @@ def steady_state(u: float, c: PlantCoefficients) -> OperatingPoint:
         omega_m=omega,
         q=q,
         p_pump=p,
-        p_nozzle=orifice_pressure_drop(q, c.rho, 1.0, c.Cd_A0) + c.p_back,
-        torque=torque_e,
-        q_leak=q_leak,
-        reynolds=4.0 * c.rho * q / (math.pi * c.d * c.mu),
-        mass_balance=c.D_rad * omega - q_leak - q,
-        torque_balance=torque_e - c.B * omega - pump_torque(p, TWO_PI * c.D_rad, c.eta_m),
+        p_nozzle=nozzle_inlet_pressure(q, nozzle.rho, nozzle.Cd, nozzle.A0, nozzle.p_back),
+        torque=electromagnetic_torque(f, omega, motor.K_T, motor.m_p),
+        # leakage: the geometric flow (the delivery at zero pressure) minus the delivery at p
+        q_leak=pump_flow(omega, 0.0, pump.D_p, pump.C_p) - q_pump,
+        reynolds=reynolds_number(q, line.d, line.rho, line.mu),
+        mass_balance=q_pump - q,
+        torque_balance=shaft.J * shaft_acceleration_at(omega, p),
     )
 
 
