@@ -26,21 +26,17 @@ from fuelid.model import model_covariance
 from fuelid.plant import load_plant_config
 from fuelid.profiles import step_sequence
 from fuelid.simulate import simulate
+from fuelid.tuning.cases import DEFAULT_T_RANGE, Anchor, evaluate_fixed, plant_cases
 from fuelid.tuning.closedloop import flow_at, standard_runs
 from fuelid.tuning.rules import tune
-from fuelid.tuning.schedule import (
-    Anchor,
-    band_edges,
-    evaluate_fixed,
-    plant_cases,
-    uncertainty_sweep,
-)
-from fuelid.units import LPM_PER_M3S
-from fuelid.units import T0 as KELVIN
+from fuelid.tuning.schedule import band_edges
+from fuelid.tuning.sweep import uncertainty_sweep
+from fuelid.units import LPM_PER_M3S, celsius_to_kelvin
 
 TARGET_SECONDS = 10.0
 TARGET_VARIANTS = 1000
-FUEL_TEMPERATURE_DEGC = 20.0
+T_FUEL = celsius_to_kelvin(20.0)
+"""Fuel temperature of the simulated log [K]."""
 
 
 def main() -> None:
@@ -53,10 +49,10 @@ def main() -> None:
 
     rng = np.random.default_rng(0)
     profile = step_sequence(rng.uniform(2.5, 3.5, 20).round(2).tolist(), 30.0)
-    log = simulate(config, profile, fuel_temperature=FUEL_TEMPERATURE_DEGC + KELVIN, seed=1)
+    log = simulate(config, profile, fuel_temperature=T_FUEL, seed=1)
     data = IOData(u=log.u, y=log.q_measured * LPM_PER_M3S, sample_time=log.time[1] - log.time[0])
     fit = OutputError(T_f=meter.time_constant_s).fit(data)
-    anchor = Anchor(fit.model_, FUEL_TEMPERATURE_DEGC, float(np.mean(data.u)))
+    anchor = Anchor(fit.model_, T_FUEL, float(np.mean(data.u)))
     pi = tune(fit.model_, "simc", control_period=1.0)
     names, block = model_covariance(fit.param_names_, fit.cov_)
     relative = ", ".join(
@@ -84,7 +80,7 @@ def main() -> None:
             summary = sweep.summary()
         rows.append((f"uncertainty sweep, {n} variants", n, seconds, verdict))
 
-    temps = tuple(float(t) for t in band_edges(-20.0, 50.0, 5.0))
+    temps = tuple(float(T) for T in band_edges(*DEFAULT_T_RANGE, 5.0))
     commands = (config.vfd.u_min_V, anchor.u, config.vfd.u_max_V)
 
     def fixed_check() -> Any:
@@ -100,10 +96,8 @@ def main() -> None:
         )
     )
 
-    start_flow = flow_at(config, anchor.u, FUEL_TEMPERATURE_DEGC)
-    seconds, _ = best_of(
-        repeat, lambda: standard_runs(config, pi, (FUEL_TEMPERATURE_DEGC,), start_flow, 8.0)
-    )
+    start_flow = flow_at(config, anchor.u, T_FUEL)
+    seconds, _ = best_of(repeat, lambda: standard_runs(config, pi, (T_FUEL,), start_flow, 8.0))
     rows.append(("nonlinear closed loop, one 90 s standard run", 1, seconds, ""))
     nonlinear_1000 = seconds * TARGET_VARIANTS
 

@@ -27,9 +27,8 @@ from fuelid.plant import linearise, load_plant_config
 from fuelid.plots import plot_log, plot_step_responses, save_figure
 from fuelid.profiles import step_profile, step_sequence
 from fuelid.simulate import simulate
-from fuelid.units import LPM_PER_M3S
-from fuelid.units import T0 as KELVIN
-from fuelid.workflow import AnalysisSettings, LogAnalysis, analyse_log
+from fuelid.units import LPM_PER_M3S, PA_PER_MPA, celsius_to_kelvin, kelvin_to_celsius
+from fuelid.workflow import T_REF, AnalysisSettings, LogAnalysis, analyse_log
 
 TEMPERATURES_DEGC = (-20.0, 0.0, 20.0, 35.0, 50.0)
 U_ARTICLE = 1.25  # middle of the article's 1 V → 1.5 V step
@@ -52,7 +51,7 @@ def main() -> None:
         table.add_column(column, justify="right")
     models = {}
     for t_degC in TEMPERATURES_DEGC:
-        linear = linearise(config, U_ARTICLE, t_degC + KELVIN)
+        linear = linearise(config, U_ARTICLE, celsius_to_kelvin(t_degC))
         eq = linear.equivalent_model()
         models[t_degC] = (linear, eq)
         op = linear.operating_point
@@ -60,7 +59,7 @@ def main() -> None:
         table.add_row(
             f"{t_degC:g}",
             f"{op.q * LPM_PER_M3S:.2f}",
-            f"{op.p_pump * 1e-6:.4f}",
+            f"{op.p_pump / PA_PER_MPA:.4f}",
             f"{op.speed_rpm:.0f}",
             f"{m.K:.3f}",
             f"{m.T:.3f}",
@@ -95,7 +94,7 @@ def main() -> None:
         run = simulate(
             config,
             step_profile(1.0, 1.5, t_step=5.0, duration=20.0),
-            fuel_temperature=t_degC + KELVIN,
+            fuel_temperature=celsius_to_kelvin(t_degC),
             noise_std=0.0,
             resolution=0.0,
         )
@@ -118,7 +117,7 @@ def main() -> None:
     # the whole chain on the step-sequence log: identify (the article's method beside the
     # output-error fit), tune, check over fuel temperature, schedule, report
     data = load_log(out / "step_sequence.csv")
-    analysis = analyse_log(data, config, AnalysisSettings(fuel_temperature=20.0))
+    analysis = analyse_log(data, config, AnalysisSettings(T_fuel=T_REF))  # the log's 20 °C
     ident = Table(title="identified from step_sequence.csv (fit on 70 %, validated on 30 %)")
     for column in ("method", "K (L/min)/V", "± se", "T s", "± se", "fit %", "validation %"):
         ident.add_column(column, justify="right")
@@ -137,7 +136,7 @@ def main() -> None:
     console.print(
         "plant gain over the logged range (plant info): "
         + ", ".join(
-            f"{u:g} V: {linearise(config, u, 293.15).static_gain:.2f}" for u in (1.5, 2.5, 3.5)
+            f"{u:g} V: {linearise(config, u, T_REF).static_gain:.2f}" for u in (1.5, 2.5, 3.5)
         )
         + " (L/min)/V; the identified K is an average over the levels visited."
     )
@@ -153,7 +152,7 @@ def _summary(analysis: LogAnalysis) -> Table:
     """The story in one table: model, gains, margins, the check over temperature, the plant."""
     pi, rob, check = analysis.tuning.pi, analysis.tuning.robustness, analysis.check
     model = analysis.model_result.model
-    plc = pi.plc_form(4.0, analysis.tuning.y_span)
+    plc = analysis.tuning.to_json()["plc"]
     table = Table(title="from the log to the PLC (SIMC, PLC period 1 s)", show_header=False)
     table.add_column("what", justify="left")
     table.add_column("result", justify="left")
@@ -170,7 +169,7 @@ def _summary(analysis: LogAnalysis) -> Table:
         "on the model",
         f"GM {rob.gain_margin:.2f}, PM {rob.phase_margin_deg:.1f}°, Ms {rob.Ms:.2f}",
     )
-    low, high = analysis.settings.t_range
+    low, high = (kelvin_to_celsius(T) for T in analysis.settings.T_range)
     table.add_row(
         f"fixed gains, {low:g}…{high:g} °C",
         f"worst Ms {check.worst_Ms:.2f}, worst overshoot {check.worst_overshoot:.1f} %, "
@@ -179,7 +178,7 @@ def _summary(analysis: LogAnalysis) -> Table:
     for run in analysis.runs:
         s = run.summary()
         table.add_row(
-            f"nonlinear plant, {run.fuel_temperature:g} °C",
+            f"nonlinear plant, {kelvin_to_celsius(run.T_fuel):g} °C",
             f"overshoot {s['overshoot_percent']:.1f} %, settling {s['settling_time']:.1f} s, "
             f"load peak {s['disturbance_peak']:.2f} L/min",
         )

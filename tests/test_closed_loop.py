@@ -30,9 +30,10 @@ from fuelid.tuning.closedloop import (
     steady_command,
 )
 from fuelid.tuning.schedule import gain_schedule
-from fuelid.units import LPM_PER_M3S
+from fuelid.units import LPM_PER_M3S, celsius_to_kelvin, kelvin_to_celsius
 
 CONFIG = load_plant_config()
+COLD, ROOM, WARM = celsius_to_kelvin(-20.0), celsius_to_kelvin(20.0), celsius_to_kelvin(50.0)
 PI = PISettings(rule="simc", Kc=0.1, Ti=2.0, control_period=1.0)
 
 # --- the discrete PI -------------------------------------------------------------------------
@@ -90,10 +91,10 @@ def test_bumpless_gain_change():
 def test_bumpless_gain_change_on_the_plant():
     """A gain change mid-transient moves the command only by ΔKc·(e[k] − e[k−1])."""
     pi = tune(ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2), "simc", 1.0)
-    flow = flow_at(CONFIG, 3.0, 20.0)
+    flow = flow_at(CONFIG, 3.0, ROOM)
     setpoint = InputProfile(np.array([0.0, 5.0]), np.array([flow, flow + 5.0]), 30.0)
     new_Kc = 2 * pi.Kc
-    kwargs = {"fuel_temperature": 293.15}
+    kwargs = {"T_fuel": ROOM}
     changed = simulate_closed_loop(
         CONFIG, pi, setpoint, **kwargs, gain_changes={7.0: (new_Kc, pi.Ti)}
     )
@@ -195,10 +196,10 @@ def test_closed_loop_poles_inside_and_outside_the_unit_circle():
 # --- the nonlinear plant ---------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("u", "t_degC"), [(1.5, -20.0), (3.0, 20.0), (4.5, 50.0)])
-def test_steady_command_inverts_the_operating_point(u: float, t_degC: float):
-    flow = operating_point(CONFIG, u, t_degC + 273.15).q * LPM_PER_M3S
-    assert steady_command(CONFIG, flow, t_degC + 273.15) == pytest.approx(u, abs=1e-6)
+@pytest.mark.parametrize(("u", "T_fuel"), [(1.5, 253.15), (3.0, 293.15), (4.5, 323.15)])
+def test_steady_command_inverts_the_operating_point(u: float, T_fuel: float):
+    flow = operating_point(CONFIG, u, T_fuel).q * LPM_PER_M3S
+    assert steady_command(CONFIG, flow, T_fuel) == pytest.approx(u, abs=1e-6)
 
 
 @pytest.fixture(scope="module")
@@ -209,15 +210,18 @@ def schedule():
 def test_scheduled_gains_on_the_plant_at_every_band(schedule):
     """Each band's gains, on the nonlinear plant in the middle of its band, meet the targets."""
     for band in schedule.bands:
-        t_mid = 0.5 * (band.t_low + band.t_high)
+        T_mid = 0.5 * (band.T_low + band.T_high)
         u_mid = 0.5 * (band.u_low + band.u_high)
-        flow = flow_at(CONFIG, u_mid, t_mid)
+        flow = flow_at(CONFIG, u_mid, T_mid)
         step = (
             0.05 * CONFIG.flowmeter.span_Lpm if u_mid < 4.0 else -0.05 * CONFIG.flowmeter.span_Lpm
         )
-        (run,) = standard_runs(CONFIG, band.pi, (t_mid,), flow, step)
+        (run,) = standard_runs(CONFIG, band.pi, (T_mid,), flow, step)
         s = run.summary()
-        where = f"band {band.t_low:g}…{band.t_high:g} °C, {band.u_low:.2f}…{band.u_high:.2f} V"
+        where = (
+            f"band {kelvin_to_celsius(band.T_low):g}…{kelvin_to_celsius(band.T_high):g} °C, "
+            f"{band.u_low:.2f}…{band.u_high:.2f} V"
+        )
         assert s["overshoot_percent"] < 25.0, where
         assert s["settling_time"] < 15.0, where
         assert s["disturbance_settling_time"] < 15.0, where
@@ -225,15 +229,15 @@ def test_scheduled_gains_on_the_plant_at_every_band(schedule):
 
 
 def test_reachable_flows_are_held_at_every_temperature():
-    lo, hi = reachable_flows(CONFIG, (-20.0, 50.0), headroom=0.0)
+    lo, hi = reachable_flows(CONFIG, (COLD, WARM), headroom=0.0)
     # the common range: the higher of the two minimum flows, the lower of the two maximum flows
-    assert lo == pytest.approx(max(flow_at(CONFIG, 1.0, t) for t in (-20.0, 50.0)))
-    assert hi == pytest.approx(min(flow_at(CONFIG, 5.0, t) for t in (-20.0, 50.0)))
-    for t_degC in (-20.0, 50.0):
+    assert lo == pytest.approx(max(flow_at(CONFIG, 1.0, T) for T in (COLD, WARM)))
+    assert hi == pytest.approx(min(flow_at(CONFIG, 5.0, T) for T in (COLD, WARM)))
+    for T_fuel in (COLD, WARM):
         for flow in (lo, hi):
-            u = steady_command(CONFIG, flow, t_degC + 273.15)
+            u = steady_command(CONFIG, flow, T_fuel)
             assert 1.0 - 1e-9 <= u <= 5.0 + 1e-9
-    narrowed = reachable_flows(CONFIG, (-20.0, 50.0), headroom=0.05)
+    narrowed = reachable_flows(CONFIG, (COLD, WARM), headroom=0.05)
     assert narrowed == pytest.approx((lo + 0.05 * (hi - lo), hi - 0.05 * (hi - lo)))
 
 
@@ -260,8 +264,8 @@ def test_place_step_stays_in_range(flow, step, expected):
 def test_standard_runs_near_the_top_of_the_drive():
     """A start the warm fuel cannot reach is brought inside, and the step goes down."""
     pi = tune(ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2), "simc", 1.0)
-    lo, hi = reachable_flows(CONFIG, (-20.0, 50.0))
-    runs = standard_runs(CONFIG, pi, (-20.0, 50.0), flow_at(CONFIG, 5.0, -20.0), 10.0)
+    lo, hi = reachable_flows(CONFIG, (COLD, WARM))
+    runs = standard_runs(CONFIG, pi, (COLD, WARM), flow_at(CONFIG, 5.0, COLD), 10.0)
     for run in runs:
         assert run.setpoint[0] == pytest.approx(hi)
         assert run.setpoint[-1] == pytest.approx(hi - 10.0)
@@ -272,19 +276,42 @@ def test_standard_runs_near_the_top_of_the_drive():
         assert s["time_at_limits"] == 0.0
 
 
+def test_the_controller_acts_on_the_logged_noisy_reading():
+    """With meter noise and quantisation the PI sees exactly what is logged, no other draw.
+
+    Replaying the controller on the logged flow at the control instants must give the logged
+    command there, to rounding; the logged flow is on the 0.01 L/min grid and noisy.
+    """
+    pi = tune(ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2), "simc", 1.0)
+    flow = flow_at(CONFIG, 3.0, ROOM)
+    setpoint = InputProfile(np.array([0.0, 5.0]), np.array([flow, flow + 5.0]), 30.0)
+    kwargs = {"T_fuel": ROOM, "noise_std": 0.3, "resolution": 0.01, "seed": 4}
+    run = simulate_closed_loop(CONFIG, pi, setpoint, **kwargs)
+    instants = np.searchsorted(run.time, np.arange(30.0))  # every control instant is logged
+    assert run.time[instants] == pytest.approx(np.arange(30.0), abs=1e-12)
+    replay = DiscretePI(pi, 1.0, 5.0, u0=steady_command(CONFIG, flow, ROOM))
+    for k in instants:
+        u = replay.update(float(run.setpoint[k]), float(run.flow[k]))
+        assert u == pytest.approx(run.command[k], abs=1e-12), f"t = {run.time[k]:g} s"
+    assert np.allclose(run.flow * 100.0, np.round(run.flow * 100.0), atol=1e-9)
+    clean = simulate_closed_loop(CONFIG, pi, setpoint, T_fuel=ROOM)
+    at_rest = run.time < 5.0  # before the step: the 0.3 L/min noise and the loop's reaction to it
+    assert 0.25 < np.std(run.flow[at_rest] - clean.flow[at_rest]) < 0.4
+
+
 def test_saturation_and_recovery_on_the_plant():
     pi = tune(ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2), "simc", 1.0)
-    flow = flow_at(CONFIG, 3.0, 20.0)
+    flow = flow_at(CONFIG, 3.0, ROOM)
     # demand far beyond what 5 V can deliver for 40 s, then back to the start
     setpoint = InputProfile(np.array([0.0, 5.0, 45.0]), np.array([flow, 500.0, flow]), 90.0)
-    run = simulate_closed_loop(CONFIG, pi, setpoint, fuel_temperature=293.15)
+    run = simulate_closed_loop(CONFIG, pi, setpoint, T_fuel=ROOM)
     assert run.time_at_limits >= 35.0
     assert run.command.max() == pytest.approx(5.0)
     back = run.events[-1]
     assert back.kind == "setpoint"
     # with anti-windup the recovery is as quick as an ordinary step: no minutes of wind-down
     assert back.settling_time < 15.0
-    max_flow = flow_at(CONFIG, 5.0, 20.0)
+    max_flow = flow_at(CONFIG, 5.0, ROOM)
     assert np.max(run.flow) <= max_flow * 1.001  # the drive's limit, not more
 
 

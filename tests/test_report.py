@@ -17,6 +17,7 @@ import pytest
 from typer.testing import CliRunner
 
 from fuelid.cli import app, main
+from fuelid.cli._common import emit_json
 from fuelid.errors import DataError, FuelidError
 from fuelid.htmlreport import FIGURE_KEYS, figure_paths, write_report
 from fuelid.io.logs import load_log
@@ -24,12 +25,14 @@ from fuelid.plant import linearise, load_plant_config
 from fuelid.profiles import step_sequence
 from fuelid.simulate import simulate
 from fuelid.tuning.frequency import robustness
+from fuelid.units import celsius_to_kelvin
 from fuelid.workflow import AnalysisSettings, LogAnalysis, analyse_log
 
 runner = CliRunner()
 LEVELS = [1.0, 1.5, 2.5, 2.0, 3.5, 3.0, 1.5]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-SETTINGS = AnalysisSettings(t_range=(-20.0, 50.0), band_width=35.0)
+COLD, WARM = celsius_to_kelvin(-20.0), celsius_to_kelvin(50.0)
+SETTINGS = AnalysisSettings(T_range=(COLD, WARM), band_width=35.0)
 
 
 @pytest.fixture(scope="module")
@@ -67,8 +70,8 @@ def test_gains_follow_simc_with_the_half_rule_and_half_a_period(analysis: LogAna
 
 
 def test_closed_loop_at_the_coldest_and_warmest_fuel(analysis: LogAnalysis):
-    temps = [run.fuel_temperature for run in analysis.runs]
-    assert temps == [-20.0, 50.0]
+    assert [run.T_fuel for run in analysis.runs] == [COLD, WARM]
+    assert [run.as_dict()["fuel_temperature"] for run in analysis.runs] == [-20.0, 50.0]
     for run in analysis.runs:
         summary = run.summary()
         assert summary["overshoot_percent"] < 25.0
@@ -141,12 +144,14 @@ def test_text_from_the_log_is_escaped(analysis: LogAnalysis, tmp_path: Path):
 
 def test_settings_are_validated():
     with pytest.raises(FuelidError, match="low < high"):
-        AnalysisSettings(t_range=(50.0, -20.0))
+        AnalysisSettings(T_range=(WARM, COLD))
     with pytest.raises(FuelidError, match="tune from"):
         AnalysisSettings(tune_from="arx")  # type: ignore[arg-type]
 
 
-def test_cli_report_json(log_path: Path, tmp_path: Path):
+def test_cli_report_json(
+    log_path: Path, tmp_path: Path, analysis: LogAnalysis, capsys: pytest.CaptureFixture[str]
+):
     out = tmp_path / "r.html"
     result = runner.invoke(
         app, ["report", str(log_path), "--out", str(out), "--band-width", "35", "--json"]
@@ -177,6 +182,12 @@ def test_cli_report_json(log_path: Path, tmp_path: Path):
     assert data["tuning"]["Kc"] == pytest.approx(T1 / (m["K"] * 2 * theta), rel=1e-9)
     assert data["temperature_check"]["all_stable"] is True
     assert data["schedule"]["worst_Ms"] <= 1.7 + 1e-9
+    # the command only adds the paths and the provenance to the workflow's JSON
+    capsys.readouterr()
+    emit_json(analysis.to_json())
+    library = json.loads(capsys.readouterr().out)
+    extra = {"report", "figures", "fuelid_version", "input_sha256", "options"}
+    assert {k: v for k, v in data.items() if k not in extra} == library
 
 
 @pytest.mark.parametrize(

@@ -12,38 +12,37 @@ from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel, model_covariance
 from fuelid.plant import load_plant_config
 from fuelid.tuning import robustness, tune
-from fuelid.tuning.schedule import (
-    Anchor,
-    band_edges,
-    evaluate_fixed,
-    gain_schedule,
-    plant_cases,
-    uncertainty_sweep,
-)
+from fuelid.tuning.cases import Anchor, evaluate_fixed, plant_cases
+from fuelid.tuning.schedule import band_edges, gain_schedule
+from fuelid.tuning.sweep import uncertainty_sweep
+from fuelid.units import celsius_to_kelvin, kelvin_to_celsius
 
 CONFIG = load_plant_config()
-TEMPS = (-20.0, 0.0, 20.0, 35.0, 50.0)
+TEMPS = tuple(celsius_to_kelvin(t) for t in (-20.0, 0.0, 20.0, 35.0, 50.0))
+COLD, ROOM, WARM = celsius_to_kelvin(-20.0), celsius_to_kelvin(20.0), celsius_to_kelvin(50.0)
 IDENTIFIED = ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2)
-ANCHOR = Anchor(IDENTIFIED, fuel_temperature=20.0, u=3.0)
+ANCHOR = Anchor(IDENTIFIED, T_fuel=ROOM, u=3.0)
 
 
 def test_gain_falls_as_the_fuel_warms():
-    # theory.md §1: the pump's leakage grows as viscosity falls, so less flow per volt
+    # docs/physics.md (the pump): its leakage grows as viscosity falls, so less flow per volt
     cases = plant_cases(CONFIG, TEMPS, (3.0,))
     gains = [c.model.K for c in cases]
     assert np.all(np.diff(gains) < 0.0)
-    assert [c.fuel_temperature for c in cases] == list(TEMPS)
+    assert [c.T_fuel for c in cases] == list(TEMPS)
+    rows = evaluate_fixed(tune(IDENTIFIED), cases).rows()
+    assert [row["fuel_temperature"] for row in rows] == [-20.0, 0.0, 20.0, 35.0, 50.0]  # JSON: °C
 
 
 def test_anchor_reproduces_the_identified_model_at_its_conditions():
-    (case,) = plant_cases(CONFIG, (20.0,), (3.0,), ANCHOR)
+    (case,) = plant_cases(CONFIG, (ROOM,), (3.0,), ANCHOR)
     assert pytest.approx(IDENTIFIED.K, rel=1e-12) == case.model.K
     assert pytest.approx(IDENTIFIED.T, rel=1e-12) == case.model.T
     assert case.anchored
     assert case.margin_plant is case.model
     # and moves with temperature as the physics does (same ratio)
-    cold_phys, ref_phys = plant_cases(CONFIG, (-20.0, 20.0), (3.0,))
-    (cold,) = plant_cases(CONFIG, (-20.0,), (3.0,), ANCHOR)
+    cold_phys, ref_phys = plant_cases(CONFIG, (COLD, ROOM), (3.0,))
+    (cold,) = plant_cases(CONFIG, (COLD,), (3.0,), ANCHOR)
     assert (
         pytest.approx(cold_phys.model.K / ref_phys.model.K, rel=1e-12)
         == cold.model.K / IDENTIFIED.K
@@ -74,10 +73,10 @@ def schedule():
 def test_schedule_meets_its_target_when_checked_independently(schedule):
     assert schedule.bands
     for band in schedule.bands:
-        t_mid = 0.5 * (band.t_low + band.t_high)
+        T_mid = 0.5 * (band.T_low + band.T_high)
         u_mid = 0.5 * (band.u_low + band.u_high)
         cases = plant_cases(
-            CONFIG, (band.t_low, t_mid, band.t_high), (band.u_low, u_mid, band.u_high), ANCHOR
+            CONFIG, (band.T_low, T_mid, band.T_high), (band.u_low, u_mid, band.u_high), ANCHOR
         )
         worst = max(robustness(c.margin_plant, band.pi).Ms for c in cases)
         assert worst <= 1.6 + 1e-6
@@ -93,30 +92,33 @@ def test_a_tight_target_detunes_and_still_holds():
 
 
 def test_schedule_covers_the_range_and_lookup_finds_the_band(schedule):
-    temps = sorted({(b.t_low, b.t_high) for b in schedule.bands})
-    assert temps[0][0] == -20.0
-    assert temps[-1][1] == 50.0
+    temps = sorted({(b.T_low, b.T_high) for b in schedule.bands})
+    assert temps[0][0] == COLD
+    assert temps[-1][1] == WARM
     assert all(a[1] == b[0] for a, b in itertools.pairwise(temps))
     for t in (-20.0, -3.0, 17.5, 50.0):
+        T = celsius_to_kelvin(t)
         for u in (1.2, 3.0, 4.9):
-            band = schedule.lookup(t, u)
-            assert band.t_low <= t <= band.t_high
+            band = schedule.lookup(T, u)
+            assert band.T_low <= T <= band.T_high
             assert band.u_low <= u <= band.u_high
     # beyond the range the nearest end applies
-    assert schedule.lookup(70.0, 3.0).t_high == 50.0
+    assert schedule.lookup(celsius_to_kelvin(70.0), 3.0).T_high == WARM
     data = json.loads(json.dumps(schedule.as_dict()))
     assert data["worst_Ms"] <= 1.6 + 1e-6
     assert len(data["bands"]) == len(schedule.bands)
 
 
 def test_band_edges():
-    assert band_edges(-20.0, 50.0, 10.0).tolist() == [-20, -10, 0, 10, 20, 30, 40, 50]
-    edges = band_edges(0.0, 10.0, 4.0)  # 2.5 bands rounds to 2 equal ones
-    assert edges.tolist() == [0.0, 5.0, 10.0]
+    edges = band_edges(COLD, WARM, 10.0)
+    assert [kelvin_to_celsius(T) for T in edges] == pytest.approx([-20, -10, 0, 10, 20, 30, 40, 50])
+    assert (edges[0], edges[-1]) == (COLD, WARM)  # the ends exactly
+    edges = band_edges(273.15, 283.15, 4.0)  # 2.5 bands rounds to 2 equal ones
+    assert edges.tolist() == pytest.approx([273.15, 278.15, 283.15])
+    with pytest.raises(FuelidError, match=r"low < high, got 10…0 °C"):
+        band_edges(283.15, 273.15, 1.0)
     with pytest.raises(FuelidError):
-        band_edges(10.0, 0.0, 1.0)
-    with pytest.raises(FuelidError):
-        band_edges(0.0, 10.0, 0.0)
+        band_edges(273.15, 283.15, 0.0)
 
 
 def test_uncertainty_sweep():
@@ -124,7 +126,7 @@ def test_uncertainty_sweep():
     names = ("K", "T")
     none = uncertainty_sweep(pi, ANCHOR, names, np.zeros((2, 2)), CONFIG, n=60, seed=3)
     # no parameter uncertainty: only temperature moves the plant, as the physics says
-    lo, hi = (c.model.K for c in plant_cases(CONFIG, (50.0, -20.0), (3.0,), ANCHOR))
+    lo, hi = (c.model.K for c in plant_cases(CONFIG, (WARM, COLD), (3.0,), ANCHOR))
     assert np.all((lo - 1e-9 <= none.K) & (hi + 1e-9 >= none.K))
     wide_cov = np.diag([(0.15 * IDENTIFIED.K) ** 2, (0.15 * IDENTIFIED.T) ** 2])
     wide = uncertainty_sweep(pi, ANCHOR, names, wide_cov, CONFIG, n=60, seed=3)

@@ -12,6 +12,7 @@ from typer.testing import CliRunner
 from fuelid.cli import app, main
 from fuelid.plant import load_plant_config
 from fuelid.tuning.closedloop import flow_at
+from fuelid.units import celsius_to_kelvin
 
 runner = CliRunner()
 CONFIG = load_plant_config()
@@ -167,7 +168,7 @@ def test_simulate_near_the_top_of_the_drive_steps_down():
         "--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2", "--u", "4.8",
         "--simulate",
     )  # fmt: skip
-    warm_top = flow_at(CONFIG, 5.0, 50.0)
+    warm_top = flow_at(CONFIG, 5.0, celsius_to_kelvin(50.0))
     for run in data["closed_loop_plant"]:
         assert run["start_flow"] < warm_top
         (step,) = [e for e in run["events"] if e["kind"] == "setpoint"]

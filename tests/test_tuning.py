@@ -1,6 +1,6 @@
 """Tuning rules and loop robustness against numbers fixed by the formulas and by other tools.
 
-Rules: the worked example of theory.md §4 (K = 1, T = 2 s, θ = 1 s, continuous), the published
+Rules: the worked example of docs/tuning.md §3 (K = 1, T = 2 s, θ = 1 s, continuous), the published
 formulas evaluated here by hand, the half rule, h/2 for a sampled PI, scaling invariances, the PLC
 forms. Margins: an integrator-plus-dead-time loop with a closed-form answer, python-control on
 loops it can represent exactly (no delay, or a delay of whole periods in discrete time), and the
@@ -43,7 +43,7 @@ def _ms_dense(model: ProcessModel, pi: PISettings) -> float:
 
 
 def test_worked_example_simc():
-    pi = tune(WORKED, "simc", control_period=0.0, speed=1.0)
+    pi = tune(WORKED, "simc", control_period=0.0, closed_loop_time=1.0)
     assert pi.Kc == pytest.approx(1.0, rel=1e-12)
     assert pi.Ti == pytest.approx(2.0, rel=1e-12)
 
@@ -53,12 +53,14 @@ def test_worked_example_amigo_matches_the_published_formula():
     Kp, Ti = _amigo_by_hand(1.0, 2.0, 1.0)
     assert pi.Kc == pytest.approx(Kp, rel=1e-12)
     assert pi.Ti == pytest.approx(Ti, rel=1e-12)
-    assert (round(pi.Kc, 2), round(pi.Ti, 2)) == (0.41, 1.84)  # theory.md's rounded values
+    assert (round(pi.Kc, 2), round(pi.Ti, 2)) == (0.41, 1.84)  # docs/tuning.md's rounded values
 
 
 @pytest.mark.parametrize(("T", "delay", "tau_c"), [(2.0, 1.0, 1.0), (50.0, 1.0, 1.0)])
 def test_simc_integral_time_switches_at_four_tau_c_plus_theta(T: float, delay: float, tau_c: float):
-    pi = tune(ProcessModel(K=2.5, T=T, delay=delay), "simc", control_period=0.0, speed=tau_c)
+    pi = tune(
+        ProcessModel(K=2.5, T=T, delay=delay), "simc", control_period=0.0, closed_loop_time=tau_c
+    )
     assert pi.Kc == pytest.approx(T / (2.5 * (tau_c + delay)), rel=1e-12)
     # T = 2: Ti = T1; T = 50 (lag dominant): Ti = 4(τc + θ) = 8 s, faster disturbance rejection
     assert pi.Ti == pytest.approx(min(T, 4 * (tau_c + delay)), rel=1e-12)
@@ -73,7 +75,7 @@ def test_improved_simc_adds_a_third_of_the_delay_to_the_lag():
 
 
 def test_lambda_rule_is_imc_pi():
-    pi = tune(WORKED, "lambda", control_period=0.0, speed=3.0)
+    pi = tune(WORKED, "lambda", control_period=0.0, closed_loop_time=3.0)
     assert pi.Kc == pytest.approx(2.0 / (1.0 * (3.0 + 1.0)), rel=1e-12)
     assert pi.Ti == pytest.approx(2.0, rel=1e-12)
     default = tune(WORKED, "lambda", control_period=0.0)  # λ = T1
@@ -145,7 +147,7 @@ def test_rules_are_listed_with_their_sources():
 
 
 @pytest.mark.parametrize(
-    ("model", "rule", "h", "speed", "message"),
+    ("model", "rule", "h", "closed_loop_time", "message"),
     [
         (WORKED, "ziegler", 1.0, None, "unknown tuning rule"),
         (WORKED, "simc", -1.0, None, "control period"),
@@ -157,10 +159,10 @@ def test_rules_are_listed_with_their_sources():
     ],
 )
 def test_bad_tuning_requests_are_refused(
-    model: ProcessModel, rule: str, h: float, speed: float | None, message: str
+    model: ProcessModel, rule: str, h: float, closed_loop_time: float | None, message: str
 ):
     with pytest.raises(FuelidError, match=message):
-        tune(model, rule, h, speed)
+        tune(model, rule, h, closed_loop_time)
 
 
 # --- margins ---------------------------------------------------------------------------------

@@ -15,11 +15,10 @@ import math
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import jinja2
 import numpy as np
-from matplotlib.figure import Figure
 
 from fuelid import __version__
 from fuelid.errors import DataError
@@ -27,14 +26,17 @@ from fuelid.io.files import atomic_write_bytes
 from fuelid.io.timeseries import TimeSeries
 from fuelid.plots import (
     plot_bode,
-    plot_closed_loop_runs,
     plot_correlation_tests,
     plot_identification,
     plot_log,
-    plot_schedule,
+    runs_figure,
+    schedule_figure,
 )
-from fuelid.tuning.schedule import GainSchedule
+from fuelid.units import kelvin_to_celsius
 from fuelid.workflow import LogAnalysis
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 TEMPLATE = "report.html.j2"
 
@@ -55,17 +57,6 @@ class ReportFigure:
 
 FIGURE_KEYS = ("overview", "comparison", "residuals", "bode", "closed_loop", "schedule")
 """Every report has these figures, in this order (also the PNG file suffixes)."""
-
-
-def schedule_figure(schedule: GainSchedule) -> Figure:
-    """Kc and Ti per temperature band, one line per flow band."""
-    return plot_schedule(
-        [
-            (b.t_low, b.t_high, f"{b.u_low:.2f}…{b.u_high:.2f} V", b.pi.Kc, b.pi.Ti)
-            for b in schedule.bands
-        ],
-        f"gain schedule ({schedule.rule}, Ms ≤ {schedule.ms_target:g})",
-    )
 
 
 def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
@@ -118,13 +109,11 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
         f"loop L = C·G on the {chosen.method} model, "
         + (f"PI sampled every {s.control_period:g} s" if s.control_period > 0 else "continuous PI"),
     )
-    closed = plot_closed_loop_runs(
-        [
-            (f"fuel at {r.fuel_temperature:g} °C", r.time, r.setpoint, r.flow, r.command)
-            for r in analysis.runs
-        ],
+    closed = runs_figure(
+        analysis.runs,
         f"{analysis.tuning.pi.rule} gains on the nonlinear plant: setpoint step, then a "
         "0.2 V load step",
+        label="fuel at {} °C",
     )
     schedule = schedule_figure(analysis.schedule)
     return {
@@ -201,7 +190,7 @@ def _context(
         summary = run.summary()
         runs.append(
             {
-                "fuel_temperature": _fmt(run.fuel_temperature, "g"),
+                "fuel_temperature": _fmt(kelvin_to_celsius(run.T_fuel), "g"),
                 "setpoint": f"{run.setpoint[0]:.1f} → {run.setpoint[-1]:.1f}",
                 "overshoot": _fmt(summary["overshoot_percent"], ".1f"),
                 "settling": _fmt(summary["settling_time"], ".1f"),
@@ -233,10 +222,10 @@ def _context(
             "y_unit": data.y_unit,
             "notes": list(data.notes),
             "u_operating": _fmt(analysis.u_operating, ".3g"),
-            "fuel_temperature": _fmt(s.fuel_temperature, "g"),
+            "fuel_temperature": _fmt(kelvin_to_celsius(s.T_fuel), "g"),
         },
         "settings": s,
-        "t_range": f"{s.t_range[0]:g}…{s.t_range[1]:g}",
+        "t_range": f"{kelvin_to_celsius(s.T_range[0]):g}…{kelvin_to_celsius(s.T_range[1]):g}",
         "identifications": rows_ident,
         "warnings": analysis.warnings,
         "pi": {

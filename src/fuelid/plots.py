@@ -1,21 +1,31 @@
-"""Figures (matplotlib) for the plant, simulations and (later) identification and tuning.
+"""Figures (matplotlib) of the plant, simulations, identification and tuning.
 
 Computation never lives here: every function takes results computed elsewhere and draws them.
 Figures are built with :class:`matplotlib.figure.Figure` directly (no pyplot state, no GUI
-backend), so they work on a headless machine.
+backend), so they work on a headless machine. matplotlib is imported inside the functions, so a
+command that draws nothing never loads it (docs/architecture.md, "Rules"). Temperatures arrive in
+kelvin and are shown in °C.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from fuelid.errors import DataError
-from fuelid.io.timeseries import TimeSeries
+from fuelid.units import kelvin_to_celsius
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from fuelid.io.timeseries import TimeSeries
+    from fuelid.tuning.closedloop import ClosedLoopResult
+    from fuelid.tuning.schedule import GainSchedule
+    from fuelid.workflow.tune import TuneOutcome
 
 FloatArray = NDArray[np.float64]
 
@@ -31,6 +41,8 @@ def save_figure(fig: Figure, path: str | Path) -> Path:
 
 def plot_log(log: TimeSeries, title: str = "") -> Figure:
     """Command and measured flow of a PLC log, on two stacked axes sharing time."""
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(9, 5.5))
     ax_u, ax_q = fig.subplots(2, 1, sharex=True)
     ax_u.step(log.time, log["u_V"], where="post", color="tab:blue")
@@ -56,6 +68,8 @@ def plot_step_responses(
     ylabel: str = "flow change per volt [(L/min)/V]",
 ) -> Figure:
     """Several step responses on one axis, with optional vertical marks at settling times."""
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(8, 4.5))
     ax = fig.subplots()
     styles = ("-", "--", ":")
@@ -96,6 +110,8 @@ def plot_identification(
     split_time : float, optional
         Where held-out validation data begin [s] (shaded).
     """
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(9, 6))
     ax, ax_res = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     ax.plot(t, y, lw=0.6, color="0.55", label="measured")
@@ -125,6 +141,8 @@ def plot_correlation_tests(tests: Sequence[tuple[str, FloatArray, FloatArray, fl
     tests : sequence of (title, lags, values, bound)
         One panel each, e.g. the residual autocorrelation and the input-residual correlation.
     """
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(9, 3.2 * len(tests)))
     axes = fig.subplots(len(tests), 1, squeeze=False)[:, 0]
     for ax, (title, lags, values, bound) in zip(axes, tests, strict=True):
@@ -151,6 +169,8 @@ def plot_bode(
     title: str = "",
 ) -> Figure:
     """Bode plot of the loop L = C·G with the margins marked, and the sensitivity |S|."""
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(9, 7))
     ax_mag, ax_phase = fig.subplots(2, 1, sharex=True)
     mag_db = 20.0 * np.log10(np.abs(loop))
@@ -205,6 +225,8 @@ def plot_linear_closed_loop(
     title: str = "",
 ) -> Figure:
     """Unit setpoint step (output and command) and unit load step of the linear closed loop."""
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(9, 7))
     ax_y, ax_u, ax_d = fig.subplots(3, 1, sharex=True)
     ax_y.plot(t, setpoint_response, color="tab:blue", label="flow")
@@ -236,6 +258,8 @@ def plot_closed_loop_runs(
     runs : sequence of (label, time, setpoint, flow, command)
         Each run's signals [s, L/min, L/min, V].
     """
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(9, 6))
     ax_q, ax_u = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     colors = ("tab:blue", "tab:red", "tab:green", "tab:purple")
@@ -267,6 +291,8 @@ def plot_schedule(
     bands : sequence of (t_low, t_high, flow_label, Kc, Ti)
         One entry per band [°C, °C, -, V/(L/min), s].
     """
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(9, 5))
     ax_k, ax_i = fig.subplots(2, 1, sharex=True)
     labels = list(dict.fromkeys(b[2] for b in bands))
@@ -284,3 +310,52 @@ def plot_schedule(
     if title:
         ax_k.set_title(title)
     return fig
+
+
+def schedule_figure(schedule: GainSchedule) -> Figure:
+    """Kc and Ti per fuel-temperature band [°C], one line per flow band."""
+    return plot_schedule(
+        [
+            (
+                kelvin_to_celsius(b.T_low),
+                kelvin_to_celsius(b.T_high),
+                f"{b.u_low:.2f}…{b.u_high:.2f} V",
+                b.pi.Kc,
+                b.pi.Ti,
+            )
+            for b in schedule.bands
+        ],
+        f"gain schedule ({schedule.rule}, Ms ≤ {schedule.ms_target:g})",
+    )
+
+
+def runs_figure(runs: Sequence[ClosedLoopResult], title: str = "", label: str = "{} °C") -> Figure:
+    """Closed-loop runs on the nonlinear plant, each labelled by its fuel temperature [°C].
+
+    ``label`` is formatted with the temperature, e.g. ``"fuel at {} °C"``.
+    """
+    drawn = []
+    for r in runs:
+        name = label.format(f"{kelvin_to_celsius(r.T_fuel):g}")
+        drawn.append((name, r.time, r.setpoint, r.flow, r.command))
+    return plot_closed_loop_runs(drawn, title)
+
+
+def tune_figure(outcome: TuneOutcome) -> Figure:
+    """The closed-loop figure of ``fuelid tune --plot``.
+
+    The nonlinear runs when there are any, else the unit responses of the linear closed loop on
+    the model with the gains and Ms in the title.
+    """
+    pi = outcome.tuning.pi
+    if outcome.runs:
+        return runs_figure(outcome.runs, f"{pi.rule} PI on the nonlinear plant")
+    cl = outcome.tuning.closed_loop
+    return plot_linear_closed_loop(
+        cl.time,
+        cl.setpoint_response,
+        cl.setpoint_command,
+        cl.disturbance_response,
+        f"{pi.rule}: Kc = {pi.Kc:.4g} V/(L/min), Ti = {pi.Ti:.3g} s, "
+        f"Ms = {outcome.tuning.robustness.Ms:.2f}",
+    )

@@ -1,7 +1,15 @@
-"""What every command shares: error handling at the edge, JSON output, provenance, units."""
+"""What every command shares: error handling at the edge, JSON output, provenance, units, options.
+
+Only the standard library, typer and fuelid's light foundation (errors, units) are imported here
+and at the top of every command module, so ``fuelid --help`` and each command's ``--help`` start
+without numpy, pandas, scipy, python-control or matplotlib; a command imports the library inside
+its body, when it runs (docs/architecture.md, "Rules"). °C, L/min and V live here at the edge:
+the library gets kelvin.
+"""
 
 from __future__ import annotations
 
+import enum
 import functools
 import hashlib
 import json
@@ -9,15 +17,16 @@ import math
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any, ParamSpec, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, ParamSpec, TypeVar
 
 import typer
 
 from fuelid import __version__
 from fuelid.errors import FuelidError
-from fuelid.io.logs import load_log, parse_scale
-from fuelid.io.timeseries import IOData
-from fuelid.units import T0 as KELVIN
+from fuelid.units import celsius_to_kelvin as _to_kelvin
+
+if TYPE_CHECKING:
+    from fuelid.io.timeseries import IOData
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -101,11 +110,105 @@ def provenance(options: dict[str, Any], input_file: Path | None = None) -> dict[
     }
 
 
-def celsius_to_kelvin(t_degC: float) -> float:
-    """Fuel temperature at the edge [°C] to SI [K]."""
+def celsius_to_kelvin(t_degC: float, name: str = "fuel temperature") -> float:
+    """A fuel temperature at the edge [°C] in SI [K], refusing one that is not finite."""
     if not math.isfinite(t_degC):
-        raise FuelidError(f"fuel temperature must be finite, got {t_degC}")
-    return t_degC + KELVIN
+        raise FuelidError(f"{name} must be a finite temperature, got {t_degC}")
+    return _to_kelvin(t_degC)
+
+
+def temperature_options(
+    fuel_temp: float, t_min: float, t_max: float
+) -> tuple[float, tuple[float, float]]:
+    """``--fuel-temp``, ``--t-min``, ``--t-max`` [°C] checked and converted to kelvin.
+
+    Returns
+    -------
+    (T_fuel, (T_min, T_max)) : float, (float, float)
+        [K]
+    """
+    T_fuel = celsius_to_kelvin(fuel_temp, "--fuel-temp")
+    T_min = celsius_to_kelvin(t_min, "--t-min")
+    T_max = celsius_to_kelvin(t_max, "--t-max")
+    if not t_min < t_max:
+        raise FuelidError(
+            f"--t-min must be below --t-max (a range needs low < high), got {t_min:g} and "
+            f"{t_max:g} °C"
+        )
+    return T_fuel, (T_min, T_max)
+
+
+class RuleChoice(enum.StrEnum):
+    """Tuning rules of ``fuelid tune`` (the keys of ``fuelid.tuning.TUNING_RULES``)."""
+
+    simc = "simc"
+    isimc = "isimc"
+    lambda_ = "lambda"
+    amigo = "amigo"
+
+
+def closed_loop_time(rule: RuleChoice, tau_c: float | None, lam: float | None) -> float | None:
+    """The rule's closed-loop time [s] from ``--tau-c`` or ``--lambda``, refusing a mismatch.
+
+    τc (SIMC, improved SIMC) and λ (lambda) are the desired closed-loop time constant: larger is
+    slower and more robust. None leaves the rule's default.
+    """
+    if tau_c is not None and lam is not None:
+        raise FuelidError("give --tau-c (SIMC) or --lambda (lambda rule), not both")
+    if tau_c is not None and rule not in (RuleChoice.simc, RuleChoice.isimc):
+        raise FuelidError(f"--tau-c belongs to the simc and isimc rules, not {rule.value}")
+    if lam is not None and rule is not RuleChoice.lambda_:
+        raise FuelidError(f"--lambda belongs to the lambda rule, not {rule.value}")
+    return tau_c if tau_c is not None else lam
+
+
+# the options fuelid tune and fuelid report share
+RuleOption = Annotated[
+    RuleChoice,
+    typer.Option(
+        help="simc (Skogestad), isimc (improved SIMC), lambda (IMC-PI), amigo "
+        "(Åström-Hägglund); see fuelid tune --list-rules."
+    ),
+]
+TauCOption = Annotated[
+    float | None,
+    typer.Option(
+        "--tau-c",
+        help="SIMC closed-loop time constant τc [s]; larger is slower and more robust "
+        "(default: θ).",
+        show_default=False,
+    ),
+]
+LambdaOption = Annotated[
+    float | None,
+    typer.Option(
+        "--lambda",
+        help="Lambda-rule closed-loop time constant λ [s]; larger is slower and more robust "
+        "(default: T1).",
+        show_default=False,
+    ),
+]
+ControlPeriodOption = Annotated[
+    float, typer.Option(help="PLC control period h [s]; 0 for a continuous controller.")
+]
+TMinOption = Annotated[float, typer.Option(help="Coldest fuel [°C].")]
+TMaxOption = Annotated[float, typer.Option(help="Warmest fuel [°C].")]
+BandWidthOption = Annotated[float, typer.Option(help="Temperature band of the schedule [°C].")]
+MsTargetOption = Annotated[
+    float, typer.Option(help="Largest Ms the schedule accepts in any band [-].")
+]
+FlowBandsOption = Annotated[
+    int, typer.Option(help="Flow bands where the gain depends on the flow (1: none).")
+]
+ConfigOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--config",
+        "-c",
+        help="Plant TOML file (default: the packaged reference plant).",
+        show_default=False,
+    ),
+]
 
 
 # the options every command that reads a PLC log shares (identify, report)
@@ -143,6 +246,8 @@ def read_log(
     output_scale: str | None,
 ) -> IOData:
     """Load a log with the shared column and scaling options (a sample time replaces the time)."""
+    from fuelid.io.logs import load_log, parse_scale
+
     return load_log(
         path,
         time_col=None if sample_time is not None else time_col,

@@ -1,15 +1,18 @@
-"""``fuelid identify``: the equivalent model from a PLC log, with error bars and diagnostics."""
+"""``fuelid identify``: the equivalent model from a PLC log, with error bars and diagnostics.
+
+The command checks its options, reads the log and prints what
+:func:`~fuelid.workflow.identify_log` returns; the library is imported when the command runs
+(matplotlib only with ``--plot``).
+"""
 
 from __future__ import annotations
 
 import enum
 import math
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import typer
-from rich.console import Console
-from rich.table import Table
 
 from fuelid.cli._common import (
     InputColumn,
@@ -26,11 +29,9 @@ from fuelid.cli._common import (
     warn,
 )
 from fuelid.errors import FuelidError
-from fuelid.identify.procedure import IdentifyOptions, identify
-from fuelid.io.timeseries import IOData
-from fuelid.plant import linearise, load_plant_config
-from fuelid.plots import plot_identification, save_figure
-from fuelid.preprocess import select
+
+if TYPE_CHECKING:
+    from fuelid.io.timeseries import IOData
 
 
 class MethodChoice(enum.StrEnum):
@@ -62,19 +63,6 @@ def _delay(text: str | None) -> float | Literal["auto"] | None:
     if not (math.isfinite(value) and value >= 0.0):
         raise FuelidError(f"--delay must be a non-negative number of seconds, got {text!r}")
     return value
-
-
-UNITS = {
-    "K": "output unit per input unit ((L/min)/V for the fuel loop)",
-    "T": "s",
-    "T2": "s",
-    "delay": "s",
-    "T_f": "s",
-    "sample_time": "s",
-    "fit_percent": "%",
-    "validation_fit_percent": "%",
-    "noise_std": "output unit",
-}
 
 
 @guarded
@@ -180,18 +168,27 @@ def identify_command(
     A flowmeter time constant or delay that is given is prior knowledge and stays fixed; what is
     not given is estimated. Non-exciting data are refused (exit code 2).
     """
+    from fuelid.identify.procedure import IdentifyOptions
+    from fuelid.plant import load_plant_config
+    from fuelid.workflow import identify_log, plant_priors
+
     check_figure_path(plot)
-    settling = None
-    T_f, meter_delay = flowmeter_T, flowmeter_delay
-    if config is not None:
-        plant = load_plant_config(config)
-        mid = 0.5 * (plant.vfd.u_min_V + plant.vfd.u_max_V)
-        settling = linearise(plant, mid, 293.15).settling_time()
-        T_f = plant.flowmeter.time_constant_s if T_f is None else T_f
-        meter_delay = plant.flowmeter.delay_s if meter_delay is None else meter_delay
-    for name, value in (("--flowmeter-T", T_f), ("--flowmeter-delay", meter_delay)):
+    for name, value in (("--flowmeter-T", flowmeter_T), ("--flowmeter-delay", flowmeter_delay)):
         if value is not None and not (math.isfinite(value) and value >= 0.0):
             raise FuelidError(f"{name} must be a non-negative number of seconds")
+    options = IdentifyOptions(
+        method="step-ls" if method is MethodChoice.step_ls else "oe",
+        order=_order(order),
+        delay=_delay(delay),
+        flowmeter_T=flowmeter_T,
+        flowmeter_delay=flowmeter_delay,
+        N=n_steps,
+        control_period=control_period,
+        validate_split=validate_split,
+        u_before=u_before,
+    )
+    if config is not None:
+        options = plant_priors(options, load_plant_config(config))
 
     def read(path: Path) -> IOData:
         return read_log(
@@ -200,24 +197,13 @@ def identify_command(
 
     data = read(file)
     validation = read(validate_file) if validate_file is not None else None
-    if t_start is not None or t_stop is not None:
-        data = select(data, t_start, t_stop)
-    options = IdentifyOptions(
-        method="step-ls" if method is MethodChoice.step_ls else "oe",
-        order=_order(order),
-        delay=_delay(delay),
-        flowmeter_T=T_f,
-        flowmeter_delay=meter_delay,
-        N=n_steps,
-        settling_time=settling,
-        control_period=control_period,
-        validate_split=validate_split,
-        u_before=u_before,
-    )
-    result = identify(data, options, validation)
-    for message in result.warnings:
+    outcome = identify_log(data, options, validation=validation, t_start=t_start, t_stop=t_stop)
+    result = outcome.result
+    for message in outcome.warnings:
         warn(message)
     if plot is not None:
+        from fuelid.plots import plot_identification, save_figure
+
         fig = plot_identification(
             result.time,
             result.y,
@@ -227,8 +213,8 @@ def identify_command(
             ylabel=output_col,
         )
         save_figure(fig, plot)
+    data_json = outcome.to_json()
     if as_json:
-        payload: dict[str, Any] = result.to_json() | {"units": UNITS}
         opts = {
             "method": method.value,
             "order": order,
@@ -247,12 +233,15 @@ def identify_command(
             "input_scale": input_scale,
             "output_scale": output_scale,
         }
-        emit_json(payload | provenance(opts, file))
+        emit_json(data_json | provenance(opts, file))
         return
-    _print_table(result.to_json(), file)
+    _print_table(data_json, file)
 
 
 def _print_table(data: dict[str, Any], file: Path) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
     table = Table(
         title=f"{data['method']} on {file.name} ({data['n_samples']} samples every "
         f"{data['sample_time']:g} s)"

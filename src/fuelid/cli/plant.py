@@ -1,32 +1,25 @@
-"""``fuelid plant …``: the mechanism model of a plant (operating point, linearised model)."""
+"""``fuelid plant …``: the mechanism model of a plant (operating point, linearised model).
+
+The library is imported when the command runs, not when ``fuelid --help`` is asked for.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
-from rich.console import Console
-from rich.table import Table
 
-from fuelid.cli._common import celsius_to_kelvin, emit_json, guarded, provenance
-from fuelid.plant import linearise, load_plant_config
-from fuelid.units import LPM_PER_M3S
+from fuelid.cli._common import ConfigOption, celsius_to_kelvin, emit_json, guarded, provenance
+from fuelid.units import LPM_PER_M3S, PA_PER_MPA
+
+if TYPE_CHECKING:
+    from rich.table import Table
 
 app = typer.Typer(
     help="The plant's physics model: operating point and linearised model.",
     rich_markup_mode=None,
 )
-
-ConfigOption = Annotated[
-    Path | None,
-    typer.Option(
-        "--config",
-        "-c",
-        help="Plant TOML file (default: the packaged reference plant).",
-        show_default=False,
-    ),
-]
 
 UNITS = {
     "u": "V",
@@ -52,6 +45,8 @@ UNITS = {
 
 def plant_summary(config_path: Path | None, fuel_temp: float, u: float | None) -> dict[str, Any]:
     """Operating point and equivalent model as the JSON object ``plant info --json`` prints."""
+    from fuelid.plant import linearise, load_plant_config
+
     config = load_plant_config(config_path)
     command = 0.5 * (config.vfd.u_min_V + config.vfd.u_max_V) if u is None else u
     linear = linearise(config, command, celsius_to_kelvin(fuel_temp))
@@ -66,8 +61,8 @@ def plant_summary(config_path: Path | None, fuel_temp: float, u: float | None) -
         "u": command,
         "operating_point": {
             "flow": op.q * LPM_PER_M3S,
-            "pump_pressure": op.p_pump * 1e-6,
-            "nozzle_pressure": op.p_nozzle * 1e-6,
+            "pump_pressure": op.p_pump / PA_PER_MPA,
+            "nozzle_pressure": op.p_nozzle / PA_PER_MPA,
             "speed": op.speed_rpm,
             "torque": op.torque,
             "frequency": op.f,
@@ -98,6 +93,8 @@ def plant_summary(config_path: Path | None, fuel_temp: float, u: float | None) -
 
 
 def _table(summary: dict[str, Any]) -> Table:
+    from rich.table import Table
+
     op, model = summary["operating_point"], summary["model"]
     table = Table(
         title=(
@@ -159,4 +156,6 @@ def info(
         options = {"config": str(config) if config else None, "fuel_temp": fuel_temp, "u": u}
         emit_json(summary | provenance(options, config))
     else:
+        from rich.console import Console
+
         Console().print(_table(summary))

@@ -1,45 +1,47 @@
-"""``fuelid report``: one self-contained HTML page from a PLC log, from the data to the gains."""
+"""``fuelid report``: one self-contained HTML page from a PLC log, from the data to the gains.
+
+The command checks its options, reads the log, calls :func:`~fuelid.workflow.analyse_log` and
+writes the page with :func:`~fuelid.htmlreport.write_report`; the library is imported when the
+command runs.
+"""
 
 from __future__ import annotations
 
 import enum
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.console import Console
 
 from fuelid.cli._common import (
+    BandWidthOption,
+    ControlPeriodOption,
+    FlowBandsOption,
     InputColumn,
     InputScale,
+    LambdaOption,
+    MsTargetOption,
     OutputColumn,
     OutputScale,
+    RuleChoice,
+    RuleOption,
     SampleTime,
+    TauCOption,
     TimeColumn,
+    TMaxOption,
+    TMinOption,
+    closed_loop_time,
     emit_json,
     file_sha256,
     guarded,
     provenance,
     read_log,
+    temperature_options,
     warn,
 )
-from fuelid.cli.tune import (
-    BandWidthOption,
-    ControlPeriodOption,
-    FlowBandsOption,
-    LambdaOption,
-    MsTargetOption,
-    RuleChoice,
-    RuleOption,
-    TauCOption,
-    TMaxOption,
-    TMinOption,
-    rule_speed,
-)
-from fuelid.htmlreport import check_report_path, write_report
-from fuelid.plant import load_plant_config
-from fuelid.tuning.result import UNITS
-from fuelid.workflow import AnalysisSettings, LogAnalysis, analyse_log
+
+if TYPE_CHECKING:
+    from fuelid.workflow import LogAnalysis
 
 
 class TuneFrom(enum.StrEnum):
@@ -102,14 +104,19 @@ def report_command(
     coldest and warmest fuel, the gains in every PLC form and the gain schedule. The figures are
     also written as PNG files beside the page (REPORT_overview.png, ...).
     """
+    from fuelid.htmlreport import check_report_path, write_report
+    from fuelid.plant import load_plant_config
+    from fuelid.workflow import AnalysisSettings, analyse_log
+
     check_report_path(out, force)  # before any work: a typo must not cost a minute
+    T_fuel, T_range = temperature_options(fuel_temp, t_min, t_max)
     settings = AnalysisSettings(
         tune_from="oe" if method is TuneFrom.oe else "step-ls",
         rule=rule.value,
-        speed=rule_speed(rule, tau_c, lam),
+        closed_loop_time=closed_loop_time(rule, tau_c, lam),
         control_period=control_period,
-        fuel_temperature=fuel_temp,
-        t_range=(t_min, t_max),
+        T_fuel=T_fuel,
+        T_range=T_range,
         band_width=band_width,
         ms_target=ms_target,
         flow_bands=flow_bands,
@@ -145,41 +152,15 @@ def report_command(
             "input_scale": input_scale,
             "output_scale": output_scale,
         }
-        emit_json(_payload(analysis, written) | provenance(options, file))
+        paths = {"report": str(written[0]), "figures": [str(p) for p in written[1:]]}
+        emit_json(paths | analysis.to_json() | provenance(options, file))
         return
     _print_summary(analysis, written)
 
 
-def _payload(analysis: LogAnalysis, written: list[Path]) -> dict[str, Any]:
-    check = analysis.check
-    return {
-        "report": str(written[0]),
-        "figures": [str(p) for p in written[1:]],
-        "identification": {m: r.to_json() for m, r in analysis.identifications.items()},
-        "tuned_from": analysis.settings.tune_from,
-        "tuning": analysis.tuning.to_json(),
-        "temperature_check": {
-            "worst_Ms": check.worst_Ms,
-            "worst_overshoot_percent": check.worst_overshoot,
-            "worst_gain_margin": check.worst_gain_margin,
-            "worst_phase_margin_deg": check.worst_phase_margin,
-            "all_stable": check.all_stable,
-        },
-        "closed_loop_plant": [
-            {
-                "fuel_temperature": r.fuel_temperature,
-                "start_flow": float(r.setpoint[0]),
-                "summary": r.summary(),
-            }
-            for r in analysis.runs
-        ],
-        "schedule": analysis.schedule.as_dict(),
-        "warnings": analysis.warnings,
-        "units": UNITS,
-    }
-
-
 def _print_summary(analysis: LogAnalysis, written: list[Path]) -> None:
+    from rich.console import Console
+
     console = Console()
     pi = analysis.tuning.pi
     rob = analysis.tuning.robustness

@@ -5,23 +5,17 @@ from __future__ import annotations
 import enum
 import math
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
-import numpy as np
 import typer
-from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from fuelid.cli._common import celsius_to_kelvin, emit_json, guarded, provenance
-from fuelid.errors import DataError, FuelidError
-from fuelid.io.files import check_output_path
-from fuelid.io.tables import read_table, table_column
-from fuelid.io.timeseries import FUEL_TEMPERATURE_COLUMN, INPUT_COLUMN, TIME_COLUMN
-from fuelid.plant import load_plant_config
-from fuelid.profiles import InputProfile, random_levels, step_profile, step_sequence
-from fuelid.simulate import FuelTemperature, simulate
+from fuelid.errors import FuelidError
 from fuelid.units import LPM_PER_M3S
 from fuelid.units import T0 as KELVIN
+
+if TYPE_CHECKING:
+    from fuelid.profiles import InputProfile
 
 #: simulated time above which a progress bar is shown [s]
 PROGRESS_THRESHOLD = 600.0
@@ -48,6 +42,14 @@ def _levels(text: str) -> list[float]:
 
 def _profile_from_file(path: Path, duration: float | None) -> tuple[InputProfile, Any]:
     """A command profile (``t_s``, ``u_V`` and optionally ``T_fuel_degC``) read from a table."""
+    import numpy as np
+
+    from fuelid.errors import DataError
+    from fuelid.io.tables import read_table, table_column
+    from fuelid.io.timeseries import FUEL_TEMPERATURE_COLUMN, INPUT_COLUMN, TIME_COLUMN
+    from fuelid.profiles import InputProfile
+    from fuelid.simulate import FuelTemperature
+
     frame, _ = read_table(path)
     source = repr(str(path))
     t = table_column(frame, TIME_COLUMN, source)
@@ -143,6 +145,14 @@ def simulate_command(
     multilevel sequence over --levels with minimum hold --hold s), 'file' (read from
     --input-file). The controller output is held for --control-period s (sample-and-hold).
     """
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from fuelid.io.files import check_output_path
+    from fuelid.plant import load_plant_config
+    from fuelid.profiles import InputProfile, random_levels, step_profile, step_sequence
+    from fuelid.simulate import FuelTemperature, simulate
+
     out = check_output_path(output, overwrite=force)
     plant = load_plant_config(config)
     temperature: Any = None

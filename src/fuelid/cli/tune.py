@@ -1,154 +1,43 @@
-"""``fuelid tune``: PI gains from a model, their margins, closed-loop checks and a schedule."""
+"""``fuelid tune``: PI gains from a model, their margins, closed-loop checks and a schedule.
+
+The command parses and checks its options, builds a :class:`~fuelid.workflow.TuneRequest` and
+prints what :func:`~fuelid.workflow.tune_model` or :func:`~fuelid.workflow.schedule_gains`
+return. The library is imported when the command runs, not when ``fuelid --help`` is asked for.
+"""
 
 from __future__ import annotations
 
-import enum
 import math
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
-import numpy as np
 import typer
-from rich.console import Console
-from rich.table import Table
 
-from fuelid.cli._common import check_figure_path, emit_json, guarded, provenance, warn
-from fuelid.errors import FuelidError
-from fuelid.htmlreport import schedule_figure
-from fuelid.io.modelfile import load_model_file
-from fuelid.model import ProcessModel
-from fuelid.plant import load_plant_config
-from fuelid.plots import plot_closed_loop_runs, plot_linear_closed_loop, save_figure
-from fuelid.tuning.closedloop import (
-    ClosedLoopResult,
-    flow_at,
-    standard_runs,
-)
-from fuelid.tuning.result import (
-    UNITS,
-    TuningResult,
-    check_control_period,
-    check_tunable,
-    evaluate_tuning,
-)
-from fuelid.tuning.rules import TUNING_RULES
-from fuelid.tuning.schedule import (
-    Anchor,
-    FixedPIEvaluation,
-    GainSchedule,
-    band_edges,
-    evaluate_fixed,
-    gain_schedule,
-    plant_cases,
-    uncertainty_sweep,
-)
-
-MAX_SWEEP = 20_000
-"""Most plant variants of --sweep (about 30 s on two cores)."""
-
-
-class RuleChoice(enum.StrEnum):
-    """Tuning rules of ``fuelid tune`` (the keys of ``fuelid.tuning.TUNING_RULES``)."""
-
-    simc = "simc"
-    isimc = "isimc"
-    lambda_ = "lambda"
-    amigo = "amigo"
-
-
-# options fuelid report shares with fuelid tune
-RuleOption = Annotated[
+from fuelid.cli._common import (
+    BandWidthOption,
+    ControlPeriodOption,
+    FlowBandsOption,
+    LambdaOption,
+    MsTargetOption,
     RuleChoice,
-    typer.Option(
-        help="simc (Skogestad), isimc (improved SIMC), lambda (IMC-PI), amigo "
-        "(Åström-Hägglund); see fuelid tune --list-rules."
-    ),
-]
-TauCOption = Annotated[
-    float | None,
-    typer.Option(
-        "--tau-c", help="SIMC closed-loop time constant [s] (default: θ).", show_default=False
-    ),
-]
-LambdaOption = Annotated[
-    float | None,
-    typer.Option(
-        "--lambda",
-        help="Lambda-rule closed-loop time constant [s] (default: T1).",
-        show_default=False,
-    ),
-]
-ControlPeriodOption = Annotated[
-    float, typer.Option(help="PLC control period h [s]; 0 for a continuous controller.")
-]
-TMinOption = Annotated[float, typer.Option(help="Coldest fuel [°C].")]
-TMaxOption = Annotated[float, typer.Option(help="Warmest fuel [°C].")]
-BandWidthOption = Annotated[float, typer.Option(help="Temperature band of the schedule [°C].")]
-MsTargetOption = Annotated[
-    float, typer.Option(help="Largest Ms the schedule accepts in any band [-].")
-]
-FlowBandsOption = Annotated[
-    int, typer.Option(help="Flow bands where the gain depends on the flow (1: none).")
-]
+    RuleOption,
+    TauCOption,
+    TMaxOption,
+    TMinOption,
+    check_figure_path,
+    closed_loop_time,
+    emit_json,
+    guarded,
+    provenance,
+    temperature_options,
+    warn,
+)
+from fuelid.errors import FuelidError
 
-
-def _model_from_options(
-    model_file: Path | None,
-    K: float | None,
-    T: float | None,
-    T2: float | None,
-    T_f: float | None,
-    delay: float | None,
-    need_cov: bool = False,
-) -> tuple[ProcessModel | None, tuple[str, ...], Any]:
-    flags = {"--K": K, "--T": T, "--T2": T2, "--T-f": T_f, "--delay": delay}
-    given = [name for name, value in flags.items() if value is not None]
-    if model_file is not None:
-        if given:
-            raise FuelidError(f"give either --model or {', '.join(given)}, not both")
-        loaded = load_model_file(model_file)
-        if need_cov and loaded.cov_problem is not None:
-            raise FuelidError(
-                f"--sweep draws from the covariance of {str(model_file)!r}, but "
-                f"{loaded.cov_problem}"
-            )
-        return loaded.model, loaded.cov_names, loaded.cov
-    if not given:
-        return None, (), None
-    if K is None or T is None:
-        raise FuelidError("a model from flags needs at least --K and --T")
-    for name, value in flags.items():
-        if value is not None and not math.isfinite(value):
-            raise FuelidError(f"{name} must be a finite number")
-    if T <= 0.0:
-        raise FuelidError(f"--T must be a positive time constant, got {T:g} s")
-    for name, value in (("--T2", T2), ("--T-f", T_f)):
-        if value is not None and value < 0.0:
-            raise FuelidError(f"{name} must be zero or a positive time constant, got {value:g} s")
-    if delay is not None and delay < 0.0:
-        raise FuelidError(f"--delay must not be negative, got {delay:g} s")
-    model = ProcessModel(K=K, T=T, T2=T2 or 0.0, T_f=T_f or 0.0, delay=delay or 0.0)
-    return model, (), None
-
-
-def rule_speed(rule: RuleChoice, tau_c: float | None, lam: float | None) -> float | None:
-    """The rule's tuning parameter from ``--tau-c`` or ``--lambda``, refusing a mismatch."""
-    if tau_c is not None and lam is not None:
-        raise FuelidError("give --tau-c (SIMC) or --lambda (lambda rule), not both")
-    if tau_c is not None and rule not in (RuleChoice.simc, RuleChoice.isimc):
-        raise FuelidError(f"--tau-c belongs to the simc and isimc rules, not {rule.value}")
-    if lam is not None and rule is not RuleChoice.lambda_:
-        raise FuelidError(f"--lambda belongs to the lambda rule, not {rule.value}")
-    return tau_c if tau_c is not None else lam
-
-
-def _run_json(run: ClosedLoopResult) -> dict[str, Any]:
-    return {
-        "fuel_temperature": run.fuel_temperature,
-        "start_flow": float(run.setpoint[0]),
-        "summary": run.summary(),
-        "events": [e.as_dict() for e in run.events],
-    }
+if TYPE_CHECKING:
+    from fuelid.io.modelfile import ModelFile
+    from fuelid.model import ProcessModel
+    from fuelid.workflow import ScheduleOutcome, TuneOutcome
 
 
 @guarded
@@ -253,30 +142,45 @@ def tune_command(
     if list_rules:
         _print_rules(as_json)
         return
+    from fuelid.plant import load_plant_config
+    from fuelid.tuning.limits import check_control_period, check_sweep_size
+    from fuelid.workflow import TuneRequest, schedule_gains, tune_model
+
+    # options checked at the edge, before any work is done
     check_figure_path(plot)
-    if sweep is not None and not 1 <= sweep <= MAX_SWEEP:
-        raise FuelidError(f"--sweep takes 1 to {MAX_SWEEP:,} variants, got {sweep}")
+    if sweep is not None:
+        check_sweep_size(sweep)
     check_control_period(control_period)
-    for name, value in (("--fuel-temp", fuel_temp), ("--t-min", t_min), ("--t-max", t_max)):
-        if not math.isfinite(value):
-            raise FuelidError(f"{name} must be a finite temperature")
-    if not t_min < t_max:
-        raise FuelidError(f"--t-min must be below --t-max, got {t_min:g} and {t_max:g} °C")
-    speed = rule_speed(rule, tau_c, lam)
-    model, cov_names, cov = _model_from_options(
+    T_fuel, T_range = temperature_options(fuel_temp, t_min, t_max)
+    tau = closed_loop_time(rule, tau_c, lam)
+    if flow_span is not None and not (math.isfinite(flow_span) and flow_span > 0.0):
+        raise FuelidError(f"--flow-span must be positive, got {flow_span:g} L/min")
+    model, loaded = _model_from_options(
         model_file, K, T, T2, T_f, delay, need_cov=sweep is not None
     )
-    if model is not None:
-        check_tunable(model, control_period)
+    if model is None and not schedule:
+        raise FuelidError(
+            "give a model: --model ident.json, or --K and --T (with --delay, --T-f), "
+            "or --schedule for a schedule from the plant's physics"
+        )
+    request = TuneRequest(
+        model=model,
+        cov_names=loaded.cov_names if loaded is not None else (),
+        cov=loaded.cov if loaded is not None else None,
+        rule=rule.value,
+        closed_loop_time=tau,
+        control_period=control_period,
+        y_span=flow_span,
+        T_fuel=T_fuel,
+        u=u,
+        T_range=T_range,
+        band_width=band_width,
+        ms_target=ms_target,
+        flow_bands=flow_bands,
+        simulate=simulate,
+        sweep=sweep,
+    )
     plant = load_plant_config(config)
-    u_span = plant.vfd.u_max_V - plant.vfd.u_min_V
-    y_span = plant.flowmeter.span_Lpm if flow_span is None else flow_span
-    if not (math.isfinite(y_span) and y_span > 0.0):
-        raise FuelidError(f"--flow-span must be positive, got {y_span:g} L/min")
-    u_op = 0.5 * (plant.vfd.u_min_V + plant.vfd.u_max_V) if u is None else u
-    if not plant.vfd.u_min_V <= u_op <= plant.vfd.u_max_V:
-        raise FuelidError(f"--u {u_op:g} V lies outside the drive's signal range")
-    anchor = Anchor(model, fuel_temp, u_op) if model is not None else None
     options = {
         "model": str(model_file) if model_file else None,
         "K": K,
@@ -289,9 +193,9 @@ def tune_command(
         "lambda": lam,
         "control_period": control_period,
         "config": str(config) if config else None,
-        "flow_span": y_span,
+        "flow_span": request.flow_span(plant),
         "fuel_temp": fuel_temp,
-        "u": u_op,
+        "u": None,  # the command used, filled in below
         "t_min": t_min,
         "t_max": t_max,
         "band_width": band_width,
@@ -302,90 +206,76 @@ def tune_command(
         "sweep": sweep,
     }
     if schedule:
-        table = gain_schedule(
-            plant,
-            rule.value,
-            control_period,
-            speed,
-            t_range=(t_min, t_max),
-            band_width=band_width,
-            ms_target=ms_target,
-            flow_bands=flow_bands,
-            anchor=anchor,
-        )
+        table = schedule_gains(plant, request)
+        options["u"] = table.u
         if plot is not None:
-            save_figure(schedule_figure(table), plot)
+            from fuelid.plots import save_figure, schedule_figure
+
+            save_figure(schedule_figure(table.schedule), plot)
         if as_json:
-            payload = table.as_dict() | {
-                "anchored_to_model": model.as_dict() if model is not None else None,
-                "units": UNITS,
-            }
-            emit_json(payload | provenance(options, model_file))
+            emit_json(table.to_json() | provenance(options, model_file))
         else:
-            _print_schedule(table, model is not None)
+            _print_schedule(table)
         return
-    if model is None:
-        raise FuelidError(
-            "give a model: --model ident.json, or --K and --T (with --delay, --T-f), "
-            "or --schedule for a schedule from the plant's physics"
-        )
-    result = evaluate_tuning(model, rule.value, control_period, speed, u_span, y_span)
-    temps = tuple(float(t) for t in band_edges(t_min, t_max, band_width))
-    commands = (plant.vfd.u_min_V, u_op, plant.vfd.u_max_V)
-    check = evaluate_fixed(result.pi, plant_cases(plant, temps, commands, anchor))
-    runs = []
-    if simulate:
-        start = flow_at(plant, u_op, fuel_temp)
-        runs = standard_runs(plant, result.pi, (t_min, t_max), start, 0.1 * y_span)
-    for message in result.warnings:
+    outcome = tune_model(plant, request)
+    options["u"] = outcome.u
+    for message in outcome.warnings:
         warn(message)
-    sweep_summary = None
-    if sweep is not None:
-        assert anchor is not None
-        cov_array = np.asarray(cov if cov is not None else np.zeros((0, 0)), dtype=float)
-        sweep_summary = uncertainty_sweep(
-            result.pi, anchor, cov_names, cov_array, plant, n=sweep, t_range=(t_min, t_max)
-        ).summary()
     if plot is not None:
-        if runs:
-            fig = plot_closed_loop_runs(
-                [
-                    (f"{r.fuel_temperature:g} °C", r.time, r.setpoint, r.flow, r.command)
-                    for r in runs
-                ],
-                f"{rule.value} PI on the nonlinear plant",
-            )
-        else:
-            cl = result.closed_loop
-            fig = plot_linear_closed_loop(
-                cl.time,
-                cl.setpoint_response,
-                cl.setpoint_command,
-                cl.disturbance_response,
-                f"{rule.value}: Kc = {result.pi.Kc:.4g} V/(L/min), Ti = {result.pi.Ti:.3g} s, "
-                f"Ms = {result.robustness.Ms:.2f}",
-            )
-        save_figure(fig, plot)
+        from fuelid.plots import save_figure, tune_figure
+
+        save_figure(tune_figure(outcome), plot)
     if as_json:
-        payload = result.to_json() | {
-            "temperature_check": {
-                "worst_Ms": check.worst_Ms,
-                "worst_overshoot_percent": check.worst_overshoot,
-                "worst_gain_margin": check.worst_gain_margin,
-                "worst_phase_margin_deg": check.worst_phase_margin,
-                "all_stable": check.all_stable,
-                "cases": check.rows(),
-            },
-            "closed_loop_plant": [_run_json(r) for r in runs] if runs else None,
-            "sweep": sweep_summary,
-            "units": UNITS,
-        }
-        emit_json(payload | provenance(options, model_file))
+        emit_json(outcome.to_json() | provenance(options, model_file))
         return
-    _print_tuning(result, check, runs, sweep_summary)
+    _print_tuning(outcome)
+
+
+def _model_from_options(
+    model_file: Path | None,
+    K: float | None,
+    T: float | None,
+    T2: float | None,
+    T_f: float | None,
+    delay: float | None,
+    need_cov: bool = False,
+) -> tuple[ProcessModel | None, ModelFile | None]:
+    """The model of ``--model`` (with the file's covariance) or of ``--K --T ...``; None: none."""
+    from fuelid.io.modelfile import load_model_file
+    from fuelid.model import ProcessModel
+
+    flags = {"--K": K, "--T": T, "--T2": T2, "--T-f": T_f, "--delay": delay}
+    given = [name for name, value in flags.items() if value is not None]
+    if model_file is not None:
+        if given:
+            raise FuelidError(f"give either --model or {', '.join(given)}, not both")
+        loaded = load_model_file(model_file)
+        if need_cov and loaded.cov_problem is not None:
+            raise FuelidError(
+                f"--sweep draws from the covariance of {str(model_file)!r}, but "
+                f"{loaded.cov_problem}"
+            )
+        return loaded.model, loaded
+    if not given:
+        return None, None
+    if K is None or T is None:
+        raise FuelidError("a model from flags needs at least --K and --T")
+    for name, value in flags.items():
+        if value is not None and not math.isfinite(value):
+            raise FuelidError(f"{name} must be a finite number")
+    if T <= 0.0:
+        raise FuelidError(f"--T must be a positive time constant, got {T:g} s")
+    for name, value in (("--T2", T2), ("--T-f", T_f)):
+        if value is not None and value < 0.0:
+            raise FuelidError(f"{name} must be zero or a positive time constant, got {value:g} s")
+    if delay is not None and delay < 0.0:
+        raise FuelidError(f"--delay must not be negative, got {delay:g} s")
+    return ProcessModel(K=K, T=T, T2=T2 or 0.0, T_f=T_f or 0.0, delay=delay or 0.0), None
 
 
 def _print_rules(as_json: bool) -> None:
+    from fuelid.tuning.rules import TUNING_RULES
+
     if as_json:
         emit_json(
             {
@@ -401,6 +291,9 @@ def _print_rules(as_json: bool) -> None:
             }
         )
         return
+    from rich.console import Console
+    from rich.table import Table
+
     table = Table(title="PI tuning rules (--rule)")
     for column in ("rule", "tuning parameter", "formula", "source"):
         table.add_column(column)
@@ -409,19 +302,17 @@ def _print_rules(as_json: bool) -> None:
     Console().print(table)
 
 
-def _print_tuning(
-    result: TuningResult,
-    check: FixedPIEvaluation,
-    runs: list[ClosedLoopResult],
-    sweep: dict[str, float] | None,
-) -> None:
-    data = result.to_json()
-    plc = data["plc"]
-    h = data["control_period"]
+def _print_tuning(outcome: TuneOutcome) -> None:
+    """The gains in every form and their evidence, from the JSON (engineering units)."""
+    from rich.console import Console
+    from rich.table import Table
+
+    data = outcome.to_json()
+    model, plc, h = data["model"], data["plc"], data["control_period"]
     console = Console()
     gains = Table(
-        title=f"{data['rule']} PI for K = {result.model.K:.4g} (L/min)/V, T = "
-        f"{result.model.T:.3g} s, delay = {result.model.delay:.3g} s, "
+        title=f"{data['rule']} PI for K = {model['K']:.4g} (L/min)/V, T = "
+        f"{model['T']:.3g} s, delay = {model['delay']:.3g} s, "
         + (f"h = {h:g} s" if h > 0 else "continuous")
     )
     for column in ("form", "gain", "integral", "unit"):
@@ -445,27 +336,33 @@ def _print_tuning(
         )
     console.print(gains)
     rob = data["robustness"]
-    settle = data["closed_loop"]["setpoint_step"]["settling_time"]
+    step = data["closed_loop"]["setpoint_step"]
+    settle = step["settling_time"]
     console.print(
         f"on the model: gain margin {rob['gain_margin']:.2f}, phase margin "
         f"{rob['phase_margin_deg']:.1f}°, Ms {rob['Ms']:.2f}; setpoint step overshoot "
-        f"{data['closed_loop']['setpoint_step']['overshoot_percent']:.1f} %, "
+        f"{step['overshoot_percent']:.1f} %, "
         + ("does not settle" if math.isnan(settle) else f"settling {settle:.1f} s")
     )
+    check = data["temperature_check"]
+    cases = check["cases"]
     console.print(
-        f"over {check.cases[0].case.fuel_temperature:g}…{check.cases[-1].case.fuel_temperature:g}"
-        f" °C and the drive range: worst Ms {check.worst_Ms:.2f}, worst overshoot "
-        f"{check.worst_overshoot:.1f} %, smallest gain margin {check.worst_gain_margin:.2f}"
-        + ("" if check.all_stable else " — UNSTABLE in some case")
+        f"over {cases[0]['fuel_temperature']:g}…{cases[-1]['fuel_temperature']:g}"
+        f" °C and the drive range: worst Ms {check['worst_Ms']:.2f}, worst overshoot "
+        f"{check['worst_overshoot_percent']:.1f} %, smallest gain margin "
+        f"{check['worst_gain_margin']:.2f}"
+        + ("" if check["all_stable"] else " — UNSTABLE in some case")
     )
-    for run in runs:
-        s = run.summary()
+    for result in outcome.runs:
+        run = result.as_dict(events=False)
+        s = run["summary"]
         console.print(
-            f"nonlinear plant at {run.fuel_temperature:g} °C, setpoint "
-            f"{run.setpoint[0]:.1f} → {run.setpoint[-1]:.1f} L/min: overshoot "
+            f"nonlinear plant at {run['fuel_temperature']:g} °C, setpoint "
+            f"{run['start_flow']:.1f} → {result.setpoint[-1]:.1f} L/min: overshoot "
             f"{s['overshoot_percent']:.1f} %, settling {s['settling_time']:.1f} s, load peak "
             f"{s['disturbance_peak']:.2f} L/min, at the limits {s['time_at_limits']:g} s"
         )
+    sweep = data["sweep"]
     if sweep is not None:
         console.print(
             f"{sweep['n']:.0f} variants: worst Ms {sweep['worst_Ms']:.2f} (95 % below "
@@ -474,15 +371,19 @@ def _print_tuning(
         )
 
 
-def _print_schedule(table: GainSchedule, anchored: bool) -> None:
+def _print_schedule(outcome: ScheduleOutcome) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    data: dict[str, Any] = outcome.to_json()
+    anchored = data["anchored_to_model"] is not None
     out = Table(
-        title=f"{table.rule} gain schedule, h = {table.control_period:g} s, Ms ≤ "
-        f"{table.ms_target:g}" + (" (anchored to the model)" if anchored else " (plant physics)")
+        title=f"{data['rule']} gain schedule, h = {data['control_period']:g} s, Ms ≤ "
+        f"{data['ms_target']:g}" + (" (anchored to the model)" if anchored else " (plant physics)")
     )
     for column in ("fuel °C", "u V", "flow L/min", "Kc V/(L/min)", "Ti s", "Ms", "GM", "PM °"):
         out.add_column(column, justify="right")
-    for band in table.bands:
-        row = band.as_dict()
+    for row in data["bands"]:
         out.add_row(
             f"{row['t_low']:g}…{row['t_high']:g}",
             f"{row['u_low']:.2f}…{row['u_high']:.2f}",

@@ -2,12 +2,22 @@
 
 - :mod:`~fuelid.tuning.rules`: the tuning rules in a registry (SIMC, improved SIMC, lambda,
   AMIGO) and the PLC forms of the gains;
+- :mod:`~fuelid.tuning.limits`: what fuelid tunes, and the guards that refuse the rest;
 - :mod:`~fuelid.tuning.frequency`: loop frequency responses with the dead time exact and the
   sampled controller included; gain and phase margins, Ms;
-- :mod:`~fuelid.tuning.closedloop`: the discrete PI with limits and anti-windup, closed-loop
-  simulation on the linear model and on the nonlinear plant, step metrics;
-- :mod:`~fuelid.tuning.schedule`: plant models over fuel temperature and flow, one fixed PI over
-  all of them, a gain schedule, the uncertainty sweep.
+- :mod:`~fuelid.tuning.controller`: the PLC's discrete PI with limits and anti-windup;
+- :mod:`~fuelid.tuning.metrics`: overshoot, settling time, IAE of a step or a load disturbance;
+- :mod:`~fuelid.tuning.linearloop`: the sampled closed loop on the process model (fast, exact);
+- :mod:`~fuelid.tuning.closedloop`: the closed loop on the nonlinear plant, the standard runs;
+- :mod:`~fuelid.tuning.result`: one tuning with its evidence and its JSON;
+- :mod:`~fuelid.tuning.cases`: plant models over fuel temperature and flow, one fixed PI over all
+  of them;
+- :mod:`~fuelid.tuning.schedule`: the gain schedule;
+- :mod:`~fuelid.tuning.sweep`: the uncertainty sweep.
+
+Inside, the fuel temperature is in kelvin (``T_fuel``); °C appears only in JSON and messages.
+The tuning parameter of the rules is the closed-loop time constant (τc or λ, ``closed_loop_time``
+[s]): larger is slower. See docs/tuning.md.
 """
 
 from __future__ import annotations

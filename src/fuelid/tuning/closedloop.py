@@ -1,39 +1,36 @@
-"""Closed-loop simulation: the PLC's discrete PI on the linear model or on the nonlinear plant.
+"""Closed-loop simulation on the nonlinear plant: the PLC's discrete PI against the physics.
 
 The controller is the positional PI of Åström & Hägglund's PID code: at each period h it reads
-the (delayed, lagged) flowmeter, outputs u = sat(Kc·e + I) within the 1–5 V signal range and then
-updates the integral, I ← I + Kc·h/Ti·e + (h/Tt)·(u − v) (forward Euler plus back-calculation
-anti-windup with tracking time Tt). Gain changes are bumpless: the integral absorbs the change of
-the proportional term so the output does not jump.
+the (delayed, lagged, noisy, quantised) flowmeter, outputs u = sat(Kc·e + I) within the 1–5 V
+signal range and then updates the integral, I ← I + Kc·h/Ti·e + (h/Tt)·(u − v) (forward Euler
+plus back-calculation anti-windup with tracking time Tt). Gain changes are bumpless: the integral
+absorbs the change of the proportional term so the output does not jump.
 
-Two simulators share the metrics:
-
-- :func:`linear_closed_loop`: the process model, exact at every instant (the ZOH closed loop is a
-  rational filter at the control instants; the output between them comes from the plant
-  discretised on a finer grid). No limits: this is the fast path for sweeps.
-- :func:`simulate_closed_loop`: the nonlinear plant (LSODA per control period, as
-  :func:`fuelid.simulate.simulate`), the meter's delay applied exactly on a fine output grid,
-  the limits and anti-windup active, setpoint steps and load disturbances (a step at the plant
-  input, in V: a drive offset, pump wear).
+:func:`simulate_closed_loop` runs it against the nonlinear plant (LSODA per control period, as
+:func:`fuelid.simulate.simulate`), the meter's delay applied exactly on a fine output grid, the
+limits and anti-windup active, setpoint steps and load disturbances (a step at the plant input,
+in V: a drive offset, pump wear). :func:`standard_runs` is the test ``fuelid tune --simulate``
+and ``fuelid report`` show. The fast linear loop on the process model lives in
+:mod:`fuelid.tuning.linearloop` and the step metrics in :mod:`fuelid.tuning.metrics`; both are
+re-exported here. Fuel temperatures are in kelvin (``T_fuel``), flows in L/min, commands in V
+(docs/tuning.md, section 6).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 import scipy.integrate
 import scipy.optimize
-import scipy.signal
 from numpy.typing import NDArray
 
-from fuelid import lti
 from fuelid.errors import FuelidError
-from fuelid.lti import discretise
-from fuelid.model import ProcessModel
 from fuelid.plant.config import PlantConfig
+from fuelid.plant.flowmeter import measure_flow
 from fuelid.plant.system import (
     operating_point,
     plant_coefficients,
@@ -43,308 +40,82 @@ from fuelid.plant.system import (
 )
 from fuelid.profiles import InputProfile
 from fuelid.simulate import ATOL, RTOL
+from fuelid.tuning.controller import DiscretePI
+from fuelid.tuning.linearloop import (
+    CONTINUOUS_PERIOD,
+    LinearResponse,
+    closed_loop_poles,
+    linear_closed_loop,
+    linear_period,
+)
+from fuelid.tuning.metrics import (
+    SETTLING_BAND,
+    StepMetrics,
+    disturbance_metrics,
+    setpoint_step_metrics,
+)
 from fuelid.tuning.rules import PISettings
-from fuelid.units import LPM_PER_M3S
-from fuelid.units import T0 as KELVIN
+from fuelid.units import LPM_PER_M3S, kelvin_to_celsius
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = [
+    "CONTINUOUS_PERIOD",
+    "SETTLING_BAND",
+    "ClosedLoopResult",
+    "DiscretePI",
+    "LinearResponse",
+    "StepMetrics",
+    "closed_loop_poles",
+    "disturbance_metrics",
+    "flow_at",
+    "linear_closed_loop",
+    "linear_period",
+    "place_step",
+    "reachable_flows",
+    "setpoint_step_metrics",
+    "simulate_closed_loop",
+    "standard_runs",
+    "standard_scenario",
+    "steady_command",
+]
 
 FloatArray = NDArray[np.float64]
-SETTLING_BAND = 0.02
-CONTINUOUS_PERIOD = 0.02
-"""Period [s] at which a continuous controller (control period 0) is simulated."""
-
-
-class DiscretePI:
-    """The PLC's PI: positional, forward-Euler integral, output limits, back-calculation.
-
-    Parameters
-    ----------
-    settings : PISettings
-        Kc [V per L/min], Ti [s], control period h [s] (0: simulated at 0.02 s).
-    u_min, u_max : float
-        Output limits [V] (the 1–5 V signal).
-    u0 : float
-        Output at start-up [V]; the integral starts there (bumpless start from manual).
-    tracking_time : float, optional
-        Anti-windup tracking time Tt [s] (back-calculation). With the default Tt = h the output
-        computed for the current error is brought back to the limit within one period, so the
-        integral cannot run away while saturated (it settles where Kc·e + integral sits at the
-        limit, which may itself lie outside the limits while the error is large).
-
-    Examples
-    --------
-    >>> pi = DiscretePI(PISettings("simc", Kc=0.1, Ti=2.0, control_period=1.0), 1.0, 5.0, u0=2.0)
-    >>> pi.update(setpoint=30.0, measurement=25.0)  # 2 V + 0.1·5
-    2.5
-    >>> pi.update(setpoint=30.0, measurement=-1000.0)  # saturated at the top
-    5.0
-    """
-
-    def __init__(
-        self,
-        settings: PISettings,
-        u_min: float,
-        u_max: float,
-        u0: float,
-        tracking_time: float | None = None,
-    ) -> None:
-        if not u_min < u_max:
-            raise FuelidError(f"output limits must satisfy u_min < u_max, got {u_min}…{u_max}")
-        self.h = settings.control_period if settings.control_period > 0.0 else CONTINUOUS_PERIOD
-        self.Kc = settings.Kc
-        self.Ti = settings.Ti
-        self.u_min = u_min
-        self.u_max = u_max
-        self.tracking_time = self.h if tracking_time is None else tracking_time
-        if not self.tracking_time > 0.0:
-            raise FuelidError("the anti-windup tracking time must be positive")
-        self.integral = float(np.clip(u0, u_min, u_max))
-        self._last_error = 0.0
-
-    def update(self, setpoint: float, measurement: float) -> float:
-        """One control period: read, output the limited command [V], update the integral."""
-        e = setpoint - measurement
-        v = self.Kc * e + self.integral
-        u = min(max(v, self.u_min), self.u_max)
-        self.integral += self.Kc * self.h / self.Ti * e + self.h / self.tracking_time * (u - v)
-        self._last_error = e
-        return u
-
-    def set_gains(self, Kc: float, Ti: float) -> None:
-        """Change the gains bumplessly: the output for the last error stays the same."""
-        if not (Kc > 0.0 and Ti > 0.0):
-            raise FuelidError("controller gains must be positive")
-        self.integral += (self.Kc - Kc) * self._last_error
-        self.Kc, self.Ti = Kc, Ti
-
-
-@dataclass(frozen=True)
-class StepMetrics:
-    """Quality of one setpoint step or one load disturbance."""
-
-    kind: str
-    """"setpoint" or "disturbance"."""
-    start: float
-    """When the step was applied [s]."""
-    size: float
-    """Setpoint change [L/min] or disturbance step [V]."""
-    overshoot_percent: float
-    """Setpoint: peak beyond the new setpoint in % of the step; disturbance: nan."""
-    peak_deviation: float
-    """Largest |setpoint − measurement| after a disturbance [L/min]; for a step, beyond it."""
-    settling_time: float
-    """Setpoint: time to stay within 2 % of the step; disturbance: within 2 % of the setpoint
-    [s]; nan if not settled before the next event."""
-    iae: float
-    """Integral of |setpoint − measurement| over the event's window [(L/min)·s]."""
-
-    def as_dict(self) -> dict[str, float | str]:
-        """Plain dictionary for JSON."""
-        return {
-            "kind": self.kind,
-            "start": self.start,
-            "size": self.size,
-            "overshoot_percent": self.overshoot_percent,
-            "peak_deviation": self.peak_deviation,
-            "settling_time": self.settling_time,
-            "iae": self.iae,
-        }
-
-
-def setpoint_step_metrics(
-    t: FloatArray, y: FloatArray, r0: float, r1: float, start: float = 0.0
-) -> StepMetrics:
-    """Overshoot, 2 % settling time and IAE of a response y(t) to a setpoint step r0 → r1.
-
-    Examples
-    --------
-    A first-order response with T = 1 s: no overshoot, settles at ln 50 = 3.91 s, IAE = T.
-
-    >>> t = np.linspace(0.0, 20.0, 200_001)
-    >>> m = setpoint_step_metrics(t, 1 - np.exp(-t), 0.0, 1.0)
-    >>> m.overshoot_percent, round(m.settling_time, 3), round(m.iae, 4)
-    (0.0, 3.912, 1.0)
-    """
-    step = r1 - r0
-    if step == 0.0:
-        raise FuelidError("a setpoint step needs a non-zero size")
-    rel = (y - r0) / step
-    overshoot = max(0.0, float(np.max(rel)) - 1.0) * 100.0
-    settle = lti.settling_time(t - start, rel, 1.0, SETTLING_BAND)
-    return StepMetrics(
-        kind="setpoint",
-        start=start,
-        size=step,
-        overshoot_percent=overshoot,
-        peak_deviation=overshoot / 100.0 * abs(step),
-        settling_time=settle,
-        iae=float(scipy.integrate.trapezoid(np.abs(r1 - y), t)),
-    )
-
-
-def disturbance_metrics(
-    t: FloatArray,
-    y: FloatArray,
-    r: float,
-    size: float,
-    start: float = 0.0,
-    band: float | None = None,
-) -> StepMetrics:
-    """Peak deviation, recovery time and IAE after a load step.
-
-    Recovery is back within ``band`` of the setpoint for good; by default 2 % of the setpoint.
-    A deviation model (setpoint 0) needs an absolute ``band`` [output unit].
-    """
-    e = r - y
-    if band is None:
-        band = SETTLING_BAND * max(abs(r), 1e-12)
-    outside = np.flatnonzero(np.abs(e) > band)
-    if outside.size == 0:
-        settle = 0.0
-    elif outside[-1] == t.size - 1:
-        settle = math.nan
-    else:
-        settle = float(t[outside[-1] + 1] - start)
-    return StepMetrics(
-        kind="disturbance",
-        start=start,
-        size=size,
-        overshoot_percent=math.nan,
-        peak_deviation=float(np.max(np.abs(e))),
-        settling_time=settle,
-        iae=float(scipy.integrate.trapezoid(np.abs(e), t)),
-    )
-
-
-@dataclass(frozen=True)
-class LinearResponse:
-    """Unit setpoint step and unit input-disturbance step of the linear closed loop."""
-
-    time: FloatArray
-    """Times [s] (a fine grid, between the control instants too)."""
-    setpoint_response: FloatArray
-    """Output after a unit setpoint step at t = 0 [output unit]."""
-    setpoint_command: FloatArray
-    """Controller output (held) for the setpoint step [input unit]."""
-    disturbance_response: FloatArray
-    """Output deviation after a unit step at the plant input at t = 0."""
-    setpoint: StepMetrics
-    disturbance: StepMetrics
-
-
-MAX_LINEAR_STEPS = 50_000
-"""Most control periods the linear closed loop is simulated for."""
-
-
-def _loop_time_scale(model: ProcessModel, pi: PISettings) -> float:
-    """Ti, or the closed loop's time constant Ti/(K·Kc) when the loop is detuned below that."""
-    return max(pi.Ti, pi.Ti / (abs(model.K) * pi.Kc))
-
-
-def linear_period(model: ProcessModel, pi: PISettings) -> float:
-    """Step [s] of the linear closed loop.
-
-    The control period; for a continuous controller 0.02 s, coarser for a slow loop so that its
-    delay and lags span at most about 500 steps.
-    """
-    if pi.control_period > 0.0:
-        return pi.control_period
-    scale = model.delay + sum(model.time_constants) + _loop_time_scale(model, pi)
-    return max(CONTINUOUS_PERIOD, scale / 500.0)
-
-
-def _closed_loop_polynomials(
-    model: ProcessModel, pi: PISettings, h: float
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
-    """(r→u numerator, d→u numerator, characteristic polynomial, plant b, plant a) in z⁻¹."""
-    d = discretise(model.time_constants, model.delay, h)
-    gn = np.concatenate((np.zeros(d.shift), model.K * d.b))
-    gd = d.a
-    cn = pi.Kc * np.array([1.0, h / pi.Ti - 1.0])
-    cd = np.array([1.0, -1.0])
-    n = max(gn.size, gd.size) + 1
-    char = np.zeros(n)
-    a1 = np.convolve(cd, gd)
-    a2 = np.convolve(cn, gn)
-    char[: a1.size] += a1
-    char[: a2.size] += a2
-    # u = C·S·r and, for a load d at the plant input, u = −C·G·S·d
-    r_to_u = np.convolve(cn, gd)
-    d_to_u = -np.convolve(cn, gn)
-    return r_to_u, d_to_u, char, d.b, d.a
-
-
-def linear_closed_loop(
-    model: ProcessModel, pi: PISettings, duration: float | None = None, oversample: int = 10
-) -> LinearResponse:
-    """Setpoint and load-disturbance step responses of PI ``pi`` on the process ``model``.
-
-    The controller output follows from the closed loop at the control instants (exact ZOH,
-    fractional delay included); the plant output is then computed on a grid ``oversample`` times
-    finer with the same held command, so overshoot between samples is not missed. A continuous
-    controller is simulated at 0.02 s (coarser for a slow loop, :func:`linear_period`).
-
-    Examples
-    --------
-    >>> from fuelid.tuning.rules import simc
-    >>> model = ProcessModel(K=1.0, T=2.0, delay=1.0)
-    >>> res = linear_closed_loop(model, simc(model, control_period=1.0))
-    >>> 0.0 <= res.setpoint.overshoot_percent < 20.0 and res.setpoint.settling_time < 15.0
-    True
-    """
-    h = linear_period(model, pi)
-    if duration is None:
-        duration = 10.0 * (_loop_time_scale(model, pi) + model.delay + sum(model.time_constants))
-        duration += 20.0 * h
-    n = min(max(math.ceil(duration / h), 4), MAX_LINEAR_STEPS)
-    r_to_u, d_to_u, char, _, _ = _closed_loop_polynomials(model, pi, h)
-    ones = np.ones(n)
-    u_r = scipy.signal.lfilter(r_to_u, char, ones)
-    u_d = scipy.signal.lfilter(d_to_u, char, ones)
-    m = oversample if pi.control_period > 0.0 else 1
-    fine = discretise(model.time_constants, model.delay, h / m)
-    t = np.arange(n * m, dtype=np.float64) * (h / m)
-    y_r = model.K * fine.response(np.repeat(u_r, m))
-    y_d = model.K * fine.response(np.repeat(u_d, m) + 1.0)
-    return LinearResponse(
-        time=t,
-        setpoint_response=y_r,
-        setpoint_command=np.repeat(u_r, m),
-        disturbance_response=y_d,
-        setpoint=setpoint_step_metrics(t, y_r, 0.0, 1.0),
-        # recovered: within 2 % of what the unit load would do to the output without control
-        disturbance=disturbance_metrics(t, y_d, 0.0, 1.0, band=SETTLING_BAND * abs(model.K)),
-    )
-
-
-def closed_loop_poles(model: ProcessModel, pi: PISettings) -> FloatArray:
-    """Magnitudes of the closed-loop poles at the control instants (all < 1 when stable)."""
-    h = linear_period(model, pi)
-    char = _closed_loop_polynomials(model, pi, h)[2]
-    return np.asarray(np.abs(np.roots(np.trim_zeros(char, "b"))), dtype=np.float64)
 
 
 @dataclass
 class ClosedLoopResult:
-    """A closed-loop run on the nonlinear plant, on the fine output grid (engineering units)."""
+    """A closed-loop run on the nonlinear plant, on the fine output grid.
+
+    Signals in engineering units (the PLC's), the fuel temperature in kelvin; :meth:`as_dict`
+    gives the documented JSON, the fuel temperature in °C.
+    """
 
     time: FloatArray
     """[s]"""
     setpoint: FloatArray
     """[L/min]"""
     flow: FloatArray
-    """Meter reading as the PLC sees it (lag, delay, noise) [L/min]."""
+    """Meter reading as the PLC logs it (lag, delay, noise, quantisation) [L/min]. At every
+    control instant it is exactly what the controller read."""
     command: FloatArray
     """Controller output held [V]."""
     disturbance: FloatArray
     """Load disturbance added at the plant input [V]."""
-    fuel_temperature: float
-    """[°C]"""
+    T_fuel: float
+    """Fuel temperature [K]."""
     control_period: float
     """[s]"""
     events: list[StepMetrics] = field(default_factory=list)
     """Metrics of every setpoint step and disturbance, in time order."""
     time_at_limits: float = 0.0
     """Time the command spent at 1 V or 5 V [s]."""
+
+    @property
+    def start_flow(self) -> float:
+        """Flow the run started at rest at [L/min]."""
+        return float(self.setpoint[0])
 
     def summary(self) -> dict[str, float]:
         """Worst case over the run's events: overshoot, settling, IAE, time at the limits."""
@@ -364,8 +135,25 @@ class ClosedLoopResult:
             "time_at_limits": self.time_at_limits,
         }
 
+    def as_dict(self, events: bool = True) -> dict[str, Any]:
+        """The run as documented JSON: ``fuel_temperature`` [°C], ``start_flow``, ``summary``.
+
+        With ``events`` also the metrics of every event (``events``), as ``fuelid tune --json``
+        gives them; ``fuelid report --json`` leaves them out.
+        """
+        out: dict[str, Any] = {
+            "fuel_temperature": kelvin_to_celsius(self.T_fuel),
+            "start_flow": self.start_flow,
+            "summary": self.summary(),
+        }
+        if events:
+            out["events"] = [e.as_dict() for e in self.events]
+        return out
+
     def to_pandas(self) -> pd.DataFrame:
         """Columns ``t_s``, ``r_Lpm``, ``q_Lpm``, ``u_V``, ``d_V``."""
+        import pandas as pd
+
         return pd.DataFrame(
             {
                 "t_s": self.time,
@@ -393,15 +181,35 @@ def steady_command(config: PlantConfig, flow_Lpm: float, T_fuel: float) -> float
     return float(scipy.optimize.brentq(excess, c.u_min, c.u_max, xtol=1e-12))
 
 
+def _reading(
+    times: FloatArray,
+    grid: FloatArray,
+    q_m: FloatArray,
+    delay: float,
+    noise: FloatArray | None,
+    resolution: float,
+) -> FloatArray:
+    """What the PLC reads at ``times``: the meter state ``delay`` earlier, plus noise, quantised.
+
+    ``grid`` and ``q_m`` hold the lagged meter state [L/min] up to the last of ``times`` at least
+    (only ``times − delay`` is read); ``noise`` holds one draw per time of ``times``.
+    """
+    y = np.interp(times - delay, grid, q_m, left=q_m[0])
+    if noise is not None:
+        y = y + noise
+    return measure_flow(y, resolution=resolution)
+
+
 def simulate_closed_loop(
     config: PlantConfig,
     pi: PISettings,
     setpoint: InputProfile,
     *,
-    fuel_temperature: float = 293.15,
+    T_fuel: float = 293.15,
     disturbance: InputProfile | None = None,
     sample_time: float = 0.02,
     noise_std: float = 0.0,
+    resolution: float = 0.0,
     seed: int | None = None,
     gain_changes: dict[float, tuple[float, float]] | None = None,
 ) -> ClosedLoopResult:
@@ -409,6 +217,9 @@ def simulate_closed_loop(
 
     The plant starts at rest at the first setpoint (the controller's integral at the command that
     holds it). Events (setpoint and disturbance changes) take effect at the next control instant.
+    The flow is logged on the output grid as the PLC reads it (the meter's lag and delay, white
+    noise, then quantisation), and at every control instant the controller acts on exactly that
+    logged reading: ``setpoint − flow`` there is the error it saw.
 
     Parameters
     ----------
@@ -418,14 +229,16 @@ def simulate_closed_loop(
         The controller (control period 0: simulated at 0.02 s).
     setpoint : InputProfile
         Flow setpoint over time [L/min]; its duration is the run's.
-    fuel_temperature : float
-        [K], constant over the run.
+    T_fuel : float
+        Fuel temperature [K], constant over the run.
     disturbance : InputProfile, optional
         Load disturbance added to the command at the plant input [V] (clipped to the drive range).
     sample_time : float
         Output grid [s] (the meter's delay is applied on it by interpolation).
     noise_std : float
-        Meter noise [L/min] seen by the controller and logged.
+        Meter noise standard deviation [L/min], one draw per logged sample.
+    resolution : float
+        Quantisation step of the reading [L/min], after the noise (0: none).
     seed : int, optional
         Seed of the noise.
     gain_changes : dict, optional
@@ -438,40 +251,45 @@ def simulate_closed_loop(
     h = pi.control_period if pi.control_period > 0.0 else CONTINUOUS_PERIOD
     if not (math.isfinite(sample_time) and sample_time > 0.0):
         raise FuelidError(f"sample time must be positive, got {sample_time:g} s")
-    c = plant_coefficients(config, fuel_temperature)
+    if not (math.isfinite(noise_std) and noise_std >= 0.0):
+        raise FuelidError(f"noise standard deviation must not be negative, got {noise_std:g}")
+    if not (math.isfinite(resolution) and resolution >= 0.0):
+        raise FuelidError(f"resolution must not be negative, got {resolution:g} L/min")
+    c = plant_coefficients(config, T_fuel)
     duration = setpoint.duration
     n_periods = math.floor(duration / h + 1e-9)
+    if n_periods < 1:
+        raise FuelidError(f"a closed-loop run needs at least one control period of {h:g} s")
     instants = np.round(np.arange(n_periods + 1) * h, 12)
     grid = np.unique(
         np.concatenate((np.round(np.arange(0.0, duration + 1e-9, sample_time), 12), instants))
     )
-    u0 = steady_command(config, float(setpoint.u[0]), fuel_temperature)
+    at_instant = np.searchsorted(grid, instants)  # every instant is a grid point
+    u0 = steady_command(config, float(setpoint.u[0]), T_fuel)
     x = steady_state(u0, c).state
     meter_state = 4 if c.T_f > 0.0 else 3
     q_m = np.full(grid.size, x[meter_state] * LPM_PER_M3S)
     rng = np.random.default_rng(seed)
+    noise = rng.normal(0.0, noise_std, grid.size) if noise_std > 0.0 else None
+    flow = np.empty(grid.size)  # the logged reading, filled period by period
+    flow[:1] = _reading(grid[:1], grid[:1], q_m[:1], c.delay, _part(noise, 0, 1), resolution)
     controller = DiscretePI(pi, c.u_min, c.u_max, u0)
     pending = dict(sorted((gain_changes or {}).items()))
     commands = np.empty(n_periods)
     d_held = np.zeros(n_periods)
     at_limits = 0
     for k in range(n_periods):
-        t0, t1 = float(instants[k]), float(instants[k + 1])
-        done = grid <= t0 + 1e-12
-        y = float(np.interp(t0 - c.delay, grid[done], q_m[done], left=q_m[0]))
-        if noise_std > 0.0:
-            y += float(rng.normal(0.0, noise_std))
+        t0 = float(instants[k])
         for when in [w for w in pending if w <= t0 + 1e-12]:
             controller.set_gains(*pending.pop(when))
-        u = controller.update(float(setpoint.at(t0)[()]), y)
+        # the controller acts on the reading logged at this instant, nothing else
+        u = controller.update(float(setpoint.at(t0)[()]), float(flow[at_instant[k]]))
         at_limits += u <= c.u_min or u >= c.u_max
         d = float(disturbance.at(t0)[()]) if disturbance is not None else 0.0
         commands[k], d_held[k] = u, d
         applied = min(max(u + d, c.u_min), c.u_max)
-        inside = (grid > t0 + 1e-12) & (grid <= t1 + 1e-12)
-        points = np.concatenate(([t0], grid[inside]))
-        if points[-1] < t1 - 1e-12:
-            points = np.append(points, t1)
+        first, last = at_instant[k] + 1, at_instant[k + 1] + 1  # grid points in (t0, t1]
+        points = np.concatenate(([t0], grid[first:last]))
         states = scipy.integrate.odeint(
             plant_rhs,
             x,
@@ -483,25 +301,52 @@ def simulate_closed_loop(
             atol=ATOL,
             mxstep=100_000,
         )
-        q_m[inside] = states[1 : 1 + int(inside.sum()), meter_state] * LPM_PER_M3S
+        q_m[first:last] = states[1:, meter_state] * LPM_PER_M3S
         x = states[-1]
+        # the readings up to t1 need the meter state up to t1 − delay only: all known now
+        flow[first:last] = _reading(
+            grid[first:last],
+            grid[:last],
+            q_m[:last],
+            c.delay,
+            _part(noise, first, last),
+            resolution,
+        )
+    tail = at_instant[-1] + 1  # grid points after the last instant (a duration off the period)
+    if tail < grid.size:
+        x_tail = scipy.integrate.odeint(
+            plant_rhs,
+            x,
+            np.concatenate(([grid[tail - 1]], grid[tail:])),
+            args=(min(max(commands[-1] + d_held[-1], c.u_min), c.u_max), c),
+            Dfun=plant_jacobian,
+            tfirst=True,
+            rtol=RTOL,
+            atol=ATOL,
+            mxstep=100_000,
+        )
+        q_m[tail:] = x_tail[1:, meter_state] * LPM_PER_M3S
+        flow[tail:] = _reading(
+            grid[tail:], grid, q_m, c.delay, _part(noise, tail, grid.size), resolution
+        )
     k_of = np.minimum(np.searchsorted(instants, grid, side="right") - 1, n_periods - 1)
-    measured = np.interp(grid - c.delay, grid, q_m, left=q_m[0])
-    if noise_std > 0.0:
-        measured = measured + rng.normal(0.0, noise_std, grid.size)
     r = np.asarray(setpoint.at(grid), dtype=float)
     result = ClosedLoopResult(
         time=grid,
         setpoint=r,
-        flow=measured,
+        flow=flow,
         command=commands[k_of],
         disturbance=d_held[k_of],
-        fuel_temperature=fuel_temperature - KELVIN,
+        T_fuel=T_fuel,
         control_period=pi.control_period,
         time_at_limits=at_limits * h,
     )
     result.events.extend(_event_metrics(result, setpoint, disturbance))
     return result
+
+
+def _part(noise: FloatArray | None, start: int, stop: int) -> FloatArray | None:
+    return None if noise is None else noise[start:stop]
 
 
 def _event_metrics(
@@ -571,21 +416,21 @@ def standard_scenario(
 
 
 def reachable_flows(
-    config: PlantConfig, temperatures_degC: tuple[float, ...], headroom: float = 0.05
+    config: PlantConfig, T_fuels: Sequence[float], headroom: float = 0.05
 ) -> tuple[float, float]:
-    """Flows [L/min] the drive holds at rest at every one of the fuel temperatures [°C].
+    """Flows [L/min] the drive holds at rest at every one of the fuel temperatures [K].
 
     The common range of the steady flows at the lowest and highest command, narrowed by
     ``headroom`` (a fraction of it) at each end so that a controller holding a flow there still
     has room to act on a load disturbance.
     """
-    lows = [flow_at(config, config.vfd.u_min_V, t) for t in temperatures_degC]
-    highs = [flow_at(config, config.vfd.u_max_V, t) for t in temperatures_degC]
+    lows = [flow_at(config, config.vfd.u_min_V, T) for T in T_fuels]
+    highs = [flow_at(config, config.vfd.u_max_V, T) for T in T_fuels]
     lo, hi = max(lows), min(highs)
     if not hi > lo:
+        shown = ", ".join(f"{kelvin_to_celsius(T):g}" for T in T_fuels)
         raise FuelidError(
-            f"no flow is reachable at every fuel temperature {list(temperatures_degC)} °C "
-            f"({lo:.2f}…{hi:.2f} L/min)"
+            f"no flow is reachable at every fuel temperature [{shown}] °C ({lo:.2f}…{hi:.2f} L/min)"
         )
     margin = headroom * (hi - lo)
     return lo + margin, hi - margin
@@ -621,7 +466,7 @@ def place_step(flow: float, step: float, lo: float, hi: float) -> tuple[float, f
 def standard_runs(
     config: PlantConfig,
     pi: PISettings,
-    temperatures_degC: tuple[float, ...],
+    T_fuels: Sequence[float],
     flow: float,
     step: float,
 ) -> list[ClosedLoopResult]:
@@ -638,25 +483,21 @@ def standard_runs(
         The plant.
     pi : PISettings
         The controller.
-    temperatures_degC : tuple of float
-        Fuel temperatures [°C], one run each.
+    T_fuels : sequence of float
+        Fuel temperatures [K], one run each.
     flow : float
         Flow the runs start at [L/min] (moved into the reachable range if outside it).
     step : float
         Setpoint step [L/min] (turned round or shrunk if it leaves the reachable range).
     """
-    start, signed = place_step(flow, step, *reachable_flows(config, temperatures_degC))
+    start, signed = place_step(flow, step, *reachable_flows(config, T_fuels))
     runs = []
-    for t_degC in temperatures_degC:
+    for T_fuel in T_fuels:
         setpoint, load = standard_scenario(start, signed)
-        runs.append(
-            simulate_closed_loop(
-                config, pi, setpoint, fuel_temperature=t_degC + KELVIN, disturbance=load
-            )
-        )
+        runs.append(simulate_closed_loop(config, pi, setpoint, T_fuel=T_fuel, disturbance=load))
     return runs
 
 
-def flow_at(config: PlantConfig, u: float, t_degC: float) -> float:
-    """Steady flow [L/min] the command ``u`` [V] gives with fuel at ``t_degC`` [°C]."""
-    return float(operating_point(config, u, t_degC + KELVIN).q * LPM_PER_M3S)
+def flow_at(config: PlantConfig, u: float, T_fuel: float) -> float:
+    """Steady flow [L/min] the command ``u`` [V] gives with fuel at ``T_fuel`` [K]."""
+    return float(operating_point(config, u, T_fuel).q * LPM_PER_M3S)

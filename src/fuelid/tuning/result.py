@@ -1,6 +1,8 @@
 """One tuning, evaluated: the gains, their robustness on the model and the linear closed loop.
 
-What ``fuelid tune``, ``fuelid report`` and the demo share, with the documented JSON object.
+:class:`TuningResult` is what ``fuelid tune``, ``fuelid report`` and the demo share, with the
+documented JSON object (:meth:`TuningResult.to_json`) and :data:`UNITS`, the units map of every
+tuning JSON object. The limits and input guards live in :mod:`fuelid.tuning.limits`.
 """
 
 from __future__ import annotations
@@ -9,13 +11,13 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
-from fuelid.tuning.closedloop import LinearResponse, linear_closed_loop
 from fuelid.tuning.frequency import Robustness, robustness
+from fuelid.tuning.limits import check_tunable
+from fuelid.tuning.linearloop import LinearResponse, linear_closed_loop
 from fuelid.tuning.rules import PISettings, tune
 
-UNITS = {
+UNITS: dict[str, str] = {
     "Kc": "V/(L/min)",
     "Ti": "s",
     "Ki": "V/((L/min)*s)",
@@ -44,6 +46,7 @@ UNITS = {
     "flow": "L/min",
     "u": "V",
 }
+"""Units of the numbers in the JSON of ``fuelid tune`` and ``fuelid report`` (by key name)."""
 
 
 MS_WARNING = 2.0
@@ -112,75 +115,26 @@ class TuningResult:
         }
 
 
-MAX_CONTROL_PERIOD = 10.0
-"""Longest PLC control period [s] fuelid tunes for (a flow loop's PLC runs in 0.01…1 s)."""
-MAX_TIME_SCALE = 1e5
-"""Longest time constant or delay [s] of a model fuelid tunes (about a day)."""
-MIN_TIME_CONSTANT = 1e-6
-"""Shortest non-zero time constant [s]."""
-GAIN_RANGE = (1e-6, 1e6)
-"""Process gains [output unit per input unit] fuelid tunes."""
-MAX_PERIODS = (1000, 10_000)
-"""Largest delay and largest sum of time constants, in control periods, of a sampled loop."""
-
-
-def check_control_period(control_period: float) -> None:
-    """Refuse a control period that is negative, not finite or beyond 10 s."""
-    if not (math.isfinite(control_period) and 0.0 <= control_period <= MAX_CONTROL_PERIOD):
-        raise FuelidError(
-            f"control period must be 0 (continuous) or up to {MAX_CONTROL_PERIOD:g} s, "
-            f"got {control_period:g} s"
-        )
-
-
-def check_tunable(model: ProcessModel, control_period: float) -> None:
-    """Refuse a model or control period far outside any flow loop, before any work is done.
-
-    Such numbers come from a unit mix-up (ms for s) or a failed identification; tuning them
-    would take minutes or overflow, and the gains would mean nothing.
-
-    Raises
-    ------
-    FuelidError
-        With the reason, e.g. a delay of more than 1,000 control periods.
-    """
-    check_control_period(control_period)
-    lo, hi = GAIN_RANGE
-    if model.K > 0.0 and not lo <= model.K <= hi:
-        raise FuelidError(f"process gain K = {model.K:g} is outside {lo:g}…{hi:g}: check its units")
-    for name in ("T", "T2", "T_f", "delay"):
-        value = getattr(model, name)
-        if value > MAX_TIME_SCALE:
-            raise FuelidError(
-                f"model {name} = {value:g} s exceeds {MAX_TIME_SCALE:g} s: check its units"
-            )
-        if name != "delay" and 0.0 < value < MIN_TIME_CONSTANT:
-            raise FuelidError(
-                f"model {name} = {value:g} s is below {MIN_TIME_CONSTANT:g} s: give 0 for no lag"
-            )
-    if control_period > 0.0:
-        max_delay, max_lags = MAX_PERIODS
-        if model.delay > max_delay * control_period:
-            raise FuelidError(
-                f"delay {model.delay:g} s is more than {max_delay} control periods of "
-                f"{control_period:g} s: check the units or --control-period"
-            )
-        if sum(model.time_constants) > max_lags * control_period:
-            raise FuelidError(
-                f"time constants of {sum(model.time_constants):g} s span more than {max_lags} "
-                f"control periods of {control_period:g} s: check the units or --control-period"
-            )
-
-
 def evaluate_tuning(
     model: ProcessModel,
     rule: str = "simc",
     control_period: float = 1.0,
-    speed: float | None = None,
+    closed_loop_time: float | None = None,
     u_span: float = 4.0,
     y_span: float = 100.0,
 ) -> TuningResult:
-    """Tune ``model`` by ``rule`` and evaluate the gains on it (see :func:`~.rules.tune`).
+    """Tune ``model`` by ``rule`` and evaluate the gains on it.
+
+    Parameters
+    ----------
+    model : ProcessModel
+        The process model (K [(L/min)/V], times [s]); refused by
+        :func:`~fuelid.tuning.limits.check_tunable` when far outside any flow loop.
+    rule, control_period, closed_loop_time
+        As for :func:`~fuelid.tuning.rules.tune`: the rule's key, the PLC period h [s] and τc or
+        λ [s] (larger is slower; None for the rule's default).
+    u_span, y_span : float
+        Controller output span [V] and measurement span [L/min] of the percent-of-span gain.
 
     Examples
     --------
@@ -189,7 +143,7 @@ def evaluate_tuning(
     (0.406, 1.21)
     """
     check_tunable(model, control_period)
-    pi = tune(model, rule, control_period, speed)
+    pi = tune(model, rule, control_period, closed_loop_time)
     return TuningResult(
         model=model,
         pi=pi,

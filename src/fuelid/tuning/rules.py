@@ -86,7 +86,8 @@ class PISettings:
     control_period: float
     """Controller period h [s]; 0 for continuous control."""
     tuning_parameter: float | None = None
-    """τc (SIMC) or λ (lambda) used [s]; None for rules without one."""
+    """τc (SIMC) or λ (lambda) used [s], the closed-loop time constant (larger is slower); None
+    for rules without one."""
     reduced: ReducedModel | None = None
     """The FOPDT reduction the rule was applied to."""
 
@@ -177,6 +178,8 @@ def simc(
 ) -> PISettings:
     """SIMC PI (Skogestad 2003): Kc = T1/(K(τc+θ)), Ti = min(T1, 4(τc+θ)); τc = θ by default.
 
+    τc [s] is the desired closed-loop time constant: larger is slower and more robust.
+
     Examples
     --------
     The worked example K = 1, T = 2 s, θ = 1 s, continuous, τc = θ:
@@ -224,7 +227,9 @@ def _simc(
 def lambda_tuning(
     model: ProcessModel, control_period: float = 0.0, lam: float | None = None
 ) -> PISettings:
-    """Lambda / IMC-PI: Kc = T1/(K(λ+θ)), Ti = T1; λ = T1 (open-loop speed) by default.
+    """Lambda / IMC-PI: Kc = T1/(K(λ+θ)), Ti = T1; λ = T1 (the open-loop time) by default.
+
+    λ [s] is the desired closed-loop time constant: larger is slower and more robust.
 
     Examples
     --------
@@ -245,11 +250,12 @@ def lambda_tuning(
 
 
 def amigo(
-    model: ProcessModel, control_period: float = 0.0, speed: float | None = None
+    model: ProcessModel, control_period: float = 0.0, closed_loop_time: float | None = None
 ) -> PISettings:
     """AMIGO PI (Åström & Hägglund 2004), designed for Ms ≤ 1.4, with L = θ, T = T1.
 
-    Kp = 0.15/K + (0.35 − LT/(L+T)²)·T/(K·L), Ti = 0.35L + 13LT²/(T² + 12LT + 7L²).
+    Kp = 0.15/K + (0.35 − LT/(L+T)²)·T/(K·L), Ti = 0.35L + 13LT²/(T² + 12LT + 7L²). The rule
+    has no closed-loop time to choose: ``closed_loop_time`` must be None.
 
     Examples
     --------
@@ -259,7 +265,7 @@ def amigo(
     >>> round(pi.Kc, 4), round(pi.Ti, 4)
     (0.4056, 1.8357)
     """
-    if speed is not None:
+    if closed_loop_time is not None:
         raise FuelidError("the AMIGO rule has no tuning parameter (drop --tau-c/--lambda)")
     r = half_rule(model, control_period)
     L, T, K = r.theta, r.T1, r.K
@@ -277,6 +283,7 @@ def _positive(value: float, name: str) -> float:
 
 
 RuleFunction = Callable[[ProcessModel, float, float | None], PISettings]
+"""A rule: (model, control period h [s], closed-loop time [s] or None) → PI settings."""
 
 
 @dataclass(frozen=True)
@@ -286,7 +293,7 @@ class TuningRule:
     name: str
     function: RuleFunction
     parameter: str | None
-    """Meaning of the rule's speed parameter [s] (None: the rule has none)."""
+    """Meaning of the rule's closed-loop time (τc or λ) [s] (None: the rule has none)."""
     summary: str
     source: str
 
@@ -338,7 +345,7 @@ def tune(
     model: ProcessModel,
     rule: str = "simc",
     control_period: float = 1.0,
-    speed: float | None = None,
+    closed_loop_time: float | None = None,
 ) -> PISettings:
     """PI settings for ``model`` by the named rule.
 
@@ -350,8 +357,10 @@ def tune(
         A key of :data:`TUNING_RULES`.
     control_period : float
         Controller period h [s] (1 s for the article's PLC); 0 for continuous control.
-    speed : float, optional
-        The rule's tuning parameter [s]: τc for SIMC, λ for lambda; None for its default.
+    closed_loop_time : float, optional
+        The rule's tuning parameter [s], the desired closed-loop time constant: τc for SIMC and
+        improved SIMC, λ for lambda; None for the rule's default (θ, T1). Larger is slower and
+        more robust: a lower Kc. AMIGO has none.
 
     Raises
     ------
@@ -367,4 +376,4 @@ def tune(
             f"the process gain K must be positive for these rules, got {model.K:g} "
             "(swap the action of the controller for a reverse-acting loop)"
         )
-    return TUNING_RULES[rule].function(model, control_period, speed)
+    return TUNING_RULES[rule].function(model, control_period, closed_loop_time)

@@ -1,0 +1,139 @@
+"""The PLC's sampled PI on the process model: the fast, exact, linear closed loop.
+
+The sampled closed loop is a rational filter at the control instants (exact zero-order hold and
+fractional delay, :mod:`fuelid.lti`); the output between the instants is computed on a finer grid
+with the same held command, so overshoot between samples is not missed. No limits: this is the
+fast path of the checks over fuel temperature and of the uncertainty sweep (docs/tuning.md,
+section 6).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.signal
+from numpy.typing import NDArray
+
+from fuelid.lti import discretise
+from fuelid.model import ProcessModel
+from fuelid.tuning.metrics import (
+    SETTLING_BAND,
+    StepMetrics,
+    disturbance_metrics,
+    setpoint_step_metrics,
+)
+from fuelid.tuning.rules import PISettings
+
+FloatArray = NDArray[np.float64]
+CONTINUOUS_PERIOD = 0.02
+"""Period [s] at which a continuous controller (control period 0) is simulated."""
+
+
+@dataclass(frozen=True)
+class LinearResponse:
+    """Unit setpoint step and unit input-disturbance step of the linear closed loop."""
+
+    time: FloatArray
+    """Times [s] (a fine grid, between the control instants too)."""
+    setpoint_response: FloatArray
+    """Output after a unit setpoint step at t = 0 [output unit]."""
+    setpoint_command: FloatArray
+    """Controller output (held) for the setpoint step [input unit]."""
+    disturbance_response: FloatArray
+    """Output deviation after a unit step at the plant input at t = 0."""
+    setpoint: StepMetrics
+    disturbance: StepMetrics
+
+
+MAX_LINEAR_STEPS = 50_000
+"""Most control periods the linear closed loop is simulated for."""
+
+
+def _loop_time_scale(model: ProcessModel, pi: PISettings) -> float:
+    """Ti, or the closed loop's time constant Ti/(K·Kc) when the loop is detuned below that."""
+    return max(pi.Ti, pi.Ti / (abs(model.K) * pi.Kc))
+
+
+def linear_period(model: ProcessModel, pi: PISettings) -> float:
+    """Step [s] of the linear closed loop.
+
+    The control period; for a continuous controller 0.02 s, coarser for a slow loop so that its
+    delay and lags span at most about 500 steps.
+    """
+    if pi.control_period > 0.0:
+        return pi.control_period
+    scale = model.delay + sum(model.time_constants) + _loop_time_scale(model, pi)
+    return max(CONTINUOUS_PERIOD, scale / 500.0)
+
+
+def _closed_loop_polynomials(
+    model: ProcessModel, pi: PISettings, h: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """(r→u numerator, d→u numerator, characteristic polynomial, plant b, plant a) in z⁻¹."""
+    d = discretise(model.time_constants, model.delay, h)
+    gn = np.concatenate((np.zeros(d.shift), model.K * d.b))
+    gd = d.a
+    cn = pi.Kc * np.array([1.0, h / pi.Ti - 1.0])
+    cd = np.array([1.0, -1.0])
+    n = max(gn.size, gd.size) + 1
+    char = np.zeros(n)
+    a1 = np.convolve(cd, gd)
+    a2 = np.convolve(cn, gn)
+    char[: a1.size] += a1
+    char[: a2.size] += a2
+    # u = C·S·r and, for a load d at the plant input, u = −C·G·S·d
+    r_to_u = np.convolve(cn, gd)
+    d_to_u = -np.convolve(cn, gn)
+    return r_to_u, d_to_u, char, d.b, d.a
+
+
+def linear_closed_loop(
+    model: ProcessModel, pi: PISettings, duration: float | None = None, oversample: int = 10
+) -> LinearResponse:
+    """Setpoint and load-disturbance step responses of PI ``pi`` on the process ``model``.
+
+    The controller output follows from the closed loop at the control instants (exact ZOH,
+    fractional delay included); the plant output is then computed on a grid ``oversample`` times
+    finer with the same held command, so overshoot between samples is not missed. A continuous
+    controller is simulated at 0.02 s (coarser for a slow loop, :func:`linear_period`).
+
+    Examples
+    --------
+    >>> from fuelid.tuning.rules import simc
+    >>> model = ProcessModel(K=1.0, T=2.0, delay=1.0)
+    >>> res = linear_closed_loop(model, simc(model, control_period=1.0))
+    >>> 0.0 <= res.setpoint.overshoot_percent < 20.0 and res.setpoint.settling_time < 15.0
+    True
+    """
+    h = linear_period(model, pi)
+    if duration is None:
+        duration = 10.0 * (_loop_time_scale(model, pi) + model.delay + sum(model.time_constants))
+        duration += 20.0 * h
+    n = min(max(math.ceil(duration / h), 4), MAX_LINEAR_STEPS)
+    r_to_u, d_to_u, char, _, _ = _closed_loop_polynomials(model, pi, h)
+    ones = np.ones(n)
+    u_r = scipy.signal.lfilter(r_to_u, char, ones)
+    u_d = scipy.signal.lfilter(d_to_u, char, ones)
+    m = oversample if pi.control_period > 0.0 else 1
+    fine = discretise(model.time_constants, model.delay, h / m)
+    t = np.arange(n * m, dtype=np.float64) * (h / m)
+    y_r = model.K * fine.response(np.repeat(u_r, m))
+    y_d = model.K * fine.response(np.repeat(u_d, m) + 1.0)
+    return LinearResponse(
+        time=t,
+        setpoint_response=y_r,
+        setpoint_command=np.repeat(u_r, m),
+        disturbance_response=y_d,
+        setpoint=setpoint_step_metrics(t, y_r, 0.0, 1.0),
+        # recovered: within 2 % of what the unit load would do to the output without control
+        disturbance=disturbance_metrics(t, y_d, 0.0, 1.0, band=SETTLING_BAND * abs(model.K)),
+    )
+
+
+def closed_loop_poles(model: ProcessModel, pi: PISettings) -> FloatArray:
+    """Magnitudes of the closed-loop poles at the control instants (all < 1 when stable)."""
+    h = linear_period(model, pi)
+    char = _closed_loop_polynomials(model, pi, h)[2]
+    return np.asarray(np.abs(np.roots(np.trim_zeros(char, "b"))), dtype=np.float64)

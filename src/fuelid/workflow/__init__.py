@@ -1,0 +1,54 @@
+"""The whole chain as library calls: identify → tune → check over temperature → runs → schedule.
+
+What the command line, the demo and (next) the online service run, with plain arguments and
+result objects whose ``to_json()`` is the documented JSON (README.md); nothing here prints, draws
+or writes files. Fuel temperatures are in kelvin throughout (``T_fuel``, ``T_range``).
+
+- :mod:`~fuelid.workflow.identification`: :func:`identify_log` (``fuelid identify``) and the plant
+  file's priors, :func:`plant_priors`;
+- :mod:`~fuelid.workflow.tune`: :class:`TuneRequest`, :func:`tune_model` (``fuelid tune``) and
+  :func:`schedule_gains` (``fuelid tune --schedule``);
+- :mod:`~fuelid.workflow.analysis`: :class:`AnalysisSettings`, :func:`analyse_log`
+  (``fuelid report``).
+
+See docs/architecture.md for where this layer sits.
+"""
+
+from __future__ import annotations
+
+from fuelid.workflow.analysis import METHODS, AnalysisSettings, LogAnalysis, analyse_log
+from fuelid.workflow.identification import (
+    IDENTIFY_UNITS,
+    T_REF,
+    IdentifyOutcome,
+    identify_log,
+    plant_priors,
+)
+from fuelid.workflow.tune import (
+    ScheduleOutcome,
+    TuneOutcome,
+    TuneRequest,
+    check_over_temperature,
+    operating_command,
+    schedule_gains,
+    tune_model,
+)
+
+__all__ = [
+    "IDENTIFY_UNITS",
+    "METHODS",
+    "T_REF",
+    "AnalysisSettings",
+    "IdentifyOutcome",
+    "LogAnalysis",
+    "ScheduleOutcome",
+    "TuneOutcome",
+    "TuneRequest",
+    "analyse_log",
+    "check_over_temperature",
+    "identify_log",
+    "operating_command",
+    "plant_priors",
+    "schedule_gains",
+    "tune_model",
+]
