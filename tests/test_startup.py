@@ -99,11 +99,6 @@ def test_identify_without_plot_does_not_import_matplotlib(log_csv: Path):
     assert loaded == []
 
 
-@pytest.mark.xfail(
-    reason="fuelid.identify.oe and fuelid.identify.step_ls imported python-control at module "
-    "level for type annotations only (owned by the identification layer; being made lazy)",
-    strict=False,
-)
 def test_identify_does_not_import_control(log_csv: Path):
     codes, loaded = _loaded(["identify", str(log_csv), "--json"], names=("control",))
     assert codes == [0]
@@ -119,12 +114,6 @@ def test_tune_does_not_import_the_report_template_engine():
     assert loaded == []
 
 
-@pytest.mark.xfail(
-    reason="LinearPlant.static_gain (fuelid.plant.linear) calls control.dcgain, and importing "
-    "python-control imports matplotlib.pyplot; −C·A⁻¹·B + D with numpy would avoid both "
-    "(owned by the plant layer)",
-    strict=False,
-)
 def test_tune_without_plot_does_not_import_matplotlib():
     codes, loaded = _loaded(TUNE, names=("matplotlib",))
     assert codes == [0]

@@ -15,9 +15,9 @@ import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 import scipy.integrate
 from numpy.typing import ArrayLike, NDArray
 
@@ -41,6 +41,9 @@ from fuelid.plant.system import (
 from fuelid.profiles import InputProfile
 from fuelid.units import LPM_PER_M3S
 from fuelid.units import T0 as KELVIN
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 FloatArray = NDArray[np.float64]
 #: absolute tolerances per state [Hz, rad/s, Pa, m³/s, m³/s]: far below noise and quantisation

@@ -104,10 +104,14 @@ class LinearPlant:
 
     @property
     def static_gain(self) -> float:
-        """Exact static gain −C·A⁻¹·B + D [(L/min)/V] (:func:`control.dcgain`)."""
-        import control
+        """Exact static gain −C·A⁻¹·B + D [(L/min)/V].
 
-        return float(np.real(control.dcgain(self.to_state_space())))
+        What :func:`control.dcgain` computes (a test checks they agree), solved with numpy here
+        because importing python-control costs about 0.3 s and loads matplotlib, and every
+        command that checks gains over fuel temperature calls this for each plant case.
+        """
+        x = np.linalg.solve(self.A, self.B)
+        return float((self.D - self.C @ x)[0, 0])
 
     def step_response(self, t: FloatArray) -> FloatArray:
         """Response to a unit (1 V) step at t = 0, dead time included [L/min]."""
