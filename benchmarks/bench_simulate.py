@@ -50,9 +50,7 @@ def main() -> None:
         n = 0
         for _ in range(args.repeat):
             start = time.perf_counter()
-            result = simulate(
-                config, case["profile"], fuel_temperature=case["fuel_temperature"], seed=1
-            )
+            result = simulate(config, case["profile"], T_fuel=case["fuel_temperature"], seed=1)
             best = min(best, time.perf_counter() - start)
             n = result.time.size
         ratio = HOUR / best

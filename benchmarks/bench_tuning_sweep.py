@@ -49,7 +49,7 @@ def main() -> None:
 
     rng = np.random.default_rng(0)
     profile = step_sequence(rng.uniform(2.5, 3.5, 20).round(2).tolist(), 30.0)
-    log = simulate(config, profile, fuel_temperature=T_FUEL, seed=1)
+    log = simulate(config, profile, T_fuel=T_FUEL, seed=1)
     data = IOData(u=log.u, y=log.q_measured * LPM_PER_M3S, sample_time=log.time[1] - log.time[0])
     fit = OutputError(T_f=meter.time_constant_s).fit(data)
     anchor = Anchor(fit.model_, T_FUEL, float(np.mean(data.u)))

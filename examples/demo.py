@@ -94,7 +94,7 @@ def main() -> None:
         run = simulate(
             config,
             step_profile(1.0, 1.5, t_step=5.0, duration=20.0),
-            fuel_temperature=celsius_to_kelvin(t_degC),
+            T_fuel=celsius_to_kelvin(t_degC),
             noise_std=0.0,
             resolution=0.0,
         )

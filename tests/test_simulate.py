@@ -51,7 +51,7 @@ def _constant(u: float, duration: float) -> InputProfile:
 @pytest.mark.parametrize(("u0", "T"), [(1.25, T20), (3.0, T20), (3.0, 253.15), (4.0, 323.15)])
 def test_small_step_matches_linearisation(cfg: PlantConfig, u0: float, T: float) -> None:
     du, t_step = 0.01, 1.0
-    r = _clean(cfg, step_profile(u0, u0 + du, t_step, t_step + 15.0), fuel_temperature=T)
+    r = _clean(cfg, step_profile(u0, u0 + du, t_step, t_step + 15.0), T_fuel=T)
     y = (r.q_meter - r.q_meter[0]) * LPM / du  # normalised response [(L/min)/V]
     lin = linearise(cfg, u0, T)
     K = lin.static_gain
@@ -91,7 +91,7 @@ def test_large_step_departs_from_linearisation_in_proportion(cfg: PlantConfig) -
     K = linearise(cfg, u0, T).static_gain
 
     def final_gain_error(du: float) -> float:
-        r = _clean(cfg, step_profile(u0, u0 + du, t_step, t_step + 25.0), fuel_temperature=T)
+        r = _clean(cfg, step_profile(u0, u0 + du, t_step, t_step + 25.0), T_fuel=T)
         return (r.q_meter[-1] - r.q_meter[0]) * LPM / du - K
 
     small, large = final_gain_error(0.01), final_gain_error(1.0)
@@ -234,7 +234,7 @@ def test_warming_fuel_lowers_flow(cfg: PlantConfig) -> None:
     r = _clean(
         cfg,
         _constant(3.0, 70.0),
-        fuel_temperature=temperature,
+        T_fuel=temperature,
         sample_time=0.1,
     )
     q_cold = operating_point(cfg, 3.0, cold).q
@@ -269,7 +269,7 @@ def test_command_outside_signal_range_refused(cfg: PlantConfig, u0: float, u1: f
 
 def test_fuel_temperature_outside_range_refused(cfg: PlantConfig) -> None:
     with pytest.raises(FuelidError, match="outside"):
-        simulate(cfg, _constant(2.0, 5.0), fuel_temperature=353.15)
+        simulate(cfg, _constant(2.0, 5.0), T_fuel=353.15)
 
 
 @pytest.mark.parametrize("sample_time", [0.0, -0.02, float("nan")])

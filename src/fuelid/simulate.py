@@ -126,7 +126,7 @@ def simulate(
     config: PlantConfig,
     profile: InputProfile,
     *,
-    fuel_temperature: FuelTemperature | float = 293.15,
+    T_fuel: FuelTemperature | float = 293.15,
     sample_time: float = 0.02,
     control_period: float = 1.0,
     noise_std: float | None = None,
@@ -145,7 +145,7 @@ def simulate(
         The plant.
     profile : InputProfile
         Commands [V]; aligned to ``control_period`` (sample-and-hold of the controller output).
-    fuel_temperature : FuelTemperature or float
+    T_fuel : FuelTemperature or float
         Fuel temperature [K], constant or a trajectory.
     sample_time : float
         PLC sampling interval of the log [s] (0.02 s by default).
@@ -189,9 +189,7 @@ def simulate(
             f"{u_min:g}…{u_max:g} V"
         )
     temperature = (
-        fuel_temperature
-        if isinstance(fuel_temperature, FuelTemperature)
-        else FuelTemperature.constant(fuel_temperature)
+        T_fuel if isinstance(T_fuel, FuelTemperature) else FuelTemperature.constant(T_fuel)
     )
     applied = profile.aligned(control_period)
     n_samples = math.floor(profile.duration / sample_time + 1e-9) + 1
@@ -209,13 +207,12 @@ def simulate(
         raise FuelidError("noise and resolution must not be negative")
     rng = np.random.default_rng(seed)
     q_measured = measure_flow(q_meter * LPM_PER_M3S, std * LPM_PER_M3S, step * LPM_PER_M3S, rng)
-    T_fuel = np.asarray(temperature.at(time), dtype=float) * np.ones_like(time)
     return SimulationResult(
         time=time,
         u=applied.at(time),
         q_meter=q_meter,
         q_measured=q_measured / LPM_PER_M3S,
-        T_fuel=T_fuel,
+        T_fuel=np.asarray(temperature.at(time), dtype=float) * np.ones_like(time),
     )
 
 

@@ -5,13 +5,11 @@ The library is imported when the command runs, not when ``fuelid --help`` is ask
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from fuelid.cli._common import ConfigOption, celsius_to_kelvin, emit_json, guarded, provenance
-from fuelid.units import LPM_PER_M3S, PA_PER_MPA
 
 if TYPE_CHECKING:
     from rich.table import Table
@@ -20,76 +18,6 @@ app = typer.Typer(
     help="The plant's physics model: operating point and linearised model.",
     rich_markup_mode=None,
 )
-
-UNITS = {
-    "u": "V",
-    "fuel_temperature": "degC",
-    "flow": "L/min",
-    "pump_pressure": "MPa",
-    "nozzle_pressure": "MPa",
-    "speed": "rpm",
-    "torque": "N*m",
-    "frequency": "Hz",
-    "leakage": "L/min",
-    "reynolds": "1",
-    "K": "(L/min)/V",
-    "T": "s",
-    "T2": "s",
-    "T_f": "s",
-    "delay": "s",
-    "settling_time": "s",
-    "model_settling_time": "s",
-    "reduction_rms": "fraction of K",
-}
-
-
-def plant_summary(config_path: Path | None, fuel_temp: float, u: float | None) -> dict[str, Any]:
-    """Operating point and equivalent model as the JSON object ``plant info --json`` prints."""
-    from fuelid.plant import linearise, load_plant_config
-
-    config = load_plant_config(config_path)
-    command = 0.5 * (config.vfd.u_min_V + config.vfd.u_max_V) if u is None else u
-    linear = linearise(config, command, celsius_to_kelvin(fuel_temp))
-    op = linear.operating_point
-    equivalent = linear.equivalent_model()
-    model = equivalent.model
-    tf = linear.to_control()
-    return {
-        "plant": config.name,
-        "fuel": config.fuel.name,
-        "fuel_temperature": fuel_temp,
-        "u": command,
-        "operating_point": {
-            "flow": op.q * LPM_PER_M3S,
-            "pump_pressure": op.p_pump / PA_PER_MPA,
-            "nozzle_pressure": op.p_nozzle / PA_PER_MPA,
-            "speed": op.speed_rpm,
-            "torque": op.torque,
-            "frequency": op.f,
-            "leakage": op.q_leak * LPM_PER_M3S,
-            "reynolds": op.reynolds,
-        },
-        "model": {
-            "K": model.K,
-            "T": model.T,
-            "T2": model.T2,
-            "T_f": model.T_f,
-            "delay": model.delay,
-            "settling_time": equivalent.settling_time,
-            "model_settling_time": equivalent.model_settling_time,
-            "reduction_rms": equivalent.fit_rms,
-        },
-        "linear_model": {
-            "num": [float(v) for v in tf.num[0][0]],
-            "den": [float(v) for v in tf.den[0][0]],
-            "delay": linear.delay,
-            "poles": sorted(
-                ([float(p.real), float(p.imag)] for p in tf.poles()), key=lambda p: -p[0]
-            ),
-        },
-        "units": UNITS,
-        "config": str(config_path) if config_path else "reference",
-    }
 
 
 def _table(summary: dict[str, Any]) -> Table:
@@ -151,7 +79,11 @@ def info(
     linearised plant [(L/min)/V], T a least-squares fit of its step response [s], T_f and τ the
     flowmeter's [s]; the settling time is that of the full linearised plant (98 %).
     """
-    summary = plant_summary(config, fuel_temp, u)
+    from fuelid.plant import load_plant_config
+    from fuelid.workflow.plant_info import plant_info
+
+    result = plant_info(load_plant_config(config), celsius_to_kelvin(fuel_temp), u)
+    summary = result.to_json() | {"config": str(config) if config else "reference"}
     if as_json:
         options = {"config": str(config) if config else None, "fuel_temp": fuel_temp, "u": u}
         emit_json(summary | provenance(options, config))

@@ -190,7 +190,7 @@ def simulate_command(
         result = simulate(
             plant,
             prof,
-            fuel_temperature=temperature,
+            T_fuel=temperature,
             sample_time=sample_time,
             control_period=control_period,
             noise_std=None if noise_std is None else noise_std / LPM_PER_M3S,

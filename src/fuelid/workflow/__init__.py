@@ -9,7 +9,8 @@ or writes files. Fuel temperatures are in kelvin throughout (``T_fuel``, ``T_ran
 - :mod:`~fuelid.workflow.tune`: :class:`TuneRequest`, :func:`tune_model` (``fuelid tune``) and
   :func:`schedule_gains` (``fuelid tune --schedule``);
 - :mod:`~fuelid.workflow.analysis`: :class:`AnalysisSettings`, :func:`analyse_log`
-  (``fuelid report``).
+  (``fuelid report``);
+- :mod:`~fuelid.workflow.plant_info`: :func:`plant_info` (``fuelid plant info``).
 
 See docs/architecture.md for where this layer sits.
 """
@@ -24,6 +25,7 @@ from fuelid.workflow.identification import (
     identify_log,
     plant_priors,
 )
+from fuelid.workflow.plant_info import PLANT_INFO_UNITS, PlantInfo, plant_info
 from fuelid.workflow.tune import (
     ScheduleOutcome,
     TuneOutcome,
@@ -37,10 +39,12 @@ from fuelid.workflow.tune import (
 __all__ = [
     "IDENTIFY_UNITS",
     "METHODS",
+    "PLANT_INFO_UNITS",
     "T_REF",
     "AnalysisSettings",
     "IdentifyOutcome",
     "LogAnalysis",
+    "PlantInfo",
     "ScheduleOutcome",
     "TuneOutcome",
     "TuneRequest",
@@ -48,6 +52,7 @@ __all__ = [
     "check_over_temperature",
     "identify_log",
     "operating_command",
+    "plant_info",
     "plant_priors",
     "schedule_gains",
     "tune_model",
