@@ -8,14 +8,11 @@ logged data and tunes its PI controller.
 
 from __future__ import annotations
 
-from importlib.metadata import PackageNotFoundError, version
-
 from fuelid.errors import ConfigError, DataError, FuelidError, NotFittedError, OutOfRangeError
 
-try:
-    __version__ = version("fuelid")
-except PackageNotFoundError:  # running from a source tree without installation
-    __version__ = "0.0.0+unknown"
+__version__ = "0.1.0"
+"""The one place the version is written: pyproject.toml reads it from here (setuptools' dynamic
+``attr``), so no command pays for importlib.metadata at start-up."""
 
 __all__ = [
     "ConfigError",

@@ -18,6 +18,8 @@ import numpy as np
 import scipy.special
 from numpy.typing import ArrayLike, NDArray
 
+from fuelid.identify._base import single_threaded_blas
+
 FloatArray = NDArray[np.float64]
 
 
@@ -59,11 +61,12 @@ def _normalised_xcorr(a: FloatArray, b: FloatArray, lags: FloatArray) -> FloatAr
     n = a.size
     denom = n * a.std() * b.std()
     out = np.empty(lags.size)
-    for i, lag in enumerate(lags.astype(int)):
-        if lag >= 0:
-            out[i] = a[lag:] @ b[: n - lag]
-        else:
-            out[i] = a[: n + lag] @ b[-lag:]
+    with single_threaded_blas():
+        for i, lag in enumerate(lags.astype(int)):
+            if lag >= 0:
+                out[i] = a[lag:] @ b[: n - lag]
+            else:
+                out[i] = a[: n + lag] @ b[-lag:]
     return out / denom if denom > 0.0 else np.zeros(lags.size)
 
 

@@ -29,14 +29,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError, NotExcitingError
-from fuelid.identify._base import Estimator, Initial
+from fuelid.identify._base import Estimator, Initial, single_threaded_blas
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel, nrmse_fit, simulate_model
 
 if TYPE_CHECKING:
     import control
-    from threadpoolctl import ThreadpoolController
 
 FloatArray = NDArray[np.float64]
 Order = Literal[1, 2, "auto"]
@@ -45,13 +44,6 @@ GRID_SAMPLES = 20_000
 
 
 @functools.cache
-def _threadpools() -> ThreadpoolController:
-    """Found once, at the first fit: scanning the BLAS libraries costs tens of milliseconds."""
-    from threadpoolctl import ThreadpoolController
-
-    return ThreadpoolController()
-
-
 @dataclass(frozen=True)
 class _Structure:
     """What is free and what is fixed in one fit."""
@@ -243,7 +235,7 @@ class OutputError(Estimator):
             # one BLAS thread: the fit alternates long thin products with tiny matrix
             # exponentials, and OpenBLAS's thread hand-over makes the tiny ones ~200x slower
             # (measured: 0.49 s vs 0.15 s for one hour of 50 Hz data)
-            with _threadpools().limit(limits=1, user_api="blas"):
+            with single_threaded_blas():
                 fits = {
                     order: self._fit_structure(data, self._structure(order), init)
                     for order in orders

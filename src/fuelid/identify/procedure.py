@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError
 from fuelid.identify import diagnostics
+from fuelid.identify._base import single_threaded_blas
 from fuelid.identify.oe import OutputError
 from fuelid.identify.step_ls import StepResponseLS
 from fuelid.io.timeseries import IOData
@@ -228,6 +229,13 @@ def identify(
     ``validation_fit_percent`` on the held-out part. A separate ``validation`` record is scored
     by ``simulate(validation, initial="rest")``: from rest at its first input.
     """
+    with single_threaded_blas():
+        return _identify(data, options, validation)
+
+
+def _identify(
+    data: IOData, options: IdentifyOptions, validation: IOData | None
+) -> IdentificationResult:
     if validation is not None and options.validate_split is not None:
         raise FuelidError("give either a validation split or a validation file, not both")
     T_f = options.flowmeter_T or 0.0
