@@ -19,7 +19,6 @@ projection), so the nonlinear search runs over one to three parameters only: log
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -43,7 +42,6 @@ Order = Literal[1, 2, "auto"]
 GRID_SAMPLES = 20_000
 
 
-@functools.cache
 @dataclass(frozen=True)
 class _Structure:
     """What is free and what is fixed in one fit."""
