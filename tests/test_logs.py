@@ -478,3 +478,18 @@ def test_sample_intervals_beyond_an_hour_are_refused(tmp_path: Path) -> None:
 def test_input_and_output_from_one_column_is_refused(tmp_path: Path) -> None:
     path = write_csv(tmp_path / "log.csv", plain_rows())
     assert "the same column 'u_V'" in refused(path, output_col="u_V")
+
+
+@pytest.mark.parametrize(
+    ("before", "after"),
+    [("", "  \n\t\n"), (" \n\n", ""), ("\r\n \r\n", " \r\n")],
+)
+def test_whitespace_only_lines_around_the_table_are_ignored(
+    tmp_path: Path, before: str, after: str
+) -> None:
+    path = write_csv(tmp_path / "padded.csv", plain_rows())
+    path.write_bytes(before.encode() + path.read_bytes() + after.encode())
+    data = load_log(path)
+    _, u, y = step_response()
+    np.testing.assert_array_equal(data.u, u)
+    np.testing.assert_array_equal(data.y, y)

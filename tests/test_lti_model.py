@@ -11,7 +11,6 @@ import math
 
 import numpy as np
 import pytest
-import scipy.signal
 
 from fuelid import lti
 from fuelid.errors import FuelidError
@@ -57,19 +56,53 @@ def test_zoh_zero_step_is_identity() -> None:
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_zoh_matches_scipy_random_stable(seed: int) -> None:
+def test_zoh_matches_the_integral_by_eigendecomposition(seed: int) -> None:
+    # independent of the matrix exponential: A = VΛV⁻¹ gives e^{Ah} = V e^{Λh} V⁻¹ and
+    # ∫₀^h e^{Aτ}dτ = V diag((e^{λh} − 1)/λ) V⁻¹
     rng = np.random.default_rng(seed)
     M = rng.normal(size=(3, 3))
     A = M - (np.max(np.linalg.eigvals(M).real) + 0.5) * np.eye(3)  # all eigenvalues Re ≤ −0.5
-    assert np.all(np.linalg.eigvals(A).real < 0.0)
     B = rng.normal(size=(3, 2))
     h = 0.37
+    lam, V = np.linalg.eig(A)
+    Vi = np.linalg.inv(V)
+    Ad_ref = (V @ np.diag(np.exp(lam * h)) @ Vi).real
+    Bd_ref = (V @ np.diag((np.exp(lam * h) - 1.0) / lam) @ Vi @ B).real
     Ad, Bd = lti.zoh_discretise(A, B, h)
-    Ad_ref, Bd_ref, *_ = scipy.signal.cont2discrete(
-        (A, B, np.eye(3), np.zeros((3, 2))), h, method="zoh"
+    np.testing.assert_allclose(Ad, Ad_ref, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(Bd, Bd_ref, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("delay", [0.0, 0.05, 0.1, 0.2999999, 0.3, 0.37, 2.0])
+@pytest.mark.parametrize("feedthrough", [0.0, 0.4])
+def test_uniform_grid_step_response_is_the_closed_form(delay: float, feedthrough: float) -> None:
+    # lightly damped second order ω0 = 3 rad/s, ζ = 0.1 (the shape of the line's hydraulic mode):
+    # y(t) = D + 1 − e^{−ζω0τ}(cos ω_d τ + ζ/√(1−ζ²)·sin ω_d τ), τ = t − θ ≥ 0, on the fast
+    # uniform-grid path (h = 0.1 s, fractional delays included)
+    w0, zeta = 3.0, 0.1
+    A = [[0.0, 1.0], [-(w0**2), -2.0 * zeta * w0]]
+    B, C = [[0.0], [w0**2]], [[1.0, 0.0]]
+    t = np.arange(0.0, 30.0, 0.1)
+    y = lti.step_response(A, B, C, feedthrough, t, delay=delay)
+    tau = t - delay
+    wd = w0 * np.sqrt(1.0 - zeta**2)
+    shape = 1.0 - np.exp(-zeta * w0 * tau) * (
+        np.cos(wd * tau) + zeta / np.sqrt(1.0 - zeta**2) * np.sin(wd * tau)
     )
-    np.testing.assert_allclose(Ad, Ad_ref, rtol=1e-12, atol=1e-14)
-    np.testing.assert_allclose(Bd, Bd_ref, rtol=1e-12, atol=1e-14)
+    expected = np.where(tau >= -1e-12, feedthrough + shape, 0.0)
+    np.testing.assert_allclose(y, expected, rtol=0.0, atol=1e-11)
+
+
+def test_uniform_and_irregular_grids_agree_on_a_stiff_plant() -> None:
+    # poles 1000:1 apart, 200,000 samples on the fast path against the per-time propagation
+    A = np.array([[-1000.0, 0.0], [1.0, -1.0]])
+    B, C = np.array([[1000.0], [0.0]]), np.array([[0.0, 1.0]])
+    t = np.arange(200_000) * 1e-4
+    fast = lti.step_response(A, B, C, 0.0, t, delay=0.00123)
+    on_grid = t[997::997]
+    probe = np.r_[0.5 * on_grid[0], on_grid]  # an extra first time: not uniform, the exact path
+    slow = lti.step_response(A, B, C, 0.0, probe, delay=0.00123)
+    np.testing.assert_allclose(fast[997::997], slow[1:], rtol=0.0, atol=1e-12)
 
 
 # --------------------------------------------------------------------------------------------

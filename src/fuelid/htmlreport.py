@@ -1,7 +1,7 @@
 """The HTML report of one log: figures embedded, rendered from a jinja2 template.
 
 :func:`report_figures` draws the figures of a :class:`~fuelid.workflow.LogAnalysis` with the
-functions of :mod:`fuelid.report`; :func:`render_report` fills ``templates/report.html.j2`` with
+functions of :mod:`fuelid.plots`; :func:`render_report` fills ``templates/report.html.j2`` with
 the numbers (autoescaped, never string-built); :func:`write_report` writes the page and the same
 figures as PNG files beside it, refusing to overwrite anything unless asked. Computation never
 lives here: everything shown was computed by :func:`~fuelid.workflow.analyse_log`.

@@ -28,6 +28,9 @@ from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
 
+SETTLING_BAND = 0.02
+"""Relative band of the settling time fuelid reports everywhere: 2 %, the 98 % settling time."""
+
 _UNIFORM_TOLERANCE = 1e-9
 """Relative spread of the time steps below which a grid counts as uniform."""
 
@@ -323,7 +326,7 @@ def _uniform_step_response(
     return y
 
 
-def settling_time(t: ArrayLike, y: ArrayLike, final: float, band: float = 0.02) -> float:
+def settling_time(t: ArrayLike, y: ArrayLike, final: float, band: float = SETTLING_BAND) -> float:
     """Time after which a response stays within ``band`` of its final value.
 
     The one settling-time rule of fuelid: model step responses, linearised plants and closed-loop
@@ -374,7 +377,7 @@ def step_settling_time(
     C: ArrayLike,
     D: float = 0.0,
     delay: float = 0.0,
-    band: float = 0.02,
+    band: float = SETTLING_BAND,
     points: int = 24_001,
 ) -> float:
     """Settling time of the unit-step response of a stable state-space model with dead time.

@@ -118,7 +118,7 @@ class ProcessModel:
         A, B, C, _ = self.state_space()
         return lti.step_response(A, B, C, 0.0, t, delay=self.delay)
 
-    def settling_time(self, band: float = 0.02) -> float:
+    def settling_time(self, band: float = lti.SETTLING_BAND) -> float:
         """Time for a unit step response to enter and stay within ``band`` of K [s].
 
         Examples

@@ -242,13 +242,15 @@ def _print_table(data: dict[str, Any], file: Path) -> None:
     from rich.console import Console
     from rich.table import Table
 
+    from fuelid.model import MODEL_KEYS
+
     table = Table(
         title=f"{data['method']} on {file.name} ({data['n_samples']} samples every "
         f"{data['sample_time']:g} s)"
     )
     for column in ("parameter", "value", "std. error", "95 % interval", "unit"):
         table.add_column(column, justify="right")
-    for key in ("K", "T", "T2", "delay", "T_f"):
+    for key in MODEL_KEYS:
         value, se, ci = data["model"][key], data["stderr"][key], data["ci95"][key]
         fixed = key in data["fixed"]
         table.add_row(

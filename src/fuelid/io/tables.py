@@ -106,12 +106,10 @@ def _read_text(raw: bytes, source: str) -> tuple[pd.DataFrame, list[str]]:
     stays as strings for :func:`to_float` and the log reader to interpret or refuse.
     """
     text, encoding = _decode(raw, source)
-    text = text.strip("\r\n")
-    head = text[:65536].splitlines()
-    while head and not head[0].strip():
-        head.pop(0)
-    if not text.strip() or not head:
+    text = _strip_blank_lines(text)
+    if not text:
         raise DataError(f"{source} is empty")
+    head = text[:65536].splitlines()
     separator = _sniff_separator(head, source)
     try:
         frame = pd.read_csv(
@@ -135,6 +133,33 @@ def _read_text(raw: bytes, source: str) -> tuple[pd.DataFrame, list[str]]:
     if separator != ",":
         notes.append(f"columns separated by {_SEPARATOR_NAMES[separator]}")
     return frame, notes
+
+
+def _strip_blank_lines(text: str) -> str:
+    r"""``text`` without its leading and trailing lines that are empty or only whitespace.
+
+    Examples
+    --------
+    >>> _strip_blank_lines("  \n\nt,u\n1,2\n \n\t\n")
+    't,u\n1,2'
+    """
+    # scan line by line from each end only: a long log is not split into lines here
+    start = 0
+    while True:
+        newline = text.find("\n", start)
+        if newline < 0 or text[start:newline].strip():
+            break
+        start = newline + 1
+    stop = len(text)
+    while stop > start:
+        newline = text.rfind("\n", start, stop)
+        if text[newline + 1 : stop].strip():
+            break
+        if newline < start:
+            stop = start
+            break
+        stop = newline
+    return text[start:stop].strip("\r\n") if text[start:stop].strip() else ""
 
 
 def _decode(raw: bytes, source: str) -> tuple[str, str]:

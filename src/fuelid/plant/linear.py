@@ -117,11 +117,11 @@ class LinearPlant:
         """Response to a unit (1 V) step at t = 0, dead time included [L/min]."""
         return lti.step_response(self.A, self.B, self.C, float(self.D[0, 0]), t, self.delay)
 
-    def settling_time(self, band: float = 0.02) -> float:
+    def settling_time(self, band: float = lti.SETTLING_BAND) -> float:
         """98 % (for ``band`` = 0.02) settling time of the step response, delay included [s]."""
         return lti.step_settling_time(self.A, self.B, self.C, float(self.D[0, 0]), self.delay, band)
 
-    def equivalent_model(self, band: float = 0.02) -> EquivalentModel:
+    def equivalent_model(self, band: float = lti.SETTLING_BAND) -> EquivalentModel:
         """Reduce to K·e^(−τs)/((T·s+1)(T_f·s+1)) (see the module docstring for the method)."""
         K = self.static_gain
         settle = self.settling_time(band)

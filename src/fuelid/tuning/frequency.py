@@ -28,6 +28,7 @@ import numpy as np
 import scipy.optimize
 from numpy.typing import ArrayLike, NDArray
 
+from fuelid.errors import FuelidError
 from fuelid.lti import discretise, modified_z
 from fuelid.model import ProcessModel
 from fuelid.tuning.rules import PISettings
@@ -91,8 +92,9 @@ def process_response(model: ProcessModel, omega: ArrayLike, h: float = 0.0) -> C
 def state_space_response(plant: StateSpacePlant, omega: ArrayLike, h: float = 0.0) -> ComplexArray:
     """Frequency response of a state-space plant with dead time (e.g. a linearised plant).
 
-    Continuous: (C (jωI − A)⁻¹ B + D)·e^(−jωθ). Sampled (D must be 0, as for every plant here):
-    z^(−d)·C (zI − A_d)⁻¹ (Γ₀ + Γ₁ z⁻¹) with θ = d·h + τ' the modified z-transform.
+    Continuous: (C (jωI − A)⁻¹ B + D)·e^(−jωθ). Sampled: z^(−d)·C (zI − A_d)⁻¹ (Γ₀ + Γ₁ z⁻¹)
+    with θ = d·h + τ' the modified z-transform; a feedthrough D ≠ 0 (no plant here has one) is
+    refused there rather than silently dropped.
     """
     w = np.asarray(omega, dtype=float)
     A = np.asarray(plant.A, dtype=float)
@@ -105,6 +107,8 @@ def state_space_response(plant: StateSpacePlant, omega: ArrayLike, h: float = 0.
         x = np.linalg.solve(M, np.broadcast_to(B.astype(complex), (w.size, n, 1)))
         g = (C @ x)[:, 0, 0] + float(np.asarray(plant.D).ravel()[0])
         return np.asarray(g * np.exp(-1j * w * plant.delay), dtype=complex)
+    if np.any(np.asarray(plant.D, dtype=float) != 0.0):
+        raise FuelidError("the sampled frequency response of a plant with feedthrough D ≠ 0")
     mz = modified_z(A, B, h, plant.delay)
     z = np.exp(1j * w * h)
     M = z[:, None, None] * eye - mz.Ad
@@ -126,8 +130,9 @@ def controller_response(pi: PISettings, omega: ArrayLike) -> ComplexArray:
     h = pi.control_period
     if h == 0.0:
         return np.asarray(pi.Kc * (1.0 + 1.0 / (1j * w * pi.Ti)), dtype=complex)
+    q0, q1 = pi.velocity_coefficients()
     zi = np.exp(-1j * w * h)
-    return np.asarray(pi.Kc * (1.0 + h * zi / (pi.Ti * (1.0 - zi))), dtype=complex)
+    return np.asarray((q0 + q1 * zi) / (1.0 - zi), dtype=complex)
 
 
 def loop_function(plant: ProcessModel | StateSpacePlant, pi: PISettings) -> LoopFunction:

@@ -75,7 +75,7 @@ def _closed_loop_polynomials(
     d = discretise(model.time_constants, model.delay, h)
     gn = np.concatenate((np.zeros(d.shift), model.K * d.b))
     gd = d.a
-    cn = pi.Kc * np.array([1.0, h / pi.Ti - 1.0])
+    cn = np.array(pi.velocity_coefficients(h))
     cd = np.array([1.0, -1.0])
     n = max(gn.size, gd.size) + 1
     char = np.zeros(n)

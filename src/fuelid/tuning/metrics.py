@@ -19,7 +19,7 @@ from fuelid import lti
 from fuelid.errors import FuelidError
 
 FloatArray = NDArray[np.float64]
-SETTLING_BAND = 0.02
+SETTLING_BAND = lti.SETTLING_BAND
 """Settling band: 2 % of the step (setpoint) or of the setpoint (disturbance)."""
 
 

@@ -117,6 +117,29 @@ class PISettings:
             reduced=self.reduced,
         )
 
+    def velocity_coefficients(self, h: float | None = None) -> tuple[float, float]:
+        """(q0, q1) of the PLC's PI at period h: Δu[k] = q0·e[k] + q1·e[k−1].
+
+        The one statement of the discrete PI every other part uses (PLC forms, the sampled
+        loop's frequency response, the linear closed loop): the forward-Euler integral gives
+        C(z) = Kc·(1 + (h/Ti)·z⁻¹/(1 − z⁻¹)) = (q0 + q1·z⁻¹)/(1 − z⁻¹), q0 = Kc,
+        q1 = −Kc·(1 − h/Ti); q0 + q1 = Kc·h/Ti is the integral gain per sample.
+
+        Parameters
+        ----------
+        h : float, optional
+            Period [s], positive; default the controller's ``control_period``.
+
+        Examples
+        --------
+        >>> PISettings(rule="x", Kc=0.05, Ti=2.0, control_period=1.0).velocity_coefficients()
+        (0.05, -0.025)
+        """
+        period = self.control_period if h is None else h
+        if not period > 0.0:
+            raise FuelidError("the discrete PI needs a positive period")
+        return self.Kc, -self.Kc * (1.0 - period / self.Ti)
+
     def plc_form(self, u_span: float = 4.0, y_span: float = 100.0) -> dict[str, Any]:
         """The gains as a PLC block takes them.
 
@@ -149,13 +172,14 @@ class PISettings:
         h = self.control_period
         discrete = None
         if h > 0.0:
+            q0, q1 = self.velocity_coefficients()
             discrete = {
                 "algorithm": "positional u[k] = Kc*e[k] + I[k], I[k+1] = I[k] + Kc*h/Ti*e[k] "
                 "(forward-Euler integral); velocity form du[k] = q0*e[k] + q1*e[k-1]",
                 "h": h,
-                "q0": self.Kc,
-                "q1": -self.Kc * (1.0 - h / self.Ti),
-                "integral_gain_per_sample": self.Kc * h / self.Ti,
+                "q0": q0,
+                "q1": q1,
+                "integral_gain_per_sample": q0 + q1,
             }
         return {
             "form": "ideal (standard, ISA): u = Kc*(e + (1/Ti)*integral(e dt)), e = setpoint - "

@@ -70,11 +70,7 @@ class PlantInfo:
                 "reynolds": op.reynolds,
             },
             "model": {
-                "K": model.K,
-                "T": model.T,
-                "T2": model.T2,
-                "T_f": model.T_f,
-                "delay": model.delay,
+                **model.as_dict(),
                 "settling_time": self.equivalent.settling_time,
                 "model_settling_time": self.equivalent.model_settling_time,
                 "reduction_rms": self.equivalent.fit_rms,
