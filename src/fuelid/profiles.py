@@ -3,6 +3,10 @@
 A profile is a list of change times and the command held from each change to the next. The
 simulator aligns changes with the controller's update period (sample-and-hold of the PLC's
 output) before it runs.
+
+Generated profiles: :func:`step_profile`, :func:`step_sequence`, :func:`random_levels`; a table
+of commands (from a file, read by :func:`fuelid.workflow.simulation.read_profile`, which sits above
+both this module and :mod:`fuelid.io`): :func:`held_profile`.
 """
 
 from __future__ import annotations
@@ -14,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fuelid.errors import FuelidError
+from fuelid.errors import DataError, FuelidError
 
 FloatArray = NDArray[np.float64]
 
@@ -168,3 +172,59 @@ def random_levels(
     return InputProfile(
         np.asarray(t[change], dtype=float), np.asarray(u[change], dtype=float), duration
     )
+
+
+def held_profile(
+    t: ArrayLike, u: ArrayLike, duration: float | None = None, source: str = "the profile"
+) -> InputProfile:
+    """The profile of a table of commands, each held from its row's time to the next row's.
+
+    Rows that repeat the previous command are merged into one change.
+
+    Parameters
+    ----------
+    t : array
+        Row times [s]: starting at 0 and strictly increasing.
+    u : array
+        Command of each row [V].
+    duration : float, optional
+        End of the profile [s], after the last row. By default the last row is held for the
+        previous interval (for 1 s when the table has a single row).
+    source : str
+        Where the table came from (a file name), for messages.
+
+    Returns
+    -------
+    InputProfile
+
+    Raises
+    ------
+    DataError
+        If the times do not start at 0 and increase strictly, or ``duration`` does not come
+        after the last row.
+
+    Examples
+    --------
+    >>> p = held_profile([0.0, 5.0, 10.0, 20.0], [1.0, 1.5, 1.5, 2.0])
+    >>> p.t.tolist(), p.u.tolist(), p.duration
+    ([0.0, 5.0, 20.0], [1.0, 1.5, 2.0], 30.0)
+    >>> held_profile([0.0, 5.0], [1.0, 1.5], duration=5.0)
+    Traceback (most recent call last):
+    ...
+    fuelid.errors.DataError: duration 5 s must exceed the profile's last time 5 s
+    """
+    times = np.asarray(t, dtype=float)
+    commands = np.asarray(u, dtype=float)
+    if times.ndim != 1 or times.shape != commands.shape:
+        raise DataError(f"{source}: a profile needs one command per time")
+    if times.size < 1 or times[0] != 0.0 or np.any(np.diff(times) <= 0.0):
+        raise DataError(f"{source}: t_s must start at 0 and increase strictly")
+    last = float(times[-1])
+    if duration is None:
+        end = last + (last - float(times[-2]) if times.size > 1 else 1.0)
+    else:
+        end = duration
+    if not end > last:
+        raise DataError(f"duration {end:g} s must exceed the profile's last time {last:g} s")
+    change = np.r_[True, commands[1:] != commands[:-1]]
+    return InputProfile(times[change], commands[change], end)

@@ -1,21 +1,24 @@
-"""``fuelid simulate``: write a PLC-like log of the nonlinear plant."""
+"""``fuelid simulate``: write a PLC-like log of the nonlinear plant.
+
+The command parses and checks its options, builds a
+:class:`~fuelid.workflow.simulation.SimulationRequest`, runs
+:func:`~fuelid.workflow.simulation.simulate_log`, writes the log atomically and prints the
+outcome's summary. The library is imported when the command runs, not when ``fuelid --help`` is
+asked for.
+"""
 
 from __future__ import annotations
 
 import enum
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import Annotated, Any
 
 import typer
 
 from fuelid.cli._common import celsius_to_kelvin, emit_json, guarded, provenance
 from fuelid.errors import FuelidError
 from fuelid.units import LPM_PER_M3S
-from fuelid.units import T0 as KELVIN
-
-if TYPE_CHECKING:
-    from fuelid.profiles import InputProfile
 
 #: simulated time above which a progress bar is shown [s]
 PROGRESS_THRESHOLD = 600.0
@@ -30,44 +33,14 @@ class ProfileKind(enum.StrEnum):
     file = "file"
 
 
-def _levels(text: str) -> list[float]:
+def _levels(text: str) -> tuple[float, ...]:
     try:
         values = [float(part) for part in text.replace(";", ",").split(",") if part.strip()]
     except ValueError:
         raise FuelidError(f"--levels must be comma-separated volts, got {text!r}") from None
     if not values or not all(math.isfinite(v) for v in values):
         raise FuelidError(f"--levels must be comma-separated finite volts, got {text!r}")
-    return values
-
-
-def _profile_from_file(path: Path, duration: float | None) -> tuple[InputProfile, Any]:
-    """A command profile (``t_s``, ``u_V`` and optionally ``T_fuel_degC``) read from a table."""
-    import numpy as np
-
-    from fuelid.errors import DataError
-    from fuelid.io.tables import read_table, table_column
-    from fuelid.io.timeseries import FUEL_TEMPERATURE_COLUMN, INPUT_COLUMN, TIME_COLUMN
-    from fuelid.profiles import InputProfile
-    from fuelid.simulate import FuelTemperature
-
-    frame, _ = read_table(path)
-    source = repr(str(path))
-    t = table_column(frame, TIME_COLUMN, source)
-    u = table_column(frame, INPUT_COLUMN, source)
-    if t.size < 1 or t[0] != 0.0 or np.any(np.diff(t) <= 0.0):
-        raise DataError(f"{path}: {TIME_COLUMN} must start at 0 and increase strictly")
-    end = (
-        duration if duration is not None else float(t[-1]) + (t[-1] - t[-2] if t.size > 1 else 1.0)
-    )
-    if end <= t[-1]:
-        raise DataError(f"--duration {end:g} s must exceed the profile's last time {t[-1]:g} s")
-    change = np.r_[True, u[1:] != u[:-1]]
-    profile = InputProfile(t[change], u[change], end)
-    temperature = None
-    if FUEL_TEMPERATURE_COLUMN in frame.columns:
-        temps = table_column(frame, FUEL_TEMPERATURE_COLUMN, source)
-        temperature = FuelTemperature(t, temps + KELVIN)
-    return profile, temperature
+    return tuple(values)
 
 
 @guarded
@@ -150,33 +123,34 @@ def simulate_command(
 
     from fuelid.io.files import check_output_path
     from fuelid.plant import load_plant_config
-    from fuelid.profiles import InputProfile, random_levels, step_profile, step_sequence
-    from fuelid.simulate import FuelTemperature, simulate
+    from fuelid.workflow.simulation import SimulationRequest, simulate_log, simulation_inputs
 
     out = check_output_path(output, overwrite=force)
     plant = load_plant_config(config)
-    temperature: Any = None
-    if profile is ProfileKind.step:
-        prof = step_profile(u0, u1, t_step, 60.0 if duration is None else duration)
-    elif profile is ProfileKind.steps:
-        prof = step_sequence(_levels(levels), dwell)
-        if duration is not None:
-            prof = InputProfile(prof.t[prof.t < duration], prof.u[prof.t < duration], duration)
-    elif profile is ProfileKind.random:
-        prof = random_levels(
-            _levels(levels), hold, 600.0 if duration is None else duration, seed=seed, settle=hold
-        )
-    else:
-        if input_file is None:
-            raise FuelidError("--profile file needs --input-file")
-        prof, temperature = _profile_from_file(input_file, duration)
-    T_start = celsius_to_kelvin(fuel_temp)
-    if temperature is None:
-        temperature = (
-            FuelTemperature.constant(T_start)
-            if fuel_temp_end is None
-            else FuelTemperature.ramp(T_start, celsius_to_kelvin(fuel_temp_end), prof.duration)
-        )
+    if profile is ProfileKind.file and input_file is None:
+        raise FuelidError("--profile file needs --input-file")
+    request = SimulationRequest(
+        profile=profile.value,
+        u0=u0,
+        u1=u1,
+        t_step=t_step,
+        levels=_levels(levels) if profile in (ProfileKind.steps, ProfileKind.random) else (),
+        dwell=dwell,
+        hold=hold,
+        input_file=input_file,
+        duration=duration,
+        sample_time=sample_time,
+        control_period=control_period,
+        noise_std=None if noise_std is None else noise_std / LPM_PER_M3S,
+        resolution=None if resolution is None else resolution / LPM_PER_M3S,
+        T_fuel=celsius_to_kelvin(fuel_temp, "--fuel-temp"),
+        T_fuel_end=(
+            None if fuel_temp_end is None else celsius_to_kelvin(fuel_temp_end, "--fuel-temp-end")
+        ),
+        seed=seed,
+        truth=truth,
+    )
+    inputs = simulation_inputs(request)
     with Progress(
         TextColumn("simulating"),
         BarColumn(),
@@ -184,40 +158,19 @@ def simulate_command(
         TimeRemainingColumn(),
         console=Console(stderr=True),
         transient=True,
-        disable=quiet or as_json or prof.duration < PROGRESS_THRESHOLD,
+        disable=quiet or as_json or inputs.duration < PROGRESS_THRESHOLD,
     ) as bar:
         task = bar.add_task("simulate", total=1.0)
-        result = simulate(
+        outcome = simulate_log(
             plant,
-            prof,
-            T_fuel=temperature,
-            sample_time=sample_time,
-            control_period=control_period,
-            noise_std=None if noise_std is None else noise_std / LPM_PER_M3S,
-            resolution=None if resolution is None else resolution / LPM_PER_M3S,
-            seed=seed,
+            request,
+            inputs=inputs,
             progress=lambda done: bar.update(task, completed=done),
         )
-    log = result.to_log(include_truth=truth)
-    log.write(out, overwrite=force)
-    q_range = [float(log["q_Lpm"].min()), float(log["q_Lpm"].max())]
-    summary: dict[str, Any] = {
-        "output": str(out),
-        "n_samples": len(log),
-        "sample_time": sample_time,
-        "duration": prof.duration,
-        "profile": profile.value,
-        "u_range": list(prof.u_range),
-        "q_range": q_range,
-        "units": {
-            "sample_time": "s",
-            "duration": "s",
-            "u_range": "V",
-            "q_range": "L/min",
-        },
-    }
+    outcome.to_log().write(out, overwrite=force)
+    summary = outcome.to_json(out)
     if as_json:
-        options = {
+        options: dict[str, Any] = {
             "config": str(config) if config else None,
             "profile": profile.value,
             "u0": u0,
@@ -238,8 +191,9 @@ def simulate_command(
         }
         emit_json(summary | provenance(options, input_file))
     else:
+        u_range, q_range = summary["u_range"], summary["q_range"]
         typer.echo(
-            f"wrote {out}: {len(log)} samples every {sample_time:g} s over {prof.duration:g} s, "
-            f"u {prof.u_range[0]:g}…{prof.u_range[1]:g} V, "
+            f"wrote {out}: {summary['n_samples']} samples every {sample_time:g} s over "
+            f"{summary['duration']:g} s, u {u_range[0]:g}…{u_range[1]:g} V, "
             f"q {q_range[0]:.2f}…{q_range[1]:.2f} L/min"
         )

@@ -10,7 +10,9 @@ or writes files. Fuel temperatures are in kelvin throughout (``T_fuel``, ``T_ran
   :func:`schedule_gains` (``fuelid tune --schedule``);
 - :mod:`~fuelid.workflow.analysis`: :class:`AnalysisSettings`, :func:`analyse_log`
   (``fuelid report``);
-- :mod:`~fuelid.workflow.plant_info`: :func:`plant_info` (``fuelid plant info``).
+- :mod:`~fuelid.workflow.plant_info`: :func:`plant_info` (``fuelid plant info``);
+- :mod:`~fuelid.workflow.simulation`: :class:`SimulationRequest`, :func:`simulate_log`
+  (``fuelid simulate``) and the profile-file reader :func:`read_profile`.
 
 See docs/architecture.md for where this layer sits.
 """
@@ -26,6 +28,16 @@ from fuelid.workflow.identification import (
     plant_priors,
 )
 from fuelid.workflow.plant_info import PLANT_INFO_UNITS, PlantInfo, plant_info
+from fuelid.workflow.simulation import (
+    SIMULATION_UNITS,
+    ProfileTable,
+    SimulationInputs,
+    SimulationOutcome,
+    SimulationRequest,
+    read_profile,
+    simulate_log,
+    simulation_inputs,
+)
 from fuelid.workflow.tune import (
     ScheduleOutcome,
     TuneOutcome,
@@ -40,12 +52,17 @@ __all__ = [
     "IDENTIFY_UNITS",
     "METHODS",
     "PLANT_INFO_UNITS",
+    "SIMULATION_UNITS",
     "T_REF",
     "AnalysisSettings",
     "IdentifyOutcome",
     "LogAnalysis",
     "PlantInfo",
+    "ProfileTable",
     "ScheduleOutcome",
+    "SimulationInputs",
+    "SimulationOutcome",
+    "SimulationRequest",
     "TuneOutcome",
     "TuneRequest",
     "analyse_log",
@@ -54,6 +71,9 @@ __all__ = [
     "operating_command",
     "plant_info",
     "plant_priors",
+    "read_profile",
     "schedule_gains",
+    "simulate_log",
+    "simulation_inputs",
     "tune_model",
 ]
