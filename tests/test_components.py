@@ -22,6 +22,7 @@ from fuelid.plant.flowmeter import (
     measure_flow,
 )
 from fuelid.plant.motor import (
+    MAX_RATED_SLIP,
     MotorConfig,
     electromagnetic_torque,
     electromagnetic_torque_partials,
@@ -37,7 +38,9 @@ from fuelid.plant.nozzle import (
     orifice_resistance,
 )
 from fuelid.plant.pipeline import (
+    ZERO_FLOW_RE,
     PipelineConfig,
+    circle_area,
     darcy_friction_factor,
     darcy_friction_factor_log_slope,
     laminar_resistance,
@@ -180,6 +183,31 @@ def test_slope_is_laminar_resistance_in_laminar_flow() -> None:
     for Re in (0.5, 300.0, 1000.0):
         slope = pipe_pressure_drop_slope(_q_for_reynolds(Re), RHO, MU, LENGTH, D, EPS)
         assert slope == pytest.approx(R_L, rel=1e-6)
+
+
+def test_zero_flow_cut_off_is_far_below_the_laminar_transition() -> None:
+    # the cut-off only guards the 0/0 at rest; the laminar switch of the correlations is 2040
+    assert ZERO_FLOW_RE < 1e-3 * fluids.friction.LAMINAR_TRANSITION_PIPE
+    R_L = 128.0 * MU * LENGTH / (math.pi * D**4)
+    # Hagen–Poiseuille on both sides of the cut-off, and continuous across it
+    for Re in (0.5 * ZERO_FLOW_RE, 2.0 * ZERO_FLOW_RE):
+        q = _q_for_reynolds(Re)
+        assert pipe_pressure_drop(q, RHO, MU, LENGTH, D, EPS) == pytest.approx(R_L * q, rel=1e-12)
+        assert pipe_pressure_drop_slope(q, RHO, MU, LENGTH, D, EPS) == pytest.approx(R_L, rel=1e-12)
+    assert pipe_pressure_drop_slope(0.0, RHO, MU, LENGTH, D, EPS) == pytest.approx(R_L, rel=1e-14)
+
+
+def test_circle_area_is_the_one_cross_section() -> None:
+    # A = πd²/4: 32 mm bore 8.0425e-4 m²; the line's laws and the nozzle area all use it
+    area = math.pi * D**2 / 4.0
+    assert circle_area(D) == pytest.approx(area, rel=1e-15)
+    assert circle_area(D) == pytest.approx(8.0425e-4, rel=1e-5)
+    q = 1e-3
+    assert reynolds_number(q, D, RHO, MU) == pytest.approx(RHO * (q / area) * D / MU, rel=1e-14)
+    assert pipe_inductance(RHO, LENGTH, D) == pytest.approx(RHO * LENGTH / area, rel=1e-14)
+    assert pipe_capacitance(LENGTH, D, 1.2e9) == pytest.approx(area * LENGTH / 1.2e9, rel=1e-14)
+    area_of_8 = NozzleConfig(count=8, diameter_mm=2.25, discharge_coefficient=0.7).A0
+    assert area_of_8 == pytest.approx(8 * math.pi * 2.25e-3**2 / 4.0, rel=1e-14)
 
 
 def test_slope_tends_to_quadratic_law_when_fully_rough() -> None:
@@ -486,6 +514,33 @@ def test_synchronous_speed_by_hand() -> None:
     # 2 pole pairs at 50 Hz: 1500 rpm = 157.08 rad/s; 1 pole pair at 60 Hz: 3600 rpm
     assert synchronous_speed(50.0, 2) == pytest.approx(TWO_PI * 1500.0 / 60.0, rel=1e-15)
     assert synchronous_speed(60.0, 1) == pytest.approx(TWO_PI * 3600.0 / 60.0, rel=1e-15)
+
+
+@pytest.mark.parametrize("f_rated", [50.0, 60.0, 49.5, 400.0 / 3.0])
+@pytest.mark.parametrize("m_p", [1, 2, 3, 4, 6, 12])
+def test_nameplate_at_synchronous_speed_refused(f_rated: float, m_p: int) -> None:
+    # written the way a nameplate states it, n_sync = 60·f/m_p in rpm: refused whatever the
+    # rounding of the rpm → rad/s conversion (K_T would be unbounded); 3 % slip is a motor
+    n_sync = 60.0 * f_rated / m_p
+
+    def motor(rated_speed_rpm: float) -> MotorConfig:
+        return MotorConfig(
+            rated_power_kW=7.5,
+            rated_speed_rpm=rated_speed_rpm,
+            rated_frequency_Hz=f_rated,
+            pole_pairs=m_p,
+            inertia_kg_m2=0.06,
+        )
+
+    for refused in (n_sync, 1.01 * n_sync, 0.69 * n_sync):
+        with pytest.raises(ValueError, match="rated_speed_rpm"):
+            motor(refused)
+    omega_sync = TWO_PI * f_rated / m_p
+    slip_speed = 0.03 * omega_sync
+    expected = 7500.0 / (0.97 * omega_sync) / slip_speed
+    k_t = motor(0.97 * n_sync).K_T
+    assert k_t == pytest.approx(expected, rel=1e-9)
+    assert MAX_RATED_SLIP == 0.3
 
 
 def test_electromagnetic_torque_partials() -> None:

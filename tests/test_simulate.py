@@ -13,10 +13,12 @@ import math
 import numpy as np
 import pytest
 
+import fuelid.simulate
 from fuelid.errors import FuelidError
 from fuelid.plant import PlantConfig, linearise, load_plant_config, operating_point
+from fuelid.plant.system import plant_coefficients, steady_state
 from fuelid.profiles import InputProfile, step_profile
-from fuelid.simulate import FuelTemperature, SimulationResult, simulate
+from fuelid.simulate import FuelTemperature, SimulationResult, integrate_held, simulate
 
 LPM = 60_000.0  # L/min per m³/s
 T20 = 293.15
@@ -276,3 +278,38 @@ def test_fuel_temperature_outside_range_refused(cfg: PlantConfig) -> None:
 def test_bad_sample_time_refused(cfg: PlantConfig, sample_time: float) -> None:
     with pytest.raises(FuelidError, match="sample time"):
         simulate(cfg, _constant(2.0, 5.0), sample_time=sample_time)
+
+
+# --------------------------------------------------------------------------------------------
+# the held-command integration shared with the closed loop
+
+
+def test_integrate_held_reaches_the_new_operating_point(cfg: PlantConfig) -> None:
+    c = plant_coefficients(cfg, T20)
+    x0 = steady_state(2.0, c).state
+    times = np.array([0.0, 0.5, 1.0, 2.0, 60.0])
+    states = integrate_held(x0, times, 3.0, c)
+    assert states.shape == (5, 5)
+    assert np.array_equal(states[0], x0)
+    rest = steady_state(3.0, c).state
+    # 60 s is many times the slowest lag: the end is the rest state of the new command
+    assert states[-1] == pytest.approx(rest, rel=1e-6)
+    # on the way the flow rises (the ramp of the drive and the lag of the line)
+    assert np.all(np.diff(states[:4, 3]) > 1e-6)
+
+
+@pytest.mark.parametrize(
+    ("setting", "value", "message"),
+    [("MAX_STEPS", 1, "Excess work done"), ("RTOL", -1.0, "Illegal input")],
+)
+def test_solver_failure_is_a_fuelid_error(
+    cfg: PlantConfig, monkeypatch: pytest.MonkeyPatch, setting: str, value: object, message: str
+) -> None:
+    # a solver that gives up (too few steps allowed, an impossible tolerance) must not pass
+    # silently, nor as a bare warning: it is refused with the span and the solver's reason
+    monkeypatch.setattr(fuelid.simulate, setting, value)
+    c = plant_coefficients(cfg, T20)
+    with pytest.raises(FuelidError, match=f"ODE solver failed on 0…2 s at u = 3 V: {message}"):
+        integrate_held(steady_state(2.0, c).state, np.array([0.0, 1.0, 2.0]), 3.0, c)
+    with pytest.raises(FuelidError, match=f"ODE solver failed .*{message}"):
+        simulate(cfg, step_profile(2.0, 3.0, 1.0, 5.0))

@@ -2,7 +2,9 @@
 
 The controller output is piecewise constant (sample-and-hold), so the ODE is integrated segment by
 segment between input changes with LSODA (scipy's ``odeint``, which switches to BDF when the fast
-motor and hydraulic modes make the problem stiff) and the analytic Jacobian. The meter's dead time
+motor and hydraulic modes make the problem stiff) and the analytic Jacobian: one segment is
+:func:`integrate_held`, which the closed loop (:mod:`fuelid.tuning.closedloop`) uses for each
+control period too, and which refuses a failed solve with a ``FuelidError``. The meter's dead time
 is applied exactly by evaluating the meter state at ``t_k − τ``; noise and quantisation are added
 to the sampled reading. The fuel temperature may follow a trajectory; it is held constant within
 each segment, and a new segment starts whenever it has moved by ``temperature_resolution``
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -49,7 +52,10 @@ FloatArray = NDArray[np.float64]
 #: absolute tolerances per state [Hz, rad/s, Pa, m³/s, m³/s]: far below noise and quantisation
 ATOL = np.array([1e-6, 1e-5, 1e-1, 1e-10, 1e-10])
 RTOL = 1e-7
+MAX_STEPS = 100_000
+"""Most internal steps LSODA may take between two output times before it gives up."""
 SNAP = 1e-9  # [s]
+_SOLVED = "Integration successful."  # odeint's message when LSODA returns istate = 2
 
 
 @dataclass(frozen=True)
@@ -170,8 +176,9 @@ def simulate(
     Raises
     ------
     FuelidError
-        On a command outside the drive's signal range, a non-positive sample time, or a fuel
-        temperature outside the fuel correlation's range.
+        On a command outside the drive's signal range, a non-positive sample time, a fuel
+        temperature outside the fuel correlation's range, or a failed ODE solve
+        (:func:`integrate_held`).
     """
     if not (math.isfinite(sample_time) and sample_time > 0.0):
         raise FuelidError(f"sample time must be positive, got {sample_time:g} s")
@@ -214,6 +221,72 @@ def simulate(
         q_measured=q_measured / LPM_PER_M3S,
         T_fuel=np.asarray(temperature.at(time), dtype=float) * np.ones_like(time),
     )
+
+
+def integrate_held(x0: FloatArray, times: FloatArray, u: float, c: PlantCoefficients) -> FloatArray:
+    """Integrate the plant ODE with the command held, from ``x0`` at ``times[0]``.
+
+    LSODA (:func:`scipy.integrate.odeint`) on :func:`~fuelid.plant.system.plant_rhs` with the
+    analytic Jacobian :func:`~fuelid.plant.system.plant_jacobian`, to the tolerances
+    :data:`RTOL` and :data:`ATOL`, at most :data:`MAX_STEPS` steps between output times. This is
+    the one place the nonlinear plant is integrated: :func:`simulate` calls it per segment and
+    :func:`fuelid.tuning.closedloop.simulate_closed_loop` per control period.
+
+    Parameters
+    ----------
+    x0 : ndarray, shape (5,)
+        State ``[f, ω_m, p, q, q_m]`` at ``times[0]`` (SI).
+    times : ndarray, shape (n,)
+        Increasing output times [s], the start first (n ≥ 2).
+    u : float
+        Drive command held over the whole span [V].
+    c : PlantCoefficients
+        The plant at the fuel temperature of the span.
+
+    Returns
+    -------
+    ndarray, shape (n, 5)
+        The state at each of ``times``; row 0 is ``x0``.
+
+    Raises
+    ------
+    FuelidError
+        If the solver fails (too much work, an unreachable tolerance, illegal input …).
+
+    Examples
+    --------
+    From rest at 3 V nothing moves:
+
+    >>> from fuelid.plant import load_plant_config
+    >>> from fuelid.plant.system import plant_coefficients, steady_state
+    >>> c = plant_coefficients(load_plant_config(), 293.15)
+    >>> x0 = steady_state(3.0, c).state
+    >>> states = integrate_held(x0, np.array([0.0, 0.5, 1.0]), 3.0, c)
+    >>> states.shape, bool(np.allclose(states, x0, rtol=1e-9, atol=1e-12))
+    ((3, 5), True)
+    """
+    with warnings.catch_warnings():
+        # a failed solve is reported below, as a FuelidError, not as a warning
+        warnings.simplefilter("ignore", scipy.integrate.ODEintWarning)
+        states, info = scipy.integrate.odeint(
+            plant_rhs,
+            x0,
+            times,
+            args=(u, c),
+            Dfun=plant_jacobian,
+            tfirst=True,
+            rtol=RTOL,
+            atol=ATOL,
+            mxstep=MAX_STEPS,
+            full_output=True,
+        )
+    if info["message"] != _SOLVED:
+        raise FuelidError(
+            f"the ODE solver failed on {times[0]:g}…{times[-1]:g} s at u = {u:g} V: "
+            f"{info['message']}"
+        )
+    solved: FloatArray = states
+    return solved
 
 
 class _CoefficientCache:
@@ -275,21 +348,7 @@ def _integrate(
         at_start = first + int(np.searchsorted(t_eval[first:last], a + SNAP, side="left"))
         out[first:at_start] = x[meter_state]
         inside = t_eval[at_start:last]
-        grid = np.concatenate(([a], inside, [b]))
-        states, info = scipy.integrate.odeint(
-            plant_rhs,
-            x,
-            grid,
-            args=(u, c),
-            Dfun=plant_jacobian,
-            tfirst=True,
-            rtol=RTOL,
-            atol=ATOL,
-            mxstep=100_000,
-            full_output=True,
-        )
-        if info["message"] != "Integration successful.":
-            raise RuntimeError(f"ODE solver failed on {a:g}…{b:g} s: {info['message']}")
+        states = integrate_held(x, np.concatenate(([a], inside, [b])), u, c)
         out[at_start:last] = states[1:-1, meter_state]
         x = states[-1]
         if progress is not None:

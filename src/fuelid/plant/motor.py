@@ -14,13 +14,13 @@ which :mod:`fuelid.plant.shaft` uses.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from pydantic import Field, model_validator
 
 from fuelid.plant._section import Section
 from fuelid.plant.shaft import ShaftCoefficients
+from fuelid.units import RAD_S_PER_RPM, TWO_PI, W_PER_KW
 
 
 @dataclass(frozen=True, slots=True)
@@ -31,6 +31,13 @@ class MotorCoefficients:
     """Slip torque constant [N·m·s/rad]."""
     m_p: int
     """Pole pairs [-]."""
+
+
+MIN_RATED_SLIP = 1e-9
+"""Smallest rated slip 1 − n_rated/n_sync accepted [-]: a nameplate speed at the synchronous
+speed, to the rounding of the rpm → rad/s conversion, is refused (K_T would be unbounded)."""
+MAX_RATED_SLIP = 0.3
+"""Largest rated slip accepted [-]; more means wrong pole pairs or rated frequency."""
 
 
 class MotorConfig(Section):
@@ -49,16 +56,19 @@ class MotorConfig(Section):
 
     @model_validator(mode="after")
     def _check_slip(self) -> MotorConfig:
-        n_sync = 60.0 * self.rated_frequency_Hz / self.pole_pairs
-        if not self.rated_speed_rpm < n_sync:
+        # the rated slip from the same speeds in rad/s that slip_torque_constant divides by
+        omega_sync = synchronous_speed(self.rated_frequency_Hz, self.pole_pairs)
+        slip = 1.0 - self.rated_speed_rpm * RAD_S_PER_RPM / omega_sync
+        if not slip > MIN_RATED_SLIP:
             raise ValueError(
                 f"rated_speed_rpm ({self.rated_speed_rpm:g}) must be below the synchronous speed "
-                f"{n_sync:g} rpm of {self.pole_pairs} pole pairs at {self.rated_frequency_Hz:g} Hz"
+                f"{omega_sync / RAD_S_PER_RPM:g} rpm of {self.pole_pairs} pole pairs at "
+                f"{self.rated_frequency_Hz:g} Hz"
             )
-        if self.rated_speed_rpm < 0.7 * n_sync:
+        if slip > MAX_RATED_SLIP:
             raise ValueError(
-                f"rated_speed_rpm ({self.rated_speed_rpm:g}) implies a rated slip over 30 %; "
-                "check pole_pairs and rated_frequency_Hz"
+                f"rated_speed_rpm ({self.rated_speed_rpm:g}) implies a rated slip over "
+                f"{100.0 * MAX_RATED_SLIP:g} %; check pole_pairs and rated_frequency_Hz"
             )
         return self
 
@@ -66,7 +76,7 @@ class MotorConfig(Section):
     def K_T(self) -> float:
         """Slip torque constant [N·m·s/rad], from the nameplate."""
         return slip_torque_constant(
-            self.rated_power_kW * 1e3,
+            self.rated_power_kW * W_PER_KW,
             self.rated_speed_rpm,
             self.rated_frequency_Hz,
             self.pole_pairs,
@@ -107,11 +117,11 @@ def synchronous_speed(f: float, m_p: int) -> float:
     --------
     Two pole pairs on 50 Hz turn at 1500 rpm:
 
-    >>> import math
-    >>> round(synchronous_speed(50.0, 2) * 60 / (2 * math.pi), 9)
+    >>> from fuelid.units import RAD_S_PER_RPM
+    >>> round(synchronous_speed(50.0, 2) / RAD_S_PER_RPM, 9)
     1500.0
     """
-    return 2.0 * math.pi * f / m_p
+    return TWO_PI * f / m_p
 
 
 def slip_torque_constant(P_rated: float, n_rated: float, f_rated: float, m_p: int) -> float:
@@ -154,7 +164,7 @@ def slip_torque_constant(P_rated: float, n_rated: float, f_rated: float, m_p: in
     >>> round(slip_torque_constant(7500.0, 1450.0, 50.0, 2), 3)
     9.433
     """
-    omega_rated = 2.0 * math.pi * n_rated / 60.0
+    omega_rated = n_rated * RAD_S_PER_RPM
     omega_sync = synchronous_speed(f_rated, m_p)
     return (P_rated / omega_rated) / (omega_sync - omega_rated)
 
@@ -188,7 +198,7 @@ def torque_constant_from_circuit(K_int: float, R_re: float, m_p: int) -> float:
     >>> round(torque_constant_from_circuit(4.6, 0.5, 2), 3)
     12.864
     """
-    return 3.0 * m_p**2 * K_int**2 / (4.0 * math.pi**2 * R_re)
+    return 3.0 * m_p**2 * K_int**2 / (TWO_PI**2 * R_re)
 
 
 def electromagnetic_torque(f: float, omega_m: float, K_T: float, m_p: int) -> float:
@@ -226,7 +236,8 @@ def electromagnetic_torque(f: float, omega_m: float, K_T: float, m_p: int) -> fl
     --------
     At synchronous speed the motor gives no torque:
 
-    >>> electromagnetic_torque(50.0, 2 * 3.141592653589793 * 25.0, 9.43, 2)
+    >>> from fuelid.units import TWO_PI
+    >>> electromagnetic_torque(50.0, TWO_PI * 25.0, 9.43, 2)
     0.0
     """
     return K_T * (synchronous_speed(f, m_p) - omega_m)

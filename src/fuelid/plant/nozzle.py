@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from pydantic import Field
 
 from fuelid.plant._section import Section
+from fuelid.plant.pipeline import circle_area
+from fuelid.units import M_PER_MM, PA_PER_MPA
 
 
 @dataclass(frozen=True, slots=True)
@@ -41,13 +43,13 @@ class NozzleConfig(Section):
 
     @property
     def A0(self) -> float:
-        """Total orifice area [m²]."""
-        return self.count * math.pi * (self.diameter_mm * 1e-3) ** 2 / 4.0
+        """Total orifice area [m²]: ``count`` circles of ``diameter_mm``."""
+        return self.count * circle_area(self.diameter_mm * M_PER_MM)
 
     @property
     def p_back(self) -> float:
         """Back pressure [Pa]."""
-        return self.back_pressure_MPa * 1e6
+        return self.back_pressure_MPa * PA_PER_MPA
 
     def coefficients(self, rho: float) -> NozzleCoefficients:
         """The nozzles' parameters in SI for fuel of density ``rho`` [kg/m³]."""
@@ -85,7 +87,8 @@ def orifice_flow(dp: float, rho: float, Cd: float, A0: float) -> float:
     --------
     1 MPa across 30 mm² with C_d = 0.7, ρ = 800 kg/m³: 0.7·30e-6·50 m³/s = 63 L/min.
 
-    >>> round(orifice_flow(1e6, 800.0, 0.7, 30e-6) * 60_000, 6)
+    >>> from fuelid.units import LPM_PER_M3S
+    >>> round(orifice_flow(1e6, 800.0, 0.7, 30e-6) * LPM_PER_M3S, 6)
     63.0
     """
     return math.copysign(Cd * A0 * math.sqrt(2.0 * abs(dp) / rho), dp)
@@ -118,7 +121,8 @@ def orifice_pressure_drop(q: float, rho: float, Cd: float, A0: float) -> float:
 
     Examples
     --------
-    >>> round(orifice_pressure_drop(63.0 / 60_000, 800.0, 0.7, 30e-6))
+    >>> from fuelid.units import LPM_PER_M3S
+    >>> round(orifice_pressure_drop(63.0 / LPM_PER_M3S, 800.0, 0.7, 30e-6))
     1000000
     """
     return 0.5 * rho * q * abs(q) / (Cd * A0) ** 2
@@ -144,7 +148,8 @@ def orifice_resistance(q: float, rho: float, Cd: float, A0: float) -> float:
 
     Examples
     --------
-    >>> q = 63.0 / 60_000
+    >>> from fuelid.units import LPM_PER_M3S
+    >>> q = 63.0 / LPM_PER_M3S
     >>> round(orifice_resistance(q, 800.0, 0.7, 30e-6) * q / 2)
     1000000
     """
@@ -182,7 +187,8 @@ def nozzle_inlet_pressure(q: float, rho: float, Cd: float, A0: float, p_back: fl
     --------
     63 L/min through 30 mm² (C_d = 0.7) into a combustor at 0.5 MPa:
 
-    >>> round(nozzle_inlet_pressure(63.0 / 60_000, 800.0, 0.7, 30e-6, 0.5e6))
+    >>> from fuelid.units import LPM_PER_M3S
+    >>> round(nozzle_inlet_pressure(63.0 / LPM_PER_M3S, 800.0, 0.7, 30e-6, 0.5e6))
     1500000
     """
     return p_back + orifice_pressure_drop(q, rho, Cd, A0)

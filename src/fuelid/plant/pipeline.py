@@ -18,12 +18,16 @@ import fluids.friction
 from pydantic import Field, field_validator
 
 from fuelid.plant._section import Section
+from fuelid.units import M_PER_MM, PA_PER_MPA
 
 DEFAULT_FRICTION_METHOD = "Churchill_1977"
 _churchill_1977 = fluids.friction.Churchill_1977
-LAMINAR_LIMIT_RE = 1e-6
-"""Below this Reynolds number the friction drop is evaluated as Hagen–Poiseuille directly (the
-exact limit of f_D·Re → 64, and free of the 0/0 of Darcy–Weisbach at rest)."""
+ZERO_FLOW_RE = 1e-6
+"""Zero-flow cut-off of the Reynolds number [-]: below it (the flow at rest, to rounding)
+:func:`pipe_pressure_drop` and :func:`pipe_pressure_drop_slope` use the Hagen–Poiseuille
+resistance directly, the exact limit of f_D·Re → 64, which avoids the 0/0 of Darcy–Weisbach at
+q = 0. It is not the laminar–turbulent transition (Re ≈ 2040,
+``fluids.friction.LAMINAR_TRANSITION_PIPE``): the friction correlation handles that itself."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,17 +81,17 @@ class PipelineConfig(Section):
     @property
     def d(self) -> float:
         """Inner diameter [m]."""
-        return self.inner_diameter_mm * 1e-3
+        return self.inner_diameter_mm * M_PER_MM
 
     @property
     def roughness(self) -> float:
         """Absolute roughness [m]."""
-        return self.roughness_mm * 1e-3
+        return self.roughness_mm * M_PER_MM
 
     @property
     def beta(self) -> float:
         """Effective bulk modulus [Pa]."""
-        return self.bulk_modulus_MPa * 1e6
+        return self.bulk_modulus_MPa * PA_PER_MPA
 
     def coefficients(self, rho: float, mu: float) -> PipelineCoefficients:
         """The line's parameters in SI for a fuel of density ``rho`` and viscosity ``mu`` (SI)."""
@@ -103,10 +107,33 @@ class PipelineConfig(Section):
         )
 
 
+def circle_area(d: float) -> float:
+    r"""Area of a circle of diameter ``d``: a pipe's bore, an orifice.
+
+    .. math:: A = \frac{\pi d^2}{4}
+
+    Parameters
+    ----------
+    d : float
+        Diameter [m].
+
+    Returns
+    -------
+    float
+        A [m²].
+
+    Examples
+    --------
+    >>> f"{circle_area(0.032):.6e}"
+    '8.042477e-04'
+    """
+    return math.pi * d**2 / 4.0
+
+
 def pipe_inductance(rho: float, length: float, d: float) -> float:
     r"""Hydraulic inductance (inertance) of a pipe.
 
-    .. math:: L = \frac{4\rho l}{\pi d^2}
+    .. math:: L = \frac{\rho l}{A} = \frac{4\rho l}{\pi d^2}
 
     Parameters
     ----------
@@ -127,13 +154,13 @@ def pipe_inductance(rho: float, length: float, d: float) -> float:
     >>> f"{pipe_inductance(800.0, 80.0, 0.032):.4e}"
     '7.9577e+07'
     """
-    return 4.0 * rho * length / (math.pi * d**2)
+    return rho * length / circle_area(d)
 
 
 def pipe_capacitance(length: float, d: float, beta: float) -> float:
     r"""Hydraulic capacitance of the fuel volume in a pipe.
 
-    .. math:: C = \frac{\pi d^2 l}{4\beta}
+    .. math:: C = \frac{A l}{\beta} = \frac{\pi d^2 l}{4\beta}
 
     Parameters
     ----------
@@ -154,7 +181,7 @@ def pipe_capacitance(length: float, d: float, beta: float) -> float:
     >>> f"{pipe_capacitance(80.0, 0.032, 1.2e9):.4e}"
     '5.3617e-11'
     """
-    return math.pi * d**2 * length / (4.0 * beta)
+    return circle_area(d) * length / beta
 
 
 def laminar_resistance(mu: float, length: float, d: float) -> float:
@@ -187,7 +214,7 @@ def laminar_resistance(mu: float, length: float, d: float) -> float:
 def reynolds_number(q: float, d: float, rho: float, mu: float) -> float:
     r"""Reynolds number of volume flow ``q`` in a round pipe.
 
-    .. math:: Re = \frac{\rho v d}{\mu} = \frac{4 \rho q}{\pi d \mu}
+    .. math:: Re = \frac{\rho v d}{\mu},\qquad v = \frac{q}{A} = \frac{4 q}{\pi d^2}
 
     Parameters
     ----------
@@ -210,7 +237,7 @@ def reynolds_number(q: float, d: float, rho: float, mu: float) -> float:
     >>> round(reynolds_number(1e-3, 0.032, 800.0, 1e-3))
     31831
     """
-    return 4.0 * rho * abs(q) / (math.pi * d * mu)
+    return rho * abs(q) * d / (circle_area(d) * mu)
 
 
 def darcy_friction_factor(Re: float, eD: float, method: str = DEFAULT_FRICTION_METHOD) -> float:
@@ -339,7 +366,7 @@ def pipe_pressure_drop(
     r"""Friction pressure drop along a pipe (Darcy–Weisbach), signed with the flow.
 
     .. math:: \Delta p = f_D(Re, \varepsilon/d)\,\frac{l}{d}\,\frac{\rho\, v |v|}{2},
-              \qquad v = \frac{4 q}{\pi d^2}
+              \qquad v = \frac{q}{A} = \frac{4 q}{\pi d^2}
 
     Parameters
     ----------
@@ -361,8 +388,8 @@ def pipe_pressure_drop(
     Returns
     -------
     float
-        Δp [Pa]; the Hagen–Poiseuille value R_L·q (:func:`laminar_resistance`) below
-        Re = 1e-6, which is the limit of f_D = 64/Re.
+        Δp [Pa]; the Hagen–Poiseuille value R_L·q (:func:`laminar_resistance`) below the
+        zero-flow cut-off :data:`ZERO_FLOW_RE`, which is the limit of f_D = 64/Re.
 
     Notes
     -----
@@ -385,9 +412,9 @@ def pipe_pressure_drop(
     1.0
     """
     Re = reynolds_number(q, d, rho, mu)
-    if Re < LAMINAR_LIMIT_RE:  # f·Re → 64: the laminar limit, exact and free of 0/0
+    if Re < ZERO_FLOW_RE:  # at rest f·Re → 64: Hagen–Poiseuille, exact and free of 0/0
         return laminar_resistance(mu, length, d) * q
-    v = 4.0 * q / (math.pi * d**2)
+    v = q / circle_area(d)
     f = darcy_friction_factor(Re, roughness / d, method)
     return f * (length / d) * 0.5 * rho * v * abs(v)
 
@@ -421,7 +448,8 @@ def pipe_pressure_drop_slope(
     Returns
     -------
     float
-        d(Δp)/dq [Pa·s/m³]; the laminar resistance R_L below Re = 1e-6 (and in laminar flow).
+        d(Δp)/dq [Pa·s/m³]; the laminar resistance R_L below the zero-flow cut-off
+        :data:`ZERO_FLOW_RE` (and, to the correlation's accuracy, in laminar flow).
 
     Examples
     --------
@@ -433,7 +461,7 @@ def pipe_pressure_drop_slope(
     1.0
     """
     Re = reynolds_number(q, d, rho, mu)
-    if Re < LAMINAR_LIMIT_RE:
+    if Re < ZERO_FLOW_RE:
         return laminar_resistance(mu, length, d)
     dp = pipe_pressure_drop(q, rho, mu, length, d, roughness, method)
     return dp / q * (2.0 + darcy_friction_factor_log_slope(Re, roughness / d, method))

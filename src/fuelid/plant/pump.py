@@ -8,13 +8,12 @@ is what makes the loop gain drift with fuel temperature. See ``docs/physics.md``
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from pydantic import Field
 
 from fuelid.plant._section import Section
-from fuelid.units import LPM_PER_M3S
+from fuelid.units import LPM_PER_M3S, M3_PER_CM3, PA_PER_MPA, PA_S_PER_MPA_S, TWO_PI
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,17 +49,17 @@ class PumpConfig(Section):
     @property
     def D_p(self) -> float:
         """Displacement [m³/rev]."""
-        return self.displacement_cm3_per_rev * 1e-6
+        return self.displacement_cm3_per_rev * M3_PER_CM3
 
     @property
     def C_p_ref(self) -> float:
         """Leakage coefficient at the reference viscosity [m³/(s·Pa)]."""
-        return self.leakage_Lpm_per_MPa / LPM_PER_M3S / 1e6
+        return self.leakage_Lpm_per_MPa / LPM_PER_M3S / PA_PER_MPA
 
     @property
     def mu_ref(self) -> float:
         """Reference viscosity of the leakage coefficient [Pa·s]."""
-        return self.leakage_ref_viscosity_mPa_s * 1e-3
+        return self.leakage_ref_viscosity_mPa_s * PA_S_PER_MPA_S
 
     def coefficients(self, mu: float) -> PumpCoefficients:
         """The pump's parameters in SI for fuel of dynamic viscosity ``mu`` [Pa·s]."""
@@ -142,11 +141,11 @@ def pump_flow(omega_m: float, p: float, D_p: float, C_p: float) -> float:
     At zero pressure the pump delivers its geometric flow: 50 cm³/rev at 1450 rpm is
     72.5 L/min.
 
-    >>> import math
-    >>> round(pump_flow(2 * math.pi * 1450 / 60, 0.0, 50e-6, 1e-10) * 60_000, 6)
+    >>> from fuelid.units import LPM_PER_M3S, RAD_S_PER_RPM
+    >>> round(pump_flow(1450 * RAD_S_PER_RPM, 0.0, 50e-6, 1e-10) * LPM_PER_M3S, 6)
     72.5
     """
-    return D_p * omega_m / (2.0 * math.pi) - C_p * p
+    return D_p * omega_m / TWO_PI - C_p * p
 
 
 def pump_flow_partials(D_p: float, C_p: float) -> tuple[float, float]:
@@ -169,12 +168,12 @@ def pump_flow_partials(D_p: float, C_p: float) -> tuple[float, float]:
 
     Examples
     --------
-    >>> import math
-    >>> dq_domega, dq_dp = pump_flow_partials(2 * math.pi * 1e-5, 1e-10)
+    >>> from fuelid.units import TWO_PI
+    >>> dq_domega, dq_dp = pump_flow_partials(TWO_PI * 1e-5, 1e-10)
     >>> round(dq_domega, 15), dq_dp
     (1e-05, -1e-10)
     """
-    return (D_p / (2.0 * math.pi), -C_p)
+    return (D_p / TWO_PI, -C_p)
 
 
 def pump_torque(p: float, D_p: float, eta_m: float) -> float:
@@ -208,7 +207,7 @@ def pump_torque(p: float, D_p: float, eta_m: float) -> float:
     >>> round(pump_torque(1e6, 50e-6, 0.9), 3)
     8.842
     """
-    return D_p * p / (2.0 * math.pi * eta_m)
+    return D_p * p / (TWO_PI * eta_m)
 
 
 def pump_torque_slope(D_p: float, eta_m: float) -> float:
@@ -230,8 +229,8 @@ def pump_torque_slope(D_p: float, eta_m: float) -> float:
 
     Examples
     --------
-    >>> import math
-    >>> round(pump_torque_slope(2 * math.pi * 1e-5, 0.5), 15)
+    >>> from fuelid.units import TWO_PI
+    >>> round(pump_torque_slope(TWO_PI * 1e-5, 0.5), 15)
     2e-05
     """
-    return D_p / (2.0 * math.pi * eta_m)
+    return D_p / (TWO_PI * eta_m)

@@ -71,11 +71,11 @@ from fuelid.plant.vfd import (
     vfd_frequency_rate,
     vfd_frequency_rate_partials,
 )
+from fuelid.units import RAD_S_PER_RPM
 
 STATE_NAMES = ("f", "omega_m", "p", "q", "q_m")
 STATE_UNITS = ("Hz", "rad/s", "Pa", "m^3/s", "m^3/s")
 N_STATES = len(STATE_NAMES)
-TWO_PI = 2.0 * math.pi
 StateVector = NDArray[np.float64] | Sequence[float]
 """A state ``[f, ω_m, p, q, q_m]`` as the ODE solvers pass it (an array) or as a plain sequence."""
 
@@ -327,7 +327,7 @@ class OperatingPoint:
     @property
     def speed_rpm(self) -> float:
         """Shaft speed [rpm]."""
-        return self.omega_m * 60.0 / TWO_PI
+        return self.omega_m / RAD_S_PER_RPM
 
 
 def check_command(u: float, c: PlantCoefficients) -> None:

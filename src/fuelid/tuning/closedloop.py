@@ -6,14 +6,15 @@ signal range and then updates the integral, I ← I + Kc·h/Ti·e + (h/Tt)·(u �
 plus back-calculation anti-windup with tracking time Tt). Gain changes are bumpless: the integral
 absorbs the change of the proportional term so the output does not jump.
 
-:func:`simulate_closed_loop` runs it against the nonlinear plant (LSODA per control period, as
-:func:`fuelid.simulate.simulate`), the meter's delay applied exactly on a fine output grid, the
-limits and anti-windup active, setpoint steps and load disturbances (a step at the plant input,
-in V: a drive offset, pump wear). :func:`standard_runs` is the test ``fuelid tune --simulate``
-and ``fuelid report`` show. The fast linear loop on the process model lives in
-:mod:`fuelid.tuning.linearloop` and the step metrics in :mod:`fuelid.tuning.metrics`; both are
-re-exported here. Fuel temperatures are in kelvin (``T_fuel``), flows in L/min, commands in V
-(docs/tuning.md, section 6).
+:func:`simulate_closed_loop` runs it against the nonlinear plant (one
+:func:`fuelid.simulate.integrate_held` per control period, the integration that
+:func:`fuelid.simulate.simulate` uses), the meter's delay applied exactly on a fine output grid,
+the limits and anti-windup active, setpoint steps and load disturbances (a step at the plant
+input, in V: a drive offset, pump wear). :func:`standard_runs` is the test
+``fuelid tune --simulate`` and ``fuelid report`` show. The fast linear loop on the process model
+lives in :mod:`fuelid.tuning.linearloop` and the step metrics in :mod:`fuelid.tuning.metrics`;
+both are re-exported here. Fuel temperatures are in kelvin (``T_fuel``), flows in L/min, commands
+in V (docs/tuning.md, section 6).
 """
 
 from __future__ import annotations
@@ -24,7 +25,6 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import scipy.integrate
 import scipy.optimize
 from numpy.typing import NDArray
 
@@ -32,14 +32,13 @@ from fuelid.errors import FuelidError
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.flowmeter import measure_flow
 from fuelid.plant.system import (
+    measured_state,
     operating_point,
     plant_coefficients,
-    plant_jacobian,
-    plant_rhs,
     steady_state,
 )
 from fuelid.profiles import InputProfile
-from fuelid.simulate import ATOL, RTOL
+from fuelid.simulate import integrate_held
 from fuelid.tuning.controller import DiscretePI
 from fuelid.tuning.linearloop import (
     CONTINUOUS_PERIOD,
@@ -247,6 +246,13 @@ def simulate_closed_loop(
     Returns
     -------
     ClosedLoopResult
+
+    Raises
+    ------
+    FuelidError
+        On a negative noise level or resolution, a non-positive sample time, a run shorter than
+        one control period, a start flow the plant cannot hold, or a failed ODE solve
+        (:func:`fuelid.simulate.integrate_held`).
     """
     h = pi.control_period if pi.control_period > 0.0 else CONTINUOUS_PERIOD
     if not (math.isfinite(sample_time) and sample_time > 0.0):
@@ -267,7 +273,7 @@ def simulate_closed_loop(
     at_instant = np.searchsorted(grid, instants)  # every instant is a grid point
     u0 = steady_command(config, float(setpoint.u[0]), T_fuel)
     x = steady_state(u0, c).state
-    meter_state = 4 if c.T_f > 0.0 else 3
+    meter_state = measured_state(c)  # without a meter lag the reading is the flow q
     q_m = np.full(grid.size, x[meter_state] * LPM_PER_M3S)
     rng = np.random.default_rng(seed)
     noise = rng.normal(0.0, noise_std, grid.size) if noise_std > 0.0 else None
@@ -290,17 +296,7 @@ def simulate_closed_loop(
         applied = min(max(u + d, c.u_min), c.u_max)
         first, last = at_instant[k] + 1, at_instant[k + 1] + 1  # grid points in (t0, t1]
         points = np.concatenate(([t0], grid[first:last]))
-        states = scipy.integrate.odeint(
-            plant_rhs,
-            x,
-            points,
-            args=(applied, c),
-            Dfun=plant_jacobian,
-            tfirst=True,
-            rtol=RTOL,
-            atol=ATOL,
-            mxstep=100_000,
-        )
+        states = integrate_held(x, points, applied, c)
         q_m[first:last] = states[1:, meter_state] * LPM_PER_M3S
         x = states[-1]
         # the readings up to t1 need the meter state up to t1 − delay only: all known now
@@ -314,16 +310,11 @@ def simulate_closed_loop(
         )
     tail = at_instant[-1] + 1  # grid points after the last instant (a duration off the period)
     if tail < grid.size:
-        x_tail = scipy.integrate.odeint(
-            plant_rhs,
+        x_tail = integrate_held(
             x,
             np.concatenate(([grid[tail - 1]], grid[tail:])),
-            args=(min(max(commands[-1] + d_held[-1], c.u_min), c.u_max), c),
-            Dfun=plant_jacobian,
-            tfirst=True,
-            rtol=RTOL,
-            atol=ATOL,
-            mxstep=100_000,
+            min(max(commands[-1] + d_held[-1], c.u_min), c.u_max),
+            c,
         )
         q_m[tail:] = x_tail[1:, meter_state] * LPM_PER_M3S
         flow[tail:] = _reading(
