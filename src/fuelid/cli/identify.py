@@ -169,8 +169,7 @@ def identify_command(
     not given is estimated. Non-exciting data are refused (exit code 2).
     """
     from fuelid.identify.procedure import IdentifyOptions
-    from fuelid.plant import load_plant_config
-    from fuelid.workflow import identify_log, plant_priors
+    from fuelid.workflow.identification import identify_log, plant_priors
 
     check_figure_path(plot)
     for name, value in (("--flowmeter-T", flowmeter_T), ("--flowmeter-delay", flowmeter_delay)):
@@ -188,6 +187,8 @@ def identify_command(
         u_before=u_before,
     )
     if config is not None:
+        from fuelid.plant.config import load_plant_config  # physics only with a plant file
+
         options = plant_priors(options, load_plant_config(config))
 
     def read(path: Path) -> IOData:

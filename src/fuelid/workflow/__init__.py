@@ -19,34 +19,70 @@ See docs/architecture.md for where this layer sits.
 
 from __future__ import annotations
 
-from fuelid.workflow.analysis import METHODS, AnalysisSettings, LogAnalysis, analyse_log
-from fuelid.workflow.identification import (
-    IDENTIFY_UNITS,
-    T_REF,
-    IdentifyOutcome,
-    identify_log,
-    plant_priors,
-)
-from fuelid.workflow.plant_info import PLANT_INFO_UNITS, PlantInfo, plant_info
-from fuelid.workflow.simulation import (
-    SIMULATION_UNITS,
-    ProfileTable,
-    SimulationInputs,
-    SimulationOutcome,
-    SimulationRequest,
-    read_profile,
-    simulate_log,
-    simulation_inputs,
-)
-from fuelid.workflow.tune import (
-    ScheduleOutcome,
-    TuneOutcome,
-    TuneRequest,
-    check_over_temperature,
-    operating_command,
-    schedule_gains,
-    tune_model,
-)
+import importlib
+from typing import TYPE_CHECKING, Any
+
+# Each stage is imported when first used, so `fuelid identify` does not load the tuning layer
+# and `fuelid tune` does not load the log reader: see docs/architecture.md, lazy imports.
+_EXPORTS = {
+    "AnalysisSettings": "analysis",
+    "IDENTIFY_UNITS": "identification",
+    "IdentifyOutcome": "identification",
+    "LogAnalysis": "analysis",
+    "METHODS": "analysis",
+    "PLANT_INFO_UNITS": "plant_info",
+    "PlantInfo": "plant_info",
+    "ProfileTable": "simulation",
+    "SIMULATION_UNITS": "simulation",
+    "ScheduleOutcome": "tune",
+    "SimulationInputs": "simulation",
+    "SimulationOutcome": "simulation",
+    "SimulationRequest": "simulation",
+    "T_REF": "identification",
+    "TuneOutcome": "tune",
+    "TuneRequest": "tune",
+    "analyse_log": "analysis",
+    "check_over_temperature": "tune",
+    "identify_log": "identification",
+    "operating_command": "tune",
+    "plant_info": "plant_info",
+    "plant_priors": "identification",
+    "read_profile": "simulation",
+    "schedule_gains": "tune",
+    "simulate_log": "simulation",
+    "simulation_inputs": "simulation",
+    "tune_model": "tune",
+}
+
+if TYPE_CHECKING:
+    from fuelid.workflow.analysis import METHODS, AnalysisSettings, LogAnalysis, analyse_log
+    from fuelid.workflow.identification import (
+        IDENTIFY_UNITS,
+        T_REF,
+        IdentifyOutcome,
+        identify_log,
+        plant_priors,
+    )
+    from fuelid.workflow.plant_info import PLANT_INFO_UNITS, PlantInfo, plant_info
+    from fuelid.workflow.simulation import (
+        SIMULATION_UNITS,
+        ProfileTable,
+        SimulationInputs,
+        SimulationOutcome,
+        SimulationRequest,
+        read_profile,
+        simulate_log,
+        simulation_inputs,
+    )
+    from fuelid.workflow.tune import (
+        ScheduleOutcome,
+        TuneOutcome,
+        TuneRequest,
+        check_over_temperature,
+        operating_command,
+        schedule_gains,
+        tune_model,
+    )
 
 __all__ = [
     "IDENTIFY_UNITS",
@@ -77,3 +113,12 @@ __all__ = [
     "simulation_inputs",
     "tune_model",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'fuelid.workflow' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"fuelid.workflow.{module}"), name)
+    globals()[name] = value
+    return value

@@ -8,14 +8,15 @@ diagnostics are :func:`fuelid.identify.procedure.identify`'s.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
-from fuelid.plant.config import PlantConfig
-from fuelid.plant.linear import linearise
 from fuelid.preprocess import select
 from fuelid.units import celsius_to_kelvin
+
+if TYPE_CHECKING:
+    from fuelid.plant.config import PlantConfig
 
 T_REF = celsius_to_kelvin(20.0)
 """Fuel temperature assumed when none is given [K]: 20 °C."""
@@ -58,6 +59,8 @@ def plant_priors(
     settling = options.settling_time
     if settling is None:
         middle = 0.5 * (config.vfd.u_min_V + config.vfd.u_max_V)
+        from fuelid.plant.linear import linearise  # the physics only when a plant file is given
+
         settling = linearise(config, middle, T_fuel).settling_time()
     return replace(
         options,
