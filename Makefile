@@ -48,14 +48,23 @@ pytest: $(STAMP)
 
 test: lint typecheck pytest
 
-bench: $(STAMP)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev,bench]'
-	$(BIN)/python benchmarks/bench_simulate.py
-	$(BIN)/python benchmarks/bench_identify_speed.py
-	$(BIN)/python benchmarks/bench_identify_accuracy.py
-	$(BIN)/python benchmarks/bench_refdata.py
-	$(BIN)/python benchmarks/bench_tuning_sweep.py
-	$(BIN)/python benchmarks/bench_cold_start.py
+# The benchmarks get their own environment: the peer (sysidentpy) pins an older numpy, which
+# must not replace the one the tests run with.
+BENCH_VENV ?= .venv-bench
+
+$(BENCH_VENV)/.fuelid-installed: pyproject.toml
+	$(PYTHON) -m venv $(BENCH_VENV)
+	$(BENCH_VENV)/bin/python -m pip install --quiet --disable-pip-version-check --upgrade pip
+	$(BENCH_VENV)/bin/python -m pip install --quiet --disable-pip-version-check -e '.[dev,bench]'
+	@touch $@
+
+bench: $(BENCH_VENV)/.fuelid-installed
+	$(BENCH_VENV)/bin/python benchmarks/bench_simulate.py
+	$(BENCH_VENV)/bin/python benchmarks/bench_identify_speed.py
+	$(BENCH_VENV)/bin/python benchmarks/bench_identify_accuracy.py
+	$(BENCH_VENV)/bin/python benchmarks/bench_refdata.py
+	$(BENCH_VENV)/bin/python benchmarks/bench_tuning_sweep.py
+	$(BENCH_VENV)/bin/python benchmarks/bench_cold_start.py
 
 clean:
-	rm -rf $(VENV) $(DEMO_DIR) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) $(BENCH_VENV) $(DEMO_DIR) .pytest_cache .mypy_cache .ruff_cache
