@@ -30,7 +30,7 @@ from fuelid.plant import (
     plant_jacobian,
     plant_rhs,
 )
-from fuelid.plant.system import input_jacobian
+from fuelid.plant.system import PlantCoefficients, input_jacobian
 
 T0 = 273.15
 TEMPS_K = [253.15, 293.15, 323.15]  # −20, 20, 50 °C
@@ -51,6 +51,20 @@ C_LINE = math.pi * D**2 * LENGTH / (4.0 * 1.2e9)  # 5.36e-11 m³/Pa
 
 
 @pytest.fixture(scope="module")
+def _finite_difference_jacobian(x0: np.ndarray, u: float, c: PlantCoefficients) -> np.ndarray:
+    """Central differences of plant_rhs, relative step 1e-6 per state (independent of the code)."""
+    fd = np.zeros((x0.size, x0.size))
+    for j in range(x0.size):
+        h = 1e-6 * abs(x0[j])
+        xp, xm = x0.copy(), x0.copy()
+        xp[j] += h
+        xm[j] -= h
+        fd[:, j] = (np.array(plant_rhs(0.0, xp, u, c)) - np.array(plant_rhs(0.0, xm, u, c))) / (
+            2 * h
+        )
+    return fd
+
+
 def cfg() -> PlantConfig:
     return load_plant_config()
 
@@ -160,15 +174,7 @@ def test_jacobian_matches_central_difference(cfg: PlantConfig, u: float, T: floa
     c = plant_coefficients(cfg, T)
     x0 = operating_point(cfg, u, T).state
     jac = plant_jacobian(0.0, x0, u, c)
-    fd = np.zeros_like(jac)
-    for j in range(5):
-        h = 1e-6 * abs(x0[j])
-        xp, xm = x0.copy(), x0.copy()
-        xp[j] += h
-        xm[j] -= h
-        fd[:, j] = (np.array(plant_rhs(0.0, xp, u, c)) - np.array(plant_rhs(0.0, xm, u, c))) / (
-            2 * h
-        )
+    fd = _finite_difference_jacobian(x0, u, c)
     # compare contributions J_ij·x_j (same unit along a row) relative to the row's largest one
     contrib, contrib_fd = jac * np.abs(x0), fd * np.abs(x0)
     row_scale = np.max(np.abs(contrib), axis=1, keepdims=True)
@@ -530,15 +536,7 @@ def test_jacobian_matches_central_difference_for_variants(
     x0 = operating_point(variant, u, T).state * np.array([1.0, 0.99, 1.1, 1.05, 0.9])
     x0[0] -= 1.0
     jac = plant_jacobian(0.0, x0, u, c)
-    fd = np.zeros_like(jac)
-    for j in range(5):
-        h = 1e-6 * abs(x0[j])
-        xp, xm = x0.copy(), x0.copy()
-        xp[j] += h
-        xm[j] -= h
-        fd[:, j] = (np.array(plant_rhs(0.0, xp, u, c)) - np.array(plant_rhs(0.0, xm, u, c))) / (
-            2 * h
-        )
+    fd = _finite_difference_jacobian(x0, u, c)
     contrib, contrib_fd = jac * np.abs(x0), fd * np.abs(x0)
     row_scale = np.max(np.abs(contrib), axis=1, keepdims=True)
     row_scale[row_scale == 0.0] = 1.0
