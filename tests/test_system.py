@@ -50,7 +50,6 @@ T_VFD, T_F, DELAY = 1.2, 0.3, 0.2
 C_LINE = math.pi * D**2 * LENGTH / (4.0 * 1.2e9)  # 5.36e-11 m³/Pa
 
 
-@pytest.fixture(scope="module")
 def _finite_difference_jacobian(x0: np.ndarray, u: float, c: PlantCoefficients) -> np.ndarray:
     """Central differences of plant_rhs, relative step 1e-6 per state (independent of the code)."""
     fd = np.zeros((x0.size, x0.size))
@@ -65,6 +64,7 @@ def _finite_difference_jacobian(x0: np.ndarray, u: float, c: PlantCoefficients) 
     return fd
 
 
+@pytest.fixture(scope="module")
 def cfg() -> PlantConfig:
     return load_plant_config()
 
