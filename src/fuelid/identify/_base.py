@@ -9,7 +9,6 @@ that do not exist before ``fit`` (:class:`~fuelid.errors.NotFittedError`), the c
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import math
 from collections.abc import Iterator
@@ -28,27 +27,6 @@ FloatArray = NDArray[np.float64]
 Initial = Literal["rest", "estimate", "fitted"]
 """Initial condition of a simulation (see :meth:`Estimator.simulate`)."""
 INITIAL_CONDITIONS: tuple[str, ...] = get_args(Initial)
-
-
-@functools.cache
-def _blas_controller() -> Any:
-    """Found once: scanning the loaded BLAS libraries costs tens of milliseconds."""
-    from threadpoolctl import ThreadpoolController
-
-    return ThreadpoolController()
-
-
-@contextmanager
-def single_threaded_blas() -> Iterator[None]:
-    """Run the enclosed numpy work with BLAS on one thread.
-
-    Identification multiplies long vectors and thin matrices: one thread does that at memory
-    speed, while a multi-threaded BLAS on a busy two-core machine (a PLC's industrial PC, CI)
-    spends most of its time waiting for its other thread: measured 60× slower for the
-    residual correlations of one hour at 50 Hz under load.
-    """
-    with _blas_controller().limit(limits=1, user_api="blas"):
-        yield
 
 
 def _digest(u: FloatArray) -> str:

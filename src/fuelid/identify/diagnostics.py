@@ -18,7 +18,7 @@ import numpy as np
 import scipy.special
 from numpy.typing import ArrayLike, NDArray
 
-from fuelid.identify._base import single_threaded_blas
+from fuelid.blas import single_threaded_blas
 
 FloatArray = NDArray[np.float64]
 

@@ -27,8 +27,9 @@ from typing import TYPE_CHECKING, Literal, Self
 import numpy as np
 from numpy.typing import NDArray
 
+from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError, NotExcitingError
-from fuelid.identify._base import Estimator, Initial, single_threaded_blas
+from fuelid.identify._base import Estimator, Initial
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel, nrmse_fit, simulate_model

@@ -13,9 +13,9 @@ from typing import Any, Literal, get_args
 import numpy as np
 from numpy.typing import NDArray
 
+from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
 from fuelid.identify import diagnostics
-from fuelid.identify._base import single_threaded_blas
 from fuelid.identify.oe import OutputError
 from fuelid.identify.step_ls import StepResponseLS
 from fuelid.io.timeseries import IOData
