@@ -48,11 +48,18 @@ class IdentifyOptions:
     control_period: float = 1.0
     validate_split: float | None = None
     u_before: float | None = None
+    validation_initial: Literal["estimate", "rest"] = "estimate"
+    """How a separate validation record starts: "estimate" (offset and initial state fitted to
+    it, as a record that does not start at rest needs) or "rest" (at rest at its first input)."""
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise FuelidError(
                 f"unknown identification method {self.method!r}: use one of {', '.join(METHODS)}"
+            )
+        if self.validation_initial not in ("estimate", "rest"):
+            raise FuelidError(
+                f"validation initial condition {self.validation_initial!r}: use estimate or rest"
             )
 
     def resolved_delay(self) -> float | None:
@@ -114,6 +121,8 @@ class IdentificationResult:
     cov: FloatArray
     fit_percent: float
     validation_fit_percent: float | None
+    """Free-run fit on the held-out part or the validation record; None without one, or when
+    it has no excitation (the reason is then among the warnings)."""
     n_samples: int
     sample_time: float
     warnings: list[str]
@@ -123,6 +132,9 @@ class IdentificationResult:
     """The model output: the free-run simulation over the whole record (fit and held-out)."""
     split_time: float | None
     diagnostics: dict[str, Any] = field(default_factory=dict)
+    validation_initial: str | None = None
+    """How the validation was simulated: "continued" (the held-out end of the record, simulated on
+    from the fit), "estimate" or "rest" (a separate record); None without validation."""
     extra: dict[str, Any] = field(default_factory=dict)
 
     def _intervals(self) -> dict[str, tuple[list[float], CiMethod] | None]:
@@ -155,6 +167,7 @@ class IdentificationResult:
             "cov": {"names": list(self.cov_names), "matrix": self.cov.tolist()},
             "fit_percent": self.fit_percent,
             "validation_fit_percent": self.validation_fit_percent,
+            "validation_initial": self.validation_initial,
             "n_samples": self.n_samples,
             "sample_time": self.sample_time,
             "diagnostics": self.diagnostics,
@@ -175,6 +188,29 @@ def _split(data: IOData, fraction: float | None) -> tuple[IOData, int]:
             f"{data.n_samples - n_fit} to validate: too few"
         )
     return data.segment(0, n_fit), n_fit
+
+
+def _no_excitation(u: FloatArray, what: str) -> str | None:
+    """Why ``u`` cannot validate a model (its command never moves), or None.
+
+    A fit % on a stretch where the input is constant only measures how well the model's offset
+    matches the plateau: it can be anything from −10 % to 100 % whatever the dynamics.
+
+    Examples
+    --------
+    >>> _no_excitation(np.r_[np.ones(10), 1.5 * np.ones(10)], "x") is None
+    True
+    >>> _no_excitation(np.ones(10), "the held-out part").split(":")[0]
+    'the held-out part has no excitation (the command does not change)'
+    """
+    spread = float(np.ptp(u)) if u.size else 0.0
+    scale = max(float(np.max(np.abs(u))) if u.size else 0.0, 1.0)
+    if spread > 1e-9 * scale:
+        return None
+    return (
+        f"{what} has no excitation (the command does not change): no validation fit is given; "
+        "choose a validation part with command changes"
+    )
 
 
 def _decimated(data: IOData, control_period: float) -> IOData:
@@ -227,7 +263,9 @@ def identify(
     estimated by the fit, on through the held-out last fraction of the record when
     ``validate_split`` is given; ``fit_percent`` scores it on the fitted part,
     ``validation_fit_percent`` on the held-out part. A separate ``validation`` record is scored
-    by ``simulate(validation, initial="rest")``: from rest at its first input.
+    by ``simulate(validation, initial=options.validation_initial)``: by default with its offset
+    and initial state estimated (a record rarely starts at rest), or from rest at its first input.
+    A held-out part or record whose command never changes gets no score, and a warning says why.
     """
     with single_threaded_blas():
         return _identify(data, options, validation)
@@ -290,11 +328,24 @@ def _identify(
     time = work.t
     y = work.y
     fit_percent = nrmse_fit(y[:n_fit], y_model[:n_fit])
-    validation_fit = nrmse_fit(y[n_fit:], y_model[n_fit:]) if n_fit < work.n_samples else None
+    validation_fit: float | None = None
+    validation_initial: str | None = None
+    if n_fit < work.n_samples:
+        validation_initial = "continued"
+        reason = _no_excitation(work.u[n_fit:], "the held-out part of the record")
+        if reason:
+            warnings.append(reason)
+        else:
+            validation_fit = nrmse_fit(y[n_fit:], y_model[n_fit:])
     if validation is not None:
         if options.method == "step-ls":
             validation = _decimated(validation, options.control_period)
-        validation_fit = estimator.score(validation, initial="rest")
+        validation_initial = options.validation_initial
+        reason = _no_excitation(validation.u, "the validation record")
+        if reason:
+            warnings.append(reason)
+        else:
+            validation_fit = estimator.score(validation, initial=options.validation_initial)
     residuals = y[:n_fit] - y_model[:n_fit]
     white = diagnostics.residual_whiteness(residuals)
     # lags must span the controller's reaction: two control periods at least
@@ -352,6 +403,7 @@ def _identify(
         cov=cov,
         fit_percent=fit_percent,
         validation_fit_percent=validation_fit,
+        validation_initial=validation_initial,
         n_samples=fit_data.n_samples,
         sample_time=work.sample_time,
         warnings=list(dict.fromkeys(warnings)),
