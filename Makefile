@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.fuelid-installed
 DEMO_DIR ?= demo-output
 
-.PHONY: help install demo test lint typecheck pytest bench clean
+.PHONY: help install demo test lint typecheck pytest browser bench clean
 
 help:
 	@echo "make demo   - install if needed, run the reference-plant demo (writes $(DEMO_DIR)/)"
@@ -43,7 +43,20 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
-pytest: $(STAMP)
+# The browser test (tests/test_report_browser.py) opens the HTML report in headless Chromium. As
+# root (CI, a container) Chromium is installed from Debian when missing; otherwise the test skips
+# and says why (under CI, with CI set, it fails instead).
+browser:
+	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
+	if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+		echo "installing chromium for the browser test (apt-get)"; \
+		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+			--no-install-recommends chromium fonts-liberation >/dev/null; \
+	else \
+		echo "chromium missing and not root (or no apt-get): the browser test will skip"; \
+	fi
+
+pytest: $(STAMP) browser
 	$(BIN)/python -m pytest -q
 
 test: lint typecheck pytest

@@ -66,18 +66,27 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
     chosen = analysis.model_result
     overview = plot_log(
         TimeSeries(data.t, {"u_V": data.u, "q_Lpm": data.y}),
-        f"{data.source or 'log'}: {data.n_samples} samples every {data.sample_time:g} s",
+        f"{data.source or 'log'}: {data.n_samples} samples every {data.sample_time:g} s "
+        f"(fuel at {kelvin_to_celsius(s.T_fuel):g} °C as set for the analysis)",
     )
     oe = analysis.identifications["oe"]
+    y_unit = f"({data.y_unit})" if "/" in data.y_unit else data.y_unit
+    gain_unit = f"{y_unit}/{data.u_unit}"
     curves = [
         (
-            f"{method} model (K = {r.model.K:.4g}, T = {r.model.T:.3g} s)",
+            f"{method} model (K = {r.model.K:.4g} {gain_unit}, T = {r.model.T:.3g} s)",
             np.interp(oe.time, r.time, r.y_hat),
         )
         for method, r in analysis.identifications.items()
     ]
     comparison = plot_identification(
-        oe.time, oe.y, curves, oe.split_time, "measured flow and the identified models"
+        oe.time,
+        oe.y,
+        curves,
+        oe.split_time,
+        "measured flow and the identified models",
+        ylabel="flow q",
+        unit=data.y_unit,
     )
     residuals = plot_correlation_tests(
         [
@@ -95,7 +104,8 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
                 analysis.input_correlation.values,
                 analysis.input_correlation.bound,
             ),
-        ]
+        ],
+        sample_time=data.sample_time,
     )
     rob = analysis.tuning.robustness
     bode = plot_bode(
@@ -112,7 +122,7 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
     closed = runs_figure(
         analysis.runs,
         f"{analysis.tuning.pi.rule} gains on the nonlinear plant: setpoint step, then a "
-        "0.2 V load step",
+        "0.2 V load step at the drive input",
         label="fuel at {} °C",
     )
     schedule = schedule_figure(analysis.schedule)
@@ -131,12 +141,13 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
         ),
         "bode": (
             bode,
-            "Bode plot of the loop with the gain and phase margins marked, and the "
-            "sensitivity |S| whose peak is Ms.",
+            "Bode plot of the loop with the gain margin (in dB, at the phase crossover) and the "
+            "phase margin (at the crossover) marked, and the sensitivity |S| whose peak is Ms.",
         ),
         "closed_loop": (
             closed,
-            "The same gains on the nonlinear plant at the coldest and the warmest fuel.",
+            "The same gains on the nonlinear plant at the coldest and the warmest fuel; the "
+            "dashed lines are the drive's 1–5 V limits, the dash-dotted line the load step.",
         ),
         "schedule": (schedule, "Gains per fuel-temperature band (one line per flow band)."),
     }

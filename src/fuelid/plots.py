@@ -20,6 +20,7 @@ from fuelid.errors import DataError
 from fuelid.units import kelvin_to_celsius
 
 if TYPE_CHECKING:
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
     from fuelid.io.timeseries import TimeSeries
@@ -28,6 +29,35 @@ if TYPE_CHECKING:
     from fuelid.workflow.tune import TuneOutcome
 
 FloatArray = NDArray[np.float64]
+
+DRIVE_LIMITS = (1.0, 5.0)
+"""The drive's command range [V] (the reference plant's ``u_min_V``/``u_max_V``), drawn as lines
+on the command axis of closed-loop figures."""
+NO_UNIT = "unit not given"
+"""Shown in brackets on an axis whose unit the log does not state."""
+
+
+def _unit_of(label: str) -> str | None:
+    """The unit in a label's trailing brackets, ``"flow q [L/min]"`` → ``"L/min"``."""
+    label = label.strip()
+    if label.endswith("]") and "[" in label:
+        return label[label.rindex("[") + 1 : -1]
+    return None
+
+
+def _with_unit(label: str, unit: str | None) -> str:
+    """``label [unit]``, unless the label already ends with a unit in brackets."""
+    if _unit_of(label) is not None:
+        return label
+    return f"{label} [{unit or NO_UNIT}]"
+
+
+def _include(ax: Axes, *values: float) -> None:
+    """Widen an axis' y range so that it shows ``values`` with a margin (e.g. a zero baseline)."""
+    lo, hi = ax.get_ylim()
+    new_lo, new_hi = min(lo, *values), max(hi, *values)
+    pad = 0.05 * (new_hi - new_lo) if new_hi > new_lo else 1.0
+    ax.set_ylim(new_lo - pad if new_lo < lo else lo, new_hi + pad if new_hi > hi else hi)
 
 
 def save_figure(fig: Figure, path: str | Path) -> Path:
@@ -40,20 +70,39 @@ def save_figure(fig: Figure, path: str | Path) -> Path:
 
 
 def plot_log(log: TimeSeries, title: str = "") -> Figure:
-    """Command and measured flow of a PLC log, on two stacked axes sharing time."""
+    """Command and measured flow of a PLC log on stacked axes sharing time.
+
+    The fuel temperature gets a third axis when the log has the ``T_fuel_degC`` column.
+    """
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(9, 5.5))
-    ax_u, ax_q = fig.subplots(2, 1, sharex=True)
-    ax_u.step(log.time, log["u_V"], where="post", color="tab:blue")
+    from fuelid.io.timeseries import FUEL_TEMPERATURE_COLUMN
+
+    has_temperature = FUEL_TEMPERATURE_COLUMN in log.signals
+    fig = Figure(figsize=(9, 7.5 if has_temperature else 5.5), layout="constrained")
+    axes = fig.subplots(3 if has_temperature else 2, 1, sharex=True)
+    ax_u, ax_q = axes[0], axes[1]
+    ax_u.step(log.time, log["u_V"], where="post", color="tab:blue", label="VFD command u [V]")
     ax_u.set_ylabel("command u [V]")
-    ax_q.plot(log.time, log["q_Lpm"], lw=0.6, color="tab:orange", label="measured q")
+    ax_u.legend(loc="upper right", fontsize=8)
+    ax_q.plot(log.time, log["q_Lpm"], lw=0.6, color="tab:orange", label="measured q [L/min]")
     if "q_true_Lpm" in log.signals:
-        ax_q.plot(log.time, log["q_true_Lpm"], lw=1.2, color="k", label="noise-free reading")
-        ax_q.legend(loc="best")
+        ax_q.plot(
+            log.time, log["q_true_Lpm"], lw=1.2, color="k", label="noise-free reading [L/min]"
+        )
+    ax_q.legend(loc="best", fontsize=8)
     ax_q.set_ylabel("flow q [L/min]")
-    ax_q.set_xlabel("time [s]")
-    for ax in (ax_u, ax_q):
+    if has_temperature:
+        ax_t = axes[2]
+        temperature = log[FUEL_TEMPERATURE_COLUMN]
+        ax_t.plot(log.time, temperature, color="tab:red", label="fuel temperature [°C]")
+        ax_t.set_ylabel("fuel temperature [°C]")
+        mid = float(np.mean(temperature))
+        half = max(float(np.ptp(temperature)) * 0.6, 2.0)  # a constant reading is not a line
+        ax_t.set_ylim(mid - half, mid + half)
+        ax_t.legend(loc="upper right", fontsize=8)
+    axes[-1].set_xlabel("time [s]")
+    for ax in axes:
         ax.grid(True, alpha=0.3)
     if title:
         fig.suptitle(title)
@@ -70,7 +119,7 @@ def plot_step_responses(
     """Several step responses on one axis, with optional vertical marks at settling times."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(8, 4.5))
+    fig = Figure(figsize=(8, 4.5), layout="constrained")
     ax = fig.subplots()
     styles = ("-", "--", ":")
     colors = ("tab:blue", "tab:red", "tab:green", "tab:purple")
@@ -98,6 +147,7 @@ def plot_identification(
     split_time: float | None = None,
     title: str = "",
     ylabel: str = "flow q [L/min]",
+    unit: str | None = None,
 ) -> Figure:
     """Measured output against model outputs (the article's comparison figure) and residuals.
 
@@ -109,10 +159,13 @@ def plot_identification(
         Model outputs (free-run simulations) on the same samples.
     split_time : float, optional
         Where held-out validation data begin [s] (shaded).
+    ylabel, unit : str
+        The output's name and unit; the unit is appended in brackets unless ``ylabel`` already
+        ends with one (``[unit not given]`` when neither states it), and labels the residuals.
     """
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(9, 6))
+    fig = Figure(figsize=(9, 6), layout="constrained")
     ax, ax_res = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     ax.plot(t, y, lw=0.6, color="0.55", label="measured")
     for label, y_hat in curves:
@@ -124,37 +177,52 @@ def plot_identification(
             axis.axvspan(split_time, float(t[-1]), color="tab:olive", alpha=0.08)
     if split_time is not None:
         ax.text(split_time, ax.get_ylim()[1], " validation", va="top", fontsize=8)
-    ax.set_ylabel(ylabel)
-    ax.legend(loc="best")
-    ax_res.set_ylabel("residual")
+    unit = unit or _unit_of(ylabel)
+    ax.set_ylabel(_with_unit(ylabel, unit))
+    ax.legend(loc="best", fontsize=8)
+    ax_res.axhline(0.0, color="k", lw=0.6)
+    ax_res.set_ylabel(f"residual y − ŷ [{unit or NO_UNIT}]")
     ax_res.set_xlabel("time [s]")
     if title:
         ax.set_title(title)
     return fig
 
 
-def plot_correlation_tests(tests: Sequence[tuple[str, FloatArray, FloatArray, float]]) -> Figure:
+def plot_correlation_tests(
+    tests: Sequence[tuple[str, FloatArray, FloatArray, float]],
+    sample_time: float | None = None,
+) -> Figure:
     """Residual correlation tests as stem plots with their 95 % bounds.
 
     Parameters
     ----------
     tests : sequence of (title, lags, values, bound)
-        One panel each, e.g. the residual autocorrelation and the input-residual correlation.
+        One panel each, e.g. the residual autocorrelation and the input-residual correlation;
+        lags in samples.
+    sample_time : float, optional
+        Sampling interval [s]: when given the lags are drawn in seconds (lag × sample time).
     """
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(9, 3.2 * len(tests)))
+    fig = Figure(figsize=(9, 3.2 * len(tests)), layout="constrained")
     axes = fig.subplots(len(tests), 1, squeeze=False)[:, 0]
+    scale = sample_time if sample_time is not None and sample_time > 0 else 1.0
     for ax, (title, lags, values, bound) in zip(axes, tests, strict=True):
-        ax.vlines(lags, 0.0, values, color="tab:blue", lw=1.2)
-        ax.plot(lags, values, "o", ms=3, color="tab:blue")
-        ax.axhspan(-bound, bound, color="tab:green", alpha=0.12, label="95 % bound (white)")
+        x = np.asarray(lags, dtype=float) * scale
+        ax.vlines(x, 0.0, values, color="tab:blue", lw=1.2)
+        ax.plot(x, values, "o", ms=3, color="tab:blue", label="normalised correlation [-]")
+        ax.axhspan(
+            -bound, bound, color="tab:green", alpha=0.12, label=f"95 % bound ±{bound:.2g} (white)"
+        )
         ax.axhline(0.0, color="k", lw=0.6)
         ax.set_title(title, fontsize=10)
-        ax.set_ylabel("correlation")
+        ax.set_ylabel("correlation [-]")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper right", fontsize=8)
-    axes[-1].set_xlabel("lag [samples]")
+        if scale != 1.0:
+            ax.set_xlabel(f"lag [s] (lag in samples × {scale:g} s)")
+        else:
+            ax.set_xlabel("lag [samples]")
     return fig
 
 
@@ -171,47 +239,83 @@ def plot_bode(
     """Bode plot of the loop L = C·G with the margins marked, and the sensitivity |S|."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(9, 7))
+    fig = Figure(figsize=(9, 7), layout="constrained")
     ax_mag, ax_phase = fig.subplots(2, 1, sharex=True)
     mag_db = 20.0 * np.log10(np.abs(loop))
     sens_db = -20.0 * np.log10(np.abs(1.0 + loop))
-    ax_mag.semilogx(omega, mag_db, color="tab:blue", label="|L| loop")
-    ax_mag.semilogx(omega, sens_db, color="tab:red", ls="--", label=f"|S| (Ms = {Ms:.2f})")
+    ax_mag.semilogx(omega, mag_db, color="tab:blue", label="|L| loop [dB]")
+    ax_mag.semilogx(
+        omega,
+        sens_db,
+        color="tab:red",
+        ls="--",
+        label=f"|S| [dB] (Ms = {Ms:.2f}, {20 * np.log10(Ms):.1f} dB)",
+    )
     ax_mag.axhline(0.0, color="k", lw=0.6)
     ax_mag.set_ylabel("magnitude [dB]")
     phase = np.degrees(np.unwrap(np.angle(loop)))
-    ax_phase.semilogx(omega, phase, color="tab:blue")
+    ax_phase.semilogx(omega, phase, color="tab:blue", label="phase of L [°]")
     ax_phase.axhline(-180.0, color="k", lw=0.6)
     ax_phase.set_ylabel("phase of L [°]")
     ax_phase.set_xlabel("angular frequency [rad/s]")
     if np.isfinite(crossover):
-        for ax in (ax_mag, ax_phase):
-            ax.axvline(crossover, color="tab:green", ls=":", lw=1)
+        ax_mag.axvline(
+            crossover, color="tab:green", ls=":", lw=1, label=f"crossover {crossover:.3g} rad/s"
+        )
+        ax_phase.axvline(crossover, color="tab:green", ls=":", lw=1)
+        # the phase margin: the distance from -180° up to the phase at crossover, on the ° axis
+        ax_phase.annotate(
+            "",
+            xy=(crossover, -180.0 + phase_margin_deg),
+            xytext=(crossover, -180.0),
+            arrowprops={"arrowstyle": "<->", "color": "tab:green", "lw": 1.5},
+        )
         ax_phase.annotate(
             f"PM = {phase_margin_deg:.1f}°",
-            (crossover, -180.0 + phase_margin_deg),
+            (crossover, -180.0 + phase_margin_deg / 2),
             textcoords="offset points",
-            xytext=(6, 6),
+            xytext=(6, 0),
+            va="center",
             fontsize=9,
             color="tab:green",
+            bbox={"fc": "white", "ec": "none", "alpha": 0.8},
         )
-    if np.isfinite(phase_crossover):
-        for ax in (ax_mag, ax_phase):
-            ax.axvline(phase_crossover, color="tab:purple", ls=":", lw=1)
+    gm_db = 20.0 * np.log10(gain_margin) if gain_margin > 0 else np.nan
+    if np.isfinite(phase_crossover) and np.isfinite(gm_db):
+        ax_mag.axvline(
+            phase_crossover,
+            color="tab:purple",
+            ls=":",
+            lw=1,
+            label=f"phase crossover {phase_crossover:.3g} rad/s",
+        )
+        ax_phase.axvline(phase_crossover, color="tab:purple", ls=":", lw=1)
+        # the gain margin in dB: the distance from |L| at the phase crossover up to 0 dB
         ax_mag.annotate(
-            f"GM = {gain_margin:.2f}",
-            (phase_crossover, -20.0 * np.log10(gain_margin)),
+            "",
+            xy=(phase_crossover, 0.0),
+            xytext=(phase_crossover, -gm_db),
+            arrowprops={"arrowstyle": "<->", "color": "tab:purple", "lw": 1.5},
+        )
+        ax_mag.annotate(
+            f"GM = {gm_db:.1f} dB (×{gain_margin:.2f})",
+            (phase_crossover, -gm_db / 2),
             textcoords="offset points",
-            xytext=(6, -12),
+            xytext=(6, 0),
+            va="center",
             fontsize=9,
             color="tab:purple",
+            bbox={"fc": "white", "ec": "none", "alpha": 0.8},
         )
     bottom = max(float(np.min(phase)), -720.0)
     ax_phase.set_ylim(bottom, 0.0)
-    ax_mag.set_ylim(max(float(np.min(mag_db)), -60.0), max(float(np.max(mag_db)), 10.0) + 5.0)
+    low = max(float(np.min(mag_db)), -60.0)
+    if np.isfinite(gm_db):
+        low = min(low, -gm_db - 5.0)
+    ax_mag.set_ylim(low, max(float(np.max(mag_db)), 10.0) + 5.0)
     for ax in (ax_mag, ax_phase):
         ax.grid(True, which="both", alpha=0.3)
-    ax_mag.legend(loc="lower left")
+    ax_mag.legend(loc="lower left", fontsize=8)
     if title:
         ax_mag.set_title(title)
     return fig
@@ -224,21 +328,30 @@ def plot_linear_closed_loop(
     disturbance_response: FloatArray,
     title: str = "",
 ) -> Figure:
-    """Unit setpoint step (output and command) and unit load step of the linear closed loop."""
+    """Unit setpoint step (output and command) and unit load step of the linear closed loop.
+
+    The signals are deviations from the operating point per unit step, so the drive's absolute
+    1–5 V limits do not apply; the command axis always shows its zero baseline.
+    """
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(9, 7))
+    fig = Figure(figsize=(9, 7), layout="constrained")
     ax_y, ax_u, ax_d = fig.subplots(3, 1, sharex=True)
-    ax_y.plot(t, setpoint_response, color="tab:blue", label="flow")
-    ax_y.axhline(1.0, color="k", lw=0.6, ls="--", label="setpoint")
+    ax_y.plot(t, setpoint_response, color="tab:blue", label="flow [(L/min)/(L/min)]")
+    ax_y.axhline(1.0, color="k", lw=0.6, ls="--", label="setpoint (unit step at t = 0)")
     ax_y.axhspan(0.98, 1.02, color="tab:green", alpha=0.12, label="2 % band")
-    ax_y.set_ylabel("flow per unit\nsetpoint step")
+    ax_y.set_ylabel("flow per unit\nsetpoint step\n[(L/min)/(L/min)]")
     ax_y.legend(loc="lower right", fontsize=8)
-    ax_u.step(t, command, where="post", color="tab:orange")
-    ax_u.set_ylabel("command per unit\nsetpoint step [V/(L/min)]")
-    ax_d.plot(t, disturbance_response, color="tab:red")
+    ax_u.step(t, command, where="post", color="tab:orange", label="command change [V/(L/min)]")
+    ax_u.axhline(0.0, color="k", lw=0.6)
+    _include(ax_u, 0.0)  # the change starts from zero: show the baseline
+    ax_u.set_ylabel("command per unit\nsetpoint step\n[V/(L/min)]")
+    ax_u.legend(loc="upper right", fontsize=8)
+    ax_d.plot(t, disturbance_response, color="tab:red", label="flow change [(L/min)/V]")
     ax_d.axhline(0.0, color="k", lw=0.6)
-    ax_d.set_ylabel("flow per volt\nof load step")
+    ax_d.axvline(0.0, color="tab:brown", ls="-.", lw=1, label="unit load step at t = 0")
+    ax_d.set_ylabel("flow per volt\nof load step\n[(L/min)/V]")
+    ax_d.legend(loc="upper right", fontsize=8)
     ax_d.set_xlabel("time after the step [s]")
     for ax in (ax_y, ax_u, ax_d):
         ax.grid(True, alpha=0.3)
@@ -250,6 +363,8 @@ def plot_linear_closed_loop(
 def plot_closed_loop_runs(
     runs: Sequence[tuple[str, FloatArray, FloatArray, FloatArray, FloatArray]],
     title: str = "",
+    limits: tuple[float, float] | None = DRIVE_LIMITS,
+    load_steps: Sequence[float] = (),
 ) -> Figure:
     """Closed-loop runs on the plant: flow against setpoint, and the command with its limits.
 
@@ -257,10 +372,14 @@ def plot_closed_loop_runs(
     ----------
     runs : sequence of (label, time, setpoint, flow, command)
         Each run's signals [s, L/min, L/min, V].
+    limits : (low, high), optional
+        The drive's command range [V], drawn as horizontal lines on the command axis.
+    load_steps : sequence of float
+        Times of load steps [s], marked on both axes.
     """
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(9, 6))
+    fig = Figure(figsize=(9, 6), layout="constrained")
     ax_q, ax_u = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     colors = ("tab:blue", "tab:red", "tab:green", "tab:purple")
     for i, (label, t, r, q, u) in enumerate(runs):
@@ -270,12 +389,32 @@ def plot_closed_loop_runs(
         )
         ax_q.plot(t, q, color=color, lw=1.0, label=label)
         ax_u.step(t, u, where="post", color=color, lw=1.0, label=label)
+    if limits is not None:
+        for i, level in enumerate(limits):
+            ax_u.axhline(
+                level,
+                color="k",
+                ls="--",
+                lw=0.9,
+                label=f"drive limits {limits[0]:g}–{limits[1]:g} V" if i == 0 else None,
+            )
+        _include(ax_u, *limits)
+    for i, t_load in enumerate(dict.fromkeys(load_steps)):
+        for ax in (ax_q, ax_u):
+            ax.axvline(
+                t_load,
+                color="tab:brown",
+                ls="-.",
+                lw=1,
+                label=f"load step at {t_load:g} s" if i == 0 and ax is ax_q else None,
+            )
     ax_q.set_ylabel("flow [L/min]")
     ax_u.set_ylabel("command [V]")
     ax_u.set_xlabel("time [s]")
     for ax in (ax_q, ax_u):
         ax.grid(True, alpha=0.3)
-    ax_q.legend(loc="best", fontsize=8)
+    ax_q.legend(loc="best", fontsize=8, title="flow [L/min]")
+    ax_u.legend(loc="best", fontsize=8, title="command [V]")
     if title:
         ax_q.set_title(title)
     return fig
@@ -293,7 +432,7 @@ def plot_schedule(
     """
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(9, 5))
+    fig = Figure(figsize=(9, 5), layout="constrained")
     ax_k, ax_i = fig.subplots(2, 1, sharex=True)
     labels = list(dict.fromkeys(b[2] for b in bands))
     for label in labels:
@@ -306,10 +445,30 @@ def plot_schedule(
     ax_i.set_xlabel("fuel temperature [°C]")
     for ax in (ax_k, ax_i):
         ax.grid(True, alpha=0.3)
-    ax_k.legend(loc="best", fontsize=8)
+        _sensible_range(ax)
+    ax_k.legend(loc="best", fontsize=8, title="command band")
+    ax_i.legend(loc="best", fontsize=8, title="command band")
     if title:
         ax_k.set_title(title)
     return fig
+
+
+def _sensible_range(ax: Axes, margin: float = 0.10) -> None:
+    """Y limits at least ±``margin`` around the data's middle, so a small change looks small.
+
+    Positive data whose range then reaches below zero start at zero instead.
+    """
+    values = np.concatenate([np.asarray(line.get_ydata(), dtype=float) for line in ax.lines])
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return
+    lo, hi = float(values.min()), float(values.max())
+    mid = 0.5 * (lo + hi)
+    half = max(0.5 * (hi - lo) * 1.15, margin * abs(mid), 1e-12)
+    bottom, top = mid - half, mid + half
+    if lo >= 0.0 and bottom < 0.0:
+        bottom, top = 0.0, max(top, hi * 1.05)
+    ax.set_ylim(bottom, top)
 
 
 def schedule_figure(schedule: GainSchedule) -> Figure:
@@ -329,16 +488,35 @@ def schedule_figure(schedule: GainSchedule) -> Figure:
     )
 
 
-def runs_figure(runs: Sequence[ClosedLoopResult], title: str = "", label: str = "{} °C") -> Figure:
+def _load_step_time(run: ClosedLoopResult) -> float | None:
+    """When the run's load disturbance first changes [s], or None without one."""
+    d = np.asarray(run.disturbance, dtype=float)
+    changed = np.flatnonzero(np.abs(d - d[0]) > 0.0) if d.size else np.array([], dtype=int)
+    return float(run.time[changed[0]]) if changed.size else None
+
+
+def runs_figure(
+    runs: Sequence[ClosedLoopResult],
+    title: str = "",
+    label: str = "{} °C",
+    limits: tuple[float, float] | None = DRIVE_LIMITS,
+) -> Figure:
     """Closed-loop runs on the nonlinear plant, each labelled by its fuel temperature [°C].
 
-    ``label`` is formatted with the temperature, e.g. ``"fuel at {} °C"``.
+    ``label`` is formatted with the temperature, e.g. ``"fuel at {} °C"``. The title names the
+    temperatures shown; the drive limits and the load-step time are marked.
     """
     drawn = []
+    temperatures = []
     for r in runs:
-        name = label.format(f"{kelvin_to_celsius(r.T_fuel):g}")
-        drawn.append((name, r.time, r.setpoint, r.flow, r.command))
-    return plot_closed_loop_runs(drawn, title)
+        temperature = f"{kelvin_to_celsius(r.T_fuel):g}"
+        temperatures.append(temperature)
+        drawn.append((label.format(temperature), r.time, r.setpoint, r.flow, r.command))
+    loads = [t for t in (_load_step_time(r) for r in runs) if t is not None]
+    if temperatures:
+        shown = f"fuel at {', '.join(temperatures)} °C"
+        title = f"{title}\n({shown})" if title else shown
+    return plot_closed_loop_runs(drawn, title, limits=limits, load_steps=loads)
 
 
 def tune_figure(outcome: TuneOutcome) -> Figure:
@@ -349,13 +527,18 @@ def tune_figure(outcome: TuneOutcome) -> Figure:
     """
     pi = outcome.tuning.pi
     if outcome.runs:
-        return runs_figure(outcome.runs, f"{pi.rule} PI on the nonlinear plant")
+        return runs_figure(
+            outcome.runs,
+            f"{pi.rule} PI (Kc = {pi.Kc:.4g} V/(L/min), Ti = {pi.Ti:.3g} s) on the nonlinear plant",
+        )
     cl = outcome.tuning.closed_loop
+    m = outcome.tuning.model
     return plot_linear_closed_loop(
         cl.time,
         cl.setpoint_response,
         cl.setpoint_command,
         cl.disturbance_response,
         f"{pi.rule}: Kc = {pi.Kc:.4g} V/(L/min), Ti = {pi.Ti:.3g} s, "
-        f"Ms = {outcome.tuning.robustness.Ms:.2f}",
+        f"Ms = {outcome.tuning.robustness.Ms:.2f}\non the linear model "
+        f"(K = {m.K:.4g} (L/min)/V, T = {m.T:.3g} s) at u = {outcome.u:.3g} V",
     )
