@@ -156,3 +156,44 @@ def test_model_covariance_is_the_model_parameters_block():
     block_only = uncertainty_sweep(pi, ANCHOR, ("K", "T"), kt, CONFIG, n=30, seed=5)
     assert np.array_equal(with_nuisance.K, block_only.K)
     assert np.array_equal(with_nuisance.Ms, block_only.Ms)
+
+
+def test_schedule_gives_kc_in_percent_of_span_per_band(schedule):
+    data = json.loads(json.dumps(schedule.as_dict()))
+    assert (data["u_span"], data["y_span"]) == (4.0, CONFIG.flowmeter.span_Lpm)
+    for band, row in zip(schedule.bands, data["bands"], strict=True):
+        # as PISettings.plc_form: Kc·y_span/u_span
+        assert row["Kc_percent_of_span"] == pytest.approx(band.pi.Kc * 100.0 / 4.0, rel=1e-12)
+    # 20 °C bands over −20…50 °C with flow bands: the gains differ, a schedule is needed
+    assert not schedule.single_set_suffices
+    assert data["single_set_suffices"] is False
+    assert data["single_set"] is None
+    wider = gain_schedule(CONFIG, "simc", 1.0, band_width=35.0, flow_bands=1, y_span=80.0)
+    assert wider.as_dict()["bands"][0]["Kc_percent_of_span"] == pytest.approx(
+        wider.bands[0].pi.Kc * 80.0 / 4.0, rel=1e-12
+    )
+
+
+def test_one_set_of_gains_suffices_where_the_bands_agree():
+    narrow = gain_schedule(
+        CONFIG,
+        "simc",
+        1.0,
+        T_range=(celsius_to_kelvin(10.0), celsius_to_kelvin(30.0)),
+        band_width=10.0,
+        flow_bands=1,
+    )
+    assert len(narrow.bands) == 2
+    Kc = [b.pi.Kc for b in narrow.bands]
+    assert (max(Kc) - min(Kc)) / max(Kc) <= 0.01
+    assert narrow.single_set_suffices
+    single = narrow.single_set
+    assert single is not None
+    assert single.pi.Kc == min(Kc)  # the most cautious of the bands' gains
+    assert single.worst_Ms <= narrow.ms_target
+    assert len(single.cases) == 5 * 3  # every band's temperatures × commands, shared edge once
+    data = json.loads(json.dumps(narrow.as_dict()))
+    assert data["single_set_suffices"] is True
+    assert data["single_set"]["Kc"] == single.pi.Kc
+    assert data["single_set"]["Ti"] == single.pi.Ti
+    assert data["single_set"]["Kc_percent_of_span"] == pytest.approx(single.pi.Kc * 25.0)

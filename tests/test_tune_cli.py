@@ -136,9 +136,35 @@ def test_schedule_json_and_table():
     assert data["bands"]
     assert all(b["Ms"] <= 1.65 + 1e-6 for b in data["bands"])
     assert {b["t_low"] for b in data["bands"]} == {-20.0, 15.0}
+    assert (data["u_span"], data["y_span"]) == (4.0, 100.0)
+    for band in data["bands"]:
+        assert band["Kc_percent_of_span"] == pytest.approx(band["Kc"] * 100.0 / 4.0, rel=1e-12)
+    assert data["single_set_suffices"] is False
+    assert data["single_set"] is None
     table = runner.invoke(app, ["tune", "--schedule", "--band-width", "35"])
     assert table.exit_code == 0
     assert "Kc V/(L/min)" in table.stdout
+    assert "Kc %/%" in table.stdout
+    first = data["bands"][0]
+    assert f"{first['Kc_percent_of_span']:.4g}" in table.stdout
+    assert "one set of gains suffices" not in table.stdout
+
+
+def test_schedule_says_when_one_set_of_gains_suffices():
+    args = ["--schedule", "--t-min", "10", "--t-max", "30", "--flow-bands", "1"]
+    data = _json(*args, "--flow-span", "80")
+    assert data["y_span"] == 80.0
+    assert data["options"]["flow_span"] == 80.0
+    assert data["single_set_suffices"] is True
+    single = data["single_set"]
+    assert single["Kc"] == min(b["Kc"] for b in data["bands"])
+    assert single["Kc_percent_of_span"] == pytest.approx(single["Kc"] * 80.0 / 4.0, rel=1e-12)
+    assert single["Ms"] <= data["ms_target"]
+    table = runner.invoke(app, ["tune", *args])
+    assert table.exit_code == 0
+    text = " ".join(table.stdout.split())
+    assert f"one set of gains suffices: Kc = {single['Kc']:.4g} V/(L/min)" in text
+    assert f"Ti = {single['Ti']:.3g} s" in text
 
 
 def test_schedule_plot(tmp_path: Path):

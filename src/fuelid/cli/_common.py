@@ -44,8 +44,12 @@ def fail(message: str) -> typer.Exit:
 FIGURE_FORMATS = ("png", "svg", "pdf")
 
 
-def check_figure_path(path: Path | None) -> None:
-    """Refuse a figure path that cannot be written, before any work is done."""
+def check_figure_path(path: Path | None, overwrite: bool = False) -> None:
+    """Refuse a figure path that cannot be written, before any work is done.
+
+    An existing file is refused unless ``overwrite`` (``--force``): every command that writes a
+    figure follows the one rule of ``fuelid simulate`` and ``fuelid report``.
+    """
     if path is None:
         return
     if path.is_dir():
@@ -56,15 +60,30 @@ def check_figure_path(path: Path | None) -> None:
         raise FuelidError(
             f"figure {str(path)!r}: name it .png, .svg or .pdf (the suffix picks the format)"
         )
+    if path.exists() and not overwrite:
+        raise FuelidError(f"figure {str(path)!r} exists; pass --force to replace it")
 
 
 def guarded(command: Callable[P, R]) -> Callable[P, R]:
-    """Turn every :class:`FuelidError` raised by a command into a one-line message and exit 2."""
+    """Run a command with BLAS on one thread; every :class:`FuelidError` becomes exit 2.
+
+    The whole command runs inside :func:`fuelid.blas.single_threaded_blas`: its sweeps and checks
+    are many small matrices, which a multi-threaded BLAS on a loaded two-core machine runs many
+    times slower. numpy and scipy's linear algebra are loaded first, so that the BLAS libraries
+    they bring (numpy's and scipy's own) are both found and pinned. Imported here, when a command
+    runs, so ``--help`` loads no numerical library.
+    """
 
     @functools.wraps(command)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
+        import numpy  # noqa: F401  (loads numpy's BLAS before the thread limit is set)
+        import scipy.linalg  # noqa: F401  (and scipy's own BLAS)
+
+        from fuelid.blas import single_threaded_blas
+
         try:
-            return command(*args, **kwargs)
+            with single_threaded_blas():
+                return command(*args, **kwargs)
         except FuelidError as exc:
             raise fail(str(exc)) from None
 
@@ -205,16 +224,24 @@ ConfigOption = Annotated[
     typer.Option(
         "--config",
         "-c",
+        metavar="PLANT.toml",
         help="Plant TOML file (default: the packaged reference plant).",
         show_default=False,
     ),
 ]
 
 
+ForceFigureOption = Annotated[
+    bool,
+    typer.Option("--force", help="Overwrite an existing --plot figure (otherwise refused)."),
+]
+"""``--force`` of the commands whose only file written is the ``--plot`` figure."""
+
+
 # the options every command that reads a PLC log shares (identify, report)
-TimeColumn = Annotated[str, typer.Option(help="Time column (s or date-time).")]
-InputColumn = Annotated[str, typer.Option(help="Input column.")]
-OutputColumn = Annotated[str, typer.Option(help="Output column.")]
+TimeColumn = Annotated[str, typer.Option(metavar="COLUMN", help="Time column (s or date-time).")]
+InputColumn = Annotated[str, typer.Option(metavar="COLUMN", help="Input column.")]
+OutputColumn = Annotated[str, typer.Option(metavar="COLUMN", help="Output column.")]
 SampleTime = Annotated[
     float | None,
     typer.Option(help="Sample time [s] for a log without a time column.", show_default=False),
@@ -222,6 +249,7 @@ SampleTime = Annotated[
 InputScale = Annotated[
     str | None,
     typer.Option(
+        metavar="LO:HI:LO:HI",
         help="Linear scaling raw_lo:raw_hi:eng_lo:eng_hi of the input, e.g. 4:20:1:5 for 4-20 mA "
         "to 1-5 V.",
         show_default=False,
@@ -230,6 +258,7 @@ InputScale = Annotated[
 OutputScale = Annotated[
     str | None,
     typer.Option(
+        metavar="LO:HI:LO:HI",
         help="Linear scaling of the output, e.g. 0:27648:0:100 for counts to L/min.",
         show_default=False,
     ),

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 import typer
 
 from fuelid.cli._common import (
+    ForceFigureOption,
     InputColumn,
     InputScale,
     OutputColumn,
@@ -67,7 +68,10 @@ def _delay(text: str | None) -> float | Literal["auto"] | None:
 
 @guarded
 def identify_command(
-    file: Annotated[Path, typer.Argument(help="PLC log: CSV (any of , ; tab) or Parquet.")],
+    file: Annotated[
+        Path,
+        typer.Argument(metavar="LOG", help="PLC log: CSV (any of , ; tab) or Parquet."),
+    ],
     method: Annotated[
         MethodChoice,
         typer.Option(
@@ -76,25 +80,39 @@ def identify_command(
             "period."
         ),
     ] = MethodChoice.oe,
-    order: Annotated[str, typer.Option(help="Process time constants: 1, 2 or auto (AIC).")] = "1",
+    order: Annotated[
+        str,
+        typer.Option(
+            metavar="1|2|auto",
+            help="Process time constants: 1, 2, or auto (the order of lower AIC).",
+        ),
+    ] = "1",
     delay: Annotated[
         str | None,
         typer.Option(
-            help="Dead time: 'auto' estimates it, a number [s] fixes it (default: the "
-            "flowmeter delay when given, else auto).",
+            metavar="SECONDS|auto",
+            help="Dead time: a number of seconds [s] fixes it, 'auto' estimates it (default: "
+            "the flowmeter delay when given, else auto).",
             show_default=False,
         ),
     ] = None,
     flowmeter_T: Annotated[
         float | None,
         typer.Option(
-            "--flowmeter-T", help="Flowmeter time constant T_f [s], held fixed.", show_default=False
+            "--flowmeter-T",
+            "--T-f",
+            metavar="SECONDS",
+            help="Flowmeter time constant T_f [s], held fixed (alias --T-f, as in fuelid tune).",
+            show_default=False,
         ),
     ] = None,
     flowmeter_delay: Annotated[
         float | None,
         typer.Option(
-            help="Flowmeter dead time [s], the model's delay unless --delay.", show_default=False
+            "--flowmeter-delay",
+            metavar="SECONDS",
+            help="Flowmeter dead time [s], the model's delay unless --delay.",
+            show_default=False,
         ),
     ] = None,
     n_steps: Annotated[
@@ -118,6 +136,7 @@ def identify_command(
     validate_file: Annotated[
         Path | None,
         typer.Option(
+            metavar="LOG",
             help="A second log (same columns) to validate on, simulated from rest at its "
             "first input.",
             show_default=False,
@@ -128,6 +147,7 @@ def identify_command(
         typer.Option(
             "--config",
             "-c",
+            metavar="PLANT.toml",
             help="Plant TOML: its flowmeter gives T_f and the delay "
             "priors, its settling time gives N.",
             show_default=False,
@@ -158,9 +178,13 @@ def identify_command(
     plot: Annotated[
         Path | None,
         typer.Option(
-            help="Write the measured-versus-model figure (PNG, SVG, PDF).", show_default=False
+            metavar="FIG.png",
+            help="Write the measured-versus-model figure (PNG, SVG, PDF); an existing file "
+            "only with --force.",
+            show_default=False,
         ),
     ] = None,
+    force: ForceFigureOption = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Identify K·e^(−θs)/((T·s+1)(T2·s+1)(T_f·s+1)) from a logged input and output.
@@ -171,7 +195,7 @@ def identify_command(
     from fuelid.identify.procedure import IdentifyOptions
     from fuelid.workflow.identification import identify_log, plant_priors
 
-    check_figure_path(plot)
+    check_figure_path(plot, overwrite=force)
     for name, value in (("--flowmeter-T", flowmeter_T), ("--flowmeter-delay", flowmeter_delay)):
         if value is not None and not (math.isfinite(value) and value >= 0.0):
             raise FuelidError(f"{name} must be a non-negative number of seconds")
@@ -236,10 +260,47 @@ def identify_command(
         }
         emit_json(data_json | provenance(opts, file))
         return
-    _print_table(data_json, file)
+    _print_table(data_json, file, _gain_unit(input_col, output_col, input_scale, output_scale))
 
 
-def _print_table(data: dict[str, Any], file: Path) -> None:
+_UNIT_SUFFIXES = {"_V": "V", "_mA": "mA", "_Lpm": "L/min", "_pct": "%", "_percent": "%"}
+"""Unit suffixes of column names, as fuelid's own logs carry them (``u_V``, ``q_Lpm``)."""
+
+
+def _column_unit(column: str, scale: str | None) -> str | None:
+    """The unit a column's name says, or None: unknown, or rescaled to an unnamed unit."""
+    if scale:
+        return None
+    for suffix, unit in _UNIT_SUFFIXES.items():
+        if column.endswith(suffix):
+            return unit
+    return None
+
+
+def _gain_unit(
+    input_col: str, output_col: str, input_scale: str | None, output_scale: str | None
+) -> str:
+    """K's unit for the table: (L/min)/V for ``u_V`` and ``q_Lpm``, a neutral label when unknown.
+
+    Examples
+    --------
+    >>> _gain_unit("u_V", "q_Lpm", None, None)
+    '(L/min)/V'
+    >>> _gain_unit("u_mA", "q_Lpm", "4:20:1:5", None)
+    '(out)/(in)'
+    """
+    u_unit = _column_unit(input_col, input_scale)
+    y_unit = _column_unit(output_col, output_scale)
+    if u_unit is None or y_unit is None:
+        return "(out)/(in)"
+
+    def wrap(unit: str) -> str:
+        return f"({unit})" if "/" in unit else unit
+
+    return f"{wrap(y_unit)}/{wrap(u_unit)}"
+
+
+def _print_table(data: dict[str, Any], file: Path, gain_unit: str) -> None:
     from rich.console import Console
     from rich.table import Table
 
@@ -259,7 +320,7 @@ def _print_table(data: dict[str, Any], file: Path) -> None:
             f"{value:.5g}",
             "fixed" if fixed or se is None else f"{se:.2g}",
             "" if ci is None else f"{ci[0]:.5g} … {ci[1]:.5g}",
-            "(out)/(in)" if key == "K" else "s",
+            gain_unit if key == "K" else "s",
         )
     console = Console()
     console.print(table)

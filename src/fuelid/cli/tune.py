@@ -8,6 +8,7 @@ return. The library is imported when the command runs, not when ``fuelid --help`
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -17,6 +18,7 @@ from fuelid.cli._common import (
     BandWidthOption,
     ControlPeriodOption,
     FlowBandsOption,
+    ForceFigureOption,
     LambdaOption,
     MsTargetOption,
     RuleChoice,
@@ -46,6 +48,7 @@ def tune_command(
         Path | None,
         typer.Option(
             "--model",
+            metavar="MODEL.json",
             help="Identification result (fuelid identify --json > ident.json).",
             show_default=False,
         ),
@@ -63,7 +66,13 @@ def tune_command(
     ] = None,
     T_f: Annotated[
         float | None,
-        typer.Option("--T-f", help="Flowmeter lag [s] (default 0).", show_default=False),
+        typer.Option(
+            "--flowmeter-T",
+            "--T-f",
+            metavar="SECONDS",
+            help="Flowmeter lag T_f [s] (default 0; alias --T-f).",
+            show_default=False,
+        ),
     ] = None,
     delay: Annotated[
         float | None,
@@ -78,6 +87,7 @@ def tune_command(
         typer.Option(
             "--config",
             "-c",
+            metavar="PLANT.toml",
             help="Plant TOML: spans, temperature physics and the nonlinear plant (default: the "
             "reference plant).",
             show_default=False,
@@ -126,8 +136,14 @@ def tune_command(
     ] = None,
     plot: Annotated[
         Path | None,
-        typer.Option(help="Write the closed-loop figure (PNG, SVG, PDF).", show_default=False),
+        typer.Option(
+            metavar="FIG.png",
+            help="Write the closed-loop figure (PNG, SVG, PDF); an existing file only with "
+            "--force.",
+            show_default=False,
+        ),
     ] = None,
+    force: ForceFigureOption = False,
     list_rules: Annotated[
         bool, typer.Option("--list-rules", help="List the tuning rules and exit.")
     ] = False,
@@ -147,7 +163,7 @@ def tune_command(
     from fuelid.workflow import TuneRequest, schedule_gains, tune_model
 
     # options checked at the edge, before any work is done
-    check_figure_path(plot)
+    check_figure_path(plot, overwrite=force)
     if sweep is not None:
         check_sweep_size(sweep)
     check_control_period(control_period)
@@ -160,7 +176,7 @@ def tune_command(
     )
     if model is None and not schedule:
         raise FuelidError(
-            "give a model: --model ident.json, or --K and --T (with --delay, --T-f), "
+            "give a model: --model ident.json, or --K and --T (with --delay, --flowmeter-T), "
             "or --schedule for a schedule from the plant's physics"
         )
     request = TuneRequest(
@@ -207,6 +223,8 @@ def tune_command(
     }
     if schedule:
         table = schedule_gains(plant, request)
+        # the %/% column uses --flow-span as the single gains do (the meter's span by default)
+        table = replace(table, schedule=replace(table.schedule, y_span=request.flow_span(plant)))
         options["u"] = table.u
         if plot is not None:
             from fuelid.plots import save_figure, schedule_figure
@@ -244,7 +262,7 @@ def _model_from_options(
     from fuelid.io.modelfile import load_model_file
     from fuelid.model import ProcessModel
 
-    flags = {"--K": K, "--T": T, "--T2": T2, "--T-f": T_f, "--delay": delay}
+    flags = {"--K": K, "--T": T, "--T2": T2, "--flowmeter-T (--T-f)": T_f, "--delay": delay}
     given = [name for name, value in flags.items() if value is not None]
     if model_file is not None:
         if given:
@@ -265,7 +283,7 @@ def _model_from_options(
             raise FuelidError(f"{name} must be a finite number")
     if T <= 0.0:
         raise FuelidError(f"--T must be a positive time constant, got {T:g} s")
-    for name, value in (("--T2", T2), ("--T-f", T_f)):
+    for name, value in (("--T2", T2), ("--flowmeter-T (--T-f)", T_f)):
         if value is not None and value < 0.0:
             raise FuelidError(f"{name} must be zero or a positive time constant, got {value:g} s")
     if delay is not None and delay < 0.0:
@@ -325,7 +343,12 @@ def _print_tuning(outcome: TuneOutcome) -> None:
         f"Ti = {span['Ti']:.4g}",
         f"%/% ({span['u_span']:g} V, {span['y_span']:g} L/min), s",
     )
-    gains.add_row("parallel", f"Kp = {data['Kc']:.5g}", f"Ki = {data['Ki']:.5g}", "V/(L/min), 1/s")
+    gains.add_row(
+        "parallel",
+        f"Kp = {data['Kc']:.5g}",
+        f"Ki = {data['Ki']:.5g}",
+        "V/(L/min), V/((L/min)·s)",
+    )
     if plc["discrete"] is not None:
         d = plc["discrete"]
         gains.add_row(
@@ -372,6 +395,7 @@ def _print_tuning(outcome: TuneOutcome) -> None:
 
 
 def _print_schedule(outcome: ScheduleOutcome) -> None:
+    from rich import box
     from rich.console import Console
     from rich.table import Table
 
@@ -379,9 +403,12 @@ def _print_schedule(outcome: ScheduleOutcome) -> None:
     anchored = data["anchored_to_model"] is not None
     out = Table(
         title=f"{data['rule']} gain schedule, h = {data['control_period']:g} s, Ms ≤ "
-        f"{data['ms_target']:g}" + (" (anchored to the model)" if anchored else " (plant physics)")
+        f"{data['ms_target']:g}" + (" (anchored to the model)" if anchored else " (plant physics)"),
+        box=box.SIMPLE_HEAD,  # nine columns: light rules keep them within 80 characters
+        collapse_padding=True,
     )
-    for column in ("fuel °C", "u V", "flow L/min", "Kc V/(L/min)", "Ti s", "Ms", "GM", "PM °"):
+    columns = ("fuel °C", "u V", "flow L/min", "Kc V/(L/min)", "Kc %/%", "Ti s", "Ms", "GM", "PM °")
+    for column in columns:
         out.add_column(column, justify="right")
     for row in data["bands"]:
         out.add_row(
@@ -389,9 +416,21 @@ def _print_schedule(outcome: ScheduleOutcome) -> None:
             f"{row['u_low']:.2f}…{row['u_high']:.2f}",
             f"{row['flow_low']:.1f}…{row['flow_high']:.1f}",
             f"{row['Kc']:.4g}",
+            f"{row['Kc_percent_of_span']:.4g}",
             f"{row['Ti']:.3g}",
             f"{row['Ms']:.2f}",
             f"{row['gain_margin']:.2f}",
             f"{row['phase_margin_deg']:.1f}",
         )
-    Console().print(out)
+    console = Console()
+    console.print(out)
+    console.print(
+        f"%/%: Kc·{data['y_span']:g} L/min / {data['u_span']:g} V (the spans of a PLC block)"
+    )
+    single = data["single_set"]
+    if single is not None:
+        console.print(
+            f"one set of gains suffices: Kc = {single['Kc']:.4g} V/(L/min) "
+            f"({single['Kc_percent_of_span']:.4g} %/%), Ti = {single['Ti']:.3g} s "
+            f"(Ms ≤ {single['Ms']:.2f} over every band)"
+        )

@@ -40,6 +40,7 @@ from fuelid.units import kelvin_to_celsius
 
 __all__ = [
     "DEFAULT_T_RANGE",
+    "SINGLE_SET_TOLERANCE",
     "Anchor",
     "CaseEvaluation",
     "FixedPIEvaluation",
@@ -55,6 +56,9 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
+
+SINGLE_SET_TOLERANCE = 0.01
+"""Relative spread of the bands' Kc and Ti within which one set of gains may serve them all."""
 
 
 @dataclass(frozen=True)
@@ -106,6 +110,22 @@ class GainSchedule:
     control_period: float
     ms_target: float
     bands: list[ScheduleBand] = field(default_factory=list)
+    u_span: float = 4.0
+    """Controller output span of the percent-of-span gains [V]."""
+    y_span: float = 100.0
+    """Measurement span of the percent-of-span gains [L/min]."""
+    single_set: FixedPIEvaluation | None = None
+    """One PI for every band, on every band's cases, when the bands' Kc and Ti agree within
+    :data:`SINGLE_SET_TOLERANCE` and that PI meets the Ms target everywhere; else None."""
+
+    @property
+    def single_set_suffices(self) -> bool:
+        """Whether one set of gains meets the Ms target over the whole range (no schedule)."""
+        return self.single_set is not None
+
+    def percent_of_span(self, pi: PISettings) -> float:
+        """Kc of ``pi`` in %/% of span (Kc·y_span/u_span, as :meth:`PISettings.plc_form`)."""
+        return float(pi.plc_form(self.u_span, self.y_span)["percent_of_span"]["Kc"])
 
     @property
     def worst_Ms(self) -> float:
@@ -125,12 +145,29 @@ class GainSchedule:
 
     def as_dict(self) -> dict[str, Any]:
         """The schedule as documented JSON (``fuelid tune --schedule --json``)."""
+        single = self.single_set
         return {
             "rule": self.rule,
             "control_period": self.control_period,
             "ms_target": self.ms_target,
             "worst_Ms": self.worst_Ms,
-            "bands": [b.as_dict() for b in self.bands],
+            "u_span": self.u_span,
+            "y_span": self.y_span,
+            "bands": [
+                b.as_dict() | {"Kc_percent_of_span": self.percent_of_span(b.pi)} for b in self.bands
+            ],
+            "single_set_suffices": self.single_set_suffices,
+            "single_set": None
+            if single is None
+            else {
+                "Kc": single.pi.Kc,
+                "Ti": single.pi.Ti,
+                "Kc_percent_of_span": self.percent_of_span(single.pi),
+                "Ms": single.worst_Ms,
+                "gain_margin": single.worst_gain_margin,
+                "phase_margin_deg": single.worst_phase_margin,
+                "overshoot_percent": single.worst_overshoot,
+            },
         }
 
 
@@ -172,6 +209,7 @@ def gain_schedule(
     flow_bands: int = 3,
     flow_split: float = 0.10,
     anchor: Anchor | None = None,
+    y_span: float | None = None,
 ) -> GainSchedule:
     """Gains per fuel-temperature band, split by flow where the gain depends on the flow.
 
@@ -200,6 +238,13 @@ def gain_schedule(
         Relative spread of K across the commands above which bands are split [-].
     anchor : Anchor, optional
         An identified model that anchors the physics (:func:`~fuelid.tuning.cases.plant_cases`).
+    y_span : float, optional
+        Measurement span of the percent-of-span gains [L/min] (default: the meter's span); the
+        output span is the drive's signal range [V].
+
+    When every band's Kc and Ti agree within :data:`SINGLE_SET_TOLERANCE`, the most cautious of
+    them (the lowest Kc, with its Ti) is checked on every band's cases; if it meets the target
+    everywhere, it is the schedule's ``single_set``: one set of gains suffices.
     """
     if not (math.isfinite(ms_target) and ms_target > 1.0):
         raise FuelidError(f"the Ms target must be greater than 1, got {ms_target:g}")
@@ -209,7 +254,8 @@ def gain_schedule(
         )
     edges = band_edges(T_range[0], T_range[1], band_width)
     u_lo, u_hi = config.vfd.u_min_V, config.vfd.u_max_V
-    schedule = GainSchedule(rule=rule, control_period=control_period, ms_target=ms_target)
+    bands: list[ScheduleBand] = []
+    every_case: dict[tuple[float, float], PlantCase] = {}
     cache: CaseCache = {}
     for T_low, T_high in itertools.pairwise(edges):
         temps = (float(T_low), 0.5 * float(T_low + T_high), float(T_high))
@@ -224,10 +270,38 @@ def gain_schedule(
                 if not split
                 else plant_cases(config, temps, commands, anchor, cache)
             )
-            schedule.bands.append(
+            every_case.update(((c.T_fuel, c.u), c) for c in cases)
+            bands.append(
                 _tune_band(cases, rule, control_period, closed_loop_time, ms_target, temps, (a, b))
             )
-    return schedule
+    return GainSchedule(
+        rule=rule,
+        control_period=control_period,
+        ms_target=ms_target,
+        bands=bands,
+        u_span=u_hi - u_lo,
+        y_span=config.flowmeter.span_Lpm if y_span is None else y_span,
+        single_set=_single_set(bands, list(every_case.values()), ms_target),
+    )
+
+
+def _spread(values: list[float]) -> float:
+    """Relative spread (max − min)/max of positive values [-]."""
+    return (max(values) - min(values)) / max(abs(v) for v in values)
+
+
+def _single_set(
+    bands: list[ScheduleBand], cases: list[PlantCase], ms_target: float
+) -> FixedPIEvaluation | None:
+    """One PI for all bands, checked on all their cases, when the bands' gains agree; else None."""
+    Kc, Ti = [b.pi.Kc for b in bands], [b.pi.Ti for b in bands]
+    if _spread(Kc) > SINGLE_SET_TOLERANCE or _spread(Ti) > SINGLE_SET_TOLERANCE:
+        return None
+    cautious = min(bands, key=lambda b: b.pi.Kc).pi
+    evaluation = evaluate_fixed(cautious, cases)
+    if evaluation.worst_Ms > ms_target or not evaluation.all_stable:
+        return None
+    return evaluation
 
 
 def _tune_band(

@@ -98,8 +98,9 @@ def identify_log(
 ) -> IdentifyOutcome:
     """Identify the model of a loaded log, on the samples with ``t_start ≤ t < t_stop`` [s].
 
-    ``validation`` is a second log to score the model on (its offset and initial state estimated,
-    or from rest at its first input with ``options.validation_initial="rest"``). Refusals (non-exciting data, priors the record contradicts) raise
+    ``validation`` is a second log to score the model on (its offset and initial state
+    estimated, or from rest at its first input with ``options.validation_initial="rest"``).
+    Refusals (non-exciting data, priors the record contradicts) raise
     :class:`~fuelid.errors.FuelidError` with the reason.
     """
     if t_start is not None or t_stop is not None:
