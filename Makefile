@@ -33,7 +33,7 @@ demo: $(STAMP)
 	$(BIN)/fuelid identify $(DEMO_DIR)/step_sequence.csv --flowmeter-T 0.3 --flowmeter-delay 0.2 \
 		--json > $(DEMO_DIR)/ident.json
 	$(BIN)/fuelid tune --model $(DEMO_DIR)/ident.json --rule simc --control-period 1 --simulate \
-		--plot $(DEMO_DIR)/tune_closed_loop.png
+		--plot $(DEMO_DIR)/tune_closed_loop.png --force
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples
