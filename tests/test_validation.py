@@ -7,9 +7,14 @@ simulated as if it did. The truths here come from the model family itself.
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
+from fuelid.cli import app
 from fuelid.errors import FuelidError
 from fuelid.identify.procedure import IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
@@ -82,3 +87,23 @@ def test_a_flat_validation_record_gets_no_score() -> None:
 def test_an_unknown_validation_start_is_refused() -> None:
     with pytest.raises(FuelidError, match="estimate or rest"):
         IdentifyOptions(validation_initial="zero")
+
+
+def _write(path: Path, record: IOData) -> str:
+    t = np.arange(record.n_samples) * H
+    rows = zip(t, record.u, record.y, strict=True)
+    path.write_text("t_s,u_V,q_Lpm\n" + "\n".join(f"{a:.2f},{b:.6f},{c:.6f}" for a, b, c in rows))
+    return str(path)
+
+
+def test_the_cli_names_the_validation_start(tmp_path: Path) -> None:
+    fit = _write(tmp_path / "fit.csv", _record([1.0, 1.5, 1.2, 1.8, 1.3], 15.0))
+    val = _write(tmp_path / "val.csv", _not_at_rest())
+    runner = CliRunner()
+    for start in ("estimate", "rest"):
+        args = ["identify", fit, "--delay", "0.2", "--validate-file", val]
+        result = runner.invoke(app, [*args, "--validate-initial", start, "--json"])
+        assert result.exit_code == 0, result.output
+        data = json.loads(result.stdout)
+        assert data["validation_initial"] == start
+        assert data["options"]["validate_initial"] == start

@@ -35,6 +35,13 @@ if TYPE_CHECKING:
     from fuelid.io.timeseries import IOData
 
 
+class ValidationStart(enum.StrEnum):
+    """How a validation record starts (``--validate-initial``)."""
+
+    estimate = "estimate"
+    rest = "rest"
+
+
 class MethodChoice(enum.StrEnum):
     """Estimators of ``fuelid identify``."""
 
@@ -137,11 +144,18 @@ def identify_command(
         Path | None,
         typer.Option(
             metavar="LOG",
-            help="A second log (same columns) to validate on, simulated from rest at its "
-            "first input.",
+            help="A second log (same columns) to validate on (see --validate-initial).",
             show_default=False,
         ),
     ] = None,
+    validate_initial: Annotated[
+        ValidationStart,
+        typer.Option(
+            help="How the --validate-file record starts: estimate (its offset and initial state "
+            "fitted, as a record that does not start at rest needs) or rest (at rest at its first "
+            "input).",
+        ),
+    ] = ValidationStart.estimate,
     config: Annotated[
         Path | None,
         typer.Option(
@@ -209,6 +223,7 @@ def identify_command(
         control_period=control_period,
         validate_split=validate_split,
         u_before=u_before,
+        validation_initial=validate_initial.value,
     )
     if config is not None:
         from fuelid.plant.config import load_plant_config  # physics only with a plant file
@@ -249,6 +264,7 @@ def identify_command(
             "N": n_steps,
             "control_period": control_period,
             "validate_split": validate_split,
+            "validate_initial": validate_initial.value,
             "config": str(config) if config else None,
             "u_before": u_before,
             "time_col": time_col,
