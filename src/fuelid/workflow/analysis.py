@@ -17,6 +17,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
 from fuelid.identify.diagnostics import (
     CorrelationTest,
@@ -33,6 +34,7 @@ from fuelid.tuning.frequency import frequency_grid, loop_function
 from fuelid.tuning.result import UNITS, TuningResult
 from fuelid.tuning.schedule import GainSchedule
 from fuelid.workflow.identification import T_REF, plant_priors
+from fuelid.workflow.progress import DIAGNOSTICS, IDENTIFICATION, Progress, announce
 from fuelid.workflow.tune import (
     TuneOutcome,
     TuneRequest,
@@ -160,14 +162,33 @@ class LogAnalysis:
         }
 
 
-def analyse_log(data: IOData, config: PlantConfig, settings: AnalysisSettings) -> LogAnalysis:
+def analyse_log(
+    data: IOData,
+    config: PlantConfig,
+    settings: AnalysisSettings,
+    progress: Progress | None = None,
+) -> LogAnalysis:
     """Identify ``data`` with both methods, tune, check over temperature and build a schedule.
 
     ``config`` supplies the flowmeter priors (its lag and delay are held fixed), the prior
     settling time for step-ls, the signal and flow spans of the percent-of-span gains, and the
     physics of how the loop changes with fuel temperature (anchored to the identified model).
     The nonlinear closed-loop runs are on ``config``'s plant.
+
+    ``progress``, when given, is called with each stage's name as it starts, in the order of
+    :data:`~fuelid.workflow.progress.ANALYSIS_STAGES`. The work is many small matrices and long
+    vectors, so BLAS runs on one thread throughout (:func:`~fuelid.blas.single_threaded_blas`):
+    several times faster on a busy two-core machine.
     """
+    with single_threaded_blas():
+        return _analyse(data, config, settings, progress)
+
+
+def _analyse(
+    data: IOData, config: PlantConfig, settings: AnalysisSettings, progress: Progress | None
+) -> LogAnalysis:
+    """:func:`analyse_log`'s stages."""
+    announce(progress, IDENTIFICATION)
     base = plant_priors(
         IdentifyOptions(
             control_period=max(settings.control_period, data.sample_time),
@@ -186,8 +207,10 @@ def analyse_log(data: IOData, config: PlantConfig, settings: AnalysisSettings) -
     check_gain_identified(chosen.model.K, chosen.stderr.get("K"), f"{settings.tune_from} fit")
     u_op = float(np.clip(np.mean(data.u), config.vfd.u_min_V, config.vfd.u_max_V))
     request = settings.tune_request(chosen.model, u_op)
-    outcome = tune_model(config, request)
+    outcome = tune_model(config, request, progress)
     warnings.extend(f"tuning: {w}" for w in outcome.warnings)
+    schedule = schedule_gains(config, request, progress).schedule
+    announce(progress, DIAGNOSTICS)
     fitted = chosen.time < (chosen.split_time if chosen.split_time is not None else math.inf)
     residuals = chosen.y[fitted] - chosen.y_hat[fitted]
     u_model = data.u if chosen.time.size == data.n_samples else _held(data, chosen.time)
@@ -200,7 +223,7 @@ def analyse_log(data: IOData, config: PlantConfig, settings: AnalysisSettings) -
         settings=settings,
         identifications=identifications,
         outcome=outcome,
-        schedule=schedule_gains(config, request).schedule,
+        schedule=schedule,
         whiteness=residual_whiteness(residuals),
         input_correlation=input_residual_correlation(u_model[fitted], residuals, max_lag),
         bode_frequency=omega,

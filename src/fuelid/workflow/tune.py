@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
 from fuelid.plant.config import PlantConfig
@@ -33,6 +34,15 @@ from fuelid.tuning.schedule import GainSchedule, band_edges, gain_schedule
 from fuelid.tuning.sweep import SweepResult, uncertainty_sweep
 from fuelid.units import kelvin_to_celsius
 from fuelid.workflow.identification import T_REF
+from fuelid.workflow.progress import (
+    RUNS,
+    SCHEDULE,
+    SWEEP,
+    TEMPERATURE_CHECK,
+    TUNING,
+    Progress,
+    announce,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -186,7 +196,9 @@ class TuneOutcome:
         }
 
 
-def tune_model(config: PlantConfig, request: TuneRequest) -> TuneOutcome:
+def tune_model(
+    config: PlantConfig, request: TuneRequest, progress: Progress | None = None
+) -> TuneOutcome:
     """Tune ``request.model`` and check the gains: the chain behind ``fuelid tune``.
 
     1. the rule's gains and their margins and linear closed loop on the model
@@ -199,36 +211,51 @@ def tune_model(config: PlantConfig, request: TuneRequest) -> TuneOutcome:
     4. with ``request.sweep``, the gains on that many plant variants
        (:func:`~fuelid.tuning.sweep.uncertainty_sweep`).
 
+    The work is many small matrices, so BLAS runs on one thread throughout
+    (:func:`~fuelid.blas.single_threaded_blas`).
+
     Parameters
     ----------
     config : PlantConfig
         The plant: spans, how the loop changes with fuel temperature, the nonlinear plant.
     request : TuneRequest
         What to tune and check; its ``model`` must be given.
+    progress : callable, optional
+        Called with each stage's name as it starts (:mod:`fuelid.workflow.progress`).
 
     Returns
     -------
     TuneOutcome
     """
-    model = request.model
-    if model is None:
+    if request.model is None:
         raise FuelidError("tuning needs a model (TuneRequest.model)")
+    with single_threaded_blas():
+        return _tune_model(config, request, request.model, progress)
+
+
+def _tune_model(
+    config: PlantConfig, request: TuneRequest, model: ProcessModel, progress: Progress | None
+) -> TuneOutcome:
+    announce(progress, TUNING)
     u, y_span = operating_command(config, request.u), request.flow_span(config)
     u_span = config.vfd.u_max_V - config.vfd.u_min_V
     tuning = evaluate_tuning(
         model, request.rule, request.control_period, request.closed_loop_time, u_span, y_span
     )
     anchor = Anchor(model, request.T_fuel, u)
+    announce(progress, TEMPERATURE_CHECK)
     check = check_over_temperature(
         config, tuning.pi, anchor, request.T_range, request.band_width, u
     )
     runs = []
     if request.simulate:
+        announce(progress, RUNS)
         start = flow_at(config, u, request.T_fuel)
         step = request.step_percent / 100.0 * y_span
         runs = standard_runs(config, tuning.pi, request.T_range, start, step)
     sweep = None
     if request.sweep is not None:
+        announce(progress, SWEEP)
         cov = np.zeros((0, 0)) if request.cov is None else np.asarray(request.cov, dtype=float)
         sweep = uncertainty_sweep(
             tuning.pi,
@@ -264,23 +291,29 @@ class ScheduleOutcome:
         }
 
 
-def schedule_gains(config: PlantConfig, request: TuneRequest) -> ScheduleOutcome:
+def schedule_gains(
+    config: PlantConfig, request: TuneRequest, progress: Progress | None = None
+) -> ScheduleOutcome:
     """Gains per fuel-temperature (and flow) band: the chain behind ``fuelid tune --schedule``.
 
     From the plant's physics alone when ``request.model`` is None, else anchored to the model at
-    ``request.T_fuel`` and ``request.u`` (:func:`~fuelid.tuning.schedule.gain_schedule`).
+    ``request.T_fuel`` and ``request.u`` (:func:`~fuelid.tuning.schedule.gain_schedule`), with
+    BLAS on one thread. ``progress`` is called with the stage's name as it starts
+    (:mod:`fuelid.workflow.progress`).
     """
     u = operating_command(config, request.u)
     anchor = None if request.model is None else Anchor(request.model, request.T_fuel, u)
-    schedule = gain_schedule(
-        config,
-        request.rule,
-        request.control_period,
-        request.closed_loop_time,
-        T_range=request.T_range,
-        band_width=request.band_width,
-        ms_target=request.ms_target,
-        flow_bands=request.flow_bands,
-        anchor=anchor,
-    )
+    announce(progress, SCHEDULE)
+    with single_threaded_blas():
+        schedule = gain_schedule(
+            config,
+            request.rule,
+            request.control_period,
+            request.closed_loop_time,
+            T_range=request.T_range,
+            band_width=request.band_width,
+            ms_target=request.ms_target,
+            flow_bands=request.flow_bands,
+            anchor=anchor,
+        )
     return ScheduleOutcome(request=request, u=u, schedule=schedule)
