@@ -98,19 +98,13 @@ def plant_cases(
     """
     k_ratio = t_ratio = 1.0
     if anchor is not None:
-        ref = linearise(config, anchor.u, anchor.T_fuel).equivalent_model()
-        k_ratio = anchor.model.K / ref.model.K
-        t_ratio = anchor.model.T / ref.model.T
+        _, ref = _linearised(config, anchor.T_fuel, anchor.u, cache)
+        k_ratio = anchor.model.K / ref.K
+        t_ratio = anchor.model.T / ref.T
     cases = []
     for T_fuel in T_fuels:
         for u in commands_V:
-            key = (round(float(T_fuel), 9), round(float(u), 9))
-            if cache is None or key not in cache:
-                linear = linearise(config, u, T_fuel)
-                found = (linear, linear.equivalent_model().model)
-                if cache is not None:
-                    cache[key] = found
-            linear, model = cache[key] if cache is not None else found
+            linear, model = _linearised(config, T_fuel, u, cache)
             if anchor is not None:
                 model = replace(anchor.model, K=model.K * k_ratio, T=model.T * t_ratio)
             cases.append(
@@ -124,6 +118,20 @@ def plant_cases(
                 )
             )
     return cases
+
+
+def _linearised(
+    config: PlantConfig, T_fuel: float, u: float, cache: CaseCache | None
+) -> tuple[LinearPlant, ProcessModel]:
+    """The plant linearised at ``T_fuel`` [K] and ``u`` [V] and its reduced model, cached."""
+    key = (round(float(T_fuel), 9), round(float(u), 9))
+    if cache is not None and key in cache:
+        return cache[key]
+    linear = linearise(config, u, T_fuel)
+    found = (linear, linear.equivalent_model().model)
+    if cache is not None:
+        cache[key] = found
+    return found
 
 
 @dataclass(frozen=True)

@@ -210,6 +210,7 @@ def gain_schedule(
     flow_split: float = 0.10,
     anchor: Anchor | None = None,
     y_span: float | None = None,
+    cache: CaseCache | None = None,
 ) -> GainSchedule:
     """Gains per fuel-temperature band, split by flow where the gain depends on the flow.
 
@@ -241,6 +242,9 @@ def gain_schedule(
     y_span : float, optional
         Measurement span of the percent-of-span gains [L/min] (default: the meter's span); the
         output span is the drive's signal range [V].
+    cache : dict, optional
+        Linearised plant cases by (T_fuel, u), shared with a temperature check of the same call
+        so that no case is linearised twice.
 
     When every band's Kc and Ti agree within :data:`SINGLE_SET_TOLERANCE`, the most cautious of
     them (the lowest Kc, with its Ti) is checked on every band's cases; if it meets the target
@@ -256,7 +260,7 @@ def gain_schedule(
     u_lo, u_hi = config.vfd.u_min_V, config.vfd.u_max_V
     bands: list[ScheduleBand] = []
     every_case: dict[tuple[float, float], PlantCase] = {}
-    cache: CaseCache = {}
+    cache = {} if cache is None else cache  # shared with the temperature check when given
     for T_low, T_high in itertools.pairwise(edges):
         temps = (float(T_low), 0.5 * float(T_low + T_high), float(T_high))
         probe = plant_cases(config, temps, (u_lo, 0.5 * (u_lo + u_hi), u_hi), anchor, cache)

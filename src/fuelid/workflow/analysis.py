@@ -28,7 +28,7 @@ from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, ide
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, check_gain_identified
 from fuelid.plant.config import PlantConfig
-from fuelid.tuning.cases import DEFAULT_T_RANGE, FixedPIEvaluation
+from fuelid.tuning.cases import DEFAULT_T_RANGE, CaseCache, FixedPIEvaluation
 from fuelid.tuning.closedloop import ClosedLoopResult
 from fuelid.tuning.frequency import frequency_grid, loop_function
 from fuelid.tuning.result import UNITS, TuningResult
@@ -207,9 +207,10 @@ def _analyse(
     check_gain_identified(chosen.model.K, chosen.stderr.get("K"), f"{settings.tune_from} fit")
     u_op = float(np.clip(np.mean(data.u), config.vfd.u_min_V, config.vfd.u_max_V))
     request = settings.tune_request(chosen.model, u_op)
-    outcome = tune_model(config, request, progress)
+    cache: CaseCache = {}  # the check and the schedule share linearisations
+    outcome = tune_model(config, request, progress, cache)
     warnings.extend(f"tuning: {w}" for w in outcome.warnings)
-    schedule = schedule_gains(config, request, progress).schedule
+    schedule = schedule_gains(config, request, progress, cache).schedule
     announce(progress, DIAGNOSTICS)
     fitted = chosen.time < (chosen.split_time if chosen.split_time is not None else math.inf)
     residuals = chosen.y[fitted] - chosen.y_hat[fitted]

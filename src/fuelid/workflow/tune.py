@@ -22,6 +22,7 @@ from fuelid.plant.config import PlantConfig
 from fuelid.tuning.cases import (
     DEFAULT_T_RANGE,
     Anchor,
+    CaseCache,
     FixedPIEvaluation,
     evaluate_fixed,
     plant_cases,
@@ -146,6 +147,7 @@ def check_over_temperature(
     T_range: tuple[float, float],
     band_width: float,
     u: float,
+    cache: CaseCache | None = None,
 ) -> FixedPIEvaluation:
     """One PI over the temperatures ``T_range`` [K] in steps of ``band_width`` [K].
 
@@ -154,7 +156,7 @@ def check_over_temperature(
     """
     temperatures = tuple(float(T) for T in band_edges(T_range[0], T_range[1], band_width))
     commands = (config.vfd.u_min_V, u, config.vfd.u_max_V)
-    return evaluate_fixed(pi, plant_cases(config, temperatures, commands, anchor))
+    return evaluate_fixed(pi, plant_cases(config, temperatures, commands, anchor, cache))
 
 
 @dataclass(frozen=True)
@@ -197,7 +199,10 @@ class TuneOutcome:
 
 
 def tune_model(
-    config: PlantConfig, request: TuneRequest, progress: Progress | None = None
+    config: PlantConfig,
+    request: TuneRequest,
+    progress: Progress | None = None,
+    cache: CaseCache | None = None,
 ) -> TuneOutcome:
     """Tune ``request.model`` and check the gains: the chain behind ``fuelid tune``.
 
@@ -222,6 +227,8 @@ def tune_model(
         What to tune and check; its ``model`` must be given.
     progress : callable, optional
         Called with each stage's name as it starts (:mod:`fuelid.workflow.progress`).
+    cache : dict, optional
+        Linearisations by (T_fuel, u), shared with a :func:`schedule_gains` of the same call.
 
     Returns
     -------
@@ -230,11 +237,15 @@ def tune_model(
     if request.model is None:
         raise FuelidError("tuning needs a model (TuneRequest.model)")
     with single_threaded_blas():
-        return _tune_model(config, request, request.model, progress)
+        return _tune_model(config, request, request.model, progress, cache)
 
 
 def _tune_model(
-    config: PlantConfig, request: TuneRequest, model: ProcessModel, progress: Progress | None
+    config: PlantConfig,
+    request: TuneRequest,
+    model: ProcessModel,
+    progress: Progress | None,
+    cache: CaseCache | None,
 ) -> TuneOutcome:
     announce(progress, TUNING)
     u, y_span = operating_command(config, request.u), request.flow_span(config)
@@ -245,7 +256,7 @@ def _tune_model(
     anchor = Anchor(model, request.T_fuel, u)
     announce(progress, TEMPERATURE_CHECK)
     check = check_over_temperature(
-        config, tuning.pi, anchor, request.T_range, request.band_width, u
+        config, tuning.pi, anchor, request.T_range, request.band_width, u, cache
     )
     runs = []
     if request.simulate:
@@ -292,7 +303,10 @@ class ScheduleOutcome:
 
 
 def schedule_gains(
-    config: PlantConfig, request: TuneRequest, progress: Progress | None = None
+    config: PlantConfig,
+    request: TuneRequest,
+    progress: Progress | None = None,
+    cache: CaseCache | None = None,
 ) -> ScheduleOutcome:
     """Gains per fuel-temperature (and flow) band: the chain behind ``fuelid tune --schedule``.
 
@@ -315,5 +329,6 @@ def schedule_gains(
             ms_target=request.ms_target,
             flow_bands=request.flow_bands,
             anchor=anchor,
+            cache=cache,
         )
     return ScheduleOutcome(request=request, u=u, schedule=schedule)
