@@ -92,3 +92,18 @@ def test_report_json_stays_one_object_on_stdout(
     assert payload["report"] == str(out)
     if terminal == "0":
         assert all(line.startswith("warning: ") for line in result.stderr.splitlines())
+
+
+@pytest.mark.parametrize("terminal", ["0", "1"])
+@pytest.mark.parametrize("extra", [[], ["--schedule"]])
+def test_tune_json_stays_one_object_on_stdout(
+    terminal: str, extra: list[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # the same spinner as report's runs around tune's stages; stdout keeps exactly one object
+    monkeypatch.setenv("TTY_COMPATIBLE", terminal)
+    args = ["tune", "--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2", "--json"]
+    result = CliRunner().invoke(app, [*args, *extra, "--band-width", "35", "--flow-bands", "1"])
+    assert result.exit_code == 0, result.stderr
+    payload, end = json.JSONDecoder().raw_decode(result.stdout)
+    assert result.stdout[end:] == "\n"
+    assert "units" in payload

@@ -15,7 +15,8 @@ import hashlib
 import json
 import math
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, ParamSpec, TypeVar
 
@@ -286,3 +287,37 @@ def read_log(
         input_scale=parse_scale(input_scale) if input_scale else None,
         output_scale=parse_scale(output_scale) if output_scale else None,
     )
+
+
+@contextmanager
+def progress_display() -> Iterator[Callable[[str], None]]:
+    """A spinner on stderr with the current stage and the time it has taken so far.
+
+    Shown only when stderr is a terminal, and gone when the block ends, so stdout (the JSON of
+    ``--json``) and a redirected stderr see nothing of it. Yields the workflow's ``progress``
+    callback (:mod:`fuelid.workflow.progress`).
+    """
+    from rich.console import Console
+
+    console = Console(stderr=True)
+    if not console.is_terminal:
+        yield lambda stage: None
+        return
+    from rich.progress import Progress, SpinnerColumn, TaskID, TextColumn, TimeElapsedColumn
+
+    display = Progress(
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        console=console,
+        transient=True,
+    )
+    tasks: list[TaskID] = []
+
+    def stage(name: str) -> None:
+        for task in tasks:  # one line: the stage that runs now
+            display.remove_task(task)
+        tasks[:] = [display.add_task(f"{name}…", total=None)]
+
+    with display:
+        yield stage

@@ -8,8 +8,6 @@ command runs. While it works, a spinner on stderr (a terminal only) names the cu
 from __future__ import annotations
 
 import enum
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -36,6 +34,7 @@ from fuelid.cli._common import (
     emit_json,
     file_sha256,
     guarded,
+    progress_display,
     provenance,
     read_log,
     temperature_options,
@@ -126,12 +125,12 @@ def report_command(
     )
     plant = load_plant_config(config)
     data = read_log(file, time_col, input_col, output_col, sample_time, input_scale, output_scale)
-    with _stages() as stage:
+    with progress_display() as stage:
         analysis = analyse_log(data, plant, settings, progress=stage)
     for message in analysis.warnings:
         warn(message)
     digest = file_sha256(file)
-    with _stages() as stage:
+    with progress_display() as stage:
         stage("figures")
         written = write_report(analysis, out, overwrite=force, source_sha256=digest)
     if as_json:
@@ -161,40 +160,6 @@ def report_command(
         emit_json(paths | analysis.to_json() | provenance(options, file))
         return
     _print_summary(analysis, written)
-
-
-@contextmanager
-def _stages() -> Iterator[Callable[[str], None]]:
-    """A spinner on stderr with the current stage and the time it has taken so far.
-
-    Shown only when stderr is a terminal, and gone when the block ends, so stdout (the JSON of
-    ``--json``) and a redirected stderr see nothing of it. Yields the workflow's ``progress``
-    callback (:mod:`fuelid.workflow.progress`).
-    """
-    from rich.console import Console
-
-    console = Console(stderr=True)
-    if not console.is_terminal:
-        yield lambda stage: None
-        return
-    from rich.progress import Progress, SpinnerColumn, TaskID, TextColumn, TimeElapsedColumn
-
-    display = Progress(
-        SpinnerColumn(),
-        TextColumn("{task.description}"),
-        TimeElapsedColumn(),
-        console=console,
-        transient=True,
-    )
-    tasks: list[TaskID] = []
-
-    def stage(name: str) -> None:
-        for task in tasks:  # one line: the stage that runs now
-            display.remove_task(task)
-        tasks[:] = [display.add_task(f"{name}…", total=None)]
-
-    with display:
-        yield stage
 
 
 def _print_summary(analysis: LogAnalysis, written: list[Path]) -> None:

@@ -30,6 +30,7 @@ from fuelid.cli._common import (
     closed_loop_time,
     emit_json,
     guarded,
+    progress_display,
     provenance,
     temperature_options,
     warn,
@@ -222,7 +223,8 @@ def tune_command(
         "sweep": sweep,
     }
     if schedule:
-        table = schedule_gains(plant, request)
+        with progress_display() as stage:
+            table = schedule_gains(plant, request, progress=stage)
         # the %/% column uses --flow-span as the single gains do (the meter's span by default)
         table = replace(table, schedule=replace(table.schedule, y_span=request.flow_span(plant)))
         options["u"] = table.u
@@ -235,7 +237,8 @@ def tune_command(
         else:
             _print_schedule(table)
         return
-    outcome = tune_model(plant, request)
+    with progress_display() as stage:
+        outcome = tune_model(plant, request, progress=stage)
     options["u"] = outcome.u
     for message in outcome.warnings:
         warn(message)
