@@ -182,3 +182,12 @@ def test_guarded_commands_run_with_blas_on_one_thread(monkeypatch: pytest.Monkey
     assert entered == ["in", "out"]
     assert threads
     assert set(threads) == {1}
+
+
+@pytest.mark.parametrize("command", ["report", "simulate"])
+def test_report_and_simulate_usage_name_the_log(command: str) -> None:
+    result = runner.invoke(app, [command, "--help"])
+    assert result.exit_code == 0
+    usage = result.stdout.splitlines()[0]
+    assert "LOG" in usage
+    assert "{file}" not in usage and "{output}" not in usage

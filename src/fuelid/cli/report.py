@@ -54,7 +54,9 @@ class TuneFrom(enum.StrEnum):
 
 @guarded
 def report_command(
-    file: Annotated[Path, typer.Argument(help="PLC log: CSV (any of , ; tab) or Parquet.")],
+    file: Annotated[
+        Path, typer.Argument(metavar="LOG", help="PLC log: CSV (any of , ; tab) or Parquet.")
+    ],
     out: Annotated[
         Path, typer.Option("--out", "-o", help="The HTML report; its figures go beside it.")
     ] = Path("report.html"),

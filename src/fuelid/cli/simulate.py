@@ -46,7 +46,8 @@ def _levels(text: str) -> tuple[float, ...]:
 @guarded
 def simulate_command(
     output: Annotated[
-        Path, typer.Argument(help="Log to write: .csv or .parquet (format by extension).")
+        Path,
+        typer.Argument(metavar="LOG", help="Log to write: .csv or .parquet (format by extension)."),
     ],
     config: Annotated[
         Path | None,
