@@ -190,4 +190,5 @@ def test_report_and_simulate_usage_name_the_log(command: str) -> None:
     assert result.exit_code == 0
     usage = result.stdout.splitlines()[0]
     assert "LOG" in usage
-    assert "{file}" not in usage and "{output}" not in usage
+    assert "{file}" not in usage
+    assert "{output}" not in usage
