@@ -159,22 +159,36 @@ def steady_state_errors(
     return out
 
 
-def sample_time_advice(settling_time: float, sample_time: float) -> str | None:
+def sample_time_advice(
+    settling_time: float, sample_time: float, raw_sample_time: float | None = None
+) -> str | None:
     """Advice when the settling time spans too few or very many samples (None when fine).
 
     Below 20 samples per settling time the samples resolve the response poorly (the article's
-    1 s period gives only 5–6 for the fuel loop, one reason to fit the raw PLC samples); above
-    5000 decimating with anti-alias filtering fits as well and faster (docs/identification.md
-    §5, the sample-time check).
+    1 s period gives only 5–6 for the fuel loop); the advice then depends on where the samples
+    came from: decimated data (``raw_sample_time`` shorter than ``sample_time``) are better fitted
+    raw, with the output-error fit; a log that is already that coarse must be logged faster.
+    Above 5000 decimating with anti-alias filtering fits as well and faster
+    (docs/identification.md §5, the sample-time check).
+
+    Examples
+    --------
+    >>> sample_time_advice(5.3, 1.0, 0.02).split(": ")[1]
+    'fit the raw samples (every 0.02 s) with the output-error method'
+    >>> sample_time_advice(5.3, 1.0, 1.0).split(": ")[1]
+    'the log itself is that coarse; log faster (0.02 s is typical for a PLC)'
+    >>> sample_time_advice(5.3, 0.02) is None
+    True
     """
     if not (math.isfinite(settling_time) and settling_time > 0.0):
         return None
     per_settle = settling_time / sample_time
     if per_settle < 20:
-        return (
-            f"the settling time ({settling_time:.3g} s) spans only {per_settle:.1f} samples: "
-            "fit the raw PLC samples (e.g. 0.02 s) rather than decimated data"
-        )
+        head = f"the settling time ({settling_time:.3g} s) spans only {per_settle:.1f} samples"
+        raw = sample_time if raw_sample_time is None else raw_sample_time
+        if raw < sample_time * (1.0 - 1e-9):
+            return f"{head}: fit the raw samples (every {raw:g} s) with the output-error method"
+        return f"{head}: the log itself is that coarse; log faster (0.02 s is typical for a PLC)"
     if per_settle > 5000:
         return (
             f"the settling time spans {per_settle:.0f} samples: decimating (with anti-alias "

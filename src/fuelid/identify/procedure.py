@@ -190,6 +190,32 @@ def _split(data: IOData, fraction: float | None) -> tuple[IOData, int]:
     return data.segment(0, n_fit), n_fit
 
 
+def _unmodelled_dynamics(p_value: float, options: IdentifyOptions, delay: float | None) -> str:
+    """The input-correlation warning, suggesting only structures this fit did not already try.
+
+    Examples
+    --------
+    >>> _unmodelled_dynamics(1e-9, IdentifyOptions(order=1, delay=0.2), 0.2).split(": ")[1]
+    'unmodelled dynamics; a second lag (order 2) or an estimated dead time may fit better'
+    >>> "nonlinearity" in _unmodelled_dynamics(1e-9, IdentifyOptions(order=2), None)
+    True
+    """
+    untried = []
+    if options.method == "oe" and options.order == 1:
+        untried.append("a second lag (order 2)")
+    if options.method == "oe" and delay is not None:
+        untried.append("an estimated dead time")
+    head = f"residuals correlate with past inputs (p = {p_value:.2g})"
+    if untried:
+        return f"{head}: unmodelled dynamics; {' or '.join(untried)} may fit better"
+    return (
+        f"{head}: the model structure already has "
+        + ("a second lag and an estimated dead time" if options.method == "oe" else "its prior")
+        + ", so the cause is more likely a nonlinearity (the gain changing with the operating "
+        "point) or coloured noise"
+    )
+
+
 def _no_excitation(u: FloatArray, what: str) -> str | None:
     """Why ``u`` cannot validate a model (its command never moves), or None.
 
@@ -384,14 +410,11 @@ def _identify(
             "open-loop steps)"
         )
     elif not cross.passed:
-        warnings.append(
-            f"residuals correlate with past inputs (p = {cross.p_value:.2g}): unmodelled "
-            "dynamics, try --order 2 or --delay auto"
-        )
+        warnings.append(_unmodelled_dynamics(cross.p_value, options, delay))
     no_gain = gain_not_identified(model.K, stderr.get("K"))
     if no_gain:
         warnings.append(f"{no_gain} in this log; do not tune from it")
-    advice = diagnostics.sample_time_advice(settle, work.sample_time)
+    advice = diagnostics.sample_time_advice(settle, work.sample_time, data.sample_time)
     if advice:
         warnings.append(advice)
     return IdentificationResult(

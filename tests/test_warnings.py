@@ -1,0 +1,32 @@
+"""Warnings that are true where they are shown, with advice that applies (issue: cry-wolf warnings).
+
+The data come from the model family, so what the warning should say is known.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fuelid.identify.procedure import IdentifyOptions, identify
+from fuelid.io.timeseries import IOData
+from fuelid.model import ProcessModel, simulate_model
+
+H = 0.02
+
+
+def _log(truth: ProcessModel, levels: list[float], dwell: float) -> IOData:
+    u = np.repeat(levels, round(dwell / H))
+    y = 40.0 + simulate_model(truth, u, H) + np.random.default_rng(0).normal(0, 0.01, u.size)
+    return IOData(u, y, H)
+
+
+def test_step_ls_on_a_raw_log_points_to_the_output_error_fit_on_those_samples() -> None:
+    # the article's method decimates a 0.02 s log to 1 s: the advice must name the raw samples
+    # the user already has and the method that fits them, not "fit the raw samples (e.g. 0.02 s)"
+    truth = ProcessModel(K=13.5, T=1.3, T_f=0.3, delay=0.2)
+    data = _log(truth, [1.0, 1.5, 1.2, 1.8, 1.3, 1.6], 30.0)
+    result = identify(data, IdentifyOptions(method="step-ls", flowmeter_T=0.3, delay=0.2, N=8))
+    advice = [w for w in result.warnings if "settling time" in w and "samples" in w]
+    assert advice, result.warnings
+    assert "fit the raw samples (every 0.02 s) with the output-error method" in advice[0]
+    assert "e.g." not in advice[0]
