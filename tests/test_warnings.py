@@ -30,3 +30,24 @@ def test_step_ls_on_a_raw_log_points_to_the_output_error_fit_on_those_samples() 
     assert advice, result.warnings
     assert "fit the raw samples (every 0.02 s) with the output-error method" in advice[0]
     assert "e.g." not in advice[0]
+
+
+def test_report_says_each_load_note_once(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import json
+
+    from typer.testing import CliRunner
+
+    from fuelid.cli import app
+
+    log = tmp_path / "semi.csv"
+    truth = ProcessModel(K=13.5, T=1.3, T_f=0.3, delay=0.2)
+    data = _log(truth, [1.0, 2.0, 1.5, 3.0], 30.0)
+    t = np.arange(data.n_samples) * H
+    rows = zip(t, data.u, data.y, strict=True)
+    log.write_text("t_s;u_V;q_Lpm\n" + "\n".join(f"{a:.2f};{b:.4f};{c:.4f}" for a, b, c in rows))
+    args = ["report", str(log), "--out", str(tmp_path / "r.html"), "--json"]
+    result = CliRunner().invoke(app, [*args, "--band-width", "35", "--flow-bands", "1"])
+    assert result.exit_code == 0, result.stderr
+    warnings = json.loads(result.stdout)["warnings"]
+    notes = [w for w in warnings if "columns separated by ';'" in w]
+    assert notes == ["log: columns separated by ';'"]

@@ -201,18 +201,21 @@ def _unmodelled_dynamics(p_value: float, options: IdentifyOptions, delay: float 
     True
     """
     untried = []
-    if options.method == "oe" and options.order == 1:
+    if options.order == 1:
         untried.append("a second lag (order 2)")
-    if options.method == "oe" and delay is not None:
+    if delay is not None:
         untried.append("an estimated dead time")
     head = f"residuals correlate with past inputs (p = {p_value:.2g})"
+    if options.method != "oe":
+        return (
+            f"{head}: unmodelled dynamics or a nonlinearity; the article's method has a fixed "
+            "structure, the output-error fit (method oe) can try a second lag and a free delay"
+        )
     if untried:
         return f"{head}: unmodelled dynamics; {' or '.join(untried)} may fit better"
     return (
-        f"{head}: the model structure already has "
-        + ("a second lag and an estimated dead time" if options.method == "oe" else "its prior")
-        + ", so the cause is more likely a nonlinearity (the gain changing with the operating "
-        "point) or coloured noise"
+        f"{head}: the fit already has a second lag and an estimated dead time, so the cause is "
+        "more likely a nonlinearity (the gain changing with the operating point) or coloured noise"
     )
 
 

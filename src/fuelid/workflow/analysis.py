@@ -198,11 +198,12 @@ def _analyse(
         settings.T_fuel,
     )
     identifications: dict[str, IdentificationResult] = {}
-    warnings: list[str] = []
+    # what the loader noticed is said once, not once per method
+    warnings: list[str] = [f"log: {note}" for note in data.notes]
     for method in METHODS:
         result = identify(data, replace(base, method=method))
         identifications[method] = result
-        warnings.extend(f"{method}: {w}" for w in result.warnings)
+        warnings.extend(f"{method}: {w}" for w in result.warnings if w not in data.notes)
     chosen = identifications[settings.tune_from]
     check_gain_identified(chosen.model.K, chosen.stderr.get("K"), f"{settings.tune_from} fit")
     u_op = float(np.clip(np.mean(data.u), config.vfd.u_min_V, config.vfd.u_max_V))
