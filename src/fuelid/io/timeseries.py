@@ -8,7 +8,8 @@ units. At the file edge the columns carry their unit as a suffix: ``t_s``, ``u_V
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from itertools import pairwise
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -122,6 +123,15 @@ class IOData:
         Where the data came from (file name), for messages.
     notes : tuple of str
         What loading and preprocessing did or noticed (warnings to pass on to the user).
+    segment_starts : tuple of int
+        Indices of the samples that begin a new segment after a gap in the log (strictly
+        increasing, each in 1 … n−1); empty for one contiguous record. The samples of all
+        segments are concatenated in ``u`` and ``y``; nothing is interpolated across a gap.
+    segment_t0 : tuple of float
+        Time [s] of each sample in ``segment_starts`` (same length); within a segment sample k is
+        ``h`` after sample k−1.
+    T_fuel : array, optional
+        Fuel temperature per sample [K], when the log has a fuel-temperature column.
 
     Examples
     --------
@@ -138,6 +148,9 @@ class IOData:
     y_unit: str = "L/min"
     source: str = ""
     notes: tuple[str, ...] = ()
+    segment_starts: tuple[int, ...] = ()
+    segment_t0: tuple[float, ...] = ()
+    T_fuel: FloatArray | None = None
 
     def __post_init__(self) -> None:
         u = np.asarray(self.u, dtype=float)
@@ -150,6 +163,20 @@ class IOData:
             raise DataError(f"sample time must be positive, got {self.sample_time}")
         if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
             raise DataError("input and output must be finite")
+        starts = tuple(int(i) for i in self.segment_starts)
+        object.__setattr__(self, "segment_starts", starts)
+        object.__setattr__(self, "segment_t0", tuple(float(t) for t in self.segment_t0))
+        if len(starts) != len(self.segment_t0):
+            raise DataError("every segment start needs its time (segment_t0)")
+        if starts and not (
+            starts[0] > 0 and starts[-1] < u.size and all(a < b for a, b in pairwise(starts))
+        ):
+            raise DataError("segment starts must increase strictly inside the record")
+        if self.T_fuel is not None:
+            T_fuel = np.asarray(self.T_fuel, dtype=float)
+            if T_fuel.shape != u.shape:
+                raise DataError("the fuel temperature must have one value per sample")
+            object.__setattr__(self, "T_fuel", T_fuel)
 
     @property
     def n_samples(self) -> int:
@@ -158,31 +185,52 @@ class IOData:
 
     @property
     def t(self) -> FloatArray:
-        """Sample times [s]."""
-        return self.t0 + self.sample_time * np.arange(self.u.size, dtype=np.float64)
+        """Sample times [s] (jumping across the gaps between segments)."""
+        k = np.arange(self.u.size, dtype=np.float64)
+        t = self.t0 + self.sample_time * k
+        for start, t_start in zip(self.segment_starts, self.segment_t0, strict=True):
+            t[start:] = t_start + self.sample_time * (k[start:] - start)
+        return t
+
+    @property
+    def n_segments(self) -> int:
+        """Number of contiguous segments (1 for a record without gaps)."""
+        return len(self.segment_starts) + 1
+
+    def segment_bounds(self) -> list[tuple[int, int]]:
+        """``(start, stop)`` sample indices of each contiguous segment, in order."""
+        edges = (0, *self.segment_starts, self.n_samples)
+        return list(pairwise(edges))
+
+    def segments(self) -> list[IOData]:
+        """The contiguous segments as records of their own (``[self]`` without gaps)."""
+        if not self.segment_starts:
+            return [self]
+        return [self.segment(start, stop) for start, stop in self.segment_bounds()]
 
     def segment(self, start: int, stop: int | None = None) -> IOData:
-        """Samples ``start:stop`` as a new record (time origin kept)."""
+        """Samples ``start:stop`` as a new record (times kept, gaps inside it kept)."""
+        begin, end, _ = slice(start, stop).indices(self.n_samples)
+        t = self.t
+        inside = [
+            (i - begin, t_i)
+            for i, t_i in zip(self.segment_starts, self.segment_t0, strict=True)
+            if begin < i < end
+        ]
         return IOData(
-            u=self.u[start:stop],
-            y=self.y[start:stop],
+            u=self.u[begin:end],
+            y=self.y[begin:end],
             sample_time=self.sample_time,
-            t0=self.t0 + start * self.sample_time,
+            t0=float(t[begin]) if end > begin else self.t0,
             u_unit=self.u_unit,
             y_unit=self.y_unit,
             source=self.source,
             notes=self.notes,
+            segment_starts=tuple(i for i, _ in inside),
+            segment_t0=tuple(t_i for _, t_i in inside),
+            T_fuel=None if self.T_fuel is None else self.T_fuel[begin:end],
         )
 
     def with_notes(self, *notes: str) -> IOData:
         """The same record with more notes."""
-        return IOData(
-            self.u,
-            self.y,
-            self.sample_time,
-            self.t0,
-            self.u_unit,
-            self.y_unit,
-            self.source,
-            self.notes + notes,
-        )
+        return replace(self, notes=self.notes + notes)
