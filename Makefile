@@ -24,16 +24,18 @@ $(STAMP): pyproject.toml | $(BIN)/python
 
 install: $(STAMP)
 
+REFERENCE_PLANT := src/fuelid/data/reference_plant.toml
+
 demo: $(STAMP)
 	$(BIN)/fuelid plant info --u 1.25
 	$(BIN)/python examples/demo.py --out $(DEMO_DIR)
 	$(BIN)/fuelid simulate $(DEMO_DIR)/random_binary.parquet --profile random --levels 1.0,2.0 \
 		--hold 5 --duration 600 --seed 7 --force --quiet
 	@echo "--- the same chain from the command line: identify to JSON, tune from it ---"
-	$(BIN)/fuelid identify $(DEMO_DIR)/step_sequence.csv --flowmeter-T 0.3 --flowmeter-delay 0.2 \
+	$(BIN)/fuelid identify $(DEMO_DIR)/step_sequence.csv --config $(REFERENCE_PLANT) \
 		--json > $(DEMO_DIR)/ident.json
-	$(BIN)/fuelid tune --model $(DEMO_DIR)/ident.json --rule simc --control-period 1 --simulate \
-		--plot $(DEMO_DIR)/tune_closed_loop.png --force
+	$(BIN)/fuelid tune --model $(DEMO_DIR)/ident.json --config $(REFERENCE_PLANT) --rule simc \
+		--control-period 1 --simulate --plot $(DEMO_DIR)/tune_closed_loop.png --force
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples

@@ -19,7 +19,14 @@ from fuelid.model import ProcessModel
 from fuelid.plant import load_plant_config
 from fuelid.profiles import step_sequence
 from fuelid.simulate import simulate
-from fuelid.workflow import AnalysisSettings, TuneRequest, analyse_log, schedule_gains, tune_model
+from fuelid.workflow import (
+    AnalysisSettings,
+    PlantSource,
+    TuneRequest,
+    analyse_log,
+    schedule_gains,
+    tune_model,
+)
 from fuelid.workflow.progress import (
     ANALYSIS_STAGES,
     RUNS,
@@ -45,7 +52,10 @@ def test_analyse_log_names_every_stage_in_order(
 ) -> None:
     seen: list[str] = []
     analysis = analyse_log(
-        load_log(short_log), CONFIG, AnalysisSettings(band_width=35.0, flow_bands=1), seen.append
+        load_log(short_log),
+        PlantSource(CONFIG, "reference_plant.toml"),
+        AnalysisSettings(band_width=35.0, flow_bands=1),
+        seen.append,
     )
     assert seen == list(ANALYSIS_STAGES)
     assert analysis.schedule.bands

@@ -10,6 +10,7 @@ from __future__ import annotations
 import base64
 import json
 import re
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +27,7 @@ from fuelid.profiles import step_sequence
 from fuelid.simulate import simulate
 from fuelid.tuning.frequency import robustness
 from fuelid.units import celsius_to_kelvin
-from fuelid.workflow import AnalysisSettings, LogAnalysis, analyse_log
+from fuelid.workflow import AnalysisSettings, LogAnalysis, PlantSource, analyse_log
 
 runner = CliRunner()
 LEVELS = [1.0, 1.5, 2.5, 2.0, 3.5, 3.0, 1.5]
@@ -43,8 +44,18 @@ def log_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def analysis(log_path: Path) -> LogAnalysis:
-    return analyse_log(load_log(log_path), load_plant_config(), SETTINGS)
+def plant_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The log is simulated on the reference plant, so its plant file is the user's here."""
+    text = resources.files("fuelid.data").joinpath("reference_plant.toml").read_text("utf-8")
+    path = tmp_path_factory.mktemp("plant") / "plant.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="module")
+def analysis(log_path: Path, plant_file: Path) -> LogAnalysis:
+    plant = PlantSource(load_plant_config(plant_file), str(plant_file))
+    return analyse_log(load_log(log_path), plant, SETTINGS)
 
 
 def test_both_methods_find_the_plant_gain_over_the_levels_visited(analysis: LogAnalysis):
@@ -150,11 +161,26 @@ def test_settings_are_validated():
 
 
 def test_cli_report_json(
-    log_path: Path, tmp_path: Path, analysis: LogAnalysis, capsys: pytest.CaptureFixture[str]
+    log_path: Path,
+    plant_file: Path,
+    tmp_path: Path,
+    analysis: LogAnalysis,
+    capsys: pytest.CaptureFixture[str],
 ):
     out = tmp_path / "r.html"
     result = runner.invoke(
-        app, ["report", str(log_path), "--out", str(out), "--band-width", "35", "--json"]
+        app,
+        [
+            "report",
+            str(log_path),
+            "--out",
+            str(out),
+            "--band-width",
+            "35",
+            "--config",
+            str(plant_file),
+            "--json",
+        ],
     )
     assert result.exit_code == 0, result.stderr
     data = json.loads(result.stdout)
@@ -178,8 +204,14 @@ def test_cli_report_json(
     )
     assert set(data["identification"]) == {"step-ls", "oe"}
     m = data["tuning"]["model"]
-    T1, theta = m["T"] + m["T_f"] / 2, m["delay"] + m["T_f"] / 2 + 0.5  # half rule, h/2 = 0.5 s
+    # the half rule: the largest lag kept, half the second to it and half to the dead time, the
+    # rest to the dead time; h/2 = 0.5 s for the sampled PI; SIMC's default tau_c = theta
+    lags = sorted((m["T"], m["T2"], m["T_f"]), reverse=True)
+    T1, theta = lags[0] + lags[1] / 2, m["delay"] + lags[1] / 2 + lags[2] + 0.5
     assert data["tuning"]["Kc"] == pytest.approx(T1 / (m["K"] * 2 * theta), rel=1e-9)
+    assert data["plant"]["source"] == "file"
+    assert data["priors"]["flowmeter_T"]["source"] == "plant file"
+    assert data["notices"] == []
     assert data["temperature_check"]["all_stable"] is True
     assert data["schedule"]["worst_Ms"] <= 1.7 + 1e-9
     # the command only adds the paths and the provenance to the workflow's JSON
@@ -218,3 +250,38 @@ def test_cli_report_bad_input(
     assert len(lines) == 1
     assert reason in lines[0]
     assert not list(tmp_path.iterdir())  # refused before anything was written
+
+
+def test_tune_from_the_reports_model_gives_the_reports_worst_case(
+    log_path: Path, plant_file: Path, tmp_path: Path
+):
+    # the operating point travels with the model: tune --model anchors its temperature check
+    # at the log's command and fuel temperature, as the report did, so the worst Ms agrees
+    out = tmp_path / "r.html"
+    common = ["--config", str(plant_file), "--band-width", "35", "--json"]
+    report = runner.invoke(app, ["report", str(log_path), "--out", str(out), *common])
+    assert report.exit_code == 0, report.stderr
+    data = json.loads(report.stdout)
+    point = data["operating_point"]
+    assert point["u"] == pytest.approx(float(np.mean(LEVELS)), abs=0.1)
+    model_file = tmp_path / "oe.json"
+    model_file.write_text(
+        json.dumps(data["identification"]["oe"] | {"operating_point": point}), encoding="utf-8"
+    )
+    tuned = runner.invoke(app, ["tune", "--model", str(model_file), *common])
+    assert tuned.exit_code == 0, tuned.stderr
+    check = json.loads(tuned.stdout)["temperature_check"]
+    assert check["worst_Ms"] == pytest.approx(data["temperature_check"]["worst_Ms"], rel=1e-9)
+    assert [c["u"] for c in check["cases"]][1] == pytest.approx(point["u"])
+
+
+def test_report_without_a_plant_file_says_so_and_assumes_no_meter(log_path: Path, tmp_path: Path):
+    out = tmp_path / "r.html"
+    result = runner.invoke(app, ["report", str(log_path), "--out", str(out), "--band-width", "35"])
+    assert result.exit_code == 0, result.stderr
+    assert "built-in reference plant" in result.stdout
+    assert "built-in reference plant" in result.stderr
+    page = out.read_text(encoding="utf-8")
+    assert 'id="notices"' in page
+    assert "not given" in page  # the priors table: no meter lag assumed
+    assert "Closed loop on the nonlinear plant" not in page

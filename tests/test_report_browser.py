@@ -26,7 +26,7 @@ from fuelid.plant import load_plant_config
 from fuelid.profiles import step_sequence
 from fuelid.simulate import simulate
 from fuelid.units import celsius_to_kelvin
-from fuelid.workflow import AnalysisSettings, analyse_log
+from fuelid.workflow import AnalysisSettings, PlantSource, analyse_log
 
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 WINDOW = (1280, 5000)
@@ -90,7 +90,7 @@ def report(browser: str, tmp_path_factory: pytest.TempPathFactory) -> Path:
     settings = AnalysisSettings(
         T_range=(celsius_to_kelvin(-20.0), celsius_to_kelvin(50.0)), band_width=35.0
     )
-    analysis = analyse_log(load_log(log), config, settings)
+    analysis = analyse_log(load_log(log), PlantSource(config, "reference_plant.toml"), settings)
     return write_report(analysis, folder / "report.html")[0]
 
 

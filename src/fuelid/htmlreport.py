@@ -28,12 +28,14 @@ from fuelid.plots import (
     plot_bode,
     plot_correlation_tests,
     plot_identification,
+    plot_linear_closed_loop,
     plot_log,
     runs_figure,
     schedule_figure,
 )
 from fuelid.units import kelvin_to_celsius
 from fuelid.workflow import LogAnalysis
+from fuelid.workflow.assumptions import gain_unit
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -67,7 +69,8 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
     overview = plot_log(
         TimeSeries(data.t, {"u_V": data.u, "q_Lpm": data.y}),
         f"{data.source or 'log'}: {data.n_samples} samples every {data.sample_time:g} s "
-        f"(fuel at {kelvin_to_celsius(s.T_fuel):g} °C as set for the analysis)",
+        f"(fuel at {kelvin_to_celsius(analysis.T_fuel):g} °C, "
+        f"{_fuel_temperature_origin(analysis)})",
     )
     oe = analysis.identifications["oe"]
     y_unit = f"({data.y_unit})" if "/" in data.y_unit else data.y_unit
@@ -119,12 +122,34 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
         f"loop L = C·G on the {chosen.method} model, "
         + (f"PI sampled every {s.control_period:g} s" if s.control_period > 0 else "continuous PI"),
     )
-    closed = runs_figure(
-        analysis.runs,
-        f"{analysis.tuning.pi.rule} gains on the nonlinear plant: setpoint step, then a "
-        "0.2 V load step at the drive input",
-        label="fuel at {} °C",
-    )
+    if analysis.runs:
+        closed = runs_figure(
+            analysis.runs,
+            f"{analysis.tuning.pi.rule} gains on the nonlinear plant: setpoint step, then a "
+            "0.2 V load step at the drive input",
+            label="fuel at {} °C",
+        )
+        closed_caption = (
+            "The same gains on the nonlinear plant of the plant file at the coldest and the "
+            "warmest fuel; the dashed lines are the drive's signal limits, the dash-dotted line "
+            "the load step."
+        )
+    else:
+        cl = analysis.tuning.closed_loop
+        pi = analysis.tuning.pi
+        closed = plot_linear_closed_loop(
+            cl.time,
+            cl.setpoint_response,
+            cl.setpoint_command,
+            cl.disturbance_response,
+            f"{pi.rule}: Kc = {pi.Kc:.4g} V/(L/min), Ti = {pi.Ti:.3g} s, Ms = {rob.Ms:.2f} on "
+            f"the identified {chosen.method} model",
+        )
+        closed_caption = (
+            "The gains on the identified model (linear closed loop): unit setpoint step and unit "
+            "load step. No plant file was given, so no run on a nonlinear plant: the built-in "
+            "reference plant is not your loop."
+        )
     schedule = schedule_figure(analysis.schedule)
     return {
         "overview": (overview, "The log: VFD command and measured flow."),
@@ -144,13 +169,40 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
             "Bode plot of the loop with the gain margin (in dB, at the phase crossover) and the "
             "phase margin (at the crossover) marked, and the sensitivity |S| whose peak is Ms.",
         ),
-        "closed_loop": (
-            closed,
-            "The same gains on the nonlinear plant at the coldest and the warmest fuel; the "
-            "dashed lines are the drive's 1–5 V limits, the dash-dotted line the load step.",
-        ),
+        "closed_loop": (closed, closed_caption),
         "schedule": (schedule, "Gains per fuel-temperature band (one line per flow band)."),
     }
+
+
+def _fuel_temperature_origin(analysis: LogAnalysis) -> str:
+    """Where the fuel temperature of the analysis came from, for the page."""
+    source = analysis.operating_point.T_fuel_source
+    if source == "log":
+        return "mean of the log's fuel-temperature column"
+    if source == "option":
+        return "as given with --fuel-temp"
+    return "assumed: the log has no fuel-temperature column and --fuel-temp was not given"
+
+
+def _priors_rows(priors: dict[str, Any]) -> list[dict[str, str]]:
+    """The identification's assumptions as table rows: what, value, where it came from."""
+    rows = []
+    for key, label, unit in (
+        ("flowmeter_T", "flowmeter lag T_f", "s"),
+        ("flowmeter_delay", "flowmeter dead time", "s"),
+        ("delay", "model dead time", "s"),
+        ("order", "process order", ""),
+    ):
+        entry = priors.get(key)
+        if not isinstance(entry, dict):
+            continue
+        value = entry.get("value")
+        shown = "–" if value is None else f"{value:.3g} {unit}".strip()
+        source = str(entry.get("source", ""))
+        if entry.get("note"):
+            source += f" ({entry['note']})"
+        rows.append({"what": label, "value": shown, "source": source})
+    return rows
 
 
 def _png(fig: Figure) -> bytes:
@@ -183,6 +235,7 @@ def _context(
                 "K_se": _fmt(d["stderr"]["K"], ".2g"),
                 "T": _fmt(r.model.T, ".3g"),
                 "T_se": _fmt(d["stderr"]["T"], ".2g"),
+                "T2": _fmt(r.model.T2, ".3g"),
                 "T_f": _fmt(r.model.T_f, ".3g"),
                 "delay": _fmt(r.model.delay, ".3g"),
                 "fit": _fmt(r.fit_percent, ".2f"),
@@ -233,8 +286,13 @@ def _context(
             "y_unit": data.y_unit,
             "notes": list(data.notes),
             "u_operating": _fmt(analysis.u_operating, ".3g"),
-            "fuel_temperature": _fmt(kelvin_to_celsius(s.T_fuel), "g"),
+            "fuel_temperature": _fmt(kelvin_to_celsius(analysis.T_fuel), "g"),
+            "fuel_temperature_origin": _fuel_temperature_origin(analysis),
         },
+        "notices": analysis.notices,
+        "plant": analysis.plant.to_json(),
+        "priors": _priors_rows(analysis.priors),
+        "gain_unit": gain_unit(data),
         "settings": s,
         "t_range": f"{kelvin_to_celsius(s.T_range[0]):g}…{kelvin_to_celsius(s.T_range[1]):g}",
         "identifications": rows_ident,

@@ -40,6 +40,17 @@ from fuelid.cli._common import (
     temperature_options,
     warn,
 )
+from fuelid.cli._identify_options import (
+    DEFAULT_ORDER,
+    DelayOption,
+    FlowmeterDelayOption,
+    FlowmeterTOption,
+    OrderOption,
+    StepsOption,
+    check_prior_times,
+    parse_delay,
+    parse_order,
+)
 
 if TYPE_CHECKING:
     from fuelid.workflow import LogAnalysis
@@ -68,11 +79,26 @@ def report_command(
         typer.Option(
             "--config",
             "-c",
-            help="Plant TOML: flowmeter priors, spans, temperature physics, the nonlinear plant "
-            "of the closed-loop runs (default: the reference plant).",
+            metavar="PLANT.toml",
+            help="Plant TOML of your loop: flowmeter priors, spans, temperature physics, the "
+            "nonlinear plant of the closed-loop runs (default: none; the checks then use the "
+            "built-in reference plant's physics, said on the page, and no nonlinear runs).",
             show_default=False,
         ),
     ] = None,
+    order: OrderOption = DEFAULT_ORDER,
+    delay: DelayOption = None,
+    flowmeter_T: FlowmeterTOption = None,
+    flowmeter_delay: FlowmeterDelayOption = None,
+    n_steps: StepsOption = None,
+    accept_signals: Annotated[
+        bool,
+        typer.Option(
+            "--accept-signals",
+            help="Tune even though the command or the flow lies outside the spans the gains are "
+            "computed for (an unscaled mA or counts column, a wrong unit): refused otherwise.",
+        ),
+    ] = False,
     method: Annotated[
         TuneFrom, typer.Option(help="Identification the gains come from (both are shown).")
     ] = TuneFrom.oe,
@@ -80,7 +106,14 @@ def report_command(
     tau_c: TauCOption = None,
     lam: LambdaOption = None,
     control_period: ControlPeriodOption = 1.0,
-    fuel_temp: Annotated[float, typer.Option(help="Fuel temperature during the log [°C].")] = 20.0,
+    fuel_temp: Annotated[
+        float | None,
+        typer.Option(
+            help="Fuel temperature during the log [°C] (default: the log's T_fuel_degC column, "
+            "else 20 °C, said in the report).",
+            show_default=False,
+        ),
+    ] = None,
     t_min: TMinOption = -20.0,
     t_max: TMaxOption = 50.0,
     band_width: BandWidthOption = 10.0,
@@ -108,28 +141,38 @@ def report_command(
     also written as PNG files beside the page (REPORT_overview.png, ...).
     """
     from fuelid.htmlreport import check_report_path, write_report
+    from fuelid.identify.procedure import IdentifyOptions
     from fuelid.plant import load_plant_config
-    from fuelid.workflow import AnalysisSettings, analyse_log
+    from fuelid.workflow import AnalysisSettings, PlantSource, analyse_log
 
     check_report_path(out, force)  # before any work: a typo must not cost a minute
-    T_fuel, T_range = temperature_options(fuel_temp, t_min, t_max)
+    T_fuel, T_range = temperature_options(20.0 if fuel_temp is None else fuel_temp, t_min, t_max)
+    check_prior_times(flowmeter_T, flowmeter_delay)
     settings = AnalysisSettings(
         tune_from="oe" if method is TuneFrom.oe else "step-ls",
         rule=rule.value,
         closed_loop_time=closed_loop_time(rule, tau_c, lam),
         control_period=control_period,
-        T_fuel=T_fuel,
+        T_fuel=None if fuel_temp is None else T_fuel,
+        identify=IdentifyOptions(
+            order=parse_order(order),
+            delay=parse_delay(delay),
+            flowmeter_T=flowmeter_T,
+            flowmeter_delay=flowmeter_delay,
+            N=n_steps,
+        ),
+        accept_signals=accept_signals,
         T_range=T_range,
         band_width=band_width,
         ms_target=ms_target,
         flow_bands=flow_bands,
         validate_split=validate_split or None,
     )
-    plant = load_plant_config(config)
+    plant = PlantSource(load_plant_config(config), None if config is None else str(config))
     data = read_log(file, time_col, input_col, output_col, sample_time, input_scale, output_scale)
     with progress_display() as stage:
         analysis = analyse_log(data, plant, settings, progress=stage)
-    for message in analysis.warnings:
+    for message in analysis.notices + analysis.warnings:
         warn(message)
     digest = file_sha256(file)
     with progress_display() as stage:
@@ -139,6 +182,12 @@ def report_command(
         options = {
             "out": str(out),
             "config": str(config) if config else None,
+            "order": order,
+            "delay": delay,
+            "flowmeter_T": flowmeter_T,
+            "flowmeter_delay": flowmeter_delay,
+            "N": n_steps,
+            "accept_signals": accept_signals,
             "method": settings.tune_from,
             "rule": rule.value,
             "tau_c": tau_c,
@@ -168,17 +217,29 @@ def _print_summary(analysis: LogAnalysis, written: list[Path]) -> None:
     from rich.console import Console
 
     console = Console()
+    from fuelid.workflow.assumptions import gain_unit
+
     pi = analysis.tuning.pi
     rob = analysis.tuning.robustness
     model = analysis.model_result.model
+    k_unit = gain_unit(analysis.data)
     console.print(
-        f"{analysis.settings.tune_from} model: K = {model.K:.4g} (L/min)/V, T = {model.T:.3g} s, "
-        f"delay = {model.delay:.3g} s (fit {analysis.model_result.fit_percent:.1f} %)"
+        f"{analysis.settings.tune_from} model: K = {model.K:.4g} {k_unit}, T = {model.T:.3g} s"
+        + (f", T2 = {model.T2:.3g} s" if model.T2 > 0.0 else "")
+        + (f", T_f = {model.T_f:.3g} s" if model.T_f > 0.0 else "")
+        + f", delay = {model.delay:.3g} s (fit {analysis.model_result.fit_percent:.1f} %)"
     )
     console.print(
-        f"{pi.rule} PI: Kc = {pi.Kc:.4g} V/(L/min), Ti = {pi.Ti:.3g} s; GM {rob.gain_margin:.2f}, "
-        f"PM {rob.phase_margin_deg:.1f}°, Ms {rob.Ms:.2f}; over temperature worst Ms "
-        f"{analysis.check.worst_Ms:.2f}; schedule of {len(analysis.schedule.bands)} bands, "
-        f"worst Ms {analysis.schedule.worst_Ms:.2f}"
+        f"{pi.rule} PI: Kc = {pi.Kc:.4g} V/(L/min), Ti = {pi.Ti:.3g} s; on the identified model "
+        f"GM {rob.gain_margin:.2f}, PM {rob.phase_margin_deg:.1f}°, Ms {rob.Ms:.2f}; over "
+        f"temperature worst Ms {analysis.check.worst_Ms:.2f}; "
+        + (
+            "one set of gains suffices over the schedule's bands"
+            if analysis.schedule.single_set_suffices
+            else f"schedule of {len(analysis.schedule.bands)} bands, worst Ms "
+            f"{analysis.schedule.worst_Ms:.2f}"
+        )
     )
+    for notice in analysis.notices:
+        console.print(f"[bold]note:[/bold] {notice}", highlight=False)
     console.print(f"report: {written[0]}")

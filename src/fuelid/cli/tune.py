@@ -89,8 +89,9 @@ def tune_command(
             "--config",
             "-c",
             metavar="PLANT.toml",
-            help="Plant TOML: spans, temperature physics and the nonlinear plant (default: the "
-            "reference plant).",
+            help="Plant TOML of your loop: spans, temperature physics and the nonlinear plant "
+            "(default: none; the checks then use the built-in reference plant's physics, said "
+            "in the output, and --simulate is refused).",
             show_default=False,
         ),
     ] = None,
@@ -102,16 +103,30 @@ def tune_command(
         ),
     ] = None,
     fuel_temp: Annotated[
-        float, typer.Option(help="Fuel temperature the model was identified at [°C].")
-    ] = 20.0,
+        float | None,
+        typer.Option(
+            help="Fuel temperature the model was identified at [°C] (default: the model file's "
+            "operating point, else 20 °C, said in the output).",
+            show_default=False,
+        ),
+    ] = None,
     u: Annotated[
         float | None,
         typer.Option(
             "--u",
-            help="Command the model was identified around [V] (default: mid-range).",
+            help="Command the model was identified around [V] (default: the model file's "
+            "operating point, else mid-range).",
             show_default=False,
         ),
     ] = None,
+    accept_signals: Annotated[
+        bool,
+        typer.Option(
+            "--accept-signals",
+            help="Tune a model file whose identification found the command or the flow outside "
+            "the spans the gains are computed for (refused otherwise).",
+        ),
+    ] = False,
     t_min: TMinOption = -20.0,
     t_max: TMaxOption = 50.0,
     band_width: BandWidthOption = 10.0,
@@ -168,13 +183,30 @@ def tune_command(
     if sweep is not None:
         check_sweep_size(sweep)
     check_control_period(control_period)
-    T_fuel, T_range = temperature_options(fuel_temp, t_min, t_max)
     tau = closed_loop_time(rule, tau_c, lam)
     if flow_span is not None and not (math.isfinite(flow_span) and flow_span > 0.0):
         raise FuelidError(f"--flow-span must be positive, got {flow_span:g} L/min")
     model, loaded = _model_from_options(
         model_file, K, T, T2, T_f, delay, need_cov=sweep is not None
     )
+    if loaded is not None and loaded.signal_check and not accept_signals:
+        more = f" (and {len(loaded.signal_check) - 1} more)" if len(loaded.signal_check) > 1 else ""
+        raise FuelidError(
+            f"{model_file}: its identification's signal check found {loaded.signal_check[0]}"
+            f"{more}; the gains would be wrong by the same factor (--accept-signals to tune anyway)"
+        )
+    # the model's own operating point unless the options say otherwise
+    fuel_source = "option" if fuel_temp is not None else None
+    if fuel_temp is None and loaded is not None and loaded.fuel_temperature is not None:
+        fuel_temp, fuel_source = loaded.fuel_temperature, "model file"
+    if u is None and loaded is not None and loaded.u is not None:
+        u = loaded.u
+    if simulate and config is None:
+        raise FuelidError(
+            "--simulate runs the closed loop on your plant's nonlinear model: give its plant "
+            "file with --config (the built-in reference plant is not your loop)"
+        )
+    T_fuel, T_range = temperature_options(20.0 if fuel_temp is None else fuel_temp, t_min, t_max)
     if model is None and not schedule:
         raise FuelidError(
             "give a model: --model ident.json, or --K and --T (with --delay, --flowmeter-T), "
@@ -198,6 +230,32 @@ def tune_command(
         sweep=sweep,
     )
     plant = load_plant_config(config)
+    if u is not None and loaded is not None:
+        # a model file's mean command inside the drive's range (the signal check has said why
+        # it may lie a little outside it)
+        u = min(max(u, plant.vfd.u_min_V), plant.vfd.u_max_V)
+        request = replace(request, u=u)
+    notices = []
+    if config is None:
+        from fuelid.workflow import REFERENCE_PLANT_NOTICE
+
+        notices.append(REFERENCE_PLANT_NOTICE)
+    if fuel_source is None:
+        notices.append(
+            "fuel temperature of the model assumed 20 °C: --fuel-temp not given"
+            + (" and the model file has no operating point" if loaded is not None else "")
+        )
+    for notice in notices:
+        warn(notice)
+    extra = {
+        "plant": {
+            "source": "built-in reference" if config is None else "file",
+            "path": None if config is None else str(config),
+            "name": plant.name,
+        },
+        "notices": notices,
+        "fuel_temperature_source": fuel_source or "assumed",
+    }
     options = {
         "model": str(model_file) if model_file else None,
         "K": K,
@@ -212,6 +270,7 @@ def tune_command(
         "config": str(config) if config else None,
         "flow_span": request.flow_span(plant),
         "fuel_temp": fuel_temp,
+        "accept_signals": accept_signals,
         "u": None,  # the command used, filled in below
         "t_min": t_min,
         "t_max": t_max,
@@ -233,7 +292,7 @@ def tune_command(
 
             save_figure(schedule_figure(table.schedule), plot)
         if as_json:
-            emit_json(table.to_json() | provenance(options, model_file))
+            emit_json(table.to_json() | extra | provenance(options, model_file))
         else:
             _print_schedule(table)
         return
@@ -247,7 +306,7 @@ def tune_command(
 
         save_figure(tune_figure(outcome), plot)
     if as_json:
-        emit_json(outcome.to_json() | provenance(options, model_file))
+        emit_json(outcome.to_json() | extra | provenance(options, model_file))
         return
     _print_tuning(outcome)
 

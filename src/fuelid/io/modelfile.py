@@ -43,6 +43,13 @@ class ModelFile:
     source: str
     cov_problem: str | None = None
     """Why the file's ``cov`` could not be used (wrong shape, not symmetric, …), else None."""
+    u: float | None = None
+    """Command the model was identified around [V] (the file's ``operating_point.u``), or None."""
+    fuel_temperature: float | None = None
+    """Fuel temperature during the identification [°C] (``operating_point``), or None."""
+    signal_check: tuple[str, ...] = ()
+    """The identification's findings that the signals were not in the units the gains are
+    computed for (``signal_check``)."""
 
 
 def load_model_file(path: str | Path) -> ModelFile:
@@ -120,9 +127,42 @@ def load_model_file(path: str | Path) -> ModelFile:
             cov_problem = _covariance_problem(kept, model_block)
             if cov_problem is None:
                 cov_names, cov = tuple(kept), model_block.tolist()
+    u, fuel_temperature = _operating_point(data.get("operating_point"), file)
+    findings = data.get("signal_check")
     return ModelFile(
-        model=model, cov_names=cov_names, cov=cov, source=str(file), cov_problem=cov_problem
+        model=model,
+        cov_names=cov_names,
+        cov=cov,
+        source=str(file),
+        cov_problem=cov_problem,
+        u=u,
+        fuel_temperature=fuel_temperature,
+        signal_check=tuple(str(f) for f in findings) if isinstance(findings, list) else (),
     )
+
+
+def _operating_point(block: Any, file: Path) -> tuple[float | None, float | None]:
+    """The command [V] and fuel temperature [°C] of an ``operating_point`` object (None: absent)."""
+    if block is None:
+        return None, None
+    if not isinstance(block, dict):
+        raise DataError(f"model file {str(file)!r}: 'operating_point' is not an object")
+    found: list[float | None] = []
+    for key in ("u", "fuel_temperature"):
+        value = block.get(key)
+        if value is None:
+            found.append(None)
+            continue
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | float)
+            or not math.isfinite(value)
+        ):
+            raise DataError(
+                f"model file {str(file)!r}: operating_point {key} is not a finite number"
+            )
+        found.append(float(value))
+    return found[0], found[1]
 
 
 def _covariance_problem(names: list[str], block: NDArray[np.float64]) -> str | None:

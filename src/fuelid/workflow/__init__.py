@@ -10,6 +10,9 @@ or writes files. Fuel temperatures are in kelvin throughout (``T_fuel``, ``T_ran
   :func:`schedule_gains` (``fuelid tune --schedule``);
 - :mod:`~fuelid.workflow.analysis`: :class:`AnalysisSettings`, :func:`analyse_log`
   (``fuelid report``);
+- :mod:`~fuelid.workflow.assumptions`: what every number rests on: :class:`PlantSource` (a
+  user's plant file or the built-in reference plant), :class:`OperatingPoint`, the priors and the
+  signal check :func:`check_signals`;
 - :mod:`~fuelid.workflow.plant_info`: :func:`plant_info` (``fuelid plant info``);
 - :mod:`~fuelid.workflow.simulation`: :class:`SimulationRequest`, :func:`simulate_log`
   (``fuelid simulate``) and the profile-file reader :func:`read_profile`.
@@ -30,7 +33,10 @@ _EXPORTS = {
     "IdentifyOutcome": "identification",
     "LogAnalysis": "analysis",
     "METHODS": "analysis",
+    "OperatingPoint": "assumptions",
     "PLANT_INFO_UNITS": "plant_info",
+    "PlantSource": "assumptions",
+    "REFERENCE_PLANT_NOTICE": "assumptions",
     "PlantInfo": "plant_info",
     "ProfileTable": "simulation",
     "SIMULATION_UNITS": "simulation",
@@ -43,6 +49,7 @@ _EXPORTS = {
     "TuneRequest": "tune",
     "analyse_log": "analysis",
     "check_over_temperature": "tune",
+    "check_signals": "assumptions",
     "identify_log": "identification",
     "operating_command": "tune",
     "plant_info": "plant_info",
@@ -56,6 +63,12 @@ _EXPORTS = {
 
 if TYPE_CHECKING:
     from fuelid.workflow.analysis import METHODS, AnalysisSettings, LogAnalysis, analyse_log
+    from fuelid.workflow.assumptions import (
+        REFERENCE_PLANT_NOTICE,
+        OperatingPoint,
+        PlantSource,
+        check_signals,
+    )
     from fuelid.workflow.identification import (
         IDENTIFY_UNITS,
         T_REF,
@@ -88,12 +101,15 @@ __all__ = [
     "IDENTIFY_UNITS",
     "METHODS",
     "PLANT_INFO_UNITS",
+    "REFERENCE_PLANT_NOTICE",
     "SIMULATION_UNITS",
     "T_REF",
     "AnalysisSettings",
     "IdentifyOutcome",
     "LogAnalysis",
+    "OperatingPoint",
     "PlantInfo",
+    "PlantSource",
     "ProfileTable",
     "ScheduleOutcome",
     "SimulationInputs",
@@ -103,6 +119,7 @@ __all__ = [
     "TuneRequest",
     "analyse_log",
     "check_over_temperature",
+    "check_signals",
     "identify_log",
     "operating_command",
     "plant_info",

@@ -27,13 +27,21 @@ from fuelid.identify.diagnostics import (
 from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, check_gain_identified
-from fuelid.plant.config import PlantConfig
 from fuelid.tuning.cases import DEFAULT_T_RANGE, CaseCache, FixedPIEvaluation
 from fuelid.tuning.closedloop import ClosedLoopResult
 from fuelid.tuning.frequency import frequency_grid, loop_function
 from fuelid.tuning.result import UNITS, TuningResult
 from fuelid.tuning.schedule import GainSchedule
-from fuelid.workflow.identification import T_REF, plant_priors
+from fuelid.workflow.assumptions import (
+    REFERENCE_PLANT_NOTICE,
+    OperatingPoint,
+    PlantSource,
+    check_gain_against_plant,
+    check_signals,
+    priors_json,
+    resolve_priors,
+)
+from fuelid.workflow.identification import T_REF
 from fuelid.workflow.progress import DIAGNOSTICS, IDENTIFICATION, Progress, announce
 from fuelid.workflow.tune import (
     TuneOutcome,
@@ -61,8 +69,15 @@ class AnalysisSettings:
     slower and more robust; None for the rule's default."""
     control_period: float = 1.0
     """PLC period h [s] (0: continuous); also step-ls's decimation period."""
-    T_fuel: float = T_REF
-    """Fuel temperature during the log [K]."""
+    T_fuel: float | None = None
+    """Fuel temperature during the log [K]; None: the log's fuel-temperature column, else 20 °C
+    (said in the outputs)."""
+    identify: IdentifyOptions = field(default_factory=IdentifyOptions)
+    """The identification's settings (order, delay, meter priors, N) as ``fuelid identify``
+    takes them; the method and the validation split are set per analysis."""
+    accept_signals: bool = False
+    """Tune even when the signal check finds the command or the flow outside the spans the gains
+    are computed for (otherwise refused)."""
     T_range: tuple[float, float] = DEFAULT_T_RANGE
     """Fuel temperatures the gains are checked over [K]."""
     band_width: float = 10.0
@@ -78,25 +93,31 @@ class AnalysisSettings:
     def __post_init__(self) -> None:
         if self.tune_from not in METHODS:
             raise FuelidError(f"tune from 'oe' or 'step-ls', not {self.tune_from!r}")
-        check_conditions(self.T_fuel, self.T_range, self.step_percent)
+        check_conditions(
+            T_REF if self.T_fuel is None else self.T_fuel, self.T_range, self.step_percent
+        )
 
-    def tune_request(self, model: ProcessModel, u: float) -> TuneRequest:
-        """What :func:`~fuelid.workflow.tune.tune_model` is asked for a model found around ``u``.
+    def tune_request(
+        self, model: ProcessModel, u: float, T_fuel: float, *, simulate: bool
+    ) -> TuneRequest:
+        """What :func:`~fuelid.workflow.tune.tune_model` is asked for a model found at ``u``.
 
-        The nonlinear runs are part of the report; the flow span is the plant's meter span.
+        ``u`` [V] and ``T_fuel`` [K] are the identification's conditions; ``simulate`` runs the
+        closed loop on the nonlinear plant (only a user's plant file is the user's loop). The
+        flow span is the plant's meter span.
         """
         return TuneRequest(
             model=model,
             rule=self.rule,
             closed_loop_time=self.closed_loop_time,
             control_period=self.control_period,
-            T_fuel=self.T_fuel,
+            T_fuel=T_fuel,
             u=u,
             T_range=self.T_range,
             band_width=self.band_width,
             ms_target=self.ms_target,
             flow_bands=self.flow_bands,
-            simulate=True,
+            simulate=simulate,
             step_percent=self.step_percent,
         )
 
@@ -121,7 +142,38 @@ class LogAnalysis:
     """[rad/s]"""
     bode_loop: NDArray[np.complex128]
     """Loop frequency response L = C·G on the identified model (sampled PI, exact delay)."""
+    plant: PlantSource
+    """The plant of the temperature trend, the spans and the nonlinear runs."""
+    operating_point: OperatingPoint
+    """Mean command and flow of the log, and the fuel temperature (from the log or an option)."""
+    priors: dict[str, Any]
+    """The identification's assumptions and their origin (:func:`priors_json`)."""
+    signal_check: list[str] = field(default_factory=list)
+    """Findings that the signals are not in the units the gains are computed for (accepted)."""
     warnings: list[str] = field(default_factory=list)
+
+    @property
+    def T_fuel(self) -> float:
+        """Fuel temperature the model was identified at [K] (20 °C when nothing gives it)."""
+        return T_REF if self.operating_point.T_fuel is None else self.operating_point.T_fuel
+
+    @property
+    def notices(self) -> list[str]:
+        """The assumptions every output states first.
+
+        The reference plant standing in for the user's, an assumed fuel temperature, signal
+        findings the user accepted.
+        """
+        found = []
+        if self.plant.is_reference:
+            found.append(REFERENCE_PLANT_NOTICE)
+        if self.operating_point.T_fuel is None:
+            found.append(
+                "fuel temperature assumed 20 °C: the log has no fuel-temperature column and "
+                "--fuel-temp was not given"
+            )
+        found.extend(f"signal check overridden: {f}" for f in self.signal_check)
+        return found
 
     @property
     def model_result(self) -> IdentificationResult:
@@ -151,6 +203,11 @@ class LogAnalysis:
     def to_json(self) -> dict[str, Any]:
         """The documented JSON of ``fuelid report --json``, without the paths and provenance."""
         return {
+            "plant": self.plant.to_json(),
+            "priors": self.priors,
+            "operating_point": self.operating_point.to_json(),
+            "signal_check": self.signal_check,
+            "notices": self.notices,
             "identification": {m: r.to_json() for m, r in self.identifications.items()},
             "tuned_from": self.settings.tune_from,
             "tuning": self.tuning.to_json(),
@@ -164,16 +221,23 @@ class LogAnalysis:
 
 def analyse_log(
     data: IOData,
-    config: PlantConfig,
+    plant: PlantSource,
     settings: AnalysisSettings,
     progress: Progress | None = None,
 ) -> LogAnalysis:
     """Identify ``data`` with both methods, tune, check over temperature and build a schedule.
 
-    ``config`` supplies the flowmeter priors (its lag and delay are held fixed), the prior
-    settling time for step-ls, the signal and flow spans of the percent-of-span gains, and the
-    physics of how the loop changes with fuel temperature (anchored to the identified model).
-    The nonlinear closed-loop runs are on ``config``'s plant.
+    ``plant`` is the user's plant file or the built-in reference plant
+    (:class:`~fuelid.workflow.assumptions.PlantSource`). Only a user's plant file gives priors
+    (its flowmeter's lag and delay are held fixed unless ``settings.identify`` sets them) and
+    the nonlinear closed-loop runs; the reference plant gives only the trend over fuel
+    temperature and flow, anchored to the identified model, and the spans, and the outputs say so
+    (:attr:`LogAnalysis.notices`). Without priors the dead time is estimated and a meter lag is
+    found as a second lag (order chosen by the information criterion).
+
+    The signals are checked against the spans the gains are computed for
+    (:func:`~fuelid.workflow.assumptions.check_signals`, and with a plant file the identified K
+    against its prediction): findings refuse the analysis unless ``settings.accept_signals``.
 
     ``progress``, when given, is called with each stage's name as it starts, in the order of
     :data:`~fuelid.workflow.progress.ANALYSIS_STAGES`. The work is many small matrices and long
@@ -181,33 +245,60 @@ def analyse_log(
     several times faster on a busy two-core machine.
     """
     with single_threaded_blas():
-        return _analyse(data, config, settings, progress)
+        return _analyse(data, plant, settings, progress)
+
+
+def _refuse_signals(findings: list[str]) -> None:
+    more = f" (and {len(findings) - 1} more)" if len(findings) > 1 else ""
+    raise FuelidError(
+        f"signal check: {findings[0]}{more}; the gains would be wrong by the same factor "
+        "(--accept-signals to tune anyway)"
+    )
 
 
 def _analyse(
-    data: IOData, config: PlantConfig, settings: AnalysisSettings, progress: Progress | None
+    data: IOData, plant: PlantSource, settings: AnalysisSettings, progress: Progress | None
 ) -> LogAnalysis:
     """:func:`analyse_log`'s stages."""
+    config = plant.config
+    point = OperatingPoint.of(data, settings.T_fuel)
+    T_fuel = T_REF if point.T_fuel is None else point.T_fuel
+    findings = check_signals(data, plant)
+    if findings and not settings.accept_signals:
+        _refuse_signals(findings)
     announce(progress, IDENTIFICATION)
-    base = plant_priors(
-        IdentifyOptions(
+    base, sources = resolve_priors(
+        replace(
+            settings.identify,
             control_period=max(settings.control_period, data.sample_time),
             validate_split=settings.validate_split,
         ),
-        config,
-        settings.T_fuel,
+        plant,
+        T_fuel,
     )
     identifications: dict[str, IdentificationResult] = {}
     # what the loader noticed is said once, not once per method
     warnings: list[str] = [f"log: {note}" for note in data.notes]
-    for method in METHODS:
-        result = identify(data, replace(base, method=method))
-        identifications[method] = result
+    # the output-error fit first: without a plant file its settling time is the data's own
+    # prior for step-ls's response length N
+    for method in sorted(METHODS, key=lambda m: m != "oe"):
+        options = replace(base, method=method)
+        if method == "step-ls":
+            options = _step_ls_priors(options, identifications["oe"].model)
+        identifications[method] = identify(data, options)
+    identifications = {method: identifications[method] for method in METHODS}
+    for method, result in identifications.items():
         warnings.extend(f"{method}: {w}" for w in result.warnings if w not in data.notes)
     chosen = identifications[settings.tune_from]
     check_gain_identified(chosen.model.K, chosen.stderr.get("K"), f"{settings.tune_from} fit")
-    u_op = float(np.clip(np.mean(data.u), config.vfd.u_min_V, config.vfd.u_max_V))
-    request = settings.tune_request(chosen.model, u_op)
+    mismatch = check_gain_against_plant(chosen.model, plant, point, T_fuel)
+    if mismatch is not None:
+        findings.append(mismatch)
+        if not settings.accept_signals:
+            _refuse_signals([mismatch])
+    warnings[:0] = [f"signals: {f}" for f in findings]
+    u_op = float(np.clip(point.u, config.vfd.u_min_V, config.vfd.u_max_V))
+    request = settings.tune_request(chosen.model, u_op, T_fuel, simulate=not plant.is_reference)
     cache: CaseCache = {}  # the check and the schedule share linearisations
     outcome = tune_model(config, request, progress, cache)
     warnings.extend(f"tuning: {w}" for w in outcome.warnings)
@@ -222,7 +313,7 @@ def _analyse(
     omega = frequency_grid(chosen.model, outcome.pi)
     return LogAnalysis(
         data=data,
-        settings=settings,
+        settings=replace(settings, T_fuel=T_fuel),
         identifications=identifications,
         outcome=outcome,
         schedule=schedule,
@@ -230,8 +321,25 @@ def _analyse(
         input_correlation=input_residual_correlation(u_model[fitted], residuals, max_lag),
         bode_frequency=omega,
         bode_loop=loop_function(chosen.model, outcome.pi)(omega),
+        plant=plant,
+        operating_point=point,
+        priors=priors_json(base, sources, chosen, plant),
+        signal_check=findings,
         warnings=warnings,
     )
+
+
+def _step_ls_priors(options: IdentifyOptions, oe_model: ProcessModel) -> IdentifyOptions:
+    """Step-ls's priors, from the output-error fit where neither an option nor a plant gives them.
+
+    The article's method needs the dead time and the response length N as prior knowledge; the
+    output-error fit of the same log estimates both (its delay, its 98 % settling time).
+    """
+    if options.N is None and options.settling_time is None:
+        options = replace(options, settling_time=oe_model.settling_time())
+    if options.resolved_delay() is None:
+        options = replace(options, delay=oe_model.delay)
+    return options
 
 
 def _held(data: IOData, times: FloatArray) -> FloatArray:

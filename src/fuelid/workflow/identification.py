@@ -7,13 +7,21 @@ diagnostics are :func:`fuelid.identify.procedure.identify`'s.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
 from fuelid.preprocess import select
 from fuelid.units import celsius_to_kelvin
+from fuelid.workflow.assumptions import (
+    OperatingPoint,
+    PlantSource,
+    check_gain_against_plant,
+    check_signals,
+    priors_json,
+    resolve_priors,
+)
 
 if TYPE_CHECKING:
     from fuelid.plant.config import PlantConfig
@@ -77,15 +85,29 @@ class IdentifyOutcome:
     """One identification of a log, with the documented JSON of ``fuelid identify --json``."""
 
     result: IdentificationResult
+    priors: dict[str, Any] = field(default_factory=dict)
+    """Each assumption of the fit, its value and where it came from (:func:`priors_json`)."""
+    operating_point: OperatingPoint | None = None
+    """Mean command, mean flow and fuel temperature of the fitted samples."""
+    signal_check: list[str] = field(default_factory=list)
+    """Findings that the signals are not in the units the gains are computed for."""
 
     @property
     def warnings(self) -> list[str]:
-        """What the user should know about the fit (also inside the JSON)."""
-        return self.result.warnings
+        """What the user should know about the fit and the signals (also inside the JSON)."""
+        return [*self.signal_check, *self.result.warnings]
 
     def to_json(self) -> dict[str, Any]:
         """The documented JSON object of ``fuelid identify --json`` (without provenance)."""
-        return self.result.to_json() | {"units": IDENTIFY_UNITS}
+        return self.result.to_json() | {
+            "warnings": self.warnings,
+            "priors": self.priors,
+            "operating_point": None
+            if self.operating_point is None
+            else self.operating_point.to_json(),
+            "signal_check": self.signal_check,
+            "units": IDENTIFY_UNITS,
+        }
 
 
 def identify_log(
@@ -95,14 +117,36 @@ def identify_log(
     validation: IOData | None = None,
     t_start: float | None = None,
     t_stop: float | None = None,
+    plant: PlantSource | None = None,
+    fuel_temperature: float | None = None,
 ) -> IdentifyOutcome:
     """Identify the model of a loaded log, on the samples with ``t_start ≤ t < t_stop`` [s].
 
     ``validation`` is a second log to score the model on (its offset and initial state
     estimated, or from rest at its first input with ``options.validation_initial="rest"``).
+    ``plant`` is a user's plant file (its flowmeter gives the priors not set in ``options``, and
+    the identified K is compared with its prediction) or None: then no meter prior is assumed,
+    and the signals are checked against the fuel loop's 1…5 V drive range.
+    ``fuel_temperature`` [K] is the fuel's during the log when the log has no such column.
     Refusals (non-exciting data, priors the record contradicts) raise
     :class:`~fuelid.errors.FuelidError` with the reason.
     """
+    from fuelid.plant.config import load_plant_config
+
     if t_start is not None or t_stop is not None:
         data = select(data, t_start, t_stop)
-    return IdentifyOutcome(identify(data, options, validation))
+    source = plant if plant is not None else PlantSource(load_plant_config(None))
+    point = OperatingPoint.of(data, fuel_temperature)
+    T_fuel = T_REF if point.T_fuel is None else point.T_fuel
+    resolved, sources = resolve_priors(options, source, T_fuel)
+    result = identify(data, resolved, validation)
+    findings = check_signals(data, source)
+    mismatch = check_gain_against_plant(result.model, source, point, T_fuel)
+    if mismatch is not None:
+        findings.append(mismatch)
+    return IdentifyOutcome(
+        result,
+        priors=priors_json(resolved, sources, result, plant),
+        operating_point=point,
+        signal_check=findings,
+    )

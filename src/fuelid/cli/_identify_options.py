@@ -1,0 +1,98 @@
+"""The identification options ``fuelid identify`` and ``fuelid report`` share, with one default.
+
+Both commands identify the same way: no flowmeter prior unless given (by option or ``--config``),
+the dead time estimated unless given, the order chosen by the information criterion. The option
+types here keep their names, help and defaults the same in both.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Literal
+
+import typer
+
+from fuelid.errors import FuelidError
+
+OrderOption = Annotated[
+    str,
+    typer.Option(
+        metavar="1|2|auto",
+        help="Process time constants: 1, 2, or auto (the order of lower AIC; a flowmeter lag "
+        "that is not given is found as the second lag).",
+    ),
+]
+DelayOption = Annotated[
+    str | None,
+    typer.Option(
+        metavar="SECONDS|auto",
+        help="Dead time: a number of seconds [s] fixes it, 'auto' estimates it (default: "
+        "the flowmeter delay when given, else auto).",
+        show_default=False,
+    ),
+]
+FlowmeterTOption = Annotated[
+    float | None,
+    typer.Option(
+        "--flowmeter-T",
+        "--T-f",
+        metavar="SECONDS",
+        help="Flowmeter time constant T_f [s], held fixed (alias --T-f, as in fuelid tune; "
+        "default: from --config, else not fixed).",
+        show_default=False,
+    ),
+]
+FlowmeterDelayOption = Annotated[
+    float | None,
+    typer.Option(
+        "--flowmeter-delay",
+        metavar="SECONDS",
+        help="Flowmeter dead time [s], the model's delay unless --delay (default: from "
+        "--config, else the delay is estimated).",
+        show_default=False,
+    ),
+]
+StepsOption = Annotated[
+    int | None,
+    typer.Option(
+        "--N",
+        help="step-ls: step-response length N [control periods] (default: from --config's "
+        "settling time).",
+        show_default=False,
+    ),
+]
+DEFAULT_ORDER = "auto"
+"""The order option's default in every command that identifies."""
+
+
+def parse_order(text: str) -> Literal[1, 2, "auto"]:
+    """``--order``'s value: 1, 2 or "auto"."""
+    if text == "1":
+        return 1
+    if text == "2":
+        return 2
+    if text == "auto":
+        return "auto"
+    raise FuelidError(f"--order must be 1, 2 or auto, got {text!r}")
+
+
+def parse_delay(text: str | None) -> float | Literal["auto"] | None:
+    """``--delay``'s value: seconds, "auto", or None (not given)."""
+    if text is None:
+        return None
+    if text == "auto":
+        return "auto"
+    try:
+        value = float(text)
+    except ValueError:
+        raise FuelidError(f"--delay must be 'auto' or seconds, got {text!r}") from None
+    if not (math.isfinite(value) and value >= 0.0):
+        raise FuelidError(f"--delay must be a non-negative number of seconds, got {text!r}")
+    return value
+
+
+def check_prior_times(flowmeter_T: float | None, flowmeter_delay: float | None) -> None:
+    """Refuse a flowmeter lag or delay that is not a non-negative number of seconds."""
+    for name, value in (("--flowmeter-T", flowmeter_T), ("--flowmeter-delay", flowmeter_delay)):
+        if value is not None and not (math.isfinite(value) and value >= 0.0):
+            raise FuelidError(f"{name} must be a non-negative number of seconds")
