@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,8 @@ from fuelid.units import celsius_to_kelvin
 
 runner = CliRunner()
 CONFIG = load_plant_config()
+# the nonlinear runs need a plant file: the packaged reference plant's, as a user would give theirs
+REFERENCE_FILE = str(resources.files("fuelid.data").joinpath("reference_plant.toml"))
 WORKED = ["--K", "1", "--T", "2", "--delay", "1", "--control-period", "0"]
 JSON_KEYS = {
     "rule",
@@ -178,7 +181,7 @@ def test_simulate_adds_the_nonlinear_runs(tmp_path: Path):
     fig = tmp_path / "cl.png"
     data = _json(
         "--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2", "--simulate",
-        "--plot", str(fig),
+        "--config", REFERENCE_FILE, "--plot", str(fig),
     )  # fmt: skip
     runs = data["closed_loop_plant"]
     assert [r["fuel_temperature"] for r in runs] == [-20.0, 50.0]
@@ -192,7 +195,7 @@ def test_simulate_near_the_top_of_the_drive_steps_down():
     """At 4.8 V the 20 °C flow is more than warm fuel can reach: the runs start lower, step down."""
     data = _json(
         "--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2", "--u", "4.8",
-        "--simulate",
+        "--simulate", "--config", REFERENCE_FILE,
     )  # fmt: skip
     warm_top = flow_at(CONFIG, 5.0, celsius_to_kelvin(50.0))
     for run in data["closed_loop_plant"]:
@@ -201,6 +204,28 @@ def test_simulate_near_the_top_of_the_drive_steps_down():
         assert step["size"] == pytest.approx(-10.0)  # 10 % of the 100 L/min span, downward
         assert run["summary"]["settling_time"] < 15.0
         assert run["summary"]["time_at_limits"] == 0.0
+
+
+def test_simulate_without_a_plant_file_is_refused():
+    # the runs on a nonlinear plant are only evidence on the user's own plant
+    result = runner.invoke(app, ["tune", "--K", "13.5", "--T", "1.26", "--simulate"])
+    assert result.exit_code == 2
+    assert "--config" in result.stderr
+
+
+def test_without_a_plant_file_the_reference_plant_is_said_out_loud():
+    data = _json("--K", "13.5", "--T", "1.26")
+    assert data["plant"]["source"] == "built-in reference"
+    assert "built-in reference plant" in data["notices"][0]
+    assert data["fuel_temperature_source"] == "assumed"
+    with_file = _json("--K", "13.5", "--T", "1.26", "--config", REFERENCE_FILE, "--fuel-temp", "8")
+    assert with_file["plant"] == {
+        "source": "file",
+        "path": REFERENCE_FILE,
+        "name": "reference",
+    }
+    assert with_file["notices"] == []
+    assert with_file["fuel_temperature_source"] == "option"
 
 
 def test_list_rules():

@@ -37,8 +37,11 @@ from fuelid.workflow import (
 runner = CliRunner()
 CONFIG = load_plant_config()
 MODEL = ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2)
+REFERENCE_FILE = str(resources.files("fuelid.data").joinpath("reference_plant.toml"))
 FLAGS = ["--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2"]
 PROVENANCE = {"fuelid_version", "input_sha256", "options"}
+# what the command adds about its own options: the plant file (or its absence) and the notices
+ASSUMPTIONS = {"plant", "notices", "fuel_temperature_source"}
 
 
 def _cli(*args: str) -> dict:
@@ -46,7 +49,7 @@ def _cli(*args: str) -> dict:
     assert result.exit_code == 0, result.stderr
     data = json.loads(result.stdout)
     assert set(data) >= PROVENANCE
-    return {key: value for key, value in data.items() if key not in PROVENANCE}
+    return {key: value for key, value in data.items() if key not in PROVENANCE | ASSUMPTIONS}
 
 
 def _as_printed(payload: dict, capsys: pytest.CaptureFixture[str]) -> dict:
@@ -58,7 +61,7 @@ def _as_printed(payload: dict, capsys: pytest.CaptureFixture[str]) -> dict:
 def test_tune_model_is_what_fuelid_tune_prints(capsys: pytest.CaptureFixture[str]):
     request = TuneRequest(model=MODEL, T_fuel=celsius_to_kelvin(12.0), simulate=True)
     outcome = tune_model(CONFIG, request)
-    cli = _cli("tune", *FLAGS, "--fuel-temp", "12", "--simulate")
+    cli = _cli("tune", *FLAGS, "--fuel-temp", "12", "--simulate", "--config", REFERENCE_FILE)
     assert _as_printed(outcome.to_json(), capsys) == cli
     # the defaults resolved from the plant: the middle of 1…5 V and the meter's 100 L/min
     assert (outcome.u, outcome.y_span) == (3.0, 100.0)

@@ -245,8 +245,6 @@ def tune_command(
             "fuel temperature of the model assumed 20 °C: --fuel-temp not given"
             + (" and the model file has no operating point" if loaded is not None else "")
         )
-    for notice in notices:
-        warn(notice)
     extra = {
         "plant": {
             "source": "built-in reference" if config is None else "file",
@@ -287,6 +285,8 @@ def tune_command(
         # the %/% column uses --flow-span as the single gains do (the meter's span by default)
         table = replace(table, schedule=replace(table.schedule, y_span=request.flow_span(plant)))
         options["u"] = table.u
+        for notice in notices:  # after the work: a refusal stays one line
+            warn(notice)
         if plot is not None:
             from fuelid.plots import save_figure, schedule_figure
 
@@ -299,7 +299,7 @@ def tune_command(
     with progress_display() as stage:
         outcome = tune_model(plant, request, progress=stage)
     options["u"] = outcome.u
-    for message in outcome.warnings:
+    for message in notices + outcome.warnings:
         warn(message)
     if plot is not None:
         from fuelid.plots import save_figure, tune_figure
