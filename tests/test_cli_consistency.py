@@ -141,7 +141,8 @@ def test_identify_prints_the_gain_unit_the_columns_name(log_csv: Path, tmp_path:
     assert result.exit_code == 0, result.stderr
     assert "(L/min)/V" in result.stdout
     assert "(out)/(in)" not in result.stdout
-    # raw columns rescaled to an unnamed unit: the neutral label, never a guessed unit
+    # an input scaled to the drive's volts is in V, the contract of --input-scale; a column that
+    # names no unit and is not scaled gets the neutral label, never a guessed unit
     frame = pd.read_csv(log_csv)
     raw = tmp_path / "raw.csv"
     pd.DataFrame(
@@ -150,8 +151,11 @@ def test_identify_prints_the_gain_unit_the_columns_name(log_csv: Path, tmp_path:
     args = ["--input-col", "ao", "--output-col", "ft", "--input-scale", "4:20:1:5"]
     scaled = runner.invoke(app, ["identify", str(raw), *args, "--flowmeter-T", "0.3"])
     assert scaled.exit_code == 0, scaled.stderr
-    assert "(out)/(in)" in scaled.stdout
-    assert "(L/min)/V" not in scaled.stdout
+    assert "(output unit)/V" in scaled.stdout
+    both = [*args, "--output-scale", "0:100:0:100"]
+    scaled = runner.invoke(app, ["identify", str(raw), *both, "--flowmeter-T", "0.3"])
+    assert scaled.exit_code == 0, scaled.stderr
+    assert "(L/min)/V" in scaled.stdout
 
 
 # f. BLAS on one thread for the whole of every command

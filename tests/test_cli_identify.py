@@ -303,7 +303,6 @@ def test_unsorted_log_loads_with_a_warning(tmp_path: Path):
 @pytest.mark.parametrize(
     ("damage", "expected"),
     [
-        ("gap", "gap"),
         ("conflicting duplicate", "t ="),
         ("nan", "q_Lpm"),
         ("text", "q_Lpm"),
@@ -311,9 +310,7 @@ def test_unsorted_log_loads_with_a_warning(tmp_path: Path):
 )
 def test_messy_logs_are_refused_with_the_place(tmp_path: Path, damage: str, expected: str):
     frame = _frame().astype({"q_Lpm": object})
-    if damage == "gap":
-        frame = frame.drop(index=range(1000, 1300))
-    elif damage == "conflicting duplicate":
+    if damage == "conflicting duplicate":
         extra = frame.iloc[[700]].copy()
         extra["q_Lpm"] = 99.0
         frame = pd.concat([frame, extra])
@@ -327,6 +324,15 @@ def test_messy_logs_are_refused_with_the_place(tmp_path: Path, damage: str, expe
     assert result.exit_code == 2
     assert expected in result.stderr
     assert result.stderr.count("\n") == 1
+
+
+def test_a_gap_is_listed_and_no_longer_refused(tmp_path: Path):
+    """Issue 12 item 3: a log with a gap loads as two segments (identified jointly)."""
+    path = tmp_path / "gap.csv"
+    _frame().drop(index=range(1000, 1300)).to_csv(path, index=False)
+    result = runner.invoke(app, ["identify", str(path), "--json"])
+    assert "1 gap splits the log into 2 segments" in result.stderr
+    assert "6.02 s at t = 19.98 s (data row 1000)" in result.stderr
 
 
 def test_second_file_validates(tmp_path: Path):

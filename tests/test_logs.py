@@ -102,7 +102,7 @@ def test_gbk_chinese_headers(tmp_path: Path) -> None:
     data = load_log(path, time_col="时间", input_col="电压", output_col="流量")
     assert data.n_samples == N
     assert data.y[0] == 14.6
-    assert (data.u_unit, data.y_unit) == ("", "")
+    assert (data.u_unit, data.y_unit) == ("", "")  # the column names say no unit
     assert "read as GBK text" in data.notes
 
 
@@ -166,7 +166,8 @@ def test_linear_scaling_of_raw_units(tmp_path: Path) -> None:
     assert data.u[5] == 3.0
     assert data.u[0] == 1.0
     np.testing.assert_allclose(data.y, counts * 100.0 / 27648.0)
-    assert (data.u_unit, data.y_unit) == ("", "")
+    # scaled to the engineering units of the gains (the contract of --input/--output-scale)
+    assert (data.u_unit, data.y_unit) == ("V", "L/min")
     assert sum("scaled linearly" in note for note in data.notes) == 2
 
 
@@ -213,10 +214,17 @@ def test_sample_time_replaces_a_missing_time_column(tmp_path: Path) -> None:
     assert "sample time" in message
 
 
-def test_sample_time_overrides_a_time_column_with_a_note(tmp_path: Path) -> None:
-    data = load_log(write_csv(tmp_path / "log.csv", plain_rows()), sample_time=0.1)
-    assert data.sample_time == 0.1
-    assert any("t_s ignored" in note for note in data.notes)
+def test_a_sample_time_and_a_time_column_must_agree(tmp_path: Path) -> None:
+    """Issue 12 item 3: a sample time no longer silently replaces an existing time column."""
+    path = write_csv(tmp_path / "log.csv", plain_rows())
+    message = refused(path, sample_time=0.1)
+    assert "time column 't_s' says 0.02 s" in message
+    assert "says 0.1 s" in message
+    assert "--sample-time" in message
+    data = load_log(path, sample_time=0.02)
+    assert data.sample_time == 0.02
+    assert any("time column t_s used" in note for note in data.notes)
+    assert load_log(path, time_col=None, sample_time=0.1).sample_time == 0.1
 
 
 def test_unsorted_timestamps_are_sorted_with_a_note(tmp_path: Path) -> None:
@@ -248,44 +256,78 @@ def test_conflicting_duplicates_are_refused(tmp_path: Path) -> None:
     assert "q_Lpm" in message
 
 
-def test_jittered_timestamps_are_resampled_onto_the_median_grid(tmp_path: Path) -> None:
+def test_jittered_timestamps_are_placed_on_the_grid_unchanged(tmp_path: Path) -> None:
+    """Issue 12 item 3: jitter within a fraction of a period is placed, not interpolated."""
     rng = np.random.default_rng(1)
     t = H * np.arange(N) + rng.uniform(-0.004, 0.004, N) * H
     t[0] = 0.0
     u = np.where(t >= 1.0, 1.5, 1.0)
-    y = 10.0 + 2.0 * t  # linear: interpolation is exact
+    y = 10.0 + 2.0 * t
     rows = [(f"{ti:.7f}", f"{ui:g}", f"{yi:.9f}") for ti, ui, yi in zip(t, u, y, strict=True)]
     rows[100] = (f"{100 * H + 0.0015:.7f}", rows[100][1], f"{10 + 2 * (100 * H + 0.0015):.9f}")
     data = load_log(write_csv(tmp_path / "jitter.csv", rows))
+    assert data.sample_time == H
+    assert data.n_segments == 1
+    np.testing.assert_array_equal(data.u, u)
+    np.testing.assert_array_equal(data.y, [float(row[2]) for row in rows])
+    assert not any("resampled" in note for note in data.notes)
+    assert any("1.5 ms" in note and "values unchanged" in note for note in data.notes)
+
+
+def drifting_times() -> np.ndarray:
+    """Intervals 5 % long, then 5 % short: up to 1.6 periods off any steady grid."""
+    dt = H * (1.0 + 0.05 * np.sin(2 * np.pi * np.arange(N - 1) / (N - 1)))
+    return np.concatenate(([0.0], np.cumsum(dt)))
+
+
+def test_a_drifting_clock_is_resampled_onto_the_median_grid(tmp_path: Path) -> None:
+    """Intervals within ±10 % of the period that fit no steady grid: interpolated (y linear)."""
+    t = drifting_times()
+    u = np.where(t >= 1.0, 1.5, 1.0)
+    y = 10.0 + 2.0 * t  # linear: interpolation is exact
+    rows = [(f"{ti:.7f}", f"{ui:g}", f"{yi:.9f}") for ti, ui, yi in zip(t, u, y, strict=True)]
+    data = load_log(write_csv(tmp_path / "drift.csv", rows))
     h = data.sample_time
-    assert h == pytest.approx(H, rel=1e-3)
-    np.testing.assert_allclose(data.y, 10.0 + 2.0 * data.t, atol=1e-7)
-    grid = data.t
-    expected_u = u[np.searchsorted(t, grid + 1e-6 * h, side="right") - 1]
+    assert h == pytest.approx(H, rel=0.02)
+    np.testing.assert_allclose(data.y, 10.0 + 2.0 * data.t, atol=1e-6)
+    expected_u = u[np.searchsorted(t, data.t + 1e-6 * h, side="right") - 1]
     np.testing.assert_array_equal(data.u, expected_u)
     assert any("resampled" in note for note in data.notes)
 
 
-def test_a_gap_is_refused_with_where_it_is(tmp_path: Path) -> None:
+def test_a_gap_splits_the_log_into_segments_with_where_it_is(tmp_path: Path) -> None:
+    """Issue 12 item 3: a gap is no longer refused; the log loads as two segments."""
     rows = plain_rows()
     del rows[100:110]  # 0.22 s between t = 1.98 s and t = 2.20 s
     path = write_csv(tmp_path / "gap.csv", rows)
-    message = refused(path)
-    assert "gap of 0.22 s at t = 1.98 s (data row 100)" in message
-    assert "irregular sampling" in refused(path, max_gap=0.5)
-    data = load_log(path, max_gap=0.5, resample="always")
-    assert data.n_samples == N
-    np.testing.assert_allclose(data.t[-1], (N - 1) * H)
+    _, u, y = step_response()
+    for options in ({}, {"max_gap": 0.5}, {"max_gap": 0.5, "resample": "always"}):
+        data = load_log(path, **options)
+        assert data.segment_starts == (100,)
+        assert data.segment_t0 == pytest.approx((2.2,))
+        np.testing.assert_array_equal(data.u, np.delete(u, range(100, 110)))
+        np.testing.assert_array_equal(data.y, np.delete(y, range(100, 110)))
+        assert any("0.22 s at t = 1.98 s (data row 100)" in note for note in data.notes)
+    assert "more than 5 sample periods" not in str(data.notes)
+    assert "5 sample periods" in refused(path, fill_gaps=0.22)
 
 
-def test_resample_never_refuses_jitter(tmp_path: Path) -> None:
+def test_resample_never_refuses_what_needs_interpolation(tmp_path: Path) -> None:
     rows = plain_rows()
     rows[50] = ("1.001", rows[50][1], rows[50][2])
     path = write_csv(tmp_path / "jitter.csv", rows)
+    data = load_log(path, resample="never")  # 5 % jitter: placed, no interpolation
+    assert any("placed" in note for note in data.notes)
+    rows = [
+        (f"{ti:.7f}", row[1], row[2])
+        for ti, row in zip(drifting_times(), plain_rows(), strict=True)
+    ]
+    path = write_csv(tmp_path / "drift.csv", rows)
     assert any("resampled" in note for note in load_log(path).notes)
     message = refused(path, resample="never")
     assert "irregular sampling" in message
     assert "data row" in message
+    assert "resampling is off" in message
 
 
 def test_nan_cell_is_refused_with_column_and_row(tmp_path: Path) -> None:
@@ -472,7 +514,7 @@ def test_sample_intervals_beyond_an_hour_are_refused(tmp_path: Path) -> None:
     assert "(is the time column in seconds?)" in refused(write_csv(tmp_path / "t.csv", rows))
     plain = write_csv(tmp_path / "log.csv", plain_rows())
     assert "up to 3600" in refused(plain, sample_time=1e6)
-    assert load_log(plain, sample_time=3600.0).sample_time == 3600.0
+    assert load_log(plain, time_col=None, sample_time=3600.0).sample_time == 3600.0
 
 
 def test_input_and_output_from_one_column_is_refused(tmp_path: Path) -> None:

@@ -199,3 +199,39 @@ def test_closed_loop_data_are_flagged_and_still_fitted():
     y = 40.0 + simulate_model(TRUTH, u, H) + np.random.default_rng(1).normal(0.0, 0.1, u.size)
     open_loop = identify(IOData(u=u, y=y, sample_time=H), options)
     assert not any("closed-loop" in w for w in open_loop.warnings)
+
+
+def _frequency_response(model: ProcessModel, omega: np.ndarray) -> np.ndarray:
+    s = 1j * omega
+    lags = (model.T * s + 1) * (model.T2 * s + 1) * (model.T_f * s + 1)
+    return np.asarray(model.K * np.exp(-model.delay * s) / lags)
+
+
+def test_default_options_find_an_unannounced_meter_lag_and_the_delay():
+    # the meter's lag (1.0 s) and the dead time (0.6 s) are not the reference plant's and are
+    # not given: the defaults (order "auto", delay estimated, no meter prior) must find them,
+    # the meter lag as the second process lag (T2 and T_f are interchangeable in the model)
+    from fuelid.identify.procedure import IdentifyOptions, identify
+
+    truth = ProcessModel(K=13.0, T=2.6, T_f=1.0, delay=0.6)
+    h = 0.05
+    rng = np.random.default_rng(11)
+    u = np.repeat(np.r_[2.0, rng.choice([1.5, 2.0, 2.5, 3.0], 23)], 300)
+    y = 30.0 + simulate_model(truth, u, h) + rng.normal(0.0, 0.1, u.size)
+    options = IdentifyOptions()
+    assert options.order == "auto"
+    assert options.resolved_delay() is None
+    result = identify(IOData(u=u, y=y, sample_time=h), options)
+    model = result.model
+    assert result.extra["aic"]["2"] < result.extra["aic"]["1"]
+    assert model.T2 > 0.0
+    assert model.T_f == 0.0
+    assert result.fixed == ("T_f",)  # no meter prior: T_f = 0, everything else estimated
+    low, high = result.ci95()["delay"] or [np.nan, np.nan]
+    assert low < truth.delay < high
+    # the two lags, whichever is called T
+    assert sorted((model.T, model.T2)) == pytest.approx([truth.T_f, truth.T], rel=0.02)
+    omega = np.array([0.3, 0.5, 1.0])  # rad/s, around the PI loop's crossover
+    fitted, true = _frequency_response(model, omega), _frequency_response(truth, omega)
+    np.testing.assert_allclose(np.abs(fitted), np.abs(true), rtol=0.02)
+    np.testing.assert_allclose(np.angle(fitted / true, deg=True), 0.0, atol=1.0)

@@ -73,8 +73,11 @@ def test_both_methods_find_the_plant_gain_over_the_levels_visited(analysis: LogA
 def test_gains_follow_simc_with_the_half_rule_and_half_a_period(analysis: LogAnalysis):
     m = analysis.model_result.model
     h = SETTINGS.control_period
-    T1 = m.T + m.T_f / 2 if m.T_f <= m.T else m.T_f + m.T / 2
-    theta = m.delay + min(m.T, m.T_f) / 2 + h / 2
+    # the half rule: the largest lag kept, half the second to it and half to the dead time, the
+    # rest to the dead time; h/2 for the sampled PI
+    lags = sorted((m.T, m.T2, m.T_f), reverse=True)
+    T1 = lags[0] + lags[1] / 2
+    theta = m.delay + lags[1] / 2 + lags[2] + h / 2
     tau_c = theta  # SIMC's default
     assert analysis.tuning.pi.Kc == pytest.approx(T1 / (m.K * (tau_c + theta)), rel=1e-12)
     assert analysis.tuning.pi.Ti == pytest.approx(min(T1, 4 * (tau_c + theta)), rel=1e-12)

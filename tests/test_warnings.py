@@ -6,6 +6,7 @@ The data come from the model family, so what the warning should say is known.
 from __future__ import annotations
 
 import numpy as np
+import scipy.signal
 
 from fuelid.identify.procedure import IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
@@ -51,3 +52,25 @@ def test_report_says_each_load_note_once(tmp_path) -> None:  # type: ignore[no-u
     warnings = json.loads(result.stdout)["warnings"]
     notes = [w for w in warnings if "columns separated by ';'" in w]
     assert notes == ["log: columns separated by ';'"]
+
+
+def test_coloured_noise_is_named_only_when_the_settled_output_shows_it() -> None:
+    truth = ProcessModel(K=13.5, T=1.3, T_f=0.3, delay=0.2)
+    u = np.repeat([1.0, 1.5, 1.2, 1.8, 1.3, 1.6], round(30.0 / H))
+    rng = np.random.default_rng(2)
+    # AR(1) measurement noise, pole 0.9 (correlation time 0.2 s): coloured everywhere
+    white = rng.normal(0.0, 0.05, u.size)
+    coloured = scipy.signal.lfilter([1.0], [1.0, -0.9], white)
+    y = 40.0 + simulate_model(truth, u, H) + coloured
+    options = IdentifyOptions(flowmeter_T=0.3, flowmeter_delay=0.2)
+    result = identify(IOData(u, y, H), options)
+    [whiteness] = [w for w in result.warnings if w.startswith("residuals are not white")]
+    assert "also where the output has settled" in whiteness
+    assert "coloured noise or a drift" in whiteness
+    # the same plant with white noise and a model missing the meter lag: the misfit is in the
+    # transients only, and the noise is not blamed
+    y = 40.0 + simulate_model(truth, u, H) + white
+    result = identify(IOData(u, y, H), IdentifyOptions(order=1, delay=0.2))
+    [whiteness] = [w for w in result.warnings if w.startswith("residuals are not white")]
+    assert "only after command changes" in whiteness
+    assert "the noise is white" in whiteness

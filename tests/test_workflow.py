@@ -25,6 +25,7 @@ from fuelid.plant import load_plant_config
 from fuelid.units import celsius_to_kelvin
 from fuelid.workflow import (
     T_REF,
+    PlantSource,
     TuneRequest,
     check_over_temperature,
     identify_log,
@@ -92,13 +93,22 @@ def test_identify_log_is_what_fuelid_identify_prints(
     np.savetxt(path, np.column_stack([t, u, y]), delimiter=",", header="t_s,u_V,q_Lpm", comments="")
     options = plant_priors(IdentifyOptions(validate_split=0.3), CONFIG)
     assert (options.flowmeter_T, options.flowmeter_delay) == (0.3, 0.2)  # the meter's priors
-    outcome = identify_log(load_log(path), options, t_start=2.0)
     plant = str(resources.files("fuelid.data").joinpath("reference_plant.toml"))
+    outcome = identify_log(
+        load_log(path),
+        IdentifyOptions(validate_split=0.3),
+        t_start=2.0,
+        plant=PlantSource(CONFIG, plant),
+    )
     cli = _cli(
         "identify", str(path), "--config", plant, "--validate-split", "0.3", "--t-start", "2"
     )
     assert _as_printed(outcome.to_json(), capsys) == cli
     assert cli["units"]["T"] == "s"
+    # the plant file's meter, held fixed, and said so
+    assert cli["priors"]["flowmeter_T"] == {"value": 0.3, "source": "plant file"}
+    assert cli["priors"]["delay"] == {"value": 0.2, "source": "plant file"}
+    assert set(cli["fixed"]) >= {"delay", "T_f"}
 
 
 @pytest.mark.parametrize(

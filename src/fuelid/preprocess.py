@@ -8,6 +8,11 @@ is never modified) with a short note appended to ``notes`` saying what was done 
 * :func:`decimate` — from the PLC sample time (0.02 s) to the control period (1 s), anti-aliased
   with :func:`lowpass` and aligned with the controller's update instants.
 * :func:`select` — a time window of the record.
+* :func:`join_segments` — contiguous records (segments) as one record with gaps.
+
+A record with gaps (``IOData.segment_starts``) is processed segment by segment: nothing is
+filtered, decimated or selected across a gap, as if each segment were a record of its own; the
+segments stay concatenated in one record.
 
 Offsets need no preprocessing: both estimators fit a constant (and ``oe`` the initial state)
 alongside the model.
@@ -28,6 +33,7 @@ Examples
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from scipy import signal
@@ -35,7 +41,7 @@ from scipy import signal
 from fuelid.errors import DataError
 from fuelid.io.timeseries import FloatArray, IOData
 
-__all__ = ["decimate", "lowpass", "select"]
+__all__ = ["decimate", "join_segments", "lowpass", "select"]
 
 MIN_SELECTED_SAMPLES = 10
 """Fewest samples :func:`select` accepts."""
@@ -55,26 +61,99 @@ def _replace(
     y: FloatArray | None = None,
     sample_time: float | None = None,
     t0: float | None = None,
+    kept: slice | None = None,
 ) -> IOData:
-    """A new record with some fields replaced and ``note`` appended (the input is untouched)."""
-    return IOData(
+    """A new record with some fields replaced and ``note`` appended (the input is untouched).
+
+    The segment layout and fuel temperature are kept: callers that change the number of samples
+    pass records whose layout already matches (see :func:`join_segments`); ``kept`` is the
+    slice of samples a contiguous record keeps (for the fuel temperature).
+    """
+    T_fuel = data.T_fuel if kept is None or data.T_fuel is None else data.T_fuel[kept].copy()
+    return replace(
+        data,
+        T_fuel=T_fuel,
         u=data.u.copy() if u is None else u,
         y=data.y.copy() if y is None else y,
         sample_time=data.sample_time if sample_time is None else sample_time,
         t0=data.t0 if t0 is None else t0,
-        u_unit=data.u_unit,
-        y_unit=data.y_unit,
-        source=data.source,
         notes=(*data.notes, note),
+    )
+
+
+def join_segments(parts: list[IOData], notes: tuple[str, ...] | None = None) -> IOData:
+    """Contiguous records, in time order, as one record with a gap before each but the first.
+
+    Parameters
+    ----------
+    parts : list of IOData
+        Records at the same sample time, each starting after the previous one ends. Gaps inside
+        a part are kept.
+    notes : tuple of str, optional
+        Notes of the joined record (default: the first part's).
+
+    Returns
+    -------
+    IOData
+        ``u``, ``y`` (and ``T_fuel`` when every part has it) concatenated; ``segment_starts``
+        mark where each part (and each gap inside one) begins.
+
+    Raises
+    ------
+    DataError
+        No parts, different sample times, or parts that overlap in time.
+
+    Examples
+    --------
+    >>> a = IOData([1.0, 1.0], [2.0, 2.0], 0.5)
+    >>> b = IOData([1.5, 1.5, 1.5], [2.0, 2.1, 2.2], 0.5, t0=10.0)
+    >>> j = join_segments([a, b])
+    >>> j.segment_starts, j.segment_t0, j.n_segments
+    ((2,), (10.0,), 2)
+    """
+    if not parts:
+        raise DataError("no segments to join")
+    first = parts[0]
+    if len(parts) == 1:
+        return first if notes is None else replace(first, notes=notes)
+    h = first.sample_time
+    starts: list[int] = []
+    times: list[float] = []
+    offset = 0
+    t_end = -math.inf
+    for part in parts:
+        if not math.isclose(part.sample_time, h, rel_tol=1e-9):
+            raise DataError("segments to join must share one sample time")
+        t = part.t
+        if t[0] <= t_end:
+            raise DataError("segments to join must follow each other in time")
+        if offset:
+            starts.append(offset)
+            times.append(float(t[0]))
+        starts.extend(offset + i for i in part.segment_starts)
+        times.extend(part.segment_t0)
+        offset += part.n_samples
+        t_end = float(t[-1])
+    temperatures = [p.T_fuel for p in parts if p.T_fuel is not None]
+    T_fuel = np.concatenate(temperatures) if len(temperatures) == len(parts) else None
+    return replace(
+        first,
+        u=np.concatenate([p.u for p in parts]),
+        y=np.concatenate([p.y for p in parts]),
+        notes=first.notes if notes is None else notes,
+        segment_starts=tuple(starts),
+        segment_t0=tuple(times),
+        T_fuel=T_fuel,
     )
 
 
 def _span(data: IOData) -> str:
     """The record's time span for messages."""
-    t_last = data.t0 + (data.n_samples - 1) * data.sample_time
+    t_last = float(data.t[-1])
+    gaps = f", {data.n_segments} segments" if data.n_segments > 1 else ""
     return (
         f"the record spans t = {data.t0:g} … {t_last:g} s "
-        f"({data.n_samples} samples of {data.sample_time:g} s)"
+        f"({data.n_samples} samples of {data.sample_time:g} s{gaps})"
     )
 
 
@@ -86,7 +165,8 @@ def lowpass(data: IOData, cutoff_hz: float, order: int = 4) -> IOData:
     constant or dead time. Its magnitude response is the Butterworth one squared,
     ``|H(f)|² = 1 / (1 + (f/f_c)^(2·order))``. The input u is a held command and is never
     filtered. The ends are padded by odd reflection over about two cutoff periods (``2/f_c``,
-    at most the record length) so that the end transients of the filter stay small.
+    at most the record length) so that the end transients of the filter stay small. A record
+    with gaps is filtered segment by segment, each padded at its own ends.
 
     Parameters
     ----------
@@ -128,20 +208,28 @@ def lowpass(data: IOData, cutoff_hz: float, order: int = 4) -> IOData:
     if order < 1:
         raise DataError(f"low-pass order must be at least 1, got {order}")
     sos = np.asarray(signal.butter(order, cutoff_hz, fs=1.0 / h, output="sos"), dtype=np.float64)
-    # sosfiltfilt's own minimum padding; the record must be longer than it.
-    n_zero = min(int(np.sum(sos[:, 2] == 0.0)), int(np.sum(sos[:, 5] == 0.0)))
-    min_pad = 3 * (2 * sos.shape[0] + 1 - n_zero)
-    n = data.n_samples
-    if n <= min_pad:
-        raise DataError(
-            f"record too short to low-pass: the order-{order} zero-phase filter pads each end "
-            f"with {min_pad} samples and needs more than that ({n} given)"
-        )
-    padlen = min(n - 1, max(min_pad, math.ceil(2.0 / (cutoff_hz * h))))
-    y = np.asarray(signal.sosfiltfilt(sos, data.y, padlen=padlen), dtype=np.float64)
+    min_pad = _min_padding(sos)
+    y = data.y.copy()
+    for index, (start, stop) in enumerate(data.segment_bounds()):
+        n = stop - start
+        if n <= min_pad:
+            where = f"segment {index + 1} of {data.n_segments} " if data.n_segments > 1 else ""
+            raise DataError(
+                f"record {where}too short to low-pass: the order-{order} zero-phase filter pads "
+                f"each end with {min_pad} samples and needs more than that ({n} given)"
+            )
+        # each segment is filtered on its own: never across a gap
+        padlen = min(n - 1, max(min_pad, math.ceil(2.0 / (cutoff_hz * h))))
+        y[start:stop] = signal.sosfiltfilt(sos, data.y[start:stop], padlen=padlen)
     return _replace(
         data, f"y low-passed: zero-phase Butterworth, order {order}, cutoff {cutoff_hz:g} Hz", y=y
     )
+
+
+def _min_padding(sos: FloatArray) -> int:
+    """The minimum padding of sosfiltfilt [samples]; a record must be longer than it."""
+    n_zero = min(int(np.sum(sos[:, 2] == 0.0)), int(np.sum(sos[:, 5] == 0.0)))
+    return 3 * (2 * int(sos.shape[0]) + 1 - n_zero)
 
 
 def _update_phase(u: FloatArray, factor: int) -> int:
@@ -218,6 +306,8 @@ def decimate(
         )
     if factor == 1:
         return _replace(data, f"not decimated: the sample time is already {h:g} s")
+    if data.n_segments > 1:
+        return _decimate_segments(data, control_period, factor, phase, antialias)
     if phase is None:
         phase = _update_phase(data.u, factor)
         how = "at the controller's update instants"
@@ -242,7 +332,79 @@ def decimate(
         y=source.y[phase::factor].copy(),
         sample_time=control_period,
         t0=t0,
+        kept=slice(phase, None, factor),
     )
+
+
+def _decimate_segments(
+    data: IOData, control_period: float, factor: int, phase: int | None, antialias: bool
+) -> IOData:
+    """:func:`decimate` of a record with gaps: each segment on its own, on one controller clock.
+
+    The controller's update instants are one clock for the whole log, but a gap need not last a
+    whole number of control periods: the phase is therefore found once, in samples counted from
+    the record's first sample time (``round((t − t0)/h)``), and each segment keeps the samples
+    on that clock. ``phase`` counts from the first segment's first sample. A segment too short
+    to low-pass, or without a sample on the clock, is left out (a note says so).
+    """
+    h = data.sample_time
+    bounds = data.segment_bounds()
+    # index of each segment's first sample on the whole log's sample clock
+    origins = [round((t_j - data.t0) / h) for t_j in (data.t0, *data.segment_t0)]
+    if phase is None:
+        changes = np.concatenate(
+            [
+                origin + np.flatnonzero(data.u[a + 1 : b] != data.u[a : b - 1]) + 1
+                for (a, b), origin in zip(bounds, origins, strict=True)
+            ]
+        )
+        phase = (
+            int(np.argmax(np.bincount(changes % factor, minlength=factor))) if changes.size else 0
+        )
+        how = "at the controller's update instants"
+    elif not 0 <= phase < factor:
+        raise DataError(f"decimation phase must lie in 0 … {factor - 1}, got {phase}")
+    else:
+        how = "as requested"
+    cutoff = ANTIALIAS_FRACTION * 0.5 / control_period
+    parts: list[IOData] = []
+    left_out: list[str] = []
+    for index, ((a, b), origin) in enumerate(zip(bounds, origins, strict=True)):
+        part = data.segment(a, b)
+        first = (phase - origin) % factor
+        if first >= part.n_samples:
+            left_out.append(f"{index + 1} ({part.n_samples} samples: none on the clock)")
+            continue
+        source = part
+        if antialias:
+            try:
+                source = lowpass(part, cutoff)
+            except DataError:
+                left_out.append(f"{index + 1} ({part.n_samples} samples: too short to low-pass)")
+                continue
+        parts.append(
+            replace(
+                part,
+                u=part.u[first::factor].copy(),
+                y=source.y[first::factor].copy(),
+                sample_time=control_period,
+                t0=round(part.t0 + first * h, 12),
+                T_fuel=None if part.T_fuel is None else part.T_fuel[first::factor].copy(),
+            )
+        )
+    if sum(p.n_samples for p in parts) < 2:
+        raise DataError(
+            f"cannot decimate by {factor}: fewer than 2 samples would remain; {_span(data)}"
+        )
+    note = (
+        f"decimated by {factor} to {control_period:g} s segment by segment ({len(parts)} of "
+        f"{data.n_segments}), on the controller's clock (phase {phase} from t = {data.t0:g} s, "
+        f"{how}); u[j] is the command held from t_j to t_j + {control_period:g} s"
+    )
+    notes: tuple[str, ...] = (*data.notes, note)
+    if left_out:
+        notes = (*notes, f"segments left out by the decimation: {', '.join(left_out)}")
+    return join_segments(parts, notes=notes)
 
 
 def select(data: IOData, t_start: float | None = None, t_stop: float | None = None) -> IOData:
@@ -279,8 +441,14 @@ def select(data: IOData, t_start: float | None = None, t_stop: float | None = No
     """
     h = data.sample_time
     n = data.n_samples
-    k_start = 0 if t_start is None else math.ceil((t_start - data.t0) / h - 1e-9)
-    k_stop = n if t_stop is None else math.ceil((t_stop - data.t0) / h - 1e-9)
+    if data.n_segments > 1:
+        # times jump at the gaps: find the bounds on the true time axis
+        t = data.t
+        k_start = 0 if t_start is None else int(np.searchsorted(t, t_start - 1e-9 * h))
+        k_stop = n if t_stop is None else int(np.searchsorted(t, t_stop - 1e-9 * h))
+    else:
+        k_start = 0 if t_start is None else math.ceil((t_start - data.t0) / h - 1e-9)
+        k_stop = n if t_stop is None else math.ceil((t_stop - data.t0) / h - 1e-9)
     k_start, k_stop = max(k_start, 0), min(k_stop, n)
     window = f"[{'start' if t_start is None else f'{t_start:g}'}, "
     window += f"{'end' if t_stop is None else f'{t_stop:g}'}) s"
@@ -292,5 +460,5 @@ def select(data: IOData, t_start: float | None = None, t_stop: float | None = No
             f"(at least {MIN_SELECTED_SAMPLES} needed); {_span(data)}"
         )
     part = data.segment(k_start, k_stop)
-    t_last = part.t0 + (part.n_samples - 1) * h
+    t_last = float(part.t[-1])
     return _replace(part, f"selected t = {part.t0:g} … {t_last:g} s ({part.n_samples} samples)")

@@ -245,7 +245,40 @@ InputColumn = Annotated[str, typer.Option(metavar="COLUMN", help="Input column."
 OutputColumn = Annotated[str, typer.Option(metavar="COLUMN", help="Output column.")]
 SampleTime = Annotated[
     float | None,
-    typer.Option(help="Sample time [s] for a log without a time column.", show_default=False),
+    typer.Option(
+        metavar="SECONDS",
+        help="Sample time [s] of a log without a time column; with one it must agree with it "
+        "(1 %), and the time column is used.",
+        show_default=False,
+    ),
+]
+FillGaps = Annotated[
+    float | None,
+    typer.Option(
+        "--fill-gaps",
+        metavar="SECONDS",
+        help="Bridge gaps up to this long [s] (y interpolated linearly, u held), at most 5 sample "
+        "periods; longer gaps split the log into segments, identified jointly.",
+        show_default=False,
+    ),
+]
+MaxGap = Annotated[
+    float | None,
+    typer.Option(
+        "--max-gap",
+        metavar="SECONDS",
+        help="An interval longer than this [s] is a gap whatever the time stamps around it "
+        "(default: 3 median intervals; more than 1.1); missing samples are gaps anyway.",
+        show_default=False,
+    ),
+]
+FuelTemperatureColumn = Annotated[
+    str,
+    typer.Option(
+        "--fuel-temp-col",
+        metavar="COLUMN",
+        help="Fuel temperature column [°C], read when present (another name must exist).",
+    ),
 ]
 InputScale = Annotated[
     str | None,
@@ -274,18 +307,30 @@ def read_log(
     sample_time: float | None,
     input_scale: str | None,
     output_scale: str | None,
+    *,
+    fuel_temperature_col: str | None = "T_fuel_degC",
+    fill_gaps: float | None = None,
+    max_gap: float | None = None,
 ) -> IOData:
-    """Load a log with the shared column and scaling options (a sample time replaces the time)."""
+    """Load a log with the shared column, scaling and gap options.
+
+    A sample time replaces a missing time column; with a time column present the two must agree
+    and the time column is used (so that gaps are seen). An empty ``fuel_temperature_col`` reads
+    no fuel temperature.
+    """
     from fuelid.io.logs import load_log, parse_scale
 
     return load_log(
         path,
-        time_col=None if sample_time is not None else time_col,
+        time_col=time_col,
         input_col=input_col,
         output_col=output_col,
         sample_time=sample_time,
         input_scale=parse_scale(input_scale) if input_scale else None,
         output_scale=parse_scale(output_scale) if output_scale else None,
+        fill_gaps=fill_gaps,
+        max_gap=max_gap,
+        fuel_temperature_col=fuel_temperature_col or None,
     )
 
 

@@ -10,14 +10,17 @@ from __future__ import annotations
 import enum
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from fuelid.cli._common import (
+    FillGaps,
     ForceFigureOption,
+    FuelTemperatureColumn,
     InputColumn,
     InputScale,
+    MaxGap,
     OutputColumn,
     OutputScale,
     SampleTime,
@@ -29,7 +32,19 @@ from fuelid.cli._common import (
     read_log,
     warn,
 )
+from fuelid.cli._identify_options import (
+    DEFAULT_ORDER,
+    DelayOption,
+    FlowmeterDelayOption,
+    FlowmeterTOption,
+    OrderOption,
+    StepsOption,
+    check_prior_times,
+    parse_delay,
+    parse_order,
+)
 from fuelid.errors import FuelidError
+from fuelid.units import celsius_to_kelvin
 
 if TYPE_CHECKING:
     from fuelid.io.timeseries import IOData
@@ -49,30 +64,6 @@ class MethodChoice(enum.StrEnum):
     step_ls = "step-ls"
 
 
-def _order(text: str) -> Literal[1, 2, "auto"]:
-    if text == "1":
-        return 1
-    if text == "2":
-        return 2
-    if text == "auto":
-        return "auto"
-    raise FuelidError(f"--order must be 1, 2 or auto, got {text!r}")
-
-
-def _delay(text: str | None) -> float | Literal["auto"] | None:
-    if text is None:
-        return None
-    if text == "auto":
-        return "auto"
-    try:
-        value = float(text)
-    except ValueError:
-        raise FuelidError(f"--delay must be 'auto' or seconds, got {text!r}") from None
-    if not (math.isfinite(value) and value >= 0.0):
-        raise FuelidError(f"--delay must be a non-negative number of seconds, got {text!r}")
-    return value
-
-
 @guarded
 def identify_command(
     file: Annotated[
@@ -87,50 +78,11 @@ def identify_command(
             "period."
         ),
     ] = MethodChoice.oe,
-    order: Annotated[
-        str,
-        typer.Option(
-            metavar="1|2|auto",
-            help="Process time constants: 1, 2, or auto (the order of lower AIC).",
-        ),
-    ] = "1",
-    delay: Annotated[
-        str | None,
-        typer.Option(
-            metavar="SECONDS|auto",
-            help="Dead time: a number of seconds [s] fixes it, 'auto' estimates it (default: "
-            "the flowmeter delay when given, else auto).",
-            show_default=False,
-        ),
-    ] = None,
-    flowmeter_T: Annotated[
-        float | None,
-        typer.Option(
-            "--flowmeter-T",
-            "--T-f",
-            metavar="SECONDS",
-            help="Flowmeter time constant T_f [s], held fixed (alias --T-f, as in fuelid tune).",
-            show_default=False,
-        ),
-    ] = None,
-    flowmeter_delay: Annotated[
-        float | None,
-        typer.Option(
-            "--flowmeter-delay",
-            metavar="SECONDS",
-            help="Flowmeter dead time [s], the model's delay unless --delay.",
-            show_default=False,
-        ),
-    ] = None,
-    n_steps: Annotated[
-        int | None,
-        typer.Option(
-            "--N",
-            help="step-ls: step-response length N [control periods] (default: "
-            "from --config's settling time).",
-            show_default=False,
-        ),
-    ] = None,
+    order: OrderOption = DEFAULT_ORDER,
+    delay: DelayOption = None,
+    flowmeter_T: FlowmeterTOption = None,
+    flowmeter_delay: FlowmeterDelayOption = None,
+    n_steps: StepsOption = None,
     control_period: Annotated[
         float, typer.Option(help="step-ls: controller period to decimate to [s].")
     ] = 1.0,
@@ -162,8 +114,17 @@ def identify_command(
             "--config",
             "-c",
             metavar="PLANT.toml",
-            help="Plant TOML: its flowmeter gives T_f and the delay "
-            "priors, its settling time gives N.",
+            help="Plant TOML of your loop: its flowmeter gives T_f and the delay priors, its "
+            "settling time N, its drive range and meter span the signal check, its K at the "
+            "log's operating point a comparison (default: no plant, no priors).",
+            show_default=False,
+        ),
+    ] = None,
+    fuel_temp: Annotated[
+        float | None,
+        typer.Option(
+            help="Fuel temperature during the log [°C] when it has no fuel-temperature column "
+            "(recorded in operating_point for fuelid tune --model).",
             show_default=False,
         ),
     ] = None,
@@ -189,6 +150,9 @@ def identify_command(
     sample_time: SampleTime = None,
     input_scale: InputScale = None,
     output_scale: OutputScale = None,
+    fuel_temp_col: FuelTemperatureColumn = "T_fuel_degC",
+    fill_gaps: FillGaps = None,
+    max_gap: MaxGap = None,
     plot: Annotated[
         Path | None,
         typer.Option(
@@ -207,16 +171,16 @@ def identify_command(
     not given is estimated. Non-exciting data are refused (exit code 2).
     """
     from fuelid.identify.procedure import IdentifyOptions
-    from fuelid.workflow.identification import identify_log, plant_priors
+    from fuelid.workflow.identification import identify_log
 
     check_figure_path(plot, overwrite=force)
-    for name, value in (("--flowmeter-T", flowmeter_T), ("--flowmeter-delay", flowmeter_delay)):
-        if value is not None and not (math.isfinite(value) and value >= 0.0):
-            raise FuelidError(f"{name} must be a non-negative number of seconds")
+    check_prior_times(flowmeter_T, flowmeter_delay)
+    if fuel_temp is not None and not (math.isfinite(fuel_temp) and -60.0 <= fuel_temp <= 150.0):
+        raise FuelidError(f"--fuel-temp must lie within -60…150 °C, got {fuel_temp:g}")
     options = IdentifyOptions(
         method="step-ls" if method is MethodChoice.step_ls else "oe",
-        order=_order(order),
-        delay=_delay(delay),
+        order=parse_order(order),
+        delay=parse_delay(delay),
         flowmeter_T=flowmeter_T,
         flowmeter_delay=flowmeter_delay,
         N=n_steps,
@@ -225,19 +189,38 @@ def identify_command(
         u_before=u_before,
         validation_initial=validate_initial.value,
     )
+    plant = None
     if config is not None:
-        from fuelid.plant.config import load_plant_config  # physics only with a plant file
+        from fuelid.plant.config import load_plant_config
+        from fuelid.workflow.assumptions import PlantSource
 
-        options = plant_priors(options, load_plant_config(config))
+        plant = PlantSource(load_plant_config(config), str(config))
 
     def read(path: Path) -> IOData:
         return read_log(
-            path, time_col, input_col, output_col, sample_time, input_scale, output_scale
+            path,
+            time_col,
+            input_col,
+            output_col,
+            sample_time,
+            input_scale,
+            output_scale,
+            fuel_temperature_col=fuel_temp_col,
+            fill_gaps=fill_gaps,
+            max_gap=max_gap,
         )
 
     data = read(file)
     validation = read(validate_file) if validate_file is not None else None
-    outcome = identify_log(data, options, validation=validation, t_start=t_start, t_stop=t_stop)
+    outcome = identify_log(
+        data,
+        options,
+        validation=validation,
+        t_start=t_start,
+        t_stop=t_stop,
+        plant=plant,
+        fuel_temperature=None if fuel_temp is None else celsius_to_kelvin(fuel_temp),
+    )
     result = outcome.result
     for message in outcome.warnings:
         warn(message)
@@ -266,6 +249,7 @@ def identify_command(
             "validate_split": validate_split,
             "validate_initial": validate_initial.value,
             "config": str(config) if config else None,
+            "fuel_temp": fuel_temp,
             "u_before": u_before,
             "time_col": time_col,
             "input_col": input_col,
@@ -273,47 +257,15 @@ def identify_command(
             "sample_time": sample_time,
             "input_scale": input_scale,
             "output_scale": output_scale,
+            "fuel_temp_col": fuel_temp_col,
+            "fill_gaps": fill_gaps,
+            "max_gap": max_gap,
         }
         emit_json(data_json | provenance(opts, file))
         return
-    _print_table(data_json, file, _gain_unit(input_col, output_col, input_scale, output_scale))
+    from fuelid.workflow.assumptions import gain_unit
 
-
-_UNIT_SUFFIXES = {"_V": "V", "_mA": "mA", "_Lpm": "L/min", "_pct": "%", "_percent": "%"}
-"""Unit suffixes of column names, as fuelid's own logs carry them (``u_V``, ``q_Lpm``)."""
-
-
-def _column_unit(column: str, scale: str | None) -> str | None:
-    """The unit a column's name says, or None: unknown, or rescaled to an unnamed unit."""
-    if scale:
-        return None
-    for suffix, unit in _UNIT_SUFFIXES.items():
-        if column.endswith(suffix):
-            return unit
-    return None
-
-
-def _gain_unit(
-    input_col: str, output_col: str, input_scale: str | None, output_scale: str | None
-) -> str:
-    """K's unit for the table: (L/min)/V for ``u_V`` and ``q_Lpm``, a neutral label when unknown.
-
-    Examples
-    --------
-    >>> _gain_unit("u_V", "q_Lpm", None, None)
-    '(L/min)/V'
-    >>> _gain_unit("u_mA", "q_Lpm", "4:20:1:5", None)
-    '(out)/(in)'
-    """
-    u_unit = _column_unit(input_col, input_scale)
-    y_unit = _column_unit(output_col, output_scale)
-    if u_unit is None or y_unit is None:
-        return "(out)/(in)"
-
-    def wrap(unit: str) -> str:
-        return f"({unit})" if "/" in unit else unit
-
-    return f"{wrap(y_unit)}/{wrap(u_unit)}"
+    _print_table(data_json, file, gain_unit(data))
 
 
 def _print_table(data: dict[str, Any], file: Path, gain_unit: str) -> None:

@@ -7,6 +7,10 @@
   fractional dead time;
 - :mod:`~fuelid.identify.diagnostics`: residual whiteness, input–residual correlation, feedback,
   steady-state errors, sample-time advice;
+- :mod:`~fuelid.identify.nonlinearity`: the static gain per command band (does K change with
+  the operating point?);
+- :mod:`~fuelid.identify.segments`: how a log with gaps is fitted (one model, an initial state
+  per segment);
 - :mod:`~fuelid.identify.procedure`: what ``fuelid identify`` runs (:func:`identify`).
 
 The methods, their assumptions and references: docs/identification.md.
@@ -44,6 +48,10 @@ scikit-learn's conventions, through the common base ``fuelid.identify._base.Esti
 - ``to_control()`` gives the delay-free part as a python-control transfer function (imported
   only then: importing :mod:`fuelid.identify` loads neither python-control nor matplotlib).
 
+A record with gaps (``IOData.segment_starts``) is fitted as toolboxes merge experiments: one
+model for all segments, each segment simulated on its own with its own initial state, nothing
+simulated, filtered or correlated across a gap (:mod:`~fuelid.identify.segments`).
+
 Methods are named in one registry, :data:`~fuelid.identify.procedure.METHODS`.
 """
 
@@ -56,8 +64,10 @@ from fuelid.identify.diagnostics import (
     input_residual_correlation,
     residual_whiteness,
     sample_time_advice,
+    settled_whiteness,
     steady_state_errors,
 )
+from fuelid.identify.nonlinearity import GainBand, NonlinearityCheck, gain_bands
 from fuelid.identify.oe import OutputError, cramer_rao_bound
 from fuelid.identify.procedure import (
     METHODS,
@@ -66,23 +76,30 @@ from fuelid.identify.procedure import (
     identify,
     interval95,
 )
+from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, drop_short_segments
 from fuelid.identify.step_ls import StepResponseLS, step_shape
 
 __all__ = [
     "METHODS",
+    "MIN_SEGMENT_SAMPLES",
     "CorrelationTest",
+    "GainBand",
     "IdentificationResult",
     "IdentifyOptions",
+    "NonlinearityCheck",
     "OutputError",
     "StepError",
     "StepResponseLS",
     "cramer_rao_bound",
+    "drop_short_segments",
     "feedback_suspected",
+    "gain_bands",
     "identify",
     "input_residual_correlation",
     "interval95",
     "residual_whiteness",
     "sample_time_advice",
+    "settled_whiteness",
     "steady_state_errors",
     "step_shape",
 ]

@@ -42,10 +42,11 @@ class _Record:
     n_samples: int
     sample_time: float
     digest: str
+    segment_starts: tuple[int, ...] = ()
 
     @classmethod
     def of(cls, data: IOData) -> _Record:
-        return cls(data.n_samples, data.sample_time, _digest(data.u))
+        return cls(data.n_samples, data.sample_time, _digest(data.u), data.segment_starts)
 
     def mismatch(self, data: IOData) -> str | None:
         """Why ``data`` does not start with this record (None when it does)."""
@@ -55,6 +56,8 @@ class _Record:
             return f"has only {data.n_samples} samples"
         if _digest(data.u[: self.n_samples]) != self.digest:
             return "does not start with the fitting record's input"
+        if tuple(i for i in data.segment_starts if i < self.n_samples) != self.segment_starts:
+            return "has its gaps elsewhere than the fitting record"
         return None
 
 

@@ -6,12 +6,18 @@ Residual whiteness, input–residual correlation, steady-state error on steps, f
 The correlation tests follow Ljung, *System Identification* (2nd ed., 1999), §16.6: for white
 residuals uncorrelated with the input, every normalised correlation is asymptotically N(0, 1/N),
 so ±1.96/√N bounds 95 % of them, and N·Σr² over M lags is χ²(M).
+
+For a record with gaps (``segment_starts``, the indices where a segment begins) every lagged
+product pairs two samples of the same segment: nothing is correlated across a join, where the
+samples are not τ apart in time. The sums are pooled over the segments and normalised by the
+whole record's N and variances, so a record without gaps gives exactly the classical values.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,24 +60,37 @@ def _chi2_sf(statistic: float, dof: int) -> float:
     return float(scipy.special.chdtrc(dof, statistic))
 
 
-def _normalised_xcorr(a: FloatArray, b: FloatArray, lags: FloatArray) -> FloatArray:
-    """r_ab(τ) = Σ_k a[k+τ]·b[k] / (N·σ_a·σ_b) for integer lags τ."""
+def _bounds(n: int, segment_starts: Sequence[int]) -> list[tuple[int, int]]:
+    edges = [0, *(int(i) for i in segment_starts), n]
+    return list(itertools.pairwise(edges))
+
+
+def _normalised_xcorr(
+    a: FloatArray, b: FloatArray, lags: FloatArray, segment_starts: Sequence[int] = ()
+) -> FloatArray:
+    """r_ab(τ) = Σ_k a[k+τ]·b[k] / (N·σ_a·σ_b) for integer lags τ, k and k+τ in one segment."""
     a = a - a.mean()
     b = b - b.mean()
     n = a.size
     denom = n * a.std() * b.std()
-    out = np.empty(lags.size)
+    out = np.zeros(lags.size)
     with single_threaded_blas():
-        for i, lag in enumerate(lags.astype(int)):
-            if lag >= 0:
-                out[i] = a[lag:] @ b[: n - lag]
-            else:
-                out[i] = a[: n + lag] @ b[-lag:]
+        for start, stop in _bounds(n, segment_starts):
+            aa, bb, m = a[start:stop], b[start:stop], stop - start
+            for i, lag in enumerate(lags.astype(int)):
+                if abs(lag) >= m:
+                    continue
+                if lag >= 0:
+                    out[i] += aa[lag:] @ bb[: m - lag]
+                else:
+                    out[i] += aa[: m + lag] @ bb[-lag:]
     return out / denom if denom > 0.0 else np.zeros(lags.size)
 
 
-def residual_whiteness(residuals: ArrayLike, max_lag: int = 25) -> CorrelationTest:
-    """Autocorrelation of the residuals at lags 1…max_lag.
+def residual_whiteness(
+    residuals: ArrayLike, max_lag: int = 25, segment_starts: Sequence[int] = ()
+) -> CorrelationTest:
+    """Autocorrelation of the residuals at lags 1…max_lag (within segments, see above).
 
     Examples
     --------
@@ -81,26 +100,104 @@ def residual_whiteness(residuals: ArrayLike, max_lag: int = 25) -> CorrelationTe
     """
     e = np.asarray(residuals, dtype=float)
     lags = np.arange(1, max_lag + 1, dtype=float)
-    r = _normalised_xcorr(e, e, lags)
+    r = _normalised_xcorr(e, e, lags, segment_starts)
     n = e.size
     stat = float(n * np.sum(r**2))
     return CorrelationTest(lags, r, 1.96 / math.sqrt(n), stat, _chi2_sf(stat, lags.size))
 
 
+def settled_whiteness(
+    residuals: ArrayLike,
+    u: ArrayLike,
+    sample_time: float,
+    settle: float,
+    segment_starts: Sequence[int] = (),
+    max_lag: int = 25,
+    min_samples: int = 200,
+) -> CorrelationTest | None:
+    """Whiteness of the residuals where the output has settled (is the *noise* coloured?).
+
+    The residuals of a model whose dynamics miss part of the response are coloured during the
+    transients after command changes; coloured measurement noise (or a drift) is coloured
+    everywhere. This tests only the samples at least twice ``settle`` after the last command
+    change (or gap): the settling time is the fitted model's, and a model that misses a lag
+    also misjudges how long the response lasts; after two settling times even a 2 % misfit of
+    the tail has decayed to 0.04 % of the step. Each settled stretch is tested on its own with
+    its mean removed (a steady-state error is a constant, not colour), as
+    :func:`residual_whiteness` does.
+
+    Parameters
+    ----------
+    residuals, u : array
+        Residuals [output unit] and the command [input unit], one per sample.
+    sample_time : float
+        h [s].
+    settle : float
+        98 % settling time of the model [s].
+    segment_starts : sequence of int
+        Where each segment after a gap begins.
+    max_lag : int
+        Lags tested [samples]; a stretch must be longer than twice this to count.
+    min_samples : int
+        Fewest settled samples for a test (None below).
+
+    Returns
+    -------
+    CorrelationTest or None
+        None when the record holds too few settled samples.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(1)
+    >>> u = np.repeat([0.0, 1.0, 0.0, 1.0], 500)
+    >>> e = rng.normal(size=u.size)
+    >>> e[500:520] += 5.0  # a transient misfit after one step: not noise colour
+    >>> residual_whiteness(e).passed, settled_whiteness(e, u, 0.1, 2.5).passed
+    (False, True)
+    """
+    if not (math.isfinite(settle) and settle >= 0.0):
+        return None
+    e_all = np.asarray(residuals, dtype=float)
+    u_arr = np.asarray(u, dtype=float)
+    edges = np.union1d(
+        np.r_[0, np.flatnonzero(np.diff(u_arr) != 0.0) + 1, u_arr.size],
+        np.asarray(segment_starts, dtype=int),
+    )
+    skip = math.ceil(2.0 * settle / sample_time)
+    parts = [
+        e_all[a + skip : b] - e_all[a + skip : b].mean()
+        for a, b in itertools.pairwise(edges.tolist())
+        if b - (a + skip) > 2 * max_lag
+    ]
+    n = sum(p.size for p in parts)
+    if n < min_samples:
+        return None
+    starts = tuple(np.cumsum([p.size for p in parts])[:-1].tolist())
+    return residual_whiteness(np.concatenate(parts), max_lag, starts)
+
+
 def input_residual_correlation(
-    u: ArrayLike, residuals: ArrayLike, max_lag: int = 25
+    u: ArrayLike, residuals: ArrayLike, max_lag: int = 25, segment_starts: Sequence[int] = ()
 ) -> CorrelationTest:
     """Cross-correlation r_εu(τ) of residuals ε[k+τ] with input u[k], τ = −max_lag…max_lag.
 
     Positive lags (residual after the input) test for unmodelled dynamics; significant negative
     lags (input after the residual) mean the input reacts to the output: feedback.
     The input is differenced first (a held command is strongly autocorrelated, which would inflate
-    the correlations; its changes are nearly white in a test sequence).
+    the correlations; its changes are nearly white in a test sequence). With segments the input
+    is differenced within each segment (the jump across a gap is not an input change).
     """
-    du = np.diff(np.asarray(u, dtype=float))
-    e = np.asarray(residuals, dtype=float)[1:]
+    u_arr = np.asarray(u, dtype=float)
+    e_all = np.asarray(residuals, dtype=float)
+    if segment_starts:
+        bounds = _bounds(u_arr.size, segment_starts)
+        du = np.concatenate([np.diff(u_arr[a:b]) for a, b in bounds])
+        e = np.concatenate([e_all[a + 1 : b] for a, b in bounds])
+        starts = tuple(np.cumsum([b - a - 1 for a, b in bounds])[:-1].tolist())
+    else:
+        du, e, starts = np.diff(u_arr), e_all[1:], ()
     lags = np.arange(-max_lag, max_lag + 1, dtype=float)
-    r = _normalised_xcorr(e, du, lags)
+    r = _normalised_xcorr(e, du, lags, starts)
     n = e.size
     positive = r[lags >= 0]
     stat = float(n * np.sum(positive**2))
@@ -135,9 +232,16 @@ class StepError:
 
 
 def steady_state_errors(
-    u: ArrayLike, y: ArrayLike, y_hat: ArrayLike, sample_time: float, settle: float
+    u: ArrayLike,
+    y: ArrayLike,
+    y_hat: ArrayLike,
+    sample_time: float,
+    settle: float,
+    segment_starts: Sequence[int] = (),
 ) -> list[StepError]:
     """Steady-state error at the end of every plateau that lasts longer than ``settle`` [s].
+
+    A gap ends a plateau (``segment_starts``: where each segment after a gap begins).
 
     Examples
     --------
@@ -149,7 +253,10 @@ def steady_state_errors(
     u = np.asarray(u, dtype=float)
     y = np.asarray(y, dtype=float)
     y_hat = np.asarray(y_hat, dtype=float)
-    edges = np.r_[0, np.flatnonzero(np.diff(u) != 0.0) + 1, u.size]
+    edges = np.union1d(
+        np.r_[0, np.flatnonzero(np.diff(u) != 0.0) + 1, u.size],
+        np.asarray(segment_starts, dtype=int),
+    )
     out = []
     for a, b in itertools.pairwise(edges):
         if (b - a) * sample_time < settle:

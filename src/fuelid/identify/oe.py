@@ -15,6 +15,13 @@ Under white measurement noise minimising Σ(y − ŷ)² is maximum likelihood. T
 (K, b, c_i) are eliminated by least squares for given time constants and delay (variable
 projection), so the nonlinear search runs over one to three parameters only: log T, log T2 and
 θ. T_f (and θ, when given) are priors and stay fixed. The delay is fractional and exact.
+
+A record with gaps (:mod:`fuelid.identify.segments`) is fitted jointly: one model and one
+output offset ``b`` for all segments, the free-run simulation restarted at each segment from
+rest at its first command (the input before a segment is taken as held at that command) plus
+its own free response ``Σ_i c_ji p_i^(k − k_j)``; the first segment follows ``initial`` and
+``u_before``, every later one ``initial``. Each segment needs at least
+:data:`~fuelid.identify.segments.MIN_SEGMENT_SAMPLES` samples.
 """
 
 from __future__ import annotations
@@ -30,9 +37,10 @@ from numpy.typing import NDArray
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError, NotExcitingError
 from fuelid.identify._base import Estimator, Initial
+from fuelid.identify.segments import MIN_SEGMENT_SAMPLES
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
-from fuelid.model import ProcessModel, nrmse_fit, simulate_model
+from fuelid.model import ProcessModel, nrmse_fit
 
 if TYPE_CHECKING:
     import control
@@ -50,8 +58,9 @@ class _Structure:
     order: int
     T_f: float
     delay: float | None  # None: estimated
-    initial: str
+    initial: str  # of the first segment ("rest" when u_before is given)
     u_before: float | None
+    later: str = "estimate"  # initial condition of every segment after a gap
 
     @property
     def nonlinear_names(self) -> tuple[str, ...]:
@@ -79,19 +88,68 @@ class _Evaluation:
         return float(self.residual @ self.residual)
 
 
+Bounds = list[tuple[int, int]]
+
+
+def _n_modes(st: _Structure, n_lags: int, segment: int) -> int:
+    """Free-response amplitudes estimated for segment ``segment`` (0 for one at rest)."""
+    initial = st.initial if segment == 0 else st.later
+    return n_lags if initial == "estimate" else 0
+
+
 def _regressors(
-    st: _Structure, T: float, T2: float, delay: float, u: FloatArray, h: float, u_ref: float
+    st: _Structure,
+    T: float,
+    T2: float,
+    delay: float,
+    u: FloatArray,
+    h: float,
+    u_ref: float,
+    bounds: Bounds | None = None,
 ) -> FloatArray:
+    """Φ = [response, 1, free responses of each segment] for one (T, T2, delay).
+
+    Segment j (samples ``a:b`` of ``bounds``) is simulated on its own: from rest at u_ref for
+    the first segment, from rest at its first command u[a] for a later one (its level
+    K·(u[a] − u_ref) stays in the response column, so K and the common offset tie the
+    segments together); its free-response columns are zero outside it.
+    """
     lags = [tc for tc in (T, T2, st.T_f) if tc > 0.0]
     model = discretise(lags, delay, h)
-    n_modes = len(lags) if st.initial == "estimate" else 0
+    bounds = [(0, u.size)] if bounds is None else bounds
+    counts = [_n_modes(st, len(lags), j) for j in range(len(bounds))]
     # Fortran order: each regressor is one contiguous column
-    Phi = np.empty((u.size, 2 + n_modes), order="F")
-    Phi[:, 0] = model.response(u - u_ref)
+    Phi = np.empty((u.size, 2 + sum(counts)), order="F")
+    col = 2
+    for j, ((a, b), m) in enumerate(zip(bounds, counts, strict=True)):
+        u_pre = u_ref if j == 0 else float(u[a])
+        Phi[a:b, 0] = model.response(u[a:b] - u_pre)
+        if j:
+            Phi[a:b, 0] += u_pre - u_ref
+        if m:
+            Phi[:, col : col + m] = 0.0
+            Phi[a:b, col : col + m] = model.modes(b - a)
+            col += m
     Phi[:, 1] = 1.0
-    if n_modes:
-        Phi[:, 2:] = model.modes(u.size)
     return Phi
+
+
+def _subsample(data: IOData, step: int) -> IOData:
+    """Every ``step``-th sample of each segment (the segments and their starts kept)."""
+    if step == 1:
+        return data
+    if data.n_segments == 1:
+        return IOData(data.u[::step], data.y[::step], data.sample_time * step)
+    index = [np.arange(a, b, step) for a, b in data.segment_bounds()]
+    starts = np.cumsum([i.size for i in index])[:-1]
+    keep = np.concatenate(index)
+    return IOData(
+        data.u[keep],
+        data.y[keep],
+        data.sample_time * step,
+        segment_starts=tuple(int(k) for k in starts),
+        segment_t0=tuple(data.segment_t0),
+    )
 
 
 def _solve(Phi: FloatArray, y: FloatArray) -> _Evaluation:
@@ -123,10 +181,11 @@ class OutputError(Estimator):
         Flowmeter lag [s], a fixed prior (0 for none).
     initial : "estimate" or "rest"
         Estimate the free response of an unknown initial state, or assume the record starts
-        at rest.
+        at rest (for a record with gaps: every segment, each at its first command).
     u_before : float or None
         The steady input before the record [input unit]: the plant is taken to be at rest at
-        ``u_before`` when the record starts (overrides ``initial``).
+        ``u_before`` when the record starts (overrides ``initial`` for the first segment;
+        segments after a gap follow ``initial``).
     max_delay : float or None
         Upper bound of the delay search [s] (default: a quarter of the record, at most 60 s).
 
@@ -152,7 +211,9 @@ class OutputError(Estimator):
     aic_ : dict
         Akaike information criterion by order fitted.
     y_hat_ : ndarray
-        ``simulate(data, initial="fitted")`` on the fitting record.
+        ``simulate(data, initial="fitted")`` on the fitting record (per segment, concatenated).
+    n_segments_ : int
+        Contiguous segments of the fitting record (1 without gaps).
     fit_percent_ : float
         NRMSE fit [%] of ``y_hat_``: ``score(data, initial="fitted")`` on the fitting record.
     n_samples_, sample_time_ : int, float
@@ -190,6 +251,7 @@ class OutputError(Estimator):
     aic_: dict[int, float]
     fit_percent_: float
     y_hat_: FloatArray
+    n_segments_: int
     n_samples_: int
     sample_time_: float
     warnings_: list[str]
@@ -284,16 +346,55 @@ class OutputError(Estimator):
         """
         self._check_simulation(data, initial)
         u, h = data.u, data.sample_time
+        bounds = data.segment_bounds()
         if initial == "fitted":
-            st, beta = self._state
-            Phi = _regressors(st, self.T_, self.T2_, self.delay_, u, h, self.u_ref_)
-            return np.asarray(Phi @ beta, dtype=float)
-        response = simulate_model(self.model_, u, h)
-        if initial == "rest":
-            return self.offset_ + self.K_ * (float(u[0]) - self.u_ref_) + response
+            return self._continue_fitted(data)
         discrete = discretise(self.model_.time_constants, self.delay_, h)
-        basis = np.column_stack((np.ones(u.size), discrete.modes(u.size)))
+        # every segment from rest at its own first command: nothing runs across a gap
+        response = np.empty(u.size)
+        for a, b in bounds:
+            response[a:b] = self.K_ * discrete.response(u[a:b] - float(u[a]))
+            if initial == "rest":
+                response[a:b] += self.offset_ + self.K_ * (float(u[a]) - self.u_ref_)
+            elif a:  # a later segment's level relative to the first: one offset for all
+                response[a:b] += self.K_ * (float(u[a]) - float(u[0]))
+        if initial == "rest":
+            return response
+        # one offset for the record, one free response per segment
+        n_lags = discrete.poles.size
+        basis = np.zeros((u.size, 1 + n_lags * len(bounds)))
+        basis[:, 0] = 1.0
+        for j, (a, b) in enumerate(bounds):
+            basis[a:b, 1 + j * n_lags : 1 + (j + 1) * n_lags] = discrete.modes(b - a)
         return np.asarray(response + basis @ _solve(basis, data.y - response).beta, dtype=float)
+
+    def _continue_fitted(self, data: IOData) -> FloatArray:
+        """``simulate(data, "fitted")``: the fitted states, and new ones after later gaps.
+
+        The segments of the fitting record (the last one continued to its end in ``data``) use
+        the offset and initial states the fit estimated. A segment that begins after the
+        fitting record (a gap in a held-out part) has no fitted state: it starts from rest at
+        its first command, plus a free response estimated by least squares on its own samples
+        (``initial="estimate"`` of the fit's settings; none for "rest"), the offset kept.
+        """
+        st, beta = self._state
+        h = data.sample_time
+        bounds = data.segment_bounds()
+        Phi = _regressors(st, self.T_, self.T2_, self.delay_, data.u, h, self.u_ref_, bounds)
+        if Phi.shape[1] == beta.size:
+            return np.asarray(Phi @ beta, dtype=float)
+        y_hat = np.asarray(Phi[:, : beta.size] @ beta, dtype=float)
+        col = beta.size
+        n_lags = len(self.model_.time_constants)
+        for j, (a, b) in enumerate(bounds):
+            if a < self.n_samples_:
+                continue
+            m = _n_modes(st, n_lags, j)
+            if m:
+                block = Phi[a:b, col : col + m]
+                y_hat[a:b] += block @ _solve(block, data.y[a:b] - y_hat[a:b]).beta
+                col += m
+        return y_hat
 
     def predict(self, data: IOData, horizon: int = 1, initial: Initial = "rest") -> FloatArray:
         """k-step-ahead prediction ŷ(t | t − k) of the output, k = ``horizon`` [output unit].
@@ -321,7 +422,7 @@ class OutputError(Estimator):
     # ------------------------------------------------------------------ internals
     def _structure(self, order: int) -> _Structure:
         initial = "rest" if self.u_before is not None else self.initial
-        return _Structure(order, self.T_f, self.delay, initial, self.u_before)
+        return _Structure(order, self.T_f, self.delay, initial, self.u_before, self.initial)
 
     def _validate(self, data: IOData) -> None:
         if self.order not in (1, 2, "auto"):
@@ -340,6 +441,17 @@ class OutputError(Estimator):
             raise FuelidError(f"u_before must be finite, got {self.u_before}")
         if data.n_samples < 20:
             raise NotExcitingError(f"{data.n_samples} samples are too few to fit the model")
+        short = [
+            f"{j + 1} ({b - a} samples)"
+            for j, (a, b) in enumerate(data.segment_bounds())
+            if b - a < MIN_SEGMENT_SAMPLES
+        ]
+        if data.n_segments > 1 and short:
+            raise FuelidError(
+                f"segment {', '.join(short)} of the {data.n_segments} segments of this record "
+                f"has fewer than {MIN_SEGMENT_SAMPLES} samples, too few to estimate its own "
+                "initial state: leave it out (fuelid.identify.segments.drop_short_segments)"
+            )
         if np.ptp(data.u) == 0.0 and (self.u_before is None or self.u_before == data.u[0]):
             raise NotExcitingError("the input never changes: nothing to identify")
 
@@ -355,19 +467,21 @@ class OutputError(Estimator):
         h = data.sample_time
         record = data.n_samples * h
         u_ref = st.u_before if st.u_before is not None else float(data.u[0])
-        y = data.y
         lo = [math.log(h / 20.0)] * st.order
         hi = [math.log(20.0 * record)] * st.order
         if st.delay is None:
             lo.append(0.0)
             hi.append(max(self._delay_bound(data), 1e-9))
 
-        def evaluate(z: FloatArray, u: FloatArray, yy: FloatArray, hh: float) -> _Evaluation:
+        def evaluate(z: FloatArray, record: IOData) -> _Evaluation:
             T, T2, delay = st.unpack(z)
-            return _solve(_regressors(st, T, T2, delay, u, hh, u_ref), yy)
+            Phi = _regressors(
+                st, T, T2, delay, record.u, record.sample_time, u_ref, record.segment_bounds()
+            )
+            return _solve(Phi, record.y)
 
         def residual(z: FloatArray) -> FloatArray:
-            return evaluate(z, data.u, y, h).residual
+            return evaluate(z, data).residual
 
         starts = (
             [self._start_from(init, st)]
@@ -388,7 +502,7 @@ class OutputError(Estimator):
                 gtol=1e-12,
                 max_nfev=100,
             )
-            ev = evaluate(sol.x, data.u, y, h)
+            ev = evaluate(sol.x, data)
             if best is None or ev.sse < best[1].sse:
                 best = (sol.x, ev)
         assert best is not None
@@ -406,13 +520,13 @@ class OutputError(Estimator):
         self,
         data: IOData,
         st: _Structure,
-        evaluate: Callable[[FloatArray, FloatArray, FloatArray, float], _Evaluation],
+        evaluate: Callable[[FloatArray, IOData], _Evaluation],
         lo: list[float],
         hi: list[float],
     ) -> list[FloatArray]:
         """The best few points of a coarse grid over (T, delay), on a subsampled record."""
         step = max(1, math.ceil(data.n_samples / GRID_SAMPLES))
-        u, y, h = data.u[::step], data.y[::step], data.sample_time * step
+        coarse = _subsample(data, step)
         record = data.n_samples * data.sample_time
         T_grid = np.geomspace(max(data.sample_time, record / 2000.0), record / 3.0, 14)
         delays = np.linspace(0.0, hi[-1], 7) if st.delay is None else np.array([math.nan])
@@ -425,7 +539,7 @@ class OutputError(Estimator):
                 if st.delay is None:
                     z.append(delay)
                 zz = np.array(z)
-                ev = evaluate(zz, u, y, h)
+                ev = evaluate(zz, coarse)
                 scored.append((ev.sse, zz))
         scored.sort(key=lambda item: item[0])
         # refine the best grid point, and with a free delay also the best one at another delay
@@ -453,6 +567,7 @@ class OutputError(Estimator):
         )
         self.offset_ = float(ev.beta[1])
         self._state = (st, ev.beta.copy())
+        self.n_segments_ = data.n_segments
         self.u_ref_ = u_ref
         self.y_hat_ = data.y - ev.residual
         self.sse_ = ev.sse
@@ -462,7 +577,8 @@ class OutputError(Estimator):
         # covariance of all free parameters from the Jacobian of ŷ at the optimum
         nl_names = st.nonlinear_names
         values = {"T": T, "T2": T2, "delay": delay}
-        names, J = _jacobian(st, values, ev.beta, data.u, h, u_ref, ev.Phi)
+        bounds = data.segment_bounds()
+        names, J = _jacobian(st, values, ev.beta, data.u, h, u_ref, ev.Phi, bounds)
         dof = max(n - len(names), 1)
         self.sigma_ = math.sqrt(ev.sse / dof)
         self.param_names_ = names
@@ -497,16 +613,26 @@ def _jacobian(
     h: float,
     u_ref: float,
     Phi: FloatArray | None = None,
+    bounds: Bounds | None = None,
 ) -> tuple[tuple[str, ...], FloatArray]:
     """∂ŷ/∂p for p = (K, nonlinear parameters, offset, initial-state amplitudes).
 
     The linear parameters' columns are the regressors themselves; the time constants' and the
     delay's are central differences of Φ(T, T2, θ)·β (two filter passes each, no optimisation).
+    With segments, every column runs over all of them (each segment's own simulation), so the
+    covariance is that of the joint fit. The amplitudes are named ``c0, c1, …`` for the first
+    segment and ``c0_seg2, …`` for the later ones.
     """
     if Phi is None:
-        Phi = _regressors(st, values["T"], values["T2"], values["delay"], u, h, u_ref)
+        Phi = _regressors(st, values["T"], values["T2"], values["delay"], u, h, u_ref, bounds)
     nl_names = st.nonlinear_names
-    names = ("K", *nl_names, "offset", *(f"c{i}" for i in range(beta.size - 2)))
+    n_lags = sum(1 for tc in (values["T"], values["T2"], st.T_f) if tc > 0.0)
+    amplitudes = [
+        f"c{i}" if j == 0 else f"c{i}_seg{j + 1}"
+        for j in range(len(bounds) if bounds else 1)
+        for i in range(_n_modes(st, n_lags, j))
+    ]
+    names = ("K", *nl_names, "offset", *amplitudes)
     J = np.empty((u.size, len(names)))
     J[:, 0] = Phi[:, 0]
     for j, name in enumerate(nl_names, start=1):
@@ -515,8 +641,8 @@ def _jacobian(
         up[name] += step
         down[name] = max(down[name] - step, 0.0) if name == "delay" else down[name] - step
         width = up[name] - down[name]
-        Phi_up = _regressors(st, up["T"], up["T2"], up["delay"], u, h, u_ref)
-        Phi_down = _regressors(st, down["T"], down["T2"], down["delay"], u, h, u_ref)
+        Phi_up = _regressors(st, up["T"], up["T2"], up["delay"], u, h, u_ref, bounds)
+        Phi_down = _regressors(st, down["T"], down["T2"], down["delay"], u, h, u_ref, bounds)
         J[:, j] = (Phi_up - Phi_down) @ beta / width
     J[:, len(nl_names) + 1 :] = Phi[:, 1:]
     return names, J

@@ -2,6 +2,14 @@
 
 The CLI only parses options and prints; everything computed lives here, so scripts get the same
 numbers through :func:`identify`.
+
+A log with gaps (an :class:`~fuelid.io.timeseries.IOData` with segments) is identified jointly,
+as toolboxes merge experiments: one model for all segments, each with its own initial state
+(:mod:`fuelid.identify.segments`). Segments shorter than
+:data:`~fuelid.identify.segments.MIN_SEGMENT_SAMPLES` are left out with a warning; ``y_hat``
+is the concatenation of the per-segment simulations over the kept samples, ``fit_percent``
+their NRMSE over all of them, the residual tests run within segments, and the held-out part of
+``validate_split`` is the last fraction of the kept samples, wherever the gaps fall.
 """
 
 from __future__ import annotations
@@ -16,7 +24,9 @@ from numpy.typing import NDArray
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
 from fuelid.identify import diagnostics
+from fuelid.identify.nonlinearity import NonlinearityCheck, gain_bands
 from fuelid.identify.oe import OutputError
+from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, drop_short_segments
 from fuelid.identify.step_ls import StepResponseLS
 from fuelid.io.timeseries import IOData
 from fuelid.model import MODEL_KEYS, Z95, ProcessModel, gain_not_identified, nrmse_fit
@@ -33,15 +43,27 @@ CiMethod = Literal["normal", "log", "clipped"]
 
 @dataclass(frozen=True)
 class IdentifyOptions:
-    """Settings of one identification (see ``fuelid identify --help`` for their meaning)."""
+    """Settings of one identification (see ``fuelid identify --help`` for their meaning).
+
+    The defaults assume nothing about the plant: the number of lags chosen by the Akaike
+    information criterion (``order="auto"``), the dead time estimated, no flowmeter prior. A
+    meter lag that is not given as ``flowmeter_T`` can only be estimated as a second process
+    lag (T, T2 and T_f enter the model symmetrically), which ``order="auto"`` picks when the
+    data show it.
+    """
 
     method: Method = "oe"
     """One of :data:`METHODS`; anything else is refused."""
-    order: Literal[1, 2, "auto"] = 1
+    order: Literal[1, 2, "auto"] = "auto"
+    """Process lags for ``oe``: 1, 2, or "auto" (both fitted, the lower AIC kept). ``step-ls``
+    has one fixed structure (one lag and the flowmeter prior): for it "auto" means that
+    structure, and an order is not applied."""
     delay: float | Literal["auto"] | None = None
     """Fixed dead time [s], "auto" to estimate it, None: the flowmeter delay if given, else auto."""
     flowmeter_T: float | None = None
+    """Flowmeter lag T_f [s], a fixed prior; None: no meter lag in the model."""
     flowmeter_delay: float | None = None
+    """Flowmeter dead time [s]: the fixed total dead time when ``delay`` is None."""
     N: int | None = None
     settling_time: float | None = None
     """Prior model's 98 % settling time [s] (chooses N for step-ls)."""
@@ -132,6 +154,8 @@ class IdentificationResult:
     """The model output: the free-run simulation over the whole record (fit and held-out)."""
     split_time: float | None
     diagnostics: dict[str, Any] = field(default_factory=dict)
+    n_segments: int = 1
+    """Contiguous segments of the record fitted (1 for a log without gaps)."""
     validation_initial: str | None = None
     """How the validation was simulated: "continued" (the held-out end of the record, simulated on
     from the fit), "estimate" or "rest" (a separate record); None without validation."""
@@ -170,6 +194,7 @@ class IdentificationResult:
             "validation_initial": self.validation_initial,
             "n_samples": self.n_samples,
             "sample_time": self.sample_time,
+            "segments": self.n_segments,
             "diagnostics": self.diagnostics,
             "warnings": self.warnings,
             **self.extra,
@@ -182,6 +207,11 @@ def _split(data: IOData, fraction: float | None) -> tuple[IOData, int]:
     if not 0.0 < fraction < 1.0:
         raise FuelidError(f"--validate-split must lie strictly between 0 and 1, got {fraction:g}")
     n_fit = round(data.n_samples * (1.0 - fraction))
+    # a fitted segment needs samples for its own initial state: a split just after a gap
+    # moves back to the gap (the held-out part then starts with that segment)
+    last_start = max((i for i in data.segment_starts if i < n_fit), default=0)
+    if last_start and n_fit - last_start < MIN_SEGMENT_SAMPLES:
+        n_fit = last_start
     if n_fit < 20 or data.n_samples - n_fit < 10:
         raise FuelidError(
             f"--validate-split {fraction:g} leaves {n_fit} samples to fit and "
@@ -190,8 +220,16 @@ def _split(data: IOData, fraction: float | None) -> tuple[IOData, int]:
     return data.segment(0, n_fit), n_fit
 
 
-def _unmodelled_dynamics(p_value: float, options: IdentifyOptions, delay: float | None) -> str:
+def _unmodelled_dynamics(
+    p_value: float,
+    options: IdentifyOptions,
+    delay: float | None,
+    gain_varies: bool | None = None,
+) -> str:
     """The input-correlation warning, suggesting only structures this fit did not already try.
+
+    ``gain_varies`` is what the nonlinearity check found (None: the log has too few command
+    levels to check): it decides whether a nonlinearity is named as a possible cause.
 
     Examples
     --------
@@ -213,9 +251,20 @@ def _unmodelled_dynamics(p_value: float, options: IdentifyOptions, delay: float 
         )
     if untried:
         return f"{head}: unmodelled dynamics; {' or '.join(untried)} may fit better"
+    tried = "the fit already has a second lag and an estimated dead time"
+    if gain_varies is False:
+        return (
+            f"{head}: {tried}, and the gain does not change with the command, so the cause is "
+            "more likely dynamics outside the model family or coloured noise"
+        )
+    if gain_varies:
+        return (
+            f"{head}: {tried}, and a gain per command band does not remove it either: dynamics "
+            "that change with the operating point, or coloured noise"
+        )
     return (
-        f"{head}: the fit already has a second lag and an estimated dead time, so the cause is "
-        "more likely a nonlinearity (the gain changing with the operating point) or coloured noise"
+        f"{head}: {tried}, so the cause is more likely a nonlinearity (the gain changing with "
+        "the operating point) or coloured noise"
     )
 
 
@@ -281,6 +330,119 @@ def _check_priors(
             )
 
 
+def gain_unit(data: IOData) -> str:
+    """Unit of K for ``data``: output unit per input unit ("(L/min)/V").
+
+    Examples
+    --------
+    >>> gain_unit(IOData([1.0, 2.0], [3.0, 4.0], 1.0))
+    '(L/min)/V'
+    """
+    y_unit = f"({data.y_unit})" if "/" in data.y_unit else data.y_unit
+    return f"{y_unit}/{data.u_unit}"
+
+
+def _residual_warnings(
+    options: IdentifyOptions,
+    delay: float | None,
+    tests: tuple[diagnostics.CorrelationTest, diagnostics.CorrelationTest],
+    residuals: FloatArray,
+    nonlinearity: NonlinearityCheck | None,
+    fit_data: IOData,
+    lag_and_settle: tuple[int, float],
+    K_unit: str,
+) -> list[str]:
+    """The nonlinearity and residual-test warnings, each saying what the data show.
+
+    When the gain changes significantly with the command (:mod:`fuelid.identify.nonlinearity`)
+    that is said first, and the residual tests are repeated on the band model (a gain per
+    command band, the same dynamics): if its residuals pass, the residual warnings name the
+    nonlinearity as the cause instead of noise colour or a missing lag. If they still fail,
+    the whiteness warning says whether the noise itself is coloured: residuals white where the
+    output has settled (:func:`~fuelid.identify.diagnostics.settled_whiteness`) mean white noise
+    and a transient the model misses; coloured there, coloured noise or a drift.
+    """
+    white, cross = tests
+    max_lag, settle = lag_and_settle
+    out: list[str] = []
+    starts = fit_data.segment_starts
+    band_white: diagnostics.CorrelationTest | None = None
+    band_cross: diagnostics.CorrelationTest | None = None
+    if nonlinearity is not None and nonlinearity.significant:
+        out.append(nonlinearity.warning(K_unit, fit_data.u_unit))
+        band_white = diagnostics.residual_whiteness(nonlinearity.residuals, segment_starts=starts)
+        band_cross = diagnostics.input_residual_correlation(
+            fit_data.u, nonlinearity.residuals, max_lag, starts
+        )
+    if not white.passed:
+        if band_white is not None and band_white.passed:
+            out.append(
+                f"residuals are not white (p = {white.p_value:.2g}) because the gain changes "
+                "with the command: with a gain per command band they are "
+                f"(p = {band_white.p_value:.2g}); standard errors may be optimistic"
+            )
+        else:
+            out.append(_not_white(white, band_white, residuals, nonlinearity, fit_data, settle))
+    # a zero-phase filter smears each output step backwards in time, which looks like feedback
+    # to the test below: it is only meaningful on unfiltered (oe) data
+    if options.method == "oe" and diagnostics.feedback_suspected(cross):
+        out.append(
+            "the input reacts to the output residual: the data look closed-loop; an output-error "
+            "fit is then biased when the noise is coloured (excite with setpoint steps, or log "
+            "open-loop steps)"
+        )
+    elif not cross.passed:
+        if band_cross is not None and band_cross.passed:
+            out.append(
+                f"residuals correlate with past inputs (p = {cross.p_value:.2g}) because the "
+                "gain changes with the command: with a gain per command band they do not "
+                f"(p = {band_cross.p_value:.2g}); another lag or dead time would not remove it"
+            )
+        else:
+            gain_varies = None if nonlinearity is None else nonlinearity.significant
+            out.append(_unmodelled_dynamics(cross.p_value, options, delay, gain_varies))
+    return out
+
+
+def _not_white(
+    white: diagnostics.CorrelationTest,
+    band_white: diagnostics.CorrelationTest | None,
+    residuals: FloatArray,
+    nonlinearity: NonlinearityCheck | None,
+    fit_data: IOData,
+    settle: float,
+) -> str:
+    """The whiteness warning when the gain's change with the command does not explain it."""
+    significant = band_white is not None and nonlinearity is not None
+    head = f"residuals are not white (p = {white.p_value:.2g})"
+    if band_white is not None:
+        head += f", not even with a gain per command band (p = {band_white.p_value:.2g})"
+    # the noise's own colour is judged on the residuals of the best model at hand
+    e = nonlinearity.residuals if significant and nonlinearity is not None else residuals
+    # the same lags as the whiteness test it qualifies
+    settled = diagnostics.settled_whiteness(
+        e, fit_data.u, fit_data.sample_time, settle, fit_data.segment_starts
+    )
+    tail = "standard errors may be optimistic"
+    if settled is None:
+        return f"{head}: coloured noise or unmodelled dynamics; {tail}"
+    if settled.passed:
+        also = (
+            ", and with the gain the dynamics may change with the command too"
+            if significant
+            else ""
+        )
+        return (
+            f"{head}, but only after command changes: where the output has settled they are "
+            f"(p = {settled.p_value:.2g}), so the noise is white and the model misses part of "
+            f"the transient response{also}; {tail}"
+        )
+    return (
+        f"{head}, also where the output has settled (p = {settled.p_value:.2g}): coloured "
+        f"noise or a drift; {tail}"
+    )
+
+
 def identify(
     data: IOData, options: IdentifyOptions, validation: IOData | None = None
 ) -> IdentificationResult:
@@ -309,6 +471,11 @@ def _identify(
     delay = options.resolved_delay()
     _check_priors(data, T_f, delay, options.flowmeter_delay, options.u_before)
     warnings: list[str] = []
+    data, dropped = drop_short_segments(data)
+    warnings.extend(dropped)
+    if validation is not None:
+        validation, dropped = drop_short_segments(validation)
+        warnings.extend(f"validation record: {w}" for w in dropped)
     estimator: StepResponseLS | OutputError
     if options.method == "step-ls":
         work = _decimated(data, options.control_period)
@@ -328,6 +495,8 @@ def _identify(
         cov[0, 1] = cov[1, 0] = np.nan  # the two-stage method gives no joint covariance
         # what decimation did is information, not a warning; the loader's notes stay warnings
         preprocessing = [n for n in work.notes if n not in data.notes]
+        # a segment the decimation had to leave out is a warning, not just information
+        warnings.extend(n for n in preprocessing if n.startswith("segments left out"))
         warnings.extend(w for w in ls.warnings_ if w not in preprocessing)
         extra: dict[str, Any] = {
             "N": ls.N_,
@@ -376,13 +545,17 @@ def _identify(
         else:
             validation_fit = estimator.score(validation, initial=options.validation_initial)
     residuals = y[:n_fit] - y_model[:n_fit]
-    white = diagnostics.residual_whiteness(residuals)
+    starts = fit_data.segment_starts
+    white = diagnostics.residual_whiteness(residuals, segment_starts=starts)
     # lags must span the controller's reaction: two control periods at least
     max_lag = max(25, round(2.0 * options.control_period / work.sample_time))
     max_lag = min(max_lag, n_fit // 4)
-    cross = diagnostics.input_residual_correlation(work.u[:n_fit], residuals, max_lag)
+    cross = diagnostics.input_residual_correlation(work.u[:n_fit], residuals, max_lag, starts)
     settle = model.settling_time()
-    steps = diagnostics.steady_state_errors(work.u, y, y_model, work.sample_time, settle)
+    steps = diagnostics.steady_state_errors(
+        work.u, y, y_model, work.sample_time, settle, work.segment_starts
+    )
+    nonlinearity = gain_bands(fit_data, model)
     diag: dict[str, Any] = {
         "residual_whiteness": {
             "p_value": white.p_value,
@@ -398,22 +571,20 @@ def _identify(
         },
         "steady_state_error_percent": [e.error_percent for e in steps],
         "settling_time": settle,
+        "nonlinearity": None if nonlinearity is None else nonlinearity.to_json(),
     }
-    if not white.passed:
-        warnings.append(
-            f"residuals are not white (p = {white.p_value:.2g}): coloured noise or unmodelled "
-            "dynamics; standard errors may be optimistic"
+    warnings.extend(
+        _residual_warnings(
+            options,
+            delay,
+            (white, cross),
+            residuals,
+            nonlinearity,
+            fit_data,
+            (max_lag, settle),
+            gain_unit(work),
         )
-    # a zero-phase filter smears each output step backwards in time, which looks like feedback
-    # to the test below: it is only meaningful on unfiltered (oe) data
-    if options.method == "oe" and diagnostics.feedback_suspected(cross):
-        warnings.append(
-            "the input reacts to the output residual: the data look closed-loop; an output-error "
-            "fit is then biased when the noise is coloured (excite with setpoint steps, or log "
-            "open-loop steps)"
-        )
-    elif not cross.passed:
-        warnings.append(_unmodelled_dynamics(cross.p_value, options, delay))
+    )
     no_gain = gain_not_identified(model.K, stderr.get("K"))
     if no_gain:
         warnings.append(f"{no_gain} in this log; do not tune from it")
@@ -421,6 +592,7 @@ def _identify(
     if advice:
         warnings.append(advice)
     return IdentificationResult(
+        n_segments=work.n_segments,
         method=options.method,
         model=model,
         fixed=estimator.fixed_,

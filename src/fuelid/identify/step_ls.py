@@ -35,6 +35,12 @@ Choices made here (the article's equations are lost; docs/identification.md §2.
 - **Refusal.** :class:`~fuelid.errors.NotExcitingError` with the reason when the input is
   constant, the record is too short, rank(Φ) < N (the unexcited coefficients are named) or the
   condition number of Φ exceeds ``max_condition``.
+- **Records with gaps** (:mod:`fuelid.identify.segments`): a row k is used only when its
+  N past inputs lie in the same segment as k (rows k = a+N … b−1 of a segment a:b), so no row
+  spans a gap; the deviations are from the one initial steady state of the first segment (one
+  plant, one offset). A segment of N samples or fewer gives no row (a warning says so). The
+  simulation restarts each later segment at rest at its first command (``"fitted"`` adds the
+  free response of its initial state, fitted on the segment).
 - **Known weakness** (measured, docs/identification.md §2.4): if the true response has not
   settled at N·T_s, the truncation biases a_N and hence K and T whatever the noise level; a
   warning is issued when the fitted model's 98 % settling time exceeds N·T_s.
@@ -371,6 +377,9 @@ class StepResponseLS(Estimator):
         s[0] = 0.0
         impulse = np.concatenate(([0.0], np.diff(s)))  # h_0 = 0, h_i = s_i − s_{i−1}
         u = data.u
+        bounds = data.segment_bounds()
+        if len(bounds) > 1:
+            return self._simulate_segments(data, initial, impulse)
         u_rest = self.u0_ if initial == "fitted" else float(u[0])
         response = np.convolve(u - u_rest, impulse)[: data.n_samples]
         if initial != "estimate":
@@ -379,6 +388,40 @@ class StepResponseLS(Estimator):
         basis = np.column_stack((np.ones(u.size), modes))
         coefficients = np.linalg.lstsq(basis, data.y - response, rcond=None)[0]
         return np.asarray(response + basis @ coefficients, dtype=float)
+
+    def _simulate_segments(self, data: IOData, initial: Initial, impulse: FloatArray) -> FloatArray:
+        """:meth:`simulate` of a record with gaps: each segment from rest at its first command.
+
+        The first segment starts as for a contiguous record. With ``"fitted"`` a later segment
+        adds the free response of its unknown initial state (the lags' modes), fitted by least
+        squares on its own samples with the offset held: the regression used no sample within
+        N of a segment's start, so the fit has no state there to continue from. With
+        ``"estimate"`` one offset for the record and one free response per segment are fitted.
+        """
+        u = data.u
+        bounds = data.segment_bounds()
+        discrete = discretise(self.model_.time_constants, self.delay_, self.sample_time_)
+        y_hat = np.empty(u.size)
+        for j, (a, b) in enumerate(bounds):
+            u_rest = self.u0_ if (j == 0 and initial == "fitted") else float(u[a])
+            y_hat[a:b] = np.convolve(u[a:b] - u_rest, impulse)[: b - a]
+            if initial != "estimate":
+                y_hat[a:b] += self.offset_ + self.K_ * (u_rest - self.u0_)
+            elif j:  # a later segment's level relative to the first: one offset for all
+                y_hat[a:b] += self.K_ * (u_rest - float(u[0]))
+            if j and initial == "fitted":
+                modes = discrete.modes(b - a)
+                c = np.linalg.lstsq(modes, data.y[a:b] - y_hat[a:b], rcond=None)[0]
+                y_hat[a:b] += modes @ c
+        if initial != "estimate":
+            return y_hat
+        n_lags = discrete.poles.size
+        basis = np.zeros((u.size, 1 + n_lags * len(bounds)))
+        basis[:, 0] = 1.0
+        for j, (a, b) in enumerate(bounds):
+            basis[a:b, 1 + j * n_lags : 1 + (j + 1) * n_lags] = discrete.modes(b - a)
+        coefficients = np.linalg.lstsq(basis, data.y - y_hat, rcond=None)[0]
+        return np.asarray(y_hat + basis @ coefficients, dtype=float)
 
     def predict(self, data: IOData, horizon: int = 1, initial: Initial = "rest") -> FloatArray:
         """k-step-ahead prediction ŷ(t | t − k) of the output, k = ``horizon`` [output unit].
@@ -406,13 +449,31 @@ class StepResponseLS(Estimator):
         u, y = data.u, data.y
         n = u.size
         du = np.diff(u)
-        changes = np.flatnonzero(du != 0.0)
+        # first sample of the segment each sample belongs to: a row k is used only when its
+        # window k−N … k lies in one segment (never across a gap)
+        bounds = data.segment_bounds()
+        segment_start = np.repeat([a for a, _ in bounds], [b - a for a, b in bounds])
+        within = segment_start[1:] < np.arange(1, n)  # du[j] = u[j+1] − u[j] inside a segment
+        changes = np.flatnonzero((du != 0.0) & within)
         if changes.size == 0:
             raise NotExcitingError(
                 f"input is constant over the record (no input change): the N={N} step-response "
                 "coefficients are not identifiable; log a record with input steps"
             )
-        if n - N < N:
+        if len(bounds) > 1:
+            rows = sum(max(b - a - N, 0) for a, b in bounds)
+            if rows < N:
+                raise NotExcitingError(
+                    f"record too short: its {len(bounds)} segments give {rows} regression rows "
+                    f"within segments, fewer than N={N} coefficients"
+                )
+            barren = [f"{j + 1} ({b - a} samples)" for j, (a, b) in enumerate(bounds) if b - a <= N]
+            if barren:
+                self.warnings_.append(
+                    f"segment {', '.join(barren)} of {len(bounds)} has no more than N={N} "
+                    "samples: no regression row fits inside it, so it does not inform the fit"
+                )
+        elif n - N < N:
             raise NotExcitingError(
                 f"record too short: {n} samples give {max(n - N, 0)} regression rows, fewer than "
                 f"N={N} coefficients"
@@ -427,8 +488,9 @@ class StepResponseLS(Estimator):
         window = sliding_window_view(du, N - 1)[: n - N, ::-1]
         phi = np.column_stack((window, ud[: n - N]))
         target = yd[N:]
-        active = np.any(phi != 0.0, axis=1)
-        exciting = np.any(window != 0.0, axis=1)
+        inside = segment_start[N:] <= np.arange(n - N)  # row k = N + i starts at sample i
+        active = np.any(phi != 0.0, axis=1) & inside
+        exciting = np.any(window != 0.0, axis=1) & inside
         phi, target = phi[active], target[active]
         self.n_rows_used_ = int(active.sum())
         self.n_exciting_rows_ = int(exciting.sum())

@@ -2,12 +2,14 @@
 
 One reader for logs (:mod:`fuelid.io.logs`) and command profiles: UTF-8 with a byte-order mark or
 GBK headers, ``;``, tab or ``,`` separators, decimal commas, column names matched with their unit
-suffix or bracketed unit. Every refusal is a one-line :class:`~fuelid.errors.DataError` naming
-the file and what is wrong.
+suffix or bracketed unit, the unit a column name carries (``q_Lpm`` → L/min) and the linear
+scaling of a raw column (4–20 mA, counts). Every refusal is a one-line
+:class:`~fuelid.errors.DataError` naming the file and what is wrong.
 """
 
 from __future__ import annotations
 
+import re
 import unicodedata
 from collections.abc import Sequence
 from io import StringIO
@@ -19,7 +21,20 @@ import pandas as pd
 from fuelid.errors import DataError
 from fuelid.io.timeseries import FloatArray
 
-__all__ = ["find_column", "match_column", "read_frame", "read_table", "table_column", "to_float"]
+__all__ = [
+    "Scale",
+    "apply_scale",
+    "check_scale",
+    "describe_scale",
+    "find_column",
+    "guess_unit",
+    "match_column",
+    "parse_scale",
+    "read_frame",
+    "read_table",
+    "table_column",
+    "to_float",
+]
 
 TEXT_SUFFIXES = (".csv", ".txt", ".tsv")
 PARQUET_SUFFIXES = (".parquet", ".pq")
@@ -228,3 +243,120 @@ def to_float(series: pd.Series) -> FloatArray:
         series = series.astype(str).str.strip().str.replace(",", ".", regex=False)
     numbers = pd.to_numeric(series, errors="coerce")
     return np.asarray(numbers.to_numpy(dtype=float, na_value=np.nan), dtype=np.float64)
+
+
+# --- units and scaling of raw columns ------------------------------------------------------------
+
+Scale = tuple[float, float, float, float]
+"""A linear scaling ``(raw_low, raw_high, eng_low, eng_high)``, e.g. 4–20 mA → 1–5 V."""
+
+_UNITS = {
+    "V": "V",
+    "mV": "mV",
+    "A": "A",
+    "mA": "mA",
+    "Lpm": "L/min",
+    "lpm": "L/min",
+    "Lps": "L/s",
+    "m3h": "m³/h",
+    "kgh": "kg/h",
+    "degC": "degC",
+    "K": "K",
+    "s": "s",
+    "Hz": "Hz",
+    "rpm": "rpm",
+    "pct": "%",
+    "Pa": "Pa",
+    "kPa": "kPa",
+    "MPa": "MPa",
+    "bar": "bar",
+}
+_BRACKET_UNIT = re.compile(r"[\[(（]\s*([^\])）]+?)\s*[\])）]\s*$")
+
+
+def parse_scale(text: str) -> Scale:
+    """Parse the command-line syntax of a linear scaling, ``raw_low:raw_high:eng_low:eng_high``.
+
+    Parameters
+    ----------
+    text : str
+        Four numbers separated by ``:`` (decimal commas then allowed) or by ``,``.
+
+    Returns
+    -------
+    tuple of 4 float
+        ``(raw_low, raw_high, eng_low, eng_high)``.
+
+    Raises
+    ------
+    DataError
+        Not four finite numbers, or an empty raw or engineering range.
+
+    Examples
+    --------
+    >>> parse_scale("4:20:1:5")
+    (4.0, 20.0, 1.0, 5.0)
+    >>> parse_scale("0, 27648, 0, 100")
+    (0.0, 27648.0, 0.0, 100.0)
+    >>> parse_scale("4:20:0:2,5")
+    (4.0, 20.0, 0.0, 2.5)
+    """
+    if ":" in text:
+        parts = [part.strip().replace(",", ".") for part in text.split(":")]
+    else:
+        parts = [part.strip() for part in text.split(",")]
+    if len(parts) != 4:
+        raise DataError(
+            f"scale {text!r} must be four numbers raw_low:raw_high:eng_low:eng_high "
+            f"(e.g. 4:20:1:5), got {len(parts)} part(s)"
+        )
+    try:
+        numbers = [float(part) for part in parts]
+    except ValueError:
+        raise DataError(
+            f"scale {text!r} must be four numbers raw_low:raw_high:eng_low:eng_high (e.g. 4:20:1:5)"
+        ) from None
+    return check_scale((numbers[0], numbers[1], numbers[2], numbers[3]), f"scale {text!r}")
+
+
+def check_scale(scale: Sequence[float], what: str) -> Scale:
+    """Validate a ``(raw_low, raw_high, eng_low, eng_high)`` scaling."""
+    if len(scale) != 4:
+        raise DataError(f"{what} needs 4 numbers (raw_low, raw_high, eng_low, eng_high)")
+    values = tuple(float(value) for value in scale)
+    if not all(np.isfinite(values)):
+        raise DataError(f"{what} must hold finite numbers, got {values}")
+    raw_low, raw_high, eng_low, eng_high = values
+    if raw_low == raw_high:
+        raise DataError(f"{what}: the raw range {raw_low:g}..{raw_high:g} is empty")
+    if eng_low == eng_high:
+        raise DataError(f"{what}: the engineering range {eng_low:g}..{eng_high:g} is empty")
+    return raw_low, raw_high, eng_low, eng_high
+
+
+def apply_scale(values: FloatArray, scale: Scale) -> FloatArray:
+    """Map ``raw_low..raw_high`` linearly onto ``eng_low..eng_high``."""
+    raw_low, raw_high, eng_low, eng_high = scale
+    return eng_low + (values - raw_low) * ((eng_high - eng_low) / (raw_high - raw_low))
+
+
+def describe_scale(scale: Scale) -> str:
+    """``"4..20 -> 1..5"``."""
+    raw_low, raw_high, eng_low, eng_high = scale
+    return f"{raw_low:g}..{raw_high:g} -> {eng_low:g}..{eng_high:g}"
+
+
+def guess_unit(name: str) -> str:
+    """Unit from a column name: suffix ``u_V`` → V, ``q_Lpm`` → L/min, or brackets ``q [L/min]``.
+
+    Examples
+    --------
+    >>> guess_unit("q_Lpm"), guess_unit("流量(L/min)"), guess_unit("flow")
+    ('L/min', 'L/min', '')
+    """
+    bracket = _BRACKET_UNIT.search(name)
+    if bracket:
+        return bracket.group(1)
+    if "_" in name:
+        return _UNITS.get(name.rsplit("_", 1)[1], "")
+    return ""

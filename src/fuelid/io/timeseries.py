@@ -27,6 +27,10 @@ TIME_COLUMN = "t_s"
 INPUT_COLUMN = "u_V"
 OUTPUT_COLUMN = "q_Lpm"
 FUEL_TEMPERATURE_COLUMN = "T_fuel_degC"
+INPUT_UNIT = "V"
+"""Engineering unit of the input: the drive's command signal (a scaled input is in it)."""
+OUTPUT_UNIT = "L/min"
+"""Engineering unit of the output: the flow (a scaled output is in it)."""
 
 
 @dataclass(frozen=True)

@@ -287,8 +287,8 @@ def _analyse(
             options = _step_ls_priors(options, identifications["oe"].model)
         identifications[method] = identify(data, options)
     identifications = {method: identifications[method] for method in METHODS}
-    for method, result in identifications.items():
-        warnings.extend(f"{method}: {w}" for w in result.warnings if w not in data.notes)
+    for name, result in identifications.items():
+        warnings.extend(f"{name}: {w}" for w in result.warnings if w not in data.notes)
     chosen = identifications[settings.tune_from]
     check_gain_identified(chosen.model.K, chosen.stderr.get("K"), f"{settings.tune_from} fit")
     mismatch = check_gain_against_plant(chosen.model, plant, point, T_fuel)

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from fuelid.identify.procedure import IdentificationResult, IdentifyOptions
-from fuelid.io.timeseries import IOData
+from fuelid.io.timeseries import INPUT_UNIT, OUTPUT_UNIT, IOData
 from fuelid.model import ProcessModel
 from fuelid.units import kelvin_to_celsius
 
@@ -47,8 +47,6 @@ SPAN_TOLERANCE = 0.05
 """How far a signal may leave its span before it is flagged, as a fraction of the span [-]
 (a drive command a little beyond 1…5 V is a calibration offset, not a unit mistake)."""
 
-EXPECTED_INPUT_UNIT = "V"
-EXPECTED_OUTPUT_UNIT = "L/min"
 
 PriorSource = Literal["option", "plant file", "estimated", "not given"]
 
@@ -217,7 +215,7 @@ def check_signals(data: IOData, plant: PlantSource) -> list[str]:
     u_low, u_high = _range(data.u)
     where = f"the command ({u_low:.4g}…{u_high:.4g}"
     unit = data.u_unit
-    if unit and unit != EXPECTED_INPUT_UNIT:
+    if unit and unit != INPUT_UNIT:
         findings.append(
             f"the command column is in {unit}, but the gains are per V of the drive's "
             f"{lo:g}…{hi:g} V signal: scale it (e.g. --input-scale 4:20:{lo:g}:{hi:g} for 4–20 mA)"
@@ -239,7 +237,7 @@ def check_signals(data: IOData, plant: PlantSource) -> list[str]:
         )
     y_low, y_high = _range(data.y)
     y_unit = data.y_unit
-    if y_unit and y_unit != EXPECTED_OUTPUT_UNIT:
+    if y_unit and y_unit != OUTPUT_UNIT:
         findings.append(
             f"the flow column is in {y_unit}, but the gains are per L/min: scale it with "
             "--output-scale RAW_LOW:RAW_HIGH:0:SPAN"
