@@ -16,10 +16,13 @@ import typer
 from fuelid.cli._common import (
     BandWidthOption,
     ControlPeriodOption,
+    FillGaps,
     FlowBandsOption,
+    FuelTemperatureColumn,
     InputColumn,
     InputScale,
     LambdaOption,
+    MaxGap,
     MsTargetOption,
     OutputColumn,
     OutputScale,
@@ -129,6 +132,9 @@ def report_command(
     sample_time: SampleTime = None,
     input_scale: InputScale = None,
     output_scale: OutputScale = None,
+    fuel_temp_col: FuelTemperatureColumn = "T_fuel_degC",
+    fill_gaps: FillGaps = None,
+    max_gap: MaxGap = None,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print one JSON object (the numbers and the paths).")
     ] = False,
@@ -169,7 +175,18 @@ def report_command(
         validate_split=validate_split or None,
     )
     plant = PlantSource(load_plant_config(config), None if config is None else str(config))
-    data = read_log(file, time_col, input_col, output_col, sample_time, input_scale, output_scale)
+    data = read_log(
+        file,
+        time_col,
+        input_col,
+        output_col,
+        sample_time,
+        input_scale,
+        output_scale,
+        fuel_temperature_col=fuel_temp_col,
+        fill_gaps=fill_gaps,
+        max_gap=max_gap,
+    )
     with progress_display() as stage:
         analysis = analyse_log(data, plant, settings, progress=stage)
     for message in analysis.notices + analysis.warnings:
@@ -206,6 +223,9 @@ def report_command(
             "sample_time": sample_time,
             "input_scale": input_scale,
             "output_scale": output_scale,
+            "fuel_temp_col": fuel_temp_col,
+            "fill_gaps": fill_gaps,
+            "max_gap": max_gap,
         }
         paths = {"report": str(written[0]), "figures": [str(p) for p in written[1:]]}
         emit_json(paths | analysis.to_json() | provenance(options, file))
