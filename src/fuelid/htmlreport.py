@@ -206,8 +206,10 @@ def _priors_rows(priors: dict[str, Any]) -> list[dict[str, str]]:
 
 
 def _png(fig: Figure) -> bytes:
+    # every figure of plots.py lays itself out (layout="constrained"): a "tight" bounding box
+    # would draw each one twice for nothing
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110, bbox_inches="tight")
+    fig.savefig(buffer, format="png", dpi=110)
     return buffer.getvalue()
 
 
