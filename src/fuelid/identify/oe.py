@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError, NotExcitingError
 from fuelid.identify._base import Estimator, Initial
-from fuelid.identify.segments import MIN_SEGMENT_SAMPLES
+from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, offset_and_free_responses
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel, nrmse_fit
@@ -361,11 +361,7 @@ class OutputError(Estimator):
         if initial == "rest":
             return response
         # one offset for the record, one free response per segment
-        n_lags = discrete.poles.size
-        basis = np.zeros((u.size, 1 + n_lags * len(bounds)))
-        basis[:, 0] = 1.0
-        for j, (a, b) in enumerate(bounds):
-            basis[a:b, 1 + j * n_lags : 1 + (j + 1) * n_lags] = discrete.modes(b - a)
+        basis = offset_and_free_responses(discrete, bounds)
         return np.asarray(response + basis @ _solve(basis, data.y - response).beta, dtype=float)
 
     def _continue_fitted(self, data: IOData) -> FloatArray:

@@ -23,7 +23,10 @@ model. :func:`drop_short_segments` leaves shorter segments out, with a warning.
 
 from __future__ import annotations
 
-from fuelid.io.timeseries import IOData
+import numpy as np
+
+from fuelid.io.timeseries import FloatArray, IOData
+from fuelid.lti import DiscreteLagModel
 from fuelid.preprocess import join_segments
 
 MIN_SEGMENT_SAMPLES = 20
@@ -57,3 +60,21 @@ def drop_short_segments(
     if not kept:
         return data, warnings
     return join_segments(kept, notes=data.notes), warnings
+
+
+def offset_and_free_responses(
+    discrete: DiscreteLagModel, bounds: list[tuple[int, int]]
+) -> FloatArray:
+    """Regressors of one output offset and each segment's own free response (initial state).
+
+    Column 0 is the offset (1 everywhere); then, per segment, one column per lag with that lag's
+    free response from the segment's first sample (zero outside the segment): least squares on
+    them fits the initial state of every segment and the one offset of the record.
+    """
+    n_lags = discrete.poles.size
+    n = bounds[-1][1] if bounds else 0
+    basis = np.zeros((n, 1 + n_lags * len(bounds)))
+    basis[:, 0] = 1.0
+    for j, (a, b) in enumerate(bounds):
+        basis[a:b, 1 + j * n_lags : 1 + (j + 1) * n_lags] = discrete.modes(b - a)
+    return basis

@@ -58,6 +58,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fuelid.errors import FuelidError, NotExcitingError
 from fuelid.identify._base import Estimator, Initial
+from fuelid.identify.segments import offset_and_free_responses
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel
@@ -415,11 +416,7 @@ class StepResponseLS(Estimator):
                 y_hat[a:b] += modes @ c
         if initial != "estimate":
             return y_hat
-        n_lags = discrete.poles.size
-        basis = np.zeros((u.size, 1 + n_lags * len(bounds)))
-        basis[:, 0] = 1.0
-        for j, (a, b) in enumerate(bounds):
-            basis[a:b, 1 + j * n_lags : 1 + (j + 1) * n_lags] = discrete.modes(b - a)
+        basis = offset_and_free_responses(discrete, bounds)
         coefficients = np.linalg.lstsq(basis, data.y - y_hat, rcond=None)[0]
         return np.asarray(y_hat + basis @ coefficients, dtype=float)
 
