@@ -310,6 +310,9 @@ def _analyse(
     max_lag = min(
         max(25, round(2.0 * settings.control_period / data.sample_time)), fitted.sum() // 4
     )
+    # within segments only: a log with gaps is not correlated across them
+    times = chosen.time[fitted]
+    starts = tuple(int(i) for i in np.flatnonzero(np.diff(times) > 1.5 * chosen.sample_time) + 1)
     omega = frequency_grid(chosen.model, outcome.pi)
     return LogAnalysis(
         data=data,
@@ -317,8 +320,8 @@ def _analyse(
         identifications=identifications,
         outcome=outcome,
         schedule=schedule,
-        whiteness=residual_whiteness(residuals),
-        input_correlation=input_residual_correlation(u_model[fitted], residuals, max_lag),
+        whiteness=residual_whiteness(residuals, segment_starts=starts),
+        input_correlation=input_residual_correlation(u_model[fitted], residuals, max_lag, starts),
         bode_frequency=omega,
         bode_loop=loop_function(chosen.model, outcome.pi)(omega),
         plant=plant,
