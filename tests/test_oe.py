@@ -235,3 +235,25 @@ def test_default_options_find_an_unannounced_meter_lag_and_the_delay():
     fitted, true = _frequency_response(model, omega), _frequency_response(truth, omega)
     np.testing.assert_allclose(np.abs(fitted), np.abs(true), rtol=0.02)
     np.testing.assert_allclose(np.angle(fitted / true, deg=True), 0.0, atol=1.0)
+
+
+def test_covariance_leaves_out_what_the_data_do_not_determine():
+    # a plain inverse of a singular information matrix gives negative variances (seen with two
+    # collinear initial-state modes after a gap on a command step): here two identical columns
+    # are flagged and get no variance, and the determined parameter keeps σ²/‖column‖²
+    from fuelid.identify.oe import _covariance
+
+    rng = np.random.default_rng(1)
+    a, b = rng.normal(size=200), rng.normal(size=200)
+    J = np.column_stack([a, b, b])
+    cov, unidentified = _covariance(J, 0.5)
+    assert unidentified == [1, 2]
+    assert np.isnan(cov[1, 1])
+    assert np.isnan(cov[2, 2])
+    # a's variance is that of the fit on a alone after b's direction is projected out
+    b_hat = b / np.linalg.norm(b)
+    residual = a - b_hat * (b_hat @ a)
+    assert cov[0, 0] == pytest.approx(0.25 / (residual @ residual), rel=1e-9)
+    full, none = _covariance(J[:, :2], 0.5)
+    assert none == []
+    np.testing.assert_allclose(full, 0.25 * np.linalg.inv(J[:, :2].T @ J[:, :2]), rtol=1e-9)

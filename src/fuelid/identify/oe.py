@@ -40,7 +40,7 @@ from fuelid.identify._base import Estimator, Initial
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, offset_and_free_responses
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
-from fuelid.model import ProcessModel, nrmse_fit
+from fuelid.model import MODEL_KEYS, ProcessModel, nrmse_fit
 
 if TYPE_CHECKING:
     import control
@@ -223,7 +223,7 @@ class OutputError(Estimator):
 
     Examples
     --------
-    >>> from fuelid.model import ProcessModel, nrmse_fit, simulate_model
+    >>> from fuelid.model import MODEL_KEYS, ProcessModel, nrmse_fit, simulate_model
     >>> u = np.repeat([1.0, 2.0, 1.5, 2.5], 250)
     >>> true = ProcessModel(K=3.0, T=2.0, delay=0.3)
     >>> y = 10.0 + simulate_model(true, u, 0.05)
@@ -579,26 +579,65 @@ class OutputError(Estimator):
         self.sigma_ = math.sqrt(ev.sse / dof)
         self.param_names_ = names
         self.params_ = np.array([self.K_, *(values[nm] for nm in nl_names), *ev.beta[1:]])
-        try:
-            self.cov_ = np.asarray(self.sigma_**2 * np.linalg.inv(J.T @ J), dtype=float)
-        except np.linalg.LinAlgError:
-            self.cov_ = np.full((len(names), len(names)), np.nan)
-        sd = np.sqrt(np.abs(np.diag(self.cov_)))
+        self.cov_, singular = _covariance(J, self.sigma_)
+        unidentified = [names[i] for i in singular]
+        sd = np.sqrt(np.diag(self.cov_))
         self.stderr_ = {"K": None, "T": None, "T2": None, "delay": None, "T_f": None}
         for name, s in zip(names, sd, strict=False):
-            if name in self.stderr_:
+            if name in self.stderr_ and math.isfinite(s):
                 self.stderr_[name] = float(s)
         # priors and structural zeros are held fixed: T_f always, the delay when given, T2 = 0
         # in a first-order model
         self.fixed_ = tuple(name for name in ("T2", "delay", "T_f") if name not in nl_names)
         self.warnings_ = list(data.notes)
-        if st.delay is None and "T2" in nl_names:
+        shown = [name for name in unidentified if name in MODEL_KEYS]
+        if shown:
+            self.warnings_.append(
+                f"{', '.join(shown)} cannot be told apart from the other parameters with this "
+                "log (their information is singular, e.g. two equal lags): no standard error "
+                "or interval for them; a log with more or larger steps, or a prior, fixes it"
+            )
+        if st.delay is None and "T2" in nl_names and "T2" not in unidentified:
             corr = self.correlation_[names.index("T2"), names.index("delay")]
             if abs(corr) > 0.9:
                 self.warnings_.append(
                     f"T2 and the delay are strongly correlated ({corr:+.2f}): prefer order 1 "
                     "or fix the delay unless the data show otherwise"
                 )
+
+
+SINGULAR_INFORMATION = 1e-9
+"""Smallest singular value of the column-scaled Jacobian, relative to its largest, whose
+direction still counts as determined by the data (condition number of the information 1e18)."""
+
+
+def _covariance(J: FloatArray, sigma: float) -> tuple[FloatArray, list[int]]:
+    """σ²·(JᵀJ)⁻¹ through the SVD of the column-scaled Jacobian, and what it cannot give.
+
+    A plain inverse of a nearly singular information matrix returns negative variances (two
+    equal lags, a segment's initial state that mimics a step). Here the directions whose singular
+    value is below :data:`SINGULAR_INFORMATION` of the largest are not inverted; every parameter
+    with weight in them gets a NaN row and column (no standard error), and is listed.
+
+    Returns
+    -------
+    cov : array
+        Covariance of the parameters (NaN where not determined).
+    unidentified : list of int
+        Indices of the parameters the data do not determine.
+    """
+    scale = np.linalg.norm(J, axis=0)
+    scale[scale == 0.0] = 1.0
+    _, singular, vt = np.linalg.svd(J / scale, full_matrices=False)
+    determined = singular > SINGULAR_INFORMATION * singular[0]
+    null = vt[~determined]
+    weight = np.sum(null**2, axis=0) if null.size else np.zeros(J.shape[1])
+    unidentified = [int(i) for i in np.flatnonzero(weight > 1e-6)]
+    inner = (vt[determined].T / singular[determined] ** 2) @ vt[determined]
+    cov = sigma**2 * inner / np.outer(scale, scale)
+    cov[unidentified, :] = np.nan
+    cov[:, unidentified] = np.nan
+    return np.asarray(cov, dtype=float), unidentified
 
 
 def _jacobian(
