@@ -134,7 +134,9 @@ def test_identification_covariance_with_nuisance_parameters_and_nulls(tmp_path: 
 
 
 def test_schedule_json_and_table():
-    data = _json("--schedule", "--band-width", "35", "--ms-target", "1.65")
+    data = _json(
+        "--schedule", "--band-width", "35", "--ms-target", "1.65", "--config", REFERENCE_FILE
+    )
     assert set(data) >= {"rule", "control_period", "ms_target", "worst_Ms", "bands", "units"}
     assert data["bands"]
     assert all(b["Ms"] <= 1.65 + 1e-6 for b in data["bands"])
@@ -144,7 +146,7 @@ def test_schedule_json_and_table():
         assert band["Kc_percent_of_span"] == pytest.approx(band["Kc"] * 100.0 / 4.0, rel=1e-12)
     assert data["single_set_suffices"] is False
     assert data["single_set"] is None
-    table = runner.invoke(app, ["tune", "--schedule", "--band-width", "35"])
+    table = runner.invoke(app, ["tune", "--schedule", "--band-width", "35", "-c", REFERENCE_FILE])
     assert table.exit_code == 0
     assert "Kc V/(L/min)" in table.stdout
     assert "Kc %/%" in table.stdout
@@ -154,7 +156,17 @@ def test_schedule_json_and_table():
 
 
 def test_schedule_says_when_one_set_of_gains_suffices():
-    args = ["--schedule", "--t-min", "10", "--t-max", "30", "--flow-bands", "1"]
+    args = [
+        "--schedule",
+        "--t-min",
+        "10",
+        "--t-max",
+        "30",
+        "--flow-bands",
+        "1",
+        "-c",
+        REFERENCE_FILE,
+    ]
     data = _json(*args, "--flow-span", "80")
     assert data["y_span"] == 80.0
     assert data["options"]["flow_span"] == 80.0
@@ -172,7 +184,9 @@ def test_schedule_says_when_one_set_of_gains_suffices():
 
 def test_schedule_plot(tmp_path: Path):
     fig = tmp_path / "schedule.png"
-    result = runner.invoke(app, ["tune", "--schedule", "--band-width", "35", "--plot", str(fig)])
+    result = runner.invoke(
+        app, ["tune", "--schedule", "--band-width", "35", "--plot", str(fig), "-c", REFERENCE_FILE]
+    )
     assert result.exit_code == 0
     assert fig.read_bytes().startswith(b"\x89PNG")
 
@@ -286,8 +300,10 @@ def test_unusable_covariance_only_matters_to_the_sweep(tmp_path: Path):
         (["--K", "13.5", "--T", "1.26", "--delay", "5000"], "more than 1000 control periods"),
         (["--K", "13.5", "--T", "1.26", "--control-period", "1e6", "--simulate"], "up to 10 s"),
         (["--K", "13.5", "--T", "1.26", "--sweep", "10000000"], "1 to 20,000"),
-        (["--schedule", "--band-width", "0.001"], "at most 50"),
-        (["--schedule", "--flow-bands", "1000"], "1 to 10"),
+        (["--schedule", "--band-width", "0.001", "-c", REFERENCE_FILE], "at most 50"),
+        (["--schedule", "--flow-bands", "1000", "-c", REFERENCE_FILE], "1 to 10"),
+        # gains from the physics of a plant that is not the user's: refused, not printed
+        (["--schedule"], "needs your plant file"),
         # a covariance the sweep cannot draw from
         (["--model", f"FILE:{BAD_COV}", "--sweep", "5"], "not symmetric"),
         (["--model", f"FILE:{SHORT_COV}", "--sweep", "5"], "not 2×2 like its names"),

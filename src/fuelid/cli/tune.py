@@ -190,10 +190,10 @@ def tune_command(
         model_file, K, T, T2, T_f, delay, need_cov=sweep is not None
     )
     if loaded is not None and loaded.signal_check and not accept_signals:
-        more = f" (and {len(loaded.signal_check) - 1} more)" if len(loaded.signal_check) > 1 else ""
         raise FuelidError(
-            f"{model_file}: its identification's signal check found {loaded.signal_check[0]}"
-            f"{more}; the gains would be wrong by the same factor (--accept-signals to tune anyway)"
+            f"{model_file}: its identification's signal check found: "
+            f"{'; '.join(loaded.signal_check)}; the gains would be wrong by the same factor "
+            "(--accept-signals to tune anyway)"
         )
     # the model's own operating point unless the options say otherwise
     fuel_source = "option" if fuel_temp is not None else None
@@ -201,6 +201,12 @@ def tune_command(
         fuel_temp, fuel_source = loaded.fuel_temperature, "model file"
     if u is None and loaded is not None and loaded.u is not None:
         u = loaded.u
+    if schedule and model is None and config is None:
+        raise FuelidError(
+            "a schedule from the plant's physics alone needs your plant file (--config "
+            "PLANT.toml), or a model (--model ident.json) to anchor the physics to: the built-in "
+            "reference plant's gains are not your loop's"
+        )
     if simulate and config is None:
         raise FuelidError(
             "--simulate runs the closed loop on your plant's nonlinear model: give its plant "
@@ -243,7 +249,7 @@ def tune_command(
     if fuel_source is None:
         notices.append(
             "fuel temperature of the model assumed 20 °C: --fuel-temp not given"
-            + (" and the model file has no operating point" if loaded is not None else "")
+            + (" and the model file has no fuel temperature" if loaded is not None else "")
         )
     extra = {
         "plant": {

@@ -249,9 +249,8 @@ def analyse_log(
 
 
 def _refuse_signals(findings: list[str]) -> None:
-    more = f" (and {len(findings) - 1} more)" if len(findings) > 1 else ""
     raise FuelidError(
-        f"signal check: {findings[0]}{more}; the gains would be wrong by the same factor "
+        f"signal check: {'; '.join(findings)}; the gains would be wrong by the same factor "
         "(--accept-signals to tune anyway)"
     )
 
