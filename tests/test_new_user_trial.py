@@ -160,3 +160,23 @@ def test_a_command_left_in_milliamps_is_refused_with_the_cause(folder: Path, log
     assert "4–20 mA" in refused.stderr
     accepted = runner.invoke(app, ["tune", "--model", str(model_file), "--accept-signals"])
     assert accepted.exit_code == 0, accepted.stderr
+
+
+def test_gains_from_the_poorer_step_ls_model_are_checked_on_the_oe_model(
+    folder: Path, log: Path, true_plant: Path
+):
+    # step-ls has one lag and the dead time: on this loop (two lags) it understates Ms; the
+    # report says what the same gains give on the output-error model, which fits better
+    out = folder / "sl.html"
+    args = ["report", str(log), "--out", str(out), "--method", "step-ls", "--json"]
+    result = runner.invoke(app, [*args, "--control-period", "0.5"])
+    assert result.exit_code == 0, result.stderr
+    data = json.loads(result.stdout)
+    (warning,) = [w for w in data["warnings"] if "model is optimistic" in w]
+    shown = float(warning.split("give Ms ")[1].split(",")[0])
+    tuning = data["tuning"]
+    true_ms = _ms_on_true_plant(
+        true_plant, data["operating_point"]["u"], tuning["Kc"], tuning["Ti"], 0.5
+    )
+    assert shown == pytest.approx(true_ms, rel=0.10)
+    assert data["priors"]["N"]["source"] in ("output-error fit", "refit: the N its own model needs")

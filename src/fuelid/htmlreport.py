@@ -192,6 +192,7 @@ def _priors_rows(priors: dict[str, Any]) -> list[dict[str, str]]:
         ("flowmeter_delay", "flowmeter dead time", "s"),
         ("delay", "model dead time", "s"),
         ("order", "process order", ""),
+        ("N", "step-ls response length N", "control periods"),
     ):
         entry = priors.get(key)
         if not isinstance(entry, dict):

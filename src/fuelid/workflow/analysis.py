@@ -29,7 +29,7 @@ from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, check_gain_identified
 from fuelid.tuning.cases import DEFAULT_T_RANGE, CaseCache, FixedPIEvaluation
 from fuelid.tuning.closedloop import ClosedLoopResult
-from fuelid.tuning.frequency import frequency_grid, loop_function
+from fuelid.tuning.frequency import frequency_grid, loop_function, robustness
 from fuelid.tuning.result import UNITS, TuningResult
 from fuelid.tuning.schedule import GainSchedule
 from fuelid.workflow.assumptions import (
@@ -41,7 +41,7 @@ from fuelid.workflow.assumptions import (
     priors_json,
     resolve_priors,
 )
-from fuelid.workflow.identification import T_REF
+from fuelid.workflow.identification import T_REF, identify_step_ls
 from fuelid.workflow.progress import DIAGNOSTICS, IDENTIFICATION, Progress, announce
 from fuelid.workflow.tune import (
     TuneOutcome,
@@ -280,11 +280,12 @@ def _analyse(
     warnings: list[str] = [f"log: {note}" for note in data.notes]
     # the output-error fit first: without a plant file its settling time is the data's own
     # prior for step-ls's response length N
-    for method in sorted(METHODS, key=lambda m: m != "oe"):
-        options = replace(base, method=method)
-        if method == "step-ls":
-            options = _step_ls_priors(options, identifications["oe"].model)
-        identifications[method] = identify(data, options)
+    identifications["oe"] = identify(data, replace(base, method="oe"))
+    identifications["step-ls"], step_sources = identify_step_ls(
+        data, replace(base, method="step-ls"), identifications["oe"].model
+    )
+    if settings.tune_from == "step-ls":
+        sources |= step_sources
     identifications = {method: identifications[method] for method in METHODS}
     for name, result in identifications.items():
         warnings.extend(f"{name}: {w}" for w in result.warnings if w not in data.notes)
@@ -301,6 +302,9 @@ def _analyse(
     cache: CaseCache = {}  # the check and the schedule share linearisations
     outcome = tune_model(config, request, progress, cache)
     warnings.extend(f"tuning: {w}" for w in outcome.warnings)
+    cross_check = _cross_check(identifications, settings.tune_from, outcome)
+    if cross_check:
+        warnings.append(cross_check)
     schedule = schedule_gains(config, request, progress, cache).schedule
     announce(progress, DIAGNOSTICS)
     fitted = chosen.time < (chosen.split_time if chosen.split_time is not None else math.inf)
@@ -331,17 +335,31 @@ def _analyse(
     )
 
 
-def _step_ls_priors(options: IdentifyOptions, oe_model: ProcessModel) -> IdentifyOptions:
-    """Step-ls's priors, from the output-error fit where neither an option nor a plant gives them.
+CROSS_CHECK_RATIO = 1.1
+"""Ms of the gains on the other identified model above this multiple of the Ms printed is said."""
 
-    The article's method needs the dead time and the response length N as prior knowledge; the
-    output-error fit of the same log estimates both (its delay, its 98 % settling time).
+
+def _cross_check(
+    identifications: dict[str, IdentificationResult], tune_from: str, outcome: TuneOutcome
+) -> str | None:
+    """The gains on the other method's model when it fits the log better and is less robust.
+
+    Both models describe the same log; when the one the gains do not come from fits it better
+    and gives a larger Ms, the Ms printed is optimistic, and the user must hear it.
     """
-    if options.N is None and options.settling_time is None:
-        options = replace(options, settling_time=oe_model.settling_time())
-    if options.resolved_delay() is None:
-        options = replace(options, delay=oe_model.delay)
-    return options
+    other = "oe" if tune_from == "step-ls" else "step-ls"
+    chosen, check = identifications[tune_from], identifications[other]
+    if check.fit_percent <= chosen.fit_percent:
+        return None
+    ms = robustness(check.model, outcome.pi).Ms
+    printed = outcome.tuning.robustness.Ms
+    if ms <= CROSS_CHECK_RATIO * printed:
+        return None
+    return (
+        f"tuning: on the {other} model, which fits the log better ({check.fit_percent:.1f} % "
+        f"against {chosen.fit_percent:.1f} %), these gains give Ms {ms:.2f}, not {printed:.2f}: "
+        f"the {tune_from} model is optimistic here; tune from {other} (--method {other})"
+    )
 
 
 def _held(data: IOData, times: FloatArray) -> FloatArray:

@@ -48,7 +48,14 @@ SPAN_TOLERANCE = 0.05
 (a drive command a little beyond 1…5 V is a calibration offset, not a unit mistake)."""
 
 
-PriorSource = Literal["option", "plant file", "estimated", "not given"]
+PriorSource = Literal[
+    "option",
+    "plant file",
+    "estimated",
+    "not given",
+    "output-error fit",
+    "refit: the N its own model needs",
+]
 
 
 @dataclass(frozen=True)
@@ -125,7 +132,9 @@ def priors_json(
     if options.flowmeter_T is None:
         meter_lag["note"] = "not fixed: a meter lag is estimated as the second lag T2 (order 2)"
     delay_source: PriorSource
-    if "delay" in fixed:
+    if "delay" in sources:
+        delay_source = sources["delay"]
+    elif "delay" in fixed:
         delay_source = (
             "option"
             if options.delay not in (None, "auto")
@@ -134,7 +143,12 @@ def priors_json(
     else:
         delay_source = "estimated"
     order_value = 2 if model.T2 > 0.0 else 1
-    return {
+    step_ls = (
+        {"N": {"value": result.extra.get("N"), "source": sources.get("N", "option")}}
+        if result.method == "step-ls"
+        else {}
+    )
+    return step_ls | {
         "plant": None if plant is None else plant.to_json(),
         "flowmeter_T": meter_lag,
         "flowmeter_delay": {

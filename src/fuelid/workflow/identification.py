@@ -7,16 +7,19 @@ diagnostics are :func:`fuelid.identify.procedure.identify`'s.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
+from fuelid.model import ProcessModel
 from fuelid.preprocess import select
 from fuelid.units import celsius_to_kelvin
 from fuelid.workflow.assumptions import (
     OperatingPoint,
     PlantSource,
+    PriorSource,
     check_gain_against_plant,
     check_signals,
     priors_json,
@@ -139,7 +142,11 @@ def identify_log(
     point = OperatingPoint.of(data, fuel_temperature)
     T_fuel = T_REF if point.T_fuel is None else point.T_fuel
     resolved, sources = resolve_priors(options, source, T_fuel)
-    result = identify(data, resolved, validation)
+    if resolved.method == "step-ls":
+        result, step_sources = identify_step_ls(data, resolved, validation=validation)
+        sources |= step_sources
+    else:
+        result = identify(data, resolved, validation)
     findings = check_signals(data, source)
     mismatch = check_gain_against_plant(result.model, source, point, T_fuel)
     if mismatch is not None:
@@ -150,3 +157,45 @@ def identify_log(
         operating_point=point,
         signal_check=findings,
     )
+
+
+def identify_step_ls(
+    data: IOData,
+    options: IdentifyOptions,
+    oe_model: ProcessModel | None = None,
+    validation: IOData | None = None,
+) -> tuple[IdentificationResult, dict[str, PriorSource]]:
+    """The article's step-ls fit with the prior knowledge it needs, and where that came from.
+
+    step-ls needs the dead time and the response length N as priors. An option or a plant file
+    gives them; otherwise the output-error fit of the same log does (``oe_model``, fitted here
+    when not given): its dead time, and N from its 98 % settling time. When the fitted step-ls
+    model has not settled within N periods (its response would be truncated, biasing K and T)
+    and N was not fixed by an option, the fit is repeated once with the N that model needs.
+
+    Returns
+    -------
+    result : IdentificationResult
+    sources : dict
+        ``"N"`` and, when it came from the output-error fit, ``"delay"``.
+    """
+    sources: dict[str, PriorSource] = {}
+    needs_N = options.N is None and options.settling_time is None
+    needs_delay = options.resolved_delay() is None
+    if (needs_N or needs_delay) and oe_model is None:
+        oe_model = identify(data, replace(options, method="oe", validate_split=None)).model
+    if oe_model is not None and needs_N:
+        options = replace(options, settling_time=oe_model.settling_time())
+    if oe_model is not None and needs_delay:
+        options = replace(options, delay=oe_model.delay)
+        sources["delay"] = "output-error fit"
+    sources["N"] = (
+        "option" if options.N is not None else "output-error fit" if needs_N else "plant file"
+    )
+    result = identify(data, options, validation)
+    if options.N is None:
+        needed = math.ceil(result.model.settling_time() / result.sample_time)
+        if needed > int(result.extra.get("N", needed)):
+            result = identify(data, replace(options, N=needed), validation)
+            sources["N"] = "refit: the N its own model needs"
+    return result, sources
