@@ -77,7 +77,7 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
     gain_unit = f"{y_unit}/{data.u_unit}"
     curves = [
         (
-            f"{method} model (K = {r.model.K:.4g} {gain_unit}, T = {r.model.T:.3g} s)",
+            f"{method} model ({r.model.describe(gain_unit)})",
             np.interp(oe.time, r.time, r.y_hat),
         )
         for method, r in analysis.identifications.items()

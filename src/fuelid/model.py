@@ -129,6 +129,22 @@ class ProcessModel:
         A, B, C, _ = self.state_space()
         return lti.step_settling_time(A, B, C, 0.0, self.delay, band)
 
+    def describe(self, gain_unit: str = "(L/min)/V") -> str:
+        """The parameters for titles and tables: K, every lag the model has, the dead time.
+
+        Examples
+        --------
+        >>> ProcessModel(K=15.56, T=1.249, T2=0.947, delay=0.703).describe()
+        'K = 15.56 (L/min)/V, T = 1.25 s, T2 = 0.947 s, delay = 0.703 s'
+        """
+        parts = [f"K = {self.K:.4g} {gain_unit}", f"T = {self.T:.3g} s"]
+        if self.T2 > 0.0:
+            parts.append(f"T2 = {self.T2:.3g} s")
+        if self.T_f > 0.0:
+            parts.append(f"T_f = {self.T_f:.3g} s")
+        parts.append(f"delay = {self.delay:.3g} s")
+        return ", ".join(parts)
+
     def as_dict(self) -> dict[str, float]:
         """Parameters as a plain dictionary (for JSON)."""
         return asdict(self)

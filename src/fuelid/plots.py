@@ -540,5 +540,5 @@ def tune_figure(outcome: TuneOutcome) -> Figure:
         cl.disturbance_response,
         f"{pi.rule}: Kc = {pi.Kc:.4g} V/(L/min), Ti = {pi.Ti:.3g} s, "
         f"Ms = {outcome.tuning.robustness.Ms:.2f}\non the linear model "
-        f"(K = {m.K:.4g} (L/min)/V, T = {m.T:.3g} s) at u = {outcome.u:.3g} V",
+        f"({m.describe()}) at u = {outcome.u:.3g} V",
     )

@@ -265,10 +265,10 @@ def identify_command(
         return
     from fuelid.workflow.assumptions import gain_unit
 
-    _print_table(data_json, file, gain_unit(data))
+    _print_table(data_json, file, gain_unit(data), (data.u_unit, data.y_unit))
 
 
-def _print_table(data: dict[str, Any], file: Path, gain_unit: str) -> None:
+def _print_table(data: dict[str, Any], file: Path, gain_unit: str, units: tuple[str, str]) -> None:
     from rich.console import Console
     from rich.table import Table
 
@@ -295,3 +295,30 @@ def _print_table(data: dict[str, Any], file: Path, gain_unit: str) -> None:
     console.print(f"fit {data['fit_percent']:.2f} % (NRMSE, free-run simulation)")
     if data["validation_fit_percent"] is not None:
         console.print(f"validation fit {data['validation_fit_percent']:.2f} % (held-out data)")
+    point = data["operating_point"]
+    fuel = point["fuel_temperature"]
+    console.print(
+        f"operating point: u = {point['u']:.3g} {units[0]}, flow {point['y']:.4g} {units[1]}; fuel "
+        + (f"{fuel:.3g} °C ({point['fuel_temperature_source']})" if fuel is not None else "unknown")
+    )
+    console.print(f"assumed: {_describe_priors(data['priors'])}", highlight=False)
+
+
+def _describe_priors(priors: dict[str, Any]) -> str:
+    """One line of what the fit held fixed and where it came from, what it estimated."""
+    parts = []
+    lag = priors["flowmeter_T"]
+    parts.append(
+        f"meter lag {lag['value']:g} s ({lag['source']})"
+        if lag["value"] is not None
+        else "no meter lag (a lag is found as T2)"
+    )
+    delay = priors["delay"]
+    parts.append(f"dead time {delay['value']:.3g} s ({delay['source']})")
+    order = priors["order"]
+    parts.append(f"order {order['value']} ({order['source']})")
+    if "N" in priors:
+        parts.append(f"N = {priors['N']['value']} ({priors['N']['source']})")
+    plant = priors["plant"]
+    parts.append(f"plant {plant['path']}" if plant is not None else "no plant file")
+    return "; ".join(parts)

@@ -244,10 +244,8 @@ def _print_summary(analysis: LogAnalysis, written: list[Path]) -> None:
     model = analysis.model_result.model
     k_unit = gain_unit(analysis.data)
     console.print(
-        f"{analysis.settings.tune_from} model: K = {model.K:.4g} {k_unit}, T = {model.T:.3g} s"
-        + (f", T2 = {model.T2:.3g} s" if model.T2 > 0.0 else "")
-        + (f", T_f = {model.T_f:.3g} s" if model.T_f > 0.0 else "")
-        + f", delay = {model.delay:.3g} s (fit {analysis.model_result.fit_percent:.1f} %)"
+        f"{analysis.settings.tune_from} model: {model.describe(k_unit)} "
+        f"(fit {analysis.model_result.fit_percent:.1f} %)"
     )
     console.print(
         f"{pi.rule} PI: Kc = {pi.Kc:.4g} V/(L/min), Ti = {pi.Ti:.3g} s; on the identified model "
@@ -260,6 +258,8 @@ def _print_summary(analysis: LogAnalysis, written: list[Path]) -> None:
             f"{analysis.schedule.worst_Ms:.2f}"
         )
     )
+    if not analysis.plant.is_reference:
+        console.print(f"plant: {analysis.plant.config.name} from {analysis.plant.path}")
     for notice in analysis.notices:
         console.print(f"[bold]note:[/bold] {notice}", highlight=False)
     console.print(f"report: {written[0]}")

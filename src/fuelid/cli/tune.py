@@ -314,7 +314,7 @@ def tune_command(
     if as_json:
         emit_json(outcome.to_json() | extra | provenance(options, model_file))
         return
-    _print_tuning(outcome)
+    _print_tuning(outcome, fuel_source or "assumed")
 
 
 def _model_from_options(
@@ -388,17 +388,22 @@ def _print_rules(as_json: bool) -> None:
     Console().print(table)
 
 
-def _print_tuning(outcome: TuneOutcome) -> None:
-    """The gains in every form and their evidence, from the JSON (engineering units)."""
+def _print_tuning(outcome: TuneOutcome, fuel_source: str) -> None:
+    """The gains in every form and their evidence, from the JSON (engineering units).
+
+    ``fuel_source`` says where the model's fuel temperature came from (option, model file,
+    assumed).
+    """
     from rich.console import Console
     from rich.table import Table
 
+    from fuelid.units import kelvin_to_celsius
+
     data = outcome.to_json()
-    model, plc, h = data["model"], data["plc"], data["control_period"]
+    plc, h = data["plc"], data["control_period"]
     console = Console()
     gains = Table(
-        title=f"{data['rule']} PI for K = {model['K']:.4g} (L/min)/V, T = "
-        f"{model['T']:.3g} s, delay = {model['delay']:.3g} s, "
+        title=f"{data['rule']} PI for {outcome.tuning.model.describe()}, "
         + (f"h = {h:g} s" if h > 0 else "continuous")
     )
     for column in ("form", "gain", "integral", "unit"):
@@ -426,6 +431,11 @@ def _print_tuning(outcome: TuneOutcome) -> None:
             "V/(L/min)",
         )
     console.print(gains)
+    fuel = kelvin_to_celsius(outcome.request.T_fuel)
+    console.print(
+        f"model found at u = {outcome.u:.3g} V with the fuel at {fuel:.3g} °C ({fuel_source}): "
+        "the temperature check is anchored there"
+    )
     rob = data["robustness"]
     step = data["closed_loop"]["setpoint_step"]
     settle = step["settling_time"]
