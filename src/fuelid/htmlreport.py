@@ -23,7 +23,7 @@ import numpy as np
 from fuelid import __version__
 from fuelid.errors import DataError
 from fuelid.io.files import atomic_write_bytes
-from fuelid.io.timeseries import TimeSeries
+from fuelid.io.timeseries import IOData, TimeSeries
 from fuelid.plots import (
     plot_bode,
     plot_correlation_tests,
@@ -33,7 +33,7 @@ from fuelid.plots import (
     runs_figure,
     schedule_figure,
 )
-from fuelid.units import kelvin_to_celsius
+from fuelid.units import T0, kelvin_to_celsius
 from fuelid.workflow import LogAnalysis
 from fuelid.workflow.assumptions import gain_unit
 
@@ -67,7 +67,7 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
     s = analysis.settings
     chosen = analysis.model_result
     overview = plot_log(
-        TimeSeries(data.t, {"u_V": data.u, "q_Lpm": data.y}),
+        _overview_series(data),
         f"{data.source or 'log'}: {data.n_samples} samples every {data.sample_time:g} s "
         f"(fuel at {kelvin_to_celsius(analysis.T_fuel):g} °C, "
         f"{_fuel_temperature_origin(analysis)})",
@@ -172,6 +172,22 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
         "closed_loop": (closed, closed_caption),
         "schedule": (schedule, "Gains per fuel-temperature band (one line per flow band)."),
     }
+
+
+def _overview_series(data: IOData) -> TimeSeries:
+    """The log for the overview figure, with its fuel temperature when it has one.
+
+    At every gap a NaN sample half-way breaks the lines: none is drawn across missing data.
+    """
+    t, signals = data.t, {"u_V": data.u, "q_Lpm": data.y}
+    if data.T_fuel is not None:
+        signals["T_fuel_degC"] = data.T_fuel - T0
+    starts = np.asarray(data.segment_starts, dtype=int)
+    if starts.size:
+        middles = 0.5 * (t[starts - 1] + t[starts])
+        t = np.insert(t, starts, middles)
+        signals = {name: np.insert(v, starts, np.nan) for name, v in signals.items()}
+    return TimeSeries(t, signals, {"u_V": "V", "q_Lpm": "L/min", "T_fuel_degC": "°C"})
 
 
 def _fuel_temperature_origin(analysis: LogAnalysis) -> str:
@@ -296,6 +312,10 @@ def _context(
         "plant": analysis.plant.to_json(),
         "priors": _priors_rows(analysis.priors),
         "gain_unit": gain_unit(data),
+        # without a plant file the flows of the operating points are the reference plant's
+        "flow_header": "flow L/min (reference plant)"
+        if analysis.plant.is_reference
+        else "flow L/min",
         "settings": s,
         "t_range": f"{kelvin_to_celsius(s.T_range[0]):g}…{kelvin_to_celsius(s.T_range[1]):g}",
         "identifications": rows_ident,

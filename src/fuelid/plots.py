@@ -97,8 +97,10 @@ def plot_log(log: TimeSeries, title: str = "") -> Figure:
         temperature = log[FUEL_TEMPERATURE_COLUMN]
         ax_t.plot(log.time, temperature, color="tab:red", label="fuel temperature [°C]")
         ax_t.set_ylabel("fuel temperature [°C]")
-        mid = float(np.mean(temperature))
-        half = max(float(np.ptp(temperature)) * 0.6, 2.0)  # a constant reading is not a line
+        # NaN marks a gap in the log (no line across it)
+        low, high = float(np.nanmin(temperature)), float(np.nanmax(temperature))
+        mid = 0.5 * (low + high)
+        half = max((high - low) * 0.6, 2.0)  # a constant reading is not a line
         ax_t.set_ylim(mid - half, mid + half)
         ax_t.legend(loc="upper right", fontsize=8)
     axes[-1].set_xlabel("time [s]")
@@ -384,8 +386,9 @@ def plot_closed_loop_runs(
     colors = ("tab:blue", "tab:red", "tab:green", "tab:purple")
     for i, (label, t, r, q, u) in enumerate(runs):
         color = colors[i % len(colors)]
+        # the runs share the setpoint: one neutral line, not one per run hidden under the last
         ax_q.step(
-            t, r, where="post", color=color, lw=0.8, ls="--", label="setpoint" if i == 0 else None
+            t, r, where="post", color="0.25", lw=0.8, ls="--", label="setpoint" if i == 0 else None
         )
         ax_q.plot(t, q, color=color, lw=1.0, label=label)
         ax_u.step(t, u, where="post", color=color, lw=1.0, label=label)

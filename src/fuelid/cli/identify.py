@@ -234,6 +234,7 @@ def identify_command(
             result.split_time,
             f"{file.name}: measured and {result.method} model output",
             ylabel=output_col,
+            unit=data.y_unit or None,
         )
         save_figure(fig, plot)
     data_json = outcome.to_json()

@@ -300,7 +300,7 @@ def tune_command(
         if as_json:
             emit_json(table.to_json() | extra | provenance(options, model_file))
         else:
-            _print_schedule(table)
+            _print_schedule(table, reference=config is None)
         return
     with progress_display() as stage:
         outcome = tune_model(plant, request, progress=stage)
@@ -472,7 +472,8 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str) -> None:
         )
 
 
-def _print_schedule(outcome: ScheduleOutcome) -> None:
+def _print_schedule(outcome: ScheduleOutcome, reference: bool) -> None:
+    """The schedule table; ``reference``: the flows are the built-in reference plant's."""
     from rich import box
     from rich.console import Console
     from rich.table import Table
@@ -485,7 +486,8 @@ def _print_schedule(outcome: ScheduleOutcome) -> None:
         box=box.SIMPLE_HEAD,  # nine columns: light rules keep them within 80 characters
         collapse_padding=True,
     )
-    columns = ("fuel °C", "u V", "flow L/min", "Kc V/(L/min)", "Kc %/%", "Ti s", "Ms", "GM", "PM °")
+    flow = "ref. flow L/min" if reference else "flow L/min"
+    columns = ("fuel °C", "u V", flow, "Kc V/(L/min)", "Kc %/%", "Ti s", "Ms", "GM", "PM °")
     for column in columns:
         out.add_column(column, justify="right")
     for row in data["bands"]:

@@ -477,7 +477,10 @@ class StepResponseLS(Estimator):
             )
         # deviations from the initial steady state (samples 0 … first change, inclusive)
         self.u0_ = float(u[0])
-        self.offset_ = float(np.mean(y[: int(changes[0]) + 2]))
+        # the steady state before the first change of the input anywhere, a change across a
+        # gap included (it moves the level even though no row spans it), within segment 1
+        first_change = int(np.flatnonzero(du != 0.0)[0])
+        self.offset_ = float(np.mean(y[: min(first_change + 2, bounds[0][1])]))
         ud = u - self.u0_
         yd = y - self.offset_
 
