@@ -23,12 +23,12 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from fuelid.identify.procedure import IdentificationResult, IdentifyOptions
 from fuelid.io.timeseries import INPUT_UNIT, OUTPUT_UNIT, IOData
 from fuelid.model import ProcessModel
 from fuelid.units import kelvin_to_celsius
 
 if TYPE_CHECKING:
+    from fuelid.identify.procedure import IdentificationResult, IdentifyOptions
     from fuelid.plant.config import PlantConfig
 
 REFERENCE_PLANT_NOTICE = (
