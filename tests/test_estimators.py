@@ -140,6 +140,7 @@ def test_init_only_stores_settings_and_fit_checks_them():
         "initial": "estimate",
         "u_before": None,
         "max_delay": None,
+        "covariance": "auto",
     }
     with pytest.raises(FuelidError, match="order must be 1, 2 or 'auto'"):
         est.fit(_oe_record(2))

@@ -7,6 +7,7 @@ types here keep their names, help and defaults the same in both.
 
 from __future__ import annotations
 
+import enum
 import math
 from typing import Annotated, Literal
 
@@ -59,6 +60,24 @@ StepsOption = Annotated[
         help="step-ls: step-response length N [control periods] (default: from --config's "
         "settling time).",
         show_default=False,
+    ),
+]
+
+
+class CovarianceChoice(enum.StrEnum):
+    """How oe's parameter covariance is computed."""
+
+    auto = "auto"
+    white = "white"
+    hac = "hac"
+
+
+CovarianceOption = Annotated[
+    CovarianceChoice,
+    typer.Option(
+        help="oe's standard errors: white σ²(JᵀJ)⁻¹; hac, the sandwich with the residuals' "
+        "spectrum (valid when they are coloured); auto, hac whenever the residuals fail the "
+        "whiteness test.",
     ),
 ]
 DEFAULT_ORDER = "auto"

@@ -34,6 +34,8 @@ from fuelid.cli._common import (
 )
 from fuelid.cli._identify_options import (
     DEFAULT_ORDER,
+    CovarianceChoice,
+    CovarianceOption,
     DelayOption,
     FlowmeterDelayOption,
     FlowmeterTOption,
@@ -83,6 +85,7 @@ def identify_command(
     flowmeter_T: FlowmeterTOption = None,
     flowmeter_delay: FlowmeterDelayOption = None,
     n_steps: StepsOption = None,
+    covariance: CovarianceOption = CovarianceChoice.auto,
     control_period: Annotated[
         float, typer.Option(help="step-ls: controller period to decimate to [s].")
     ] = 1.0,
@@ -184,6 +187,7 @@ def identify_command(
         flowmeter_T=flowmeter_T,
         flowmeter_delay=flowmeter_delay,
         N=n_steps,
+        covariance=covariance.value,
         control_period=control_period,
         validate_split=validate_split,
         u_before=u_before,
@@ -246,6 +250,7 @@ def identify_command(
             "flowmeter_T": flowmeter_T,
             "flowmeter_delay": flowmeter_delay,
             "N": n_steps,
+            "covariance": covariance.value,
             "control_period": control_period,
             "validate_split": validate_split,
             "validate_initial": validate_initial.value,

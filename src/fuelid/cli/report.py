@@ -45,6 +45,8 @@ from fuelid.cli._common import (
 )
 from fuelid.cli._identify_options import (
     DEFAULT_ORDER,
+    CovarianceChoice,
+    CovarianceOption,
     DelayOption,
     FlowmeterDelayOption,
     FlowmeterTOption,
@@ -94,6 +96,7 @@ def report_command(
     flowmeter_T: FlowmeterTOption = None,
     flowmeter_delay: FlowmeterDelayOption = None,
     n_steps: StepsOption = None,
+    covariance: CovarianceOption = CovarianceChoice.auto,
     accept_signals: Annotated[
         bool,
         typer.Option(
@@ -166,6 +169,7 @@ def report_command(
             flowmeter_T=flowmeter_T,
             flowmeter_delay=flowmeter_delay,
             N=n_steps,
+            covariance=covariance.value,
         ),
         accept_signals=accept_signals,
         T_range=T_range,
@@ -204,6 +208,7 @@ def report_command(
             "flowmeter_T": flowmeter_T,
             "flowmeter_delay": flowmeter_delay,
             "N": n_steps,
+            "covariance": covariance.value,
             "accept_signals": accept_signals,
             "method": settings.tune_from,
             "rule": rule.value,

@@ -32,11 +32,19 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal, Self
 
 import numpy as np
+import scipy.signal
 from numpy.typing import NDArray
 
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError, NotExcitingError
 from fuelid.identify._base import Estimator, Initial
+from fuelid.identify.covariance import (
+    ResidualAR,
+    residual_ar,
+    sandwich_covariance,
+    white_covariance,
+)
+from fuelid.identify.diagnostics import residual_whiteness
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, offset_and_free_responses
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
@@ -188,6 +196,10 @@ class OutputError(Estimator):
         segments after a gap follow ``initial``).
     max_delay : float or None
         Upper bound of the delay search [s] (default: a quarter of the record, at most 60 s).
+    covariance : "auto", "white" or "hac"
+        The parameters' covariance: "white" σ̂²(JᵀJ)⁻¹; "hac" the sandwich with the residuals'
+        spectrum (:mod:`fuelid.identify.covariance`), valid when they are coloured; "auto"
+        (default) the sandwich whenever the residual whiteness test fails.
 
     Attributes
     ----------
@@ -201,7 +213,11 @@ class OutputError(Estimator):
         Input the model's rest state refers to: ``u_before``, else the fitting record's u[0].
     param_names_, params_, cov_ : tuple, ndarray, ndarray
         Every estimated parameter (K, the free nonlinear ones, the offset, the initial-state
-        amplitudes ``c0…``), their values and covariance σ̂²(JᵀJ)⁻¹.
+        amplitudes ``c0…``), their values and covariance (``covariance_`` says which).
+    covariance_ : "white" or "hac"
+        How ``cov_`` was computed; ``cov_white_`` is σ̂²(JᵀJ)⁻¹ always.
+    residual_ar_ : ResidualAR
+        The residuals' autoregressive model (order 0: white), the middle of the sandwich.
     stderr_ : dict
         Standard error of each model parameter K, T, T2, delay, T_f (None for a fixed one).
     fixed_ : tuple of str
@@ -232,7 +248,7 @@ class OutputError(Estimator):
     (3.0, 2.0, 0.3)
     """
 
-    _SETTINGS = ("order", "delay", "T_f", "initial", "u_before", "max_delay")
+    _SETTINGS = ("order", "delay", "T_f", "initial", "u_before", "max_delay", "covariance")
 
     K_: float
     T_: float
@@ -244,6 +260,9 @@ class OutputError(Estimator):
     param_names_: tuple[str, ...]
     params_: FloatArray
     cov_: FloatArray
+    cov_white_: FloatArray
+    covariance_: Literal["white", "hac"]
+    residual_ar_: ResidualAR
     stderr_: dict[str, float | None]
     fixed_: tuple[str, ...]
     sigma_: float
@@ -266,6 +285,7 @@ class OutputError(Estimator):
         initial: Literal["estimate", "rest"] = "estimate",
         u_before: float | None = None,
         max_delay: float | None = None,
+        covariance: Literal["auto", "white", "hac"] = "auto",
     ) -> None:
         self.order = order
         self.delay = delay
@@ -273,6 +293,7 @@ class OutputError(Estimator):
         self.initial = initial
         self.u_before = u_before
         self.max_delay = max_delay
+        self.covariance = covariance
 
     # ------------------------------------------------------------------ public API
     def fit(self, data: IOData, init: ProcessModel | None = None) -> Self:
@@ -425,6 +446,10 @@ class OutputError(Estimator):
             raise FuelidError(f"order must be 1, 2 or 'auto', got {self.order!r}")
         if self.initial not in ("estimate", "rest"):
             raise FuelidError(f"initial must be 'estimate' or 'rest', got {self.initial!r}")
+        if self.covariance not in ("auto", "white", "hac"):
+            raise FuelidError(
+                f"covariance must be 'auto', 'white' or 'hac', got {self.covariance!r}"
+            )
         for name in ("T_f", "delay"):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value >= 0.0):
@@ -579,7 +604,17 @@ class OutputError(Estimator):
         self.sigma_ = math.sqrt(ev.sse / dof)
         self.param_names_ = names
         self.params_ = np.array([self.K_, *(values[nm] for nm in nl_names), *ev.beta[1:]])
-        self.cov_, singular = _covariance(J, self.sigma_)
+        # white residuals: σ²(JᵀJ)⁻¹; coloured ones (the whiteness test fails): the sandwich
+        # with the residuals' own spectrum, which σ²(JᵀJ)⁻¹ understates several times
+        self.cov_white_, singular = white_covariance(J, self.sigma_)
+        self.residual_ar_ = residual_ar(ev.residual, bounds)
+        coloured = not residual_whiteness(ev.residual, segment_starts=data.segment_starts).passed
+        use_sandwich = self.covariance == "hac" or (self.covariance == "auto" and coloured)
+        if use_sandwich and self.residual_ar_.order > 0:
+            self.cov_, singular = sandwich_covariance(J, self.residual_ar_, bounds)
+            self.covariance_ = "hac"
+        else:
+            self.cov_, self.covariance_ = self.cov_white_, "white"
         unidentified = [names[i] for i in singular]
         sd = np.sqrt(np.diag(self.cov_))
         self.stderr_ = {"K": None, "T": None, "T2": None, "delay": None, "T_f": None}
@@ -604,40 +639,6 @@ class OutputError(Estimator):
                     f"T2 and the delay are strongly correlated ({corr:+.2f}): prefer order 1 "
                     "or fix the delay unless the data show otherwise"
                 )
-
-
-SINGULAR_INFORMATION = 1e-9
-"""Smallest singular value of the column-scaled Jacobian, relative to its largest, whose
-direction still counts as determined by the data (condition number of the information 1e18)."""
-
-
-def _covariance(J: FloatArray, sigma: float) -> tuple[FloatArray, list[int]]:
-    """σ²·(JᵀJ)⁻¹ through the SVD of the column-scaled Jacobian, and what it cannot give.
-
-    A plain inverse of a nearly singular information matrix returns negative variances (two
-    equal lags, a segment's initial state that mimics a step). Here the directions whose singular
-    value is below :data:`SINGULAR_INFORMATION` of the largest are not inverted; every parameter
-    with weight in them gets a NaN row and column (no standard error), and is listed.
-
-    Returns
-    -------
-    cov : array
-        Covariance of the parameters (NaN where not determined).
-    unidentified : list of int
-        Indices of the parameters the data do not determine.
-    """
-    scale = np.linalg.norm(J, axis=0)
-    scale[scale == 0.0] = 1.0
-    _, singular, vt = np.linalg.svd(J / scale, full_matrices=False)
-    determined = singular > SINGULAR_INFORMATION * singular[0]
-    null = vt[~determined]
-    weight = np.sum(null**2, axis=0) if null.size else np.zeros(J.shape[1])
-    unidentified = [int(i) for i in np.flatnonzero(weight > 1e-6)]
-    inner = (vt[determined].T / singular[determined] ** 2) @ vt[determined]
-    cov = sigma**2 * inner / np.outer(scale, scale)
-    cov[unidentified, :] = np.nan
-    cov[:, unidentified] = np.nan
-    return np.asarray(cov, dtype=float), unidentified
 
 
 def _jacobian(
@@ -691,12 +692,18 @@ def cramer_rao_bound(
     *,
     delay_free: bool = False,
     initial: Literal["estimate", "rest"] = "rest",
+    noise_ar: FloatArray | None = None,
 ) -> tuple[tuple[str, ...], FloatArray]:
     """Cramér–Rao bound σ²(JᵀJ)⁻¹ for the parameters an :class:`OutputError` fit estimates.
 
     J = ∂ŷ/∂p on the noise-free response of ``model`` to ``u`` (starting at rest at u[0]), for
     exactly the free parameters: K, T (and T2 when ``model.T2 > 0``), the delay when
     ``delay_free``, the offset, and the initial-state amplitudes when ``initial="estimate"``.
+
+    With ``noise_ar`` = [1, a₁, …, a_p], the noise is the AR process A(q)·v = e and ``sigma`` the
+    innovation's standard deviation σ_e: the bound is then the Box–Jenkins one (known noise
+    model), σ_e²·(J_fᵀJ_f)⁻¹ with J_f = A(q)·J, the best any estimator can do on such noise and
+    what a prediction-error fit with the right noise model attains.
 
     Returns
     -------
@@ -724,4 +731,6 @@ def cramer_rao_bound(
     beta = np.r_[model.K, 0.0, np.zeros(n_modes)]
     values = {"T": model.T, "T2": model.T2, "delay": model.delay}
     names, J = _jacobian(st, values, beta, u, sample_time, float(u[0]))
+    if noise_ar is not None:
+        J = scipy.signal.lfilter(np.asarray(noise_ar, dtype=float), [1.0], J, axis=0)
     return names, np.asarray(sigma**2 * np.linalg.inv(J.T @ J), dtype=float)

@@ -70,6 +70,9 @@ class IdentifyOptions:
     control_period: float = 1.0
     validate_split: float | None = None
     u_before: float | None = None
+    covariance: Literal["auto", "white", "hac"] = "auto"
+    """oe's parameter covariance: "white" σ²(JᵀJ)⁻¹, "hac" the sandwich with the residuals'
+    spectrum, "auto" the sandwich whenever the residuals fail the whiteness test."""
     validation_initial: Literal["estimate", "rest"] = "estimate"
     """How a separate validation record starts: "estimate" (offset and initial state fitted to
     it, as a record that does not start at rest needs) or "rest" (at rest at its first input)."""
@@ -79,6 +82,8 @@ class IdentifyOptions:
             raise FuelidError(
                 f"unknown identification method {self.method!r}: use one of {', '.join(METHODS)}"
             )
+        if self.covariance not in ("auto", "white", "hac"):
+            raise FuelidError(f"covariance {self.covariance!r}: use auto, white or hac")
         if self.validation_initial not in ("estimate", "rest"):
             raise FuelidError(
                 f"validation initial condition {self.validation_initial!r}: use estimate or rest"
@@ -499,6 +504,7 @@ def _identify(
         warnings.extend(n for n in preprocessing if n.startswith("segments left out"))
         warnings.extend(w for w in ls.warnings_ if w not in preprocessing)
         extra: dict[str, Any] = {
+            "covariance": "white",
             "N": ls.N_,
             "step_coefficients": ls.a_.tolist(),
             "preprocessing": preprocessing,
@@ -508,13 +514,22 @@ def _identify(
         if options.order not in (1, 2, "auto"):
             raise FuelidError(f"--order must be 1, 2 or auto, got {options.order!r}")
         fit_data, n_fit = _split(work, options.validate_split)
-        oe = OutputError(order=options.order, delay=delay, T_f=T_f, u_before=options.u_before).fit(
-            fit_data
-        )
+        oe = OutputError(
+            order=options.order,
+            delay=delay,
+            T_f=T_f,
+            u_before=options.u_before,
+            covariance=options.covariance,
+        ).fit(fit_data)
         estimator = oe
         cov_names, cov = oe.param_names_, oe.cov_
         warnings.extend(oe.warnings_)
-        extra = {"aic": {str(k): v for k, v in oe.aic_.items()}, "noise_std": oe.sigma_}
+        extra = {
+            "covariance": oe.covariance_,
+            "residual_noise_model": oe.residual_ar_.to_json(),
+            "aic": {str(k): v for k, v in oe.aic_.items()},
+            "noise_std": oe.sigma_,
+        }
         if "T2" in oe.param_names_ and "delay" in oe.param_names_:
             names = oe.param_names_
             extra["correlation_T2_delay"] = float(

@@ -1,0 +1,95 @@
+"""Standard errors that hold under coloured noise (issue 13, part 1).
+
+The output-error fit's white covariance σ²(JᵀJ)⁻¹ understates the spread several times when the
+noise is an AR(1) process; the sandwich with the residuals' spectrum must match the spread the
+estimates actually have, and its 95 % intervals must cover the truth about 95 % of the time.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg
+import scipy.signal
+
+from fuelid.identify import OutputError
+from fuelid.identify.covariance import ResidualAR, residual_ar, sandwich_covariance
+from fuelid.io.timeseries import IOData
+from fuelid.model import ProcessModel, simulate_model
+
+H = 0.05
+TRUTH = ProcessModel(K=3.0, T=1.0, delay=0.2)
+POLE = 0.95
+SD = 0.25  # stationary standard deviation of the noise
+
+
+def _record(seed: int, pole: float = POLE) -> IOData:
+    rng = np.random.default_rng(seed)
+    u = np.repeat(rng.choice([1.5, 2.0, 2.5, 3.0, 3.5], 40), 100)  # 40 steps of 5 s
+    innovation = rng.normal(0.0, SD * np.sqrt(1.0 - pole**2), u.size)
+    noise = scipy.signal.lfilter([1.0], [1.0, -pole], innovation)
+    return IOData(u=u, y=20.0 + simulate_model(TRUTH, u, H) + noise, sample_time=H)
+
+
+def test_the_sandwich_equals_the_explicit_toeplitz_formula():
+    rng = np.random.default_rng(2)
+    n = 300
+    J = rng.normal(size=(n, 3))
+    noise = ResidualAR(a=np.array([1.0, -0.8, 0.15]), sigma_e=0.7, bic={})
+    # Ψ: lower-triangular Toeplitz of 1/A(q)'s impulse response; Σ_v = σ_e²ΨΨᵀ
+    impulse = scipy.signal.lfilter([1.0], noise.a, np.r_[1.0, np.zeros(n - 1)])
+    psi = scipy.linalg.toeplitz(impulse, np.zeros(n))
+    bread = np.linalg.inv(J.T @ J)
+    expected = bread @ J.T @ (noise.sigma_e**2 * psi @ psi.T) @ J @ bread
+    cov, unidentified = sandwich_covariance(J, noise)
+    assert unidentified == []
+    np.testing.assert_allclose(cov, expected, rtol=1e-9)
+    # two segments: the noise restarts after the gap, so Σ_v is block diagonal
+    cut = 120
+    blocks = scipy.linalg.block_diag(psi[:cut, :cut], psi[: n - cut, : n - cut])
+    expected = bread @ J.T @ (noise.sigma_e**2 * blocks @ blocks.T) @ J @ bread
+    cov, _ = sandwich_covariance(J, noise, [(0, cut), (cut, n)])
+    np.testing.assert_allclose(cov, expected, rtol=1e-9)
+
+
+def test_residual_ar_recovers_an_ar2_and_its_long_run_variance():
+    rng = np.random.default_rng(4)
+    a = np.array([1.0, -1.2, 0.35])  # poles 0.7 and 0.5
+    v = scipy.signal.lfilter([1.0], a, rng.normal(0.0, 0.5, 50000))
+    model = residual_ar(v)
+    assert model.order == 2
+    np.testing.assert_allclose(model.a, a, atol=0.02)
+    assert model.sigma_e == pytest.approx(0.5, rel=0.02)
+    # long-run over plain variance: (σ_e²/A(1)²)/σ_v²
+    impulse = scipy.signal.lfilter([1.0], a, np.r_[1.0, np.zeros(999)])
+    exact = 1.0 / np.sum(a) ** 2 / float(impulse @ impulse)
+    assert model.variance_ratio == pytest.approx(exact, rel=0.1)
+
+
+def test_white_residuals_keep_the_white_covariance():
+    rng = np.random.default_rng(5)
+    u = np.repeat(rng.choice([1.5, 2.5, 3.5], 40), 100)
+    y = 20.0 + simulate_model(TRUTH, u, H) + rng.normal(0.0, SD, u.size)
+    est = OutputError(delay=TRUTH.delay).fit(IOData(u=u, y=y, sample_time=H))
+    assert est.covariance_ == "white"
+    assert est.residual_ar_.order == 0
+    np.testing.assert_array_equal(est.cov_, est.cov_white_)
+
+
+def test_intervals_cover_the_truth_under_ar1_noise_where_white_ones_do_not():
+    # 40 seeded records with AR(1) noise (pole 0.95 per 0.05 s sample): the sandwich's standard
+    # error matches the spread of K and T across runs, the white one is several times too small
+    runs = [OutputError(delay=TRUTH.delay).fit(_record(seed)) for seed in range(40)]
+    assert all(est.covariance_ == "hac" for est in runs)
+    for name, true in (("K", TRUTH.K), ("T", TRUTH.T)):
+        values = np.array([getattr(est, f"{name}_") for est in runs])
+        index = runs[0].param_names_.index(name)
+        hac = np.array([np.sqrt(est.cov_[index, index]) for est in runs])
+        white = np.array([np.sqrt(est.cov_white_[index, index]) for est in runs])
+        spread = float(np.std(values, ddof=1))
+        # 40 runs: the sample sd is within ±25 % of the truth with high probability
+        assert 0.7 < float(np.median(hac)) / spread < 1.4, name
+        assert float(np.median(white)) / spread < 0.5, name
+        covered = np.abs(values - true) <= 1.96 * hac
+        assert covered.mean() >= 0.85, name
+        assert (np.abs(values - true) <= 1.96 * white).mean() < 0.7, name
