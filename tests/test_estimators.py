@@ -260,7 +260,7 @@ def test_score_is_the_nrmse_fit_of_the_simulation(make, record):
 
 
 def test_unknown_method_is_refused_naming_the_valid_ones():
-    assert METHODS == ("oe", "step-ls")
+    assert METHODS == ("oe", "step-ls", "pem", "auto")
     with pytest.raises(FuelidError, match=r"unknown identification method 'arx': use one of oe, "):
         IdentifyOptions(method="arx")  # type: ignore[arg-type]
     with pytest.raises(FuelidError, match="step-ls"):

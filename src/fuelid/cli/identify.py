@@ -64,6 +64,8 @@ class MethodChoice(enum.StrEnum):
 
     oe = "oe"
     step_ls = "step-ls"
+    pem = "pem"
+    auto = "auto"
 
 
 @guarded
@@ -75,9 +77,10 @@ def identify_command(
     method: Annotated[
         MethodChoice,
         typer.Option(
-            help="oe: output-error fit on the raw samples; step-ls: the "
-            "article's step-response least squares at the control "
-            "period."
+            help="oe: output-error fit on the raw samples; step-ls: the article's step-response "
+            "least squares at the control period; pem: prediction-error fit with a noise model "
+            "(efficient under coloured noise, consistent in closed loop); auto: pem when oe's "
+            "residuals are coloured and the noise model is significant, else oe."
         ),
     ] = MethodChoice.oe,
     order: OrderOption = DEFAULT_ORDER,
@@ -181,7 +184,7 @@ def identify_command(
     if fuel_temp is not None and not (math.isfinite(fuel_temp) and -60.0 <= fuel_temp <= 150.0):
         raise FuelidError(f"--fuel-temp must lie within -60…150 °C, got {fuel_temp:g}")
     options = IdentifyOptions(
-        method="step-ls" if method is MethodChoice.step_ls else "oe",
+        method=method.value,
         order=parse_order(order),
         delay=parse_delay(delay),
         flowmeter_T=flowmeter_T,

@@ -66,6 +66,7 @@ class TuneFrom(enum.StrEnum):
 
     oe = "oe"
     step_ls = "step-ls"
+    pem = "pem"
 
 
 @guarded
@@ -106,7 +107,11 @@ def report_command(
         ),
     ] = False,
     method: Annotated[
-        TuneFrom, typer.Option(help="Identification the gains come from (both are shown).")
+        TuneFrom,
+        typer.Option(
+            help="Identification the gains come from (step-ls and oe are always shown; pem, the "
+            "fit with a noise model, is added when chosen)."
+        ),
     ] = TuneFrom.oe,
     rule: RuleOption = RuleChoice.simc,
     tau_c: TauCOption = None,
@@ -158,7 +163,7 @@ def report_command(
     T_fuel, T_range = temperature_options(20.0 if fuel_temp is None else fuel_temp, t_min, t_max)
     check_prior_times(flowmeter_T, flowmeter_delay)
     settings = AnalysisSettings(
-        tune_from="oe" if method is TuneFrom.oe else "step-ls",
+        tune_from=method.value,
         rule=rule.value,
         closed_loop_time=closed_loop_time(rule, tau_c, lam),
         control_period=control_period,

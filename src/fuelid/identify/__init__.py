@@ -69,6 +69,7 @@ from fuelid.identify.diagnostics import (
 )
 from fuelid.identify.nonlinearity import GainBand, NonlinearityCheck, gain_bands
 from fuelid.identify.oe import OutputError, cramer_rao_bound
+from fuelid.identify.pem import PredictionError
 from fuelid.identify.procedure import (
     METHODS,
     IdentificationResult,
@@ -88,6 +89,7 @@ __all__ = [
     "IdentifyOptions",
     "NonlinearityCheck",
     "OutputError",
+    "PredictionError",
     "StepError",
     "StepResponseLS",
     "cramer_rao_bound",

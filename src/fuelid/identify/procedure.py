@@ -15,7 +15,7 @@ their NRMSE over all of them, the residual tests run within segments, and the he
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal, get_args
 
 import numpy as np
@@ -26,6 +26,7 @@ from fuelid.errors import FuelidError
 from fuelid.identify import diagnostics
 from fuelid.identify.nonlinearity import NonlinearityCheck, gain_bands
 from fuelid.identify.oe import OutputError
+from fuelid.identify.pem import PredictionError
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, drop_short_segments
 from fuelid.identify.step_ls import StepResponseLS
 from fuelid.io.timeseries import IOData
@@ -33,7 +34,7 @@ from fuelid.model import MODEL_KEYS, Z95, ProcessModel, gain_not_identified, nrm
 from fuelid.preprocess import decimate
 
 FloatArray = NDArray[np.float64]
-Method = Literal["oe", "step-ls"]
+Method = Literal["oe", "step-ls", "pem", "auto"]
 METHODS: tuple[Method, ...] = get_args(Method)
 """The identification methods, the one registry of their names: ``("oe", "step-ls")``."""
 POSITIVE_PARAMETERS = frozenset({"T", "T2", "delay", "T_f"})
@@ -249,7 +250,7 @@ def _unmodelled_dynamics(
     if delay is not None:
         untried.append("an estimated dead time")
     head = f"residuals correlate with past inputs (p = {p_value:.2g})"
-    if options.method != "oe":
+    if options.method == "step-ls":
         return (
             f"{head}: unmodelled dynamics or a nonlinearity; the article's method has a fixed "
             "structure, the output-error fit (method oe) can try a second lag and a free delay"
@@ -393,8 +394,9 @@ def _residual_warnings(
     if options.method == "oe" and diagnostics.feedback_suspected(cross):
         out.append(
             "the input reacts to the output residual: the data look closed-loop; an output-error "
-            "fit is then biased when the noise is coloured (excite with setpoint steps, or log "
-            "open-loop steps)"
+            "fit is then biased when the noise is coloured: use the prediction-error fit with "
+            "a noise model (method pem), which is consistent in closed loop, or log open-loop "
+            "steps"
         )
     elif not cross.passed:
         if band_cross is not None and band_cross.passed:
@@ -464,7 +466,44 @@ def identify(
     A held-out part or record whose command never changes gets no score, and a warning says why.
     """
     with single_threaded_blas():
+        if options.method == "auto":
+            return _identify_auto(data, options, validation)
         return _identify(data, options, validation)
+
+
+NEAR_INTEGRATING_POLE = 0.999
+"""A noise pole above this (per sample) makes pem fit the differenced data: ``auto`` keeps oe."""
+
+
+def _identify_auto(
+    data: IOData, options: IdentifyOptions, validation: IOData | None
+) -> IdentificationResult:
+    """``method="auto"``: the output-error fit, or pem when the noise model is significant.
+
+    pem is chosen when oe's residuals fail the whiteness test and pem's information criterion
+    picks a noise model other than white (its own significance test), unless a noise pole is so
+    close to 1 that pem would fit the differenced data and lose the low-frequency fit.
+    """
+    oe = _identify(data, replace(options, method="oe"), validation)
+    if oe.diagnostics["residual_whiteness"]["passed"]:
+        oe.extra["method_choice"] = "auto: oe (its residuals are white)"
+        return oe
+    pem = _identify(data, replace(options, method="pem"), validation)
+    noise = pem.extra["noise_model"]
+    poles = [abs(complex(*p)) if isinstance(p, list) else abs(p) for p in noise["poles"]]
+    if noise["nc"] + noise["nd"] == 0:
+        oe.extra["method_choice"] = "auto: oe (no noise model is significant)"
+        return oe
+    if poles and max(poles) > NEAR_INTEGRATING_POLE:
+        oe.extra["method_choice"] = (
+            f"auto: oe (pem's noise pole {max(poles):.5f} is nearly integrating: it would fit "
+            "the differenced data)"
+        )
+        return oe
+    pem.extra["method_choice"] = (
+        "auto: pem (oe's residuals are coloured and the noise model is significant)"
+    )
+    return pem
 
 
 def _identify(
@@ -481,7 +520,7 @@ def _identify(
     if validation is not None:
         validation, dropped = drop_short_segments(validation)
         warnings.extend(f"validation record: {w}" for w in dropped)
-    estimator: StepResponseLS | OutputError
+    estimator: StepResponseLS | OutputError | PredictionError
     if options.method == "step-ls":
         work = _decimated(data, options.control_period)
         if delay is None:
@@ -508,6 +547,23 @@ def _identify(
             "N": ls.N_,
             "step_coefficients": ls.a_.tolist(),
             "preprocessing": preprocessing,
+        }
+    elif options.method == "pem":
+        work = data
+        fit_data, n_fit = _split(work, options.validate_split)
+        pem = PredictionError(
+            order=options.order, delay=delay, T_f=T_f, u_before=options.u_before
+        ).fit(fit_data)
+        estimator = pem
+        cov_names, cov = pem.param_names_, pem.cov_
+        warnings.extend(pem.warnings_)
+        extra = {
+            "covariance": "noise-model",
+            "noise_model": pem.noise_model_,
+            "one_step_fit_percent": pem.one_step_fit_percent_,
+            "aic": {str(k): v for k, v in pem.aic_.items()},
+            "noise_std": pem.noise_model_["sigma_v"],
+            "innovation_std": pem.sigma_,
         }
     else:
         work = data
@@ -559,7 +615,12 @@ def _identify(
             warnings.append(reason)
         else:
             validation_fit = estimator.score(validation, initial=options.validation_initial)
-    residuals = y[:n_fit] - y_model[:n_fit]
+    # pem's tests are on its prediction errors: white when its noise model is right
+    residuals = (
+        np.asarray(estimator.residuals_[:n_fit], dtype=float)
+        if isinstance(estimator, PredictionError)
+        else y[:n_fit] - y_model[:n_fit]
+    )
     starts = fit_data.segment_starts
     white = diagnostics.residual_whiteness(residuals, segment_starts=starts)
     # lags must span the controller's reaction: two control periods at least

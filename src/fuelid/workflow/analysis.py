@@ -52,7 +52,7 @@ from fuelid.workflow.tune import (
 )
 
 FloatArray = NDArray[np.float64]
-Method = Literal["oe", "step-ls"]
+Method = Literal["oe", "step-ls", "pem"]
 METHODS: tuple[Method, ...] = ("step-ls", "oe")
 """Both estimators run side by side: the article's method and the output-error fit."""
 
@@ -91,8 +91,8 @@ class AnalysisSettings:
     """Setpoint step of the nonlinear closed-loop runs [% of the flowmeter span]."""
 
     def __post_init__(self) -> None:
-        if self.tune_from not in METHODS:
-            raise FuelidError(f"tune from 'oe' or 'step-ls', not {self.tune_from!r}")
+        if self.tune_from not in (*METHODS, "pem"):
+            raise FuelidError(f"tune from 'oe', 'step-ls' or 'pem', not {self.tune_from!r}")
         check_conditions(
             T_REF if self.T_fuel is None else self.T_fuel, self.T_range, self.step_percent
         )
@@ -286,7 +286,10 @@ def _analyse(
     )
     if settings.tune_from == "step-ls":
         sources |= step_sources
-    identifications = {method: identifications[method] for method in METHODS}
+    if settings.tune_from == "pem":  # the noise-model fit, beside the two always shown
+        identifications["pem"] = identify(data, replace(base, method="pem"))
+    order = (*METHODS, "pem")
+    identifications = {m: identifications[m] for m in order if m in identifications}
     for name, result in identifications.items():
         warnings.extend(f"{name}: {w}" for w in result.warnings if w not in data.notes)
     chosen = identifications[settings.tune_from]
@@ -347,7 +350,7 @@ def _cross_check(
     Both models describe the same log; when the one the gains do not come from fits it better
     and gives a larger Ms, the Ms printed is optimistic, and the user must hear it.
     """
-    other = "oe" if tune_from == "step-ls" else "step-ls"
+    other = "step-ls" if tune_from == "oe" else "oe"
     chosen, check = identifications[tune_from], identifications[other]
     if check.fit_percent <= chosen.fit_percent:
         return None

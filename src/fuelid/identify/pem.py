@@ -1,0 +1,906 @@
+r"""Prediction-error fit with a noise model: the Box–Jenkins structure.
+
+Model, for a record ``u, y`` sampled every ``h`` seconds (the process part is that of
+:mod:`fuelid.identify.oe`, with the same settings, priors and initial states)::
+
+    y[k] = ŷ_p[k] + v[k],      ŷ_p[k] = b + K·s[k](T, T2, θ) + Σ_i c_i·p_i^k
+    v[k] = C(q)/D(q)·e[k],     e white with variance σ_e²
+    C(q) = 1 + c_1 q⁻¹ + … + c_nc q⁻ⁿᶜ,   D(q) = 1 + d_1 q⁻¹ + … + d_nd q⁻ⁿᵈ
+
+(``q⁻¹`` the backward shift; nc, nd ∈ 0…2). The prediction errors are
+
+.. math:: \varepsilon[k] = \frac{D(q)}{C(q)}\,(y[k] - \hat y_p[k])
+
+and the fit minimises Σ ε² over the process and the noise parameters jointly (Ljung, *System
+Identification*, 2nd ed., 1999, §7.2–7.3). With e Gaussian this is maximum likelihood, so the
+estimate is efficient under coloured noise (its covariance reaches the Box–Jenkins Cramér–Rao
+bound), where the output-error fit (C = D = 1) is only consistent; and on closed-loop data (the
+input correlated with the noise through a controller) the direct method is consistent when the
+noise model is in the family, where the output-error fit is biased (Ljung §13.4).
+
+How it is computed
+------------------
+- **Noise parametrisation.** C and D are built from reflection coefficients κ = tanh(η)
+  (Levinson step-up), so every η gives a stable D and a minimum-phase C: the predictor
+  D/C stays stable during the search, with no clipping. The search runs over η.
+- **Variable projection.** For given (T, T2, θ) and η, the linear parameters (K, offset,
+  initial-state amplitudes) are the least-squares solution of D/C·y on D/C·Φ (the output-error
+  regressors filtered by the noise model), so the nonlinear search runs over at most three
+  process parameters and four noise parameters.
+- **Segments.** The noise filter restarts at every segment from zero initial conditions (the
+  noise before a gap is unknown and nothing is filtered across one); the first ``nd`` prediction
+  errors of each segment (which would need outputs before the segment) are left out of the
+  criterion: the conditional likelihood given those outputs, exact for an autoregressive noise
+  model.
+- **Noise order** ("auto"). Every candidate (nc, nd) of :data:`NOISE_ORDERS` is fitted to the
+  output-error residual by the Hannan–Rissanen method (a long autoregression estimates the
+  innovations, then one linear regression per candidate: a handful of filter passes in all),
+  and the one with the lowest Bayesian information criterion BIC = N·ln(Σε²/N) + k·ln N wins;
+  the joint fit then refines that order only. BIC rather than AIC: the records are long
+  (N = 10⁴–10⁶), and AIC's penalty of 2 per parameter picks a spurious noise term in about one
+  white-noise record in six, while BIC's ln N ≈ 10 keeps the output-error model
+  (nc = nd = 0) when the noise is white and still finds any coloured noise worth more than a
+  few samples' worth of Σε². ``noise_criterion="aic"`` is available. Every candidate's
+  criterion is summed over the same samples (the first two of each segment left out).
+- **Process order** ("auto"): both orders are fitted, each with its own noise model, and the
+  lower Akaike criterion of the prediction errors is kept, as :class:`OutputError` does.
+- **Free run.** ``simulate``, ``y_hat_`` and ``fit_percent_`` use K and the dynamics of the
+  fit with the output level (offset, initial states) fitted by least squares to the
+  unfiltered record: under a drifting noise model (a pole of D near 1) the prediction errors
+  hardly constrain the level, and the free run must not inherit an arbitrary one.
+- **Covariance.** The asymptotic covariance of the prediction-error estimate,
+  σ̂_e²·(ΨᵀΨ)⁻¹ with Ψ = ∂ε/∂p over every estimated parameter (process, offset, initial
+  states, noise coefficients), through the SVD of the column-scaled Ψ (directions the data do
+  not determine get no standard error). The process columns are the output-error Jacobian
+  filtered by −D/C; the noise columns are exact: ∂ε/∂d_i = q⁻ⁱ·(y − ŷ_p)/C and
+  ∂ε/∂c_i = −q⁻ⁱ·ε/C. At the true parameters this is the Box–Jenkins Cramér–Rao bound.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Literal, Self
+
+import numpy as np
+import scipy.signal
+from numpy.typing import NDArray
+
+from fuelid.blas import single_threaded_blas
+from fuelid.errors import FuelidError
+from fuelid.identify._base import Estimator, Initial
+from fuelid.identify.oe import (
+    OutputError,
+    _jacobian,
+    _n_modes,
+    _regressors,
+    _solve,
+    _Structure,
+)
+from fuelid.identify.segments import offset_and_free_responses
+from fuelid.io.timeseries import IOData
+from fuelid.lti import discretise
+from fuelid.model import MODEL_KEYS, ProcessModel, nrmse_fit
+
+if TYPE_CHECKING:
+    import control
+
+FloatArray = NDArray[np.float64]
+Bounds = list[tuple[int, int]]
+Order = Literal[1, 2, "auto"]
+NoiseOrder = tuple[int, int]
+"""(nc, nd): the degrees of the noise model's numerator C and denominator D in q⁻¹."""
+
+MAX_NOISE_DEGREE = 2
+"""Highest degree of C and of D [samples]."""
+NOISE_ORDERS: tuple[NoiseOrder, ...] = tuple(
+    (nc, nd) for nd in range(MAX_NOISE_DEGREE + 1) for nc in range(MAX_NOISE_DEGREE + 1)
+)
+"""The (nc, nd) candidates of ``noise_order="auto"``: every pair with degrees 0…2."""
+SELECTION_WARMUP = MAX_NOISE_DEGREE
+"""Samples of each segment left out of the order-selection criterion, for every candidate
+alike (so their criteria are sums over the same samples)."""
+MAX_REFLECTION = 0.9999
+"""Largest |κ| a warm start is clipped to (a pole or zero of at most 0.9999 in modulus)."""
+LONG_AR_ORDER = 20
+"""Order of the long autoregression that estimates the innovations for the noise-order choice
+(Hannan–Rissanen) [samples]."""
+_ETA_BOUND = 8.0  # |η| ≤ 8: |κ| ≤ 1 − 2·10⁻⁷, a pole as close to 1 as double precision needs
+
+
+# ---------------------------------------------------------------------- noise polynomials
+def _step_up(kappa: FloatArray) -> FloatArray:
+    """Monic polynomial in q⁻¹ from reflection coefficients (Levinson step-up recursion).
+
+    a_m(q) = a_{m−1}(q) + κ_m·q⁻ᵐ·a_{m−1}(q⁻¹): every root lies inside the unit circle iff
+    every |κ_m| < 1 (Schur–Cohn), so D is stable and C minimum-phase for any κ = tanh(η).
+
+    Examples
+    --------
+    >>> _step_up(np.array([-0.9])).tolist()
+    [1.0, -0.9]
+    """
+    a = np.array([1.0])
+    for k in kappa:
+        a = np.r_[a, 0.0] + k * np.r_[0.0, a[::-1]]
+    return a
+
+
+def _step_down(a: Sequence[float]) -> FloatArray:
+    """Reflection coefficients of a monic polynomial (inverse of :func:`_step_up`), clipped.
+
+    A polynomial with a root on or outside the unit circle has some |κ| ≥ 1; clipping to
+    :data:`MAX_REFLECTION` maps it to a nearby stable one (a warm start from another record).
+    """
+    poly = np.asarray(a, dtype=float)
+    kappa: list[float] = []
+    while poly.size > 1:
+        k = float(np.clip(poly[-1], -MAX_REFLECTION, MAX_REFLECTION))
+        kappa.append(k)
+        poly = (poly[:-1] - k * poly[:0:-1]) / (1.0 - k * k)
+    return np.array(kappa[::-1])
+
+
+@dataclass(frozen=True)
+class _Noise:
+    """Noise model C/D for one (nc, nd), parametrised by η (κ = tanh η), D's first."""
+
+    nc: int
+    nd: int
+
+    @property
+    def size(self) -> int:
+        return self.nc + self.nd
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return (
+            *(f"noise_d{i}" for i in range(1, self.nd + 1)),
+            *(f"noise_c{i}" for i in range(1, self.nc + 1)),
+        )
+
+    def polys(self, eta: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """(C, D) coefficient arrays in powers of q⁻¹ (leading 1)."""
+        kappa = np.tanh(eta)
+        return _step_up(kappa[self.nd :]), _step_up(kappa[: self.nd])
+
+    def eta(self, C: Sequence[float], D: Sequence[float]) -> FloatArray:
+        """η of given polynomials, padded with zeros (or truncated) to this order."""
+        kd = np.zeros(self.nd)
+        kc = np.zeros(self.nc)
+        d, c = _step_down(D), _step_down(C)
+        kd[: min(d.size, self.nd)] = d[: self.nd]
+        kc[: min(c.size, self.nc)] = c[: self.nc]
+        return np.asarray(np.arctanh(np.r_[kd, kc]), dtype=float)
+
+
+def _filter(num: FloatArray, den: FloatArray, x: FloatArray, bounds: Bounds) -> FloatArray:
+    """num(q)/den(q)·x along axis 0, restarted from zero initial conditions at each segment."""
+    if num.size == 1 and den.size == 1:
+        return x if num[0] == 1.0 else num[0] * x
+    out = np.empty_like(x)
+    for a, b in bounds:
+        out[a:b] = scipy.signal.lfilter(num, den, x[a:b], axis=0)
+    return out
+
+
+def _shift(x: FloatArray, lag: int, bounds: Bounds) -> FloatArray:
+    """q⁻ˡᵃᵍ·x within each segment (zeros where the lagged sample lies before the segment)."""
+    out = np.zeros_like(x)
+    for a, b in bounds:
+        if b - a > lag:
+            out[a + lag : b] = x[a : b - lag]
+    return out
+
+
+def _used(bounds: Bounds, n: int, warmup: int) -> NDArray[np.bool_]:
+    """Samples in the criterion: all but the first ``warmup`` of each segment."""
+    keep = np.ones(n, dtype=bool)
+    for a, b in bounds:
+        keep[a : min(a + warmup, b)] = False
+    return keep
+
+
+def _information_criterion(sse: float, n: int, k: int, kind: str) -> float:
+    """N·ln(SSE/N) + k·ln N (BIC) or + 2k (AIC)."""
+    penalty = math.log(n) if kind == "bic" else 2.0
+    return n * math.log(max(sse, 1e-300) / n) + penalty * k
+
+
+@dataclass
+class _Fit:
+    """One joint fit: the search vector, its structures, and the evaluation at the optimum."""
+
+    st: _Structure
+    noise: _Noise
+    x: FloatArray
+    Phi: FloatArray
+    beta: FloatArray
+    eps: FloatArray  # prediction errors over all samples (zero-initialised filter)
+    used: NDArray[np.bool_]
+    criterion: dict[str, float]
+
+    @property
+    def sse(self) -> float:
+        e = self.eps[self.used]
+        return float(e @ e)
+
+
+class PredictionError(Estimator):
+    """Prediction-error (Box–Jenkins) estimator of K·e^(−θs)/((T s+1)(T2 s+1)(T_f s+1)).
+
+    The process part and its settings are those of :class:`~fuelid.identify.oe.OutputError`;
+    the output noise is v = C(q)/D(q)·e with e white (module docstring for the equations).
+
+    Parameters
+    ----------
+    order : 1, 2 or "auto"
+        Number of process time constants; "auto" fits both (each with its noise model) and
+        keeps the lower Akaike criterion of the prediction errors.
+    delay : float or None
+        Dead time θ [s] held fixed (e.g. the flowmeter's); None estimates it.
+    T_f : float
+        Flowmeter lag [s], a fixed prior (0 for none).
+    initial : "estimate" or "rest"
+        Estimate each segment's initial state, or assume the record starts at rest.
+    u_before : float or None
+        The steady input before the record [input unit] (as for OutputError).
+    max_delay : float or None
+        Upper bound of the delay search [s] (default: a quarter of the record, at most 60 s).
+    noise_order : "auto" or (nc, nd)
+        Degrees of C and D (each 0…2); "auto" chooses among :data:`NOISE_ORDERS` by
+        ``noise_criterion``; (0, 0) is the output-error fit.
+    noise_criterion : "bic" or "aic"
+        Information criterion of the noise-order choice (BIC by default: module docstring).
+
+    Attributes
+    ----------
+    K_, T_, T2_, delay_, T_f_, u_ref_ : float
+        As for OutputError [output unit / input unit, s, input unit].
+    offset_ : float
+        Output at rest at ``u_ref_`` of the free-run simulation [output unit]: with K and the
+        dynamics fitted, the offset and initial states are the least-squares level of the
+        simulation on the unfiltered record (``params_`` holds the prediction-error estimate,
+        nearly free when the noise drifts).
+    model_ : ProcessModel
+        The process model.
+    noise_model_ : dict
+        ``C`` and ``D`` (coefficients in powers of q⁻¹, leading 1), ``nc``, ``nd``,
+        ``poles`` and ``zeros`` (roots of D and C in z), ``sigma_e`` (innovation standard
+        deviation [output unit]), ``sigma_v`` (stationary standard deviation of the noise
+        C/D·e [output unit]), ``criterion`` (its value per order tried, keyed ``"nc=…,nd=…"``;
+        empty when the order was given or warm-started) and ``criterion_name``.
+    param_names_, params_, cov_ : tuple, ndarray, ndarray
+        Every estimated parameter (K, the free nonlinear ones, the offset, the initial-state
+        amplitudes ``c0…``, the noise coefficients ``noise_d1…``, ``noise_c1…``), their values
+        and asymptotic covariance σ̂_e²·(ΨᵀΨ)⁻¹, Ψ = ∂ε/∂p.
+    covariance_method_ : str
+        ``"noise-model"``: the covariance the standard errors come from.
+    stderr_ : dict
+        Standard error of K, T, T2, delay, T_f (None for a fixed one).
+    fixed_ : tuple of str
+        Model parameters held fixed.
+    sigma_, sse_ : float
+        Innovation standard deviation σ̂_e and Σε² over the samples in the criterion.
+    aic_ : dict
+        Akaike criterion of the prediction errors by process order fitted.
+    residuals_ : ndarray
+        The prediction errors ε = D/C·(y − ``y_hat_``) of the one-step predictor, one per
+        sample, the filter restarted from zero at each segment (its first ``nd`` samples are
+        outside the criterion); ``y − residuals_`` is ``predict(data, 1, "fitted")``.
+    y_hat_ : ndarray
+        Free-run simulation on the fitting record (``simulate(data, "fitted")``).
+    fit_percent_ : float
+        NRMSE fit [%] of the free-run simulation ``y_hat_`` (comparable with OutputError's).
+    one_step_fit_percent_ : float
+        NRMSE fit [%] of the one-step-ahead prediction y − ε (near 100 % for any good noise
+        model: not a measure of the process model).
+    n_segments_, n_samples_, sample_time_ : int, int, float
+        Segments, size and sample time [s] of the fitting record.
+    warnings_ : list of str
+        The data's notes, then what the fit noticed.
+
+    Examples
+    --------
+    >>> from fuelid.model import simulate_model
+    >>> rng = np.random.default_rng(1)
+    >>> u = np.repeat([1.0, 2.0, 1.5, 2.5, 1.0, 2.0], 500)
+    >>> e = rng.normal(0.0, 0.01, u.size)
+    >>> v = scipy.signal.lfilter([1.0], [1.0, -0.9], e)  # AR(1) noise, pole 0.9
+    >>> y = 10.0 + simulate_model(ProcessModel(K=3.0, T=2.0, delay=0.3), u, 0.05) + v
+    >>> est = PredictionError(order=1, delay=0.3).fit(IOData(u=u, y=y, sample_time=0.05))
+    >>> est.noise_model_["nc"], est.noise_model_["nd"], round(est.noise_model_["poles"][0], 1)
+    (0, 1, 0.9)
+    >>> abs(est.K_ - 3.0) < 3 * est.stderr_["K"], abs(est.T_ - 2.0) < 3 * est.stderr_["T"]
+    (True, True)
+    """
+
+    _SETTINGS = (
+        "order",
+        "delay",
+        "T_f",
+        "initial",
+        "u_before",
+        "max_delay",
+        "noise_order",
+        "noise_criterion",
+    )
+
+    K_: float
+    T_: float
+    T2_: float
+    delay_: float
+    T_f_: float
+    offset_: float
+    u_ref_: float
+    param_names_: tuple[str, ...]
+    params_: FloatArray
+    cov_: FloatArray
+    covariance_method_: str
+    stderr_: dict[str, float | None]
+    fixed_: tuple[str, ...]
+    sigma_: float
+    sse_: float
+    aic_: dict[int, float]
+    noise_model_: dict[str, Any]
+    residuals_: FloatArray
+    y_hat_: FloatArray
+    fit_percent_: float
+    one_step_fit_percent_: float
+    n_segments_: int
+    n_samples_: int
+    sample_time_: float
+    warnings_: list[str]
+    _state: tuple[_Structure, FloatArray, FloatArray, FloatArray]
+
+    def __init__(
+        self,
+        *,
+        order: Order = 1,
+        delay: float | None = None,
+        T_f: float = 0.0,
+        initial: Literal["estimate", "rest"] = "estimate",
+        u_before: float | None = None,
+        max_delay: float | None = None,
+        noise_order: Literal["auto"] | NoiseOrder = "auto",
+        noise_criterion: Literal["bic", "aic"] = "bic",
+    ) -> None:
+        self.order = order
+        self.delay = delay
+        self.T_f = T_f
+        self.initial = initial
+        self.u_before = u_before
+        self.max_delay = max_delay
+        self.noise_order = noise_order
+        self.noise_criterion = noise_criterion
+
+    # ------------------------------------------------------------------ public API
+    def fit(
+        self,
+        data: IOData,
+        init: ProcessModel | PredictionError | None = None,
+        noise_init: Mapping[str, Any] | None = None,
+    ) -> Self:
+        """Fit the process and noise models to ``data``.
+
+        Parameters
+        ----------
+        data : IOData
+            The record (with gaps: one model, a noise filter and an initial state per segment).
+        init : ProcessModel or fitted PredictionError, optional
+            Warm start (the last window's fit). A model skips the output-error grid search and,
+            with ``order="auto"``, the process-order choice (its own order is kept: 2 when it
+            has a T2). A fitted PredictionError (this one included) also gives the noise model.
+        noise_init : mapping, optional
+            A noise model to start from (``C`` and ``D`` coefficient lists, e.g. a previous
+            ``noise_model_``): its order is kept and the noise-order search is skipped. With
+            both, the fit starts at once from the previous optimum: one joint search, nothing
+            else (the window refit of the online service).
+
+        Returns
+        -------
+        PredictionError
+            ``self``, fitted.
+
+        Raises
+        ------
+        NotExcitingError
+            Too few samples, or an input that never changes.
+        FuelidError
+            Bad settings.
+        """
+        # read the warm start before _fitting forgets this estimator's own previous fit
+        process, noise = self._warm_start(init, noise_init)
+        with self._fitting(data):
+            self._validate(data)
+            if process is not None and self.order == "auto":
+                orders: tuple[int, ...] = (2 if process.T2 > 0.0 else 1,)
+            else:
+                orders = (1, 2) if self.order == "auto" else (int(self.order),)
+            with single_threaded_blas():  # see OutputError.fit: tiny matrices, long products
+                fits = {order: self._fit_order(data, order, process, noise) for order in orders}
+                self.aic_ = {
+                    order: _information_criterion(
+                        f.sse, int(f.used.sum()), f.x.size + f.beta.size, "aic"
+                    )
+                    for order, f in fits.items()
+                }
+                # a second lag at its lower bound (h/20) is no lag: its initial-state column is
+                # then a spike at the segment's first kept sample, which fits one prediction
+                # error exactly and can win the AIC by a hair; never choose it over order 1
+                candidates = [
+                    order
+                    for order, f in fits.items()
+                    if order == 1
+                    or len(fits) == 1
+                    or f.st.unpack(f.x[: len(f.st.nonlinear_names)])[1]
+                    > 1.01 * data.sample_time / 20.0
+                ]
+                best = min(candidates, key=self.aic_.__getitem__)
+                self._store(data, fits[best])
+        return self
+
+    @property
+    def model_(self) -> ProcessModel:
+        """The fitted process model (K in output unit per input unit, times in s)."""
+        return ProcessModel(K=self.K_, T=self.T_, T2=self.T2_, T_f=self.T_f_, delay=self.delay_)
+
+    def simulate(self, data: IOData, initial: Initial = "fitted") -> FloatArray:
+        """Free-run output of the process model for ``data.u`` [output unit].
+
+        The noise model plays no part: this is G·u plus the offset and initial state, with
+        ``initial`` exactly as for :meth:`OutputError.simulate` ("fitted": the offset and
+        initial states estimated by ``fit``, on the fitting record or one continuing it;
+        "rest": at rest at u[0] with the fitted offset; "estimate": offset and initial states
+        re-estimated by least squares on ``data``).
+        """
+        self._check_simulation(data, initial)
+        u, h = data.u, data.sample_time
+        bounds = data.segment_bounds()
+        if initial == "fitted":
+            return self._continue_fitted(data)
+        discrete = discretise(self.model_.time_constants, self.delay_, h)
+        response = np.empty(u.size)
+        for a, b in bounds:
+            response[a:b] = self.K_ * discrete.response(u[a:b] - float(u[a]))
+            if initial == "rest":
+                response[a:b] += self.offset_ + self.K_ * (float(u[a]) - self.u_ref_)
+            elif a:
+                response[a:b] += self.K_ * (float(u[a]) - float(u[0]))
+        if initial == "rest":
+            return response
+        basis = offset_and_free_responses(discrete, bounds)
+        return np.asarray(response + basis @ _solve(basis, data.y - response).beta, dtype=float)
+
+    def predict(self, data: IOData, horizon: int = 1, initial: Initial = "rest") -> FloatArray:
+        r"""k-step-ahead prediction ŷ(t | t − k), k = ``horizon`` [output unit].
+
+        With the noise model H = C/D the predictor is (Ljung 1999, eq. 3.31)
+
+        .. math:: \hat y(t|t-k) = \hat y_p(t) + (1 - \bar H_k(q) H^{-1}(q))\,(y(t) - \hat y_p(t))
+
+        where ŷ_p is the free-run process output (:meth:`simulate` with ``initial``) and
+        H̄_k = Σ_{i<k} h_i q⁻ⁱ the first k terms of H's impulse response. For k = 1 this is
+        ŷ_p + (1 − D/C)(y − ŷ_p); as k grows the noise becomes unpredictable and the prediction
+        tends to the free run, which it equals once k reaches a segment's length. The noise
+        filter starts from zero at each segment.
+        """
+        self._check_horizon(horizon)
+        y_p = self.simulate(data, initial)
+        _, _, C, D = self._state
+        if C.size == 1 and D.size == 1:
+            return y_p
+        v = data.y - y_p
+        # a horizon beyond the longest segment predicts nothing of the noise: the free run
+        k = min(int(horizon), data.n_samples)
+        # (1 − H̄_k D/C) = (C − H̄_k D)/C, and C − H̄_k D = q⁻ᵏ·N(q) with N of degree < nd, nc
+        impulse = np.zeros(k)
+        impulse[0] = 1.0
+        h_bar = scipy.signal.lfilter(C, D, impulse)
+        full = np.zeros(k + max(C.size, D.size))
+        full[: C.size] += C
+        full[: k + D.size - 1] -= np.convolve(h_bar, D)
+        N = full[k:]
+        v_hat = _filter(N, C, _shift(v, k, data.segment_bounds()), data.segment_bounds())
+        return np.asarray(y_p + v_hat, dtype=float)
+
+    def to_control(self) -> control.TransferFunction:
+        """Delay-free process part as a :class:`control.TransferFunction` (delay in ``delay_``)."""
+        return self.model_.to_control()
+
+    @property
+    def correlation_(self) -> FloatArray:
+        """Correlation matrix of the estimated parameters (order of ``param_names_``)."""
+        sd = np.sqrt(np.diag(self.cov_))
+        return np.asarray(self.cov_ / np.outer(sd, sd), dtype=float)
+
+    # ------------------------------------------------------------------ internals
+    def _oe(self, order: int) -> OutputError:
+        return OutputError(
+            order=1 if order == 1 else 2,
+            delay=self.delay,
+            T_f=self.T_f,
+            initial=self.initial,
+            u_before=self.u_before,
+            max_delay=self.max_delay,
+        )
+
+    def _structure(self, order: int) -> _Structure:
+        initial = "rest" if self.u_before is not None else self.initial
+        return _Structure(order, self.T_f, self.delay, initial, self.u_before, self.initial)
+
+    @staticmethod
+    def _warm_start(
+        init: ProcessModel | PredictionError | None, noise_init: Mapping[str, Any] | None
+    ) -> tuple[ProcessModel | None, tuple[list[float], list[float]] | None]:
+        noise: tuple[list[float], list[float]] | None = None
+        model: ProcessModel | None
+        if isinstance(init, PredictionError):
+            model = init.model_
+            noise = (list(init.noise_model_["C"]), list(init.noise_model_["D"]))
+        else:
+            model = init
+        if noise_init is not None:
+            try:
+                noise = (
+                    [float(c) for c in noise_init["C"]],
+                    [float(d) for d in noise_init["D"]],
+                )
+            except (KeyError, TypeError, ValueError) as err:
+                raise FuelidError(
+                    "noise_init needs coefficient lists 'C' and 'D' (as in noise_model_)"
+                ) from err
+        if noise is not None:
+            C, D = noise
+            if not C or not D or C[0] != 1.0 or D[0] != 1.0:
+                raise FuelidError("noise_init: C and D must be monic lists ([1.0, …])")
+            if len(C) - 1 > MAX_NOISE_DEGREE or len(D) - 1 > MAX_NOISE_DEGREE:
+                raise FuelidError(f"noise_init: C and D may have degree {MAX_NOISE_DEGREE} at most")
+        return model, noise
+
+    def _validate(self, data: IOData) -> None:
+        order = self.noise_order
+        if order != "auto" and not (
+            isinstance(order, tuple | list)
+            and len(order) == 2
+            and all(isinstance(d, int | np.integer) and not isinstance(d, bool) for d in order)
+            and all(0 <= int(d) <= MAX_NOISE_DEGREE for d in order)
+        ):
+            raise FuelidError(
+                f"noise_order must be 'auto' or (nc, nd) with degrees 0…{MAX_NOISE_DEGREE}, "
+                f"got {order!r}"
+            )
+        if self.noise_criterion not in ("bic", "aic"):
+            raise FuelidError(
+                f"noise_criterion must be 'bic' or 'aic', got {self.noise_criterion!r}"
+            )
+        # the process settings and the record are checked as OutputError checks them
+        self._oe(1).set_params(order=self.order)._validate(data)
+
+    def _fit_order(
+        self,
+        data: IOData,
+        order: int,
+        process: ProcessModel | None,
+        noise_start: tuple[list[float], list[float]] | None,
+    ) -> _Fit:
+        st = self._structure(order)
+        bounds = data.segment_bounds()
+        n = data.n_samples
+        criterion: dict[str, float] = {}
+        if process is not None and noise_start is not None:
+            # window refit: straight to the joint search from the previous optimum
+            noise = _Noise(len(noise_start[0]) - 1, len(noise_start[1]) - 1)
+            if self.noise_order != "auto":
+                noise = _Noise(int(self.noise_order[0]), int(self.noise_order[1]))
+            z0 = self._z_from(process, st)
+            eta0 = noise.eta(*noise_start)
+        else:
+            # the output-error fit (its search only: no covariance, no diagnostics)
+            z0, ev = self._oe(order)._fit_structure(data, st, process)
+            r = ev.residual
+            if self.noise_order == "auto":
+                candidates: tuple[NoiseOrder, ...] = NOISE_ORDERS
+            else:
+                candidates = ((int(self.noise_order[0]), int(self.noise_order[1])),)
+            if noise_start is not None and self.noise_order == "auto":
+                candidates = ((len(noise_start[0]) - 1, len(noise_start[1]) - 1),)
+            etas = _hannan_rissanen(r, candidates, bounds)
+            if len(candidates) > 1:
+                keep = _used(bounds, n, SELECTION_WARMUP)
+                n_used = int(keep.sum())
+                k_process = z0.size + ev.beta.size  # nonlinear, K, offset, amplitudes
+                for (nc, nd), (_, sse) in etas.items():
+                    criterion[f"nc={nc},nd={nd}"] = _information_criterion(
+                        sse, n_used, k_process + nc + nd, self.noise_criterion
+                    )
+            chosen = min(
+                candidates,
+                key=lambda c: criterion.get(f"nc={c[0]},nd={c[1]}", 0.0),
+            )
+            noise = _Noise(*chosen)
+            eta0 = etas[chosen][0]
+        return self._joint(data, st, noise, z0, eta0, criterion)
+
+    @staticmethod
+    def _z_from(model: ProcessModel, st: _Structure) -> FloatArray:
+        z = [math.log(model.T)]
+        if st.order == 2:
+            z.append(math.log(model.T2 if model.T2 > 0.0 else 0.3 * model.T))
+        if st.delay is None:
+            z.append(model.delay)
+        return np.array(z)
+
+    def _joint(
+        self,
+        data: IOData,
+        st: _Structure,
+        noise: _Noise,
+        z0: FloatArray,
+        eta0: FloatArray,
+        criterion: dict[str, float],
+    ) -> _Fit:
+        """Minimise Σε² over (process nonlinear parameters, η); linear ones by projection."""
+        from scipy.optimize import least_squares  # slow to import: only when fitting
+
+        u, y, h = data.u, data.y, data.sample_time
+        bounds = data.segment_bounds()
+        n = data.n_samples
+        u_ref = st.u_before if st.u_before is not None else float(u[0])
+        used = _used(bounds, n, noise.nd)
+        n_z = z0.size
+        record = n * h
+        lo = [math.log(h / 20.0)] * st.order
+        hi = [math.log(20.0 * record)] * st.order
+        if st.delay is None:
+            bound = self.max_delay if self.max_delay is not None else min(0.25 * record, 60.0)
+            lo.append(0.0)
+            hi.append(max(bound, 1e-9))
+        lo += [-_ETA_BOUND] * noise.size
+        hi += [_ETA_BOUND] * noise.size
+
+        def evaluate(x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+            T, T2, delay = st.unpack(x[:n_z])
+            C, D = noise.polys(x[n_z:])
+            Phi = _regressors(st, T, T2, delay, u, h, u_ref, bounds)
+            m = Phi.shape[1]
+            stacked = np.empty((n, m + 1), order="F")
+            stacked[:, :m] = Phi
+            stacked[:, m] = y
+            filtered = _filter(D, C, stacked, bounds)
+            beta = _solve(filtered[used, :m], filtered[used, m]).beta
+            eps = filtered[:, m] - filtered[:, :m] @ beta
+            return Phi, beta, np.asarray(eps, dtype=float)
+
+        x0 = np.clip(np.r_[z0, eta0], np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+        if noise.size == 0:
+            x = x0  # the output-error optimum already: no search (the fit equals OE's)
+        else:
+            sol = least_squares(
+                lambda x: evaluate(x)[2][used],
+                x0,
+                bounds=(lo, hi),
+                method="trf",
+                x_scale=1.0,
+                xtol=1e-10,
+                ftol=1e-12,
+                gtol=1e-12,
+                max_nfev=100,
+            )
+            x = np.asarray(sol.x, dtype=float)
+        Phi, beta, eps = evaluate(x)
+        return _Fit(st, noise, x, Phi, beta, eps, used, criterion)
+
+    def _store(self, data: IOData, fit: _Fit) -> None:
+        st, noise = fit.st, fit.noise
+        n_z = fit.x.size - noise.size
+        T, T2, delay = st.unpack(fit.x[:n_z])
+        C, D = noise.polys(fit.x[n_z:])
+        h = data.sample_time
+        u_ref = st.u_before if st.u_before is not None else float(data.u[0])
+        bounds = data.segment_bounds()
+        beta = fit.beta
+        self.K_, self.T_, self.T2_, self.delay_, self.T_f_ = float(beta[0]), T, T2, delay, st.T_f
+        self.u_ref_ = u_ref
+        # The free run needs the output level (offset, initial states) of the simulation, which
+        # the prediction errors barely determine when D has a pole near 1 (a drift: the filtered
+        # offset column D(1)/C(1)·1 is then nearly 0, and its estimate nearly free). So the
+        # free run takes them by least squares on the unfiltered record, K and the dynamics
+        # from the fit: for white or fast noise this is the fit's own level (for nc = nd = 0
+        # exactly), for a drift the level the simulation is scored with. ``params_`` and
+        # ``cov_`` keep the prediction-error estimates of all parameters.
+        level = _solve(fit.Phi[:, 1:], data.y - self.K_ * fit.Phi[:, 0]).beta
+        free_run = np.r_[self.K_, level]
+        self.offset_ = float(level[0])
+        self._state = (st, free_run, C, D)
+        self.n_segments_ = data.n_segments
+        self.n_samples_ = data.n_samples
+        self.sample_time_ = h
+        self.y_hat_ = np.asarray(fit.Phi @ free_run, dtype=float)
+        self.fit_percent_ = nrmse_fit(data.y, self.y_hat_)
+        # ε of the one-step predictor from that free run (= predict(data, 1, "fitted")); on the
+        # samples of the criterion it differs from the minimised ε only by D/C of the level
+        # difference (nothing for a drift, whose D(1) ≈ 0)
+        self.residuals_ = _filter(D, C, data.y - self.y_hat_, bounds)
+        self.one_step_fit_percent_ = nrmse_fit(data.y, data.y - self.residuals_)
+        self.sse_ = fit.sse
+
+        # Ψ = ∂ε/∂p: process columns −(D/C)·∂ŷ_p/∂p, noise columns exact (module docstring)
+        values = {"T": T, "T2": T2, "delay": delay}
+        names, J = _jacobian(st, values, beta, data.u, h, u_ref, fit.Phi, bounds)
+        r = data.y - fit.Phi @ beta
+        r_over_C = _filter(np.array([1.0]), C, r, bounds)
+        eps_over_C = _filter(np.array([1.0]), C, fit.eps, bounds)
+        noise_cols = [_shift(r_over_C, i, bounds) for i in range(1, noise.nd + 1)]
+        noise_cols += [-_shift(eps_over_C, i, bounds) for i in range(1, noise.nc + 1)]
+        Psi = np.empty((data.n_samples, J.shape[1] + noise.size), order="F")
+        Psi[:, : J.shape[1]] = -_filter(D, C, J, bounds)
+        for j, col in enumerate(noise_cols):
+            Psi[:, J.shape[1] + j] = col
+        Psi = Psi[fit.used]
+        self.param_names_ = (*names, *noise.names)
+        nl = st.nonlinear_names
+        self.params_ = np.r_[self.K_, [values[name] for name in nl], beta[1:], D[1:], C[1:]]
+        n_used = int(fit.used.sum())
+        self.sigma_ = math.sqrt(fit.sse / max(n_used - Psi.shape[1], 1))
+        self.cov_, singular = _svd_covariance(Psi, self.sigma_)
+        self.covariance_method_ = "noise-model"
+        sd = np.sqrt(np.diag(self.cov_))
+        self.stderr_ = {"K": None, "T": None, "T2": None, "delay": None, "T_f": None}
+        for name, s in zip(self.param_names_, sd, strict=True):
+            if name in self.stderr_ and math.isfinite(s):
+                self.stderr_[name] = float(s)
+        self.fixed_ = tuple(name for name in ("T2", "delay", "T_f") if name not in nl)
+
+        impulse = np.zeros(2000)
+        impulse[0] = 1.0
+        psi_v = scipy.signal.lfilter(C, D, impulse)
+        self.noise_model_ = {
+            "C": [float(c) for c in C],
+            "D": [float(d) for d in D],
+            "nc": noise.nc,
+            "nd": noise.nd,
+            "poles": _roots(D),
+            "zeros": _roots(C),
+            "sigma_e": self.sigma_,
+            "sigma_v": self.sigma_ * float(np.sqrt(psi_v @ psi_v)),
+            "criterion": dict(fit.criterion),
+            "criterion_name": self.noise_criterion.upper(),
+        }
+
+        self.warnings_ = list(data.notes)
+        shown = [self.param_names_[i] for i in singular if self.param_names_[i] in MODEL_KEYS]
+        if shown:
+            self.warnings_.append(
+                f"{', '.join(shown)} cannot be told apart from the other parameters with this "
+                "log (their information is singular): no standard error or interval for them"
+            )
+        if "T2" in nl and "delay" in nl and "T2" not in shown:
+            corr = self.correlation_[
+                self.param_names_.index("T2"), self.param_names_.index("delay")
+            ]
+            if abs(corr) > 0.9:
+                self.warnings_.append(
+                    f"T2 and the delay are strongly correlated ({corr:+.2f}): prefer order 1 "
+                    "or fix the delay unless the data show otherwise"
+                )
+        if np.any(np.abs(np.roots(D)) > 0.999):
+            self.warnings_.append(
+                "the noise model has a pole within 0.001 of 1 (a drift, nearly integrating): "
+                "the offset and the slowest dynamics are poorly determined; detrend or give "
+                "a longer record"
+            )
+        if (
+            noise.nc
+            and noise.nd
+            and np.min(np.abs(np.subtract.outer(np.roots(C), np.roots(D)))) < 0.01
+        ):
+            self.warnings_.append(
+                "a pole and a zero of the noise model nearly cancel: a lower noise order "
+                "would do (noise_order)"
+            )
+
+    def _continue_fitted(self, data: IOData) -> FloatArray:
+        """``simulate(data, "fitted")``, as :meth:`OutputError._continue_fitted`."""
+        st, beta, _, _ = self._state
+        h = data.sample_time
+        bounds = data.segment_bounds()
+        Phi = _regressors(st, self.T_, self.T2_, self.delay_, data.u, h, self.u_ref_, bounds)
+        if Phi.shape[1] == beta.size:
+            return np.asarray(Phi @ beta, dtype=float)
+        y_hat = np.asarray(Phi[:, : beta.size] @ beta, dtype=float)
+        col = beta.size
+        n_lags = len(self.model_.time_constants)
+        for j, (a, b) in enumerate(bounds):
+            if a < self.n_samples_:
+                continue
+            m = _n_modes(st, n_lags, j)
+            if m:
+                block = Phi[a:b, col : col + m]
+                y_hat[a:b] += block @ _solve(block, data.y[a:b] - y_hat[a:b]).beta
+                col += m
+        return y_hat
+
+
+SINGULAR_INFORMATION = 1e-9
+"""Smallest singular value of the column-scaled Ψ, relative to its largest, whose direction
+still counts as determined by the data (as for the output-error covariance)."""
+
+
+def _svd_covariance(Psi: FloatArray, sigma: float) -> tuple[FloatArray, list[int]]:
+    """σ²·(ΨᵀΨ)⁻¹ through the SVD of the column-scaled Ψ, and the parameters it cannot give.
+
+    Directions with a singular value below :data:`SINGULAR_INFORMATION` of the largest are not
+    inverted (a plain inverse would give negative variances); every parameter with weight in
+    them gets a NaN row and column and is listed.
+    """
+    scale = np.linalg.norm(Psi, axis=0)
+    scale[scale == 0.0] = 1.0
+    _, singular, vt = np.linalg.svd(Psi / scale, full_matrices=False)
+    determined = singular > SINGULAR_INFORMATION * singular[0]
+    null = vt[~determined]
+    weight = np.sum(null**2, axis=0) if null.size else np.zeros(Psi.shape[1])
+    unidentified = [int(i) for i in np.flatnonzero(weight > 1e-6)]
+    inner = (vt[determined].T / singular[determined] ** 2) @ vt[determined]
+    cov = sigma**2 * inner / np.outer(scale, scale)
+    cov[unidentified, :] = np.nan
+    cov[:, unidentified] = np.nan
+    return np.asarray(cov, dtype=float), unidentified
+
+
+def _roots(poly: FloatArray) -> list[float | list[float]]:
+    """Roots in z of a monic polynomial in q⁻¹ (complex ones as [real, imaginary]: JSON)."""
+    out: list[float | list[float]] = []
+    for root in np.roots(poly) if poly.size > 1 else []:
+        real, imag = float(root.real), float(root.imag)
+        out.append(real if abs(imag) < 1e-12 else [real, imag])
+    return out
+
+
+def _lagged(
+    x: FloatArray, lags: int, bounds: Bounds, skip: int
+) -> tuple[NDArray[np.intp], FloatArray]:
+    """Rows k (at least ``skip`` after their segment's start) and [x(k−1) … x(k−lags)]."""
+    parts = [np.arange(a + skip, b, dtype=np.intp) for a, b in bounds if b > a + skip]
+    rows = np.concatenate(parts) if parts else np.zeros(0, dtype=np.intp)
+    return rows, x[rows[:, None] - np.arange(1, lags + 1)]
+
+
+def _hannan_rissanen(
+    r: FloatArray, candidates: Sequence[NoiseOrder], bounds: Bounds
+) -> dict[NoiseOrder, tuple[FloatArray, float]]:
+    """η of each candidate (nc, nd) fitted to the residual r, and Σ(D/C·r)² on common samples.
+
+    The Hannan–Rissanen method (Hannan & Rissanen, *Biometrika* 69, 1982): a long
+    autoregression (order :data:`LONG_AR_ORDER`) by least squares estimates the innovations ê;
+    then each candidate is one linear regression
+
+        r(k) = −Σ d_i r(k−i) + Σ c_j ê(k−j) + e(k)
+
+    (exact conditional least squares for the autoregressive ones), its polynomials are made
+    stable and minimum-phase (reflection coefficients clipped to :data:`MAX_REFLECTION`), and
+    its criterion is Σε² over every sample but the first :data:`SELECTION_WARMUP` of each
+    segment. Nothing iterative: the order choice costs a handful of filter passes, and the
+    joint search refines the chosen candidate.
+    """
+    keep = _used(bounds, r.size, SELECTION_WARMUP)
+    out: dict[NoiseOrder, tuple[FloatArray, float]] = {}
+    skip = LONG_AR_ORDER + MAX_NOISE_DEGREE
+    rows, X = _lagged(r, LONG_AR_ORDER, bounds, LONG_AR_ORDER)
+    e_hat = r.copy()  # where the long autoregression has no past: the residual itself
+    if rows.size > 2 * LONG_AR_ORDER:
+        e_hat[rows] = r[rows] - X @ _solve(X, r[rows]).beta
+    rows, R = _lagged(r, MAX_NOISE_DEGREE, bounds, skip)
+    _, E = _lagged(e_hat, MAX_NOISE_DEGREE, bounds, skip)
+    for nc, nd in candidates:
+        noise = _Noise(nc, nd)
+        eta = np.zeros(noise.size)
+        if noise.size and rows.size > 10 * noise.size:
+            regressors = np.column_stack([-R[:, :nd], E[:, :nc]])
+            coef = _solve(regressors, r[rows]).beta
+            eta = noise.eta(np.r_[1.0, coef[nd:]], np.r_[1.0, coef[:nd]])
+        C, D = noise.polys(eta)
+        e = _filter(D, C, r, bounds)[keep]
+        out[(nc, nd)] = (eta, float(e @ e))
+    return out
