@@ -13,8 +13,9 @@ import scipy.signal
 
 from fuelid.errors import FuelidError, NotFittedError
 from fuelid.identify.diagnostics import residual_whiteness
+from fuelid.identify.noise import step_down, step_up
 from fuelid.identify.oe import OutputError
-from fuelid.identify.pem import PredictionError, _step_down, _step_up
+from fuelid.identify.pem import PredictionError
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel, simulate_model
@@ -77,10 +78,10 @@ def test_reflection_parametrisation_is_stable_and_invertible():
     rng = np.random.default_rng(0)
     for _ in range(50):
         kappa = rng.uniform(-0.999, 0.999, 2)
-        poly = _step_up(kappa)
+        poly = step_up(kappa)
         # Schur–Cohn: |κ| < 1 ⇔ every root of the polynomial in q⁻¹ inside the unit circle
         assert np.all(np.abs(np.roots(poly)) < 1.0)
-        np.testing.assert_allclose(_step_down(poly), kappa, atol=1e-9)
+        np.testing.assert_allclose(step_down(poly), kappa, atol=1e-9)
 
 
 # ---------------------------------------------------------------------- (a) coloured noise

@@ -59,7 +59,7 @@ How it is computed
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal, Self
 
@@ -70,6 +70,21 @@ from numpy.typing import NDArray
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
 from fuelid.identify._base import Estimator, Initial
+from fuelid.identify.covariance import white_covariance
+from fuelid.identify.noise import (
+    ETA_BOUND,
+    MAX_NOISE_DEGREE,
+    NOISE_ORDERS,
+    SELECTION_WARMUP,
+    NoiseOrder,
+    NoiseShape,
+    filter_segments,
+    hannan_rissanen,
+    information_criterion,
+    roots_json,
+    shift_segments,
+    used_samples,
+)
 from fuelid.identify.oe import (
     OutputError,
     _jacobian,
@@ -89,123 +104,6 @@ if TYPE_CHECKING:
 FloatArray = NDArray[np.float64]
 Bounds = list[tuple[int, int]]
 Order = Literal[1, 2, "auto"]
-NoiseOrder = tuple[int, int]
-"""(nc, nd): the degrees of the noise model's numerator C and denominator D in q⁻¹."""
-
-MAX_NOISE_DEGREE = 2
-"""Highest degree of C and of D [samples]."""
-NOISE_ORDERS: tuple[NoiseOrder, ...] = tuple(
-    (nc, nd) for nd in range(MAX_NOISE_DEGREE + 1) for nc in range(MAX_NOISE_DEGREE + 1)
-)
-"""The (nc, nd) candidates of ``noise_order="auto"``: every pair with degrees 0…2."""
-SELECTION_WARMUP = MAX_NOISE_DEGREE
-"""Samples of each segment left out of the order-selection criterion, for every candidate
-alike (so their criteria are sums over the same samples)."""
-MAX_REFLECTION = 0.9999
-"""Largest |κ| a warm start is clipped to (a pole or zero of at most 0.9999 in modulus)."""
-LONG_AR_ORDER = 20
-"""Order of the long autoregression that estimates the innovations for the noise-order choice
-(Hannan–Rissanen) [samples]."""
-_ETA_BOUND = 8.0  # |η| ≤ 8: |κ| ≤ 1 − 2·10⁻⁷, a pole as close to 1 as double precision needs
-
-
-# ---------------------------------------------------------------------- noise polynomials
-def _step_up(kappa: FloatArray) -> FloatArray:
-    """Monic polynomial in q⁻¹ from reflection coefficients (Levinson step-up recursion).
-
-    a_m(q) = a_{m−1}(q) + κ_m·q⁻ᵐ·a_{m−1}(q⁻¹): every root lies inside the unit circle iff
-    every |κ_m| < 1 (Schur–Cohn), so D is stable and C minimum-phase for any κ = tanh(η).
-
-    Examples
-    --------
-    >>> _step_up(np.array([-0.9])).tolist()
-    [1.0, -0.9]
-    """
-    a = np.array([1.0])
-    for k in kappa:
-        a = np.r_[a, 0.0] + k * np.r_[0.0, a[::-1]]
-    return a
-
-
-def _step_down(a: Sequence[float]) -> FloatArray:
-    """Reflection coefficients of a monic polynomial (inverse of :func:`_step_up`), clipped.
-
-    A polynomial with a root on or outside the unit circle has some |κ| ≥ 1; clipping to
-    :data:`MAX_REFLECTION` maps it to a nearby stable one (a warm start from another record).
-    """
-    poly = np.asarray(a, dtype=float)
-    kappa: list[float] = []
-    while poly.size > 1:
-        k = float(np.clip(poly[-1], -MAX_REFLECTION, MAX_REFLECTION))
-        kappa.append(k)
-        poly = (poly[:-1] - k * poly[:0:-1]) / (1.0 - k * k)
-    return np.array(kappa[::-1])
-
-
-@dataclass(frozen=True)
-class _Noise:
-    """Noise model C/D for one (nc, nd), parametrised by η (κ = tanh η), D's first."""
-
-    nc: int
-    nd: int
-
-    @property
-    def size(self) -> int:
-        return self.nc + self.nd
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        return (
-            *(f"noise_d{i}" for i in range(1, self.nd + 1)),
-            *(f"noise_c{i}" for i in range(1, self.nc + 1)),
-        )
-
-    def polys(self, eta: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """(C, D) coefficient arrays in powers of q⁻¹ (leading 1)."""
-        kappa = np.tanh(eta)
-        return _step_up(kappa[self.nd :]), _step_up(kappa[: self.nd])
-
-    def eta(self, C: Sequence[float], D: Sequence[float]) -> FloatArray:
-        """η of given polynomials, padded with zeros (or truncated) to this order."""
-        kd = np.zeros(self.nd)
-        kc = np.zeros(self.nc)
-        d, c = _step_down(D), _step_down(C)
-        kd[: min(d.size, self.nd)] = d[: self.nd]
-        kc[: min(c.size, self.nc)] = c[: self.nc]
-        return np.asarray(np.arctanh(np.r_[kd, kc]), dtype=float)
-
-
-def _filter(num: FloatArray, den: FloatArray, x: FloatArray, bounds: Bounds) -> FloatArray:
-    """num(q)/den(q)·x along axis 0, restarted from zero initial conditions at each segment."""
-    if num.size == 1 and den.size == 1:
-        return x if num[0] == 1.0 else num[0] * x
-    out = np.empty_like(x)
-    for a, b in bounds:
-        out[a:b] = scipy.signal.lfilter(num, den, x[a:b], axis=0)
-    return out
-
-
-def _shift(x: FloatArray, lag: int, bounds: Bounds) -> FloatArray:
-    """q⁻ˡᵃᵍ·x within each segment (zeros where the lagged sample lies before the segment)."""
-    out = np.zeros_like(x)
-    for a, b in bounds:
-        if b - a > lag:
-            out[a + lag : b] = x[a : b - lag]
-    return out
-
-
-def _used(bounds: Bounds, n: int, warmup: int) -> NDArray[np.bool_]:
-    """Samples in the criterion: all but the first ``warmup`` of each segment."""
-    keep = np.ones(n, dtype=bool)
-    for a, b in bounds:
-        keep[a : min(a + warmup, b)] = False
-    return keep
-
-
-def _information_criterion(sse: float, n: int, k: int, kind: str) -> float:
-    """N·ln(SSE/N) + k·ln N (BIC) or + 2k (AIC)."""
-    penalty = math.log(n) if kind == "bic" else 2.0
-    return n * math.log(max(sse, 1e-300) / n) + penalty * k
 
 
 @dataclass
@@ -213,7 +111,7 @@ class _Fit:
     """One joint fit: the search vector, its structures, and the evaluation at the optimum."""
 
     st: _Structure
-    noise: _Noise
+    noise: NoiseShape
     x: FloatArray
     Phi: FloatArray
     beta: FloatArray
@@ -421,7 +319,7 @@ class PredictionError(Estimator):
             with single_threaded_blas():  # see OutputError.fit: tiny matrices, long products
                 fits = {order: self._fit_order(data, order, process, noise) for order in orders}
                 self.aic_ = {
-                    order: _information_criterion(
+                    order: information_criterion(
                         f.sse, int(f.used.sum()), f.x.size + f.beta.size, "aic"
                     )
                     for order, f in fits.items()
@@ -502,7 +400,9 @@ class PredictionError(Estimator):
         full[: C.size] += C
         full[: k + D.size - 1] -= np.convolve(h_bar, D)
         N = full[k:]
-        v_hat = _filter(N, C, _shift(v, k, data.segment_bounds()), data.segment_bounds())
+        v_hat = filter_segments(
+            N, C, shift_segments(v, k, data.segment_bounds()), data.segment_bounds()
+        )
         return np.asarray(y_p + v_hat, dtype=float)
 
     def to_control(self) -> control.TransferFunction:
@@ -591,9 +491,9 @@ class PredictionError(Estimator):
         criterion: dict[str, float] = {}
         if process is not None and noise_start is not None:
             # window refit: straight to the joint search from the previous optimum
-            noise = _Noise(len(noise_start[0]) - 1, len(noise_start[1]) - 1)
+            noise = NoiseShape(len(noise_start[0]) - 1, len(noise_start[1]) - 1)
             if self.noise_order != "auto":
-                noise = _Noise(int(self.noise_order[0]), int(self.noise_order[1]))
+                noise = NoiseShape(int(self.noise_order[0]), int(self.noise_order[1]))
             z0 = self._z_from(process, st)
             eta0 = noise.eta(*noise_start)
         else:
@@ -606,20 +506,20 @@ class PredictionError(Estimator):
                 candidates = ((int(self.noise_order[0]), int(self.noise_order[1])),)
             if noise_start is not None and self.noise_order == "auto":
                 candidates = ((len(noise_start[0]) - 1, len(noise_start[1]) - 1),)
-            etas = _hannan_rissanen(r, candidates, bounds)
+            etas = hannan_rissanen(r, candidates, bounds)
             if len(candidates) > 1:
-                keep = _used(bounds, n, SELECTION_WARMUP)
+                keep = used_samples(bounds, n, SELECTION_WARMUP)
                 n_used = int(keep.sum())
                 k_process = z0.size + ev.beta.size  # nonlinear, K, offset, amplitudes
                 for (nc, nd), (_, sse) in etas.items():
-                    criterion[f"nc={nc},nd={nd}"] = _information_criterion(
+                    criterion[f"nc={nc},nd={nd}"] = information_criterion(
                         sse, n_used, k_process + nc + nd, self.noise_criterion
                     )
             chosen = min(
                 candidates,
                 key=lambda c: criterion.get(f"nc={c[0]},nd={c[1]}", 0.0),
             )
-            noise = _Noise(*chosen)
+            noise = NoiseShape(*chosen)
             eta0 = etas[chosen][0]
         return self._joint(data, st, noise, z0, eta0, criterion)
 
@@ -636,7 +536,7 @@ class PredictionError(Estimator):
         self,
         data: IOData,
         st: _Structure,
-        noise: _Noise,
+        noise: NoiseShape,
         z0: FloatArray,
         eta0: FloatArray,
         criterion: dict[str, float],
@@ -648,7 +548,7 @@ class PredictionError(Estimator):
         bounds = data.segment_bounds()
         n = data.n_samples
         u_ref = st.u_before if st.u_before is not None else float(u[0])
-        used = _used(bounds, n, noise.nd)
+        used = used_samples(bounds, n, noise.nd)
         n_z = z0.size
         record = n * h
         lo = [math.log(h / 20.0)] * st.order
@@ -657,8 +557,8 @@ class PredictionError(Estimator):
             bound = self.max_delay if self.max_delay is not None else min(0.25 * record, 60.0)
             lo.append(0.0)
             hi.append(max(bound, 1e-9))
-        lo += [-_ETA_BOUND] * noise.size
-        hi += [_ETA_BOUND] * noise.size
+        lo += [-ETA_BOUND] * noise.size
+        hi += [ETA_BOUND] * noise.size
 
         def evaluate(x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
             T, T2, delay = st.unpack(x[:n_z])
@@ -668,7 +568,7 @@ class PredictionError(Estimator):
             stacked = np.empty((n, m + 1), order="F")
             stacked[:, :m] = Phi
             stacked[:, m] = y
-            filtered = _filter(D, C, stacked, bounds)
+            filtered = filter_segments(D, C, stacked, bounds)
             beta = _solve(filtered[used, :m], filtered[used, m]).beta
             eps = filtered[:, m] - filtered[:, :m] @ beta
             return Phi, beta, np.asarray(eps, dtype=float)
@@ -722,7 +622,7 @@ class PredictionError(Estimator):
         # ε of the one-step predictor from that free run (= predict(data, 1, "fitted")); on the
         # samples of the criterion it differs from the minimised ε only by D/C of the level
         # difference (nothing for a drift, whose D(1) ≈ 0)
-        self.residuals_ = _filter(D, C, data.y - self.y_hat_, bounds)
+        self.residuals_ = filter_segments(D, C, data.y - self.y_hat_, bounds)
         self.one_step_fit_percent_ = nrmse_fit(data.y, data.y - self.residuals_)
         self.sse_ = fit.sse
 
@@ -730,12 +630,12 @@ class PredictionError(Estimator):
         values = {"T": T, "T2": T2, "delay": delay}
         names, J = _jacobian(st, values, beta, data.u, h, u_ref, fit.Phi, bounds)
         r = data.y - fit.Phi @ beta
-        r_over_C = _filter(np.array([1.0]), C, r, bounds)
-        eps_over_C = _filter(np.array([1.0]), C, fit.eps, bounds)
-        noise_cols = [_shift(r_over_C, i, bounds) for i in range(1, noise.nd + 1)]
-        noise_cols += [-_shift(eps_over_C, i, bounds) for i in range(1, noise.nc + 1)]
+        r_over_C = filter_segments(np.array([1.0]), C, r, bounds)
+        eps_over_C = filter_segments(np.array([1.0]), C, fit.eps, bounds)
+        noise_cols = [shift_segments(r_over_C, i, bounds) for i in range(1, noise.nd + 1)]
+        noise_cols += [-shift_segments(eps_over_C, i, bounds) for i in range(1, noise.nc + 1)]
         Psi = np.empty((data.n_samples, J.shape[1] + noise.size), order="F")
-        Psi[:, : J.shape[1]] = -_filter(D, C, J, bounds)
+        Psi[:, : J.shape[1]] = -filter_segments(D, C, J, bounds)
         for j, col in enumerate(noise_cols):
             Psi[:, J.shape[1] + j] = col
         Psi = Psi[fit.used]
@@ -744,7 +644,7 @@ class PredictionError(Estimator):
         self.params_ = np.r_[self.K_, [values[name] for name in nl], beta[1:], D[1:], C[1:]]
         n_used = int(fit.used.sum())
         self.sigma_ = math.sqrt(fit.sse / max(n_used - Psi.shape[1], 1))
-        self.cov_, singular = _svd_covariance(Psi, self.sigma_)
+        self.cov_, singular = white_covariance(Psi, self.sigma_)
         self.covariance_method_ = "noise-model"
         sd = np.sqrt(np.diag(self.cov_))
         self.stderr_ = {"K": None, "T": None, "T2": None, "delay": None, "T_f": None}
@@ -761,8 +661,8 @@ class PredictionError(Estimator):
             "D": [float(d) for d in D],
             "nc": noise.nc,
             "nd": noise.nd,
-            "poles": _roots(D),
-            "zeros": _roots(C),
+            "poles": roots_json(D),
+            "zeros": roots_json(C),
             "sigma_e": self.sigma_,
             "sigma_v": self.sigma_ * float(np.sqrt(psi_v @ psi_v)),
             "criterion": dict(fit.criterion),
@@ -821,86 +721,3 @@ class PredictionError(Estimator):
                 y_hat[a:b] += block @ _solve(block, data.y[a:b] - y_hat[a:b]).beta
                 col += m
         return y_hat
-
-
-SINGULAR_INFORMATION = 1e-9
-"""Smallest singular value of the column-scaled Ψ, relative to its largest, whose direction
-still counts as determined by the data (as for the output-error covariance)."""
-
-
-def _svd_covariance(Psi: FloatArray, sigma: float) -> tuple[FloatArray, list[int]]:
-    """σ²·(ΨᵀΨ)⁻¹ through the SVD of the column-scaled Ψ, and the parameters it cannot give.
-
-    Directions with a singular value below :data:`SINGULAR_INFORMATION` of the largest are not
-    inverted (a plain inverse would give negative variances); every parameter with weight in
-    them gets a NaN row and column and is listed.
-    """
-    scale = np.linalg.norm(Psi, axis=0)
-    scale[scale == 0.0] = 1.0
-    _, singular, vt = np.linalg.svd(Psi / scale, full_matrices=False)
-    determined = singular > SINGULAR_INFORMATION * singular[0]
-    null = vt[~determined]
-    weight = np.sum(null**2, axis=0) if null.size else np.zeros(Psi.shape[1])
-    unidentified = [int(i) for i in np.flatnonzero(weight > 1e-6)]
-    inner = (vt[determined].T / singular[determined] ** 2) @ vt[determined]
-    cov = sigma**2 * inner / np.outer(scale, scale)
-    cov[unidentified, :] = np.nan
-    cov[:, unidentified] = np.nan
-    return np.asarray(cov, dtype=float), unidentified
-
-
-def _roots(poly: FloatArray) -> list[float | list[float]]:
-    """Roots in z of a monic polynomial in q⁻¹ (complex ones as [real, imaginary]: JSON)."""
-    out: list[float | list[float]] = []
-    for root in np.roots(poly) if poly.size > 1 else []:
-        real, imag = float(root.real), float(root.imag)
-        out.append(real if abs(imag) < 1e-12 else [real, imag])
-    return out
-
-
-def _lagged(
-    x: FloatArray, lags: int, bounds: Bounds, skip: int
-) -> tuple[NDArray[np.intp], FloatArray]:
-    """Rows k (at least ``skip`` after their segment's start) and [x(k−1) … x(k−lags)]."""
-    parts = [np.arange(a + skip, b, dtype=np.intp) for a, b in bounds if b > a + skip]
-    rows = np.concatenate(parts) if parts else np.zeros(0, dtype=np.intp)
-    return rows, x[rows[:, None] - np.arange(1, lags + 1)]
-
-
-def _hannan_rissanen(
-    r: FloatArray, candidates: Sequence[NoiseOrder], bounds: Bounds
-) -> dict[NoiseOrder, tuple[FloatArray, float]]:
-    """η of each candidate (nc, nd) fitted to the residual r, and Σ(D/C·r)² on common samples.
-
-    The Hannan–Rissanen method (Hannan & Rissanen, *Biometrika* 69, 1982): a long
-    autoregression (order :data:`LONG_AR_ORDER`) by least squares estimates the innovations ê;
-    then each candidate is one linear regression
-
-        r(k) = −Σ d_i r(k−i) + Σ c_j ê(k−j) + e(k)
-
-    (exact conditional least squares for the autoregressive ones), its polynomials are made
-    stable and minimum-phase (reflection coefficients clipped to :data:`MAX_REFLECTION`), and
-    its criterion is Σε² over every sample but the first :data:`SELECTION_WARMUP` of each
-    segment. Nothing iterative: the order choice costs a handful of filter passes, and the
-    joint search refines the chosen candidate.
-    """
-    keep = _used(bounds, r.size, SELECTION_WARMUP)
-    out: dict[NoiseOrder, tuple[FloatArray, float]] = {}
-    skip = LONG_AR_ORDER + MAX_NOISE_DEGREE
-    rows, X = _lagged(r, LONG_AR_ORDER, bounds, LONG_AR_ORDER)
-    e_hat = r.copy()  # where the long autoregression has no past: the residual itself
-    if rows.size > 2 * LONG_AR_ORDER:
-        e_hat[rows] = r[rows] - X @ _solve(X, r[rows]).beta
-    rows, R = _lagged(r, MAX_NOISE_DEGREE, bounds, skip)
-    _, E = _lagged(e_hat, MAX_NOISE_DEGREE, bounds, skip)
-    for nc, nd in candidates:
-        noise = _Noise(nc, nd)
-        eta = np.zeros(noise.size)
-        if noise.size and rows.size > 10 * noise.size:
-            regressors = np.column_stack([-R[:, :nd], E[:, :nc]])
-            coef = _solve(regressors, r[rows]).beta
-            eta = noise.eta(np.r_[1.0, coef[nd:]], np.r_[1.0, coef[:nd]])
-        C, D = noise.polys(eta)
-        e = _filter(D, C, r, bounds)[keep]
-        out[(nc, nd)] = (eta, float(e @ e))
-    return out
