@@ -39,6 +39,7 @@ import numpy as np
 import scipy.special
 from numpy.typing import NDArray
 
+from fuelid.identify.covariance import residual_ar, sandwich_covariance, white_covariance
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel
@@ -222,8 +223,15 @@ def gain_bands(data: IOData, model: ProcessModel) -> NonlinearityCheck | None:
     beta = beta_s / scale
     residuals = np.asarray(y - Phi @ beta, dtype=float)
     dof = max(u.size - Phi.shape[1], 1)
-    sigma2 = float(residuals @ residuals) / dof
-    cov = sigma2 * np.linalg.pinv((Phi / scale).T @ (Phi / scale)) / np.outer(scale, scale)
+    sigma = math.sqrt(float(residuals @ residuals) / dof)
+    # coloured noise makes the white covariance several times too small, and a linear plant
+    # then "varies" with the command: the sandwich with the residuals' spectrum, as oe's
+    noise = residual_ar(residuals, bounds)
+    cov = (
+        sandwich_covariance(Phi, noise, bounds)[0]
+        if noise.order > 0
+        else white_covariance(Phi, sigma)[0]
+    )
     K = beta[:n_bands]
     cov_K = cov[:n_bands, :n_bands]
     # χ² of one common gain: the differences of adjacent band gains against their covariance

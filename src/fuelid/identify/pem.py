@@ -521,7 +521,23 @@ class PredictionError(Estimator):
             )
             noise = NoiseShape(*chosen)
             eta0 = etas[chosen][0]
-        return self._joint(data, st, noise, z0, eta0, criterion)
+        if st.delay is not None or noise.size == 0:
+            return self._joint(data, st, noise, z0, eta0, criterion)
+        # a free delay: the output-error start can sit in another basin (in closed loop oe's
+        # delay is biased, by seconds with a fed-back disturbance); screen a grid of delays
+        # with the cheap evaluation, then search from the best of them and from oe's start
+        best = z0
+        best_sse = self._joint(data, st, noise, z0, eta0, criterion, search=False).sse
+        for delay in np.linspace(0.0, 1.5 * max(float(z0[-1]), data.sample_time), 13):
+            z = z0.copy()
+            z[-1] = delay
+            sse = self._joint(data, st, noise, z, eta0, criterion, search=False).sse
+            if sse < best_sse:
+                best, best_sse = z, sse
+        fits = [self._joint(data, st, noise, z0, eta0, criterion)]
+        if best is not z0:
+            fits.append(self._joint(data, st, noise, best, eta0, criterion))
+        return min(fits, key=lambda fit: fit.sse)
 
     @staticmethod
     def _z_from(model: ProcessModel, st: _Structure) -> FloatArray:
@@ -540,8 +556,12 @@ class PredictionError(Estimator):
         z0: FloatArray,
         eta0: FloatArray,
         criterion: dict[str, float],
+        search: bool = True,
     ) -> _Fit:
-        """Minimise Σε² over (process nonlinear parameters, η); linear ones by projection."""
+        """Minimise Σε² over (process nonlinear parameters, η); linear ones by projection.
+
+        ``search=False`` only evaluates the start (to screen starting points).
+        """
         from scipy.optimize import least_squares  # slow to import: only when fitting
 
         u, y, h = data.u, data.y, data.sample_time
@@ -574,8 +594,8 @@ class PredictionError(Estimator):
             return Phi, beta, np.asarray(eps, dtype=float)
 
         x0 = np.clip(np.r_[z0, eta0], np.array(lo) + 1e-9, np.array(hi) - 1e-9)
-        if noise.size == 0:
-            x = x0  # the output-error optimum already: no search (the fit equals OE's)
+        if noise.size == 0 or not search:
+            x = x0  # the output-error optimum already (the fit equals OE's), or a screening
         else:
             sol = least_squares(
                 lambda x: evaluate(x)[2][used],
