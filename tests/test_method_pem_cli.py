@@ -63,3 +63,44 @@ def test_auto_chooses_pem_on_coloured_noise_and_oe_on_white(tmp_path: Path):
     assert white["method"] == "oe"
     assert white["covariance"] == "white"
     assert white["method_choice"].startswith("auto: oe")
+
+
+def test_the_covariance_choice_is_refused_where_it_does_not_apply(tmp_path: Path):
+    path = _log(tmp_path, 0.0)
+    for method in ("pem", "step-ls"):
+        result = runner.invoke(
+            app, ["identify", str(path), "--method", method, "--covariance", "hac"]
+        )
+        assert result.exit_code == 2
+        assert "the covariance choice is oe's" in result.stderr
+
+
+def test_equal_lags_get_no_separate_intervals():
+    # corr(T, T2) beyond ±0.999: only the response is determined, the intervals would lie
+    from fuelid.identify.procedure import _lags_not_separated
+
+    names = ("K", "T", "T2", "offset")
+    cov = np.diag([1.0, 4.0, 4.0, 1.0])
+    assert _lags_not_separated(names, cov) is None
+    cov[1, 2] = cov[2, 1] = -3.999
+    assert _lags_not_separated(names, cov) == pytest.approx(-0.99975)
+    assert _lags_not_separated(("K", "T"), np.eye(2)) is None
+
+
+def test_pems_report_tests_its_prediction_errors(tmp_path: Path):
+    from fuelid.io.logs import load_log
+    from fuelid.plant import load_plant_config
+    from fuelid.workflow import AnalysisSettings, PlantSource, analyse_log
+
+    data = load_log(_log(tmp_path, 0.95))
+    analysis = analyse_log(
+        data, PlantSource(load_plant_config()), AnalysisSettings(tune_from="pem", band_width=35)
+    )
+    chosen = analysis.model_result
+    assert chosen.method == "pem"
+    assert chosen.prediction_errors is not None
+    # the figure's test is the table's: white prediction errors, not the coloured free run
+    assert analysis.whiteness.passed
+    assert analysis.whiteness.p_value == pytest.approx(
+        chosen.diagnostics["residual_whiteness"]["p_value"]
+    )

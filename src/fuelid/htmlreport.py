@@ -70,7 +70,10 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
         _overview_series(data),
         f"{data.source or 'log'}: {data.n_samples} samples every {data.sample_time:g} s "
         f"(fuel at {kelvin_to_celsius(analysis.T_fuel):g} °C, "
-        f"{_fuel_temperature_origin(analysis)})",
+        + {"log": "from the log", "option": "as given"}.get(
+            str(analysis.operating_point.T_fuel_source), "assumed"
+        )
+        + ")",
     )
     oe = analysis.identifications["oe"]
     y_unit = f"({data.y_unit})" if "/" in data.y_unit else data.y_unit
@@ -94,7 +97,8 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
     residuals = plot_correlation_tests(
         [
             (
-                f"residual autocorrelation ({chosen.method}, fitted samples; "
+                f"{'prediction-error' if chosen.prediction_errors is not None else 'residual'} "
+                f"autocorrelation ({chosen.method}, fitted samples; "
                 f"p = {analysis.whiteness.p_value:.2g})",
                 analysis.whiteness.lags,
                 analysis.whiteness.values,

@@ -311,6 +311,25 @@ def _print_table(data: dict[str, Any], file: Path, gain_unit: str, units: tuple[
         + (f"{fuel:.3g} °C ({point['fuel_temperature_source']})" if fuel is not None else "unknown")
     )
     console.print(f"assumed: {_describe_priors(data['priors'])}", highlight=False)
+    conventions = {
+        "white": "white residuals, σ²(JᵀJ)⁻¹",
+        "hac": "the sandwich with the coloured residuals' spectrum",
+        "noise-model": "the prediction-error fit's, with its noise model",
+    }
+    console.print(
+        f"standard errors: {conventions.get(data['covariance'], data['covariance'])}",
+        highlight=False,
+    )
+    noise = data.get("noise_model")
+    if noise is not None:
+        console.print(
+            f"noise model C/D with nc = {noise['nc']}, nd = {noise['nd']}, poles "
+            f"{_poles(noise['poles'])}, σ_v {noise['sigma_v']:.3g}; one-step prediction fit "
+            f"{data['one_step_fit_percent']:.2f} %",
+            highlight=False,
+        )
+    if "method_choice" in data:
+        console.print(data["method_choice"], highlight=False)
 
 
 def _describe_priors(priors: dict[str, Any]) -> str:
@@ -331,3 +350,9 @@ def _describe_priors(priors: dict[str, Any]) -> str:
     plant = priors["plant"]
     parts.append(f"plant {plant['path']}" if plant is not None else "no plant file")
     return "; ".join(parts)
+
+
+def _poles(poles: list[Any]) -> str:
+    """Noise poles for the table: reals, and complex ones (JSON [re, im]) as a ± bj."""
+    shown = [f"{p:.4g}" if not isinstance(p, list) else f"{p[0]:.3g}{p[1]:+.3g}j" for p in poles]
+    return ", ".join(shown) or "none"

@@ -85,6 +85,13 @@ class IdentifyOptions:
             )
         if self.covariance not in ("auto", "white", "hac"):
             raise FuelidError(f"covariance {self.covariance!r}: use auto, white or hac")
+        if self.covariance != "auto" and self.method in ("step-ls", "pem"):
+            raise FuelidError(
+                f"the covariance choice is oe's: {self.method} has its own ("
+                + ("white, from the regression" if self.method == "step-ls" else "noise-model")
+                + ")"
+            )
+
         if self.validation_initial not in ("estimate", "rest"):
             raise FuelidError(
                 f"validation initial condition {self.validation_initial!r}: use estimate or rest"
@@ -166,6 +173,9 @@ class IdentificationResult:
     """How the validation was simulated: "continued" (the held-out end of the record, simulated on
     from the fit), "estimate" or "rest" (a separate record); None without validation."""
     extra: dict[str, Any] = field(default_factory=dict)
+    prediction_errors: FloatArray | None = None
+    """pem's one-step prediction errors on the fitted samples (what its residual tests use);
+    None for the free-run methods, whose residuals are y − y_hat."""
 
     def _intervals(self) -> dict[str, tuple[list[float], CiMethod] | None]:
         values = self.model.as_dict()
@@ -471,8 +481,27 @@ def identify(
         return _identify(data, options, validation)
 
 
+AUTO_VALIDATION_MARGIN = 2.0
+"""pem's validation fit may be this many points below oe's before ``auto`` keeps oe [%]."""
 NEAR_INTEGRATING_POLE = 0.999
 """A noise pole above this (per sample) makes pem fit the differenced data: ``auto`` keeps oe."""
+
+
+LAGS_NOT_SEPARATED = 0.999
+"""|corr(T, T2)| above which the two lags' separate intervals are withheld."""
+
+
+def _lags_not_separated(names: tuple[str, ...], cov: FloatArray) -> float | None:
+    """corr(T, T2) when it is beyond ±:data:`LAGS_NOT_SEPARATED`, else None."""
+    if "T" not in names or "T2" not in names:
+        return None
+    i, j = names.index("T"), names.index("T2")
+    c = np.asarray(cov, dtype=float)
+    denominator = math.sqrt(abs(c[i, i] * c[j, j]))
+    if not (math.isfinite(denominator) and denominator > 0.0):
+        return None
+    corr = float(c[i, j] / denominator)
+    return corr if abs(corr) > LAGS_NOT_SEPARATED else None
 
 
 def _identify_auto(
@@ -500,9 +529,18 @@ def _identify_auto(
             "the differenced data)"
         )
         return oe
+    pem_fit, oe_fit = pem.validation_fit_percent, oe.validation_fit_percent
+    if pem_fit is not None and oe_fit is not None and pem_fit < oe_fit - AUTO_VALIDATION_MARGIN:
+        # a noise model can buy one-step prediction with low-frequency fit: held-out data decide
+        oe.extra["method_choice"] = (
+            f"auto: oe (pem's noise model is significant, but its validation fit {pem_fit:.1f} % "
+            f"is below oe's {oe_fit:.1f} %)"
+        )
+        return oe
     pem.extra["method_choice"] = (
         "auto: pem (oe's residuals are coloured and the noise model is significant)"
     )
+
     return pem
 
 
@@ -593,6 +631,20 @@ def _identify(
             )
     model = estimator.model_
     stderr = dict(estimator.stderr_)
+    lags_merged = _lags_not_separated(cov_names, cov)
+    if lags_merged is not None:
+        # two equal lags: only their combination is determined, and the separate intervals,
+        # however narrow, mean nothing
+        stderr["T"] = stderr["T2"] = None
+        i, j = cov_names.index("T"), cov_names.index("T2")
+        cov = np.array(cov, dtype=float)
+        cov[[i, j], :] = np.nan
+        cov[:, [i, j]] = np.nan
+        warnings.append(
+            f"T and T2 are not separately determined (correlation {lags_merged:+.4f}): no "
+            "interval for either; the model's response is, but prefer order 1 or a meter prior "
+            "(--flowmeter-T) for the parameters themselves"
+        )
     y_model = estimator.simulate(work, initial="fitted")
     time = work.t
     y = work.y
@@ -661,6 +713,15 @@ def _identify(
             gain_unit(work),
         )
     )
+    if extra.get("covariance") in ("hac", "noise-model"):
+        # the printed standard errors already allow for the coloured residuals
+        warnings = [
+            w.replace(
+                "standard errors may be optimistic",
+                f"the standard errors allow for it (covariance {extra['covariance']})",
+            )
+            for w in warnings
+        ]
     no_gain = gain_not_identified(model.K, stderr.get("K"))
     if no_gain:
         warnings.append(f"{no_gain} in this log; do not tune from it")
@@ -687,4 +748,5 @@ def _identify(
         split_time=float(time[n_fit]) if n_fit < work.n_samples else None,
         diagnostics=diag,
         extra=extra,
+        prediction_errors=residuals if isinstance(estimator, PredictionError) else None,
     )

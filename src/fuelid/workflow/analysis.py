@@ -311,7 +311,11 @@ def _analyse(
     schedule = schedule_gains(config, request, progress, cache).schedule
     announce(progress, DIAGNOSTICS)
     fitted = chosen.time < (chosen.split_time if chosen.split_time is not None else math.inf)
-    residuals = chosen.y[fitted] - chosen.y_hat[fitted]
+    residuals = (
+        chosen.prediction_errors  # pem: the tests are on its prediction errors
+        if chosen.prediction_errors is not None
+        else chosen.y[fitted] - chosen.y_hat[fitted]
+    )
     u_model = data.u if chosen.time.size == data.n_samples else _held(data, chosen.time)
     max_lag = min(
         max(25, round(2.0 * settings.control_period / data.sample_time)), fitted.sum() // 4

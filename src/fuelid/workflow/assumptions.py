@@ -130,7 +130,9 @@ def priors_json(
         "source": sources.get("flowmeter_T", "not given"),
     }
     if options.flowmeter_T is None:
-        meter_lag["note"] = "not fixed: a meter lag is estimated as the second lag T2 (order 2)"
+        meter_lag["note"] = (
+            "not fixed: a meter lag, if any, is estimated as a second lag T2 when the order is 2"
+        )
     delay_source: PriorSource
     if "delay" in sources:
         delay_source = sources["delay"]
@@ -241,7 +243,7 @@ def check_signals(data: IOData, plant: PlantSource) -> list[str]:
             cause = (
                 f"it looks like a 4–20 mA current: scale it with --input-scale 4:20:{lo:g}:{hi:g}"
             )
-        elif u_high > 6.0 and u_high <= 100.0 + tolerance:
+        elif u_high > 10.0 and u_high <= 100.0 + tolerance:
             cause = f"it looks like percent: scale it with --input-scale 0:100:{lo:g}:{hi:g}"
         else:
             cause = "an unscaled input or a different drive (give its plant file with --config)"
