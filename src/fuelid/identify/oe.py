@@ -395,23 +395,7 @@ class OutputError(Estimator):
         (``initial="estimate"`` of the fit's settings; none for "rest"), the offset kept.
         """
         st, beta = self._state
-        h = data.sample_time
-        bounds = data.segment_bounds()
-        Phi = _regressors(st, self.T_, self.T2_, self.delay_, data.u, h, self.u_ref_, bounds)
-        if Phi.shape[1] == beta.size:
-            return np.asarray(Phi @ beta, dtype=float)
-        y_hat = np.asarray(Phi[:, : beta.size] @ beta, dtype=float)
-        col = beta.size
-        n_lags = len(self.model_.time_constants)
-        for j, (a, b) in enumerate(bounds):
-            if a < self.n_samples_:
-                continue
-            m = _n_modes(st, n_lags, j)
-            if m:
-                block = Phi[a:b, col : col + m]
-                y_hat[a:b] += block @ _solve(block, data.y[a:b] - y_hat[a:b]).beta
-                col += m
-        return y_hat
+        return continue_fitted(st, beta, self.model_, self.u_ref_, self.n_samples_, data)
 
     def predict(self, data: IOData, horizon: int = 1, initial: Initial = "rest") -> FloatArray:
         """k-step-ahead prediction ŷ(t | t − k) of the output, k = ``horizon`` [output unit].
@@ -639,6 +623,39 @@ class OutputError(Estimator):
                     f"T2 and the delay are strongly correlated ({corr:+.2f}): prefer order 1 "
                     "or fix the delay unless the data show otherwise"
                 )
+
+
+def continue_fitted(
+    st: _Structure,
+    beta: FloatArray,
+    model: ProcessModel,
+    u_ref: float,
+    n_fitted: int,
+    data: IOData,
+) -> FloatArray:
+    """The fitted response on a record that continues the fitting one (``initial="fitted"``).
+
+    The fitted linear parameters ``beta`` (K, offset, the fitting record's initial states) carry
+    on; a segment that starts after the ``n_fitted`` fitted samples (a held-out tail after a gap)
+    gets its initial state fitted on its own samples. Shared by oe and pem.
+    """
+    h = data.sample_time
+    bounds = data.segment_bounds()
+    Phi = _regressors(st, model.T, model.T2, model.delay, data.u, h, u_ref, bounds)
+    if Phi.shape[1] == beta.size:
+        return np.asarray(Phi @ beta, dtype=float)
+    y_hat = np.asarray(Phi[:, : beta.size] @ beta, dtype=float)
+    col = beta.size
+    n_lags = len(model.time_constants)
+    for j, (a, b) in enumerate(bounds):
+        if a < n_fitted:
+            continue
+        m = _n_modes(st, n_lags, j)
+        if m:
+            block = Phi[a:b, col : col + m]
+            y_hat[a:b] += block @ _solve(block, data.y[a:b] - y_hat[a:b]).beta
+            col += m
+    return y_hat
 
 
 def _jacobian(

@@ -88,10 +88,10 @@ from fuelid.identify.noise import (
 from fuelid.identify.oe import (
     OutputError,
     _jacobian,
-    _n_modes,
     _regressors,
     _solve,
     _Structure,
+    continue_fitted,
 )
 from fuelid.identify.segments import offset_and_free_responses
 from fuelid.io.timeseries import IOData
@@ -724,20 +724,4 @@ class PredictionError(Estimator):
     def _continue_fitted(self, data: IOData) -> FloatArray:
         """``simulate(data, "fitted")``, as :meth:`OutputError._continue_fitted`."""
         st, beta, _, _ = self._state
-        h = data.sample_time
-        bounds = data.segment_bounds()
-        Phi = _regressors(st, self.T_, self.T2_, self.delay_, data.u, h, self.u_ref_, bounds)
-        if Phi.shape[1] == beta.size:
-            return np.asarray(Phi @ beta, dtype=float)
-        y_hat = np.asarray(Phi[:, : beta.size] @ beta, dtype=float)
-        col = beta.size
-        n_lags = len(self.model_.time_constants)
-        for j, (a, b) in enumerate(bounds):
-            if a < self.n_samples_:
-                continue
-            m = _n_modes(st, n_lags, j)
-            if m:
-                block = Phi[a:b, col : col + m]
-                y_hat[a:b] += block @ _solve(block, data.y[a:b] - y_hat[a:b]).beta
-                col += m
-        return y_hat
+        return continue_fitted(st, beta, self.model_, self.u_ref_, self.n_samples_, data)
