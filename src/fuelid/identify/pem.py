@@ -528,12 +528,17 @@ class PredictionError(Estimator):
         # with the cheap evaluation, then search from the best of them and from oe's start
         best = z0
         best_sse = self._joint(data, st, noise, z0, eta0, criterion, search=False).sse
+        # a second lag trades against the delay: screen its size too (a fraction of T)
+        ratios = (None,) if st.order == 1 else (None, 0.1, 0.3, 0.6)
         for delay in np.linspace(0.0, 1.5 * max(float(z0[-1]), data.sample_time), 13):
-            z = z0.copy()
-            z[-1] = delay
-            sse = self._joint(data, st, noise, z, eta0, criterion, search=False).sse
-            if sse < best_sse:
-                best, best_sse = z, sse
+            for ratio in ratios:
+                z = z0.copy()
+                z[-1] = delay
+                if ratio is not None:
+                    z[1] = z0[0] + math.log(ratio)
+                sse = self._joint(data, st, noise, z, eta0, criterion, search=False).sse
+                if sse < best_sse:
+                    best, best_sse = z, sse
         fits = [self._joint(data, st, noise, z0, eta0, criterion)]
         if best is not z0:
             fits.append(self._joint(data, st, noise, best, eta0, criterion))
