@@ -11,7 +11,7 @@ import sys
 import typer
 
 from fuelid import __version__
-from fuelid.cli import plant
+from fuelid.cli import plant, site
 from fuelid.cli.identify import identify_command
 from fuelid.cli.report import report_command
 from fuelid.cli.simulate import simulate_command
@@ -27,6 +27,7 @@ app = typer.Typer(
     rich_markup_mode=None,  # help texts carry units in brackets: [s], [V] are not markup
 )
 app.add_typer(plant.app, name="plant")
+app.add_typer(site.app, name="site")
 app.command("simulate")(simulate_command)
 app.command("identify")(identify_command)
 app.command("tune")(tune_command)

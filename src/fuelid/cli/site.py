@@ -1,0 +1,59 @@
+"""``fuelid site …``: the site file that describes one loop as its PLC exposes it.
+
+``fuelid site check`` reads and validates a site file and prints its tag map (or refuses it with
+the key and the reason, exit code 2). The PLC link itself (``record``, ``plant serve``) builds on
+the same file (issue 14).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from fuelid.cli._common import emit_json, guarded, provenance
+
+app = typer.Typer(help="The site file: one loop as its PLC exposes it.", rich_markup_mode=None)
+
+
+@app.command("check")
+@guarded
+def check(
+    config: Annotated[
+        Path,
+        typer.Option("--config", "-c", metavar="SITE.toml", help="The site file to check."),
+    ],
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """Validate a site file and show its protocol, sampling and tags with their scaling."""
+    from fuelid.plc.site import load_site
+
+    site = load_site(config)
+    if as_json:
+        data: dict[str, Any] = site.model_dump() | {"missing": site.missing()}
+        emit_json(data | provenance({"config": str(config)}, config))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    plc = site.plc
+    where = plc.endpoint or plc.path or f"{plc.host}:{plc.port or plc.default_port}"
+    table = Table(
+        title=f"{site.site.name}: {plc.protocol} at {where}, every {site.sampling.period_s:g} s "
+        f"(PI every {site.sampling.control_period_s:g} s)"
+    )
+    for column in ("side", "role", "address", "type", "scaling", "unit"):
+        table.add_column(column)
+    for side, tags in (("read", site.tags), ("write", site.write)):
+        for role, tag in tags.items():
+            scaling = ""
+            if tag.raw is not None and tag.eng is not None:
+                scaling = (
+                    f"{tag.raw[0]:g}…{tag.raw[1]:g} → {tag.eng[0]:g}…{tag.eng[1]:g} {tag.unit}"
+                )
+            table.add_row(side, role, tag.address, tag.type, scaling, tag.unit)
+    console = Console()
+    console.print(table)
+    for line in site.missing():
+        console.print(f"missing {line}", highlight=False)

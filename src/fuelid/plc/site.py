@@ -1,0 +1,338 @@
+"""The site file: one fuel loop as its PLC exposes it (protocol, endpoint, sampling, tag map).
+
+A TOML file, validated with pydantic; a bad file is refused with the key and the reason
+(:class:`~fuelid.errors.ConfigError`, exit code 2 at the command line). The shape (issue 14) is a
+contract: keys may be added, none renamed. Example (README, "Site file")::
+
+    [site]
+    name = "tunnel 2 fuel loop"
+    [plc]
+    protocol = "modbus"          # modbus | opcua | s7 | replay
+    host = "127.0.0.1"
+    port = 5020
+    device_id = 1
+    word_order = "little"        # 32-bit values: big = ABCD, little = CDAB
+    byte_swap = false
+    [sampling]
+    period_s = 0.02
+    control_period_s = 1.0
+    [tags.command]
+    address = "hr:100"
+    type = "float32"
+    unit = "V"
+    [tags.flow]
+    address = "ir:20"
+    type = "int16"
+    raw = [0, 27648]
+    eng = [0.0, 120.0]
+    unit = "L/min"
+
+Addresses are in each protocol's own syntax: Modbus ``ir:N`` (input register), ``hr:N`` (holding
+register), ``coil:N``, ``di:N`` (discrete input), N the 0-based protocol address as on the wire
+(not 30001/40001-style register numbers); OPC UA NodeIds ``ns=2;s=FuelLoop.Flow`` (or ``i=``,
+``g=``, ``b=``); S7 ``DB1.DBD0`` (32-bit), ``DB1.DBW4`` (16-bit), ``DB1.DBX8.3`` (a bit); replay:
+the column of the log it plays. Only ``flow`` and ``command`` are required: a PLC that exposes less
+still records, and :meth:`SiteConfig.missing` says what is missing.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from fuelid.errors import ConfigError
+
+TagType = Literal["float32", "int16", "uint16", "int32", "uint32", "bool"]
+Protocol = Literal["modbus", "opcua", "s7", "replay"]
+
+READ_ROLES = (
+    "flow",
+    "command",
+    "setpoint",
+    "fuel_temperature",
+    "mode",
+    "kc",
+    "ti",
+    "seq",
+)
+"""Roles of the read tags: y, u, the setpoint, the fuel temperature, MAN/AUTO (0/1), the PI's
+gains as applied, and the sample sequence counter (uint32)."""
+WRITE_ROLES = ("kc", "ti", "apply", "echo", "heartbeat")
+"""Roles of the write side: staged gains, the apply word and its echo, the advisor's heartbeat."""
+REQUIRED_ROLES = ("flow", "command")
+
+ROLE_UNITS: dict[str, tuple[str, ...]] = {
+    "command": ("V",),
+    "flow": ("L/min",),
+    "setpoint": ("L/min",),
+    "fuel_temperature": ("degC",),
+}
+"""The engineering unit a role must be in (after scaling): the gains are per V and L/min."""
+
+REGISTERS_OF = {"float32": 2, "int32": 2, "uint32": 2, "int16": 1, "uint16": 1, "bool": 1}
+"""16-bit registers (Modbus) a value of each type occupies."""
+
+_MODBUS = re.compile(r"^(ir|hr|coil|di):(\d+)$")
+_OPCUA = re.compile(r"^ns=\d+;[sigb]=.+$")
+_S7 = re.compile(r"^DB(\d+)\.DB([XBWD])(\d+)(?:\.([0-7]))?$")
+
+
+class _Table(BaseModel):
+    """A table of the site file: unknown keys are refused (a typo must not pass), immutable."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class SiteInfo(_Table):
+    """``[site]``: which loop this is."""
+
+    name: str = Field(min_length=1, description="a name for the loop (stored with every sample)")
+    plant: str | None = Field(None, description="the loop's plant TOML, when there is one")
+
+
+class PlcEndpoint(_Table):
+    """``[plc]``: the protocol and where to reach the PLC."""
+
+    protocol: Protocol
+    host: str = "127.0.0.1"
+    port: int | None = Field(None, ge=1, le=65535, description="default: the protocol's")
+    device_id: int = Field(1, ge=0, le=255, description="Modbus unit id")
+    word_order: Literal["big", "little"] = Field(
+        "big", description="32-bit values: big = ABCD (high word first), little = CDAB"
+    )
+    byte_swap: bool = Field(False, description="swap the two bytes of every register (BADC)")
+    endpoint: str | None = Field(None, description="OPC UA endpoint URL, opc.tcp://host:port/...")
+    rack: int = Field(0, ge=0, le=7, description="S7 rack")
+    slot: int = Field(1, ge=0, le=31, description="S7 slot")
+    path: str | None = Field(None, description="replay: the CSV/Parquet log to play")
+    speed: float = Field(1.0, gt=0.0, le=1000.0, description="replay: times real time")
+
+    @model_validator(mode="after")
+    def _endpoint_for_protocol(self) -> PlcEndpoint:
+        if self.protocol == "opcua" and not (self.endpoint or "").startswith("opc.tcp://"):
+            raise ValueError('opcua needs endpoint = "opc.tcp://host:port/path"')
+        if self.protocol == "replay" and not self.path:
+            raise ValueError("replay needs path = the log to play")
+        return self
+
+    @property
+    def default_port(self) -> int:
+        """The protocol's usual port: Modbus TCP 502, S7 (ISO-on-TCP) 102; OPC UA 4840."""
+        return {"modbus": 502, "s7": 102, "opcua": 4840, "replay": 0}[self.protocol]
+
+
+class Sampling(_Table):
+    """``[sampling]``: how often the PC reads, and how often the PLC runs its PI."""
+
+    period_s: float = Field(0.02, gt=0.0, le=10.0)
+    control_period_s: float = Field(1.0, gt=0.0, le=10.0)
+
+    @model_validator(mode="after")
+    def _control_not_faster(self) -> Sampling:
+        if self.control_period_s < self.period_s:
+            raise ValueError(
+                f"control_period_s ({self.control_period_s:g} s) is shorter than period_s "
+                f"({self.period_s:g} s): the samples must be at least as fast as the PLC's PI"
+            )
+        return self
+
+
+Pair = Annotated[list[float], Field(min_length=2, max_length=2)]
+
+
+class Tag(_Table):
+    """One value the PLC exposes: where it is, its type, and how raw maps to engineering units."""
+
+    address: str = Field(min_length=1)
+    type: TagType = "float32"
+    raw: Pair | None = Field(None, description="raw values of two points, e.g. [0, 27648]")
+    eng: Pair | None = Field(None, description="their engineering values, e.g. [0.0, 120.0]")
+    unit: str = ""
+    valid: Pair | None = Field(
+        None, description="engineering range outside which a value is flagged bad"
+    )
+
+    @model_validator(mode="after")
+    def _scaling(self) -> Tag:
+        if (self.raw is None) != (self.eng is None):
+            raise ValueError("give raw and eng together (a linear scaling needs both points)")
+        if self.raw is not None and self.raw[0] == self.raw[1]:
+            raise ValueError("raw needs two different values")
+        if self.eng is not None and self.eng[0] == self.eng[1]:
+            raise ValueError("eng needs two different values")
+        if self.valid is not None and not self.valid[0] < self.valid[1]:
+            raise ValueError("valid needs low < high")
+        if self.type == "bool" and self.raw is not None:
+            raise ValueError("a bool tag has no scaling")
+        return self
+
+    def to_engineering(self, raw: float) -> float:
+        """The engineering value of a raw value (linear through the two points)."""
+        if self.raw is None or self.eng is None:
+            return float(raw)
+        (r0, r1), (e0, e1) = self.raw, self.eng
+        return e0 + (float(raw) - r0) * (e1 - e0) / (r1 - r0)
+
+    def to_raw(self, value: float) -> float:
+        """The raw value of an engineering value (the inverse of :meth:`to_engineering`)."""
+        if self.raw is None or self.eng is None:
+            return float(value)
+        (r0, r1), (e0, e1) = self.raw, self.eng
+        return r0 + (float(value) - e0) * (r1 - r0) / (e1 - e0)
+
+
+class Controller(_Table):
+    """``[controller]``: how the PLC's PI block reads its gains, so none is written wrongly."""
+
+    form: Literal["ideal", "parallel"] = "ideal"
+    gain_units: Literal["engineering", "percent"] = Field(
+        "engineering", description="V per L/min, or percent of span per percent of span"
+    )
+    integral_unit: Literal["s", "min"] = "s"
+    u_span_V: float | None = Field(None, gt=0.0, description="output span of percent gains")
+    y_span_Lpm: float | None = Field(None, gt=0.0, description="input span of percent gains")
+    kc: float | None = Field(None, gt=0.0, description="commissioning gain, in gain_units")
+    ti: float | None = Field(None, gt=0.0, description="commissioning integral, in integral_unit")
+
+    @model_validator(mode="after")
+    def _spans_for_percent(self) -> Controller:
+        if self.gain_units == "percent" and (self.u_span_V is None or self.y_span_Lpm is None):
+            raise ValueError("percent gains need u_span_V and y_span_Lpm (the spans of the block)")
+        return self
+
+
+class Store(_Table):
+    """``[store]``: where samples go."""
+
+    url: str = Field("sqlite:///fuelid.db", pattern=r"^sqlite:///.+")
+    retention_days: float = Field(30.0, gt=0.0)
+
+
+class SiteConfig(_Table):
+    """A whole site file."""
+
+    site: SiteInfo
+    plc: PlcEndpoint
+    sampling: Sampling = Field(default_factory=Sampling)
+    tags: dict[str, Tag]
+    write: dict[str, Tag] = Field(default_factory=dict)
+    controller: Controller | None = None
+    store: Store = Field(default_factory=Store)
+
+    @model_validator(mode="after")
+    def _tag_map(self) -> SiteConfig:
+        for side, tags, roles in (
+            ("tags", self.tags, READ_ROLES),
+            ("write", self.write, WRITE_ROLES),
+        ):
+            unknown = sorted(set(tags) - set(roles))
+            if unknown:
+                raise ValueError(
+                    f"{side}.{unknown[0]}: unknown role; {side} are {', '.join(roles)}"
+                )
+        missing = [role for role in REQUIRED_ROLES if role not in self.tags]
+        if missing:
+            raise ValueError(f"tags.{missing[0]} is required (the {_meaning(missing[0])})")
+        for side, tags in (("tags", self.tags), ("write", self.write)):
+            for role, tag in tags.items():
+                _check_address(self.plc.protocol, tag, f"{side}.{role}")
+        for role, units in ROLE_UNITS.items():
+            found = self.tags.get(role)
+            if found is not None and found.unit not in units:
+                raise ValueError(
+                    f"tags.{role}.unit: {found.unit or 'none'!s}, but the gains are computed in "
+                    f"{units[0]}: scale the raw value with raw = [...] and eng = [...] and say "
+                    f'unit = "{units[0]}"'
+                )
+        seq = self.tags.get("seq")
+        if seq is not None and seq.type != "uint32":
+            raise ValueError("tags.seq.type: the sequence counter is a uint32")
+        return self
+
+    def missing(self) -> list[str]:
+        """What the PLC does not expose, each with what it costs (empty when everything is)."""
+        costs = {
+            "setpoint": "closed-loop excitation cannot be told from noise",
+            "fuel_temperature": "models are not placed on the K(T) curve",
+            "mode": "MAN and AUTO cannot be told apart",
+            "kc": "the applied gains are unknown",
+            "ti": "the applied gains are unknown",
+            "seq": "sample times are receipt times; a lost sample is a missed deadline",
+        }
+        return [f"{role}: {cost}" for role, cost in costs.items() if role not in self.tags]
+
+
+def _meaning(role: str) -> str:
+    return {"flow": "flowmeter reading y", "command": "VFD command u"}.get(role, role)
+
+
+def _check_address(protocol: str, tag: Tag, key: str) -> None:
+    """Refuse an address that is not in the protocol's syntax or does not fit the tag's type."""
+    address = tag.address
+    if protocol == "modbus":
+        match = _MODBUS.match(address)
+        if match is None or int(match.group(2)) > 65535:
+            raise ValueError(
+                f"{key}.address: {address!r} is not a Modbus address: ir:N, hr:N, coil:N or "
+                "di:N with N the 0-based protocol address 0…65535 (not 30001/40001 numbers)"
+            )
+        area, start = match.group(1), int(match.group(2))
+        if area in ("coil", "di") and tag.type != "bool":
+            raise ValueError(f"{key}.type: {area} holds bits: the type must be bool")
+        if area in ("ir", "hr") and start + REGISTERS_OF[tag.type] - 1 > 65535:
+            raise ValueError(f"{key}.address: a {tag.type} at {start} runs past register 65535")
+    elif protocol == "opcua":
+        if _OPCUA.match(address) is None:
+            raise ValueError(
+                f"{key}.address: {address!r} is not an OPC UA NodeId such as ns=2;s=FuelLoop.Flow"
+            )
+    elif protocol == "s7":
+        match = _S7.match(address)
+        if match is None:
+            raise ValueError(
+                f"{key}.address: {address!r} is not an S7 address such as DB1.DBD0 (32-bit), "
+                "DB1.DBW4 (16-bit) or DB1.DBX8.3 (a bit)"
+            )
+        size, bit = match.group(2), match.group(4)
+        fits = {"D": ("float32", "int32", "uint32"), "W": ("int16", "uint16"), "X": ("bool",)}
+        if size == "B" or tag.type not in fits[size]:
+            raise ValueError(
+                f"{key}.type: {tag.type} does not fit DB{size} (DBD: float32, int32, uint32; "
+                "DBW: int16, uint16; DBX: bool)"
+            )
+        if (size == "X") != (bit is not None):
+            raise ValueError(f"{key}.address: a bit address is DBX<byte>.<bit 0-7>, only for bits")
+
+
+def _describe(error: Any) -> str:
+    location = ".".join(str(part) for part in error["loc"])
+    message = str(error["msg"]).removeprefix("Value error, ")
+    return f"{location}: {message}" if location else message
+
+
+def load_site(path: str | Path) -> SiteConfig:
+    """Read and validate a site file.
+
+    Raises
+    ------
+    ConfigError
+        One line: the file, the key and the reason.
+    """
+    source = str(path)
+    try:
+        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ConfigError(f"site file {source!r} does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read site file {source!r}: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{source}: not valid TOML ({exc})") from None
+    try:
+        return SiteConfig.model_validate(data)
+    except ValidationError as exc:
+        details = "; ".join(_describe(err) for err in exc.errors())
+        raise ConfigError(f"{source}: {details}") from None

@@ -1,0 +1,186 @@
+"""The site file (issue 14, item 1) and the register codec, against hand-computed words."""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from fuelid.cli import app
+from fuelid.errors import ConfigError, DataError
+from fuelid.plc.codec import decode, encode
+from fuelid.plc.site import load_site
+
+runner = CliRunner()
+
+# the issue's example, as written: this shape must work (keys may be added, none renamed)
+EXAMPLE = """\
+[site]
+name = "tunnel 2 fuel loop"
+[plc]
+protocol = "modbus"          # modbus | opcua | s7 | replay
+host = "127.0.0.1"
+port = 5020
+device_id = 1
+word_order = "little"        # 32-bit values: big = ABCD, little = CDAB
+byte_swap = false
+[sampling]
+period_s = 0.02
+control_period_s = 1.0
+[tags.command]               # u, the VFD command
+address = "hr:100"
+type = "float32"
+unit = "V"
+[tags.flow]                  # y, the flowmeter
+address = "ir:20"
+type = "int16"
+raw = [0, 27648]             # optional linear scaling raw → engineering
+eng = [0.0, 120.0]
+unit = "L/min"
+[tags.fuel_temperature]
+address = "ir:21"
+type = "int16"
+raw = [0, 27648]
+eng = [-40.0, 80.0]
+unit = "degC"
+[tags.mode]                  # 0 = MAN, 1 = AUTO
+address = "ir:30"
+type = "uint16"
+"""
+
+
+def _write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "site.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_the_issues_example_loads_as_written(tmp_path: Path):
+    site = load_site(_write(tmp_path, EXAMPLE))
+    assert site.site.name == "tunnel 2 fuel loop"
+    assert (site.plc.protocol, site.plc.port, site.plc.word_order) == ("modbus", 5020, "little")
+    assert (site.sampling.period_s, site.sampling.control_period_s) == (0.02, 1.0)
+    assert set(site.tags) == {"command", "flow", "fuel_temperature", "mode"}
+    # Siemens counts: 27648 is full scale, 13824 half of it
+    assert site.tags["flow"].to_engineering(13824) == pytest.approx(60.0)
+    assert site.tags["fuel_temperature"].to_engineering(0) == pytest.approx(-40.0)
+    assert site.tags["flow"].to_raw(120.0) == pytest.approx(27648.0)
+    assert site.store.url == "sqlite:///fuelid.db"
+    assert any(line.startswith("setpoint:") for line in site.missing())
+
+
+@pytest.mark.parametrize(
+    ("change", "key", "reason"),
+    [
+        (('address = "ir:20"', 'address = "30021"'), "tags.flow.address", "not 30001/40001"),
+        (('address = "hr:100"', 'address = "coil:3"'), "tags.command.type", "bool"),
+        (('unit = "V"', 'unit = "mA"'), "tags.command.unit", "scale the raw value"),
+        (("eng = [0.0, 120.0]\n", ""), "tags.flow", "raw and eng together"),
+        (('protocol = "modbus"', 'protocol = "profibus"'), "plc.protocol", "modbus"),
+        (("control_period_s = 1.0", "control_period_s = 0.01"), "sampling", "shorter"),
+        (("[tags.mode]", "[tags.moed]"), "tags.moed", "unknown role"),
+        (("device_id = 1", 'device_id = 1\nwordorder = "big"'), "plc.wordorder", "xtra"),
+    ],
+)
+def test_bad_site_files_are_refused_with_the_key_and_the_reason(
+    tmp_path: Path, change: tuple[str, str], key: str, reason: str
+):
+    old, new = change
+    assert old in EXAMPLE
+    path = _write(tmp_path, EXAMPLE.replace(old, new, 1))
+    with pytest.raises(ConfigError) as caught:
+        load_site(path)
+    message = str(caught.value)
+    assert key in message
+    assert reason in message
+    # the command line: one line on stderr, exit code 2
+    result = runner.invoke(app, ["site", "check", "--config", str(path)])
+    assert result.exit_code == 2
+    assert key in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_flow_and_command_are_the_only_required_tags(tmp_path: Path):
+    text = EXAMPLE.split("[tags.fuel_temperature]")[0]
+    site = load_site(_write(tmp_path, text))
+    assert set(site.tags) == {"command", "flow"}
+    without_flow = text.split("[tags.flow]")[0]
+    with pytest.raises(ConfigError, match=r"tags\.flow is required"):
+        load_site(_write(tmp_path, without_flow))
+
+
+OPCUA = 'protocol = "opcua"\nendpoint = "opc.tcp://127.0.0.1:4840/fuel"'
+S7 = 'protocol = "s7"'
+VALID = {OPCUA: ("ns=2;s=FuelLoop.U", "ns=2;s=FuelLoop.Flow"), S7: ("DB1.DBD0", "DB1.DBD4")}
+
+
+@pytest.mark.parametrize(
+    ("protocol", "address", "type_", "ok"),
+    [
+        (OPCUA, "ns=2;s=FuelLoop.Kc", "float32", True),
+        (OPCUA, "FuelLoop.Kc", "float32", False),
+        (S7, "DB1.DBD8", "float32", True),
+        (S7, "DB1.DBW8", "float32", False),
+        (S7, "DB1.DBX8.3", "bool", True),
+        (S7, "DB1.DBX8", "bool", False),
+        (S7, "DB1.DBB8", "uint16", False),
+    ],
+)
+def test_addresses_follow_each_protocols_syntax(
+    tmp_path: Path, protocol: str, address: str, type_: str, ok: bool
+):
+    command, flow = VALID[protocol]
+    text = (
+        f'[site]\nname = "x"\n[plc]\n{protocol}\n'
+        f'[tags.command]\naddress = "{command}"\ntype = "float32"\nunit = "V"\n'
+        f'[tags.flow]\naddress = "{flow}"\ntype = "float32"\nunit = "L/min"\n'
+        f'[tags.kc]\naddress = "{address}"\ntype = "{type_}"\n'
+    )
+    path = _write(tmp_path, text)
+    if ok:
+        assert load_site(path).tags["kc"].address == address
+    else:
+        with pytest.raises(ConfigError, match=r"tags\.kc\.(address|type)"):
+            load_site(path)
+
+
+@pytest.mark.parametrize(
+    ("value", "type_", "word_order", "byte_swap", "registers"),
+    [
+        # 3.5 = 0x40600000: ABCD, CDAB, BADC, DCBA
+        (3.5, "float32", "big", False, [0x4060, 0x0000]),
+        (3.5, "float32", "little", False, [0x0000, 0x4060]),
+        (3.5, "float32", "big", True, [0x6040, 0x0000]),
+        (3.5, "float32", "little", True, [0x0000, 0x6040]),
+        # -2 as int16 is 0xFFFE; 70000 as uint32 is 0x00011170
+        (-2, "int16", "big", False, [0xFFFE]),
+        (70000, "uint32", "big", False, [0x0001, 0x1170]),
+        (70000, "uint32", "little", False, [0x1170, 0x0001]),
+        (-70000, "int32", "big", False, [0xFFFE, 0xEE90]),
+        (27648, "int16", "big", True, [0x006C]),
+        (1, "bool", "big", False, [1]),
+    ],
+)
+def test_register_words_match_hand_computed_values(value, type_, word_order, byte_swap, registers):
+    assert encode(value, type_, word_order, byte_swap) == registers
+    assert decode(registers, type_, word_order, byte_swap) == pytest.approx(value)
+
+
+def test_float32_words_agree_with_struct_and_out_of_range_integers_are_refused():
+    words = encode(-12.625, "float32")
+    assert struct.unpack(">f", bytes.fromhex(f"{words[0]:04x}{words[1]:04x}"))[0] == -12.625
+    with pytest.raises(DataError, match="does not fit a int16"):
+        encode(40000, "int16")
+    with pytest.raises(DataError, match="takes 2 register"):
+        decode([1], "float32")
+
+
+def test_site_check_prints_the_tag_map(tmp_path: Path):
+    result = runner.invoke(app, ["site", "check", "--config", str(_write(tmp_path, EXAMPLE))])
+    assert result.exit_code == 0, result.stderr
+    assert "tunnel 2 fuel loop" in result.stdout
+    assert "ir:20" in result.stdout
+    assert "0…27648 → 0…120 L/min" in result.stdout
+    assert "missing" in result.stdout
