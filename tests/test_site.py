@@ -184,3 +184,13 @@ def test_site_check_prints_the_tag_map(tmp_path: Path):
     assert "ir:20" in result.stdout
     assert "0…27648 → 0…120 L/min" in result.stdout
     assert "missing" in result.stdout
+
+
+def test_the_readme_example_is_a_valid_site_file(tmp_path: Path):
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    section = readme.split("### `fuelid site check")[1]
+    block = section.split("```toml\n")[1].split("```")[0]
+    site = load_site(_write(tmp_path, block))
+    assert site.controller is not None
+    assert site.controller.gain_units == "percent"
+    assert set(site.write) == {"kc", "ti", "apply"}
