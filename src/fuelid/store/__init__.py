@@ -1,0 +1,82 @@
+"""The sample store: samples and events of one site, durable, behind a small interface.
+
+:class:`SampleStore` is the interface, :class:`SQLiteStore` the default (one SQLite file in WAL
+mode), :class:`SampleWriter` the one writer (a queue and a thread committing about once a
+second). :func:`open_store` opens a store by URL (``sqlite:///path.db``, as ``[store] url`` of the
+site file); a PostgreSQL store is one more entry in :data:`STORES`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from fuelid.store.base import (
+    EVENT_KINDS,
+    Event,
+    PruneResult,
+    Quality,
+    Sample,
+    SampleArrays,
+    SampleStore,
+    SampleWriter,
+    StoreError,
+    StoreInfo,
+    tag_map_hash,
+)
+from fuelid.store.sqlite import SCHEMA_VERSION, SQLiteStore
+
+__all__ = [
+    "EVENT_KINDS",
+    "SCHEMA_VERSION",
+    "STORES",
+    "Event",
+    "PruneResult",
+    "Quality",
+    "SQLiteStore",
+    "Sample",
+    "SampleArrays",
+    "SampleStore",
+    "SampleWriter",
+    "StoreError",
+    "StoreInfo",
+    "open_store",
+    "tag_map_hash",
+]
+
+STORES: dict[str, Callable[..., SampleStore]] = {"sqlite": SQLiteStore}
+"""Store kinds by URL scheme: each takes the location and the keyword arguments of
+:func:`open_store`."""
+
+
+def open_store(url: str | Path, **kwargs: Any) -> SampleStore:
+    """Open a store by URL (``sqlite:///path.db``) or, for SQLite, by a plain file path.
+
+    Parameters
+    ----------
+    url : str or Path
+        ``scheme:///location``; a path without a scheme is an SQLite file.
+    **kwargs
+        ``site_name``, ``tag_map_hash`` (needed to create or write) and ``period_s`` [s].
+
+    Raises
+    ------
+    StoreError
+        Unknown scheme, or the store cannot be opened (see the store's class).
+
+    Examples
+    --------
+    >>> sorted(STORES)
+    ['sqlite']
+    """
+    text = str(url)
+    scheme, sep, location = text.partition(":///")
+    if not sep:
+        scheme, location = "sqlite", text
+    try:
+        factory = STORES[scheme]
+    except KeyError:
+        known = ", ".join(f"{name}:///" for name in STORES)
+        raise StoreError(f"{text}: unknown store kind {scheme!r}; known: {known}") from None
+    return factory(location, **kwargs)

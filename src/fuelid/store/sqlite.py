@@ -1,0 +1,398 @@
+"""The default sample store: one SQLite file in WAL mode.
+
+Durability: ``journal_mode=WAL`` with ``synchronous=FULL``: a commit is on disk when
+:meth:`SQLiteStore.append` returns, a crash of the recorder (kill -9) at any moment loses at most
+the batch not yet committed and never corrupts the file (SQLite's WAL guarantees, checked by the
+kill test). One writer connection, readers on a connection of their own.
+
+Schema (``SCHEMA_VERSION = 1``, also in ``PRAGMA user_version``; ``PRAGMA application_id`` marks a
+fuelid store; a newer version is refused), every table STRICT::
+
+    meta(key TEXT PRIMARY KEY, value TEXT NOT NULL)
+        schema_version, site_name, tag_map_hash (SHA-256 hex of the tag map), created (s UTC),
+        period_s (the sampling period, when given)
+    samples(time REAL NOT NULL,          -- UTC seconds since the epoch [s]
+            seq INTEGER,                 -- unwrapped sequence number, NULL without a counter
+            u REAL,                      -- VFD command [V]
+            y REAL,                      -- flow [L/min]
+            setpoint REAL,               -- [L/min]
+            fuel_temperature REAL,       -- [°C]
+            mode INTEGER,                -- 0 MAN, 1 AUTO
+            quality INTEGER NOT NULL)    -- 0 ok, 1 stale, 2 link_down, 3 bad_value
+        UNIQUE (seq) WHERE seq IS NOT NULL; UNIQUE (time) WHERE seq IS NULL; INDEX (time)
+        (INSERT … ON CONFLICT DO NOTHING: a restart that re-sends samples adds no duplicates)
+    events(time REAL NOT NULL, kind TEXT NOT NULL, detail TEXT NOT NULL)   INDEX (time)
+        kinds: link_down, link_up, gap, gain_change, restart, site_mismatch, prune, …
+    models(id INTEGER PRIMARY KEY, time REAL NOT NULL, t_from REAL, t_to REAL,
+           T_fuel REAL, model TEXT NOT NULL)                      -- reserved (online issue)
+    proposals(id INTEGER PRIMARY KEY, time REAL NOT NULL, model_id INTEGER, kc REAL, ti REAL,
+              status TEXT NOT NULL, detail TEXT NOT NULL)         -- reserved (online issue)
+
+NaN values are stored as NULL (SQLite has no NaN) and read back as NaN.
+"""
+
+from __future__ import annotations
+
+import math
+import sqlite3
+import threading
+import time as _time
+from collections.abc import Iterable
+from pathlib import Path
+
+from fuelid.store.base import (
+    Event,
+    PruneResult,
+    Quality,
+    Sample,
+    SampleArrays,
+    SampleStore,
+    StoreError,
+    StoreInfo,
+)
+
+SCHEMA_VERSION = 1
+APPLICATION_ID = 0x46554944  # "FUID"
+DAY = 86400.0
+PRUNE_WINDOW_S = 3600.0
+"""Samples pruned per transaction [s of data]."""
+
+_SCHEMA = """
+CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT NOT NULL) STRICT;
+CREATE TABLE samples(
+    time REAL NOT NULL,
+    seq INTEGER,
+    u REAL,
+    y REAL,
+    setpoint REAL,
+    fuel_temperature REAL,
+    mode INTEGER,
+    quality INTEGER NOT NULL CHECK (quality BETWEEN 0 AND 3)
+) STRICT;
+CREATE UNIQUE INDEX samples_seq ON samples(seq) WHERE seq IS NOT NULL;
+CREATE UNIQUE INDEX samples_time_noseq ON samples(time) WHERE seq IS NULL;
+CREATE INDEX samples_time ON samples(time);
+CREATE TABLE events(time REAL NOT NULL, kind TEXT NOT NULL, detail TEXT NOT NULL) STRICT;
+CREATE INDEX events_time ON events(time);
+CREATE TABLE models(
+    id INTEGER PRIMARY KEY, time REAL NOT NULL, t_from REAL, t_to REAL, T_fuel REAL,
+    model TEXT NOT NULL
+) STRICT;
+CREATE TABLE proposals(
+    id INTEGER PRIMARY KEY, time REAL NOT NULL, model_id INTEGER REFERENCES models(id),
+    kc REAL, ti REAL, status TEXT NOT NULL, detail TEXT NOT NULL
+) STRICT;
+"""
+
+# DO NOTHING only on a duplicate key: a NULL time or a bad quality code still fails the batch
+_INSERT_SAMPLE = "INSERT INTO samples VALUES (?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT DO NOTHING"
+_COLUMNS = "time, seq, u, y, setpoint, fuel_temperature, mode, quality"
+
+
+def _connect(path: Path) -> sqlite3.Connection:
+    con = sqlite3.connect(path, isolation_level=None, check_same_thread=False, timeout=5.0)
+    con.execute("PRAGMA busy_timeout=5000")
+    return con
+
+
+def _range(t_from: float | None, t_to: float | None) -> tuple[str, list[float]]:
+    where, args = [], []
+    if t_from is not None:
+        where.append("time >= ?")
+        args.append(float(t_from))
+    if t_to is not None:
+        where.append("time < ?")
+        args.append(float(t_to))
+    return (" WHERE " + " AND ".join(where)) if where else "", args
+
+
+class SQLiteStore(SampleStore):
+    """A sample store in one SQLite file (see the module docstring for the schema).
+
+    Parameters
+    ----------
+    path : str or Path
+        The database file; created (with its directory) when absent.
+    site_name : str, optional
+        The site's name (``[site] name`` of the site file). Needed to create or write a store.
+    tag_map_hash : str, optional
+        SHA-256 of the site's tag map (:func:`~fuelid.store.base.tag_map_hash`).
+    period_s : float, optional
+        The sampling period [s], recorded on creation and used to count gaps without a
+        sequence counter.
+
+    Raises
+    ------
+    StoreError
+        The file is not a fuelid store, was written by a newer fuelid, or belongs to another site
+        (a ``site_mismatch`` event is then recorded in it).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> db = pathlib.Path(tempfile.mkdtemp()) / "loop.db"
+    >>> with SQLiteStore(db, site_name="tunnel 2", tag_map_hash="ab12") as store:
+    ...     store.append_samples([Sample(1.7e9, 0, 2.0, 40.0), Sample(1.7e9 + 0.02, 1, 2.0, 40.1)])
+    2
+    >>> SQLiteStore(db).info().rows
+    2
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        site_name: str | None = None,
+        tag_map_hash: str | None = None,
+        period_s: float | None = None,
+    ) -> None:
+        self._file = Path(path)
+        self.path = str(self._file)
+        self._lock = threading.Lock()  # the writer connection
+        self._read_lock = threading.Lock()  # the reader connection: reads never wait for a commit
+        self._writable = site_name is not None and tag_map_hash is not None
+        new = not self._file.exists() or self._file.stat().st_size == 0
+        if new and not self._writable:
+            raise StoreError(f"{self.path}: no such store (a new store needs the site's identity)")
+        if new:
+            self._file.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self._con = _connect(self._file)
+            self._con.execute("PRAGMA journal_mode=WAL")
+            self._con.execute("PRAGMA synchronous=FULL")
+            # a crash while creating leaves a file without tables: create it again
+            if not new and self._writable:
+                new = self._con.execute("SELECT count(*) FROM sqlite_schema").fetchone()[0] == 0
+            if new:
+                self._create(str(site_name), str(tag_map_hash), period_s)
+            meta = self._check_store()
+        except sqlite3.DatabaseError as error:
+            self._close_quietly()
+            raise StoreError(f"{self.path}: not a fuelid store ({error})") from None
+        except StoreError:
+            self._close_quietly()
+            raise
+        self.site_name = meta["site_name"]
+        self.tag_map_hash = meta["tag_map_hash"]
+        self.schema_version = int(meta["schema_version"])
+        self.period_s = float(meta["period_s"]) if "period_s" in meta else None
+        if self._writable and (site_name, tag_map_hash) != (self.site_name, self.tag_map_hash):
+            reason = (
+                f"{self.path}: the store belongs to site {self.site_name!r} (tag map "
+                f"{self.tag_map_hash[:12]}), not {site_name!r} (tag map {str(tag_map_hash)[:12]})"
+            )
+            self._raw_append((), [Event(_time.time(), "site_mismatch", reason)])
+            self._close_quietly()
+            raise StoreError(reason)
+        self._read_con = _connect(self._file)
+
+    def _create(self, site_name: str, tag_map_hash: str, period_s: float | None) -> None:
+        meta = {
+            "schema_version": str(SCHEMA_VERSION),
+            "site_name": site_name,
+            "tag_map_hash": tag_map_hash,
+            "created": repr(_time.time()),
+        }
+        if period_s is not None:
+            meta["period_s"] = repr(float(period_s))
+        con = self._con
+        con.execute("BEGIN IMMEDIATE")
+        try:
+            for statement in _SCHEMA.split(";"):
+                if statement.strip():
+                    con.execute(statement)
+            con.executemany("INSERT INTO meta VALUES (?, ?)", meta.items())
+            con.execute(f"PRAGMA application_id={APPLICATION_ID}")
+            con.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
+            con.execute("COMMIT")
+        except BaseException:
+            con.execute("ROLLBACK")
+            raise
+
+    def _check_store(self) -> dict[str, str]:
+        con = self._con
+        app_id = con.execute("PRAGMA application_id").fetchone()[0]
+        has_meta = con.execute(
+            "SELECT count(*) FROM sqlite_schema WHERE type = 'table' AND name = 'meta'"
+        ).fetchone()[0]
+        if app_id != APPLICATION_ID or not has_meta:
+            raise StoreError(f"{self.path}: not a fuelid store (an SQLite file of another kind)")
+        meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
+        version = int(meta.get("schema_version", "0"))
+        if version > SCHEMA_VERSION:
+            raise StoreError(
+                f"{self.path}: store schema version {version} is newer than this fuelid's "
+                f"({SCHEMA_VERSION}): upgrade fuelid"
+            )
+        if version < 1 or "site_name" not in meta or "tag_map_hash" not in meta:
+            raise StoreError(f"{self.path}: not a fuelid store (meta table incomplete)")
+        return meta
+
+    def _close_quietly(self) -> None:
+        for name in ("_con", "_read_con"):
+            con = getattr(self, name, None)
+            if con is not None:
+                con.close()
+
+    def _raw_append(self, samples: Iterable[Sample], events: Iterable[Event]) -> int:
+        with self._lock:
+            con = self._con
+            con.execute("BEGIN IMMEDIATE")
+            try:
+                before = con.total_changes
+                con.executemany(_INSERT_SAMPLE, samples)
+                added = con.total_changes - before
+                con.executemany("INSERT INTO events VALUES (?, ?, ?)", events)
+                con.execute("COMMIT")
+            except BaseException:
+                con.execute("ROLLBACK")
+                raise
+        return added
+
+    def append(self, samples: Iterable[Sample] = (), events: Iterable[Event] = ()) -> int:
+        """Store samples and events in one committed transaction; see :class:`SampleStore`."""
+        if not self._writable:
+            raise StoreError(
+                f"{self.path}: opened without the site's identity, so it cannot be written"
+            )
+        try:
+            return self._raw_append(samples, events)
+        except sqlite3.IntegrityError as error:
+            raise StoreError(f"{self.path}: a sample was refused ({error})") from None
+        except sqlite3.ProgrammingError as error:
+            raise StoreError(f"{self.path}: a sample has the wrong shape ({error})") from None
+
+    def read(self, t_from: float | None = None, t_to: float | None = None) -> SampleArrays:
+        """Samples with ``t_from <= time < t_to`` [s UTC], sorted by time (then seq)."""
+        where, args = _range(t_from, t_to)
+        with self._read_lock:
+            rows = self._read_con.execute(
+                f"SELECT {_COLUMNS} FROM samples{where} ORDER BY time, seq", args
+            ).fetchall()
+        return SampleArrays.from_rows(rows)
+
+    def read_events(self, t_from: float | None = None, t_to: float | None = None) -> list[Event]:
+        """Events with ``t_from <= time < t_to`` [s UTC], in time order."""
+        where, args = _range(t_from, t_to)
+        with self._read_lock:
+            rows = self._read_con.execute(
+                f"SELECT time, kind, detail FROM events{where} ORDER BY time, rowid", args
+            ).fetchall()
+        return [Event(*row) for row in rows]
+
+    def info(self) -> StoreInfo:
+        """Rows, time span, gaps, link events and size on disk."""
+        with self._read_lock:
+            con = self._read_con
+            con.execute("BEGIN")  # one snapshot for every count
+            try:
+                rows, t_first, t_last = con.execute(
+                    "SELECT count(*), min(time), max(time) FROM samples"
+                ).fetchone()
+                seq_gaps, missing = con.execute(
+                    "SELECT count(*), coalesce(sum(d - 1), 0) FROM (SELECT seq - lag(seq) "
+                    "OVER (ORDER BY seq) AS d FROM samples WHERE seq IS NOT NULL) WHERE d > 1"
+                ).fetchone()
+                time_gaps = 0
+                if self.period_s is not None:
+                    time_gaps = con.execute(
+                        "SELECT count(*) FROM (SELECT time - lag(time) OVER (ORDER BY time) AS d "
+                        "FROM samples WHERE seq IS NULL) WHERE d > ?",
+                        (1.5 * self.period_s,),
+                    ).fetchone()[0]
+                quality = dict(
+                    con.execute("SELECT quality, count(*) FROM samples GROUP BY quality")
+                )
+                events = dict(con.execute("SELECT kind, count(*) FROM events GROUP BY kind"))
+            finally:
+                con.execute("COMMIT")
+        size = sum(
+            p.stat().st_size
+            for p in (self._file, self._file.with_name(self._file.name + "-wal"))
+            if p.exists()
+        )
+        return StoreInfo(
+            path=self.path,
+            site_name=self.site_name,
+            tag_map_hash=self.tag_map_hash,
+            schema_version=self.schema_version,
+            rows=int(rows),
+            t_first=t_first,
+            t_last=t_last,
+            span_s=0.0 if rows == 0 else float(t_last - t_first),
+            gaps=int(seq_gaps) + int(time_gaps),
+            missing_samples=int(missing),
+            quality={Quality(int(code)).name.lower(): int(n) for code, n in quality.items()},
+            events={str(kind): int(n) for kind, n in events.items()},
+            size_bytes=size,
+        )
+
+    def prune(
+        self, older_than_days: float, thin_to_period_s: float | None = 1.0, now: float | None = None
+    ) -> PruneResult:
+        """Keep raw samples ``older_than_days`` [d]; of older ones the first per period [s].
+
+        A ``prune`` event records what was done. The file does not shrink (SQLite reuses the
+        freed pages for new samples).
+        """
+        if not (math.isfinite(older_than_days) and older_than_days >= 0.0):
+            raise StoreError(f"retention must be a non-negative number of days: {older_than_days}")
+        if thin_to_period_s is not None and not thin_to_period_s > 0.0:
+            raise StoreError(f"thinning period must be positive, got {thin_to_period_s} s")
+        if not self._writable:
+            raise StoreError(f"{self.path}: opened without the site's identity, cannot prune")
+        cutoff = (_time.time() if now is None else float(now)) - older_than_days * DAY
+        with self._read_lock:
+            first = self._read_con.execute("SELECT min(time) FROM samples").fetchone()[0]
+        # one transaction per window of about an hour (whole thinning periods), so that the
+        # writer never waits long for the lock
+        step = 1.0 if thin_to_period_s is None else thin_to_period_s
+        window = step * math.ceil(PRUNE_WINDOW_S / step)
+        deleted = 0
+        t = cutoff if first is None else math.floor(first / step) * step
+        while t < cutoff:
+            t_end = min(t + window, cutoff)
+            deleted += self._prune_window(t, t_end, thin_to_period_s)
+            t = t_end
+        with self._lock:
+            con = self._con
+            kept = int(
+                con.execute("SELECT count(*) FROM samples WHERE time < ?", (cutoff,)).fetchone()[0]
+            )
+            how = "none" if thin_to_period_s is None else f"one per {thin_to_period_s} s"
+            detail = f"before {cutoff:.3f}: {deleted} deleted, {kept} kept ({how})"
+            con.execute("INSERT INTO events VALUES (?, 'prune', ?)", (_time.time(), detail))
+        return PruneResult(cutoff=cutoff, deleted=deleted, kept_thinned=kept)
+
+    def _prune_window(self, t_from: float, t_to: float, thin_to_period_s: float | None) -> int:
+        """Delete (or thin to one per period [s]) the samples in ``[t_from, t_to)``, committed."""
+        with self._lock:
+            con = self._con
+            con.execute("BEGIN IMMEDIATE")
+            try:
+                before = con.total_changes
+                if thin_to_period_s is None:
+                    con.execute("DELETE FROM samples WHERE time >= ? AND time < ?", (t_from, t_to))
+                else:
+                    con.execute(
+                        "DELETE FROM samples WHERE time >= ?1 AND time < ?2 AND rowid NOT IN ("
+                        "SELECT rowid FROM (SELECT rowid, row_number() OVER (PARTITION BY "
+                        "CAST(floor(time / ?3) AS INTEGER) ORDER BY time) AS k "
+                        "FROM samples WHERE time >= ?1 AND time < ?2) WHERE k = 1)",
+                        (t_from, t_to, float(thin_to_period_s)),
+                    )
+                deleted = con.total_changes - before
+                con.execute("COMMIT")
+            except BaseException:
+                con.execute("ROLLBACK")
+                raise
+        return int(deleted)
+
+    def integrity_check(self) -> str:
+        """``PRAGMA integrity_check`` of the file (``"ok"`` when sound)."""
+        with self._read_lock:
+            return str(self._read_con.execute("PRAGMA integrity_check").fetchone()[0])
+
+    def close(self) -> None:
+        """Close both connections (every append is already committed)."""
+        with self._lock, self._read_lock:
+            self._close_quietly()
