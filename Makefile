@@ -6,11 +6,12 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.fuelid-installed
 DEMO_DIR ?= demo-output
 
-.PHONY: help install demo test lint typecheck pytest browser bench clean
+.PHONY: help install demo test test-slow lint typecheck pytest browser bench clean
 
 help:
 	@echo "make demo   - install if needed, run the reference-plant demo (writes $(DEMO_DIR)/)"
 	@echo "make test   - install if needed, run ruff, mypy and the whole pytest suite"
+	@echo "make test-slow - the long fault and soak runs (CI runs them after make test)"
 	@echo "make bench  - run the benchmarks (on demand, prints tables)"
 	@echo "make clean  - remove the virtual environment and generated files"
 
@@ -19,7 +20,7 @@ $(BIN)/python:
 
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --upgrade pip
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev]'
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev,plc]'
 	@touch $(STAMP)
 
 install: $(STAMP)
@@ -58,10 +59,15 @@ browser:
 		echo "chromium missing and not root (or no apt-get): the browser test will skip"; \
 	fi
 
+# `make test` runs the short version of every test; the long fault and soak runs are marked slow
+# (`make test-slow`, which CI adds after `make test`).
 pytest: $(STAMP) browser
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -m "not slow"
 
 test: lint typecheck pytest
+
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -q -m slow
 
 # The benchmarks get their own environment: the peer (sysidentpy) pins an older numpy, which
 # must not replace the one the tests run with.
