@@ -185,6 +185,43 @@ class Tag(_Table):
         return r0 + (float(value) - e0) * (r1 - r0) / (e1 - e0)
 
 
+RING_FIELDS = ("seq", "command", "flow", "setpoint")
+"""Roles a ring-buffer record may hold; ``seq`` (uint32) first, the others float32 in engineering
+units (V, L/min)."""
+
+
+class Ring(_Table):
+    """``[ring]``: the PLC's ring buffer of samples, read in blocks (no sample lost or doubled).
+
+    The PLC writes the record of sample ``seq`` into slot ``seq % size`` every sample period, in
+    one scan, so a record is scan-consistent (u and y of the same instant), and ``head`` holds the
+    sequence number of the newest record. A record is ``fields`` in order: the sequence number as
+    a uint32, then each other field as a float32 in engineering units (V, L/min); 2 registers
+    each on Modbus, 4 bytes each in an S7 DB, one element each of an OPC UA Double array.
+    """
+
+    head: str = Field(min_length=1, description="address of the newest record's seq (uint32)")
+    address: str = Field(min_length=1, description="address of slot 0 (the first record)")
+    size: int = Field(ge=2, le=65536, description="records in the ring")
+    fields: list[str] = Field(default_factory=lambda: list(RING_FIELDS))
+
+    @model_validator(mode="after")
+    def _layout(self) -> Ring:
+        if not self.fields or self.fields[0] != "seq":
+            raise ValueError("fields must start with seq (the record's sequence number)")
+        unknown = sorted(set(self.fields) - set(RING_FIELDS))
+        if unknown or len(set(self.fields)) != len(self.fields):
+            raise ValueError(f"fields: each of {', '.join(RING_FIELDS)} at most once")
+        if "flow" not in self.fields or "command" not in self.fields:
+            raise ValueError("fields: a record needs command and flow (u and y)")
+        return self
+
+    @property
+    def record_registers(self) -> int:
+        """16-bit registers (Modbus) of one record: 2 per field."""
+        return 2 * len(self.fields)
+
+
 class Controller(_Table):
     """``[controller]``: how the PLC's PI block reads its gains, so none is written wrongly."""
 
@@ -220,6 +257,7 @@ class SiteConfig(_Table):
     sampling: Sampling = Field(default_factory=Sampling)
     tags: dict[str, Tag]
     write: dict[str, Tag] = Field(default_factory=dict)
+    ring: Ring | None = None
     controller: Controller | None = None
     store: Store = Field(default_factory=Store)
 
@@ -251,6 +289,8 @@ class SiteConfig(_Table):
         seq = self.tags.get("seq")
         if seq is not None and seq.type != "uint32":
             raise ValueError("tags.seq.type: the sequence counter is a uint32")
+        if self.ring is not None:
+            _check_ring(self.plc.protocol, self.ring)
         return self
 
     def missing(self) -> list[str]:
@@ -306,6 +346,28 @@ def _check_address(protocol: str, tag: Tag, key: str) -> None:
             )
         if (size == "X") != (bit is not None):
             raise ValueError(f"{key}.address: a bit address is DBX<byte>.<bit 0-7>, only for bits")
+
+
+def _check_ring(protocol: str, ring: Ring) -> None:
+    """Refuse a ring whose addresses are not in the protocol's syntax or overrun the area."""
+    if protocol == "replay":
+        return
+    _check_address(protocol, Tag(address=ring.head, type="uint32"), "ring.head")
+    if protocol == "opcua":
+        _check_address(protocol, Tag(address=ring.address), "ring.address")
+        return
+    _check_address(protocol, Tag(address=ring.address, type="uint32"), "ring.address")
+    if protocol == "modbus":
+        match = _MODBUS.match(ring.address)
+        assert match is not None  # checked just above
+        if match.group(1) not in ("ir", "hr"):
+            raise ValueError("ring.address: the ring lives in registers (ir:N or hr:N)")
+        end = int(match.group(2)) + ring.size * ring.record_registers - 1
+        if end > 65535:
+            raise ValueError(
+                f"ring: {ring.size} records of {ring.record_registers} registers from "
+                f"{ring.address} run past register 65535"
+            )
 
 
 def _describe(error: Any) -> str:

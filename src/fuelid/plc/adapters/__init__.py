@@ -1,0 +1,45 @@
+"""PLC links behind one interface, :class:`PlcSource`.
+
+Each protocol is an optional extra (``pip install 'fuelid[plc]'``), imported only when a site
+file names it.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from fuelid.errors import ConfigError
+from fuelid.plc.adapters.base import LinkError, PlcSource, Reading, RingRecord
+from fuelid.plc.site import SiteConfig
+
+__all__ = ["ADAPTERS", "LinkError", "PlcSource", "Reading", "RingRecord", "open_source"]
+
+ADAPTERS = {
+    "modbus": ("fuelid.plc.adapters.modbus", "ModbusSource", "pymodbus"),
+    "opcua": ("fuelid.plc.adapters.opcua", "OpcUaSource", "asyncua"),
+    "s7": ("fuelid.plc.adapters.s7", "S7Source", "snap7"),
+    "replay": ("fuelid.plc.adapters.replay", "ReplaySource", None),
+}
+"""Protocol → (module, class, the third-party package it needs)."""
+
+
+def open_source(site: SiteConfig) -> PlcSource:
+    """The adapter for the site's protocol (not yet connected).
+
+    Raises
+    ------
+    ConfigError
+        The protocol's extra is not installed (the message says how to install it).
+    """
+    module_name, class_name, package = ADAPTERS[site.plc.protocol]
+    if package is not None:
+        try:
+            importlib.import_module(package)
+        except ImportError:
+            raise ConfigError(
+                f"plc.protocol = {site.plc.protocol!r} needs the {package} package: "
+                "pip install 'fuelid[plc]'"
+            ) from None
+    module = importlib.import_module(module_name)
+    source: PlcSource = getattr(module, class_name)(site)
+    return source
