@@ -194,3 +194,35 @@ def test_the_readme_example_is_a_valid_site_file(tmp_path: Path):
     assert site.controller is not None
     assert site.controller.gain_units == "percent"
     assert set(site.write) == {"kc", "ti", "apply"}
+
+
+RING = """
+[ring]
+head = "ir:100"
+address = "ir:1000"
+size = 2048
+"""
+
+
+def test_a_ring_buffer_is_described_by_head_address_and_size(tmp_path: Path):
+    site = load_site(_write(tmp_path, EXAMPLE + RING))
+    assert site.ring is not None
+    assert site.ring.fields == ["seq", "command", "flow", "setpoint"]
+    # seq uint32 + three float32 = 8 registers: 2048 records end at register 1000 + 16383
+    assert site.ring.record_registers == 8
+
+
+@pytest.mark.parametrize(
+    ("ring", "reason"),
+    [
+        ('head = "ir:100"\naddress = "ir:60000"\nsize = 2048', "run past register 65535"),
+        ('head = "ir:100"\naddress = "coil:3"\nsize = 16', "ring.address"),
+        ('head = "ir:100"\naddress = "ir:1000"\nsize = 16\nfields = ["flow", "seq"]', "start"),
+        ('head = "ir:100"\naddress = "ir:1000"\nsize = 16\nfields = ["seq", "flow"]', "command"),
+        ('head = "40001"\naddress = "ir:1000"\nsize = 16', "ring.head"),
+        ('head = "ir:100"\naddress = "ir:1000"\nsize = 1', "size"),
+    ],
+)
+def test_a_ring_that_cannot_be_read_is_refused(tmp_path: Path, ring: str, reason: str):
+    with pytest.raises(ConfigError, match=reason):
+        load_site(_write(tmp_path, EXAMPLE + "[ring]\n" + ring + "\n"))
