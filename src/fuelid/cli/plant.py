@@ -10,14 +10,16 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from fuelid.cli._common import ConfigOption, celsius_to_kelvin, emit_json, guarded, provenance
+from fuelid.cli.serve import serve_command
 
 if TYPE_CHECKING:
     from rich.table import Table
 
 app = typer.Typer(
-    help="The plant's physics model: operating point and linearised model.",
+    help="The plant's physics model: operating point and linearised model; the virtual PLC.",
     rich_markup_mode=None,
 )
+app.command("serve")(serve_command)
 
 
 def _table(summary: dict[str, Any]) -> Table:

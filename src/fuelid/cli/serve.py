@@ -1,0 +1,287 @@
+"""``fuelid plant serve``: the virtual PLC, the plant with its PLC emulated, on a real protocol.
+
+Only typer and the CLI's light foundation at the top; the engine, numpy and the protocol library
+are imported when the command runs.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+from fuelid.cli._common import ConfigOption, guarded
+from fuelid.errors import FuelidError
+
+if TYPE_CHECKING:
+    from fuelid.plc.codec import WordOrder
+    from fuelid.plc.virtual.engine import VirtualPLC
+    from fuelid.plc.virtual.frontend import Frontend
+
+
+class ServeProtocol(StrEnum):
+    """The protocols the virtual PLC speaks."""
+
+    modbus = "modbus"
+    opcua = "opcua"
+    s7 = "s7"
+
+
+class WordOrderChoice(StrEnum):
+    """32-bit word order on Modbus: big = ABCD, little = CDAB."""
+
+    big = "big"
+    little = "little"
+
+
+def is_loopback(host: str) -> bool:
+    """True for ``localhost`` and loopback addresses (127.0.0.0/8, ::1).
+
+    Examples
+    --------
+    >>> is_loopback("127.0.0.1"), is_loopback("localhost"), is_loopback("0.0.0.0")
+    (True, True, False)
+    """
+    import ipaddress
+
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+@guarded
+def serve_command(
+    config: ConfigOption = None,
+    protocol: Annotated[
+        ServeProtocol, typer.Option("--protocol", help="Protocol of the server.")
+    ] = ServeProtocol.modbus,
+    host: Annotated[
+        str,
+        typer.Option(
+            "--host", help="Address to bind; not a loopback address only with --allow-remote."
+        ),
+    ] = "127.0.0.1",
+    port: Annotated[
+        int | None,
+        typer.Option(
+            "--port",
+            min=1,
+            max=65535,
+            help="TCP port (default: modbus 5020, opcua 4840, s7 1102).",
+            show_default=False,
+        ),
+    ] = None,
+    speed: Annotated[
+        float,
+        typer.Option("--speed", help="Plant time per wall time, e.g. 50 = 50× real time (≤ 1000)."),
+    ] = 1.0,
+    fuel_temp: Annotated[
+        float | None,
+        typer.Option(
+            "--fuel-temp", help="Constant fuel temperature [°C] (default 20).", show_default=False
+        ),
+    ] = None,
+    fuel_temp_profile: Annotated[
+        Path | None,
+        typer.Option(
+            "--fuel-temp-profile",
+            metavar="FILE.csv",
+            help="Fuel temperature drift: CSV with columns t [s], fuel_temperature [°C].",
+        ),
+    ] = None,
+    setpoint_profile: Annotated[
+        str | None,
+        typer.Option(
+            "--setpoint-profile",
+            metavar="FILE.csv|run",
+            help="Setpoints in AUTO, repeated: 'run' (a wind-tunnel run) or a CSV with columns "
+            "t [s], setpoint [L/min].",
+        ),
+    ] = None,
+    command_profile: Annotated[
+        str | None,
+        typer.Option(
+            "--command-profile",
+            metavar="FILE.csv|steps",
+            help="Commands in MAN, repeated: 'steps' (1.5–4.5 V steps, 15 s each) or a CSV "
+            "with columns t [s], u [V].",
+        ),
+    ] = None,
+    seed: Annotated[int, typer.Option("--seed", help="Seed of the flowmeter noise.")] = 0,
+    word_order: Annotated[
+        WordOrderChoice,
+        typer.Option("--word-order", help="Modbus 32-bit word order: big = ABCD, little = CDAB."),
+    ] = WordOrderChoice.big,
+    duration: Annotated[
+        float | None,
+        typer.Option("--duration", min=0.0, help="Serve this long [s of wall time], then stop."),
+    ] = None,
+    allow_remote: Annotated[
+        bool,
+        typer.Option(
+            "--allow-remote",
+            help="Allow a non-loopback --host. The server has no authentication.",
+        ),
+    ] = False,
+    print_site: Annotated[
+        bool,
+        typer.Option("--print-site", help="Print the site file that points at it, and exit."),
+    ] = False,
+) -> None:
+    """Run the virtual PLC: the nonlinear plant with a PI, MAN/AUTO and a ring buffer.
+
+    The plant (reference plant or --config) runs in plant time, --speed times real time, with
+    the PLC emulated: a PI at the control period (1 s) with 1–5 V limits and anti-windup,
+    MAN/AUTO, staged gains with apply and echo, a heartbeat, flowmeter noise and quantisation,
+    and a ring buffer of (seq, u, flow, setpoint) every 0.02 s. Without a profile it starts in
+    MAN at 1 V; clients write the mode, setpoint and manual command. Ctrl-C or SIGTERM stops it.
+    """
+    _serve(
+        config,
+        protocol=protocol.value,
+        host=host,
+        port=port,
+        speed=speed,
+        fuel_temp=fuel_temp,
+        fuel_temp_profile=fuel_temp_profile,
+        setpoint_profile=setpoint_profile,
+        command_profile=command_profile,
+        seed=seed,
+        word_order=word_order.value,
+        duration=duration,
+        allow_remote=allow_remote,
+        print_site=print_site,
+    )
+
+
+def _serve(
+    config: Path | None,
+    *,
+    protocol: str,
+    host: str,
+    port: int | None,
+    speed: float,
+    fuel_temp: float | None,
+    fuel_temp_profile: Path | None,
+    setpoint_profile: str | None,
+    command_profile: str | None,
+    seed: int,
+    word_order: str,
+    duration: float | None,
+    allow_remote: bool,
+    print_site: bool,
+) -> None:
+    import asyncio
+
+    from fuelid.plant import load_plant_config
+    from fuelid.plc.virtual.engine import VirtualPLC
+    from fuelid.plc.virtual.profiles import load_profile
+    from fuelid.plc.virtual.runner import DEFAULT_PORTS, frontend_class, site_text
+
+    if not is_loopback(host) and not allow_remote:
+        raise FuelidError(
+            f"--host {host} is not a loopback address: the virtual PLC has no authentication; "
+            "pass --allow-remote to serve it on the network anyway"
+        )
+    if fuel_temp is not None and fuel_temp_profile is not None:
+        raise FuelidError("give --fuel-temp or --fuel-temp-profile, not both")
+    if not 0.0 < speed <= 1000.0:
+        raise FuelidError(f"--speed must be within (0, 1000], got {speed:g}")
+    sp_profile = (
+        setpoint_profile
+        if setpoint_profile in (None, "run")
+        else load_profile(str(setpoint_profile), "setpoint")
+    )
+    u_profile = (
+        command_profile
+        if command_profile in (None, "steps")
+        else load_profile(str(command_profile), "u")
+    )
+    plc = VirtualPLC(
+        load_plant_config(config),
+        fuel_temp_C=20.0 if fuel_temp is None else fuel_temp,
+        fuel_temp_profile=(
+            load_profile(fuel_temp_profile, "fuel_temperature") if fuel_temp_profile else None
+        ),
+        setpoint_profile=sp_profile,
+        command_profile=u_profile,
+        seed=seed,
+    )
+    port = DEFAULT_PORTS[protocol] if port is None else port
+    order: WordOrder = "little" if word_order == "little" else "big"
+    if print_site:
+        typer.echo(
+            site_text(
+                protocol,
+                host,
+                port,
+                period_s=plc.period_s,
+                control_period_s=plc.control_period_s,
+                word_order=order,
+                ring_size=plc.ring_size,
+                kc=plc.kc0,
+                ti=plc.ti0,
+            ),
+            nl=False,
+        )
+        return
+    frontend = frontend_class(protocol)(host, port, ring_size=plc.ring_size, word_order=order)
+    _check_port(host, port)
+    where = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+    typer.echo(
+        f"virtual PLC: {protocol} on {where}, {speed:g}x real time, plant "
+        f"{plc.config.name}, sample {plc.period_s:g} s, PI every {plc.control_period_s:g} s "
+        "(Ctrl-C stops)",
+        err=True,
+    )
+    asyncio.run(_run(plc, frontend, speed, duration))
+    typer.echo(
+        f"virtual PLC stopped after {plc.time_s:.1f} s of plant time (seq {plc.seq})", err=True
+    )
+
+
+async def _run(plc: VirtualPLC, frontend: Frontend, speed: float, duration: float | None) -> None:
+    """Serve until the duration ends, Ctrl-C or SIGTERM; the port is released in any case."""
+    import asyncio
+    import contextlib
+    import signal
+
+    from fuelid.plc.virtual.runner import serve
+
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(NotImplementedError, RuntimeError):  # not on every platform
+            loop.add_signal_handler(sig, stop.set)
+    try:
+        await frontend.start()
+    except (OSError, RuntimeError) as exc:  # pymodbus says RuntimeError when it cannot listen
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise FuelidError(
+            f"cannot serve on {frontend.host}:{frontend.port} (port in use?): {reason}"
+        ) from None
+    try:
+        await serve(plc, frontend, speed=speed, duration_s=duration, stop=stop)
+    finally:
+        await frontend.stop()
+
+
+def _check_port(host: str, port: int) -> None:
+    """Refuse a port that cannot be bound, in one line (before a server library logs it)."""
+    import socket
+
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as sock:
+        # as the servers bind: a port in TIME_WAIT after a restart is free
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind((host, port))
+        except OSError as exc:
+            raise FuelidError(
+                f"cannot serve on {host}:{port}: {exc.strerror or exc} (another server there?)"
+            ) from None

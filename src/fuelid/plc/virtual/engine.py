@@ -1,0 +1,557 @@
+"""The virtual PLC's engine: the nonlinear fuel loop with its PLC emulated, free of any protocol.
+
+Synchronous and deterministic given the seed: the same writes at the same plant times give the
+same samples, whatever the speed and however :meth:`VirtualPLC.advance` is sliced. A protocol
+front end (:mod:`fuelid.plc.virtual.frontend`) and the runner (:mod:`fuelid.plc.virtual.runner`)
+put it on a socket.
+
+Time. Sample ``k`` is taken at plant time ``t_k = k·period_s``; its sequence number is
+``(seq0 + k) mod 2**32``. Every ``control_period_s`` (sample k a multiple of
+``n = control_period_s/period_s``) the PLC scans: it reads the write area (what clients wrote by
+then), the flow reading of that sample, runs the PI (or takes the manual command) and holds the
+command over the next ``n`` samples. The plant (:func:`fuelid.simulate.integrate_held`, the same
+nonlinear ODE as ``fuelid simulate``) is therefore integrated once per control period with the
+``n + 1`` sample times as its output times, not once per sample, which is what makes 50–1000 times
+real time possible. The fuel temperature is held within a control period at its midpoint value.
+
+Measurement. The reading of sample k is the meter state ``delay`` earlier (linear interpolation
+between samples), plus white noise (a seeded :class:`numpy.random.Generator`), then quantised as a
+Siemens analog input: 0…27648 counts = 0…120 L/min (``flow_counts``, int16), ``flow`` being the
+same counts in L/min.
+
+The PLC's rules (README, "The virtual PLC").
+
+- PI, ideal form u = Kc·(e + (1/Ti)∫e dt), e = setpoint − flow, at the control period:
+  :class:`fuelid.tuning.controller.DiscretePI`, the positional algorithm with a forward-Euler
+  integral in output units, the drive's 1–5 V signal range as output limits and
+  **back-calculation anti-windup** with tracking time Tt = h (the integral is pulled back so that
+  the unlimited output equals the limited one within one period: no windup tail).
+- MAN/AUTO: ``mode_request`` 0 = MAN, 1 = AUTO, other values ignored. In MAN the command is
+  ``manual_command`` clamped to 1–5 V. MAN → AUTO is bumpless: the integral starts at
+  ``u − Kc·e`` so the first AUTO output equals the last manual one. A setpoint profile forces
+  AUTO and a command profile MAN (they script the operator); the setpoint is
+  ``setpoint_request`` unless a setpoint profile plays.
+- Staged gains: a change of ``apply`` (to any value other than the last one seen) takes
+  ``staged_kc`` and ``staged_ti`` at the next scan, provided the heartbeat is fresh. A set that is
+  not finite and positive is refused: status bit 2 set, nothing applied, ``echo`` unchanged. A
+  valid set is clamped to the PLC's own limits, 0.1–10 times the commissioning gains, applied
+  bumplessly (integral ``I += (Kc_old − Kc_new)·e``, so the output of that scan is the one the
+  old gains give) and echoed whole (``kc``, ``ti`` and ``echo`` = the apply number, status bit 2
+  cleared). A change of ``apply`` while the heartbeat is stale is refused as well (bit 2).
+- Heartbeat: the advisor increments ``heartbeat``; it is fresh while it changed less than
+  ``heartbeat_timeout_s`` of plant time ago. Until it first changes it is stale (no advisor has
+  proven it is alive, so no staged set is taken). While stale, status bit 1 is set; with
+  ``restore_on_stale`` the commissioning gains are restored, bumplessly, and ``echo`` reset to 0.
+- Status (uint16): bit 0 the output at a limit, bit 1 heartbeat stale, bit 2 the last staged set
+  refused.
+
+Examples
+--------
+>>> plc = VirtualPLC(seed=1)
+>>> plc.write_points({"manual_command": 3.0})
+>>> records = plc.advance(500)          # 10 s of plant time
+>>> plc.seq, len(records), round(plc.read_points()["command"], 3)
+(500, 500, 3.0)
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import TypeAlias
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from fuelid.errors import ConfigError, DataError
+from fuelid.plant import load_plant_config
+from fuelid.plant.config import PlantConfig
+from fuelid.plant.linear import linearise
+from fuelid.plant.system import measured_state, plant_coefficients, steady_state
+from fuelid.plc.virtual.points import (
+    DEFAULT_RING_SIZE,
+    FLOW_COUNTS,
+    FUEL_TEMPERATURE_COUNTS,
+    POINTS,
+    RING_FIELDS,
+)
+from fuelid.plc.virtual.profiles import Profile, run_profile, steps_profile
+from fuelid.simulate import FuelTemperature, integrate_held
+from fuelid.tuning.closedloop import steady_command
+from fuelid.tuning.controller import DiscretePI
+from fuelid.tuning.rules import PISettings, half_rule, simc
+from fuelid.units import LPM_PER_M3S, celsius_to_kelvin, kelvin_to_celsius
+
+FloatArray = NDArray[np.float64]
+ProfileLike: TypeAlias = Profile | tuple[ArrayLike, ArrayLike]
+
+SEQ_MODULUS = 2**32
+"""The sequence counter is a uint32: it wraps to 0 after 2**32 − 1."""
+STATUS_AT_LIMIT = 1
+"""Status bit 0: the command sits at a limit of the 1–5 V range."""
+STATUS_STALE = 2
+"""Status bit 1: the advisor's heartbeat is stale."""
+STATUS_REFUSED = 4
+"""Status bit 2: the last staged set was refused."""
+GAIN_LIMITS = (0.1, 10.0)
+"""The PLC clamps a staged Kc and Ti to these multiples of its commissioning values."""
+MAX_RING_SIZE = 8000
+"""Most records in the ring: 1000 + 8·8000 registers stay inside the Modbus address space."""
+TEMPERATURE_RESOLUTION_K = 0.01
+"""The plant coefficients are re-evaluated when the fuel temperature has moved this much [K]."""
+MAN, AUTO = 0, 1
+
+READ_POINTS = tuple(name for name, point in POINTS.items() if point.access == "read")
+WRITE_POINTS = tuple(name for name, point in POINTS.items() if point.access == "write")
+
+
+def commissioning_gains(
+    config: PlantConfig, T_fuel: float, control_period_s: float
+) -> tuple[float, float]:
+    """Cautious SIMC PI gains (τc = 2θ) for the plant linearised at mid-range command.
+
+    A commissioning engineer's set: SIMC (Skogestad 2003) with the closed-loop time constant
+    twice the effective dead time (the half rule's θ plus h/2), which keeps the overshoot of
+    setpoint steps of the reference plant to a few percent (τc = θ gives about 15 % with the
+    1 s control period) and leaves an online tuner room to tighten it.
+
+    Parameters
+    ----------
+    config : PlantConfig
+        The plant.
+    T_fuel : float
+        Fuel temperature [K].
+    control_period_s : float
+        The PLC's control period h [s] (adds h/2 to the effective dead time).
+
+    Returns
+    -------
+    tuple of float
+        Kc [V per L/min] and Ti [s], ideal form. For the reference plant at 20 °C and h = 1 s:
+        Kc ≈ 0.042 V per L/min, Ti ≈ 1.42 s.
+
+    Examples
+    --------
+    >>> kc, ti = commissioning_gains(load_plant_config(), 293.15, 1.0)
+    >>> round(kc, 4), round(ti, 3)
+    (0.0424, 1.418)
+    """
+    u_mid = 0.5 * (config.vfd.u_min_V + config.vfd.u_max_V)
+    model = linearise(config, u_mid, T_fuel).equivalent_model().model
+    theta = half_rule(model, control_period_s).theta
+    pi = simc(model, control_period_s, tau_c=2.0 * theta)
+    return pi.Kc, pi.Ti
+
+
+def _quantise(value: float | FloatArray, scale: tuple[float, float, float, float]) -> FloatArray:
+    """Analog-input counts (int16 range) of engineering values, rounded."""
+    raw0, raw1, eng0, eng1 = scale
+    counts = raw0 + (np.asarray(value, dtype=float) - eng0) * (raw1 - raw0) / (eng1 - eng0)
+    clipped: FloatArray = np.clip(np.round(counts), -32768.0, 32767.0)
+    return clipped
+
+
+def _from_counts(counts: FloatArray, scale: tuple[float, float, float, float]) -> FloatArray:
+    raw0, raw1, eng0, eng1 = scale
+    eng: FloatArray = eng0 + (counts - raw0) * (eng1 - eng0) / (raw1 - raw0)
+    return eng
+
+
+def _as_profile(value: ProfileLike | None, repeat: bool, name: str) -> Profile | None:
+    if value is None or isinstance(value, Profile):
+        return value
+    try:
+        times, values = value
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name}: give a Profile or a pair (times, values)") from None
+    return Profile(times, values, repeat=repeat)
+
+
+def _fuel_temperature(
+    fuel_temp_C: float, profile: Profile | FuelTemperature | tuple[ArrayLike, ArrayLike] | None
+) -> FuelTemperature:
+    """The trajectory in kelvin: a FuelTemperature is in K, a profile or a pair in °C."""
+    if profile is None:
+        return FuelTemperature.constant(celsius_to_kelvin(fuel_temp_C))
+    if isinstance(profile, FuelTemperature):
+        return profile
+    p = _as_profile(profile, repeat=False, name="fuel_temp_profile")
+    assert p is not None  # not None here
+    return FuelTemperature(p.times.copy(), p.values + celsius_to_kelvin(0.0))
+
+
+class VirtualPLC:
+    """The fuel loop and its PLC, advanced sample by sample in plant time.
+
+    Parameters
+    ----------
+    config : PlantConfig, optional
+        The plant; the packaged reference plant when None.
+    period_s : float
+        Sample period [s]: one ring record per period.
+    control_period_s : float
+        The PLC's scan of the PI [s]; a whole multiple of ``period_s``.
+    fuel_temp_C : float
+        Constant fuel temperature [°C] (when no profile is given).
+    fuel_temp_profile : Profile, (times [s], temperatures [°C]) or FuelTemperature, optional
+        Fuel-temperature drift: interpolated, held after its end. A
+        :class:`~fuelid.simulate.FuelTemperature` is in kelvin.
+    setpoint_profile : "run", Profile or (times [s], setpoints [L/min]), optional
+        A setpoint profile, repeated; "run" is :func:`~fuelid.plc.virtual.profiles.run_profile`.
+        The PLC runs in AUTO while it plays.
+    command_profile : "steps", Profile or (times [s], commands [V]), optional
+        A manual command profile, repeated; "steps" is
+        :func:`~fuelid.plc.virtual.profiles.steps_profile`. The PLC runs in MAN while it plays.
+    seed : int, optional
+        Seed of the measurement noise (None: fresh entropy).
+    ring_size : int
+        Records in the ring buffer (2…8000).
+    kc, ti : float, optional
+        Commissioning gains, Kc [V per L/min] and Ti [s]; default cautious SIMC
+        (:func:`commissioning_gains`, τc = 2θ) at the initial fuel temperature.
+    heartbeat_timeout_s : float
+        Plant time without a heartbeat change after which it is stale [s].
+    restore_on_stale : bool
+        Restore the commissioning gains when the heartbeat goes stale.
+    noise_sd_Lpm : float, optional
+        Standard deviation of the flowmeter's white noise [L/min]; default the plant's
+        ``flowmeter.noise_std_Lpm`` (0.1 L/min for the reference plant).
+    quantisation : bool
+        Quantise the flow reading to the analog input's counts (0…27648 = 0…120 L/min,
+        0.0043 L/min a count); ``flow_counts`` is quantised always.
+    seq0 : int
+        Sequence number of the first sample (tests of the 2**32 wrap-around).
+
+    Raises
+    ------
+    ConfigError
+        If a period, the ring size, a profile or a gain is not acceptable.
+    """
+
+    def __init__(
+        self,
+        config: PlantConfig | None = None,
+        *,
+        period_s: float = 0.02,
+        control_period_s: float = 1.0,
+        fuel_temp_C: float = 20.0,
+        fuel_temp_profile: Profile | FuelTemperature | tuple[ArrayLike, ArrayLike] | None = None,
+        setpoint_profile: str | ProfileLike | None = None,
+        command_profile: str | ProfileLike | None = None,
+        seed: int | None = 0,
+        ring_size: int = DEFAULT_RING_SIZE,
+        kc: float | None = None,
+        ti: float | None = None,
+        heartbeat_timeout_s: float = 10.0,
+        restore_on_stale: bool = False,
+        noise_sd_Lpm: float | None = None,
+        quantisation: bool = True,
+        seq0: int = 0,
+    ) -> None:
+        self.config = config if config is not None else load_plant_config()
+        if not (math.isfinite(period_s) and period_s > 0.0):
+            raise ConfigError(f"period_s must be positive, got {period_s!r}")
+        n_control = round(control_period_s / period_s)
+        if n_control < 1 or abs(n_control * period_s - control_period_s) > 1e-9 * control_period_s:
+            raise ConfigError(
+                f"control_period_s ({control_period_s:g} s) must be a whole multiple of "
+                f"period_s ({period_s:g} s)"
+            )
+        if not 2 <= ring_size <= MAX_RING_SIZE:
+            raise ConfigError(f"ring_size must be 2…{MAX_RING_SIZE}, got {ring_size}")
+        if not (math.isfinite(heartbeat_timeout_s) and heartbeat_timeout_s > 0.0):
+            raise ConfigError("heartbeat_timeout_s must be positive")
+        if setpoint_profile is not None and command_profile is not None:
+            raise ConfigError("give a setpoint profile (AUTO) or a command profile (MAN), not both")
+        self.period_s = float(period_s)
+        self.control_period_s = float(control_period_s)
+        self.n_control = n_control
+        self.ring_size = int(ring_size)
+        self.heartbeat_timeout_s = float(heartbeat_timeout_s)
+        self.restore_on_stale = restore_on_stale
+        self.quantisation = quantisation
+        meter = self.config.flowmeter
+        self.noise_sd_Lpm = float(meter.noise_std_Lpm if noise_sd_Lpm is None else noise_sd_Lpm)
+        if not (math.isfinite(self.noise_sd_Lpm) and self.noise_sd_Lpm >= 0.0):
+            raise ConfigError("noise_sd_Lpm must be zero or positive")
+        self._rng = np.random.default_rng(seed)
+        self._temperature = _fuel_temperature(fuel_temp_C, fuel_temp_profile)
+        if isinstance(setpoint_profile, str):
+            if setpoint_profile != "run":
+                raise ConfigError(f"setpoint_profile: {setpoint_profile!r}; the built-in is 'run'")
+            setpoint_profile = run_profile()
+        if isinstance(command_profile, str):
+            if command_profile != "steps":
+                raise ConfigError(f"command_profile: {command_profile!r}; the built-in is 'steps'")
+            command_profile = steps_profile()
+        self._sp_profile = _as_profile(setpoint_profile, True, "setpoint_profile")
+        self._u_profile = _as_profile(command_profile, True, "command_profile")
+        for T in (float(np.min(self._temperature.values)), float(np.max(self._temperature.values))):
+            plant_coefficients(self.config, T)  # refuses a temperature outside the fuel's range
+        T0 = float(self._temperature.at(0.0))
+        self._coefficients = plant_coefficients(self.config, T0)
+        self.u_min = float(self.config.vfd.u_min_V)
+        self.u_max = float(self.config.vfd.u_max_V)
+
+        if kc is None or ti is None:
+            kc_simc, ti_simc = commissioning_gains(self.config, T0, self.control_period_s)
+            kc = kc_simc if kc is None else kc
+            ti = ti_simc if ti is None else ti
+        for name, value in (("kc", kc), ("ti", ti)):
+            if not (math.isfinite(value) and value > 0.0):
+                raise ConfigError(f"{name} must be finite and positive, got {value!r}")
+        self.kc0, self.ti0 = float(kc), float(ti)
+
+        # the write area as a fresh front end holds it (all zeros): level-triggered points are
+        # read from it at every scan, edge-triggered ones (apply, heartbeat) compared with it
+        self._writes: dict[str, float] = dict.fromkeys(WRITE_POINTS, 0.0)
+        self._apply_seen = 0.0
+        self._heartbeat_at: float | None = None  # plant time of the last heartbeat change [s]
+        self._refused = False
+        self._echo = 0.0
+        self._setpoint = 0.0
+        self._manual = self.u_min
+
+        if self._sp_profile is not None:
+            self._mode = AUTO
+            self._setpoint = self._sp_profile.at(0.0)
+            u0 = self._steady_command(self._setpoint, T0)
+        elif self._u_profile is not None:
+            self._mode = MAN
+            u0 = float(np.clip(self._u_profile.at(0.0), self.u_min, self.u_max))
+        else:
+            self._mode = MAN  # mode_request 0 in a fresh write area
+            u0 = self.u_min  # manual_command 0, clamped to the range
+        self._u = u0
+        self._pi = DiscretePI(
+            PISettings("commissioning", self.kc0, self.ti0, self.control_period_s),
+            self.u_min,
+            self.u_max,
+            u0=u0,
+        )
+        self._x = steady_state(u0, self._coefficients).state
+
+        self._seq0 = int(seq0) % SEQ_MODULUS
+        self._k = 0
+        self.ring = np.zeros((self.ring_size, len(RING_FIELDS)))
+        # the meter state at the samples, for the reading `delay` later: a short history
+        self._delay_samples = self._coefficients.delay / self.period_s
+        self._history_len = math.ceil(self._delay_samples) + self.n_control + 3
+        self._history = np.full(self._history_len, self._x[measured_state(self._coefficients)])
+        self._history_first_k = -self._history_len + 1  # history[i] is sample first_k + i
+        self._span_k0 = 0
+        self._span_y = np.zeros(self.n_control)
+        self._span_counts = np.zeros(self.n_control)
+        self._span_T = np.zeros(self.n_control)
+        self._start_span(0)
+        self._take_sample(0)
+
+    # -- what clients see ------------------------------------------------------------------
+
+    @property
+    def seq(self) -> int:
+        """Sequence number of the newest sample (uint32, wraps at 2**32)."""
+        return (self._seq0 + self._k) % SEQ_MODULUS
+
+    @property
+    def time_s(self) -> float:
+        """Plant time of the newest sample since start [s]."""
+        return self._k * self.period_s
+
+    @property
+    def gains(self) -> tuple[float, float]:
+        """The PI gains applied: Kc [V per L/min], Ti [s]."""
+        return self._pi.Kc, self._pi.Ti
+
+    def heartbeat_stale(self) -> bool:
+        """True when no heartbeat change came within the timeout (or none ever came)."""
+        if self._heartbeat_at is None:
+            return True
+        return self.time_s - self._heartbeat_at > self.heartbeat_timeout_s
+
+    def write_points(self, values: Mapping[str, float]) -> None:
+        """Write points by name (write access only); the PLC acts on them at its next scan.
+
+        Raises
+        ------
+        DataError
+            If a name is not a write point.
+        """
+        for name, value in values.items():
+            if name not in self._writes:
+                raise DataError(
+                    f"{name!r} is not a write point of the virtual PLC; they are "
+                    f"{', '.join(WRITE_POINTS)}"
+                )
+            value = float(value)
+            if name == "heartbeat" and value != self._writes[name]:
+                self._heartbeat_at = self.time_s
+            self._writes[name] = value
+
+    def read_points(self) -> dict[str, float]:
+        """Every read point by name, in engineering units, as of the newest sample."""
+        i = self._k - self._span_k0
+        status = 0
+        if self._u <= self.u_min or self._u >= self.u_max:
+            status |= STATUS_AT_LIMIT
+        if self.heartbeat_stale():
+            status |= STATUS_STALE
+        if self._refused:
+            status |= STATUS_REFUSED
+        T_C = kelvin_to_celsius(float(self._span_T[i]))
+        kc, ti = self.gains
+        return {
+            "seq": float(self.seq),
+            "flow": float(self._span_y[i]),
+            "command": self._u,
+            "setpoint": self._setpoint,
+            "fuel_temperature": T_C,
+            "mode": float(self._mode),
+            "status": float(status),
+            "kc": kc,
+            "ti": ti,
+            "echo": self._echo,
+            "flow_counts": float(self._span_counts[i]),
+            "fuel_temperature_counts": float(_quantise(T_C, FUEL_TEMPERATURE_COUNTS)),
+            "ring_head": float(self.seq),
+            "ring_size": float(self.ring_size),
+        }
+
+    def advance(self, n_samples: int) -> dict[int, FloatArray]:
+        """Advance plant time by ``n_samples`` sample periods.
+
+        Returns
+        -------
+        dict
+            The new ring records by slot (``seq % ring_size``), each ``[seq, command [V],
+            flow [L/min], setpoint [L/min]]``, oldest first; with more than ``ring_size`` samples
+            only the newest record of each slot is there.
+        """
+        records: dict[int, FloatArray] = {}
+        for _ in range(int(n_samples)):
+            self._k += 1
+            if self._k - self._span_k0 >= self.n_control:
+                self._start_span(self._k)
+            slot = self._take_sample(self._k)
+            records.pop(slot, None)  # keep oldest-first order when a slot comes round again
+            records[slot] = self.ring[slot].copy()
+        return records
+
+    # -- the PLC's scan and the plant ------------------------------------------------------
+
+    def _steady_command(self, flow_Lpm: float, T: float) -> float:
+        try:
+            return steady_command(self.config, flow_Lpm, T)
+        except ValueError:  # outside what the plant delivers: start at the nearest limit
+            q_min = steady_state(self.u_min, self._coefficients).q * LPM_PER_M3S
+            return self.u_min if flow_Lpm <= q_min else self.u_max
+
+    def _meter(self, k: float) -> float:
+        """The meter state at (fractional) sample ``k`` from the history [m³/s]."""
+        j = k - self._history_first_k
+        j0 = math.floor(j)
+        frac = j - j0
+        h = self._history
+        j0 = max(j0, 0)
+        if frac <= 0.0 or j0 + 1 >= h.size:
+            return float(h[min(j0, h.size - 1)])
+        return float(h[j0] + frac * (h[j0 + 1] - h[j0]))
+
+    def _readings(self, k0: int, n: int) -> tuple[FloatArray, FloatArray]:
+        """Flow readings [L/min] and their counts of samples k0 … k0+n−1 (noise drawn here)."""
+        q = np.array([self._meter(k - self._delay_samples) for k in range(k0, k0 + n)])
+        y = q * LPM_PER_M3S
+        if self.noise_sd_Lpm > 0.0:
+            y = y + self._rng.normal(0.0, self.noise_sd_Lpm, size=n)
+        counts = _quantise(y, FLOW_COUNTS)
+        return (_from_counts(counts, FLOW_COUNTS) if self.quantisation else y), counts
+
+    def _scan(self, k: int, y: float) -> None:
+        """The PLC's control-period scan at sample ``k`` with the flow reading ``y`` [L/min]."""
+        t = k * self.period_s
+        w = self._writes
+        stale = self.heartbeat_stale()
+        pending: tuple[float, float, float] | None = None
+        if w["apply"] != self._apply_seen:
+            self._apply_seen = w["apply"]
+            kc, ti = w["staged_kc"], w["staged_ti"]
+            valid = all(math.isfinite(v) and v > 0.0 for v in (kc, ti))
+            if stale or not valid:
+                self._refused = True
+            else:
+                lo, hi = GAIN_LIMITS
+                pending = (
+                    float(np.clip(kc, lo * self.kc0, hi * self.kc0)),
+                    float(np.clip(ti, lo * self.ti0, hi * self.ti0)),
+                    self._apply_seen,
+                )
+        if (
+            pending is None
+            and stale
+            and self.restore_on_stale
+            and (self._pi.Kc, self._pi.Ti) != (self.kc0, self.ti0)
+        ):
+            pending = (self.kc0, self.ti0, 0.0)
+
+        if self._sp_profile is not None:
+            mode, self._setpoint = AUTO, self._sp_profile.at(t)
+        else:
+            request = w["mode_request"]
+            mode = int(request) if request in (MAN, AUTO) else self._mode
+            if math.isfinite(w["setpoint_request"]):
+                self._setpoint = w["setpoint_request"]
+        if self._u_profile is not None:
+            mode, self._manual = MAN, self._u_profile.at(t)
+        elif math.isfinite(w["manual_command"]):
+            self._manual = w["manual_command"]
+
+        e = self._setpoint - y
+        pi = self._pi
+        if mode == AUTO:
+            if self._mode == MAN:
+                pi.integral = self._u - pi.Kc * e  # bumpless: the first output is the last one
+            if pending is not None:
+                pi.integral += (pi.Kc - pending[0]) * e  # bumpless: the P term's change absorbed
+                self._set_gains(pending)
+            self._u = pi.update(self._setpoint, y)
+        else:
+            if pending is not None:
+                self._set_gains(pending)
+            self._u = float(np.clip(self._manual, self.u_min, self.u_max))
+        self._mode = mode
+
+    def _set_gains(self, gains: tuple[float, float, float]) -> None:
+        self._pi.Kc, self._pi.Ti, self._echo = gains
+        self._refused = False
+
+    def _start_span(self, k0: int) -> None:
+        """At a scan: read, control, then integrate the plant over the next control period."""
+        n = self.n_control
+        self._span_k0 = k0
+        y0, c0 = self._readings(k0, 1)  # the reading the PI acts on
+        self._scan(k0, float(y0[0]))
+        times = (k0 + np.arange(n + 1, dtype=np.float64)) * self.period_s
+        T = float(self._temperature.at(times[0] + 0.5 * n * self.period_s))
+        if abs(T - self._coefficients.T_fuel) >= TEMPERATURE_RESOLUTION_K:
+            self._coefficients = plant_coefficients(self.config, T)
+        c = self._coefficients
+        states = integrate_held(self._x, times, self._u, c)
+        self._x = states[-1]
+        self._push_history(states[1:, measured_state(c)])
+        y_rest, c_rest = self._readings(k0 + 1, n - 1)
+        self._span_y = np.concatenate((y0, y_rest))
+        self._span_counts = np.concatenate((c0, c_rest))
+        self._span_T = np.asarray(self._temperature.at(times[:-1]), dtype=float) * np.ones(n)
+
+    def _push_history(self, values: FloatArray) -> None:
+        """Append the meter states of the next samples, dropping the oldest."""
+        m = values.size
+        self._history = np.concatenate((self._history[m:], values))
+        self._history_first_k += m
+
+    def _take_sample(self, k: int) -> int:
+        """Write the record of sample ``k`` into the ring; its slot."""
+        seq = (self._seq0 + k) % SEQ_MODULUS
+        slot = seq % self.ring_size
+        self.ring[slot] = (seq, self._u, self._span_y[k - self._span_k0], self._setpoint)
+        return slot

@@ -1,0 +1,189 @@
+"""The virtual PLC on Modbus TCP: a pymodbus server laid out as :mod:`~.points` says.
+
+A pymodbus (≥3.15, <3.17) :class:`~pymodbus.server.ModbusTcpServer` with one device (unit id 1)
+whose holding and input registers are separate blocks (``SimDevice`` with a 4-tuple,
+../shared/docs/online.md §1):
+
+- input registers 0…102: the read points (``ir:0`` seq … ``ir:19``, ``ir:100`` ring head,
+  ``ir:102`` ring size; unused registers in between read 0);
+- input registers 1000…1000 + 8·size − 1: the ring, record of sample ``seq`` in slot
+  ``seq % size``, each ``seq`` (uint32) then command, flow, setpoint (float32);
+- holding registers 0…20: the write points.
+
+Any other address answers with Modbus exception 2 (illegal data address); the server goes on.
+32-bit values follow the word order and byte swap asked for (:mod:`fuelid.plc.codec`).
+
+pymodbus copies the datastore into the server, so values are written through the server's own
+``async_setValues`` (writing into a context of one's own changes nothing). The front end keeps a
+mirror of every register, so a stopped and restarted server (a link drop) comes back with the
+PLC's memory: the ring and what clients last wrote.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fuelid.plc.codec import WordOrder, decode, encode
+from fuelid.plc.virtual.frontend import Frontend
+from fuelid.plc.virtual.points import (
+    DEFAULT_RING_SIZE,
+    POINTS,
+    RING_FIRST_REGISTER,
+    RING_RECORD_REGISTERS,
+)
+
+try:
+    from pymodbus.server import ModbusTcpServer
+    from pymodbus.simulator import DataType, SimData, SimDevice
+except ImportError as exc:  # pragma: no cover - the plc extra is installed for the tests
+    raise ImportError(
+        "the virtual PLC's Modbus server needs pymodbus: pip install 'fuelid[plc]'"
+    ) from exc
+
+DEVICE_ID = 1
+"""The unit id the virtual PLC answers to."""
+FC_HOLDING, FC_INPUT = 3, 4
+
+_READ = {name: p for name, p in POINTS.items() if p.access == "read"}
+_WRITE = {name: p for name, p in POINTS.items() if p.access == "write"}
+_SIZE = {"float32": 2, "uint32": 2, "int16": 1, "uint16": 1}
+IR_POINTS_COUNT = max(p.register + _SIZE[p.type] for p in _READ.values())
+"""Input registers 0 … IR_POINTS_COUNT − 1 hold the read points (103)."""
+HR_COUNT = max(p.register + _SIZE[p.type] for p in _WRITE.values())
+"""Holding registers 0 … HR_COUNT − 1 hold the write points (21)."""
+
+
+def ring_registers(
+    records: NDArray[np.float64], word_order: WordOrder = "big", byte_swap: bool = False
+) -> NDArray[np.int64]:
+    """The registers of ring records ``[seq, command, flow, setpoint]``, shape (m, 8).
+
+    Vectorised: the same words :func:`fuelid.plc.codec.encode` gives field by field (a uint32,
+    then three float32), at thousands of records a second.
+
+    Examples
+    --------
+    >>> ring_registers(np.array([[1.0, 3.5, 0.0, 0.0]]))[0].tolist()
+    [0, 1, 16480, 0, 0, 0, 0, 0]
+    >>> ring_registers(np.array([[1.0, 3.5, 0.0, 0.0]]), "little")[0, :4].tolist()
+    [1, 0, 0, 16480]
+    """
+    m = records.shape[0]
+    raw = np.empty((m, 4), dtype=">u4")
+    raw[:, 0] = records[:, 0].astype(np.uint64).astype(np.uint32)
+    raw[:, 1:] = records[:, 1:].astype(">f4").view(">u4")
+    words = raw.view(">u2").reshape(m, 4, 2).astype(np.int64)
+    if word_order == "little":
+        words = words[:, :, ::-1]
+    if byte_swap:
+        words = ((words & 0xFF) << 8) | (words >> 8)
+    out: NDArray[np.int64] = words.reshape(m, RING_RECORD_REGISTERS)
+    return out
+
+
+class ModbusFrontend(Frontend):
+    """The virtual PLC's points on a Modbus TCP server (see the module docstring)."""
+
+    protocol = "modbus"
+
+    def __init__(
+        self,
+        host: str,
+        port: int,
+        *,
+        ring_size: int = DEFAULT_RING_SIZE,
+        word_order: WordOrder = "big",
+        byte_swap: bool = False,
+    ) -> None:
+        super().__init__(
+            host, port, ring_size=ring_size, word_order=word_order, byte_swap=byte_swap
+        )
+        if not host:
+            raise ValueError("bind the virtual PLC to an address (never all interfaces by '')")
+        self._server: ModbusTcpServer | None = None
+        # the PLC's memory, which outlives a stopped server
+        self._ir = [0] * IR_POINTS_COUNT
+        self._ring = [0] * (ring_size * RING_RECORD_REGISTERS)
+        self._hr = [0] * HR_COUNT
+
+    @property
+    def serving(self) -> bool:
+        """True while the server accepts clients."""
+        return self._server is not None
+
+    async def start(self) -> None:
+        """Bind ``host:port`` and serve in the background, seeded with the PLC's memory."""
+        if self._server is not None:
+            return
+        bits = [SimData(0, count=16, values=False, datatype=DataType.BITS)]
+        holding = [SimData(0, values=list(self._hr), datatype=DataType.REGISTERS)]
+        inputs = [
+            SimData(0, values=list(self._ir), datatype=DataType.REGISTERS),
+            SimData(RING_FIRST_REGISTER, values=list(self._ring), datatype=DataType.REGISTERS),
+        ]
+        device = SimDevice(id=DEVICE_ID, simdata=(bits, bits, holding, inputs))
+        server = ModbusTcpServer(device, address=(self.host, self.port))
+        await server.serve_forever(background=True)
+        self._server = server
+
+    async def stop(self) -> None:
+        """Stop serving (clients' connections close) and release the port."""
+        server, self._server = self._server, None
+        if server is None:
+            return
+        self._hr = [
+            int(r) for r in await server.async_getValues(DEVICE_ID, FC_HOLDING, 0, HR_COUNT)
+        ]
+        await server.shutdown()  # type: ignore[no-untyped-call]
+
+    async def publish(
+        self, values: Mapping[str, float], ring: Mapping[int, NDArray[np.float64]]
+    ) -> None:
+        """Write the read points and the new ring records (the head last)."""
+        order, swap = self.word_order, self.byte_swap
+        for name, value in values.items():
+            point = _READ.get(name)
+            if point is None:
+                continue
+            regs = encode(value, point.type, order, swap)
+            self._ir[point.register : point.register + len(regs)] = regs
+        head = POINTS["ring_head"].register
+        server = self._server
+        if server is not None:
+            await server.async_setValues(DEVICE_ID, FC_INPUT, 0, self._ir[:head])
+        if ring:
+            slots = np.fromiter(ring.keys(), dtype=np.int64, count=len(ring))
+            records = np.array(list(ring.values()), dtype=float).reshape(-1, 4)
+            by_slot = np.argsort(slots, kind="stable")
+            slots, records = slots[by_slot], records[by_slot]
+            words = ring_registers(records, order, swap)
+            # one write per run of consecutive slots (at most two: the ring wraps once)
+            breaks = np.flatnonzero(np.diff(slots) != 1) + 1
+            for run_slots, run_regs in zip(
+                np.split(slots, breaks), np.split(words, breaks), strict=True
+            ):
+                first = int(run_slots[0]) * RING_RECORD_REGISTERS
+                flat = run_regs.ravel().tolist()
+                self._ring[first : first + len(flat)] = flat
+                if server is not None:
+                    await server.async_setValues(
+                        DEVICE_ID, FC_INPUT, RING_FIRST_REGISTER + first, flat
+                    )
+        if server is not None:
+            await server.async_setValues(DEVICE_ID, FC_INPUT, head, self._ir[head:])
+
+    async def collect(self) -> dict[str, float]:
+        """The write points as clients last left them (engineering units)."""
+        if self._server is not None:
+            regs = await self._server.async_getValues(DEVICE_ID, FC_HOLDING, 0, HR_COUNT)
+            self._hr = [int(r) for r in regs]
+        order, swap = self.word_order, self.byte_swap
+        return {
+            name: decode(
+                self._hr[p.register : p.register + _SIZE[p.type]], p.type, order, byte_swap=swap
+            )
+            for name, p in _WRITE.items()
+        }
