@@ -110,6 +110,37 @@ class PlcEndpoint(_Table):
     slot: int = Field(1, ge=0, le=31, description="S7 slot")
     path: str | None = Field(None, description="replay: the CSV/Parquet log to play")
     speed: float = Field(1.0, gt=0.0, le=1000.0, description="replay: times real time")
+    security_policy: Literal["None", "Basic256Sha256"] = Field(
+        "None", description="OPC UA: the secure channel's policy"
+    )
+    security_mode: Literal["Sign", "SignAndEncrypt"] = Field(
+        "SignAndEncrypt", description="OPC UA with Basic256Sha256: sign only, or sign and encrypt"
+    )
+    certificate: str | None = Field(
+        None, description="OPC UA: this client's certificate (DER or PEM file)"
+    )
+    private_key: str | None = Field(None, description="OPC UA: its private key (PEM or DER file)")
+    private_key_password_env: str | None = Field(
+        None, description="OPC UA: environment variable holding the private key's password"
+    )
+    server_certificate: str | None = Field(
+        None, description="OPC UA: the server's certificate, pinned (default: as it announces)"
+    )
+    username: str | None = Field(None, min_length=1, description="OPC UA: user name")
+    password_env: str | None = Field(
+        None, min_length=1, description="OPC UA: environment variable holding the password"
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_password_in_file(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "password" in data:
+            raise ValueError(
+                "password: a password does not belong in a site file (it is copied and hashed "
+                "with the data); put it in an environment variable and name that variable with "
+                "password_env"
+            )
+        return data
 
     @model_validator(mode="after")
     def _endpoint_for_protocol(self) -> PlcEndpoint:
@@ -117,7 +148,44 @@ class PlcEndpoint(_Table):
             raise ValueError('opcua needs endpoint = "opc.tcp://host:port/path"')
         if self.protocol == "replay" and not self.path:
             raise ValueError("replay needs path = the log to play")
+        self._opcua_security()
         return self
+
+    def _opcua_security(self) -> None:
+        """Refuse OPC UA security keys that are incomplete, contradictory or on another protocol."""
+        keys = (
+            "security_policy",
+            "security_mode",
+            "certificate",
+            "private_key",
+            "private_key_password_env",
+            "server_certificate",
+            "username",
+            "password_env",
+        )
+        given = [key for key in keys if key in self.model_fields_set]
+        if self.protocol != "opcua":
+            if given:
+                raise ValueError(f'{given[0]}: only for protocol = "opcua"')
+            return
+        if self.security_policy == "None":
+            unsecured = ("security_policy", "username", "password_env")
+            files = [key for key in given if key not in unsecured]
+            if files:
+                raise ValueError(
+                    f'{files[0]}: only with security_policy = "Basic256Sha256" (the channel '
+                    'is unsecured with security_policy = "None")'
+                )
+        elif self.certificate is None or self.private_key is None:
+            raise ValueError(
+                'security_policy = "Basic256Sha256" needs certificate and private_key (this '
+                "client's application-instance certificate, trusted by the server)"
+            )
+        if (self.username is None) != (self.password_env is None):
+            raise ValueError(
+                "username and password_env go together (password_env names the environment "
+                "variable that holds the password)"
+            )
 
     @property
     def default_port(self) -> int:
