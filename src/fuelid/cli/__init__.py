@@ -13,6 +13,7 @@ import typer
 from fuelid import __version__
 from fuelid.cli import plant, site
 from fuelid.cli.identify import identify_command
+from fuelid.cli.record import export_command, record_command, store_app
 from fuelid.cli.report import report_command
 from fuelid.cli.simulate import simulate_command
 from fuelid.cli.tune import tune_command
@@ -32,6 +33,9 @@ app.command("simulate")(simulate_command)
 app.command("identify")(identify_command)
 app.command("tune")(tune_command)
 app.command("report")(report_command)
+app.command("record")(record_command)
+app.command("export")(export_command)
+app.add_typer(store_app, name="store")
 
 
 def _version(value: bool) -> None:

@@ -290,6 +290,16 @@ class SampleStore(ABC):
     def info(self) -> StoreInfo:
         """Rows, time span, gaps, link events and size of the store."""
 
+    def last_seq(self) -> int | None:
+        """The largest stored sequence number (None when no sample has one).
+
+        The recorder continues from it after a restart, so that the stored numbers stay
+        monotonic. This default reads every sample; a store should answer from an index.
+        """
+        seq = self.read().seq
+        seq = seq[seq >= 0]
+        return int(seq.max()) if seq.size else None
+
     @abstractmethod
     def prune(
         self, older_than_days: float, thin_to_period_s: float | None = 1.0, now: float | None = None

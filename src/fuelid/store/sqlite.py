@@ -279,6 +279,12 @@ class SQLiteStore(SampleStore):
             ).fetchall()
         return [Event(*row) for row in rows]
 
+    def last_seq(self) -> int | None:
+        """The largest stored sequence number, from the index (None when there is none)."""
+        with self._read_lock:
+            value = self._read_con.execute("SELECT max(seq) FROM samples").fetchone()[0]
+        return None if value is None else int(value)
+
     def info(self) -> StoreInfo:
         """Rows, time span, gaps, link events and size on disk."""
         with self._read_lock:

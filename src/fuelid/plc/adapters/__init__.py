@@ -9,10 +9,18 @@ from __future__ import annotations
 import importlib
 
 from fuelid.errors import ConfigError
-from fuelid.plc.adapters.base import LinkError, PlcSource, Reading, RingRecord
+from fuelid.plc.adapters.base import EndOfSource, LinkError, PlcSource, Reading, RingRecord
 from fuelid.plc.site import SiteConfig
 
-__all__ = ["ADAPTERS", "LinkError", "PlcSource", "Reading", "RingRecord", "open_source"]
+__all__ = [
+    "ADAPTERS",
+    "EndOfSource",
+    "LinkError",
+    "PlcSource",
+    "Reading",
+    "RingRecord",
+    "open_source",
+]
 
 ADAPTERS = {
     "modbus": ("fuelid.plc.adapters.modbus", "ModbusSource", "pymodbus"),

@@ -28,6 +28,13 @@ class LinkError(FuelidError):
     """The PLC cannot be reached, or the link dropped or timed out (one-line reason)."""
 
 
+class EndOfSource(FuelidError):
+    """The source has nothing more to give (a replayed log played to its end).
+
+    Not an error: the recorder stores what it has and stops cleanly. A PLC never raises it.
+    """
+
+
 @dataclass(frozen=True)
 class Reading:
     """One read of the site's read tags.

@@ -1,0 +1,186 @@
+"""The quality rules of the recorder: which values are bad, and when a sensor is stuck.
+
+A value is **bad** (:attr:`~fuelid.store.Quality.BAD_VALUE`) when it is NaN or infinite, outside
+its tag's ``valid`` range (engineering units), or outside its tag's raw span by more than the
+usual analog over-range margin. The margin is Siemens's: a 0…27648 analog input reports up to
+32511 counts (over-range) and down to −4864 (under-range) before it reports overflow (32767) or a
+wire break, i.e. 4864/27648 = 17.6 % of the span on either side. The same fraction is applied to
+every scaled tag (4–20 mA: 1.2…22.8 mA; 1–5 V: 0.30…5.70 V): values within it are a real
+process at the edge of the range, beyond it a broken sensor, a wire break or a scaling mistake.
+
+A flow reading is **stuck** when it is *exactly* unchanged (bit for bit) for
+:data:`STUCK_AFTER_S` seconds of sample time after it has been seen to move at least once in the
+recording, and it is not at the low end of its span (within 1 % of it: a stopped pump, or a
+flowmeter's low-flow cut-off, reads exactly zero for good reasons). A live flowmeter carries
+noise and quantisation steps well above one count (the virtual PLC's flow changes every sample),
+so two seconds (100 samples at 50 Hz) of an identical value is a frozen transmitter, a PLC input
+card holding its last value, or a dead link that keeps serving a copy.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable, Iterable
+
+from fuelid.plc.site import Tag
+from fuelid.store import Quality, Sample
+
+OVER_RANGE = 4864.0 / 27648.0
+"""Fraction of the raw span a value may run over or under it (Siemens analog inputs)."""
+STUCK_AFTER_S = 2.0
+"""Seconds of sample time of an exactly unchanged flow that mean a stuck sensor [s]."""
+LOW_END_FRACTION = 0.01
+"""A flow within this fraction of the span of its low end may legitimately be constant."""
+
+
+def allowed_range(tag: Tag) -> tuple[float, float]:
+    """The engineering range [tag unit] inside which a tag's value is good.
+
+    The raw span widened by :data:`OVER_RANGE` on each side (scaled tags), intersected with the
+    tag's ``valid`` range; (−inf, inf) when the tag has neither.
+
+    Examples
+    --------
+    >>> lo, hi = allowed_range(Tag(address="ir:0", type="int16", raw=[0, 27648], eng=[0.0, 120.0]))
+    >>> round(lo, 3), round(hi, 3)      # −4864 and 32512 counts: 17.6 % of the span each side
+    (-21.111, 141.111)
+    """
+    lo, hi = -math.inf, math.inf
+    if tag.raw is not None:
+        r0, r1 = sorted(tag.raw)
+        margin = OVER_RANGE * (r1 - r0)
+        e0, e1 = tag.to_engineering(r0 - margin), tag.to_engineering(r1 + margin)
+        lo, hi = min(e0, e1), max(e0, e1)
+    if tag.valid is not None:
+        lo, hi = max(lo, tag.valid[0]), min(hi, tag.valid[1])
+    return lo, hi
+
+
+class RangeChecks:
+    """Per-role value checks with one event per bad episode (not one per sample).
+
+    Parameters
+    ----------
+    tags : dict of str to Tag
+        The site's read tags by role.
+    on_event : callable
+        Called as ``on_event(kind, detail)`` when a role turns bad (kind ``bad_value``).
+    """
+
+    def __init__(self, tags: dict[str, Tag], on_event: Callable[[str, str], None]) -> None:
+        self._ranges = {role: allowed_range(tag) for role, tag in tags.items()}
+        self._units = {role: tag.unit for role, tag in tags.items()}
+        self._bad: set[str] = set()
+        self._on_event = on_event
+        self.episodes = 0
+        """Bad-value episodes seen (events written)."""
+
+    def reason(self, role: str, value: float) -> str | None:
+        """Why ``value`` of ``role`` is bad, or None when it is good."""
+        if not math.isfinite(value):
+            return f"{role} = {value!r}"
+        lo, hi = self._ranges.get(role, (-math.inf, math.inf))
+        if not lo <= value <= hi:
+            unit = f" {self._units[role]}" if self._units.get(role) else ""
+            return f"{role} = {value:.6g}{unit} outside {lo:.6g}…{hi:.6g}{unit}"
+        return None
+
+    def check(self, role: str, value: float) -> bool:
+        """Whether the value is good; a role turning bad writes one ``bad_value`` event."""
+        why = self.reason(role, value)
+        if why is None:
+            self._bad.discard(role)
+            return True
+        if role not in self._bad:
+            self._bad.add(role)
+            self.episodes += 1
+            self._on_event("bad_value", f"{why}: flagged until it is back in range")
+        return False
+
+
+class StuckDetector:
+    """Holds samples back :data:`STUCK_AFTER_S` seconds to flag a stuck flow from its start.
+
+    Samples enter with :meth:`push` and leave (possibly re-flagged ``BAD_VALUE``) once they are
+    older than the window, so the first seconds of a stuck stretch are flagged too, not only what
+    follows its detection. :meth:`drain` releases everything (at a link loss and at the end).
+
+    Parameters
+    ----------
+    flow_tag : Tag or None
+        The flow's tag (its span gives the low end); None: no low-end exception.
+    on_event : callable
+        ``on_event(kind, detail, time)`` when a stuck stretch is found (kind ``stuck_sensor``).
+    stuck_after_s : float
+        Window [s] of sample time.
+    """
+
+    def __init__(
+        self,
+        flow_tag: Tag | None,
+        on_event: Callable[[str, str, float], None],
+        stuck_after_s: float = STUCK_AFTER_S,
+    ) -> None:
+        self.window_s = float(stuck_after_s)
+        self._on_event = on_event
+        low = -math.inf
+        if flow_tag is not None and flow_tag.eng is not None:
+            e0, e1 = sorted(flow_tag.eng)
+            low = e0 + LOW_END_FRACTION * (e1 - e0)
+        self._low = low
+        self._held: deque[Sample] = deque()
+        self._value = math.nan
+        self._run_start = math.nan
+        self._moved = False
+        self._stuck = False
+        self.episodes = 0
+        """Stuck stretches found."""
+
+    def push(self, sample: Sample) -> list[Sample]:
+        """Take one sample; return those now older than the window (in order)."""
+        y = sample.y
+        if y == self._value:  # NaN never equals: a NaN run is a bad value, not a stuck one
+            if (
+                not self._stuck
+                and self._moved
+                and y > self._low
+                and sample.time - self._run_start >= self.window_s
+            ):
+                self._stuck = True
+                self.episodes += 1
+                self._on_event(
+                    "stuck_sensor",
+                    f"flow exactly {y:.6g} for {sample.time - self._run_start:.3g} s while it "
+                    "moved before: flagged bad until it moves",
+                    self._run_start,
+                )
+                self._held = deque(_flag(s) if s.time >= self._run_start else s for s in self._held)
+        else:
+            if math.isfinite(self._value) and math.isfinite(y):
+                self._moved = True
+            self._value, self._run_start, self._stuck = y, sample.time, False
+        self._held.append(_flag(sample) if self._stuck else sample)
+        out: list[Sample] = []
+        # a sample older than the window can no longer join a run found later
+        while self._held and self._held[0].time < sample.time - self.window_s:
+            out.append(self._held.popleft())
+        return out
+
+    def drain(self) -> list[Sample]:
+        """Release every held sample and forget the run (a link loss breaks it)."""
+        out = list(self._held)
+        self._held.clear()
+        self._value, self._run_start, self._stuck = math.nan, math.nan, False
+        return out
+
+
+def _flag(sample: Sample) -> Sample:
+    if sample.quality == Quality.OK:
+        return sample._replace(quality=int(Quality.BAD_VALUE))
+    return sample
+
+
+def count_not_ok(samples: Iterable[Sample]) -> int:
+    """Samples whose quality is not OK."""
+    return sum(1 for s in samples if s.quality != Quality.OK)

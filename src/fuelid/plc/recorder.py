@@ -1,0 +1,687 @@
+"""The recorder: samples from any :class:`~fuelid.plc.adapters.base.PlcSource` into a store.
+
+Protocol-agnostic and asyncio-based; it owns the connect loop and never dies on a link error.
+
+**Link.** One connect attempt after another with exponential backoff (0.2 s doubling to 5 s);
+a message goes to ``on_message`` when the link state or the reason changes, not per attempt.
+``link_down`` (with the reason) and ``link_up`` (with the outage's length) events are stored.
+``give_up_after_s`` makes the recorder raise :class:`LinkError` after that long without a link.
+
+**Time base**, in order of preference:
+
+(a) ``[ring]``: every ``ring_poll_s`` (0.2 s of wall time) the head and the new records are read
+    in blocks. Sample time = ``anchor + u·period_s`` with u the sequence number unwrapped past
+    uint32 wrap-around and the anchor (UTC) fixed at the first read, so times are as regular as
+    the PLC's cyclic interrupt. A link drop is back-filled from the ring (from the last stored
+    record + 1), and a ``gap`` event counts what the ring no longer holds. The other tags
+    (fuel temperature, mode, gains, the setpoint if not in the ring) are read once per poll and
+    attached to that poll's records.
+(b) a ``seq`` tag without a ring: reads on an absolute-deadline schedule (``t_next += period``,
+    no drift); time from the unwrapped sequence number as in (a). A repeated number is no new
+    sample (counted stale, not stored: it already is), a skipped one a gap.
+(c) neither: the receipt time; a missed deadline is a lost sample (counted; one ``gap`` event per
+    run of misses).
+
+**Restarts.** The counter jumping back (by more than half its range: not a wrap) is a PLC
+restart: a ``restart`` event, the anchor is set again (never before the last stored sample) and
+the stored sequence continues monotonic, leaving one number out so that readers see a break
+(:meth:`~fuelid.store.SampleStore.to_iodata` starts a new segment). A recorder started on a
+store continues after its largest stored number: if the PLC's counter is ahead of it, the PLC is
+taken to be the same run (stored number = the PLC's, back-filled from the ring when it still
+holds the missed records); if behind, a PLC restart since the last recording.
+
+**Outages without a ring** store no rows (no invented values, and no rows of NaN): the
+``link_down``/``link_up`` events and a ``gap`` event with the count of samples lost say it, and
+the time (or sequence) gap in the samples shows it to every reader.
+
+**Quality** (:mod:`fuelid.plc.quality`): u and y (and the ring's fields) that are NaN, infinite
+or out of range make the sample ``BAD_VALUE`` (values kept as read); a bad setpoint, fuel
+temperature or mode is stored as NaN (None) and the sample stays ``OK``. Each bad episode writes
+one ``bad_value`` event; a stuck flow a ``stuck_sensor`` event and its samples ``BAD_VALUE``.
+Applied gains that change write ``gain_change``, MAN/AUTO ``mode_change``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from fuelid.errors import FuelidError
+from fuelid.plc.adapters.base import EndOfSource, LinkError, PlcSource, Reading, RingRecord
+from fuelid.plc.quality import STUCK_AFTER_S, RangeChecks, StuckDetector
+from fuelid.plc.site import SiteConfig
+from fuelid.store import Quality, Sample, SampleWriter, tag_map_hash
+
+UINT32 = 1 << 32
+HALF_RANGE = 1 << 31
+BACKOFF_FIRST_S = 0.2
+"""First wait between connect attempts [s]."""
+BACKOFF_MAX_S = 5.0
+"""Longest wait between connect attempts [s]."""
+RING_POLL_S = 0.2
+"""Wall time between ring reads [s]."""
+RING_MARGIN = 8
+"""Fraction 1/RING_MARGIN of the ring left alone when back-filling: the PLC overwrites the
+oldest records while they are read."""
+_CORE = ("command", "flow", "setpoint")
+RATE_WINDOW_S = 5.0
+"""Window of the live sample rate [s]."""
+
+
+def site_identity(site: SiteConfig) -> dict[str, Any]:
+    """``site_name`` and ``tag_map_hash`` of a site, as a store records them.
+
+    The hash covers what gives the stored numbers their meaning: the read tags (addresses,
+    types, scalings), the ring's layout and the sample period. The write side and the endpoint
+    may change without making it another site.
+    """
+    wiring = site.model_dump(mode="json", include={"tags", "ring"})
+    wiring["period_s"] = site.sampling.period_s
+    return {"site_name": site.site.name, "tag_map_hash": tag_map_hash(wiring)}
+
+
+@dataclass
+class RecorderStats:
+    """What the recorder has done so far (the live status line)."""
+
+    link: str = "connecting"
+    """``connecting``, ``up`` or ``down``."""
+    stored: int = 0
+    """Samples handed to the store."""
+    lost: int = 0
+    """Samples known lost (sequence gaps, missed deadlines, ring overrun)."""
+    stale: int = 0
+    """Reads that returned no new sample (a repeated sequence number)."""
+    flagged: int = 0
+    """Samples stored with a quality other than OK."""
+    drops: int = 0
+    """Link losses after a link was up."""
+    restarts: int = 0
+    """PLC restarts seen."""
+    last_error: str = ""
+    """The last link error, one line."""
+    _recent: deque[tuple[float, int]] = field(default_factory=deque, repr=False)
+
+    def _tick(self, now: float) -> None:
+        self._recent.append((now, self.stored))
+        while self._recent and self._recent[0][0] < now - RATE_WINDOW_S:
+            self._recent.popleft()
+
+    @property
+    def rate(self) -> float:
+        """Samples stored per second over the last few seconds of wall time [1/s]."""
+        if len(self._recent) < 2:
+            return 0.0
+        (t0, n0), (t1, n1) = self._recent[0], self._recent[-1]
+        return (n1 - n0) / (t1 - t0) if t1 > t0 else 0.0
+
+    def line(self) -> str:
+        """One status line: link, rate, stored, lost, flagged."""
+        text = (
+            f"link {self.link} | {self.rate:6.1f} samples/s | {self.stored} stored | "
+            f"{self.lost} lost | {self.flagged} flagged"
+        )
+        if self.link != "up" and self.last_error:
+            text += f" | {self.last_error}"
+        return text
+
+
+class _Sequence:
+    """Maps the PLC's raw uint32 counter to the stored, monotonic sequence and sample times.
+
+    ``stored = offset + u`` and ``time = anchor + u·period`` with ``u`` the counter unwrapped in
+    the current run of the PLC (a restart starts a new run: new offset and anchor).
+    """
+
+    def __init__(self, period_s: float, last_stored: int | None) -> None:
+        self.period_s = period_s
+        self.last_stored = last_stored
+        self.last_time = -math.inf
+        self.offset = 0
+        self.anchor = math.nan
+        self.raw: int | None = None
+        self.u = 0
+
+    def start(self, raw: int, received: float) -> tuple[bool, str]:
+        """The first counter value of this process; (continues the store?, why if not)."""
+        self.raw, self.u = raw, raw
+        self.anchor = received - raw * self.period_s
+        last = self.last_stored
+        if last is None or raw > last:
+            self.offset = 0  # the stored number is the PLC's own
+            return True, ""
+        self.offset = last + 2  # one number left out: a break readers see
+        return False, f"the PLC's counter ({raw}) is behind the store's last sample ({last})"
+
+    def advance(self, raw: int, received: float) -> int:
+        """Step to a new counter value; the step (0 repeat, > 0 forward, < 0 restart)."""
+        assert self.raw is not None
+        step = (raw - self.raw) % UINT32
+        if step >= HALF_RANGE:  # back by more than half the range: not a wrap, a restart
+            last = self.last_stored if self.last_stored is not None else self.offset + self.u
+            self.offset = last + 2
+            # re-anchored at the receipt, but never before the last stored sample
+            self.anchor = max(received - raw * self.period_s, self.last_time + self.period_s)
+            self.raw, self.u = raw, raw
+            return -1
+        self.raw = raw
+        self.u += step
+        return step
+
+    def stored(self, u: int) -> int:
+        return self.offset + u
+
+    def time(self, u: int) -> float:
+        return self.anchor + u * self.period_s
+
+    def mark(self, seq: int, t: float) -> None:
+        self.last_stored = seq if self.last_stored is None else max(self.last_stored, seq)
+        self.last_time = max(self.last_time, t)
+
+
+class Recorder:
+    """Reads a PLC through a source and feeds a store's writer (see the module docstring).
+
+    Parameters
+    ----------
+    source : PlcSource
+        The link (not yet connected).
+    writer : SampleWriter
+        The store's one writer; the recorder flushes it when it stops but does not close it.
+    ring_poll_s : float
+        Wall time between ring reads [s] (with ``[ring]``).
+    stuck_after_s : float
+        Seconds of an exactly unchanged flow that mean a stuck sensor [s].
+    backoff_s : (float, float)
+        First and longest wait between connect attempts [s].
+    give_up_after_s : float, optional
+        Raise :class:`LinkError` after this long without a link [s]; None: retry for ever.
+    on_message : callable, optional
+        Gets one-line messages (link state changes, restarts, the end of a replayed log).
+    """
+
+    def __init__(
+        self,
+        source: PlcSource,
+        writer: SampleWriter,
+        *,
+        ring_poll_s: float = RING_POLL_S,
+        stuck_after_s: float = STUCK_AFTER_S,
+        backoff_s: tuple[float, float] = (BACKOFF_FIRST_S, BACKOFF_MAX_S),
+        give_up_after_s: float | None = None,
+        on_message: Callable[[str], None] | None = None,
+    ) -> None:
+        self.source = source
+        self.site = source.site
+        self.writer = writer
+        self.period_s = self.site.sampling.period_s
+        self.ring_poll_s = float(ring_poll_s)
+        self.backoff_s = backoff_s
+        self.give_up_after_s = give_up_after_s
+        self.on_message = on_message
+        self.stats = RecorderStats()
+        self._stop = asyncio.Event()
+        self._connected = False
+        self._down_since = time.monotonic()
+        self._down_utc = time.time()
+        self._ever_up = False
+        self._seq = _Sequence(self.period_s, writer.store.last_seq())
+        self._checks = RangeChecks(dict(self.site.tags), self._event)
+        self._stuck = StuckDetector(self.site.tags.get("flow"), self._event_at, stuck_after_s)
+        self._aux: dict[str, float] = {}  # last finite kc, ti, mode (change events)
+        self._aux_values: dict[str, float] = {}  # setpoint, temperature, mode attached, checked
+        self._next_u: int | None = None  # ring: the next record to read (unwrapped)
+        self._last_receipt = math.nan
+        self._missing_after_outage = False
+        ring = self.site.ring
+        self._ring_fields = tuple(ring.fields[1:]) if ring is not None else ()
+
+    # --- plumbing -------------------------------------------------------------------------
+
+    def stop(self) -> None:
+        """Ask the recorder to stop (safe from a signal handler); :meth:`run` then returns."""
+        self._stop.set()
+
+    def _say(self, message: str) -> None:
+        if self.on_message is not None:
+            self.on_message(message)
+
+    def _event(self, kind: str, detail: str) -> None:
+        self.writer.event(kind, detail)
+
+    def _event_at(self, kind: str, detail: str, t: float) -> None:
+        self.writer.event(kind, detail, time=t)
+
+    def _emit(self, samples: list[Sample]) -> None:
+        if not samples:
+            return
+        self.writer.put_many(samples)
+        self.stats.stored += len(samples)
+        self.stats.flagged += sum(1 for s in samples if s.quality != Quality.OK)
+
+    def _take(self, sample: Sample) -> None:
+        # marked when taken, not when released by the stuck detector: a restart's new offset
+        # must clear the samples still held back too
+        if sample.seq is not None:
+            self._seq.mark(sample.seq, sample.time)
+        self._emit(self._stuck.push(sample))
+
+    async def _wait(self, seconds: float) -> None:
+        """Sleep, but wake at once on :meth:`stop`."""
+        if seconds <= 0.0 or self._stop.is_set():
+            return
+        with contextlib.suppress(TimeoutError):
+            await asyncio.wait_for(self._stop.wait(), timeout=seconds)
+
+    # --- link -----------------------------------------------------------------------------
+
+    async def _ensure_link(self, deadline: float | None) -> bool:
+        """Connect with backoff; False when stopped (or the duration ran out) before a link."""
+        if self._connected:
+            return True
+        delay, longest = self.backoff_s
+        attempts = 0
+        while not self._stop.is_set():
+            if deadline is not None and time.monotonic() >= deadline:
+                return False
+            attempts += 1
+            try:
+                await self.source.connect()
+            except LinkError as error:
+                reason = str(error)
+                if self.stats.link != "down" or reason != self.stats.last_error:
+                    self._say(f"link down: {reason}; retrying (backoff up to {longest:g} s)")
+                    if self.stats.link == "connecting" and attempts == 1:
+                        self._event("link_down", reason)
+                self.stats.link, self.stats.last_error = "down", reason
+                waited = time.monotonic() - self._down_since
+                if self.give_up_after_s is not None and waited >= self.give_up_after_s:
+                    raise LinkError(
+                        f"gave up after {waited:.1f} s without a link to {self.source.where} "
+                        f"(--give-up-after {self.give_up_after_s:g}): {reason}"
+                    ) from None
+                await self._wait(delay)
+                delay = min(2.0 * delay, longest)
+                continue
+            self._connected = True
+            outage = time.monotonic() - self._down_since
+            if self.stats.link == "down":
+                self._event("link_up", f"after {outage:.3f} s without a link ({attempts} attempts)")
+                self._say(f"link up: {self.source.where} after {outage:.1f} s")
+            else:
+                self._say(f"connected to {self.source.where}")
+            self.stats.link = "up"
+            self._ever_up = True
+            return True
+        return False
+
+    async def _link_lost(self, reason: str) -> None:
+        self._connected = False
+        self._down_since = time.monotonic()
+        self._down_utc = time.time()
+        self.stats.link, self.stats.last_error = "down", reason
+        self.stats.drops += 1
+        self._missing_after_outage = True
+        self._event("link_down", reason)
+        self._say(f"link down: {reason}; reconnecting")
+        self._emit(self._stuck.drain())  # an outage breaks any stuck run
+        await self.source.close()
+
+    # --- main loop ------------------------------------------------------------------------
+
+    async def run(self, duration_s: float | None = None) -> RecorderStats:
+        """Record until :meth:`stop`, the end of a replayed log, or ``duration_s`` [s] of wall time.
+
+        Returns
+        -------
+        RecorderStats
+            The final counts; everything queued has been committed (the writer is flushed).
+
+        Raises
+        ------
+        LinkError
+            Only with ``give_up_after_s``: no link for that long.
+        ConfigError
+            The PLC has no such address, or the device id is wrong (retrying cannot help).
+        """
+        self._stop.clear()
+        deadline = None if duration_s is None else time.monotonic() + duration_s
+        self._down_since = time.monotonic()
+        try:
+            while not self._stop.is_set():
+                if not await self._ensure_link(deadline):
+                    break
+                try:
+                    if self.site.ring is not None:
+                        await self._ring_loop(deadline)
+                    else:
+                        await self._poll_loop(deadline)
+                    break
+                except LinkError as error:
+                    await self._link_lost(str(error))
+        except EndOfSource as end:
+            self._say(str(end))
+        finally:
+            self._emit(self._stuck.drain())
+            await self.source.close()
+            self._connected = False
+            self.writer.flush()
+        return self.stats
+
+    def _done(self, deadline: float | None) -> bool:
+        return self._stop.is_set() or (deadline is not None and time.monotonic() >= deadline)
+
+    # --- auxiliary tags: events and values ------------------------------------------------
+
+    def _watch(self, reading: Reading) -> None:
+        """Gain and mode change events, and the auxiliary values attached to samples."""
+        values = reading.values
+        old = self._aux
+        changes = []
+        for role, unit in (("kc", "V per L/min"), ("ti", "s")):
+            new = values.get(role)
+            before = old.get(role)
+            if new is None or before is None or not math.isfinite(new):
+                continue
+            if not math.isclose(new, before, rel_tol=1e-6, abs_tol=0.0):
+                changes.append(f"{role} {before:.6g} → {new:.6g} {unit}")
+        if changes:
+            self._event("gain_change", ", ".join(changes))
+        mode, before_mode = values.get("mode"), old.get("mode")
+        if (
+            mode is not None
+            and before_mode is not None
+            and math.isfinite(mode)
+            and math.isfinite(before_mode)
+            and round(mode) != round(before_mode)
+        ):
+            names = {0: "MAN", 1: "AUTO"}
+            was, now = round(before_mode), round(mode)
+            self._event("mode_change", f"{names.get(was, was)} → {names.get(now, now)}")
+        self._aux.update({role: v for role, v in values.items() if math.isfinite(v)})
+        self._aux_values = {
+            role: (v if self._checks.check(role, v) else math.nan)
+            for role, v in values.items()
+            if role in ("setpoint", "fuel_temperature", "mode")
+        }
+
+    def _sample(
+        self, t: float, seq: int | None, core: dict[str, float], quality: int = Quality.OK
+    ) -> Sample:
+        """A sample from u, y (and the setpoint) and the last auxiliary values, checked."""
+        aux = self._aux_values
+        good = True
+        for role in ("command", "flow"):
+            good &= self._checks.check(role, core.get(role, math.nan))
+        setpoint = core.get("setpoint")
+        if setpoint is None:
+            setpoint = aux.get("setpoint", math.nan)
+        elif not self._checks.check("setpoint", setpoint):
+            setpoint = math.nan
+        mode = aux.get("mode", math.nan)
+        if quality == Quality.OK and not good:
+            quality = Quality.BAD_VALUE
+        return Sample(
+            time=t,
+            seq=seq,
+            u=core.get("command", math.nan),
+            y=core.get("flow", math.nan),
+            setpoint=setpoint,
+            fuel_temperature=aux.get("fuel_temperature", math.nan),
+            mode=round(mode) if math.isfinite(mode) else None,
+            quality=int(quality),
+        )
+
+    # --- (b), (c): polling on an absolute deadline ----------------------------------------
+
+    async def _poll_loop(self, deadline: float | None) -> None:
+        has_seq = "seq" in self.site.tags
+        period = self.period_s
+        t_next = time.monotonic()
+        missed_run = 0
+        while not self._done(deadline):
+            now = time.monotonic()
+            if now < t_next:
+                await asyncio.sleep(t_next - now)
+                if self._done(deadline):
+                    break
+            reading = await self.source.read()
+            self._watch(reading)
+            if has_seq:
+                self._poll_seq(reading)
+            else:
+                self._poll_receipt(reading)
+            self.stats._tick(time.monotonic())
+            t_next += period
+            late = time.monotonic() - t_next
+            if late > period:  # deadlines passed while reading: those samples are lost
+                missed = int(late // period)
+                t_next += missed * period
+                if not has_seq:
+                    self.stats.lost += missed
+                    missed_run += missed
+            elif missed_run:
+                self._event("gap", f"{missed_run} sample(s) lost: missed read deadlines")
+                missed_run = 0
+
+    def _poll_seq(self, reading: Reading) -> None:
+        raw = int(reading.raw["seq"]) % UINT32
+        seq = self._seq
+        if seq.raw is None:
+            continued, why = seq.start(raw, reading.received)
+            if not continued:
+                self._restart(why)
+            elif seq.last_stored is not None and raw > seq.last_stored + 1:
+                self._gap(raw - seq.last_stored - 1, "since the last recording")
+        else:
+            step = seq.advance(raw, reading.received)
+            if step == 0:
+                self.stats.stale += 1
+                return
+            if step < 0:
+                self._restart(f"the PLC's counter went back to {raw}")
+            elif step > 1:
+                self._gap(step - 1, f"sequence jumped to {raw}")
+        self._missing_after_outage = False
+        core = _core(reading)
+        self._take(self._sample(seq.time(seq.u), seq.stored(seq.u), core))
+
+    def _poll_receipt(self, reading: Reading) -> None:
+        t = reading.received
+        if self._missing_after_outage and math.isfinite(self._last_receipt):
+            lost = max(round((t - self._last_receipt) / self.period_s) - 1, 0)
+            if lost:
+                self.stats.lost += lost
+                self._gap(lost, "during the link outage", count=False)
+        self._missing_after_outage = False
+        self._last_receipt = t
+        core = _core(reading)
+        self._take(self._sample(t, None, core))
+
+    def _gap(self, lost: int, why: str, count: bool = True) -> None:
+        if count:
+            self.stats.lost += lost
+        self._event("gap", f"{lost} sample(s) lost: {why}")
+
+    def _restart(self, why: str) -> None:
+        self.stats.restarts += 1
+        self._event("restart", f"PLC restart: {why}; stored sequence continues")
+        self._say(f"PLC restart: {why}")
+        self._emit(self._stuck.drain())
+
+    # --- (a): the ring buffer -------------------------------------------------------------
+
+    async def _ring_loop(self, deadline: float | None) -> None:
+        ring = self.site.ring
+        assert ring is not None
+        seq = self._seq
+        next_u = self._next_u
+        while not self._done(deadline):
+            started = time.monotonic()
+            head = await self.source.read_ring_head() % UINT32
+            received = time.time()
+            reading = await self.source.read()
+            self._watch(reading)
+            if seq.raw is None:
+                continued, why = seq.start(head, received)
+                if continued and seq.last_stored is not None:
+                    next_u = seq.last_stored + 1  # back-fill what the last recording missed
+                else:
+                    if not continued:
+                        self._restart(why)
+                    next_u = head
+            else:
+                step = seq.advance(head, received)
+                if step < 0:
+                    self._restart(f"the ring's head went back to {head}")
+                    next_u = 0  # the new run from its start, as far as the ring holds it
+            assert next_u is not None
+            next_u = await self._read_records(next_u, seq.u, reading)
+            self._next_u = next_u
+            self._missing_after_outage = False
+            self.stats._tick(time.monotonic())
+            await self._wait(self.ring_poll_s - (time.monotonic() - started))
+
+    async def _read_records(self, first_u: int, head_u: int, reading: Reading) -> int:
+        """Read records ``first_u … head_u`` (unwrapped) and store them; the next to read."""
+        ring = self.site.ring
+        assert ring is not None
+        seq = self._seq
+        if head_u < first_u:
+            return first_u
+        oldest = head_u - ring.size + 1 + ring.size // RING_MARGIN
+        if first_u < oldest:
+            self._gap(oldest - first_u, f"the ring ({ring.size} records) no longer held them")
+            first_u = oldest
+        u = first_u
+        lost = 0
+        while u <= head_u:
+            slot = (u % UINT32) % ring.size
+            count = min(head_u - u + 1, ring.size - slot)
+            records: list[RingRecord] = await self.source.read_ring(slot, count)
+            for k, record in enumerate(records):
+                expected = (u + k) % UINT32
+                if record.seq != expected:  # overwritten while we read: lost, not mislabelled
+                    lost += 1
+                    continue
+                core = dict(record.values)
+                self._take(self._sample(seq.time(u + k), seq.stored(u + k), core))
+            u += count
+        if lost:
+            self._gap(lost, "ring records overwritten while they were read")
+        return head_u + 1
+
+
+def _core(reading: Reading) -> dict[str, float]:
+    """u, y and the setpoint of a reading (those it has)."""
+    return {role: v for role, v in reading.values.items() if role in _CORE}
+
+
+def record_error(error: BaseException) -> str:
+    """One line for an error that stopped a recording."""
+    if isinstance(error, FuelidError):
+        return " ".join(str(error).split())
+    return f"{type(error).__name__}: {error}"
+
+
+def record_site(
+    site: SiteConfig,
+    store_url: str | None = None,
+    *,
+    duration_s: float | None = None,
+    give_up_after_s: float | None = None,
+    on_message: Callable[[str], None] | None = None,
+    on_status: Callable[[RecorderStats], None] | None = None,
+    status_every_s: float = 1.0,
+    commit_interval_s: float = 1.0,
+    source: PlcSource | None = None,
+    **options: Any,
+) -> RecorderStats:
+    """Record a site into its store until SIGINT/SIGTERM, the duration, or the end of a replay.
+
+    Opens the site's source and store (``store_url``, default ``[store] url``), runs a
+    :class:`Recorder` in an asyncio loop with SIGINT and SIGTERM bound to a clean stop (the
+    writer commits what is queued before this returns) and calls ``on_status`` about every
+    ``status_every_s`` seconds.
+
+    Parameters
+    ----------
+    site : SiteConfig
+        The site file.
+    store_url : str, optional
+        ``sqlite:///path.db`` or a plain file path.
+    duration_s, give_up_after_s : float, optional
+        See :meth:`Recorder.run` and :class:`Recorder` [s].
+    on_message, on_status : callable, optional
+        One-line messages; the live statistics.
+    status_every_s, commit_interval_s : float
+        Status and commit intervals [s].
+    source : PlcSource, optional
+        A source to use instead of the site's (tests).
+    **options
+        Further :class:`Recorder` settings (``ring_poll_s``, ``stuck_after_s``, ``backoff_s``).
+
+    Raises
+    ------
+    StoreError, ConfigError, LinkError
+        The store cannot be opened or written, the PLC refuses an address or device id, or no
+        link for ``give_up_after_s``.
+    """
+    from fuelid.plc.adapters import open_source
+    from fuelid.store import open_store
+
+    plc = open_source(site) if source is None else source
+    store = open_store(
+        store_url or site.store.url, period_s=site.sampling.period_s, **site_identity(site)
+    )
+    try:
+        writer = SampleWriter(store, commit_interval_s=commit_interval_s)
+        try:
+            recorder = Recorder(
+                plc, writer, give_up_after_s=give_up_after_s, on_message=on_message, **options
+            )
+            return asyncio.run(_record(recorder, duration_s, on_status, status_every_s))
+        finally:
+            writer.close()
+    finally:
+        store.close()
+
+
+async def _record(
+    recorder: Recorder,
+    duration_s: float | None,
+    on_status: Callable[[RecorderStats], None] | None,
+    status_every_s: float,
+) -> RecorderStats:
+    import signal
+
+    loop = asyncio.get_running_loop()
+    bound = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            loop.add_signal_handler(sig, recorder.stop)
+            bound.append(sig)
+        except (NotImplementedError, RuntimeError, ValueError):  # not the main thread
+            pass
+
+    async def status() -> None:
+        while True:
+            await asyncio.sleep(status_every_s)
+            if on_status is not None:
+                on_status(recorder.stats)
+
+    reporter = asyncio.create_task(status())
+    try:
+        return await recorder.run(duration_s)
+    finally:
+        reporter.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await reporter
+        for sig in bound:
+            loop.remove_signal_handler(sig)
