@@ -6,10 +6,11 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.fuelid-installed
 DEMO_DIR ?= demo-output
 
-.PHONY: help install demo test test-slow lint typecheck pytest browser bench clean
+.PHONY: help install demo plc-demo test test-slow lint typecheck pytest browser bench clean
 
 help:
 	@echo "make demo   - install if needed, run the reference-plant demo (writes $(DEMO_DIR)/)"
+	@echo "make plc-demo - the virtual PLC over Modbus: record, export, identify (writes $(DEMO_DIR)/plc/)"
 	@echo "make test   - install if needed, run ruff, mypy and the whole pytest suite"
 	@echo "make test-slow - the long fault and soak runs (CI runs them after make test)"
 	@echo "make bench  - run the benchmarks (on demand, prints tables)"
@@ -37,6 +38,11 @@ demo: $(STAMP)
 		--json > $(DEMO_DIR)/ident.json
 	$(BIN)/fuelid tune --model $(DEMO_DIR)/ident.json --config $(REFERENCE_PLANT) --rule simc \
 		--control-period 1 --simulate --plot $(DEMO_DIR)/tune_closed_loop.png --force
+
+# The PLC link end to end: the virtual PLC over Modbus TCP on 127.0.0.1, 15 s of recording at 20×
+# real time (5 minutes of plant time), export, identify; see examples/plc_demo.py.
+plc-demo: $(STAMP)
+	$(BIN)/python examples/plc_demo.py --out $(DEMO_DIR)/plc
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples
