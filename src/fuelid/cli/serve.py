@@ -17,8 +17,6 @@ from fuelid.errors import FuelidError
 
 if TYPE_CHECKING:
     from fuelid.plc.codec import WordOrder
-    from fuelid.plc.virtual.engine import VirtualPLC
-    from fuelid.plc.virtual.frontend import Frontend
 
 
 class ServeProtocol(StrEnum):
@@ -181,7 +179,12 @@ def _serve(
     from fuelid.plant import load_plant_config
     from fuelid.plc.virtual.engine import VirtualPLC
     from fuelid.plc.virtual.profiles import load_profile
-    from fuelid.plc.virtual.runner import DEFAULT_PORTS, frontend_class, site_text
+    from fuelid.plc.virtual.runner import (
+        DEFAULT_PORTS,
+        frontend_class,
+        serve_until_stopped,
+        site_text,
+    )
 
     if not is_loopback(host) and not allow_remote:
         raise FuelidError(
@@ -231,57 +234,19 @@ def _serve(
         )
         return
     frontend = frontend_class(protocol)(host, port, ring_size=plc.ring_size, word_order=order)
-    _check_port(host, port)
     where = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
-    typer.echo(
-        f"virtual PLC: {protocol} on {where}, {speed:g}x real time, plant "
-        f"{plc.config.name}, sample {plc.period_s:g} s, PI every {plc.control_period_s:g} s "
-        "(Ctrl-C stops)",
-        err=True,
+
+    def announce() -> None:
+        typer.echo(
+            f"virtual PLC: {protocol} on {where}, {speed:g}x real time, plant "
+            f"{plc.config.name}, sample {plc.period_s:g} s, PI every {plc.control_period_s:g} s "
+            "(Ctrl-C stops)",
+            err=True,
+        )
+
+    asyncio.run(
+        serve_until_stopped(plc, frontend, speed=speed, duration_s=duration, on_ready=announce)
     )
-    asyncio.run(_run(plc, frontend, speed, duration))
     typer.echo(
         f"virtual PLC stopped after {plc.time_s:.1f} s of plant time (seq {plc.seq})", err=True
     )
-
-
-async def _run(plc: VirtualPLC, frontend: Frontend, speed: float, duration: float | None) -> None:
-    """Serve until the duration ends, Ctrl-C or SIGTERM; the port is released in any case."""
-    import asyncio
-    import contextlib
-    import signal
-
-    from fuelid.plc.virtual.runner import serve
-
-    stop = asyncio.Event()
-    loop = asyncio.get_running_loop()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        with contextlib.suppress(NotImplementedError, RuntimeError):  # not on every platform
-            loop.add_signal_handler(sig, stop.set)
-    try:
-        await frontend.start()
-    except (OSError, RuntimeError) as exc:  # pymodbus says RuntimeError when it cannot listen
-        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
-        raise FuelidError(
-            f"cannot serve on {frontend.host}:{frontend.port} (port in use?): {reason}"
-        ) from None
-    try:
-        await serve(plc, frontend, speed=speed, duration_s=duration, stop=stop)
-    finally:
-        await frontend.stop()
-
-
-def _check_port(host: str, port: int) -> None:
-    """Refuse a port that cannot be bound, in one line (before a server library logs it)."""
-    import socket
-
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    with socket.socket(family, socket.SOCK_STREAM) as sock:
-        # as the servers bind: a port in TIME_WAIT after a restart is free
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            sock.bind((host, port))
-        except OSError as exc:
-            raise FuelidError(
-                f"cannot serve on {host}:{port}: {exc.strerror or exc} (another server there?)"
-            ) from None

@@ -21,7 +21,7 @@ import math
 import socket
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Any, Self
@@ -170,6 +170,68 @@ async def serve(
                 stats.lags.append(lag)
         if duration_s is not None and elapsed >= duration_s:
             break
+
+
+async def serve_until_stopped(
+    plc: VirtualPLC,
+    frontend: Frontend,
+    *,
+    speed: float = 1.0,
+    duration_s: float | None = None,
+    on_ready: Callable[[], None] | None = None,
+) -> None:
+    """Serve in the foreground until the duration ends, SIGINT or SIGTERM (``plant serve``).
+
+    The port is checked first and released in any case; ``on_ready`` is called once clients can
+    connect.
+
+    Raises
+    ------
+    ConfigError
+        The port cannot be bound (one line: in use, or not allowed).
+    """
+    import contextlib
+    import signal
+
+    check_port(frontend.host, frontend.port)
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(NotImplementedError, RuntimeError):  # not on every platform
+            loop.add_signal_handler(sig, stop.set)
+    try:
+        await frontend.start()
+    except (OSError, RuntimeError) as exc:  # pymodbus says RuntimeError when it cannot listen
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise ConfigError(
+            f"cannot serve on {frontend.host}:{frontend.port} (port in use?): {reason}"
+        ) from None
+    if on_ready is not None:
+        on_ready()
+    try:
+        await serve(plc, frontend, speed=speed, duration_s=duration_s, stop=stop)
+    finally:
+        await frontend.stop()
+
+
+def check_port(host: str, port: int) -> None:
+    """Refuse a port that cannot be bound, in one line (before a server library logs it).
+
+    Raises
+    ------
+    ConfigError
+        The port is in use or not allowed.
+    """
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as sock:
+        # as the servers bind: a port in TIME_WAIT after a restart is free
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind((host, port))
+        except OSError as exc:
+            raise ConfigError(
+                f"cannot serve on {host}:{port}: {exc.strerror or exc} (another server there?)"
+            ) from None
 
 
 def site_text(
