@@ -226,3 +226,14 @@ def test_a_ring_buffer_is_described_by_head_address_and_size(tmp_path: Path):
 def test_a_ring_that_cannot_be_read_is_refused(tmp_path: Path, ring: str, reason: str):
     with pytest.raises(ConfigError, match=reason):
         load_site(_write(tmp_path, EXAMPLE + "[ring]\n" + ring + "\n"))
+
+
+def test_site_check_shows_the_ring_and_what_it_exposes(tmp_path: Path):
+    assert [line for line in load_site(_write(tmp_path, EXAMPLE)).missing() if "seq" in line]
+    site = load_site(_write(tmp_path, EXAMPLE + RING))
+    # the ring carries the setpoint and the sequence number, so neither is missing
+    assert not [line for line in site.missing() if line.startswith(("setpoint", "seq"))]
+    result = runner.invoke(app, ["site", "check", "--config", str(tmp_path / "site.toml")])
+    assert result.exit_code == 0
+    assert "ir:1000" in result.output
+    assert "2048" in result.output

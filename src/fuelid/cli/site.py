@@ -53,6 +53,17 @@ def check(
                     f"{tag.raw[0]:g}…{tag.raw[1]:g} → {tag.eng[0]:g}…{tag.eng[1]:g} {tag.unit}"
                 )
             table.add_row(side, role, tag.address, tag.type, scaling, tag.unit)
+    if site.ring is not None:
+        ring = site.ring
+        from_ring = ", ".join(ring.fields[1:])
+        table.add_row(
+            "read",
+            "ring",
+            f"{ring.address} (head {ring.head})",
+            f"{ring.size} × [{', '.join(ring.fields)}]",
+            f"{from_ring} come from here",
+            "",
+        )
     console = Console()
     console.print(table)
     for line in site.missing():

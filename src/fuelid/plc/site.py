@@ -371,7 +371,8 @@ class SiteConfig(_Table):
             "ti": "the applied gains are unknown",
             "seq": "sample times are receipt times; a lost sample is a missed deadline",
         }
-        return [f"{role}: {cost}" for role, cost in costs.items() if role not in self.tags]
+        exposed = set(self.tags) | set(self.ring.fields if self.ring is not None else ())
+        return [f"{role}: {cost}" for role, cost in costs.items() if role not in exposed]
 
 
 def _meaning(role: str) -> str:
