@@ -16,6 +16,7 @@ import struct
 import time
 import tomllib
 from collections.abc import Sequence
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -328,9 +329,14 @@ def test_print_site_and_remote_host_refusal() -> None:
     kc0, ti0 = commissioning_gains(load_plant_config(), celsius_to_kelvin(20.0), 1.0)
     assert site.controller is not None
     assert (site.controller.kc, site.controller.ti) == (kc0, ti0)
-    result = runner.invoke(app, ["plant", "serve", "--print-site", "--protocol", "s7"])
+    assert site.site.plant is None  # the reference plant: no plant file to name
+    plant_file = resources.files("fuelid.data") / "reference_plant.toml"
+    argv = ["plant", "serve", "--print-site", "--protocol", "s7", "--config", str(plant_file)]
+    result = runner.invoke(app, argv)
     assert result.exit_code == 0
-    assert SiteConfig.model_validate(tomllib.loads(result.stdout))
+    site = SiteConfig.model_validate(tomllib.loads(result.stdout))
+    assert site.site.plant is not None
+    assert Path(site.site.plant) == Path(str(plant_file)).resolve()
     for argv in (["--host", "0.0.0.0"], ["--host", "192.168.1.20", "--port", "5021"]):
         result = runner.invoke(app, ["plant", "serve", *argv])
         assert result.exit_code == 2

@@ -229,6 +229,7 @@ def _serve(
                 ring_size=plc.ring_size,
                 kc=plc.kc0,
                 ti=plc.ti0,
+                plant=None if config is None else str(config.resolve()),
             ),
             nl=False,
         )

@@ -248,8 +248,11 @@ def site_text(
     kc: float | None = None,
     ti: float | None = None,
     name: str = "virtual fuel loop",
+    plant: str | None = None,
 ) -> str:
     """The site file (TOML) of a virtual PLC at ``host:port`` speaking ``protocol``.
+
+    ``plant`` is the plant TOML the virtual PLC runs (``[site] plant``), when not the reference.
 
     Every role the virtual PLC has: the read tags (with ``flow`` as the float32 reading), the
     sequence counter, the ring, the write side (staged gains, apply, echo, heartbeat) and the
@@ -277,6 +280,7 @@ def site_text(
         "# the virtual PLC of `fuelid plant serve` (generated)",
         "[site]",
         f"name = {_toml_str(name)}",
+        *([f"plant = {_toml_str(plant)}"] if plant is not None else []),
         "",
         "[plc]",
         f'protocol = "{protocol}"',
