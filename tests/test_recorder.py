@@ -135,20 +135,20 @@ def test_bad_values_and_a_stuck_sensor_become_flags_and_events(tmp_path: Path) -
     temp[450:] = np.nan  # the temperature transmitter fails for good
     log = tmp_path / "bad.csv"
     write_log(log, n, flow=counts, temp=temp, seq=k.astype(float))
-    site = load(REPLAY.format(path=log, speed=5.0, period=0.02) + RING_REPLAY)
+    site = load(REPLAY.format(path=log, speed=10.0, period=0.02) + RING_REPLAY)
     record(site, tmp_path / "q.db", duration_s=30.0)
     data, events, _ = rows(tmp_path / "q.db")
     first = int(data.seq[0])
-    assert first <= 5  # the replay had just started
+    assert first <= 10  # the replay had just started (0.02 s of wall time at 10x)
     assert data.seq.tolist() == list(range(first, n))  # from the ring: none lost
     bad = set(data.seq[data.quality == Quality.BAD_VALUE].tolist())
     expected_bad = {100, 101, 150, 151, 152, *range(300, 450)}
     assert bad == expected_bad
     # a bad fuel temperature is not a number in the data, and does not flag the sample; with a
-    # ring it is read once per poll (0.2 s = 50 rows at 5x) and attached to that poll's records
+    # ring it is read once per poll (0.2 s = 100 rows at 10x) and attached to that poll's records
     no_temp = np.isnan(data.fuel_temperature)
     assert no_temp[-1]
-    assert np.all(data.seq[no_temp] >= 450 - 60)
+    assert np.all(data.seq[no_temp] >= 450 - 110)
     assert np.all(data.fuel_temperature[~no_temp] == 20.0)
     assert np.all(data.quality[no_temp & (data.seq >= 450)] == Quality.OK)
     bad_events = kinds(events, "bad_value")
@@ -284,7 +284,7 @@ def flapping(
     # up longer than the answer timeout (0.25 s) plus a ring poll (0.2 s): a request caught by
     # the server's shutdown waits out its timeout, and the recorder must be back before the next
     # drop, or two drops are one outage to it
-    [(5, 0.3, 0.5), pytest.param(100, 0.1, 0.5, marks=pytest.mark.slow)],
+    [(3, 0.15, 0.5), pytest.param(100, 0.1, 0.5, marks=pytest.mark.slow)],
 )
 def test_link_drops_are_events_and_the_ring_back_fills_every_sample(
     modbus_plc: Any, tmp_path: Path, drops: int, down_s: float, up_s: float
@@ -324,8 +324,8 @@ def test_link_drops_are_events_and_the_ring_back_fills_every_sample(
 
 
 def test_the_sequence_wraps_past_uint32_without_a_break(modbus_plc: Any, tmp_path: Path) -> None:
-    plc = modbus_plc(start=UINT32 - 100)
-    record(ring_site(plc), tmp_path / "w.db", duration_s=2.5)
+    plc = modbus_plc(start=UINT32 - 70)  # wraps ~ 0.7 s after the start, at ~ 90 Hz
+    record(ring_site(plc), tmp_path / "w.db", duration_s=1.5)
     data, events, info = rows(tmp_path / "w.db")
     seqs = data.seq.tolist()
     assert seqs[0] < UINT32 < seqs[-1]  # stored past 2^32: unwrapped
@@ -341,8 +341,8 @@ def test_a_plc_restart_is_an_event_and_the_stored_sequence_stays_monotonic(
     modbus_plc: Any, tmp_path: Path
 ) -> None:
     plc = modbus_plc(start=5000)
-    threading.Timer(1.0, plc.ring.restart).start()
-    stats = record(ring_site(plc), tmp_path / "p.db", duration_s=2.5)
+    threading.Timer(0.6, plc.ring.restart).start()
+    stats = record(ring_site(plc), tmp_path / "p.db", duration_s=1.4)
     data, events, info = rows(tmp_path / "p.db")
     assert stats.restarts == 1
     assert len(kinds(events, "restart")) == 1
@@ -372,13 +372,13 @@ def test_a_recorder_restarted_on_the_store_back_fills_and_appends(
     plc = modbus_plc(size=512)
     site = ring_site(plc, size=512)
     db = tmp_path / "again.db"
-    record(site, db, duration_s=1.0)
-    time.sleep(1.0)  # the recorder is down for a second: the ring (5 s) holds it
-    record(site, db, duration_s=1.0)
+    record(site, db, duration_s=0.7)
+    time.sleep(0.7)  # the recorder is down for 0.7 s: the ring (5 s) holds it
+    record(site, db, duration_s=0.7)
     data, _, info = rows(db)
     seqs = data.seq.tolist()
     assert seqs == list(range(seqs[0], seqs[-1] + 1))
-    assert len(seqs) > 0.6 * 3.0 / 0.01
+    assert len(seqs) > 0.6 * 2.1 / 0.01
     assert info.gaps == 0
     check_ring_values(data)
 
@@ -485,3 +485,121 @@ def test_the_store_never_holds_a_duplicate_seq(modbus_plc: Any, tmp_path: Path) 
     finally:
         con.close()
     assert n == distinct > 0
+
+
+# --- PLC restarts on the virtual PLC ----------------------------------------------------------
+
+
+def test_a_plc_restarted_during_a_long_outage_is_seen_though_its_counter_passed_the_old_one(
+    tmp_path: Path,
+) -> None:
+    """The new run counts past the last number of the old one before the recorder is back.
+
+    The counter going back cannot show this restart: the recorder must see that the counter
+    advanced far less than the outage's wall time allows, read the new run from its first
+    record, and store it strictly after the old run.
+    """
+    runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
+    from fuelid.plc.adapters.modbus import ModbusSource
+
+    speed, period = 10.0, 0.02
+    with runner.VirtualPlcThread("modbus", speed=speed, seed=4, command_profile="steps") as srv:
+        site = load(srv.site_text())
+        log: list[tuple[float, str]] = []
+        restarted: list[float] = []
+
+        def on_message(text: str) -> None:
+            log.append((time.monotonic(), text))
+            if text.startswith("link down") and not restarted:
+                restarted.append(time.monotonic())
+                # the recorder has seen the link drop and waits out its backoff (1.5 s): the
+                # new PLC counts 1.2 s x 500/s = 600 past 0 meanwhile, more than the old run
+                # had (~ 0.8 s x 500/s)
+                threading.Timer(0.3, srv.restart_plc).start()
+
+        threading.Timer(0.8, srv.stop_link).start()
+        stats = record(
+            site,
+            tmp_path / "long.db",
+            3.5,
+            ModbusSource(site, timeout_s=0.25),
+            backoff_s=(1.5, 1.5),
+            on_message=on_message,
+        )
+    data, events, info = rows(tmp_path / "long.db")
+    text = "\n".join(f"{t:.3f} {m}" for t, m in log)
+    assert stats.restarts == 1, text
+    (restart,) = kinds(events, "restart")
+    assert "advanced only" in restart.detail, restart.detail  # rule (2), not the counter going back
+    steps = np.diff(data.seq)
+    (hole,) = np.flatnonzero(steps != 1)
+    assert steps[hole] == 2  # the new run from its first record: nothing it still held lost
+    assert kinds(events, "gap") == []
+    assert stats.lost == 0
+    old_n, new_n = hole + 1, len(data) - hole - 1
+    assert new_n > old_n  # the new run had counted past the old one when the link came back
+    # times strictly increasing; the new run follows the old one one period later (data time
+    # ran ahead of the wall clock at 10x, so the re-anchor is at the last stored time)
+    dt = np.diff(data.time)
+    assert np.all(dt > 0)
+    assert dt[hole] == pytest.approx(period, abs=1e-6)
+    np.testing.assert_allclose(dt, period, atol=1e-6)
+    assert info.gaps == 1
+
+
+def test_a_plc_restart_after_a_short_outage_at_speed_keeps_times_increasing(
+    tmp_path: Path,
+) -> None:
+    """VirtualPlcThread.restart_plc at 10x: the counter goes back; times never do."""
+    runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
+    from fuelid.plc.adapters.modbus import ModbusSource
+
+    with runner.VirtualPlcThread("modbus", speed=10.0, seed=5, command_profile="steps") as srv:
+        site = load(srv.site_text())
+        threading.Timer(1.0, srv.restart_plc).start()
+        stats = record(
+            site, tmp_path / "short.db", 2.0, ModbusSource(site, timeout_s=0.25),
+            backoff_s=(0.05, 0.1),
+        )  # fmt: skip
+    data, events, _ = rows(tmp_path / "short.db")
+    assert stats.restarts == 1
+    (restart,) = kinds(events, "restart")
+    assert "went back" in restart.detail
+    steps = np.diff(data.seq)
+    (hole,) = np.flatnonzero(steps != 1)
+    assert steps[hole] == 2
+    assert kinds(events, "gap") == []
+    # the wall-clock anchor would put the new run ~ 9 s (of the 10 s of data time) before the
+    # last stored sample: the rule puts it one period after
+    np.testing.assert_allclose(np.diff(data.time), 0.02, atol=1e-6)
+
+
+def test_the_stuck_detector_holds_nothing_back_and_asks_for_the_stretch_to_be_reflagged() -> None:
+    from fuelid.plc.quality import StuckDetector
+    from fuelid.store import Sample
+
+    events: list[tuple[str, float]] = []
+    reflags: list[tuple[float, float, int]] = []
+    detector = StuckDetector(
+        None, lambda kind, detail, t: events.append((kind, t)), 1.0,
+        lambda t0, t1, n: reflags.append((t0, t1, n)),
+    )  # fmt: skip
+    values = [1.0, 2.0, *([5.0] * 80), 6.0]  # stuck from sample 2 (t = 0.04) for 1.6 s
+    out = []
+    for k, y in enumerate(values):
+        sample = Sample(0.02 * k, k, 2.0, y)
+        got = detector.push(sample)
+        assert got.seq == k  # every sample returned at once, none held back
+        out.append(got)
+    quality = [s.quality for s in out]
+    # 1 s after the stretch began (sample 52): flagged from there on as they go, the 50
+    # before it re-flagged in the store; the first changed value is OK again
+    assert quality[:52] == [Quality.OK] * 52
+    assert quality[52:82] == [Quality.BAD_VALUE] * 30
+    assert quality[82] == Quality.OK
+    ((kind, t_event),) = events
+    assert kind == "stuck_sensor"
+    assert t_event == pytest.approx(0.04)
+    ((t_from, t_to, count),) = reflags
+    assert (t_from, t_to) == pytest.approx((0.04, 1.04))
+    assert count == 50

@@ -311,3 +311,64 @@ def test_a_failing_write_stops_the_writer_with_the_reason(tmp_path: Path) -> Non
         with pytest.raises(StoreError, match="writer failed"):
             writer.close()
         assert store.info().rows == 0
+
+
+def _journal_mode(path: Path) -> tuple[str, int, int]:
+    """The file's journal mode, and its header's write/read format bytes (2 = WAL)."""
+    header = path.read_bytes()[:20]
+    con = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    try:
+        mode = str(con.execute("PRAGMA journal_mode").fetchone()[0])
+    finally:
+        con.close()
+    return mode, header[18], header[19]
+
+
+@pytest.mark.parametrize("identity", [True, False])
+def test_a_foreign_sqlite_file_is_refused_before_anything_is_written_to_it(
+    tmp_path: Path, identity: bool
+) -> None:
+    other = tmp_path / "other.db"
+    con = sqlite3.connect(other)
+    con.execute("CREATE TABLE t(x)")
+    con.execute("INSERT INTO t VALUES (1)")
+    con.commit()
+    con.close()
+    before = other.read_bytes()
+    assert _journal_mode(other) == ("delete", 1, 1)
+    name, digest = (SITE["site_name"], SITE["tag_map_hash"]) if identity else (None, None)
+    with pytest.raises(StoreError, match="not a fuelid store"):
+        SQLiteStore(other, name, digest)
+    assert _journal_mode(other) == ("delete", 1, 1)  # not switched to WAL
+    assert other.read_bytes() == before  # not a byte changed
+    assert not other.with_name("other.db-wal").exists()
+
+
+def test_set_quality_flags_ok_samples_of_a_stretch_in_the_writers_order(tmp_path: Path) -> None:
+    with _new(tmp_path) as store:
+        store.append_samples(_samples(range(10)))
+        store.append_samples(_samples([10], quality=Quality.LINK_DOWN))
+        # both ends included; samples already flagged keep their flag
+        assert store.set_quality(T0 + 5 * H, T0 + 10 * H, Quality.BAD_VALUE) == 5
+        q = store.read().quality.tolist()
+        assert q == [0] * 5 + [Quality.BAD_VALUE] * 5 + [Quality.LINK_DOWN]
+        plan = store._con.execute(
+            "EXPLAIN QUERY PLAN UPDATE samples SET quality = 3 "
+            "WHERE time >= 1.0 AND time <= 2.0 AND quality = 0"
+        ).fetchall()
+        assert "samples_time" in " ".join(str(row) for row in plan)  # an indexed update
+        # through the writer: queued after samples not yet committed, it reaches them too, in
+        # the same transaction
+        commits: list[int] = []
+        writer = SampleWriter(
+            store, commit_interval_s=60.0, on_commit=lambda s, e: commits.append(1)
+        )
+        writer.put_many(_samples(range(11, 20)))
+        writer.set_quality(T0 + 15 * H, T0 + 17 * H)
+        writer.put_many(_samples(range(20, 22)))
+        writer.close()
+        assert commits == [1]
+        q = store.read().quality.tolist()
+        assert q[15:18] == [Quality.BAD_VALUE] * 3
+        assert q[11:15] == [0] * 4
+        assert q[18:] == [0] * 4

@@ -20,7 +20,6 @@ card holding its last value, or a dead link that keeps serving a copy.
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Callable, Iterable
 
 from fuelid.plc.site import Tag
@@ -100,11 +99,17 @@ class RangeChecks:
 
 
 class StuckDetector:
-    """Holds samples back :data:`STUCK_AFTER_S` seconds to flag a stuck flow from its start.
+    """Flags a stuck flow from the first sample of its stretch, without holding samples back.
 
-    Samples enter with :meth:`push` and leave (possibly re-flagged ``BAD_VALUE``) once they are
-    older than the window, so the first seconds of a stuck stretch are flagged too, not only what
-    follows its detection. :meth:`drain` releases everything (at a link loss and at the end).
+    Each sample goes through :meth:`push` and is returned at once, so that the recorder hands
+    it to the store's writer with no delay (a crash loses at most the uncommitted batch). A
+    sample of a stretch already recognised as stuck is returned flagged ``BAD_VALUE``. When a
+    stretch becomes stuck (its value unchanged for :data:`STUCK_AFTER_S`), its earlier samples
+    have already gone to the writer: ``on_reflag(t_from, t_to)`` then asks for them to be
+    flagged in the store (the recorder queues
+    :meth:`~fuelid.store.SampleWriter.set_quality`, which the writer applies after those
+    samples' inserts), and the sample that completes the window is returned flagged. So the
+    whole stretch is flagged from its first sample, and nothing waits for the detection.
 
     Parameters
     ----------
@@ -114,6 +119,9 @@ class StuckDetector:
         ``on_event(kind, detail, time)`` when a stuck stretch is found (kind ``stuck_sensor``).
     stuck_after_s : float
         Window [s] of sample time.
+    on_reflag : callable, optional
+        ``on_reflag(t_from, t_to, count)``: the samples with ``t_from <= time <= t_to`` [s UTC]
+        (``count`` of them were returned OK) are to be flagged ``BAD_VALUE`` in the store.
     """
 
     def __init__(
@@ -121,24 +129,26 @@ class StuckDetector:
         flow_tag: Tag | None,
         on_event: Callable[[str, str, float], None],
         stuck_after_s: float = STUCK_AFTER_S,
+        on_reflag: Callable[[float, float, int], None] | None = None,
     ) -> None:
         self.window_s = float(stuck_after_s)
         self._on_event = on_event
+        self._on_reflag = on_reflag
         low = -math.inf
         if flow_tag is not None and flow_tag.eng is not None:
             e0, e1 = sorted(flow_tag.eng)
             low = e0 + LOW_END_FRACTION * (e1 - e0)
         self._low = low
-        self._held: deque[Sample] = deque()
         self._value = math.nan
         self._run_start = math.nan
+        self._run_ok = 0  # samples of the current run returned OK (to be re-flagged)
         self._moved = False
         self._stuck = False
         self.episodes = 0
         """Stuck stretches found."""
 
-    def push(self, sample: Sample) -> list[Sample]:
-        """Take one sample; return those now older than the window (in order)."""
+    def push(self, sample: Sample) -> Sample:
+        """Take one sample; return it at once, flagged when its stretch is known to be stuck."""
         y = sample.y
         if y == self._value:  # NaN never equals: a NaN run is a bad value, not a stuck one
             if (
@@ -152,27 +162,26 @@ class StuckDetector:
                 self._on_event(
                     "stuck_sensor",
                     f"flow exactly {y:.6g} for {sample.time - self._run_start:.3g} s while it "
-                    "moved before: flagged bad until it moves",
+                    "moved before: flagged bad from the start of the stretch until it moves",
                     self._run_start,
                 )
-                self._held = deque(_flag(s) if s.time >= self._run_start else s for s in self._held)
+                if self._on_reflag is not None and self._run_ok:
+                    self._on_reflag(self._run_start, sample.time, self._run_ok)
+                self._run_ok = 0
         else:
             if math.isfinite(self._value) and math.isfinite(y):
                 self._moved = True
             self._value, self._run_start, self._stuck = y, sample.time, False
-        self._held.append(_flag(sample) if self._stuck else sample)
-        out: list[Sample] = []
-        # a sample older than the window can no longer join a run found later
-        while self._held and self._held[0].time < sample.time - self.window_s:
-            out.append(self._held.popleft())
-        return out
+            self._run_ok = 0
+        if self._stuck:
+            return _flag(sample)
+        if sample.quality == Quality.OK:
+            self._run_ok += 1
+        return sample
 
-    def drain(self) -> list[Sample]:
-        """Release every held sample and forget the run (a link loss breaks it)."""
-        out = list(self._held)
-        self._held.clear()
-        self._value, self._run_start, self._stuck = math.nan, math.nan, False
-        return out
+    def reset(self) -> None:
+        """Forget the current run (a link loss or a PLC restart breaks it)."""
+        self._value, self._run_start, self._stuck, self._run_ok = math.nan, math.nan, False, 0
 
 
 def _flag(sample: Sample) -> Sample:

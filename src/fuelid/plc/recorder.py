@@ -22,13 +22,30 @@ a message goes to ``on_message`` when the link state or the reason changes, not 
 (c) neither: the receipt time; a missed deadline is a lost sample (counted; one ``gap`` event per
     run of misses).
 
-**Restarts.** The counter jumping back (by more than half its range: not a wrap) is a PLC
-restart: a ``restart`` event, the anchor is set again (never before the last stored sample) and
-the stored sequence continues monotonic, leaving one number out so that readers see a break
-(:meth:`~fuelid.store.SampleStore.to_iodata` starts a new segment). A recorder started on a
-store continues after its largest stored number: if the PLC's counter is ahead of it, the PLC is
-taken to be the same run (stored number = the PLC's, back-filled from the ring when it still
-holds the missed records); if behind, a PLC restart since the last recording.
+**Restarts.** A PLC restart is seen in two ways. (1) The counter jumps back (by more than half
+its range: not a wrap). (2) After a link outage, the counter advanced less than the wall time
+of the outage allows: less than the counter's rate in this run (a lower bound: the counts
+since the run's first read over the longest wall time they can have taken) × ``(1 −
+RESTART_RATE_SLACK)`` × the wall time surely between the two reads (the request of the new one
+minus the receipt of the last one), less :data:`RESTART_SLACK_S` of counting. A PLC that
+restarted during a long outage can count past the last number seen before it (its new run is
+longer than the old one was): (1) alone misses it, (2) does not, and rate and times are bounds,
+so a PLC that ran on through the outage is never taken for a restart. Only the first read after
+an outage is judged by (2): a PLC whose clock stalls while the link is up is no restart.
+
+A restart writes a ``restart`` event, the stored sequence continues monotonic, leaving one
+number out so that readers see a break (:meth:`~fuelid.store.SampleStore.to_iodata` starts a
+new segment), and the new run is read from its first record (as far as the ring holds it).
+Its times are re-anchored by the rule: ``anchor = max(receipt − head·period, last stored time
++ period)``, the wall-clock anchor of a first connection unless that would put the new run's
+first sample at or before the last stored one. At X times real time the data time runs ahead
+of the wall clock (X s per s), so after a restart the second term usually wins: the new run
+follows the old one one period later, sample times stay strictly increasing and never collide
+with stored ones, and the outage shows as the break in the sequence (the events give its wall
+time). A recorder started on a store continues after its largest stored number: if the PLC's
+counter is ahead of it, the PLC is taken to be the same run (stored number = the PLC's,
+back-filled from the ring when it still holds the missed records); if behind, a PLC restart
+since the last recording.
 
 **Outages without a ring** store no rows (no invented values, and no rows of NaN): the
 ``link_down``/``link_up`` events and a ``gap`` event with the count of samples lost say it, and
@@ -39,6 +56,16 @@ or out of range make the sample ``BAD_VALUE`` (values kept as read); a bad setpo
 temperature or mode is stored as NaN (None) and the sample stays ``OK``. Each bad episode writes
 one ``bad_value`` event; a stuck flow a ``stuck_sensor`` event and its samples ``BAD_VALUE``.
 Applied gains that change write ``gain_change``, MAN/AUTO ``mode_change``.
+
+**Nothing is held back.** Every sample goes to the writer as soon as it is read, so a crash
+(kill -9) loses at most the batch not yet committed (the commit interval, 1 s). A stuck flow is
+recognised :data:`~fuelid.plc.quality.STUCK_AFTER_S` after its stretch began: from then on its
+samples are flagged as they go, and the earlier samples of the stretch, already queued or
+stored, are flagged in the store by a
+:meth:`~fuelid.store.SampleWriter.set_quality` queued behind them (applied in the writer's
+order, in the transaction of the last of them). A crash between the two leaves the early
+samples of the stretch ``OK``; the detection happens again on the restart only if the flow
+is still stuck.
 """
 
 from __future__ import annotations
@@ -69,6 +96,13 @@ RING_POLL_S = 0.2
 RING_MARGIN = 8
 """Fraction 1/RING_MARGIN of the ring left alone when back-filling: the PLC overwrites the
 oldest records while they are read."""
+RESTART_RATE_SLACK = 0.1
+"""Fraction by which the counter may advance slower than its rate of the run across an outage
+before that counts as a restart (rule (2) of the module docstring)."""
+RESTART_SLACK_S = 0.5
+"""Wall time [s] the counter may lag besides (a PLC or virtual clock catching up)."""
+RESTART_MIN_COUNTS = 10
+"""Counts a run must have advanced before its rate is trusted for rule (2)."""
 _CORE = ("command", "flow", "setpoint")
 RATE_WINDOW_S = 5.0
 """Window of the live sample rate [s]."""
@@ -147,10 +181,38 @@ class _Sequence:
         self.anchor = math.nan
         self.raw: int | None = None
         self.u = 0
+        self._origin = (math.nan, 0)  # (request wall time, u) of the run's first read
+        self._last_read = (math.nan, 0)  # (receipt wall time, u) of the last read
 
-    def start(self, raw: int, received: float) -> tuple[bool, str]:
-        """The first counter value of this process; (continues the store?, why if not)."""
+    def _new_run(self, raw: int, sent: float, received: float) -> None:
         self.raw, self.u = raw, raw
+        self._origin = (sent, raw)
+        self._last_read = (received, raw)
+
+    def min_rate(self) -> float | None:
+        """A lower bound of the counter's rate in this run [counts per wall s], or None.
+
+        Counts between the first and the last read over the longest wall time they can span
+        (the first request to the last receipt); None before :data:`RESTART_MIN_COUNTS`.
+        """
+        (sent0, u0), (received1, u1) = self._origin, self._last_read
+        span = received1 - sent0
+        if u1 - u0 < RESTART_MIN_COUNTS or not span > 0.0:
+            return None
+        return (u1 - u0) / span
+
+    def too_slow(self, step: int, sent: float) -> bool:
+        """Whether a forward ``step`` read at ``sent`` is less than the run's rate allows."""
+        rate = self.min_rate()
+        if rate is None:
+            return False
+        quiet = sent - self._last_read[0]  # wall time surely between the two counter readings
+        least = rate * ((1.0 - RESTART_RATE_SLACK) * quiet - RESTART_SLACK_S)
+        return step < least
+
+    def start(self, raw: int, received: float, sent: float | None = None) -> tuple[bool, str]:
+        """The first counter value of this process; (continues the store?, why if not)."""
+        self._new_run(raw, received if sent is None else sent, received)
         self.anchor = received - raw * self.period_s
         last = self.last_stored
         if last is None or raw > last:
@@ -159,20 +221,37 @@ class _Sequence:
         self.offset = last + 2  # one number left out: a break readers see
         return False, f"the PLC's counter ({raw}) is behind the store's last sample ({last})"
 
-    def advance(self, raw: int, received: float) -> int:
-        """Step to a new counter value; the step (0 repeat, > 0 forward, < 0 restart)."""
+    def advance(
+        self, raw: int, received: float, sent: float | None = None, after_outage: bool = False
+    ) -> tuple[int, str]:
+        """Step to a new counter value; (step, why it is a restart).
+
+        The step is 0 for a repeat, > 0 forward, < 0 a restart (rules (1) and (2) of the module
+        docstring; (2) only ``after_outage``).
+        """
         assert self.raw is not None
+        sent = received if sent is None else sent
         step = (raw - self.raw) % UINT32
+        why = ""
         if step >= HALF_RANGE:  # back by more than half the range: not a wrap, a restart
+            why = f"went back to {raw}"
+        elif after_outage and self.too_slow(step, sent):
+            quiet = sent - self._last_read[0]
+            why = (
+                f"advanced only {step} in {quiet:.1f} s without a link (from {self.raw} to "
+                f"{raw}; it counted at least {self.min_rate() or 0.0:.4g} per s before)"
+            )
+        if why:
             last = self.last_stored if self.last_stored is not None else self.offset + self.u
             self.offset = last + 2
-            # re-anchored at the receipt, but never before the last stored sample
+            # the wall-clock anchor, but the new run strictly after the last stored sample
             self.anchor = max(received - raw * self.period_s, self.last_time + self.period_s)
-            self.raw, self.u = raw, raw
-            return -1
+            self._new_run(raw, sent, received)
+            return -1, why
         self.raw = raw
         self.u += step
-        return step
+        self._last_read = (received, self.u)
+        return step, ""
 
     def stored(self, u: int) -> int:
         return self.offset + u
@@ -233,7 +312,9 @@ class Recorder:
         self._ever_up = False
         self._seq = _Sequence(self.period_s, writer.store.last_seq())
         self._checks = RangeChecks(dict(self.site.tags), self._event)
-        self._stuck = StuckDetector(self.site.tags.get("flow"), self._event_at, stuck_after_s)
+        self._stuck = StuckDetector(
+            self.site.tags.get("flow"), self._event_at, stuck_after_s, self._reflag
+        )
         self._aux: dict[str, float] = {}  # last finite kc, ti, mode (change events)
         self._aux_values: dict[str, float] = {}  # setpoint, temperature, mode attached, checked
         self._next_u: int | None = None  # ring: the next record to read (unwrapped)
@@ -258,19 +339,19 @@ class Recorder:
     def _event_at(self, kind: str, detail: str, t: float) -> None:
         self.writer.event(kind, detail, time=t)
 
-    def _emit(self, samples: list[Sample]) -> None:
-        if not samples:
-            return
-        self.writer.put_many(samples)
-        self.stats.stored += len(samples)
-        self.stats.flagged += sum(1 for s in samples if s.quality != Quality.OK)
-
     def _take(self, sample: Sample) -> None:
-        # marked when taken, not when released by the stuck detector: a restart's new offset
-        # must clear the samples still held back too
         if sample.seq is not None:
             self._seq.mark(sample.seq, sample.time)
-        self._emit(self._stuck.push(sample))
+        sample = self._stuck.push(sample)  # returned at once: nothing is held back
+        self.writer.put(sample)
+        self.stats.stored += 1
+        if sample.quality != Quality.OK:
+            self.stats.flagged += 1
+
+    def _reflag(self, t_from: float, t_to: float, count: int) -> None:
+        """A stuck stretch found: flag its samples already handed to the writer."""
+        self.writer.set_quality(t_from, t_to, Quality.BAD_VALUE)
+        self.stats.flagged += count
 
     async def _wait(self, seconds: float) -> None:
         """Sleep, but wake at once on :meth:`stop`."""
@@ -330,7 +411,7 @@ class Recorder:
         self._missing_after_outage = True
         self._event("link_down", reason)
         self._say(f"link down: {reason}; reconnecting")
-        self._emit(self._stuck.drain())  # an outage breaks any stuck run
+        self._stuck.reset()  # an outage breaks any stuck run
         await self.source.close()
 
     # --- main loop ------------------------------------------------------------------------
@@ -368,7 +449,6 @@ class Recorder:
         except EndOfSource as end:
             self._say(str(end))
         finally:
-            self._emit(self._stuck.drain())
             await self.source.close()
             self._connected = False
             self.writer.flush()
@@ -451,10 +531,11 @@ class Recorder:
                 await asyncio.sleep(t_next - now)
                 if self._done(deadline):
                     break
+            sent = time.time()
             reading = await self.source.read()
             self._watch(reading)
             if has_seq:
-                self._poll_seq(reading)
+                self._poll_seq(reading, sent)
             else:
                 self._poll_receipt(reading)
             self.stats._tick(time.monotonic())
@@ -470,22 +551,22 @@ class Recorder:
                 self._event("gap", f"{missed_run} sample(s) lost: missed read deadlines")
                 missed_run = 0
 
-    def _poll_seq(self, reading: Reading) -> None:
+    def _poll_seq(self, reading: Reading, sent: float) -> None:
         raw = int(reading.raw["seq"]) % UINT32
         seq = self._seq
         if seq.raw is None:
-            continued, why = seq.start(raw, reading.received)
+            continued, why = seq.start(raw, reading.received, sent)
             if not continued:
                 self._restart(why)
             elif seq.last_stored is not None and raw > seq.last_stored + 1:
                 self._gap(raw - seq.last_stored - 1, "since the last recording")
         else:
-            step = seq.advance(raw, reading.received)
+            step, why = seq.advance(raw, reading.received, sent, self._missing_after_outage)
             if step == 0:
                 self.stats.stale += 1
                 return
             if step < 0:
-                self._restart(f"the PLC's counter went back to {raw}")
+                self._restart(f"the PLC's counter {why}")
             elif step > 1:
                 self._gap(step - 1, f"sequence jumped to {raw}")
         self._missing_after_outage = False
@@ -513,7 +594,7 @@ class Recorder:
         self.stats.restarts += 1
         self._event("restart", f"PLC restart: {why}; stored sequence continues")
         self._say(f"PLC restart: {why}")
-        self._emit(self._stuck.drain())
+        self._stuck.reset()
 
     # --- (a): the ring buffer -------------------------------------------------------------
 
@@ -524,12 +605,13 @@ class Recorder:
         next_u = self._next_u
         while not self._done(deadline):
             started = time.monotonic()
+            sent = time.time()
             head = await self.source.read_ring_head() % UINT32
             received = time.time()
             reading = await self.source.read()
             self._watch(reading)
             if seq.raw is None:
-                continued, why = seq.start(head, received)
+                continued, why = seq.start(head, received, sent)
                 if continued and seq.last_stored is not None:
                     next_u = seq.last_stored + 1  # back-fill what the last recording missed
                 else:
@@ -537,9 +619,9 @@ class Recorder:
                         self._restart(why)
                     next_u = head
             else:
-                step = seq.advance(head, received)
+                step, why = seq.advance(head, received, sent, self._missing_after_outage)
                 if step < 0:
-                    self._restart(f"the ring's head went back to {head}")
+                    self._restart(f"the ring's head {why}")
                     next_u = 0  # the new run from its start, as far as the ring holds it
             assert next_u is not None
             next_u = await self._read_records(next_u, seq.u, reading)

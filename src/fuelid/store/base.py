@@ -101,6 +101,27 @@ class Sample(NamedTuple):
     quality: int = Quality.OK
 
 
+class Requalify(NamedTuple):
+    """A change of quality of stored samples, applied in the writer's order (after the inserts).
+
+    Samples with ``t_from <= time <= t_to`` [s UTC] whose quality is :attr:`Quality.OK` get
+    ``quality``; samples already flagged keep their flag. The recorder uses it to flag the
+    first seconds of a stuck flow once the stretch is recognised as stuck, so that it never
+    holds samples back from the store.
+
+    Parameters
+    ----------
+    t_from, t_to : float
+        First and last sample time of the stretch [s UTC], both included.
+    quality : int
+        The new :class:`Quality` code.
+    """
+
+    t_from: float
+    t_to: float
+    quality: int = Quality.BAD_VALUE
+
+
 class Event(NamedTuple):
     """One event of the recording.
 
@@ -259,16 +280,40 @@ class SampleStore(ABC):
     tag_map_hash: str
 
     @abstractmethod
-    def append(self, samples: Iterable[Sample] = (), events: Iterable[Event] = ()) -> int:
-        """Store samples and events in one transaction (committed on return).
+    def append(
+        self,
+        samples: Iterable[Sample] = (),
+        events: Iterable[Event] = (),
+        requalify: Iterable[Requalify] = (),
+    ) -> int:
+        """Store samples and events, then re-flag stretches, in one transaction (committed).
 
-        Samples whose ``seq`` (or, without one, ``time``) is already stored are ignored.
+        Samples whose ``seq`` (or, without one, ``time``) is already stored are ignored. The
+        :class:`Requalify` changes are applied after the inserts, so they reach the samples of
+        this same call too.
 
         Returns
         -------
         int
             Samples actually added.
         """
+
+    def set_quality(self, t_from: float, t_to: float, quality: int = Quality.BAD_VALUE) -> int:
+        """Flag the OK samples with ``t_from <= time <= t_to`` [s UTC] (committed on return).
+
+        Samples already flagged keep their flag. Through a :class:`SampleWriter` use
+        :meth:`SampleWriter.set_quality`, which keeps the order of the queue.
+
+        Returns
+        -------
+        int
+            Samples changed.
+        """
+        return self.requalify([Requalify(float(t_from), float(t_to), int(quality))])
+
+    @abstractmethod
+    def requalify(self, changes: Iterable[Requalify]) -> int:
+        """Apply :class:`Requalify` changes in one transaction; the samples changed."""
 
     def append_samples(self, samples: Iterable[Sample]) -> int:
         """Store samples (committed on return); see :meth:`append`."""
@@ -415,6 +460,9 @@ class SampleWriter:
 
     Samples and events put on the queue are committed together about every
     ``commit_interval_s``; :meth:`flush` and :meth:`close` commit what is pending and wait for it.
+    :meth:`set_quality` re-flags a stretch of samples in queue order: it is applied after the
+    inserts of the batch it joins, in the same transaction, so it reaches every sample queued
+    before it (whether already committed or not) and never races an insert.
     A crash loses at most the uncommitted batch. An error of the store (a full disk) stops the
     writer and is raised by the next :meth:`put`, :meth:`flush` or :meth:`close`.
 
@@ -463,6 +511,15 @@ class SampleWriter:
         self._check()
         self._queue.put(Event(_time.time() if time is None else time, kind, detail))
 
+    def set_quality(self, t_from: float, t_to: float, quality: int = Quality.BAD_VALUE) -> None:
+        """Queue a re-flag of the samples with ``t_from <= time <= t_to`` [s UTC] (if OK).
+
+        Applied in queue order: it reaches every sample queued before it, in the same
+        transaction as the last of them (see :meth:`SampleStore.set_quality`).
+        """
+        self._check()
+        self._queue.put(Requalify(float(t_from), float(t_to), int(quality)))
+
     def flush(self, timeout: float | None = 30.0) -> None:
         """Commit everything queued so far and wait for it [timeout in s]."""
         self._check()
@@ -499,19 +556,21 @@ class SampleWriter:
         if self._closed:
             raise StoreError(f"{self.store.path}: the writer is closed")
 
-    def _commit(self, samples: list[Sample], events: list[Event]) -> None:
-        if not samples and not events:
+    def _commit(self, samples: list[Sample], events: list[Event], changes: list[Requalify]) -> None:
+        if not samples and not events and not changes:
             return
-        self.rows_written += self.store.append(samples, events)
+        self.rows_written += self.store.append(samples, events, changes)
         self.commits += 1
         if self.on_commit is not None:
             self.on_commit(samples, events)
         samples.clear()
         events.clear()
+        changes.clear()
 
     def _run(self) -> None:
         samples: list[Sample] = []
         events: list[Event] = []
+        changes: list[Requalify] = []
         deadline = _time.monotonic() + self.commit_interval_s
         item: Any = None
         try:
@@ -524,14 +583,16 @@ class SampleWriter:
                     samples.append(item)
                 elif isinstance(item, Event):
                     events.append(item)
+                elif isinstance(item, Requalify):
+                    changes.append(item)  # applied after this batch's inserts: queue order
                 elif item is _STOP:
-                    self._commit(samples, events)
+                    self._commit(samples, events, changes)
                     return
                 elif isinstance(item, tuple) and item and item[0] is _FLUSH:
-                    self._commit(samples, events)
+                    self._commit(samples, events, changes)
                     item[1].set()
                 if _time.monotonic() >= deadline:
-                    self._commit(samples, events)
+                    self._commit(samples, events, changes)
                     deadline = _time.monotonic() + self.commit_interval_s
         except BaseException as error:  # handed to the caller by the next call
             self._error = error

@@ -29,6 +29,14 @@ fuelid store; a newer version is refused), every table STRICT::
               status TEXT NOT NULL, detail TEXT NOT NULL)         -- reserved (online issue)
 
 NaN values are stored as NULL (SQLite has no NaN) and read back as NaN.
+
+Re-flagging (:meth:`SQLiteStore.requalify`, the writer's ``set_quality``): ``UPDATE samples SET
+quality = ? WHERE time BETWEEN ? AND ? AND quality = 0`` on the ``samples_time`` index, in the
+transaction of the batch it was queued after, so it never races the inserts.
+
+Opening an existing file: its identity (``application_id`` and the ``meta`` table) is read
+before anything is written to it, ``journal_mode=WAL`` included, so that another application's
+SQLite file is refused untouched (WAL is a persistent property of the file).
 """
 
 from __future__ import annotations
@@ -44,6 +52,7 @@ from fuelid.store.base import (
     Event,
     PruneResult,
     Quality,
+    Requalify,
     Sample,
     SampleArrays,
     SampleStore,
@@ -87,6 +96,8 @@ CREATE TABLE proposals(
 # DO NOTHING only on a duplicate key: a NULL time or a bad quality code still fails the batch
 _INSERT_SAMPLE = "INSERT INTO samples VALUES (?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT DO NOTHING"
 _COLUMNS = "time, seq, u, y, setpoint, fuel_temperature, mode, quality"
+# only samples still OK: a stale or link-down flag says more than "bad value"
+_REQUALIFY = "UPDATE samples SET quality = ?3 WHERE time >= ?1 AND time <= ?2 AND quality = 0"
 
 
 def _connect(path: Path) -> sqlite3.Connection:
@@ -157,11 +168,18 @@ class SQLiteStore(SampleStore):
             self._file.parent.mkdir(parents=True, exist_ok=True)
         try:
             self._con = _connect(self._file)
+            if not new:
+                # identity first, with reads only: nothing (not even WAL) is written to a file
+                # that is not a fuelid store. A crash while creating leaves a file without
+                # tables (and without the application id): create it again.
+                empty = self._con.execute("SELECT count(*) FROM sqlite_schema").fetchone()[0] == 0
+                app_id = self._con.execute("PRAGMA application_id").fetchone()[0]
+                if empty and app_id in (0, APPLICATION_ID) and self._writable:
+                    new = True
+                else:
+                    self._check_store()
             self._con.execute("PRAGMA journal_mode=WAL")
             self._con.execute("PRAGMA synchronous=FULL")
-            # a crash while creating leaves a file without tables: create it again
-            if not new and self._writable:
-                new = self._con.execute("SELECT count(*) FROM sqlite_schema").fetchone()[0] == 0
             if new:
                 self._create(str(site_name), str(tag_map_hash), period_s)
             meta = self._check_store()
@@ -233,7 +251,13 @@ class SQLiteStore(SampleStore):
             if con is not None:
                 con.close()
 
-    def _raw_append(self, samples: Iterable[Sample], events: Iterable[Event]) -> int:
+    def _raw_append(
+        self,
+        samples: Iterable[Sample],
+        events: Iterable[Event],
+        requalify: Iterable[Requalify] = (),
+    ) -> tuple[int, int]:
+        """One transaction; (samples added, samples re-flagged)."""
         with self._lock:
             con = self._con
             con.execute("BEGIN IMMEDIATE")
@@ -242,20 +266,40 @@ class SQLiteStore(SampleStore):
                 con.executemany(_INSERT_SAMPLE, samples)
                 added = con.total_changes - before
                 con.executemany("INSERT INTO events VALUES (?, ?, ?)", events)
+                before = con.total_changes
+                con.executemany(_REQUALIFY, requalify)
+                changed = con.total_changes - before
                 con.execute("COMMIT")
             except BaseException:
                 con.execute("ROLLBACK")
                 raise
-        return added
+        return added, changed
 
-    def append(self, samples: Iterable[Sample] = (), events: Iterable[Event] = ()) -> int:
-        """Store samples and events in one committed transaction; see :class:`SampleStore`."""
+    def append(
+        self,
+        samples: Iterable[Sample] = (),
+        events: Iterable[Event] = (),
+        requalify: Iterable[Requalify] = (),
+    ) -> int:
+        """Store samples and events, then re-flag, in one committed transaction.
+
+        See :class:`SampleStore`; the re-flag is an indexed ``UPDATE`` (module docstring).
+        """
+        return self._write(samples, events, requalify)[0]
+
+    def requalify(self, changes: Iterable[Requalify]) -> int:
+        """Apply re-flags in one committed transaction; the number of samples changed."""
+        return self._write((), (), changes)[1]
+
+    def _write(
+        self, samples: Iterable[Sample], events: Iterable[Event], requalify: Iterable[Requalify]
+    ) -> tuple[int, int]:
         if not self._writable:
             raise StoreError(
                 f"{self.path}: opened without the site's identity, so it cannot be written"
             )
         try:
-            return self._raw_append(samples, events)
+            return self._raw_append(samples, events, requalify)
         except sqlite3.IntegrityError as error:
             raise StoreError(f"{self.path}: a sample was refused ({error})") from None
         except sqlite3.ProgrammingError as error:
