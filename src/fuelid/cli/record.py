@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from fuelid.cli._common import emit_json, guarded, provenance
+from fuelid.errors import DataError
 
 if TYPE_CHECKING:
     from fuelid.plc.recorder import RecorderStats
@@ -168,6 +169,8 @@ def export_command(
 
     lo = None if t_from is None else parse_time(t_from)
     hi = None if t_to is None else parse_time(t_to)
+    if lo is not None and hi is not None and lo >= hi:
+        raise DataError(f"--from {t_from} is not before --to {t_to}: the range holds nothing")
     with SQLiteStore(store) as opened:
         result = export_log(opened, out, lo, hi, overwrite=force)
     typer.echo(
