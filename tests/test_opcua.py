@@ -35,12 +35,8 @@ from fuelid.errors import ConfigError
 from fuelid.plc.adapters import LinkError, open_source
 from fuelid.plc.adapters.opcua import OpcUaSource
 from fuelid.plc.site import SiteConfig, load_site
-from fuelid.plc.virtual.opcua_server import (
-    APPLICATION_URI,
-    VARIANT_OF,
-    OpcUaFrontend,
-    free_port,
-)
+from fuelid.plc.virtual.frontend import free_port
+from fuelid.plc.virtual.opcua_server import APPLICATION_URI, VARIANT_OF, OpcUaFrontend
 from fuelid.plc.virtual.points import OPCUA_NAMESPACE, OPCUA_RING, POINTS
 
 T = TypeVar("T")

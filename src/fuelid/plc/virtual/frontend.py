@@ -9,6 +9,7 @@ says; it holds no plant logic.
 
 from __future__ import annotations
 
+import socket
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 
@@ -73,3 +74,12 @@ class Frontend(ABC):
     @abstractmethod
     async def collect(self) -> dict[str, float]:
         """The write points (name → engineering value) as clients last left them."""
+
+
+def free_port(host: str = "127.0.0.1") -> int:
+    """A TCP port free on ``host`` now (the OS picks it)."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as sock:
+        sock.bind((host, 0))
+        port: int = sock.getsockname()[1]
+        return port

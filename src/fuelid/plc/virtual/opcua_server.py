@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import logging
 import math
-import socket
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -43,7 +42,7 @@ from asyncua.ua.status_codes import StatusCodes
 from numpy.typing import NDArray
 
 from fuelid.plc.codec import WordOrder
-from fuelid.plc.virtual.frontend import Frontend
+from fuelid.plc.virtual.frontend import Frontend, free_port
 from fuelid.plc.virtual.points import (
     DEFAULT_RING_SIZE,
     OPCUA_NAMESPACE,
@@ -149,14 +148,6 @@ class _Users(UserManager):
         if username is not None and self._users.get(username) == password:
             return User(role=UserRole.User, name=username)
         return None
-
-
-def free_port(host: str = "127.0.0.1") -> int:
-    """A TCP port that is free on ``host`` now (for port 0: the server keeps it over restarts)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
-        probe.bind((host, 0))
-        port: int = probe.getsockname()[1]
-    return port
 
 
 class OpcUaFrontend(Frontend):

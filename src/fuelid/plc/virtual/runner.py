@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from fuelid.errors import ConfigError
 from fuelid.plc.codec import WordOrder
 from fuelid.plc.virtual.engine import VirtualPLC
-from fuelid.plc.virtual.frontend import Frontend
+from fuelid.plc.virtual.frontend import Frontend, free_port
 from fuelid.plc.virtual.points import (
     DEFAULT_RING_SIZE,
     OPCUA_PATH,
@@ -371,15 +371,6 @@ def _bool(value: bool) -> str:
 
 def _url_host(host: str) -> str:
     return f"[{host}]" if ":" in host else host
-
-
-def free_port(host: str = "127.0.0.1") -> int:
-    """A TCP port free on ``host`` now (the OS picks it)."""
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    with socket.socket(family, socket.SOCK_STREAM) as sock:
-        sock.bind((host, 0))
-        port: int = sock.getsockname()[1]
-        return port
 
 
 def _whole_ring(plc: VirtualPLC) -> dict[int, NDArray[np.float64]]:
