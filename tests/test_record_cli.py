@@ -183,6 +183,19 @@ def test_a_wrong_device_id_or_register_is_one_line_and_exit_2(
     assert_one_line_error(code, err, *needles)
 
 
+def test_the_wrong_word_order_is_refused_with_the_hint_and_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
+    with runner.VirtualPlcThread("modbus", speed=1.0, seed=2, word_order="little") as server:
+        site = site_file(tmp_path, server)
+        site.write_text(site.read_text().replace('word_order = "little"', 'word_order = "big"'))
+        code, out, err = run(capsys, "record", "--config", str(site), "--store",
+                             str(tmp_path / "w.db"), "--duration", "5")  # fmt: skip
+    assert_one_line_error(code, err, "not a plausible value", 'try word_order = "little"')
+    assert "recorded" not in out
+
+
 @pytest.mark.parametrize("content", [b"just text, not a database\n" * 10, None])
 def test_a_file_that_is_not_a_fuelid_store_is_refused_in_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], content: bytes | None

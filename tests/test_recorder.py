@@ -358,6 +358,7 @@ def test_a_plc_restart_is_an_event_and_the_stored_sequence_stays_monotonic(
     check_ring_values(rows_subset(data, slice(hole + 1, None)), offset=int(after[0]))
     assert before[-1] < 6000
     assert info.gaps == 1
+    assert info.missing_samples == stats.lost == 0  # the number left out is no lost sample
 
 
 def rows_subset(data: Any, index: slice) -> Any:
@@ -545,6 +546,7 @@ def test_a_plc_restarted_during_a_long_outage_is_seen_though_its_counter_passed_
     assert dt[hole] == pytest.approx(period, abs=1e-6)
     np.testing.assert_allclose(dt, period, atol=1e-6)
     assert info.gaps == 1
+    assert info.missing_samples == stats.lost == 0  # the number left out is no lost sample
 
 
 def test_a_plc_restart_after_a_short_outage_at_speed_keeps_times_increasing(

@@ -8,6 +8,13 @@ wire break, i.e. 4864/27648 = 17.6 % of the span on either side. The same fracti
 every scaled tag (4–20 mA: 1.2…22.8 mA; 1–5 V: 0.30…5.70 V): values within it are a real
 process at the edge of the range, beyond it a broken sensor, a wire break or a scaling mistake.
 
+A value is also bad when it is **not a plausible engineering value** (:func:`implausible`): not
+zero but smaller than :data:`TINY` in magnitude (a float32 denormal, what a float read with the
+wrong word order usually gives: 3.0 V sent ABCD and read CDAB is 2.3e-41), or larger than
+:data:`HUGE` (the other usual outcome: 59.1 L/min read swapped is 2.7e23). No V, L/min, °C or
+gain of a fuel loop is either. And a **command** outside 0…10.5 V (:data:`COMMAND_RANGE_V`: no
+drive signal is outside it, after scaling) is bad unless its tag's ``valid`` says otherwise.
+
 A flow reading is **stuck** when it is *exactly* unchanged (bit for bit) for
 :data:`STUCK_AFTER_S` seconds of sample time after it has been seen to move at least once in the
 recording, and it is not at the low end of its span (within 1 % of it: a stopped pump, or a
@@ -31,13 +38,32 @@ STUCK_AFTER_S = 2.0
 """Seconds of sample time of an exactly unchanged flow that mean a stuck sensor [s]."""
 LOW_END_FRACTION = 0.01
 """A flow within this fraction of the span of its low end may legitimately be constant."""
+TINY = 1e-20
+"""Below this magnitude (but not zero) a value is no engineering value: a float32 denormal."""
+HUGE = 1e9
+"""Above this magnitude a value is no engineering value of a fuel loop."""
+COMMAND_RANGE_V = (0.0, 10.5)
+"""The VFD command's range [V] without a ``valid`` of its tag: no drive signal is outside it."""
 
 
-def allowed_range(tag: Tag) -> tuple[float, float]:
+def implausible(value: float) -> bool:
+    """Whether a finite value is no plausible engineering value (tiny but not zero, or huge).
+
+    Examples
+    --------
+    >>> implausible(2.3e-41), implausible(2.7e23), implausible(0.0), implausible(59.1)
+    (True, True, False, False)
+    """
+    magnitude = abs(value)
+    return math.isfinite(value) and (0.0 < magnitude < TINY or magnitude > HUGE)
+
+
+def allowed_range(tag: Tag, role: str = "") -> tuple[float, float]:
     """The engineering range [tag unit] inside which a tag's value is good.
 
     The raw span widened by :data:`OVER_RANGE` on each side (scaled tags), intersected with the
-    tag's ``valid`` range; (−inf, inf) when the tag has neither.
+    tag's ``valid`` range; (−inf, inf) when the tag has neither. ``role = "command"``: without a
+    ``valid``, also inside :data:`COMMAND_RANGE_V`.
 
     Examples
     --------
@@ -53,6 +79,8 @@ def allowed_range(tag: Tag) -> tuple[float, float]:
         lo, hi = min(e0, e1), max(e0, e1)
     if tag.valid is not None:
         lo, hi = max(lo, tag.valid[0]), min(hi, tag.valid[1])
+    elif role == "command":
+        lo, hi = max(lo, COMMAND_RANGE_V[0]), min(hi, COMMAND_RANGE_V[1])
     return lo, hi
 
 
@@ -64,11 +92,16 @@ class RangeChecks:
     tags : dict of str to Tag
         The site's read tags by role.
     on_event : callable
-        Called as ``on_event(kind, detail)`` when a role turns bad (kind ``bad_value``).
+        Called as ``on_event(kind, detail, time)`` when a role turns bad (kind ``bad_value``),
+        ``time`` the sample time given to :meth:`check` (None: not known).
     """
 
-    def __init__(self, tags: dict[str, Tag], on_event: Callable[[str, str], None]) -> None:
-        self._ranges = {role: allowed_range(tag) for role, tag in tags.items()}
+    def __init__(
+        self, tags: dict[str, Tag], on_event: Callable[[str, str, float | None], None]
+    ) -> None:
+        self._ranges = {role: allowed_range(tag, role) for role, tag in tags.items()}
+        if "command" not in self._ranges:  # a ring's command without a tag
+            self._ranges["command"] = COMMAND_RANGE_V
         self._units = {role: tag.unit for role, tag in tags.items()}
         self._bad: set[str] = set()
         self._on_event = on_event
@@ -79,14 +112,19 @@ class RangeChecks:
         """Why ``value`` of ``role`` is bad, or None when it is good."""
         if not math.isfinite(value):
             return f"{role} = {value!r}"
+        if implausible(value):
+            return f"{role} = {value:.6g}, not a plausible value"
         lo, hi = self._ranges.get(role, (-math.inf, math.inf))
         if not lo <= value <= hi:
             unit = f" {self._units[role]}" if self._units.get(role) else ""
             return f"{role} = {value:.6g}{unit} outside {lo:.6g}…{hi:.6g}{unit}"
         return None
 
-    def check(self, role: str, value: float) -> bool:
-        """Whether the value is good; a role turning bad writes one ``bad_value`` event."""
+    def check(self, role: str, value: float, time: float | None = None) -> bool:
+        """Whether the value is good; a role turning bad writes one ``bad_value`` event.
+
+        ``time`` [s UTC] is the time of the sample the value belongs to (the event's time).
+        """
         why = self.reason(role, value)
         if why is None:
             self._bad.discard(role)
@@ -94,7 +132,7 @@ class RangeChecks:
         if role not in self._bad:
             self._bad.add(role)
             self.episodes += 1
-            self._on_event("bad_value", f"{why}: flagged until it is back in range")
+            self._on_event("bad_value", f"{why}: flagged until it is back in range", time)
         return False
 
 

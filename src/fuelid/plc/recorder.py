@@ -51,8 +51,32 @@ since the last recording.
 ``link_down``/``link_up`` events and a ``gap`` event with the count of samples lost say it, and
 the time (or sequence) gap in the samples shows it to every reader.
 
-**Quality** (:mod:`fuelid.plc.quality`): u and y (and the ring's fields) that are NaN, infinite
-or out of range make the sample ``BAD_VALUE`` (values kept as read); a bad setpoint, fuel
+**Event times.** With a ring or a ``seq`` tag every event is on the samples' time base (data
+time, which runs X times faster than the wall clock on a PLC at X times real time): ``link_down``
+at the last sample stored before the outage + one period; ``link_up``, ``restart`` and ``gap`` at
+the first sample stored after (they wait for it; at the end of a recording, the last + one
+period); gain and mode changes and bad values at the sample where they were seen. So a
+``link_down``/``link_up`` pair brackets the hole in the samples. The link events keep the wall
+clock in their detail (``at 12:22:26 UTC wall clock``). Without either, events are at the
+receipt time (the wall clock), as the samples are.
+
+**First read.** Right after the first connection, before anything is stored, the values are
+judged (:meth:`Recorder._probe`): a float32 tag that is tiny but not zero (< 1e-20) or huge
+(> 1e9), an int32/uint32 tag above 1e9, a ring whose newest records all hold another seq than
+their slot should (or an implausible float), or a counter that advances more than
+:data:`PROBE_JUMP_FACTOR` times what the wall time allows, is what a wrong word order or byte
+swap gives: the recording is refused with a one-line :class:`~fuelid.errors.ConfigError` naming
+the tag, the value and the word-order hint (``fuelid record`` exits with 2).
+
+**Ring against tags.** With a ring, u and y come from its records (scan-consistent), not from
+``[tags.flow]``/``[tags.command]``. Over the first :data:`RING_CHECK_POLLS` polls the tags' flow
+and command are compared with the head record of each poll; a median difference beyond 2 % of
+the flow tag's eng span (2 L/min without a scaling) or 0.1 V writes a ``ring_mismatch`` event
+and a message naming both (a wrong scaling, or a ring mapped to other fields).
+
+**Quality** (:mod:`fuelid.plc.quality`): u and y (and the ring's fields) that are NaN, infinite,
+implausible (tiny but not zero, or huge), out of range or, for u, outside 0…10.5 V without a
+``valid`` make the sample ``BAD_VALUE`` (values kept as read); a bad setpoint, fuel
 temperature or mode is stored as NaN (None) and the sample stays ``OK``. Each bad episode writes
 one ``bad_value`` event; a stuck flow a ``stuck_sensor`` event and its samples ``BAD_VALUE``.
 Applied gains that change write ``gain_change``, MAN/AUTO ``mode_change``.
@@ -73,15 +97,16 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
+import statistics
 import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from fuelid.errors import FuelidError
+from fuelid.errors import ConfigError, FuelidError
 from fuelid.plc.adapters.base import EndOfSource, LinkError, PlcSource, Reading, RingRecord
-from fuelid.plc.quality import STUCK_AFTER_S, RangeChecks, StuckDetector
+from fuelid.plc.quality import HUGE, STUCK_AFTER_S, RangeChecks, StuckDetector, implausible
 from fuelid.plc.site import SiteConfig
 from fuelid.store import Quality, Sample, SampleWriter, tag_map_hash
 
@@ -106,6 +131,24 @@ RESTART_MIN_COUNTS = 10
 _CORE = ("command", "flow", "setpoint")
 RATE_WINDOW_S = 5.0
 """Window of the live sample rate [s]."""
+STATUS_WIDTH = 80
+"""Longest live status line [characters]: one line of an 80-column terminal."""
+PROBE_RECORDS = 8
+"""Ring records read by the first-read check (the newest ones, ending at the head)."""
+PROBE_WAIT_S = 0.1
+"""Wall time between the two counter reads of the first-read check [s]."""
+PROBE_JUMP_FACTOR = 1 << 14
+"""A counter that advances more than this many times the samples the wall time between two reads
+allows is garbled (a word-swapped uint32 advances 65536 times too fast; a virtual PLC or a
+replay runs at most 1000 times real time)."""
+RING_CHECK_POLLS = 10
+"""Ring polls over which the tags' flow and command are compared with the ring's records."""
+RING_FLOW_TOLERANCE = 0.02
+"""Largest median difference of the flow tag and the ring, as a fraction of the tag's eng span."""
+RING_FLOW_TOLERANCE_LPM = 2.0
+"""The same without a scaling [L/min]."""
+RING_COMMAND_TOLERANCE_V = 0.1
+"""Largest median difference of the command tag and the ring [V]."""
 
 
 def site_identity(site: SiteConfig) -> dict[str, Any]:
@@ -156,13 +199,25 @@ class RecorderStats:
         return (n1 - n0) / (t1 - t0) if t1 > t0 else 0.0
 
     def line(self) -> str:
-        """One status line: link, rate, stored, lost, flagged."""
-        text = (
-            f"link {self.link} | {self.rate:6.1f} samples/s | {self.stored} stored | "
-            f"{self.lost} lost | {self.flagged} flagged"
-        )
-        if self.link != "up" and self.last_error:
-            text += f" | {self.last_error}"
+        """One status line of at most :data:`STATUS_WIDTH` characters in every state.
+
+        Link, rate, stored, lost, flagged (and drops, restarts when there were some); the reason
+        of a link loss is not in it (it goes once per change to the recorder's messages).
+        """
+        parts = [
+            f"link {self.link}",
+            f"{self.rate:.1f}/s",
+            f"{self.stored} stored",
+            f"{self.lost} lost",
+            f"{self.flagged} flagged",
+        ]
+        if self.drops:
+            parts.append(f"{self.drops} drops")
+        if self.restarts:
+            parts.append(f"{self.restarts} restarts")
+        text = " | ".join(parts)
+        if len(text) > STATUS_WIDTH:
+            text = text[: STATUS_WIDTH - 1] + "…"
         return text
 
 
@@ -322,6 +377,14 @@ class Recorder:
         self._missing_after_outage = False
         ring = self.site.ring
         self._ring_fields = tuple(ring.fields[1:]) if ring is not None else ()
+        self._seq_base = ring is not None or "seq" in self.site.tags
+        """Sample times are data times (ring or counter): events are put on them too."""
+        self._pending: list[tuple[str, str]] = []  # events waiting for the next sample's time
+        self._probed = False
+        self._head_record: dict[str, float] | None = None  # ring: this poll's head record
+        self._ring_pairs: dict[str, list[tuple[float, float]]] = {"flow": [], "command": []}
+        self._ring_polls = 0
+        self._ring_checked = False
 
     # --- plumbing -------------------------------------------------------------------------
 
@@ -333,13 +396,42 @@ class Recorder:
         if self.on_message is not None:
             self.on_message(message)
 
-    def _event(self, kind: str, detail: str) -> None:
-        self.writer.event(kind, detail)
+    def _event(self, kind: str, detail: str, t: float | None = None) -> None:
+        """An event at sample time ``t`` [s UTC].
 
-    def _event_at(self, kind: str, detail: str, t: float) -> None:
+        None: the next sample's time (ring or seq time base, see the module docstring), or now
+        (receipt times).
+        """
+        if t is None and self._seq_base:
+            self._pending.append((kind, detail))
+            return
         self.writer.event(kind, detail, time=t)
 
+    def _event_at(self, kind: str, detail: str, t: float | None) -> None:
+        """An event at ``t`` [s UTC] (None: now, the wall clock), never held back."""
+        self.writer.event(kind, detail, time=t)
+
+    def _after_last(self) -> float | None:
+        """One period after the last stored sample [s UTC]; None (now) without a data time."""
+        last = self._seq.last_time
+        if self._seq_base and math.isfinite(last):
+            return last + self.period_s
+        return None
+
+    def _flush_pending(self, t: float | None) -> None:
+        pending, self._pending = self._pending, []
+        for kind, detail in pending:
+            self.writer.event(kind, detail, time=t)
+
+    def _wall(self) -> str:
+        """`` (at 12:22:26 UTC wall clock)`` for events on a data time base, else nothing."""
+        if not self._seq_base:
+            return ""
+        return f" (at {time.strftime('%H:%M:%S', time.gmtime())} UTC wall clock)"
+
     def _take(self, sample: Sample) -> None:
+        if self._pending:
+            self._flush_pending(sample.time)
         if sample.seq is not None:
             self._seq.mark(sample.seq, sample.time)
         sample = self._stuck.push(sample)  # returned at once: nothing is held back
@@ -379,7 +471,7 @@ class Recorder:
                 if self.stats.link != "down" or reason != self.stats.last_error:
                     self._say(f"link down: {reason}; retrying (backoff up to {longest:g} s)")
                     if self.stats.link == "connecting" and attempts == 1:
-                        self._event("link_down", reason)
+                        self._event_at("link_down", reason + self._wall(), self._after_last())
                 self.stats.link, self.stats.last_error = "down", reason
                 waited = time.monotonic() - self._down_since
                 if self.give_up_after_s is not None and waited >= self.give_up_after_s:
@@ -393,7 +485,10 @@ class Recorder:
             self._connected = True
             outage = time.monotonic() - self._down_since
             if self.stats.link == "down":
-                self._event("link_up", f"after {outage:.3f} s without a link ({attempts} attempts)")
+                self._event(
+                    "link_up",
+                    f"after {outage:.3f} s without a link ({attempts} attempts){self._wall()}",
+                )
                 self._say(f"link up: {self.source.where} after {outage:.1f} s")
             else:
                 self._say(f"connected to {self.source.where}")
@@ -409,7 +504,7 @@ class Recorder:
         self.stats.link, self.stats.last_error = "down", reason
         self.stats.drops += 1
         self._missing_after_outage = True
-        self._event("link_down", reason)
+        self._event_at("link_down", reason + self._wall(), self._after_last())
         self._say(f"link down: {reason}; reconnecting")
         self._stuck.reset()  # an outage breaks any stuck run
         await self.source.close()
@@ -439,6 +534,9 @@ class Recorder:
                 if not await self._ensure_link(deadline):
                     break
                 try:
+                    if not self._probed:
+                        await self._probe(deadline)
+                        self._probed = True
                     if self.site.ring is not None:
                         await self._ring_loop(deadline)
                     else:
@@ -451,16 +549,169 @@ class Recorder:
         finally:
             await self.source.close()
             self._connected = False
+            if self._pending:
+                self._flush_pending(self._after_last())
             self.writer.flush()
         return self.stats
 
     def _done(self, deadline: float | None) -> bool:
         return self._stop.is_set() or (deadline is not None and time.monotonic() >= deadline)
 
+    # --- the first read: plausibility, and the tags against the ring -----------------------
+
+    def _refusal(self, what: str) -> ConfigError:
+        """A one-line refusal of implausible first values, with the likely cause."""
+        plc = self.site.plc
+        if plc.protocol == "modbus":
+            other = "little" if plc.word_order == "big" else "big"
+            hint = (
+                f"the PLC may send 32-bit values {'low' if other == 'little' else 'high'} word "
+                f'first: try word_order = "{other}" or byte_swap = '
+                f"{'false' if plc.byte_swap else 'true'}"
+            )
+        else:
+            hint = "check the tag's type and address against the PLC's"
+        return ConfigError(
+            f"{what}: not a plausible value, so nothing is recorded; {hint} (word_order = "
+            f'"{plc.word_order}", byte_swap = {"true" if plc.byte_swap else "false"} in the '
+            "site file)"
+        )
+
+    async def _probe(self, deadline: float | None) -> None:
+        """Refuse to record values that cannot be right (the first read after connecting).
+
+        A float32 tag that is tiny but not zero or huge (:func:`~fuelid.plc.quality.implausible`),
+        an int32/uint32 tag above 1e9 in engineering units, a ring whose newest records all
+        hold another seq than their slot should or an implausible float, a counter (``seq`` or
+        the ring's head) that advances more than :data:`PROBE_JUMP_FACTOR` times what the wall
+        time between two reads allows: a :class:`ConfigError` naming the tag and the value,
+        with the word-order hint. A replayed log has no word order: not checked.
+
+        Raises
+        ------
+        ConfigError
+            Implausible first values (``fuelid record`` exits with code 2).
+        LinkError
+            The link dropped (the check runs again on the next connection).
+        """
+        site = self.site
+        if site.plc.protocol == "replay":
+            return
+        sent = time.time()
+        reading = await self.source.read()
+        for role, tag in site.tags.items():
+            value = reading.raw.get(role)
+            if role == "seq" or value is None or tag.type not in ("float32", "int32", "uint32"):
+                continue
+            if tag.type == "float32" and implausible(value):
+                raise self._refusal(f"tags.{role} {tag.address} reads {value:.6g} (float32)")
+            if tag.type != "float32" and abs(tag.to_engineering(value)) > HUGE:
+                raise self._refusal(f"tags.{role} {tag.address} reads {value:.0f} ({tag.type})")
+        ring = site.ring
+        key, address = "tags.seq", site.tags["seq"].address if "seq" in site.tags else ""
+        if ring is not None:
+            key, address = "ring.head", ring.head
+            sent = time.time()
+            first = await self.source.read_ring_head() % UINT32
+            await self._probe_records(first)
+        elif "seq" in site.tags:
+            first = int(reading.raw["seq"]) % UINT32
+        else:
+            return
+        await self._wait(PROBE_WAIT_S)
+        if self._done(deadline):
+            return
+        if ring is not None:
+            second = await self.source.read_ring_head() % UINT32
+        else:
+            second = int((await self.source.read()).raw["seq"]) % UINT32
+        elapsed = time.time() - sent
+        step = (second - first) % UINT32
+        allowed = PROBE_JUMP_FACTOR * max(elapsed / self.period_s, 1.0)
+        if allowed < step < HALF_RANGE:
+            raise self._refusal(
+                f"{key} {address} jumped from {first} to {second} in {elapsed:.3f} s (at "
+                f"{self.period_s:g} s per sample, about {elapsed / self.period_s:.0f} samples)"
+            )
+
+    async def _probe_records(self, head: int) -> None:
+        """The newest ring records (ending at ``head``): refused when every one is wrong."""
+        ring = self.site.ring
+        assert ring is not None
+        n = min(PROBE_RECORDS, ring.size, head + 1)
+        last_slot = head % ring.size
+        slots = [(last_slot - n + 1 + k) % ring.size for k in range(n)]
+        records: list[RingRecord] = []
+        start = slots[0]
+        while len(records) < n:
+            count = min(n - len(records), ring.size - start)
+            records += await self.source.read_ring(start, count)
+            start = 0
+        wrong = []
+        for k, record in enumerate(records):
+            expected = (head - n + 1 + k) % UINT32
+            odd = [f"{name} = {v:.6g}" for name, v in record.values.items() if implausible(v)]
+            if record.seq != expected:
+                wrong.append(
+                    f"ring.head {ring.head} reads {head}, but slot {slots[k]} of the ring at "
+                    f"{ring.address} holds seq {record.seq}, not {expected}"
+                )
+            elif odd:
+                wrong.append(f"ring record {record.seq} at {ring.address} holds {odd[0]}")
+        if wrong and len(wrong) == len(records):
+            raise self._refusal(wrong[-1])
+
+    def _compare_ring(self, reading: Reading, t: float) -> None:
+        """Compare the tags' flow and command with the ring's head record over the first polls.
+
+        The samples come from the ring (scan-consistent); the tags' addresses and scalings are
+        not used for them. A median difference (over :data:`RING_CHECK_POLLS` polls: beats the
+        noise and the scan skew between the head and the tags) beyond 2 % of the flow tag's eng
+        span (2 L/min without a scaling) or 0.1 V of the command writes one ``ring_mismatch``
+        event and message: a wrong scaling or a ring mapped wrongly.
+        """
+        head = self._head_record
+        if self._ring_checked or head is None:
+            return
+        for role, pairs in self._ring_pairs.items():
+            a, b = reading.values.get(role, math.nan), head.get(role, math.nan)
+            if math.isfinite(a) and math.isfinite(b):
+                pairs.append((a, b))
+        self._ring_polls += 1
+        if self._ring_polls < RING_CHECK_POLLS:
+            return
+        self._ring_checked = True
+        for role, pairs in self._ring_pairs.items():
+            tag = self.site.tags.get(role)
+            if tag is None or not pairs:
+                continue
+            if role == "flow":
+                limit = RING_FLOW_TOLERANCE_LPM
+                if tag.eng is not None:
+                    limit = RING_FLOW_TOLERANCE * abs(tag.eng[1] - tag.eng[0])
+            else:
+                limit = RING_COMMAND_TOLERANCE_V
+            difference = statistics.median(a - b for a, b in pairs)
+            if abs(difference) <= limit:
+                continue
+            unit = tag.unit or ("L/min" if role == "flow" else "V")
+            tag_value = statistics.median(a for a, _ in pairs)
+            ring_value = statistics.median(b for _, b in pairs)
+            message = (
+                f"tags.{role} {tag.address} reads {tag_value:.4g} {unit}, the ring "
+                f"{ring_value:.4g} {unit}: check the tag's raw/eng scaling or the ring's fields"
+            )
+            self._event_at("ring_mismatch", message, t)
+            self._say(message)
+
     # --- auxiliary tags: events and values ------------------------------------------------
 
-    def _watch(self, reading: Reading) -> None:
-        """Gain and mode change events, and the auxiliary values attached to samples."""
+    def _watch(self, reading: Reading, t: float | None = None) -> None:
+        """Gain and mode change events, and the auxiliary values attached to samples.
+
+        ``t`` [s UTC]: the data time of the sample at which the reading was taken (the events'
+        time); None: the next sample's (see :meth:`_event`).
+        """
         values = reading.values
         old = self._aux
         changes = []
@@ -472,7 +723,7 @@ class Recorder:
             if not math.isclose(new, before, rel_tol=1e-6, abs_tol=0.0):
                 changes.append(f"{role} {before:.6g} → {new:.6g} {unit}")
         if changes:
-            self._event("gain_change", ", ".join(changes))
+            self._event("gain_change", ", ".join(changes), t)
         mode, before_mode = values.get("mode"), old.get("mode")
         if (
             mode is not None
@@ -483,10 +734,10 @@ class Recorder:
         ):
             names = {0: "MAN", 1: "AUTO"}
             was, now = round(before_mode), round(mode)
-            self._event("mode_change", f"{names.get(was, was)} → {names.get(now, now)}")
+            self._event("mode_change", f"{names.get(was, was)} → {names.get(now, now)}", t)
         self._aux.update({role: v for role, v in values.items() if math.isfinite(v)})
         self._aux_values = {
-            role: (v if self._checks.check(role, v) else math.nan)
+            role: (v if self._checks.check(role, v, t) else math.nan)
             for role, v in values.items()
             if role in ("setpoint", "fuel_temperature", "mode")
         }
@@ -498,11 +749,11 @@ class Recorder:
         aux = self._aux_values
         good = True
         for role in ("command", "flow"):
-            good &= self._checks.check(role, core.get(role, math.nan))
+            good &= self._checks.check(role, core.get(role, math.nan), t)
         setpoint = core.get("setpoint")
         if setpoint is None:
             setpoint = aux.get("setpoint", math.nan)
-        elif not self._checks.check("setpoint", setpoint):
+        elif not self._checks.check("setpoint", setpoint, t):
             setpoint = math.nan
         mode = aux.get("mode", math.nan)
         if quality == Quality.OK and not good:
@@ -609,7 +860,6 @@ class Recorder:
             head = await self.source.read_ring_head() % UINT32
             received = time.time()
             reading = await self.source.read()
-            self._watch(reading)
             if seq.raw is None:
                 continued, why = seq.start(head, received, sent)
                 if continued and seq.last_stored is not None:
@@ -624,7 +874,10 @@ class Recorder:
                     self._restart(f"the ring's head {why}")
                     next_u = 0  # the new run from its start, as far as the ring holds it
             assert next_u is not None
+            self._watch(reading, seq.time(seq.u))  # seen at the head's sample
+            self._head_record = None
             next_u = await self._read_records(next_u, seq.u, reading)
+            self._compare_ring(reading, seq.time(seq.u))
             self._next_u = next_u
             self._missing_after_outage = False
             self.stats._tick(time.monotonic())
@@ -653,6 +906,8 @@ class Recorder:
                     lost += 1
                     continue
                 core = dict(record.values)
+                if u + k == head_u:
+                    self._head_record = core
                 self._take(self._sample(seq.time(u + k), seq.stored(u + k), core))
             u += count
         if lost:

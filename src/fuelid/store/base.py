@@ -205,7 +205,11 @@ class StoreInfo:
         Breaks in the sample stream: jumps of the sequence number, or, for samples without one,
         intervals longer than 1.5 sample periods (when the period is known).
     missing_samples : int
-        Samples missing inside the sequence-number gaps.
+        Samples missing inside the sequence-number gaps. A PLC restart leaves one sequence
+        number out on purpose (a break readers see), and its ``restart`` event is timed at the
+        first sample after it: a jump of the sequence at a sample that carries a ``restart``
+        event at its exact time counts one number less (a jump of exactly 2 there is a gap
+        with no sample missing), so this agrees with the recorder's count of lost samples.
     quality : dict
         Samples per quality name.
     events : dict

@@ -338,9 +338,13 @@ class SQLiteStore(SampleStore):
                 rows, t_first, t_last = con.execute(
                     "SELECT count(*), min(time), max(time) FROM samples"
                 ).fetchone()
+                # a PLC restart leaves one number out on purpose, at the sample its restart
+                # event is timed at: that number is a break, not a missing sample
                 seq_gaps, missing = con.execute(
-                    "SELECT count(*), coalesce(sum(d - 1), 0) FROM (SELECT seq - lag(seq) "
-                    "OVER (ORDER BY seq) AS d FROM samples WHERE seq IS NOT NULL) WHERE d > 1"
+                    "SELECT count(*), coalesce(sum(d - 1 - EXISTS (SELECT 1 FROM events e "
+                    "WHERE e.kind = 'restart' AND e.time = g.time)), 0) FROM (SELECT time, "
+                    "seq - lag(seq) OVER (ORDER BY seq) AS d FROM samples "
+                    "WHERE seq IS NOT NULL) AS g WHERE d > 1"
                 ).fetchone()
                 time_gaps = 0
                 if self.period_s is not None:
