@@ -605,3 +605,25 @@ def test_the_stuck_detector_holds_nothing_back_and_asks_for_the_stretch_to_be_re
     ((t_from, t_to, count),) = reflags
     assert (t_from, t_to) == pytest.approx((0.04, 1.04))
     assert count == 50
+
+
+def test_record_site_applies_the_sites_retention_counting_back_from_the_newest_sample(
+    tmp_path: Path,
+) -> None:
+    from fuelid.plc.recorder import record_site
+    from fuelid.store import Sample
+
+    log, db = tmp_path / "log.csv", tmp_path / "s.db"
+    write_log(log, 100)
+    text = REPLAY.format(path=log, speed=10.0, period=0.02)
+    site = load(text + f'[store]\nurl = "sqlite:///{db}"\nretention_days = 1\nthin_to_s = 1.0\n')
+    # 10 s at 50 Hz recorded three days ago: past the retention, thinned to one per second
+    old = float(int(time.time())) - 3 * 86400.0  # whole seconds: ten 1 s bins
+    with SQLiteStore(db, period_s=0.02, **site_identity(site)) as store:
+        store.append([Sample(old + 0.001 + 0.02 * k, None, 2.0, 50.0) for k in range(500)])
+    record_site(site, duration_s=20.0)
+    data, events, _ = rows(db)
+    older = data.time < old + 60.0
+    assert np.count_nonzero(older) == 10  # 500 raw samples thinned to one per second
+    assert np.count_nonzero(~older) > 0  # the new samples are all kept (within retention)
+    assert kinds(events, "prune")

@@ -983,11 +983,31 @@ def record_site(
             recorder = Recorder(
                 plc, writer, give_up_after_s=give_up_after_s, on_message=on_message, **options
             )
-            return asyncio.run(_record(recorder, duration_s, on_status, status_every_s))
+
+            def housekeeping() -> None:
+                # retention counts back from the newest sample (the data's own time base)
+                newest = store.last_time()
+                if newest is not None:
+                    store.prune(
+                        site.store.retention_days,
+                        site.store.thin_to_s,
+                        now=max(newest, time.time()) if site.plc.protocol != "replay" else newest,
+                    )
+
+            stats = asyncio.run(
+                _record(recorder, duration_s, on_status, status_every_s, housekeeping)
+            )
+            writer.flush()
+            housekeeping()  # and once at the end, counting back from the newest sample
+            return stats
         finally:
             writer.close()
     finally:
         store.close()
+
+
+PRUNE_EVERY_S = 3600.0
+"""How often the recorder applies the store's retention (and once at start) [s]."""
 
 
 async def _record(
@@ -995,6 +1015,7 @@ async def _record(
     duration_s: float | None,
     on_status: Callable[[RecorderStats], None] | None,
     status_every_s: float,
+    housekeeping: Callable[[], None] | None = None,
 ) -> RecorderStats:
     import signal
 
@@ -1013,12 +1034,22 @@ async def _record(
             if on_status is not None:
                 on_status(recorder.stats)
 
+    async def keep() -> None:
+        while housekeeping is not None:
+            try:
+                await asyncio.to_thread(housekeeping)
+            except FuelidError as error:  # retention must never stop the recording
+                recorder._say(f"retention not applied: {error}")
+            await asyncio.sleep(PRUNE_EVERY_S)
+
     reporter = asyncio.create_task(status())
+    keeper = asyncio.create_task(keep())
     try:
         return await recorder.run(duration_s)
     finally:
-        reporter.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await reporter
+        for task in (reporter, keeper):
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
         for sig in bound:
             loop.remove_signal_handler(sig)

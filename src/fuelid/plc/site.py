@@ -314,7 +314,12 @@ class Store(_Table):
     """``[store]``: where samples go."""
 
     url: str = Field("sqlite:///fuelid.db", pattern=r"^sqlite:///.+")
-    retention_days: float = Field(30.0, gt=0.0)
+    retention_days: float = Field(
+        30.0, gt=0.0, description="raw samples kept this long [d]; older ones thinned"
+    )
+    thin_to_s: float | None = Field(
+        1.0, gt=0.0, description="of older samples keep one per this period [s]; none: delete"
+    )
 
 
 class SiteConfig(_Table):

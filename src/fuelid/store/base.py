@@ -349,6 +349,16 @@ class SampleStore(ABC):
         seq = seq[seq >= 0]
         return int(seq.max()) if seq.size else None
 
+    def last_time(self) -> float | None:
+        """The newest sample time [s UTC] (None when the store is empty).
+
+        Retention counts back from it, not from the wall clock, so that data on another time
+        base (a virtual PLC at X times real time) are kept as long as the site file says.
+        This default reads every sample; a store should answer from an index.
+        """
+        time = self.read().time
+        return float(time.max()) if time.size else None
+
     @abstractmethod
     def prune(
         self, older_than_days: float, thin_to_period_s: float | None = 1.0, now: float | None = None

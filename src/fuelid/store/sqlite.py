@@ -329,6 +329,12 @@ class SQLiteStore(SampleStore):
             value = self._read_con.execute("SELECT max(seq) FROM samples").fetchone()[0]
         return None if value is None else int(value)
 
+    def last_time(self) -> float | None:
+        """The newest sample time [s UTC], from the time index (None when empty)."""
+        with self._read_lock:
+            value = self._read_con.execute("SELECT max(time) FROM samples").fetchone()[0]
+        return None if value is None else float(value)
+
     def info(self) -> StoreInfo:
         """Rows, time span, gaps, link events and size on disk."""
         with self._read_lock:
