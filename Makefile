@@ -82,7 +82,7 @@ BENCH_VENV ?= .venv-bench
 $(BENCH_VENV)/.fuelid-installed: pyproject.toml
 	$(PYTHON) -m venv $(BENCH_VENV)
 	$(BENCH_VENV)/bin/python -m pip install --quiet --disable-pip-version-check --upgrade pip
-	$(BENCH_VENV)/bin/python -m pip install --quiet --disable-pip-version-check -e '.[dev,bench]'
+	$(BENCH_VENV)/bin/python -m pip install --quiet --disable-pip-version-check -e '.[dev,bench,plc]'
 	@touch $@
 
 bench: $(BENCH_VENV)/.fuelid-installed
@@ -92,6 +92,9 @@ bench: $(BENCH_VENV)/.fuelid-installed
 	$(BENCH_VENV)/bin/python benchmarks/bench_refdata.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_tuning_sweep.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_cold_start.py
+	$(BENCH_VENV)/bin/python benchmarks/bench_store.py
+	$(BENCH_VENV)/bin/python benchmarks/bench_virtual_plant.py
+	$(BENCH_VENV)/bin/python benchmarks/bench_acquisition.py --minutes 2
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) $(DEMO_DIR) .pytest_cache .mypy_cache .ruff_cache
