@@ -237,3 +237,30 @@ def test_site_check_shows_the_ring_and_what_it_exposes(tmp_path: Path):
     assert result.exit_code == 0
     assert "ir:1000" in result.output
     assert "2048" in result.output
+
+
+@pytest.mark.parametrize(
+    ("extra", "reason"),
+    [
+        # a float32 at ir:20 takes ir:20 and ir:21: a second value at ir:21 is a typo
+        ('[tags.setpoint]\naddress = "ir:19"\ntype = "float32"\nunit = "L/min"\n', "overlaps"),
+        ('[tags.kc]\naddress = "ir:30"\ntype = "uint16"\n', r"tags\.(kc|mode): ir:30 overlaps"),
+    ],
+)
+def test_two_roles_sharing_a_register_are_refused(tmp_path: Path, extra: str, reason: str):
+    with pytest.raises(ConfigError, match=reason):
+        load_site(_write(tmp_path, EXAMPLE + extra))
+
+
+def test_adjacent_registers_and_s7_bits_in_one_byte_are_accepted(tmp_path: Path):
+    load_site(_write(tmp_path, EXAMPLE + '[tags.kc]\naddress = "ir:31"\ntype = "float32"\n'))
+    s7 = (
+        '[site]\nname = "s7"\n[plc]\nprotocol = "s7"\n'
+        '[tags.flow]\naddress = "DB1.DBD0"\nunit = "L/min"\n'
+        '[tags.command]\naddress = "DB1.DBD4"\nunit = "V"\n'
+        '[tags.mode]\naddress = "DB1.DBX8.0"\ntype = "bool"\n'
+        '[tags.setpoint]\naddress = "DB1.DBD6"\nunit = "L/min"\n'
+    )
+    with pytest.raises(ConfigError, match=r"tags\.setpoint: DB1\.DBD6 overlaps tags\.command"):
+        load_site(_write(tmp_path, s7))
+    load_site(_write(tmp_path, s7.replace("DB1.DBD6", "DB1.DBD10")))

@@ -37,6 +37,7 @@ still records, and :meth:`SiteConfig.missing` says what is missing.
 
 from __future__ import annotations
 
+import itertools
 import re
 import tomllib
 from pathlib import Path
@@ -364,6 +365,8 @@ class SiteConfig(_Table):
             raise ValueError("tags.seq.type: the sequence counter is a uint32")
         if self.ring is not None:
             _check_ring(self.plc.protocol, self.ring)
+        _check_overlaps(self.plc.protocol, self.tags, "tags")
+        _check_overlaps(self.plc.protocol, self.write, "write")
         return self
 
     def missing(self) -> list[str]:
@@ -420,6 +423,40 @@ def _check_address(protocol: str, tag: Tag, key: str) -> None:
             )
         if (size == "X") != (bit is not None):
             raise ValueError(f"{key}.address: a bit address is DBX<byte>.<bit 0-7>, only for bits")
+
+
+def _span(protocol: str, tag: Tag) -> tuple[str, int, int] | None:
+    """The memory a tag occupies: (area, first, last) in registers (Modbus) or bytes (S7).
+
+    None for addresses that cannot overlap by position (OPC UA nodes, replay columns, bits).
+    """
+    if protocol == "modbus":
+        match = _MODBUS.match(tag.address)
+        if match is None or match.group(1) in ("coil", "di"):
+            return None
+        start = int(match.group(2))
+        return match.group(1), start, start + REGISTERS_OF[tag.type] - 1
+    if protocol == "s7":
+        match = _S7.match(tag.address)
+        if match is None or match.group(2) in ("X", "B"):
+            return None
+        start = int(match.group(3))
+        size = 4 if match.group(2) == "D" else 2
+        return f"DB{match.group(1)}", start, start + size - 1
+    return None
+
+
+def _check_overlaps(protocol: str, tags: dict[str, Tag], side: str) -> None:
+    """Refuse two roles of one side whose values share a register (or S7 byte): a typo."""
+    spans = sorted(
+        (span, role) for role, tag in tags.items() if (span := _span(protocol, tag)) is not None
+    )
+    for (first, role_a), (second, role_b) in itertools.pairwise(spans):
+        if first[0] == second[0] and second[1] <= first[2]:
+            raise ValueError(
+                f"{side}.{role_b}: {tags[role_b].address} overlaps {side}.{role_a} "
+                f"({tags[role_a].address}, {tags[role_a].type}): two values cannot share memory"
+            )
 
 
 def _check_ring(protocol: str, ring: Ring) -> None:
