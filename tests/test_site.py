@@ -264,3 +264,38 @@ def test_adjacent_registers_and_s7_bits_in_one_byte_are_accepted(tmp_path: Path)
     with pytest.raises(ConfigError, match=r"tags\.setpoint: DB1\.DBD6 overlaps tags\.command"):
         load_site(_write(tmp_path, s7))
     load_site(_write(tmp_path, s7.replace("DB1.DBD6", "DB1.DBD10")))
+
+
+def test_the_online_table_has_documented_defaults(tmp_path: Path):
+    online = load_site(_write(tmp_path, EXAMPLE)).online
+    assert (online.identify_every_s, online.window_s, online.write_back) == (300.0, 600.0, "off")
+    assert (online.ms_target, online.gain_bounds, online.agree_windows) == (1.7, [0.5, 2.0], 2)
+    assert (online.hysteresis, online.rule) == (0.1, "simc")
+
+
+@pytest.mark.parametrize(
+    ("online", "reason"),
+    [
+        ("identify_every_s = 10", "online.identify_every_s"),
+        ("gain_bounds = [1.2, 2.0]", "gain_bounds"),
+        ('write_back = "sometimes"', "online.write_back"),
+        ('write_back = "auto"', "write.kc is missing"),
+        ('rule = "zn"', "online.rule"),
+    ],
+)
+def test_bad_online_settings_are_refused(tmp_path: Path, online: str, reason: str):
+    with pytest.raises(ConfigError, match=reason):
+        load_site(_write(tmp_path, EXAMPLE + "[online]\n" + online + "\n"))
+
+
+def test_write_back_needs_the_write_side_and_the_controller_table(tmp_path: Path):
+    write = "".join(
+        f'[write.{role}]\naddress = "hr:{200 + 2 * i}"\ntype = "float32"\n'
+        for i, role in enumerate(("kc", "ti", "apply", "echo"))
+    )
+    online = '[online]\nwrite_back = "approve"\n'
+    with pytest.raises(ConfigError, match=r"\[controller\]"):
+        load_site(_write(tmp_path, EXAMPLE + write + online))
+    controller = "[controller]\nkc = 0.05\nti = 1.4\n"
+    site = load_site(_write(tmp_path, EXAMPLE + write + controller + online))
+    assert site.online.write_back == "approve"

@@ -323,6 +323,60 @@ class Store(_Table):
     )
 
 
+class Online(_Table):
+    """``[online]``: the online service's schedule, gates and proposal rules (issue 15).
+
+    Every threshold has its default here; the README's table says what each does.
+    """
+
+    identify_every_s: float = Field(
+        300.0, ge=30.0, description="identify every this much data time [s] (at least 30)"
+    )
+    window_s: float = Field(600.0, ge=60.0, description="rolling window identified [s]")
+    write_back: Literal["off", "approve", "auto"] = Field(
+        "off", description="off: propose only; approve: write approved proposals; auto: write"
+    )
+    rule: Literal["simc", "isimc", "lambda", "amigo"] = Field("simc", description="PI rule")
+    ms_target: float = Field(1.7, gt=1.0, le=3.0, description="robustness target Ms")
+    gain_bounds: Pair = Field(
+        default_factory=lambda: [0.5, 2.0],
+        description="hard bounds of Kc and Ti as multiples of the commissioning gains",
+    )
+    agree_windows: int = Field(2, ge=1, le=10, description="accepted windows that must agree")
+    hysteresis: float = Field(0.1, ge=0.0, le=1.0, description="smallest relative gain change")
+    move_fraction: float = Field(
+        0.5, gt=0.0, le=1.0, description="share of the way toward the target gains per proposal"
+    )
+    max_limit_share: float = Field(
+        0.05, ge=0.0, le=1.0, description="gate: share of the window with u at a limit"
+    )
+    max_bad_share: float = Field(
+        0.05, ge=0.0, le=1.0, description="gate: share of lost or flagged samples"
+    )
+    max_rel_stderr_K: float = Field(0.05, gt=0.0, description="gate: relative std. error of K")
+    max_rel_stderr_T: float = Field(0.2, gt=0.0, description="gate: relative std. error of T")
+    min_fit_percent: float = Field(80.0, ge=0.0, le=100.0, description="gate: validation fit")
+    max_residual_acf: float = Field(
+        0.3, gt=0.0, lt=1.0, description="gate: largest |residual autocorrelation| over the lags"
+    )
+    plant_ratio_event: Pair = Field(
+        default_factory=lambda: [0.5, 2.0],
+        description="an identified K outside these multiples of the plant's K raises an event",
+    )
+    revert_iae_factor: float = Field(
+        1.5, gt=1.0, description="revert when the IAE per setpoint change worsens this much"
+    )
+    echo_timeout_s: float = Field(5.0, gt=0.0, description="wait this long for the PLC's echo")
+
+    @model_validator(mode="after")
+    def _bounds(self) -> Online:
+        for key in ("gain_bounds", "plant_ratio_event"):
+            low, high = getattr(self, key)
+            if not 0.0 < low <= 1.0 <= high:
+                raise ValueError(f"{key}: [low, high] with 0 < low <= 1 <= high, got {low}, {high}")
+        return self
+
+
 class SiteConfig(_Table):
     """A whole site file."""
 
@@ -334,6 +388,7 @@ class SiteConfig(_Table):
     ring: Ring | None = None
     controller: Controller | None = None
     store: Store = Field(default_factory=Store)
+    online: Online = Field(default_factory=Online)
 
     @model_validator(mode="after")
     def _tag_map(self) -> SiteConfig:
@@ -365,6 +420,18 @@ class SiteConfig(_Table):
             raise ValueError("tags.seq.type: the sequence counter is a uint32")
         if self.ring is not None:
             _check_ring(self.plc.protocol, self.ring)
+        if self.online.write_back != "off":
+            needed = [role for role in ("kc", "ti", "apply", "echo") if role not in self.write]
+            if needed:
+                raise ValueError(
+                    f"online.write_back = {self.online.write_back!r} needs the write side: "
+                    f"write.{needed[0]} is missing (staged kc, ti, apply and its echo)"
+                )
+            if self.controller is None:
+                raise ValueError(
+                    f"online.write_back = {self.online.write_back!r} needs a [controller] table "
+                    "(the form and units the PLC reads its gains in)"
+                )
         _check_overlaps(self.plc.protocol, self.tags, "tags")
         _check_overlaps(self.plc.protocol, self.write, "write")
         return self
