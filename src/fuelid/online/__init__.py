@@ -3,10 +3,26 @@
 - :mod:`~fuelid.online.health`: loop-health metrics of one window of PLC samples (time in
   AUTO and at the output limits, Hägglund's oscillation detector, setpoint-step responses, the
   Harris minimum-variance index, sensor noise, stuck readings and quantisation).
+- :mod:`~fuelid.online.gates`: the verdict on one identification window, every gate with its
+  reason (gaps and bad quality, output at a limit, excitation by mode, standard errors,
+  validation fit, residual correlation by size; the plant-ratio event).
+- :mod:`~fuelid.online.tracking`: the loop gain against fuel temperature from accepted windows
+  (the ratio to the plant model's K, or K per command band), with prediction intervals.
 """
 
 from __future__ import annotations
 
+from fuelid.online.gates import WindowVerdict, postfit_gates, prefit_gates
 from fuelid.online.health import LoopHealth, loop_health
+from fuelid.online.tracking import GainObservation, KTracker, plant_gain_function
 
-__all__ = ["LoopHealth", "loop_health"]
+__all__ = [
+    "GainObservation",
+    "KTracker",
+    "LoopHealth",
+    "WindowVerdict",
+    "loop_health",
+    "plant_gain_function",
+    "postfit_gates",
+    "prefit_gates",
+]
