@@ -47,6 +47,7 @@ from fuelid.online.health import (
     MIN_STEP_LPM,
     RAMP_GAP_S,
     U_LIMITS_V,
+    json_ready,
     noise_level,
     time_at_limits,
 )
@@ -74,21 +75,6 @@ MAX_ACF_LAGS = 5000
 
 
 # --- the verdict ----------------------------------------------------------------------------------
-
-
-def _plain(value: Any) -> Any:
-    """JSON-ready: non-finite floats become None, numpy scalars Python ones, recursively."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    if isinstance(value, bool | np.bool_):
-        return bool(value)
-    if isinstance(value, int | np.integer):
-        return int(value)
-    if isinstance(value, float | np.floating):
-        return float(value) if math.isfinite(value) else None
-    return value
 
 
 @dataclass(frozen=True)
@@ -174,7 +160,7 @@ class WindowVerdict:
         >>> WindowVerdict.of([], {"rel_stderr_K": float("nan")}).to_dict()["measured"]
         {'rel_stderr_K': None}
         """
-        out: dict[str, Any] = _plain(
+        out: dict[str, Any] = json_ready(
             {
                 "accepted": self.accepted,
                 "reason": self.reason,

@@ -863,12 +863,12 @@ def sensor_health(
 # --- one window -----------------------------------------------------------------------------------
 
 
-def _plain(value: Any) -> Any:
-    """JSON-ready: floats that are not finite become None, containers recursively."""
+def json_ready(value: Any) -> Any:
+    """JSON-ready: non-finite floats become None, numpy scalars Python ones, recursively."""
     if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
+        return {str(k): json_ready(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
+        return [json_ready(v) for v in value]
     if isinstance(value, bool | np.bool_):
         return bool(value)
     if isinstance(value, int | np.integer):
@@ -924,7 +924,7 @@ class LoopHealth:
         (1.0, False, [])
         """
         osc, h, s = self.oscillation, self.harris, self.sensor
-        out: dict[str, Any] = _plain(
+        out: dict[str, Any] = json_ready(
             {
                 "start_s": self.start,
                 "end_s": self.end,

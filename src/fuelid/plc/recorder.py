@@ -998,7 +998,10 @@ def record_site(
                 _record(recorder, duration_s, on_status, status_every_s, housekeeping)
             )
             writer.flush()
-            housekeeping()  # and once at the end, counting back from the newest sample
+            try:  # and once at the end, counting back from the newest sample
+                housekeeping()
+            except FuelidError as error:  # the recording is committed: say it, do not fail
+                recorder._say(f"retention not applied: {error}")
             return stats
         finally:
             writer.close()
