@@ -2,7 +2,8 @@
 
 An adapter knows its protocol: how to reach the PLC, how to read the site file's tags in as few
 requests as possible, how to decode and scale them to engineering units (V, L/min, °C) and how
-to write the write side. It knows nothing of sampling schedules, quality flags or the store:
+to write the write side (and read it back: :meth:`PlcSource.read_write_side`, for the PLC's echo
+of the apply number). It knows nothing of sampling schedules, quality flags or the store:
 that is the recorder's job (:mod:`fuelid.plc.recorder`). All methods are coroutines; a
 synchronous library (python-snap7) runs in a thread.
 
@@ -15,13 +16,13 @@ help).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Self
 
-from fuelid.errors import FuelidError
-from fuelid.plc.site import SiteConfig
+from fuelid.errors import ConfigError, FuelidError
+from fuelid.plc.site import SiteConfig, Tag
 
 
 class LinkError(FuelidError):
@@ -131,10 +132,63 @@ class PlcSource(ABC):
         Raises
         ------
         LinkError
-            The write did not reach the PLC (it may or may not have been applied: read the echo).
+            The write did not reach the PLC (it may or may not have been applied: read
+            the echo with :meth:`read_write_side`).
         ConfigError
             A role the site file does not map, or an address the PLC does not have.
         """
+
+    @abstractmethod
+    async def read_write_side(self, roles: Sequence[str]) -> dict[str, float]:
+        """Read roles of the write side (``[write.*]``) back from the PLC, in engineering units.
+
+        Every write role can be read, including ``echo``, which the PLC alone writes (read-only
+        on the PLC: the apply number of the set it last applied, 0 before any). This is how a
+        gain write is verified: write staged kc, ti and a new apply number, then read ``echo``
+        until it equals that number (the applied gains themselves are the read tags ``kc`` and
+        ``ti`` of :meth:`read`). The other roles read back what the PLC holds in its write area.
+        All roles asked for go in as few requests as the protocol allows.
+
+        Parameters
+        ----------
+        roles : sequence of str
+            Write-side roles (``kc``, ``ti``, ``apply``, ``echo``, ``heartbeat``) the site file
+            maps; each at most once is read (repeats are ignored).
+
+        Returns
+        -------
+        dict of str to float
+            Role → engineering value, in the order asked (raw value scaled as the tag says, like
+            :meth:`read`: kc in V per L/min, ti in s, the apply number, echo and heartbeat as
+            plain numbers); NaN where the PLC answered with something that is not a number.
+
+        Raises
+        ------
+        ConfigError
+            A role the site file's write side does not map (the message names ``write.<role>``),
+            an address the PLC does not have, or a source that has no write side (a replay).
+        LinkError
+            Not connected, no answer, a dropped link or a timeout.
+        """
+
+    def _write_side_tags(self, roles: Sequence[str]) -> dict[str, Tag]:
+        """The write-side tags of ``roles``, in order and once each; unknown roles are refused.
+
+        Checked before any request, so a wrong role is a ConfigError whatever the link's state
+        (retrying cannot help).
+        """
+        if isinstance(roles, str):  # "echo" would be read as the roles e, c, h, o
+            raise TypeError(f"roles: a sequence of roles, not the string {roles!r}")
+        tags: dict[str, Tag] = {}
+        for role in roles:
+            tag = self.site.write.get(role)
+            if tag is None:
+                mapped = ", ".join(self.site.write) or "none"
+                raise ConfigError(
+                    f"write.{role}: the site file maps no such write tag (mapped: {mapped})"
+                )
+            tags[role] = tag
+        return tags
 
     async def __aenter__(self) -> Self:
         await self.connect()

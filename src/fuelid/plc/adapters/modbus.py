@@ -9,6 +9,10 @@ scan (values across areas are not scan-consistent: only the ring buffer is).
 32-bit values are decoded with :mod:`fuelid.plc.codec` (word order and byte swap of ``[plc]``)
 and scaled with :meth:`~fuelid.plc.site.Tag.to_engineering`.
 
+:meth:`ModbusSource.read_write_side` reads write-side roles back the same way (one request per
+area): the staged gains, apply and heartbeat from holding registers, and the PLC's ``echo`` of the
+apply number, which is read-only and usually an input register (``ir:16`` on the virtual PLC).
+
 Errors (the recorder retries a :class:`~fuelid.plc.adapters.base.LinkError`; a
 :class:`~fuelid.errors.ConfigError` stops it, since retrying cannot help):
 
@@ -179,6 +183,9 @@ class ModbusSource(PlcSource):
         self.byte_swap = plc.byte_swap
         self.timeout_s = float(timeout_s)
         self._blocks = plan_reads(site.tags)
+        # read plans of the write side, by the roles asked for: kept, so that a hole in the PLC's
+        # map found once (see _read_block) is not probed again at every echo poll
+        self._write_plans: dict[tuple[str, ...], list[_Block]] = {}
         self._client: AsyncModbusTcpClient | None = None
         self.requests = 0
         """Read and write requests sent (for tests and benchmarks)."""
@@ -281,7 +288,8 @@ class ModbusSource(PlcSource):
             )
         return LinkError(f"{self.where}: Modbus exception {code} ({name}) at {where} ({keys})")
 
-    async def _read_block(self, block: _Block) -> list[int]:
+    async def _read_block(self, block: _Block, plan: list[_Block]) -> list[int]:
+        """The registers (or bits) of one block of ``plan``; a refused span is split in ``plan``."""
         keys = ", ".join(item.key for item in block.items)
         try:
             return await self._request(block.area, block.start, block.count, keys)
@@ -295,8 +303,8 @@ class ModbusSource(PlcSource):
             part = await self._request(block.area, item.start, item.size, item.key)
             offset = item.start - block.start
             words[offset : offset + item.size] = part
-        index = self._blocks.index(block)
-        self._blocks[index : index + 1] = [
+        index = plan.index(block)
+        plan[index : index + 1] = [
             _Block(block.area, item.start, item.size, [item]) for item in block.items
         ]
         return words
@@ -316,16 +324,56 @@ class ModbusSource(PlcSource):
         ConfigError
             Modbus exception 2 (the key and address named) or a wrong device id.
         """
+        values, raw = await self._read_plan(self._blocks)
+        return Reading(values=values, raw=raw, received=time.time())
+
+    async def _read_plan(self, plan: list[_Block]) -> tuple[dict[str, float], dict[str, float]]:
+        """Read every block of a plan: role → engineering value, and role → raw value."""
         values: dict[str, float] = {}
         raw: dict[str, float] = {}
-        for block in list(self._blocks):
-            words = await self._read_block(block)
+        for block in list(plan):  # a copy: a refused span is split in the plan meanwhile
+            words = await self._read_block(block, plan)
             for item in block.items:
                 offset = item.start - block.start
                 value = self._decode(item.tag, words[offset : offset + item.size])
                 raw[item.role] = value
                 values[item.role] = item.tag.to_engineering(value)
-        return Reading(values=values, raw=raw, received=time.time())
+        return values, raw
+
+    async def read_write_side(self, roles: Sequence[str]) -> dict[str, float]:
+        """Read write-side roles back (e.g. ``echo``), one request per register area.
+
+        Planned as :meth:`read` plans the read tags (:func:`plan_reads`): all four areas are
+        readable, so the read-only ``echo`` in input registers and the staged gains, apply word
+        and heartbeat in holding registers (or coils) each go in one request per area.
+
+        Parameters
+        ----------
+        roles : sequence of str
+            Roles of ``[write.*]`` (``kc``, ``ti``, ``apply``, ``echo``, ``heartbeat``).
+
+        Returns
+        -------
+        dict of str to float
+            Role → engineering value (the tag's raw → eng scaling applied).
+
+        Raises
+        ------
+        ConfigError
+            A role the write side does not map (``write.<role>``), Modbus exception 2 (the key
+            and address named) or a wrong device id.
+        LinkError
+            Not connected, no answer, a dropped link or a timeout.
+        """
+        tags = self._write_side_tags(roles)
+        if not tags:
+            return {}
+        key = tuple(tags)
+        plan = self._write_plans.get(key)
+        if plan is None:
+            plan = self._write_plans[key] = plan_reads(tags, side="write")
+        values, _ = await self._read_plan(plan)
+        return {role: values[role] for role in tags}  # in the order asked, not by address
 
     def _ring_area(self) -> tuple[str, int, int]:
         ring = self.site.ring

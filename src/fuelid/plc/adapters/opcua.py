@@ -4,6 +4,8 @@
   answer: the values of one server moment), with each value's StatusCode kept: a NodeId the
   server does not know is a :class:`~fuelid.errors.ConfigError` naming the site-file key, any
   other bad status gives NaN (the recorder flags it).
+* :meth:`OpcUaSource.read_write_side` reads write-side roles back in one Read request, the same
+  way: the PLC's ``echo`` of the apply number (a read-only node) and what the write area holds.
 * :meth:`OpcUaSource.read_ring` reads only the needed slots of the ring array with an
   ``IndexRange`` ("a:b"); a server that ignores ranges (asyncua's own) sends the whole array,
   which is sliced here, and one that refuses them is read whole from then on.
@@ -27,7 +29,7 @@ import logging
 import math
 import os
 import time
-from collections.abc import Awaitable, Mapping
+from collections.abc import Awaitable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -338,18 +340,64 @@ class OpcUaSource(PlcSource):
         ConfigError
             A NodeId the server does not have (naming the site-file key).
         """
+        values, raw, received = await self._read_nodes(
+            self._read_request, self._read_ids, self.site.tags, "tags"
+        )
+        return Reading(values=values, raw=raw, received=received)
+
+    async def read_write_side(self, roles: Sequence[str]) -> dict[str, float]:
+        """Read write-side roles back (e.g. ``echo``) in one Read request, scaled like :meth:`read`.
+
+        Parameters
+        ----------
+        roles : sequence of str
+            Roles of ``[write.*]`` (``kc``, ``ti``, ``apply``, ``echo``, ``heartbeat``).
+
+        Returns
+        -------
+        dict of str to float
+            Role → engineering value; NaN where the node's status is bad or its value is not a
+            number.
+
+        Raises
+        ------
+        ConfigError
+            A role the write side does not map (``write.<role>``), or a NodeId the server does
+            not have.
+        LinkError
+            Not connected, no answer, a dropped link or a timeout.
+        """
+        tags = self._write_side_tags(roles)
+        if not tags:
+            return {}
+        ids = {role: self._write_ids[role] for role in tags}
+        request = ua.ReadParameters(
+            NodesToRead=[
+                ua.ReadValueId(NodeId=node, AttributeId=AttributeIds.Value) for node in ids.values()
+            ]
+        )
+        values, _, _ = await self._read_nodes(request, ids, tags, "write")
+        return values
+
+    async def _read_nodes(
+        self,
+        request: ua.ReadParameters,
+        ids: Mapping[str, ua.NodeId],
+        tags: Mapping[str, Tag],
+        side: str,
+    ) -> tuple[dict[str, float], dict[str, float], float]:
+        """One Read request of ``ids`` (in order): engineering and raw values, and when [s]."""
         client = self._connected()
-        results = await self._call(client.uaclient.read(self._read_request))
+        results = await self._call(client.uaclient.read(request))
         received = time.time()
         values: dict[str, float] = {}
         raw: dict[str, float] = {}
-        for (role, node), result in zip(self._read_ids.items(), results, strict=True):
-            tag: Tag = self.site.tags[role]
-            good = self._check_status(result, f"tags.{role}", node)
+        for (role, node), result in zip(ids.items(), results, strict=True):
+            good = self._check_status(result, f"{side}.{role}", node)
             number = _number(result.Value.Value) if good and result.Value is not None else math.nan
             raw[role] = number
-            values[role] = tag.to_engineering(number)
-        return Reading(values=values, raw=raw, received=received)
+            values[role] = tags[role].to_engineering(number)
+        return values, raw, received
 
     async def read_ring_head(self) -> int:
         """The sequence number of the newest ring record (``[ring] head``, a UInt32 node)."""

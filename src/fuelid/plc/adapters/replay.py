@@ -12,14 +12,16 @@ that a log played faster than real time is recorded without losing a row, as fro
 
 When the last row has been served the source raises
 :class:`~fuelid.plc.adapters.base.EndOfSource`, on which the recorder stores what it has and
-stops cleanly. Nothing is written anywhere: :meth:`ReplaySource.write` only keeps the values.
+stops cleanly. Nothing is written anywhere: :meth:`ReplaySource.write` only keeps the values,
+and :meth:`ReplaySource.read_write_side` refuses (a log has no write side, so nothing echoes an
+apply number).
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from fuelid.errors import ConfigError, DataError
@@ -167,3 +169,20 @@ class ReplaySource(PlcSource):
         if unknown:
             raise ConfigError(f"write.{unknown[0]}: the site file maps no such write tag")
         self.written.update({role: float(v) for role, v in values.items()})
+
+    async def read_write_side(self, roles: Sequence[str]) -> dict[str, float]:
+        """Refused: a replayed log has no write side to read back.
+
+        A log holds only what the PLC's read tags said; what :meth:`write` is given is kept, not
+        applied, so there is no ``echo`` that could confirm a gain write.
+
+        Raises
+        ------
+        ConfigError
+            Always (naming the first role asked for), whatever the roles and the link's state.
+        """
+        first = next(iter(roles), "echo") if not isinstance(roles, str) else roles
+        raise ConfigError(
+            f"write.{first}: cannot be read from {self.where}: a replayed log has no write side "
+            "(writes are only kept, nothing applies or echoes them)"
+        )

@@ -9,8 +9,11 @@ Requests: the read tags are grouped by DB and each DB's span (first to last byte
 block; spans longer than the negotiated PDU allows (PDU − 18 bytes: 222 for a 240-byte PDU, 462
 for 480) are cut between tags, and several blocks (other DBs, or a cut span) travel together in
 one multi-item request as far as the PDU holds them (python-snap7's ``read_multi_vars``), so a
-typical site file is read in one request. Ring slices are one ``db_read`` that python-snap7 cuts
-into PDU-sized requests. Write roles at contiguous addresses go in one ``db_write``.
+typical site file is read in one request. Write-side roles are read back the same way
+(:meth:`S7Source.read_write_side`, for the PLC's ``echo`` of the apply number, which usually
+lives in the DB the PC reads, not in the one it writes). Ring slices are one ``db_read`` that
+python-snap7 cuts into PDU-sized requests. Write roles at contiguous addresses go in one
+``db_write``.
 
 python-snap7's client is synchronous: each call runs in a worker thread
 (:func:`asyncio.to_thread`), one at a time. Its own reconnection is off: a dropped link raises
@@ -324,11 +327,54 @@ class S7Source(PlcSource):
         ConfigError
             The CPU has no such DB or offset, or refuses access (names the site-file key).
         """
-        spans = plan_spans(self._read_items, self.max_read)
+        values, raw, received = await self._read_tags(self._read_items)
+        return Reading(values=values, raw=raw, received=received)
+
+    async def read_write_side(self, roles: Sequence[str]) -> dict[str, float]:
+        """Read write-side roles back (e.g. ``echo``), a block per DB span, scaled as :meth:`read`.
+
+        The spans of all roles travel in one multi-item request as far as the PDU holds them: on
+        the virtual PLC ``echo`` (``DB1.DBD32``) and the staged set (DB2) are one request.
+
+        Parameters
+        ----------
+        roles : sequence of str
+            Roles of ``[write.*]`` (``kc``, ``ti``, ``apply``, ``echo``, ``heartbeat``).
+
+        Returns
+        -------
+        dict of str to float
+            Role → engineering value (the tag's raw → eng scaling applied).
+
+        Raises
+        ------
+        ConfigError
+            A role the write side does not map (``write.<role>``), or the CPU has no such DB or
+            offset, or refuses access (names the site-file key).
+        LinkError
+            Not connected, no answer, a dropped link or a timeout.
+        """
+        tags = self._write_side_tags(roles)
+        if not tags:
+            return {}
+        values, _, _ = await self._read_tags([self._write_items[role] for role in tags])
+        return {role: values[role] for role in tags}  # in the order asked, not by address
+
+    async def _read_tags(
+        self, items: Sequence[_Item]
+    ) -> tuple[dict[str, float], dict[str, float], float]:
+        """Read tags in DB spans: role → engineering value, role → raw value, and when [s].
+
+        Raises
+        ------
+        LinkError, ConfigError
+            As :meth:`read` (a refusal is probed tag by tag to name the key).
+        """
+        spans = plan_spans(items, self.max_read)
         try:
             blocks = await self._read_spans(spans)
         except _Refused as exc:
-            raise await self._probe(self._read_items, str(exc)) from None
+            raise await self._probe(items, str(exc)) from None
         received = time.time()
         values: dict[str, float] = {}
         raw: dict[str, float] = {}
@@ -339,7 +385,7 @@ class S7Source(PlcSource):
                 )
                 raw[item.role] = value
                 values[item.role] = item.tag.to_engineering(value)
-        return Reading(values=values, raw=raw, received=received)
+        return values, raw, received
 
     def _ring_item(self, key: str) -> _Item:
         ring = self.site.ring
