@@ -4,6 +4,9 @@
 mode), :class:`SampleWriter` the one writer (a queue and a thread committing about once a
 second). :func:`open_store` opens a store by URL (``sqlite:///path.db``, as ``[store] url`` of the
 site file); a PostgreSQL store is one more entry in :data:`STORES`.
+
+:class:`OnlineHistory` keeps the online service's history (windows, models, proposals, writes of
+gains, a little state) in the same SQLite file, on a connection of its own.
 """
 
 from __future__ import annotations
@@ -25,13 +28,25 @@ from fuelid.store.base import (
     StoreInfo,
     tag_map_hash,
 )
+from fuelid.store.online import (
+    PROPOSAL_STATUSES,
+    PROPOSAL_TRANSITIONS,
+    WRITE_KINDS,
+    WRITE_STATUSES,
+    OnlineHistory,
+)
 from fuelid.store.sqlite import SCHEMA_VERSION, SQLiteStore
 
 __all__ = [
     "EVENT_KINDS",
+    "PROPOSAL_STATUSES",
+    "PROPOSAL_TRANSITIONS",
     "SCHEMA_VERSION",
     "STORES",
+    "WRITE_KINDS",
+    "WRITE_STATUSES",
     "Event",
+    "OnlineHistory",
     "PruneResult",
     "Quality",
     "SQLiteStore",

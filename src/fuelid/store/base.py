@@ -349,6 +349,11 @@ class SampleStore(ABC):
         seq = seq[seq >= 0]
         return int(seq.max()) if seq.size else None
 
+    def first_time(self) -> float | None:
+        """The oldest sample time [s UTC]; None when the store is empty."""
+        samples = self.read()
+        return float(samples.time[0]) if len(samples) else None
+
     def last_time(self) -> float | None:
         """The newest sample time [s UTC] (None when the store is empty).
 
@@ -423,46 +428,73 @@ class SampleStore(ABC):
         DataError
             Fewer than two usable samples in the range.
         """
-        raw = self.read(t_from, t_to)
-        keep = (raw.quality == Quality.OK) & np.isfinite(raw.u) & np.isfinite(raw.y)
-        t, seq = raw.time[keep], raw.seq[keep]
-        if t.size < 2:
-            raise DataError(
-                f"{self.path}: {t.size} usable sample(s) (quality ok) in the range, need 2"
-            )
-        dt = np.diff(t)
-        h = float(np.median(dt)) if sample_time is None else float(sample_time)
-        if not (math.isfinite(h) and h > 0.0):
-            raise DataError(f"{self.path}: cannot find a sample time (median interval {h} s)")
-        with_seq = (seq[:-1] >= 0) & (seq[1:] >= 0)
-        dseq = np.diff(seq)
-        seq_step = int(np.median(dseq[with_seq])) if np.any(with_seq) else 1
-        breaks = np.where(with_seq, dseq != seq_step, dt > 1.5 * h)
-        # a long silence is a gap even when the counter continues (a stalled PLC, thinned data)
-        breaks |= dt > 1.5 * h * max(seq_step, 1)
-        starts = tuple(int(i) + 1 for i in np.flatnonzero(breaks))
-        notes = [
-            f"read from the store {self.path} (site {self.site_name!r}), "
-            f"{int(np.count_nonzero(~keep))} sample(s) not ok left out"
-        ]
-        temp = raw.fuel_temperature[keep]
-        T_fuel: FloatArray | None = None
-        if np.all(np.isfinite(temp)):
-            # elementwise: the function is plain arithmetic, numpy broadcasts it
-            T_fuel = np.asarray(celsius_to_kelvin(cast(float, temp)), dtype=np.float64)
-        elif np.any(np.isfinite(temp)):
-            notes.append("fuel temperature missing for some samples: not used")
-        return IOData(
-            u=raw.u[keep],
-            y=raw.y[keep],
-            sample_time=h,
-            t0=float(t[0]),
+        return iodata_from_samples(
+            self.read(t_from, t_to),
+            sample_time,
             source=self.path,
-            notes=tuple(notes),
-            segment_starts=starts,
-            segment_t0=tuple(float(t[i]) for i in starts),
-            T_fuel=T_fuel,
+            note=f"read from the store {self.path} (site {self.site_name!r})",
         )
+
+
+def iodata_from_samples(
+    raw: SampleArrays, sample_time: float | None = None, *, source: str = "", note: str = ""
+) -> IOData:
+    """Samples read from a store as the record the estimators fit.
+
+    The rules of :meth:`SampleStore.to_iodata` (which reads and calls this): only good samples
+    with finite u and y, a new segment at every break of the counter or long interval.
+
+    Parameters
+    ----------
+    raw : SampleArrays
+        Samples sorted by time.
+    sample_time : float, optional
+        Sampling period [s]; the median interval of the usable samples by default.
+    source : str
+        Where they came from (the record's ``source``, messages).
+    note : str
+        First note of the record (its origin); the count of samples left out is appended.
+
+    Raises
+    ------
+    DataError
+        Fewer than two usable samples.
+    """
+    keep = (raw.quality == Quality.OK) & np.isfinite(raw.u) & np.isfinite(raw.y)
+    t, seq = raw.time[keep], raw.seq[keep]
+    if t.size < 2:
+        raise DataError(f"{source}: {t.size} usable sample(s) (quality ok) in the range, need 2")
+    dt = np.diff(t)
+    h = float(np.median(dt)) if sample_time is None else float(sample_time)
+    if not (math.isfinite(h) and h > 0.0):
+        raise DataError(f"{source}: cannot find a sample time (median interval {h} s)")
+    with_seq = (seq[:-1] >= 0) & (seq[1:] >= 0)
+    dseq = np.diff(seq)
+    seq_step = int(np.median(dseq[with_seq])) if np.any(with_seq) else 1
+    breaks = np.where(with_seq, dseq != seq_step, dt > 1.5 * h)
+    # a long silence is a gap even when the counter continues (a stalled PLC, thinned data)
+    breaks |= dt > 1.5 * h * max(seq_step, 1)
+    starts = tuple(int(i) + 1 for i in np.flatnonzero(breaks))
+    left_out = f"{int(np.count_nonzero(~keep))} sample(s) not ok left out"
+    notes = [f"{note}, {left_out}" if note else left_out]
+    temp = raw.fuel_temperature[keep]
+    T_fuel: FloatArray | None = None
+    if np.all(np.isfinite(temp)):
+        # elementwise: the function is plain arithmetic, numpy broadcasts it
+        T_fuel = np.asarray(celsius_to_kelvin(cast(float, temp)), dtype=np.float64)
+    elif np.any(np.isfinite(temp)):
+        notes.append("fuel temperature missing for some samples: not used")
+    return IOData(
+        u=raw.u[keep],
+        y=raw.y[keep],
+        sample_time=h,
+        t0=float(t[0]),
+        source=source,
+        notes=tuple(notes),
+        segment_starts=starts,
+        segment_t0=tuple(float(t[i]) for i in starts),
+        T_fuel=T_fuel,
+    )
 
 
 _FLUSH = object()

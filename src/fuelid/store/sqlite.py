@@ -24,9 +24,43 @@ fuelid store; a newer version is refused), every table STRICT::
     events(time REAL NOT NULL, kind TEXT NOT NULL, detail TEXT NOT NULL)   INDEX (time)
         kinds: link_down, link_up, gap, gain_change, restart, site_mismatch, prune, …
     models(id INTEGER PRIMARY KEY, time REAL NOT NULL, t_from REAL, t_to REAL,
-           T_fuel REAL, model TEXT NOT NULL)                      -- reserved (online issue)
+           T_fuel REAL, model TEXT NOT NULL)
+        one per accepted identification window of the online service: the window's span and
+        analysis time [s UTC], its mean fuel temperature [°C], the model as JSON
     proposals(id INTEGER PRIMARY KEY, time REAL NOT NULL, model_id INTEGER, kc REAL, ti REAL,
-              status TEXT NOT NULL, detail TEXT NOT NULL)         -- reserved (online issue)
+              status TEXT NOT NULL, detail TEXT NOT NULL)
+        proposed PI gains (kc, ti: the new ones, in the controller's units), their status
+        (pending, approved, writing, applied, failed, rejected, superseded, reverted) and as JSON
+        {"old", "new", "detail", "history": [{"time", "status", "who", "why"}, …]}
+
+Tables of the online service (:class:`~fuelid.store.online.OnlineHistory`), created on its first
+use with ``CREATE TABLE IF NOT EXISTS`` (STRICT); the schema version stays 1, since nothing of
+the tables above changes and fuelid without the online service ignores them (``models`` and
+``proposals`` above are created with every store, these three only when needed)::
+
+    windows(id INTEGER PRIMARY KEY, time REAL NOT NULL,     -- analysis time [s UTC]
+            t_from REAL NOT NULL, t_to REAL NOT NULL,       -- the window's data [s UTC]
+            accepted INTEGER NOT NULL,                      -- 0 or 1
+            reason TEXT NOT NULL, T_fuel REAL,              -- [°C]
+            u_mean REAL,                                    -- [V]
+            model_id INTEGER,                               -- models(id) when accepted
+            detail TEXT NOT NULL)                           -- JSON: gates, fit, health
+        INDEX (t_to); every identification window, accepted or not
+    writes(id INTEGER PRIMARY KEY, time REAL NOT NULL, proposal_id INTEGER,
+           kind TEXT NOT NULL,                              -- proposal, revert, restore
+           kc REAL NOT NULL, ti REAL NOT NULL,              -- the gains written
+           apply_seq INTEGER NOT NULL UNIQUE,               -- never reused
+           status TEXT NOT NULL,                            -- intent, verified, failed,
+                                                            -- not_applied
+           who TEXT NOT NULL, why TEXT NOT NULL, detail TEXT NOT NULL,     -- JSON
+           finished REAL)                                   -- [s UTC], NULL while an intent
+        a write of gains to the PLC: the intent is committed before the PLC is written, the
+        outcome after, so an ``intent`` left by a crash is reconciled on restart
+    online_state(key TEXT PRIMARY KEY, value TEXT NOT NULL,  -- JSON
+                 time REAL NOT NULL)                         -- last set [s UTC]
+        what the online service needs after a restart (last-known-good gains, …)
+
+JSON is written with ``allow_nan=False``: NaN and ±inf are stored as ``null``.
 
 NaN values are stored as NULL (SQLite has no NaN) and read back as NaN.
 
@@ -328,6 +362,12 @@ class SQLiteStore(SampleStore):
         with self._read_lock:
             value = self._read_con.execute("SELECT max(seq) FROM samples").fetchone()[0]
         return None if value is None else int(value)
+
+    def first_time(self) -> float | None:
+        """The oldest sample time [s UTC], from the time index (None when empty)."""
+        with self._read_lock:
+            value = self._read_con.execute("SELECT min(time) FROM samples").fetchone()[0]
+        return None if value is None else float(value)
 
     def last_time(self) -> float | None:
         """The newest sample time [s UTC], from the time index (None when empty)."""
