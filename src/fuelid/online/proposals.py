@@ -1,0 +1,697 @@
+"""Whether the online service should propose new PI gains now, and which: a pure decision.
+
+No I/O, no store, no PLC: :func:`propose` takes the accepted identification windows, the
+current and the commissioning gains and the site's ``[online]`` table
+(:class:`fuelid.plc.site.Online`) and returns a :class:`ProposalDecision` that says yes or no,
+with one line of reason either way and every number behind it. The guards follow docs
+online.md §5 (an adaptive tuner that trusts every window bursts):
+
+1. **No proposal while the loop oscillates** (the caller's oscillation detector decides).
+2. **Separate evidence.** ``agree_windows`` accepted windows must rest on *separate* excitation
+   events: overlapping windows that contain the same step are one piece of evidence
+   (:func:`independent_windows`, newest first).
+3. **Agreement.** The rule (``rule``, default closed-loop time, the PLC's control period h)
+   applied to each of those windows' models must give gains within ``hysteresis`` of each other:
+   max/min − 1 ≤ ``hysteresis`` for Kc and for Ti.
+4. **Target.** The rule applied to the inverse-variance weighted mean model of those windows
+   (every parameter weighted by 1/se(K)²; equal weights when any se(K) is missing).
+5. **Hard bounds.** A target outside ``gain_bounds`` × the commissioning gains is *clipped* to
+   the bound (not refused): the evidence says "move that way", the bound says how far one may
+   ever go; the decision says so (``clipped``, and in the reason).
+6. **Dead band (hysteresis).** No proposal when the (clipped) target is within ``hysteresis`` of
+   the current gains: |target/current − 1| ≤ ``hysteresis`` for both Kc and Ti. The dead band is
+   on the distance to the target, not on the size of the partial step: a band on the step would
+   leave the loop forever ``hysteresis``/``move_fraction`` away from its target.
+7. **Partial move, geometric.** new = current·(target/current)^f with f = ``move_fraction``, for
+   Kc and Ti separately (a straight line in log space: gains are scale quantities and the bounds
+   are factors, so a rise and a fall by the same factor are treated alike). The result is
+   clipped to the bounds again (it can only leave them when the current gains are outside).
+8. **Robustness.** Ms of the new gains, sampled PI at h included, on the newest window's model,
+   on the model the current gains were tuned for (when known) and on the newest model with K set
+   to each end of ``K_range`` (the K(T) tracker's K_pred ± 2·se, when given): every Ms must be
+   ≤ ``ms_target`` (an unstable loop counts as Ms = ∞). Otherwise Kc is reduced, Ti kept, to the
+   largest factor that passes (bisection in log Kc) but not below the Kc lower bound; if even
+   the bound fails there is no proposal. A detuned proposal that moves the gains less than the
+   smallest undetuned step, (1 + ``hysteresis``)^f − 1, is not made, unless the current gains
+   themselves fail the target (then any robust move is worth proposing).
+
+Gains are in the ideal (ISA) form and engineering units throughout, Kc [V per L/min] and Ti [s]
+(:class:`Gains`); :func:`controller_to_ideal` and :func:`ideal_to_controller` convert from and
+to the form and units of the PLC's block (``[controller]``, :class:`fuelid.plc.site.Controller`).
+
+Units: time [s], K [(L/min)/V], Kc [V per L/min], Ti [s], Ms [-].
+
+References
+----------
+K. J. Åström, B. Wittenmark, *Adaptive Control* (2nd ed., Addison-Wesley, 1995), §13 (practical
+issues: parameter bounds, dead zones). B. D. O. Anderson, "Adaptive systems, lack of persistency
+of excitation and bursting phenomena", Automatica 21 (1985) 247–258. J. E. Seem, "A new pattern
+recognition adaptive controller with application to HVAC systems", Automatica 34 (1998)
+969–982 (stepping the gains part of the way toward the optimum). S. Skogestad, "Simple analytic
+rules for model reduction and PID controller tuning", J. Process Control 13 (2003) 291–309
+(SIMC; Ms as the robustness measure).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+from fuelid.errors import FuelidError
+from fuelid.model import ProcessModel
+from fuelid.online.health import json_ready
+from fuelid.plc.site import Controller, Online
+from fuelid.tuning import PISettings, robustness, tune
+
+EVENT_TOLERANCE_S = 1e-6
+"""Two excitation events within this time of each other are the same event [s]."""
+DETUNE_TOLERANCE = 1e-3
+"""The detuning search stops when its bracket of Kc factors is this narrow (relative) [-]."""
+SECONDS_PER_MINUTE = 60.0
+"""Seconds in a minute, for ``integral_unit = "min"`` [s/min]."""
+
+
+# --- gains and the PLC's form ---------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Gains:
+    """Ideal-form PI gains C(s) = Kc·(1 + 1/(Ti·s)) in engineering units.
+
+    Attributes
+    ----------
+    Kc : float
+        Proportional gain [V per L/min], > 0.
+    Ti : float
+        Integral (reset) time [s], > 0.
+    """
+
+    Kc: float
+    Ti: float
+
+    def __post_init__(self) -> None:
+        for name in ("Kc", "Ti"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise FuelidError(f"PI gain {name} must be positive and finite, got {value}")
+
+    def to_dict(self) -> dict[str, float]:
+        """``{"Kc": ..., "Ti": ...}`` [V per L/min, s].
+
+        Examples
+        --------
+        >>> Gains(0.05, 2.0).to_dict()
+        {'Kc': 0.05, 'Ti': 2.0}
+        """
+        return {"Kc": float(self.Kc), "Ti": float(self.Ti)}
+
+
+def _gain_scale(controller: Controller) -> float:
+    """Engineering gain per gain of the block: u_span/y_span for percent, else 1 [V per L/min]."""
+    if controller.gain_units == "percent":
+        if controller.u_span_V is None or controller.y_span_Lpm is None:
+            raise FuelidError("percent gains need u_span_V and y_span_Lpm")
+        return controller.u_span_V / controller.y_span_Lpm
+    return 1.0
+
+
+def _time_scale(controller: Controller) -> float:
+    """Seconds per integral unit of the block [s]."""
+    return SECONDS_PER_MINUTE if controller.integral_unit == "min" else 1.0
+
+
+def controller_to_ideal(kc: float, ti: float, controller: Controller) -> Gains:
+    """Gains as the PLC's block holds them → ideal form in engineering units.
+
+    The block's two numbers ``kc`` and ``ti`` mean, by ``controller``:
+
+    - ``form = "ideal"``: kc = Kc, ti = Ti, u = Kc·(e + (1/Ti)·∫e dt);
+    - ``form = "parallel"``: kc = Kp, ti = **Ki** = Kp/Ti, the integral gain,
+      u = Kp·e + Ki·∫e dt (the ``ti`` field holds Ki, not a time: Kc = Kp, Ti = Kp/Ki);
+    - ``gain_units = "percent"``: Kp or Kc in % of output span per % of measurement span,
+      Kc [V per L/min] = kc·u_span_V/y_span_Lpm; ``"engineering"``: V per L/min as is;
+    - ``integral_unit = "min"``: Ti in minutes (ideal) or Ki per minute (parallel), else
+      seconds; Ti [s] = 60·ti (ideal) or 60·kc/ti (parallel).
+
+    Parameters
+    ----------
+    kc : float
+        The block's proportional gain, in ``gain_units``.
+    ti : float
+        The block's integral time (ideal) in ``integral_unit``, or integral gain (parallel) in
+        ``gain_units`` per ``integral_unit``.
+    controller : Controller
+        The site's ``[controller]`` table.
+
+    Returns
+    -------
+    Gains
+        Kc [V per L/min], Ti [s].
+
+    Examples
+    --------
+    1.25 %/% with spans 4 V and 100 L/min is 0.05 V per L/min; Ki = 2.5 %/% per minute is
+    Ti = 1.25/2.5 min = 30 s:
+
+    >>> c = Controller(form="parallel", gain_units="percent", u_span_V=4.0, y_span_Lpm=100.0,
+    ...                integral_unit="min")
+    >>> g = controller_to_ideal(1.25, 2.5, c)
+    >>> round(g.Kc, 12), round(g.Ti, 12)
+    (0.05, 30.0)
+    """
+    if not (math.isfinite(kc) and kc > 0.0 and math.isfinite(ti) and ti > 0.0):
+        raise FuelidError(f"the block's gains must be positive and finite, got kc={kc}, ti={ti}")
+    Kc = kc * _gain_scale(controller)
+    if controller.form == "parallel":
+        Ti = kc / ti * _time_scale(controller)  # Ti = Kp/Ki, in the block's units: spans cancel
+    else:
+        Ti = ti * _time_scale(controller)
+    return Gains(Kc=Kc, Ti=Ti)
+
+
+def ideal_to_controller(gains: Gains, controller: Controller) -> tuple[float, float]:
+    """Ideal-form engineering gains → the (kc, ti) the PLC's block takes.
+
+    The inverse of :func:`controller_to_ideal` (see there for what kc and ti mean in each form).
+
+    Parameters
+    ----------
+    gains : Gains
+        Kc [V per L/min], Ti [s].
+    controller : Controller
+        The site's ``[controller]`` table.
+
+    Returns
+    -------
+    tuple of float
+        (kc, ti): Kc or Kp in ``gain_units``; Ti in ``integral_unit`` (ideal) or Ki in
+        ``gain_units`` per ``integral_unit`` (parallel).
+
+    Examples
+    --------
+    >>> c = Controller(gain_units="percent", u_span_V=4.0, y_span_Lpm=100.0)
+    >>> kc, ti = ideal_to_controller(Gains(0.05, 2.0), c)
+    >>> round(kc, 12), ti
+    (1.25, 2.0)
+    """
+    kc = gains.Kc / _gain_scale(controller)
+    ti_block = gains.Ti / _time_scale(controller)
+    if controller.form == "parallel":
+        return kc, kc / ti_block
+    return kc, ti_block
+
+
+# --- windows and their independence ---------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class WindowModel:
+    """One accepted identification window, as the service keeps it.
+
+    Attributes
+    ----------
+    model_id : int
+        The store's id of the identified model.
+    t_from, t_to : float
+        Start and end of the window [s since the epoch, UTC].
+    model : ProcessModel
+        The identified model (K [(L/min)/V], times [s]).
+    stderr : Mapping
+        Standard errors of the model's parameters by name (``"K"`` [(L/min)/V], ``"T"`` [s], …);
+        None where not determined.
+    T_fuel_C : float or None
+        Mean fuel temperature over the window [°C].
+    u_mean : float
+        Mean command over the window [V].
+    events : tuple of float
+        Times of the excitation events (command steps, setpoint moves) the window contains [s]
+        (:attr:`fuelid.online.gates.WindowVerdict.excitation_events`).
+    """
+
+    model_id: int
+    t_from: float
+    t_to: float
+    model: ProcessModel
+    stderr: Mapping[str, float | None]
+    T_fuel_C: float | None
+    u_mean: float
+    events: tuple[float, ...]
+
+    @property
+    def se_K(self) -> float | None:
+        """The standard error of K if usable (finite, > 0) [(L/min)/V], else None."""
+        se = self.stderr.get("K")
+        if se is None or not (math.isfinite(se) and se > 0.0):
+            return None
+        return float(se)
+
+
+def _shares_event(events: Sequence[float], taken: Sequence[float]) -> bool:
+    return any(abs(a - b) <= EVENT_TOLERANCE_S for a in events for b in taken)
+
+
+def independent_windows(windows: Sequence[WindowModel], n: int) -> list[WindowModel]:
+    """Up to ``n`` windows that rest on separate excitation events, newest first.
+
+    Windows are taken by end time, newest first; a window counts only if it has at least one
+    event and none of its events (within :data:`EVENT_TOLERANCE_S`) is an event of a window
+    already counted: overlapping windows around one step are one piece of evidence.
+
+    Parameters
+    ----------
+    windows : sequence of WindowModel
+        Accepted windows, in any order.
+    n : int
+        How many are wanted [-].
+
+    Returns
+    -------
+    list of WindowModel
+        At most ``n``, newest first.
+
+    Examples
+    --------
+    >>> m = ProcessModel(K=13.0, T=1.0, delay=0.5)
+    >>> def w(i, t, ev):
+    ...     return WindowModel(i, t - 600.0, t, m, {"K": 0.1}, 20.0, 3.0, ev)
+    >>> ws = [w(1, 600.0, (100.0,)), w(2, 900.0, (100.0, 700.0)), w(3, 1500.0, (1200.0,))]
+    >>> [x.model_id for x in independent_windows(ws, 3)]
+    [3, 2]
+    """
+    ordered = sorted(windows, key=lambda w: (w.t_to, w.model_id), reverse=True)
+    counted: list[WindowModel] = []
+    taken: list[float] = []
+    for window in ordered:
+        if len(counted) >= n:
+            break
+        if not window.events or _shares_event(window.events, taken):
+            continue
+        counted.append(window)
+        taken.extend(window.events)
+    return counted
+
+
+def weighted_mean_model(windows: Sequence[WindowModel]) -> tuple[ProcessModel, list[float]]:
+    """Inverse-variance weighted mean of the windows' models.
+
+    Every parameter (K, T, T2, T_f, delay) is averaged with the weights w = 1/se(K)²,
+    normalised to sum 1; when any window lacks a usable se(K), all weigh alike.
+
+    Returns
+    -------
+    tuple
+        (mean model, normalised weights in the windows' order).
+
+    Examples
+    --------
+    >>> a = WindowModel(1, 0.0, 600.0, ProcessModel(K=12.0, T=1.0), {"K": 0.1}, None, 3.0, (1.0,))
+    >>> b = WindowModel(2, 0.0, 600.0, ProcessModel(K=13.0, T=1.0), {"K": 0.2}, None, 3.0, (2.0,))
+    >>> model, w = weighted_mean_model([a, b])
+    >>> round(model.K, 12), [round(x, 12) for x in w]
+    (12.2, [0.8, 0.2])
+    """
+    if not windows:
+        raise FuelidError("a mean model needs at least one window")
+    ses = [w.se_K for w in windows]
+    raw = [1.0 / se**2 for se in ses if se is not None]
+    weights = raw if len(raw) == len(windows) else [1.0] * len(windows)
+    total = sum(weights)
+    weights = [x / total for x in weights]
+    params = {
+        name: sum(wt * getattr(w.model, name) for wt, w in zip(weights, windows, strict=True))
+        for name in ("K", "T", "T2", "T_f", "delay")
+    }
+    return ProcessModel(**params), weights
+
+
+# --- the decision ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ProposalDecision:
+    """Whether to propose new PI gains, which, and why.
+
+    Attributes
+    ----------
+    propose : bool
+        True when new gains are proposed.
+    reason : str
+        One line, also when nothing is proposed ("only 1 independent window of 2",
+        "change 4.0 % ≤ hysteresis 10 %", "loop oscillating", …).
+    old : Gains
+        The current gains [V per L/min, s].
+    new : Gains or None
+        The proposed gains (after the partial move, bounds and detuning); None when not
+        proposing.
+    target : Gains or None
+        The rule's gains on the mean model, clipped to the bounds (what the move aims at); None
+        when the decision stopped before a target.
+    Ms : dict
+        Check name (``newest``, ``tuned_for``, ``K_low``, ``K_high``) → Ms of the new gains (or
+        of the last gains tried when the robustness check refused) [-]; ∞ for an unstable loop.
+    model_ids : tuple of int
+        The windows behind the decision (the independent windows, newest first).
+    clipped : bool
+        True when the target or the new gains were clipped to the hard bounds.
+    detail : dict
+        Everything else: settings, per-window gains, weights, the mean model, the unclipped
+        target, the changes, every check's model and Ms before and after detuning, skipped
+        checks, the detuning factor.
+    """
+
+    propose: bool
+    reason: str
+    old: Gains
+    new: Gains | None
+    target: Gains | None
+    Ms: dict[str, float]
+    model_ids: tuple[int, ...]
+    clipped: bool
+    detail: dict[str, Any]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary (non-finite numbers as None)."""
+        out: dict[str, Any] = json_ready(
+            {
+                "propose": self.propose,
+                "reason": self.reason,
+                "old": self.old.to_dict(),
+                "new": None if self.new is None else self.new.to_dict(),
+                "target": None if self.target is None else self.target.to_dict(),
+                "Ms": dict(self.Ms),
+                "model_ids": list(self.model_ids),
+                "clipped": self.clipped,
+                "detail": self.detail,
+            }
+        )
+        return out
+
+
+@dataclass(frozen=True)
+class _Check:
+    name: str
+    model: ProcessModel
+    model_id: int | None
+
+
+def _rel_change(new: Gains, old: Gains) -> dict[str, float]:
+    return {"Kc": abs(new.Kc / old.Kc - 1.0), "Ti": abs(new.Ti / old.Ti - 1.0)}
+
+
+def _spread(values: Sequence[float]) -> float:
+    return max(values) / min(values) - 1.0
+
+
+def _clip(value: float, low: float, high: float) -> float:
+    return min(max(value, low), high)
+
+
+def _clip_gains(gains: Gains, bounds: Mapping[str, tuple[float, float]]) -> Gains:
+    return Gains(
+        Kc=_clip(gains.Kc, *bounds["Kc"]),
+        Ti=_clip(gains.Ti, *bounds["Ti"]),
+    )
+
+
+def _move(current: Gains, target: Gains, fraction: float) -> Gains:
+    """Geometric partial move: current·(target/current)^fraction, per gain."""
+    return Gains(
+        Kc=current.Kc * (target.Kc / current.Kc) ** fraction,
+        Ti=current.Ti * (target.Ti / current.Ti) ** fraction,
+    )
+
+
+def _pct(x: float) -> str:
+    return f"{100.0 * x:.1f} %"
+
+
+def propose(
+    windows: Sequence[WindowModel],
+    current: Gains,
+    commissioning: Gains,
+    settings: Online,
+    *,
+    control_period: float,
+    tuned_for: ProcessModel | None = None,
+    K_range: tuple[float, float] | None = None,
+    oscillating: bool = False,
+) -> ProposalDecision:
+    """Decide whether to propose new PI gains now, and which (module docstring: the rules).
+
+    Parameters
+    ----------
+    windows : sequence of WindowModel
+        The accepted windows available (any order); the newest independent
+        ``settings.agree_windows`` of them are used.
+    current : Gains
+        The gains the PLC runs now [V per L/min, s].
+    commissioning : Gains
+        The commissioning gains, the reference of ``settings.gain_bounds``.
+    settings : Online
+        The site's ``[online]`` table: ``rule``, ``ms_target``, ``gain_bounds``,
+        ``agree_windows``, ``hysteresis``, ``move_fraction``.
+    control_period : float
+        The PLC's PI period h [s] (tuning and Ms include it); 0 for continuous control.
+    tuned_for : ProcessModel, optional
+        The model the current gains were tuned for; its Ms check is skipped when None.
+    K_range : tuple of float, optional
+        (K_low, K_high) [(L/min)/V], the ends of the K uncertainty at the current operating
+        point, typically K_pred ∓ 2·se from :meth:`fuelid.online.tracking.KTracker.predict`; the
+        newest model with K set to each is checked. None skips both checks; K_low ≤ 0 skips
+        that end.
+    oscillating : bool
+        True when the loop oscillates now: no proposal.
+
+    Returns
+    -------
+    ProposalDecision
+
+    Raises
+    ------
+    FuelidError
+        On a negative control period or a K_range with K_low > K_high or a non-finite end.
+    """
+    if not (math.isfinite(control_period) and control_period >= 0.0):
+        raise FuelidError(f"control period must be zero or positive, got {control_period:g} s")
+    if K_range is not None:
+        k_lo, k_hi = K_range
+        if not (math.isfinite(k_lo) and math.isfinite(k_hi) and k_lo <= k_hi and k_hi > 0.0):
+            raise FuelidError(f"K_range must be finite with K_low <= K_high, K_high > 0: {K_range}")
+    n = settings.agree_windows
+    low, high = settings.gain_bounds
+    bounds = {
+        "Kc": (low * commissioning.Kc, high * commissioning.Kc),
+        "Ti": (low * commissioning.Ti, high * commissioning.Ti),
+    }
+    detail: dict[str, Any] = {
+        "rule": settings.rule,
+        "control_period_s": control_period,
+        "ms_target": settings.ms_target,
+        "hysteresis": settings.hysteresis,
+        "move_fraction": settings.move_fraction,
+        "move": "geometric: new = current * (target / current) ** move_fraction",
+        "commissioning": commissioning.to_dict(),
+        "bounds": {k: list(v) for k, v in bounds.items()},
+        "windows_available": len(windows),
+    }
+
+    def refuse(
+        reason: str,
+        *,
+        ids: Sequence[int] = (),
+        target: Gains | None = None,
+        Ms: Mapping[str, float] | None = None,
+        clipped: bool = False,
+    ) -> ProposalDecision:
+        return ProposalDecision(
+            propose=False,
+            reason=reason,
+            old=current,
+            new=None,
+            target=target,
+            Ms=dict(Ms or {}),
+            model_ids=tuple(ids),
+            clipped=clipped,
+            detail=detail,
+        )
+
+    if oscillating:
+        return refuse("loop oscillating: no proposal while it oscillates")
+
+    # --- separate evidence and agreement ----------------------------------------------------------
+    chosen = independent_windows(windows, n)
+    ids = tuple(w.model_id for w in chosen)
+    if len(chosen) < n:
+        plural = "" if len(chosen) == 1 else "s"
+        return refuse(
+            f"only {len(chosen)} independent window{plural} of {n} "
+            f"({len(windows)} accepted; windows sharing an excitation event count once)",
+            ids=ids,
+        )
+    try:
+        per_window = [tune(w.model, settings.rule, control_period) for w in chosen]
+    except FuelidError as error:
+        return refuse(f"rule {settings.rule} refused a window's model: {error}", ids=ids)
+    detail["window_gains"] = [
+        {"model_id": w.model_id, "Kc": pi.Kc, "Ti": pi.Ti, "events_s": list(w.events)}
+        for w, pi in zip(chosen, per_window, strict=True)
+    ]
+    spread = {
+        "Kc": _spread([pi.Kc for pi in per_window]),
+        "Ti": _spread([pi.Ti for pi in per_window]),
+    }
+    detail["spread"] = spread
+    disagree = [
+        f"{name} {min(values):.3g}–{max(values):.3g}{unit}"
+        for name, values, unit in (
+            ("Kc", [pi.Kc for pi in per_window], ""),
+            ("Ti", [pi.Ti for pi in per_window], " s"),
+        )
+        if spread[name] > settings.hysteresis
+    ]
+    if disagree:
+        return refuse(
+            f"windows disagree: {', '.join(disagree)} "
+            f"(spread above hysteresis {100.0 * settings.hysteresis:g} %)",
+            ids=ids,
+        )
+
+    # --- target, bounds, dead band ----------------------------------------------------------------
+    mean, weights = weighted_mean_model(chosen)
+    detail["weights"] = weights
+    detail["mean_model"] = mean.as_dict()
+    raw_pi = tune(mean, settings.rule, control_period)
+    raw = Gains(Kc=raw_pi.Kc, Ti=raw_pi.Ti)
+    target = _clip_gains(raw, bounds)
+    clipped = target != raw
+    detail["target_unclipped"] = raw.to_dict()
+    change = _rel_change(target, current)
+    detail["change_to_target"] = change
+    largest = max(change.values())
+    if largest <= settings.hysteresis:
+        return refuse(
+            f"change {_pct(largest)} ≤ hysteresis {100.0 * settings.hysteresis:g} %",
+            ids=ids,
+            target=target,
+            clipped=clipped,
+        )
+
+    moved = _move(current, target, settings.move_fraction)
+    new = _clip_gains(moved, bounds)
+    clipped = clipped or new != moved
+    detail["undetuned"] = new.to_dict()
+
+    # --- robustness -------------------------------------------------------------------------------
+    newest = chosen[0]
+    checks = [_Check("newest", newest.model, newest.model_id)]
+    skipped: dict[str, str] = {}
+    if tuned_for is None:
+        skipped["tuned_for"] = "the model the current gains were tuned for is not known"
+    else:
+        checks.append(_Check("tuned_for", tuned_for, None))
+    if K_range is None:
+        skipped["K_low"] = skipped["K_high"] = "no K uncertainty given"
+    else:
+        for name, k in (("K_low", K_range[0]), ("K_high", K_range[1])):
+            if k > 0.0:
+                checks.append(_Check(name, replace(newest.model, K=k), newest.model_id))
+            else:
+                skipped[name] = f"K {k:g} ≤ 0"
+    detail["skipped"] = skipped
+
+    def ms_of(gains: Gains) -> dict[str, float]:
+        pi = PISettings(rule=settings.rule, Kc=gains.Kc, Ti=gains.Ti, control_period=control_period)
+        out = {}
+        for check in checks:
+            r = robustness(check.model, pi)
+            out[check.name] = r.Ms if r.stable else math.inf
+        return out
+
+    def passes(ms: Mapping[str, float]) -> bool:
+        return all(v <= settings.ms_target for v in ms.values())
+
+    ms_current = ms_of(current)
+    ms_undetuned = ms_of(new)
+    detail["Ms_current"] = ms_current
+    detail["Ms_undetuned"] = ms_undetuned
+    detail["checks"] = {
+        c.name: {"model_id": c.model_id, "model": c.model.as_dict()} for c in checks
+    }
+    factor, ms_final = _detune(
+        new, bounds["Kc"][0], lambda f: ms_of(Gains(new.Kc * f, new.Ti)), passes, ms_undetuned
+    )
+    detail["detune_factor"] = factor
+    clip_note = " (target clipped to the bounds)" if clipped else ""
+    if factor is None:
+        worst = max(ms_final, key=lambda k: ms_final[k])
+        return refuse(
+            f"Ms {ms_final[worst]:.2f} > {settings.ms_target:g} ({worst}) even at the Kc lower "
+            f"bound {bounds['Kc'][0]:.3g}{clip_note}",
+            ids=ids,
+            target=target,
+            Ms=ms_final,
+            clipped=clipped,
+        )
+    detuned = factor < 1.0
+    final = Gains(new.Kc * factor, new.Ti) if detuned else new
+    step = max(_rel_change(final, current).values())
+    detail["change_proposed"] = _rel_change(final, current)
+    min_step = (1.0 + settings.hysteresis) ** settings.move_fraction - 1.0
+    if detuned and step < min_step and passes(ms_current):
+        return refuse(
+            f"detuned to Ms ≤ {settings.ms_target:g}, the change {_pct(step)} is below the "
+            f"smallest step {_pct(min_step)}{clip_note}",
+            ids=ids,
+            target=target,
+            Ms=ms_final,
+            clipped=clipped,
+        )
+    ms_worst = max(ms_final.values())
+    how = f"Kc detuned ×{factor:.3f} for Ms" if detuned else "Ms"
+    reason = (
+        f"{len(chosen)} independent windows agree: Kc {current.Kc:.4g} → {final.Kc:.4g}, "
+        f"Ti {current.Ti:.4g} → {final.Ti:.4g} s ({100.0 * settings.move_fraction:g} % of the "
+        f"way, geometric){clip_note}; {how} {ms_worst:.3f} ≤ {settings.ms_target:g}"
+    )
+    return ProposalDecision(
+        propose=True,
+        reason=reason,
+        old=current,
+        new=final,
+        target=target,
+        Ms=ms_final,
+        model_ids=ids,
+        clipped=clipped,
+        detail=detail,
+    )
+
+
+def _detune(
+    gains: Gains,
+    kc_floor: float,
+    ms_at: Callable[[float], dict[str, float]],
+    passes: Callable[[Mapping[str, float]], bool],
+    ms_at_one: dict[str, float],
+) -> tuple[float | None, dict[str, float]]:
+    """Largest Kc factor f ≤ 1 (not below the floor) whose Ms passes, by bisection in log f.
+
+    Returns (f, Ms at f), or (None, Ms at the floor) when even the floor fails. The bracket's
+    lower end always passes, so the returned gains pass even where Ms is not monotonic in Kc.
+    """
+    if passes(ms_at_one):
+        return 1.0, ms_at_one
+    f_low = min(1.0, kc_floor / gains.Kc)
+    ms_low = ms_at(f_low)
+    if f_low >= 1.0 or not passes(ms_low):
+        return None, ms_low
+    lo, hi = math.log(f_low), 0.0
+    while hi - lo > DETUNE_TOLERANCE:
+        mid = 0.5 * (lo + hi)
+        ms_mid = ms_at(math.exp(mid))
+        if passes(ms_mid):
+            lo, ms_low = mid, ms_mid
+        else:
+            hi = mid
+    return math.exp(lo), ms_low
