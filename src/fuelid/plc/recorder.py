@@ -374,6 +374,7 @@ class Recorder:
         self._aux_values: dict[str, float] = {}  # setpoint, temperature, mode attached, checked
         self._next_u: int | None = None  # ring: the next record to read (unwrapped)
         self._last_receipt = math.nan
+        self._last_seen = math.nan  # when any reading last arrived [s UTC]
         self._missing_after_outage = False
         ring = self.site.ring
         self._ring_fields = tuple(ring.fields[1:]) if ring is not None else ()
@@ -391,6 +392,24 @@ class Recorder:
     def stop(self) -> None:
         """Ask the recorder to stop (safe from a signal handler); :meth:`run` then returns."""
         self._stop.set()
+
+    @property
+    def connected(self) -> bool:
+        """True while the link is up."""
+        return self._connected
+
+    @property
+    def latest(self) -> dict[str, float]:
+        """The last finite value of every read role (kc, ti, mode, setpoint, command, …).
+
+        In the roles' engineering units: what the online service checks before it writes.
+        """
+        return dict(self._aux)
+
+    @property
+    def last_reading(self) -> float:
+        """When the last reading of the tags arrived [s UTC]; NaN before the first."""
+        return self._last_seen
 
     def _say(self, message: str) -> None:
         if self.on_message is not None:
@@ -713,6 +732,7 @@ class Recorder:
         time); None: the next sample's (see :meth:`_event`).
         """
         values = reading.values
+        self._last_seen = reading.received
         old = self._aux
         changes = []
         for role, unit in (("kc", "V per L/min"), ("ti", "s")):

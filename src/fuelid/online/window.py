@@ -1,0 +1,501 @@
+"""One identification window of the online service: samples in, a gated model and its health out.
+
+Every ``identify_every_s`` of data time the service hands the last ``window_s`` of samples to
+:meth:`WindowAnalyser.analyse`, which
+
+1. runs the pre-fit gates (:func:`~fuelid.online.gates.prefit_samples`: lost or flagged samples,
+   the output at a limit, excitation judged by the mode the loop was in);
+2. fits the process model on the samples whose quality is ok, warm-started from the last
+   accepted window (one local search instead of a grid, ~0.1–0.2 s for 10 min at 50 Hz):
+
+   - judged in MAN (open loop, or no mode recorded): the output-error fit, whose estimate is
+     consistent whatever the colour of the noise when the input does not depend on it (Ljung
+     1999, §8.4); its covariance is the HAC sandwich when the residuals are coloured
+     (``covariance="auto"``), so the standard errors stay honest;
+   - judged in AUTO (closed loop: the command depends on past noise through the PI): the
+     prediction-error fit with its noise model (the direct method, Ljung §13.4), warm-started
+     with the last window's noise model; when its noise pole is nearly integrating, or it
+     fails, the output-error fit is kept and the reason is recorded;
+
+   and the article's ``step-ls`` alongside, reported but never gated on;
+3. runs the post-fit gates (:func:`~fuelid.online.gates.postfit_gates`: relative standard
+   errors, the fit, the residual autocorrelation by size, the plant-ratio event);
+4. computes the loop's health over the whole window (:func:`~fuelid.online.health.loop_health`).
+
+The fit percentage gated is the model's free-run simulation over the window (not a one-step
+prediction): a model that only predicts one step ahead well does not pass it.
+
+Units: time [s UTC], command u [V], flow y and setpoint [L/min], K [(L/min)/V], T and θ [s],
+fuel temperature [°C] in this module's results.
+
+References
+----------
+L. Ljung, *System Identification: Theory for the User* (2nd ed., Prentice Hall, 1999), §8.4
+(open-loop consistency of output-error models), §13.4 (closed-loop identification, the direct
+prediction-error method).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from fuelid.errors import FuelidError, NotExcitingError
+from fuelid.identify.oe import OutputError
+from fuelid.identify.pem import PredictionError
+from fuelid.identify.procedure import POSITIVE_PARAMETERS, IdentifyOptions, interval95
+from fuelid.io.timeseries import IOData
+from fuelid.model import MODEL_KEYS, ProcessModel
+from fuelid.online.gates import (
+    WindowVerdict,
+    excitation_refusal,
+    postfit_gates,
+    prefit_samples,
+)
+from fuelid.online.health import U_LIMITS_V, LoopHealth, json_ready, loop_health
+from fuelid.online.tracking import PlantGain
+from fuelid.plc.site import Online
+from fuelid.store.base import Quality, SampleArrays, iodata_from_samples
+
+NEAR_INTEGRATING_POLE = 0.999
+"""A pem noise pole above this (per sample) keeps the output-error fit (as ``identify --method
+auto`` does): pem would fit the differenced data and lose the low-frequency gain."""
+MIN_GOOD_SAMPLES = 100
+"""Fewer good samples than this in a window: nothing is fitted [-]."""
+
+
+@dataclass(frozen=True)
+class WindowPriors:
+    """What the service knows before fitting: the plant file's meter, the controller's limits.
+
+    Parameters
+    ----------
+    flowmeter_T : float
+        Flowmeter lag held fixed in the fit [s] (0: none, the plant file gives it).
+    delay : float or None
+        Fixed dead time [s]; None estimates it.
+    settling_time : float or None
+        The plant's 98 % settling time [s], which sizes step-ls's response length; None: the
+        output-error model's.
+    u_limits : (float, float)
+        The command's limits [V].
+    y_span : float
+        The flow measurement span [L/min] (Hägglund's acceptable oscillation amplitude).
+    control_period : float
+        The PLC's PI period [s].
+    source : str
+        Where the priors came from ("plant file PATH", or "none: no plant file").
+    """
+
+    flowmeter_T: float = 0.0
+    delay: float | None = None
+    settling_time: float | None = None
+    u_limits: tuple[float, float] = U_LIMITS_V
+    y_span: float = 120.0
+    control_period: float = 1.0
+    source: str = "none: no plant file"
+
+
+@dataclass
+class WindowResult:
+    """What one window gave: the verdict, the model (when fitted), step-ls's, the loop's health."""
+
+    t_from: float
+    """Start of the window [s UTC]."""
+    t_to: float
+    """End of the window [s UTC] (exclusive)."""
+    verdict: WindowVerdict
+    """Every gate's verdict; ``accepted`` and ``reason`` come from it."""
+    samples: int
+    """Samples read [-]."""
+    good_samples: int
+    """Samples of quality ok with finite u and y [-]."""
+    T_fuel_C: float | None
+    """Mean fuel temperature of the good samples [°C]; None when not recorded."""
+    u_mean: float | None
+    """Mean command of the good samples [V] (the operating point)."""
+    y_mean: float | None
+    """Mean flow of the good samples [L/min]."""
+    model: ProcessModel | None = None
+    """The fitted model (None when a pre-fit gate rejected the window or the fit failed)."""
+    stderr: dict[str, float | None] = field(default_factory=dict)
+    """Standard errors by MODEL_KEYS name [(L/min)/V, s]."""
+    method: str = ""
+    """"oe" or "pem"."""
+    method_reason: str = ""
+    """Why that estimator (the mode it was judged in, a pem fallback)."""
+    fit_percent: float | None = None
+    """Free-run fit of the model over the window [%]."""
+    covariance: str = ""
+    """How the covariance was made ("white", "hac", "noise-model")."""
+    step_ls: dict[str, Any] | None = None
+    """The article's step-ls model of the same samples: model, stderr, fit or the reason none."""
+    plant_K: float | None = None
+    """The plant model's K at the window's mean command and fuel temperature [(L/min)/V]."""
+    health: LoopHealth | None = None
+    """The loop's health over the window."""
+    seconds: float = 0.0
+    """Wall time of the analysis [s]."""
+    warnings: list[str] = field(default_factory=list)
+    """What the fit noticed."""
+    estimator: OutputError | PredictionError | None = field(default=None, repr=False)
+    """The fitted estimator (the next window's warm start); not stored."""
+
+    @property
+    def accepted(self) -> bool:
+        """True when every gate passed."""
+        return self.verdict.accepted
+
+    @property
+    def reason(self) -> str:
+        """The verdict in one line."""
+        return self.verdict.reason
+
+    def ci95(self) -> dict[str, list[float] | None]:
+        """95 % intervals as ``identify`` makes them (symmetric K, log-transformed times)."""
+        if self.model is None:
+            return {}
+        values = self.model.as_dict()
+        out: dict[str, list[float] | None] = {}
+        for key in MODEL_KEYS:
+            ci = interval95(values[key], self.stderr.get(key), positive=key in POSITIVE_PARAMETERS)
+            out[key] = None if ci is None else ci[0]
+        return out
+
+    def model_json(self) -> dict[str, Any] | None:
+        """``model``, ``stderr``, ``ci95`` (as ``identify --json``), method, fit; None unfitted."""
+        if self.model is None:
+            return None
+        values = self.model.as_dict()
+        out: dict[str, Any] = json_ready(
+            {
+                "model": {key: values[key] for key in MODEL_KEYS},
+                "stderr": {key: self.stderr.get(key) for key in MODEL_KEYS},
+                "ci95": self.ci95(),
+                "method": self.method,
+                "fit_percent": self.fit_percent,
+            }
+        )
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready record of the window (what the model history stores as its detail)."""
+        out: dict[str, Any] = json_ready(
+            {
+                "start": self.t_from,
+                "end": self.t_to,
+                "accepted": self.accepted,
+                "reason": self.reason,
+                "mode": self.verdict.mode,
+                "samples": self.samples,
+                "good_samples": self.good_samples,
+                "fuel_temperature": self.T_fuel_C,
+                "operating_point": {"u_V": self.u_mean, "y_Lpm": self.y_mean},
+                "method": self.method,
+                "method_reason": self.method_reason,
+                "covariance": self.covariance,
+                "fit_percent": self.fit_percent,
+                "plant_K": self.plant_K,
+                "gates": self.verdict.to_dict(),
+                "step_ls": self.step_ls,
+                "health": None if self.health is None else self.health.to_dict(),
+                "seconds": self.seconds,
+                "warnings": self.warnings,
+            }
+        )
+        fitted = self.model_json()
+        if fitted is not None:
+            out.update(fitted)
+        return out
+
+
+def _mean(values: np.ndarray[Any, Any]) -> float | None:
+    finite = values[np.isfinite(values)]
+    return float(np.mean(finite)) if finite.size else None
+
+
+class WindowAnalyser:
+    """Gates, fits and assesses windows, warm-starting each fit from the last accepted one.
+
+    Parameters
+    ----------
+    settings : Online
+        The site's ``[online]`` table (gate thresholds).
+    priors : WindowPriors
+        The plant file's meter, the limits, the control period.
+    sample_time : float
+        The sampling period [s] (``[sampling] period_s``).
+    k_plant : callable, optional
+        The plant model's K(u [V], T [°C]) [(L/min)/V] (:func:`~fuelid.online.tracking.
+        plant_gain_function`); None without a plant file (no plant-ratio event).
+    step_ls : bool
+        Also fit the article's step-ls (reported, not gated).
+    ti_s : float
+        The PI's integral time [s], for the oscillation detector; updated by the service.
+
+    Attributes
+    ----------
+    last_model_ : ProcessModel or None
+        The last accepted window's model (the warm start).
+    """
+
+    def __init__(
+        self,
+        settings: Online,
+        priors: WindowPriors,
+        sample_time: float,
+        *,
+        k_plant: PlantGain | None = None,
+        step_ls: bool = True,
+        ti_s: float = 1.0,
+    ) -> None:
+        self.settings = settings
+        self.priors = priors
+        self.sample_time = float(sample_time)
+        self.k_plant = k_plant
+        self.step_ls = step_ls
+        self.ti_s = float(ti_s)
+        self.last_model_: ProcessModel | None = None
+        self._last_pem: PredictionError | None = None
+
+    # --- warm start -----------------------------------------------------------------------
+
+    def accept(self, result: WindowResult) -> None:
+        """Warm-start the next fits from an accepted window's model (and noise model)."""
+        if result.accepted and result.model is not None:
+            self.last_model_ = result.model
+            if isinstance(result.estimator, PredictionError):
+                self._last_pem = result.estimator
+
+    def resume(self, model: ProcessModel | None) -> None:
+        """Warm-start from a model kept in the history (a restarted service)."""
+        self.last_model_ = model
+
+    # --- the window -----------------------------------------------------------------------
+
+    def analyse(self, samples: SampleArrays, t_from: float, t_to: float) -> WindowResult:
+        """Gate, fit and assess one window's samples (``t_from ≤ time < t_to``).
+
+        Never raises on data: a window that cannot be fitted is a rejected window with the
+        reason.
+        """
+        started = time.perf_counter()
+        good = (samples.quality == Quality.OK) & np.isfinite(samples.u) & np.isfinite(samples.y)
+        temperature = samples.fuel_temperature[good]
+        result = WindowResult(
+            t_from=t_from,
+            t_to=t_to,
+            verdict=WindowVerdict.of([], {}),
+            samples=len(samples),
+            good_samples=int(np.count_nonzero(good)),
+            T_fuel_C=_mean(temperature),
+            u_mean=_mean(samples.u[good]),
+            y_mean=_mean(samples.y[good]),
+        )
+        if result.good_samples < MIN_GOOD_SAMPLES:
+            result.verdict = WindowVerdict.of(
+                [f"too few good samples: {result.good_samples} < {MIN_GOOD_SAMPLES}"],
+                {"good_samples": result.good_samples},
+            )
+            result.seconds = time.perf_counter() - started
+            return result
+        if self.k_plant is not None and result.u_mean is not None:
+            T_C = 20.0 if result.T_fuel_C is None else result.T_fuel_C
+            try:
+                result.plant_K = float(self.k_plant(result.u_mean, T_C))
+            except FuelidError as error:  # outside the plant's range: no ratio event
+                result.warnings.append(f"plant K not computed: {error}")
+        result.health = self._health(samples, good)
+        prefit = prefit_samples(
+            samples, self.settings, sample_time=self.sample_time, u_limits=self.priors.u_limits
+        )
+        result.verdict = prefit
+        if not prefit.accepted:
+            result.seconds = time.perf_counter() - started
+            return result
+        try:
+            data = iodata_from_samples(samples, self.sample_time, source="window")
+            self._fit(result, data, closed_loop=prefit.mode == "AUTO")
+        except NotExcitingError as error:
+            result.verdict = prefit.combine(excitation_refusal(error))
+        except FuelidError as error:
+            result.verdict = prefit.combine(
+                WindowVerdict.of([f"fit failed: {' '.join(str(error).split())}"], {})
+            )
+        result.seconds = time.perf_counter() - started
+        return result
+
+    def _health(self, samples: SampleArrays, good: np.ndarray[Any, Any]) -> LoopHealth | None:
+        delay = self.last_model_.delay if self.last_model_ is not None else 0.0
+        try:
+            return loop_health(
+                samples.time,
+                samples.u,
+                samples.y,
+                samples.setpoint,
+                samples.mode,
+                good,
+                ti_s=self.ti_s,
+                delay_s=max(delay, self.sample_time),
+                y_span=self.priors.y_span,
+                u_limits=self.priors.u_limits,
+            )
+        except FuelidError:  # too few samples for any measure: the window says so elsewhere
+            return None
+
+    def _estimator_settings(self) -> dict[str, Any]:
+        order: int | str = "auto"
+        if self.last_model_ is not None:
+            order = 2 if self.last_model_.T2 > 0.0 else 1
+        return {"order": order, "delay": self.priors.delay, "T_f": self.priors.flowmeter_T}
+
+    def _fit(self, result: WindowResult, data: IOData, *, closed_loop: bool) -> None:
+        kwargs = self._estimator_settings()
+        oe = OutputError(covariance="auto", **kwargs).fit(data, init=self.last_model_)
+        chosen: OutputError | PredictionError = oe
+        residuals = data.y - oe.y_hat_
+        result.method, result.covariance = "oe", oe.covariance_
+        result.method_reason = (
+            "MAN (open loop): output error, consistent whatever the noise colour"
+            if not closed_loop
+            else ""
+        )
+        if closed_loop:
+            chosen, residuals = self._fit_closed_loop(result, data, oe, kwargs)
+        result.model = chosen.model_
+        result.stderr = dict(chosen.stderr_)
+        result.fit_percent = float(oe.fit_percent_ if chosen is oe else chosen.fit_percent_)
+        result.estimator = chosen
+        result.warnings.extend(chosen.warnings_)
+        postfit = postfit_gates(
+            chosen.model_,
+            chosen.stderr_,
+            result.fit_percent,
+            residuals,
+            data.sample_time,
+            self.settings,
+            segment_starts=data.segment_starts,
+            plant_K=result.plant_K,
+        )
+        result.verdict = result.verdict.combine(postfit)
+        if self.step_ls:
+            result.step_ls = self._step_ls(data, oe.model_)
+
+    def _fit_closed_loop(
+        self, result: WindowResult, data: IOData, oe: OutputError, kwargs: dict[str, Any]
+    ) -> tuple[OutputError | PredictionError, np.ndarray[Any, Any]]:
+        init: ProcessModel | PredictionError = oe.model_
+        noise_init = None
+        if self._last_pem is not None:
+            init, noise_init = oe.model_, self._last_pem.noise_model_
+        try:
+            pem = PredictionError(**kwargs).fit(data, init=init, noise_init=noise_init)
+        except FuelidError as error:
+            result.method_reason = f"AUTO (closed loop): pem failed ({error}); output error kept"
+            return oe, data.y - oe.y_hat_
+        poles = [abs(complex(*p)) if isinstance(p, list) else abs(p) for p in _poles(pem)]
+        if any(p > NEAR_INTEGRATING_POLE for p in poles):
+            result.method_reason = (
+                f"AUTO (closed loop): pem's noise pole {max(poles):.5f} is nearly integrating "
+                "(it would fit the differenced data); output error kept"
+            )
+            return oe, data.y - oe.y_hat_
+        result.method, result.covariance = "pem", "noise-model"
+        result.method_reason = "AUTO (closed loop): prediction error with its noise model"
+        return pem, pem.residuals_
+
+    def _step_ls(self, data: IOData, oe_model: ProcessModel) -> dict[str, Any]:
+        from fuelid.workflow.identification import identify_step_ls
+
+        options = IdentifyOptions(
+            method="step-ls",
+            flowmeter_T=self.priors.flowmeter_T or None,
+            settling_time=self.priors.settling_time,
+            control_period=self.priors.control_period,
+        )
+        try:
+            fitted, _ = identify_step_ls(data, options, oe_model=oe_model)
+        except FuelidError as error:
+            return {"model": None, "reason": " ".join(str(error).split())}
+        values = fitted.model.as_dict()
+        out: dict[str, Any] = json_ready(
+            {
+                "model": {key: values[key] for key in MODEL_KEYS},
+                "stderr": {key: fitted.stderr.get(key) for key in MODEL_KEYS},
+                "fit_percent": fitted.fit_percent,
+            }
+        )
+        return out
+
+
+def _poles(pem: PredictionError) -> list[Any]:
+    poles = pem.noise_model_.get("poles", [])
+    return list(poles) if isinstance(poles, list | tuple) else []
+
+
+def window_priors(
+    plant_path: str | None,
+    *,
+    control_period: float,
+    u_limits: tuple[float, float] = U_LIMITS_V,
+    y_span: float | None = None,
+) -> tuple[WindowPriors, PlantGain | None]:
+    """The priors and plant-gain function of a site (its plant file, when it names one).
+
+    Parameters
+    ----------
+    plant_path : str or None
+        The site file's ``[site] plant``.
+    control_period : float
+        ``[sampling] control_period_s`` [s].
+    u_limits : (float, float)
+        The command's limits [V] (the plant's VFD range when a plant file is given).
+    y_span : float, optional
+        The flow span [L/min]; default the plant's flowmeter range, else 120.
+
+    Returns
+    -------
+    (WindowPriors, k_plant or None)
+
+    Raises
+    ------
+    ConfigError
+        The plant file cannot be read.
+    """
+    if plant_path is None:
+        return (
+            WindowPriors(u_limits=u_limits, y_span=y_span or 120.0, control_period=control_period),
+            None,
+        )
+    from fuelid.online.tracking import plant_gain_function
+    from fuelid.plant.config import load_plant_config
+    from fuelid.plant.linear import linearise
+    from fuelid.units import celsius_to_kelvin
+
+    config = load_plant_config(plant_path)
+    middle = 0.5 * (config.vfd.u_min_V + config.vfd.u_max_V)
+    settling = linearise(config, middle, celsius_to_kelvin(20.0)).settling_time()
+    meter = config.flowmeter
+    span = y_span if y_span is not None else float(meter.span_Lpm)
+    priors = WindowPriors(
+        flowmeter_T=float(meter.time_constant_s),
+        delay=float(meter.delay_s),  # as `identify --config`: the meter's dead time, fixed
+        settling_time=float(settling),
+        u_limits=(float(config.vfd.u_min_V), float(config.vfd.u_max_V)),
+        y_span=span,
+        control_period=control_period,
+        source=f"plant file {plant_path}",
+    )
+    return priors, plant_gain_function(config)
+
+
+__all__ = [
+    "MIN_GOOD_SAMPLES",
+    "WindowAnalyser",
+    "WindowPriors",
+    "WindowResult",
+    "window_priors",
+]

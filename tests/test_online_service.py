@@ -1,0 +1,212 @@
+"""The online service's writes against the virtual PLC on loopback.
+
+Write-back with its echo check, the refusal in MAN, the revert on a lost echo, reconciliation
+of a write cut short.
+
+Every run is bounded (a few seconds of wall time at a speed-up); the servers are real (Modbus
+TCP on 127.0.0.1).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytest.importorskip("pymodbus")
+
+from fuelid.online.service import OnlineService
+from fuelid.plc.adapters import open_source
+from fuelid.plc.adapters.modbus import ModbusSource
+from fuelid.plc.site import SiteConfig
+from fuelid.plc.virtual.runner import VirtualPlcThread
+from fuelid.store import OnlineHistory, open_store
+from fuelid.store.sqlite import SQLiteStore
+
+SPEED = 20.0
+"""Plant time per wall time: the PLC's 10 s heartbeat timeout is 0.5 s of wall time."""
+HEARTBEAT_S = 0.05
+
+
+def _site(virtual: VirtualPlcThread, store: Path, online: str) -> SiteConfig:
+    text = virtual.site_text(store_url=f"sqlite:///{store}") + "\n[online]\n" + online
+    return SiteConfig.model_validate(tomllib.loads(text))
+
+
+def _history(site: SiteConfig, store: Path) -> tuple[SQLiteStore, OnlineHistory]:
+    from fuelid.plc.recorder import site_identity
+
+    opened = open_store(
+        f"sqlite:///{store}", period_s=site.sampling.period_s, **site_identity(site)
+    )
+    assert isinstance(opened, SQLiteStore)
+    return opened, OnlineHistory(opened)
+
+
+def _approved_proposal(site: SiteConfig, store: Path, kc: float, ti: float) -> int:
+    """An approved proposal put straight into the history (what `online approve` leaves)."""
+    opened, history = _history(site, store)
+    try:
+        assert site.controller is not None
+        old = {"Kc": site.controller.kc, "Ti": site.controller.ti}
+        pid = history.add_proposal(
+            model_id=None,
+            old=old,
+            new={"Kc": kc, "Ti": ti},
+            detail={"reason": "test", "ideal": {"old": old, "new": {"Kc": kc, "Ti": ti}}},
+        )
+        history.set_proposal_status(pid, "approved", who="tester", why="test")
+        return pid
+    finally:
+        history.close()
+        opened.close()
+
+
+def _run(site: SiteConfig, seconds: float, **kwargs: Any) -> tuple[OnlineService, list[str]]:
+    lines: list[str] = []
+    service = OnlineService(site, on_message=lines.append, heartbeat_s=HEARTBEAT_S, **kwargs)
+    asyncio.run(service.run(seconds))
+    return service, lines
+
+
+ONLINE_NO_WINDOWS = 'identify_every_s = 3600\nwindow_s = 3600\nwrite_back = "approve"\n'
+
+
+def test_an_approved_proposal_is_written_once_and_echoed(tmp_path: Path) -> None:
+    store = tmp_path / "s.db"
+    with VirtualPlcThread(speed=SPEED, setpoint_profile="run") as virtual:
+        site = _site(virtual, store, ONLINE_NO_WINDOWS)
+        kc0, ti0 = virtual.plc.gains
+        kc, ti = round(1.2 * kc0, 6), round(0.9 * ti0, 6)
+        pid = _approved_proposal(site, store, kc, ti)
+        service, lines = _run(site, 4.0)
+        try:
+            applied = virtual.plc.gains
+            proposal = service.history.proposal(pid)
+            writes = service.history.writes()
+            assert proposal is not None
+            assert proposal["status"] == "applied"
+            assert [w["status"] for w in writes] == ["verified"]
+            assert writes[0]["who"] == "tester"
+            assert service.history.state("last_known_good") == {"Kc": kc0, "Ti": ti0}
+        finally:
+            service.close()
+    assert math.isclose(applied[0], kc, rel_tol=1e-6)
+    assert math.isclose(applied[1], ti, rel_tol=1e-6)
+    assert any(line.startswith("write ") and "ok=True" in line for line in lines)
+
+
+def test_no_write_while_the_loop_is_in_man(tmp_path: Path) -> None:
+    store = tmp_path / "s.db"
+    # no profile: the virtual PLC starts in MAN at 1 V (and stays there)
+    with VirtualPlcThread(speed=SPEED) as virtual:
+        site = _site(virtual, store, ONLINE_NO_WINDOWS)
+        kc0, ti0 = virtual.plc.gains
+        pid = _approved_proposal(site, store, 1.2 * kc0, ti0)
+        service, lines = _run(site, 2.5)
+        try:
+            proposal = service.history.proposal(pid)
+            assert proposal is not None
+            assert proposal["status"] == "approved"
+            assert service.history.writes() == []
+        finally:
+            service.close()
+        assert virtual.plc.gains == (kc0, ti0)
+    assert any("held=" in line and "not in AUTO" in line for line in lines)
+
+
+class _LosesFirstApply(ModbusSource):
+    """A real Modbus link that loses the first gain block on its way (the fault injected)."""
+
+    lost = 0
+
+    async def write(self, values: Mapping[str, float]) -> None:
+        if "apply" in values and _LosesFirstApply.lost == 0:
+            _LosesFirstApply.lost += 1
+            return
+        await super().write(values)
+
+
+def test_a_lost_echo_fails_the_proposal_and_reverts_to_last_known_good(tmp_path: Path) -> None:
+    store = tmp_path / "s.db"
+    with VirtualPlcThread(speed=SPEED, setpoint_profile="run") as virtual:
+        online = ONLINE_NO_WINDOWS + "echo_timeout_s = 0.5\n"
+        site = _site(virtual, store, online)
+        kc0, ti0 = virtual.plc.gains
+        pid = _approved_proposal(site, store, 1.3 * kc0, ti0)
+        _LosesFirstApply.lost = 0
+        service, _lines = _run(site, 4.0, write_source=_LosesFirstApply(site))
+        try:
+            proposal = service.history.proposal(pid)
+            kinds = [(w["kind"], w["status"]) for w in service.history.writes()]
+            events = [e.kind for e in service.store.read_events()]
+        finally:
+            service.close()
+        gains = virtual.plc.gains
+    assert proposal is not None
+    assert proposal["status"] == "failed"
+    assert kinds == [("proposal", "failed"), ("revert", "verified")]
+    assert "write_failed" in events
+    assert "revert" in events
+    assert math.isclose(gains[0], kc0, rel_tol=1e-6)
+    assert math.isclose(gains[1], ti0, rel_tol=1e-6)
+
+
+@pytest.mark.parametrize("reached_plc", [True, False])
+def test_a_write_cut_short_is_reconciled_from_the_echo_and_never_repeated(
+    tmp_path: Path, reached_plc: bool
+) -> None:
+    store = tmp_path / "s.db"
+    with VirtualPlcThread(speed=SPEED, setpoint_profile="run") as virtual:
+        site = _site(virtual, store, ONLINE_NO_WINDOWS)
+        kc0, ti0 = virtual.plc.gains
+        kc = round(1.25 * kc0, 6)
+        pid = _approved_proposal(site, store, kc, ti0)
+        # the state a kill -9 between "intent recorded" and "echo seen" leaves behind
+        opened, history = _history(site, store)
+        write_id = history.begin_write(
+            kind="proposal", kc=kc, ti=ti0, apply_seq=7, who="tester", why="x", proposal_id=pid
+        )
+        history.set_proposal_status(pid, "writing", who="service", why="")
+        history.close()
+        opened.close()
+        if reached_plc:
+
+            async def write_block() -> None:
+                source = open_source(site)
+                async with source:
+                    for beat in (1.0, 2.0):
+                        await source.write({"heartbeat": beat})
+                        await asyncio.sleep(0.05)
+                    await source.write({"kc": kc, "ti": ti0, "apply": 7.0})
+                    for _ in range(100):
+                        await source.write({"heartbeat": 3.0 + _})
+                        if (await source.read_write_side(["echo"]))["echo"] == 7:
+                            return
+                        await asyncio.sleep(0.02)
+
+            asyncio.run(write_block())
+        service, _ = _run(site, 2.0)
+        try:
+            write = service.history.write(write_id)
+            proposal = service.history.proposal(pid)
+            all_writes = service.history.writes()
+        finally:
+            service.close()
+        gains = virtual.plc.gains
+    assert write is not None
+    assert proposal is not None
+    assert len(all_writes) == 1  # reconciled, not written again
+    if reached_plc:
+        assert write["status"] == "verified"
+        assert proposal["status"] == "applied"
+        assert math.isclose(gains[0], kc, rel_tol=1e-6)
+    else:
+        assert write["status"] == "not_applied"
+        assert proposal["status"] == "failed"
+        assert gains == (kc0, ti0)
