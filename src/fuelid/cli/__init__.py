@@ -11,7 +11,7 @@ import sys
 import typer
 
 from fuelid import __version__
-from fuelid.cli import plant, site
+from fuelid.cli import online, plant, site
 from fuelid.cli.identify import identify_command
 from fuelid.cli.record import export_command, record_command, store_app
 from fuelid.cli.report import report_command
@@ -36,6 +36,7 @@ app.command("report")(report_command)
 app.command("record")(record_command)
 app.command("export")(export_command)
 app.add_typer(store_app, name="store")
+app.add_typer(online.app, name="online")
 
 
 def _version(value: bool) -> None:
