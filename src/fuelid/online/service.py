@@ -39,6 +39,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from fuelid.errors import ConfigError, FuelidError
 from fuelid.model import ProcessModel
 from fuelid.online.health import json_ready
@@ -67,6 +69,8 @@ MAX_CATCH_UP_WINDOWS = 3
 TRACKER_OBSERVATIONS = 2000
 """Accepted windows kept by the K(T) tracker (a week at 5-minute windows): bounded memory."""
 HEARTBEAT_MODULUS = 65536
+IAE_BASELINE_WINDOWS = 6
+"""Windows before a write whose median IAE per unit step is the revert rule's baseline."""
 LIMIT_MARGIN_V = 0.01
 """A command within this of a limit counts as at the limit [V]."""
 
@@ -456,6 +460,8 @@ class OnlineService:
         gains = self.current_gains()
         if gains is None or self.commissioning is None:
             return
+        if self._settling():  # judge the last write before proposing the next
+            return
         oscillating = bool(result.health is not None and result.health.oscillation.oscillating)
         tuned_for = _model_of(self.history.state("tuned_for"))
         decision = propose(
@@ -605,13 +611,25 @@ class OnlineService:
             self.history.set_state("last_known_good", old)
         self.history.set_state("current_gains", ideal.get("new"))
         self.history.set_state("tuned_for", detail.get("target_model"))
-        last = self.history.last_window()
-        iae = None
-        if last is not None:
-            iae = (last["detail"].get("health") or {}).get("iae_per_unit_step_s")
         self.history.set_state(
-            "last_write", {"proposal": proposal["id"], "time": time.time(), "iae_before": iae}
+            "last_write",
+            {
+                "proposal": proposal["id"],
+                "time": time.time(),
+                "data_time": self.store.last_time(),
+                "iae_before": self._iae_before(),
+                "judged": False,
+            },
         )
+
+    def _iae_before(self) -> float | None:
+        """Median IAE per unit setpoint step of the last windows before a write [s]."""
+        values = []
+        for window in self.history.windows(limit=IAE_BASELINE_WINDOWS):
+            iae = (window["detail"].get("health") or {}).get("iae_per_unit_step_s")
+            if isinstance(iae, int | float) and math.isfinite(iae):
+                values.append(float(iae))
+        return float(np.median(values)) if values else None
 
     async def revert(self, *, who: str, why: str) -> bool:
         """Write the last-known-good gains back (the commissioning gains when none is kept)."""
@@ -638,28 +656,47 @@ class OnlineService:
         self._event("revert" if echoed else "revert_failed", f"{why} (by {who})")
         return echoed
 
+    def _settling(self) -> bool:
+        """True until a whole window under the gains of the last write has been seen."""
+        last = self.history.state("last_write")
+        return bool(last) and not last.get("seen_after", False)
+
     async def _check_revert(self, result: WindowResult) -> None:
         """Revert automatically after one of our writes when the loop misbehaves.
 
-        When it oscillates, or its IAE per setpoint change has worsened beyond
-        ``revert_iae_factor`` times the IAE before the write.
+        Judged on windows wholly under the new gains (``t_from`` after the write's data time):
+        any such window in which the loop oscillates reverts; the first such window with
+        setpoint changes reverts when its IAE per unit step exceeds ``revert_iae_factor``
+        times the median of the windows before the write (one noisy window before is not the
+        baseline).
         """
         last = self.history.state("last_write")
         if not last or self.gain_writer is None or result.health is None:
             return
-        if result.t_to < float(last.get("time", 0.0)) and result.t_from < 0:
-            return
+        written_at = last.get("data_time")
+        if written_at is None or result.t_from < float(written_at):
+            return  # the window still holds samples under the old gains
+        if not last.get("seen_after"):
+            last = {**last, "seen_after": True}
+            self.history.set_state("last_write", last)
+        refusal = self.write_refusal()
+        if refusal not in (None, "the loop oscillates"):
+            return  # a revert is a write too: not in MAN, at a limit or with the link down
         if result.health.oscillation.oscillating:
             await self.revert(who="service", why="the loop oscillates after a write")
             return
         before = last.get("iae_before")
         now = result.health.iae_per_unit_step
-        if before and math.isfinite(now) and now > self.settings.revert_iae_factor * before:
+        if last.get("judged") or not (before and math.isfinite(now)):
+            return
+        if now > self.settings.revert_iae_factor * before:
             await self.revert(
                 who="service",
                 why=f"IAE per setpoint change {now:.3g} s > {self.settings.revert_iae_factor:g}"
                 f" × {before:.3g} s before the write",
             )
+            return
+        self.history.set_state("last_write", {**last, "judged": True, "iae_after": now})
 
     async def _reconcile(self) -> None:
         """Settle writes a stopped service left half done, from the PLC's echo."""

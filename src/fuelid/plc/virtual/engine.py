@@ -247,6 +247,7 @@ class VirtualPLC:
         noise_sd_Lpm: float | None = None,
         quantisation: bool = True,
         seq0: int = 0,
+        keep_clean_readings: bool = False,
     ) -> None:
         self.config = config if config is not None else load_plant_config()
         if not (math.isfinite(period_s) and period_s > 0.0):
@@ -333,6 +334,9 @@ class VirtualPLC:
 
         self._seq0 = int(seq0) % SEQ_MODULUS
         self._k = 0
+        # the meter's reading without noise or quantisation, per sample (tests of estimators
+        # compare with the fit a noise-free reading gives); off by default: it grows
+        self._clean: list[FloatArray] | None = [] if keep_clean_readings else None
         self.ring = np.zeros((self.ring_size, len(RING_FIELDS)))
         # the meter state at the samples, for the reading `delay` later: a short history
         self._delay_samples = self._coefficients.delay / self.period_s
@@ -362,6 +366,29 @@ class VirtualPLC:
     def gains(self) -> tuple[float, float]:
         """The PI gains applied: Kc [V per L/min], Ti [s]."""
         return self._pi.Kc, self._pi.Ti
+
+    def clean_readings(self) -> FloatArray:
+        """The noise-free flow reading of samples 0 … k [L/min] (``keep_clean_readings``).
+
+        Sample k has sequence number ``(seq0 + k) % 2**32``: what the meter would show without
+        noise and quantisation, for comparing an estimate with the one noise-free data give.
+        """
+        if self._clean is None:
+            raise ConfigError("the engine was made without keep_clean_readings=True")
+        return np.concatenate(self._clean)[: self._k + 1] if self._clean else np.zeros(0)
+
+    def set_plant(self, config: PlantConfig) -> None:
+        """Change the plant from the next control period on (pump wear, a new nozzle).
+
+        The state (speed, flow, pressures, meter) carries over; the new coefficients apply from
+        the next scan at the current fuel temperature.
+        """
+        T = float(self._coefficients.T_fuel)
+        coefficients = plant_coefficients(config, T)
+        if coefficients.delay != self._coefficients.delay:
+            raise ConfigError("set_plant cannot change the meter's dead time while running")
+        self.config = config
+        self._coefficients = coefficients
 
     def heartbeat_stale(self) -> bool:
         """True when no heartbeat change came within the timeout (or none ever came)."""
@@ -461,6 +488,8 @@ class VirtualPLC:
         """Flow readings [L/min] and their counts of samples k0 … k0+n−1 (noise drawn here)."""
         q = np.array([self._meter(k - self._delay_samples) for k in range(k0, k0 + n)])
         y = q * LPM_PER_M3S
+        if self._clean is not None:
+            self._clean.append(y.copy())
         if self.noise_sd_Lpm > 0.0:
             y = y + self._rng.normal(0.0, self.noise_sd_Lpm, size=n)
         counts = _quantise(y, FLOW_COUNTS)
