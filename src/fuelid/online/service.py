@@ -54,6 +54,7 @@ from fuelid.online.proposals import (
 )
 from fuelid.online.tracking import GainObservation, KTracker, TrackingError
 from fuelid.online.window import WindowAnalyser, WindowResult, window_priors
+from fuelid.online.worker import AnalyserSpec, WindowWorker
 from fuelid.plc.adapters.base import LinkError, PlcSource
 from fuelid.plc.recorder import Recorder, RecorderStats, site_identity
 from fuelid.plc.site import SiteConfig
@@ -204,6 +205,9 @@ class OnlineService:
         Wall time between heartbeats [s] (the virtual PLC at a speed-up needs them faster).
     step_ls : bool
         Also fit the article's step-ls in every window.
+    isolate : bool
+        Analyse windows in a worker process (default), so a fit never stalls the recorder;
+        False: in a thread of this process.
     """
 
     def __init__(
@@ -216,6 +220,7 @@ class OnlineService:
         on_message: Callable[[str], None] | None = None,
         heartbeat_s: float = 1.0,
         step_ls: bool = True,
+        isolate: bool = True,
     ) -> None:
         from fuelid.plc.adapters import open_source
         from fuelid.store import open_store
@@ -247,6 +252,16 @@ class OnlineService:
             k_plant=self.k_plant,
             step_ls=step_ls,
             ti_s=self.commissioning.Ti if self.commissioning is not None else 1.0,
+        )
+        self.worker = WindowWorker(
+            AnalyserSpec(
+                self.settings,
+                self.priors,
+                site.sampling.period_s,
+                _plant_path(site),
+                step_ls,
+            ),
+            isolate=isolate,
         )
         self.tracker = KTracker(k_plant=self.k_plant, max_observations=TRACKER_OBSERVATIONS)
         self.recorder: Recorder | None = None
@@ -363,9 +378,8 @@ class OnlineService:
         t_from = t_to - self.settings.window_s
         samples = await asyncio.to_thread(self.store.read, t_from, t_to)
         gains = self.current_gains()
-        if gains is not None:
-            self.analyser.ti_s = gains.Ti
-        result = await asyncio.to_thread(self.analyser.analyse, samples, t_from, t_to)
+        ti_s = gains.Ti if gains is not None else self.analyser.ti_s
+        result = await self.worker.analyse(samples, t_from, t_to, ti_s, self.analyser.last_model_)
         self._record_window(result)
         if result.accepted:
             self.analyser.accept(result)
@@ -794,11 +808,16 @@ class OnlineService:
         self._say("recorder", message=message)
 
     def close(self) -> None:
-        """Close the writer, the history and the store."""
+        """Close the worker, the writer, the history and the store."""
+        self.worker.close()
         if self.writer is not None:
             self.writer.close()
         self.history.close()
         self.store.close()
+
+
+def _plant_path(site: SiteConfig) -> str | None:
+    return site.site.plant
 
 
 def _model_of(value: Any) -> ProcessModel | None:

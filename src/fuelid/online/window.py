@@ -259,16 +259,14 @@ class WindowAnalyser:
         self.step_ls = step_ls
         self.ti_s = float(ti_s)
         self.last_model_: ProcessModel | None = None
-        self._last_pem: PredictionError | None = None
+        self._last_noise: dict[str, Any] | None = None
 
     # --- warm start -----------------------------------------------------------------------
 
     def accept(self, result: WindowResult) -> None:
-        """Warm-start the next fits from an accepted window's model (and noise model)."""
+        """Warm-start the next fits from an accepted window's model."""
         if result.accepted and result.model is not None:
             self.last_model_ = result.model
-            if isinstance(result.estimator, PredictionError):
-                self._last_pem = result.estimator
 
     def resume(self, model: ProcessModel | None) -> None:
         """Warm-start from a model kept in the history (a restarted service)."""
@@ -387,12 +385,10 @@ class WindowAnalyser:
     def _fit_closed_loop(
         self, result: WindowResult, data: IOData, oe: OutputError, kwargs: dict[str, Any]
     ) -> tuple[OutputError | PredictionError, np.ndarray[Any, Any]]:
-        init: ProcessModel | PredictionError = oe.model_
-        noise_init = None
-        if self._last_pem is not None:
-            init, noise_init = oe.model_, self._last_pem.noise_model_
         try:
-            pem = PredictionError(**kwargs).fit(data, init=init, noise_init=noise_init)
+            # from oe's optimum and the last window's noise model: one joint search
+            pem = PredictionError(**kwargs).fit(data, init=oe.model_, noise_init=self._last_noise)
+            self._last_noise = pem.noise_model_
         except FuelidError as error:
             result.method_reason = f"AUTO (closed loop): pem failed ({error}); output error kept"
             return oe, data.y - oe.y_hat_
