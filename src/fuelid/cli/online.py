@@ -33,7 +33,6 @@ from fuelid.errors import ConfigError
 if TYPE_CHECKING:
     from fuelid.online.service import OnlineService
     from fuelid.plc.site import SiteConfig
-    from fuelid.plc.virtual.profiles import Profile
     from fuelid.store.online import OnlineHistory
     from fuelid.store.sqlite import SQLiteStore
 
@@ -44,10 +43,6 @@ app = typer.Typer(
 
 VIRTUAL_STORE = Path("fuelid-online-virtual.db")
 """The store of ``fuelid online --virtual`` without ``--store`` (in the current folder)."""
-DEMO_TEMPERATURE_C = (-10.0, 45.0)
-"""The fuel temperature's range over the virtual run's day [°C]."""
-DEMO_DAY_S = 86400.0
-"""Period of the virtual run's fuel-temperature cycle [s of plant time]."""
 PLC_HEARTBEAT_TIMEOUT_S = 10.0
 """The virtual PLC's heartbeat timeout [s of plant time]."""
 QUIET_STATUS_EVERY_S = 10.0
@@ -151,53 +146,6 @@ def log_record(line: str) -> dict[str, Any]:
             record.setdefault("message", "")
             record["message"] = f"{record['message']} {part}".strip()
     return record
-
-
-def demo_run_profile(seed: int = 7) -> Profile:
-    """Wind-tunnel runs in AUTO for the virtual PLC: test points held for minutes, with trims.
-
-    Six test points (30, 45, 25, 50, 35 and 40 L/min), each reached by a 20 s ramp and held
-    for 5 min, with setpoint trims of ±2–3 L/min every 60–90 s (each trim returns to the test
-    point at the next change); a 20 s ramp down to 20 L/min and a minute there between runs.
-    The cycle (about 35 min) repeats. Every setpoint lies inside what the reference plant gives
-    at 1–5 V over −10…+45 °C (about 15–65 L/min), so the PI does not sit at a limit.
-    """
-    import numpy as np
-
-    from fuelid.plc.virtual.profiles import Profile
-
-    rng = np.random.default_rng(seed)
-    t, v, now = [0.0], [20.0], 0.0
-    for point in (30.0, 45.0, 25.0, 50.0, 35.0, 40.0):
-        now += 20.0
-        t.append(now)
-        v.append(point)
-        end, level = now + 300.0, point
-        while now < end:
-            nxt = min(now + float(rng.uniform(60.0, 90.0)), end)
-            t.append(nxt)
-            v.append(level)
-            trim = float(rng.choice([-1.0, 1.0]) * rng.uniform(2.0, 3.0))
-            level = point + trim if level == point and nxt < end else point
-            t.append(nxt)
-            v.append(level)
-            now = nxt
-    t += [now + 20.0, now + 80.0]
-    v += [20.0, 20.0]
-    return Profile(t, v, repeat=True)
-
-
-def demo_temperature(duration_s: float) -> tuple[list[float], list[float]]:
-    """The fuel temperature of the virtual run: a 24 h sinusoid over −10…+45 °C, from −10 °C.
-
-    Returns (times [s], temperatures [°C]) at most 2000 points, at least one a minute.
-    """
-    low, high = DEMO_TEMPERATURE_C
-    step = max(60.0, duration_s / 2000.0)
-    n = math.ceil(duration_s / step) + 2
-    times = [i * step for i in range(n)]
-    mid, amp = 0.5 * (low + high), 0.5 * (high - low)
-    return times, [mid - amp * math.cos(2.0 * math.pi * t / DEMO_DAY_S) for t in times]
 
 
 def _online_table(config: Path | None) -> str:
@@ -333,6 +281,7 @@ def _run_virtual(
     from importlib import resources
 
     from fuelid.plc.site import load_site
+    from fuelid.plc.virtual.profiles import demo_run_profile, demo_temperature
     from fuelid.plc.virtual.runner import VirtualPlcThread, site_text
 
     if not (math.isfinite(speed) and 0.0 < speed <= 1000.0):
@@ -413,8 +362,12 @@ def online_command(
         ),
     ] = False,
     speed: Annotated[
-        float, typer.Option(help="--virtual: plant time per wall time (≤ 1000).")
-    ] = 100.0,
+        float,
+        typer.Option(
+            help="--virtual: plant time per wall time (≤ 1000; above ~50 a busy 2-core machine "
+            "loses samples: the gaps are counted and such windows rejected)."
+        ),
+    ] = 50.0,
     hours: Annotated[float, typer.Option(help="--virtual: plant time to run [h].")] = 24.0,
     protocol: Annotated[
         ServeProtocol, typer.Option("--protocol", help="--virtual: the PLC's protocol.")
@@ -847,4 +800,14 @@ def revert_command(
     typer.echo(f"revert requested by {name}: the running service writes {target}{note}")
 
 
-__all__ = ["app", "check_window_length", "demo_run_profile", "demo_temperature", "log_record"]
+def __getattr__(name: str) -> Any:
+    # the virtual run's profiles live in fuelid.plc.virtual.profiles (numpy: imported on use,
+    # so `fuelid --help` stays light); kept importable from here
+    if name in ("demo_run_profile", "demo_temperature"):
+        from fuelid.plc.virtual import profiles
+
+        return getattr(profiles, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = ["app", "check_window_length", "log_record"]

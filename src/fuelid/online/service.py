@@ -56,7 +56,7 @@ from fuelid.online.tracking import GainObservation, KTracker, TrackingError
 from fuelid.online.window import WindowAnalyser, WindowResult, window_priors
 from fuelid.online.worker import AnalyserSpec, WindowWorker
 from fuelid.plc.adapters.base import LinkError, PlcSource
-from fuelid.plc.recorder import Recorder, RecorderStats, site_identity
+from fuelid.plc.recorder import PRUNE_EVERY_S, Recorder, RecorderStats, site_identity
 from fuelid.plc.site import SiteConfig
 from fuelid.store.base import SampleWriter
 from fuelid.store.online import OnlineHistory
@@ -750,6 +750,24 @@ class OnlineService:
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(self._stopping.wait(), self.heartbeat_s)
 
+    async def _housekeeping(self) -> None:
+        """The store's retention, at start and hourly, as ``fuelid record`` applies it."""
+        while not self._stopping.is_set():
+            newest = self.store.last_time()
+            if newest is not None:
+                try:
+                    now = newest if self.site.plc.protocol == "replay" else max(newest, time.time())
+                    await asyncio.to_thread(
+                        self.store.prune,
+                        self.site.store.retention_days,
+                        self.site.store.thin_to_s,
+                        now=now,
+                    )
+                except FuelidError as error:  # retention must never stop the service
+                    self._say("event", kind="retention", detail=str(error))
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(self._stopping.wait(), PRUNE_EVERY_S)
+
     # --- running ----------------------------------------------------------------------------
 
     def stop(self) -> None:
@@ -790,6 +808,7 @@ class OnlineService:
                 missing = "; ".join(self.capabilities["missing_for_proposals"])
                 self._say("event", kind="identify_only", detail=f"no proposals: missing {missing}")
             tasks.append(asyncio.create_task(self._schedule()))
+            tasks.append(asyncio.create_task(self._housekeeping()))
             recording = asyncio.create_task(self.recorder.run(duration_s))
             await recording
         finally:

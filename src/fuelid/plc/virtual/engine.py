@@ -19,6 +19,16 @@ between samples), plus white noise (a seeded :class:`numpy.random.Generator`), t
 Siemens analog input: 0…27648 counts = 0…120 L/min (``flow_counts``, int16), ``flow`` being the
 same counts in L/min.
 
+Disturbance (off by default). With ``disturbance_sd_Lpm`` > 0 a slow coloured disturbance d is
+added to the flow the meter sees, before the white noise: a first-order autoregressive (AR(1),
+sampled Ornstein–Uhlenbeck) sequence per sample, d_k = φ·d_{k−1} + σ·√(1 − φ²)·e_k with
+φ = exp(−period_s/``disturbance_time_s``), e_k standard normal from the same seeded generator,
+d_0 = 0; its stationary standard deviation is σ = ``disturbance_sd_Lpm`` and its correlation
+time ``disturbance_time_s``. The PI acts on the reading, so in AUTO it fights d (a load the loop
+must reject, as a drifting pump or a valve elsewhere in the line would be); in MAN it is seen
+only. It is part of the flow, so :meth:`VirtualPLC.clean_readings` contains it. With σ = 0 (the
+default) nothing is drawn and the samples are exactly those without the option.
+
 The PLC's rules (README, "The virtual PLC").
 
 - PI, ideal form u = Kc·(e + (1/Ti)∫e dt), e = setpoint − flow, at the control period:
@@ -221,6 +231,13 @@ class VirtualPLC:
         0.0043 L/min a count); ``flow_counts`` is quantised always.
     seq0 : int
         Sequence number of the first sample (tests of the 2**32 wrap-around).
+    keep_clean_readings : bool
+        Keep the noise-free reading of every sample (:meth:`clean_readings`).
+    disturbance_sd_Lpm : float
+        Standard deviation of the slow coloured (AR(1)) flow disturbance [L/min] (module
+        docstring, "Disturbance"); 0 (the default): none.
+    disturbance_time_s : float
+        Its correlation time [s] (plant time), > 0.
 
     Raises
     ------
@@ -248,6 +265,8 @@ class VirtualPLC:
         quantisation: bool = True,
         seq0: int = 0,
         keep_clean_readings: bool = False,
+        disturbance_sd_Lpm: float = 0.0,
+        disturbance_time_s: float = 60.0,
     ) -> None:
         self.config = config if config is not None else load_plant_config()
         if not (math.isfinite(period_s) and period_s > 0.0):
@@ -275,6 +294,14 @@ class VirtualPLC:
         self.noise_sd_Lpm = float(meter.noise_std_Lpm if noise_sd_Lpm is None else noise_sd_Lpm)
         if not (math.isfinite(self.noise_sd_Lpm) and self.noise_sd_Lpm >= 0.0):
             raise ConfigError("noise_sd_Lpm must be zero or positive")
+        if not (math.isfinite(disturbance_sd_Lpm) and disturbance_sd_Lpm >= 0.0):
+            raise ConfigError("disturbance_sd_Lpm must be zero or positive")
+        if not (math.isfinite(disturbance_time_s) and disturbance_time_s > 0.0):
+            raise ConfigError("disturbance_time_s must be positive")
+        self.disturbance_sd_Lpm = float(disturbance_sd_Lpm)
+        self.disturbance_time_s = float(disturbance_time_s)
+        self._disturbance_phi = math.exp(-self.period_s / self.disturbance_time_s)
+        self._disturbance = 0.0  # d of the last sample read [L/min]
         self._rng = np.random.default_rng(seed)
         self._temperature = _fuel_temperature(fuel_temp_C, fuel_temp_profile)
         if isinstance(setpoint_profile, str):
@@ -488,12 +515,28 @@ class VirtualPLC:
         """Flow readings [L/min] and their counts of samples k0 … k0+n−1 (noise drawn here)."""
         q = np.array([self._meter(k - self._delay_samples) for k in range(k0, k0 + n)])
         y = q * LPM_PER_M3S
+        if self.disturbance_sd_Lpm > 0.0:
+            y = y + self._disturbances(n)
         if self._clean is not None:
             self._clean.append(y.copy())
         if self.noise_sd_Lpm > 0.0:
             y = y + self._rng.normal(0.0, self.noise_sd_Lpm, size=n)
         counts = _quantise(y, FLOW_COUNTS)
         return (_from_counts(counts, FLOW_COUNTS) if self.quantisation else y), counts
+
+    def _disturbances(self, n: int) -> FloatArray:
+        """The next ``n`` samples of the AR(1) flow disturbance [L/min] (drawn here)."""
+        phi = self._disturbance_phi
+        innovations = self._rng.normal(
+            0.0, self.disturbance_sd_Lpm * math.sqrt(1.0 - phi * phi), size=n
+        )
+        d = np.empty(n)
+        last = self._disturbance
+        for i in range(n):
+            last = phi * last + float(innovations[i])
+            d[i] = last
+        self._disturbance = last
+        return d
 
     def _scan(self, k: int, y: float) -> None:
         """The PLC's control-period scan at sample ``k`` with the flow reading ``y`` [L/min]."""

@@ -118,6 +118,80 @@ def run_profile() -> Profile:
     return Profile(t, v, repeat=True)
 
 
+DEMO_TEMPERATURE_C = (-10.0, 45.0)
+"""The fuel temperature's range over the virtual run's day [°C]."""
+DEMO_DAY_S = 86400.0
+"""Period of the virtual run's fuel-temperature cycle [s of plant time]."""
+DEMO_TEST_POINTS_LPM = (30.0, 45.0, 25.0, 50.0, 35.0, 40.0)
+"""Test points of :func:`demo_run_profile` [L/min]."""
+
+
+def demo_run_profile(seed: int = 7) -> Profile:
+    """Wind-tunnel runs in AUTO for the virtual PLC: test points held for minutes, with trims.
+
+    Six test points (30, 45, 25, 50, 35 and 40 L/min), each reached by a 20 s ramp and held
+    for 5 min, with setpoint trims of ±2–3 L/min every 60–90 s (each trim returns to the test
+    point at the next change); a 20 s ramp down to 20 L/min and a minute there between runs.
+    The cycle (about 35 min) repeats. Every setpoint lies inside what the reference plant gives
+    at 1–5 V over −10…+45 °C (about 15–65 L/min), so the PI does not sit at a limit.
+    (``fuelid online --virtual`` plays it.)
+    """
+    rng = np.random.default_rng(seed)
+    t, v, now = [0.0], [20.0], 0.0
+    for point in DEMO_TEST_POINTS_LPM:
+        now += 20.0
+        t.append(now)
+        v.append(point)
+        end, level = now + 300.0, point
+        while now < end:
+            nxt = min(now + float(rng.uniform(60.0, 90.0)), end)
+            t.append(nxt)
+            v.append(level)
+            trim = float(rng.choice([-1.0, 1.0]) * rng.uniform(2.0, 3.0))
+            level = point + trim if level == point and nxt < end else point
+            t.append(nxt)
+            v.append(level)
+            now = nxt
+    t += [now + 20.0, now + 80.0]
+    v += [20.0, 20.0]
+    return Profile(t, v, repeat=True)
+
+
+def demo_temperature(
+    duration_s: float,
+    period_s: float = DEMO_DAY_S,
+    range_C: tuple[float, float] = DEMO_TEMPERATURE_C,
+) -> tuple[list[float], list[float]]:
+    """The fuel temperature of the virtual run: a sinusoid over −10…+45 °C, from −10 °C.
+
+    Parameters
+    ----------
+    duration_s : float
+        Plant time to cover [s].
+    period_s : float
+        Period of the cycle [s] (default a day, as ``fuelid online --virtual`` plays it).
+    range_C : (float, float)
+        Lowest and highest temperature [°C].
+
+    Returns
+    -------
+    (times [s], temperatures [°C])
+        At most 2000 points, at least one a minute.
+
+    Examples
+    --------
+    >>> times, temps = demo_temperature(86400.0)
+    >>> round(min(temps), 6), round(max(temps), 6), temps[0]
+    (-10.0, 45.0, -10.0)
+    """
+    low, high = range_C
+    step = max(60.0, duration_s / 2000.0)
+    n = math.ceil(duration_s / step) + 2
+    times = [i * step for i in range(n)]
+    mid, amp = 0.5 * (low + high), 0.5 * (high - low)
+    return times, [mid - amp * math.cos(2.0 * math.pi * t / period_s) for t in times]
+
+
 STEP_LEVELS_V = (3.0, 3.5, 2.5, 4.0, 2.0, 4.5, 1.5, 3.0, 2.0, 4.0)
 """Command levels [V] of :func:`steps_profile`: within 1.5–4.5 V, steps up and down of
 0.5–3 V."""
