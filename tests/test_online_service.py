@@ -210,3 +210,26 @@ def test_a_write_cut_short_is_reconciled_from_the_echo_and_never_repeated(
         assert write["status"] == "not_applied"
         assert proposal["status"] == "failed"
         assert gains == (kc0, ti0)
+
+
+def test_gains_in_the_plc_outside_the_bounds_stop_the_service_with_the_reason(
+    tmp_path: Path,
+) -> None:
+    """[controller] says the commissioning Kc is 3x what the PLC runs: 1/3 < gain_bounds' 0.5."""
+    from fuelid.errors import ConfigError
+
+    store = tmp_path / "s.db"
+    with VirtualPlcThread(speed=SPEED, setpoint_profile="run") as virtual:
+        kc0, _ = virtual.plc.gains
+        text = virtual.site_text(store_url=f"sqlite:///{store}")
+        lines = [
+            f"kc = {3.0 * kc0!r}" if line.startswith("kc = ") else line
+            for line in text.splitlines()
+        ]
+        site = SiteConfig.model_validate(tomllib.loads("\n".join(lines)))
+        service = OnlineService(site, heartbeat_s=HEARTBEAT_S, isolate=False)
+        try:
+            with pytest.raises(ConfigError, match=r"outside \[online\] gain_bounds"):
+                asyncio.run(service.run(5.0))
+        finally:
+            service.close()

@@ -268,6 +268,8 @@ class OnlineService:
         self.writer: SampleWriter | None = None
         self.gain_writer: GainWriter | None = None
         self._stopping = asyncio.Event()
+        self.fatal: FuelidError | None = None
+        """A refusal found while running (the PLC's gains outside the bounds): raised by run."""
         self._resume()
 
     # --- set-up -----------------------------------------------------------------------------
@@ -356,8 +358,49 @@ class OnlineService:
             self.history.set_state("first_sample_time", first)
         return float(first) + self.settings.window_s
 
+    def gains_refusal(self) -> str | None:
+        """Why the PLC's gains make the site's bounds meaningless; None when they are inside.
+
+        The hard bounds are ``gain_bounds`` × the commissioning gains; gains in the PLC outside
+        them (set by hand, or a wrong ``[controller]`` table) would make every proposal a jump:
+        the service refuses to propose from them.
+        """
+        c = self.site.controller
+        latest = self.recorder.latest if self.recorder is not None else {}
+        if c is None or self.commissioning is None or "kc" not in latest or "ti" not in latest:
+            return None
+        if not (latest["kc"] > 0.0 and latest["ti"] > 0.0):
+            return None
+        now = controller_to_ideal(latest["kc"], latest["ti"], c)
+        low, high = self.settings.gain_bounds
+        for name, value, base in (
+            ("Kc", now.Kc, self.commissioning.Kc),
+            ("Ti", now.Ti, self.commissioning.Ti),
+        ):
+            if not low * base * (1 - 1e-6) <= value <= high * base * (1 + 1e-6):
+                return (
+                    f"the PLC's {name} = {value:.6g} lies outside [online] gain_bounds "
+                    f"[{low:g}, {high:g}] x the commissioning {name} {base:.6g} ([controller]): "
+                    "correct [controller] kc/ti or the bounds"
+                )
+        return None
+
+    def _gains_known(self) -> bool:
+        """True once the gains to check are known (the first reading of tags kc/ti, if any)."""
+        if not self.capabilities["proposes"] or self.recorder is None:
+            return False
+        return "kc" in self.recorder.latest or "kc" not in self.site.tags
+
     async def _schedule(self) -> None:
+        checked = False
         while not self._stopping.is_set():
+            if not checked and self._gains_known():
+                checked = True
+                refusal = self.gains_refusal()
+                if refusal is not None:
+                    self.fatal = ConfigError(refusal)
+                    self.stop()
+                    return
             newest = self.store.last_time()
             due = self.next_window_end()
             if newest is not None and due is not None and newest >= due:
@@ -821,6 +864,8 @@ class OnlineService:
             self.writer.flush()
             for sig in bound:
                 loop.remove_signal_handler(sig)
+        if self.fatal is not None:
+            raise self.fatal
         return self.stats
 
     def _recorder_message(self, message: str) -> None:
