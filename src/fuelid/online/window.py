@@ -37,8 +37,9 @@ prediction-error method).
 
 from __future__ import annotations
 
+import itertools
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -65,6 +66,8 @@ NEAR_INTEGRATING_POLE = 0.999
 auto`` does): pem would fit the differenced data and lose the low-frequency gain."""
 MIN_GOOD_SAMPLES = 100
 """Fewer good samples than this in a window: nothing is fitted [-]."""
+MIN_SEGMENT_SAMPLES = 50
+"""A run of good samples between gaps shorter than this is left out of the fit [-]."""
 
 
 @dataclass(frozen=True)
@@ -315,7 +318,8 @@ class WindowAnalyser:
             result.seconds = time.perf_counter() - started
             return result
         try:
-            data = iodata_from_samples(samples, self.sample_time, source="window")
+            usable = _without_short_segments(samples, good, MIN_SEGMENT_SAMPLES)
+            data = iodata_from_samples(usable, self.sample_time, source="window")
             self._fit(result, data, closed_loop=prefit.mode == "AUTO")
         except NotExcitingError as error:
             result.verdict = prefit.combine(excitation_refusal(error))
@@ -425,6 +429,31 @@ class WindowAnalyser:
             }
         )
         return out
+
+
+def _without_short_segments(
+    samples: SampleArrays, good: np.ndarray[Any, Any], min_length: int
+) -> SampleArrays:
+    """The samples with good runs shorter than ``min_length`` flagged out of the fit.
+
+    A run between two gaps that short carries no dynamics worth an initial state of its own
+    (each segment gets one), and the estimators refuse segments under 20 samples.
+    """
+    index = np.flatnonzero(good)
+    if index.size == 0:
+        return samples
+    seq = samples.seq[index]
+    t = samples.time[index]
+    with_seq = (seq[:-1] >= 0) & (seq[1:] >= 0)
+    breaks = np.where(with_seq, np.diff(seq) != 1, np.diff(t) > 1.5 * np.median(np.diff(t)))
+    edges = np.r_[0, np.flatnonzero(breaks) + 1, index.size]
+    quality = samples.quality.copy()
+    for a, b in itertools.pairwise(edges.tolist()):
+        if b - a < min_length:
+            quality[index[a:b]] = Quality.BAD_VALUE
+    if np.array_equal(quality, samples.quality):
+        return samples
+    return replace(samples, quality=quality)
 
 
 def _poles(pem: PredictionError) -> list[Any]:
