@@ -643,6 +643,13 @@ def plot_online_history(history: dict[str, Any], path: str | Path) -> Path:
         k = [iv[0] for _, iv in accepted]
         err = np.array([[iv[1] for _, iv in accepted], [iv[2] for _, iv in accepted]])
         ax_t.errorbar(x, k, yerr=err, fmt="o", ms=3, capsize=2, label="accepted window (95 %)")
+        # K depends on the operating point: the plant model's K at each window's mean command
+        # and temperature shows how much of the scatter is the operating point, not noise
+        with_plant = [(hours(w["end"]), w.get("plant_K")) for w, _ in accepted]
+        with_plant = [(t, kp) for t, kp in with_plant if isinstance(kp, int | float)]
+        if with_plant:
+            ax_t.plot(*zip(*with_plant, strict=True), "_", ms=10, color="0.3",
+                      label="plant model's K at the window's u and T")  # fmt: skip
     if rejected:
         ax_t.plot(
             [hours(w["end"]) for w in rejected],
