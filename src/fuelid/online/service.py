@@ -70,6 +70,9 @@ MAX_CATCH_UP_WINDOWS = 3
 TRACKER_OBSERVATIONS = 2000
 """Accepted windows kept by the K(T) tracker (a week at 5-minute windows): bounded memory."""
 HEARTBEAT_MODULUS = 65536
+RECENT_WINDOWS_SPAN = 6.0
+"""Windows for a proposal end within this many window lengths (or agree_windows × the
+schedule, if longer) of the newest: a model from before an outage of days does not vote."""
 IAE_BASELINE_WINDOWS = 6
 """Windows before a write whose median IAE per unit step is the revert rule's baseline."""
 LIMIT_MARGIN_V = 0.01
@@ -478,8 +481,18 @@ class OnlineService:
     # --- proposals --------------------------------------------------------------------------
 
     def _windows_for_proposal(self) -> list[WindowModel]:
+        """The recent accepted windows: evidence older than the recency span does not vote."""
+        rows = self.history.accepted_models(limit=50)
+        if not rows:
+            return []
+        span = RECENT_WINDOWS_SPAN * max(
+            self.settings.window_s, self.settings.identify_every_s * self.settings.agree_windows
+        )
+        newest = max(float(row["t_to"]) for row in rows)
         out = []
-        for row in self.history.accepted_models(limit=50):
+        for row in rows:
+            if float(row["t_to"]) < newest - span:
+                continue
             m = row["model"]
             model = _model_of(m)
             if model is None:
