@@ -605,11 +605,24 @@ def status_lines(status: dict[str, Any]) -> list[str]:
         f"(Kc {last_write['Kc']:.4g}, Ti {last_write['Ti']:.4g}) at {_stamp(last_write['time'])}"
     )
     c = status.get("counts") or {}
+    last = status.get("last_window") or {}
+    step = last.get("step_ls") or {}
+    step_text = (
+        "-"
+        if not step
+        else (
+            _model_text(step)
+            if step.get("model")
+            else f"not fitted: {step.get('reason', 'no reason given')}"
+        )
+        + " (the article's method, reported beside, not gated)"
+    )
     rows = [
         ("site", f"{status['site']['name']} (store {status['site']['store']})"),
         ("link", link_text),
         ("window", window_text),
         ("model", model_text),
+        ("step-ls", step_text),
         ("K(T)", _trend_text(status.get("k_trend") or {})),
         ("proposals", proposals_text),
         ("health", _health_text(status.get("loop_health"))),

@@ -71,7 +71,9 @@ def window_json(row: dict[str, Any]) -> dict[str, Any]:
         ``id``, ``start``, ``end``, ``time`` (when analysed) [s UTC], ``accepted``, ``reason``,
         ``mode``, ``fuel_temperature`` [°C], ``u_mean`` [V], ``method``, ``fit_percent`` [%],
         ``plant_K``, and ``model``, ``stderr``, ``ci95`` as ``identify --json`` (None when the
-        window was not fitted), ``model_id``.
+        window was not fitted), ``model_id``, ``method_reason`` (why that estimator) and
+        ``step_ls`` (the article's step-ls model of the same samples, reported beside, never
+        gated on: ``model``, ``stderr``, ``fit_percent``, or ``reason`` when it failed).
     """
     detail = row.get("detail") or {}
     out = {
@@ -89,6 +91,8 @@ def window_json(row: dict[str, Any]) -> dict[str, Any]:
         "plant_K": detail.get("plant_K"),
         "model_id": row.get("model_id"),
         **_window_model(detail),
+        "method_reason": detail.get("method_reason") or None,
+        "step_ls": detail.get("step_ls"),
     }
     return out
 
