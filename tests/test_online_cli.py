@@ -231,6 +231,7 @@ def test_status_text_is_a_few_aligned_lines(
         "link",
         "window",
         "model",
+        "step-ls",
         "K(T)",
         "proposals",
         "health",
