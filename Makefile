@@ -95,6 +95,7 @@ bench: $(BENCH_VENV)/.fuelid-installed
 	$(BENCH_VENV)/bin/python benchmarks/bench_store.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_virtual_plant.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_acquisition.py --minutes 2
+	$(BENCH_VENV)/bin/python benchmarks/bench_online.py --minutes 2
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) $(DEMO_DIR) .pytest_cache .mypy_cache .ruff_cache

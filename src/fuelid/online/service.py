@@ -25,8 +25,9 @@ number must come back within ``echo_timeout_s``, otherwise the last-known-good g
 back and an event raised. A write is the block (Kc, Ti, a new apply number) in the
 ``[controller]`` form and units.
 
-Log lines are structured: ``key=value`` pairs after a fixed event word (``window``,
-``proposal``, ``write``, ``revert``, ``event``), one per line, for journald or a file.
+Log lines are structured: ``key=value`` pairs after a fixed event word (``start``,
+``window``, ``proposal``, ``write``, ``event`` — reverts are ``event kind=revert`` —,
+``recorder``), one per line, for journald or a file.
 """
 
 from __future__ import annotations
@@ -80,10 +81,14 @@ LIMIT_MARGIN_V = 0.01
 
 
 def _log_line(word: str, **fields: Any) -> str:
-    """``word key=value …``: values JSON-free, floats to 6 significant digits."""
+    """``word key=value …``: floats to 6 significant digits, times [s UTC] to the millisecond."""
     parts = [word]
     for key, value in fields.items():
-        text = f"{value:.6g}" if isinstance(value, float) else str(value)
+        if isinstance(value, float):
+            # a time since the epoch needs all its digits: 6 significant ones are ±5000 s
+            text = f"{value:.3f}" if abs(value) >= 1e6 else f"{value:.6g}"
+        else:
+            text = str(value)
         if " " in text or not text:
             text = '"' + text.replace('"', "'") + '"'
         parts.append(f"{key}={text}")
@@ -476,7 +481,8 @@ class OnlineService:
                 try:
                     self.tracker.update(obs)
                 except TrackingError as error:
-                    self._say("event", kind="tracking", detail=str(error))
+                    if len(self.tracker.observations_) >= 2:  # one window is not a failure
+                        self._say("event", kind="tracking", detail=str(error))
 
     # --- proposals --------------------------------------------------------------------------
 
@@ -624,7 +630,8 @@ class OnlineService:
             refusal = self.write_refusal()
             if refusal is None or refusal == "the loop oscillates":
                 self.history.set_state("revert_requested", None)
-                await self.revert(who=str(revert.get("who", "user")), why="requested")
+                why = str(revert.get("why") or "requested")
+                await self.revert(who=str(revert.get("who", "user")), why=why)
             return
         for proposal in self.history.proposals("approved"):
             refusal = self.write_refusal()
@@ -859,6 +866,11 @@ class OnlineService:
                     await self._reconcile()
                 except LinkError as error:
                     self._say("event", kind="reconcile_deferred", detail=str(error))
+            if self.gain_writer is None and self.history.state("revert_requested"):
+                # nothing here can write: a request left waiting would fire, unseen, the day
+                # write-back is switched on
+                self.history.set_state("revert_requested", None)
+                self._event("revert_refused", "write_back is off: the revert request is dropped")
             self._say("start", **{k: v for k, v in self.capabilities.items() if k != "missing"})
             if not self.capabilities["proposes"]:
                 missing = "; ".join(self.capabilities["missing_for_proposals"])
