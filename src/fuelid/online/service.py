@@ -418,20 +418,28 @@ class OnlineService:
                     skipped = overdue - MAX_CATCH_UP_WINDOWS + 1
                     due += skipped * every
                     self._event("windows_skipped", f"{skipped} window(s) overdue after an outage")
-                await self._window(due)
-                self.history.set_state("next_window_end", due + every)
+                last = self.history.last_window()
+                if last is not None and float(last["t_to"]) >= due:
+                    # stopped between recording this window and moving the schedule on (kill
+                    # -9): the window is in the history already; never analyse it twice
+                    self.history.set_state("next_window_end", float(last["t_to"]) + every)
+                    continue
+                await self._window(due, due + every)
                 continue
             await self._writes_due()
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(self._stopping.wait(), SCHEDULE_POLL_S)
 
-    async def _window(self, t_to: float) -> None:
+    async def _window(self, t_to: float, next_end: float) -> None:
         t_from = t_to - self.settings.window_s
         samples = await asyncio.to_thread(self.store.read, t_from, t_to)
         gains = self.current_gains()
         ti_s = gains.Ti if gains is not None else self.analyser.ti_s
         result = await self.worker.analyse(samples, t_from, t_to, ti_s, self.analyser.last_model_)
         self._record_window(result)
+        # the schedule moves on at once: what follows (a proposal, a revert waiting for its
+        # echo) may be cut short by a kill, the window must not be analysed again
+        self.history.set_state("next_window_end", next_end)
         if result.accepted:
             self.analyser.accept(result)
         await self._after_window(result)
@@ -461,8 +469,9 @@ class OnlineService:
         self.stats.windows += 1
         self.stats.accepted += int(result.accepted)
         self.stats.last_window = {"id": window_id, **detail}
-        for flag in result.verdict.events:
-            self._event("plant_ratio", flag, result.t_to)
+        if result.accepted:  # a rejected window's K is no evidence of pump wear
+            for flag in result.verdict.events:
+                self._event("plant_ratio", flag, result.t_to)
         K = result.model.K if result.model is not None else math.nan
         self._say(
             "window",
@@ -558,12 +567,20 @@ class OnlineService:
         c = self.site.controller
         assert c is not None
         assert decision.new is not None
-        for old in self.history.proposals(["pending", "approved"]):
+        old_kc, old_ti = ideal_to_controller(decision.old, c)
+        new_kc, new_ti = ideal_to_controller(decision.new, c)
+        open_ones = self.history.proposals(["pending", "approved"])
+        for old in open_ones:
+            same = all(
+                abs(float(old["new"][k]) / v - 1.0) <= 0.5 * self.settings.hysteresis
+                for k, v in (("Kc", new_kc), ("Ti", new_ti))
+            )
+            if same:  # the open proposal says the same: keep it (and its approval)
+                return int(old["id"])
+        for old in open_ones:
             self.history.set_proposal_status(
                 old["id"], "superseded", who="service", why="a newer proposal"
             )
-        old_kc, old_ti = ideal_to_controller(decision.old, c)
-        new_kc, new_ti = ideal_to_controller(decision.new, c)
         detail = json_ready(
             {
                 **decision.to_dict(),

@@ -17,6 +17,9 @@ from __future__ import annotations
 
 import asyncio
 import multiprocessing
+import os
+import threading
+import time
 from concurrent.futures import Executor, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
@@ -82,6 +85,22 @@ def analyse_window(
     return result
 
 
+PARENT_POLL_S = 1.0
+"""How often the worker checks that the service is still alive [s]."""
+
+
+def _exit_with_parent(parent_pid: int) -> None:
+    """In the worker: exit when the service is gone (a kill -9 runs no clean-up of the pool)."""
+
+    def watch() -> None:
+        while True:
+            time.sleep(PARENT_POLL_S)
+            if os.getppid() != parent_pid:  # re-parented: the service died
+                os._exit(0)
+
+    threading.Thread(target=watch, name="fuelid-parent-watch", daemon=True).start()
+
+
 class WindowWorker:
     """Runs :func:`analyse_window` in a worker process (or a thread with ``isolate=False``)."""
 
@@ -93,7 +112,10 @@ class WindowWorker:
     def _pool(self) -> Executor | None:
         if self.isolate and self._executor is None:
             self._executor = ProcessPoolExecutor(
-                max_workers=1, mp_context=multiprocessing.get_context("spawn")
+                max_workers=1,
+                mp_context=multiprocessing.get_context("spawn"),
+                initializer=_exit_with_parent,
+                initargs=(os.getpid(),),
             )
         return self._executor
 
