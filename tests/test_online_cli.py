@@ -446,7 +446,9 @@ def test_a_window_shorter_than_the_settling_time_is_refused(
     from fuelid.plant.linear import LinearPlant
 
     plant = str(resources.files("fuelid.data").joinpath("reference_plant.toml"))
-    site = site_file(tmp_path, plant=plant, extra="\n[online]\nwindow_s = 120\n")
+    site = site_file(
+        tmp_path, plant=plant, extra="\n[online]\nwindow_s = 120\nidentify_every_s = 60\n"
+    )
     monkeypatch.setattr(LinearPlant, "settling_time", lambda self, band=0.02: 900.0)
     code, _out, err = run(capsys, "online", "--config", str(site), "--duration", "1")
     assert_one_line_error(code, err, "window_s = 120 s", "settling time 900 s")

@@ -281,6 +281,7 @@ def test_the_online_table_has_documented_defaults(tmp_path: Path):
         ('write_back = "sometimes"', "online.write_back"),
         ('write_back = "auto"', "write.kc is missing"),
         ('rule = "zn"', "online.rule"),
+        ("identify_every_s = 600\nwindow_s = 300", "never be analysed"),
     ],
 )
 def test_bad_online_settings_are_refused(tmp_path: Path, online: str, reason: str):
@@ -299,3 +300,29 @@ def test_write_back_needs_the_write_side_and_the_controller_table(tmp_path: Path
     controller = "[controller]\nkc = 0.05\nti = 1.4\n"
     site = load_site(_write(tmp_path, EXAMPLE + write + controller + online))
     assert site.online.write_back == "approve"
+
+
+def test_gain_units_that_contradict_the_controller_table_are_refused(tmp_path: Path) -> None:
+    """A kc tag in V per L/min read by a site that says its PI takes percent gains: 25x off."""
+    text = EXAMPLE + (
+        '[tags.kc]\naddress = "ir:90"\ntype = "float32"\nunit = "V per L/min"\n'
+        '[controller]\ngain_units = "percent"\nu_span_V = 4.0\ny_span_Lpm = 100.0\n'
+    )
+    with pytest.raises(ConfigError, match=r'tags.kc.unit: "V per L/min", but \[controller\]'):
+        load_site(_write(tmp_path, text))
+
+
+def test_relative_paths_are_taken_from_the_site_file_s_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A service started by systemd in / must find the plant and the store beside its site file."""
+    folder = tmp_path / "etc"
+    folder.mkdir()
+    text = EXAMPLE.replace("[site]\n", '[site]\nplant = "worn.toml"\n', 1)
+    text += '[store]\nurl = "sqlite:///data/loop.db"\n'
+    path = folder / "site.toml"
+    path.write_text(text, encoding="utf-8")
+    monkeypatch.chdir(tmp_path)  # anywhere but the site file's folder
+    site = load_site(path)
+    assert site.site.plant == str(folder.resolve() / "worn.toml")
+    assert site.store.url == f"sqlite:///{folder.resolve() / 'data' / 'loop.db'}"

@@ -183,26 +183,10 @@ def _online_table(config: Path | None) -> str:
 
 
 def check_window_length(site: SiteConfig) -> None:
-    """Refuse an ``[online] window_s`` shorter than the plant's settling time (with a plant file).
+    """Refuse a missing plant file or an ``[online] window_s`` shorter than its settling time."""
+    from fuelid.online.window import check_site_plant
 
-    The settling time is the 98 % one of the plant linearised at the middle of the drive's
-    range and 20 °C (what ``fuelid plant info`` prints).
-    """
-    if site.site.plant is None:
-        return
-    from fuelid.plant.config import load_plant_config
-    from fuelid.plant.linear import linearise
-
-    config = load_plant_config(site.site.plant)
-    middle = 0.5 * (config.vfd.u_min_V + config.vfd.u_max_V)
-    settling = float(linearise(config, middle, 293.15).settling_time())
-    window = site.online.window_s
-    if window < settling:
-        raise ConfigError(
-            f"[online] window_s = {window:g} s is shorter than the plant's settling time "
-            f"{settling:.3g} s (plant {site.site.plant}, at {middle:g} V and 20 °C): a window "
-            "must hold settled responses; make window_s at least that"
-        )
+    check_site_plant(site.site.plant, site.online.window_s)
 
 
 def _run_service(
@@ -741,10 +725,21 @@ def _decide(
     after: Callable[[dict[str, Any], dict[str, Any]], str],
 ) -> None:
     from fuelid.online.report import proposal_json
+    from fuelid.store.base import StoreError
 
     name = who or _user()
     with _opened(config, store) as (_, history, settings):
-        updated = history.set_proposal_status(proposal_id, status, who=name, why=why)
+        try:
+            updated = history.set_proposal_status(proposal_id, status, who=name, why=why)
+        except StoreError as error:
+            current = history.proposal(proposal_id)
+            pending = history.proposals(["pending", "approved"])
+            if current is not None and current["status"] == "superseded" and pending:
+                raise StoreError(
+                    f"{error}; the open proposal now is #{pending[-1]['id']}"
+                ) from None
+            raise
+        settings = {**settings, "service": history.state("service")}
     typer.echo(f"{_gains_text(proposal_json(updated))} by {name}; {after(updated, settings)}")
 
 
@@ -760,6 +755,15 @@ def approve_command(
     """Mark a pending proposal approved: the running service writes it when write-back allows."""
 
     def after(_: dict[str, Any], settings: dict[str, Any]) -> str:
+        service = settings.get("service") or {}
+        if service and not service.get("stopped"):  # what the running service does
+            running = service.get("write_back")
+            if running == "off":
+                return 'the running service has write_back "off": it does not write'
+            return (
+                f'the running service (write_back "{running}") writes it when the loop '
+                "allows (AUTO, no limit, link up)"
+            )
         mode = settings.get("write_back")
         if mode == "off":
             return 'write_back is "off" in the site file: nothing is written (set "approve")'

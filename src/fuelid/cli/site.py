@@ -31,6 +31,9 @@ def check(
 
     site = load_site(config)
     if as_json:
+        from fuelid.online.window import check_site_plant
+
+        check_site_plant(site.site.plant, site.online.window_s)
         data: dict[str, Any] = site.model_dump() | {"missing": site.missing()}
         emit_json(data | provenance({"config": str(config)}, config))
         return
@@ -64,7 +67,37 @@ def check(
             f"{from_ring} come from here",
             "",
         )
+    from fuelid.online.window import check_site_plant
+
+    settling = check_site_plant(site.site.plant, site.online.window_s)
     console = Console()
     console.print(table)
     for line in site.missing():
         console.print(f"missing {line}", highlight=False)
+    for line in _summary(site, settling):
+        typer.echo(line)
+
+
+def _summary(site: Any, settling: float | None) -> list[str]:
+    """The plant, controller and online lines under the tag table."""
+    plant = (
+        f"plant      {site.site.plant} (settling time {settling:.3g} s at mid-range, 20 °C)"
+        if site.site.plant is not None
+        else "plant      none: the online service tracks K per command band, no physics anchor"
+    )
+    c = site.controller
+    if c is None:
+        controller = "controller none: the online service identifies and tracks only"
+    else:
+        unit = "V per L/min" if c.gain_units == "engineering" else "% per % of span"
+        controller = (
+            f"controller {c.form} form, Kc in {unit}, Ti in {c.integral_unit}; commissioning "
+            f"kc = {'-' if c.kc is None else f'{c.kc:.4g}'}, "
+            f"ti = {'-' if c.ti is None else f'{c.ti:.4g}'}"
+        )
+    o = site.online
+    online = (
+        f"online     identify every {o.identify_every_s:g} s of data on the last {o.window_s:g} s, "
+        f'write_back "{o.write_back}", rule {o.rule}, Ms ≤ {o.ms_target:g}'
+    )
+    return [plant, controller, online]

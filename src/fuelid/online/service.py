@@ -74,6 +74,8 @@ HEARTBEAT_MODULUS = 65536
 RECENT_WINDOWS_SPAN = 6.0
 """Windows for a proposal end within this many window lengths (or agree_windows × the
 schedule, if longer) of the newest: a model from before an outage of days does not vote."""
+TURNED_DOWN_MEMORY = 20
+"""Rejected or reverted proposals whose gains are not proposed again (the newest this many)."""
 IAE_BASELINE_WINDOWS = 6
 """Windows before a write whose median IAE per unit step is the revert rule's baseline."""
 LIMIT_MARGIN_V = 0.01
@@ -112,7 +114,8 @@ class ServiceStats:
         rec = self.recorder.line() if self.recorder is not None else "recorder not started"
         return (
             f"{rec} | {self.windows} windows, {self.accepted} accepted, "
-            f"{self.proposals} proposals, {self.writes} writes"
+            f"{self.proposals} proposals, {self.writes + self.reverts} writes "
+            f"({self.reverts} reverts)"
         )
 
 
@@ -571,11 +574,21 @@ class OnlineService:
         new_kc, new_ti = ideal_to_controller(decision.new, c)
         open_ones = self.history.proposals(["pending", "approved"])
         for old in open_ones:
-            same = all(
-                abs(float(old["new"][k]) / v - 1.0) <= 0.5 * self.settings.hysteresis
-                for k, v in (("Kc", new_kc), ("Ti", new_ti))
-            )
-            if same:  # the open proposal says the same: keep it (and its approval)
+            if self._same_gains(old, new_kc, new_ti, 0.5 * self.settings.hysteresis):
+                return int(old["id"])  # the open proposal says the same: keep it (and approval)
+        turned_down = self.history.proposals(["rejected", "reverted"])[-TURNED_DOWN_MEMORY:]
+        for old in reversed(turned_down):
+            if self._same_gains(old, new_kc, new_ti, self.settings.hysteresis):
+                # a person rejected these gains, or they were reverted: do not ask again until
+                # the evidence moves them by more than the hysteresis
+                if self.history.state("held_proposal") != old["id"]:
+                    self.history.set_state("held_proposal", old["id"])
+                    self._say(
+                        "proposal",
+                        held=f"the gains of #{old['id']} ({old['status']}) are not proposed again",
+                        Kc=new_kc,
+                        Ti=new_ti,
+                    )
                 return int(old["id"])
         for old in open_ones:
             self.history.set_proposal_status(
@@ -603,6 +616,18 @@ class OnlineService:
                 pid, "approved", who="service (write_back = auto)", why="passed every rule"
             )
         return pid
+
+    @staticmethod
+    def _same_gains(proposal: dict[str, Any], kc: float, ti: float, tolerance: float) -> bool:
+        """True when ``proposal``'s new gains are within ``tolerance`` (relative) of kc, ti."""
+        new = proposal.get("new") or {}
+        try:
+            return all(
+                abs(float(new[key]) / value - 1.0) <= tolerance
+                for key, value in (("Kc", kc), ("Ti", ti))
+            )
+        except (KeyError, TypeError, ValueError, ZeroDivisionError):
+            return False
 
     def _target_model(self, decision: ProposalDecision) -> dict[str, Any] | None:
         if not decision.model_ids:
@@ -651,6 +676,12 @@ class OnlineService:
                 await self.revert(who=str(revert.get("who", "user")), why=why)
             return
         for proposal in self.history.proposals("approved"):
+            stale = self._stale(proposal)
+            if stale is not None:
+                self.history.set_proposal_status(proposal["id"], "superseded", who="service",
+                                                 why=stale)  # fmt: skip
+                self._say("write", proposal=proposal["id"], held=stale)
+                continue
             refusal = self.write_refusal()
             if refusal is not None:
                 if self.history.state("write_held") != refusal:
@@ -659,6 +690,27 @@ class OnlineService:
                 return
             self.history.set_state("write_held", None)
             await self._write_proposal(proposal)
+
+    def _stale(self, proposal: dict[str, Any]) -> str | None:
+        """Why an approved proposal is too old to write; None when fresh.
+
+        Its evidence predates the recent windows (e.g. across a restart and a change of fuel
+        temperature): new windows will propose afresh.
+        """
+        model_id = proposal.get("model_id")
+        newest = self.store.last_time()
+        if model_id is None or newest is None:
+            return None
+        row = self.history.model(int(model_id))
+        if row is None:
+            return None
+        span = RECENT_WINDOWS_SPAN * self.settings.window_s
+        if float(row["t_to"]) < newest - span:
+            return (
+                f"stale: its newest window ended {newest - float(row['t_to']):.0f} s of data "
+                f"before the newest sample (> {span:.0f} s); new windows will propose afresh"
+            )
+        return None
 
     async def _next_apply(self) -> int:
         assert self.gain_writer is not None
@@ -734,6 +786,12 @@ class OnlineService:
         if gains is None:
             self._event("revert_failed", "no last-known-good or commissioning gains")
             return False
+        now = self.current_gains()
+        if now is not None and all(
+            math.isclose(a, b, rel_tol=1e-6) for a, b in ((now.Kc, gains.Kc), (now.Ti, gains.Ti))
+        ):
+            self._event("revert", f"nothing to write: the PLC holds those gains ({why}, by {who})")
+            return True
         kc, ti = ideal_to_controller(gains, self.site.controller)
         apply_seq = await self._next_apply()
         write_id = self.history.begin_write(
@@ -742,6 +800,7 @@ class OnlineService:
         echoed = await self.gain_writer.write_block(kc, ti, apply_seq)
         self.history.finish_write(write_id, "verified" if echoed else "failed", {})
         self.stats.reverts += 1
+        self._say("write", kind="revert", apply=apply_seq, Kc=kc, Ti=ti, ok=echoed, why=why)
         if echoed:
             for applied in self.history.proposals("applied")[-1:]:
                 self.history.set_proposal_status(applied["id"], "reverted", who=who, why=why)
@@ -888,6 +947,10 @@ class OnlineService:
                 # write-back is switched on
                 self.history.set_state("revert_requested", None)
                 self._event("revert_refused", "write_back is off: the revert request is dropped")
+            self.history.set_state(
+                "service",
+                {"write_back": self.settings.write_back, "started": time.time(), "pid": _pid()},
+            )
             self._say("start", **{k: v for k, v in self.capabilities.items() if k != "missing"})
             if not self.capabilities["proposes"]:
                 missing = "; ".join(self.capabilities["missing_for_proposals"])
@@ -898,6 +961,9 @@ class OnlineService:
             await recording
         finally:
             self._stopping.set()
+            with contextlib.suppress(FuelidError):
+                running = self.history.state("service") or {}
+                self.history.set_state("service", {**running, "stopped": time.time()})
             for task in tasks:
                 with contextlib.suppress(asyncio.CancelledError, FuelidError):
                     await task
@@ -920,6 +986,12 @@ class OnlineService:
             self.writer.close()
         self.history.close()
         self.store.close()
+
+
+def _pid() -> int:
+    import os
+
+    return os.getpid()
 
 
 def _plant_path(site: SiteConfig) -> str | None:

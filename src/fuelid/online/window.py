@@ -517,10 +517,59 @@ def window_priors(
     return priors, plant_gain_function(config)
 
 
+def check_site_plant(plant_path: str | None, window_s: float) -> float | None:
+    """Check the site's plant file and that ``[online] window_s`` covers its settling time.
+
+    Parameters
+    ----------
+    plant_path : str or None
+        ``[site] plant`` (already taken from the site file's folder).
+    window_s : float
+        ``[online] window_s`` [s].
+
+    Returns
+    -------
+    float or None
+        The plant's 98 % settling time [s] at mid-range command and 20 °C (what ``fuelid plant
+        info`` prints); None without a plant file.
+
+    Raises
+    ------
+    ConfigError
+        The plant file is missing or invalid (named with the key), or the window is shorter than
+        the settling time (a window must hold settled responses).
+    """
+    if plant_path is None:
+        return None
+    from pathlib import Path
+
+    from fuelid.errors import ConfigError
+    from fuelid.plant.config import load_plant_config
+    from fuelid.plant.linear import linearise
+    from fuelid.units import celsius_to_kelvin
+
+    if not Path(plant_path).is_file():
+        raise ConfigError(f"[site] plant: no such plant file {plant_path}")
+    try:
+        config = load_plant_config(plant_path)
+    except FuelidError as error:
+        raise ConfigError(f"[site] plant {plant_path}: {' '.join(str(error).split())}") from None
+    middle = 0.5 * (config.vfd.u_min_V + config.vfd.u_max_V)
+    settling = float(linearise(config, middle, celsius_to_kelvin(20.0)).settling_time())
+    if window_s < settling:
+        raise ConfigError(
+            f"[online] window_s = {window_s:g} s is shorter than the plant's settling time "
+            f"{settling:.3g} s (plant {plant_path}, at {middle:g} V and 20 °C): a window must "
+            "hold settled responses; make window_s at least that"
+        )
+    return settling
+
+
 __all__ = [
     "MIN_GOOD_SAMPLES",
     "WindowAnalyser",
     "WindowPriors",
     "WindowResult",
+    "check_site_plant",
     "window_priors",
 ]

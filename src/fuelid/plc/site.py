@@ -369,12 +369,43 @@ class Online(_Table):
     echo_timeout_s: float = Field(5.0, gt=0.0, description="wait this long for the PLC's echo")
 
     @model_validator(mode="after")
+    def _schedule_covers_the_data(self) -> Online:
+        if self.identify_every_s > self.window_s:
+            raise ValueError(
+                f"identify_every_s ({self.identify_every_s:g} s) is longer than window_s "
+                f"({self.window_s:g} s): the data between windows would never be analysed"
+            )
+        return self
+
+    @model_validator(mode="after")
     def _bounds(self) -> Online:
         for key in ("gain_bounds", "plant_ratio_event"):
             low, high = getattr(self, key)
             if not 0.0 < low <= 1.0 <= high:
                 raise ValueError(f"{key}: [low, high] with 0 < low <= 1 <= high, got {low}, {high}")
         return self
+
+
+ENGINEERING_GAIN_UNITS = ("V per L/min", "V/(L/min)")
+PERCENT_GAIN_UNITS = ("%/%", "% per %", "percent")
+
+
+def _check_gain_units(site: SiteConfig) -> None:
+    """The kc tags' units must say what ``[controller] gain_units`` says.
+
+    A gain read or written in the wrong unit is off by the span ratio (25x for 4 V / 100 L/min).
+    """
+    c = site.controller
+    if c is None:
+        return
+    expected = ENGINEERING_GAIN_UNITS if c.gain_units == "engineering" else PERCENT_GAIN_UNITS
+    for side, tags in (("tags", site.tags), ("write", site.write)):
+        tag = tags.get("kc")
+        if tag is not None and tag.unit and tag.unit not in expected:
+            raise ValueError(
+                f'{side}.kc.unit: "{tag.unit}", but [controller] gain_units = "{c.gain_units}" '
+                f'(say unit = "{expected[0]}", or change gain_units)'
+            )
 
 
 class SiteConfig(_Table):
@@ -434,6 +465,7 @@ class SiteConfig(_Table):
                 )
         _check_overlaps(self.plc.protocol, self.tags, "tags")
         _check_overlaps(self.plc.protocol, self.write, "write")
+        _check_gain_units(self)
         return self
 
     def missing(self) -> list[str]:
@@ -572,7 +604,27 @@ def load_site(path: str | Path) -> SiteConfig:
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{source}: not valid TOML ({exc})") from None
     try:
-        return SiteConfig.model_validate(data)
+        site = SiteConfig.model_validate(data)
     except ValidationError as exc:
         details = "; ".join(_describe(err) for err in exc.errors())
         raise ConfigError(f"{source}: {details}") from None
+    return _relative_to(site, Path(path).resolve().parent, data)
+
+
+def _relative_to(site: SiteConfig, folder: Path, data: dict[str, Any]) -> SiteConfig:
+    """Relative paths written in the file, taken from the file's folder.
+
+    ``[site] plant`` and ``[store] url`` must not depend on where the service happens to start
+    (systemd starts it in /). The default store (no ``[store] url``) stays ``fuelid.db`` in the
+    current folder.
+    """
+    plant = site.site.plant
+    if plant is not None and not Path(plant).is_absolute():
+        info = site.site.model_copy(update={"plant": str(folder / plant)})
+        site = site.model_copy(update={"site": info})
+    given = isinstance(data.get("store"), dict) and "url" in data["store"]
+    location = site.store.url.removeprefix("sqlite:///")
+    if given and not Path(location).is_absolute():
+        store = site.store.model_copy(update={"url": f"sqlite:///{folder / location}"})
+        site = site.model_copy(update={"store": store})
+    return site
