@@ -666,18 +666,32 @@ def plot_online_history(history: dict[str, Any], path: str | Path) -> Path:
     )
 
     with_T = [(w, iv) for w, iv in accepted if w.get("fuel_temperature") is not None]
+    # with a plant model, K / K_plant: the operating point's share of K divided out, what is left
+    # is what the model does not know (pump wear, a wrong viscosity curve) against temperature
+    ratio = bool(with_T) and all(isinstance(w.get("plant_K"), int | float) for w, _ in with_T)
     if with_T:
         T = [float(w["fuel_temperature"]) for w, _ in with_T]
-        k = [iv[0] for _, iv in with_T]
-        err = np.array([[iv[1] for _, iv in with_T], [iv[2] for _, iv in with_T]])
-        ax_T.errorbar(T, k, yerr=err, fmt="none", ecolor="0.6", capsize=2,
+        scale = [float(w["plant_K"]) if ratio else 1.0 for w, _ in with_T]
+        k = [iv[0] / d for (_, iv), d in zip(with_T, scale, strict=True)]
+        err = np.array([[iv[1] / d for (_, iv), d in zip(with_T, scale, strict=True)],
+                        [iv[2] / d for (_, iv), d in zip(with_T, scale, strict=True)]])  # fmt: skip
+        ax_T.errorbar(T, k, yerr=err, fmt="none", ecolor="0.4", capsize=3, zorder=2,
                       label="95 % interval")  # fmt: skip
-        dots = ax_T.scatter(T, k, c=[hours(w["end"]) for w, _ in with_T], s=12, cmap="viridis",
-                            zorder=3, label="accepted window")  # fmt: skip
-        fig.colorbar(dots, ax=ax_T, label="time since the first window [h]")
+        dots = ax_T.scatter(T, k, c=[hours(w["end"]) for w, _ in with_T], s=14, cmap="viridis",
+                            zorder=3, label="accepted window (colour: time)")  # fmt: skip
+        if ratio:
+            ax_T.axhline(1.0, color="0.3", lw=1.0, ls="--", label="the plant model (ratio 1)")
+        fig.colorbar(dots, ax=ax_T, label="time since the first window [h]", fraction=0.04,
+                     pad=0.01)  # fmt: skip
     ax_T.set_xlabel("fuel temperature [°C]")
-    ax_T.set_ylabel("K [(L/min)/V]")
-    ax_T.set_title("identified gain against the window's mean fuel temperature")
+    if ratio:
+        ax_T.set_ylabel("K / K_plant [-]")
+        ax_T.set_title(
+            "identified gain over the plant model's at each window's command and temperature"
+        )
+    else:
+        ax_T.set_ylabel("K [(L/min)/V]")
+        ax_T.set_title("identified gain against the window's mean fuel temperature")
 
     ax_ti = ax_g.twinx()
     steps = [w for w in writes if w.get("status") == "verified"]
@@ -713,6 +727,10 @@ def plot_online_history(history: dict[str, Any], path: str | Path) -> Path:
         shown.add(status)
         ax_g.plot(wall_hours(p["time"]), float(new["Kc"]), "o", color=colour, label=label)
         ax_ti.plot(wall_hours(p["time"]), float(new["Ti"]), "s", color=colour, mfc="none")
+    reverts = [w for w in writes if w.get("kind") == "revert" and w.get("status") == "verified"]
+    for i, w in enumerate(reverts):
+        ax_g.plot(wall_hours(w.get("finished") or w["time"]), float(w["Kc"]), "v",
+                  color="tab:red", ms=8, label="revert written" if i == 0 else None)  # fmt: skip
     ax_g.set_xlabel(time_label)
     ax_g.set_ylabel(f"Kc [{kc_unit}] (o)")
     ax_ti.set_ylabel(f"Ti [{ti_unit}] (□, dashed)")
