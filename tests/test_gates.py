@@ -254,7 +254,7 @@ def test_ar1_noise_rejected_by_the_residual_acf():
     acf = [r for r in v.reasons if r.startswith("residual correlation too large")]
     lags = v.measured["residual_acf_lags"]
     assert 1000 <= lags <= 1060  # 5 settling times of the fitted model (4.1 s) at 50 Hz
-    assert acf == [f"residual correlation too large: |ρ(1)| = {rho:.3f} > 0.3 (lags 1–{lags})"]
+    assert acf == [f"residual correlation too large: |ρ(1)| = {rho:.3f} > 0.7 (lags 1–{lags})"]
 
 
 def test_short_noisy_window_rejected_on_the_standard_errors():

@@ -357,7 +357,7 @@ class Online(_Table):
     max_rel_stderr_T: float = Field(0.2, gt=0.0, description="gate: relative std. error of T")
     min_fit_percent: float = Field(80.0, ge=0.0, le=100.0, description="gate: validation fit")
     max_residual_acf: float = Field(
-        0.3, gt=0.0, lt=1.0, description="gate: largest |residual autocorrelation| over the lags"
+        0.7, gt=0.0, lt=1.0, description="gate: largest |residual autocorrelation| over the lags"
     )
     plant_ratio_event: Pair = Field(
         default_factory=lambda: [0.5, 2.0],
