@@ -73,7 +73,7 @@ pytest: $(STAMP) browser
 test: lint typecheck pytest
 
 test-slow: $(STAMP)
-	$(BIN)/python -m pytest -q -m slow
+	$(BIN)/python -m pytest -q -m slow -rP  # -rP: the soak and fault runs print their measurements
 
 # The benchmarks get their own environment: the peer (sysidentpy) pins an older numpy, which
 # must not replace the one the tests run with.
