@@ -46,12 +46,13 @@ from fuelid.online.service import OnlineService
 from fuelid.plant import load_plant_config
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.linear import linearise
-from fuelid.plc.recorder import site_identity
 from fuelid.plc.site import SiteConfig
 from fuelid.plc.virtual.profiles import Profile
 from fuelid.plc.virtual.runner import VirtualPlcThread
-from fuelid.store import OnlineHistory, open_store
 from fuelid.store.sqlite import SQLiteStore
+from online_helpers import approve_directly as _approve
+from online_helpers import online_site as _site
+from online_helpers import open_history as _open
 
 REFERENCE_PLANT = str(resources.files("fuelid.data").joinpath("reference_plant.toml"))
 HEARTBEAT_S = 0.05
@@ -64,42 +65,6 @@ T_FUEL_C = 20.0
 
 
 # --- helpers -----------------------------------------------------------------------------------
-
-
-def _site(
-    virtual: VirtualPlcThread, store: Path, online: str, *, plant: str | None = None
-) -> SiteConfig:
-    text = virtual.site_text(store_url=f"sqlite:///{store}") + "\n[online]\n" + online
-    if plant is not None:  # [site] plant: the plant file anchors the fit (meter lag, dead time)
-        text = text.replace("[site]\n", f'[site]\nplant = "{plant}"\n', 1)
-    return SiteConfig.model_validate(tomllib.loads(text))
-
-
-def _open(site: SiteConfig, store: Path) -> tuple[SQLiteStore, OnlineHistory]:
-    opened = open_store(
-        f"sqlite:///{store}", period_s=site.sampling.period_s, **site_identity(site)
-    )
-    assert isinstance(opened, SQLiteStore)
-    return opened, OnlineHistory(opened)
-
-
-def _approve(site: SiteConfig, store: Path, kc: float, ti: float) -> int:
-    """An approved proposal put straight into the history (what `online approve` leaves)."""
-    opened, history = _open(site, store)
-    try:
-        assert site.controller is not None
-        old = {"Kc": site.controller.kc, "Ti": site.controller.ti}
-        pid = history.add_proposal(
-            model_id=None,
-            old=old,
-            new={"Kc": kc, "Ti": ti},
-            detail={"reason": "test", "ideal": {"old": old, "new": {"Kc": kc, "Ti": ti}}},
-        )
-        history.set_proposal_status(pid, "approved", who="tester", why="test")
-        return pid
-    finally:
-        history.close()
-        opened.close()
 
 
 def _run(

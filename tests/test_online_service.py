@@ -25,46 +25,13 @@ from fuelid.plc.adapters import open_source
 from fuelid.plc.adapters.modbus import ModbusSource
 from fuelid.plc.site import SiteConfig
 from fuelid.plc.virtual.runner import VirtualPlcThread
-from fuelid.store import OnlineHistory, open_store
-from fuelid.store.sqlite import SQLiteStore
+from online_helpers import approve_directly as _approved_proposal
+from online_helpers import online_site as _site
+from online_helpers import open_history as _history
 
 SPEED = 20.0
 """Plant time per wall time: the PLC's 10 s heartbeat timeout is 0.5 s of wall time."""
 HEARTBEAT_S = 0.05
-
-
-def _site(virtual: VirtualPlcThread, store: Path, online: str) -> SiteConfig:
-    text = virtual.site_text(store_url=f"sqlite:///{store}") + "\n[online]\n" + online
-    return SiteConfig.model_validate(tomllib.loads(text))
-
-
-def _history(site: SiteConfig, store: Path) -> tuple[SQLiteStore, OnlineHistory]:
-    from fuelid.plc.recorder import site_identity
-
-    opened = open_store(
-        f"sqlite:///{store}", period_s=site.sampling.period_s, **site_identity(site)
-    )
-    assert isinstance(opened, SQLiteStore)
-    return opened, OnlineHistory(opened)
-
-
-def _approved_proposal(site: SiteConfig, store: Path, kc: float, ti: float) -> int:
-    """An approved proposal put straight into the history (what `online approve` leaves)."""
-    opened, history = _history(site, store)
-    try:
-        assert site.controller is not None
-        old = {"Kc": site.controller.kc, "Ti": site.controller.ti}
-        pid = history.add_proposal(
-            model_id=None,
-            old=old,
-            new={"Kc": kc, "Ti": ti},
-            detail={"reason": "test", "ideal": {"old": old, "new": {"Kc": kc, "Ti": ti}}},
-        )
-        history.set_proposal_status(pid, "approved", who="tester", why="test")
-        return pid
-    finally:
-        history.close()
-        opened.close()
 
 
 def _run(site: SiteConfig, seconds: float, **kwargs: Any) -> tuple[OnlineService, list[str]]:

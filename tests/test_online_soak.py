@@ -98,7 +98,7 @@ from fuelid.online.window import WindowAnalyser
 from fuelid.plant.linear import linearise
 from fuelid.plc.site import SiteConfig
 from fuelid.plc.virtual.profiles import Profile, demo_run_profile, demo_temperature
-from fuelid.plc.virtual.runner import VirtualPlcThread, site_text
+from fuelid.plc.virtual.runner import VirtualPlcThread
 from fuelid.store.base import SampleArrays
 from fuelid.tuning.frequency import robustness
 from fuelid.tuning.rules import PISettings
@@ -255,20 +255,7 @@ class SoakResult:
 
 def _site(virtual: VirtualPlcThread, store: Path) -> SiteConfig:
     plant = resources.files("fuelid.data").joinpath("reference_plant.toml")
-    text = site_text(
-        virtual.protocol,
-        virtual.host,
-        virtual.port,
-        period_s=virtual.plc.period_s,
-        control_period_s=virtual.plc.control_period_s,
-        word_order=virtual.word_order,
-        byte_swap=virtual.byte_swap,
-        ring_size=virtual.plc.ring_size,
-        store_url=f"sqlite:///{store}",
-        kc=virtual.plc.kc0,
-        ti=virtual.plc.ti0,
-        plant=str(plant),
-    )
+    text = virtual.site_text(store_url=f"sqlite:///{store}", plant=str(plant))
     return SiteConfig.model_validate(tomllib.loads(f"{text}\n[online]\n{ONLINE}"))
 
 

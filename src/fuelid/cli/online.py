@@ -266,7 +266,7 @@ def _run_virtual(
 
     from fuelid.plc.site import load_site
     from fuelid.plc.virtual.profiles import demo_run_profile, demo_temperature
-    from fuelid.plc.virtual.runner import VirtualPlcThread, site_text
+    from fuelid.plc.virtual.runner import VirtualPlcThread
 
     if not (math.isfinite(speed) and 0.0 < speed <= 1000.0):
         raise ConfigError(f"--speed must be within (0, 1000], got {speed:g}")
@@ -294,20 +294,7 @@ def _run_virtual(
         ) as virtual,
         tempfile.TemporaryDirectory(prefix="fuelid-online-") as folder,
     ):
-        text = site_text(
-            virtual.protocol,
-            virtual.host,
-            virtual.port,
-            period_s=virtual.plc.period_s,
-            control_period_s=virtual.plc.control_period_s,
-            word_order=virtual.word_order,
-            byte_swap=virtual.byte_swap,
-            ring_size=virtual.plc.ring_size,
-            store_url=f"sqlite:///{target}",
-            kc=virtual.plc.kc0,
-            ti=virtual.plc.ti0,
-            plant=plant_path,
-        )
+        text = virtual.site_text(store_url=f"sqlite:///{target}", plant=plant_path)
         site_path = Path(folder) / "virtual-site.toml"
         site_path.write_text(f"{text}\n{online}", encoding="utf-8")
         site = load_site(site_path)

@@ -747,7 +747,7 @@ class OnlineService:
             proposal["id"], "failed", who="service", why="no echo within the timeout"
         )
         self._event("write_failed", f"proposal {proposal['id']}: no echo of apply {apply_seq}")
-        await self.revert(who="service", why="no echo of the last write")
+        await self.revert(who="service", why="no echo of the last write", force=True)
 
     def _applied(self, proposal: dict[str, Any]) -> None:
         detail = proposal["detail"]
@@ -777,8 +777,12 @@ class OnlineService:
                 values.append(float(iae))
         return float(np.median(values)) if values else None
 
-    async def revert(self, *, who: str, why: str) -> bool:
-        """Write the last-known-good gains back (the commissioning gains when none is kept)."""
+    async def revert(self, *, who: str, why: str, force: bool = False) -> bool:
+        """Write the last-known-good gains back (the commissioning gains when none is kept).
+
+        Not written when the PLC already reads those gains, unless ``force`` (after a write
+        whose echo was lost the PLC's state is not known for sure: the block is written).
+        """
         if self.gain_writer is None or self.site.controller is None:
             return False
         good = self.history.state("last_known_good")
@@ -786,7 +790,7 @@ class OnlineService:
         if gains is None:
             self._event("revert_failed", "no last-known-good or commissioning gains")
             return False
-        now = self.current_gains()
+        now = None if force else self.current_gains()
         if now is not None and all(
             math.isclose(a, b, rel_tol=1e-6) for a, b in ((now.Kc, gains.Kc), (now.Ti, gains.Ti))
         ):

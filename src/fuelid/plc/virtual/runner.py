@@ -598,8 +598,8 @@ class VirtualPlcThread:
 
         self._call(restart())
 
-    def site_text(self, store_url: str | None = None) -> str:
-        """The site file that points at this virtual PLC."""
+    def site_text(self, store_url: str | None = None, plant: str | None = None) -> str:
+        """The site file that points at this virtual PLC (``plant``: its ``[site] plant``)."""
         return site_text(
             self.protocol,
             self.host,
@@ -612,6 +612,7 @@ class VirtualPlcThread:
             store_url=store_url,
             kc=self.plc.kc0,
             ti=self.plc.ti0,
+            plant=plant,
         )
 
     def __enter__(self) -> Self:
