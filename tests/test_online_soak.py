@@ -36,7 +36,9 @@ What is measured, after the run, from the store, the history and the engine (the
   the windows scatter about the line by more than their standard errors, from the plant's
   nonlinearity over a window's operating range), printed; asserted is the issue's check, K at
   the held-out temperature: the held-out windows' mean ratio against r̂(T*), |z| ≤ 3 with
-  z = (mean − r̂(T*)) / √(se(r̂(T*))² + s²/m) (s their scatter, m their number);
+  z = (mean − r̂(T*)) / √(se(r̂(T*))² + v/m), v the larger of their scatter s² and the
+  tracker's variance of a new window b·(se_K/K_plant)² (one window has no scatter), m their
+  number;
 - **Ms on the true plant**: for every gain set that was in the PLC (the commissioning gains and
   every verified write, reverts included), Ms of the sampled loop (``control_period = 1 s``)
   with the plant linearised (full state space, the meter's dead time) at every window's mean
@@ -446,7 +448,14 @@ def _held_out(result: SoakResult, rows: list[dict[str, Any]], k_plant: Any) -> N
                                                                      strict=True) if n]
     )  # fmt: skip
     r_star, se_star = tracker.predict_ratio(T_star)
-    spread = float(np.std(ratios, ddof=1)) / math.sqrt(ratios.size) if ratios.size > 1 else 0.0
+    # the mean's variance: the held-out windows' own scatter, or (for one or two windows, whose
+    # scatter says nothing) the tracker's error model for a new window, whichever is larger
+    held = [o for o, n in zip(observations, near, strict=True) if n]
+    model_var = float(
+        np.mean([inflation * (o.se_K / (o.K_plant or k_plant(o.u, o.T_fuel_C))) ** 2 for o in held])
+    )
+    scatter_var = float(np.var(ratios, ddof=1)) if ratios.size > 1 else 0.0
+    spread = math.sqrt(max(scatter_var, model_var) / ratios.size)
     result.held_out_mean_z = (float(np.mean(ratios)) - r_star) / math.hypot(se_star, spread)
 
 
