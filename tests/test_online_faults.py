@@ -863,6 +863,10 @@ def test_kill_9_during_a_window_s_revert_does_not_repeat_the_window(tmp_path: Pa
                 {"proposal": None, "time": 0.0, "data_time": 0.0, "iae_before": 1e-6,
                  "judged": False},
             )  # fmt: skip
+            # last-known-good gains other than the PLC's, so the revert has a block to write (a
+            # revert to the gains the PLC already runs is not written)
+            kc0, ti0 = virtual.plc.gains
+            history.set_state("last_known_good", {"Kc": 0.9 * kc0, "Ti": ti0})
         finally:
             history.close()
             opened.close()
