@@ -45,16 +45,29 @@ def assert_one_line_error(code: int, err: str, *needles: str) -> None:
 # --- the virtual PLC ------------------------------------------------------------------------
 
 
-@pytest.fixture
-def virtual() -> Iterator[Any]:
+def start_virtual(ring_size: int | None = None) -> Any:
     runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
     from fuelid.plc.virtual.profiles import steps_profile
 
     # MAN steps of ±0.2 V around 3.0 V: the linearisation of `plant info --u 3` holds there
     profile = steps_profile(levels=(3.0, 3.2, 2.8, 3.2, 2.8, 3.0), dwell_s=10.0)
-    with runner.VirtualPlcThread(
-        "modbus", port=None, speed=20.0, seed=1, command_profile=profile, fuel_temp_C=20.0
-    ) as server:
+    ring = {} if ring_size is None else {"ring_size": ring_size}
+    return runner.VirtualPlcThread(
+        "modbus", port=None, speed=20.0, seed=1, command_profile=profile, fuel_temp_C=20.0, **ring
+    )
+
+
+@pytest.fixture
+def virtual() -> Iterator[Any]:
+    with start_virtual() as server:
+        yield server
+
+
+@pytest.fixture
+def virtual_large_ring() -> Iterator[Any]:
+    # the largest ring (8000 samples = 8 s of wall time at 20x): a CI machine loaded by other
+    # tests once stalled the in-process recorder past the default 2048 samples (165 lost)
+    with start_virtual(ring_size=8000) as server:
         yield server
 
 
@@ -65,9 +78,9 @@ def site_file(tmp_path: Path, server: Any, name: str = "site.toml") -> Path:
 
 
 def test_record_export_identify_gives_the_plants_gain(
-    virtual: Any, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    virtual_large_ring: Any, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    site = site_file(tmp_path, virtual)
+    site = site_file(tmp_path, virtual_large_ring)
     db, log = tmp_path / "run.db", tmp_path / "run.csv"
     code, out, err = run(capsys, "record", "--config", str(site), "--store", str(db),
                          "--duration", "4")  # fmt: skip
