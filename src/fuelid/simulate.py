@@ -6,13 +6,17 @@ motor and hydraulic modes make the problem stiff) and the analytic Jacobian: one
 :func:`integrate_held`, which the closed loop (:mod:`fuelid.tuning.closedloop`) uses for each
 control period too, and which refuses a failed solve with a ``FuelidError``. The meter's dead time
 is applied exactly by evaluating the meter state at ``t_k − τ``; noise and quantisation are added
-to the sampled reading. The fuel temperature may follow a trajectory; it is held constant within
-each segment, and a new segment starts whenever it has moved by ``temperature_resolution``
-(0.05 K by default: the flow error of holding it is then far below any meter's resolution).
+to the sampled reading. On request (``pressure=True``) the pump outlet pressure p is sampled at
+``t_k`` itself (a pressure transmitter has no part of the flowmeter's dead time) and logged with
+its own noise and quantisation (:meth:`SimulationResult.measure_pressure`). The fuel temperature
+may follow a trajectory; it is held constant within each segment, and a new segment starts
+whenever it has moved by ``temperature_resolution`` (0.05 K by default: the flow error of holding
+it is then far below any meter's resolution).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 import warnings
@@ -29,11 +33,13 @@ from fuelid.io.timeseries import (
     FUEL_TEMPERATURE_COLUMN,
     INPUT_COLUMN,
     OUTPUT_COLUMN,
+    PRESSURE_COLUMN,
     TimeSeries,
 )
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.flowmeter import measure_flow
 from fuelid.plant.system import (
+    STATE_NAMES,
     PlantCoefficients,
     measured_state,
     plant_coefficients,
@@ -42,7 +48,7 @@ from fuelid.plant.system import (
     steady_state,
 )
 from fuelid.profiles import InputProfile
-from fuelid.units import LPM_PER_M3S
+from fuelid.units import LPM_PER_M3S, PA_PER_MPA
 from fuelid.units import T0 as KELVIN
 
 if TYPE_CHECKING:
@@ -55,6 +61,14 @@ RTOL = 1e-7
 MAX_STEPS = 100_000
 """Most internal steps LSODA may take between two output times before it gives up."""
 SNAP = 1e-9  # [s]
+PRESSURE_NOISE_STD = 2000.0
+"""Default standard deviation of the logged pump pressure's white noise [Pa] (0.002 MPa)."""
+PRESSURE_RESOLUTION = 100.0
+"""Default quantisation step of the logged pump pressure [Pa] (0.0001 MPa)."""
+PRESSURE_TRUTH_COLUMN = "p_true_MPa"
+"""Noise-free pump pressure column of a log with truth [MPa]."""
+_PRESSURE_STATE = STATE_NAMES.index("p")
+_PRESSURE_STREAM = 1  # spawn key of the pressure noise's random stream (the flow's is the seed's)
 _SOLVED = "Integration successful."  # odeint's message when LSODA returns istate = 2
 
 
@@ -106,18 +120,69 @@ class SimulationResult:
     """Reading with noise and quantisation, as logged [m³/s]."""
     T_fuel: FloatArray
     """Fuel temperature [K]."""
+    p_pump: FloatArray | None = None
+    """Noise-free pump outlet pressure (gauge) at the sample times, no dead time [Pa]; None
+    unless the run was asked for the pressure."""
+    p_measured: FloatArray | None = None
+    """Pump outlet pressure with noise and quantisation, as logged [Pa]; None: not logged."""
+
+    def measure_pressure(
+        self,
+        noise_std: float = PRESSURE_NOISE_STD,
+        resolution: float = PRESSURE_RESOLUTION,
+        seed: int | None = None,
+    ) -> SimulationResult:
+        """A copy with a logged pump pressure: ``p_pump`` plus white noise, then quantised.
+
+        Parameters
+        ----------
+        noise_std : float
+            Standard deviation of the transmitter's white noise [Pa].
+        resolution : float
+            Quantisation step of the value the PLC reads [Pa]; 0 for none.
+        seed : int, optional
+            Seed of the noise (its stream is independent of the flow noise of the same seed).
+
+        Returns
+        -------
+        SimulationResult
+            A copy with ``p_measured`` set.
+
+        Raises
+        ------
+        FuelidError
+            If the run has no pump pressure, or noise or resolution is negative or not finite.
+        """
+        if self.p_pump is None:
+            raise FuelidError("this simulation result has no pump pressure to measure")
+        for name, value in (("noise", noise_std), ("resolution", resolution)):
+            if not (math.isfinite(value) and value >= 0.0):
+                raise FuelidError(f"pressure {name} must be zero or positive, got {value:g} Pa")
+        stream = np.random.SeedSequence(seed, spawn_key=(_PRESSURE_STREAM,))
+        rng = np.random.default_rng(stream)
+        p = measure_flow(self.p_pump, noise_std, resolution, rng)  # the same A/D chain
+        return dataclasses.replace(self, p_measured=p)
 
     def to_log(self, include_truth: bool = False) -> TimeSeries:
-        """The PLC-like log: ``t_s``, ``u_V``, ``q_Lpm``, ``T_fuel_degC`` (+ ``q_true_Lpm``)."""
+        """The PLC-like log: ``t_s``, ``u_V``, ``q_Lpm``, ``T_fuel_degC`` (+ ``q_true_Lpm``).
+
+        With a logged pressure (``p_measured``) also ``p_pump_MPa`` (+ ``p_true_MPa``).
+        """
         signals = {
             INPUT_COLUMN: self.u,
             OUTPUT_COLUMN: self.q_measured * LPM_PER_M3S,
             FUEL_TEMPERATURE_COLUMN: self.T_fuel - KELVIN,
         }
         units = {INPUT_COLUMN: "V", OUTPUT_COLUMN: "L/min", FUEL_TEMPERATURE_COLUMN: "degC"}
+        if self.p_measured is not None:
+            signals[PRESSURE_COLUMN] = self.p_measured / PA_PER_MPA
+            units[PRESSURE_COLUMN] = "MPa"
         if include_truth:
             signals["q_true_Lpm"] = self.q_meter * LPM_PER_M3S
             units["q_true_Lpm"] = "L/min"
+            if self.p_measured is not None and self.p_pump is not None:
+                signals[PRESSURE_TRUTH_COLUMN] = self.p_pump / PA_PER_MPA
+                units[PRESSURE_TRUTH_COLUMN] = "MPa"
         return TimeSeries(self.time, signals, units)
 
     def to_pandas(self) -> pd.DataFrame:
@@ -140,6 +205,9 @@ def simulate(
     seed: int | None = None,
     temperature_resolution: float = 0.05,
     progress: ProgressCallback | None = None,
+    pressure: bool = False,
+    pressure_noise_std: float = PRESSURE_NOISE_STD,
+    pressure_resolution: float = PRESSURE_RESOLUTION,
 ) -> SimulationResult:
     """Simulate the nonlinear plant and sample it as the PLC does.
 
@@ -168,6 +236,14 @@ def simulate(
         plant uses the temperature at the middle of each segment.
     progress : callable, optional
         Called with the fraction of simulated time done, after every segment.
+    pressure : bool
+        Also sample the pump outlet pressure at the sample times (``p_pump``, no dead time) and
+        log it with noise and quantisation (``p_measured``). The flow is then evaluated at a
+        few more solver output times, which moves it by far less than the solver tolerance.
+    pressure_noise_std : float
+        Standard deviation of the logged pressure's noise [Pa] (0.002 MPa by default).
+    pressure_resolution : float
+        Quantisation step of the logged pressure [Pa] (0.0001 MPa by default).
 
     Returns
     -------
@@ -204,9 +280,15 @@ def simulate(
     coefficients = _CoefficientCache(config)
     c0 = coefficients.at(float(temperature.at(0.0)))
     delay = c0.delay
-    q_meter = _integrate(
-        applied, temperature, coefficients, time - delay, temperature_resolution, progress
+    # the meter reads q_m (or q) τ late; a pressure transmitter reads p on time: with the
+    # pressure, one integration evaluated at the union of both sets of times
+    delayed = np.round(time - delay, 12) if pressure else time - delay
+    wanted = np.unique(np.concatenate((delayed, time))) if pressure else delayed
+    states = _integrate(
+        applied, temperature, coefficients, wanted, temperature_resolution, progress
     )
+    q_meter = states[np.searchsorted(wanted, delayed), measured_state(c0)]
+    p_pump = states[np.searchsorted(wanted, time), _PRESSURE_STATE] if pressure else None
     meter = config.flowmeter
     std = meter.noise_std_Lpm / LPM_PER_M3S if noise_std is None else noise_std
     step = meter.resolution_Lpm / LPM_PER_M3S if resolution is None else resolution
@@ -214,13 +296,17 @@ def simulate(
         raise FuelidError("noise and resolution must not be negative")
     rng = np.random.default_rng(seed)
     q_measured = measure_flow(q_meter * LPM_PER_M3S, std * LPM_PER_M3S, step * LPM_PER_M3S, rng)
-    return SimulationResult(
+    result = SimulationResult(
         time=time,
         u=applied.at(time),
         q_meter=q_meter,
         q_measured=q_measured / LPM_PER_M3S,
         T_fuel=np.asarray(temperature.at(time), dtype=float) * np.ones_like(time),
+        p_pump=p_pump,
     )
+    if pressure:
+        return result.measure_pressure(pressure_noise_std, pressure_resolution, seed)
+    return result
 
 
 def integrate_held(x0: FloatArray, times: FloatArray, u: float, c: PlantCoefficients) -> FloatArray:
@@ -331,10 +417,10 @@ def _integrate(
     temperature_resolution: float,
     progress: ProgressCallback | None,
 ) -> FloatArray:
-    """Meter state q_m at the (sorted) times ``t_eval``; before t = 0 the plant is at rest."""
+    """The state at the (sorted) times ``t_eval``, shape (n, 5); before t = 0 it is at rest."""
     c = coefficients.at(float(temperature.at(0.0)))
     x = steady_state(float(profile.u[0]), c).state
-    out = np.full(t_eval.shape, x[measured_state(c)])
+    out = np.tile(x, (t_eval.size, 1))
     bounds = _segment_bounds(profile, temperature, temperature_resolution)
     total = float(bounds[-1])
     for a, b in itertools.pairwise(bounds):
@@ -344,13 +430,14 @@ def _integrate(
         # evaluation times closer than SNAP to a segment end count as that end (LSODA refuses
         # output times within rounding of its start)
         first, last = np.searchsorted(t_eval, [a - SNAP, b - SNAP], side="left")
-        meter_state = measured_state(c)  # without a meter lag the reading is the flow q
         at_start = first + int(np.searchsorted(t_eval[first:last], a + SNAP, side="left"))
-        out[first:at_start] = x[meter_state]
+        out[first:at_start] = x
         inside = t_eval[at_start:last]
         states = integrate_held(x, np.concatenate(([a], inside, [b])), u, c)
-        out[at_start:last] = states[1:-1, meter_state]
+        out[at_start:last] = states[1:-1]
         x = states[-1]
         if progress is not None:
             progress(b / total)
+    # times at the end of the run belong to no segment (each takes [a, b)): the final state
+    out[np.searchsorted(t_eval, total - SNAP, side="left") :] = x
     return out

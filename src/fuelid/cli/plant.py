@@ -15,6 +15,8 @@ from fuelid.cli.serve import serve_command
 if TYPE_CHECKING:
     from rich.table import Table
 
+    from fuelid.plant.config import PlantConfig
+
 app = typer.Typer(
     help="The plant's physics model: operating point and linearised model; the virtual PLC.",
     rich_markup_mode=None,
@@ -22,10 +24,19 @@ app = typer.Typer(
 app.command("serve")(serve_command)
 
 
+#: rows of the model's numbers that a calibration's covariance gives an uncertainty to
+_UNCERTAIN_ROWS = {
+    "K (static gain)": "K",
+    "T (process lag, fitted)": "T",
+    "98 % settling time": "settling_time",
+}
+
+
 def _table(summary: dict[str, Any]) -> Table:
     from rich.table import Table
 
     op, model = summary["operating_point"], summary["model"]
+    uncertainty: dict[str, Any] = summary.get("uncertainty") or {}
     table = Table(
         title=(
             f"plant {summary['plant']}: u = {summary['u']:g} V, "
@@ -35,6 +46,9 @@ def _table(summary: dict[str, Any]) -> Table:
     )
     table.add_column("quantity")
     table.add_column("value", justify="right")
+    if uncertainty:
+        table.add_column("± (1σ)", justify="right")
+        table.add_column("95 % interval", justify="right")
     table.add_column("unit")
     rows = [
         ("flow", op["flow"], "L/min", ".3f"),
@@ -54,8 +68,43 @@ def _table(summary: dict[str, Any]) -> Table:
         ("reduction RMS error", 100 * model["reduction_rms"], "% of K", ".3f"),
     ]
     for name, value, unit, fmt in rows:
-        table.add_row(name, format(value, fmt), unit)
+        if not uncertainty:
+            table.add_row(name, format(value, fmt), unit)
+            continue
+        spread = uncertainty.get(_UNCERTAIN_ROWS.get(name, ""))
+        if spread is None:
+            table.add_row(name, format(value, fmt), "", "", unit)
+        else:
+            lo, hi = spread["ci95"]
+            interval = f"{format(lo, fmt)} … {format(hi, fmt)}"
+            table.add_row(name, format(value, fmt), format(spread["stderr"], fmt), interval, unit)
+    calibration = summary.get("calibration")
+    if calibration:
+        span = calibration["fuel_temperature_range_C"]
+        logs = "" if span is None else f" (logs at {span[0]:g}…{span[1]:g} °C)"
+        table.caption = "± from the calibration of " + ", ".join(calibration["parameters"]) + logs
     return table
+
+
+def _add_uncertainty(
+    summary: dict[str, Any], plant: PlantConfig, u: float, T_fuel: float
+) -> list[str]:
+    """Put the calibration's uncertainty of K, T, settling time into ``summary``; the notes.
+
+    Without a covariance the ``calibration`` block is still given, ``uncertainty`` is null.
+    """
+    from fuelid.plant.uncertainty import calibration_summary, prediction_uncertainty
+
+    if plant.calibration is not None and plant.calibration.covariance is None:
+        summary["calibration"], notes = calibration_summary(plant, T_fuel)
+        summary["uncertainty"] = None
+        return [
+            "the [calibration] table has no covariance: K, T are shown without uncertainty",
+            *notes,
+        ]
+    spread = prediction_uncertainty(plant, u, T_fuel)
+    summary |= spread.to_json()
+    return list(spread.warnings)
 
 
 @app.command("info")
@@ -80,12 +129,24 @@ def info(
     The model is the equivalent K·e^(−τs)/((T·s+1)(T_f·s+1)): K the exact static gain of the
     linearised plant [(L/min)/V], T a least-squares fit of its step response [s], T_f and τ the
     flowmeter's [s]; the settling time is that of the full linearised plant (98 %).
+
+    When the plant file has a [calibration] table with a covariance, K, T and the settling time
+    also get a standard error and a 95 % interval (delta method over the calibrated parameters);
+    a note on stderr says when the fuel temperature is outside the calibration logs' range.
     """
     from fuelid.plant import load_plant_config
     from fuelid.workflow.plant_info import plant_info
 
-    result = plant_info(load_plant_config(config), celsius_to_kelvin(fuel_temp), u)
+    plant = load_plant_config(config)
+    T_fuel = celsius_to_kelvin(fuel_temp)
+    result = plant_info(plant, T_fuel, u)
     summary = result.to_json() | {"config": str(config) if config else "reference"}
+    if plant.calibration is not None:
+        notes = _add_uncertainty(summary, plant, result.u, T_fuel)
+        if notes:
+            summary["warnings"] = notes
+        for message in notes:
+            typer.echo(f"note: {message}", err=True)
     if as_json:
         options = {"config": str(config) if config else None, "fuel_temp": fuel_temp, "u": u}
         emit_json(summary | provenance(options, config))

@@ -11,14 +11,19 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from fuelid.cli._common import celsius_to_kelvin, emit_json, guarded, provenance
 from fuelid.errors import FuelidError
-from fuelid.units import LPM_PER_M3S
+from fuelid.units import LPM_PER_M3S, PA_PER_MPA
+
+if TYPE_CHECKING:
+    from fuelid.plant.config import PlantConfig
+    from fuelid.workflow.simulation import SimulationInputs, SimulationOutcome, SimulationRequest
 
 #: simulated time above which a progress bar is shown [s]
 PROGRESS_THRESHOLD = 600.0
@@ -104,8 +109,27 @@ def simulate_command(
     ] = None,
     seed: Annotated[int | None, typer.Option(help="Seed of noise and random profiles.")] = 0,
     truth: Annotated[
-        bool, typer.Option("--truth", help="Add q_true_Lpm, the noise-free meter reading.")
+        bool,
+        typer.Option(
+            "--truth",
+            help="Add q_true_Lpm, the noise-free meter reading (and p_true_MPa with --pressure).",
+        ),
     ] = False,
+    pressure: Annotated[
+        bool,
+        typer.Option(
+            "--pressure",
+            help="Also log p_pump_MPa, the pump outlet pressure (gauge) [MPa], sampled like the "
+            "flow but without the flowmeter's dead time.",
+        ),
+    ] = False,
+    pressure_noise_std: Annotated[
+        float, typer.Option(help="--pressure: noise std of the logged pressure [MPa].")
+    ] = 0.002,
+    pressure_resolution: Annotated[
+        float,
+        typer.Option(help="--pressure: quantisation step of the logged pressure [MPa]; 0: none."),
+    ] = 0.0001,
     force: Annotated[bool, typer.Option("--force", help="Overwrite an existing file.")] = False,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print a JSON summary instead of text.")
@@ -118,15 +142,23 @@ def simulate_command(
     step by default), 'steps' (each of --levels for --dwell s), 'random' (a random binary or
     multilevel sequence over --levels with minimum hold --hold s), 'file' (read from
     --input-file). The controller output is held for --control-period s (sample-and-hold).
+    With --pressure the log also has p_pump_MPa, the pump outlet pressure a transmitter reads.
     """
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
     from fuelid.io.files import check_output_path
+    from fuelid.io.timeseries import PRESSURE_COLUMN
     from fuelid.plant import load_plant_config
     from fuelid.workflow.simulation import SimulationRequest, simulate_log, simulation_inputs
 
     out = check_output_path(output, overwrite=force)
+    for name, value in (
+        ("--pressure-noise-std", pressure_noise_std),
+        ("--pressure-resolution", pressure_resolution),
+    ):
+        if not (math.isfinite(value) and value >= 0.0):
+            raise FuelidError(f"{name} must be zero or a positive number of MPa, got {value:g}")
     plant = load_plant_config(config)
     if profile is ProfileKind.file and input_file is None:
         raise FuelidError("--profile file needs --input-file")
@@ -162,14 +194,28 @@ def simulate_command(
         disable=quiet or as_json or inputs.duration < PROGRESS_THRESHOLD,
     ) as bar:
         task = bar.add_task("simulate", total=1.0)
-        outcome = simulate_log(
-            plant,
-            request,
-            inputs=inputs,
-            progress=lambda done: bar.update(task, completed=done),
-        )
-    outcome.to_log().write(out, overwrite=force)
+
+        def progress(done: float) -> None:
+            bar.update(task, completed=done)
+
+        if pressure:
+            outcome = _simulate_with_pressure(
+                plant,
+                request,
+                inputs,
+                progress,
+                pressure_noise_std * PA_PER_MPA,
+                pressure_resolution * PA_PER_MPA,
+            )
+        else:
+            outcome = simulate_log(plant, request, inputs=inputs, progress=progress)
+    log = outcome.to_log()
+    log.write(out, overwrite=force)
     summary = outcome.to_json(out)
+    if pressure:
+        p = log[PRESSURE_COLUMN]
+        summary["p_range"] = [float(p.min()), float(p.max())]
+        summary["units"] = summary["units"] | {"p_range": "MPa"}
     if as_json:
         options: dict[str, Any] = {
             "config": str(config) if config else None,
@@ -189,12 +235,52 @@ def simulate_command(
             "fuel_temp": fuel_temp,
             "fuel_temp_end": fuel_temp_end,
             "seed": seed,
+            "pressure": pressure,
+            "pressure_noise_std": pressure_noise_std,
+            "pressure_resolution": pressure_resolution,
         }
         emit_json(summary | provenance(options, input_file))
     else:
         u_range, q_range = summary["u_range"], summary["q_range"]
+        p_text = ""
+        if pressure:
+            p_lo, p_hi = summary["p_range"]
+            p_text = f", p {p_lo:.4f}…{p_hi:.4f} MPa"
         typer.echo(
             f"wrote {out}: {summary['n_samples']} samples every {sample_time:g} s over "
             f"{summary['duration']:g} s, u {u_range[0]:g}…{u_range[1]:g} V, "
-            f"q {q_range[0]:.2f}…{q_range[1]:.2f} L/min"
+            f"q {q_range[0]:.2f}…{q_range[1]:.2f} L/min{p_text}"
         )
+
+
+def _simulate_with_pressure(
+    plant: PlantConfig,
+    request: SimulationRequest,
+    inputs: SimulationInputs,
+    progress: Callable[[float], None],
+    noise_std: float,
+    resolution: float,
+) -> SimulationOutcome:
+    """:func:`~fuelid.workflow.simulation.simulate_log`, also logging the pump pressure.
+
+    The request has no pressure settings, so the run is made here with the same settings as
+    ``simulate_log`` and ``pressure=True`` (noise std and resolution in Pa).
+    """
+    from fuelid.simulate import simulate
+    from fuelid.workflow.simulation import SimulationOutcome
+
+    result = simulate(
+        plant,
+        inputs.profile,
+        T_fuel=inputs.T_fuel,
+        sample_time=request.sample_time,
+        control_period=request.control_period,
+        noise_std=request.noise_std,
+        resolution=request.resolution,
+        seed=request.seed,
+        progress=progress,
+        pressure=True,
+        pressure_noise_std=noise_std,
+        pressure_resolution=resolution,
+    )
+    return SimulationOutcome(request=request, inputs=inputs, result=result)

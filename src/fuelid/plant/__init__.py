@@ -3,15 +3,31 @@
 - :mod:`~fuelid.plant.vfd`, :mod:`~fuelid.plant.motor`, :mod:`~fuelid.plant.shaft`,
   :mod:`~fuelid.plant.pump`, :mod:`~fuelid.plant.pipeline`, :mod:`~fuelid.plant.nozzle`,
   :mod:`~fuelid.plant.flowmeter`: physics functions (SI) and each component's config section;
-- :mod:`~fuelid.plant.config`: the whole plant's TOML file;
+- :mod:`~fuelid.plant.config`: the whole plant's TOML file (and its ``[calibration]`` record);
+- :mod:`~fuelid.plant.parameters`: the registry of its numeric parameters by dotted name;
 - :mod:`~fuelid.plant.system`: coefficients, nonlinear ODE, operating point;
-- :mod:`~fuelid.plant.linear`: linearisation and reduction to the model family.
+- :mod:`~fuelid.plant.linear`: linearisation and reduction to the model family;
+- :mod:`~fuelid.plant.uncertainty`: the calibration's covariance propagated to K, T, settling.
 """
 
 from __future__ import annotations
 
-from fuelid.plant.config import PlantConfig, load_plant_config
+from fuelid.plant.config import (
+    CalibrationLog,
+    CalibrationRecord,
+    PlantConfig,
+    calibrated_temperature_range,
+    load_plant_config,
+    plant_config_from_dict,
+)
 from fuelid.plant.linear import EquivalentModel, LinearPlant, linearise
+from fuelid.plant.parameters import (
+    PlantParameter,
+    get_parameter,
+    parameter_names,
+    plant_parameters,
+    with_parameters,
+)
 from fuelid.plant.system import (
     OperatingPoint,
     PlantCoefficients,
@@ -20,17 +36,29 @@ from fuelid.plant.system import (
     plant_jacobian,
     plant_rhs,
 )
+from fuelid.plant.uncertainty import PredictionUncertainty, prediction_uncertainty
 
 __all__ = [
+    "CalibrationLog",
+    "CalibrationRecord",
     "EquivalentModel",
     "LinearPlant",
     "OperatingPoint",
     "PlantCoefficients",
     "PlantConfig",
+    "PlantParameter",
+    "PredictionUncertainty",
+    "calibrated_temperature_range",
+    "get_parameter",
     "linearise",
     "load_plant_config",
     "operating_point",
+    "parameter_names",
     "plant_coefficients",
+    "plant_config_from_dict",
     "plant_jacobian",
+    "plant_parameters",
     "plant_rhs",
+    "prediction_uncertainty",
+    "with_parameters",
 ]

@@ -1,0 +1,32 @@
+"""Nonlinear gray-box estimation: fit the parameters of an ODE model to records by output error.
+
+The user (or :mod:`fuelid.calibration` for the fuel plant) writes the model; the estimator
+integrates it with its forward sensitivities, fits one or several records at once, and says what
+the data determine (:mod:`fuelid.greybox.identifiability`).
+"""
+
+from fuelid.greybox.estimator import (
+    ConvergenceError,
+    GreyBoxEstimator,
+    NotIdentifiableError,
+    fit_percent,
+)
+from fuelid.greybox.identifiability import IdentifiabilityReport, identifiability
+from fuelid.greybox.odemodel import OdeModel
+from fuelid.greybox.parameters import ParameterSpec, parameter_specs
+from fuelid.greybox.system import GreyBoxModel, OdeSystem, Record
+
+__all__ = [
+    "ConvergenceError",
+    "GreyBoxEstimator",
+    "GreyBoxModel",
+    "IdentifiabilityReport",
+    "NotIdentifiableError",
+    "OdeModel",
+    "OdeSystem",
+    "ParameterSpec",
+    "Record",
+    "fit_percent",
+    "identifiability",
+    "parameter_specs",
+]

@@ -1,0 +1,321 @@
+"""A gray-box model from plain functions ``f(t, x, u, p)``, ``h(x, u, p)``, ``x0(p, u0, y0)``.
+
+The Jacobians the sensitivity equations need are finite differences of ``f`` and ``h`` (cheap
+function calls, not simulations). When ``f`` is written with numpy operations it is called once per
+step on a batch of perturbed states and parameters (each column one perturbation); a function that
+only takes scalars (``math.sqrt``, ``max``, an ``if`` on a state) is detected at the first call and
+evaluated column by column instead.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.optimize
+from numpy.typing import NDArray
+
+from fuelid.errors import ConfigError
+from fuelid.greybox.parameters import ParameterSpec
+from fuelid.greybox.system import Record
+
+FloatArray = NDArray[np.float64]
+RhsFunction = Callable[[float, Any, Any, Mapping[str, Any]], Any]
+OutputFunction = Callable[[Any, Any, Mapping[str, Any]], Any]
+InitialStateFunction = Callable[[Mapping[str, Any], Any, Any], Any]
+_STEP = 1.5e-8  # ≈ √ε: the forward-difference step relative to the variable's size
+
+
+def _steps(values: FloatArray, floor: FloatArray | float) -> FloatArray:
+    return _STEP * np.maximum(np.abs(values), floor)
+
+
+def _call_batch(
+    function: Callable[..., Any], columns: int, n_out: int, *args: Any
+) -> FloatArray | None:
+    """Call a user function on a batch; None when it does not broadcast over columns.
+
+    A list with one entry per output may mix arrays and constants (``[x[1], 0.0]``): each entry
+    is broadcast over the columns.
+    """
+    out: FloatArray
+    try:
+        with np.errstate(all="ignore"):
+            raw = function(*args)
+        if isinstance(raw, list | tuple) and len(raw) == n_out:
+            out = np.empty((n_out, columns))
+            for i, row in enumerate(raw):
+                out[i] = row
+        else:
+            out = np.asarray(raw, dtype=np.float64)
+    except (TypeError, ValueError, IndexError):
+        return None
+    if out.shape == (n_out, columns):
+        return out
+    if n_out == 1 and out.shape == (columns,):
+        return out.reshape(1, columns)
+    return None
+
+
+@dataclass
+class _BatchMode:
+    f_vectorised: bool | None = None
+    h_vectorised: bool | None = None
+
+
+class FunctionSystem:
+    """An :class:`~fuelid.greybox.system.OdeSystem` of user functions, Jacobians by differences."""
+
+    def __init__(self, model: OdeModel, values: Mapping[str, float], free: Sequence[str]) -> None:
+        self.model = model
+        self.values = dict(values)
+        self.free = tuple(free)
+        self.n_states = len(model.state_names)
+        self.n_outputs = len(model.output_names)
+        self.atol = np.full(self.n_states, model.atol)
+        self.output_delay: float | FloatArray = 0.0
+        theta = np.array([self.values[name] for name in self.free], dtype=float)
+        self._theta_steps = _steps(theta, 1.0) if len(theta) else np.zeros(0)
+        self._mode = model._mode
+        # the batch layout is the same at every call: build it once
+        n, p = self.n_states, len(self.free)
+        self._columns = 1 + n + p
+        self._batch_values = self._batch_parameters(1 + n)
+        self._batch_states = np.empty((n, self._columns))
+        self._state_columns = 1 + np.arange(n)
+        self._rows = np.arange(n)
+        self._all_steps = np.empty(n + p)
+        self._all_steps[n:] = self._theta_steps
+        self._state_scale = float(model.state_scale)
+        self._last: tuple[float, bytes, FloatArray] | None = None
+
+    # --- batches of perturbed parameters --------------------------------------------------------
+    def _batch_parameters(self, leading: int) -> dict[str, Any]:
+        """Parameters for [leading unperturbed columns, then one column per free parameter]."""
+        columns = leading + len(self.free)
+        batch: dict[str, Any] = {}
+        for name, value in self.values.items():
+            if name in self.free:
+                column = np.full(columns, value)
+                j = self.free.index(name)
+                column[leading + j] += self._theta_steps[j]
+                batch[name] = column
+            else:
+                batch[name] = value
+        return batch
+
+    def _perturbed_values(self, j: int) -> dict[str, float]:
+        values = dict(self.values)
+        values[self.free[j]] += float(self._theta_steps[j])
+        return values
+
+    def _f(self, t: float, x: FloatArray, u: FloatArray, values: Mapping[str, Any]) -> FloatArray:
+        with np.errstate(all="ignore"):
+            return np.asarray(self.model.f(t, x, u, values), dtype=float).reshape(self.n_states)
+
+    # --- OdeSystem ------------------------------------------------------------------------------
+    def derivatives(
+        self, t: float, x: FloatArray, u: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """f, ∂f/∂x and ∂f/∂θ by forward differences (one batched call when f broadcasts)."""
+        n, p = self.n_states, len(self.free)
+        dx_steps = _STEP * np.maximum(np.abs(x), self._state_scale)
+        if self._mode.f_vectorised is not False:
+            states = self._batch_states
+            states[...] = x[:, None]
+            states[self._rows, self._state_columns] += dx_steps
+            out = _call_batch(self.model.f, self._columns, n, t, states, u, self._batch_values)
+            if self._mode.f_vectorised is None:
+                self._mode.f_vectorised = out is not None and self._agrees(t, x, u, out, dx_steps)
+            if self._mode.f_vectorised and out is not None:
+                base = out[:, 0].copy()
+                steps = self._all_steps
+                steps[:n] = dx_steps
+                jac = (out[:, 1:] - base[:, None]) / steps
+                jac_x = jac[:, :n]
+                self._last = (t, x.tobytes(), jac_x)
+                return base, jac_x, jac[:, n:]
+        base = self._f(t, x, u, self.values)
+        jac_x = np.empty((n, n))
+        for i in range(n):
+            shifted = x.copy()
+            shifted[i] += dx_steps[i]
+            jac_x[:, i] = (self._f(t, shifted, u, self.values) - base) / dx_steps[i]
+        jac_theta = np.empty((n, p))
+        for j in range(p):
+            jac_theta[:, j] = (self._f(t, x, u, self._perturbed_values(j)) - base) / (
+                self._theta_steps[j]
+            )
+        self._last = (t, x.tobytes(), jac_x)
+        return base, jac_x, jac_theta
+
+    def _agrees(
+        self, t: float, x: FloatArray, u: FloatArray, out: FloatArray, dx_steps: FloatArray
+    ) -> bool:
+        """Check a batched call against scalar calls once (a function may broadcast wrongly)."""
+        base = self._f(t, x, u, self.values)
+        shifted = x.copy()
+        shifted[0] += dx_steps[0]
+        first = self._f(t, shifted, u, self.values)
+        return bool(
+            np.allclose(out[:, 0], base, rtol=1e-12, atol=0.0, equal_nan=True)
+            and np.allclose(out[:, 1], first, rtol=1e-12, atol=0.0, equal_nan=True)
+        )
+
+    def state_jacobian(self, t: float, x: FloatArray, u: FloatArray) -> FloatArray:
+        """∂f/∂x (the one the last :meth:`derivatives` call at this point computed)."""
+        if self._last is not None and self._last[0] == t and self._last[1] == x.tobytes():
+            return self._last[2]
+        return self.derivatives(t, x, u)[1]
+
+    def _h(self, x: FloatArray, u: FloatArray, values: Mapping[str, Any]) -> FloatArray:
+        """Outputs for states x (N × n), inputs u (N × n_u): shape (N, n_y)."""
+        n_samples = len(x)
+        if self._mode.h_vectorised is not False:
+            out = _call_batch(self.model.h, n_samples, self.n_outputs, x.T, u.T, values)
+            if self._mode.h_vectorised is None and out is not None:
+                scalar = self._h_loop(x[:2], u[:2], values)
+                self._mode.h_vectorised = bool(
+                    np.allclose(out[:, :2].T, scalar, rtol=1e-12, atol=0.0, equal_nan=True)
+                )
+            elif out is None:
+                self._mode.h_vectorised = False
+            if self._mode.h_vectorised and out is not None:
+                return out.T
+        return self._h_loop(x, u, values)
+
+    def _h_loop(self, x: FloatArray, u: FloatArray, values: Mapping[str, Any]) -> FloatArray:
+        with np.errstate(all="ignore"):
+            rows = [
+                np.asarray(self.model.h(x_k, u_k, values), dtype=float).reshape(self.n_outputs)
+                for x_k, u_k in zip(x, u, strict=True)
+            ]
+        return np.array(rows).reshape(len(x), self.n_outputs)
+
+    def outputs(self, x: FloatArray, u: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """y, ∂y/∂x and ∂y/∂θ at every sample (differences over whole columns of samples)."""
+        n_samples, n, p = len(x), self.n_states, len(self.free)
+        y = self._h(x, u, self.values)
+        dy_dx = np.empty((n_samples, self.n_outputs, n))
+        steps = _steps(x, self.model.state_scale)
+        for i in range(n):
+            shifted = x.copy()
+            shifted[:, i] += steps[:, i]
+            dy_dx[:, :, i] = (self._h(shifted, u, self.values) - y) / steps[:, i, None]
+        dy_dtheta = np.empty((n_samples, self.n_outputs, p))
+        for j in range(p):
+            changed = self._h(x, u, self._perturbed_values(j))
+            dy_dtheta[:, :, j] = (changed - y) / self._theta_steps[j]
+        return y, dy_dx, dy_dtheta
+
+    def initial_state(self, u0: FloatArray, y0: FloatArray) -> tuple[FloatArray, FloatArray] | None:
+        """x0(p, u0, y0) and its θ-derivative when the model defines x0."""
+        x0_function = self.model.x0
+        if x0_function is None:
+            return None
+
+        def evaluate(values: Mapping[str, float]) -> FloatArray:
+            out: FloatArray = np.asarray(x0_function(values, u0, y0), dtype=np.float64).reshape(-1)
+            if out.shape != (self.n_states,):
+                raise ConfigError(
+                    f"x0 returned {out.size} values for {self.n_states} states "
+                    f"({', '.join(self.model.state_names)})"
+                )
+            return out
+
+        base = evaluate(self.values)
+        jac = np.empty((self.n_states, len(self.free)))
+        for j in range(len(self.free)):
+            jac[:, j] = (evaluate(self._perturbed_values(j)) - base) / self._theta_steps[j]
+        return base, jac
+
+
+def _identity_output(x: Any, u: Any, p: Mapping[str, Any]) -> Any:
+    return x[0]
+
+
+class OdeModel:
+    """A continuous-time gray-box model written as plain functions.
+
+    Parameters
+    ----------
+    f : callable
+        ``f(t, x, u, p)`` → dx/dt; ``x`` and ``u`` arrays, ``p`` a mapping name → value.
+    parameters : sequence of ParameterSpec
+        The parameters, with start values, bounds and fixed flags.
+    state_names : sequence of str
+        One name per state.
+    h : callable, optional
+        ``h(x, u, p)`` → the measured output(s); default: the first state.
+    x0 : callable, optional
+        ``x0(p, u0, y0)`` → the initial state from the parameters and the first input and output;
+        without it the initial state of every record is estimated.
+    output_names : sequence of str, optional
+        One per output (default ``y1, y2, …``; ``y`` for one).
+    state_scale : float
+        Typical size of a state (finite-difference steps and tolerances scale with it).
+
+    Examples
+    --------
+    >>> model = OdeModel(
+    ...     f=lambda t, x, u, p: [-x[0] / p["tau"] + p["k"] * u[0] / p["tau"]],
+    ...     parameters=[ParameterSpec("k", 1.0, 0.0), ParameterSpec("tau", 2.0, 0.0)],
+    ...     state_names=["y"],
+    ... )
+    >>> model.output_names
+    ('y',)
+    """
+
+    def __init__(
+        self,
+        f: RhsFunction,
+        parameters: Sequence[ParameterSpec],
+        state_names: Sequence[str],
+        h: OutputFunction | None = None,
+        x0: InitialStateFunction | None = None,
+        output_names: Sequence[str] | None = None,
+        n_outputs: int = 1,
+        state_scale: float = 1.0,
+    ) -> None:
+        self.f = f
+        self.h = h if h is not None else _identity_output
+        self.x0 = x0
+        self.parameters = tuple(parameters)
+        self.state_names = tuple(state_names)
+        if output_names is None:
+            output_names = ["y"] if n_outputs == 1 else [f"y{i + 1}" for i in range(n_outputs)]
+        self.output_names = tuple(output_names)
+        self.state_scale = float(state_scale)
+        self.atol = 1e-9 * self.state_scale
+        self._mode = _BatchMode()
+        names = [spec.name for spec in self.parameters]
+        if len(set(names)) != len(names):
+            raise ConfigError(f"parameter names repeat: {', '.join(names)}")
+        if not self.state_names:
+            raise ConfigError("the model has no states")
+
+    def bind(
+        self, values: Mapping[str, float], free: Sequence[str], record: Record
+    ) -> FunctionSystem:
+        """The model at ``values`` (θ = the ``free`` ones) for ``record``."""
+        return FunctionSystem(self, values, free)
+
+    def steady_state_guess(self, values: Mapping[str, float], record: Record) -> FloatArray:
+        """The state where f(x, u0) = 0 nearest the state scale (least squares); else all ones."""
+        u0 = record.u[0]
+        n = len(self.state_names)
+        start = np.full(n, self.state_scale)
+
+        def residual(x: FloatArray) -> FloatArray:
+            with np.errstate(all="ignore"):
+                out = np.asarray(self.f(record.t[0], x, u0, values), dtype=float).reshape(n)
+            return np.where(np.isfinite(out), out, 1e6)
+
+        try:
+            solution = scipy.optimize.least_squares(residual, start, method="lm", max_nfev=2000)
+        except (ValueError, TypeError, ArithmeticError):
+            return start
+        guess = np.asarray(solution.x, dtype=float)
+        return guess if np.all(np.isfinite(guess)) else start

@@ -1,0 +1,229 @@
+"""Simulate a record and its forward sensitivities in one integration.
+
+With S = ∂x/∂φ (φ the optimiser's parameters: the free θ, in log space where positive, then the
+estimated initial state) the forward sensitivity equations are
+
+    dS/dt = ∂f/∂x · S + [∂f/∂θ · diag(∂θ/∂φ) | 0],     S(t0) = [∂x0/∂θ · diag(∂θ/∂φ) | I or 0]
+
+integrated together with the state, so one simulation gives the output and its whole Jacobian
+∂y/∂φ = ∂y/∂x · S + ∂y/∂φ|direct, instead of one simulation per parameter. The inputs are held
+between samples, so the span is integrated piece by piece between input changes with LSODA
+(:func:`scipy.integrate.odeint`), which turns to BDF when fast modes make the problem stiff; its
+Newton matrix is block-diagonal, ∂f/∂x for the state and ∂f/∂x ⊗ I for the row-major S (the
+exact Jacobian of the sensitivity rows also has ∂²f/∂x² terms, which only speed the corrector up
+and do not change the solution).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.integrate
+from numpy.typing import NDArray
+
+from fuelid.errors import FuelidError
+from fuelid.greybox.system import OdeSystem, Record
+
+FloatArray = NDArray[np.float64]
+RTOL = 1e-6
+MAX_STEPS = 50_000
+SENSITIVITY_ATOL_FACTOR = 1e3
+"""Absolute tolerance of a sensitivity row over its state's (per unit of log θ or of θ)."""
+_SOLVED = "Integration successful."
+
+
+class SimulationError(FuelidError):
+    """The ODE could not be integrated at these parameter values."""
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """States, outputs and their sensitivities at a record's output times."""
+
+    states: FloatArray
+    """x at t_k − output_delay (the first output's delay when outputs have their own), (N, n)."""
+    outputs: FloatArray
+    """Predicted y, shape (N, n_y)."""
+    output_sensitivity: FloatArray | None
+    """∂y/∂φ, shape (N, n_y, q); None when not asked for."""
+    evaluations: int = 0
+    """Right-hand-side evaluations the solver used."""
+
+
+def input_changes(u: FloatArray) -> NDArray[np.intp]:
+    """Indices where a held input starts: 0 and every sample whose input differs from the last."""
+    changed = np.any(u[1:] != u[:-1], axis=1)
+    return np.concatenate(([0], np.flatnonzero(changed) + 1))
+
+
+def simulate_record(
+    system: OdeSystem,
+    record: Record,
+    x0: FloatArray,
+    s0: FloatArray | None = None,
+    theta_scale: FloatArray | None = None,
+    max_evaluations: int | None = None,
+    rtol: float = RTOL,
+) -> Trajectory:
+    """Integrate ``system`` over ``record`` from ``x0`` (with sensitivities when ``s0`` is given).
+
+    Parameters
+    ----------
+    system : OdeSystem
+        The model bound to θ and this record.
+    record : Record
+        Times and held inputs (its outputs are not read).
+    x0 : ndarray, shape (n,)
+        State at the first sample time (and before it, for a delayed output).
+    s0 : ndarray, shape (n, q), optional
+        ∂x0/∂φ; its first p columns belong to θ (scaled by ``theta_scale``), the rest to the
+        estimated initial state. None: no sensitivities.
+    theta_scale : ndarray, shape (p,), optional
+        ∂θ/∂φ for the free parameters (θ for those in log space, 1 otherwise).
+    max_evaluations : int, optional
+        Give up (SimulationError) after this many right-hand-side evaluations: a trial point
+        where the solution chatters (a tank running dry under √x, say) costs no more than this.
+    rtol : float
+        Relative tolerance on the state (the absolute one is ``system.atol``).
+
+    Returns
+    -------
+    Trajectory
+
+    Raises
+    ------
+    SimulationError
+        If the solver fails or the state becomes non-finite.
+    """
+    n = system.n_states
+    t, u = record.t, record.u
+    n_samples = len(t)
+    with_sens = s0 is not None
+    q = 0 if s0 is None else s0.shape[1]
+    scale = np.ones(0) if theta_scale is None else np.asarray(theta_scale, dtype=float)
+    p = len(scale)
+    width = n * (1 + q)
+    # each distinct output delay reads the state at its own times: integrate to all of them
+    delays = np.atleast_1d(np.asarray(system.output_delay, dtype=float))
+    distinct = np.unique(delays)
+    eval_times, inverse = np.unique(
+        np.concatenate([t - delay for delay in distinct]), return_inverse=True
+    )
+    z_at = np.empty((len(eval_times), width))
+    z = np.concatenate([x0, (s0 if s0 is not None else np.zeros((n, 0))).ravel()])
+    # samples read before the first time see the initial state (the plant was at rest there)
+    before = eval_times <= t[0]
+    z_at[before] = z
+    starts = input_changes(u)
+    ends = np.append(starts[1:], n_samples)
+    # the sensitivities are error-controlled, loosely: without any control LSODA's Adams mode
+    # takes the huge steps a state at rest allows and the sensitivity rows (which share the
+    # state's fast modes) go unstable, which the state's error test never sees
+    state_atol = np.broadcast_to(np.asarray(system.atol, dtype=float), (n,))
+    atol = np.concatenate([state_atol, np.tile(SENSITIVITY_ATOL_FACTOR * state_atol, q)])
+
+    if with_sens:
+        dz = np.empty(width)
+        dsens = dz[n:].reshape(n, q)
+
+        def rhs(t_now: float, z_now: FloatArray, u_now: FloatArray) -> FloatArray:
+            dx, jac_x, jac_theta = system.derivatives(t_now, z_now[:n], u_now)
+            dz[:n] = dx
+            np.matmul(jac_x, z_now[n:].reshape(n, q), out=dsens)
+            if p:
+                dsens[:, :p] += jac_theta * scale
+            return dz
+
+    else:
+
+        def rhs(t_now: float, z_now: FloatArray, u_now: FloatArray) -> FloatArray:
+            return system.derivatives(t_now, z_now, u_now)[0]
+
+    newton_matrix = np.zeros((width, width))
+    identity_q = np.eye(q)
+
+    def newton(t_now: float, z_now: FloatArray, u_now: FloatArray) -> FloatArray:
+        jac_x = system.state_jacobian(t_now, z_now[:n], u_now)
+        if not with_sens:
+            return jac_x
+        # z = [x, S raveled by rows]: d vec(S)/dt = (∂f/∂x ⊗ I_q)·vec(S) + …
+        newton_matrix[:n, :n] = jac_x
+        newton_matrix[n:, n:] = np.kron(jac_x, identity_q)
+        return newton_matrix
+
+    evaluations = 0
+    for start, end in zip(starts.tolist(), ends.tolist(), strict=True):
+        if max_evaluations is not None and evaluations > max_evaluations:
+            raise SimulationError(
+                f"the ODE needed more than {max_evaluations} evaluations by {t[start]:g} s "
+                "(the solution chatters or is very stiff at these parameters)"
+            )
+        t_start = t[start]
+        t_end = t[end] if end < n_samples else t[-1] + (t[-1] - t[-2])
+        inside = np.flatnonzero((eval_times > t_start) & (eval_times <= t_end))
+        if not len(inside) and end >= n_samples:
+            break
+        times = np.concatenate(([t_start], eval_times[inside]))
+        if times[-1] < t_end and end < n_samples:
+            times = np.append(times, t_end)
+        try:
+            with warnings.catch_warnings(), np.errstate(all="ignore"):
+                warnings.simplefilter("ignore", scipy.integrate.ODEintWarning)
+                solution, info = scipy.integrate.odeint(
+                    rhs,
+                    z,
+                    times,
+                    args=(u[start],),
+                    Dfun=newton,
+                    tfirst=True,
+                    rtol=rtol,
+                    atol=atol,
+                    mxstep=MAX_STEPS,
+                    full_output=True,
+                )
+        except FuelidError:
+            raise
+        except (ArithmeticError, ValueError) as exc:
+            # the model's own arithmetic failed (math.sqrt of a negative state, say): a point
+            # where it cannot be simulated, like a solver failure
+            raise SimulationError(
+                f"the model raised {type(exc).__name__} ({exc}) on {t_start:g}…{t_end:g} s"
+            ) from exc
+        if info["message"] != _SOLVED or not np.all(np.isfinite(solution)):
+            raise SimulationError(
+                f"the ODE solver failed on {t_start:g}…{t_end:g} s: {info['message']}"
+            )
+        evaluations += int(info["nfe"][-1])
+        z_at[inside] = solution[1 : 1 + len(inside)]
+        z = solution[-1]
+    # the input in effect at each (delayed) output time
+    held_at = np.clip(np.searchsorted(t, eval_times, side="right") - 1, 0, n_samples - 1)
+    parts = []
+    for k, delay in enumerate(distinct):
+        rows = inverse[k * n_samples : (k + 1) * n_samples]
+        z_k = z_at[rows]
+        with np.errstate(all="ignore"):
+            y_k, dy_dx, dy_dtheta = system.outputs(z_k[:, :n], u[held_at[rows]])
+        dy_k = None
+        if with_sens:
+            sens = z_k[:, n:].reshape(n_samples, n, q)
+            dy_k = np.einsum("kyn,knq->kyq", dy_dx, sens)
+            if p:
+                dy_k[:, :, :p] += dy_dtheta * scale
+        parts.append((delay, z_k[:, :n], y_k, dy_k))
+    if len(parts) == 1:
+        _, states, y, dy = parts[0]
+        return Trajectory(states, y, dy, evaluations)
+    # several delays: each output column from the states at its own delay
+    per_output = np.broadcast_to(delays, (parts[0][2].shape[1],))
+    states = next(states for delay, states, _, _ in parts if delay == per_output[0])
+    y = np.empty_like(parts[0][2])
+    dy = None if not with_sens else np.empty_like(parts[0][3])
+    for delay, _, y_k, dy_k in parts:
+        columns = per_output == delay
+        y[:, columns] = y_k[:, columns]
+        if dy is not None and dy_k is not None:
+            dy[:, columns] = dy_k[:, columns]
+    return Trajectory(states, y, dy, evaluations)
