@@ -132,8 +132,8 @@ class PlantGreyBox:
         registry = plant_parameters(config)
         self.config = config
         self.with_pressure = with_pressure
-        self.state_names = STATE_NAMES
-        self.output_names = ("flow", "pressure") if with_pressure else ("flow",)
+        self.state_names: tuple[str, ...] = STATE_NAMES
+        self.output_names: tuple[str, ...] = ("flow", "pressure") if with_pressure else ("flow",)
         self.state_scale = 1.0
         self.parameters = tuple(
             ParameterSpec(

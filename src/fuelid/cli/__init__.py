@@ -12,6 +12,7 @@ import typer
 
 from fuelid import __version__
 from fuelid.cli import online, plant, site
+from fuelid.cli.calibrate import calibrate_command
 from fuelid.cli.greybox import greybox_command
 from fuelid.cli.identify import identify_command
 from fuelid.cli.record import export_command, record_command, store_app
@@ -32,6 +33,7 @@ app.add_typer(plant.app, name="plant")
 app.add_typer(site.app, name="site")
 app.command("simulate")(simulate_command)
 app.command("identify")(identify_command)
+app.command("calibrate")(calibrate_command)
 app.command("greybox")(greybox_command)
 app.command("tune")(tune_command)
 app.command("report")(report_command)

@@ -108,8 +108,10 @@ def simulate_record(
     # each distinct output delay reads the state at its own times: integrate to all of them
     delays = np.atleast_1d(np.asarray(system.output_delay, dtype=float))
     distinct = np.unique(delays)
+    # (to the nanosecond: t − 0.2 and t − 0 for the next sample must be one output time, not
+    # two 1e-14 s apart, which LSODA refuses as illegal input)
     eval_times, inverse = np.unique(
-        np.concatenate([t - delay for delay in distinct]), return_inverse=True
+        np.round(np.concatenate([t - delay for delay in distinct]), 9), return_inverse=True
     )
     z_at = np.empty((len(eval_times), width))
     z = np.concatenate([x0, (s0 if s0 is not None else np.zeros((n, 0))).ravel()])

@@ -1,0 +1,384 @@
+"""Calibrate chosen physical parameters of a plant file from logs, by output error on the ODE.
+
+Each log is one record at its own fuel temperature (from ``--fuel-temp`` or the log's
+fuel-temperature column); it starts at rest at its first command. The fit, its covariance and
+the identifiability report come from :class:`~fuelid.greybox.GreyBoxEstimator` on
+:class:`~fuelid.calibration.plant_model.PlantGreyBox`. The last ``holdout`` share of each log is
+left out of the fit and predicted by simulating the whole log from its start: the held-out fit %.
+A request the data cannot answer (a combination of parameters they leave undetermined, or two
+whose sensitivities correlate above 0.999) is refused with the names and what data would help.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import math
+import time
+import tomllib
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fuelid import __version__
+from fuelid.calibration.plant_model import FUEL_TEMPERATURE_KEY, NOT_CALIBRATABLE, PlantGreyBox
+from fuelid.errors import ConfigError, DataError, FuelidError
+from fuelid.greybox import GreyBoxEstimator, Record, fit_percent
+from fuelid.greybox.estimator import NotIdentifiableError
+from fuelid.io.logs import load_log
+from fuelid.io.plantfile import update_plant_toml
+from fuelid.io.timeseries import INPUT_COLUMN, OUTPUT_COLUMN, TIME_COLUMN
+from fuelid.plant.config import REFERENCE_PLANT, PlantConfig, plant_config_from_dict
+from fuelid.plant.parameters import check_parameter_names, plant_parameters, with_parameters
+from fuelid.units import T0 as KELVIN
+
+FloatArray = NDArray[np.float64]
+METHOD = "output error on the nonlinear plant ODE (forward sensitivities), fuelid calibrate"
+TEMPERATURE_SPREAD_K = 1.0
+"""A log whose fuel temperature spans more than this is calibrated at its mean, with a warning."""
+SEPARATE_TEMPERATURES_K = 5.0
+"""Logs this far apart in fuel temperature separate the viscosity-dependent parameters."""
+
+
+class CalibrationRefused(FuelidError):
+    """The data cannot support the requested calibration (names and advice in the message)."""
+
+
+@dataclass(frozen=True)
+class CalibrationLog:
+    """One log, loaded: its record (flow, and pressure when logged) and where it came from."""
+
+    path: Path
+    sha256: str
+    record: Record
+    fuel_temperature_C: float
+    notes: tuple[str, ...] = ()
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def load_calibration_log(
+    path: str | Path,
+    *,
+    fuel_temp_C: float | None = None,
+    time_col: str | None = TIME_COLUMN,
+    input_col: str = INPUT_COLUMN,
+    output_col: str = OUTPUT_COLUMN,
+    pressure_col: str | None = None,
+    sample_time: float | None = None,
+) -> CalibrationLog:
+    """Read a log for calibration.
+
+    Parameters
+    ----------
+    path : str or Path
+        CSV or Parquet log, as ``fuelid identify`` reads it.
+    fuel_temp_C : float, optional
+        The log's fuel temperature [°C]; default the mean of its fuel-temperature column.
+    time_col, input_col, output_col, sample_time
+        As for ``fuelid identify``; the output is the flow [L/min], the input the command [V].
+    pressure_col : str, optional
+        Column of the pump outlet pressure [MPa] (gauge), a second output.
+
+    Raises
+    ------
+    DataError
+        If the log has no fuel temperature and none is given, or cannot be read.
+    """
+    file = Path(path)
+    flow = load_log(
+        file, time_col=time_col, input_col=input_col, output_col=output_col,
+        sample_time=sample_time,
+    )  # fmt: skip
+    notes = list(flow.notes)
+    n = flow.n_samples
+    if flow.segment_starts:
+        n = flow.segment_starts[0]
+        notes.append(
+            f"{file.name}: the log has gaps; only its first stretch ({n} samples) is used "
+            "(a stretch after a gap does not start at rest)"
+        )
+    columns = [flow.y[:n]]
+    if pressure_col is not None:
+        pressure = load_log(
+            file, time_col=time_col, input_col=input_col, output_col=pressure_col,
+            sample_time=sample_time,
+        )  # fmt: skip
+        if pressure.n_samples < n:
+            raise DataError(f"{file.name}: the pressure column {pressure_col!r} has fewer samples")
+        columns.append(pressure.y[:n])
+    if fuel_temp_C is None:
+        if flow.T_fuel is None:
+            raise DataError(
+                f"{file.name} has no fuel-temperature column: give its fuel temperature "
+                "(--fuel-temp, one value per log); the plant's viscosity and density depend on it"
+            )
+        temps = flow.T_fuel[:n] - KELVIN
+        fuel_temp_C = float(np.mean(temps))
+        if float(np.ptp(temps)) > TEMPERATURE_SPREAD_K:
+            notes.append(
+                f"{file.name}: the fuel temperature spans {np.ptp(temps):.1f} K; the log is "
+                f"calibrated at its mean {fuel_temp_C:.1f} °C"
+            )
+    if not math.isfinite(fuel_temp_C):
+        raise DataError(f"{file.name}: the fuel temperature is not a number")
+    record = Record.from_arrays(
+        flow.t[:n],
+        flow.u[:n],
+        np.column_stack(columns),
+        name=file.name,
+        context={FUEL_TEMPERATURE_KEY: fuel_temp_C + KELVIN},
+    )
+    return CalibrationLog(file, _sha256(file), record, fuel_temp_C, tuple(notes))
+
+
+@dataclass
+class CalibrationResult:
+    """The calibrated parameters, their uncertainty and how well the plant now fits."""
+
+    config: PlantConfig
+    """The plant with the calibrated values."""
+    free: tuple[str, ...]
+    start: dict[str, float]
+    parameters: dict[str, float]
+    stderr: dict[str, float | None]
+    ci95: dict[str, tuple[float, float] | None]
+    covariance: FloatArray
+    correlation: FloatArray
+    units: dict[str, str]
+    logs: list[CalibrationLog]
+    fit_percent: list[dict[str, float | None]]
+    noise_std: dict[str, float]
+    identifiability: dict[str, Any]
+    warnings: list[str] = field(default_factory=list)
+    iterations: int = 0
+    wall_time_s: float = 0.0
+    created: str = ""
+    simulated: list[FloatArray] = field(default_factory=list)
+    """Each whole log simulated with the calibrated plant (flow, and pressure)."""
+    fitted_samples: list[int] = field(default_factory=list)
+    """How many samples of each log the fit used (the rest were held out)."""
+
+    def calibration_table(self) -> dict[str, Any]:
+        """The plant file's ``[calibration]`` table."""
+        return {
+            "parameters": list(self.free),
+            "values": [self.parameters[name] for name in self.free],
+            "stderr": [self.stderr[name] for name in self.free],
+            "covariance": self.covariance.tolist(),
+            "ci95": [list(self.ci95[name] or (math.nan, math.nan)) for name in self.free],
+            "logs": [
+                {
+                    "file": log.path.name,
+                    "sha256": log.sha256,
+                    "fuel_temperature_C": round(log.fuel_temperature_C, 3),
+                }
+                for log in self.logs
+            ],
+            "fit_percent": [entry["flow"] for entry in self.fit_percent],
+            "created": self.created,
+            "fuelid_version": __version__,
+            "method": METHOD,
+        }
+
+    def to_json(self) -> dict[str, Any]:
+        """The documented JSON keys (see the README, "Calibrating the physics model")."""
+        return {
+            "parameters": self.parameters,
+            "start": self.start,
+            "stderr": self.stderr,
+            "ci95": {k: (list(v) if v else None) for k, v in self.ci95.items()},
+            "correlation": {"parameters": list(self.free), "matrix": self.correlation.tolist()},
+            "covariance": {"parameters": list(self.free), "matrix": self.covariance.tolist()},
+            "fit_percent": self.fit_percent,
+            "noise_std": self.noise_std,
+            "identifiability": self.identifiability,
+            "warnings": self.warnings,
+            "logs": [
+                {
+                    "file": str(log.path),
+                    "sha256": log.sha256,
+                    "fuel_temperature_C": log.fuel_temperature_C,
+                    "samples": log.record.n_samples,
+                }
+                for log in self.logs
+            ],
+            "iterations": self.iterations,
+            "wall_time_s": self.wall_time_s,
+            "units": {
+                **self.units,
+                "fit_percent": "% (NRMSE fit: 100·(1 − ‖y − ŷ‖/‖y − ȳ‖))",
+                "noise_std": "flow L/min, pressure MPa",
+                "fuel_temperature_C": "°C",
+            },
+        }
+
+
+def check_free_names(free: Sequence[str]) -> tuple[str, ...]:
+    """Validate the names to calibrate: known, calibratable, each once."""
+    names = tuple(name.strip() for name in free if name.strip())
+    if not names:
+        raise ConfigError("name at least one parameter to calibrate (--free)")
+    check_parameter_names(names)
+    for name in names:
+        if name in NOT_CALIBRATABLE:
+            raise ConfigError(f"{name} cannot be calibrated here: {NOT_CALIBRATABLE[name]}")
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:
+        raise ConfigError(f"parameter(s) named twice in --free: {', '.join(repeated)}")
+    return names
+
+
+def _advice(names: Sequence[str], logs: Sequence[CalibrationLog], pressure: bool) -> list[str]:
+    temps = [log.fuel_temperature_C for log in logs]
+    advice = []
+    if max(temps) - min(temps) < SEPARATE_TEMPERATURES_K:
+        advice.append(
+            "add a log at another fuel temperature (viscosity changes the leakage, not the drive)"
+        )
+    if not pressure:
+        advice.append("log the pump outlet pressure (--pressure-col)")
+    advice.append("make larger command steps")
+    advice.append(
+        f"or hold one of {', '.join(names)} at its plant-file value (drop it from --free)"
+    )
+    return advice
+
+
+def _split(record: Record, holdout: float) -> tuple[Record, int]:
+    n_fit = record.n_samples if holdout <= 0.0 else round((1.0 - holdout) * record.n_samples)
+    if n_fit < 50:
+        raise DataError(f"{record.name}: too few samples to fit after the hold-out ({n_fit})")
+    return record.head(n_fit), n_fit
+
+
+def calibrate(
+    config: PlantConfig,
+    logs: Sequence[CalibrationLog],
+    free: Sequence[str],
+    *,
+    holdout: float = 0.2,
+    max_iterations: int = 60,
+) -> CalibrationResult:
+    """Fit the ``free`` parameters of ``config`` to the logs.
+
+    Parameters
+    ----------
+    config : PlantConfig
+        The plant file: its values start the fit and hold every parameter not free.
+    logs : sequence of CalibrationLog
+        One or several logs, each at its fuel temperature, all with or all without pressure.
+    free : sequence of str
+        Dotted plant-file names (``pump.leakage_Lpm_per_MPa``, ``vfd.lag_s`` …).
+    holdout : float
+        Share of each log's end left out of the fit and predicted (0 fits everything).
+    max_iterations : int
+        Most iterations of the solver.
+
+    Returns
+    -------
+    CalibrationResult
+
+    Raises
+    ------
+    CalibrationRefused
+        If the data do not determine the parameters (names and advice in the message).
+    ConvergenceError
+        If the fit does not converge (no numbers).
+    """
+    names = check_free_names(free)
+    if not logs:
+        raise DataError("give at least one log")
+    if not 0.0 <= holdout < 0.9:
+        raise ConfigError(f"--holdout must lie in [0, 0.9), got {holdout:g}")
+    n_outputs = {log.record.y.shape[1] for log in logs}
+    if len(n_outputs) > 1:
+        raise DataError("either every log has the pump pressure or none has")
+    pressure = n_outputs.pop() == 2
+    registry = plant_parameters(config)
+    model = PlantGreyBox(config, names, pressure)
+    splits = [_split(log.record, holdout) for log in logs]
+    started = time.perf_counter()
+    estimator = GreyBoxEstimator(model, initial_state="model", max_iterations=max_iterations)
+    try:
+        estimator.fit([record for record, _ in splits])
+    except NotIdentifiableError as exc:
+        report = exc.report.with_advice(_advice(exc.report.undetermined_names, logs, pressure))
+        raise CalibrationRefused(report.message()) from None
+    wall = time.perf_counter() - started
+    report = estimator.identifiability_
+    if not report.identifiable:
+        report = report.with_advice(_advice(report.undetermined_names, logs, pressure))
+        raise CalibrationRefused(report.message())
+    values = {name: float(estimator.params_[name]) for name in names}
+    calibrated = with_parameters(config, values)
+    warnings = [note for log in logs for note in log.notes]
+    fits: list[dict[str, float | None]] = []
+    simulated: list[FloatArray] = []
+    for log, (_, n_fit), fitted in zip(logs, splits, estimator.fit_percent_, strict=True):
+        entry: dict[str, float | None] = {"flow": float(fitted[0])}
+        if pressure:
+            entry["pressure"] = float(fitted[1])
+        entry["heldout_flow"] = None
+        whole = estimator.simulate(log.record).outputs
+        simulated.append(whole)
+        if n_fit < log.record.n_samples:
+            tail = fit_percent(log.record.y[n_fit:], whole[n_fit:])
+            entry["heldout_flow"] = float(tail[0])
+            if pressure:
+                entry["heldout_pressure"] = float(tail[1])
+        fits.append(entry)
+    for name in names:
+        error = estimator.stderr_[name]
+        if error is not None and abs(error) > 0.5 * abs(values[name]):
+            warnings.append(
+                f"{name} is poorly determined: standard error {error:.3g} is over half its "
+                f"value {values[name]:.3g}"
+            )
+        spec = next(spec for spec in model.parameters if spec.name == name)
+        for bound in (spec.lower, spec.upper):
+            if bound is not None and bound != 0.0 and abs(values[name] - bound) < 1e-6 * abs(bound):
+                warnings.append(f"{name} ended on its bound {bound:g}: the interval is not valid")
+    return CalibrationResult(
+        config=calibrated,
+        free=names,
+        start={name: registry[name].value for name in names},
+        parameters=values,
+        stderr={name: estimator.stderr_[name] for name in names},
+        ci95={name: estimator.ci95_[name] for name in names},
+        covariance=np.asarray(estimator.cov_, dtype=float),
+        correlation=np.asarray(estimator.correlation_, dtype=float),
+        units={name: registry[name].unit for name in names},
+        logs=list(logs),
+        fit_percent=fits,
+        noise_std=dict(zip(model.output_names, map(float, estimator.sigma_), strict=True)),
+        identifiability=report.to_json(),
+        warnings=warnings,
+        iterations=int(estimator.n_iterations_),
+        wall_time_s=wall,
+        created=dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+        simulated=simulated,
+        fitted_samples=[n_fit for _, n_fit in splits],
+    )
+
+
+def calibrated_plant_text(result: CalibrationResult, source: Path | None) -> str:
+    """The calibrated plant file's text, checked to load back.
+
+    ``source`` (or the packaged reference plant) with the calibrated values and a
+    ``[calibration]`` table; its comments kept.
+    """
+    if source is not None:
+        text = source.read_text(encoding="utf-8")
+    else:
+        text = resources.files("fuelid.data").joinpath(REFERENCE_PLANT).read_text("utf-8")
+    updated = update_plant_toml(text, result.parameters, result.calibration_table())
+    plant_config_from_dict(tomllib.loads(updated), "the calibrated plant file")
+    return updated

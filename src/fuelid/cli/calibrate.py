@@ -1,0 +1,244 @@
+"""``fuelid calibrate``: fit physical parameters of a plant file to logs (issue 16).
+
+Thin: parse, call :func:`fuelid.calibration.calibrate.calibrate`, print. The library is imported
+when the command runs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from fuelid.cli._common import (
+    ConfigOption,
+    ForceFigureOption,
+    SampleTime,
+    check_figure_path,
+    emit_json,
+    guarded,
+    provenance,
+    warn,
+)
+from fuelid.errors import ConfigError, FuelidError
+
+
+def _floats(text: str | None, option: str) -> list[float] | None:
+    if text is None:
+        return None
+    try:
+        return [float(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise ConfigError(f"{option} takes comma-separated numbers, got {text!r}") from None
+
+
+@guarded
+def calibrate_command(
+    logs: Annotated[
+        list[Path],
+        typer.Argument(metavar="LOG...", help="Logs (CSV or Parquet), each starting at rest."),
+    ],
+    free: Annotated[
+        str,
+        typer.Option(
+            "--free",
+            metavar="NAME[,NAME...]",
+            help="Plant-file parameters to fit, dotted as in the file: pump.leakage_Lpm_per_MPa,"
+            "vfd.lag_s,nozzle.discharge_coefficient,pipeline.roughness_mm,motor.inertia_kg_m2,"
+            "flowmeter.time_constant_s …",
+        ),
+    ],
+    config: ConfigOption = None,
+    fuel_temp: Annotated[
+        str | None,
+        typer.Option(
+            "--fuel-temp",
+            metavar="DEGC[,DEGC...]",
+            help="Fuel temperature of each log [°C], one per log in order (default: each log's "
+            "T_fuel_degC column, averaged).",
+            show_default=False,
+        ),
+    ] = None,
+    pressure_col: Annotated[
+        str | None,
+        typer.Option(
+            "--pressure-col",
+            help="Column of the pump outlet pressure [MPa gauge] (fitted with the flow).",
+            show_default=False,
+        ),
+    ] = None,
+    time_col: Annotated[str, typer.Option("--time-col", help="Time column [s].")] = "t_s",
+    input_col: Annotated[str, typer.Option("--input-col", help="Command column [V].")] = "u_V",
+    output_col: Annotated[str, typer.Option("--output-col", help="Flow column [L/min].")] = "q_Lpm",
+    sample_time: SampleTime = None,
+    holdout: Annotated[
+        float,
+        typer.Option(
+            "--holdout",
+            help="Share of each log's end left out of the fit and predicted (0: fit it all).",
+        ),
+    ] = 0.2,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            metavar="CALIBRATED.toml",
+            help="Write the calibrated plant file (comments kept, a [calibration] table added).",
+            show_default=False,
+        ),
+    ] = None,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite --out.")] = False,
+    plot: Annotated[
+        Path | None,
+        typer.Option(
+            "--plot",
+            metavar="FIG.png",
+            help="Measured and calibrated per log.",
+            show_default=False,
+        ),
+    ] = None,
+    force_figure: ForceFigureOption = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """Calibrate physical parameters of the plant file from logs, by output error on its ODE.
+
+    Each log is simulated from rest at its first command at its own fuel temperature; several
+    logs at different temperatures separate the viscosity-dependent parameters. Prints the
+    estimates with standard errors and 95 % intervals, their correlations, the fit % per log
+    (and on its held-out end), and the identifiability report; refuses (exit 2) parameters the
+    data cannot determine, naming them and what data would help.
+    """
+    from fuelid.calibration.calibrate import (
+        calibrate,
+        calibrated_plant_text,
+        check_free_names,
+        load_calibration_log,
+    )
+    from fuelid.io.plantfile import write_text_atomically
+    from fuelid.plant.config import load_plant_config
+
+    names = check_free_names(free.split(","))
+    temps = _floats(fuel_temp, "--fuel-temp")
+    if temps is not None and len(temps) != len(logs):
+        raise ConfigError(f"--fuel-temp gives {len(temps)} temperature(s) for {len(logs)} log(s)")
+    if out is not None and out.exists() and not force:
+        raise FuelidError(f"{out} exists: pass --force to overwrite it")
+    if plot is not None:
+        check_figure_path(plot, force_figure)
+    plant = load_plant_config(config)
+    loaded = [
+        load_calibration_log(
+            path,
+            fuel_temp_C=None if temps is None else temps[i],
+            time_col=time_col,
+            input_col=input_col,
+            output_col=output_col,
+            pressure_col=pressure_col,
+            sample_time=sample_time,
+        )
+        for i, path in enumerate(logs)
+    ]
+    result = calibrate(plant, loaded, names, holdout=holdout)
+    written = None
+    if out is not None:
+        text = calibrated_plant_text(result, config)
+        written = write_text_atomically(out, text)
+    if plot is not None:
+        _plot(result, plot)
+    for message in result.warnings:
+        warn(message)
+    if as_json:
+        document = result.to_json()
+        document["calibrated_file"] = str(written) if written else None
+        document.update(
+            provenance(
+                {
+                    "free": list(names),
+                    "config": str(config) if config else None,
+                    "fuel_temp_C": temps,
+                    "pressure_col": pressure_col,
+                    "holdout": holdout,
+                },
+                None,
+            )
+        )
+        emit_json(document)
+        return
+    _print(result, written)
+
+
+def _plot(result: Any, path: Path) -> None:
+    from fuelid.plots_greybox import FitPanel, plot_greybox_fit, save_greybox_figure
+
+    names = ["flow [L/min]"] + (["pump pressure [MPa]"] if result.simulated[0].shape[1] > 1 else [])
+    panels = []
+    for log, simulated, fits, n_fit in zip(
+        result.logs, result.simulated, result.fit_percent, result.fitted_samples, strict=True
+    ):
+        record = log.record
+        panels.append(
+            FitPanel(
+                title=f"{log.path.name} at {log.fuel_temperature_C:.1f} °C"
+                + (
+                    ""
+                    if n_fit == record.n_samples
+                    else f" (held out after {record.t[n_fit]:.0f} s)"
+                ),
+                t=record.t,
+                y=record.y,
+                y_hat=simulated,
+                fit_percent=[fits["flow"] or 0.0]
+                + ([fits.get("pressure") or 0.0] if simulated.shape[1] > 1 else []),
+            )
+        )
+    save_greybox_figure(
+        plot_greybox_fit(panels, names, title="calibrated plant against the logs"), path
+    )
+
+
+def _print(result: Any, written: Path | None) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title="calibrated parameters", show_header=True)
+    for column in ("parameter", "start", "estimate", "± (1σ)", "95 % interval", "unit"):
+        table.add_column(column, justify="left" if column == "parameter" else "right")
+    for name in result.free:
+        interval = result.ci95[name]
+        error = result.stderr[name]
+        table.add_row(
+            name,
+            f"{result.start[name]:.5g}",
+            f"{result.parameters[name]:.5g}",
+            "—" if error is None else f"{error:.3g}",
+            "—" if interval is None else f"{interval[0]:.5g} … {interval[1]:.5g}",
+            result.units[name],
+        )
+    console = Console(width=110)
+    console.print(table)
+    for log, fits in zip(result.logs, result.fit_percent, strict=True):
+        line = f"{log.path.name} ({log.fuel_temperature_C:.1f} °C): fit {fits['flow']:.2f} %"
+        if "pressure" in fits:
+            line += f", pressure {fits['pressure']:.2f} %"
+        if fits.get("heldout_flow") is not None:
+            line += f"; held-out end {fits['heldout_flow']:.2f} %"
+        console.print(line)
+    if len(result.free) > 1:
+        pairs = [
+            f"{a}/{b} {result.correlation[i, j]:+.3f}"
+            for i, a in enumerate(result.free)
+            for j, b in enumerate(result.free)
+            if j > i
+        ]
+        console.print("correlation of the estimates: " + ", ".join(pairs))
+    report = result.identifiability
+    console.print(
+        f"identifiability: rank {report['rank']} of {report['n_estimated']}, collinearity index "
+        f"{report['collinearity_index']:.3g} (1 = independent), every parameter determined"
+    )
+    noise = ", ".join(f"{k} {v:.3g}" for k, v in result.noise_std.items())
+    console.print(f"residual noise std: {noise}; {result.iterations} iterations, "
+                  f"{result.wall_time_s:.1f} s")  # fmt: skip
+    if written is not None:
+        console.print(f"calibrated plant written to {written}")

@@ -1,0 +1,168 @@
+"""``fuelid calibrate`` (issue 16): physical parameters recovered from simulated logs.
+
+The logs come from a plant whose leakage (+40 %), VFD lag (−30 %) and nozzle discharge coefficient (−10 %) differ from the
+reference file, at two fuel temperatures, with the reference meter's noise; refusals named.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from fuelid.cli import main
+from fuelid.errors import FuelidError
+from fuelid.plant.config import load_plant_config
+from fuelid.plant.parameters import get_parameter, with_parameters
+
+LEAK, LAG, CD = "pump.leakage_Lpm_per_MPa", "vfd.lag_s", "nozzle.discharge_coefficient"
+REFERENCE = load_plant_config()
+TRUTH = {
+    LEAK: 1.4 * get_parameter(REFERENCE, LEAK),
+    LAG: 0.7 * get_parameter(REFERENCE, LAG),
+    CD: 0.9 * get_parameter(REFERENCE, CD),
+}
+LEVELS = "1.5,3.0,2.0,4.5,2.5,4.0"
+
+
+def plant_file(path: Path, values: dict[str, float]) -> Path:
+    from fuelid.io.plantfile import update_plant_toml
+
+    text = (Path(__file__).parents[1] / "src/fuelid/data/reference_plant.toml").read_text()
+    path.write_text(update_plant_toml(text, values))
+    return path
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    folder = tmp_path_factory.mktemp("calibrate")
+    worn = plant_file(folder / "worn.toml", TRUTH)
+    # the discharge coefficient held at the truth: what flow-only calibration may assume
+    plant_file(folder / "start_cd_known.toml", {CD: TRUTH[CD]})
+    out = {"folder": folder, "worn": worn}
+    for temp in (10, 45):
+        path = folder / f"log{temp}.csv"
+        code = main(["simulate", str(path), "-c", str(worn), "-p", "steps", "--levels", LEVELS,
+                     "--dwell", "15", "--duration", "90", "--fuel-temp", str(temp),
+                     "--pressure", "--seed", str(temp), "-q"])  # fmt: skip
+        assert code == 0
+        out[f"log{temp}"] = path
+    return out
+
+
+def calibrate_json(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict, str]:
+    code = main(["calibrate", *argv, "--json"])
+    out, err = capsys.readouterr()
+    return code, (json.loads(out) if code == 0 else {}), err
+
+
+def assert_recovered(result: dict, names: list[str]) -> None:
+    for name in names:
+        estimate, error = result["parameters"][name], result["stderr"][name]
+        assert abs(estimate - TRUTH[name]) < 3.0 * error, (name, estimate, TRUTH[name], error)
+        assert abs(estimate / TRUTH[name] - 1.0) < 0.02, name
+        low, high = result["ci95"][name]
+        assert low < estimate < high
+
+
+def test_flow_alone_recovers_leakage_and_vfd_lag_across_two_temperatures(
+    logs: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = logs["folder"]
+    code, result, err = calibrate_json(
+        capsys, str(logs["log10"]), str(logs["log45"]), "-c", str(folder / "start_cd_known.toml"),
+        "--free", f"{LEAK},{LAG}",
+    )  # fmt: skip
+    assert code == 0, err
+    assert_recovered(result, [LEAK, LAG])
+    assert result["identifiability"]["identifiable"]
+    # the residual noise is the meter's 0.1 L/min (plus its 0.01 L/min quantisation)
+    assert result["noise_std"]["flow"] == pytest.approx(0.1, rel=0.05)
+    for entry in result["fit_percent"]:
+        assert entry["flow"] > 98.0
+        assert entry["heldout_flow"] > 98.0
+    assert [log["fuel_temperature_C"] for log in result["logs"]] == pytest.approx([10, 45])
+
+
+def test_with_pump_pressure_all_three_are_recovered_and_k_predicted_at_a_third_temperature(
+    logs: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = logs["folder"]
+    calibrated = folder / "calibrated.toml"
+    code, result, err = calibrate_json(
+        capsys, str(logs["log10"]), str(logs["log45"]), "--free", f"{LEAK},{LAG},{CD}",
+        "--pressure-col", "p_pump_MPa", "--out", str(calibrated), "--force",
+    )  # fmt: skip
+    assert code == 0, err
+    assert_recovered(result, [LEAK, LAG, CD])
+    assert result["noise_std"]["pressure"] == pytest.approx(0.002, rel=0.1)
+    # the calibrated file loads, records the calibration, and predicts K at −15 °C (no log
+    # there) within three standard errors of the true plant's
+    config = load_plant_config(calibrated)
+    assert config.calibration is not None
+    assert list(config.calibration.parameters) == [LEAK, LAG, CD]
+    assert main(["plant", "info", "-c", str(calibrated), "--fuel-temp", "-15", "--u", "3",
+                 "--json"]) == 0  # fmt: skip
+    predicted = json.loads(capsys.readouterr().out)
+    assert main(["plant", "info", "-c", str(logs["worn"]), "--fuel-temp", "-15", "--u", "3",
+                 "--json"]) == 0  # fmt: skip
+    true_k = json.loads(capsys.readouterr().out)["model"]["K"]
+    k, k_stderr = predicted["model"]["K"], predicted["uncertainty"]["K"]["stderr"]
+    assert abs(k - true_k) < 3.0 * k_stderr
+    assert predicted["calibration"]["extrapolated"] is True
+
+
+def test_leakage_and_discharge_coefficient_from_flow_alone_are_refused_by_name(
+    logs: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    code = main(["calibrate", str(logs["log10"]), str(logs["log45"]), "--free", f"{LEAK},{CD}"])
+    out, err = capsys.readouterr()
+    assert code == 2
+    assert out == ""
+    line = err.strip().splitlines()[-1]
+    assert LEAK in line
+    assert CD in line
+    assert "--pressure-col" in line  # the advice names the data that would separate them
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--free", "pump.leak"], "valid:"),
+        (["--free", f"{LEAK},{LEAK}"], "twice"),
+        (["--free", "flowmeter.delay_s"], "dead time"),
+        (["--free", LEAK, "--fuel-temp", "10"], "1 temperature(s) for 2 log(s)"),
+    ],
+)
+def test_bad_requests_are_one_line_errors(
+    logs: dict[str, Path], capsys: pytest.CaptureFixture[str], argv: list[str], needle: str
+) -> None:
+    code = main(["calibrate", str(logs["log10"]), str(logs["log45"]), *argv])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "Traceback" not in err
+    assert needle in err.strip().splitlines()[-1]
+
+
+def test_a_log_without_fuel_temperature_needs_one(
+    logs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import pandas as pd
+
+    bare = tmp_path / "bare.csv"
+    pd.read_csv(logs["log10"]).drop(columns=["T_fuel_degC"]).to_csv(bare, index=False)
+    code = main(["calibrate", str(bare), "--free", LEAK])
+    assert code == 2
+    assert "--fuel-temp" in capsys.readouterr().err
+
+
+def test_a_fit_that_does_not_converge_gives_no_numbers(logs: dict[str, Path]) -> None:
+    from fuelid.calibration.calibrate import calibrate, load_calibration_log
+    from fuelid.greybox import ConvergenceError
+
+    start = with_parameters(REFERENCE, {LEAK: 30.0, LAG: 3.0})
+    loaded = [load_calibration_log(logs["log10"])]
+    with pytest.raises(ConvergenceError, match="did not converge"):
+        calibrate(start, loaded, [LEAK, LAG], max_iterations=2)
+    assert issubclass(ConvergenceError, FuelidError)
