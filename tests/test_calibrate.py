@@ -1,7 +1,8 @@
 """``fuelid calibrate`` (issue 16): physical parameters recovered from simulated logs.
 
-The logs come from a plant whose leakage (+40 %), VFD lag (−30 %) and nozzle discharge coefficient (−10 %) differ from the
-reference file, at two fuel temperatures, with the reference meter's noise; refusals named.
+The logs come from a plant whose leakage (+40 %), VFD lag (−30 %) and nozzle discharge
+coefficient (−10 %) differ from the reference file, at two fuel temperatures, with the reference
+meter's noise; the refusals name what the data cannot determine.
 """
 
 from __future__ import annotations
