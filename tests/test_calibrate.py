@@ -167,3 +167,22 @@ def test_a_fit_that_does_not_converge_gives_no_numbers(logs: dict[str, Path]) ->
     with pytest.raises(ConvergenceError, match="did not converge"):
         calibrate(start, loaded, [LEAK, LAG], max_iterations=2)
     assert issubclass(ConvergenceError, FuelidError)
+
+
+def test_profile_likelihood_interval_agrees_with_the_gaussian_one_when_well_determined(
+    logs: dict[str, Path],
+) -> None:
+    from fuelid.calibration.calibrate import calibrate, load_calibration_log
+
+    start = load_plant_config(logs["folder"] / "start_cd_known.toml")
+    start = with_parameters(start, {LEAK: TRUTH[LEAK]})
+    loaded = [load_calibration_log(logs["log10"])]
+    result = calibrate(start, loaded, [LAG], holdout=0.0, profile=[LAG])
+    gaussian, profile = result.ci95[LAG], result.profile_ci95[LAG]
+    assert gaussian is not None
+    half_width = (gaussian[1] - gaussian[0]) / 2
+    # a well-determined parameter's likelihood is nearly quadratic in log θ: the two agree to a
+    # small share of the half-width, and both contain the truth
+    assert profile[0] == pytest.approx(gaussian[0], abs=0.1 * half_width)
+    assert profile[1] == pytest.approx(gaussian[1], abs=0.1 * half_width)
+    assert profile[0] < TRUTH[LAG] < profile[1]

@@ -41,6 +41,8 @@ FloatArray = NDArray[np.float64]
 METHOD = "output error on the nonlinear plant ODE (forward sensitivities), fuelid calibrate"
 TEMPERATURE_SPREAD_K = 1.0
 """A log whose fuel temperature spans more than this is calibrated at its mean, with a warning."""
+PROFILE_RELATIVE_STDERR = 0.1
+"""Relative standard error above which the profile-likelihood interval is computed too."""
 SEPARATE_TEMPERATURES_K = 5.0
 """Logs this far apart in fuel temperature separate the viscosity-dependent parameters."""
 
@@ -165,6 +167,8 @@ class CalibrationResult:
     """Each whole log simulated with the calibrated plant (flow, and pressure)."""
     fitted_samples: list[int] = field(default_factory=list)
     """How many samples of each log the fit used (the rest were held out)."""
+    profile_ci95: dict[str, tuple[float, float]] = field(default_factory=dict)
+    """Profile-likelihood 95 % intervals, where asked for or where the Gaussian one is shaky."""
 
     def calibration_table(self) -> dict[str, Any]:
         """The plant file's ``[calibration]`` table."""
@@ -195,6 +199,7 @@ class CalibrationResult:
             "start": self.start,
             "stderr": self.stderr,
             "ci95": {k: (list(v) if v else None) for k, v in self.ci95.items()},
+            "profile_ci95": {k: list(v) for k, v in self.profile_ci95.items()},
             "correlation": {"parameters": list(self.free), "matrix": self.correlation.tolist()},
             "covariance": {"parameters": list(self.free), "matrix": self.covariance.tolist()},
             "fit_percent": self.fit_percent,
@@ -266,6 +271,7 @@ def calibrate(
     *,
     holdout: float = 0.2,
     max_iterations: int = 60,
+    profile: Sequence[str] = (),
 ) -> CalibrationResult:
     """Fit the ``free`` parameters of ``config`` to the logs.
 
@@ -281,6 +287,11 @@ def calibrate(
         Share of each log's end left out of the fit and predicted (0 fits everything).
     max_iterations : int
         Most iterations of the solver.
+    profile : sequence of str
+        Parameters to give a profile-likelihood 95 % interval as well ("all": every one). It is
+        computed anyway for a parameter whose standard error exceeds
+        :data:`PROFILE_RELATIVE_STDERR` of its value, where the Gaussian interval is not to be
+        trusted (each costs several refits).
 
     Returns
     -------
@@ -346,7 +357,18 @@ def calibrate(
         for bound in (spec.lower, spec.upper):
             if bound is not None and bound != 0.0 and abs(values[name] - bound) < 1e-6 * abs(bound):
                 warnings.append(f"{name} ended on its bound {bound:g}: the interval is not valid")
+    wanted = set(names) if "all" in profile else set(profile)
+    unknown = wanted - set(names)
+    if unknown:
+        raise ConfigError(f"--profile names {', '.join(sorted(unknown))}, which is not in --free")
+    profiles: dict[str, tuple[float, float]] = {}
+    for name in names:
+        error = estimator.stderr_[name]
+        shaky = error is not None and abs(error) > PROFILE_RELATIVE_STDERR * abs(values[name])
+        if name in wanted or shaky:
+            profiles[name] = estimator.profile_interval(name)
     return CalibrationResult(
+        profile_ci95=profiles,
         config=calibrated,
         free=names,
         start={name: registry[name].value for name in names},

@@ -99,6 +99,16 @@ def calibrate_command(
         ),
     ] = None,
     force_figure: ForceFigureOption = False,
+    profile: Annotated[
+        str | None,
+        typer.Option(
+            "--profile",
+            metavar="NAME[,NAME...]|all",
+            help="Also give the profile-likelihood 95 % interval of these parameters (several "
+            "refits each; done anyway where the standard error exceeds 10 % of the value).",
+            show_default=False,
+        ),
+    ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Calibrate physical parameters of the plant file from logs, by output error on its ODE.
@@ -139,7 +149,8 @@ def calibrate_command(
         )
         for i, path in enumerate(logs)
     ]
-    result = calibrate(plant, loaded, names, holdout=holdout)
+    profiles = [] if profile is None else [p.strip() for p in profile.split(",") if p.strip()]
+    result = calibrate(plant, loaded, names, holdout=holdout, profile=profiles)
     written = None
     if out is not None:
         text = calibrated_plant_text(result, config)
@@ -159,6 +170,7 @@ def calibrate_command(
                     "fuel_temp_C": temps,
                     "pressure_col": pressure_col,
                     "holdout": holdout,
+                    "profile": profiles,
                 },
                 None,
             )
@@ -217,6 +229,8 @@ def _print(result: Any, written: Path | None) -> None:
         )
     console = Console(width=110)
     console.print(table)
+    for name, (low, high) in result.profile_ci95.items():
+        console.print(f"profile-likelihood 95 % interval of {name}: {low:.5g} … {high:.5g}")
     for log, fits in zip(result.logs, result.fit_percent, strict=True):
         line = f"{log.path.name} ({log.fuel_temperature_C:.1f} °C): fit {fits['flow']:.2f} %"
         if "pressure" in fits:
