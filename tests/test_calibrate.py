@@ -186,3 +186,32 @@ def test_profile_likelihood_interval_agrees_with_the_gaussian_one_when_well_dete
     assert profile[0] == pytest.approx(gaussian[0], abs=0.1 * half_width)
     assert profile[1] == pytest.approx(gaussian[1], abs=0.1 * half_width)
     assert profile[0] < TRUTH[LAG] < profile[1]
+
+
+def test_tune_on_a_calibrated_plant_says_where_the_calibration_has_no_data(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from fuelid.io.plantfile import update_plant_toml
+
+    text = (Path(__file__).parents[1] / "src/fuelid/data/reference_plant.toml").read_text()
+    table = {
+        "parameters": [LAG],
+        "values": [get_parameter(REFERENCE, LAG)],
+        "stderr": [0.01],
+        "covariance": [[1e-4]],
+        "logs": [{"file": "a.csv", "sha256": "0" * 64, "fuel_temperature_C": 10.0},
+                 {"file": "b.csv", "sha256": "1" * 64, "fuel_temperature_C": 30.0}],
+    }  # fmt: skip
+    calibrated = tmp_path / "calibrated.toml"
+    calibrated.write_text(update_plant_toml(text, {}, table))
+    code = main(["tune", "-c", str(calibrated), "--K", "13", "--T", "0.9", "--flowmeter-T", "0.3",
+                 "--delay", "0.2", "--fuel-temp", "20", "--t-min", "0", "--t-max", "40",
+                 "--json"])  # fmt: skip
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    plant = json.loads(out)["plant"]
+    assert plant["calibration"]["fuel_temperature_range_C"] == [10.0, 30.0]
+    assert plant["calibration"]["extrapolated"] is False  # 20 °C lies inside 10…30 °C
+    # the temperature check's ends, 0 and 40 °C, lie outside: said on stderr
+    assert "0 °C is outside the calibration logs' 10…30 °C" in err
+    assert "40 °C is outside" in err

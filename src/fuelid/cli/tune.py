@@ -251,11 +251,22 @@ def tune_command(
             "fuel temperature of the model assumed 20 °C: --fuel-temp not given"
             + (" and the model file has no fuel temperature" if loaded is not None else "")
         )
+    calibration = None
+    if plant.calibration is not None:
+        from fuelid.plant.uncertainty import calibration_summary
+
+        # what the gains rest on at the model's temperature and over the checked range
+        calibration, _ = calibration_summary(plant, T_fuel)
+        for T_edge in T_range:
+            for note in calibration_summary(plant, T_edge)[1]:
+                notices.append(f"calibrated plant: {note}")
     extra = {
         "plant": {
             "source": "built-in reference" if config is None else "file",
             "path": None if config is None else str(config),
             "name": plant.name,
+            # only for a calibrated plant file (the key is absent otherwise)
+            **({"calibration": calibration} if calibration is not None else {}),
         },
         "notices": notices,
         "fuel_temperature_source": fuel_source or "assumed",
