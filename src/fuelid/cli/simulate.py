@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -22,8 +21,7 @@ from fuelid.errors import FuelidError
 from fuelid.units import LPM_PER_M3S, PA_PER_MPA
 
 if TYPE_CHECKING:
-    from fuelid.plant.config import PlantConfig
-    from fuelid.workflow.simulation import SimulationInputs, SimulationOutcome, SimulationRequest
+    pass
 
 #: simulated time above which a progress bar is shown [s]
 PROGRESS_THRESHOLD = 600.0
@@ -182,6 +180,9 @@ def simulate_command(
         ),
         seed=seed,
         truth=truth,
+        pressure=pressure,
+        pressure_noise_std=pressure_noise_std * PA_PER_MPA,
+        pressure_resolution=pressure_resolution * PA_PER_MPA,
     )
     inputs = simulation_inputs(request)
     with Progress(
@@ -198,17 +199,7 @@ def simulate_command(
         def progress(done: float) -> None:
             bar.update(task, completed=done)
 
-        if pressure:
-            outcome = _simulate_with_pressure(
-                plant,
-                request,
-                inputs,
-                progress,
-                pressure_noise_std * PA_PER_MPA,
-                pressure_resolution * PA_PER_MPA,
-            )
-        else:
-            outcome = simulate_log(plant, request, inputs=inputs, progress=progress)
+        outcome = simulate_log(plant, request, inputs=inputs, progress=progress)
     log = outcome.to_log()
     log.write(out, overwrite=force)
     summary = outcome.to_json(out)
@@ -251,36 +242,3 @@ def simulate_command(
             f"{summary['duration']:g} s, u {u_range[0]:g}…{u_range[1]:g} V, "
             f"q {q_range[0]:.2f}…{q_range[1]:.2f} L/min{p_text}"
         )
-
-
-def _simulate_with_pressure(
-    plant: PlantConfig,
-    request: SimulationRequest,
-    inputs: SimulationInputs,
-    progress: Callable[[float], None],
-    noise_std: float,
-    resolution: float,
-) -> SimulationOutcome:
-    """:func:`~fuelid.workflow.simulation.simulate_log`, also logging the pump pressure.
-
-    The request has no pressure settings, so the run is made here with the same settings as
-    ``simulate_log`` and ``pressure=True`` (noise std and resolution in Pa).
-    """
-    from fuelid.simulate import simulate
-    from fuelid.workflow.simulation import SimulationOutcome
-
-    result = simulate(
-        plant,
-        inputs.profile,
-        T_fuel=inputs.T_fuel,
-        sample_time=request.sample_time,
-        control_period=request.control_period,
-        noise_std=request.noise_std,
-        resolution=request.resolution,
-        seed=request.seed,
-        progress=progress,
-        pressure=True,
-        pressure_noise_std=noise_std,
-        pressure_resolution=resolution,
-    )
-    return SimulationOutcome(request=request, inputs=inputs, result=result)

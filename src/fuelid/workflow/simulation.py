@@ -29,7 +29,13 @@ from fuelid.io.timeseries import (
 )
 from fuelid.plant.config import PlantConfig
 from fuelid.profiles import InputProfile, held_profile, random_levels, step_profile, step_sequence
-from fuelid.simulate import FuelTemperature, SimulationResult, simulate
+from fuelid.simulate import (
+    PRESSURE_NOISE_STD,
+    PRESSURE_RESOLUTION,
+    FuelTemperature,
+    SimulationResult,
+    simulate,
+)
 from fuelid.units import celsius_to_kelvin
 
 PROFILES = ("step", "steps", "random", "file")
@@ -161,6 +167,12 @@ class SimulationRequest:
     """Seed of the noise and of random profiles."""
     truth: bool = False
     """Add the noise-free meter reading ``q_true_Lpm`` to the log."""
+    pressure: bool = False
+    """Also log the pump outlet pressure ``p_pump_MPa`` (a pressure transmitter's reading)."""
+    pressure_noise_std: float = PRESSURE_NOISE_STD
+    """The transmitter's white noise [Pa]."""
+    pressure_resolution: float = PRESSURE_RESOLUTION
+    """Quantisation step of the pressure the PLC reads [Pa]."""
 
     def __post_init__(self) -> None:
         if self.profile not in PROFILES:
@@ -319,5 +331,8 @@ def simulate_log(
         resolution=request.resolution,
         seed=request.seed,
         progress=progress,
+        pressure=request.pressure,
+        pressure_noise_std=request.pressure_noise_std,
+        pressure_resolution=request.pressure_resolution,
     )
     return SimulationOutcome(request=request, inputs=inputs, result=result)
