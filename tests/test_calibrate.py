@@ -215,3 +215,33 @@ def test_tune_on_a_calibrated_plant_says_where_the_calibration_has_no_data(
     # the temperature check's ends, 0 and 40 °C, lie outside: said on stderr
     assert "0 °C is outside the calibration logs' 10…30 °C" in err
     assert "40 °C is outside" in err
+
+
+def test_a_log_cut_mid_step_is_warned_about_and_so_is_its_misfit(
+    logs: dict[str, Path], tmp_path: Path
+) -> None:
+    import pandas as pd
+
+    from fuelid.calibration.calibrate import calibrate, load_calibration_log, starts_at_rest
+
+    frame = pd.read_csv(logs["log10"])
+    cut = frame[frame["t_s"] >= 15.3].copy()  # 0.3 s after the first step: the flow is rising
+    cut["t_s"] -= cut["t_s"].iloc[0]
+    path = tmp_path / "cut.csv"
+    cut.to_csv(path, index=False)
+    loaded = load_calibration_log(path)
+    assert not starts_at_rest(loaded.record, 0.1)
+    assert starts_at_rest(load_calibration_log(logs["log10"]).record, 0.1)
+    start = with_parameters(REFERENCE, {CD: TRUTH[CD], LAG: TRUTH[LAG]})
+    result = calibrate(start, [loaded], [LEAK], holdout=0.0)
+    text = " ".join(result.warnings)
+    assert "does not start at rest" in text
+    assert "the meter noise" in text or "meter noise" in text
+
+
+def test_fuel_temp_over_a_logged_temperature_is_noted(logs: dict[str, Path]) -> None:
+    from fuelid.calibration.calibrate import load_calibration_log
+
+    loaded = load_calibration_log(logs["log10"], fuel_temp_C=40.0)
+    assert loaded.fuel_temperature_C == 40.0
+    assert any("overrides the log's own fuel temperature" in note for note in loaded.notes)

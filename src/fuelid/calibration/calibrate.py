@@ -44,6 +44,10 @@ TEMPERATURE_SPREAD_K = 1.0
 PROFILE_RELATIVE_STDERR = 0.1
 """Relative standard error above which the profile-likelihood interval is computed too."""
 SEPARATE_TEMPERATURES_K = 5.0
+RESIDUAL_NOISE_FACTOR = 2.0
+"""Flow residuals beyond this multiple of the plant file's meter noise are warned about."""
+REST_CHECK_S = 2.0
+"""A log's first seconds that must be flat: it is simulated from rest at its first command."""
 """Logs this far apart in fuel temperature separate the viscosity-dependent parameters."""
 
 
@@ -116,6 +120,13 @@ def load_calibration_log(
         if pressure.n_samples < n:
             raise DataError(f"{file.name}: the pressure column {pressure_col!r} has fewer samples")
         columns.append(pressure.y[:n])
+    if fuel_temp_C is not None and flow.T_fuel is not None:
+        logged = float(np.mean(flow.T_fuel[:n])) - KELVIN
+        if abs(logged - fuel_temp_C) > TEMPERATURE_SPREAD_K:
+            notes.append(
+                f"{file.name}: --fuel-temp {fuel_temp_C:g} °C overrides the log's own fuel "
+                f"temperature column (mean {logged:.1f} °C)"
+            )
     if fuel_temp_C is None:
         if flow.T_fuel is None:
             raise DataError(
@@ -246,7 +257,8 @@ def _advice(names: Sequence[str], logs: Sequence[CalibrationLog], pressure: bool
     advice = []
     if max(temps) - min(temps) < SEPARATE_TEMPERATURES_K:
         advice.append(
-            "add a log at another fuel temperature (viscosity changes the leakage, not the drive)"
+            "add a log at another fuel temperature (the fuel's viscosity moves the leakage, "
+            "not the other parameters)"
         )
     if not pressure:
         advice.append("log the pump outlet pressure (--pressure-col)")
@@ -255,6 +267,62 @@ def _advice(names: Sequence[str], logs: Sequence[CalibrationLog], pressure: bool
         f"or hold one of {', '.join(names)} at its plant-file value (drop it from --free)"
     )
     return advice
+
+
+def _fit_warnings(
+    config: PlantConfig,
+    names: Sequence[str],
+    flow_sigma: float,
+    pressure: bool,
+    logs: Sequence[CalibrationLog],
+) -> list[str]:
+    """Warnings the fit's own numbers cannot give.
+
+    A residual far above the meter's noise, a log that does not start at rest, two lags that
+    flow alone cannot tell apart.
+    """
+    warnings = []
+    meter = config.flowmeter
+    expected = math.hypot(meter.noise_std_Lpm, meter.resolution_Lpm / math.sqrt(12.0))
+    if expected > 0.0 and flow_sigma > RESIDUAL_NOISE_FACTOR * expected:
+        warnings.append(
+            f"the flow residuals ({flow_sigma:.3g} L/min) are {flow_sigma / expected:.1f}× the "
+            f"plant file's meter noise ({expected:.3g} L/min): the calibrated plant does not "
+            "fit the logs; check the parameters held at their file values, the fuel "
+            "temperatures, and that each log starts at rest"
+        )
+    for log in logs:
+        if not starts_at_rest(log.record, expected):
+            warnings.append(
+                f"{log.path.name} does not start at rest (the flow moves in its first "
+                f"{REST_CHECK_S:g} s): the calibration simulates each log from the steady state "
+                "at its first command; cut the log to begin in a steady stretch"
+            )
+    lags = {"vfd.lag_s", "flowmeter.time_constant_s"}
+    if lags <= set(names) and not pressure:
+        warnings.append(
+            "vfd.lag_s and flowmeter.time_constant_s are both free with flow alone: two lags in "
+            "series give nearly the same flow whichever is which, so the fit may have swapped "
+            "them; log the pump pressure (--pressure-col), which sees the drive but not the "
+            "meter, or hold one at a known value"
+        )
+    return warnings
+
+
+def starts_at_rest(record: Record, noise: float) -> bool:
+    """True when the flow's first :data:`REST_CHECK_S` s are flat to within the noise.
+
+    The means of the first and second halves of that stretch may differ by at most five
+    standard errors of their difference (noise ``noise`` [L/min], white).
+    """
+    span = record.t - record.t[0]
+    first = record.y[span <= REST_CHECK_S / 2, 0]
+    second = record.y[(span > REST_CHECK_S / 2) & (span <= REST_CHECK_S), 0]
+    first, second = first[np.isfinite(first)], second[np.isfinite(second)]
+    if len(first) < 3 or len(second) < 3 or noise <= 0.0:
+        return True
+    standard_error = noise * math.sqrt(1.0 / len(first) + 1.0 / len(second))
+    return bool(abs(np.mean(first) - np.mean(second)) <= 5.0 * standard_error)
 
 
 def _split(record: Record, holdout: float) -> tuple[Record, int]:
@@ -331,6 +399,7 @@ def calibrate(
     values = {name: float(estimator.params_[name]) for name in names}
     calibrated = with_parameters(config, values)
     warnings = [note for log in logs for note in log.notes]
+    warnings += _fit_warnings(config, names, estimator.sigma_[0], pressure, logs)
     fits: list[dict[str, float | None]] = []
     simulated: list[FloatArray] = []
     for log, (_, n_fit), fitted in zip(logs, splits, estimator.fit_percent_, strict=True):

@@ -183,7 +183,7 @@ def calibrate_command(
 def _plot(result: Any, path: Path) -> None:
     from fuelid.plots_greybox import FitPanel, plot_greybox_fit, save_greybox_figure
 
-    names = ["flow [L/min]"] + (["pump pressure [MPa]"] if result.simulated[0].shape[1] > 1 else [])
+    names = ["flow [L/min]"] + (["pressure [MPa]"] if result.simulated[0].shape[1] > 1 else [])
     panels = []
     for log, simulated, fits, n_fit in zip(
         result.logs, result.simulated, result.fit_percent, result.fitted_samples, strict=True
@@ -191,12 +191,8 @@ def _plot(result: Any, path: Path) -> None:
         record = log.record
         panels.append(
             FitPanel(
-                title=f"{log.path.name} at {log.fuel_temperature_C:.1f} °C"
-                + (
-                    ""
-                    if n_fit == record.n_samples
-                    else f" (held out after {record.t[n_fit]:.0f} s)"
-                ),
+                title=f"{log.path.name}, {log.fuel_temperature_C:.0f} °C"
+                + ("" if n_fit == record.n_samples else f", fit to {record.t[n_fit]:.0f} s"),
                 t=record.t,
                 y=record.y,
                 y_hat=simulated,

@@ -193,10 +193,19 @@ def simulate_record(
             raise SimulationError(
                 f"the model raised {type(exc).__name__} ({exc}) on {t_start:g}…{t_end:g} s"
             ) from exc
-        if info["message"] != _SOLVED or not np.all(np.isfinite(solution)):
-            raise SimulationError(
-                f"the ODE solver failed on {t_start:g}…{t_end:g} s: {info['message']}"
-            )
+        finite = bool(np.all(np.isfinite(solution)))
+        if info["message"] != _SOLVED or not finite:
+            # numpy arithmetic (√ of a negative, a division by zero) gives NaN or inf, not an
+            # exception: the solver then fails or returns non-finite values; say which
+            z_bad = np.asarray(rhs(t_start, z, u[start]), dtype=float)
+            if not finite or not np.all(np.isfinite(z_bad)):
+                reason = (
+                    "the model's derivatives are NaN or infinite there (a square root of a "
+                    "negative value, a division by zero?)"
+                )
+            else:
+                reason = f"the ODE solver failed: {info['message']}"
+            raise SimulationError(f"on {t_start:g}…{t_end:g} s {reason}")
         evaluations += int(info["nfe"][-1])
         z_at[inside] = solution[1 : 1 + len(inside)]
         z = solution[-1]
