@@ -96,6 +96,9 @@ bench: $(BENCH_VENV)/.fuelid-installed
 	$(BENCH_VENV)/bin/python benchmarks/bench_virtual_plant.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_acquisition.py --minutes 2
 	$(BENCH_VENV)/bin/python benchmarks/bench_online.py --minutes 2
+	$(BENCH_VENV)/bin/python benchmarks/bench_greybox.py --runs 200
+	$(BENCH_VENV)/bin/python benchmarks/bench_calibration.py --timing
+	$(BENCH_VENV)/bin/python benchmarks/bench_calibration.py --runs 200 --minutes 2
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) $(DEMO_DIR) .pytest_cache .mypy_cache .ruff_cache
