@@ -43,6 +43,10 @@ COST_TOLERANCE = 1e-4
 MAX_NOISE_PASSES = 4
 """Fits with re-estimated noise levels, at most (several outputs only)."""
 NOISE_TOLERANCE = math.log(1.05)
+XTOL = 1e-7
+"""The solver stops when a step changes φ by less than this relative amount: 1e-7 of a
+parameter is far inside any standard error the data give (log-space parameters: relative), and
+the last iterations to 1e-10 only chase the integrator's rounding with rejected trial points."""
 """The noise levels have settled when none moved by more than 5 % in a pass."""
 PROFILE_DOUBLINGS = 8
 """A profile steps out 2, 4, … 256 standard errors looking for the crossing."""
@@ -367,7 +371,7 @@ class GreyBoxEstimator:
             bounds=(clip_low, clip_high),
             method="trf",
             x_scale="jac",
-            xtol=1e-10,
+            xtol=XTOL,
             ftol=ftol,
             gtol=1e-10,
             max_nfev=self.max_iterations,
