@@ -130,7 +130,8 @@ def test_leakage_and_discharge_coefficient_from_flow_alone_are_refused_by_name(
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
-        (["--free", "pump.leak"], "valid:"),
+        (["--free", "pump.leak"], "calibratable:"),
+        (["--free", "pump.leakage_Lpm_per_Mpa"], "did you mean pump.leakage_Lpm_per_MPa?"),
         (["--free", f"{LEAK},{LEAK}"], "twice"),
         (["--free", "flowmeter.delay_s"], "dead time"),
         (["--free", LEAK, "--fuel-temp", "10"], "1 temperature(s) for 2 log(s)"),

@@ -12,6 +12,7 @@ whose sensitivities correlate above 0.999) is refused with the names and what da
 from __future__ import annotations
 
 import datetime as dt
+import difflib
 import hashlib
 import math
 import time
@@ -34,7 +35,7 @@ from fuelid.io.logs import load_log
 from fuelid.io.plantfile import update_plant_toml
 from fuelid.io.timeseries import INPUT_COLUMN, OUTPUT_COLUMN, TIME_COLUMN
 from fuelid.plant.config import REFERENCE_PLANT, PlantConfig, plant_config_from_dict
-from fuelid.plant.parameters import check_parameter_names, plant_parameters, with_parameters
+from fuelid.plant.parameters import parameter_names, plant_parameters, with_parameters
 from fuelid.units import T0 as KELVIN
 
 FloatArray = NDArray[np.float64]
@@ -242,8 +243,14 @@ def check_free_names(free: Sequence[str]) -> tuple[str, ...]:
     names = tuple(name.strip() for name in free if name.strip())
     if not names:
         raise ConfigError("name at least one parameter to calibrate (--free)")
-    check_parameter_names(names)
+    calibratable = [name for name in parameter_names() if name not in NOT_CALIBRATABLE]
     for name in names:
+        if name not in NOT_CALIBRATABLE and name not in calibratable:
+            close = difflib.get_close_matches(name, calibratable, n=1)
+            hint = f"did you mean {close[0]}? " if close else ""
+            raise ConfigError(
+                f"unknown plant parameter {name!r}; {hint}calibratable: {', '.join(calibratable)}"
+            )
         if name in NOT_CALIBRATABLE:
             raise ConfigError(f"{name} cannot be calibrated here: {NOT_CALIBRATABLE[name]}")
     repeated = sorted({name for name in names if names.count(name) > 1})

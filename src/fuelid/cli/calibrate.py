@@ -233,6 +233,8 @@ def _print(result: Any, written: Path | None) -> None:
             line += f", pressure {fits['pressure']:.2f} %"
         if fits.get("heldout_flow") is not None:
             line += f"; held-out end {fits['heldout_flow']:.2f} %"
+            if fits.get("heldout_pressure") is not None:
+                line += f", pressure {fits['heldout_pressure']:.2f} %"
         console.print(line)
     if len(result.free) > 1:
         pairs = [
