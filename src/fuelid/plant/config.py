@@ -33,6 +33,7 @@ from fuelid.plant.parameters import check_parameter_names
 from fuelid.plant.pipeline import PipelineConfig
 from fuelid.plant.pump import PumpConfig
 from fuelid.plant.vfd import VFDConfig
+from fuelid.units import T0 as KELVIN_AT_0C
 
 REFERENCE_PLANT = "reference_plant.toml"
 
@@ -79,7 +80,7 @@ class CalibrationLog(Section):
     @field_validator("fuel_temperature_C")
     @classmethod
     def _finite_temperature(cls, value: float) -> float:
-        if not (math.isfinite(value) and value > -273.15):
+        if not (math.isfinite(value) and value > -KELVIN_AT_0C):
             raise ValueError(f"fuel_temperature_C must be a finite temperature, got {value!r}")
         return value
 
