@@ -34,6 +34,7 @@ JSON_KEYS = {
     "profile",
     "warnings",
     "units",
+    "start",
     "provenance",
 }
 
@@ -160,6 +161,7 @@ def test_json_carries_the_documented_keys_and_provenance(
         "fitted to the first 10 % of the validation record (at least 20 samples), parameters held"
     )
     assert result["profile"] is None
+    assert result["start"] == "single shooting"  # the residuals are the noise: no second start
     assert "fuelid converts nothing" in result["units"]["parameters"]
     hashes = result["provenance"]["files_sha256"]
     assert set(hashes) == {str(MODEL), *(str(path) for path in tank_logs)}
@@ -374,6 +376,8 @@ def test_profile_of_a_fixed_parameter_is_refused_before_fitting(
         ("--fix", "k1,,k2", "comma-separated"),
         ("--initial-state", "model", "defines no x0"),
         ("--input-col", "u_V,t_s", "has 1 input"),
+        ("--segments", "1", "integer ≥ 2"),
+        ("--segments", "many", "auto, none or an integer"),
     ],
 )
 def test_bad_options_are_refused_in_one_line(
@@ -632,3 +636,22 @@ def test_a_constant_initial_state_may_be_a_list(tmp_path: Path):
                 'states = ["x"]\nparameters = {"a": 1.0}\nx0 = [1.0, 2.0]\nf = abs\n',
             )
         )
+
+
+def test_a_wrong_fixed_value_is_warned_about_by_the_size_of_the_residuals(
+    tank_logs: tuple[Path, Path], capsys: pytest.CaptureFixture[str]
+):
+    """k3 held at 4× its truth: no parameter set fits, and the residuals say so.
+
+    The fit still exits 0 (it is the best fit of this model), but the residuals are several times
+    the 0.01 dm sample-to-sample noise, the standard errors that assume white residuals are
+    called too small, and the segmented start that "auto" tries finds nothing better.
+    """
+    args = [str(MODEL), str(tank_logs[0]), "--fix", "k3,k4", "--set", "k3=0.2", "--json"]
+    code, out, err = _run(capsys, *args)
+    assert code == 0
+    result = json.loads(out)
+    assert result["noise_std"]["h2_dm"] > 3 * 0.01
+    assert any("sample-to-sample noise" in w and "too small" in w for w in result["warnings"])
+    assert result["start"] == "single shooting (a segmented start found no better fit)"
+    assert "sample-to-sample noise" in err

@@ -63,6 +63,20 @@ def _names(text: str | None, option: str) -> list[str]:
     return names
 
 
+def _segments(text: str) -> int | str | None:
+    """--segments: auto, none or an integer ≥ 2."""
+    word = text.strip().lower()
+    if word in {"auto", "none"}:
+        return None if word == "none" else "auto"
+    try:
+        count = int(word)
+    except ValueError:
+        count = 0
+    if count < 2:
+        raise ConfigError(f"--segments must be auto, none or an integer ≥ 2, not {text!r}")
+    return count
+
+
 def _assignments(text: str | None) -> dict[str, float]:
     """``--set NAME=VALUE,NAME=VALUE`` as a dict."""
     if text is None:
@@ -169,6 +183,16 @@ def greybox_command(
             min=1, help="Most iterations (Jacobian evaluations) of the least-squares solver."
         ),
     ] = 60,
+    segments: Annotated[
+        str,
+        typer.Option(
+            metavar="auto|none|N",
+            help="Robust start for long records: fit first with the records cut into N segments "
+            "(each with its own initial state; stages of a quarter as many), then the whole "
+            "records. auto: only when the plain fit fails or leaves residuals over 3× the "
+            "records' sample-to-sample noise; none: never.",
+        ),
+    ] = "auto",
     profile: Annotated[
         str | None,
         typer.Option(
@@ -240,7 +264,10 @@ def greybox_command(
     mf.check(float(records[0].t[0]), records[0].u[0])
 
     estimator = GreyBoxEstimator(
-        model, initial_state=initial_state.value, max_iterations=max_iterations
+        model,
+        initial_state=initial_state.value,
+        max_iterations=max_iterations,
+        segments=_segments(segments),
     )
     started = time.perf_counter()
     with progress_display() as stage:
@@ -289,6 +316,7 @@ def greybox_command(
         "set": values,
         "initial_state": initial_state.value,
         "max_iterations": max_iterations,
+        "segments": segments,
         "profile": profiled,
         "plot": None if plot is None else str(plot),
     }
@@ -444,6 +472,17 @@ def _warnings(estimator: GreyBoxEstimator) -> list[str]:
     report = estimator.identifiability_
     if not report.identifiable:
         out.append(report.message())
+    from fuelid.greybox.estimator import SUSPECT_NOISE_RATIO
+
+    for name, ratio in zip(
+        estimator.model.output_names, estimator.sigma_ / estimator.noise_floor_, strict=True
+    ):
+        if ratio > SUSPECT_NOISE_RATIO:
+            out.append(
+                f"the residuals of {name} are {ratio:.1f}× the records' sample-to-sample noise "
+                "(a model error, slow disturbances or a local minimum): the standard errors "
+                "assume white residuals and are too small"
+            )
     for spec in estimator.model.parameters:
         if spec.fixed:
             continue
@@ -520,6 +559,7 @@ def _result(
         else VALIDATION_CONVENTIONS[check["convention"]],
         "noise_std": dict(zip(outputs, (float(s) for s in estimator.sigma_), strict=True)),
         "n_iterations": estimator.n_iterations_,
+        "start": estimator.start_,
         "identifiability": estimator.identifiability_.to_json(),
         "profile": profile,
         "warnings": warnings,
@@ -618,7 +658,7 @@ def _print(result: dict[str, Any], model_file: Path, seconds: float) -> None:
         for name, (lo, hi) in result["profile"].items():
             lines.append(f"profile-likelihood 95 % interval of {name}: {lo:.5g} … {hi:.5g}")
     lines.extend(_describe_identifiability(result["identifiability"]))
-    lines.append(f"{result['n_iterations']} iterations, {seconds:.1f} s")
+    lines.append(f"{result['n_iterations']} iterations, {result['start']}, {seconds:.1f} s")
     for line in lines:
         console.print(line, highlight=False, markup=False)
 

@@ -17,6 +17,7 @@ where the Gaussian one is not to be trusted.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -43,14 +44,22 @@ COST_TOLERANCE = 1e-4
 MAX_NOISE_PASSES = 4
 """Fits with re-estimated noise levels, at most (several outputs only)."""
 NOISE_TOLERANCE = math.log(1.05)
+"""The noise levels have settled when none moved by more than 5 % in a pass."""
 XTOL = 1e-7
 """The solver stops when a step changes φ by less than this relative amount: 1e-7 of a
 parameter is far inside any standard error the data give (log-space parameters: relative), and
 the last iterations to 1e-10 only chase the integrator's rounding with rejected trial points."""
-"""The noise levels have settled when none moved by more than 5 % in a pass."""
 PROFILE_DOUBLINGS = 8
 """A profile steps out 2, 4, … 256 standard errors looking for the crossing."""
-"""A validation record's initial state is fitted to its first 10 % (at least 20 samples)."""
+SEGMENT_MIN_SAMPLES = 50
+"""A segment of the segmented start holds at least this many samples."""
+SEGMENT_MAX_STATES = 240
+"""At most this many segment initial states (n_states × segments) are estimated at once."""
+SEGMENT_SHRINK = 4
+"""Each stage of the segmented start has a quarter of the last stage's segments."""
+SUSPECT_NOISE_RATIO = 3.0
+"""A fit whose residuals are this many times the first-difference noise level of an output is
+suspected of a local minimum (or model error): ``segments="auto"`` then tries a segmented start."""
 
 
 class ConvergenceError(FuelidError):
@@ -117,6 +126,19 @@ def noise_level(y: FloatArray) -> FloatArray:
     return np.array(levels)
 
 
+def _stages(count: int) -> list[int]:
+    """Segments per record of each stage of a segmented start: count, count/4, … above 1.
+
+    >>> _stages(60)
+    [60, 15, 3]
+    """
+    stages = []
+    while count > 1:
+        stages.append(count)
+        count //= SEGMENT_SHRINK
+    return stages
+
+
 class GreyBoxEstimator:
     """Fit a :class:`~fuelid.greybox.system.GreyBoxModel` to records by output error.
 
@@ -131,6 +153,13 @@ class GreyBoxEstimator:
     max_iterations : int
         Most function evaluations (simulations of every record) of the trust-region solver in
         one pass; a fit that needs more raises :class:`ConvergenceError`.
+    segments : {"auto"} or int or None
+        A robust start for long records (multiple shooting without continuity): the records are
+        cut into this many segments each, every segment with its own initial state, and fitted
+        in stages of a quarter as many segments; the whole records are then fitted from that
+        start. "auto" (default): a single-shooting fit first, and a segmented start (segments of
+        ≥ 50 samples) only when that fit did not converge or its residuals exceed 3× the noise
+        level the records show; the better fit is kept. None: single shooting only.
 
     Attributes
     ----------
@@ -157,20 +186,38 @@ class GreyBoxEstimator:
         Record simulations the fit used (each with its sensitivities).
     n_evaluations_ : int
         Right-hand-side evaluations over all those simulations.
+    noise_floor_ : ndarray
+        Each output's sample-to-sample (first-difference) noise level in the records: residuals
+        well above it mean a model error, slow disturbances or a local minimum.
+    start_ : str
+        How the fit was started ("single shooting" or the segmented start's stages).
     """
 
     def __init__(
-        self, model: GreyBoxModel, initial_state: str = "auto", max_iterations: int = 60
+        self,
+        model: GreyBoxModel,
+        initial_state: str = "auto",
+        max_iterations: int = 60,
+        segments: int | str | None = "auto",
     ) -> None:
         self.model = model
         self.initial_state = initial_state
         self.max_iterations = max_iterations
+        self.segments = segments
 
     # --- set-up ---------------------------------------------------------------------------------
     def _prepare(self, records: Sequence[Record]) -> None:
         if self.initial_state not in {"auto", "model", "estimate"}:
             raise FuelidError(
                 f"initial_state must be auto, model or estimate, not {self.initial_state!r}"
+            )
+        if self.segments not in (None, "auto") and (
+            isinstance(self.segments, bool)
+            or not isinstance(self.segments, int)
+            or self.segments < 2
+        ):
+            raise FuelidError(
+                f"segments must be 'auto', None or an integer ≥ 2, not {self.segments!r}"
             )
         if not records:
             raise DataError("no record to fit")
@@ -402,6 +449,7 @@ class GreyBoxEstimator:
         records = [records] if isinstance(records, Record) else list(records)
         self._prepare(records)
         sigma = np.max([noise_level(record.y) for record in records], axis=0)
+        self.noise_floor_ = sigma
         phi = self._start()
         n_finite = sum(int(np.isfinite(record.y).sum()) for record in records)
         if n_finite <= len(phi):
@@ -411,7 +459,6 @@ class GreyBoxEstimator:
             )
         self._budgets: list[int] = []
         self._work = [0, 0]
-        iterations = 0
         try:
             evaluation = self._evaluate(phi, records, sigma, jacobian=True)
         except (SimulationError, FloatingPointError, OverflowError) as exc:
@@ -421,6 +468,42 @@ class GreyBoxEstimator:
         # a trial point may cost 20× the start's work (chattering at a bound), not more
         self._budgets = [max(20 * t.evaluations, 50_000) for t in evaluation.trajectories]
         self._refuse_structural(phi, evaluation)
+        start_phi, start_sigma, start_evaluation = phi, sigma, evaluation
+        self.start_ = "single shooting"
+        if self.segments not in (None, "auto"):
+            phi = self._segmented_start(phi, records, sigma, evaluation, int(self.segments))
+            evaluation = self._evaluate(phi, records, sigma, jacobian=True)
+        failure: ConvergenceError | None = None
+        try:
+            result = self._single_shooting(phi, records, sigma, evaluation)
+        except ConvergenceError as exc:
+            if self.segments != "auto":
+                raise
+            failure, result = exc, None
+        if self.segments == "auto" and (result is None or self._suspect(result, self.noise_floor_)):
+            retried = self._retry_segmented(
+                start_phi, records, start_sigma, start_evaluation, result
+            )
+            if retried is not None:
+                result = retried
+        if result is None:
+            assert failure is not None
+            raise failure
+        phi, solution, evaluation, sigma, iterations = result
+        self.phi_ = phi
+        self.sigma_ = sigma
+        self._finish(phi, records, solution, evaluation)
+        self.n_iterations_ = iterations
+        return self
+
+    def _single_shooting(
+        self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, evaluation: _Evaluation
+    ) -> tuple[FloatArray, Any, _Evaluation, FloatArray, int]:
+        """Fit the whole records from φ, re-estimating the noise levels between passes.
+
+        Returns φ̂, the solver's result, the evaluation at φ̂, the noise levels and the iterations.
+        """
+        iterations = 0
         try:
             for _ in range(MAX_NOISE_PASSES):
                 phi, solution, evaluation = self._solve(phi, records, sigma, seed=evaluation)
@@ -441,11 +524,114 @@ class GreyBoxEstimator:
                 f"({solution.message.rstrip('.')}); no estimate is given: try other start "
                 "values, fix a parameter, or give a longer or more exciting record"
             )
-        self.phi_ = phi
-        self.sigma_ = sigma
-        self._finish(phi, records, solution, evaluation)
-        self.n_iterations_ = iterations
-        return self
+        return phi, solution, evaluation, sigma, iterations
+
+    @staticmethod
+    def _suspect(
+        result: tuple[FloatArray, Any, _Evaluation, FloatArray, int], floor: FloatArray
+    ) -> bool:
+        """Residuals far above the noise the records show: a local minimum, or a wrong model."""
+        return bool(np.any(result[3] > SUSPECT_NOISE_RATIO * floor))
+
+    def _retry_segmented(
+        self,
+        phi: FloatArray,
+        records: Sequence[Record],
+        sigma: FloatArray,
+        evaluation: _Evaluation,
+        first: tuple[FloatArray, Any, _Evaluation, FloatArray, int] | None,
+    ) -> tuple[FloatArray, Any, _Evaluation, FloatArray, int] | None:
+        """Fit again from a segmented start; the better of the two fits (None: no better one)."""
+        count = self._segment_count(records)
+        if count < 2:
+            return None
+        try:
+            phi = self._segmented_start(phi, records, sigma, evaluation, count)
+            evaluation = self._evaluate(phi, records, sigma, jacobian=True)
+            second = self._single_shooting(phi, records, sigma, evaluation)
+        except (ConvergenceError, SimulationError, FloatingPointError, OverflowError):
+            if first is not None:
+                self.start_ = "single shooting (a segmented start did not converge)"
+            return None
+        # compare the fits by their likelihood: Σ log σ_c² over the outputs' samples
+        if first is not None and self._log_likelihood_cost(
+            first, records
+        ) <= self._log_likelihood_cost(second, records):
+            self.start_ = "single shooting (a segmented start found no better fit)"
+            return None
+        return second
+
+    @staticmethod
+    def _log_likelihood_cost(
+        result: tuple[FloatArray, Any, _Evaluation, FloatArray, int], records: Sequence[Record]
+    ) -> float:
+        counts = np.sum([np.isfinite(record.y).sum(axis=0) for record in records], axis=0)
+        return float(np.sum(counts * np.log(result[3] ** 2)))
+
+    def _segment_count(self, records: Sequence[Record]) -> int:
+        """Segments per record of the first stage: ≥ SEGMENT_MIN_SAMPLES samples each."""
+        shortest = min(len(record.t) for record in records)
+        by_states = SEGMENT_MAX_STATES // max(self.n_states_ * len(records), 1)
+        return int(min(shortest // SEGMENT_MIN_SAMPLES, by_states))
+
+    def _segmented_start(
+        self,
+        phi: FloatArray,
+        records: Sequence[Record],
+        sigma: FloatArray,
+        evaluation: _Evaluation,
+        count: int,
+    ) -> FloatArray:
+        """Start values from the records cut into segments, each with its own initial state.
+
+        Multiple shooting without the continuity constraints: over a short segment a wrong
+        parameter cannot drift the prediction far (an oscillator's phase, say), so the fit is
+        nearly convex; each stage has a quarter of the last one's segments (their initial states
+        taken from the last stage's trajectories), down to one. The whole records are then fitted
+        from the result by :meth:`_single_shooting`, which alone gives the estimate.
+        """
+        p = len(self.free_names_)
+        n = self.n_states_
+        theta_phi = phi[:p]
+        states = [trajectory.states.copy() for trajectory in evaluation.trajectories]
+        saved = (self.estimate_x0_, self._budgets)
+        self.estimate_x0_ = True
+        self.start_ = (
+            "segmented start ("
+            + ", ".join(str(c) for c in _stages(count))
+            + " segments per record)"
+        )
+        try:
+            for stage in _stages(count):
+                pieces, spans, guesses = [], [], []
+                for i, record in enumerate(records):
+                    edges = np.linspace(0, len(record.t), stage + 1).round().astype(int)
+                    for a, b in itertools.pairwise(edges):
+                        if np.isfinite(record.y[a:b]).sum() <= n:
+                            continue  # nothing to fit there: its states stay as they were
+                        pieces.append(
+                            Record(record.t[a:b], record.u[a:b], record.y[a:b], "", record.context)
+                        )
+                        spans.append((i, a, b))
+                        guesses.append(states[i][a])
+                if not pieces:
+                    break
+                self._budgets = [
+                    max(saved[1][i] * (b - a) // len(records[i].t), 50_000) for i, a, b in spans
+                ]
+                phi_stage = np.concatenate([theta_phi, *guesses])
+                try:
+                    phi_stage, _, found = self._solve(phi_stage, pieces, sigma)
+                except (SimulationError, FloatingPointError, OverflowError):
+                    break  # keep the last stage's values
+                theta_phi = phi_stage[:p]
+                for (i, a, b), trajectory in zip(spans, found.trajectories, strict=True):
+                    states[i][a:b] = trajectory.states
+        finally:
+            self.estimate_x0_, self._budgets = saved
+        if not self.estimate_x0_:
+            return theta_phi
+        return np.concatenate([theta_phi, *[s[0] for s in states]])
 
     def _refuse_structural(self, phi: FloatArray, start: _Evaluation) -> None:
         """Refuse before fitting when the parameters cannot be determined whatever the values.
