@@ -84,6 +84,9 @@ def test_flow_alone_recovers_leakage_and_vfd_lag_across_two_temperatures(
         assert entry["flow"] > 98.0
         assert entry["heldout_flow"] > 98.0
     assert [log["fuel_temperature_C"] for log in result["logs"]] == pytest.approx([10, 45])
+    # provenance as the other commands: the first input's hash at the top, every log's in `logs`
+    assert result["input_sha256"] == result["logs"][0]["sha256"]
+    assert result["options"]["free"] == [LEAK, LAG]
 
 
 def test_with_pump_pressure_all_three_are_recovered_and_k_predicted_at_a_third_temperature(
@@ -131,6 +134,7 @@ def test_leakage_and_discharge_coefficient_from_flow_alone_are_refused_by_name(
     ("argv", "needle"),
     [
         (["--free", "pump.leak"], "calibratable:"),
+        (["--free", "nozzle.count"], "nozzle.count is a setting of the plant file"),
         (["--free", "pump.leakage_Lpm_per_Mpa"], "did you mean pump.leakage_Lpm_per_MPa?"),
         (["--free", f"{LEAK},{LEAK}"], "twice"),
         (["--free", "flowmeter.delay_s"], "dead time"),

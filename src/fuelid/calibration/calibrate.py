@@ -34,7 +34,12 @@ from fuelid.greybox.estimator import NotIdentifiableError
 from fuelid.io.logs import load_log
 from fuelid.io.plantfile import update_plant_toml
 from fuelid.io.timeseries import INPUT_COLUMN, OUTPUT_COLUMN, TIME_COLUMN
-from fuelid.plant.config import REFERENCE_PLANT, PlantConfig, plant_config_from_dict
+from fuelid.plant.config import (
+    REFERENCE_PLANT,
+    PlantConfig,
+    load_plant_config,
+    plant_config_from_dict,
+)
 from fuelid.plant.parameters import parameter_names, plant_parameters, with_parameters
 from fuelid.units import T0 as KELVIN
 
@@ -118,8 +123,12 @@ def load_calibration_log(
             file, time_col=time_col, input_col=input_col, output_col=pressure_col,
             sample_time=sample_time,
         )  # fmt: skip
-        if pressure.n_samples < n:
-            raise DataError(f"{file.name}: the pressure column {pressure_col!r} has fewer samples")
+        # read as a second output of the same table: the two reads must share the time grid
+        if pressure.n_samples < n or not np.array_equal(pressure.t[:n], flow.t[:n]):
+            raise DataError(
+                f"{file.name}: the pressure column {pressure_col!r} does not line up with the "
+                "flow (missing or bad values in other rows): clean the log's rows first"
+            )
         columns.append(pressure.y[:n])
     if fuel_temp_C is not None and flow.T_fuel is not None:
         logged = float(np.mean(flow.T_fuel[:n])) - KELVIN
@@ -246,6 +255,12 @@ def check_free_names(free: Sequence[str]) -> tuple[str, ...]:
     calibratable = [name for name in parameter_names() if name not in NOT_CALIBRATABLE]
     for name in names:
         if name not in NOT_CALIBRATABLE and name not in calibratable:
+            if _is_plant_setting(name):
+                raise ConfigError(
+                    f"{name} is a setting of the plant file (a count, a text or a switch), not a "
+                    f"physical parameter to fit: set it in the file; calibratable: "
+                    f"{', '.join(calibratable)}"
+                )
             close = difflib.get_close_matches(name, calibratable, n=1)
             hint = f"did you mean {close[0]}? " if close else ""
             raise ConfigError(
@@ -257,6 +272,13 @@ def check_free_names(free: Sequence[str]) -> tuple[str, ...]:
     if repeated:
         raise ConfigError(f"parameter(s) named twice in --free: {', '.join(repeated)}")
     return names
+
+
+def _is_plant_setting(name: str) -> bool:
+    """A key the plant file has that is no numeric parameter (``nozzle.count``, say)."""
+    section, _, key = name.partition(".")
+    reference = load_plant_config()
+    return bool(key) and hasattr(getattr(reference, section, None), key)
 
 
 def _advice(names: Sequence[str], logs: Sequence[CalibrationLog], pressure: bool) -> list[str]:

@@ -36,14 +36,13 @@ from fuelid.plant.system import (
     steady_state,
 )
 from fuelid.simulate import ATOL
-from fuelid.units import LPM_PER_M3S
+from fuelid.units import LPM_PER_M3S, PA_PER_MPA
 
 FloatArray = NDArray[np.float64]
 FUEL_TEMPERATURE_KEY = "fuel_temperature_K"
 """The key of a record's context that holds its fuel temperature [K]."""
 RELATIVE_STEP = 1e-6
 """Relative step of the forward difference in each physical parameter."""
-PA_PER_MPA = 1e6
 NOT_CALIBRATABLE = {
     "flowmeter.delay_s": "the dead time is read off the step response (fuelid identify), "
     "not fitted here",

@@ -172,7 +172,7 @@ def calibrate_command(
                     "holdout": holdout,
                     "profile": profiles,
                 },
-                None,
+                logs[0],  # every log's hash is in `logs`
             )
         )
         emit_json(document)
