@@ -712,3 +712,17 @@ def test_a_good_start_is_fitted_by_single_shooting_alone(ringing_record: Record)
 def test_the_segment_count_is_checked(segments: Any, ringing_record: Record) -> None:
     with pytest.raises(FuelidError, match="segments must be"):
         GreyBoxEstimator(oscillator_model(1.0, 0.01), segments=segments).fit(ringing_record)
+
+
+def test_a_segmented_start_ends_in_the_same_estimate_as_single_shooting() -> None:
+    """The start only changes where the whole-record fit begins, not what it converges to."""
+    record, _ = tank_record()
+    plain = GreyBoxEstimator(tank_model(), "estimate", segments=None).fit(record)
+    segmented = GreyBoxEstimator(tank_model(), "estimate", segments=8).fit(record)
+    assert plain.start_ == "single shooting"
+    assert segmented.start_ == "segmented start (8, 2 segments per record)"
+    for name in ("k1", "k2", "k3"):
+        stderr = plain.stderr_[name]
+        assert stderr is not None
+        assert abs(segmented.params_[name] - plain.params_[name]) < 0.01 * stderr
+    np.testing.assert_allclose(segmented.x0_[0], plain.x0_[0], rtol=1e-3)
