@@ -726,3 +726,23 @@ def test_a_segmented_start_ends_in_the_same_estimate_as_single_shooting() -> Non
         assert stderr is not None
         assert abs(segmented.params_[name] - plain.params_[name]) < 0.01 * stderr
     np.testing.assert_allclose(segmented.x0_[0], plain.x0_[0], rtol=1e-3)
+
+
+def test_a_free_decay_with_estimated_initial_state_is_not_refused() -> None:
+    """From the steady-state guess (rest at u = 0) nothing depends on ω or ζ; from x0 it does.
+
+    The structural check is made after the initial state has been fitted with the parameters
+    held, so the ringing of a released spring is fitted rather than refused.
+    """
+    rng = np.random.default_rng(5)
+    t = np.arange(1000) * 0.1
+    w, z = 1.0, 0.02
+    wd = w * math.sqrt(1.0 - z * z)
+    clean = np.exp(-z * w * t) * (np.cos(wd * t) + z / math.sqrt(1.0 - z * z) * np.sin(wd * t))
+    record = Record.from_arrays(t, np.zeros_like(t), clean + rng.normal(0.0, 0.02, len(t)))
+    est = GreyBoxEstimator(oscillator_model(1.1, 0.03), "estimate").fit(record)
+    for name, truth in {"w": w, "z": z}.items():
+        stderr = est.stderr_[name]
+        assert stderr is not None
+        assert abs(est.params_[name] - truth) < 3.0 * stderr
+    np.testing.assert_allclose(est.x0_[0], [1.0, 0.0], atol=0.02)

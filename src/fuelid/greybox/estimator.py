@@ -342,10 +342,10 @@ class GreyBoxEstimator:
         phi0: FloatArray,
         records: Sequence[Record],
         sigma: FloatArray,
-        hold: int | None = None,
+        hold: int | Sequence[int] | None = None,
         seed: _Evaluation | None = None,
     ) -> tuple[FloatArray, Any, _Evaluation]:
-        """Least squares from phi0; ``hold`` keeps one φ component fixed (profiles).
+        """Least squares from phi0; ``hold`` keeps φ components fixed (profiles, initial states).
 
         ``seed`` is the evaluation at phi0 with this σ, if already at hand. Returns φ̂, the
         solver's result and the evaluation at φ̂ (the solver's last accepted point, so the caller
@@ -358,7 +358,7 @@ class GreyBoxEstimator:
         upper = np.concatenate([upper, np.full(n_extra, np.inf)])
         active = np.ones(len(phi0), dtype=bool)
         if hold is not None:
-            active[hold] = False
+            active[np.atleast_1d(np.asarray(hold, dtype=int))] = False
         clip_low, clip_high = lower[active], upper[active]
         start = np.clip(phi0[active], clip_low + 1e-12, clip_high - 1e-12)
         # evaluations by φ: the latest (for its Jacobian) and the best (the solver's answer)
@@ -467,6 +467,8 @@ class GreyBoxEstimator:
             ) from None
         # a trial point may cost 20× the start's work (chattering at a bound), not more
         self._budgets = [max(20 * t.evaluations, 50_000) for t in evaluation.trajectories]
+        if self.estimate_x0_:
+            phi, evaluation = self._settle_initial_states(phi, records, sigma, evaluation)
         self._refuse_structural(phi, evaluation)
         start_phi, start_sigma, start_evaluation = phi, sigma, evaluation
         self.start_ = "single shooting"
@@ -495,6 +497,30 @@ class GreyBoxEstimator:
         self._finish(phi, records, solution, evaluation)
         self.n_iterations_ = iterations
         return self
+
+    def _settle_initial_states(
+        self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, start: _Evaluation
+    ) -> tuple[FloatArray, _Evaluation]:
+        """Fit the estimated initial states alone when the start shows a structural gap.
+
+        The initial-state guess is the steady state at the first input; a record that starts
+        away from it (a free decay with the input at zero, say) has, from that guess, no
+        sensitivity to any parameter, which would refuse a fit the data support. The initial
+        states are fitted with the parameters held; the fit starts there when that closes the
+        gap, and a gap that stays is reported as seen from the start.
+        """
+        report, structural = self._structural(phi, start)
+        if not structural and not report.zero_sensitivity:
+            return phi, start
+        held = list(range(len(self.free_names_)))
+        try:
+            settled, _, evaluation = self._solve(phi, records, sigma, hold=held, seed=start)
+        except (SimulationError, FloatingPointError, OverflowError):
+            return phi, start
+        report, structural = self._structural(settled, evaluation)
+        if structural or report.zero_sensitivity:
+            return phi, start  # a true gap: reported as seen from the start
+        return settled, evaluation
 
     def _single_shooting(
         self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, evaluation: _Evaluation
@@ -633,6 +659,14 @@ class GreyBoxEstimator:
             return theta_phi
         return np.concatenate([theta_phi, *[s[0] for s in states]])
 
+    def _structural(
+        self, phi: FloatArray, start: _Evaluation
+    ) -> tuple[IdentifiabilityReport, list[Any]]:
+        """The identifiability report at φ and its combinations no data of this kind determine."""
+        assert start.jacobian is not None
+        report = self._report(phi, start.jacobian)
+        return report, [c for c in report.undetermined if not np.isfinite(c.uncertainty)]
+
     def _refuse_structural(self, phi: FloatArray, start: _Evaluation) -> None:
         """Refuse before fitting when the parameters cannot be determined whatever the values.
 
@@ -640,9 +674,7 @@ class GreyBoxEstimator:
         outputs cannot see, a parameter they do not depend on) is not determined by any data of
         this kind: fitting would only wander along it.
         """
-        assert start.jacobian is not None
-        report = self._report(phi, start.jacobian)
-        structural = [c for c in report.undetermined if not np.isfinite(c.uncertainty)]
+        report, structural = self._structural(phi, start)
         if structural or report.zero_sensitivity:
             advice = []
             for combination in structural:
