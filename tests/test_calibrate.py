@@ -24,6 +24,7 @@ TRUTH = {
     LAG: 0.7 * get_parameter(REFERENCE, LAG),
     CD: 0.9 * get_parameter(REFERENCE, CD),
 }
+DISPLACEMENT = "pump.displacement_cm3_per_rev"
 LEVELS = "1.5,3.0,2.0,4.5,2.5,4.0"
 
 
@@ -250,3 +251,26 @@ def test_fuel_temp_over_a_logged_temperature_is_noted(logs: dict[str, Path]) -> 
     loaded = load_calibration_log(logs["log10"], fuel_temp_C=40.0)
     assert loaded.fuel_temperature_C == 40.0
     assert any("overrides the log's own fuel temperature" in note for note in loaded.notes)
+
+
+def test_a_plant_file_wrong_elsewhere_is_called_a_misfit_not_missing_data(
+    logs: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The pump's displacement 20 % short in the start file, only the leakage free.
+
+    The start plant delivers too little even without leakage: the fit drives the leakage to
+    nothing, where it loses its sensitivity. The refusal
+    says the plant file does not fit (the residuals against the meter's noise), not that the
+    data lack a temperature.
+    """
+    folder = logs["folder"]
+    short = {"pump.displacement_cm3_per_rev": 0.8 * get_parameter(REFERENCE, DISPLACEMENT)}
+    start = plant_file(folder / "short_pump.toml", short)
+    code = main(["calibrate", str(logs["log10"]), "-c", str(start), "--free", LEAK,
+                 "--pressure-col", "p_pump_MPa"])  # fmt: skip
+    out, err = capsys.readouterr()
+    assert (code, out) == (2, "")
+    line = err.strip().splitlines()[-1]
+    assert "the plant file does not fit these logs" in line
+    assert "against the meter's 0.1 L/min" in line
+    assert "another fuel temperature" not in line

@@ -298,6 +298,29 @@ def _advice(names: Sequence[str], logs: Sequence[CalibrationLog], pressure: bool
     return advice
 
 
+def _misfit(
+    config: PlantConfig,
+    registry: dict[str, Any],
+    estimator: GreyBoxEstimator,
+    names: Sequence[str],
+) -> str | None:
+    """Why a fit is no calibration when its flow residuals exceed the meter's noise (or None)."""
+    meter = config.flowmeter
+    expected = math.hypot(meter.noise_std_Lpm, meter.resolution_Lpm / math.sqrt(12.0))
+    flow_sigma = float(estimator.sigma_[0])
+    if expected <= 0.0 or flow_sigma <= RESIDUAL_NOISE_FACTOR * expected:
+        return None
+    moves = ", ".join(
+        f"{name} from {registry[name].value:.4g} to {estimator.params_[name]:.3g}" for name in names
+    )
+    return (
+        f"the plant file does not fit these logs: the flow residuals are {flow_sigma:.3g} L/min "
+        f"against the meter's {expected:.3g} L/min, and the fit moved {moves} without "
+        "determining them; parameters held at their file values are probably wrong for this "
+        "plant: free them too or correct them in the file (no numbers are given)"
+    )
+
+
 def _fit_warnings(
     config: PlantConfig,
     names: Sequence[str],
@@ -428,6 +451,11 @@ def calibrate(
     wall = time.perf_counter() - started
     report = estimator.identifiability_
     if not report.identifiable:
+        # a plant file wrong elsewhere drives the free parameters to the edge (a leakage to
+        # nothing), where they lose their sensitivity: that is a misfit, not missing data
+        misfit = _misfit(config, registry, estimator, names)
+        if misfit is not None:
+            raise CalibrationRefused(misfit)
         report = report.with_advice(_advice(report.undetermined_names, logs, pressure))
         raise CalibrationRefused(report.message())
     values = {name: float(estimator.params_[name]) for name in names}
