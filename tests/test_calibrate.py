@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from fuelid.cli import main
@@ -274,3 +275,24 @@ def test_a_plant_file_wrong_elsewhere_is_called_a_misfit_not_missing_data(
     assert "the plant file does not fit these logs" in line
     assert "against the meter's 0.1 L/min" in line
     assert "another fuel temperature" not in line
+
+
+def test_estimates_that_trade_three_ways_are_warned_about(
+    logs: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Displacement, f_min and f_max: two combinations of the three carry nearly everything.
+
+    Flow ∝ displacement × drive frequency, and the frequency is linear in the command between
+    f_min and f_max. No pair of sensitivities is alike, so the report passes, but the estimates
+    correlate near ±1, and that is said.
+    """
+    free = f"{DISPLACEMENT},vfd.f_min_Hz,vfd.f_max_Hz"
+    code, result, err = calibrate_json(
+        capsys, str(logs["log10"]), str(logs["log45"]), "-c", str(logs["worn"]), "--free", free,
+        "--pressure-col", "p_pump_MPa",
+    )  # fmt: skip
+    assert code == 0, err
+    correlated = [w for w in result["warnings"] if "are estimated with correlation" in w]
+    assert correlated, result["warnings"]
+    matrix = np.array(result["correlation"]["matrix"])
+    assert np.max(np.abs(matrix - np.eye(3))) > 0.999

@@ -30,7 +30,7 @@ from fuelid import __version__
 from fuelid.calibration.plant_model import FUEL_TEMPERATURE_KEY, NOT_CALIBRATABLE, PlantGreyBox
 from fuelid.errors import ConfigError, DataError, FuelidError
 from fuelid.greybox import GreyBoxEstimator, Record, fit_percent
-from fuelid.greybox.estimator import NotIdentifiableError
+from fuelid.greybox.estimator import NotIdentifiableError, correlation_warning
 from fuelid.io.logs import load_log
 from fuelid.io.plantfile import update_plant_toml
 from fuelid.io.timeseries import INPUT_COLUMN, OUTPUT_COLUMN, TIME_COLUMN
@@ -298,6 +298,11 @@ def _advice(names: Sequence[str], logs: Sequence[CalibrationLog], pressure: bool
     return advice
 
 
+COLLAPSE_FACTOR = 1e3
+"""A free parameter driven this factor from its plant-file value has collapsed (a leakage to
+nothing): the fit is compensating for something else."""
+
+
 def _misfit(
     config: PlantConfig,
     registry: dict[str, Any],
@@ -310,14 +315,25 @@ def _misfit(
     flow_sigma = float(estimator.sigma_[0])
     if expected <= 0.0 or flow_sigma <= RESIDUAL_NOISE_FACTOR * expected:
         return None
+    collapsed = [
+        name
+        for name in names
+        if registry[name].value != 0.0
+        and not COLLAPSE_FACTOR**-1
+        < estimator.params_[name] / registry[name].value
+        < COLLAPSE_FACTOR
+    ]
+    if not collapsed:
+        return None  # a misfit, but the gap in the data is real: say that
     moves = ", ".join(
-        f"{name} from {registry[name].value:.4g} to {estimator.params_[name]:.3g}" for name in names
+        f"{name} from {registry[name].value:.4g} to {estimator.params_[name]:.3g}"
+        for name in collapsed
     )
     return (
         f"the plant file does not fit these logs: the flow residuals are {flow_sigma:.3g} L/min "
-        f"against the meter's {expected:.3g} L/min, and the fit moved {moves} without "
-        "determining them; parameters held at their file values are probably wrong for this "
-        "plant: free them too or correct them in the file (no numbers are given)"
+        f"against the meter's {expected:.3g} L/min, and the fit drove {moves}, where the "
+        "data no longer determine it; parameters held at their file values are probably "
+        "wrong for this plant: free them too or correct them in the file (no numbers are given)"
     )
 
 
@@ -488,6 +504,10 @@ def calibrate(
         for bound in (spec.lower, spec.upper):
             if bound is not None and bound != 0.0 and abs(values[name] - bound) < 1e-6 * abs(bound):
                 warnings.append(f"{name} ended on its bound {bound:g}: the interval is not valid")
+    confounded = {frozenset(pair[:2]) for pair in report.confounded_pairs}
+    for first, second, rho in estimator.correlated_pairs():
+        if frozenset((first, second)) not in confounded:
+            warnings.append(correlation_warning(first, second, rho))
     wanted = set(names) if "all" in profile else set(profile)
     unknown = wanted - set(names)
     if unknown:

@@ -472,8 +472,12 @@ def _warnings(estimator: GreyBoxEstimator) -> list[str]:
     report = estimator.identifiability_
     if not report.identifiable:
         out.append(report.message())
-    from fuelid.greybox.estimator import SUSPECT_NOISE_RATIO
+    from fuelid.greybox.estimator import SUSPECT_NOISE_RATIO, correlation_warning
 
+    confounded = {frozenset(pair[:2]) for pair in report.confounded_pairs}
+    for first, second, rho in estimator.correlated_pairs():
+        if frozenset((first, second)) not in confounded:
+            out.append(correlation_warning(first, second, rho))
     for name, ratio in zip(
         estimator.model.output_names, estimator.sigma_ / estimator.noise_floor_, strict=True
     ):

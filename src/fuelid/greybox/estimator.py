@@ -57,6 +57,8 @@ SEGMENT_MAX_STATES = 240
 """At most this many segment initial states (n_states × segments) are estimated at once."""
 SEGMENT_SHRINK = 4
 """Each stage of the segmented start has a quarter of the last stage's segments."""
+ESTIMATE_CORRELATION_LIMIT = 0.999
+"""Estimates correlated beyond this are named: the data determine mostly their combination."""
 SUSPECT_NOISE_RATIO = 3.0
 """A fit whose residuals are this many times the first-difference noise level of an output is
 suspected of a local minimum (or model error): ``segments="auto"`` then tries a segmented start."""
@@ -124,6 +126,15 @@ def noise_level(y: FloatArray) -> FloatArray:
         spread = float(np.std(values)) if len(values) > 1 else 0.0
         levels.append(max(level, 1e-6 * spread, 1e-12))
     return np.array(levels)
+
+
+def correlation_warning(first: str, second: str, rho: float) -> str:
+    """The warning for two estimates that correlate near ±1."""
+    return (
+        f"{first} and {second} are estimated with correlation {rho:+.4f}: the data determine "
+        "mostly a combination of them, and their intervals hold only if everything held fixed "
+        "(and the model itself) is right"
+    )
 
 
 def _stages(count: int) -> list[int]:
@@ -860,6 +871,25 @@ class GreyBoxEstimator:
             residual, start, jac=jacobian, method="trf", x_scale="jac", max_nfev=200
         )
         return np.asarray(solution.x, dtype=float)
+
+    def correlated_pairs(
+        self, limit: float = ESTIMATE_CORRELATION_LIMIT
+    ) -> list[tuple[str, str, float]]:
+        """Pairs of free parameters whose estimates correlate beyond ``limit`` (name, name, ρ).
+
+        Three or more parameters can trade against each other with no pair of sensitivities
+        alike (the identifiability report's confounded pairs); their estimates then still
+        correlate near ±1, and each interval holds only if the model is exactly right.
+        """
+        self._check_fitted()
+        names = self.free_names_
+        pairs = []
+        for i in range(len(names)):
+            for j in range(i + 1, len(names)):
+                rho = float(self.correlation_[i, j])
+                if math.isfinite(rho) and abs(rho) > limit:
+                    pairs.append((names[i], names[j], rho))
+        return pairs
 
     def score(self, record: Record) -> FloatArray:
         """NRMSE fit % per output on a record (see :meth:`predict`)."""
