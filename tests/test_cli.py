@@ -60,6 +60,18 @@ def test_plant_info_table_shows_gain_with_unit():
     assert "settling" in result.stdout
 
 
+def test_plant_init_writes_the_reference_plant_to_edit(tmp_path: Path):
+    path = tmp_path / "mine.toml"
+    result = invoke("plant", "init", str(path))
+    assert result.exit_code == 0
+    assert path.read_text(encoding="utf-8") == REFERENCE_TOML  # comments and all
+    assert load_plant_config(path) == load_plant_config()
+    again = invoke("plant", "init", str(path))
+    assert again.exit_code == 2
+    assert "--force" in again.stderr
+    assert invoke("plant", "init", str(path), "--force").exit_code == 0
+
+
 def test_plant_info_reads_a_config_file(tmp_path: Path):
     # a longer, thinner line raises the pump pressure at the same command
     path = tmp_path / "plant.toml"

@@ -19,7 +19,6 @@ import time
 import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -35,10 +34,10 @@ from fuelid.io.logs import load_log
 from fuelid.io.plantfile import update_plant_toml
 from fuelid.io.timeseries import INPUT_COLUMN, OUTPUT_COLUMN, TIME_COLUMN
 from fuelid.plant.config import (
-    REFERENCE_PLANT,
     PlantConfig,
     load_plant_config,
     plant_config_from_dict,
+    reference_plant_text,
 )
 from fuelid.plant.parameters import parameter_names, plant_parameters, with_parameters
 from fuelid.units import T0 as KELVIN
@@ -548,10 +547,7 @@ def calibrated_plant_text(result: CalibrationResult, source: Path | None) -> str
     ``source`` (or the packaged reference plant) with the calibrated values and a
     ``[calibration]`` table; its comments kept.
     """
-    if source is not None:
-        text = source.read_text(encoding="utf-8")
-    else:
-        text = resources.files("fuelid.data").joinpath(REFERENCE_PLANT).read_text("utf-8")
+    text = source.read_text(encoding="utf-8") if source is not None else reference_plant_text()
     updated = update_plant_toml(text, result.parameters, result.calibration_table())
     plant_config_from_dict(tomllib.loads(updated), "the calibrated plant file")
     return updated

@@ -5,12 +5,14 @@ The library is imported when the command runs, not when ``fuelid --help`` is ask
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from fuelid.cli._common import ConfigOption, celsius_to_kelvin, emit_json, guarded, provenance
 from fuelid.cli.serve import serve_command
+from fuelid.errors import FuelidError
 
 if TYPE_CHECKING:
     from rich.table import Table
@@ -39,7 +41,9 @@ def _table(summary: dict[str, Any]) -> Table:
     uncertainty: dict[str, Any] = summary.get("uncertainty") or {}
     table = Table(
         title=(
-            f"plant {summary['plant']}: u = {summary['u']:g} V, "
+            f"plant {summary['plant']}"
+            + (" (calibrated)" if summary.get("calibration") else "")
+            + f": u = {summary['u']:g} V, "
             f"{summary['fuel']} at {summary['fuel_temperature']:g} °C"
         ),
         show_header=True,
@@ -105,6 +109,28 @@ def _add_uncertainty(
     spread = prediction_uncertainty(plant, u, T_fuel)
     summary |= spread.to_json()
     return list(spread.warnings)
+
+
+@app.command("init")
+@guarded
+def init(
+    out: Annotated[Path, typer.Argument(metavar="PLANT.toml", help="File to write.")],
+    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing file.")] = False,
+) -> None:
+    """Write the built-in reference plant file (with its comments) to edit into your own plant.
+
+    Every value is commented with its unit and why it is plausible; change what you know of your
+    plant (pipeline length and bore, pump displacement, nozzles …), check it with
+    ``fuelid plant info --config PLANT.toml``, and calibrate what you do not know from logs
+    (``fuelid calibrate``).
+    """
+    from fuelid.io.plantfile import write_text_atomically
+    from fuelid.plant.config import reference_plant_text
+
+    if out.exists() and not force:
+        raise FuelidError(f"{out} exists: pass --force to overwrite it")
+    written = write_text_atomically(out, reference_plant_text())
+    typer.echo(f"wrote {written} (the reference plant: edit it to describe yours)")
 
 
 @app.command("info")

@@ -280,6 +280,11 @@ def plant_config_from_dict(data: dict[str, Any], source: str = "plant config") -
         raise ConfigError(f"{source}: {details}") from None
 
 
+def reference_plant_text() -> str:
+    """The packaged reference plant file, comments and all (``fuelid plant init`` writes it)."""
+    return resources.files("fuelid.data").joinpath(REFERENCE_PLANT).read_text("utf-8")
+
+
 def load_plant_config(path: str | Path | None = None) -> PlantConfig:
     """Read and validate a plant TOML file; the packaged reference plant when ``path`` is None.
 
@@ -304,7 +309,7 @@ def load_plant_config(path: str | Path | None = None) -> PlantConfig:
     ('RP-3', 1.0, 5.0)
     """
     if path is None:
-        text = resources.files("fuelid.data").joinpath(REFERENCE_PLANT).read_text("utf-8")
+        text = reference_plant_text()
         source = f"reference plant ({REFERENCE_PLANT})"
     else:
         file = Path(path)
