@@ -175,3 +175,12 @@ def test_last_sample_of_a_meter_without_delay(cfg: PlantConfig) -> None:
     c = plant_coefficients(no_delay, T20)
     assert r.q_meter[-1] == pytest.approx(steady_state(U1, c).q, rel=1e-6)
     assert r.p_pump[-1] == pytest.approx(steady_state(U1, c).p_pump, rel=1e-6)
+
+
+def test_cli_refuses_pressure_settings_without_pressure(tmp_path: Path) -> None:
+    """A pressure setting without --pressure would be silently ignored: it is refused."""
+    args = ["simulate", str(tmp_path / "x.csv"), "--pressure-noise-std", "0.01"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2
+    assert "add --pressure" in result.stderr
+    assert not (tmp_path / "x.csv").exists()

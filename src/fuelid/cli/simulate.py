@@ -122,12 +122,20 @@ def simulate_command(
         ),
     ] = False,
     pressure_noise_std: Annotated[
-        float, typer.Option(help="--pressure: noise std of the logged pressure [MPa].")
-    ] = 0.002,
+        float | None,
+        typer.Option(
+            help="--pressure: noise std of the logged pressure [MPa] (default 0.002).",
+            show_default=False,
+        ),
+    ] = None,
     pressure_resolution: Annotated[
-        float,
-        typer.Option(help="--pressure: quantisation step of the logged pressure [MPa]; 0: none."),
-    ] = 0.0001,
+        float | None,
+        typer.Option(
+            help="--pressure: quantisation step of the logged pressure [MPa]; 0: none "
+            "(default 0.0001).",
+            show_default=False,
+        ),
+    ] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite an existing file.")] = False,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print a JSON summary instead of text.")
@@ -148,9 +156,24 @@ def simulate_command(
     from fuelid.io.files import check_output_path
     from fuelid.io.timeseries import PRESSURE_COLUMN
     from fuelid.plant import load_plant_config
+    from fuelid.simulate import PRESSURE_NOISE_STD, PRESSURE_RESOLUTION
     from fuelid.workflow.simulation import SimulationRequest, simulate_log, simulation_inputs
 
     out = check_output_path(output, overwrite=force)
+    given = [
+        name
+        for name, value in (
+            ("--pressure-noise-std", pressure_noise_std),
+            ("--pressure-resolution", pressure_resolution),
+        )
+        if value is not None
+    ]
+    if given and not pressure:
+        raise FuelidError(f"{' and '.join(given)} set the logged pressure: add --pressure")
+    if pressure_noise_std is None:
+        pressure_noise_std = PRESSURE_NOISE_STD / PA_PER_MPA
+    if pressure_resolution is None:
+        pressure_resolution = PRESSURE_RESOLUTION / PA_PER_MPA
     for name, value in (
         ("--pressure-noise-std", pressure_noise_std),
         ("--pressure-resolution", pressure_resolution),
