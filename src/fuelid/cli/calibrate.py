@@ -6,6 +6,7 @@ when the command runs.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -180,6 +181,10 @@ def calibrate_command(
     _print(result, written)
 
 
+def _number(value: float | None) -> float:
+    return math.nan if value is None else float(value)
+
+
 def _plot(result: Any, path: Path) -> None:
     from fuelid.plots_greybox import FitPanel, plot_greybox_fit, save_greybox_figure
 
@@ -189,15 +194,23 @@ def _plot(result: Any, path: Path) -> None:
         result.logs, result.simulated, result.fit_percent, result.fitted_samples, strict=True
     ):
         record = log.record
+        pressure = simulated.shape[1] > 1
+        held_out = n_fit < record.n_samples
         panels.append(
             FitPanel(
-                title=f"{log.path.name}, {log.fuel_temperature_C:.0f} °C"
-                + ("" if n_fit == record.n_samples else f", fit to {record.t[n_fit]:.0f} s"),
+                title=f"{log.path.name}, {log.fuel_temperature_C:.0f} °C",
                 t=record.t,
                 y=record.y,
                 y_hat=simulated,
-                fit_percent=[fits["flow"] or 0.0]
-                + ([fits.get("pressure") or 0.0] if simulated.shape[1] > 1 else []),
+                fit_percent=[_number(fits["flow"])]
+                + ([_number(fits.get("pressure"))] if pressure else []),
+                heldout_start=float(record.t[n_fit]) if held_out else None,
+                heldout_fit_percent=[_number(fits.get("heldout_flow"))]
+                + ([_number(fits.get("heldout_pressure"))] if pressure else [])
+                if held_out
+                else None,
+                input_u=record.u,
+                input_names=["command [V]"],
             )
         )
     save_greybox_figure(

@@ -298,7 +298,7 @@ def greybox_command(
     for message in warnings:
         warn(message)
     if plot is not None:
-        _plot(estimator, records, validation, check, plot, model_file)
+        _plot(estimator, records, validation, check, plot, model_file, list(inputs))
     result = _result(
         mf, estimator, records, validation, check, intervals if profiled else None, warnings
     )
@@ -578,11 +578,20 @@ def _plot(
     check: dict[str, Any] | None,
     path: Path,
     model_file: Path,
+    input_names: list[str],
 ) -> None:
     from fuelid.plots_greybox import FitPanel, plot_greybox_fit, save_greybox_figure
 
     panels = [
-        FitPanel(f"estimation: {record.name}", record.t, record.y, trajectory.outputs, fit.tolist())
+        FitPanel(
+            f"estimation: {record.name}",
+            record.t,
+            record.y,
+            trajectory.outputs,
+            fit.tolist(),
+            input_u=record.u,
+            input_names=input_names,
+        )
         for record, trajectory, fit in zip(
             records, estimator.trajectories_, estimator.fit_percent_, strict=True
         )
@@ -600,6 +609,8 @@ def _plot(
                 check["y_hat"],
                 check["fit"],
                 head,
+                input_u=validation.u,
+                input_names=input_names,
             )
         )
     fig = plot_greybox_fit(
