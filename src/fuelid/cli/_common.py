@@ -121,6 +121,24 @@ def file_sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
+def format_estimate(value: float, stderr: float | None, minimum: int = 5) -> str:
+    """A number with the digits its standard error justifies: down to the error's second digit.
+
+    >>> format_estimate(0.99998, 2.6e-05), format_estimate(0.99998, None)
+    ('0.999980', '0.99998')
+    >>> format_estimate(10.9987, 0.0018), format_estimate(13.2807, 0.0003)
+    ('10.9987', '13.28070')
+    """
+    if stderr is None or not (stderr > 0.0 and math.isfinite(stderr)) or value == 0.0:
+        return f"{value:.{minimum}g}"
+    if not math.isfinite(value):
+        return str(value)
+    digits = math.floor(math.log10(abs(value))) - math.floor(math.log10(stderr)) + 2
+    if digits <= minimum:
+        return f"{value:.{minimum}g}"
+    return f"{value:#.{min(digits, 17)}g}"
+
+
 def provenance(options: dict[str, Any], input_file: Path | None = None) -> dict[str, Any]:
     """The provenance block every JSON result carries."""
     return {

@@ -18,6 +18,7 @@ from fuelid.cli._common import (
     SampleTime,
     check_figure_path,
     emit_json,
+    format_estimate,
     guarded,
     provenance,
     warn,
@@ -231,15 +232,21 @@ def _print(result: Any, written: Path | None) -> None:
         table.add_row(
             name,
             f"{result.start[name]:.5g}",
-            f"{result.parameters[name]:.5g}",
+            format_estimate(result.parameters[name], error),
             "—" if error is None else f"{error:.3g}",
-            "—" if interval is None else f"{interval[0]:.5g} … {interval[1]:.5g}",
+            "—"
+            if interval is None
+            else f"{format_estimate(interval[0], error)} … {format_estimate(interval[1], error)}",
             result.units[name],
         )
     console = Console(width=110)
     console.print(table)
     for name, (low, high) in result.profile_ci95.items():
-        console.print(f"profile-likelihood 95 % interval of {name}: {low:.5g} … {high:.5g}")
+        error = result.stderr[name]
+        console.print(
+            f"profile-likelihood 95 % interval of {name}: "
+            f"{format_estimate(low, error)} … {format_estimate(high, error)}"
+        )
     for log, fits in zip(result.logs, result.fit_percent, strict=True):
         line = f"{log.path.name} ({log.fuel_temperature_C:.1f} °C): fit {fits['flow']:.2f} %"
         if "pressure" in fits:

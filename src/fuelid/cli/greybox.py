@@ -22,6 +22,7 @@ from fuelid.cli._common import (
     check_figure_path,
     emit_json,
     file_sha256,
+    format_estimate,
     guarded,
     progress_display,
     provenance,
@@ -639,9 +640,9 @@ def _print(result: dict[str, Any], model_file: Path, seconds: float) -> None:
         status = "fixed" if fixed else "free" if se is not None else "free, undetermined"
         cells = [
             name,
-            f"{value:.5g}",
+            format_estimate(value, se),
             "" if se is None else f"{se:.2g}",
-            "" if ci is None else f"{ci[0]:.5g} … {ci[1]:.5g}",
+            "" if ci is None else f"{format_estimate(ci[0], se)} … {format_estimate(ci[1], se)}",
             status,
         ]
         if units:
@@ -671,7 +672,11 @@ def _print(result: dict[str, Any], model_file: Path, seconds: float) -> None:
         )
     if result["profile"]:
         for name, (lo, hi) in result["profile"].items():
-            lines.append(f"profile-likelihood 95 % interval of {name}: {lo:.5g} … {hi:.5g}")
+            se = result["stderr"].get(name)
+            lines.append(
+                f"profile-likelihood 95 % interval of {name}: "
+                f"{format_estimate(lo, se)} … {format_estimate(hi, se)}"
+            )
     lines.extend(_describe_identifiability(result["identifiability"]))
     lines.append(f"{result['n_iterations']} iterations, {result['start']}, {seconds:.1f} s")
     for line in lines:
