@@ -438,10 +438,8 @@ def _refusal(message: str, names: tuple[str, ...], specs: Any) -> str:
     """The one-line reason of a refused fit, with the --fix it suggests."""
     parameters = [spec.name for spec in specs if spec.name in names]
     example = parameters[-1] if parameters else (names[0] if names else "NAME")
-    return (
-        f"{message}. Fix one of {', '.join(parameters) or 'them'} at a value known from "
-        f"elsewhere: --fix {example} --set {example}=VALUE"
-    )
+    # the message already says which to fix; the command line is what the user types
+    return f"{message}; with this command: --fix {example} --set {example}=VALUE"
 
 
 def _validate(estimator: GreyBoxEstimator, record: Record) -> dict[str, Any]:
