@@ -296,3 +296,22 @@ def test_estimates_that_trade_three_ways_are_warned_about(
     assert correlated, result["warnings"]
     matrix = np.array(result["correlation"]["matrix"])
     assert np.max(np.abs(matrix - np.eye(3))) > 0.999
+
+
+def test_one_force_covers_the_calibrated_file_and_the_figure(
+    logs: dict[str, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """Both outputs exist: refused (before any fit) without --force, written with it."""
+    out, fig = tmp_path / "cal.toml", tmp_path / "cal.png"
+    out.write_text("old")
+    fig.write_bytes(b"old")
+    argv = ["calibrate", str(logs["log10"]), str(logs["log45"]), "--free", LEAK,
+            "--fuel-temp", "10,45", "--out", str(out), "--plot", str(fig)]  # fmt: skip
+    assert main(argv) == 2
+    assert "--force" in capsys.readouterr().err
+    out.unlink()
+    assert main(argv) == 2
+    assert "--force" in capsys.readouterr().err
+    assert main([*argv, "--force"]) == 0
+    assert out.read_text() != "old"
+    assert fig.read_bytes() != b"old"

@@ -14,7 +14,6 @@ import typer
 
 from fuelid.cli._common import (
     ConfigOption,
-    ForceFigureOption,
     SampleTime,
     check_figure_path,
     emit_json,
@@ -90,7 +89,9 @@ def calibrate_command(
             show_default=False,
         ),
     ] = None,
-    force: Annotated[bool, typer.Option("--force", help="Overwrite --out.")] = False,
+    force: Annotated[
+        bool, typer.Option("--force", help="Overwrite an existing --out file or --plot figure.")
+    ] = False,
     plot: Annotated[
         Path | None,
         typer.Option(
@@ -100,7 +101,6 @@ def calibrate_command(
             show_default=False,
         ),
     ] = None,
-    force_figure: ForceFigureOption = False,
     profile: Annotated[
         str | None,
         typer.Option(
@@ -137,7 +137,7 @@ def calibrate_command(
     if out is not None and out.exists() and not force:
         raise FuelidError(f"{out} exists: pass --force to overwrite it")
     if plot is not None:
-        check_figure_path(plot, force_figure)
+        check_figure_path(plot, force)
     plant = load_plant_config(config)
     loaded = [
         load_calibration_log(

@@ -69,7 +69,7 @@ def check_output_path(path: str | Path, overwrite: bool = False) -> Path:
     if out.is_dir():
         raise DataError(f"output path {str(out)!r} is a folder, not a file")
     if out.exists() and not overwrite:
-        raise DataError(f"{str(out)!r} exists; pass --force (overwrite=True) to replace it")
+        raise DataError(f"{str(out)!r} exists; pass --force to replace it")
     return out
 
 
