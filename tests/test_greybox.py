@@ -746,3 +746,26 @@ def test_a_free_decay_with_estimated_initial_state_is_not_refused() -> None:
         assert stderr is not None
         assert abs(est.params_[name] - truth) < 3.0 * stderr
     np.testing.assert_allclose(est.x0_[0], [1.0, 0.0], atol=0.02)
+
+
+def test_a_free_decay_whose_scale_is_free_is_refused_as_a_trade() -> None:
+    """C·dT/dt = −hA·T, released from 20 K: only hA/C is seen.
+
+    From the rest guess nothing is seen at all; the refusal describes the settled view, where C
+    and hA trade against each other.
+    """
+
+    def cooling(t: float, x: Any, u: Any, p: Mapping[str, Any]) -> Any:
+        return [-p["hA"] * x[0] / p["C"]]
+
+    t = np.arange(300) * 1.0
+    clean = 20.0 * np.exp(-0.02 * t)
+    rng = np.random.default_rng(3)
+    record = Record.from_arrays(t, np.zeros_like(t), clean + rng.normal(0.0, 0.05, len(t)))
+    specs = [ParameterSpec("C", 8.0, 0.0), ParameterSpec("hA", 0.2, 0.0)]
+    with pytest.raises(NotIdentifiableError) as caught:
+        GreyBoxEstimator(OdeModel(cooling, specs, ["T"]), "estimate").fit(record)
+    report = caught.value.report
+    assert report.zero_sensitivity == ()
+    assert {"C", "hA"} <= set(report.undetermined_names)
+    assert "trade against each other" in str(caught.value)

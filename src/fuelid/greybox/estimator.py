@@ -528,10 +528,15 @@ class GreyBoxEstimator:
             settled, _, evaluation = self._solve(phi, records, sigma, hold=held, seed=start)
         except (SimulationError, FloatingPointError, OverflowError):
             return phi, start
-        report, structural = self._structural(settled, evaluation)
-        if structural or report.zero_sensitivity:
-            return phi, start  # a true gap: reported as seen from the start
-        return settled, evaluation
+        settled_report, settled_structural = self._structural(settled, evaluation)
+        if not settled_structural and not settled_report.zero_sensitivity:
+            return settled, evaluation
+        # a true gap: reported as seen from the start, unless the start showed no sensitivity
+        # where the settled state shows the parameters trading against each other (the better
+        # description of, say, a free decay whose scale is not determined)
+        if len(settled_report.zero_sensitivity) < len(report.zero_sensitivity):
+            return settled, evaluation
+        return phi, start
 
     def _single_shooting(
         self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, evaluation: _Evaluation

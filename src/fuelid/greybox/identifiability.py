@@ -120,7 +120,11 @@ class IdentifiabilityReport:
         for first, second, rho in self.confounded_pairs:
             if not any(first in c.names and second in c.names for c in self.undetermined):
                 parts.append(f"{first} and {second} have sensitivities correlated at {rho:.4f}")
-        text = "the data do not determine every parameter: " + "; ".join(parts)
+        if self.undetermined or self.zero_sensitivity:
+            lead = "the data do not determine every parameter: "
+        else:  # each is determined, but only by the model being exactly right
+            lead = "the data hardly tell some parameters apart: "
+        text = lead + "; ".join(parts)
         if self.advice:
             text += " (" + "; ".join(self.advice) + ")"
         return text
