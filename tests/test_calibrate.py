@@ -315,3 +315,25 @@ def test_one_force_covers_the_calibrated_file_and_the_figure(
     assert main([*argv, "--force"]) == 0
     assert out.read_text() != "old"
     assert fig.read_bytes() != b"old"
+
+
+def test_a_calibration_warning_travels_with_the_calibrated_file(
+    logs: dict[str, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """A misfit warning is kept in [calibration] and repeated wherever the file is used.
+
+    Leakage alone from the reference file, whose lag and C_d are wrong for these logs.
+    """
+    out = tmp_path / "cal.toml"
+    code = main(["calibrate", str(logs["log10"]), str(logs["log45"]), "--free", LEAK,
+                 "--out", str(out)])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "the calibrated plant does not fit the logs" in err
+    record = load_plant_config(out).calibration
+    assert record is not None
+    assert any("does not fit the logs" in w for w in record.warnings)
+    assert main(["plant", "info", "--config", str(out), "--fuel-temp", "20", "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "note: the calibration warned: the flow residuals" in captured.err
+    assert json.loads(captured.out)["calibration"]["warnings"] == list(record.warnings)

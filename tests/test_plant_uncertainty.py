@@ -164,6 +164,7 @@ def test_extrapolation_is_flagged() -> None:
         "parameters": ["pump.leakage_Lpm_per_MPa"],
         "fuel_temperature_range_C": [10.0, 40.0],
         "extrapolated": False,
+        "warnings": [],
     }
     edge = prediction_uncertainty(cfg, U, 283.15)  # exactly 10 °C: inside
     assert not edge.extrapolated
@@ -221,6 +222,7 @@ def test_plant_info_json_carries_the_uncertainty(
         "parameters": ["pump.leakage_Lpm_per_MPa"],
         "fuel_temperature_range_C": [10.0, 40.0],
         "extrapolated": False,
+        "warnings": [],
     }
     assert "note:" not in result.stderr
 

@@ -210,6 +210,7 @@ class CalibrationResult:
             "created": self.created,
             "fuelid_version": __version__,
             "method": METHOD,
+            "warnings": list(self.warnings),
         }
 
     def to_json(self) -> dict[str, Any]:

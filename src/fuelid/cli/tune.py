@@ -246,7 +246,7 @@ def tune_command(
         from fuelid.workflow import REFERENCE_PLANT_NOTICE
 
         notices.append(REFERENCE_PLANT_NOTICE)
-    if fuel_source is None:
+    if fuel_source is None and model is not None:  # a physics-only schedule has no model
         notices.append(
             "fuel temperature of the model assumed 20 °C: --fuel-temp not given"
             + (" and the model file has no fuel temperature" if loaded is not None else "")
@@ -257,8 +257,12 @@ def tune_command(
 
         # what the gains rest on at the model's temperature and over the checked range
         calibration, _ = calibration_summary(plant, T_fuel)
+        warned = calibration["warnings"]
+        notices.extend(f"calibrated plant: the calibration warned: {w}" for w in warned)
         for T_edge in T_range:
-            for note in calibration_summary(plant, T_edge)[1]:
+            edge_notes = calibration_summary(plant, T_edge)[1]
+            # the calibration's own warnings come last in the notes and are given once above
+            for note in edge_notes[: len(edge_notes) - len(warned)]:
                 notices.append(f"calibrated plant: {note}")
     extra = {
         "plant": {

@@ -116,6 +116,11 @@ class CalibrationRecord(Section):
     created: str | None = Field(None, description="when the calibration ran (ISO 8601)")
     fuelid_version: str = Field("", description="version of fuelid that ran it")
     method: str = Field("", description="estimator, e.g. 'output error, nonlinear ODE'")
+    warnings: tuple[str, ...] = Field(
+        (),
+        description="what the calibration warned about (a misfit, correlated estimates …); "
+        "repeated wherever the calibrated plant is used",
+    )
 
     @field_validator("created", mode="before")
     @classmethod

@@ -87,6 +87,8 @@ class PredictionUncertainty:
     """Fuel-temperature range of the calibration logs [°C]; None when they are not recorded."""
     warnings: tuple[str, ...] = field(default=())
     """What the numbers rest on that the user should know (extrapolation, stale record)."""
+    calibration_warnings: tuple[str, ...] = field(default=())
+    """What the calibration itself warned about (its ``[calibration] warnings``)."""
 
     @property
     def extrapolated(self) -> bool:
@@ -102,6 +104,7 @@ class PredictionUncertainty:
                 "parameters": list(self.parameters),
                 "fuel_temperature_range_C": lo_hi,
                 "extrapolated": self.extrapolated,
+                "warnings": list(self.calibration_warnings),
             },
         }
 
@@ -277,6 +280,7 @@ def prediction_uncertainty(
         quantities=quantities,
         temperature_range=calibrated_temperature_range(config),
         warnings=(*warnings, *notes),
+        calibration_warnings=record.warnings,
     )
 
 
@@ -293,8 +297,9 @@ def calibration_summary(config: PlantConfig, T_fuel: float) -> tuple[dict[str, A
     Returns
     -------
     (dict, list of str)
-        ``{"parameters", "fuel_temperature_range_C", "extrapolated"}`` and the notes for the
-        user (one when ``T_fuel`` lies outside the calibration logs' range).
+        ``{"parameters", "fuel_temperature_range_C", "extrapolated", "warnings"}`` and the notes
+        for the user (one when ``T_fuel`` lies outside the calibration logs' range, one per
+        warning the calibration gave).
 
     Raises
     ------
@@ -313,10 +318,12 @@ def calibration_summary(config: PlantConfig, T_fuel: float) -> tuple[dict[str, A
             f"{span[0]:g}…{span[1]:g} °C: K, T come from the physics, not from data at this "
             "temperature"
         )
+    notes.extend(f"the calibration warned: {warning}" for warning in record.warnings)
     summary = {
         "parameters": list(record.parameters),
         "fuel_temperature_range_C": None if span is None else list(span),
         "extrapolated": extrapolated,
+        "warnings": list(record.warnings),
     }
     return summary, notes
 
