@@ -542,6 +542,10 @@ def calibrate(
     )
 
 
+def _significant(value: float, digits: int) -> float:
+    return float(f"{value:.{digits}g}") if math.isfinite(value) else value
+
+
 def rounded_to_precision(value: float, stderr: float | None) -> float:
     """``value`` with the digits its standard error justifies, and two more (at least 6).
 
@@ -573,6 +577,16 @@ def calibrated_plant_text(result: CalibrationResult, source: Path | None) -> str
     }
     table = result.calibration_table()
     table["values"] = [values[name] for name in result.free]
+    # the rest to the digits that matter: 4 for errors, 6 for a covariance (made exactly
+    # symmetric, which rounding of the two halves apart would not keep), 0.01 % for fits
+    table["stderr"] = [None if e is None else _significant(e, 4) for e in table["stderr"]]
+    covariance = 0.5 * (result.covariance + result.covariance.T)
+    table["covariance"] = [[_significant(c, 6) for c in row] for row in covariance.tolist()]
+    table["ci95"] = [
+        [rounded_to_precision(bound, result.stderr.get(name)) for bound in pair]
+        for name, pair in zip(result.free, table["ci95"], strict=True)
+    ]
+    table["fit_percent"] = [round(fit, 2) for fit in table["fit_percent"]]
     updated = update_plant_toml(text, values, table)
     plant_config_from_dict(tomllib.loads(updated), "the calibrated plant file")
     return updated
