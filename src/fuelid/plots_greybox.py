@@ -95,6 +95,12 @@ def plot_greybox_fit(
             ax.plot(panel.t, y_hat, lw=1.1, color="tab:orange", alpha=0.9, label="simulated")
             ax_res.plot(panel.t, y - y_hat, lw=0.6, color="tab:red")
             ax_res.axhline(0.0, color="k", lw=0.6)
+            if col == 0 and k == 0:
+                ax_res.text(
+                    0.01, 0.95, "residual = measured − simulated", transform=ax_res.transAxes,
+                    va="top", fontsize=7, zorder=5,
+                    bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": "none", "pad": 1.0},
+                )  # fmt: skip
             _shade(panel, (ax, ax_res), label=k == 0)
             heading = _heading(panel, k)
             ax.set_title(heading if n_y == 1 else f"{heading} ({name})", fontsize=10)
@@ -137,13 +143,18 @@ def _shade(panel: FitPanel, axes: Sequence[Any], label: bool) -> None:
             axis.axvspan(panel.heldout_start, float(panel.t[-1]), color="tab:purple", alpha=0.08)
     if not label:
         return
-    top = axes[0].get_ylim()[1]
+    # x in data, y in axes units: the labels sit just inside the top frame whatever the data
+    where = axes[0].get_xaxis_transform()
     if panel.initial_span_end is not None:
-        axes[0].text(float(panel.t[0]), top, " initial state fitted here", va="top", fontsize=8)
+        axes[0].text(
+            float(panel.t[0]), 0.97, " initial state fitted here", transform=where, va="top",
+            fontsize=8,
+        )  # fmt: skip
     if panel.heldout_start is not None:
         axes[0].text(
-            float(panel.t[-1]), top, "held out: predicted ", ha="right", va="top", fontsize=8
-        )
+            float(panel.t[-1]), 0.97, "held out: predicted ", transform=where, ha="right",
+            va="top", fontsize=8,
+        )  # fmt: skip
 
 
 def save_greybox_figure(fig: Figure, path: str | Path) -> Path:

@@ -128,15 +128,17 @@ def format_estimate(value: float, stderr: float | None, minimum: int = 5) -> str
     ('0.999980', '0.99998')
     >>> format_estimate(10.9987, 0.0018), format_estimate(13.2807, 0.0003)
     ('10.9987', '13.28070')
+    >>> format_estimate(8.99, 0.0054), format_estimate(9.0119, 0.0054), format_estimate(12345.6, 80)
+    ('8.9900', '9.0119', '12346')
     """
     if stderr is None or not (stderr > 0.0 and math.isfinite(stderr)) or value == 0.0:
         return f"{value:.{minimum}g}"
     if not math.isfinite(value):
         return str(value)
     digits = math.floor(math.log10(abs(value))) - math.floor(math.log10(stderr)) + 2
-    if digits <= minimum:
-        return f"{value:.{minimum}g}"
-    return f"{value:#.{min(digits, 17)}g}"
+    # trailing zeros kept, so an estimate and its interval's ends show the same places
+    text = f"{value:#.{min(max(digits, minimum), 17)}g}"
+    return text.rstrip(".")
 
 
 def provenance(options: dict[str, Any], input_file: Path | None = None) -> dict[str, Any]:
