@@ -315,6 +315,11 @@ def test_a_fit_that_does_not_converge_gives_no_numbers(
     code, out, err = _run(capsys, *args)
     assert (code, out) == (2, "")
     assert "did not converge" in err
+    assert "--segments" not in err  # "auto" tried it already
+    code, out, err = _run(capsys, *args, "--segments", "none")
+    assert (code, out) == (2, "")
+    assert "--segments auto or N tries a segmented start" in err
+    assert err.count("\n") == 1
 
 
 def test_a_model_whose_outputs_are_nan_is_refused(

@@ -224,7 +224,7 @@ def greybox_command(
     (exit code 2): fix one of them with --fix (and --set its known value).
     """
     from fuelid.greybox import GreyBoxEstimator, OdeModel, parameter_specs
-    from fuelid.greybox.estimator import NotIdentifiableError
+    from fuelid.greybox.estimator import ConvergenceError, NotIdentifiableError
     from fuelid.greybox.modelfile import read_model_file
 
     check_figure_path(plot, overwrite=force)
@@ -264,11 +264,12 @@ def greybox_command(
     )
     mf.check(float(records[0].t[0]), records[0].u[0])
 
+    start = _segments(segments)
     estimator = GreyBoxEstimator(
         model,
         initial_state=initial_state.value,
         max_iterations=max_iterations,
-        segments=_segments(segments),
+        segments=start,
     )
     started = time.perf_counter()
     with progress_display() as stage:
@@ -279,6 +280,9 @@ def greybox_command(
             raise FuelidError(
                 _refusal(exc.report.message(), exc.report.undetermined_names, specs)
             ) from None
+        except ConvergenceError as exc:
+            hint = "; --segments auto or N tries a segmented start" if start is None else ""
+            raise ConvergenceError(f"{exc}{hint}") from None
         fit_seconds = time.perf_counter() - started
         check = None
         if validation is not None:
