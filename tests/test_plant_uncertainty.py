@@ -256,3 +256,17 @@ def test_plant_info_with_a_record_but_no_covariance(tmp_path: Path) -> None:
     assert data["uncertainty"] is None
     assert data["calibration"]["parameters"] == ["vfd.lag_s"]
     assert "no covariance" in result.stderr
+
+
+def test_a_calibrated_meter_lag_gives_t_f_its_own_standard_error() -> None:
+    """The equivalent model's T_f is flowmeter.time_constant_s itself: σ(T_f) = σ(θ)."""
+    sigma = 0.02  # s
+    cfg = _calibrated(["flowmeter.time_constant_s", "vfd.lag_s"], [[sigma**2, 0.0], [0.0, 1e-4]])
+    result = prediction_uncertainty(cfg, U, T20)
+    t_f = result.quantities["T_f"]
+    assert t_f.value == cfg.flowmeter.time_constant_s
+    assert t_f.stderr == pytest.approx(sigma, rel=1e-12)
+    assert t_f.gradient == {"flowmeter.time_constant_s": 1.0, "vfd.lag_s": 0.0}
+    assert (
+        "T_f" not in prediction_uncertainty(_calibrated(["vfd.lag_s"], [[1e-4]]), U, T20).quantities
+    )

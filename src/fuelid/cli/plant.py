@@ -30,6 +30,7 @@ app.command("serve")(serve_command)
 _UNCERTAIN_ROWS = {
     "K (static gain)": "K",
     "T (process lag, fitted)": "T",
+    "T_f (flowmeter lag)": "T_f",
     "98 % settling time": "settling_time",
 }
 

@@ -50,6 +50,10 @@ Prediction = Callable[[PlantConfig], dict[str, float]]
 """A function of a plant config returning named predictions."""
 
 
+METER_LAG = "flowmeter.time_constant_s"
+"""The plant parameter that is the equivalent model's T_f."""
+
+
 @dataclass(frozen=True)
 class QuantityUncertainty:
     """A prediction with its standard error and 95 % interval."""
@@ -82,7 +86,8 @@ class PredictionUncertainty:
     parameters: tuple[str, ...]
     """The calibrated parameters whose covariance was propagated."""
     quantities: dict[str, QuantityUncertainty]
-    """``K`` [(L/min)/V], ``T`` [s], ``settling_time`` [s]."""
+    """``K`` [(L/min)/V], ``T`` [s], ``settling_time`` [s]; ``T_f`` [s] when the meter's lag was
+    calibrated."""
     temperature_range: tuple[float, float] | None
     """Fuel-temperature range of the calibration logs [°C]; None when they are not recorded."""
     warnings: tuple[str, ...] = field(default=())
@@ -272,6 +277,18 @@ def prediction_uncertainty(
         equivalent_predictions(u, T_fuel),
         relative_step,
     )
+    if METER_LAG in names:
+        # the equivalent model's T_f is the meter's lag itself: its error is the parameter's
+        i = names.index(METER_LAG)
+        variance = float(np.asarray(record.covariance, dtype=float)[i, i])
+        quantities = {
+            **quantities,
+            "T_f": QuantityUncertainty(
+                current[METER_LAG].value,
+                math.sqrt(max(variance, 0.0)),
+                {name: float(name == METER_LAG) for name in names},
+            ),
+        }
     notes = calibration_summary(config, T_fuel)[1]
     return PredictionUncertainty(
         u=u,
