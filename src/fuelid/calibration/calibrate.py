@@ -298,6 +298,12 @@ def _advice(names: Sequence[str], logs: Sequence[CalibrationLog], pressure: bool
     return advice
 
 
+def _meter_noise(config: PlantConfig) -> float:
+    """The flow residual the plant file's meter alone gives [L/min]: noise and quantisation."""
+    meter = config.flowmeter
+    return math.hypot(meter.noise_std_Lpm, meter.resolution_Lpm / math.sqrt(12.0))
+
+
 COLLAPSE_FACTOR = 1e3
 """A free parameter driven this factor from its plant-file value has collapsed (a leakage to
 nothing): the fit is compensating for something else."""
@@ -310,8 +316,7 @@ def _misfit(
     names: Sequence[str],
 ) -> str | None:
     """Why a fit is no calibration when its flow residuals exceed the meter's noise (or None)."""
-    meter = config.flowmeter
-    expected = math.hypot(meter.noise_std_Lpm, meter.resolution_Lpm / math.sqrt(12.0))
+    expected = _meter_noise(config)
     flow_sigma = float(estimator.sigma_[0])
     if expected <= 0.0 or flow_sigma <= RESIDUAL_NOISE_FACTOR * expected:
         return None
@@ -350,8 +355,7 @@ def _fit_warnings(
     flow alone cannot tell apart.
     """
     warnings = []
-    meter = config.flowmeter
-    expected = math.hypot(meter.noise_std_Lpm, meter.resolution_Lpm / math.sqrt(12.0))
+    expected = _meter_noise(config)
     if expected > 0.0 and flow_sigma > RESIDUAL_NOISE_FACTOR * expected:
         warnings.append(
             f"the flow residuals ({flow_sigma:.3g} L/min) are {flow_sigma / expected:.1f}× the "
@@ -504,10 +508,7 @@ def calibrate(
         for bound in (spec.lower, spec.upper):
             if bound is not None and bound != 0.0 and abs(values[name] - bound) < 1e-6 * abs(bound):
                 warnings.append(f"{name} ended on its bound {bound:g}: the interval is not valid")
-    confounded = {frozenset(pair[:2]) for pair in report.confounded_pairs}
-    for first, second, rho in estimator.correlated_pairs():
-        if frozenset((first, second)) not in confounded:
-            warnings.append(correlation_warning(first, second, rho))
+    warnings.extend(correlation_warning(*pair) for pair in estimator.correlated_pairs())
     wanted = set(names) if "all" in profile else set(profile)
     unknown = wanted - set(names)
     if unknown:

@@ -477,10 +477,7 @@ def _warnings(estimator: GreyBoxEstimator) -> list[str]:
         out.append(report.message())
     from fuelid.greybox.estimator import SUSPECT_NOISE_RATIO, correlation_warning
 
-    confounded = {frozenset(pair[:2]) for pair in report.confounded_pairs}
-    for first, second, rho in estimator.correlated_pairs():
-        if frozenset((first, second)) not in confounded:
-            out.append(correlation_warning(first, second, rho))
+    out.extend(correlation_warning(*pair) for pair in estimator.correlated_pairs())
     for name, ratio in zip(
         estimator.model.output_names, estimator.sigma_ / estimator.noise_floor_, strict=True
     ):

@@ -83,6 +83,19 @@ class _Evaluation:
     trajectories: list[Trajectory]
 
 
+@dataclass
+class _Fit:
+    """A single-shooting fit of the whole records."""
+
+    phi: FloatArray
+    solution: Any
+    """scipy's least-squares result of the last noise pass."""
+    evaluation: _Evaluation
+    sigma: FloatArray
+    """Noise level per output from the residuals."""
+    iterations: int
+
+
 def fit_percent(y: FloatArray, y_hat: FloatArray) -> FloatArray:
     """NRMSE fit 100·(1 − ‖y − ŷ‖/‖y − ȳ‖) per output column, over the finite samples."""
     out = []
@@ -502,11 +515,10 @@ class GreyBoxEstimator:
         if result is None:
             assert failure is not None
             raise failure
-        phi, solution, evaluation, sigma, iterations = result
-        self.phi_ = phi
-        self.sigma_ = sigma
-        self._finish(phi, records, solution, evaluation)
-        self.n_iterations_ = iterations
+        self.phi_ = result.phi
+        self.sigma_ = result.sigma
+        self._finish(result.phi, records, result.solution, result.evaluation)
+        self.n_iterations_ = result.iterations
         return self
 
     def _settle_initial_states(
@@ -540,7 +552,7 @@ class GreyBoxEstimator:
 
     def _single_shooting(
         self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, evaluation: _Evaluation
-    ) -> tuple[FloatArray, Any, _Evaluation, FloatArray, int]:
+    ) -> _Fit:
         """Fit the whole records from φ, re-estimating the noise levels between passes.
 
         Returns φ̂, the solver's result, the evaluation at φ̂, the noise levels and the iterations.
@@ -566,14 +578,12 @@ class GreyBoxEstimator:
                 f"({solution.message.rstrip('.')}); no estimate is given: try other start "
                 "values, fix a parameter, or give a longer or more exciting record"
             )
-        return phi, solution, evaluation, sigma, iterations
+        return _Fit(phi, solution, evaluation, sigma, iterations)
 
     @staticmethod
-    def _suspect(
-        result: tuple[FloatArray, Any, _Evaluation, FloatArray, int], floor: FloatArray
-    ) -> bool:
+    def _suspect(result: _Fit, floor: FloatArray) -> bool:
         """Residuals far above the noise the records show: a local minimum, or a wrong model."""
-        return bool(np.any(result[3] > SUSPECT_NOISE_RATIO * floor))
+        return bool(np.any(result.sigma > SUSPECT_NOISE_RATIO * floor))
 
     def _retry_segmented(
         self,
@@ -581,8 +591,8 @@ class GreyBoxEstimator:
         records: Sequence[Record],
         sigma: FloatArray,
         evaluation: _Evaluation,
-        first: tuple[FloatArray, Any, _Evaluation, FloatArray, int] | None,
-    ) -> tuple[FloatArray, Any, _Evaluation, FloatArray, int] | None:
+        first: _Fit | None,
+    ) -> _Fit | None:
         """Fit again from a segmented start; the better of the two fits (None: no better one)."""
         count = self._segment_count(records)
         if count < 2:
@@ -604,11 +614,9 @@ class GreyBoxEstimator:
         return second
 
     @staticmethod
-    def _log_likelihood_cost(
-        result: tuple[FloatArray, Any, _Evaluation, FloatArray, int], records: Sequence[Record]
-    ) -> float:
+    def _log_likelihood_cost(result: _Fit, records: Sequence[Record]) -> float:
         counts = np.sum([np.isfinite(record.y).sum(axis=0) for record in records], axis=0)
-        return float(np.sum(counts * np.log(result[3] ** 2)))
+        return float(np.sum(counts * np.log(result.sigma**2)))
 
     def _segment_count(self, records: Sequence[Record]) -> int:
         """Segments per record of the first stage: ≥ SEGMENT_MIN_SAMPLES samples each."""
@@ -882,17 +890,23 @@ class GreyBoxEstimator:
     ) -> list[tuple[str, str, float]]:
         """Pairs of free parameters whose estimates correlate beyond ``limit`` (name, name, ρ).
 
-        Three or more parameters can trade against each other with no pair of sensitivities
+        Pairs the identifiability report already names as confounded are left out. Three or more
+        parameters can trade against each other with no pair of sensitivities
         alike (the identifiability report's confounded pairs); their estimates then still
         correlate near ±1, and each interval holds only if the model is exactly right.
         """
         self._check_fitted()
+        named = {frozenset(pair[:2]) for pair in self.identifiability_.confounded_pairs}
         names = self.free_names_
         pairs = []
         for i in range(len(names)):
             for j in range(i + 1, len(names)):
                 rho = float(self.correlation_[i, j])
-                if math.isfinite(rho) and abs(rho) > limit:
+                if (
+                    math.isfinite(rho)
+                    and abs(rho) > limit
+                    and frozenset((names[i], names[j])) not in named
+                ):
                     pairs.append((names[i], names[j], rho))
         return pairs
 
