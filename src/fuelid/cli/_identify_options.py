@@ -19,7 +19,9 @@ OrderOption = Annotated[
     str,
     typer.Option(
         metavar="1|2|auto",
-        help="Process time constants: 1, 2, or auto (the order of lower AIC; a flowmeter lag "
+        help="Process time constants: 1, 2, or auto (two lags only when BIC prefers them and "
+        "the second is longer than the sample period, excludes zero and, with no meter lag "
+        "given, is told apart from the first; a flowmeter lag "
         "that is not given is found as the second lag).",
     ),
 ]

@@ -328,6 +328,10 @@ def _print_table(data: dict[str, Any], file: Path, gain_unit: str, units: tuple[
             f"{data['one_step_fit_percent']:.2f} %",
             highlight=False,
         )
+    structure = data.get("structure")
+    if structure is not None and len(structure["compared"]) > 1:
+        compared = ", ".join(f"{c['order']} (BIC {c['bic']:.1f})" for c in structure["compared"])
+        console.print(f"orders compared: {compared}; kept {structure['reason']}", highlight=False)
     if "method_choice" in data:
         console.print(data["method_choice"], highlight=False)
 

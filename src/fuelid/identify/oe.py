@@ -45,6 +45,7 @@ from fuelid.identify.covariance import (
     white_covariance,
 )
 from fuelid.identify.diagnostics import residual_whiteness
+from fuelid.identify.order import Candidate, OrderChoice, bic, choose_order
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, offset_and_free_responses
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
@@ -181,8 +182,8 @@ class OutputError(Estimator):
     Parameters
     ----------
     order : 1, 2 or "auto"
-        Number of process time constants; "auto" fits both and keeps the one with the lower
-        Akaike information criterion.
+        Number of process time constants; "auto" fits both and keeps one by the rule of
+        :mod:`fuelid.identify.order` (BIC, and the second lag's own evidence).
     delay : float or None
         Dead time θ [s] held fixed (e.g. the flowmeter's); None estimates it.
     T_f : float
@@ -224,8 +225,11 @@ class OutputError(Estimator):
         The model parameters held fixed (priors and structural zeros).
     sigma_, sse_ : float
         Residual standard deviation and sum of squares [output unit, output unit²].
-    aic_ : dict
-        Akaike information criterion by order fitted.
+    aic_, bic_ : dict
+        Akaike and Bayesian information criteria by order fitted.
+    order_choice_ : OrderChoice
+        The orders compared, the one kept and why, and whether the intervals are conditional
+        on the structure (:mod:`fuelid.identify.order`).
     y_hat_ : ndarray
         ``simulate(data, initial="fitted")`` on the fitting record (per segment, concatenated).
     n_segments_ : int
@@ -268,6 +272,8 @@ class OutputError(Estimator):
     sigma_: float
     sse_: float
     aic_: dict[int, float]
+    bic_: dict[int, float]
+    order_choice_: OrderChoice
     fit_percent_: float
     y_hat_: FloatArray
     n_segments_: int
@@ -327,9 +333,19 @@ class OutputError(Estimator):
                     order: n * math.log(max(ev.sse, 1e-300) / n) + 2 * (ev.beta.size + z.size)
                     for order, (z, ev) in fits.items()
                 }
-                best = min(self.aic_, key=self.aic_.__getitem__)
-                z, ev = fits[best]
-                self._store(data, self._structure(best), z, ev)
+                # each order stored in turn for its covariance, which the order rule needs
+                candidates = []
+                for order, (z, ev) in fits.items():
+                    self._store(data, self._structure(order), z, ev)
+                    candidates.append(self._candidate(bic(ev.sse, n, ev.beta.size + z.size)))
+                self.order_choice_ = choose_order(
+                    candidates, data.sample_time, meter_lag_given=self.T_f > 0.0
+                )
+                best = self.order_choice_.chosen
+                if best != candidates[-1].order:
+                    z, ev = fits[best]
+                    self._store(data, self._structure(best), z, ev)
+                self.bic_ = {c.order: c.bic for c in candidates}
         return self
 
     @property
@@ -421,6 +437,19 @@ class OutputError(Estimator):
         return np.asarray(self.cov_ / np.outer(sd, sd), dtype=float)
 
     # ------------------------------------------------------------------ internals
+    def _candidate(self, criterion: float) -> Candidate:
+        """The stored fit as a candidate of the order choice."""
+        st, _ = self._state
+        return Candidate(
+            order=st.order,
+            bic=criterion,
+            n_params=self.params_.size,
+            model=self.model_,
+            stderr=dict(self.stderr_),
+            names=self.param_names_,
+            cov=self.cov_,
+        )
+
     def _structure(self, order: int) -> _Structure:
         initial = "rest" if self.u_before is not None else self.initial
         return _Structure(order, self.T_f, self.delay, initial, self.u_before, self.initial)

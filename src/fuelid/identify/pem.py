@@ -42,8 +42,9 @@ How it is computed
   (nc = nd = 0) when the noise is white and still finds any coloured noise worth more than a
   few samples' worth of Σε². ``noise_criterion="aic"`` is available. Every candidate's
   criterion is summed over the same samples (the first two of each segment left out).
-- **Process order** ("auto"): both orders are fitted, each with its own noise model, and the
-  lower Akaike criterion of the prediction errors is kept, as :class:`OutputError` does.
+- **Process order** ("auto"): both orders are fitted, each with its own noise model, and one is
+  kept by the rule of :mod:`fuelid.identify.order` on the prediction errors' BIC and the second
+  lag's own evidence, as :class:`OutputError` does.
 - **Free run.** ``simulate``, ``y_hat_`` and ``fit_percent_`` use K and the dynamics of the
   fit with the output level (offset, initial states) fitted by least squares to the
   unfiltered record: under a drifting noise model (a pole of D near 1) the prediction errors
@@ -93,6 +94,7 @@ from fuelid.identify.oe import (
     _Structure,
     continue_fitted,
 )
+from fuelid.identify.order import Candidate, OrderChoice, bic, choose_order
 from fuelid.identify.segments import offset_and_free_responses
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
@@ -135,7 +137,8 @@ class PredictionError(Estimator):
     ----------
     order : 1, 2 or "auto"
         Number of process time constants; "auto" fits both (each with its noise model) and
-        keeps the lower Akaike criterion of the prediction errors.
+        keeps one by the rule of :mod:`fuelid.identify.order` (the prediction errors' BIC and
+        the second lag's own evidence).
     delay : float or None
         Dead time θ [s] held fixed (e.g. the flowmeter's); None estimates it.
     T_f : float
@@ -181,8 +184,10 @@ class PredictionError(Estimator):
         Model parameters held fixed.
     sigma_, sse_ : float
         Innovation standard deviation σ̂_e and Σε² over the samples in the criterion.
-    aic_ : dict
-        Akaike criterion of the prediction errors by process order fitted.
+    aic_, bic_ : dict
+        Akaike and Bayesian criteria of the prediction errors by process order fitted.
+    order_choice_ : OrderChoice
+        The orders compared, the one kept and why (:mod:`fuelid.identify.order`).
     residuals_ : ndarray
         The prediction errors ε = D/C·(y − ``y_hat_``) of the one-step predictor, one per
         sample, the filter restarted from zero at each segment (its first ``nd`` samples are
@@ -241,6 +246,8 @@ class PredictionError(Estimator):
     sigma_: float
     sse_: float
     aic_: dict[int, float]
+    bic_: dict[int, float]
+    order_choice_: OrderChoice
     noise_model_: dict[str, Any]
     residuals_: FloatArray
     y_hat_: FloatArray
@@ -324,19 +331,19 @@ class PredictionError(Estimator):
                     )
                     for order, f in fits.items()
                 }
-                # a second lag at its lower bound (h/20) is no lag: its initial-state column is
-                # then a spike at the segment's first kept sample, which fits one prediction
-                # error exactly and can win the AIC by a hair; never choose it over order 1
-                candidates = [
-                    order
-                    for order, f in fits.items()
-                    if order == 1
-                    or len(fits) == 1
-                    or f.st.unpack(f.x[: len(f.st.nonlinear_names)])[1]
-                    > 1.01 * data.sample_time / 20.0
-                ]
-                best = min(candidates, key=self.aic_.__getitem__)
-                self._store(data, fits[best])
+                # each order stored in turn for its covariance, which the order rule needs
+                candidates = []
+                for order, f in fits.items():
+                    self._store(data, f)
+                    k = f.x.size + f.beta.size
+                    candidates.append(self._candidate(order, bic(f.sse, int(f.used.sum()), k)))
+                self.order_choice_ = choose_order(
+                    candidates, data.sample_time, meter_lag_given=self.T_f > 0.0
+                )
+                best = self.order_choice_.chosen
+                if best != candidates[-1].order:
+                    self._store(data, fits[best])
+                self.bic_ = {c.order: c.bic for c in candidates}
         return self
 
     @property
@@ -616,6 +623,18 @@ class PredictionError(Estimator):
             x = np.asarray(sol.x, dtype=float)
         Phi, beta, eps = evaluate(x)
         return _Fit(st, noise, x, Phi, beta, eps, used, criterion)
+
+    def _candidate(self, order: int, criterion: float) -> Candidate:
+        """The stored fit as a candidate of the order choice."""
+        return Candidate(
+            order=order,
+            bic=criterion,
+            n_params=self.params_.size,
+            model=self.model_,
+            stderr=dict(self.stderr_),
+            names=self.param_names_,
+            cov=self.cov_,
+        )
 
     def _store(self, data: IOData, fit: _Fit) -> None:
         st, noise = fit.st, fit.noise

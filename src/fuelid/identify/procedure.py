@@ -46,17 +46,18 @@ CiMethod = Literal["normal", "log", "clipped"]
 class IdentifyOptions:
     """Settings of one identification (see ``fuelid identify --help`` for their meaning).
 
-    The defaults assume nothing about the plant: the number of lags chosen by the Akaike
-    information criterion (``order="auto"``), the dead time estimated, no flowmeter prior. A
-    meter lag that is not given as ``flowmeter_T`` can only be estimated as a second process
-    lag (T, T2 and T_f enter the model symmetrically), which ``order="auto"`` picks when the
-    data show it.
+    The defaults assume nothing about the plant: the number of lags chosen by the rule of
+    :mod:`fuelid.identify.order` (``order="auto"``: BIC and the second lag's own evidence),
+    the dead time estimated, no flowmeter prior. A meter lag that is not given as
+    ``flowmeter_T`` can only be estimated as a second process lag (T, T2 and T_f enter the
+    model symmetrically), which ``order="auto"`` picks when the data show it.
     """
 
     method: Method = "oe"
     """One of :data:`METHODS`; anything else is refused."""
     order: Literal[1, 2, "auto"] = "auto"
-    """Process lags for ``oe``: 1, 2, or "auto" (both fitted, the lower AIC kept). ``step-ls``
+    """Process lags for ``oe`` and ``pem``: 1, 2, or "auto" (both fitted, one kept by the rule
+    of :mod:`fuelid.identify.order`). ``step-ls``
     has one fixed structure (one lag and the flowmeter prior): for it "auto" means that
     structure, and an order is not applied."""
     delay: float | Literal["auto"] | None = None
@@ -600,6 +601,8 @@ def _identify(
             "noise_model": pem.noise_model_,
             "one_step_fit_percent": pem.one_step_fit_percent_,
             "aic": {str(k): v for k, v in pem.aic_.items()},
+            "bic": {str(k): v for k, v in pem.bic_.items()},
+            "structure": pem.order_choice_.to_json(),
             "noise_std": pem.noise_model_["sigma_v"],
             "innovation_std": pem.sigma_,
         }
@@ -622,6 +625,8 @@ def _identify(
             "covariance": oe.covariance_,
             "residual_noise_model": oe.residual_ar_.to_json(),
             "aic": {str(k): v for k, v in oe.aic_.items()},
+            "bic": {str(k): v for k, v in oe.bic_.items()},
+            "structure": oe.order_choice_.to_json(),
             "noise_std": oe.sigma_,
         }
         if "T2" in oe.param_names_ and "delay" in oe.param_names_:
@@ -631,6 +636,12 @@ def _identify(
             )
     model = estimator.model_
     stderr = dict(estimator.stderr_)
+    if isinstance(estimator, OutputError | PredictionError):
+        # the intervals hold within the structure the rule kept: say so when they trade or
+        # when another structure fits nearly as well
+        note = estimator.order_choice_.conditional_note()
+        if note:
+            warnings.append(note)
     lags_merged = _lags_not_separated(cov_names, cov)
     if lags_merged is not None:
         # two equal lags: only their combination is determined, and the separate intervals,

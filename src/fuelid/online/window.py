@@ -349,10 +349,10 @@ class WindowAnalyser:
             return None
 
     def _estimator_settings(self) -> dict[str, Any]:
-        order: int | str = "auto"
-        if self.last_model_ is not None:
-            order = 2 if self.last_model_.T2 > 0.0 else 1
-        return {"order": order, "delay": self.priors.delay, "T_f": self.priors.flowmeter_T}
+        # every window chooses its order by the rule of fuelid.identify.order (both orders
+        # searched locally from the warm start): a second lag one window's noise suggested
+        # must not stick to every later window
+        return {"order": "auto", "delay": self.priors.delay, "T_f": self.priors.flowmeter_T}
 
     def _fit(self, result: WindowResult, data: IOData, *, closed_loop: bool) -> None:
         kwargs = self._estimator_settings()
