@@ -74,3 +74,39 @@ def test_coloured_noise_is_named_only_when_the_settled_output_shows_it() -> None
     [whiteness] = [w for w in result.warnings if w.startswith("residuals are not white")]
     assert "only after command changes" in whiteness
     assert "the noise is white" in whiteness
+
+
+def test_the_simulators_logs_get_no_untrue_warning(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """`fuelid simulate`'s logs (the nonlinear plant, white meter noise) through `identify`.
+
+    The noise is white by construction, so no warning may blame coloured noise or a drift; the
+    misfit is the plant's (higher-order dynamics, the gain changing with the command), and what
+    each residual warning names must be one of those.
+    """
+    import json
+
+    from typer.testing import CliRunner
+
+    from fuelid.cli import app
+
+    runner = CliRunner()
+    profiles = [
+        ["--profile", "steps", "--duration", "300"],
+        ["--profile", "random", "--levels", "1.0,2.0", "--hold", "5", "--duration", "300"],
+        ["--profile", "random", "--levels", "1.0,5.0", "--hold", "10", "--duration", "300"],
+    ]
+    for k, profile in enumerate(profiles):
+        log = tmp_path / f"sim{k}.csv"
+        made = runner.invoke(app, ["simulate", str(log), *profile, "--seed", str(k), "--quiet"])
+        assert made.exit_code == 0, made.stderr
+        done = runner.invoke(app, ["identify", str(log), "--json"])
+        assert done.exit_code == 0, done.stderr
+        warnings = json.loads(done.stdout)["warnings"]
+        untrue = [w for w in warnings if "coloured noise" in w or "drift" in w]
+        assert untrue == [], (profile, untrue)
+        for warning in warnings:
+            if warning.startswith("residuals"):
+                assert any(
+                    cause in warning
+                    for cause in ("transient", "outside the model family", "the gain changes")
+                ), warning

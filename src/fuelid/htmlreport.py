@@ -24,6 +24,7 @@ from fuelid import __version__
 from fuelid.errors import DataError
 from fuelid.io.files import atomic_write_bytes
 from fuelid.io.timeseries import IOData, TimeSeries
+from fuelid.model import ProcessModel
 from fuelid.plots import (
     plot_bode,
     plot_correlation_tests,
@@ -344,6 +345,15 @@ def _context(
             "crossover": _fmt(rob.crossover_frequency, ".3g"),
             "overshoot": _fmt(linear["setpoint_step"]["overshoot_percent"], ".1f"),
             "settling": _fmt(linear["setpoint_step"]["settling_time"], ".1f"),
+            "structures": [
+                {
+                    "model": _describe_model(item.model),
+                    "Kc": _fmt(item.pi.Kc, ".5g"),
+                    "Ti": _fmt(item.pi.Ti, ".4g"),
+                    "Ms": _fmt(item.Ms_of_chosen_gains, ".2f"),
+                }
+                for item in analysis.outcome.structures
+            ],
         },
         "check": {
             "worst_Ms": _fmt(check.worst_Ms, ".2f"),
@@ -426,3 +436,10 @@ def write_report(
     html = render_report(analysis, figures, source_sha256)
     written.insert(0, atomic_write_bytes(out, html.encode("utf-8")))
     return written
+
+
+def _describe_model(model: ProcessModel) -> str:
+    """A model in one line: K, the lags and the delay with their units."""
+    lags = f"T {model.T:.4g} s" + (f", T2 {model.T2:.4g} s" if model.T2 > 0.0 else "")
+    meter = f", T_f {model.T_f:.3g} s" if model.T_f > 0.0 else ""
+    return f"K {model.K:.4g} (L/min)/V, {lags}{meter}, delay {model.delay:.3g} s"

@@ -234,6 +234,7 @@ def tune_command(
         flow_bands=flow_bands,
         simulate=simulate,
         sweep=sweep,
+        alternatives=loaded.alternatives if loaded is not None else (),
     )
     plant = load_plant_config(config)
     if u is not None and loaded is not None:
@@ -250,6 +251,16 @@ def tune_command(
         notices.append(
             "fuel temperature of the model assumed 20 °C: --fuel-temp not given"
             + (" and the model file has no fuel temperature" if loaded is not None else "")
+        )
+    if loaded is not None and loaded.conditional:
+        notices.append(
+            f"the model's intervals are conditional on its structure ({model_file}: "
+            "structure.conditional): see the gains' spread across the structures the log "
+            "could not tell apart"
+            if loaded.alternatives
+            else f"the model's intervals are conditional on its structure ({model_file}: its "
+            "lags or delay trade against each other): the response is determined, the split "
+            "is not; --sweep draws from its covariance"
         )
     calibration = None
     if plant.calibration is not None:
@@ -477,6 +488,16 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str) -> None:
             f"{run['start_flow']:.1f} → {result.setpoint[-1]:.1f} L/min: overshoot "
             f"{s['overshoot_percent']:.1f} %, settling {s['settling_time']:.1f} s, load peak "
             f"{s['disturbance_peak']:.2f} L/min, at the limits {s['time_at_limits']:g} s"
+        )
+    spread = data["structure_spread"]
+    if spread is not None:
+        worst = max(s["Ms_of_chosen_gains"] for s in spread["structures"])
+        console.print(
+            f"across the {len(spread['structures']) + 1} structures the log could not tell apart:"
+            f" Kc {spread['Kc'][0]:.4g}…{spread['Kc'][1]:.4g} V/(L/min), Ti "
+            f"{spread['Ti'][0]:.3g}…{spread['Ti'][1]:.3g} s; these gains' Ms on the others "
+            f"at most {worst:.2f}",
+            highlight=False,
         )
     sweep = data["sweep"]
     if sweep is not None:

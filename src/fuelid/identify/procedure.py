@@ -242,11 +242,15 @@ def _unmodelled_dynamics(
     options: IdentifyOptions,
     delay: float | None,
     gain_varies: bool | None = None,
+    noise_white: bool | None = None,
 ) -> str:
     """The input-correlation warning, suggesting only structures this fit did not already try.
 
     ``gain_varies`` is what the nonlinearity check found (None: the log has too few command
     levels to check): it decides whether a nonlinearity is named as a possible cause.
+    ``noise_white`` is whether the residuals are white where the output has settled
+    (:func:`~fuelid.identify.diagnostics.settled_whiteness`; None: not judged): white noise is
+    then not named as a cause.
 
     Examples
     --------
@@ -269,19 +273,22 @@ def _unmodelled_dynamics(
     if untried:
         return f"{head}: unmodelled dynamics; {' or '.join(untried)} may fit better"
     tried = "the fit already has a second lag and an estimated dead time"
+    # the noise's colour is a cause only when the settled residuals do not show it white
+    noise = "" if noise_white else " or coloured noise"
+    white = " (the noise is white where the output has settled)" if noise_white else ""
     if gain_varies is False:
         return (
             f"{head}: {tried}, and the gain does not change with the command, so the cause is "
-            "more likely dynamics outside the model family or coloured noise"
+            f"more likely dynamics outside the model family{noise}{white}"
         )
     if gain_varies:
         return (
             f"{head}: {tried}, and a gain per command band does not remove it either: dynamics "
-            "that change with the operating point, or coloured noise"
+            f"that change with the operating point{noise}{white}"
         )
     return (
         f"{head}: {tried}, so the cause is more likely a nonlinearity (the gain changing with "
-        "the operating point) or coloured noise"
+        f"the operating point) or dynamics outside the model family{noise}{white}"
     )
 
 
@@ -391,6 +398,17 @@ def _residual_warnings(
         band_cross = diagnostics.input_residual_correlation(
             fit_data.u, nonlinearity.residuals, max_lag, starts
         )
+    noise_white: bool | None = None
+    settled: diagnostics.CorrelationTest | None = None
+    significant = band_white is not None and nonlinearity is not None
+    if not (white.passed and cross.passed):
+        # is the noise itself white? judged where the output has settled, on the residuals of
+        # the best model at hand (the band model's when the gain changes with the command)
+        e = nonlinearity.residuals if significant and nonlinearity is not None else residuals
+        settled = diagnostics.settled_whiteness(
+            e, fit_data.u, fit_data.sample_time, settle, fit_data.segment_starts
+        )
+        noise_white = None if settled is None else settled.passed
     if not white.passed:
         if band_white is not None and band_white.passed:
             out.append(
@@ -399,7 +417,7 @@ def _residual_warnings(
                 f"(p = {band_white.p_value:.2g}); standard errors may be optimistic"
             )
         else:
-            out.append(_not_white(white, band_white, residuals, nonlinearity, fit_data, settle))
+            out.append(_not_white(white, band_white, settled, significant))
     # a zero-phase filter smears each output step backwards in time, which looks like feedback
     # to the test below: it is only meaningful on unfiltered (oe) data
     if options.method == "oe" and diagnostics.feedback_suspected(cross):
@@ -418,29 +436,26 @@ def _residual_warnings(
             )
         else:
             gain_varies = None if nonlinearity is None else nonlinearity.significant
-            out.append(_unmodelled_dynamics(cross.p_value, options, delay, gain_varies))
+            out.append(
+                _unmodelled_dynamics(cross.p_value, options, delay, gain_varies, noise_white)
+            )
     return out
 
 
 def _not_white(
     white: diagnostics.CorrelationTest,
     band_white: diagnostics.CorrelationTest | None,
-    residuals: FloatArray,
-    nonlinearity: NonlinearityCheck | None,
-    fit_data: IOData,
-    settle: float,
+    settled: diagnostics.CorrelationTest | None,
+    significant: bool,
 ) -> str:
-    """The whiteness warning when the gain's change with the command does not explain it."""
-    significant = band_white is not None and nonlinearity is not None
+    """The whiteness warning when the gain's change with the command does not explain it.
+
+    ``settled`` is the whiteness test where the output has settled (None: too little settled
+    output to judge); ``significant`` whether the gain changes with the command.
+    """
     head = f"residuals are not white (p = {white.p_value:.2g})"
     if band_white is not None:
         head += f", not even with a gain per command band (p = {band_white.p_value:.2g})"
-    # the noise's own colour is judged on the residuals of the best model at hand
-    e = nonlinearity.residuals if significant and nonlinearity is not None else residuals
-    # the same lags as the whiteness test it qualifies
-    settled = diagnostics.settled_whiteness(
-        e, fit_data.u, fit_data.sample_time, settle, fit_data.segment_starts
-    )
     tail = "standard errors may be optimistic"
     if settled is None:
         return f"{head}: coloured noise or unmodelled dynamics; {tail}"

@@ -50,6 +50,11 @@ class ModelFile:
     signal_check: tuple[str, ...] = ()
     """The identification's findings that the signals were not in the units the gains are
     computed for (``signal_check``)."""
+    alternatives: tuple[ProcessModel, ...] = ()
+    """The structures the identification could not tell apart from its model
+    (``structure.indistinct``): the gains are tuned on each too."""
+    conditional: bool = False
+    """Whether the file's intervals hold only within its structure (``structure.conditional``)."""
 
 
 def load_model_file(path: str | Path) -> ModelFile:
@@ -129,7 +134,10 @@ def load_model_file(path: str | Path) -> ModelFile:
                 cov_names, cov = tuple(kept), model_block.tolist()
     u, fuel_temperature = _operating_point(data.get("operating_point"), file)
     findings = data.get("signal_check")
+    alternatives, conditional = _structure(data.get("structure"), file)
     return ModelFile(
+        alternatives=alternatives,
+        conditional=conditional,
         model=model,
         cov_names=cov_names,
         cov=cov,
@@ -175,3 +183,28 @@ def _covariance_problem(names: list[str], block: NDArray[np.float64]) -> str | N
     if eigenvalues[0] < -1e-9 * max(eigenvalues[-1], 0.0):
         return "its covariance matrix is not positive semi-definite"
     return None
+
+
+def _structure(block: object, file: Path) -> tuple[tuple[ProcessModel, ...], bool]:
+    """The indistinct structures and the conditional flag of an identification's ``structure``.
+
+    Files written before the order rule have no ``structure``: no alternatives, not conditional.
+    """
+    if block is None:
+        return (), False
+    if not isinstance(block, dict):
+        raise DataError(f"model file {str(file)!r}: its 'structure' is not an object")
+    models = []
+    for item in block.get("indistinct") or []:
+        raw = item.get("model") if isinstance(item, dict) else None
+        if not isinstance(raw, dict):
+            raise DataError(
+                f"model file {str(file)!r}: a 'structure.indistinct' entry has no model"
+            )
+        try:
+            models.append(ProcessModel(**{key: float(raw.get(key) or 0.0) for key in MODEL_KEYS}))
+        except (TypeError, ValueError, FuelidError) as exc:
+            raise DataError(
+                f"model file {str(file)!r}: a 'structure.indistinct' model is invalid: {exc}"
+            ) from None
+    return tuple(models), bool(block.get("conditional", False))

@@ -302,6 +302,11 @@ def _analyse(
     warnings[:0] = [f"signals: {f}" for f in findings]
     u_op = float(np.clip(point.u, config.vfd.u_min_V, config.vfd.u_max_V))
     request = settings.tune_request(chosen.model, u_op, T_fuel, simulate=not plant.is_reference)
+    # the structures the log could not tell from the chosen fit's: the gains on each are shown
+    indistinct = chosen.extra.get("structure", {}).get("indistinct", [])
+    request = replace(
+        request, alternatives=tuple(ProcessModel(**item["model"]) for item in indistinct)
+    )
     cache: CaseCache = {}  # the check and the schedule share linearisations
     outcome = tune_model(config, request, progress, cache)
     warnings.extend(f"tuning: {w}" for w in outcome.warnings)

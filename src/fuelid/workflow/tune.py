@@ -28,6 +28,7 @@ from fuelid.tuning.cases import (
     plant_cases,
 )
 from fuelid.tuning.closedloop import ClosedLoopResult, flow_at, standard_runs
+from fuelid.tuning.frequency import robustness
 from fuelid.tuning.limits import check_control_period, check_sweep_size, check_tunable
 from fuelid.tuning.result import UNITS, TuningResult, evaluate_tuning
 from fuelid.tuning.rules import PISettings
@@ -91,6 +92,10 @@ class TuneRequest:
     """Setpoint step of the nonlinear runs [% of ``y_span``]."""
     seed: int | None = 0
     """Seed of the sweep's draws."""
+    alternatives: tuple[ProcessModel, ...] = ()
+    """Structures the identification could not tell apart from ``model`` (its JSON
+    ``structure.indistinct``): the gains are tuned on each too, and the chosen gains' Ms on each
+    is reported."""
 
     def __post_init__(self) -> None:
         check_control_period(self.control_period)
@@ -160,6 +165,27 @@ def check_over_temperature(
 
 
 @dataclass(frozen=True)
+class StructureGains:
+    """The rule's gains on one structure the identification could not tell apart."""
+
+    model: ProcessModel
+    """The other structure's model (K [(L/min)/V], times [s])."""
+    pi: PISettings
+    """The rule's gains on it."""
+    Ms_of_chosen_gains: float
+    """Ms of the gains tuned on the kept model, if this structure is the true one [-]."""
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON form: the model, its gains (Kc [V per L/min], Ti [s]) and the chosen gains' Ms."""
+        return {
+            "model": self.model.as_dict(),
+            "Kc": self.pi.Kc,
+            "Ti": self.pi.Ti,
+            "Ms_of_chosen_gains": self.Ms_of_chosen_gains,
+        }
+
+
+@dataclass(frozen=True)
 class TuneOutcome:
     """One pair of gains with its evidence: what ``fuelid tune`` prints."""
 
@@ -177,6 +203,8 @@ class TuneOutcome:
     """The standard test on the nonlinear plant at the coldest and the warmest fuel."""
     sweep: SweepResult | None = None
     """The gains on plant variants (temperature and the model's covariance)."""
+    structures: list[StructureGains] = field(default_factory=list)
+    """The rule's gains on each structure the data could not tell apart from the model."""
 
     @property
     def pi(self) -> PISettings:
@@ -188,9 +216,22 @@ class TuneOutcome:
         """What makes the gains unfit to use as they are (empty for a sound design)."""
         return self.tuning.warnings
 
+    def structure_spread(self) -> dict[str, Any] | None:
+        """The gains' spread over the model and the structures it could not be told from."""
+        if not self.structures:
+            return None
+        Kc = [self.pi.Kc, *(s.pi.Kc for s in self.structures)]
+        Ti = [self.pi.Ti, *(s.pi.Ti for s in self.structures)]
+        return {
+            "Kc": [min(Kc), max(Kc)],
+            "Ti": [min(Ti), max(Ti)],
+            "structures": [s.as_dict() for s in self.structures],
+        }
+
     def to_json(self) -> dict[str, Any]:
         """The documented JSON object of ``fuelid tune --json`` (without provenance)."""
         return self.tuning.to_json() | {
+            "structure_spread": self.structure_spread(),
             "temperature_check": self.check.as_dict(cases=True),
             "closed_loop_plant": [r.as_dict(events=True) for r in self.runs] or None,
             "sweep": None if self.sweep is None else self.sweep.summary(),
@@ -278,8 +319,25 @@ def _tune_model(
             T_range=request.T_range,
             seed=request.seed,
         )
+    structures = [
+        StructureGains(
+            model=other,
+            pi=evaluate_tuning(
+                other, request.rule, request.control_period, request.closed_loop_time
+            ).pi,
+            Ms_of_chosen_gains=robustness(other, tuning.pi).Ms,
+        )
+        for other in request.alternatives
+    ]
     return TuneOutcome(
-        request=request, u=u, y_span=y_span, tuning=tuning, check=check, runs=runs, sweep=sweep
+        request=request,
+        u=u,
+        y_span=y_span,
+        tuning=tuning,
+        check=check,
+        runs=runs,
+        sweep=sweep,
+        structures=structures,
     )
 
 
