@@ -33,23 +33,27 @@ ONE = _candidate(1, 0.0, 2.0, 0.0, np.diag([1e-4, 1e-4]))
 
 
 @pytest.mark.parametrize(
-    ("T2", "se_T2", "meter", "kept", "reason"),
+    ("T2", "se_T2", "meter", "gain", "kept", "reason"),
     [
-        (0.5, 0.01, True, 2, "excludes zero"),
-        (0.015, 0.001, True, 1, "not longer than the sample period"),
-        (0.5, 0.3, True, 1, "does not exclude zero"),
-        # no meter lag given: two lags 0.5 s apart with se(T − T2) ≈ 0.42 are not told apart
-        (1.5, 0.3, False, 1, "not told apart"),
-        (1.5, 0.3, True, 2, "excludes zero"),
+        (0.5, 0.01, True, 50.0, 2, "excludes zero"),
+        (0.015, 0.001, True, 50.0, 1, "not longer than the sample period"),
+        (0.5, 0.3, True, 50.0, 1, "does not exclude zero"),
+        # no meter lag given: two lags 0.5 s apart with se(T − T2) ≈ 0.42 are not told apart;
+        # with little to choose between the orders one lag is kept ...
+        (1.5, 0.3, False, 5.0, 1, "not told apart"),
+        # ... and when one lag fits decisively worse, the pair, its split undetermined
+        (1.5, 0.3, False, 50.0, 2, "split is not determined"),
+        (1.5, 0.3, True, 5.0, 2, "excludes zero"),
     ],
 )
 def test_each_condition_of_the_rule(
-    T2: float, se_T2: float, meter: bool, kept: int, reason: str
+    T2: float, se_T2: float, meter: bool, gain: float, kept: int, reason: str
 ) -> None:
-    two = _candidate(2, -50.0, 2.0, T2, np.diag([1e-4, 0.3**2, se_T2**2]))
+    two = _candidate(2, -gain, 2.0, T2, np.diag([1e-4, 0.3**2, se_T2**2]))
     choice = choose_order([ONE, two], H, meter_lag_given=meter)
     assert choice.chosen == kept
     assert reason in choice.reason
+    assert choice.split_undetermined == (reason == "split is not determined")
 
 
 def test_bic_decides_first() -> None:

@@ -20,8 +20,8 @@ OrderOption = Annotated[
     typer.Option(
         metavar="1|2|auto",
         help="Process time constants: 1, 2, or auto (two lags only when BIC prefers them and "
-        "the second is longer than the sample period, excludes zero and, with no meter lag "
-        "given, is told apart from the first; a flowmeter lag "
+        "the second is longer than the sample period and excludes zero; with no meter lag given "
+        "it must also be told apart from the first or be strongly preferred; a flowmeter lag "
         "that is not given is found as the second lag).",
     ),
 ]

@@ -14,9 +14,13 @@ With ``order="auto"`` an estimator fits one lag and two lags and hands both fits
 3. **Its 95 % interval excludes zero**: lag − 1.96·se(lag) > 0, with the fit's own standard
    error (the HAC sandwich when the residuals are coloured, so coloured noise, which inflates
    the BIC's improvement, does not pass here too).
-4. **With no meter lag given, the two lags are told apart**: |T − T2| > 1.96·se(T − T2). The
-   meter's lag is then one of the two fitted lags, and two lags the data cannot separate are
-   one lag's worth of information spent on two parameters.
+4. **With no meter lag given, the two lags are told apart** (|T − T2| > 1.96·se(T − T2)), **or
+   BIC's preference is very strong** (by :data:`BIC_CLOSE` or more). The meter's lag is then one
+   of the two fitted lags. Two lags the data cannot separate, with little to choose between the
+   orders, are one lag's worth of information spent on two parameters; but when one lag fits
+   decisively worse (two similar lags in series, a slow meter), dropping the second would bias
+   K, T and the delay: the pair is kept and its split said to be undetermined (the intervals
+   are then conditional on the structure, below).
 
 Whatever the choice, the result lists every order compared (its BIC, parameters and standard
 errors) and why one was kept; and it says when the intervals are **conditional on the
@@ -114,6 +118,8 @@ class OrderChoice:
     candidates: tuple[Candidate, ...]
     trades: list[tuple[str, str, float]] = field(default_factory=list)
     """Pairs of T, T2, delay in the chosen fit with |correlation| > TRADE_CORRELATION."""
+    split_undetermined: bool = False
+    """Two lags kept (no meter lag given) that the data do not tell apart (condition 4)."""
 
     @property
     def chosen_candidate(self) -> Candidate:
@@ -131,7 +137,7 @@ class OrderChoice:
     @property
     def conditional(self) -> bool:
         """Whether the intervals hold only within the chosen structure."""
-        return bool(self.trades or self.close)
+        return bool(self.trades or self.close or self.split_undetermined)
 
     def conditional_note(self) -> str | None:
         """The sentence saying why the intervals are conditional on the structure, or None."""
@@ -141,6 +147,8 @@ class OrderChoice:
         if self.trades:
             pairs = ", ".join(f"{a} and {b} ({r:+.2f})" for a, b, r in self.trades)
             why.append(f"{pairs} trade against each other")
+        if self.split_undetermined:
+            why.append("the two lags are not told apart")
         for other in self.close:
             why.append(
                 f"BIC separates order {self.chosen} from order {other.order} by only "
@@ -153,10 +161,10 @@ class OrderChoice:
         )
         if alternatives:
             text += f"; the data cannot tell it from {alternatives}"
-        if self.trades and not self.close:
+        if (self.trades or self.split_undetermined) and not self.close:
             text += (
-                "; the response is determined, the split between the trading parameters is not: "
-                "a prior (--flowmeter-T, --delay) fixes it"
+                "; a lag the model lacks, or a wrong prior, moves them together beyond their "
+                "intervals, and a meter prior (--flowmeter-T, --flowmeter-delay) fixes the split"
             )
         return text
 
@@ -170,6 +178,7 @@ class OrderChoice:
             "reason": self.reason,
             "conditional": self.conditional,
             "trades": [{"a": a, "b": b, "correlation": r} for a, b, r in self.trades],
+            "split_undetermined": self.split_undetermined,
             "indistinct": [c.to_json(best) for c in self.close],
         }
 
@@ -194,10 +203,13 @@ def _trades(c: Candidate) -> list[tuple[str, str, float]]:
     return out
 
 
-def second_lag_verdict(c: Candidate, sample_time: float, *, meter_lag_given: bool) -> str | None:
+def second_lag_verdict(
+    c: Candidate, sample_time: float, *, meter_lag_given: bool, bic_gain: float = math.inf
+) -> str | None:
     """Why the second lag of a two-lag fit is not supported by the data, or None when it is.
 
-    Conditions 2–4 of the module docstring (BIC's, condition 1, is :func:`choose_order`'s).
+    Conditions 2–4 of the module docstring (BIC's, condition 1, is :func:`choose_order`'s);
+    ``bic_gain`` is BIC(one lag) − BIC(two lags), which condition 4 weighs.
 
     Examples
     --------
@@ -220,16 +232,20 @@ def second_lag_verdict(c: Candidate, sample_time: float, *, meter_lag_given: boo
         return (
             f"the second lag's 95 % interval {small:.3g} ± {Z95 * se:.2g} s does not exclude zero"
         )
-    if not meter_lag_given:
-        var = c.cov_of("T", "T") + c.cov_of("T2", "T2") - 2.0 * c.cov_of("T", "T2")
-        se_diff = math.sqrt(var) if var > 0.0 else math.nan
-        gap = abs(m.T - m.T2)
-        if not (math.isfinite(se_diff) and gap > Z95 * se_diff):
-            return (
-                f"with no meter lag given, the two lags {m.T:.3g} s and {m.T2:.3g} s are not "
-                "told apart (|T − T2| within 1.96 standard errors)"
-            )
+    if not meter_lag_given and not lags_told_apart(c) and bic_gain < BIC_CLOSE:
+        return (
+            f"with no meter lag given, the two lags {m.T:.3g} s and {m.T2:.3g} s are not "
+            f"told apart (|T − T2| within 1.96 standard errors) and BIC prefers them by only "
+            f"{bic_gain:.1f} (< {BIC_CLOSE:g})"
+        )
     return None
+
+
+def lags_told_apart(c: Candidate) -> bool:
+    """Whether the two lags of a two-lag fit differ by more than 1.96 standard errors."""
+    var = c.cov_of("T", "T") + c.cov_of("T2", "T2") - 2.0 * c.cov_of("T", "T2")
+    se_diff = math.sqrt(var) if var > 0.0 else math.nan
+    return math.isfinite(se_diff) and abs(c.model.T - c.model.T2) > Z95 * se_diff
 
 
 def choose_order(
@@ -257,23 +273,31 @@ def choose_order(
         choice = OrderChoice(only.order, f"order {only.order} was given", tuple(candidates))
     else:
         one, two = by_order[1], by_order[2]
+        split = False
         if two.bic >= one.bic:
             reason = f"order 1: BIC prefers it ({one.bic:.1f} against {two.bic:.1f} for two lags)"
             chosen = 1
         else:
-            objection = second_lag_verdict(two, sample_time, meter_lag_given=meter_lag_given)
+            gain = one.bic - two.bic
+            objection = second_lag_verdict(
+                two, sample_time, meter_lag_given=meter_lag_given, bic_gain=gain
+            )
             if objection is None:
                 chosen = 2
                 reason = (
-                    f"order 2: BIC prefers it by {one.bic - two.bic:.1f}, the second lag is "
-                    "longer than the sample period and its 95 % interval excludes zero"
+                    f"order 2: BIC prefers it by {gain:.1f}, the second lag is longer than the "
+                    "sample period and its 95 % interval excludes zero"
                 )
+                split = not meter_lag_given and not lags_told_apart(two)
+                if split:
+                    reason += "; the two lags are not told apart: their split is not determined"
             else:
                 chosen = 1
                 reason = (
                     f"order 1: BIC prefers two lags by {one.bic - two.bic:.1f}, but {objection}"
                 )
         choice = OrderChoice(chosen, reason, (one, two))
+        choice.split_undetermined = chosen == 2 and split
     choice.trades = _trades(choice.chosen_candidate)
     return choice
 
@@ -285,5 +309,6 @@ __all__ = [
     "OrderChoice",
     "bic",
     "choose_order",
+    "lags_told_apart",
     "second_lag_verdict",
 ]

@@ -243,9 +243,12 @@ def _unmodelled_dynamics(
     delay: float | None,
     gain_varies: bool | None = None,
     noise_white: bool | None = None,
+    kept_order: int = 2,
 ) -> str:
     """The input-correlation warning, suggesting only structures this fit did not already try.
 
+    ``kept_order`` is the fitted model's number of lags (with ``order="auto"`` a second lag
+    may have been tried and not kept).
     ``gain_varies`` is what the nonlinearity check found (None: the log has too few command
     levels to check): it decides whether a nonlinearity is named as a possible cause.
     ``noise_white`` is whether the residuals are white where the output has settled
@@ -272,7 +275,12 @@ def _unmodelled_dynamics(
         )
     if untried:
         return f"{head}: unmodelled dynamics; {' or '.join(untried)} may fit better"
-    tried = "the fit already has a second lag and an estimated dead time"
+    tried = (
+        "the fit already has a second lag and an estimated dead time"
+        if kept_order == 2
+        else "a second lag was tried and not kept (see the order choice), and the dead time is "
+        "estimated"
+    )
     # the noise's colour is a cause only when the settled residuals do not show it white
     noise = "" if noise_white else " or coloured noise"
     white = " (the noise is white where the output has settled)" if noise_white else ""
@@ -375,6 +383,7 @@ def _residual_warnings(
     fit_data: IOData,
     lag_and_settle: tuple[int, float],
     K_unit: str,
+    kept_order: int = 2,
 ) -> list[str]:
     """The nonlinearity and residual-test warnings, each saying what the data show.
 
@@ -437,7 +446,9 @@ def _residual_warnings(
         else:
             gain_varies = None if nonlinearity is None else nonlinearity.significant
             out.append(
-                _unmodelled_dynamics(cross.p_value, options, delay, gain_varies, noise_white)
+                _unmodelled_dynamics(
+                    cross.p_value, options, delay, gain_varies, noise_white, kept_order
+                )
             )
     return out
 
@@ -737,6 +748,7 @@ def _identify(
             fit_data,
             (max_lag, settle),
             gain_unit(work),
+            kept_order=2 if model.T2 > 0.0 else 1,
         )
     )
     if extra.get("covariance") in ("hac", "noise-model"):
