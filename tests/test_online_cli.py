@@ -532,6 +532,13 @@ def test_a_short_virtual_run_fills_the_store_with_windows(
     with SQLiteStore(db) as store, OnlineHistory(store) as history:
         assert history.counts()["windows"] >= 1
         assert store.info().rows > 10_000
+        # every fitted window says which orders it compared and why it kept one
+        fitted = [w["detail"] for w in history.windows() if w["detail"].get("model")]
+        for detail in fitted:
+            structure = detail["structure"]
+            assert [c["order"] for c in structure["compared"]] == [1, 2]
+            assert structure["chosen_order"] in (1, 2)
+            assert structure["reason"].startswith(f"order {structure['chosen_order']}")
     code, out, err = run(capsys, "online", "status", "--store", str(db), "--json")
     assert code == 0, err
     assert json.loads(out)["last_window"] is not None

@@ -134,6 +134,9 @@ class WindowResult:
     """Free-run fit of the model over the window [%]."""
     covariance: str = ""
     """How the covariance was made ("white", "hac", "noise-model")."""
+    structure: dict[str, Any] | None = None
+    """The order choice (``identify --json``'s ``structure``): the orders compared, the one kept
+    and why, whether the intervals are conditional on it; None when nothing was fitted."""
     step_ls: dict[str, Any] | None = None
     """The article's step-ls model of the same samples: model, stderr, fit or the reason none."""
     plant_K: float | None = None
@@ -200,6 +203,7 @@ class WindowResult:
                 "method": self.method,
                 "method_reason": self.method_reason,
                 "covariance": self.covariance,
+                "structure": self.structure,
                 "fit_percent": self.fit_percent,
                 "plant_K": self.plant_K,
                 "gates": self.verdict.to_dict(),
@@ -371,7 +375,12 @@ class WindowAnalyser:
         result.stderr = dict(chosen.stderr_)
         result.fit_percent = float(oe.fit_percent_ if chosen is oe else chosen.fit_percent_)
         result.estimator = chosen
+        # the order is chosen by oe's fit (pem, warm-started from it, keeps that order)
+        result.structure = oe.order_choice_.to_json()
         result.warnings.extend(chosen.warnings_)
+        note = oe.order_choice_.conditional_note()
+        if note:
+            result.warnings.append(note)
         postfit = postfit_gates(
             chosen.model_,
             chosen.stderr_,
