@@ -19,6 +19,7 @@ from fuelid.online.gates import (
     gate_estimator,
     judged_mode,
     lost_samples,
+    postfit_gates,
     prefit_gates,
     prefit_samples,
 )
@@ -238,23 +239,99 @@ def test_white_noise_fit_accepted():
     assert v.events == ()
 
 
-def test_ar1_noise_rejected_by_the_residual_acf():
+def _ar1(rng: np.random.Generator, pole: float, sd: float, n: int = N) -> np.ndarray:
+    """AR(1) noise of stationary standard deviation ``sd``."""
+    w = rng.normal(scale=sd * np.sqrt(1.0 - pole**2), size=n)
+    return scipy.signal.lfilter([1.0], [1.0, -pole], w)
+
+
+def test_ar1_noise_with_a_correct_model_passes_after_prewhitening():
+    # Bands stated before running. Noise AR(1), pole 0.8 per sample (the gate study's), sd
+    # 0.3 L/min; the model structure is right, so the residual is the noise: raw ρ(1) = 0.8
+    # (sd of its estimate √((1 − 0.8²)/N) = 0.0035; band ≥ 0.75). The noise's AR fitted on the
+    # settled samples (≈ 20 × (1500 − 2 × 4 s / h) ≈ 22 000) is order 1, a₁ = −0.8 ± 4·0.004.
+    # Prewhitened, ρ(k) of white noise over N = 30 000 samples has sd 1/√N = 0.0058; the
+    # largest |ρ| over ~1000 lags is ≈ √(2 ln 2000)/√N = 0.022, and above 5/√N = 0.029 with
+    # probability about 2000 × 2.9e-7 < 0.1 %: band ≤ 5/√N.
     rng = np.random.default_rng(13)
     u = _man_steps()
-    phi = 0.99
-    w = rng.normal(scale=0.3 * np.sqrt(1.0 - phi**2), size=N)
-    noise = scipy.signal.lfilter([1.0], [1.0, -phi], w)
-    y = 10.0 + simulate_model(PLANT, u, H) + noise
+    y = 10.0 + simulate_model(PLANT, u, H) + _ar1(rng, 0.8, 0.3)
     est, data = _fit(u, y)
     v = gate_estimator(est, data, SETTINGS)
+    m = v.measured
+    assert m["residual_acf_basis"] == "prewhitened"
+    assert m["residual_acf_raw_max"] >= 0.75
+    assert m["residual_acf_raw_lag"] == 1
+    assert m["residual_acf_noise_ar_order"] == 1
+    assert 15_000 < m["residual_acf_settled_samples"] < 25_000
+    assert m["residual_acf_max"] <= 5.0 / np.sqrt(N)
+    assert 1000 <= m["residual_acf_lags"] <= 1060  # 5 settling times of the model (4.1 s)
+    assert v.accepted, v.reasons
+
+
+def test_missing_lag_still_gives_a_large_statistic_under_coloured_noise():
+    # The plant has a second lag 0.3·T the fit (order fixed to 1, delay fixed) cannot follow:
+    # the misfit m(k) after each step is the model's error, not noise. Prewhitening by the
+    # noise's A(q) = 1 − 0.8q⁻¹ (fitted where the output has settled, where m has decayed)
+    # keeps it: with m' = A(q)·m (from the same fit on the noise-free output) and the
+    # innovation's variance σ_e² = (1 − 0.8²)·sd², ρ(1) ≈ ρ_m'(1)·var m'/(var m' + σ_e²).
+    # Band: the prediction ± 0.05 (estimation spread ~1/√N plus the fit's noise), and far
+    # above the 5/√N of a correct model.
+    sd = 0.03  # L/min: 0.3 % of the 10 L/min steps
+    plant = ProcessModel(K=10.0, T=1.0, T2=0.3, delay=0.2)
+    u = _man_steps()
+    clean = 10.0 + simulate_model(plant, u, H)
+    misfit = clean - OutputError(order=1, delay=0.2).fit(IOData(u=u, y=clean, sample_time=H)).y_hat_
+    filtered = scipy.signal.lfilter([1.0, -0.8], [1.0], misfit)[1:]
+    filtered -= filtered.mean()
+    r0, r1 = filtered @ filtered / filtered.size, filtered[1:] @ filtered[:-1] / filtered.size
+    predicted = r1 / (r0 + (1.0 - 0.8**2) * sd**2)
+    assert 0.7 < predicted < 0.85  # the window is designed so (a plain check of the setup)
+    y = clean + _ar1(np.random.default_rng(17), 0.8, sd)
+    data = IOData(u=u, y=y, sample_time=H)
+    est = OutputError(order=1, delay=0.2).fit(data)
+    v = gate_estimator(est, data, SETTINGS)
+    m = v.measured
+    assert est.model_.T2 == 0.0
+    assert m["residual_acf_basis"] == "prewhitened"
+    assert m["residual_acf_noise_ar_order"] >= 1
+    assert m["residual_acf_max"] == pytest.approx(predicted, abs=0.05)
+    assert m["residual_acf_max"] > 20 * 5.0 / np.sqrt(N)
+    assert m["residual_acf_raw_max"] > m["residual_acf_max"]
+
+
+def test_too_few_settled_samples_judges_the_raw_residuals():
+    # command moves every 2 s, the model settles in ~4 s: no settled stretch, so the noise
+    # cannot be modelled; the raw residuals of AR(1) noise (pole 0.99) are judged, and say so
+    rng = np.random.default_rng(13)
+    u = np.where((T // 2.0) % 2 == 0, 2.5, 3.5)
+    y = 10.0 + simulate_model(PLANT, u, H) + _ar1(rng, 0.99, 0.3)
+    est, data = _fit(u, y)
+    v = gate_estimator(est, data, SETTINGS)
+    m = v.measured
+    assert m["residual_acf_basis"] == "raw: too few settled samples (n < 500)"
+    assert m["residual_acf_noise_ar_order"] is None
+    assert m["residual_acf_settled_samples"] is None
+    rho, lags = m["residual_acf_max"], m["residual_acf_lags"]
+    assert rho == m["residual_acf_raw_max"] > 0.9
+    assert m["residual_acf_lag"] == 1
     assert not v.accepted
-    rho = v.measured["residual_acf_max"]
-    assert rho > 0.9
-    assert v.measured["residual_acf_lag"] == 1
     acf = [r for r in v.reasons if r.startswith("residual correlation too large")]
-    lags = v.measured["residual_acf_lags"]
-    assert 1000 <= lags <= 1060  # 5 settling times of the fitted model (4.1 s) at 50 Hz
-    assert acf == [f"residual correlation too large: |ρ(1)| = {rho:.3f} > 0.7 (lags 1–{lags})"]
+    limit = SETTINGS.max_residual_acf
+    assert acf == [
+        f"residual correlation too large: |ρ(1)| = {rho:.3f} > {limit:g} (lags 1–{lags}, "
+        "raw: too few settled samples to model the noise)"
+    ]
+
+
+def test_prediction_errors_are_judged_as_they_are():
+    rng = np.random.default_rng(18)
+    e = _ar1(rng, 0.8, 0.3)
+    v = postfit_gates(PLANT, {"K": 0.01, "T": 0.01}, 95.0, e, H, SETTINGS)
+    m = v.measured
+    assert m["residual_acf_basis"] == "raw: no command given (prediction errors)"
+    assert m["residual_acf_max"] == m["residual_acf_raw_max"] == pytest.approx(0.8, abs=0.02)
+    assert not v.accepted
 
 
 def test_short_noisy_window_rejected_on_the_standard_errors():

@@ -106,6 +106,60 @@ def residual_whiteness(
     return CorrelationTest(lags, r, 1.96 / math.sqrt(n), stat, _chi2_sf(stat, lags.size))
 
 
+def settled_stretches(
+    u: ArrayLike,
+    sample_time: float,
+    settle: float,
+    segment_starts: Sequence[int] = (),
+    min_length: int = 1,
+) -> list[tuple[int, int]]:
+    """The stretches where the output has settled: from twice ``settle`` after a change on.
+
+    A stretch begins ``ceil(2·settle/h)`` samples after each command change (any Δu ≠ 0) or
+    gap (``segment_starts``) and ends at the next one; only stretches of at least
+    ``min_length`` samples are kept. After two settling times of the model even a 2 % misfit
+    of the response's tail has decayed to 0.04 % of the step, so what the residuals hold there
+    is the noise (and the steady-state error, a constant per stretch).
+
+    Parameters
+    ----------
+    u : array
+        The command [input unit], one per sample.
+    sample_time : float
+        h [s].
+    settle : float
+        98 % settling time of the model [s].
+    segment_starts : sequence of int
+        Where each segment after a gap begins.
+    min_length : int
+        Shortest stretch kept [samples].
+
+    Returns
+    -------
+    list of (int, int)
+        (start, stop) sample indices of each settled stretch, in order; empty when ``settle``
+        is not a finite non-negative number.
+
+    Examples
+    --------
+    >>> settled_stretches(np.repeat([0.0, 1.0, 0.0], 100), 0.1, 2.5, min_length=10)
+    [(50, 100), (150, 200), (250, 300)]
+    """
+    if not (math.isfinite(settle) and settle >= 0.0):
+        return []
+    u_arr = np.asarray(u, dtype=float)
+    edges = np.union1d(
+        np.r_[0, np.flatnonzero(np.diff(u_arr) != 0.0) + 1, u_arr.size],
+        np.asarray(segment_starts, dtype=int),
+    )
+    skip = math.ceil(2.0 * settle / sample_time)
+    return [
+        (a + skip, b)
+        for a, b in itertools.pairwise(edges.tolist())
+        if b - (a + skip) >= max(min_length, 1)
+    ]
+
+
 def settled_whiteness(
     residuals: ArrayLike,
     u: ArrayLike,
@@ -120,11 +174,11 @@ def settled_whiteness(
     The residuals of a model whose dynamics miss part of the response are coloured during the
     transients after command changes; coloured measurement noise (or a drift) is coloured
     everywhere. This tests only the samples at least twice ``settle`` after the last command
-    change (or gap): the settling time is the fitted model's, and a model that misses a lag
-    also misjudges how long the response lasts; after two settling times even a 2 % misfit of
-    the tail has decayed to 0.04 % of the step. Each settled stretch is tested on its own with
-    its mean removed (a steady-state error is a constant, not colour), as
-    :func:`residual_whiteness` does.
+    change (or gap), :func:`settled_stretches`: the settling time is the fitted model's, and a
+    model that misses a lag also misjudges how long the response lasts; after two settling
+    times even a 2 % misfit of the tail has decayed to 0.04 % of the step. Each settled stretch
+    is tested on its own with its mean removed (a steady-state error is a constant, not
+    colour), as :func:`residual_whiteness` does.
 
     Parameters
     ----------
@@ -155,22 +209,11 @@ def settled_whiteness(
     >>> residual_whiteness(e).passed, settled_whiteness(e, u, 0.1, 2.5).passed
     (False, True)
     """
-    if not (math.isfinite(settle) and settle >= 0.0):
-        return None
     e_all = np.asarray(residuals, dtype=float)
-    u_arr = np.asarray(u, dtype=float)
-    edges = np.union1d(
-        np.r_[0, np.flatnonzero(np.diff(u_arr) != 0.0) + 1, u_arr.size],
-        np.asarray(segment_starts, dtype=int),
-    )
-    skip = math.ceil(2.0 * settle / sample_time)
-    parts = [
-        e_all[a + skip : b] - e_all[a + skip : b].mean()
-        for a, b in itertools.pairwise(edges.tolist())
-        if b - (a + skip) > 2 * max_lag
-    ]
+    stretches = settled_stretches(u, sample_time, settle, segment_starts, 2 * max_lag + 1)
+    parts = [e_all[a:b] - e_all[a:b].mean() for a, b in stretches]
     n = sum(p.size for p in parts)
-    if n < min_samples:
+    if not parts or n < min_samples:
         return None
     starts = tuple(np.cumsum([p.size for p in parts])[:-1].tolist())
     return residual_whiteness(np.concatenate(parts), max_lag, starts)

@@ -390,6 +390,7 @@ class WindowAnalyser:
             self.settings,
             segment_starts=data.segment_starts,
             plant_K=result.plant_K,
+            u=data.u if chosen is oe else None,  # output errors: prewhitened by the noise's AR
         )
         result.verdict = result.verdict.combine(postfit)
         if self.step_ls:
