@@ -79,7 +79,7 @@ CovarianceOption = Annotated[
     typer.Option(
         help="oe's standard errors: white σ²(JᵀJ)⁻¹; hac, the sandwich with the residuals' "
         "spectrum (valid when they are coloured); auto, hac whenever the residuals fail the "
-        "whiteness test.",
+        "whiteness test because of the noise (coloured where the output has settled too).",
     ),
 ]
 DEFAULT_ORDER = "auto"

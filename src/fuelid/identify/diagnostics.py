@@ -112,12 +112,13 @@ def settled_stretches(
     settle: float,
     segment_starts: Sequence[int] = (),
     min_length: int = 1,
+    min_change: float = 0.0,
 ) -> list[tuple[int, int]]:
     """The stretches where the output has settled: from twice ``settle`` after a change on.
 
-    A stretch begins ``ceil(2·settle/h)`` samples after each command change (any Δu ≠ 0) or
-    gap (``segment_starts``) and ends at the next one; only stretches of at least
-    ``min_length`` samples are kept. After two settling times of the model even a 2 % misfit
+    A stretch begins ``ceil(2·settle/h)`` samples after each command change (|Δu| above
+    ``min_change``) or gap (``segment_starts``) and ends at the next one; only stretches of at
+    least ``min_length`` samples are kept. After two settling times of the model even a 2 % misfit
     of the response's tail has decayed to 0.04 % of the step, so what the residuals hold there
     is the noise (and the steady-state error, a constant per stretch).
 
@@ -133,6 +134,11 @@ def settled_stretches(
         Where each segment after a gap begins.
     min_length : int
         Shortest stretch kept [samples].
+    min_change : float
+        Command changes of at most this size [input unit] do not start a transient (0: every
+        change does). In closed loop the PI moves the command at every scan in reaction to the
+        noise; the response to such a move is a small signal the model describes, and counting
+        it would leave no settled sample at all.
 
     Returns
     -------
@@ -149,7 +155,7 @@ def settled_stretches(
         return []
     u_arr = np.asarray(u, dtype=float)
     edges = np.union1d(
-        np.r_[0, np.flatnonzero(np.diff(u_arr) != 0.0) + 1, u_arr.size],
+        np.r_[0, np.flatnonzero(np.abs(np.diff(u_arr)) > max(min_change, 0.0)) + 1, u_arr.size],
         np.asarray(segment_starts, dtype=int),
     )
     skip = math.ceil(2.0 * settle / sample_time)
@@ -158,6 +164,41 @@ def settled_stretches(
         for a, b in itertools.pairwise(edges.tolist())
         if b - (a + skip) >= max(min_length, 1)
     ]
+
+
+def settled_residuals(
+    residuals: ArrayLike,
+    stretches: Sequence[tuple[int, int]],
+    *,
+    detrend: bool = False,
+) -> tuple[FloatArray, tuple[int, ...], int]:
+    """The residuals of the settled ``stretches`` (:func:`settled_stretches`), each on its own.
+
+    Each stretch is kept with its mean removed (a steady-state error is a constant, not colour)
+    or, with ``detrend``, its least-squares line (a steady-state error that drifts slowly, as a
+    plant gain following the fuel temperature under a PI that holds the output, is a line, not
+    colour).
+
+    Returns
+    -------
+    (residuals, starts, removed)
+        The settled residuals concatenated, where each stretch after the first starts in them,
+        and the number of values removed (one or two per stretch: the degrees of freedom a
+        variance of them loses).
+    """
+    e_all = np.asarray(residuals, dtype=float)
+    parts = []
+    for a, b in stretches:
+        x = e_all[a:b]
+        if detrend:
+            t = np.arange(x.size, dtype=float)
+            parts.append(x - np.polyval(np.polyfit(t, x, 1), t))
+        else:
+            parts.append(x - x.mean())
+    if not parts:
+        return np.zeros(0), (), 0
+    starts = tuple(int(k) for k in np.cumsum([p.size for p in parts])[:-1])
+    return np.concatenate(parts), starts, (2 if detrend else 1) * len(parts)
 
 
 def settled_whiteness(
@@ -209,14 +250,11 @@ def settled_whiteness(
     >>> residual_whiteness(e).passed, settled_whiteness(e, u, 0.1, 2.5).passed
     (False, True)
     """
-    e_all = np.asarray(residuals, dtype=float)
     stretches = settled_stretches(u, sample_time, settle, segment_starts, 2 * max_lag + 1)
-    parts = [e_all[a:b] - e_all[a:b].mean() for a, b in stretches]
-    n = sum(p.size for p in parts)
-    if not parts or n < min_samples:
+    parts, starts, _ = settled_residuals(residuals, stretches)
+    if parts.size < min_samples:
         return None
-    starts = tuple(np.cumsum([p.size for p in parts])[:-1].tolist())
-    return residual_whiteness(np.concatenate(parts), max_lag, starts)
+    return residual_whiteness(parts, max_lag, starts)
 
 
 def input_residual_correlation(

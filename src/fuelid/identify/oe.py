@@ -44,7 +44,12 @@ from fuelid.identify.covariance import (
     sandwich_covariance,
     white_covariance,
 )
-from fuelid.identify.diagnostics import residual_whiteness
+from fuelid.identify.diagnostics import (
+    CorrelationTest,
+    residual_whiteness,
+    settled_residuals,
+    settled_stretches,
+)
 from fuelid.identify.order import Candidate, OrderChoice, bic, choose_order
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, offset_and_free_responses
 from fuelid.io.timeseries import IOData
@@ -58,6 +63,14 @@ FloatArray = NDArray[np.float64]
 Order = Literal[1, 2, "auto"]
 #: longest record used for the coarse grid of starting values (subsampled above this)
 GRID_SAMPLES = 20_000
+#: a command change whose response K·|Δu| stays within this many residual standard deviations
+#: does not start a transient when the settled residuals are tested (a PI's reaction to the
+#: noise moves the command at every scan in closed loop)
+NOISE_HIDDEN_CHANGE = 3.0
+#: fewest settled samples for judging where the residuals' colour comes from
+MIN_SETTLED_SAMPLES = 500
+#: lags of the whiteness tests [samples] (residual_whiteness's default)
+WHITENESS_LAGS = 25
 
 
 @dataclass(frozen=True)
@@ -200,7 +213,11 @@ class OutputError(Estimator):
     covariance : "auto", "white" or "hac"
         The parameters' covariance: "white" σ̂²(JᵀJ)⁻¹; "hac" the sandwich with the residuals'
         spectrum (:mod:`fuelid.identify.covariance`), valid when they are coloured; "auto"
-        (default) the sandwich whenever the residual whiteness test fails.
+        (default) the sandwich whenever the residual whiteness test fails because of the noise:
+        when the residuals are white where the output has settled (the colour is the model's
+        misfit after command changes, a function of the input that is the same in every noise
+        realisation, so the estimate does not scatter by it), the white covariance with the
+        residual standard deviation there (``residual_colour_``).
 
     Attributes
     ----------
@@ -219,6 +236,14 @@ class OutputError(Estimator):
         How ``cov_`` was computed; ``cov_white_`` is σ̂²(JᵀJ)⁻¹ always.
     residual_ar_ : ResidualAR
         The residuals' autoregressive model (order 0: white), the middle of the sandwich.
+    residual_colour_ : str or None
+        Why the residuals are coloured, judged by ``covariance="auto"`` when the whiteness test
+        fails: "model" (white where the output has settled: the misfit after command changes;
+        ``cov_`` is then the white covariance with the residual standard deviation there),
+        "noise" (coloured there too) or "unknown" (too little settled output to judge); None
+        when they are white (by the test or by their autoregressive model) or not judged.
+    settled_whiteness_ : CorrelationTest or None
+        The whiteness test where the output has settled behind ``residual_colour_``.
     stderr_ : dict
         Standard error of each model parameter K, T, T2, delay, T_f (None for a fixed one).
     fixed_ : tuple of str
@@ -267,6 +292,8 @@ class OutputError(Estimator):
     cov_white_: FloatArray
     covariance_: Literal["white", "hac"]
     residual_ar_: ResidualAR
+    residual_colour_: str | None
+    settled_whiteness_: CorrelationTest | None
     stderr_: dict[str, float | None]
     fixed_: tuple[str, ...]
     sigma_: float
@@ -454,6 +481,45 @@ class OutputError(Estimator):
         initial = "rest" if self.u_before is not None else self.initial
         return _Structure(order, self.T_f, self.delay, initial, self.u_before, self.initial)
 
+    def _colour_source(self, data: IOData, residual: FloatArray) -> tuple[str, float | None]:
+        """Whether coloured residuals are white where settled, and the noise's level there.
+
+        Settled: two of the model's settling times after the last command change whose
+        response K·|Δu| the noise does not hide (over :data:`NOISE_HIDDEN_CHANGE` residual
+        standard deviations) or gap; each stretch with its line removed
+        (:func:`~fuelid.identify.diagnostics.settled_residuals`), so a steady-state error that
+        drifts with the fuel temperature is not taken for colour.
+
+        Returns
+        -------
+        (str, float or None)
+            "model" (white there: the colour is the misfit after command changes) with the
+            residual standard deviation there (the noise's, without the misfit's power),
+            "noise" (coloured there too) or "unknown" (under :data:`MIN_SETTLED_SAMPLES`
+            settled samples), with None.
+        """
+        try:
+            settle = self.model_.settling_time()
+        except (FuelidError, ValueError, ArithmeticError):
+            return "unknown", None
+        gain = abs(self.K_)
+        stretches = settled_stretches(
+            data.u,
+            data.sample_time,
+            settle,
+            data.segment_starts,
+            min_length=2 * WHITENESS_LAGS + 1,
+            min_change=NOISE_HIDDEN_CHANGE * self.sigma_ / gain if gain > 0.0 else 0.0,
+        )
+        parts, starts, removed = settled_residuals(residual, stretches, detrend=True)
+        if parts.size < MIN_SETTLED_SAMPLES:
+            return "unknown", None
+        test = residual_whiteness(parts, WHITENESS_LAGS, starts)
+        self.settled_whiteness_ = test
+        if not test.passed:
+            return "noise", None
+        return "model", math.sqrt(float(parts @ parts) / max(parts.size - removed, 1))
+
     def _validate(self, data: IOData) -> None:
         if self.order not in (1, 2, "auto"):
             raise FuelidError(f"order must be 1, 2 or 'auto', got {self.order!r}")
@@ -617,15 +683,30 @@ class OutputError(Estimator):
         self.sigma_ = math.sqrt(ev.sse / dof)
         self.param_names_ = names
         self.params_ = np.array([self.K_, *(values[nm] for nm in nl_names), *ev.beta[1:]])
-        # white residuals: σ²(JᵀJ)⁻¹; coloured ones (the whiteness test fails): the sandwich
-        # with the residuals' own spectrum, which σ²(JᵀJ)⁻¹ understates several times
+        # white residuals: σ²(JᵀJ)⁻¹; coloured noise (the whiteness test fails, and where the
+        # output has settled too): the sandwich with the residuals' own spectrum, which
+        # σ²(JᵀJ)⁻¹ understates several times. Residuals coloured only after command changes
+        # are the model's misfit (a nonlinear plant, a lag the structure lacks): the same in
+        # every noise realisation, so the estimate does not scatter by it, and the sandwich
+        # would count its slow colour as noise (3-10 times too wide on the soak's windows)
         self.cov_white_, singular = white_covariance(J, self.sigma_)
         self.residual_ar_ = residual_ar(ev.residual, bounds)
         coloured = not residual_whiteness(ev.residual, segment_starts=data.segment_starts).passed
-        use_sandwich = self.covariance == "hac" or (self.covariance == "auto" and coloured)
+        self.residual_colour_, self.settled_whiteness_ = None, None
+        noise_sigma: float | None = None
+        if coloured and self.covariance == "auto" and self.residual_ar_.order > 0:
+            self.residual_colour_, noise_sigma = self._colour_source(data, ev.residual)
+        use_sandwich = self.covariance == "hac" or (
+            self.covariance == "auto" and coloured and self.residual_colour_ != "model"
+        )
         if use_sandwich and self.residual_ar_.order > 0:
             self.cov_, singular = sandwich_covariance(J, self.residual_ar_, bounds)
             self.covariance_ = "hac"
+        elif noise_sigma is not None:
+            # white noise of the level it has where the output settled: σ̂ over all residuals
+            # counts the misfit's power as noise too
+            self.cov_, singular = white_covariance(J, noise_sigma)
+            self.covariance_ = "white"
         else:
             self.cov_, self.covariance_ = self.cov_white_, "white"
         unidentified = [names[i] for i in singular]

@@ -649,6 +649,7 @@ def _identify(
         warnings.extend(oe.warnings_)
         extra = {
             "covariance": oe.covariance_,
+            "residual_colour": oe.residual_colour_,
             "residual_noise_model": oe.residual_ar_.to_json(),
             "aic": {str(k): v for k, v in oe.aic_.items()},
             "bic": {str(k): v for k, v in oe.bic_.items()},
@@ -751,6 +752,18 @@ def _identify(
             kept_order=2 if model.T2 > 0.0 else 1,
         )
     )
+    if extra.get("residual_colour") == "model":
+        # coloured only after command changes: the misfit is the same in every realisation of
+        # the noise, so the standard errors count the noise alone (its level where the output
+        # has settled); the misfit is a bias they do not hold
+        warnings = [
+            w.replace(
+                "standard errors may be optimistic",
+                "the standard errors count the noise (white where the output has settled), not "
+                "the misfit: the intervals hold within this structure",
+            )
+            for w in warnings
+        ]
     if extra.get("covariance") in ("hac", "noise-model"):
         # the printed standard errors already allow for the coloured residuals
         warnings = [
