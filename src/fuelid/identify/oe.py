@@ -688,7 +688,7 @@ class OutputError(Estimator):
         # σ²(JᵀJ)⁻¹ understates several times. Residuals coloured only after command changes
         # are the model's misfit (a nonlinear plant, a lag the structure lacks): the same in
         # every noise realisation, so the estimate does not scatter by it, and the sandwich
-        # would count its slow colour as noise (3-10 times too wide on the soak's windows)
+        # would count its slow colour as noise (2-40 times too wide, median 7, on the soak)
         self.cov_white_, singular = white_covariance(J, self.sigma_)
         self.residual_ar_ = residual_ar(ev.residual, bounds)
         coloured = not residual_whiteness(ev.residual, segment_starts=data.segment_starts).passed
