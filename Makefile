@@ -89,6 +89,8 @@ bench: $(BENCH_VENV)/.fuelid-installed
 	$(BENCH_VENV)/bin/python benchmarks/bench_simulate.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_identify_speed.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_identify_accuracy.py
+	$(BENCH_VENV)/bin/python benchmarks/bench_default_path.py --runs 500
+	$(BENCH_VENV)/bin/python benchmarks/bench_gate_study.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_refdata.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_tuning_sweep.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_cold_start.py
