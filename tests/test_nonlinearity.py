@@ -78,6 +78,9 @@ def test_the_simulators_log_gets_only_true_warnings(plant_log, priors):
             # true: the noise is white (checked where the flow has settled), the transients
             # are not followed exactly by one linear model over a 4:1 flow range
             assert "the noise is white" in warning
+        elif warning.startswith("the intervals are conditional on the structure"):
+            # true: the misfit colours the residuals, and the intervals count the noise only
+            assert "coloured by the model's misfit" in warning
         else:
             assert warning.startswith("K varies")
     assert not any(w.startswith("residuals correlate") for w in result.warnings)
@@ -109,7 +112,7 @@ def test_an_unmodelled_second_lag_still_gets_the_unmodelled_dynamics_warning():
     fixed = identify(IOData(u, y, H), IdentifyOptions(flowmeter_T=0.3, flowmeter_delay=0.2))
     assert pytest.approx(0.6, rel=0.05) == fixed.model.T2
     assert len(fixed.warnings) == 1
-    assert fixed.warnings[0].startswith("the intervals are conditional on the structure (order 2)")
+    assert fixed.warnings[0].startswith("the intervals are conditional on the structure (two lags)")
 
 
 def test_too_few_levels_give_no_check():

@@ -537,8 +537,7 @@ def check(result: SoakResult) -> None:
     # too many misses: intervals too narrow; too few: too wide (gates and proposals slower
     # than they need be); both are defects
     assert lo <= len(misses) <= hi, (
-        f"{n - len(misses)} of {n} covered, misses outside {lo}…{hi} (t, K, se, K_clean): "
-        f"{misses}"
+        f"{n - len(misses)} of {n} covered, misses outside {lo}…{hi} (t, K, se, K_clean): {misses}"
     )
     assert result.no_excitation, "no window lay wholly inside a hold"
     for t_from, accepted, reason in result.no_excitation:

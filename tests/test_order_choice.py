@@ -66,7 +66,7 @@ def test_bic_decides_first() -> None:
     # 5 < 10 apart: the intervals are conditional, and order 2 is listed with its parameters
     assert choice.conditional
     assert [c.order for c in choice.close] == [2]
-    assert "order 2 (K 1, T 2 s, T2 0.5 s" in (choice.conditional_note() or "")
+    assert "two lags (K 1, T 2 s, T2 0.5 s" in (choice.conditional_note() or "")
 
 
 def test_a_first_order_process_keeps_one_lag() -> None:
@@ -120,7 +120,7 @@ def test_conditional_intervals_are_said_and_the_gains_spread_shown(tmp_path) -> 
     assert others[0]["order"] != structure["chosen_order"]
     note = [w for w in ident["warnings"] if "conditional on the structure" in w]
     assert note
-    assert f"order {others[0]['order']} (K " in note[0]
+    assert f"{'one lag' if others[0]['order'] == 1 else 'two lags'} (K " in note[0]
     # the text output names the orders compared and why one was kept
     text = runner.invoke(app, ["identify", str(log)])
     assert "orders compared: 1 (BIC" in text.stdout
@@ -151,3 +151,17 @@ def test_the_report_shows_the_gains_on_each_indistinct_structure(tmp_path) -> No
     assert 'id="structures"' in html
     ident = json.loads(done.stdout)
     assert "conditional on the structure" in " ".join(ident["warnings"])
+
+
+def test_a_lag_bic_wants_and_the_rule_refuses_is_listed_and_makes_intervals_conditional() -> None:
+    # a fast loop: a second lag of 0.0158 s (h = 0.02 s) that BIC prefers by thousands is not
+    # kept (rule 2), but nothing rules that structure out: it is listed and tuned on too
+    two = _candidate(2, -5000.0, 0.35, 0.0158, np.diag([1e-6, 1e-8, 4e-8]))
+    choice = choose_order([ONE, two], H, meter_lag_given=True)
+    assert choice.chosen == 1
+    assert "not longer than the sample period" in choice.reason
+    assert [c.order for c in choice.close] == [2]
+    assert choice.conditional
+    assert "BIC prefers two lags by 5000.0, which the rule did not keep" in (
+        choice.conditional_note() or ""
+    )

@@ -316,10 +316,14 @@ def _print_table(data: dict[str, Any], file: Path, gain_unit: str, units: tuple[
         "hac": "the sandwich with the coloured residuals' spectrum",
         "noise-model": "the prediction-error fit's, with its noise model",
     }
-    console.print(
-        f"standard errors: {conventions.get(data['covariance'], data['covariance'])}",
-        highlight=False,
-    )
+    convention = conventions.get(data["covariance"], data["covariance"])
+    if data.get("residual_colour") == "model":
+        # coloured residuals whose colour is the model's misfit: the noise alone is counted
+        convention = (
+            "σ²(JᵀJ)⁻¹ with the noise's level where the output has settled (the residuals' "
+            "colour is the model's misfit, not noise)"
+        )
+    console.print(f"standard errors: {convention}", highlight=False)
     noise = data.get("noise_model")
     if noise is not None:
         console.print(

@@ -258,9 +258,9 @@ def tune_command(
             "structure.conditional): see the gains' spread across the structures the log "
             "could not tell apart"
             if loaded.alternatives
-            else f"the model's intervals are conditional on its structure ({model_file}: its "
-            "lags or delay trade against each other): the response is determined, the split "
-            "is not; --sweep draws from its covariance"
+            else f"the model's intervals are conditional on its structure ({model_file}: see "
+            "its structure and warnings): they hold if that structure is right; --sweep, which "
+            "draws from the covariance, shows the spread within that structure only"
         )
     calibration = None
     if plant.calibration is not None:

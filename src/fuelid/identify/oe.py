@@ -372,6 +372,7 @@ class OutputError(Estimator):
                 if best != candidates[-1].order:
                     z, ev = fits[best]
                     self._store(data, self._structure(best), z, ev)
+                self.order_choice_.misfit = self.residual_colour_ == "model"
                 self.bic_ = {c.order: c.bic for c in candidates}
         return self
 
@@ -726,13 +727,6 @@ class OutputError(Estimator):
                 "log (their information is singular, e.g. two equal lags): no standard error "
                 "or interval for them; a log with more or larger steps, or a prior, fixes it"
             )
-        if st.delay is None and "T2" in nl_names and "T2" not in unidentified:
-            corr = self.correlation_[names.index("T2"), names.index("delay")]
-            if abs(corr) > 0.9:
-                self.warnings_.append(
-                    f"T2 and the delay are strongly correlated ({corr:+.2f}): prefer order 1 "
-                    "or fix the delay unless the data show otherwise"
-                )
 
 
 def continue_fitted(

@@ -126,18 +126,28 @@ class OrderChoice:
         """The candidate of the kept order."""
         return next(c for c in self.candidates if c.order == self.chosen)
 
+    misfit: bool = False
+    """The residuals are coloured by the model's misfit (white where the output has settled):
+    the intervals count the noise, not the misfit's bias (set by the estimator)."""
+
     @property
     def close(self) -> tuple[Candidate, ...]:
-        """The other orders whose BIC lies within :data:`BIC_CLOSE` of the kept one's."""
+        """The orders the data do not rule out.
+
+        Within :data:`BIC_CLOSE` of the kept one's BIC, or preferred by BIC and not kept by the
+        rule (the rule's objection is no evidence against the structure's fit).
+        """
         kept = self.chosen_candidate.bic
         return tuple(
-            c for c in self.candidates if c.order != self.chosen and abs(c.bic - kept) < BIC_CLOSE
+            c
+            for c in self.candidates
+            if c.order != self.chosen and (abs(c.bic - kept) < BIC_CLOSE or c.bic < kept)
         )
 
     @property
     def conditional(self) -> bool:
         """Whether the intervals hold only within the chosen structure."""
-        return bool(self.trades or self.close or self.split_undetermined)
+        return bool(self.trades or self.close or self.split_undetermined or self.misfit)
 
     def conditional_note(self) -> str | None:
         """The sentence saying why the intervals are conditional on the structure, or None."""
@@ -150,17 +160,28 @@ class OrderChoice:
         if self.split_undetermined:
             why.append("the two lags are not told apart")
         for other in self.close:
+            gap = other.bic - self.chosen_candidate.bic
+            if abs(gap) < BIC_CLOSE:
+                why.append(
+                    f"BIC separates {_lags(self.chosen)} from {_lags(other.order)} by only "
+                    f"{abs(gap):.1f} (< {BIC_CLOSE:g})"
+                )
+            else:
+                why.append(
+                    f"BIC prefers {_lags(other.order)} by {-gap:.1f}, which the rule did not keep"
+                )
+        if self.misfit:
             why.append(
-                f"BIC separates order {self.chosen} from order {other.order} by only "
-                f"{abs(other.bic - self.chosen_candidate.bic):.1f} (< {BIC_CLOSE:g})"
+                "the residuals are coloured by the model's misfit after command changes, a bias "
+                "the intervals (which count the noise) do not hold"
             )
         alternatives = "; ".join(_describe(c) for c in self.close)
         text = (
-            "the intervals are conditional on the structure (order "
-            f"{self.chosen}): {'; '.join(why)}"
+            f"the intervals are conditional on the structure ({_lags(self.chosen)}): "
+            f"{'; '.join(why)}"
         )
         if alternatives:
-            text += f"; the data cannot tell it from {alternatives}"
+            text += f"; the data do not rule out {alternatives}"
         if (self.trades or self.split_undetermined) and not self.close:
             text += (
                 "; a lag the model lacks, or a wrong prior, moves them together beyond their "
@@ -183,10 +204,14 @@ class OrderChoice:
         }
 
 
+def _lags(order: int) -> str:
+    return "one lag" if order == 1 else "two lags"
+
+
 def _describe(c: Candidate) -> str:
     m = c.model
     lags = f"T {m.T:.4g} s" + (f", T2 {m.T2:.4g} s" if m.T2 > 0.0 else "")
-    return f"order {c.order} (K {m.K:.4g}, {lags}, delay {m.delay:.4g} s)"
+    return f"{_lags(c.order)} (K {m.K:.4g}, {lags}, delay {m.delay:.4g} s)"
 
 
 def _trades(c: Candidate) -> list[tuple[str, str, float]]:

@@ -720,15 +720,6 @@ class PredictionError(Estimator):
                 f"{', '.join(shown)} cannot be told apart from the other parameters with this "
                 "log (their information is singular): no standard error or interval for them"
             )
-        if "T2" in nl and "delay" in nl and "T2" not in shown:
-            corr = self.correlation_[
-                self.param_names_.index("T2"), self.param_names_.index("delay")
-            ]
-            if abs(corr) > 0.9:
-                self.warnings_.append(
-                    f"T2 and the delay are strongly correlated ({corr:+.2f}): prefer order 1 "
-                    "or fix the delay unless the data show otherwise"
-                )
         if np.any(np.abs(np.roots(D)) > 0.999):
             self.warnings_.append(
                 "the noise model has a pole within 0.001 of 1 (a drift, nearly integrating): "

@@ -173,6 +173,16 @@ class LogAnalysis:
                 "--fuel-temp was not given"
             )
         found.extend(f"signal check overridden: {f}" for f in self.signal_check)
+        chosen = self.identifications[self.settings.tune_from]
+        if chosen.extra.get("structure", {}).get("conditional"):
+            found.append(
+                f"the {self.settings.tune_from} model's intervals are conditional on its "
+                "structure (see its warnings): the gains on the structures the log does not rule "
+                "out are shown beside the PI gains"
+                if self.outcome.structures
+                else f"the {self.settings.tune_from} model's intervals are conditional on its "
+                "structure (see its warnings): they hold if that structure is right"
+            )
         return found
 
     @property
@@ -210,7 +220,7 @@ class LogAnalysis:
             "notices": self.notices,
             "identification": {m: r.to_json() for m, r in self.identifications.items()},
             "tuned_from": self.settings.tune_from,
-            "tuning": self.tuning.to_json(),
+            "tuning": self.tuning.to_json() | {"structure_spread": self.outcome.structure_spread()},
             "temperature_check": self.check.as_dict(cases=False),
             "closed_loop_plant": [r.as_dict(events=False) for r in self.runs],
             "schedule": self.schedule.as_dict(),
