@@ -95,6 +95,7 @@ import pytest
 
 pytest.importorskip("pymodbus")
 
+from bands import coverage_band, z_bound
 from fuelid.online.service import OnlineService, observation_of
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.online.window import WindowAnalyser
@@ -166,51 +167,6 @@ def vm_rss_mb() -> float:
         with contextlib.suppress(OSError):
             children.update(task.read_text().split())
     return _rss_mb("self") + sum(_rss_mb(pid) for pid in children)
-
-
-FALSE_ALARM = 1e-3
-"""Chance that a check whose statistics hold fails anyway, per check (pre-registered)."""
-
-
-def coverage_band(n: int, p_miss: float = 0.05, alarm: float = FALSE_ALARM) -> tuple[int, int]:
-    """Misses of n correct 95 % intervals: the two-sided band holding with probability 1 − alarm.
-
-    The smallest lo and largest hi with P(X < lo) ≤ alarm/2 and P(X > hi) ≤ alarm/2 for
-    X ~ Binomial(n, p_miss): too many misses are intervals too narrow, too few too wide.
-
-    Examples
-    --------
-    >>> coverage_band(10), coverage_band(100)
-    ((0, 4), (0, 13))
-    >>> coverage_band(500)
-    (11, 42)
-    """
-    pmf = [math.comb(n, m) * p_miss**m * (1.0 - p_miss) ** (n - m) for m in range(n + 1)]
-    lo, below = 0, 0.0
-    while lo < n and below + pmf[lo] <= alarm / 2:
-        below += pmf[lo]
-        lo += 1
-    hi, above = n, 0.0
-    while hi > 0 and above + pmf[hi] <= alarm / 2:
-        above += pmf[hi]
-        hi -= 1
-    return lo, hi
-
-
-def z_bound(m: int, alarm: float = FALSE_ALARM) -> float:
-    """|z| bound of m standard normal values, all within it with probability 1 − alarm.
-
-    Šidák: each within ±b with probability (1 − alarm)^(1/m).
-
-    Examples
-    --------
-    >>> round(z_bound(1), 2), round(z_bound(10), 2)
-    (3.29, 3.89)
-    """
-    from statistics import NormalDist
-
-    each = (1.0 - alarm) ** (1.0 / max(m, 1))
-    return NormalDist().inv_cdf(0.5 + each / 2.0)
 
 
 @dataclass

@@ -10,6 +10,7 @@ from functools import cache
 import numpy as np
 import pytest
 
+from bands import coverage_band
 from fuelid.errors import FuelidError, NotFittedError
 from fuelid.online.tracking import (
     GainObservation,
@@ -110,7 +111,11 @@ def test_drifting_ratio_recovered() -> None:
 
 
 def test_interval_coverage() -> None:
-    """The 95 % interval of the ratio covers 0.85 in 90–98 % of 200 seeded repetitions."""
+    """The 95 % interval of the ratio covers 0.85 in 200 seeded repetitions as often as it should.
+
+    Band (pre-registered, tests/bands.py): 2…21 misses, the two-sided binomial band of correct
+    95 % intervals at 0.1 % false alarm.
+    """
     rng = np.random.default_rng(3)
     T = np.linspace(0.0, 30.0, 15)
     u = rng.choice([1.25, 2.0, 3.0, 4.0, 4.75], size=T.size)
@@ -128,8 +133,10 @@ def test_interval_coverage() -> None:
         hits_a += abs(a - RATIO) < 1.96 * se_a
         rp, se_p = tr.predict_ratio(45.0)
         hits_pred += abs(rp - RATIO) < 1.96 * se_p
-    assert 0.90 <= hits_a / 200 <= 0.98
-    assert 0.90 <= hits_pred / 200 <= 0.98
+    # pre-registered: misses of correct 95 % intervals in 200 repetitions (tests/bands.py)
+    lo, hi = coverage_band(200)
+    assert lo <= 200 - hits_a <= hi
+    assert lo <= 200 - hits_pred <= hi
 
 
 def test_birge_inflation() -> None:
