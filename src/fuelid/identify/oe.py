@@ -364,7 +364,8 @@ class OutputError(Estimator):
                 candidates = []
                 for order, (z, ev) in fits.items():
                     self._store(data, self._structure(order), z, ev)
-                    candidates.append(self._candidate(bic(ev.sse, n, ev.beta.size + z.size)))
+                    criterion = bic(ev.sse, n, ev.beta.size + z.size)
+                    candidates.append(Candidate.of_fit(self, order, criterion))
                 self.order_choice_ = choose_order(
                     candidates, data.sample_time, meter_lag_given=self.T_f > 0.0
                 )
@@ -465,19 +466,6 @@ class OutputError(Estimator):
         return np.asarray(self.cov_ / np.outer(sd, sd), dtype=float)
 
     # ------------------------------------------------------------------ internals
-    def _candidate(self, criterion: float) -> Candidate:
-        """The stored fit as a candidate of the order choice."""
-        st, _ = self._state
-        return Candidate(
-            order=st.order,
-            bic=criterion,
-            n_params=self.params_.size,
-            model=self.model_,
-            stderr=dict(self.stderr_),
-            names=self.param_names_,
-            cov=self.cov_,
-        )
-
     def _structure(self, order: int) -> _Structure:
         initial = "rest" if self.u_before is not None else self.initial
         return _Structure(order, self.T_f, self.delay, initial, self.u_before, self.initial)

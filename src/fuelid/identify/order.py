@@ -90,6 +90,22 @@ class Candidate:
     names: tuple[str, ...]
     cov: FloatArray
 
+    @classmethod
+    def of_fit(cls, estimator: Any, order: int, criterion: float) -> Candidate:
+        """A fitted estimator's stored fit as a candidate of ``order`` with BIC ``criterion``.
+
+        Reads ``model_``, ``stderr_``, ``param_names_``, ``params_`` and ``cov_``.
+        """
+        return cls(
+            order=order,
+            bic=criterion,
+            n_params=estimator.params_.size,
+            model=estimator.model_,
+            stderr=dict(estimator.stderr_),
+            names=estimator.param_names_,
+            cov=estimator.cov_,
+        )
+
     def cov_of(self, a: str, b: str) -> float:
         """Covariance of two named parameters (nan when either is not estimated)."""
         if a not in self.names or b not in self.names:

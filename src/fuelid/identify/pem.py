@@ -336,7 +336,9 @@ class PredictionError(Estimator):
                 for order, f in fits.items():
                     self._store(data, f)
                     k = f.x.size + f.beta.size
-                    candidates.append(self._candidate(order, bic(f.sse, int(f.used.sum()), k)))
+                    candidates.append(
+                        Candidate.of_fit(self, order, bic(f.sse, int(f.used.sum()), k))
+                    )
                 self.order_choice_ = choose_order(
                     candidates, data.sample_time, meter_lag_given=self.T_f > 0.0
                 )
@@ -623,18 +625,6 @@ class PredictionError(Estimator):
             x = np.asarray(sol.x, dtype=float)
         Phi, beta, eps = evaluate(x)
         return _Fit(st, noise, x, Phi, beta, eps, used, criterion)
-
-    def _candidate(self, order: int, criterion: float) -> Candidate:
-        """The stored fit as a candidate of the order choice."""
-        return Candidate(
-            order=order,
-            bic=criterion,
-            n_params=self.params_.size,
-            model=self.model_,
-            stderr=dict(self.stderr_),
-            names=self.param_names_,
-            cov=self.cov_,
-        )
 
     def _store(self, data: IOData, fit: _Fit) -> None:
         st, noise = fit.st, fit.noise
