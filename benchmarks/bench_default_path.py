@@ -218,15 +218,26 @@ def summarise(rows: list[dict[str, Any]], runs: int) -> list[str]:
     return lines
 
 
-def _provenance(args: argparse.Namespace, seconds: float) -> str:
+def _commit() -> str:
+    """The checkout's commit (read when the run starts: the code the numbers come from)."""
     here = Path(__file__).resolve().parent
-    commit = subprocess.run(
+    head = subprocess.run(
         ["git", "rev-parse", "--short=12", "HEAD"], cwd=here, capture_output=True, text=True
     ).stdout.strip()
+    dirty = subprocess.run(
+        ["git", "status", "--porcelain", "--untracked-files=no"],
+        cwd=here,
+        capture_output=True,
+        text=True,
+    ).stdout.strip()
+    return (head or "unknown") + (" with uncommitted changes" if dirty else "")
+
+
+def _provenance(args: argparse.Namespace, seconds: float, commit: str) -> str:
     command = "python benchmarks/bench_default_path.py " + " ".join(sys.argv[1:])
     return (
         f"Produced by `{command.strip()}` on {datetime.date.today().isoformat()}, commit "
-        f"{commit or 'unknown'}, {platform.machine()} with {os.cpu_count()} cores "
+        f"{commit}, {platform.machine()} with {os.cpu_count()} cores "
         f"(Python {platform.python_version()}), {seconds:.0f} s wall time with {args.jobs} "
         "processes. Written by the script; do not edit by hand."
     )
@@ -253,6 +264,7 @@ def main() -> None:
         f"{'T r/CRB':>7s} {'T b/CRB':>7s} {'T cov%':>8s} {'cond %':>6s}"
     )
     page = [intro, ""]
+    commit = _commit()
     started = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         for truth_name in TRUTHS:
@@ -281,7 +293,7 @@ def main() -> None:
                 "runs whose intervals were said to be conditional on the structure.",
                 "",
                 *page,
-                _provenance(args, seconds),
+                _provenance(args, seconds, commit),
                 "",
             ]
         )
