@@ -30,7 +30,7 @@ output-error fit in MAN, the prediction-error fit with its noise model in AUTO, 
 gates; a fresh analyser per window: its cold start; step-ls off) with the residual-correlation
 bound set to 0.999 so that the gate's statistic — max |ρ(k)|, k = 1…acf_lags, of the residuals
 the gate sees, prewhitened by the noise's own AR model when they are output errors
-(:func:`fuelid.online.gates.prewhiten`), the prediction errors as they are — is recorded for
+(:func:`fuelid.online.residual_acf.prewhiten`), the prediction errors as they are — is recorded for
 every fitted window, with the raw residuals' statistic (the gate before this study), and the
 bound applied afterwards. Each window's K error is the fitted K over the plant's linearised
 static gain at the window's mean command and fuel temperature
@@ -899,7 +899,7 @@ def page(
         "the virtual reference plant the soak tests then ran on. This study sets it on two "
         "plants that were not used to tune it, with the gate's statistic computed on the "
         "residuals prewhitened by the noise's own AR model (fitted where the output has settled: "
-        "`fuelid.online.gates.prewhiten`), so that it measures the model's error and not the "
+        "`fuelid.online.residual_acf.prewhiten`), so that it measures the model's error and not the "
         "meter noise's colour; the raw residuals' statistic (the gate before) is shown "
         "alongside. Written by `benchmarks/bench_gate_study.py` (its docstring has the whole "
         "setting); do not edit by hand.",

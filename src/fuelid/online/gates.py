@@ -10,9 +10,9 @@ every window bursts). Two sets of gates, both judged against the site's ``[onlin
   setpoint moves in AUTO), with the times of the excitation events;
 - :func:`postfit_gates`, on a fitted model: the relative standard errors of K and T, the
   validation fit, the size of the residual autocorrelation (of output errors prewhitened by
-  the noise's own model, :func:`prewhiten`); and the plant-ratio *event*, which
-  flags but never rejects. :func:`gate_estimator` and :func:`gate_result` feed it from a fitted
-  estimator or an ``identify`` result; :func:`excitation_refusal` turns the estimator's own
+  the noise's own model, :mod:`fuelid.online.residual_acf`); and the plant-ratio *event*,
+  which flags but never rejects. :func:`gate_estimator` and :func:`gate_result` feed it from a
+  fitted estimator or an ``identify`` result; :func:`excitation_refusal` turns the estimator's own
   :class:`~fuelid.errors.NotExcitingError` into a rejection.
 
 :meth:`WindowVerdict.combine` joins the two; every failed gate is listed, not only the first.
@@ -29,19 +29,15 @@ systems, lack of persistency of excitation and bursting phenomena", Automatica 2
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import scipy.signal
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid.errors import NotExcitingError
-from fuelid.identify.covariance import MAX_AR_ORDER, ResidualAR, residual_ar
-from fuelid.identify.diagnostics import residual_whiteness, settled_stretches
 from fuelid.identify.oe import OutputError
 from fuelid.identify.procedure import IdentificationResult
 from fuelid.io.timeseries import IOData
@@ -54,6 +50,13 @@ from fuelid.online.health import (
     json_ready,
     noise_level,
     time_at_limits,
+)
+from fuelid.online.residual_acf import (
+    MIN_SETTLED_SAMPLES,
+    Prewhitened,
+    acf_lags,
+    largest_residual_acf,
+    prewhiten,
 )
 from fuelid.plc.site import Online
 from fuelid.store.base import Quality, SampleArrays
@@ -72,13 +75,6 @@ STEP_HOLD_S = 0.5
 long before it by more than the threshold [s] (a noise spike does not)."""
 GAP_PERIODS = 1.5
 """A time step longer than this many sample periods is a gap [-]."""
-ACF_SETTLING_TIMES = 5.0
-"""Residual autocorrelation is examined over this many settling times of the model [-]."""
-MAX_ACF_LAGS = 5000
-"""Cap on the lags examined [samples] (bounds the cost: 5000 lags of 30 000 samples ≈ 0.1 s)."""
-MIN_SETTLED_SAMPLES = 500
-"""Fewest settled samples the noise's AR model is fitted on (10 s at 50 Hz); fewer: the
-residual-correlation gate judges the raw residuals [-]."""
 
 
 # --- the verdict ----------------------------------------------------------------------------------
@@ -579,164 +575,6 @@ def prefit_samples(
 # --- post-fit gates -------------------------------------------------------------------------------
 
 
-def acf_lags(n: int, settling_time: float, sample_time: float) -> int:
-    """Lags over which the residual autocorrelation matters: a few settling times, capped.
-
-    L = min(n/4, 5·settling_time/h, 5000), at least 1.
-
-    Parameters
-    ----------
-    n : int
-        Residuals [-].
-    settling_time : float
-        The fitted model's settling time [s].
-    sample_time : float
-        h [s].
-
-    Returns
-    -------
-    int
-        L [samples].
-
-    Examples
-    --------
-    >>> acf_lags(30_000, 4.4, 0.02)
-    1100
-    """
-    span = ACF_SETTLING_TIMES * settling_time / sample_time if settling_time > 0.0 else 1.0
-    span = span if math.isfinite(span) else float(MAX_ACF_LAGS)
-    return max(1, min(n // 4, math.ceil(span), MAX_ACF_LAGS))
-
-
-def largest_residual_acf(
-    residuals: ArrayLike, max_lag: int, segment_starts: Sequence[int] = ()
-) -> tuple[float, int]:
-    """Largest |ρ(k)| of the residuals over lags 1…max_lag, and its lag.
-
-    ρ(k) as ``identify`` computes it (:func:`fuelid.identify.diagnostics.residual_whiteness`:
-    within segments, normalised by the whole record's variance).
-
-    Parameters
-    ----------
-    residuals : array
-        y − ŷ (or one-step prediction errors) [L/min].
-    max_lag : int
-        L [samples].
-    segment_starts : sequence of int
-        Where each segment after a gap begins.
-
-    Returns
-    -------
-    (float, int)
-        max |ρ(k)| [-] and the k where it occurs [samples].
-
-    Examples
-    --------
-    >>> e = np.random.default_rng(0).normal(size=10_000)
-    >>> rho, lag = largest_residual_acf(e, 50)
-    >>> rho < 0.05
-    True
-    """
-    test = residual_whiteness(residuals, max_lag, segment_starts)
-    k = int(np.argmax(np.abs(test.values)))
-    return float(abs(test.values[k])), int(test.lags[k])
-
-
-@dataclass(frozen=True)
-class Prewhitened:
-    """Residuals filtered by the noise's own AR model, fitted where the output has settled."""
-
-    residuals: FloatArray
-    """A(q)·e, segment by segment, the first p samples of each segment left out [L/min]."""
-    segment_starts: tuple[int, ...]
-    """Where each segment of :attr:`residuals` after a gap begins."""
-    noise: ResidualAR
-    """The noise's model A(q)·v = e (order 0: the settled residuals are white)."""
-    settled_samples: int
-    """Samples it was fitted on [-]."""
-
-
-def prewhiten(
-    residuals: ArrayLike,
-    u: ArrayLike,
-    sample_time: float,
-    settle: float,
-    segment_starts: Sequence[int] = (),
-    *,
-    max_order: int = MAX_AR_ORDER,
-    min_samples: int = MIN_SETTLED_SAMPLES,
-) -> Prewhitened | None:
-    """The residuals prewhitened by the *noise's* model: colour of the meter, not of the model.
-
-    1. The settled stretches (:func:`~fuelid.identify.diagnostics.settled_stretches`: from two
-       settling times of the model after each command change or gap on, at least 2·max_order
-       + 1 samples long), each with its mean removed: there the model's error has decayed and
-       the residual is the measurement noise.
-    2. An AR model A(q) of them, its order ≤ ``max_order`` by BIC
-       (:func:`~fuelid.identify.covariance.residual_ar`, Levinson–Durbin, pooled within the
-       stretches).
-    3. The whole residual filtered by A(q) within each segment, the first p samples of each
-       segment left out (their filter has no past).
-
-    The noise model is not fitted on the whole residual: that would describe the model's
-    error as noise too and whiten it away. A model error concentrated in the transients keeps
-    its correlation through A(q) (a smooth misfit is scaled by about A(1), the noise by its
-    innovation's share), so the largest |ρ(k)| of the result measures the model's error.
-
-    Parameters
-    ----------
-    residuals : array
-        y − ŷ of an output-error fit [L/min].
-    u : array
-        The command, one per residual [V].
-    sample_time : float
-        h [s].
-    settle : float
-        The fitted model's 98 % settling time [s].
-    segment_starts : sequence of int
-        Where each segment after a gap begins.
-    max_order : int
-        Highest AR order [-].
-    min_samples : int
-        Fewest settled samples to fit the noise's model on [-].
-
-    Returns
-    -------
-    Prewhitened or None
-        None when the settled stretches hold fewer than ``min_samples`` samples.
-
-    Examples
-    --------
-    >>> rng = np.random.default_rng(0)
-    >>> u = np.repeat([0.0, 1.0] * 10, 1500)
-    >>> v = scipy.signal.lfilter([1.0], [1.0, -0.8], rng.normal(size=u.size))
-    >>> out = prewhiten(v, u, 0.02, 2.0)
-    >>> out.noise.order, round(float(out.noise.a[1]), 2), out.settled_samples
-    (1, -0.8, 26000)
-    >>> largest_residual_acf(v, 50)[0] > 0.75, largest_residual_acf(out.residuals, 50)[0] < 0.05
-    (True, True)
-    """
-    e = np.asarray(residuals, dtype=float)
-    stretches = settled_stretches(u, sample_time, settle, segment_starts, 2 * max_order + 1)
-    settled = [e[a:b] - e[a:b].mean() for a, b in stretches]
-    n = sum(part.size for part in settled)
-    if not settled or n < min_samples:
-        return None
-    sizes = np.cumsum([part.size for part in settled])
-    bounds = list(itertools.pairwise([0, *sizes.tolist()]))
-    noise = residual_ar(np.concatenate(settled), bounds, max_order)
-    p = noise.order
-    centred = e - e.mean()
-    edges = [0, *(int(i) for i in segment_starts), e.size]
-    pieces = [
-        scipy.signal.lfilter(noise.a, [1.0], centred[a:b])[p:]
-        for a, b in itertools.pairwise(edges)
-        if b - a > p
-    ]
-    starts = tuple(np.cumsum([piece.size for piece in pieces])[:-1].tolist())
-    return Prewhitened(np.concatenate(pieces), starts, noise, n)
-
-
 def _rel(value: float, se: float | None) -> float:
     if se is None or not math.isfinite(se) or value == 0.0:
         return math.nan
@@ -761,9 +599,10 @@ def postfit_gates(
        (a missing or non-finite standard error fails: the parameter is not determined).
     2. **Validation fit**: ``fit_percent`` < ``min_fit_percent`` (a missing fit fails).
     3. **Residual correlation**: max |ρ(k)|, k = 1…L (:func:`acf_lags`), > ``max_residual_acf``,
-       of the residuals prewhitened by the noise's own model (:func:`prewhiten`) when they are
-       output errors (``u`` given) and the window has settled stretches enough; else of the
-       residuals as they are (prediction errors are whitened by their fit's noise model).
+       of the residuals prewhitened by the noise's own model
+       (:func:`~fuelid.online.residual_acf.prewhiten`) when they are output errors (``u``
+       given) and the window has settled stretches enough; else of the residuals as they are
+       (prediction errors are whitened by their fit's noise model).
     4. **Plant ratio** (an event, never a rejection): K outside ``plant_ratio_event`` × the
        plant model's K at the window's operating point and temperature.
 
