@@ -73,6 +73,7 @@ import platform
 import shlex
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from importlib import resources
 from pathlib import Path
@@ -503,36 +504,27 @@ def table_lines(rows: list[Window]) -> list[str]:
     columns = " | ".join(f"{g:.1f}" for g in GATES)
     rule = "|---|" + "---:|" * len(GATES)
     groups = conditions(rows)
-    lines += [
-        "",
+
+    def per_condition(title: str, cell: Callable[[list[Any], float], str]) -> None:
+        """A table of the service's fits: one row per condition, one column per gate value."""
+        lines.extend(["", title, "", f"| condition | {columns} |", rule])
+        for name, chosen in groups.items():
+            if chosen[0].fit == SERVICE:
+                lines.append(f"| {name} | {' | '.join(cell(chosen, g) for g in GATES)} |")
+
+    per_condition(
         "Good windows (|K error| ≤ 3 %) rejected [%] per condition, service's fits: the gate's "
         "statistic (the raw residuals' in brackets, the gate before this study):",
-        "",
-        f"| condition | {columns} |",
-        rule,
-    ]
-    for name, chosen in groups.items():
-        if chosen[0].fit != SERVICE:
-            continue
-        cells = [
+        lambda chosen, g: (
             f"{pct(gate_stats(chosen, g)['good_rejected'], 0)} "
             f"({pct(gate_stats(chosen, g, 'acf_raw')['good_rejected'], 0)})"
-            for g in GATES
-        ]
-        lines.append(f"| {name} | {' | '.join(cells)} |")
-    lines += [
-        "",
+        ),
+    )
+    per_condition(
         "95th percentile of the accepted windows' |K error| [%] per condition, service's fits "
         "(accepted: by every gate, the residual correlation at g):",
-        "",
-        f"| condition | {columns} |",
-        rule,
-    ]
-    for name, chosen in groups.items():
-        if chosen[0].fit != SERVICE:
-            continue
-        cells = [pct(gate_stats(chosen, g)["p95"], 2) for g in GATES]
-        lines.append(f"| {name} | {' | '.join(cells)} |")
+        lambda chosen, g: pct(gate_stats(chosen, g)["p95"], 2),
+    )
     wrong = [(n, c) for n, c in groups.items() if c[0].fit != SERVICE]
     if wrong:
         lines += [
@@ -899,8 +891,8 @@ def page(
         "the virtual reference plant the soak tests then ran on. This study sets it on two "
         "plants that were not used to tune it, with the gate's statistic computed on the "
         "residuals prewhitened by the noise's own AR model (fitted where the output has settled: "
-        "`fuelid.online.residual_acf.prewhiten`), so that it measures the model's error and not the "
-        "meter noise's colour; the raw residuals' statistic (the gate before) is shown "
+        "`fuelid.online.residual_acf.prewhiten`), so that it measures the model's error and not "
+        "the meter noise's colour; the raw residuals' statistic (the gate before) is shown "
         "alongside. Written by `benchmarks/bench_gate_study.py` (its docstring has the whole "
         "setting); do not edit by hand.",
         "",
