@@ -165,3 +165,23 @@ def test_a_lag_bic_wants_and_the_rule_refuses_is_listed_and_makes_intervals_cond
     assert "BIC prefers two lags by 5000.0, which the rule did not keep" in (
         choice.conditional_note() or ""
     )
+
+
+@pytest.mark.parametrize(
+    ("structure", "reason"),
+    [
+        ("nope", "its 'structure' is not an object"),
+        ({"indistinct": [{"model": {"K": "x", "T": 1.0}}]}, "model is invalid"),
+        ({"indistinct": [{"model": {"K": 1.0, "T": -1.0}}]}, "T must be positive"),
+        ({"indistinct": [3]}, "entry has no model"),
+    ],
+)
+def test_a_bad_structure_in_a_model_file_is_refused_in_one_line(
+    tmp_path, structure: object, reason: str
+) -> None:  # type: ignore[no-untyped-def]
+    path = tmp_path / "ident.json"
+    path.write_text(json.dumps({"model": {"K": 13.0, "T": 1.2}, "structure": structure}))
+    done = CliRunner().invoke(app, ["tune", "--model", str(path)])
+    assert done.exit_code == 2
+    assert reason in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
