@@ -24,6 +24,7 @@ import typer
 
 from fuelid import __version__
 from fuelid.errors import FuelidError
+from fuelid.io.jsonsafe import json_ready
 from fuelid.units import celsius_to_kelvin as _to_kelvin
 
 if TYPE_CHECKING:
@@ -91,20 +92,9 @@ def guarded(command: Callable[P, R]) -> Callable[P, R]:
     return wrapper
 
 
-def _clean(value: Any) -> Any:
-    """JSON-safe copy: non-finite floats become null (JSON has no NaN)."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_clean(v) for v in value]
-    return value
-
-
 def emit_json(payload: dict[str, Any]) -> None:
     """Print exactly one JSON object on stdout."""
-    sys.stdout.write(json.dumps(_clean(payload), indent=2, allow_nan=False) + "\n")
+    sys.stdout.write(json.dumps(json_ready(payload), indent=2, allow_nan=False) + "\n")
 
 
 def warn(message: str) -> None:

@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 from fuelid.errors import NotExcitingError
 from fuelid.identify.oe import OutputError
 from fuelid.identify.procedure import IdentificationResult
+from fuelid.io.jsonsafe import json_ready
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel
 from fuelid.online.health import (
@@ -47,7 +48,6 @@ from fuelid.online.health import (
     MIN_STEP_LPM,
     RAMP_GAP_S,
     U_LIMITS_V,
-    json_ready,
     noise_level,
     time_at_limits,
 )

@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fuelid import lti
 from fuelid.identify.covariance import residual_ar
+from fuelid.io.jsonsafe import json_ready
 from fuelid.plc.quality import LOW_END_FRACTION, STUCK_AFTER_S
 
 FloatArray = NDArray[np.float64]
@@ -861,21 +862,6 @@ def sensor_health(
 
 
 # --- one window -----------------------------------------------------------------------------------
-
-
-def json_ready(value: Any) -> Any:
-    """JSON-ready: non-finite floats become None, numpy scalars Python ones, recursively."""
-    if isinstance(value, dict):
-        return {str(k): json_ready(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [json_ready(v) for v in value]
-    if isinstance(value, bool | np.bool_):
-        return bool(value)
-    if isinstance(value, int | np.integer):
-        return int(value)
-    if isinstance(value, float | np.floating):
-        return float(value) if math.isfinite(value) else None
-    return value
 
 
 @dataclass(frozen=True)

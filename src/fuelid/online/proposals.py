@@ -60,8 +60,8 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from fuelid.errors import FuelidError
+from fuelid.io.jsonsafe import json_ready
 from fuelid.model import ProcessModel
-from fuelid.online.health import json_ready
 from fuelid.plc.site import Controller, Online
 from fuelid.tuning import PISettings, robustness, tune
 

@@ -22,7 +22,7 @@ import math
 import time as _time
 from typing import Any
 
-from fuelid.online.health import json_ready
+from fuelid.io.jsonsafe import json_ready
 from fuelid.online.service import TRACKER_OBSERVATIONS, observation_of
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.store.online import OnlineHistory

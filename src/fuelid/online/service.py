@@ -43,8 +43,8 @@ from typing import Any
 import numpy as np
 
 from fuelid.errors import ConfigError, FuelidError
+from fuelid.io.jsonsafe import json_ready
 from fuelid.model import ProcessModel
-from fuelid.online.health import json_ready
 from fuelid.online.proposals import (
     Gains,
     ProposalDecision,

@@ -48,6 +48,7 @@ from fuelid.errors import FuelidError, NotExcitingError
 from fuelid.identify.oe import OutputError
 from fuelid.identify.pem import PredictionError
 from fuelid.identify.procedure import POSITIVE_PARAMETERS, IdentifyOptions, interval95
+from fuelid.io.jsonsafe import json_ready
 from fuelid.io.timeseries import IOData
 from fuelid.model import MODEL_KEYS, ProcessModel
 from fuelid.online.gates import (
@@ -56,7 +57,7 @@ from fuelid.online.gates import (
     postfit_gates,
     prefit_samples,
 )
-from fuelid.online.health import U_LIMITS_V, LoopHealth, json_ready, loop_health
+from fuelid.online.health import U_LIMITS_V, LoopHealth, loop_health
 from fuelid.online.tracking import PlantGain
 from fuelid.plc.site import Online
 from fuelid.store.base import Quality, SampleArrays, iodata_from_samples

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import json
 import math
-import numbers
 import operator
 import sqlite3
 import threading
@@ -39,6 +38,7 @@ from contextlib import contextmanager
 from types import MappingProxyType, TracebackType
 from typing import Any, Self
 
+from fuelid.io.jsonsafe import json_ready
 from fuelid.store.base import StoreError
 from fuelid.store.sqlite import SQLiteStore
 
@@ -112,54 +112,12 @@ _MODEL = (
 _WRITE = "id, time, proposal_id, kind, kc, ti, apply_seq, status, who, why, detail, finished"
 
 
-def json_ready(value: Any) -> Any:
-    """``value`` as plain JSON data: NaN and ±inf become None, numpy values plain numbers.
-
-    Parameters
-    ----------
-    value : Any
-        None, bool, str, a number, a mapping (keys become str) or a list/tuple of these, or a
-        numpy scalar or array.
-
-    Returns
-    -------
-    Any
-        The same data, for ``json.dumps(..., allow_nan=False)``.
-
-    Raises
-    ------
-    StoreError
-        A value that has no JSON form (an object, a complex number).
-
-    Examples
-    --------
-    >>> json_ready({"K": float("nan"), "T": [1.5, float("inf")], 3: (True, None)})
-    {'K': None, 'T': [1.5, None], '3': [True, None]}
-    """
-    if value is None or isinstance(value, str | bool):
-        return value
-    if isinstance(value, numbers.Integral):
-        return int(value)
-    if isinstance(value, numbers.Real):
-        x = float(value)
-        return x if math.isfinite(x) else None
-    if isinstance(value, Mapping):
-        return {
-            (key if isinstance(key, str) else str(key)): json_ready(item)
-            for key, item in value.items()
-        }
-    if isinstance(value, list | tuple):
-        return [json_ready(item) for item in value]
-    tolist = getattr(value, "tolist", None)  # numpy arrays and scalars (np.bool_ included)
-    if callable(tolist):
-        plain = tolist()
-        if plain is not value:
-            return json_ready(plain)
-    raise StoreError(f"a {type(value).__name__} cannot be stored as JSON: {value!r}")
-
-
 def _dumps(value: Any) -> str:
-    return json.dumps(json_ready(value), allow_nan=False, separators=(",", ":"))
+    try:
+        plain = json_ready(value)
+    except TypeError as exc:
+        raise StoreError(f"cannot be stored as JSON: {exc}") from None
+    return json.dumps(plain, allow_nan=False, separators=(",", ":"))
 
 
 def _loads(text: str | None) -> Any:
