@@ -18,6 +18,7 @@ import pytest
 
 from fuelid.store import (
     PROPOSAL_TRANSITIONS,
+    SCHEMA_VERSION,
     OnlineHistory,
     Sample,
     SampleWriter,
@@ -25,6 +26,7 @@ from fuelid.store import (
     StoreError,
     tag_map_hash,
 )
+from fuelid.store.schema import build_at
 
 T0 = 1_700_000_000.0  # UTC seconds
 SITE = {"site_name": "tunnel 2 fuel loop", "tag_map_hash": tag_map_hash({"flow": "ir:20"})}
@@ -389,9 +391,13 @@ def test_store_history_closes_cleanly(tmp_path: Path) -> None:
 
 def test_store_sample_store_works_with_the_history_tables(tmp_path: Path) -> None:
     db = tmp_path / "loop.db"
-    with _store(db) as store:  # created by the schema-1 code: models and proposals only
-        store.append_samples([Sample(T0 + 0.02 * k, k, 2.0, 40.0) for k in range(10)])
+    build_at(str(db), 1, {**SITE, "period_s": "0.02"})  # schema 1: models and proposals only
     con = sqlite3.connect(db)
+    con.executemany(
+        "INSERT INTO samples VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+        [Sample(T0 + 0.02 * k, k, 2.0, 40.0) for k in range(10)],
+    )
+    con.commit()
     tables = {r[0] for r in con.execute("SELECT name FROM sqlite_schema WHERE type = 'table'")}
     con.close()
     assert "windows" not in tables
@@ -401,7 +407,7 @@ def test_store_sample_store_works_with_the_history_tables(tmp_path: Path) -> Non
     with _store(db) as store:  # the store opens, reads and reports as before
         info = store.info()
         assert info.rows == 10
-        assert info.schema_version == 1
+        assert info.schema_version == SCHEMA_VERSION
         assert store.integrity_check() == "ok"
         assert len(store.read()) == 10
     con = sqlite3.connect(db)
@@ -410,7 +416,7 @@ def test_store_sample_store_works_with_the_history_tables(tmp_path: Path) -> Non
         tables = dict(rows)
         assert {"windows", "writes", "online_state", "models", "proposals"} <= set(tables)
         assert all(sql.rstrip().endswith("STRICT") for sql in tables.values())
-        assert con.execute("PRAGMA user_version").fetchone()[0] == 1
+        assert con.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
     finally:
         con.close()
     with _store(db) as store, OnlineHistory(store) as history:  # reopening creates nothing new

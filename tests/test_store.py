@@ -73,7 +73,10 @@ def test_schema_is_versioned_strict_and_in_wal_mode(tmp_path: Path) -> None:
         assert con.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
         assert con.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
         tables = dict(con.execute("SELECT name, sql FROM sqlite_schema WHERE type = 'table'"))
-        assert set(tables) == {"meta", "samples", "events", "models", "proposals"}
+        assert set(tables) == {
+            *("meta", "samples", "events", "models", "proposals"),
+            *("windows", "writes", "online_state"),  # every store has them since schema 2
+        }
         assert all(sql.rstrip().endswith("STRICT") for sql in tables.values())
         meta = dict(con.execute("SELECT key, value FROM meta"))
         assert meta["site_name"] == SITE["site_name"]
@@ -131,7 +134,9 @@ def test_files_that_are_not_a_current_fuelid_store_are_refused(tmp_path: Path) -
         SQLiteStore(other)
     _new(tmp_path).close()
     con = sqlite3.connect(tmp_path / "loop.db")
-    con.execute("UPDATE meta SET value = '2' WHERE key = 'schema_version'")
+    con.execute(
+        "UPDATE meta SET value = ? WHERE key = 'schema_version'", (str(SCHEMA_VERSION + 1),)
+    )
     con.commit()
     con.close()
     with pytest.raises(StoreError, match="newer"):

@@ -5,7 +5,8 @@ recording (link down/up, gaps, gain changes, restarts). :class:`SampleStore` is 
 recorder and the readers use; :class:`~fuelid.store.sqlite.SQLiteStore` is the default, and a
 central PostgreSQL store can follow by implementing the same methods, without touching the
 recorder. :class:`SampleWriter` is the one writer: a thread fed by a queue that commits a batch
-about once a second.
+about once a second (in :mod:`fuelid.store.writer`); the records (samples, events, the store's
+error) are in :mod:`fuelid.store.records`. Both are re-exported here.
 
 Times are UTC seconds since the Unix epoch [s]; u in V, y and the setpoint in L/min, the fuel
 temperature in °C (as the PLC gives it; :meth:`SampleStore.to_iodata` converts to K).
@@ -13,261 +14,50 @@ temperature in °C (as the PLC gives it; :meth:`SampleStore.to_iodata` converts 
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
-import queue
-import threading
-import time as _time
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
-from enum import IntEnum
+from collections.abc import Iterable
 from types import TracebackType
-from typing import Any, NamedTuple, Self, cast
+from typing import Self, cast
 
 import numpy as np
-from numpy.typing import NDArray
 
-from fuelid.errors import DataError, FuelidError
+from fuelid.errors import DataError
 from fuelid.io.timeseries import IOData
+from fuelid.store.records import (
+    EVENT_KINDS,
+    Event,
+    FloatArray,
+    IntArray,
+    PruneResult,
+    Quality,
+    Requalify,
+    Sample,
+    SampleArrays,
+    StoreError,
+    StoreInfo,
+    tag_map_hash,
+)
+from fuelid.store.writer import SampleWriter
 from fuelid.units import celsius_to_kelvin
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-
-
-class StoreError(FuelidError):
-    """A store cannot be opened, belongs to another site, or refuses a write (one-line reason)."""
-
-
-class Quality(IntEnum):
-    """Quality of a sample, stored as its integer code."""
-
-    OK = 0
-    """Every value read fresh and in range."""
-    STALE = 1
-    """The PLC did not update the values since the last sample."""
-    LINK_DOWN = 2
-    """No answer from the PLC: the values are not measurements."""
-    BAD_VALUE = 3
-    """A value was NaN, infinite or out of its tag's range."""
-
-
-EVENT_KINDS = (
-    "link_down",
-    "link_up",
-    "gap",
-    "gain_change",
-    "restart",
-    "site_mismatch",
-    "prune",
-)
-"""Event kinds fuelid writes; others are stored as given (the column is free text)."""
-
-
-class Sample(NamedTuple):
-    """One sample as stored (the order is the column order of the ``samples`` table).
-
-    Parameters
-    ----------
-    time : float
-        Sample time, UTC seconds since the epoch [s].
-    seq : int or None
-        Sequence number (the PLC's counter, unwrapped to a monotonic integer by the recorder),
-        None without a counter. A sample already stored with the same ``seq`` (or, without one,
-        the same ``time``) is ignored, so a restart that re-sends samples adds no duplicates.
-    u : float
-        Input, the VFD command [V] (NaN when not measured).
-    y : float
-        Output, the flow [L/min].
-    setpoint : float
-        Flow setpoint [L/min] (NaN when the PLC does not expose it).
-    fuel_temperature : float
-        Fuel temperature [°C] (NaN when not exposed).
-    mode : int or None
-        0 = MAN, 1 = AUTO, None when not exposed.
-    quality : int
-        A :class:`Quality` code.
-    """
-
-    time: float
-    seq: int | None
-    u: float
-    y: float
-    setpoint: float = math.nan
-    fuel_temperature: float = math.nan
-    mode: int | None = None
-    quality: int = Quality.OK
-
-
-class Requalify(NamedTuple):
-    """A change of quality of stored samples, applied in the writer's order (after the inserts).
-
-    Samples with ``t_from <= time <= t_to`` [s UTC] whose quality is :attr:`Quality.OK` get
-    ``quality``; samples already flagged keep their flag. The recorder uses it to flag the
-    first seconds of a stuck flow once the stretch is recognised as stuck, so that it never
-    holds samples back from the store.
-
-    Parameters
-    ----------
-    t_from, t_to : float
-        First and last sample time of the stretch [s UTC], both included.
-    quality : int
-        The new :class:`Quality` code.
-    """
-
-    t_from: float
-    t_to: float
-    quality: int = Quality.BAD_VALUE
-
-
-class Event(NamedTuple):
-    """One event of the recording.
-
-    Parameters
-    ----------
-    time : float
-        UTC seconds since the epoch [s].
-    kind : str
-        One of :data:`EVENT_KINDS` (link_down, link_up, gap, gain_change, restart, …).
-    detail : str
-        Free text (a reason, the gains, the gap's length).
-    """
-
-    time: float
-    kind: str
-    detail: str = ""
-
-
-@dataclass(frozen=True)
-class SampleArrays:
-    """Samples read back, one array per column, sorted by time.
-
-    ``seq`` and ``mode`` are −1 where the sample has none; missing real values are NaN.
-    ``time`` [s UTC], ``u`` [V], ``y`` and ``setpoint`` [L/min], ``fuel_temperature`` [°C],
-    ``quality`` the :class:`Quality` codes.
-    """
-
-    time: FloatArray
-    seq: IntArray
-    u: FloatArray
-    y: FloatArray
-    setpoint: FloatArray
-    fuel_temperature: FloatArray
-    mode: IntArray
-    quality: IntArray
-
-    def __len__(self) -> int:
-        return int(self.time.size)
-
-    @classmethod
-    def from_rows(cls, rows: Sequence[Sequence[Any]]) -> SampleArrays:
-        """Arrays from rows in :class:`Sample` column order (None for SQL NULL)."""
-
-        def floats(i: int) -> FloatArray:
-            return np.array([math.nan if r[i] is None else r[i] for r in rows], dtype=np.float64)
-
-        def ints(i: int) -> IntArray:
-            return np.array([-1 if r[i] is None else r[i] for r in rows], dtype=np.int64)
-
-        return cls(
-            time=floats(0),
-            seq=ints(1),
-            u=floats(2),
-            y=floats(3),
-            setpoint=floats(4),
-            fuel_temperature=floats(5),
-            mode=ints(6),
-            quality=ints(7),
-        )
-
-
-@dataclass(frozen=True)
-class StoreInfo:
-    """What a store holds (``fuelid store info``).
-
-    Attributes
-    ----------
-    path : str
-        Where the store is (file or URL).
-    site_name, tag_map_hash : str
-        The site the store belongs to and the SHA-256 of its tag map.
-    schema_version : int
-        Version of the store's schema.
-    rows : int
-        Samples stored.
-    t_first, t_last : float or None
-        Time of the first and last sample [s UTC] (None when empty).
-    span_s : float
-        ``t_last − t_first`` [s].
-    gaps : int
-        Breaks in the sample stream: jumps of the sequence number, or, for samples without one,
-        intervals longer than 1.5 sample periods (when the period is known).
-    missing_samples : int
-        Samples missing inside the sequence-number gaps. A PLC restart leaves one sequence
-        number out on purpose (a break readers see), and its ``restart`` event is timed at the
-        first sample after it: a jump of the sequence at a sample that carries a ``restart``
-        event at its exact time counts one number less (a jump of exactly 2 there is a gap
-        with no sample missing), so this agrees with the recorder's count of lost samples.
-    quality : dict
-        Samples per quality name.
-    events : dict
-        Events per kind (``link_down`` and ``link_up`` are the link events).
-    size_bytes : int
-        Size on disk [B] (for SQLite the file and its write-ahead log).
-    """
-
-    path: str
-    site_name: str
-    tag_map_hash: str
-    schema_version: int
-    rows: int
-    t_first: float | None
-    t_last: float | None
-    span_s: float
-    gaps: int
-    missing_samples: int
-    quality: dict[str, int] = field(default_factory=dict)
-    events: dict[str, int] = field(default_factory=dict)
-    size_bytes: int = 0
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain dictionary with a ``units`` map (for ``--json``)."""
-        out = asdict(self)
-        out["units"] = {"t_first": "s", "t_last": "s", "span_s": "s", "size_bytes": "B"}
-        return out
-
-
-@dataclass(frozen=True)
-class PruneResult:
-    """What :meth:`SampleStore.prune` did: samples deleted and kept before the cutoff [s UTC]."""
-
-    cutoff: float
-    deleted: int
-    kept_thinned: int
-
-
-def tag_map_hash(tag_map: Mapping[str, Any] | str) -> str:
-    """SHA-256 (hex) of a tag map, the identity of a site's wiring.
-
-    Parameters
-    ----------
-    tag_map : mapping or str
-        The tag map as a plain dictionary (hashed as JSON with sorted keys, so key order does not
-        matter) or as a string (hashed as UTF-8).
-
-    Examples
-    --------
-    >>> tag_map_hash({"flow": {"address": "ir:20"}}) == tag_map_hash('{"flow":{"address":"ir:20"}}')
-    True
-    """
-    text = (
-        tag_map
-        if isinstance(tag_map, str)
-        else json.dumps(tag_map, sort_keys=True, separators=(",", ":"), default=str)
-    )
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+__all__ = [
+    "EVENT_KINDS",
+    "Event",
+    "FloatArray",
+    "IntArray",
+    "PruneResult",
+    "Quality",
+    "Requalify",
+    "Sample",
+    "SampleArrays",
+    "SampleStore",
+    "SampleWriter",
+    "StoreError",
+    "StoreInfo",
+    "iodata_from_samples",
+    "tag_map_hash",
+]
 
 
 class SampleStore(ABC):
@@ -495,159 +285,3 @@ def iodata_from_samples(
         segment_t0=tuple(float(t[i]) for i in starts),
         T_fuel=T_fuel,
     )
-
-
-_FLUSH = object()
-_STOP = object()
-
-
-class SampleWriter:
-    """The one writer of a store: a thread fed by a queue that commits in batches.
-
-    Samples and events put on the queue are committed together about every
-    ``commit_interval_s``; :meth:`flush` and :meth:`close` commit what is pending and wait for it.
-    :meth:`set_quality` re-flags a stretch of samples in queue order: it is applied after the
-    inserts of the batch it joins, in the same transaction, so it reaches every sample queued
-    before it (whether already committed or not) and never races an insert.
-    A crash loses at most the uncommitted batch. An error of the store (a full disk) stops the
-    writer and is raised by the next :meth:`put`, :meth:`flush` or :meth:`close`.
-
-    Parameters
-    ----------
-    store : SampleStore
-        The store, opened with the site's identity.
-    commit_interval_s : float
-        Time between commits [s].
-    on_commit : callable, optional
-        Called in the writer thread after each commit with the samples and events committed.
-    """
-
-    def __init__(
-        self,
-        store: SampleStore,
-        commit_interval_s: float = 1.0,
-        on_commit: Callable[[Sequence[Sample], Sequence[Event]], None] | None = None,
-    ) -> None:
-        if not commit_interval_s > 0.0:
-            raise StoreError(f"commit interval must be positive, got {commit_interval_s} s")
-        self.store = store
-        self.commit_interval_s = float(commit_interval_s)
-        self.on_commit = on_commit
-        self.rows_written = 0
-        self.commits = 0
-        self._queue: queue.SimpleQueue[Any] = queue.SimpleQueue()
-        self._error: BaseException | None = None
-        self._closed = False
-        self._thread = threading.Thread(target=self._run, name="fuelid-store-writer", daemon=True)
-        self._thread.start()
-
-    def put(self, sample: Sample) -> None:
-        """Queue one sample (returns at once)."""
-        self._check()
-        self._queue.put(sample)
-
-    def put_many(self, samples: Iterable[Sample]) -> None:
-        """Queue samples (returns at once)."""
-        self._check()
-        for sample in samples:
-            self._queue.put(sample)
-
-    def event(self, kind: str, detail: str = "", time: float | None = None) -> None:
-        """Queue an event at ``time`` [s UTC] (now by default)."""
-        self._check()
-        self._queue.put(Event(_time.time() if time is None else time, kind, detail))
-
-    def set_quality(self, t_from: float, t_to: float, quality: int = Quality.BAD_VALUE) -> None:
-        """Queue a re-flag of the samples with ``t_from <= time <= t_to`` [s UTC] (if OK).
-
-        Applied in queue order: it reaches every sample queued before it, in the same
-        transaction as the last of them (see :meth:`SampleStore.set_quality`).
-        """
-        self._check()
-        self._queue.put(Requalify(float(t_from), float(t_to), int(quality)))
-
-    def flush(self, timeout: float | None = 30.0) -> None:
-        """Commit everything queued so far and wait for it [timeout in s]."""
-        self._check()
-        done = threading.Event()
-        self._queue.put((_FLUSH, done))
-        if not done.wait(timeout):
-            raise StoreError(f"{self.store.path}: the writer did not commit within {timeout} s")
-        self._check()
-
-    def close(self, timeout: float | None = 30.0) -> None:
-        """Commit what is pending and stop the writer thread (the store stays open)."""
-        if self._closed:
-            return
-        self._closed = True
-        self._queue.put(_STOP)
-        self._thread.join(timeout)
-        if self._error is not None:
-            raise StoreError(f"{self.store.path}: the writer failed: {self._error}")
-
-    def __enter__(self) -> Self:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
-
-    def _check(self) -> None:
-        if self._error is not None:
-            raise StoreError(f"{self.store.path}: the writer failed: {self._error}")
-        if self._closed:
-            raise StoreError(f"{self.store.path}: the writer is closed")
-
-    def _commit(self, samples: list[Sample], events: list[Event], changes: list[Requalify]) -> None:
-        if not samples and not events and not changes:
-            return
-        self.rows_written += self.store.append(samples, events, changes)
-        self.commits += 1
-        if self.on_commit is not None:
-            self.on_commit(samples, events)
-        samples.clear()
-        events.clear()
-        changes.clear()
-
-    def _run(self) -> None:
-        samples: list[Sample] = []
-        events: list[Event] = []
-        changes: list[Requalify] = []
-        deadline = _time.monotonic() + self.commit_interval_s
-        item: Any = None
-        try:
-            while True:
-                try:
-                    item = self._queue.get(timeout=max(deadline - _time.monotonic(), 0.0))
-                except queue.Empty:
-                    item = None
-                if isinstance(item, Sample):
-                    samples.append(item)
-                elif isinstance(item, Event):
-                    events.append(item)
-                elif isinstance(item, Requalify):
-                    changes.append(item)  # applied after this batch's inserts: queue order
-                elif item is _STOP:
-                    self._commit(samples, events, changes)
-                    return
-                elif isinstance(item, tuple) and item and item[0] is _FLUSH:
-                    self._commit(samples, events, changes)
-                    item[1].set()
-                if _time.monotonic() >= deadline:
-                    self._commit(samples, events, changes)
-                    deadline = _time.monotonic() + self.commit_interval_s
-        except BaseException as error:  # handed to the caller by the next call
-            self._error = error
-            if isinstance(item, tuple) and item and item[0] is _FLUSH:
-                item[1].set()
-            while True:  # release whoever waits on a flush
-                try:
-                    item = self._queue.get_nowait()
-                except queue.Empty:
-                    return
-                if isinstance(item, tuple) and item and item[0] is _FLUSH:
-                    item[1].set()

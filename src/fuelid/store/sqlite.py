@@ -5,62 +5,9 @@ Durability: ``journal_mode=WAL`` with ``synchronous=FULL``: a commit is on disk 
 the batch not yet committed and never corrupts the file (SQLite's WAL guarantees, checked by the
 kill test). One writer connection, readers on a connection of their own.
 
-Schema (``SCHEMA_VERSION = 1``, also in ``PRAGMA user_version``; ``PRAGMA application_id`` marks a
-fuelid store; a newer version is refused), every table STRICT::
-
-    meta(key TEXT PRIMARY KEY, value TEXT NOT NULL)
-        schema_version, site_name, tag_map_hash (SHA-256 hex of the tag map), created (s UTC),
-        period_s (the sampling period, when given)
-    samples(time REAL NOT NULL,          -- UTC seconds since the epoch [s]
-            seq INTEGER,                 -- unwrapped sequence number, NULL without a counter
-            u REAL,                      -- VFD command [V]
-            y REAL,                      -- flow [L/min]
-            setpoint REAL,               -- [L/min]
-            fuel_temperature REAL,       -- [°C]
-            mode INTEGER,                -- 0 MAN, 1 AUTO
-            quality INTEGER NOT NULL)    -- 0 ok, 1 stale, 2 link_down, 3 bad_value
-        UNIQUE (seq) WHERE seq IS NOT NULL; UNIQUE (time) WHERE seq IS NULL; INDEX (time)
-        (INSERT … ON CONFLICT DO NOTHING: a restart that re-sends samples adds no duplicates)
-    events(time REAL NOT NULL, kind TEXT NOT NULL, detail TEXT NOT NULL)   INDEX (time)
-        kinds: link_down, link_up, gap, gain_change, restart, site_mismatch, prune, …
-    models(id INTEGER PRIMARY KEY, time REAL NOT NULL, t_from REAL, t_to REAL,
-           T_fuel REAL, model TEXT NOT NULL)
-        one per accepted identification window of the online service: the window's span and
-        analysis time [s UTC], its mean fuel temperature [°C], the model as JSON
-    proposals(id INTEGER PRIMARY KEY, time REAL NOT NULL, model_id INTEGER, kc REAL, ti REAL,
-              status TEXT NOT NULL, detail TEXT NOT NULL)
-        proposed PI gains (kc, ti: the new ones, in the controller's units), their status
-        (pending, approved, writing, applied, failed, rejected, superseded, reverted) and as JSON
-        {"old", "new", "detail", "history": [{"time", "status", "who", "why"}, …]}
-
-Tables of the online service (:class:`~fuelid.store.online.OnlineHistory`), created on its first
-use with ``CREATE TABLE IF NOT EXISTS`` (STRICT); the schema version stays 1, since nothing of
-the tables above changes and fuelid without the online service ignores them (``models`` and
-``proposals`` above are created with every store, these three only when needed)::
-
-    windows(id INTEGER PRIMARY KEY, time REAL NOT NULL,     -- analysis time [s UTC]
-            t_from REAL NOT NULL, t_to REAL NOT NULL,       -- the window's data [s UTC]
-            accepted INTEGER NOT NULL,                      -- 0 or 1
-            reason TEXT NOT NULL, T_fuel REAL,              -- [°C]
-            u_mean REAL,                                    -- [V]
-            model_id INTEGER,                               -- models(id) when accepted
-            detail TEXT NOT NULL)                           -- JSON: gates, fit, health
-        INDEX (t_to); every identification window, accepted or not
-    writes(id INTEGER PRIMARY KEY, time REAL NOT NULL, proposal_id INTEGER,
-           kind TEXT NOT NULL,                              -- proposal, revert, restore
-           kc REAL NOT NULL, ti REAL NOT NULL,              -- the gains written
-           apply_seq INTEGER NOT NULL UNIQUE,               -- never reused
-           status TEXT NOT NULL,                            -- intent, verified, failed,
-                                                            -- not_applied
-           who TEXT NOT NULL, why TEXT NOT NULL, detail TEXT NOT NULL,     -- JSON
-           finished REAL)                                   -- [s UTC], NULL while an intent
-        a write of gains to the PLC: the intent is committed before the PLC is written, the
-        outcome after, so an ``intent`` left by a crash is reconciled on restart
-    online_state(key TEXT PRIMARY KEY, value TEXT NOT NULL,  -- JSON
-                 time REAL NOT NULL)                         -- last set [s UTC]
-        what the online service needs after a restart (last-known-good gains, …)
-
-JSON is written with ``allow_nan=False``: NaN and ±inf are stored as ``null``.
+The tables, their versions and the migrations that upgrade an older file are in
+:mod:`fuelid.store.schema`: opening a store applies the migrations it lacks, and a store written
+by a newer fuelid is refused.
 
 NaN values are stored as NULL (SQLite has no NaN) and read back as NaN.
 
@@ -93,39 +40,20 @@ from fuelid.store.base import (
     StoreError,
     StoreInfo,
 )
+from fuelid.store.schema import (
+    APPLICATION_ID,
+    SCHEMA_VERSION,
+    check_not_newer,
+    create,
+    stored_version,
+    upgrade,
+)
 
-SCHEMA_VERSION = 1
-APPLICATION_ID = 0x46554944  # "FUID"
+__all__ = ["APPLICATION_ID", "SCHEMA_VERSION", "SQLiteStore"]
+
 DAY = 86400.0
 PRUNE_WINDOW_S = 3600.0
 """Samples pruned per transaction [s of data]."""
-
-_SCHEMA = """
-CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT NOT NULL) STRICT;
-CREATE TABLE samples(
-    time REAL NOT NULL,
-    seq INTEGER,
-    u REAL,
-    y REAL,
-    setpoint REAL,
-    fuel_temperature REAL,
-    mode INTEGER,
-    quality INTEGER NOT NULL CHECK (quality BETWEEN 0 AND 3)
-) STRICT;
-CREATE UNIQUE INDEX samples_seq ON samples(seq) WHERE seq IS NOT NULL;
-CREATE UNIQUE INDEX samples_time_noseq ON samples(time) WHERE seq IS NULL;
-CREATE INDEX samples_time ON samples(time);
-CREATE TABLE events(time REAL NOT NULL, kind TEXT NOT NULL, detail TEXT NOT NULL) STRICT;
-CREATE INDEX events_time ON events(time);
-CREATE TABLE models(
-    id INTEGER PRIMARY KEY, time REAL NOT NULL, t_from REAL, t_to REAL, T_fuel REAL,
-    model TEXT NOT NULL
-) STRICT;
-CREATE TABLE proposals(
-    id INTEGER PRIMARY KEY, time REAL NOT NULL, model_id INTEGER REFERENCES models(id),
-    kc REAL, ti REAL, status TEXT NOT NULL, detail TEXT NOT NULL
-) STRICT;
-"""
 
 # DO NOTHING only on a duplicate key: a NULL time or a bad quality code still fails the batch
 _INSERT_SAMPLE = "INSERT INTO samples VALUES (?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT DO NOTHING"
@@ -152,7 +80,7 @@ def _range(t_from: float | None, t_to: float | None) -> tuple[str, list[float]]:
 
 
 class SQLiteStore(SampleStore):
-    """A sample store in one SQLite file (see the module docstring for the schema).
+    """A sample store in one SQLite file (its tables: :mod:`fuelid.store.schema`).
 
     Parameters
     ----------
@@ -216,6 +144,8 @@ class SQLiteStore(SampleStore):
             self._con.execute("PRAGMA synchronous=FULL")
             if new:
                 self._create(str(site_name), str(tag_map_hash), period_s)
+            else:
+                upgrade(self._con, self.path)
             meta = self._check_store()
         except sqlite3.DatabaseError as error:
             self._close_quietly()
@@ -239,26 +169,13 @@ class SQLiteStore(SampleStore):
 
     def _create(self, site_name: str, tag_map_hash: str, period_s: float | None) -> None:
         meta = {
-            "schema_version": str(SCHEMA_VERSION),
             "site_name": site_name,
             "tag_map_hash": tag_map_hash,
             "created": repr(_time.time()),
         }
         if period_s is not None:
             meta["period_s"] = repr(float(period_s))
-        con = self._con
-        con.execute("BEGIN IMMEDIATE")
-        try:
-            for statement in _SCHEMA.split(";"):
-                if statement.strip():
-                    con.execute(statement)
-            con.executemany("INSERT INTO meta VALUES (?, ?)", meta.items())
-            con.execute(f"PRAGMA application_id={APPLICATION_ID}")
-            con.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
-            con.execute("COMMIT")
-        except BaseException:
-            con.execute("ROLLBACK")
-            raise
+        create(self._con, meta)
 
     def _check_store(self) -> dict[str, str]:
         con = self._con
@@ -269,12 +186,8 @@ class SQLiteStore(SampleStore):
         if app_id != APPLICATION_ID or not has_meta:
             raise StoreError(f"{self.path}: not a fuelid store (an SQLite file of another kind)")
         meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
-        version = int(meta.get("schema_version", "0"))
-        if version > SCHEMA_VERSION:
-            raise StoreError(
-                f"{self.path}: store schema version {version} is newer than this fuelid's "
-                f"({SCHEMA_VERSION}): upgrade fuelid"
-            )
+        version = stored_version(con)
+        check_not_newer(version, self.path)
         if version < 1 or "site_name" not in meta or "tag_map_hash" not in meta:
             raise StoreError(f"{self.path}: not a fuelid store (meta table incomplete)")
         return meta
