@@ -135,6 +135,54 @@ class RangeChecks:
             self._on_event("bad_value", f"{why}: flagged until it is back in range", time)
         return False
 
+    def sample(
+        self,
+        t: float,
+        seq: int | None,
+        core: dict[str, float],
+        aux: dict[str, float],
+        quality: int = Quality.OK,
+    ) -> Sample:
+        """A sample from u, y (and the setpoint) and the last auxiliary values, checked.
+
+        A bad u or y makes the sample ``BAD_VALUE`` (the values kept as read); a bad setpoint is
+        stored as NaN and the sample stays ``OK``.
+
+        Parameters
+        ----------
+        t : float
+            Sample time [s UTC] (the time of a ``bad_value`` event).
+        seq : int or None
+            Stored sequence number.
+        core : dict of str to float
+            ``command`` [V], ``flow`` [L/min] and the ``setpoint`` [L/min] when read with them.
+        aux : dict of str to float
+            The last checked ``setpoint``, ``fuel_temperature`` [°C] and ``mode`` (NaN: bad).
+        quality : int
+            The quality before the checks (a :class:`~fuelid.store.Quality` code).
+        """
+        good = True
+        for role in ("command", "flow"):
+            good &= self.check(role, core.get(role, math.nan), t)
+        setpoint = core.get("setpoint")
+        if setpoint is None:
+            setpoint = aux.get("setpoint", math.nan)
+        elif not self.check("setpoint", setpoint, t):
+            setpoint = math.nan
+        mode = aux.get("mode", math.nan)
+        if quality == Quality.OK and not good:
+            quality = Quality.BAD_VALUE
+        return Sample(
+            time=t,
+            seq=seq,
+            u=core.get("command", math.nan),
+            y=core.get("flow", math.nan),
+            setpoint=setpoint,
+            fuel_temperature=aux.get("fuel_temperature", math.nan),
+            mode=round(mode) if math.isfinite(mode) else None,
+            quality=int(quality),
+        )
+
 
 class StuckDetector:
     """Flags a stuck flow from the first sample of its stretch, without holding samples back.
