@@ -37,8 +37,6 @@ still records, and :meth:`SiteConfig.missing` says what is missing.
 
 from __future__ import annotations
 
-import itertools
-import re
 import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -46,6 +44,8 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from fuelid.errors import ConfigError
+from fuelid.plc.site_addresses import REGISTERS_OF as REGISTERS_OF  # re-exported
+from fuelid.plc.site_addresses import check_address, check_overlaps, check_ring
 
 TagType = Literal["float32", "int16", "uint16", "int32", "uint32", "bool"]
 Protocol = Literal["modbus", "opcua", "s7", "replay"]
@@ -73,13 +73,6 @@ ROLE_UNITS: dict[str, tuple[str, ...]] = {
     "fuel_temperature": ("degC",),
 }
 """The engineering unit a role must be in (after scaling): the gains are per V and L/min."""
-
-REGISTERS_OF = {"float32": 2, "int32": 2, "uint32": 2, "int16": 1, "uint16": 1, "bool": 1}
-"""16-bit registers (Modbus) a value of each type occupies."""
-
-_MODBUS = re.compile(r"^(ir|hr|coil|di):(\d+)$")
-_OPCUA = re.compile(r"^ns=\d+;[sigb]=.+$")
-_S7 = re.compile(r"^DB(\d+)\.DB([XBWD])(\d+)(?:\.([0-7]))?$")
 
 
 class _Table(BaseModel):
@@ -437,7 +430,7 @@ class SiteConfig(_Table):
             raise ValueError(f"tags.{missing[0]} is required (the {_meaning(missing[0])})")
         for side, tags in (("tags", self.tags), ("write", self.write)):
             for role, tag in tags.items():
-                _check_address(self.plc.protocol, tag, f"{side}.{role}")
+                check_address(self.plc.protocol, tag, f"{side}.{role}")
         for role, units in ROLE_UNITS.items():
             found = self.tags.get(role)
             if found is not None and found.unit not in units:
@@ -450,7 +443,7 @@ class SiteConfig(_Table):
         if seq is not None and seq.type != "uint32":
             raise ValueError("tags.seq.type: the sequence counter is a uint32")
         if self.ring is not None:
-            _check_ring(self.plc.protocol, self.ring)
+            check_ring(self.plc.protocol, self.ring)
         if self.online.write_back != "off":
             needed = [role for role in ("kc", "ti", "apply", "echo") if role not in self.write]
             if needed:
@@ -463,8 +456,8 @@ class SiteConfig(_Table):
                     f"online.write_back = {self.online.write_back!r} needs a [controller] table "
                     "(the form and units the PLC reads its gains in)"
                 )
-        _check_overlaps(self.plc.protocol, self.tags, "tags")
-        _check_overlaps(self.plc.protocol, self.write, "write")
+        check_overlaps(self.plc.protocol, self.tags, "tags")
+        check_overlaps(self.plc.protocol, self.write, "write")
         _check_gain_units(self)
         return self
 
@@ -484,100 +477,6 @@ class SiteConfig(_Table):
 
 def _meaning(role: str) -> str:
     return {"flow": "flowmeter reading y", "command": "VFD command u"}.get(role, role)
-
-
-def _check_address(protocol: str, tag: Tag, key: str) -> None:
-    """Refuse an address that is not in the protocol's syntax or does not fit the tag's type."""
-    address = tag.address
-    if protocol == "modbus":
-        match = _MODBUS.match(address)
-        if match is None or int(match.group(2)) > 65535:
-            raise ValueError(
-                f"{key}.address: {address!r} is not a Modbus address: ir:N, hr:N, coil:N or "
-                "di:N with N the 0-based protocol address 0…65535 (not 30001/40001 numbers)"
-            )
-        area, start = match.group(1), int(match.group(2))
-        if area in ("coil", "di") and tag.type != "bool":
-            raise ValueError(f"{key}.type: {area} holds bits: the type must be bool")
-        if area in ("ir", "hr") and start + REGISTERS_OF[tag.type] - 1 > 65535:
-            raise ValueError(f"{key}.address: a {tag.type} at {start} runs past register 65535")
-    elif protocol == "opcua":
-        if _OPCUA.match(address) is None:
-            raise ValueError(
-                f"{key}.address: {address!r} is not an OPC UA NodeId such as ns=2;s=FuelLoop.Flow"
-            )
-    elif protocol == "s7":
-        match = _S7.match(address)
-        if match is None:
-            raise ValueError(
-                f"{key}.address: {address!r} is not an S7 address such as DB1.DBD0 (32-bit), "
-                "DB1.DBW4 (16-bit) or DB1.DBX8.3 (a bit)"
-            )
-        size, bit = match.group(2), match.group(4)
-        fits = {"D": ("float32", "int32", "uint32"), "W": ("int16", "uint16"), "X": ("bool",)}
-        if size == "B" or tag.type not in fits[size]:
-            raise ValueError(
-                f"{key}.type: {tag.type} does not fit DB{size} (DBD: float32, int32, uint32; "
-                "DBW: int16, uint16; DBX: bool)"
-            )
-        if (size == "X") != (bit is not None):
-            raise ValueError(f"{key}.address: a bit address is DBX<byte>.<bit 0-7>, only for bits")
-
-
-def _span(protocol: str, tag: Tag) -> tuple[str, int, int] | None:
-    """The memory a tag occupies: (area, first, last) in registers (Modbus) or bytes (S7).
-
-    None for addresses that cannot overlap by position (OPC UA nodes, replay columns, bits).
-    """
-    if protocol == "modbus":
-        match = _MODBUS.match(tag.address)
-        if match is None or match.group(1) in ("coil", "di"):
-            return None
-        start = int(match.group(2))
-        return match.group(1), start, start + REGISTERS_OF[tag.type] - 1
-    if protocol == "s7":
-        match = _S7.match(tag.address)
-        if match is None or match.group(2) in ("X", "B"):
-            return None
-        start = int(match.group(3))
-        size = 4 if match.group(2) == "D" else 2
-        return f"DB{match.group(1)}", start, start + size - 1
-    return None
-
-
-def _check_overlaps(protocol: str, tags: dict[str, Tag], side: str) -> None:
-    """Refuse two roles of one side whose values share a register (or S7 byte): a typo."""
-    spans = sorted(
-        (span, role) for role, tag in tags.items() if (span := _span(protocol, tag)) is not None
-    )
-    for (first, role_a), (second, role_b) in itertools.pairwise(spans):
-        if first[0] == second[0] and second[1] <= first[2]:
-            raise ValueError(
-                f"{side}.{role_b}: {tags[role_b].address} overlaps {side}.{role_a} "
-                f"({tags[role_a].address}, {tags[role_a].type}): two values cannot share memory"
-            )
-
-
-def _check_ring(protocol: str, ring: Ring) -> None:
-    """Refuse a ring whose addresses are not in the protocol's syntax or overrun the area."""
-    if protocol == "replay":
-        return
-    _check_address(protocol, Tag(address=ring.head, type="uint32"), "ring.head")
-    if protocol == "opcua":
-        _check_address(protocol, Tag(address=ring.address), "ring.address")
-        return
-    _check_address(protocol, Tag(address=ring.address, type="uint32"), "ring.address")
-    if protocol == "modbus":
-        match = _MODBUS.match(ring.address)
-        assert match is not None  # checked just above
-        if match.group(1) not in ("ir", "hr"):
-            raise ValueError("ring.address: the ring lives in registers (ir:N or hr:N)")
-        end = int(match.group(2)) + ring.size * ring.record_registers - 1
-        if end > 65535:
-            raise ValueError(
-                f"ring: {ring.size} records of {ring.record_registers} registers from "
-                f"{ring.address} run past register 65535"
-            )
 
 
 def _describe(error: Any) -> str:

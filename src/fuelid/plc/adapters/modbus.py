@@ -44,7 +44,8 @@ from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOEx
 from fuelid.errors import ConfigError
 from fuelid.plc import codec
 from fuelid.plc.adapters.base import LinkError, PlcSource, Reading, RingRecord
-from fuelid.plc.site import REGISTERS_OF, SiteConfig, Tag
+from fuelid.plc.site import SiteConfig, Tag
+from fuelid.plc.site_addresses import REGISTERS_OF
 
 # a library does not print: pymodbus logs every failed connect and a server's tracebacks, which
 # would scatter over the recorder's status line; the application may still configure "pymodbus"
