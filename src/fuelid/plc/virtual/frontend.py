@@ -12,6 +12,7 @@ from __future__ import annotations
 import socket
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,7 +29,8 @@ class Frontend(ABC):
     host : str
         Address to bind (127.0.0.1 unless the user allows remote clients).
     port : int
-        TCP port.
+        TCP port; 0 lets the OS pick a free one as the server binds, and :attr:`port` says which
+        once :meth:`start` returns (a later :meth:`start` binds the same one).
     ring_size : int
         Records in the ring buffer.
     word_order, byte_swap
@@ -54,7 +56,10 @@ class Frontend(ABC):
 
     @abstractmethod
     async def start(self) -> None:
-        """Bind and serve in the background (returns once clients can connect)."""
+        """Bind and serve in the background (returns once clients can connect).
+
+        With port 0 asked for, :attr:`port` is the bound port when this returns.
+        """
 
     @abstractmethod
     async def stop(self) -> None:
@@ -77,9 +82,35 @@ class Frontend(ABC):
 
 
 def free_port(host: str = "127.0.0.1") -> int:
-    """A TCP port free on ``host`` now (the OS picks it)."""
+    """A TCP port free on ``host`` now (the OS picks it).
+
+    Another process may take it before it is bound again: a server that can bind port 0 itself
+    (every front end can) should, and report the port it got.
+    """
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
     with socket.socket(family, socket.SOCK_STREAM) as sock:
         sock.bind((host, 0))
         port: int = sock.getsockname()[1]
         return port
+
+
+def bound_port(server: Any, asked: int) -> int:
+    """The TCP port an asyncio server (``loop.create_server``) is bound to; ``asked`` if unknown.
+
+    Parameters
+    ----------
+    server : asyncio.Server or None
+        The listening server (its ``sockets``).
+    asked : int
+        The port asked for.
+
+    Examples
+    --------
+    >>> bound_port(None, 5020)
+    5020
+    """
+    for sock in getattr(server, "sockets", None) or ():
+        port = int(sock.getsockname()[1])
+        if port:
+            return port
+    return asked

@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.plc.codec import WordOrder, decode, encode
-from fuelid.plc.virtual.frontend import Frontend
+from fuelid.plc.virtual.frontend import Frontend, bound_port
 from fuelid.plc.virtual.points import (
     DEFAULT_RING_SIZE,
     POINTS,
@@ -127,6 +127,8 @@ class ModbusFrontend(Frontend):
         device = SimDevice(id=DEVICE_ID, simdata=(bits, bits, holding, inputs))
         server = ModbusTcpServer(device, address=(self.host, self.port))
         await server.serve_forever(background=True)
+        if self.port == 0:  # the OS chose it: say which (a restart binds the same one)
+            self.port = bound_port(server.transport, self.port)
         self._server = server
 
     async def stop(self) -> None:

@@ -9,8 +9,9 @@ ring records. A late tick is not skipped but caught up: the samples it owes are 
 so plant time keeps pace with X × wall time and no sample is lost.
 
 :class:`VirtualPlcThread` runs engine and front end in a background thread with its own event
-loop, for tests, benchmarks and the command line; :func:`site_text` writes the site file that
-points at a virtual PLC.
+loop, for tests, benchmarks and the command line; :func:`site_text` (in
+:mod:`fuelid.plc.virtual.sitefile`, re-exported here) writes the site file that points at a
+virtual PLC.
 """
 
 from __future__ import annotations
@@ -33,16 +34,21 @@ from fuelid.errors import ConfigError
 from fuelid.plc.codec import WordOrder
 from fuelid.plc.virtual.engine import VirtualPLC
 from fuelid.plc.virtual.frontend import Frontend, free_port
-from fuelid.plc.virtual.points import (
-    DEFAULT_RING_SIZE,
-    OPCUA_PATH,
-    OPCUA_RING,
-    POINTS,
-    RING_FIELDS,
-    RING_FIRST_REGISTER,
-    RING_HEAD_REGISTER,
-    S7_READ_DB,
-)
+from fuelid.plc.virtual.sitefile import site_text
+
+__all__ = [
+    "DEFAULT_PORTS",
+    "FRONTENDS",
+    "MAX_SPEED",
+    "ServeStats",
+    "VirtualPlcThread",
+    "check_port",
+    "free_port",
+    "frontend_class",
+    "serve",
+    "serve_until_stopped",
+    "site_text",
+]
 
 FRONTENDS = {
     "modbus": ("fuelid.plc.virtual.modbus_server", "ModbusFrontend"),
@@ -234,145 +240,6 @@ def check_port(host: str, port: int) -> None:
             ) from None
 
 
-def site_text(
-    protocol: str,
-    host: str,
-    port: int,
-    *,
-    period_s: float = 0.02,
-    control_period_s: float = 1.0,
-    word_order: WordOrder = "big",
-    byte_swap: bool = False,
-    ring_size: int = DEFAULT_RING_SIZE,
-    store_url: str | None = None,
-    kc: float | None = None,
-    ti: float | None = None,
-    name: str = "virtual fuel loop",
-    plant: str | None = None,
-) -> str:
-    """The site file (TOML) of a virtual PLC at ``host:port`` speaking ``protocol``.
-
-    ``plant`` is the plant TOML the virtual PLC runs (``[site] plant``), when not the reference.
-
-    Every role the virtual PLC has: the read tags (with ``flow`` as the float32 reading), the
-    sequence counter, the ring, the write side (staged gains, apply, echo, heartbeat) and the
-    ``[controller]`` table (ideal form, engineering units, Ti in s, the commissioning gains
-    ``kc`` and ``ti`` when given).
-
-    Examples
-    --------
-    >>> text = site_text("modbus", "127.0.0.1", 5020)
-    >>> 'address = "ir:2"' in text and 'head = "ir:100"' in text
-    True
-    """
-    if protocol not in FRONTENDS:
-        raise ConfigError(f"protocol {protocol!r}: the virtual PLC speaks {', '.join(FRONTENDS)}")
-
-    def address(point: str) -> str:
-        p = POINTS[point]
-        if protocol == "modbus":
-            return p.modbus
-        if protocol == "opcua":
-            return f"ns=2;s={p.opcua}"
-        return p.s7
-
-    lines = [
-        "# the virtual PLC of `fuelid plant serve` (generated)",
-        "[site]",
-        f"name = {_toml_str(name)}",
-        *([f"plant = {_toml_str(plant)}"] if plant is not None else []),
-        "",
-        "[plc]",
-        f'protocol = "{protocol}"',
-        f"host = {_toml_str(host)}",
-        f"port = {int(port)}",
-    ]
-    if protocol == "modbus":
-        lines += [
-            "device_id = 1",
-            f'word_order = "{word_order}"',
-            f"byte_swap = {_bool(byte_swap)}",
-        ]
-    elif protocol == "opcua":
-        lines.append(f"endpoint = {_toml_str(f'opc.tcp://{_url_host(host)}:{port}{OPCUA_PATH}')}")
-    else:
-        lines += ["rack = 0", "slot = 1"]
-    lines += [
-        "",
-        "[sampling]",
-        f"period_s = {period_s!r}",
-        f"control_period_s = {control_period_s!r}",
-    ]
-    read_tags = {
-        "command": ("command", "V"),
-        "flow": ("flow", "L/min"),
-        "setpoint": ("setpoint", "L/min"),
-        "fuel_temperature": ("fuel_temperature", "degC"),
-        "mode": ("mode", ""),
-        "kc": ("kc", "V per L/min"),
-        "ti": ("ti", "s"),
-        "seq": ("seq", ""),
-    }
-    write_tags = {
-        "kc": ("staged_kc", "V per L/min"),
-        "ti": ("staged_ti", "s"),
-        "apply": ("apply", ""),
-        "echo": ("echo", ""),
-        "heartbeat": ("heartbeat", ""),
-    }
-    for table, tags in (("tags", read_tags), ("write", write_tags)):
-        for role, (point, unit) in tags.items():
-            lines += [
-                "",
-                f"[{table}.{role}]",
-                f'address = "{address(point)}"',
-                f'type = "{POINTS[point].type}"',
-            ]
-            if unit:
-                lines.append(f"unit = {_toml_str(unit)}")
-    if protocol == "modbus":
-        head, slot0 = f"ir:{RING_HEAD_REGISTER}", f"ir:{RING_FIRST_REGISTER}"
-    elif protocol == "opcua":
-        head, slot0 = f"ns=2;s={POINTS['ring_head'].opcua}", f"ns=2;s={OPCUA_RING}"
-    else:
-        head = POINTS["ring_head"].s7
-        slot0 = f"DB{S7_READ_DB}.DBD{2 * RING_FIRST_REGISTER}"
-    fields = ", ".join(f'"{f}"' for f in RING_FIELDS)
-    lines += [
-        "",
-        "[ring]",
-        f'head = "{head}"',
-        f'address = "{slot0}"',
-        f"size = {int(ring_size)}",
-        f"fields = [{fields}]",
-        "",
-        "[controller]",
-        'form = "ideal"',
-        'gain_units = "engineering"',
-        'integral_unit = "s"',
-    ]
-    if kc is not None:
-        lines.append(f"kc = {float(kc)!r}")
-    if ti is not None:
-        lines.append(f"ti = {float(ti)!r}")
-    if store_url is not None:
-        lines += ["", "[store]", f"url = {_toml_str(store_url)}"]
-    return "\n".join(lines) + "\n"
-
-
-def _toml_str(value: str) -> str:
-    escaped = value.replace("\\", "\\\\").replace('"', '\\"')
-    return f'"{escaped}"'
-
-
-def _bool(value: bool) -> str:
-    return "true" if value else "false"
-
-
-def _url_host(host: str) -> str:
-    return f"[{host}]" if ":" in host else host
-
-
 def _whole_ring(plc: VirtualPLC) -> dict[int, NDArray[np.float64]]:
     """Every slot of the engine's ring (the PLC's memory survives a link drop)."""
     return {slot: plc.ring[slot].copy() for slot in range(plc.ring_size)}
@@ -420,7 +287,8 @@ class VirtualPlcThread:
     host : str
         Address to bind.
     port : int, optional
-        TCP port; None picks a free one.
+        TCP port; None (or 0) lets the OS pick a free one as the server binds, and :attr:`port`
+        says which once started (a restart of the PLC or its link keeps it).
     speed : float
         Plant time per wall time.
     word_order, byte_swap
@@ -450,7 +318,8 @@ class VirtualPlcThread:
     ) -> None:
         self.protocol = protocol
         self.host = host
-        self.port = free_port(host) if port is None else int(port)
+        # 0: bound by the server itself, so no other process can take the port in between
+        self.port = 0 if port is None else int(port)
         self.speed = float(speed)
         self.word_order: WordOrder = word_order
         self.byte_swap = byte_swap
@@ -544,6 +413,7 @@ class VirtualPlcThread:
             byte_swap=self.byte_swap,
         )
         await self.frontend.start()
+        self.port = self.frontend.port  # the bound one, when 0 was asked for
         self._gate = _LinkGate(self.frontend)
 
     def _call(self, coro: Any, timeout: float = 30.0) -> Any:
