@@ -76,8 +76,9 @@ from numpy.typing import ArrayLike, NDArray
 from fuelid.errors import ConfigError, DataError
 from fuelid.plant import load_plant_config
 from fuelid.plant.config import PlantConfig
-from fuelid.plant.linear import linearise
 from fuelid.plant.system import measured_state, plant_coefficients, steady_state
+from fuelid.plc.virtual.analog import from_counts, to_counts
+from fuelid.plc.virtual.commissioning import commissioning_gains as commissioning_gains
 from fuelid.plc.virtual.points import (
     DEFAULT_RING_SIZE,
     FLOW_COUNTS,
@@ -89,7 +90,7 @@ from fuelid.plc.virtual.profiles import Profile, run_profile, steps_profile
 from fuelid.simulate import FuelTemperature, integrate_held
 from fuelid.tuning.closedloop import steady_command
 from fuelid.tuning.controller import DiscretePI
-from fuelid.tuning.rules import PISettings, half_rule, simc
+from fuelid.tuning.rules import PISettings
 from fuelid.units import LPM_PER_M3S, celsius_to_kelvin, kelvin_to_celsius
 
 FloatArray = NDArray[np.float64]
@@ -113,58 +114,6 @@ MAN, AUTO = 0, 1
 
 READ_POINTS = tuple(name for name, point in POINTS.items() if point.access == "read")
 WRITE_POINTS = tuple(name for name, point in POINTS.items() if point.access == "write")
-
-
-def commissioning_gains(
-    config: PlantConfig, T_fuel: float, control_period_s: float
-) -> tuple[float, float]:
-    """Cautious SIMC PI gains (τc = 2θ) for the plant linearised at mid-range command.
-
-    A commissioning engineer's set: SIMC (Skogestad 2003) with the closed-loop time constant
-    twice the effective dead time (the half rule's θ plus h/2), which keeps the overshoot of
-    setpoint steps of the reference plant to a few percent (τc = θ gives about 15 % with the
-    1 s control period) and leaves an online tuner room to tighten it.
-
-    Parameters
-    ----------
-    config : PlantConfig
-        The plant.
-    T_fuel : float
-        Fuel temperature [K].
-    control_period_s : float
-        The PLC's control period h [s] (adds h/2 to the effective dead time).
-
-    Returns
-    -------
-    tuple of float
-        Kc [V per L/min] and Ti [s], ideal form. For the reference plant at 20 °C and h = 1 s:
-        Kc ≈ 0.042 V per L/min, Ti ≈ 1.42 s.
-
-    Examples
-    --------
-    >>> kc, ti = commissioning_gains(load_plant_config(), 293.15, 1.0)
-    >>> round(kc, 4), round(ti, 3)
-    (0.0424, 1.418)
-    """
-    u_mid = 0.5 * (config.vfd.u_min_V + config.vfd.u_max_V)
-    model = linearise(config, u_mid, T_fuel).equivalent_model().model
-    theta = half_rule(model, control_period_s).theta
-    pi = simc(model, control_period_s, tau_c=2.0 * theta)
-    return pi.Kc, pi.Ti
-
-
-def _quantise(value: float | FloatArray, scale: tuple[float, float, float, float]) -> FloatArray:
-    """Analog-input counts (int16 range) of engineering values, rounded."""
-    raw0, raw1, eng0, eng1 = scale
-    counts = raw0 + (np.asarray(value, dtype=float) - eng0) * (raw1 - raw0) / (eng1 - eng0)
-    clipped: FloatArray = np.clip(np.round(counts), -32768.0, 32767.0)
-    return clipped
-
-
-def _from_counts(counts: FloatArray, scale: tuple[float, float, float, float]) -> FloatArray:
-    raw0, raw1, eng0, eng1 = scale
-    eng: FloatArray = eng0 + (counts - raw0) * (eng1 - eng0) / (raw1 - raw0)
-    return eng
 
 
 def _as_profile(value: ProfileLike | None, repeat: bool, name: str) -> Profile | None:
@@ -466,7 +415,7 @@ class VirtualPLC:
             "ti": ti,
             "echo": self._echo,
             "flow_counts": float(self._span_counts[i]),
-            "fuel_temperature_counts": float(_quantise(T_C, FUEL_TEMPERATURE_COUNTS)),
+            "fuel_temperature_counts": float(to_counts(T_C, FUEL_TEMPERATURE_COUNTS)),
             "ring_head": float(self.seq),
             "ring_size": float(self.ring_size),
         }
@@ -521,8 +470,8 @@ class VirtualPLC:
             self._clean.append(y.copy())
         if self.noise_sd_Lpm > 0.0:
             y = y + self._rng.normal(0.0, self.noise_sd_Lpm, size=n)
-        counts = _quantise(y, FLOW_COUNTS)
-        return (_from_counts(counts, FLOW_COUNTS) if self.quantisation else y), counts
+        counts = to_counts(y, FLOW_COUNTS)
+        return (from_counts(counts, FLOW_COUNTS) if self.quantisation else y), counts
 
     def _disturbances(self, n: int) -> FloatArray:
         """The next ``n`` samples of the AR(1) flow disturbance [L/min] (drawn here)."""
