@@ -7,6 +7,9 @@ site file); a PostgreSQL store is one more entry in :data:`STORES`.
 
 :class:`OnlineHistory` keeps the online service's history (windows, models, proposals, writes of
 gains, a little state) in the same SQLite file, on a connection of its own.
+
+Every table, the schema's versions and the migrations that upgrade an older store are in
+:mod:`fuelid.store.schema`.
 """
 
 from __future__ import annotations
