@@ -306,7 +306,10 @@ def upgrade(con: sqlite3.Connection, path: str, to_version: int = SCHEMA_VERSION
 
 
 def create(
-    con: sqlite3.Connection, meta: Mapping[str, str], to_version: int = SCHEMA_VERSION
+    con: sqlite3.Connection,
+    meta: Mapping[str, str],
+    to_version: int = SCHEMA_VERSION,
+    path: str = "",
 ) -> None:
     """Create the tables of an empty file: migration 1 with the ``meta`` rows, then the rest.
 
@@ -320,10 +323,12 @@ def create(
         migration).
     to_version : int
         The version to create (tests build older stores with it).
+    path : str
+        The store's name, for messages.
     """
     _apply(con, MIGRATIONS[0], {k: v for k, v in meta.items() if k != "schema_version"})
     if to_version > 1:
-        upgrade(con, "", to_version)
+        upgrade(con, path, to_version)
 
 
 def build_at(path: str, version: int, meta: Mapping[str, str]) -> None:
@@ -350,6 +355,6 @@ def build_at(path: str, version: int, meta: Mapping[str, str]) -> None:
         raise StoreError(f"schema version {version} is not between 1 and {SCHEMA_VERSION}")
     con = sqlite3.connect(path, isolation_level=None)
     try:
-        create(con, meta, to_version=version)
+        create(con, meta, to_version=version, path=path)
     finally:
         con.close()

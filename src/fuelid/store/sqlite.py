@@ -9,8 +9,6 @@ The tables, their versions and the migrations that upgrade an older file are in
 :mod:`fuelid.store.schema`: opening a store applies the migrations it lacks, and a store written
 by a newer fuelid is refused.
 
-NaN values are stored as NULL (SQLite has no NaN) and read back as NaN.
-
 Re-flagging (:meth:`SQLiteStore.requalify`, the writer's ``set_quality``): ``UPDATE samples SET
 quality = ? WHERE time BETWEEN ? AND ? AND quality = 0`` on the ``samples_time`` index, in the
 transaction of the batch it was queued after, so it never races the inserts.
@@ -175,7 +173,7 @@ class SQLiteStore(SampleStore):
         }
         if period_s is not None:
             meta["period_s"] = repr(float(period_s))
-        create(self._con, meta)
+        create(self._con, meta, path=self.path)
 
     def _check_store(self) -> dict[str, str]:
         con = self._con
