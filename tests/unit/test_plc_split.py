@@ -1,0 +1,82 @@
+"""The recorder's and the store's split modules (issue 24): old import paths, the time base."""
+
+from __future__ import annotations
+
+import importlib
+
+import pytest
+
+from fuelid.plc.timebase import HALF_RANGE, UINT32, SampleSequence
+
+MOVED = {
+    "fuelid.plc.record_runner": ("PRUNE_EVERY_S", "record_error", "record_site"),
+    "fuelid.plc.record_status": ("RATE_WINDOW_S", "STATUS_WIDTH", "RecorderStats"),
+    "fuelid.plc.timebase": (
+        "UINT32",
+        "HALF_RANGE",
+        "RESTART_MIN_COUNTS",
+        "RESTART_RATE_SLACK",
+        "RESTART_SLACK_S",
+    ),
+    "fuelid.plc.first_read": (
+        "PROBE_RECORDS",
+        "PROBE_WAIT_S",
+        "PROBE_JUMP_FACTOR",
+        "RING_CHECK_POLLS",
+        "RING_FLOW_TOLERANCE",
+        "RING_FLOW_TOLERANCE_LPM",
+        "RING_COMMAND_TOLERANCE_V",
+    ),
+}
+
+
+@pytest.mark.parametrize(
+    ("module", "name"), [(module, name) for module, names in MOVED.items() for name in names]
+)
+def test_every_name_that_left_the_recorder_still_imports_from_it(module: str, name: str) -> None:
+    recorder = importlib.import_module("fuelid.plc.recorder")
+    assert getattr(recorder, name) is getattr(importlib.import_module(module), name)
+
+
+def test_the_recorder_module_refuses_names_it_never_had() -> None:
+    recorder = importlib.import_module("fuelid.plc.recorder")
+    with pytest.raises(AttributeError, match="no attribute 'nothing_here'"):
+        _ = recorder.nothing_here
+
+
+@pytest.mark.parametrize(
+    ("module", "names"),
+    [
+        ("fuelid.store.base", ("SampleWriter", "StoreError", "Sample", "iodata_from_samples")),
+        ("fuelid.store.online", ("PROPOSAL_TRANSITIONS", "WRITE_STATUSES", "json_ready")),
+        ("fuelid.store.sqlite", ("SCHEMA_VERSION", "APPLICATION_ID", "SQLiteStore")),
+        ("fuelid.plc.site", ("REGISTERS_OF",)),
+        ("fuelid.plc.virtual.engine", ("commissioning_gains",)),
+        ("fuelid.plc.virtual.runner", ("site_text", "free_port")),
+    ],
+)
+def test_split_modules_keep_their_public_names(module: str, names: tuple[str, ...]) -> None:
+    imported = importlib.import_module(module)
+    for name in names:
+        assert hasattr(imported, name), name
+
+
+def test_the_time_base_unwraps_the_counter_and_keeps_times_regular() -> None:
+    seq = SampleSequence(period_s=0.02, last_stored=None)
+    assert seq.start(UINT32 - 2, received=100.0) == (True, "")
+    assert seq.advance(UINT32 - 1, received=100.02) == (1, "")
+    assert seq.advance(1, received=100.06) == (2, "")  # wrapped past 2**32: no restart
+    assert seq.stored(seq.u) == UINT32 + 1
+    assert seq.time(seq.u) == pytest.approx(100.06)
+
+
+def test_the_time_base_tells_a_restart_and_leaves_one_number_out() -> None:
+    seq = SampleSequence(period_s=0.02, last_stored=None)
+    seq.start(5000, received=100.0)
+    seq.mark(seq.stored(seq.u), seq.time(seq.u))
+    assert (5000 - 10) % UINT32 < HALF_RANGE < (10 - 5000) % UINT32  # back, not a wrap
+    step, why = seq.advance(10, received=101.0)
+    assert step < 0
+    assert "went back to 10" in why
+    assert seq.stored(seq.u) == 5000 + 2 + 10  # one number left out: readers see a break
+    assert seq.time(seq.u) == pytest.approx(101.0)  # the wall-clock anchor, after the last
