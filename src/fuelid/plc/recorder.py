@@ -11,8 +11,8 @@ a message goes to ``on_message`` when the link state or the reason changes, not 
 every ``ring_poll_s`` and timed by their sequence number, with a ``seq`` tag the reads follow an
 absolute-deadline schedule and are timed by the counter, without either by the receipt time. A
 PLC restart (the counter back, or too little advance across an outage) writes a ``restart``
-event; the stored sequence continues monotonic with one number left out. Events are put on the
-samples' time base (its *Event times*).
+event; the stored sequence continues monotonic with one number left out. Events are timed on
+the samples' time base (*Event times* in the same module).
 
 **Outages without a ring** store no rows (no invented values, and no rows of NaN): the
 ``link_down``/``link_up`` events and a ``gap`` event with the count of samples lost say it, and
