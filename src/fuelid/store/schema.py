@@ -6,11 +6,9 @@ marks it as a fuelid store; ``PRAGMA user_version`` is its schema version, also 
 Unix epoch [s]; u in V, flows in L/min, temperatures in °C (as the PLC gives them), the gains
 ``kc`` and ``ti`` in the controller's units (as its registers hold them).
 
-Versions
---------
-Version N is reached by applying the migrations 1..N of :data:`MIGRATIONS` in order, each in one
-transaction of its own (the tables, the data and the new version number commit together, so a
-crash leaves the store at the version before or after a migration, never between). Opening a
+**Versions.** Version N is reached by applying the migrations 1..N of :data:`MIGRATIONS` in order,
+each in one transaction of its own (the tables, the data and the new version number commit together,
+so a crash leaves the store at the version before or after a migration, never between). Opening a
 store applies the migrations it lacks (:func:`upgrade`); a store whose version is newer than
 :data:`SCHEMA_VERSION` is refused with a :class:`~fuelid.store.base.StoreError` that names both
 versions, so that an older fuelid never writes into a schema it does not know.
@@ -22,9 +20,7 @@ versions, so that an older fuelid never writes into a schema it does not know.
    ``online_state`` (``IF NOT EXISTS``: a store of version 1 may have them already). No row
    changes.
 
-Tables
-------
-::
+**Tables**::
 
     meta(key TEXT PRIMARY KEY, value TEXT NOT NULL)
         schema_version, site_name, tag_map_hash (SHA-256 hex of the tag map), created (s UTC),
@@ -75,15 +71,13 @@ Tables
 
 JSON is written with ``allow_nan=False``: NaN and ±inf are stored as ``null``.
 
-Adding a migration
-------------------
-Append a :class:`Migration` to :data:`MIGRATIONS` (its ``version`` is the next number;
-:data:`SCHEMA_VERSION` follows), describe it under *Versions* and change *Tables* above, and
-give the test of upgrades (``tests/integration/test_store_schema.py``) a case that builds a
-store at the version before with :func:`build_at` (or loads a dump written by the released
-fuelid, as ``tests/data/store_v0_1.sql``), opens it with the current code and checks every old
-row. Never edit a released migration: a store in the field has already applied it. Migrations
-planned for the next issues:
+**Adding a migration.** Append a :class:`Migration` to :data:`MIGRATIONS` (its ``version`` is the
+next number; :data:`SCHEMA_VERSION` follows), describe it under **Versions** and change **Tables**
+above, and give the test of upgrades (``tests/integration/test_store_schema.py``) a case that builds
+a store at the version before with :func:`build_at` (or loads a dump written by the released fuelid,
+as ``tests/data/store_v0_1.sql``), opens it with the current code and checks every old row. Never
+edit a released migration: a store in the field has already applied it. Migrations planned for the
+next issues:
 
 - a wall-clock column beside plant time on every row (``ALTER TABLE samples ADD COLUMN
   wall_time REAL``, and the same on ``events``, ``windows``, …; NULL on the rows written
