@@ -115,10 +115,10 @@ $(DOCS_STAMP): pyproject.toml $(STAMP)
 	@touch $@
 
 docs: $(DOCS_STAMP)
-	$(BIN)/python -m mkdocs build --strict
+	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs build --strict
 
 docs-serve: $(DOCS_STAMP)
-	$(BIN)/python -m mkdocs serve
+	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs serve
 
 # Generated pictures and pages are committed and written only here and by `make bench`, never by
 # `make test`: the report screenshot (headless Chromium, see `make browser`) and the benchmark

@@ -71,7 +71,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
         "Plant calibration",
         "benchmarks/bench_calibration.py --runs 200 --minutes 2",
     ),
-    "calibration_timing": ("Plant calibration: speed", "benchmarks/bench_calibration.py --timing"),
+    "calibration_timing": ("Plant calibration speed", "benchmarks/bench_calibration.py --timing"),
 }
 
 _T = TypeVar("_T")
@@ -107,9 +107,11 @@ def provenance(seconds: float | None = None, argv: Sequence[str] | None = None) 
     except ImportError:  # pragma: no cover - every benchmark imports numpy
         numpy_version = "absent"
     took = f", {seconds:.0f} s wall time" if seconds is not None else ""
+    # the load says whether the seconds are an idle machine's: other work shares the cores
+    load = f", load average {os.getloadavg()[0]:.1f}" if hasattr(os, "getloadavg") else ""
     return (
-        f"Measured on {datetime.date.today().isoformat()}: {cpu_model()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}, numpy {numpy_version}{took}. "
+        f"Measured on {datetime.date.today().isoformat()}: {cpu_model()}, {os.cpu_count()} cores"
+        f"{load}, Python {platform.python_version()}, numpy {numpy_version}{took}. "
         f"Command: `{command_line(argv)}`. Written by the script; do not edit by hand."
     )
 

@@ -63,8 +63,9 @@ def _escape(text: str) -> str:
 
 
 def _code(text: str) -> str:
-    # a pipe inside a table cell splits the cell even inside backticks in Python-Markdown
-    return "`" + text.replace("|", "\\|") + "`"
+    # Python-Markdown's tables do not split a cell at a pipe inside a code span, and an escaped
+    # pipe there would show its backslash: the text goes in as it is
+    return f"`{text}`"
 
 
 def _paragraphs(help_text: str) -> str:
