@@ -65,6 +65,7 @@ def screenshot(page: Path, png: Path) -> None:
 
 
 def main() -> None:
+    """Simulate, report, screenshot: every picture of docs/assets/ from the command line."""
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "assets")
     args = parser.parse_args()
