@@ -20,6 +20,9 @@ from typing import Any
 
 MARKER = "<!-- fuelid-cli-reference -->"
 PAGE = "reference/cli.md"
+#: ``<!-- fuelid-module-doc: fuelid.store.schema -->`` on any page is replaced by that module's
+#: docstring (Markdown), so a fact documented in the code (the store's schema) lives there once
+MODULE_DOC = re.compile(r"<!-- fuelid-module-doc: (?P<module>[\w.]+) -->")
 
 _DEFAULT = re.compile(r"\s*\[(default: (?P<default>[^\]]*)|(?P<required>required))\]\s*$")
 
@@ -136,8 +139,19 @@ def render_cli_reference(command: Any | None = None) -> str:
     return "\n".join(render_command(path, cmd, ctx) for path, cmd, ctx in iter_commands(command))
 
 
+def render_module_doc(module: str) -> str:
+    """A module's docstring, cleaned of its indentation, as Markdown."""
+    import importlib
+
+    doc = importlib.import_module(module).__doc__
+    if not doc:
+        raise ValueError(f"{module} has no docstring to put in the docs")
+    return inspect.cleandoc(doc)
+
+
 def on_page_markdown(markdown: str, page: Any, **_: Any) -> str:
-    """MkDocs event: put the generated reference where the CLI page holds the marker."""
+    """MkDocs event: put the generated reference where a page holds a marker."""
+    markdown = MODULE_DOC.sub(lambda m: render_module_doc(m.group("module")), markdown)
     if page.file.src_uri != PAGE:
         return markdown
     if MARKER not in markdown:
