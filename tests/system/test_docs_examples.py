@@ -12,7 +12,7 @@ The convention (written for page authors in docs/reference/index.md, "Console ex
   ``[exit N]``;
 - every ``console`` block of one page runs in order in one fresh temporary folder, where
   ``examples/``, ``docs/examples/`` and ``reference_plant.toml`` (the packaged reference plant)
-  are at hand;
+  are at hand; what a command starts in the background (``&``) is stopped when its line ends;
 - a block that must not run has ``<!-- illustrative: why -->`` on the line before its fence; a
   long one (over 20 s) ``<!-- slow -->``: it runs in the slow set only (``make test-slow``).
 
@@ -21,13 +21,16 @@ A failure names the page, the line, the command and shows the difference.
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import functools
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -184,27 +187,46 @@ _PRELUDE = (
 )
 
 
-def run_command(command: Command, cwd: Path, page: str) -> None:
-    """Run one command in ``cwd`` and fail with the page, line, command and a diff."""
-    try:
-        done = subprocess.run(
-            ["bash", "-c", _PRELUDE + command.text],
+def _bash(text: str, cwd: Path) -> tuple[int | None, str]:
+    """Run ``text`` in bash; (exit code, or None after the timeout; stdout and stderr merged).
+
+    The command gets a session of its own, and whatever it left running in the background (a
+    virtual PLC started with ``&``) is stopped when it ends: nothing outlives its line. The
+    output goes to a file, not a pipe, which a background process could hold open.
+    """
+    with tempfile.TemporaryFile("w+", encoding="utf-8", errors="replace") as out:
+        process = subprocess.Popen(
+            ["bash", "-c", _PRELUDE + text],
             cwd=cwd,
             env=_environment(),
-            stdout=subprocess.PIPE,
+            stdout=out,
             stderr=subprocess.STDOUT,
-            text=True,
-            timeout=TIMEOUT_S,
-            check=False,
+            start_new_session=True,
         )
-    except subprocess.TimeoutExpired:
+        code: int | None
+        try:
+            code = process.wait(timeout=TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            code = None
+        finally:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+        out.seek(0)
+        return code, out.read()
+
+
+def run_command(command: Command, cwd: Path, page: str) -> None:
+    """Run one command in ``cwd`` and fail with the page, line, command and a diff."""
+    code, output = _bash(command.text, cwd)
+    if code is None:
         pytest.fail(f"{page}:{command.line}: `{command.text}` ran over {TIMEOUT_S} s")
-    actual = [line.rstrip() for line in done.stdout.splitlines()]
+    actual = [line.rstrip() for line in output.splitlines()]
     while actual and not actual[-1]:
         actual.pop()
     problems = []
-    if done.returncode != command.exit_code:
-        problems.append(f"exit code {done.returncode}, the page says {command.exit_code}")
+    if code != command.exit_code:
+        problems.append(f"exit code {code}, the page says {command.exit_code}")
     if command.expected and not output_matches(command.expected, actual):
         diff = difflib.unified_diff(command.expected, actual, "page", "actual", lineterm="")
         problems.append("output differs:\n" + "\n".join(diff))
@@ -218,7 +240,7 @@ def _pages_with(slow: bool) -> list[Path]:
     found = []
     for page in doc_pages():
         blocks = [b for b in parse_blocks(page) if b.illustrative is None]
-        if any(b.slow for b in blocks) if slow else blocks:
+        if any(b.slow == slow for b in blocks):
             found.append(page)
     return found
 
