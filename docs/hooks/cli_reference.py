@@ -149,6 +149,28 @@ def render_module_doc(module: str) -> str:
     return inspect.cleandoc(doc)
 
 
+#: a Sphinx cross-reference as the docstrings write it (``:class:`~fuelid.model.ProcessModel```),
+#: after Markdown made its target a code span; mkdocstrings does not read Sphinx roles
+_SPHINX_ROLE = re.compile(
+    r":(?:py:)?(?:mod|class|func|meth|attr|data|exc|obj|const):<code>(?P<short>~?)(?P<name>[^<]+)</code>"
+)
+
+
+def plain_roles(html: str) -> str:
+    """Sphinx roles in rendered docstrings as plain code: ``~a.b.C`` shows ``C``, as Sphinx does."""
+
+    def code(match: re.Match[str]) -> str:
+        name = match.group("name")
+        return f"<code>{name.rsplit('.', 1)[-1] if match.group('short') else name}</code>"
+
+    return _SPHINX_ROLE.sub(code, html)
+
+
+def on_page_content(html: str, page: Any, **_: Any) -> str:
+    """MkDocs event: the API pages' docstrings without Sphinx role markup."""
+    return plain_roles(html) if page.file.src_uri.startswith("reference/api/") else html
+
+
 def on_page_markdown(markdown: str, page: Any, **_: Any) -> str:
     """MkDocs event: put the generated reference where a page holds a marker."""
     markdown = MODULE_DOC.sub(lambda m: render_module_doc(m.group("module")), markdown)
