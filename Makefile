@@ -6,14 +6,18 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.fuelid-installed
 DEMO_DIR ?= demo-output
 
-.PHONY: help install demo plc-demo test test-slow lint typecheck pytest browser bench clean
+.PHONY: help install demo plc-demo test test-slow lint typecheck pytest browser bench clean \
+	docs docs-serve docs-assets
 
 help:
 	@echo "make demo   - install if needed, run the reference-plant demo (writes $(DEMO_DIR)/)"
 	@echo "make plc-demo - the virtual PLC over Modbus: record, export, identify (writes $(DEMO_DIR)/plc/)"
 	@echo "make test   - install if needed, run ruff, mypy and the whole pytest suite"
 	@echo "make test-slow - the long fault and soak runs (CI runs them after make test)"
-	@echo "make bench  - run the benchmarks (on demand, prints tables)"
+	@echo "make bench  - run the benchmarks (on demand; prints tables, writes docs/benchmarks/)"
+	@echo "make docs   - build the documentation site into site/ (mkdocs build --strict)"
+	@echo "make docs-serve - serve the documentation with live reload on http://127.0.0.1:8000"
+	@echo "make docs-assets - write docs/assets/ (the report screenshot) and the benchmark index"
 	@echo "make clean  - remove the virtual environment and generated files"
 
 $(BIN)/python:
@@ -102,5 +106,26 @@ bench: $(BENCH_VENV)/.fuelid-installed
 	$(BENCH_VENV)/bin/python benchmarks/bench_calibration.py --timing
 	$(BENCH_VENV)/bin/python benchmarks/bench_calibration.py --runs 200 --minutes 2
 
+# The documentation site (mkdocs.yml): the docs extra goes into .venv once (again when
+# pyproject.toml changes); the command reference is rendered from the CLI at build time.
+DOCS_STAMP := $(VENV)/.fuelid-docs-installed
+
+$(DOCS_STAMP): pyproject.toml $(STAMP)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev,plc,docs]'
+	@touch $@
+
+docs: $(DOCS_STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs build --strict
+
+docs-serve: $(DOCS_STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs serve
+
+# Generated pictures and pages are committed and written only here and by `make bench`, never by
+# `make test`: the report screenshot (headless Chromium, see `make browser`) and the benchmark
+# index with a "not yet run" page for each benchmark that has none.
+docs-assets: $(STAMP) browser
+	$(BIN)/python docs/scripts/assets.py
+	$(BIN)/python benchmarks/_docs_table.py
+
 clean:
-	rm -rf $(VENV) $(BENCH_VENV) $(DEMO_DIR) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) $(BENCH_VENV) $(DEMO_DIR) site .pytest_cache .mypy_cache .ruff_cache

@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from _docs_table import run_to_docs
 from fuelid.plc.adapters import PlcSource, Reading, RingRecord, open_source
 from fuelid.plc.recorder import Recorder, site_identity
 from fuelid.plc.site import SiteConfig
@@ -160,4 +161,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_to_docs("acquisition", main, __doc__)  # the printed tables, also in docs/benchmarks

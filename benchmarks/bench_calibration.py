@@ -30,12 +30,14 @@ from __future__ import annotations
 import argparse
 import math
 import statistics
+import sys
 import time
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from _docs_table import run_to_docs
 from _timing import best_of
 from fuelid.calibration.plant_model import FUEL_TEMPERATURE_KEY, PlantGreyBox
 from fuelid.errors import FuelidError
@@ -308,4 +310,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    # the timing run and the accuracy run are two pages: one must not overwrite the other
+    name = "calibration_timing" if "--timing" in sys.argv else "calibration"
+    run_to_docs(name, main, __doc__)  # the printed tables, also in docs/benchmarks

@@ -32,6 +32,8 @@ from dataclasses import dataclass, field
 from importlib.util import find_spec
 from pathlib import Path
 
+from _docs_table import run_to_docs
+
 N_SAMPLES = 180_000
 """One hour at 50 Hz."""
 COLUMNS = ("t_s", "u_V", "q_Lpm")
@@ -303,4 +305,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_to_docs("cold_start", main, __doc__)  # the printed tables, also in docs/benchmarks

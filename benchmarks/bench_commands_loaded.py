@@ -33,6 +33,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+from _docs_table import run_to_docs
+
 LOAD_SCRIPT = """\
 import sys, time
 import numpy as np
@@ -149,4 +151,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_to_docs("commands_loaded", main, __doc__))  # the tables also in the docs

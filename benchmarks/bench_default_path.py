@@ -35,12 +35,8 @@ machine, the date, the commit and the command that produced them; ``--out -`` wr
 from __future__ import annotations
 
 import argparse
-import datetime
 import math
-import os
-import platform
 import subprocess
-import sys
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -52,6 +48,7 @@ import numpy as np
 import scipy.signal
 import scipy.stats
 
+from _docs_table import provenance, write_index
 from bench_identify_accuracy import closed_loop_log
 from fuelid.identify.oe import cramer_rao_bound
 from fuelid.identify.procedure import IdentifyOptions, identify
@@ -234,13 +231,8 @@ def _commit() -> str:
 
 
 def _provenance(args: argparse.Namespace, seconds: float, commit: str) -> str:
-    command = "python benchmarks/bench_default_path.py " + " ".join(sys.argv[1:])
-    return (
-        f"Produced by `{command.strip()}` on {datetime.date.today().isoformat()}, commit "
-        f"{commit}, {platform.machine()} with {os.cpu_count()} cores "
-        f"(Python {platform.python_version()}), {seconds:.0f} s wall time with {args.jobs} "
-        "processes. Written by the script; do not edit by hand."
-    )
+    # the header every benchmark page carries (benchmarks/_docs_table.py), and the commit
+    return f"{provenance(seconds)} Commit {commit}, {args.jobs} processes."
 
 
 def main() -> None:
@@ -299,6 +291,7 @@ def main() -> None:
         )
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(text, encoding="utf-8")
+        write_index(Path(args.out).parent)
         print(f"wrote {args.out}")
 
 

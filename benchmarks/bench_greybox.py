@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from _docs_table import run_to_docs
+
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 from fuelid.greybox import GreyBoxEstimator
@@ -131,4 +133,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_to_docs("greybox", main, __doc__)  # the printed tables, also in docs/benchmarks

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.signal
 
+from _docs_table import run_to_docs
 from fuelid.identify.oe import OutputError, cramer_rao_bound
 from fuelid.identify.step_ls import StepResponseLS
 from fuelid.io.timeseries import IOData
@@ -229,4 +230,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_to_docs("identify_accuracy", main, __doc__)  # the printed tables, also in docs/benchmarks

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from _docs_table import run_to_docs
 from _timing import best_of
 from fuelid.identify.oe import OutputError
 from fuelid.io.logs import load_log
@@ -140,4 +141,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_to_docs("identify_speed", main, __doc__)  # the printed tables, also in docs/benchmarks

@@ -31,6 +31,7 @@ import time
 import numpy as np
 import scipy.signal
 
+from _docs_table import run_to_docs
 from fuelid.blas import single_threaded_blas
 from fuelid.identify import OutputError
 from fuelid.identify.oe import cramer_rao_bound
@@ -145,4 +146,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_to_docs("oe_coverage", main, __doc__)  # the printed tables, also in docs/benchmarks

@@ -55,6 +55,7 @@ import time
 from importlib import resources
 from pathlib import Path
 
+from _docs_table import run_to_docs
 from fuelid.online.window import WindowAnalyser, WindowResult, window_priors
 from fuelid.plc.site import Online, SiteConfig
 from fuelid.plc.virtual.engine import VirtualPLC
@@ -374,4 +375,4 @@ if __name__ == "__main__":
     from fuelid.blas import single_threaded_blas
 
     with single_threaded_blas():  # as every fuelid command runs (fuelid.cli._common.guarded)
-        main()
+        run_to_docs("online", main, __doc__)  # the printed tables, also in docs/benchmarks

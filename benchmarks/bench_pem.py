@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 import scipy.signal
 
+from _docs_table import run_to_docs
 from _timing import best_of
 from fuelid.blas import single_threaded_blas
 from fuelid.identify.diagnostics import residual_whiteness
@@ -309,4 +310,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_to_docs("pem", main, __doc__)  # the printed tables, also in docs/benchmarks

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from _docs_table import run_to_docs
 from fuelid.identify.oe import OutputError
 from fuelid.io.logs import load_log
 from fuelid.model import nrmse_fit
@@ -58,4 +59,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_to_docs("refdata", main, __doc__)  # the printed tables, also in docs/benchmarks

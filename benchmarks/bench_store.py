@@ -20,6 +20,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from _docs_table import run_to_docs
 from fuelid.store import Quality, Sample, SampleWriter, SQLiteStore, tag_map_hash
 
 RATE_HZ = 50.0
@@ -126,4 +127,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_to_docs("store", main, __doc__)  # the printed tables, also in docs/benchmarks

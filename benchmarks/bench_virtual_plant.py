@@ -23,6 +23,7 @@ import argparse
 import asyncio
 import time
 
+from _docs_table import run_to_docs
 from fuelid.plc.virtual.engine import VirtualPLC
 from fuelid.plc.virtual.points import RING_FIRST_REGISTER, RING_HEAD_REGISTER
 from fuelid.plc.virtual.runner import VirtualPlcThread
@@ -147,4 +148,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_to_docs("virtual_plant", main, __doc__)  # the printed tables, also in docs/benchmarks
