@@ -17,8 +17,8 @@ import time
 import numpy as np
 
 from fuelid.plant import load_plant_config
+from fuelid.plant.simulate import FuelTemperature, simulate
 from fuelid.profiles import random_levels, step_sequence
-from fuelid.simulate import FuelTemperature, simulate
 
 HOUR = 3600.0
 TARGET_RATIO = 1000.0

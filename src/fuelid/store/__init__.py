@@ -7,6 +7,10 @@ site file); a PostgreSQL store is one more entry in :data:`STORES`.
 
 :class:`OnlineHistory` keeps the online service's history (windows, models, proposals, writes of
 gains, a little state) in the same SQLite file, on a connection of its own.
+
+The public API
+--------------
+The names in ``__all__``, at ``fuelid.store`` itself.
 """
 
 from __future__ import annotations

@@ -3,6 +3,10 @@
 ``fuelid identify --json`` and ``fuelid plant info --json`` write the model family's parameters
 under ``model``; ``tune --model`` and the sweep read them back here, with the covariance's model
 block when the file has one, or refuse the file with the reason.
+
+Before 0.2.0 this was ``fuelid.io.modelfile`` with ``ModelFile`` and ``load_model_file``, the
+same names as :mod:`fuelid.greybox.modelfile`'s, which loads a user's Python gray-box model: the
+names now say which is the fitted model of a JSON result.
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ def _covariance_entry(value: Any) -> float:
 
 
 @dataclass(frozen=True)
-class ModelFile:
+class FittedModel:
     """A process model read from a JSON result, with its covariance when there is one.
 
     ``cov`` is the model parameters' block (:func:`model_covariance`) of the file's covariance;
@@ -57,7 +61,7 @@ class ModelFile:
     """Whether the file's intervals hold only within its structure (``structure.conditional``)."""
 
 
-def load_model_file(path: str | Path) -> ModelFile:
+def load_fitted_model(path: str | Path) -> FittedModel:
     """Read the model of a ``fuelid identify --json`` (or ``plant info --json``) result.
 
     Raises
@@ -135,7 +139,7 @@ def load_model_file(path: str | Path) -> ModelFile:
     u, fuel_temperature = _operating_point(data.get("operating_point"), file)
     findings = data.get("signal_check")
     alternatives, conditional = _structure(data.get("structure"), file)
-    return ModelFile(
+    return FittedModel(
         alternatives=alternatives,
         conditional=conditional,
         model=model,

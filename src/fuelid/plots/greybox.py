@@ -1,7 +1,7 @@
 """Figures of a gray-box fit (``fuelid greybox --plot``): measured against simulated, residuals.
 
-Presentation only, like :mod:`fuelid.plots`: the function takes what the fit computed and draws
-it on a :class:`matplotlib.figure.Figure` (no pyplot state, no GUI backend); matplotlib is
+Presentation only, like the rest of :mod:`fuelid.plots`: the function takes what the fit computed
+and draws it on a :class:`matplotlib.figure.Figure` (no pyplot state, no GUI backend); matplotlib is
 imported inside the functions. Units are the user's: the axes carry the output names as given.
 """
 
@@ -9,18 +9,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fuelid.errors import DataError
+from fuelid.plots._common import FloatArray
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -155,12 +152,3 @@ def _shade(panel: FitPanel, axes: Sequence[Any], label: bool) -> None:
             float(panel.t[-1]), 0.97, "held out: predicted ", transform=where, ha="right",
             va="top", fontsize=8,
         )  # fmt: skip
-
-
-def save_greybox_figure(fig: Figure, path: str | Path) -> Path:
-    """Save the figure (format from the extension), refusing a missing folder clearly."""
-    out = Path(path)
-    if not out.parent.is_dir():
-        raise DataError(f"figure folder {str(out.parent)!r} does not exist")
-    fig.savefig(out, dpi=120, bbox_inches="tight")
-    return out

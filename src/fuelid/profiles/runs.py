@@ -1,5 +1,8 @@
 """What the virtual PLC's operator does over time: setpoint, manual command and fuel temperature.
 
+The run profiles of ``fuelid plant serve`` and ``fuelid online --virtual`` (this module was
+``fuelid.plc.virtual.profiles`` before 0.2.0).
+
 A profile is a table of breakpoints (t [s], value), linearly interpolated between rows; two rows
 at the same t make a step. Setpoint and command profiles repeat, the last row's t being the
 length of the cycle; a fuel-temperature profile plays once and is held after its last row.
