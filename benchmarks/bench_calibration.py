@@ -46,8 +46,8 @@ from fuelid.greybox.parameters import ParameterMap
 from fuelid.greybox.sensitivity import simulate_record
 from fuelid.plant.config import PlantConfig, load_plant_config
 from fuelid.plant.parameters import get_parameter, with_parameters
+from fuelid.plant.simulate import PRESSURE_NOISE_STD, PRESSURE_RESOLUTION, simulate
 from fuelid.profiles import InputProfile, step_sequence
-from fuelid.simulate import PRESSURE_NOISE_STD, PRESSURE_RESOLUTION, simulate
 from fuelid.units import LPM_PER_M3S, PA_PER_MPA
 
 FloatArray = NDArray[np.float64]

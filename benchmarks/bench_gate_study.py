@@ -23,11 +23,12 @@ PI, SIMC with τc = 2θ from :func:`fuelid.plc.virtual.engine.commissioning_gain
   commands (:func:`fuelid.tuning.closedloop.flow_at`), each held max(30 s, 3 settling times).
 
 The windows are simulated on the nonlinear plant by fuelid's own simulators
-(:func:`fuelid.simulate.simulate` open loop, :func:`fuelid.tuning.closedloop.simulate_closed_loop`
-closed loop: the PI acts on the noisy, quantised reading, so in AUTO the command depends on the
-noise) and analysed by :class:`fuelid.online.window.WindowAnalyser` itself (pre-fit gates, the
-output-error fit in MAN, the prediction-error fit with its noise model in AUTO, the post-fit
-gates; a fresh analyser per window: its cold start; step-ls off) with the residual-correlation
+(:func:`fuelid.plant.simulate.simulate` open loop,
+:func:`fuelid.tuning.closedloop.simulate_closed_loop` closed loop: the PI acts on the noisy,
+quantised reading, so in AUTO the command depends on the noise) and analysed by
+:class:`fuelid.online.window.WindowAnalyser` itself (pre-fit gates, the output-error fit in MAN, the
+prediction-error fit with its noise model in AUTO, the post-fit gates; a fresh analyser per window:
+its cold start; step-ls off) with the residual-correlation
 bound set to 0.999 so that the gate's statistic — max |ρ(k)|, k = 1…acf_lags, of the residuals
 the gate sees, prewhitened by the noise's own AR model when they are output errors
 (:func:`fuelid.online.residual_acf.prewhiten`), the prediction errors as they are — is recorded for
@@ -87,10 +88,10 @@ from fuelid.online.window import WindowAnalyser, window_priors
 from fuelid.plant.config import PlantConfig, load_plant_config
 from fuelid.plant.flowmeter import measure_flow
 from fuelid.plant.linear import linearise
+from fuelid.plant.simulate import simulate
 from fuelid.plc.site import Online
 from fuelid.plc.virtual.engine import commissioning_gains
 from fuelid.profiles import InputProfile
-from fuelid.simulate import simulate
 from fuelid.store.base import Quality, SampleArrays
 from fuelid.tuning.closedloop import flow_at, simulate_closed_loop
 from fuelid.tuning.rules import PISettings

@@ -25,8 +25,8 @@ from fuelid.identify.oe import OutputError
 from fuelid.io.logs import load_log
 from fuelid.model import nrmse_fit
 from fuelid.plant import load_plant_config
+from fuelid.plant.simulate import simulate
 from fuelid.profiles import step_sequence
-from fuelid.simulate import simulate
 
 
 def peak_mb(fn: Callable[[], Any]) -> float:

@@ -59,7 +59,7 @@ from _docs_table import run_to_docs
 from fuelid.online.window import WindowAnalyser, WindowResult, window_priors
 from fuelid.plc.site import Online, SiteConfig
 from fuelid.plc.virtual.engine import VirtualPLC
-from fuelid.plc.virtual.profiles import demo_run_profile
+from fuelid.profiles.runs import demo_run_profile
 from fuelid.store.base import Quality, SampleArrays
 
 PERIOD_S = 0.02
@@ -72,7 +72,7 @@ EVERY_TARGET_S = 300.0
 
 CHILD = """
 import json, sys
-from fuelid.plc.virtual.profiles import demo_run_profile
+from fuelid.profiles.runs import demo_run_profile
 from fuelid.plc.virtual.runner import VirtualPlcThread, site_text
 plant = sys.argv[1]
 with VirtualPlcThread("modbus", speed=1.0, seed=1, setpoint_profile=demo_run_profile()) as v:

@@ -19,8 +19,8 @@ import numpy as np
 
 from _docs_table import Table, write_page
 from fuelid.plant import load_plant_config
+from fuelid.plant.simulate import FuelTemperature, simulate
 from fuelid.profiles import random_levels, step_sequence
-from fuelid.simulate import FuelTemperature, simulate
 
 HOUR = 3600.0
 TARGET_RATIO = 1000.0

@@ -25,8 +25,8 @@ from fuelid.identify.oe import OutputError
 from fuelid.io.timeseries import IOData
 from fuelid.model import model_covariance
 from fuelid.plant import load_plant_config
+from fuelid.plant.simulate import simulate
 from fuelid.profiles import step_sequence
-from fuelid.simulate import simulate
 from fuelid.tuning.cases import DEFAULT_T_RANGE, Anchor, evaluate_fixed, plant_cases
 from fuelid.tuning.closedloop import flow_at, standard_runs
 from fuelid.tuning.rules import tune

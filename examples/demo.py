@@ -24,9 +24,9 @@ from rich.table import Table
 from fuelid.htmlreport import write_report
 from fuelid.io.logs import load_log
 from fuelid.plant import linearise, load_plant_config
+from fuelid.plant.simulate import simulate
 from fuelid.plots import plot_log, plot_step_responses, save_figure
 from fuelid.profiles import step_profile, step_sequence
-from fuelid.simulate import simulate
 from fuelid.units import LPM_PER_M3S, PA_PER_MPA, celsius_to_kelvin, kelvin_to_celsius
 from fuelid.workflow import T_REF, AnalysisSettings, LogAnalysis, PlantSource, analyse_log
 

@@ -11,13 +11,13 @@ import math
 import numpy as np
 import pytest
 
-import fuelid.simulate
+import fuelid.plant.simulate
 from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
 from fuelid.plant import PlantConfig, load_plant_config
+from fuelid.plant.simulate import simulate
 from fuelid.plant.system import operating_point
 from fuelid.profiles import InputProfile
-from fuelid.simulate import simulate
 from fuelid.tuning import PISettings, tune
 from fuelid.tuning.closedloop import (
     ClosedLoopResult,
@@ -404,8 +404,8 @@ def test_closed_loop_reading_is_the_open_loop_simulation_of_its_commands(config:
 def test_closed_loop_solver_failure_is_a_fuelid_error(
     monkeypatch: pytest.MonkeyPatch, setting: str, value: object
 ):
-    # the closed loop integrates with fuelid.simulate.integrate_held: a failed solve is refused
-    # there too, not passed on as a made-up flow
-    monkeypatch.setattr(fuelid.simulate, setting, value)
+    # the closed loop integrates with fuelid.plant.simulate.integrate_held: a failed solve is
+    # refused there too, not passed on as a made-up flow
+    monkeypatch.setattr(fuelid.plant.simulate, setting, value)
     with pytest.raises(FuelidError, match="ODE solver failed on 0…1 s"):
         _standard_run(CONFIG)

@@ -16,8 +16,8 @@ from fuelid.identify.nonlinearity import VARIATION_THRESHOLD_PERCENT, gain_bands
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, simulate_model
 from fuelid.plant import load_plant_config, operating_point
+from fuelid.plant.simulate import simulate
 from fuelid.profiles import step_sequence
-from fuelid.simulate import simulate
 from fuelid.units import LPM_PER_M3S
 
 LEVELS = [1.25, 2.0, 3.0, 4.0, 4.75, 4.0, 3.0, 2.0, 1.25]

@@ -47,8 +47,8 @@ from fuelid.plant import load_plant_config
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.linear import linearise
 from fuelid.plc.site import SiteConfig
-from fuelid.plc.virtual.profiles import Profile
 from fuelid.plc.virtual.runner import VirtualPlcThread
+from fuelid.profiles.runs import Profile
 from fuelid.store.sqlite import SQLiteStore
 from online_helpers import approve_directly as _approve
 from online_helpers import online_site as _site

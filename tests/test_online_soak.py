@@ -4,9 +4,9 @@ The service (:class:`~fuelid.online.service.OnlineService`, in this process) rec
 PLC over Modbus TCP on 127.0.0.1 into an SQLite store, identifies a 10 min window every 5 min of
 data time, tracks K(T), proposes PI gains and writes them itself (``write_back = "auto"`` with
 the site's ``[controller]``). The plant runs the wind-tunnel day of ``fuelid online --virtual``
-(:func:`~fuelid.plc.virtual.profiles.demo_run_profile`: six test points with trims) followed in
+(:func:`~fuelid.profiles.runs.demo_run_profile`: six test points with trims) followed in
 each cycle by a 17 min hold at one setpoint (no excitation), while the fuel temperature follows
-a sinusoid over −10…+45 °C (:func:`~fuelid.plc.virtual.profiles.demo_temperature`).
+a sinusoid over −10…+45 °C (:func:`~fuelid.profiles.runs.demo_temperature`).
 
 What is measured, after the run, from the store, the history and the engine (the truth):
 
@@ -104,8 +104,8 @@ from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.online.window import WindowAnalyser
 from fuelid.plant.linear import linearise
 from fuelid.plc.site import SiteConfig
-from fuelid.plc.virtual.profiles import Profile, demo_run_profile, demo_temperature
 from fuelid.plc.virtual.runner import VirtualPlcThread
+from fuelid.profiles.runs import Profile, demo_run_profile, demo_temperature
 from fuelid.store.base import SampleArrays
 from fuelid.tuning.frequency import robustness
 from fuelid.tuning.rules import PISettings

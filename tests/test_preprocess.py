@@ -14,8 +14,8 @@ import pytest
 from numpy.typing import NDArray
 
 from fuelid.errors import DataError
+from fuelid.identify.preprocess import decimate, lowpass, select
 from fuelid.io.timeseries import IOData
-from fuelid.preprocess import decimate, lowpass, select
 
 FloatArray = NDArray[np.float64]
 H = 0.02

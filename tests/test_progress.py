@@ -17,8 +17,8 @@ from fuelid.cli import app
 from fuelid.io.logs import load_log
 from fuelid.model import ProcessModel
 from fuelid.plant import load_plant_config
+from fuelid.plant.simulate import simulate
 from fuelid.profiles import step_sequence
-from fuelid.simulate import simulate
 from fuelid.workflow import (
     AnalysisSettings,
     PlantSource,

@@ -47,7 +47,7 @@ def assert_one_line_error(code: int, err: str, *needles: str) -> None:
 
 def start_virtual(ring_size: int | None = None) -> Any:
     runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
-    from fuelid.plc.virtual.profiles import steps_profile
+    from fuelid.profiles.runs import steps_profile
 
     # MAN steps of ±0.2 V around 3.0 V: the linearisation of `plant info --u 3` holds there
     profile = steps_profile(levels=(3.0, 3.2, 2.8, 3.2, 2.8, 3.0), dwell_s=10.0)

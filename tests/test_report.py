@@ -24,8 +24,8 @@ from fuelid.errors import DataError, FuelidError
 from fuelid.htmlreport import FIGURE_KEYS, figure_paths, write_report
 from fuelid.io.logs import load_log
 from fuelid.plant import linearise, load_plant_config
+from fuelid.plant.simulate import simulate
 from fuelid.profiles import step_sequence
-from fuelid.simulate import simulate
 from fuelid.tuning.frequency import robustness
 from fuelid.units import celsius_to_kelvin
 from fuelid.workflow import AnalysisSettings, LogAnalysis, PlantSource, analyse_log

@@ -23,8 +23,8 @@ import pytest
 from fuelid.htmlreport import FIGURE_KEYS, write_report
 from fuelid.io.logs import load_log
 from fuelid.plant import load_plant_config
+from fuelid.plant.simulate import simulate
 from fuelid.profiles import step_sequence
-from fuelid.simulate import simulate
 from fuelid.units import celsius_to_kelvin
 from fuelid.workflow import AnalysisSettings, PlantSource, analyse_log
 

@@ -19,10 +19,10 @@ from fuelid.identify.diagnostics import (
     input_residual_correlation,
     steady_state_errors,
 )
+from fuelid.identify.preprocess import decimate, join_segments, lowpass, select
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, drop_short_segments
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, nrmse_fit, simulate_model
-from fuelid.preprocess import decimate, join_segments, lowpass, select
 
 H = 0.1
 TRUTH = ProcessModel(K=3.0, T=2.0, delay=0.4)

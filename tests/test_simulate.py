@@ -13,12 +13,12 @@ import math
 import numpy as np
 import pytest
 
-import fuelid.simulate
+import fuelid.plant.simulate
 from fuelid.errors import FuelidError
 from fuelid.plant import PlantConfig, linearise, load_plant_config, operating_point
+from fuelid.plant.simulate import FuelTemperature, SimulationResult, integrate_held, simulate
 from fuelid.plant.system import plant_coefficients, steady_state
 from fuelid.profiles import InputProfile, step_profile
-from fuelid.simulate import FuelTemperature, SimulationResult, integrate_held, simulate
 
 LPM = 60_000.0  # L/min per m³/s
 T20 = 293.15
@@ -307,7 +307,7 @@ def test_solver_failure_is_a_fuelid_error(
 ) -> None:
     # a solver that gives up (too few steps allowed, an impossible tolerance) must not pass
     # silently, nor as a bare warning: it is refused with the span and the solver's reason
-    monkeypatch.setattr(fuelid.simulate, setting, value)
+    monkeypatch.setattr(fuelid.plant.simulate, setting, value)
     c = plant_coefficients(cfg, T20)
     with pytest.raises(FuelidError, match=f"ODE solver failed on 0…2 s at u = 3 V: {message}"):
         integrate_held(steady_state(2.0, c).state, np.array([0.0, 1.0, 2.0]), 3.0, c)

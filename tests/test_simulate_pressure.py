@@ -21,9 +21,9 @@ from fuelid.cli import app
 from fuelid.errors import FuelidError
 from fuelid.io.timeseries import PRESSURE_COLUMN
 from fuelid.plant import PlantConfig, load_plant_config
+from fuelid.plant.simulate import SimulationResult, integrate_held, simulate
 from fuelid.plant.system import plant_coefficients, steady_state
 from fuelid.profiles import step_profile
-from fuelid.simulate import SimulationResult, integrate_held, simulate
 
 T20 = 293.15
 MPA = 1e6  # Pa per MPa

@@ -626,7 +626,7 @@ def test_equivalent_model_parameters_are_plain_floats() -> None:
 def test_plant_import_does_not_load_python_control() -> None:
     # python-control takes about a second to import; the CLI must not pay it to load a plant
     code = (
-        "import sys, fuelid.plant, fuelid.simulate\n"
+        "import sys, fuelid.plant, fuelid.plant.simulate\n"
         "from fuelid.plant import linearise, load_plant_config\n"
         "linearise(load_plant_config(), 3.0, 293.15).step_response([0.0, 1.0])\n"
         "print('control' in sys.modules)"

@@ -38,8 +38,8 @@ from fuelid.plc.virtual.engine import (
     commissioning_gains,
 )
 from fuelid.plc.virtual.points import POINTS, RING_FIRST_REGISTER, RING_HEAD_REGISTER
-from fuelid.plc.virtual.profiles import Profile, load_profile, run_profile, steps_profile
 from fuelid.plc.virtual.runner import site_text
+from fuelid.profiles.runs import Profile, load_profile, run_profile, steps_profile
 from fuelid.units import LPM_PER_M3S, celsius_to_kelvin
 from fuelid.workflow.plant_info import plant_info
 

@@ -25,6 +25,7 @@ from fuelid.greybox.parameters import ParameterSpec
 from fuelid.greybox.system import Record
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.parameters import plant_parameters, with_parameters
+from fuelid.plant.simulate import ATOL
 from fuelid.plant.system import (
     N_STATES,
     STATE_NAMES,
@@ -35,7 +36,6 @@ from fuelid.plant.system import (
     plant_rhs,
     steady_state,
 )
-from fuelid.simulate import ATOL
 from fuelid.units import LPM_PER_M3S, PA_PER_MPA
 
 FloatArray = NDArray[np.float64]

@@ -187,7 +187,7 @@ def _number(value: float | None) -> float:
 
 
 def _plot(result: Any, path: Path) -> None:
-    from fuelid.plots_greybox import FitPanel, plot_greybox_fit, save_greybox_figure
+    from fuelid.plots import FitPanel, plot_greybox_fit, save_figure
 
     names = ["flow [L/min]"] + (["pressure [MPa]"] if result.simulated[0].shape[1] > 1 else [])
     panels = []
@@ -214,9 +214,7 @@ def _plot(result: Any, path: Path) -> None:
                 input_names=["command [V]"],
             )
         )
-    save_greybox_figure(
-        plot_greybox_fit(panels, names, title="calibrated plant against the logs"), path
-    )
+    save_figure(plot_greybox_fit(panels, names, title="calibrated plant against the logs"), path)
 
 
 def _print(result: Any, written: Path | None) -> None:

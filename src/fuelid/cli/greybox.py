@@ -580,7 +580,7 @@ def _plot(
     model_file: Path,
     input_names: list[str],
 ) -> None:
-    from fuelid.plots_greybox import FitPanel, plot_greybox_fit, save_greybox_figure
+    from fuelid.plots import FitPanel, plot_greybox_fit, save_figure
 
     panels = [
         FitPanel(
@@ -616,7 +616,7 @@ def _plot(
     fig = plot_greybox_fit(
         panels, estimator.model.output_names, title=f"{model_file.name}: measured and simulated"
     )
-    save_greybox_figure(fig, path)
+    save_figure(fig, path)
 
 
 # --- text output ----------------------------------------------------------------------------------

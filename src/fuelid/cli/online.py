@@ -265,8 +265,8 @@ def _run_virtual(
     from importlib import resources
 
     from fuelid.plc.site import load_site
-    from fuelid.plc.virtual.profiles import demo_run_profile, demo_temperature
     from fuelid.plc.virtual.runner import VirtualPlcThread
+    from fuelid.profiles.runs import demo_run_profile, demo_temperature
 
     if not (math.isfinite(speed) and 0.0 < speed <= 1000.0):
         raise ConfigError(f"--speed must be within (0, 1000], got {speed:g}")
@@ -805,10 +805,10 @@ def revert_command(
 
 
 def __getattr__(name: str) -> Any:
-    # the virtual run's profiles live in fuelid.plc.virtual.profiles (numpy: imported on use,
+    # the virtual run's profiles live in fuelid.profiles.runs (numpy: imported on use,
     # so `fuelid --help` stays light); kept importable from here
     if name in ("demo_run_profile", "demo_temperature"):
-        from fuelid.plc.virtual import profiles
+        from fuelid.profiles import runs as profiles
 
         return getattr(profiles, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -178,13 +178,13 @@ def _serve(
 
     from fuelid.plant import load_plant_config
     from fuelid.plc.virtual.engine import VirtualPLC
-    from fuelid.plc.virtual.profiles import load_profile
     from fuelid.plc.virtual.runner import (
         DEFAULT_PORTS,
         frontend_class,
         serve_until_stopped,
         site_text,
     )
+    from fuelid.profiles.runs import load_profile
 
     if not is_loopback(host) and not allow_remote:
         raise FuelidError(

@@ -156,7 +156,7 @@ def simulate_command(
     from fuelid.io.files import check_output_path
     from fuelid.io.timeseries import PRESSURE_COLUMN
     from fuelid.plant import load_plant_config
-    from fuelid.simulate import PRESSURE_NOISE_STD, PRESSURE_RESOLUTION
+    from fuelid.plant.simulate import PRESSURE_NOISE_STD, PRESSURE_RESOLUTION
     from fuelid.workflow.simulation import SimulationRequest, simulate_log, simulation_inputs
 
     out = check_output_path(output, overwrite=force)

@@ -38,7 +38,7 @@ from fuelid.cli._common import (
 from fuelid.errors import FuelidError
 
 if TYPE_CHECKING:
-    from fuelid.io.modelfile import ModelFile
+    from fuelid.io.fitted_model import FittedModel
     from fuelid.model import ProcessModel
     from fuelid.workflow import ScheduleOutcome, TuneOutcome
 
@@ -351,9 +351,9 @@ def _model_from_options(
     T_f: float | None,
     delay: float | None,
     need_cov: bool = False,
-) -> tuple[ProcessModel | None, ModelFile | None]:
+) -> tuple[ProcessModel | None, FittedModel | None]:
     """The model of ``--model`` (with the file's covariance) or of ``--K --T ...``; None: none."""
-    from fuelid.io.modelfile import load_model_file
+    from fuelid.io.fitted_model import load_fitted_model
     from fuelid.model import ProcessModel
 
     flags = {"--K": K, "--T": T, "--T2": T2, "--flowmeter-T (--T-f)": T_f, "--delay": delay}
@@ -361,7 +361,7 @@ def _model_from_options(
     if model_file is not None:
         if given:
             raise FuelidError(f"give either --model or {', '.join(given)}, not both")
-        loaded = load_model_file(model_file)
+        loaded = load_fitted_model(model_file)
         if need_cov and loaded.cov_problem is not None:
             raise FuelidError(
                 f"--sweep draws from the covariance of {str(model_file)!r}, but "

@@ -3,6 +3,14 @@
 The user (or :mod:`fuelid.calibration` for the fuel plant) writes the model; the estimator
 integrates it with its forward sensitivities, fits one or several records at once, and says what
 the data determine (:mod:`fuelid.greybox.identifiability`).
+
+The public API
+--------------
+The names in ``__all__``, and at :mod:`fuelid.greybox.modelfile` the reading of a user's Python
+model file (``fuelid greybox --model``): :func:`~fuelid.greybox.modelfile.load_model_file` (an
+:class:`OdeModel`) and :func:`~fuelid.greybox.modelfile.read_model_file` (its
+:class:`~fuelid.greybox.modelfile.ModelFile`, the model with what the file declared). A fitted
+model saved as JSON is read by :mod:`fuelid.io.fitted_model` instead.
 """
 
 from fuelid.greybox.estimator import (

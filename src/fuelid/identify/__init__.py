@@ -11,7 +11,12 @@
   the operating point?);
 - :mod:`~fuelid.identify.segments`: how a log with gaps is fitted (one model, an initial state
   per segment);
-- :mod:`~fuelid.identify.procedure`: what ``fuelid identify`` runs (:func:`identify`).
+- :mod:`~fuelid.identify.procedure`: what ``fuelid identify`` runs (:func:`identify`);
+- :mod:`~fuelid.identify.preprocess`: the data made ready for a fit: a time window
+  (:func:`~fuelid.identify.preprocess.select`), zero-phase low-pass filtering
+  (:func:`~fuelid.identify.preprocess.lowpass`), decimation with its anti-alias filter
+  (:func:`~fuelid.identify.preprocess.decimate`), records joined as segments
+  (:func:`~fuelid.identify.preprocess.join_segments`). ``fuelid.preprocess`` before 0.2.0.
 
 The methods, their assumptions and references: docs/identification.md.
 
@@ -53,6 +58,14 @@ model for all segments, each segment simulated on its own with its own initial s
 simulated, filtered or correlated across a gap (:mod:`~fuelid.identify.segments`).
 
 Methods are named in one registry, :data:`~fuelid.identify.procedure.METHODS`.
+
+The public API
+--------------
+The names in ``__all__`` (the estimators, :func:`identify` and its result, the diagnostics), and
+:func:`~fuelid.identify.preprocess.select`, :func:`~fuelid.identify.preprocess.lowpass`,
+:func:`~fuelid.identify.preprocess.decimate`, :func:`~fuelid.identify.preprocess.join_segments`
+at :mod:`fuelid.identify.preprocess` (the old path ``fuelid.preprocess`` still imports, with a
+DeprecationWarning).
 """
 
 from __future__ import annotations

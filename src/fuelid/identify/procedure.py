@@ -27,11 +27,11 @@ from fuelid.identify import diagnostics
 from fuelid.identify.nonlinearity import NonlinearityCheck, gain_bands
 from fuelid.identify.oe import OutputError
 from fuelid.identify.pem import PredictionError
+from fuelid.identify.preprocess import decimate
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, drop_short_segments
 from fuelid.identify.step_ls import StepResponseLS
 from fuelid.io.timeseries import IOData
 from fuelid.model import MODEL_KEYS, Z95, ProcessModel, gain_not_identified, nrmse_fit
-from fuelid.preprocess import decimate
 
 FloatArray = NDArray[np.float64]
 Method = Literal["oe", "step-ls", "pem", "auto"]

@@ -25,9 +25,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from fuelid.identify.preprocess import join_segments
 from fuelid.io.timeseries import FloatArray, IOData
 from fuelid.lti import DiscreteLagModel
-from fuelid.preprocess import join_segments
 
 MIN_SEGMENT_SAMPLES = 20
 """Fewest samples a segment of a record with gaps must have to be fitted [samples]."""

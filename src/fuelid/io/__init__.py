@@ -5,10 +5,27 @@
 - :mod:`~fuelid.io.tables`: reading CSV-like and Parquet tables as PLC exports come;
 - :mod:`~fuelid.io.logs`: :func:`load_log`, a log's columns, scalings, time stamps, gaps;
 - :mod:`~fuelid.io.files`: atomic writes, refusing to overwrite;
-- :mod:`~fuelid.io.modelfile`: a model (and covariance) from a JSON result;
+- :mod:`~fuelid.io.jsonsafe`: :func:`~fuelid.io.jsonsafe.json_ready`, the one conversion of
+  results to what ``json.dumps`` accepts (NaN and infinities as null);
+- :mod:`~fuelid.io.fitted_model`: a fitted model (and covariance) from a JSON result;
 - :mod:`~fuelid.io.plantfile`: new parameter values and a ``[calibration]`` table written into a
   plant TOML file, its comments and layout kept (tomlkit).
 
 This layer reads and writes; it computes nothing beyond unit scaling and resampling onto a
 uniform grid. Import the submodule you need (pandas is loaded by the readers and writers only).
+
+The public API
+--------------
+The package itself exports no names (``__all__`` is empty), so that importing it loads no pandas.
+Promised at their submodules: :class:`~fuelid.io.timeseries.TimeSeries` and
+:class:`~fuelid.io.timeseries.IOData` (:mod:`fuelid.io.timeseries`),
+:func:`~fuelid.io.logs.load_log` (:mod:`fuelid.io.logs`), :func:`~fuelid.io.tables.read_table`
+(:mod:`fuelid.io.tables`), :func:`~fuelid.io.files.write_table` (:mod:`fuelid.io.files`),
+:class:`~fuelid.io.fitted_model.FittedModel` and :func:`~fuelid.io.fitted_model.load_fitted_model`
+(:mod:`fuelid.io.fitted_model`; ``fuelid.io.modelfile``'s ``ModelFile`` and ``load_model_file``
+before 0.2.0, still importable with a DeprecationWarning), :func:`~fuelid.io.jsonsafe.json_ready`
+(:mod:`fuelid.io.jsonsafe`), :func:`~fuelid.io.plantfile.update_plant_file`
+(:mod:`fuelid.io.plantfile`).
 """
+
+__all__: list[str] = []

@@ -8,6 +8,11 @@
   validation fit, residual correlation by size; the plant-ratio event).
 - :mod:`~fuelid.online.tracking`: the loop gain against fuel temperature from accepted windows
   (the ratio to the plant model's K, or K per command band), with prediction intervals.
+
+The public API
+--------------
+The names in ``__all__``. The service that runs them (``fuelid online``) is driven through the
+command line; its modules' other names are not promised yet.
 """
 
 from __future__ import annotations

@@ -7,7 +7,19 @@
 - :mod:`~fuelid.plant.parameters`: the registry of its numeric parameters by dotted name;
 - :mod:`~fuelid.plant.system`: coefficients, nonlinear ODE, operating point;
 - :mod:`~fuelid.plant.linear`: linearisation and reduction to the model family;
-- :mod:`~fuelid.plant.uncertainty`: the calibration's covariance propagated to K, T, settling.
+- :mod:`~fuelid.plant.uncertainty`: the calibration's covariance propagated to K, T, settling;
+- :mod:`~fuelid.plant.simulate`: the nonlinear plant in time as the PLC sees it (a held command,
+  the meter's dead time, noise and quantisation). It fills an :class:`~fuelid.io.timeseries.IOData`
+  from an :class:`~fuelid.profiles.InputProfile`, so ``io`` and ``profiles`` sit below this
+  package (pyproject.toml's layer contract).
+
+The public API
+--------------
+The names in ``__all__``, and at :mod:`fuelid.plant.simulate`:
+:func:`~fuelid.plant.simulate.simulate`, :class:`~fuelid.plant.simulate.SimulationResult`,
+:class:`~fuelid.plant.simulate.FuelTemperature`, :func:`~fuelid.plant.simulate.integrate_held`
+(``fuelid.simulate`` before 0.2.0; that path still imports, with a DeprecationWarning). ``import
+fuelid.plant`` does not load the simulator.
 """
 
 from __future__ import annotations

@@ -10,6 +10,10 @@ gains, a little state) in the same SQLite file, on a connection of its own.
 
 Every table, the schema's versions and the migrations that upgrade an older store are in
 :mod:`fuelid.store.schema`.
+
+The public API
+--------------
+The names in ``__all__``, at ``fuelid.store`` itself.
 """
 
 from __future__ import annotations

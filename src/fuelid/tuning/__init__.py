@@ -18,6 +18,11 @@
 Inside, the fuel temperature is in kelvin (``T_fuel``); °C appears only in JSON and messages.
 The tuning parameter of the rules is the closed-loop time constant (τc or λ, ``closed_loop_time``
 [s]): larger is slower. See docs/tuning.md.
+
+The public API
+--------------
+The names in ``__all__``, and :func:`~fuelid.tuning.closedloop.simulate_closed_loop` at
+:mod:`fuelid.tuning.closedloop`.
 """
 
 from __future__ import annotations

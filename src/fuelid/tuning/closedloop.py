@@ -7,10 +7,10 @@ plus back-calculation anti-windup with tracking time Tt). Gain changes are bumpl
 absorbs the change of the proportional term so the output does not jump.
 
 :func:`simulate_closed_loop` runs it against the nonlinear plant (one
-:func:`fuelid.simulate.integrate_held` per control period, the integration that
-:func:`fuelid.simulate.simulate` uses), the meter's delay applied exactly on a fine output grid,
-the limits and anti-windup active, setpoint steps and load disturbances (a step at the plant
-input, in V: a drive offset, pump wear). :func:`standard_runs` is the test
+:func:`fuelid.plant.simulate.integrate_held` per control period, the integration that
+:func:`fuelid.plant.simulate.simulate` uses), the meter's delay applied exactly on a fine
+output grid, the limits and anti-windup active, setpoint steps and load disturbances (a step at
+the plant input, in V: a drive offset, pump wear). :func:`standard_runs` is the test
 ``fuelid tune --simulate`` and ``fuelid report`` show. The fast linear loop on the process model
 lives in :mod:`fuelid.tuning.linearloop` and the step metrics in :mod:`fuelid.tuning.metrics`;
 both are re-exported here. Fuel temperatures are in kelvin (``T_fuel``), flows in L/min, commands
@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from fuelid.errors import FuelidError
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.flowmeter import measure_flow
+from fuelid.plant.simulate import integrate_held
 from fuelid.plant.system import (
     measured_state,
     operating_point,
@@ -38,7 +39,6 @@ from fuelid.plant.system import (
     steady_state,
 )
 from fuelid.profiles import InputProfile
-from fuelid.simulate import integrate_held
 from fuelid.tuning.controller import DiscretePI
 from fuelid.tuning.linearloop import (
     CONTINUOUS_PERIOD,
@@ -252,7 +252,7 @@ def simulate_closed_loop(
     FuelidError
         On a negative noise level or resolution, a non-positive sample time, a run shorter than
         one control period, a start flow the plant cannot hold, or a failed ODE solve
-        (:func:`fuelid.simulate.integrate_held`).
+        (:func:`fuelid.plant.simulate.integrate_held`).
     """
     h = pi.control_period if pi.control_period > 0.0 else CONTINUOUS_PERIOD
     if not (math.isfinite(sample_time) and sample_time > 0.0):

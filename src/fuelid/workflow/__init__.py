@@ -18,6 +18,10 @@ or writes files. Fuel temperatures are in kelvin throughout (``T_fuel``, ``T_ran
   (``fuelid simulate``) and the profile-file reader :func:`read_profile`.
 
 See docs/architecture.md for where this layer sits.
+
+The public API
+--------------
+The names in ``__all__``, at ``fuelid.workflow`` itself (each loads its stage on first use).
 """
 
 from __future__ import annotations

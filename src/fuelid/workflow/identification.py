@@ -11,10 +11,10 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
+from fuelid.identify.preprocess import select
 from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel
-from fuelid.preprocess import select
 from fuelid.units import celsius_to_kelvin
 from fuelid.workflow.assumptions import (
     OperatingPoint,

@@ -3,7 +3,7 @@
 A :class:`SimulationRequest` names the command profile (a step, a step sequence, random levels or
 a table read from a file by :func:`read_profile`), the fuel temperature [K] (constant, a ramp or
 the file's trajectory), the sampling and the meter's noise; :func:`simulate_log` builds the
-inputs (:func:`simulation_inputs`), runs :func:`fuelid.simulate.simulate` and returns a
+inputs (:func:`simulation_inputs`), runs :func:`fuelid.plant.simulate.simulate` and returns a
 :class:`SimulationOutcome` whose :meth:`~SimulationOutcome.to_json` is the documented summary
 (README.md). Nothing here writes the log: the caller writes :meth:`SimulationOutcome.to_log`.
 """
@@ -28,14 +28,14 @@ from fuelid.io.timeseries import (
     TimeSeries,
 )
 from fuelid.plant.config import PlantConfig
-from fuelid.profiles import InputProfile, held_profile, random_levels, step_profile, step_sequence
-from fuelid.simulate import (
+from fuelid.plant.simulate import (
     PRESSURE_NOISE_STD,
     PRESSURE_RESOLUTION,
     FuelTemperature,
     SimulationResult,
     simulate,
 )
+from fuelid.profiles import InputProfile, held_profile, random_levels, step_profile, step_sequence
 from fuelid.units import celsius_to_kelvin
 
 PROFILES = ("step", "steps", "random", "file")
@@ -292,7 +292,7 @@ def simulate_log(
     """Simulate ``config`` as ``request`` asks: the chain behind ``fuelid simulate``.
 
     The plant starts at rest at the first command; the controller output is held for
-    ``request.control_period`` (:func:`fuelid.simulate.simulate`).
+    ``request.control_period`` (:func:`fuelid.plant.simulate.simulate`).
 
     Parameters
     ----------

@@ -9,8 +9,8 @@ Time. Sample ``k`` is taken at plant time ``t_k = k·period_s``; its sequence nu
 ``(seq0 + k) mod 2**32``. Every ``control_period_s`` (sample k a multiple of
 ``n = control_period_s/period_s``) the PLC scans: it reads the write area (what clients wrote by
 then), the flow reading of that sample, runs the PI (or takes the manual command) and holds the
-command over the next ``n`` samples. The plant (:func:`fuelid.simulate.integrate_held`, the same
-nonlinear ODE as ``fuelid simulate``) is therefore integrated once per control period with the
+command over the next ``n`` samples. The plant (:func:`fuelid.plant.simulate.integrate_held`, the
+same nonlinear ODE as ``fuelid simulate``) is therefore integrated once per control period with the
 ``n + 1`` sample times as its output times, not once per sample, which is what makes 50–1000 times
 real time possible. The fuel temperature is held within a control period at its midpoint value.
 
@@ -76,6 +76,7 @@ from numpy.typing import ArrayLike, NDArray
 from fuelid.errors import ConfigError, DataError
 from fuelid.plant import load_plant_config
 from fuelid.plant.config import PlantConfig
+from fuelid.plant.simulate import FuelTemperature, integrate_held
 from fuelid.plant.system import measured_state, plant_coefficients, steady_state
 from fuelid.plc.virtual.analog import from_counts, to_counts
 from fuelid.plc.virtual.commissioning import commissioning_gains as commissioning_gains
@@ -86,8 +87,7 @@ from fuelid.plc.virtual.points import (
     POINTS,
     RING_FIELDS,
 )
-from fuelid.plc.virtual.profiles import Profile, run_profile, steps_profile
-from fuelid.simulate import FuelTemperature, integrate_held
+from fuelid.profiles.runs import Profile, run_profile, steps_profile
 from fuelid.tuning.closedloop import steady_command
 from fuelid.tuning.controller import DiscretePI
 from fuelid.tuning.rules import PISettings
@@ -154,13 +154,13 @@ class VirtualPLC:
         Constant fuel temperature [°C] (when no profile is given).
     fuel_temp_profile : Profile, (times [s], temperatures [°C]) or FuelTemperature, optional
         Fuel-temperature drift: interpolated, held after its end. A
-        :class:`~fuelid.simulate.FuelTemperature` is in kelvin.
+        :class:`~fuelid.plant.simulate.FuelTemperature` is in kelvin.
     setpoint_profile : "run", Profile or (times [s], setpoints [L/min]), optional
-        A setpoint profile, repeated; "run" is :func:`~fuelid.plc.virtual.profiles.run_profile`.
+        A setpoint profile, repeated; "run" is :func:`~fuelid.profiles.runs.run_profile`.
         The PLC runs in AUTO while it plays.
     command_profile : "steps", Profile or (times [s], commands [V]), optional
         A manual command profile, repeated; "steps" is
-        :func:`~fuelid.plc.virtual.profiles.steps_profile`. The PLC runs in MAN while it plays.
+        :func:`~fuelid.profiles.runs.steps_profile`. The PLC runs in MAN while it plays.
     seed : int, optional
         Seed of the measurement noise (None: fresh entropy).
     ring_size : int

@@ -1,0 +1,66 @@
+"""Figures (matplotlib) of the plant, simulations, identification, tuning and gray-box fits.
+
+Computation never lives here: every function takes results computed elsewhere and draws them.
+Figures are built with :class:`matplotlib.figure.Figure` directly (no pyplot state, no GUI
+backend), so they work on a headless machine. matplotlib is imported inside the functions, so a
+command that draws nothing never loads it (docs/architecture.md, "Rules"). Temperatures arrive in
+kelvin and are shown in °C.
+
+- :mod:`~fuelid.plots.identification`: a PLC log, step responses, the model against the data
+  and the residual correlation tests;
+- :mod:`~fuelid.plots.tuning`: the loop's Bode plot, the linear closed loop, closed-loop runs on
+  the plant, the gain schedule, and the figures of ``fuelid tune --plot``;
+- :mod:`~fuelid.plots.greybox`: a gray-box fit, measured against simulated, with residuals;
+- :mod:`~fuelid.plots.online`: the online service's history.
+
+The public API
+--------------
+Every name in ``__all__`` is promised at ``fuelid.plots`` itself (as when it was one module,
+before 0.2.0): :func:`save_figure` saves any of the figures, the ``plot_*`` and ``*_figure``
+functions draw them, :class:`FitPanel` is one record's column of the gray-box figure,
+:data:`DRIVE_LIMITS`, :data:`NO_UNIT` and :data:`PROPOSAL_COLOURS` are the drawing's constants.
+The old module ``fuelid.plots_greybox`` still imports, with a DeprecationWarning.
+"""
+
+from __future__ import annotations
+
+from fuelid.plots._common import DRIVE_LIMITS, NO_UNIT, FloatArray, save_figure
+from fuelid.plots.greybox import FitPanel, plot_greybox_fit
+from fuelid.plots.identification import (
+    plot_correlation_tests,
+    plot_identification,
+    plot_log,
+    plot_step_responses,
+)
+from fuelid.plots.online import PROPOSAL_COLOURS, plot_online_history
+from fuelid.plots.tuning import (
+    plot_bode,
+    plot_closed_loop_runs,
+    plot_linear_closed_loop,
+    plot_schedule,
+    runs_figure,
+    schedule_figure,
+    tune_figure,
+)
+
+__all__ = [
+    "DRIVE_LIMITS",
+    "NO_UNIT",
+    "PROPOSAL_COLOURS",
+    "FitPanel",
+    "FloatArray",
+    "plot_bode",
+    "plot_closed_loop_runs",
+    "plot_correlation_tests",
+    "plot_greybox_fit",
+    "plot_identification",
+    "plot_linear_closed_loop",
+    "plot_log",
+    "plot_online_history",
+    "plot_schedule",
+    "plot_step_responses",
+    "runs_figure",
+    "save_figure",
+    "schedule_figure",
+    "tune_figure",
+]

@@ -1,0 +1,59 @@
+"""What the figures share: units on their axes, the drive's command range, saving a figure.
+
+Every figure of :mod:`fuelid.plots` labels an axis ``quantity [unit]`` (:data:`NO_UNIT` in the
+brackets when a log does not state it) and is saved by :func:`save_figure`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fuelid.errors import DataError
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+FloatArray = NDArray[np.float64]
+
+DRIVE_LIMITS = (1.0, 5.0)
+"""The drive's command range [V] (the reference plant's ``u_min_V``/``u_max_V``), drawn as lines
+on the command axis of closed-loop figures."""
+NO_UNIT = "unit not given"
+"""Shown in brackets on an axis whose unit the log does not state."""
+
+
+def _unit_of(label: str) -> str | None:
+    """The unit in a label's trailing brackets, ``"flow q [L/min]"`` → ``"L/min"``."""
+    label = label.strip()
+    if label.endswith("]") and "[" in label:
+        return label[label.rindex("[") + 1 : -1]
+    return None
+
+
+def _with_unit(label: str, unit: str | None) -> str:
+    """``label [unit]``, unless the label already ends with a unit in brackets."""
+    if _unit_of(label) is not None:
+        return label
+    return f"{label} [{unit or NO_UNIT}]"
+
+
+def _include(ax: Axes, *values: float) -> None:
+    """Widen an axis' y range so that it shows ``values`` with a margin (e.g. a zero baseline)."""
+    lo, hi = ax.get_ylim()
+    new_lo, new_hi = min(lo, *values), max(hi, *values)
+    pad = 0.05 * (new_hi - new_lo) if new_hi > new_lo else 1.0
+    ax.set_ylim(new_lo - pad if new_lo < lo else lo, new_hi + pad if new_hi > hi else hi)
+
+
+def save_figure(fig: Figure, path: str | Path) -> Path:
+    """Save a figure (format from the extension), refusing a missing folder clearly."""
+    out = Path(path)
+    if not out.parent.is_dir():
+        raise DataError(f"figure folder {str(out.parent)!r} does not exist")
+    fig.savefig(out, dpi=120, bbox_inches="tight")
+    return out
