@@ -450,7 +450,7 @@ def _validate(estimator: GreyBoxEstimator, record: Record) -> dict[str, Any]:
     """Simulate the fitted model over the validation record: outputs, fit %, RMSE."""
     import numpy as np
 
-    from fuelid.greybox import fit_percent
+    from fuelid.model import nrmse_fit_columns
 
     x0 = estimator.validation_initial_state(record)
     trajectory = estimator.simulate(record, x0)
@@ -462,7 +462,7 @@ def _validate(estimator: GreyBoxEstimator, record: Record) -> dict[str, Any]:
     ]
     return {
         "y_hat": y_hat,
-        "fit": [float(v) for v in fit_percent(record.y, y_hat)],
+        "fit": [float(v) for v in nrmse_fit_columns(record.y, y_hat)],
         "rmse": rmse,
         "x0": trajectory.states[0],
         "convention": "model" if x0 is None else "estimate",
