@@ -11,7 +11,14 @@
   the operating point?);
 - :mod:`~fuelid.identify.segments`: how a log with gaps is fitted (one model, an initial state
   per segment);
-- :mod:`~fuelid.identify.procedure`: what ``fuelid identify`` runs (:func:`identify`).
+- :mod:`~fuelid.identify.procedure`: what ``fuelid identify`` runs (:func:`identify`); its
+  settings and result in :mod:`~fuelid.identify.result`, its warnings in
+  :mod:`~fuelid.identify.residual_warnings`.
+
+Their building blocks: :mod:`~fuelid.identify.variable_projection` (the output-error model as a
+regression for given time constants, shared by oe, pem and noise),
+:mod:`~fuelid.identify.prediction_errors` (pem's criterion and noise model) and
+:mod:`~fuelid.identify.step_shape` (step-ls's second stage).
 
 The methods, their assumptions and references: docs/identification.md.
 
