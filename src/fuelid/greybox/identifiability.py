@@ -19,7 +19,7 @@ the data may pin them down only through the noise model's exactness, which real 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -307,3 +307,43 @@ def structural_report(
         (),
         report.zero_sensitivity,
     ).with_advice(advice)
+
+
+def describe_identifiability(report: Mapping[str, Any]) -> list[str]:
+    """The report in its JSON form (:meth:`IdentifiabilityReport.to_json`) as text lines."""
+    condition = report["condition_number"]
+    gamma = report["collinearity_index"]
+    lines = [
+        f"identifiability: rank {report['rank']} of {report['n_estimated']} "
+        f"({', '.join(report['parameters'])}); condition number "
+        f"{'inf' if condition is None else f'{condition:.3g}'}; collinearity index "
+        f"{'inf' if gamma is None else f'{gamma:.3g}'} (1: independent sensitivities)"
+    ]
+    combos = report["undetermined"]
+    lines.append(
+        "undetermined combinations: "
+        + (
+            "; ".join(
+                f"{c['combination']} (±{100 * c['relative_uncertainty']:.3g} %)"
+                if c["relative_uncertainty"] is not None
+                else f"{c['combination']} (unbounded)"
+                for c in combos
+            )
+            or "none"
+        )
+    )
+    pairs = report["confounded_pairs"]
+    lines.append(
+        "confounded pairs: "
+        + (
+            "; ".join(
+                f"{p['parameters'][0]}–{p['parameters'][1]} (sensitivity correlation "
+                f"{p['sensitivity_correlation']:.4f})"
+                for p in pairs
+            )
+            or "none"
+        )
+    )
+    if report["zero_sensitivity"]:
+        lines.append(f"no effect on the outputs: {', '.join(report['zero_sensitivity'])}")
+    return lines
