@@ -18,7 +18,7 @@
 Their building blocks: :mod:`~fuelid.identify.variable_projection` (the output-error model as a
 regression for given time constants, shared by oe, pem and noise),
 :mod:`~fuelid.identify.prediction_errors` (pem's criterion and noise model) and
-:mod:`~fuelid.identify.step_shape` (step-ls's second stage).
+:mod:`~fuelid.identify.step_shape_fit` (step-ls's second stage).
 
 The methods, their assumptions and references: docs/identification.md.
 

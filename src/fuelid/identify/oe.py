@@ -50,6 +50,7 @@ from fuelid.identify.diagnostics import (
 from fuelid.identify.order import Candidate, OrderChoice, bic, choose_order
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, offset_and_free_responses
 from fuelid.identify.variable_projection import (
+    GRID_SAMPLES,
     Bounds,
     LinearFit,
     Structure,
@@ -576,4 +577,4 @@ _subsample = subsample
 _solve = solve_linear
 _jacobian = jacobian
 
-__all__ = ["Bounds", "OutputError", "continue_fitted", "cramer_rao_bound"]
+__all__ = ["GRID_SAMPLES", "Bounds", "OutputError", "continue_fitted", "cramer_rao_bound"]

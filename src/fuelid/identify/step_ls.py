@@ -11,8 +11,8 @@ superposition gives, in deviations from the initial steady state,
 for the rows k = N … n−1 (each needs N past inputs). The rows are stacked into
 :math:`Y = \Phi\theta + e`, :math:`\theta = [a_1 \dots a_N]^T`, and solved by least squares.
 
-Stage 2 (:mod:`fuelid.identify.step_shape`). The model step response with the flowmeter's T_f and
-dead time τ known,
+Stage 2 (:mod:`fuelid.identify.step_shape_fit`). The model step response with the flowmeter's
+T_f and dead time τ known,
 
 .. math:: s(t) = K\left[1 - \frac{T e^{-t'/T} - T_f e^{-t'/T_f}}{T - T_f}\right],
           \qquad t' = t - \tau \;(s = 0 \text{ for } t' \le 0),
@@ -59,7 +59,7 @@ from numpy.typing import NDArray
 from fuelid.errors import FuelidError, NotExcitingError
 from fuelid.identify._base import Estimator, Initial
 from fuelid.identify.segments import offset_and_free_responses
-from fuelid.identify.step_shape import _MAX_ITER, fit_step_shape, step_shape
+from fuelid.identify.step_shape_fit import _MAX_ITER, fit_step_shape, step_shape
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel
@@ -454,7 +454,7 @@ class StepResponseLS(Estimator):
             )
 
     def _fit_model(self, a: FloatArray, T_s: float) -> None:
-        """Stage 2 (:func:`~fuelid.identify.step_shape.fit_step_shape`), its warnings and errors."""
+        """Stage 2 (:func:`~fuelid.identify.step_shape_fit.fit_step_shape`) and its warnings."""
         N = a.size
         T_f = float(self.T_f)
         shape = fit_step_shape(a, T_s, T_f, self.delay)
