@@ -87,3 +87,19 @@ def test_greybox_fit_percent_still_works_and_warns() -> None:
     y = np.array([[0.0], [1.0], [2.0]])
     with pytest.warns(DeprecationWarning, match="fuelid.model.nrmse_fit_columns"):
         assert deprecated_fit_percent(y, y)[0] == 100.0
+
+
+def test_settings_are_parameters_as_for_the_other_estimators() -> None:
+    model = _model()
+    estimator = GreyBoxEstimator(model, segments=None)
+    assert estimator.get_params() == {
+        "model": model,
+        "initial_state": "auto",
+        "max_iterations": 60,
+        "segments": None,
+    }
+    assert estimator.set_params(max_iterations=5) is estimator
+    assert estimator.max_iterations == 5
+    assert repr(estimator).startswith("GreyBoxEstimator(model=")
+    with pytest.raises(FuelidError, match="no setting tol"):
+        estimator.set_params(tol=1.0)

@@ -156,6 +156,7 @@ class GreyBoxEstimator(SegmentedStart, ProfileLikelihood):
     """
 
     _SETTINGS = ("model", "initial_state", "max_iterations", "segments")
+    """The constructor's parameters: what ``get_params`` returns and a refit keeps."""
 
     def __init__(
         self,
@@ -178,6 +179,26 @@ class GreyBoxEstimator(SegmentedStart, ProfileLikelihood):
                     f"{type(self).__name__} is not fitted: {name} exists only after fit(records)"
                 )
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def get_params(self) -> dict[str, Any]:
+        """The constructor's settings by name (``type(est)(**est.get_params())`` is a copy)."""
+        return {name: getattr(self, name) for name in self._SETTINGS}
+
+    def set_params(self, **params: Any) -> GreyBoxEstimator:
+        """Change settings (they take effect at the next ``fit``); returns the estimator."""
+        unknown = sorted(set(params) - set(self._SETTINGS))
+        if unknown:
+            raise FuelidError(
+                f"{type(self).__name__} has no setting {', '.join(unknown)}; its settings are "
+                f"{', '.join(self._SETTINGS)}"
+            )
+        for name, value in params.items():
+            setattr(self, name, value)
+        return self
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{name}={value!r}" for name, value in self.get_params().items())
+        return f"{type(self).__name__}({args})"
 
     def _unfit(self) -> None:
         """Forget a previous fit: only the settings remain."""
