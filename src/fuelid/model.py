@@ -193,6 +193,28 @@ def nrmse_fit(y: ArrayLike, y_hat: ArrayLike) -> float:
     return 100.0 * (1.0 - float(np.linalg.norm(y_arr - np.asarray(y_hat, dtype=float))) / spread)
 
 
+def nrmse_fit_columns(y: ArrayLike, y_hat: ArrayLike) -> FloatArray:
+    """:func:`nrmse_fit` [%] of each output column (N × n_y), over that column's finite samples.
+
+    A logged output may have gaps (NaN) where the prediction has none; each column is scored on
+    the samples it has, and a column with none (or constant) scores nan.
+
+    Examples
+    --------
+    >>> y = [[0.0, 1.0], [np.nan, 2.0], [2.0, 3.0]]
+    >>> nrmse_fit_columns(y, [[0.0, 1.0], [5.0, 2.0], [2.0, 3.0]])  # the 5.0 faces a gap
+    array([100., 100.])
+    """
+    y_arr = np.asarray(y, dtype=float)
+    y_hat_arr = np.asarray(y_hat, dtype=float)
+    out = np.full(y_arr.shape[1], np.nan)
+    for column in range(y_arr.shape[1]):
+        keep = np.isfinite(y_arr[:, column])
+        if keep.any():
+            out[column] = nrmse_fit(y_arr[keep, column], y_hat_arr[keep, column])
+    return out
+
+
 def gain_not_identified(K: float, se_K: float | None) -> str | None:
     """Why the gain does not differ from zero (|K| < 1.96 standard errors), or None.
 

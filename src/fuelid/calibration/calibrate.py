@@ -28,11 +28,12 @@ from numpy.typing import NDArray
 from fuelid import __version__
 from fuelid.calibration.plant_model import FUEL_TEMPERATURE_KEY, NOT_CALIBRATABLE, PlantGreyBox
 from fuelid.errors import ConfigError, DataError, FuelidError
-from fuelid.greybox import GreyBoxEstimator, Record, fit_percent
-from fuelid.greybox.estimator import NotIdentifiableError, correlation_warning
+from fuelid.greybox import GreyBoxEstimator, Record
+from fuelid.greybox.identifiability import NotIdentifiableError, correlation_warning
 from fuelid.io.logs import load_log
 from fuelid.io.plantfile import update_plant_toml
 from fuelid.io.timeseries import INPUT_COLUMN, OUTPUT_COLUMN, TIME_COLUMN
+from fuelid.model import nrmse_fit_columns
 from fuelid.plant.config import (
     PlantConfig,
     load_plant_config,
@@ -492,7 +493,7 @@ def calibrate(
         whole = estimator.simulate(log.record).outputs
         simulated.append(whole)
         if n_fit < log.record.n_samples:
-            tail = fit_percent(log.record.y[n_fit:], whole[n_fit:])
+            tail = nrmse_fit_columns(log.record.y[n_fit:], whole[n_fit:])
             entry["heldout_flow"] = float(tail[0])
             if pressure:
                 entry["heldout_pressure"] = float(tail[1])

@@ -28,22 +28,26 @@ from fuelid.cli._common import (
     provenance,
     warn,
 )
-from fuelid.errors import ConfigError, DataError, FuelidError
+from fuelid.errors import ConfigError, FuelidError
 
 if TYPE_CHECKING:
     from fuelid.greybox import GreyBoxEstimator, Record
-    from fuelid.greybox.modelfile import ModelFile
 
-VALIDATION_CONVENTIONS = {
-    "estimate": "fitted to the first 10 % of the validation record (at least 20 samples), "
-    "parameters held",
-    "model": "the model's x0",
-}
-"""How the validation record's initial state is set (JSON ``validation_initial_state``)."""
-RELATIVE_STDERR_LIMIT = 0.5
-"""A free parameter whose standard error exceeds this share of its value is warned about."""
 DEFAULT_INPUT = "u_V"
+"""The input column without --input-col or the model file's inputs (for the help text)."""
 DEFAULT_OUTPUT = "q_Lpm"
+"""The output column without --output-col or the model file's outputs (for the help text)."""
+_MOVED = ("VALIDATION_CONVENTIONS", "RELATIVE_STDERR_LIMIT")
+"""Constants that moved to :mod:`fuelid.workflow.greybox_fit` with the computation."""
+
+
+def __getattr__(name: str) -> Any:
+    # the moved constants, imported only when asked for: the command's --help stays light
+    if name in _MOVED:
+        import fuelid.workflow.greybox_fit as greybox_fit
+
+        return getattr(greybox_fit, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class InitialState(enum.StrEnum):
@@ -223,42 +227,38 @@ def greybox_command(
     identifiability report. Parameters the data cannot tell apart are refused before fitting
     (exit code 2): fix one of them with --fix (and --set its known value).
     """
-    from fuelid.greybox import GreyBoxEstimator, OdeModel, parameter_specs
-    from fuelid.greybox.estimator import ConvergenceError, NotIdentifiableError
+    from fuelid.greybox import GreyBoxEstimator
+    from fuelid.greybox.fitting import ConvergenceError
+    from fuelid.greybox.identifiability import NotIdentifiableError, describe_identifiability
     from fuelid.greybox.modelfile import read_model_file
+    from fuelid.workflow.greybox_fit import (
+        data_columns,
+        fit_warnings,
+        greybox_model,
+        greybox_result,
+        read_record,
+        validate_fit,
+    )
 
     check_figure_path(plot, overwrite=force)
     fixed_names = _names(fix, "--fix")
     free_names = _names(free, "--free")
     values = _assignments(set_values)
     mf = read_model_file(model_file)
-    base = mf.model
-    specs = parameter_specs(base.parameters, fixed=fixed_names, free=free_names, values=values)
-    model = OdeModel(
-        base.f,
-        specs,
-        base.state_names,
-        h=base.h,
-        x0=base.x0,
-        output_names=base.output_names,
-        n_outputs=len(base.output_names),
-        state_scale=base.state_scale,
-    )
+    model = greybox_model(mf, fixed_names, free_names, values)
+    specs = model.parameters
     estimated = [spec.name for spec in specs if not spec.fixed]
-    if not estimated:
-        raise ConfigError(
-            f"every parameter of {model_file} is fixed: free some with --free "
-            f"({', '.join(spec.name for spec in specs)})"
-        )
     profiled = _profiled(profile, estimated)
     if initial_state is InitialState.model and not mf.has_x0:
         raise ConfigError(
             f"--initial-state model, but {model_file} defines no x0(p, u0, y0); use estimate"
         )
-    inputs, outputs = _columns(mf, input_col, output_col)
-    records = [_read_record(path, time_col, inputs, outputs, sample_time) for path in data_files]
+    inputs, outputs = data_columns(
+        mf, _names(input_col, "--input-col"), _names(output_col, "--output-col")
+    )
+    records = [read_record(path, time_col, inputs, outputs, sample_time) for path in data_files]
     validation = (
-        _read_record(validate_file, time_col, inputs, outputs, sample_time)
+        read_record(validate_file, time_col, inputs, outputs, sample_time)
         if validate_file is not None
         else None
     )
@@ -287,13 +287,13 @@ def greybox_command(
         check = None
         if validation is not None:
             stage("validating")
-            check = _validate(estimator, validation)
+            check = validate_fit(estimator, validation)
         intervals: dict[str, list[float]] = {}
         for name in profiled:
             stage(f"profiling {name}")
             lo, hi = estimator.profile_interval(name)
             intervals[name] = [lo, hi]
-    warnings = _warnings(estimator)
+    warnings = fit_warnings(estimator)
     if validate_file is not None and any(
         path.resolve() == validate_file.resolve() for path in data_files
     ):
@@ -304,7 +304,7 @@ def greybox_command(
         warn(message)
     if plot is not None:
         _plot(estimator, records, validation, check, plot, model_file, list(inputs))
-    result = _result(
+    result = greybox_result(
         mf, estimator, records, validation, check, intervals if profiled else None, warnings
     )
     result["wall_time_s"] = fit_seconds
@@ -331,7 +331,7 @@ def greybox_command(
     if as_json:
         emit_json(result | {"provenance": block} | block)
         return
-    _print(result, model_file, fit_seconds)
+    _print(result, model_file, fit_seconds, describe_identifiability(result["identifiability"]))
 
 
 # --- steps ----------------------------------------------------------------------------------------
@@ -352,223 +352,12 @@ def _profiled(profile: str | None, estimated: list[str]) -> list[str]:
     return names
 
 
-def _columns(
-    mf: ModelFile, input_col: str | None, output_col: str | None
-) -> tuple[tuple[str, ...], tuple[str, ...]]:
-    """The input and output column names, checked against the model's inputs and outputs."""
-    model = mf.model
-    inputs = tuple(_names(input_col, "--input-col")) or mf.input_names or (DEFAULT_INPUT,)
-    outputs = tuple(_names(output_col, "--output-col")) or mf.output_names or (DEFAULT_OUTPUT,)
-    if mf.input_names is not None and len(inputs) != len(mf.input_names):
-        raise ConfigError(
-            f"{mf.path} has {len(mf.input_names)} input(s) ({', '.join(mf.input_names)}); "
-            f"--input-col gives {len(inputs)} ({', '.join(inputs)})"
-        )
-    if len(outputs) != len(model.output_names):
-        raise ConfigError(
-            f"{mf.path} has {len(model.output_names)} output(s) ({', '.join(model.output_names)}); "
-            f"--output-col gives {len(outputs)} ({', '.join(outputs)})"
-            + ("" if mf.output_names else ": name the model's outputs with outputs = [...]")
-        )
-    for role, names in (("input", inputs), ("output", outputs)):
-        if len(set(names)) != len(names):
-            raise ConfigError(f"{role} columns repeat a name: {', '.join(names)}")
-    both = sorted(set(inputs) & set(outputs))
-    if both:
-        raise ConfigError(f"column(s) {', '.join(both)} given both as input and as output")
-    return inputs, outputs
-
-
-def _read_record(
-    path: Path,
-    time_col: str,
-    inputs: tuple[str, ...],
-    outputs: tuple[str, ...],
-    sample_time: float | None,
-) -> Record:
-    """One data file as a record: a time column (or a sample time), inputs, outputs.
-
-    Input cells must all be numbers; an empty output cell is a missing sample (NaN), a
-    non-numeric one is refused.
-    """
-    import numpy as np
-
-    from fuelid.greybox import Record
-    from fuelid.io.tables import find_column, match_column, read_table, to_float
-
-    source = repr(str(path))
-    frame, _ = read_table(path)
-    if sample_time is not None and not (math.isfinite(sample_time) and sample_time > 0.0):
-        raise DataError(f"--sample-time must be a positive number of seconds, got {sample_time}")
-
-    def column(name: str, role: str, missing_ok: bool) -> Any:
-        found = find_column(frame, name, role, source)
-        raw = frame[found]
-        values = to_float(raw)
-        if missing_ok:
-            text = raw.astype(str).str.strip()
-            empty = raw.isna().to_numpy() | text.isin(["", "nan", "NaN"]).to_numpy()
-            bad = np.flatnonzero(~np.isfinite(values) & ~empty)
-        else:
-            bad = np.flatnonzero(~np.isfinite(values))
-        if bad.size:
-            cell = str(raw.iloc[int(bad[0])])
-            raise DataError(
-                f"{source}: {role} column {found!r} has {bad.size} "
-                f"{'non-numeric or infinite' if missing_ok else 'empty, non-numeric or infinite'} "
-                f"cell(s), first at data row {int(bad[0]) + 1} ({cell[:24]!r})"
-            )
-        return values
-
-    u = np.column_stack([column(name, "input", False) for name in inputs])
-    y = np.column_stack([column(name, "output", True) for name in outputs])
-    if match_column(frame, time_col) is None and sample_time is not None:
-        t = sample_time * np.arange(len(frame), dtype=float)
-    else:
-        if match_column(frame, time_col) is None:
-            find_column(frame, time_col, "time", source, hint="or give --sample-time")
-        t = column(time_col, "time", False)
-        if sample_time is not None and len(t) > 1:
-            period = float(np.median(np.diff(t)))
-            if not abs(period - sample_time) <= 0.01 * sample_time:
-                raise DataError(
-                    f"{source}: --sample-time {sample_time:g} s disagrees with the time column "
-                    f"{time_col!r} (median interval {period:g} s)"
-                )
-    return Record.from_arrays(t, u, y, name=path.name)
-
-
 def _refusal(message: str, names: tuple[str, ...], specs: Any) -> str:
     """The one-line reason of a refused fit, with the --fix it suggests."""
     parameters = [spec.name for spec in specs if spec.name in names]
     example = parameters[-1] if parameters else (names[0] if names else "NAME")
     # the message already says which to fix; the command line is what the user types
     return f"{message}; with this command: --fix {example} --set {example}=VALUE"
-
-
-def _validate(estimator: GreyBoxEstimator, record: Record) -> dict[str, Any]:
-    """Simulate the fitted model over the validation record: outputs, fit %, RMSE."""
-    import numpy as np
-
-    from fuelid.greybox import fit_percent
-
-    x0 = estimator.validation_initial_state(record)
-    trajectory = estimator.simulate(record, x0)
-    y_hat = trajectory.outputs
-    error = record.y - y_hat
-    rmse = [
-        float(np.sqrt(np.mean(error[np.isfinite(error[:, k]), k] ** 2)))
-        for k in range(error.shape[1])
-    ]
-    return {
-        "y_hat": y_hat,
-        "fit": [float(v) for v in fit_percent(record.y, y_hat)],
-        "rmse": rmse,
-        "x0": trajectory.states[0],
-        "convention": "model" if x0 is None else "estimate",
-    }
-
-
-def _warnings(estimator: GreyBoxEstimator) -> list[str]:
-    """What a successful fit should be read with: confounded parameters, wide errors, bounds."""
-    out = []
-    report = estimator.identifiability_
-    if not report.identifiable:
-        out.append(report.message())
-    from fuelid.greybox.estimator import SUSPECT_NOISE_RATIO, correlation_warning
-
-    out.extend(correlation_warning(*pair) for pair in estimator.correlated_pairs())
-    for name, ratio in zip(
-        estimator.model.output_names, estimator.sigma_ / estimator.noise_floor_, strict=True
-    ):
-        if ratio > SUSPECT_NOISE_RATIO:
-            out.append(
-                f"the residuals of {name} are {ratio:.1f}× the records' sample-to-sample noise "
-                "(a model error, slow disturbances or a local minimum): the standard errors "
-                "assume white residuals and are too small"
-            )
-    for spec in estimator.model.parameters:
-        if spec.fixed:
-            continue
-        value, se = estimator.params_[spec.name], estimator.stderr_[spec.name]
-        if se is not None and value != 0.0 and se > RELATIVE_STDERR_LIMIT * abs(value):
-            out.append(
-                f"{spec.name}: standard error {se:.3g} is {100 * se / abs(value):.0f} % of its "
-                "value: the data hardly determine it"
-            )
-        for side, bound in (("lower", spec.lower), ("upper", spec.upper)):
-            if bound is not None and abs(value - bound) <= 1e-6 * max(abs(bound), 1e-12):
-                out.append(
-                    f"{spec.name} ended at its {side} bound {bound:g}: its error bars do not hold"
-                )
-    return out
-
-
-def _result(
-    mf: ModelFile,
-    estimator: GreyBoxEstimator,
-    records: list[Record],
-    validation: Record | None,
-    check: dict[str, Any] | None,
-    profile: dict[str, list[float]] | None,
-    warnings: list[str],
-) -> dict[str, Any]:
-    """The JSON object of the command (without provenance)."""
-    model = estimator.model
-    outputs = list(model.output_names)
-    specs = model.parameters
-    units: dict[str, Any] = {
-        "parameters": "the model file's own units: fuelid converts nothing",
-        "t": "s",
-        "inputs": "the data files' units",
-        "outputs": "the data files' units",
-        "noise_std": "output units",
-        "validation_rmse": "output units",
-        "fit_percent": "%",
-        "wall_time_s": "s",
-    }
-    if mf.units:
-        units["parameter_units"] = dict(mf.units)
-    return {
-        "model_file": str(mf.path),
-        "states": list(model.state_names),
-        "outputs": outputs,
-        "parameters": dict(estimator.params_),
-        "stderr": dict(estimator.stderr_),
-        "ci95": {k: None if v is None else list(v) for k, v in estimator.ci95_.items()},
-        "fixed": [spec.name for spec in specs if spec.fixed],
-        "free": list(estimator.free_names_),
-        "correlation": {
-            "parameters": list(estimator.free_names_),
-            "matrix": estimator.correlation_.tolist(),
-        },
-        "fit_percent": {
-            record.name: dict(zip(outputs, (float(v) for v in fit), strict=True))
-            for record, fit in zip(records, estimator.fit_percent_, strict=True)
-        },
-        "initial_states": {
-            record.name: dict(zip(model.state_names, x0.tolist(), strict=True))
-            for record, x0 in zip(records, estimator.x0_, strict=True)
-        },
-        "initial_state": "estimated" if estimator.estimate_x0_ else "the model's x0",
-        "validation_file": None if validation is None else validation.name,
-        "validation_fit_percent": None
-        if check is None
-        else dict(zip(outputs, check["fit"], strict=True)),
-        "validation_rmse": None
-        if check is None
-        else dict(zip(outputs, check["rmse"], strict=True)),
-        "validation_initial_state": None
-        if check is None
-        else VALIDATION_CONVENTIONS[check["convention"]],
-        "noise_std": dict(zip(outputs, (float(s) for s in estimator.sigma_), strict=True)),
-        "n_iterations": estimator.n_iterations_,
-        "start": estimator.start_,
-        "identifiability": estimator.identifiability_.to_json(),
-        "profile": profile,
-        "warnings": warnings,
-        "units": units,
-    }
 
 
 def _plot(
@@ -596,11 +385,10 @@ def _plot(
             records, estimator.trajectories_, estimator.fit_percent_, strict=True
         )
     ]
+    from fuelid.workflow.greybox_fit import validation_head_end
+
     if validation is not None and check is not None:
-        head = None
-        if check["convention"] == "estimate":
-            n_head = max(20, int(0.1 * validation.n_samples))
-            head = float(validation.t[min(n_head, validation.n_samples) - 1])
+        head = validation_head_end(validation) if check["convention"] == "estimate" else None
         panels.append(
             FitPanel(
                 f"validation: {validation.name}",
@@ -622,7 +410,9 @@ def _plot(
 # --- text output ----------------------------------------------------------------------------------
 
 
-def _print(result: dict[str, Any], model_file: Path, seconds: float) -> None:
+def _print(
+    result: dict[str, Any], model_file: Path, seconds: float, identifiability: list[str]
+) -> None:
     from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
@@ -676,47 +466,7 @@ def _print(result: dict[str, Any], model_file: Path, seconds: float) -> None:
                 f"profile-likelihood 95 % interval of {name}: "
                 f"{format_estimate(lo, se)} … {format_estimate(hi, se)}"
             )
-    lines.extend(_describe_identifiability(result["identifiability"]))
+    lines.extend(identifiability)
     lines.append(f"{result['n_iterations']} iterations, {result['start']}, {seconds:.1f} s")
     for line in lines:
         console.print(line, highlight=False, markup=False)
-
-
-def _describe_identifiability(report: dict[str, Any]) -> list[str]:
-    """The identifiability report as text lines."""
-    condition = report["condition_number"]
-    gamma = report["collinearity_index"]
-    lines = [
-        f"identifiability: rank {report['rank']} of {report['n_estimated']} "
-        f"({', '.join(report['parameters'])}); condition number "
-        f"{'inf' if condition is None else f'{condition:.3g}'}; collinearity index "
-        f"{'inf' if gamma is None else f'{gamma:.3g}'} (1: independent sensitivities)"
-    ]
-    combos = report["undetermined"]
-    lines.append(
-        "undetermined combinations: "
-        + (
-            "; ".join(
-                f"{c['combination']} (±{100 * c['relative_uncertainty']:.3g} %)"
-                if c["relative_uncertainty"] is not None
-                else f"{c['combination']} (unbounded)"
-                for c in combos
-            )
-            or "none"
-        )
-    )
-    pairs = report["confounded_pairs"]
-    lines.append(
-        "confounded pairs: "
-        + (
-            "; ".join(
-                f"{p['parameters'][0]}–{p['parameters'][1]} (sensitivity correlation "
-                f"{p['sensitivity_correlation']:.4f})"
-                for p in pairs
-            )
-            or "none"
-        )
-    )
-    if report["zero_sensitivity"]:
-        lines.append(f"no effect on the outputs: {', '.join(report['zero_sensitivity'])}")
-    return lines

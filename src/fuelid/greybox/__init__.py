@@ -4,6 +4,12 @@ The user (or :mod:`fuelid.calibration` for the fuel plant) writes the model; the
 integrates it with its forward sensitivities, fits one or several records at once, and says what
 the data determine (:mod:`fuelid.greybox.identifiability`).
 
+The estimator (:mod:`fuelid.greybox.estimator`) is built from :mod:`~fuelid.greybox.fitting`
+(single shooting, the least-squares driver, the covariance),
+:mod:`~fuelid.greybox.multiple_shooting` (the segmented start) and
+:mod:`~fuelid.greybox.profile` (identifiability at the estimate, profile likelihood). Its fit
+percentages are :func:`fuelid.model.nrmse_fit_columns`; ``fit_percent`` here is deprecated.
+
 The public API
 --------------
 The names in ``__all__``, and at :mod:`fuelid.greybox.modelfile` the reading of a user's Python

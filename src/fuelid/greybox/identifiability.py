@@ -19,12 +19,14 @@ the data may pin them down only through the noise model's exactness, which real 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from fuelid.errors import FuelidError
 
 FloatArray = NDArray[np.float64]
 STRUCTURAL_LIMIT = 1e-7
@@ -37,6 +39,8 @@ SENSITIVITY_CORRELATION_LIMIT = 0.999
 COMPONENT_SHARE = 0.15
 """A parameter belongs to an undetermined combination when its share of the null vector exceeds
 this (components of a unit vector)."""
+ESTIMATE_CORRELATION_LIMIT = 0.999
+"""Estimates correlated beyond this are named: the data determine mostly their combination."""
 
 
 @dataclass(frozen=True)
@@ -254,3 +258,92 @@ def identifiability(
         tuple(pairs),
         zero,
     )
+
+
+class NotIdentifiableError(FuelidError):
+    """The data cannot determine some parameters whatever their values; ``report`` names them."""
+
+    def __init__(self, report: IdentifiabilityReport) -> None:
+        super().__init__(report.message())
+        self.report = report
+
+
+def correlation_warning(first: str, second: str, rho: float) -> str:
+    """The warning for two estimates that correlate near ±1."""
+    return (
+        f"{first} and {second} are estimated with correlation {rho:+.4f}: the data determine "
+        "mostly a combination of them, and their intervals hold only if everything held fixed "
+        "(and the model itself) is right"
+    )
+
+
+def structural_report(
+    report: IdentifiabilityReport,
+    structural: Sequence[UndeterminedCombination],
+    free_names: Sequence[str],
+) -> IdentifiabilityReport:
+    """The report of what no data of this kind determine, with advice on what to fix.
+
+    ``structural`` are the combinations of ``report`` whose sensitivity vanishes to rounding;
+    ``free_names`` the free parameters (the advice names no initial state).
+    """
+    advice = []
+    for combination in structural:
+        parameters = [n for n in combination.names if n in free_names]
+        if parameters:
+            advice.append(
+                f"no data of this kind determine {', '.join(parameters)} together: fix "
+                f"one of them (e.g. {parameters[0]}) at a known value"
+            )
+    if report.zero_sensitivity:
+        advice.append(f"fix {', '.join(report.zero_sensitivity)} or drop it from the model")
+    return IdentifiabilityReport(
+        report.names,
+        report.singular_values,
+        report.rank,
+        report.condition_number,
+        report.collinearity_index,
+        tuple(structural),
+        (),
+        report.zero_sensitivity,
+    ).with_advice(advice)
+
+
+def describe_identifiability(report: Mapping[str, Any]) -> list[str]:
+    """The report in its JSON form (:meth:`IdentifiabilityReport.to_json`) as text lines."""
+    condition = report["condition_number"]
+    gamma = report["collinearity_index"]
+    lines = [
+        f"identifiability: rank {report['rank']} of {report['n_estimated']} "
+        f"({', '.join(report['parameters'])}); condition number "
+        f"{'inf' if condition is None else f'{condition:.3g}'}; collinearity index "
+        f"{'inf' if gamma is None else f'{gamma:.3g}'} (1: independent sensitivities)"
+    ]
+    combos = report["undetermined"]
+    lines.append(
+        "undetermined combinations: "
+        + (
+            "; ".join(
+                f"{c['combination']} (±{100 * c['relative_uncertainty']:.3g} %)"
+                if c["relative_uncertainty"] is not None
+                else f"{c['combination']} (unbounded)"
+                for c in combos
+            )
+            or "none"
+        )
+    )
+    pairs = report["confounded_pairs"]
+    lines.append(
+        "confounded pairs: "
+        + (
+            "; ".join(
+                f"{p['parameters'][0]}–{p['parameters'][1]} (sensitivity correlation "
+                f"{p['sensitivity_correlation']:.4f})"
+                for p in pairs
+            )
+            or "none"
+        )
+    )
+    if report["zero_sensitivity"]:
+        lines.append(f"no effect on the outputs: {', '.join(report['zero_sensitivity'])}")
+    return lines

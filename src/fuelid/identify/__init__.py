@@ -11,19 +11,26 @@
   the operating point?);
 - :mod:`~fuelid.identify.segments`: how a log with gaps is fitted (one model, an initial state
   per segment);
-- :mod:`~fuelid.identify.procedure`: what ``fuelid identify`` runs (:func:`identify`);
+- :mod:`~fuelid.identify.procedure`: what ``fuelid identify`` runs (:func:`identify`); its
+  settings and result in :mod:`~fuelid.identify.result`, its warnings in
+  :mod:`~fuelid.identify.residual_warnings`;
 - :mod:`~fuelid.identify.preprocess`: the data made ready for a fit: a time window
   (:func:`~fuelid.identify.preprocess.select`), zero-phase low-pass filtering
   (:func:`~fuelid.identify.preprocess.lowpass`), decimation with its anti-alias filter
   (:func:`~fuelid.identify.preprocess.decimate`), records joined as segments
   (:func:`~fuelid.identify.preprocess.join_segments`). ``fuelid.preprocess`` before 0.2.0.
 
+Their building blocks: :mod:`~fuelid.identify.variable_projection` (the output-error model as a
+regression for given time constants, shared by oe, pem and noise),
+:mod:`~fuelid.identify.prediction_errors` (pem's criterion and noise model) and
+:mod:`~fuelid.identify.step_shape_fit` (step-ls's second stage).
+
 The methods, their assumptions and references: docs/identification.md.
 
 The estimator convention
 ------------------------
-Every estimator (:class:`StepResponseLS`, :class:`OutputError`, and those to come: a
-prediction-error estimator with a noise model, a nonlinear gray-box estimator) follows
+Every estimator (:class:`StepResponseLS`, :class:`OutputError`, :class:`PredictionError`, and
+the gray-box :class:`~fuelid.greybox.GreyBoxEstimator`) follows
 scikit-learn's conventions, through the common base ``fuelid.identify._base.Estimator``:
 
 - ``__init__`` only stores its keyword settings, unchanged and unchecked; ``get_params()``

@@ -12,14 +12,16 @@ the candidates are ranked by an information criterion.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.signal
 from numpy.typing import NDArray
 
-from fuelid.identify.oe import _solve
+from fuelid.errors import FuelidError
+from fuelid.identify.variable_projection import solve_linear
 
 FloatArray = NDArray[np.float64]
 Bounds = list[tuple[int, int]]
@@ -185,7 +187,7 @@ def hannan_rissanen(
     rows, X = lagged(r, LONG_AR_ORDER, bounds, LONG_AR_ORDER)
     e_hat = r.copy()  # where the long autoregression has no past: the residual itself
     if rows.size > 2 * LONG_AR_ORDER:
-        e_hat[rows] = r[rows] - X @ _solve(X, r[rows]).beta
+        e_hat[rows] = r[rows] - X @ solve_linear(X, r[rows]).beta
     rows, R = lagged(r, MAX_NOISE_DEGREE, bounds, skip)
     _, E = lagged(e_hat, MAX_NOISE_DEGREE, bounds, skip)
     for nc, nd in candidates:
@@ -193,9 +195,30 @@ def hannan_rissanen(
         eta = np.zeros(noise.size)
         if noise.size and rows.size > 10 * noise.size:
             regressors = np.column_stack([-R[:, :nd], E[:, :nc]])
-            coef = _solve(regressors, r[rows]).beta
+            coef = solve_linear(regressors, r[rows]).beta
             eta = noise.eta(np.r_[1.0, coef[nd:]], np.r_[1.0, coef[:nd]])
         C, D = noise.polys(eta)
         e = filter_segments(D, C, r, bounds)[keep]
         out[(nc, nd)] = (eta, float(e @ e))
     return out
+
+
+def noise_coefficients(noise_init: Mapping[str, Any]) -> tuple[list[float], list[float]]:
+    """The lists C and D of a noise model given as a mapping (``noise_model_``'s keys)."""
+    try:
+        return (
+            [float(c) for c in noise_init["C"]],
+            [float(d) for d in noise_init["D"]],
+        )
+    except (KeyError, TypeError, ValueError) as err:
+        raise FuelidError(
+            "noise_init needs coefficient lists 'C' and 'D' (as in noise_model_)"
+        ) from err
+
+
+def check_noise_start(C: Sequence[float], D: Sequence[float]) -> None:
+    """Refuse a starting noise model that is not monic or beyond :data:`MAX_NOISE_DEGREE`."""
+    if not C or not D or C[0] != 1.0 or D[0] != 1.0:
+        raise FuelidError("noise_init: C and D must be monic lists ([1.0, …])")
+    if len(C) - 1 > MAX_NOISE_DEGREE or len(D) - 1 > MAX_NOISE_DEGREE:
+        raise FuelidError(f"noise_init: C and D may have degree {MAX_NOISE_DEGREE} at most")

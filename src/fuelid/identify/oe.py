@@ -27,12 +27,9 @@ its own free response ``Σ_i c_ji p_i^(k − k_j)``; the first segment follows `
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal, Self
 
 import numpy as np
-import scipy.signal
 from numpy.typing import NDArray
 
 from fuelid.blas import single_threaded_blas
@@ -52,6 +49,21 @@ from fuelid.identify.diagnostics import (
 )
 from fuelid.identify.order import Candidate, OrderChoice, bic, choose_order
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, offset_and_free_responses
+from fuelid.identify.variable_projection import (
+    GRID_SAMPLES,
+    Bounds,
+    LinearFit,
+    Structure,
+    continue_fitted,
+    cramer_rao_bound,
+    grid_starts,
+    jacobian,
+    n_modes,
+    regressors,
+    solve_linear,
+    start_from_model,
+    subsample,
+)
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import MODEL_KEYS, ProcessModel, nrmse_fit
@@ -61,8 +73,6 @@ if TYPE_CHECKING:
 
 FloatArray = NDArray[np.float64]
 Order = Literal[1, 2, "auto"]
-#: longest record used for the coarse grid of starting values (subsampled above this)
-GRID_SAMPLES = 20_000
 #: a command change whose response K·|Δu| stays within this many residual standard deviations
 #: does not start a transient when the settled residuals are tested (a PI's reaction to the
 #: noise moves the command at every scan in closed loop)
@@ -71,122 +81,6 @@ NOISE_HIDDEN_CHANGE = 3.0
 MIN_SETTLED_SAMPLES = 500
 #: lags of the whiteness tests [samples] (residual_whiteness's default)
 WHITENESS_LAGS = 25
-
-
-@dataclass(frozen=True)
-class _Structure:
-    """What is free and what is fixed in one fit."""
-
-    order: int
-    T_f: float
-    delay: float | None  # None: estimated
-    initial: str  # of the first segment ("rest" when u_before is given)
-    u_before: float | None
-    later: str = "estimate"  # initial condition of every segment after a gap
-
-    @property
-    def nonlinear_names(self) -> tuple[str, ...]:
-        names = ("T", "T2")[: self.order]
-        return (*names, "delay") if self.delay is None else names
-
-    def unpack(self, z: FloatArray) -> tuple[float, float, float]:
-        """(T, T2, delay) from the search vector [log T, (log T2), (delay)]."""
-        T = math.exp(z[0])
-        T2 = math.exp(z[1]) if self.order == 2 else 0.0
-        delay = float(z[-1]) if self.delay is None else self.delay
-        return T, T2, delay
-
-
-@dataclass
-class _Evaluation:
-    """Regressors and linear least-squares solution for one (T, T2, delay)."""
-
-    Phi: FloatArray
-    beta: FloatArray
-    residual: FloatArray
-
-    @property
-    def sse(self) -> float:
-        return float(self.residual @ self.residual)
-
-
-Bounds = list[tuple[int, int]]
-
-
-def _n_modes(st: _Structure, n_lags: int, segment: int) -> int:
-    """Free-response amplitudes estimated for segment ``segment`` (0 for one at rest)."""
-    initial = st.initial if segment == 0 else st.later
-    return n_lags if initial == "estimate" else 0
-
-
-def _regressors(
-    st: _Structure,
-    T: float,
-    T2: float,
-    delay: float,
-    u: FloatArray,
-    h: float,
-    u_ref: float,
-    bounds: Bounds | None = None,
-) -> FloatArray:
-    """Φ = [response, 1, free responses of each segment] for one (T, T2, delay).
-
-    Segment j (samples ``a:b`` of ``bounds``) is simulated on its own: from rest at u_ref for
-    the first segment, from rest at its first command u[a] for a later one (its level
-    K·(u[a] − u_ref) stays in the response column, so K and the common offset tie the
-    segments together); its free-response columns are zero outside it.
-    """
-    lags = [tc for tc in (T, T2, st.T_f) if tc > 0.0]
-    model = discretise(lags, delay, h)
-    bounds = [(0, u.size)] if bounds is None else bounds
-    counts = [_n_modes(st, len(lags), j) for j in range(len(bounds))]
-    # Fortran order: each regressor is one contiguous column
-    Phi = np.empty((u.size, 2 + sum(counts)), order="F")
-    col = 2
-    for j, ((a, b), m) in enumerate(zip(bounds, counts, strict=True)):
-        u_pre = u_ref if j == 0 else float(u[a])
-        Phi[a:b, 0] = model.response(u[a:b] - u_pre)
-        if j:
-            Phi[a:b, 0] += u_pre - u_ref
-        if m:
-            Phi[:, col : col + m] = 0.0
-            Phi[a:b, col : col + m] = model.modes(b - a)
-            col += m
-    Phi[:, 1] = 1.0
-    return Phi
-
-
-def _subsample(data: IOData, step: int) -> IOData:
-    """Every ``step``-th sample of each segment (the segments and their starts kept)."""
-    if step == 1:
-        return data
-    if data.n_segments == 1:
-        return IOData(data.u[::step], data.y[::step], data.sample_time * step)
-    index = [np.arange(a, b, step) for a, b in data.segment_bounds()]
-    starts = np.cumsum([i.size for i in index])[:-1]
-    keep = np.concatenate(index)
-    return IOData(
-        data.u[keep],
-        data.y[keep],
-        data.sample_time * step,
-        segment_starts=tuple(int(k) for k in starts),
-        segment_t0=tuple(data.segment_t0),
-    )
-
-
-def _solve(Phi: FloatArray, y: FloatArray) -> _Evaluation:
-    # normal equations with column scaling: Φ has a handful of columns and is well scaled after
-    # scaling, and forming ΦᵀΦ is far cheaper than a QR of a 180,000-row matrix
-    G = Phi.T @ Phi
-    scale = np.sqrt(np.diag(G))
-    scale[scale == 0.0] = 1.0
-    try:
-        beta = np.asarray(
-            np.linalg.solve(G / np.outer(scale, scale), (Phi.T @ y) / scale) / scale, dtype=float
-        )
-    except np.linalg.LinAlgError:
-        beta = np.linalg.lstsq(Phi, y, rcond=None)[0]
-    return _Evaluation(Phi=Phi, beta=beta, residual=y - Phi @ beta)
 
 
 class OutputError(Estimator):
@@ -307,7 +201,7 @@ class OutputError(Estimator):
     n_samples_: int
     sample_time_: float
     warnings_: list[str]
-    _state: tuple[_Structure, FloatArray]
+    _state: tuple[Structure, FloatArray]
 
     def __init__(
         self,
@@ -428,7 +322,8 @@ class OutputError(Estimator):
             return response
         # one offset for the record, one free response per segment
         basis = offset_and_free_responses(discrete, bounds)
-        return np.asarray(response + basis @ _solve(basis, data.y - response).beta, dtype=float)
+        free = solve_linear(basis, data.y - response).beta
+        return np.asarray(response + basis @ free, dtype=float)
 
     def _continue_fitted(self, data: IOData) -> FloatArray:
         """``simulate(data, "fitted")``: the fitted states, and new ones after later gaps.
@@ -466,9 +361,9 @@ class OutputError(Estimator):
         return np.asarray(self.cov_ / np.outer(sd, sd), dtype=float)
 
     # ------------------------------------------------------------------ internals
-    def _structure(self, order: int) -> _Structure:
+    def _structure(self, order: int) -> Structure:
         initial = "rest" if self.u_before is not None else self.initial
-        return _Structure(order, self.T_f, self.delay, initial, self.u_before, self.initial)
+        return Structure(order, self.T_f, self.delay, initial, self.u_before, self.initial)
 
     def _colour_source(self, data: IOData, residual: FloatArray) -> tuple[str, float | None]:
         """Whether coloured residuals are white where settled, and the noise's level there.
@@ -549,8 +444,8 @@ class OutputError(Estimator):
         return self.max_delay if self.max_delay is not None else min(0.25 * record, 60.0)
 
     def _fit_structure(
-        self, data: IOData, st: _Structure, init: ProcessModel | None
-    ) -> tuple[FloatArray, _Evaluation]:
+        self, data: IOData, st: Structure, init: ProcessModel | None
+    ) -> tuple[FloatArray, LinearFit]:
         from scipy.optimize import least_squares  # slow to import: only when fitting
 
         h = data.sample_time
@@ -562,22 +457,22 @@ class OutputError(Estimator):
             lo.append(0.0)
             hi.append(max(self._delay_bound(data), 1e-9))
 
-        def evaluate(z: FloatArray, record: IOData) -> _Evaluation:
+        def evaluate(z: FloatArray, record: IOData) -> LinearFit:
             T, T2, delay = st.unpack(z)
-            Phi = _regressors(
+            Phi = regressors(
                 st, T, T2, delay, record.u, record.sample_time, u_ref, record.segment_bounds()
             )
-            return _solve(Phi, record.y)
+            return solve_linear(Phi, record.y)
 
         def residual(z: FloatArray) -> FloatArray:
             return evaluate(z, data).residual
 
         starts = (
-            [self._start_from(init, st)]
+            [start_from_model(init, st)]
             if init is not None
-            else self._grid_starts(data, st, evaluate, lo, hi)
+            else grid_starts(data, st, evaluate, hi[-1])
         )
-        best: tuple[FloatArray, _Evaluation] | None = None
+        best: tuple[FloatArray, LinearFit] | None = None
         for z0 in starts:
             z0 = np.clip(z0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
             sol = least_squares(
@@ -597,52 +492,7 @@ class OutputError(Estimator):
         assert best is not None
         return best
 
-    def _start_from(self, init: ProcessModel, st: _Structure) -> FloatArray:
-        z = [math.log(init.T)]
-        if st.order == 2:
-            z.append(math.log(init.T2 if init.T2 > 0.0 else 0.3 * init.T))
-        if st.delay is None:
-            z.append(init.delay)
-        return np.array(z)
-
-    def _grid_starts(
-        self,
-        data: IOData,
-        st: _Structure,
-        evaluate: Callable[[FloatArray, IOData], _Evaluation],
-        lo: list[float],
-        hi: list[float],
-    ) -> list[FloatArray]:
-        """The best few points of a coarse grid over (T, delay), on a subsampled record."""
-        step = max(1, math.ceil(data.n_samples / GRID_SAMPLES))
-        coarse = _subsample(data, step)
-        record = data.n_samples * data.sample_time
-        T_grid = np.geomspace(max(data.sample_time, record / 2000.0), record / 3.0, 14)
-        delays = np.linspace(0.0, hi[-1], 7) if st.delay is None else np.array([math.nan])
-        scored: list[tuple[float, FloatArray]] = []
-        for T in T_grid:
-            for delay in delays:
-                z = [math.log(T)]
-                if st.order == 2:
-                    z.append(math.log(0.3 * T))
-                if st.delay is None:
-                    z.append(delay)
-                zz = np.array(z)
-                ev = evaluate(zz, coarse)
-                scored.append((ev.sse, zz))
-        scored.sort(key=lambda item: item[0])
-        # refine the best grid point, and with a free delay also the best one at another delay
-        # (the cost can have a local minimum per integer delay)
-        starts = [scored[0][1]]
-        if st.delay is not None:
-            return starts
-        for _, candidate in scored[1:]:
-            if abs(candidate[-1] - starts[0][-1]) > 0.5 * data.sample_time:
-                starts.append(candidate)
-                break
-        return starts
-
-    def _store(self, data: IOData, st: _Structure, z: FloatArray, ev: _Evaluation) -> None:
+    def _store(self, data: IOData, st: Structure, z: FloatArray, ev: LinearFit) -> None:
         T, T2, delay = st.unpack(z)
         h = data.sample_time
         u_ref = st.u_before if st.u_before is not None else float(data.u[0])
@@ -667,7 +517,7 @@ class OutputError(Estimator):
         nl_names = st.nonlinear_names
         values = {"T": T, "T2": T2, "delay": delay}
         bounds = data.segment_bounds()
-        names, J = _jacobian(st, values, ev.beta, data.u, h, u_ref, ev.Phi, bounds)
+        names, J = jacobian(st, values, ev.beta, data.u, h, u_ref, ev.Phi, bounds)
         dof = max(n - len(names), 1)
         self.sigma_ = math.sqrt(ev.sse / dof)
         self.param_names_ = names
@@ -717,129 +567,14 @@ class OutputError(Estimator):
             )
 
 
-def continue_fitted(
-    st: _Structure,
-    beta: FloatArray,
-    model: ProcessModel,
-    u_ref: float,
-    n_fitted: int,
-    data: IOData,
-) -> FloatArray:
-    """The fitted response on a record that continues the fitting one (``initial="fitted"``).
+# the names this module had before the variable-projection model moved out (benchmarks and
+# users' scripts import some of them from here)
+_Structure = Structure
+_Evaluation = LinearFit
+_n_modes = n_modes
+_regressors = regressors
+_subsample = subsample
+_solve = solve_linear
+_jacobian = jacobian
 
-    The fitted linear parameters ``beta`` (K, offset, the fitting record's initial states) carry
-    on; a segment that starts after the ``n_fitted`` fitted samples (a held-out tail after a gap)
-    gets its initial state fitted on its own samples. Shared by oe and pem.
-    """
-    h = data.sample_time
-    bounds = data.segment_bounds()
-    Phi = _regressors(st, model.T, model.T2, model.delay, data.u, h, u_ref, bounds)
-    if Phi.shape[1] == beta.size:
-        return np.asarray(Phi @ beta, dtype=float)
-    y_hat = np.asarray(Phi[:, : beta.size] @ beta, dtype=float)
-    col = beta.size
-    n_lags = len(model.time_constants)
-    for j, (a, b) in enumerate(bounds):
-        if a < n_fitted:
-            continue
-        m = _n_modes(st, n_lags, j)
-        if m:
-            block = Phi[a:b, col : col + m]
-            y_hat[a:b] += block @ _solve(block, data.y[a:b] - y_hat[a:b]).beta
-            col += m
-    return y_hat
-
-
-def _jacobian(
-    st: _Structure,
-    values: dict[str, float],
-    beta: FloatArray,
-    u: FloatArray,
-    h: float,
-    u_ref: float,
-    Phi: FloatArray | None = None,
-    bounds: Bounds | None = None,
-) -> tuple[tuple[str, ...], FloatArray]:
-    """∂ŷ/∂p for p = (K, nonlinear parameters, offset, initial-state amplitudes).
-
-    The linear parameters' columns are the regressors themselves; the time constants' and the
-    delay's are central differences of Φ(T, T2, θ)·β (two filter passes each, no optimisation).
-    With segments, every column runs over all of them (each segment's own simulation), so the
-    covariance is that of the joint fit. The amplitudes are named ``c0, c1, …`` for the first
-    segment and ``c0_seg2, …`` for the later ones.
-    """
-    if Phi is None:
-        Phi = _regressors(st, values["T"], values["T2"], values["delay"], u, h, u_ref, bounds)
-    nl_names = st.nonlinear_names
-    n_lags = sum(1 for tc in (values["T"], values["T2"], st.T_f) if tc > 0.0)
-    amplitudes = [
-        f"c{i}" if j == 0 else f"c{i}_seg{j + 1}"
-        for j in range(len(bounds) if bounds else 1)
-        for i in range(_n_modes(st, n_lags, j))
-    ]
-    names = ("K", *nl_names, "offset", *amplitudes)
-    J = np.empty((u.size, len(names)))
-    J[:, 0] = Phi[:, 0]
-    for j, name in enumerate(nl_names, start=1):
-        step = 1e-6 * max(abs(values[name]), h)
-        up, down = dict(values), dict(values)
-        up[name] += step
-        down[name] = max(down[name] - step, 0.0) if name == "delay" else down[name] - step
-        width = up[name] - down[name]
-        Phi_up = _regressors(st, up["T"], up["T2"], up["delay"], u, h, u_ref, bounds)
-        Phi_down = _regressors(st, down["T"], down["T2"], down["delay"], u, h, u_ref, bounds)
-        J[:, j] = (Phi_up - Phi_down) @ beta / width
-    J[:, len(nl_names) + 1 :] = Phi[:, 1:]
-    return names, J
-
-
-def cramer_rao_bound(
-    model: ProcessModel,
-    u: FloatArray,
-    sample_time: float,
-    sigma: float,
-    *,
-    delay_free: bool = False,
-    initial: Literal["estimate", "rest"] = "rest",
-    noise_ar: FloatArray | None = None,
-) -> tuple[tuple[str, ...], FloatArray]:
-    """Cramér–Rao bound σ²(JᵀJ)⁻¹ for the parameters an :class:`OutputError` fit estimates.
-
-    J = ∂ŷ/∂p on the noise-free response of ``model`` to ``u`` (starting at rest at u[0]), for
-    exactly the free parameters: K, T (and T2 when ``model.T2 > 0``), the delay when
-    ``delay_free``, the offset, and the initial-state amplitudes when ``initial="estimate"``.
-
-    With ``noise_ar`` = [1, a₁, …, a_p], the noise is the AR process A(q)·v = e and ``sigma`` the
-    innovation's standard deviation σ_e: the bound is then the Box–Jenkins one (known noise
-    model), σ_e²·(J_fᵀJ_f)⁻¹ with J_f = A(q)·J, the best any estimator can do on such noise and
-    what a prediction-error fit with the right noise model attains.
-
-    Returns
-    -------
-    names, covariance
-        Parameter names and the bound on their covariance.
-
-    Examples
-    --------
-    One step of amplitude a = K·Δu = 1, noise σ = 0.01, h = 0.1 s ≪ T = 10 s, delay known.
-    With T alone free, the hand estimate of docs/identification.md §4 gives
-    sd(T̂)/T = √(4h/T)·σ/a = 0.0020; estimating K and the offset as well costs a little (their
-    columns correlate with ∂ŷ/∂T):
-
-    >>> u = np.r_[np.zeros(100), np.ones(2000)]
-    >>> names, cov = cramer_rao_bound(ProcessModel(K=1.0, T=10.0), u, 0.1, 0.01)
-    >>> names
-    ('K', 'T', 'offset')
-    >>> round(float(np.sqrt(cov[1, 1])) / 10.0, 4)
-    0.0023
-    """
-    order = 2 if model.T2 > 0.0 else 1
-    st = _Structure(order, model.T_f, None if delay_free else model.delay, initial, None)
-    u = np.asarray(u, dtype=float)
-    n_modes = (order + (1 if model.T_f > 0.0 else 0)) if initial == "estimate" else 0
-    beta = np.r_[model.K, 0.0, np.zeros(n_modes)]
-    values = {"T": model.T, "T2": model.T2, "delay": model.delay}
-    names, J = _jacobian(st, values, beta, u, sample_time, float(u[0]))
-    if noise_ar is not None:
-        J = scipy.signal.lfilter(np.asarray(noise_ar, dtype=float), [1.0], J, axis=0)
-    return names, np.asarray(sigma**2 * np.linalg.inv(J.T @ J), dtype=float)
+__all__ = ["GRID_SAMPLES", "Bounds", "OutputError", "continue_fitted", "cramer_rao_bound"]

@@ -61,11 +61,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal, Self
 
 import numpy as np
-import scipy.signal
 from numpy.typing import NDArray
 
 from fuelid.blas import single_threaded_blas
@@ -73,29 +71,36 @@ from fuelid.errors import FuelidError
 from fuelid.identify._base import Estimator, Initial
 from fuelid.identify.covariance import white_covariance
 from fuelid.identify.noise import (
-    ETA_BOUND,
     MAX_NOISE_DEGREE,
     NOISE_ORDERS,
     SELECTION_WARMUP,
     NoiseOrder,
     NoiseShape,
+    check_noise_start,
     filter_segments,
     hannan_rissanen,
     information_criterion,
-    roots_json,
-    shift_segments,
+    noise_coefficients,
     used_samples,
 )
-from fuelid.identify.oe import (
-    OutputError,
-    _jacobian,
-    _regressors,
-    _solve,
-    _Structure,
-    continue_fitted,
-)
+from fuelid.identify.oe import OutputError
 from fuelid.identify.order import Candidate, OrderChoice, bic, choose_order
+from fuelid.identify.prediction_errors import (
+    JointFit,
+    joint_fit,
+    noise_model_summary,
+    noise_model_warnings,
+    predicted_noise,
+    prediction_error_jacobian,
+)
 from fuelid.identify.segments import offset_and_free_responses
+from fuelid.identify.variable_projection import (
+    Structure,
+    continue_fitted,
+    jacobian,
+    solve_linear,
+    start_from_model,
+)
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import MODEL_KEYS, ProcessModel, nrmse_fit
@@ -106,25 +111,6 @@ if TYPE_CHECKING:
 FloatArray = NDArray[np.float64]
 Bounds = list[tuple[int, int]]
 Order = Literal[1, 2, "auto"]
-
-
-@dataclass
-class _Fit:
-    """One joint fit: the search vector, its structures, and the evaluation at the optimum."""
-
-    st: _Structure
-    noise: NoiseShape
-    x: FloatArray
-    Phi: FloatArray
-    beta: FloatArray
-    eps: FloatArray  # prediction errors over all samples (zero-initialised filter)
-    used: NDArray[np.bool_]
-    criterion: dict[str, float]
-
-    @property
-    def sse(self) -> float:
-        e = self.eps[self.used]
-        return float(e @ e)
 
 
 class PredictionError(Estimator):
@@ -206,6 +192,7 @@ class PredictionError(Estimator):
 
     Examples
     --------
+    >>> import scipy.signal
     >>> from fuelid.model import simulate_model
     >>> rng = np.random.default_rng(1)
     >>> u = np.repeat([1.0, 2.0, 1.5, 2.5, 1.0, 2.0], 500)
@@ -257,7 +244,7 @@ class PredictionError(Estimator):
     n_samples_: int
     sample_time_: float
     warnings_: list[str]
-    _state: tuple[_Structure, FloatArray, FloatArray, FloatArray]
+    _state: tuple[Structure, FloatArray, FloatArray, FloatArray]
 
     def __init__(
         self,
@@ -378,7 +365,9 @@ class PredictionError(Estimator):
         if initial == "rest":
             return response
         basis = offset_and_free_responses(discrete, bounds)
-        return np.asarray(response + basis @ _solve(basis, data.y - response).beta, dtype=float)
+        return np.asarray(
+            response + basis @ solve_linear(basis, data.y - response).beta, dtype=float
+        )
 
     def predict(self, data: IOData, horizon: int = 1, initial: Initial = "rest") -> FloatArray:
         r"""k-step-ahead prediction ŷ(t | t − k), k = ``horizon`` [output unit].
@@ -398,20 +387,9 @@ class PredictionError(Estimator):
         _, _, C, D = self._state
         if C.size == 1 and D.size == 1:
             return y_p
-        v = data.y - y_p
         # a horizon beyond the longest segment predicts nothing of the noise: the free run
         k = min(int(horizon), data.n_samples)
-        # (1 − H̄_k D/C) = (C − H̄_k D)/C, and C − H̄_k D = q⁻ᵏ·N(q) with N of degree < nd, nc
-        impulse = np.zeros(k)
-        impulse[0] = 1.0
-        h_bar = scipy.signal.lfilter(C, D, impulse)
-        full = np.zeros(k + max(C.size, D.size))
-        full[: C.size] += C
-        full[: k + D.size - 1] -= np.convolve(h_bar, D)
-        N = full[k:]
-        v_hat = filter_segments(
-            N, C, shift_segments(v, k, data.segment_bounds()), data.segment_bounds()
-        )
+        v_hat = predicted_noise(data.y - y_p, C, D, k, data.segment_bounds())
         return np.asarray(y_p + v_hat, dtype=float)
 
     def to_control(self) -> control.TransferFunction:
@@ -435,9 +413,9 @@ class PredictionError(Estimator):
             max_delay=self.max_delay,
         )
 
-    def _structure(self, order: int) -> _Structure:
+    def _structure(self, order: int) -> Structure:
         initial = "rest" if self.u_before is not None else self.initial
-        return _Structure(order, self.T_f, self.delay, initial, self.u_before, self.initial)
+        return Structure(order, self.T_f, self.delay, initial, self.u_before, self.initial)
 
     @staticmethod
     def _warm_start(
@@ -451,21 +429,9 @@ class PredictionError(Estimator):
         else:
             model = init
         if noise_init is not None:
-            try:
-                noise = (
-                    [float(c) for c in noise_init["C"]],
-                    [float(d) for d in noise_init["D"]],
-                )
-            except (KeyError, TypeError, ValueError) as err:
-                raise FuelidError(
-                    "noise_init needs coefficient lists 'C' and 'D' (as in noise_model_)"
-                ) from err
+            noise = noise_coefficients(noise_init)
         if noise is not None:
-            C, D = noise
-            if not C or not D or C[0] != 1.0 or D[0] != 1.0:
-                raise FuelidError("noise_init: C and D must be monic lists ([1.0, …])")
-            if len(C) - 1 > MAX_NOISE_DEGREE or len(D) - 1 > MAX_NOISE_DEGREE:
-                raise FuelidError(f"noise_init: C and D may have degree {MAX_NOISE_DEGREE} at most")
+            check_noise_start(*noise)
         return model, noise
 
     def _validate(self, data: IOData) -> None:
@@ -493,7 +459,7 @@ class PredictionError(Estimator):
         order: int,
         process: ProcessModel | None,
         noise_start: tuple[list[float], list[float]] | None,
-    ) -> _Fit:
+    ) -> JointFit:
         st = self._structure(order)
         bounds = data.segment_bounds()
         n = data.n_samples
@@ -503,7 +469,7 @@ class PredictionError(Estimator):
             noise = NoiseShape(len(noise_start[0]) - 1, len(noise_start[1]) - 1)
             if self.noise_order != "auto":
                 noise = NoiseShape(int(self.noise_order[0]), int(self.noise_order[1]))
-            z0 = self._z_from(process, st)
+            z0 = start_from_model(process, st)
             eta0 = noise.eta(*noise_start)
         else:
             # the output-error fit (its search only: no covariance, no diagnostics)
@@ -531,12 +497,12 @@ class PredictionError(Estimator):
             noise = NoiseShape(*chosen)
             eta0 = etas[chosen][0]
         if st.delay is not None or noise.size == 0:
-            return self._joint(data, st, noise, z0, eta0, criterion)
+            return joint_fit(data, st, noise, z0, eta0, criterion, self.max_delay)
         # a free delay: the output-error start can sit in another basin (in closed loop oe's
         # delay is biased, by seconds with a fed-back disturbance); screen a grid of delays
         # with the cheap evaluation, then search from the best of them and from oe's start
         best = z0
-        best_sse = self._joint(data, st, noise, z0, eta0, criterion, search=False).sse
+        best_sse = joint_fit(data, st, noise, z0, eta0, criterion, self.max_delay, search=False).sse
         # a second lag trades against the delay: screen its size too (a fraction of T)
         ratios = (None,) if st.order == 1 else (None, 0.1, 0.3, 0.6)
         for delay in np.linspace(0.0, 1.5 * max(float(z0[-1]), data.sample_time), 13):
@@ -545,88 +511,17 @@ class PredictionError(Estimator):
                 z[-1] = delay
                 if ratio is not None:
                     z[1] = z0[0] + math.log(ratio)
-                sse = self._joint(data, st, noise, z, eta0, criterion, search=False).sse
+                sse = joint_fit(
+                    data, st, noise, z, eta0, criterion, self.max_delay, search=False
+                ).sse
                 if sse < best_sse:
                     best, best_sse = z, sse
-        fits = [self._joint(data, st, noise, z0, eta0, criterion)]
+        fits = [joint_fit(data, st, noise, z0, eta0, criterion, self.max_delay)]
         if best is not z0:
-            fits.append(self._joint(data, st, noise, best, eta0, criterion))
+            fits.append(joint_fit(data, st, noise, best, eta0, criterion, self.max_delay))
         return min(fits, key=lambda fit: fit.sse)
 
-    @staticmethod
-    def _z_from(model: ProcessModel, st: _Structure) -> FloatArray:
-        z = [math.log(model.T)]
-        if st.order == 2:
-            z.append(math.log(model.T2 if model.T2 > 0.0 else 0.3 * model.T))
-        if st.delay is None:
-            z.append(model.delay)
-        return np.array(z)
-
-    def _joint(
-        self,
-        data: IOData,
-        st: _Structure,
-        noise: NoiseShape,
-        z0: FloatArray,
-        eta0: FloatArray,
-        criterion: dict[str, float],
-        search: bool = True,
-    ) -> _Fit:
-        """Minimise Σε² over (process nonlinear parameters, η); linear ones by projection.
-
-        ``search=False`` only evaluates the start (to screen starting points).
-        """
-        from scipy.optimize import least_squares  # slow to import: only when fitting
-
-        u, y, h = data.u, data.y, data.sample_time
-        bounds = data.segment_bounds()
-        n = data.n_samples
-        u_ref = st.u_before if st.u_before is not None else float(u[0])
-        used = used_samples(bounds, n, noise.nd)
-        n_z = z0.size
-        record = n * h
-        lo = [math.log(h / 20.0)] * st.order
-        hi = [math.log(20.0 * record)] * st.order
-        if st.delay is None:
-            bound = self.max_delay if self.max_delay is not None else min(0.25 * record, 60.0)
-            lo.append(0.0)
-            hi.append(max(bound, 1e-9))
-        lo += [-ETA_BOUND] * noise.size
-        hi += [ETA_BOUND] * noise.size
-
-        def evaluate(x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-            T, T2, delay = st.unpack(x[:n_z])
-            C, D = noise.polys(x[n_z:])
-            Phi = _regressors(st, T, T2, delay, u, h, u_ref, bounds)
-            m = Phi.shape[1]
-            stacked = np.empty((n, m + 1), order="F")
-            stacked[:, :m] = Phi
-            stacked[:, m] = y
-            filtered = filter_segments(D, C, stacked, bounds)
-            beta = _solve(filtered[used, :m], filtered[used, m]).beta
-            eps = filtered[:, m] - filtered[:, :m] @ beta
-            return Phi, beta, np.asarray(eps, dtype=float)
-
-        x0 = np.clip(np.r_[z0, eta0], np.array(lo) + 1e-9, np.array(hi) - 1e-9)
-        if noise.size == 0 or not search:
-            x = x0  # the output-error optimum already (the fit equals OE's), or a screening
-        else:
-            sol = least_squares(
-                lambda x: evaluate(x)[2][used],
-                x0,
-                bounds=(lo, hi),
-                method="trf",
-                x_scale=1.0,
-                xtol=1e-10,
-                ftol=1e-12,
-                gtol=1e-12,
-                max_nfev=100,
-            )
-            x = np.asarray(sol.x, dtype=float)
-        Phi, beta, eps = evaluate(x)
-        return _Fit(st, noise, x, Phi, beta, eps, used, criterion)
-
-    def _store(self, data: IOData, fit: _Fit) -> None:
+    def _store(self, data: IOData, fit: JointFit) -> None:
         st, noise = fit.st, fit.noise
         n_z = fit.x.size - noise.size
         T, T2, delay = st.unpack(fit.x[:n_z])
@@ -644,7 +539,7 @@ class PredictionError(Estimator):
         # from the fit: for white or fast noise this is the fit's own level (for nc = nd = 0
         # exactly), for a drift the level the simulation is scored with. ``params_`` and
         # ``cov_`` keep the prediction-error estimates of all parameters.
-        level = _solve(fit.Phi[:, 1:], data.y - self.K_ * fit.Phi[:, 0]).beta
+        level = solve_linear(fit.Phi[:, 1:], data.y - self.K_ * fit.Phi[:, 0]).beta
         free_run = np.r_[self.K_, level]
         self.offset_ = float(level[0])
         self._state = (st, free_run, C, D)
@@ -662,17 +557,8 @@ class PredictionError(Estimator):
 
         # Ψ = ∂ε/∂p: process columns −(D/C)·∂ŷ_p/∂p, noise columns exact (module docstring)
         values = {"T": T, "T2": T2, "delay": delay}
-        names, J = _jacobian(st, values, beta, data.u, h, u_ref, fit.Phi, bounds)
-        r = data.y - fit.Phi @ beta
-        r_over_C = filter_segments(np.array([1.0]), C, r, bounds)
-        eps_over_C = filter_segments(np.array([1.0]), C, fit.eps, bounds)
-        noise_cols = [shift_segments(r_over_C, i, bounds) for i in range(1, noise.nd + 1)]
-        noise_cols += [-shift_segments(eps_over_C, i, bounds) for i in range(1, noise.nc + 1)]
-        Psi = np.empty((data.n_samples, J.shape[1] + noise.size), order="F")
-        Psi[:, : J.shape[1]] = -filter_segments(D, C, J, bounds)
-        for j, col in enumerate(noise_cols):
-            Psi[:, J.shape[1] + j] = col
-        Psi = Psi[fit.used]
+        names, J = jacobian(st, values, beta, data.u, h, u_ref, fit.Phi, bounds)
+        Psi = prediction_error_jacobian(J, fit, data.y - fit.Phi @ beta, C, D, bounds)
         self.param_names_ = (*names, *noise.names)
         nl = st.nonlinear_names
         self.params_ = np.r_[self.K_, [values[name] for name in nl], beta[1:], D[1:], C[1:]]
@@ -687,21 +573,9 @@ class PredictionError(Estimator):
                 self.stderr_[name] = float(s)
         self.fixed_ = tuple(name for name in ("T2", "delay", "T_f") if name not in nl)
 
-        impulse = np.zeros(2000)
-        impulse[0] = 1.0
-        psi_v = scipy.signal.lfilter(C, D, impulse)
-        self.noise_model_ = {
-            "C": [float(c) for c in C],
-            "D": [float(d) for d in D],
-            "nc": noise.nc,
-            "nd": noise.nd,
-            "poles": roots_json(D),
-            "zeros": roots_json(C),
-            "sigma_e": self.sigma_,
-            "sigma_v": self.sigma_ * float(np.sqrt(psi_v @ psi_v)),
-            "criterion": dict(fit.criterion),
-            "criterion_name": self.noise_criterion.upper(),
-        }
+        self.noise_model_ = noise_model_summary(
+            C, D, noise, self.sigma_, fit.criterion, self.noise_criterion.upper()
+        )
 
         self.warnings_ = list(data.notes)
         shown = [self.param_names_[i] for i in singular if self.param_names_[i] in MODEL_KEYS]
@@ -710,21 +584,7 @@ class PredictionError(Estimator):
                 f"{', '.join(shown)} cannot be told apart from the other parameters with this "
                 "log (their information is singular): no standard error or interval for them"
             )
-        if np.any(np.abs(np.roots(D)) > 0.999):
-            self.warnings_.append(
-                "the noise model has a pole within 0.001 of 1 (a drift, nearly integrating): "
-                "the offset and the slowest dynamics are poorly determined; detrend or give "
-                "a longer record"
-            )
-        if (
-            noise.nc
-            and noise.nd
-            and np.min(np.abs(np.subtract.outer(np.roots(C), np.roots(D)))) < 0.01
-        ):
-            self.warnings_.append(
-                "a pole and a zero of the noise model nearly cancel: a lower noise order "
-                "would do (noise_order)"
-            )
+        self.warnings_ += noise_model_warnings(C, D, noise)
 
     def _continue_fitted(self, data: IOData) -> FloatArray:
         """``simulate(data, "fitted")``, as :meth:`OutputError._continue_fitted`."""

@@ -10,13 +10,17 @@ as toolboxes merge experiments: one model for all segments, each with its own in
 is the concatenation of the per-segment simulations over the kept samples, ``fit_percent``
 their NRMSE over all of them, the residual tests run within segments, and the held-out part of
 ``validate_split`` is the last fraction of the kept samples, wherever the gaps fall.
+
+The settings and the result (:class:`IdentifyOptions`, :class:`IdentificationResult`) live in
+:mod:`fuelid.identify.result` and the residual warnings in :mod:`fuelid.identify.residual_warnings`;
+the names are importable from here as well.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
-from typing import Any, Literal, get_args
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,198 +28,38 @@ from numpy.typing import NDArray
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
 from fuelid.identify import diagnostics
-from fuelid.identify.nonlinearity import NonlinearityCheck, gain_bands
+from fuelid.identify.nonlinearity import gain_bands
 from fuelid.identify.oe import OutputError
 from fuelid.identify.pem import PredictionError
 from fuelid.identify.preprocess import decimate
+from fuelid.identify.residual_warnings import residual_warnings
+from fuelid.identify.result import (
+    METHODS,
+    POSITIVE_PARAMETERS,
+    CiMethod,
+    IdentificationResult,
+    IdentifyOptions,
+    Method,
+    interval95,
+)
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, drop_short_segments
 from fuelid.identify.step_ls import StepResponseLS
 from fuelid.io.timeseries import IOData
-from fuelid.model import MODEL_KEYS, Z95, ProcessModel, gain_not_identified, nrmse_fit
+from fuelid.model import gain_not_identified, nrmse_fit
+
+__all__ = [
+    "METHODS",
+    "POSITIVE_PARAMETERS",
+    "CiMethod",
+    "IdentificationResult",
+    "IdentifyOptions",
+    "Method",
+    "gain_unit",
+    "identify",
+    "interval95",
+]
 
 FloatArray = NDArray[np.float64]
-Method = Literal["oe", "step-ls", "pem", "auto"]
-METHODS: tuple[Method, ...] = get_args(Method)
-"""The identification methods, the one registry of their names: ``("oe", "step-ls")``."""
-POSITIVE_PARAMETERS = frozenset({"T", "T2", "delay", "T_f"})
-"""Model parameters that cannot be negative: their 95 % intervals respect the bound 0."""
-CiMethod = Literal["normal", "log", "clipped"]
-
-
-@dataclass(frozen=True)
-class IdentifyOptions:
-    """Settings of one identification (see ``fuelid identify --help`` for their meaning).
-
-    The defaults assume nothing about the plant: the number of lags chosen by the rule of
-    :mod:`fuelid.identify.order` (``order="auto"``: BIC and the second lag's own evidence),
-    the dead time estimated, no flowmeter prior. A meter lag that is not given as
-    ``flowmeter_T`` can only be estimated as a second process lag (T, T2 and T_f enter the
-    model symmetrically), which ``order="auto"`` picks when the data show it.
-    """
-
-    method: Method = "oe"
-    """One of :data:`METHODS`; anything else is refused."""
-    order: Literal[1, 2, "auto"] = "auto"
-    """Process lags for ``oe`` and ``pem``: 1, 2, or "auto" (both fitted, one kept by the rule
-    of :mod:`fuelid.identify.order`). ``step-ls``
-    has one fixed structure (one lag and the flowmeter prior): for it "auto" means that
-    structure, and an order is not applied."""
-    delay: float | Literal["auto"] | None = None
-    """Fixed dead time [s], "auto" to estimate it, None: the flowmeter delay if given, else auto."""
-    flowmeter_T: float | None = None
-    """Flowmeter lag T_f [s], a fixed prior; None: no meter lag in the model."""
-    flowmeter_delay: float | None = None
-    """Flowmeter dead time [s]: the fixed total dead time when ``delay`` is None."""
-    N: int | None = None
-    settling_time: float | None = None
-    """Prior model's 98 % settling time [s] (chooses N for step-ls)."""
-    control_period: float = 1.0
-    validate_split: float | None = None
-    u_before: float | None = None
-    covariance: Literal["auto", "white", "hac"] = "auto"
-    """oe's parameter covariance: "white" σ²(JᵀJ)⁻¹, "hac" the sandwich with the residuals'
-    spectrum, "auto" the sandwich whenever the residuals fail the whiteness test."""
-    validation_initial: Literal["estimate", "rest"] = "estimate"
-    """How a separate validation record starts: "estimate" (offset and initial state fitted to
-    it, as a record that does not start at rest needs) or "rest" (at rest at its first input)."""
-
-    def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise FuelidError(
-                f"unknown identification method {self.method!r}: use one of {', '.join(METHODS)}"
-            )
-        if self.covariance not in ("auto", "white", "hac"):
-            raise FuelidError(f"covariance {self.covariance!r}: use auto, white or hac")
-        if self.covariance != "auto" and self.method in ("step-ls", "pem"):
-            raise FuelidError(
-                f"the covariance choice is oe's: {self.method} has its own ("
-                + ("white, from the regression" if self.method == "step-ls" else "noise-model")
-                + ")"
-            )
-
-        if self.validation_initial not in ("estimate", "rest"):
-            raise FuelidError(
-                f"validation initial condition {self.validation_initial!r}: use estimate or rest"
-            )
-
-    def resolved_delay(self) -> float | None:
-        """The fixed dead time [s], or None when it is to be estimated."""
-        if self.delay == "auto":
-            return None
-        if self.delay is not None:
-            return float(self.delay)
-        return self.flowmeter_delay
-
-
-def interval95(
-    value: float, se: float | None, *, positive: bool = False
-) -> tuple[list[float], CiMethod] | None:
-    """95 % confidence interval [low, high] of one parameter, and the method that made it.
-
-    - ``"normal"``: value ± 1.96·se, for a parameter of either sign (K);
-    - ``"log"``: exp(ln value ± 1.96·se/value) for a positive parameter (T, T2, the delay): the
-      normal interval of ln value, whose standard error is se/value by the delta method. It lies
-      above 0, contains the estimate, and reaches further above it than below;
-    - ``"clipped"``: [max(0, value − 1.96·se), value + 1.96·se] for a positive parameter whose
-      estimate is 0 (a delay at its bound, where ln is undefined) or whose log interval is
-      unbounded (se far larger than the estimate).
-
-    None when there is no finite standard error (a fixed parameter).
-
-    Examples
-    --------
-    >>> def show(ci):
-    ...     return [round(v, 4) for v in ci[0]], ci[1]
-    >>> show(interval95(13.1, 0.1))
-    ([12.904, 13.296], 'normal')
-    >>> show(interval95(0.5, 0.5, positive=True))  # 0.5·e^(∓1.96)
-    ([0.0704, 3.5495], 'log')
-    >>> show(interval95(0.0, 0.7, positive=True))
-    ([0.0, 1.372], 'clipped')
-    """
-    if se is None or not math.isfinite(se):
-        return None
-    if not positive:
-        return [value - Z95 * se, value + Z95 * se], "normal"
-    if value > 0.0:
-        with np.errstate(over="ignore"):
-            spread = float(np.exp(Z95 * se / value))
-        if math.isfinite(value * spread):
-            return [value / spread, value * spread], "log"
-    return [max(0.0, value - Z95 * se), value + Z95 * se], "clipped"
-
-
-@dataclass
-class IdentificationResult:
-    """Everything ``identify`` found, ready for JSON (:meth:`to_json`) and plots."""
-
-    method: Method
-    model: ProcessModel
-    fixed: tuple[str, ...]
-    stderr: dict[str, float | None]
-    cov_names: tuple[str, ...]
-    cov: FloatArray
-    fit_percent: float
-    validation_fit_percent: float | None
-    """Free-run fit on the held-out part or the validation record; None without one, or when
-    it has no excitation (the reason is then among the warnings)."""
-    n_samples: int
-    sample_time: float
-    warnings: list[str]
-    time: FloatArray
-    y: FloatArray
-    y_hat: FloatArray
-    """The model output: the free-run simulation over the whole record (fit and held-out)."""
-    split_time: float | None
-    diagnostics: dict[str, Any] = field(default_factory=dict)
-    n_segments: int = 1
-    """Contiguous segments of the record fitted (1 for a log without gaps)."""
-    validation_initial: str | None = None
-    """How the validation was simulated: "continued" (the held-out end of the record, simulated on
-    from the fit), "estimate" or "rest" (a separate record); None without validation."""
-    extra: dict[str, Any] = field(default_factory=dict)
-    prediction_errors: FloatArray | None = None
-    """pem's one-step prediction errors on the fitted samples (what its residual tests use);
-    None for the free-run methods, whose residuals are y − y_hat."""
-
-    def _intervals(self) -> dict[str, tuple[list[float], CiMethod] | None]:
-        values = self.model.as_dict()
-        return {
-            key: interval95(values[key], self.stderr.get(key), positive=key in POSITIVE_PARAMETERS)
-            for key in MODEL_KEYS
-        }
-
-    def ci95(self) -> dict[str, list[float] | None]:
-        """95 % confidence intervals of the model parameters (:func:`interval95`).
-
-        Symmetric for K; log-transformed for the positive T, T2 and delay (never below 0).
-        """
-        return {key: None if ci is None else ci[0] for key, ci in self._intervals().items()}
-
-    def ci95_method(self) -> dict[str, CiMethod | None]:
-        """How each interval of :meth:`ci95` was made: "normal", "log" or "clipped"."""
-        return {key: None if ci is None else ci[1] for key, ci in self._intervals().items()}
-
-    def to_json(self) -> dict[str, Any]:
-        """The documented JSON object of ``fuelid identify --json`` (without provenance)."""
-        return {
-            "method": self.method,
-            "model": {key: self.model.as_dict()[key] for key in MODEL_KEYS},
-            "fixed": list(self.fixed),
-            "stderr": {key: self.stderr.get(key) for key in MODEL_KEYS},
-            "ci95": self.ci95(),
-            "ci95_method": self.ci95_method(),
-            "cov": {"names": list(self.cov_names), "matrix": self.cov.tolist()},
-            "fit_percent": self.fit_percent,
-            "validation_fit_percent": self.validation_fit_percent,
-            "validation_initial": self.validation_initial,
-            "n_samples": self.n_samples,
-            "sample_time": self.sample_time,
-            "segments": self.n_segments,
-            "diagnostics": self.diagnostics,
-            "warnings": self.warnings,
-            **self.extra,
-        }
 
 
 def _split(data: IOData, fraction: float | None) -> tuple[IOData, int]:
@@ -235,69 +79,6 @@ def _split(data: IOData, fraction: float | None) -> tuple[IOData, int]:
             f"{data.n_samples - n_fit} to validate: too few"
         )
     return data.segment(0, n_fit), n_fit
-
-
-def _unmodelled_dynamics(
-    p_value: float,
-    options: IdentifyOptions,
-    delay: float | None,
-    gain_varies: bool | None = None,
-    noise_white: bool | None = None,
-    kept_order: int = 2,
-) -> str:
-    """The input-correlation warning, suggesting only structures this fit did not already try.
-
-    ``kept_order`` is the fitted model's number of lags (with ``order="auto"`` a second lag
-    may have been tried and not kept).
-    ``gain_varies`` is what the nonlinearity check found (None: the log has too few command
-    levels to check): it decides whether a nonlinearity is named as a possible cause.
-    ``noise_white`` is whether the residuals are white where the output has settled
-    (:func:`~fuelid.identify.diagnostics.settled_whiteness`; None: not judged): white noise is
-    then not named as a cause.
-
-    Examples
-    --------
-    >>> _unmodelled_dynamics(1e-9, IdentifyOptions(order=1, delay=0.2), 0.2).split(": ")[1]
-    'unmodelled dynamics; a second lag (order 2) or an estimated dead time may fit better'
-    >>> "nonlinearity" in _unmodelled_dynamics(1e-9, IdentifyOptions(order=2), None)
-    True
-    """
-    untried = []
-    if options.order == 1:
-        untried.append("a second lag (order 2)")
-    if delay is not None:
-        untried.append("an estimated dead time")
-    head = f"residuals correlate with past inputs (p = {p_value:.2g})"
-    if options.method == "step-ls":
-        return (
-            f"{head}: unmodelled dynamics or a nonlinearity; the article's method has a fixed "
-            "structure, the output-error fit (method oe) can try a second lag and a free delay"
-        )
-    if untried:
-        return f"{head}: unmodelled dynamics; {' or '.join(untried)} may fit better"
-    tried = (
-        "the fit already has a second lag and an estimated dead time"
-        if kept_order == 2
-        else "a second lag was tried and not kept (see the order choice), and the dead time is "
-        "estimated"
-    )
-    # the noise's colour is a cause only when the settled residuals do not show it white
-    noise = "" if noise_white else " or coloured noise"
-    white = " (the noise is white where the output has settled)" if noise_white else ""
-    if gain_varies is False:
-        return (
-            f"{head}: {tried}, and the gain does not change with the command, so the cause is "
-            f"more likely dynamics outside the model family{noise}{white}"
-        )
-    if gain_varies:
-        return (
-            f"{head}: {tried}, and a gain per command band does not remove it either: dynamics "
-            f"that change with the operating point{noise}{white}"
-        )
-    return (
-        f"{head}: {tried}, so the cause is more likely a nonlinearity (the gain changing with "
-        f"the operating point) or dynamics outside the model family{noise}{white}"
-    )
 
 
 def _no_excitation(u: FloatArray, what: str) -> str | None:
@@ -372,119 +153,6 @@ def gain_unit(data: IOData) -> str:
     """
     y_unit = f"({data.y_unit})" if "/" in data.y_unit else data.y_unit
     return f"{y_unit}/{data.u_unit}"
-
-
-def _residual_warnings(
-    options: IdentifyOptions,
-    delay: float | None,
-    tests: tuple[diagnostics.CorrelationTest, diagnostics.CorrelationTest],
-    residuals: FloatArray,
-    nonlinearity: NonlinearityCheck | None,
-    fit_data: IOData,
-    lag_and_settle: tuple[int, float],
-    K_unit: str,
-    kept_order: int = 2,
-) -> list[str]:
-    """The nonlinearity and residual-test warnings, each saying what the data show.
-
-    When the gain changes significantly with the command (:mod:`fuelid.identify.nonlinearity`)
-    that is said first, and the residual tests are repeated on the band model (a gain per
-    command band, the same dynamics): if its residuals pass, the residual warnings name the
-    nonlinearity as the cause instead of noise colour or a missing lag. If they still fail,
-    the whiteness warning says whether the noise itself is coloured: residuals white where the
-    output has settled (:func:`~fuelid.identify.diagnostics.settled_whiteness`) mean white noise
-    and a transient the model misses; coloured there, coloured noise or a drift.
-    """
-    white, cross = tests
-    max_lag, settle = lag_and_settle
-    out: list[str] = []
-    starts = fit_data.segment_starts
-    band_white: diagnostics.CorrelationTest | None = None
-    band_cross: diagnostics.CorrelationTest | None = None
-    if nonlinearity is not None and nonlinearity.significant:
-        out.append(nonlinearity.warning(K_unit, fit_data.u_unit))
-        band_white = diagnostics.residual_whiteness(nonlinearity.residuals, segment_starts=starts)
-        band_cross = diagnostics.input_residual_correlation(
-            fit_data.u, nonlinearity.residuals, max_lag, starts
-        )
-    noise_white: bool | None = None
-    settled: diagnostics.CorrelationTest | None = None
-    significant = band_white is not None and nonlinearity is not None
-    if not (white.passed and cross.passed):
-        # is the noise itself white? judged where the output has settled, on the residuals of
-        # the best model at hand (the band model's when the gain changes with the command)
-        e = nonlinearity.residuals if significant and nonlinearity is not None else residuals
-        settled = diagnostics.settled_whiteness(
-            e, fit_data.u, fit_data.sample_time, settle, fit_data.segment_starts
-        )
-        noise_white = None if settled is None else settled.passed
-    if not white.passed:
-        if band_white is not None and band_white.passed:
-            out.append(
-                f"residuals are not white (p = {white.p_value:.2g}) because the gain changes "
-                "with the command: with a gain per command band they are "
-                f"(p = {band_white.p_value:.2g}); standard errors may be optimistic"
-            )
-        else:
-            out.append(_not_white(white, band_white, settled, significant))
-    # a zero-phase filter smears each output step backwards in time, which looks like feedback
-    # to the test below: it is only meaningful on unfiltered (oe) data
-    if options.method == "oe" and diagnostics.feedback_suspected(cross):
-        out.append(
-            "the input reacts to the output residual: the data look closed-loop; an output-error "
-            "fit is then biased when the noise is coloured: use the prediction-error fit with "
-            "a noise model (method pem), which is consistent in closed loop, or log open-loop "
-            "steps"
-        )
-    elif not cross.passed:
-        if band_cross is not None and band_cross.passed:
-            out.append(
-                f"residuals correlate with past inputs (p = {cross.p_value:.2g}) because the "
-                "gain changes with the command: with a gain per command band they do not "
-                f"(p = {band_cross.p_value:.2g}); another lag or dead time would not remove it"
-            )
-        else:
-            gain_varies = None if nonlinearity is None else nonlinearity.significant
-            out.append(
-                _unmodelled_dynamics(
-                    cross.p_value, options, delay, gain_varies, noise_white, kept_order
-                )
-            )
-    return out
-
-
-def _not_white(
-    white: diagnostics.CorrelationTest,
-    band_white: diagnostics.CorrelationTest | None,
-    settled: diagnostics.CorrelationTest | None,
-    significant: bool,
-) -> str:
-    """The whiteness warning when the gain's change with the command does not explain it.
-
-    ``settled`` is the whiteness test where the output has settled (None: too little settled
-    output to judge); ``significant`` whether the gain changes with the command.
-    """
-    head = f"residuals are not white (p = {white.p_value:.2g})"
-    if band_white is not None:
-        head += f", not even with a gain per command band (p = {band_white.p_value:.2g})"
-    tail = "standard errors may be optimistic"
-    if settled is None:
-        return f"{head}: coloured noise or unmodelled dynamics; {tail}"
-    if settled.passed:
-        also = (
-            ", and with the gain the dynamics may change with the command too"
-            if significant
-            else ""
-        )
-        return (
-            f"{head}, but only after command changes: where the output has settled they are "
-            f"(p = {settled.p_value:.2g}), so the noise is white and the model misses part of "
-            f"the transient response{also}; {tail}"
-        )
-    return (
-        f"{head}, also where the output has settled (p = {settled.p_value:.2g}): coloured "
-        f"noise or a drift; {tail}"
-    )
 
 
 def identify(
@@ -740,7 +408,7 @@ def _identify(
         "nonlinearity": None if nonlinearity is None else nonlinearity.to_json(),
     }
     warnings.extend(
-        _residual_warnings(
+        residual_warnings(
             options,
             delay,
             (white, cross),

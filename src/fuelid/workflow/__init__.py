@@ -16,6 +16,9 @@ or writes files. Fuel temperatures are in kelvin throughout (``T_fuel``, ``T_ran
 - :mod:`~fuelid.workflow.plant_info`: :func:`plant_info` (``fuelid plant info``);
 - :mod:`~fuelid.workflow.simulation`: :class:`SimulationRequest`, :func:`simulate_log`
   (``fuelid simulate``) and the profile-file reader :func:`read_profile`.
+- :mod:`~fuelid.workflow.greybox_fit`: a user's ODE model file fitted to logs (``fuelid
+  greybox``): the model with its fixed and free parameters, the logs as records, the validation,
+  the warnings and the JSON object.
 
 See docs/architecture.md for where this layer sits.
 

@@ -1,0 +1,405 @@
+"""Single-shooting output-error fit of a gray-box model: the least-squares driver and covariance.
+
+The estimate minimises Σ_records Σ_outputs Σ_k ((ŷ_k(φ) − y_k)/σ_c)² by trust-region
+least squares (:func:`scipy.optimize.least_squares`, ``trf``, within the bounds), with the exact
+Jacobian from the forward sensitivity equations (:mod:`fuelid.greybox.sensitivity`): one
+simulation per record per iteration, however many parameters. σ_c, the noise level of each output,
+starts at the first-difference estimate and is re-estimated from the residuals (a second pass
+when it moved): that is maximum likelihood for Gaussian white output noise of unknown level per
+output, and what weighs flow against pressure when both are logged.
+
+The covariance is the inverse Fisher information (JᵀJ)⁻¹ with J the weighted sensitivities at the
+estimate (:func:`parameter_uncertainty`): the Cramér–Rao bound, attained asymptotically by this
+estimator when the output noise is white. Positive parameters are estimated as log θ, so their
+95 % interval exp(log θ̂ ± 1.96σ) is asymmetric.
+
+:class:`ShootingFit` holds the machinery :class:`~fuelid.greybox.estimator.GreyBoxEstimator`
+fits with; the segmented start (:mod:`fuelid.greybox.multiple_shooting`) and the profile
+likelihood (:mod:`fuelid.greybox.profile`) build on it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.optimize
+import scipy.stats
+from numpy.typing import NDArray
+
+from fuelid.errors import FuelidError, NotFittedError
+from fuelid.greybox.parameters import ParameterMap
+from fuelid.greybox.sensitivity import SimulationError, Trajectory, simulate_record
+from fuelid.greybox.system import GreyBoxModel, Record
+
+FloatArray = NDArray[np.float64]
+Z95 = float(scipy.stats.norm.ppf(0.975))
+COST_TOLERANCE = 1e-4
+"""The solver stops when an iteration lowers ½Σ(r/σ)² by less than this (see ``_solve``)."""
+MAX_NOISE_PASSES = 4
+"""Fits with re-estimated noise levels, at most (several outputs only)."""
+NOISE_TOLERANCE = math.log(1.05)
+"""The noise levels have settled when none moved by more than 5 % in a pass."""
+XTOL = 1e-7
+"""The solver stops when a step changes φ by less than this relative amount: 1e-7 of a
+parameter is far inside any standard error the data give (log-space parameters: relative), and
+the last iterations to 1e-10 only chase the integrator's rounding with rejected trial points."""
+
+
+class ConvergenceError(FuelidError):
+    """The fit did not converge: no numbers are given."""
+
+
+@dataclass
+class Evaluation:
+    """Weighted residuals (and their Jacobian) of every record at one φ, with the trajectories."""
+
+    residuals: FloatArray
+    jacobian: FloatArray | None
+    trajectories: list[Trajectory]
+
+
+@dataclass
+class ShootingResult:
+    """A single-shooting fit of the whole records."""
+
+    phi: FloatArray
+    solution: Any
+    """scipy's least-squares result of the last noise pass."""
+    evaluation: Evaluation
+    sigma: FloatArray
+    """Noise level per output from the residuals."""
+    iterations: int
+
+
+def first_outputs(y: FloatArray) -> FloatArray:
+    """Each output's first finite sample (NaN for a column without one): the y0 of x0(θ, u0, y0).
+
+    >>> first_outputs(np.array([[np.nan, 2.0], [1.0, 3.0]]))
+    array([1., 2.])
+    """
+    out = np.full(y.shape[1], np.nan)
+    for column in range(y.shape[1]):
+        finite = np.flatnonzero(np.isfinite(y[:, column]))
+        if len(finite):
+            out[column] = y[finite[0], column]
+    return out
+
+
+def noise_level(y: FloatArray) -> FloatArray:
+    """First-difference noise estimate per output, floored above zero.
+
+    1.4826·MAD(Δy)/√2: the differences of white noise have √2 its standard deviation, and the
+    median absolute deviation ignores the few large differences where the signal itself steps,
+    so the first pass of the fit starts with nearly the weights it ends with.
+    """
+    levels = []
+    for column in range(y.shape[1]):
+        values = y[np.isfinite(y[:, column]), column]
+        diff = np.diff(values)
+        level = 0.0
+        if len(diff) > 1:
+            mad = float(np.median(np.abs(diff - np.median(diff))))
+            level = 1.4826 * mad / math.sqrt(2.0) if mad > 0.0 else float(np.std(diff))
+        spread = float(np.std(values)) if len(values) > 1 else 0.0
+        levels.append(max(level, 1e-6 * spread, 1e-12))
+    return np.array(levels)
+
+
+def residual_sigma(
+    evaluation: Evaluation, records: Sequence[Record], n_estimated: int
+) -> FloatArray:
+    """Noise level per output from the residuals (degrees of freedom shared by outputs)."""
+    errors = [t.outputs - r.y for t, r in zip(evaluation.trajectories, records, strict=True)]
+    stacked = np.vstack(errors)
+    out = []
+    for column in range(stacked.shape[1]):
+        finite = stacked[np.isfinite(stacked[:, column]), column]
+        dof = max(len(finite) - n_estimated / stacked.shape[1], 1.0)
+        out.append(max(float(np.sqrt(np.sum(finite**2) / dof)), 1e-12))
+    return np.array(out)
+
+
+@dataclass(frozen=True)
+class ParameterUncertainty:
+    """The covariance of the free parameters at the estimate and what follows from it."""
+
+    cov_phi: FloatArray
+    """Covariance of everything estimated (free parameters, then initial states), in φ."""
+    cov: FloatArray
+    """Covariance of the free parameters in natural units."""
+    correlation: FloatArray
+    stderr: dict[str, float | None]
+    """Standard error per parameter (None: fixed, or not determined by the data)."""
+    ci95: dict[str, tuple[float, float] | None]
+    """95 % interval per parameter (None as for ``stderr``)."""
+
+
+def parameter_uncertainty(
+    parameter_map: ParameterMap, phi: FloatArray, jac: FloatArray, unknown: set[str]
+) -> ParameterUncertainty:
+    """Covariance (JᵀJ)⁻¹, standard errors and 95 % intervals at the estimate φ.
+
+    ``jac`` is the weighted Jacobian at φ; ``unknown`` names the parameters in a combination the
+    data do not determine: they get no standard error and no interval.
+    """
+    p = len(parameter_map.free_names)
+    information = jac.T @ jac
+    cov_phi = np.asarray(np.linalg.pinv(information, rcond=1e-12, hermitian=True), dtype=float)
+    theta = parameter_map.to_theta(phi[:p])
+    scale = parameter_map.dtheta_dphi(phi[:p])
+    cov = cov_phi[:p, :p] * np.outer(scale, scale)
+    stderr_phi = np.sqrt(np.clip(np.diag(cov_phi[:p, :p]), 0.0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        correlation = cov / np.outer(sd, sd)
+    stderr: dict[str, float | None] = {spec.name: None for spec in parameter_map.specs}
+    ci95: dict[str, tuple[float, float] | None] = {spec.name: None for spec in parameter_map.specs}
+    log_mask = parameter_map.log_mask
+    for j, name in enumerate(parameter_map.free_names):
+        if name in unknown:
+            continue
+        stderr[name] = float(sd[j])
+        if log_mask[j]:
+            ci95[name] = (
+                float(theta[j] * math.exp(-Z95 * stderr_phi[j])),
+                float(theta[j] * math.exp(Z95 * stderr_phi[j])),
+            )
+        else:
+            # clipped to the parameter's bounds: the estimate cannot lie beyond them
+            spec = parameter_map.free[j]
+            low = float(theta[j] - Z95 * sd[j])
+            high = float(theta[j] + Z95 * sd[j])
+            ci95[name] = (
+                low if spec.lower is None else max(low, spec.lower),
+                high if spec.upper is None else min(high, spec.upper),
+            )
+    return ParameterUncertainty(cov_phi, cov, correlation, stderr, ci95)
+
+
+class ShootingFit:
+    """Simulate the records at φ and fit φ by least squares (the estimator's machinery).
+
+    The attributes are set by :meth:`GreyBoxEstimator.fit
+    <fuelid.greybox.estimator.GreyBoxEstimator.fit>` before any of these methods runs.
+    """
+
+    model: GreyBoxModel
+    max_iterations: int
+    map_: ParameterMap
+    free_names_: tuple[str, ...]
+    n_states_: int
+    estimate_x0_: bool
+    _budgets: list[int]
+    """Right-hand-side evaluations a simulation of each record may use (empty: no limit)."""
+    _work: list[int]
+    """Record simulations and right-hand-side evaluations so far."""
+    records_: list[Record]
+
+    def _check_fitted(self) -> None:
+        if "params_" not in vars(self):
+            raise NotFittedError(f"{type(self).__name__} is not fitted: call fit(records) first")
+
+    def _x0_names(self) -> list[str]:
+        if not self.estimate_x0_:
+            return []
+        many = len(self.records_) > 1
+        return [
+            f"x0[{state}]" + (f"@{record.name or i + 1}" if many else "")
+            for i, record in enumerate(self.records_)
+            for state in self.model.state_names
+        ]
+
+    def _evaluate(
+        self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, jacobian: bool
+    ) -> Evaluation:
+        """Simulate every record at φ: weighted residuals (and their Jacobian)."""
+        p = len(self.free_names_)
+        n = self.n_states_
+        values = self.map_.values(phi[:p])
+        scale = self.map_.dtheta_dphi(phi[:p])
+        trajectories = []
+        for i, record in enumerate(records):
+            system = self.model.bind(values, self.free_names_, record)
+            if self.estimate_x0_:
+                x0 = phi[p + i * n : p + (i + 1) * n]
+                s0 = np.hstack([np.zeros((n, p)), np.eye(n)])
+            else:
+                init = system.initial_state(record.u[0], first_outputs(record.y))
+                if init is None:
+                    raise FuelidError("the model stopped defining x0 after the first call")
+                x0, dx0 = init
+                s0 = np.asarray(dx0, dtype=float).reshape(n, p) * scale
+            budget = self._budgets[i] if i < len(self._budgets) else None
+            trajectories.append(
+                simulate_record(
+                    system,
+                    record,
+                    np.asarray(x0, dtype=float),
+                    s0 if jacobian else None,
+                    scale if jacobian else None,
+                    budget,
+                )
+            )
+        self._work[0] += len(trajectories)
+        self._work[1] += sum(trajectory.evaluations for trajectory in trajectories)
+        return self._assemble(trajectories, records, sigma, jacobian)
+
+    def _assemble(
+        self,
+        trajectories: list[Trajectory],
+        records: Sequence[Record],
+        sigma: FloatArray,
+        jacobian: bool,
+    ) -> Evaluation:
+        """Weighted residuals (and Jacobian) from simulated trajectories: no new simulation."""
+        p = len(self.free_names_)
+        n = self.n_states_
+        n_x0 = n * len(records) if self.estimate_x0_ else 0
+        residuals: list[FloatArray] = []
+        rows: list[FloatArray] = []
+        for i, (record, trajectory) in enumerate(zip(records, trajectories, strict=True)):
+            keep = np.isfinite(record.y)
+            weighted = (trajectory.outputs - record.y) / sigma
+            residuals.append(weighted[keep])
+            if jacobian:
+                sens = trajectory.output_sensitivity
+                if sens is None:
+                    raise FuelidError("internal: a trajectory without sensitivities")
+                sens = sens / sigma[None, :, None]
+                block = np.zeros((int(keep.sum()), p + n_x0))
+                block[:, :p] = sens[:, :, :p][keep]
+                if self.estimate_x0_:
+                    block[:, p + i * n : p + (i + 1) * n] = sens[:, :, p:][keep]
+                rows.append(block)
+        r = np.concatenate(residuals)
+        if not np.all(np.isfinite(r)):
+            raise SimulationError("the model's outputs are not finite at these parameters")
+        return Evaluation(r, np.vstack(rows) if jacobian else None, trajectories)
+
+    def _solve(
+        self,
+        phi0: FloatArray,
+        records: Sequence[Record],
+        sigma: FloatArray,
+        hold: int | Sequence[int] | None = None,
+        seed: Evaluation | None = None,
+    ) -> tuple[FloatArray, Any, Evaluation]:
+        """Least squares from phi0; ``hold`` keeps φ components fixed (profiles, initial states).
+
+        ``seed`` is the evaluation at phi0 with this σ, if already at hand. Returns φ̂, the
+        solver's result and the evaluation at φ̂ (the solver's last accepted point, so the caller
+        need not simulate it again).
+        """
+        p = len(self.free_names_)
+        lower, upper = self.map_.bounds()
+        n_extra = len(phi0) - p
+        lower = np.concatenate([lower, np.full(n_extra, -np.inf)])
+        upper = np.concatenate([upper, np.full(n_extra, np.inf)])
+        active = np.ones(len(phi0), dtype=bool)
+        if hold is not None:
+            active[np.atleast_1d(np.asarray(hold, dtype=int))] = False
+        clip_low, clip_high = lower[active], upper[active]
+        start = np.clip(phi0[active], clip_low + 1e-12, clip_high - 1e-12)
+        # evaluations by φ: the latest (for its Jacobian) and the best (the solver's answer)
+        latest: dict[bytes, Evaluation] = {}
+        best: list[tuple[float, bytes, Evaluation]] = []
+        if seed is not None and np.array_equal(start, phi0[active]):
+            latest[start.tobytes()] = seed
+
+        def full(phi_active: FloatArray) -> FloatArray:
+            phi = phi0.copy()
+            phi[active] = phi_active
+            return phi
+
+        def remember(key: bytes, evaluation: Evaluation) -> None:
+            latest.clear()
+            latest[key] = evaluation
+            cost = float(evaluation.residuals @ evaluation.residuals)
+            if not best or cost <= best[0][0]:
+                best[:] = [(cost, key, evaluation)]
+
+        def fun(phi_active: FloatArray) -> FloatArray:
+            key = phi_active.tobytes()
+            evaluation = latest.get(key)
+            if evaluation is None:
+                try:
+                    evaluation = self._evaluate(full(phi_active), records, sigma, jacobian=True)
+                except (SimulationError, FloatingPointError, OverflowError):
+                    # a trial point where the ODE cannot be solved counts as a very poor fit,
+                    # so the trust region shrinks back towards the last good point
+                    if not best:
+                        raise
+                    return 1e3 * (np.abs(best[0][2].residuals) + 1.0)
+            remember(key, evaluation)
+            return evaluation.residuals
+
+        def jac(phi_active: FloatArray) -> FloatArray:
+            evaluation = latest.get(phi_active.tobytes())
+            if evaluation is None:
+                evaluation = self._evaluate(full(phi_active), records, sigma, jacobian=True)
+            if evaluation.jacobian is None:
+                raise FuelidError("internal: an evaluation without its Jacobian")
+            return evaluation.jacobian[:, active]
+
+        # Stop when an iteration lowers the weighted cost ½Σr² by less than COST_TOLERANCE
+        # (at the optimum ½Σr² ≈ m/2): the step then moves φ by ~0.01 standard errors, and
+        # further iterations would chase the integrator's rounding rather than the data.
+        n_residuals = (
+            len(seed.residuals)
+            if seed is not None
+            else sum(int(np.isfinite(record.y).sum()) for record in records)
+        )
+        ftol = min(1e-6, max(1e-12, COST_TOLERANCE / (0.5 * max(n_residuals, 1))))
+        solution = scipy.optimize.least_squares(
+            fun,
+            start,
+            jac=jac,
+            bounds=(clip_low, clip_high),
+            method="trf",
+            x_scale="jac",
+            xtol=XTOL,
+            ftol=ftol,
+            gtol=1e-10,
+            max_nfev=self.max_iterations,
+        )
+        key = np.asarray(solution.x, dtype=float).tobytes()
+        found = latest.get(key)
+        if found is None and best and best[0][1] == key:
+            found = best[0][2]
+        if found is None:
+            found = self._evaluate(full(solution.x), records, sigma, jacobian=True)
+        return full(solution.x), solution, found
+
+    def _single_shooting(
+        self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, evaluation: Evaluation
+    ) -> ShootingResult:
+        """Fit the whole records from φ, re-estimating the noise levels between passes.
+
+        Returns φ̂, the solver's result, the evaluation at φ̂, the noise levels and the iterations.
+        """
+        iterations = 0
+        try:
+            for _ in range(MAX_NOISE_PASSES):
+                phi, solution, evaluation = self._solve(phi, records, sigma, seed=evaluation)
+                iterations += int(solution.njev if solution.njev is not None else solution.nfev)
+                from_residuals = residual_sigma(evaluation, records, len(phi))
+                moved = np.abs(np.log(from_residuals / sigma))
+                sigma = from_residuals
+                evaluation = self._assemble(evaluation.trajectories, records, sigma, True)
+                if len(sigma) == 1 or np.all(moved < NOISE_TOLERANCE):
+                    break
+        except (SimulationError, FloatingPointError, OverflowError) as exc:
+            raise ConvergenceError(
+                f"the fit did not converge: the model cannot be simulated ({exc})"
+            ) from None
+        if solution.status <= 0:
+            raise ConvergenceError(
+                f"the fit did not converge in {self.max_iterations} iterations "
+                f"({solution.message.rstrip('.')}); no estimate is given: try other start "
+                "values, fix a parameter, or give a longer or more exciting record"
+            )
+        return ShootingResult(phi, solution, evaluation, sigma, iterations)

@@ -1,0 +1,169 @@
+"""What the data determine at a gray-box estimate: identifiability, correlations, profiles.
+
+:class:`ProfileLikelihood` gives :class:`~fuelid.greybox.estimator.GreyBoxEstimator` its
+identifiability report from the weighted sensitivities (:mod:`fuelid.greybox.identifiability`),
+the refusal to fit parameters no data of this kind determine, the pairs of estimates correlated
+near ±1, and the profile-likelihood interval of a parameter where the Gaussian one (from the
+covariance, :mod:`fuelid.greybox.fitting`) is not to be trusted.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.optimize
+import scipy.stats
+
+from fuelid.errors import FuelidError
+from fuelid.greybox.fitting import Evaluation, FloatArray, ShootingFit
+from fuelid.greybox.identifiability import (
+    ESTIMATE_CORRELATION_LIMIT,
+    IdentifiabilityReport,
+    NotIdentifiableError,
+    UndeterminedCombination,
+    identifiability,
+    structural_report,
+)
+from fuelid.greybox.sensitivity import SimulationError
+from fuelid.greybox.system import Record
+
+CHI2_95 = float(scipy.stats.chi2.ppf(0.95, 1))
+PROFILE_DOUBLINGS = 8
+"""A profile steps out 2, 4, … 256 standard errors looking for the crossing."""
+
+
+class ProfileLikelihood(ShootingFit):
+    """Identifiability and profile likelihood of :class:`GreyBoxEstimator`'s parameters."""
+
+    state_scale_: float
+    records_: list[Record]
+    phi_: FloatArray
+    sigma_: FloatArray
+    cov_phi_: FloatArray
+    correlation_: FloatArray
+    cost_: float
+    identifiability_: IdentifiabilityReport
+
+    def _structural(
+        self, phi: FloatArray, start: Evaluation
+    ) -> tuple[IdentifiabilityReport, list[UndeterminedCombination]]:
+        """The identifiability report at φ and its combinations no data of this kind determine."""
+        assert start.jacobian is not None
+        report = self._report(phi, start.jacobian)
+        return report, [c for c in report.undetermined if not np.isfinite(c.uncertainty)]
+
+    def _refuse_structural(self, phi: FloatArray, start: Evaluation) -> None:
+        """Refuse before fitting when the parameters cannot be determined whatever the values.
+
+        A combination whose sensitivity vanishes at the start values to rounding (a scale the
+        outputs cannot see, a parameter they do not depend on) is not determined by any data of
+        this kind: fitting would only wander along it.
+        """
+        report, structural = self._structural(phi, start)
+        if structural or report.zero_sensitivity:
+            raise NotIdentifiableError(structural_report(report, structural, self.free_names_))
+
+    def _report(self, phi: FloatArray, jac: FloatArray) -> IdentifiabilityReport:
+        p = len(self.free_names_)
+        names = [*self.free_names_, *self._x0_names()]
+        theta = self.map_.to_theta(phi[:p])
+        column_scale = np.concatenate(
+            [
+                # a parameter at 0 (an offset, say) has no size of its own: unit scale
+                np.where(self.map_.log_mask, 1.0, np.where(theta != 0.0, np.abs(theta), 1.0)),
+                np.maximum(np.abs(phi[p:]), self.state_scale_),
+            ]
+        )
+        return identifiability(jac, names, column_scale, report_only=self.free_names_)
+
+    def correlated_pairs(
+        self, limit: float = ESTIMATE_CORRELATION_LIMIT
+    ) -> list[tuple[str, str, float]]:
+        """Pairs of free parameters whose estimates correlate beyond ``limit`` (name, name, ρ).
+
+        Pairs the identifiability report already names as confounded are left out. Three or more
+        parameters can trade against each other with no pair of sensitivities
+        alike (the identifiability report's confounded pairs); their estimates then still
+        correlate near ±1, and each interval holds only if the model is exactly right.
+        """
+        self._check_fitted()
+        named = {frozenset(pair[:2]) for pair in self.identifiability_.confounded_pairs}
+        names = self.free_names_
+        pairs = []
+        for i in range(len(names)):
+            for j in range(i + 1, len(names)):
+                rho = float(self.correlation_[i, j])
+                if (
+                    math.isfinite(rho)
+                    and abs(rho) > limit
+                    and frozenset((names[i], names[j])) not in named
+                ):
+                    pairs.append((names[i], names[j], rho))
+        return pairs
+
+    def profile_interval(self, name: str, level: float = 0.95) -> tuple[float, float]:
+        """Profile-likelihood interval of one free parameter.
+
+        The parameter is held at trial values and the others (and initial states) re-fitted;
+        the interval is where the weighted cost rises by the χ²₁ quantile over its minimum.
+        Each side is bracketed by stepping out and then found by Brent's method.
+        """
+        self._check_fitted()
+        if name not in self.free_names_:
+            raise FuelidError(f"{name!r} is not a free parameter: {', '.join(self.free_names_)}")
+        j = self.free_names_.index(name)
+        threshold = float(scipy.stats.chi2.ppf(level, 1))
+        lower, upper = self.map_.bounds()
+        sd = math.sqrt(max(float(self.cov_phi_[j, j]), 1e-30))
+        best = self.cost_
+        # refits by offset: each new one starts from the nearest (a warm start), and Brent's
+        # method re-asks for the bracket's ends at no cost
+        refits: dict[float, tuple[float, FloatArray]] = {0.0: (-threshold, self.phi_)}
+
+        def excess(offset: float) -> float:
+            if offset in refits:
+                return refits[offset][0]
+            nearest = min(refits, key=lambda known: abs(known - offset))
+            phi = refits[nearest][1].copy()
+            phi[j] = self.phi_[j] + offset
+            try:
+                refit_phi, _, refit = self._solve(phi, self.records_, self.sigma_, hold=j)
+                value = float(refit.residuals @ refit.residuals) - best - threshold
+            except (SimulationError, FloatingPointError, OverflowError):
+                return math.inf
+            refits[offset] = (value, refit_phi)
+            return value
+
+        ends = []
+        for direction in (-1.0, 1.0):
+            bound = lower[j] if direction < 0 else upper[j]
+            # the farthest offset inside the bound (a hair inside, where the model is defined)
+            room = direction * (bound - self.phi_[j]) if math.isfinite(bound) else math.inf
+            step = 2.0 * sd
+            inner = 0.0
+            end = math.nan
+            for _ in range(PROFILE_DOUBLINGS):
+                at_bound = step >= room * (1.0 - 1e-9)
+                offset = direction * (room * (1.0 - 1e-9) if at_bound else step)
+                if offset == inner:
+                    end = bound
+                    break
+                if excess(offset) > 0.0:
+                    root = scipy.optimize.brentq(
+                        lambda o: min(excess(o), 1e6), inner, offset, xtol=0.02 * sd
+                    )
+                    end = self.phi_[j] + root
+                    break
+                if at_bound:
+                    end = bound  # the cost never rises enough before the bound
+                    break
+                inner = offset
+                step *= 2.0
+            else:
+                end = -math.inf if direction < 0 else math.inf
+            ends.append(end)
+        if self.map_.log_mask[j]:
+            # exp(−inf) = 0: a side without a crossing reaches the positivity bound
+            return math.exp(ends[0]), math.exp(ends[1])
+        return ends[0], ends[1]
