@@ -1,0 +1,259 @@
+"""The closed loop's responses to the setpoint moves made in AUTO: IAE, overshoot, settling, rise.
+
+K. J. Åström, T. Hägglund, *Advanced PID Control* (ISA, 2006), §7.2 (step-response measures).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from fuelid import lti
+from fuelid.online.health._arrays import FloatArray
+from fuelid.online.health.sensor import noise_level
+from fuelid.online.health.shares import AUTO
+
+SETTLING_FRACTION = 0.05
+"""Settling band of a setpoint step: ±5 % of the step [-]."""
+SETTLING_NOISE_LEVELS = 4.0
+"""The settling band is at least this many noise levels wide (half width) [-]."""
+RAMP_GAP_S = 2.0
+"""Same-direction setpoint changes at most this far apart form one ramped move [s]."""
+MIN_STEP_LPM = 0.5
+"""Smallest setpoint step analysed [L/min] (or three noise levels when that is larger)."""
+
+
+@dataclass(frozen=True)
+class SetpointResponse:
+    """The closed loop's response to one setpoint step made in AUTO."""
+
+    time: float
+    """Time of the first sample with the new setpoint [s]."""
+    start: float
+    """Setpoint before the step [L/min]."""
+    target: float
+    """Setpoint after the step [L/min]."""
+    duration: float
+    """Time assessed: until the next setpoint step, MAN or the window's end [s]."""
+    iae: float
+    """∫|setpoint − y| dt over the duration [L/min·s]."""
+    overshoot_percent: float
+    """Peak of y beyond the new setpoint in % of the step (0 without overshoot) [%]."""
+    settling_time: float | None
+    """Time after the step from which |y − target| stays within the band [s]; None when it
+    does not settle before the duration ends."""
+    rise_time: float | None
+    """Time from 10 % to 90 % of the step (first crossings) [s]; None when 90 % is not reached."""
+    band: float
+    """Settling band, half width [L/min]."""
+
+    @property
+    def step(self) -> float:
+        """Setpoint change [L/min]."""
+        return self.target - self.start
+
+
+def _first_crossing(t: FloatArray, rel: FloatArray, level: float) -> float | None:
+    """Time at which ``rel`` first reaches ``level`` (linear interpolation), None if never."""
+    above = np.flatnonzero(rel >= level)
+    if above.size == 0:
+        return None
+    k = int(above[0])
+    if k == 0:
+        return float(t[0])
+    r0, r1 = float(rel[k - 1]), float(rel[k])
+    return float(t[k - 1] + (level - r0) / (r1 - r0) * (t[k] - t[k - 1]))
+
+
+def step_response_measures(
+    t: ArrayLike,
+    y: ArrayLike,
+    start: float,
+    target: float,
+    *,
+    band: float | None = None,
+    band_fraction: float = SETTLING_FRACTION,
+    setpoint: ArrayLike | None = None,
+) -> SetpointResponse:
+    """IAE, overshoot, settling time and 10–90 % rise time of one response to a setpoint step.
+
+    Parameters
+    ----------
+    t : array
+        Times [s] from the first sample with the new setpoint on.
+    y : array
+        Flow [L/min] at those times.
+    start, target : float
+        Setpoint before and after the step [L/min].
+    band : float, optional
+        Settling band's half width [L/min]; default ``band_fraction`` of the step.
+    band_fraction : float
+        Settling band as a fraction of the step [-].
+    setpoint : array, optional
+        The setpoint at those times [L/min], for the IAE of a ramped move; default ``target``.
+
+    Returns
+    -------
+    SetpointResponse
+        Times relative to ``t[0]``.
+
+    Notes
+    -----
+    The measures of Åström & Hägglund, *Advanced PID Control* (2006), §7.2: overshoot beyond
+    the new setpoint relative to the step, the settling time after which the output stays
+    within a band, the rise time between 10 % and 90 % of the step (from the old setpoint), and
+    the integrated absolute error (against the setpoint of each moment). The settling rule is
+    :func:`fuelid.lti.settling_time`. For a ramped move the times count from its first change,
+    so its rise and settling times include the ramp's own duration.
+
+    Examples
+    --------
+    A first-order response with τ = 2 s: IAE = Δ·τ, 5 % settling τ·ln 20, rise τ·ln 9.
+
+    >>> t = np.arange(0.0, 60.0, 0.001)
+    >>> r = step_response_measures(t, 20.0 - 10.0 * np.exp(-t / 2.0), 10.0, 20.0)
+    >>> round(r.iae, 4), round(r.settling_time, 4), round(r.rise_time, 4), r.overshoot_percent
+    (20.0, 5.9915, 4.3944, 0.0)
+    """
+    tt = np.asarray(t, dtype=float)
+    yy = np.asarray(y, dtype=float)
+    step = target - start
+    if step == 0.0:
+        raise ValueError("a setpoint step needs a non-zero size")
+    half = abs(band) if band is not None else band_fraction * abs(step)
+    r = np.full(tt.size, target) if setpoint is None else np.asarray(setpoint, dtype=float)
+    tr = tt - tt[0]
+    rel = (yy - start) / step
+    overshoot = max(0.0, float(np.max(rel)) - 1.0) * 100.0
+    settle = lti.settling_time(tr, rel, 1.0, half / abs(step))
+    t10 = _first_crossing(tr, rel, 0.1)
+    t90 = _first_crossing(tr, rel, 0.9)
+    return SetpointResponse(
+        time=float(tt[0]),
+        start=start,
+        target=target,
+        duration=float(tr[-1]),
+        iae=float(np.trapezoid(np.abs(r - yy), tt)),
+        overshoot_percent=overshoot,
+        settling_time=settle if math.isfinite(settle) else None,
+        rise_time=None if t10 is None or t90 is None else t90 - t10,
+        band=half,
+    )
+
+
+def setpoint_responses(
+    t: ArrayLike,
+    y: ArrayLike,
+    setpoint: ArrayLike,
+    mode: ArrayLike | None = None,
+    *,
+    threshold: float | None = None,
+    band: float | None = None,
+    band_fraction: float = SETTLING_FRACTION,
+    min_band: float = 0.0,
+    ramp_gap_s: float = RAMP_GAP_S,
+    min_samples: int = 3,
+) -> list[SetpointResponse]:
+    """Every setpoint move made in AUTO in the window, each with its response's measures.
+
+    A move begins with a change of the setpoint between successive samples. A further change
+    in the same direction made within ``ramp_gap_s`` of the previous one, or before the flow
+    has settled into the band around the setpoint of the moment, extends the move (a ramp, the
+    staircase of small changes a ramped setpoint becomes in the PLC, is one move from its first
+    value to its last); a change in the other direction, or one after a pause in which the
+    flow settled, begins a new move. A move larger than
+    ``threshold`` and begun in AUTO is assessed from its first change until the next move, the
+    first sample in MAN or the window's end (:func:`step_response_measures`).
+
+    Parameters
+    ----------
+    t : array
+        Times [s] (good samples only).
+    y, setpoint : arrays
+        Flow and setpoint [L/min].
+    mode : array, optional
+        Controller mode (1 AUTO); None: all in AUTO.
+    threshold : float, optional
+        Smallest move [L/min]; default max(0.5 L/min, 3 × :func:`noise_level` of y).
+    band, band_fraction : float
+        Settling band (see :func:`step_response_measures`).
+    min_band : float
+        Narrowest settling band's half width [L/min]: a band inside the noise is never
+        settled into for good (:func:`loop_health` passes four noise levels).
+    ramp_gap_s : float
+        Same-direction changes at most this far apart are one ramped move [s].
+    min_samples : int
+        Fewest samples a response needs to be assessed.
+
+    Returns
+    -------
+    list of SetpointResponse
+
+    Examples
+    --------
+    >>> t = np.arange(0.0, 40.0, 0.01)
+    >>> sp = np.where(t < 10.0, 30.0, 40.0)
+    >>> y = np.where(t < 10.0, 30.0, 40.0 - 10.0 * np.exp(-(t - 10.0) / 1.5))
+    >>> [(r.time, round(r.iae, 3)) for r in setpoint_responses(t, y, sp)]
+    [(10.0, 15.0)]
+    """
+    tt = np.asarray(t, dtype=float)
+    yy = np.asarray(y, dtype=float)
+    sp = np.asarray(setpoint, dtype=float)
+    n = tt.size
+    auto = np.ones(n, dtype=bool) if mode is None else np.asarray(mode) == AUTO
+    if threshold is None:
+        threshold = max(MIN_STEP_LPM, 3.0 * noise_level(yy))
+    resolution = 1e-9 * max(1.0, float(np.max(np.abs(sp), initial=0.0)))
+    changes = (np.flatnonzero(np.abs(np.diff(sp)) > resolution) + 1).tolist()
+    nexts = [*changes[1:], n] if changes else []
+    moves: list[tuple[int, int]] = []  # (first change, end of the move's last stretch)
+    settled, prev = True, 0
+    for k, nxt in zip(changes, nexts, strict=True):
+        first = moves[-1][0] if moves else 0
+        direction = np.sign(sp[k] - sp[k - 1])
+        ramp = bool(moves) and tt[k] - tt[prev] <= ramp_gap_s
+        if (settled and not ramp) or not moves or np.sign(sp[k] - sp[first - 1]) != direction:
+            moves.append((k, nxt))
+            first = k
+        else:
+            moves[-1] = (first, nxt)
+        half = abs(band) if band is not None else band_fraction * abs(sp[k] - sp[first - 1])
+        settled = bool(abs(yy[nxt - 1] - sp[k]) <= max(half, min_band))
+        prev = k
+    manual = np.flatnonzero(~auto)
+    out: list[SetpointResponse] = []
+    for first, end in moves:
+        start, target = float(sp[first - 1]), float(sp[end - 1])
+        if not auto[first] or abs(target - start) <= threshold:
+            continue
+        j = int(np.searchsorted(manual, first))
+        stop = min(end, int(manual[j])) if j < manual.size else end
+        if stop - first < min_samples:
+            continue
+        half = abs(band) if band is not None else band_fraction * abs(target - start)
+        out.append(
+            step_response_measures(
+                tt[first:stop],
+                yy[first:stop],
+                start,
+                target,
+                band=max(half, min_band),
+                setpoint=sp[first:stop],
+            )
+        )
+    return out
+
+
+__all__ = [
+    "MIN_STEP_LPM",
+    "RAMP_GAP_S",
+    "SETTLING_FRACTION",
+    "SETTLING_NOISE_LEVELS",
+    "SetpointResponse",
+    "setpoint_responses",
+    "step_response_measures",
+]
