@@ -51,6 +51,7 @@ from fuelid.online.health import (
     noise_level,
     time_at_limits,
 )
+from fuelid.online.moves import MergeRule, detect_moves
 from fuelid.online.residual_acf import (
     MIN_SETTLED_SAMPLES,
     Prewhitened,
@@ -321,10 +322,12 @@ def setpoint_moves(
 
     Changes of the setpoint between successive samples, each no more than ``ramp_gap_s``
     after the previous one, form one move (the staircase a ramped setpoint becomes in the
-    PLC); a move counts when its net change, last value minus the value before it, exceeds
-    ``threshold``. Unlike :func:`~fuelid.online.health.setpoint_responses` this does not ask
-    whether the flow settled between two moves: a slow disturbance must not merge two steps
-    into one piece of evidence.
+    PLC; :meth:`MergeRule.ramp <fuelid.online.moves.MergeRule.ramp>` of the one detector,
+    :func:`~fuelid.online.moves.detect_moves`); a move counts when its net change, last value
+    minus the value before it, exceeds ``threshold``. Unlike
+    :func:`~fuelid.online.health.setpoint_responses` this does not ask whether the flow
+    settled between two moves: a slow disturbance must not merge two steps into one piece of
+    evidence.
 
     Parameters
     ----------
@@ -349,17 +352,9 @@ def setpoint_moves(
     >>> setpoint_moves(t, sp, 0.5)
     [10.0]
     """
+    moves = detect_moves(t, setpoint, MergeRule.ramp(ramp_gap_s))
     tt = np.asarray(t, dtype=float)
-    sp = np.asarray(setpoint, dtype=float)
-    resolution = 1e-9 * max(1.0, float(np.max(np.abs(sp), initial=0.0)))
-    changes = (np.flatnonzero(np.abs(np.diff(sp)) > resolution) + 1).tolist()
-    groups: list[list[int]] = []
-    for k in changes:
-        if groups and tt[k] - tt[groups[-1][-1]] <= ramp_gap_s:
-            groups[-1].append(k)
-        else:
-            groups.append([k])
-    return [float(tt[g[0]]) for g in groups if abs(float(sp[g[-1]] - sp[g[0] - 1])) > threshold]
+    return [float(tt[m.first]) for m in moves if abs(m.size) > threshold]
 
 
 def judged_mode(mode: ArrayLike, ok: ArrayLike) -> str:

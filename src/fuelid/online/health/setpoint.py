@@ -15,13 +15,12 @@ from fuelid import lti
 from fuelid.online.health._arrays import FloatArray
 from fuelid.online.health.sensor import noise_level
 from fuelid.online.health.shares import AUTO
+from fuelid.online.moves import RAMP_GAP_S, MergeRule, detect_moves
 
 SETTLING_FRACTION = 0.05
 """Settling band of a setpoint step: ±5 % of the step [-]."""
 SETTLING_NOISE_LEVELS = 4.0
 """The settling band is at least this many noise levels wide (half width) [-]."""
-RAMP_GAP_S = 2.0
-"""Same-direction setpoint changes at most this far apart form one ramped move [s]."""
 MIN_STEP_LPM = 0.5
 """Smallest setpoint step analysed [L/min] (or three noise levels when that is larger)."""
 
@@ -159,7 +158,9 @@ def setpoint_responses(
 ) -> list[SetpointResponse]:
     """Every setpoint move made in AUTO in the window, each with its response's measures.
 
-    A move begins with a change of the setpoint between successive samples. A further change
+    The moves are those of :func:`~fuelid.online.moves.detect_moves` under
+    :meth:`~fuelid.online.moves.MergeRule.ramp_or_unsettled`. A move begins with a change of
+    the setpoint between successive samples. A further change
     in the same direction made within ``ramp_gap_s`` of the previous one, or before the flow
     has settled into the band around the setpoint of the moment, extends the move (a ramp, the
     staircase of small changes a ramped setpoint becomes in the PLC, is one move from its first
@@ -207,23 +208,16 @@ def setpoint_responses(
     auto = np.ones(n, dtype=bool) if mode is None else np.asarray(mode) == AUTO
     if threshold is None:
         threshold = max(MIN_STEP_LPM, 3.0 * noise_level(yy))
-    resolution = 1e-9 * max(1.0, float(np.max(np.abs(sp), initial=0.0)))
-    changes = (np.flatnonzero(np.abs(np.diff(sp)) > resolution) + 1).tolist()
-    nexts = [*changes[1:], n] if changes else []
-    moves: list[tuple[int, int]] = []  # (first change, end of the move's last stretch)
-    settled, prev = True, 0
-    for k, nxt in zip(changes, nexts, strict=True):
-        first = moves[-1][0] if moves else 0
-        direction = np.sign(sp[k] - sp[k - 1])
-        ramp = bool(moves) and tt[k] - tt[prev] <= ramp_gap_s
-        if (settled and not ramp) or not moves or np.sign(sp[k] - sp[first - 1]) != direction:
-            moves.append((k, nxt))
-            first = k
-        else:
-            moves[-1] = (first, nxt)
-        half = abs(band) if band is not None else band_fraction * abs(sp[k] - sp[first - 1])
-        settled = bool(abs(yy[nxt - 1] - sp[k]) <= max(half, min_band))
-        prev = k
+    found = detect_moves(
+        tt,
+        sp,
+        MergeRule.ramp_or_unsettled(ramp_gap_s),
+        y=yy,
+        band=band,
+        band_fraction=band_fraction,
+        min_band=min_band,
+    )
+    moves = [(m.first, m.end) for m in found]  # (first change, end of the move's last stretch)
     manual = np.flatnonzero(~auto)
     out: list[SetpointResponse] = []
     for first, end in moves:
