@@ -12,7 +12,6 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from fuelid import lti
-from fuelid.online.health._arrays import FloatArray
 from fuelid.online.health.sensor import noise_level
 from fuelid.online.health.shares import AUTO
 from fuelid.online.moves import RAMP_GAP_S, MergeRule, detect_moves
@@ -55,18 +54,6 @@ class SetpointResponse:
         return self.target - self.start
 
 
-def _first_crossing(t: FloatArray, rel: FloatArray, level: float) -> float | None:
-    """Time at which ``rel`` first reaches ``level`` (linear interpolation), None if never."""
-    above = np.flatnonzero(rel >= level)
-    if above.size == 0:
-        return None
-    k = int(above[0])
-    if k == 0:
-        return float(t[0])
-    r0, r1 = float(rel[k - 1]), float(rel[k])
-    return float(t[k - 1] + (level - r0) / (r1 - r0) * (t[k] - t[k - 1]))
-
-
 def step_response_measures(
     t: ArrayLike,
     y: ArrayLike,
@@ -105,7 +92,8 @@ def step_response_measures(
     the new setpoint relative to the step, the settling time after which the output stays
     within a band, the rise time between 10 % and 90 % of the step (from the old setpoint), and
     the integrated absolute error (against the setpoint of each moment). The settling rule is
-    :func:`fuelid.lti.settling_time`. For a ramped move the times count from its first change,
+    :func:`fuelid.lti.settling_time`, the measures those of :func:`fuelid.lti.step_measures`
+    (fuelid's one implementation). For a ramped move the times count from its first change,
     so its rise and settling times include the ramp's own duration.
 
     Examples
@@ -118,29 +106,26 @@ def step_response_measures(
     (20.0, 5.9915, 4.3944, 0.0)
     """
     tt = np.asarray(t, dtype=float)
-    yy = np.asarray(y, dtype=float)
     step = target - start
     if step == 0.0:
         raise ValueError("a setpoint step needs a non-zero size")
     half = abs(band) if band is not None else band_fraction * abs(step)
-    r = np.full(tt.size, target) if setpoint is None else np.asarray(setpoint, dtype=float)
-    tr = tt - tt[0]
-    rel = (yy - start) / step
-    overshoot = max(0.0, float(np.max(rel)) - 1.0) * 100.0
-    settle = lti.settling_time(tr, rel, 1.0, half / abs(step))
-    t10 = _first_crossing(tr, rel, 0.1)
-    t90 = _first_crossing(tr, rel, 0.9)
+    measures = lti.step_measures(tt, y, start, target, band=half / abs(step), reference=setpoint)
     return SetpointResponse(
         time=float(tt[0]),
         start=start,
         target=target,
-        duration=float(tr[-1]),
-        iae=float(np.trapezoid(np.abs(r - yy), tt)),
-        overshoot_percent=overshoot,
-        settling_time=settle if math.isfinite(settle) else None,
-        rise_time=None if t10 is None or t90 is None else t90 - t10,
+        duration=float(tt[-1] - tt[0]),
+        iae=measures.iae,
+        overshoot_percent=measures.overshoot_percent,
+        settling_time=_or_none(measures.settling_time),
+        rise_time=_or_none(measures.rise_time),
         band=half,
     )
+
+
+def _or_none(value: float) -> float | None:
+    return value if math.isfinite(value) else None
 
 
 def setpoint_responses(
