@@ -7,6 +7,7 @@ The scheduler (:mod:`fuelid.online.scheduler`) and the write-back
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -14,6 +15,7 @@ from typing import Any
 
 from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
+from fuelid.online.logs import LOGGER_NAME, log_event, log_line
 from fuelid.online.proposals import Gains, controller_to_ideal
 from fuelid.online.tracking import GainObservation
 from fuelid.online.window import WindowPriors
@@ -23,30 +25,11 @@ from fuelid.store.base import SampleWriter
 from fuelid.store.online import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
 
+_LOGGER = logging.getLogger(LOGGER_NAME)
+
 RECENT_WINDOWS_SPAN = 6.0
 """Windows for a proposal end within this many window lengths (or agree_windows × the
 schedule, if longer) of the newest: a model from before an outage of days does not vote."""
-
-
-def log_line(word: str, **fields: Any) -> str:
-    """``word key=value …``: floats to 6 significant digits, times [s UTC] to the millisecond.
-
-    Examples
-    --------
-    >>> log_line("window", id=3, end=1795619989.0408, K=13.89912, reason="passed every gate")
-    'window id=3 end=1795619989.041 K=13.8991 reason="passed every gate"'
-    """
-    parts = [word]
-    for key, value in fields.items():
-        if isinstance(value, float):
-            # a time since the epoch needs all its digits: 6 significant ones are ±5000 s
-            text = f"{value:.3f}" if abs(value) >= 1e6 else f"{value:.6g}"
-        else:
-            text = str(value)
-        if " " in text or not text:
-            text = '"' + text.replace('"', "'") + '"'
-        parts.append(f"{key}={text}")
-    return " ".join(parts)
 
 
 @dataclass
@@ -112,7 +95,8 @@ class ServiceContext:
         return self.recorder.latest if self.recorder is not None else {}
 
     def say(self, word: str, **fields: Any) -> None:
-        """Send one structured log line (``word key=value …``)."""
+        """Log one event to the ``fuelid.online`` logger, and its key=value line to on_message."""
+        log_event(_LOGGER, word, **fields)
         if self.on_message is not None:
             self.on_message(log_line(word, **fields))
 
@@ -189,7 +173,6 @@ __all__ = [
     "RECENT_WINDOWS_SPAN",
     "ServiceContext",
     "ServiceStats",
-    "log_line",
     "model_of",
     "observation_of",
 ]

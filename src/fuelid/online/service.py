@@ -45,10 +45,10 @@ from fuelid.online.context import (
     RECENT_WINDOWS_SPAN,
     ServiceContext,
     ServiceStats,
-    log_line,
     model_of,
     observation_of,
 )
+from fuelid.online.logs import log_line
 from fuelid.online.proposal_filing import TURNED_DOWN_MEMORY
 from fuelid.online.proposals import Gains, controller_to_ideal
 from fuelid.online.scheduler import MAX_CATCH_UP_WINDOWS, SCHEDULE_POLL_S, Scheduler
