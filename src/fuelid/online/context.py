@@ -15,8 +15,8 @@ from typing import Any
 
 from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
+from fuelid.online.gains import Gains, controller_to_ideal
 from fuelid.online.logs import LOGGER_NAME, log_event, log_line
-from fuelid.online.proposals import Gains, controller_to_ideal
 from fuelid.online.tracking import GainObservation
 from fuelid.online.window import WindowPriors
 from fuelid.plc.recorder import Recorder, RecorderStats

@@ -15,7 +15,9 @@ from typing import Any
 
 from fuelid.io.jsonsafe import json_ready
 from fuelid.online.context import RECENT_WINDOWS_SPAN, ServiceContext, model_of
-from fuelid.online.proposals import ProposalDecision, WindowModel, ideal_to_controller, propose
+from fuelid.online.evidence import WindowModel
+from fuelid.online.gains import ideal_to_controller
+from fuelid.online.proposals import ProposalDecision, propose
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.online.window import WindowResult
 

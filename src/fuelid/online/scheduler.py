@@ -20,8 +20,8 @@ from typing import Any
 
 from fuelid.errors import ConfigError, FuelidError
 from fuelid.online.context import ServiceContext, observation_of
+from fuelid.online.gains import controller_to_ideal
 from fuelid.online.proposal_filing import ProposalFiling
-from fuelid.online.proposals import controller_to_ideal
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.online.window import WindowAnalyser, WindowResult
 from fuelid.online.worker import WindowWorker

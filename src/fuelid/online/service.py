@@ -48,9 +48,9 @@ from fuelid.online.context import (
     model_of,
     observation_of,
 )
+from fuelid.online.gains import Gains, controller_to_ideal
 from fuelid.online.logs import log_line
 from fuelid.online.proposal_filing import TURNED_DOWN_MEMORY
-from fuelid.online.proposals import Gains, controller_to_ideal
 from fuelid.online.scheduler import MAX_CATCH_UP_WINDOWS, SCHEDULE_POLL_S, Scheduler
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.online.window import WindowAnalyser, window_priors

@@ -21,7 +21,7 @@ import numpy as np
 
 from fuelid.errors import FuelidError
 from fuelid.online.context import RECENT_WINDOWS_SPAN, ServiceContext
-from fuelid.online.proposals import Gains, ideal_to_controller
+from fuelid.online.gains import Gains, ideal_to_controller
 from fuelid.online.window import WindowResult
 from fuelid.plc.adapters.base import LinkError
 from fuelid.plc.gain_handshake import GainWriter
