@@ -27,6 +27,8 @@ from fuelid.store.sqlite import SQLiteStore
 
 _LOGGER = logging.getLogger(LOGGER_NAME)
 
+TRACKER_OBSERVATIONS = 2000
+"""Accepted windows kept by the K(T) tracker (a week at 5-minute windows): bounded memory."""
 RECENT_WINDOWS_SPAN = 6.0
 """Windows for a proposal end within this many window lengths (or agree_windows × the
 schedule, if longer) of the newest: a model from before an outage of days does not vote."""
@@ -171,6 +173,7 @@ def observation_of(row: dict[str, Any]) -> GainObservation | None:
 
 __all__ = [
     "RECENT_WINDOWS_SPAN",
+    "TRACKER_OBSERVATIONS",
     "ServiceContext",
     "ServiceStats",
     "model_of",

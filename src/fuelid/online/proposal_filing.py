@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from fuelid.errors import NotFittedError
 from fuelid.io.jsonsafe import json_ready
 from fuelid.online.context import RECENT_WINDOWS_SPAN, ServiceContext, model_of
 from fuelid.online.evidence import WindowModel
@@ -75,12 +76,12 @@ class ProposalFiling:
 
     def k_range(self, result: WindowResult) -> tuple[float, float] | None:
         """The tracker's K ± 2 standard errors at the window's conditions; None without one."""
-        if result.model is None or len(self.tracker.observations_) < 2:
+        if result.model is None or len(self.tracker.observations) < 2:
             return None
         T_C = result.T_fuel_C if result.T_fuel_C is not None else 20.0
         try:
             K, se = self.tracker.predict(T_C, result.u_mean, K_plant=result.plant_K)
-        except TrackingError:
+        except (TrackingError, NotFittedError):  # the last refit was refused
             return None
         if not (math.isfinite(K) and math.isfinite(se)):
             return None

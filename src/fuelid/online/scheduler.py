@@ -230,7 +230,7 @@ class Scheduler:
         try:
             self.tracker.update(obs)
         except TrackingError as error:
-            if len(self.tracker.observations_) >= 2:  # one window is not a failure
+            if len(self.tracker.observations) >= 2:  # one window is not a failure
                 self.context.say("event", kind="tracking", detail=str(error))
 
     async def _after_window(self, result: WindowResult) -> None:

@@ -43,6 +43,7 @@ from typing import Any
 from fuelid.errors import ConfigError, FuelidError
 from fuelid.online.context import (
     RECENT_WINDOWS_SPAN,
+    TRACKER_OBSERVATIONS,
     ServiceContext,
     ServiceStats,
     model_of,
@@ -63,9 +64,6 @@ from fuelid.plc.site import SiteConfig
 from fuelid.store.base import SampleWriter
 from fuelid.store.online import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
-
-TRACKER_OBSERVATIONS = 2000
-"""Accepted windows kept by the K(T) tracker (a week at 5-minute windows): bounded memory."""
 
 # the names this module held before it was split (users' scripts import them from here)
 _log_line = log_line
