@@ -89,12 +89,13 @@ class _Console(logging.Handler):
             from rich.live import Live
             from rich.text import Text
 
+            text = Text(line, no_wrap=True, overflow="ellipsis")  # one line, redrawn in place
             if self._live is None:
                 self._live = Live(
-                    Text(line), console=Console(stderr=True), auto_refresh=False, transient=True
+                    text, console=Console(stderr=True), auto_refresh=False, transient=True
                 )
                 self._live.start()
-            self._live.update(Text(line), refresh=True)
+            self._live.update(text, refresh=True)
         elif time.monotonic() - self._last >= QUIET_STATUS_EVERY_S:
             self._last = time.monotonic()
             if self.json_log:
