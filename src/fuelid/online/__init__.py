@@ -17,9 +17,32 @@ command line; its modules' other names are not promised yet.
 
 from __future__ import annotations
 
-from fuelid.online.gates import WindowVerdict, postfit_gates, prefit_gates
-from fuelid.online.health import LoopHealth, loop_health
-from fuelid.online.tracking import GainObservation, KTracker, plant_gain_function
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from fuelid.online.gates import WindowVerdict, postfit_gates, prefit_gates
+    from fuelid.online.health import LoopHealth, loop_health
+    from fuelid.online.tracking import GainObservation, KTracker, plant_gain_function
+
+_HOMES = {
+    "GainObservation": "fuelid.online.tracking",
+    "KTracker": "fuelid.online.tracking",
+    "LoopHealth": "fuelid.online.health",
+    "WindowVerdict": "fuelid.online.gates",
+    "loop_health": "fuelid.online.health",
+    "plant_gain_function": "fuelid.online.tracking",
+    "postfit_gates": "fuelid.online.gates",
+    "prefit_gates": "fuelid.online.gates",
+}
+
+
+def __getattr__(name: str) -> Any:
+    # imported on use: the CLI reads fuelid.online.logs without loading numpy and scipy
+    if name in _HOMES:
+        return getattr(importlib.import_module(_HOMES[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "GainObservation",

@@ -38,6 +38,9 @@ online.md §5 (an adaptive tuner that trusts every window bursts):
 Gains are in the ideal (ISA) form and engineering units throughout, Kc [V per L/min] and Ti [s]
 (:class:`Gains`); :func:`controller_to_ideal` and :func:`ideal_to_controller` convert from and
 to the form and units of the PLC's block (``[controller]``, :class:`fuelid.plc.site.Controller`).
+They live in :mod:`fuelid.online.gains`, the windows' evidence (:class:`WindowModel`,
+:func:`independent_windows`, :func:`weighted_mean_model`) in :mod:`fuelid.online.evidence`;
+this module re-exports them.
 
 Units: time [s], K [(L/min)/V], Kc [V per L/min], Ti [s], Ms [-].
 
@@ -62,268 +65,23 @@ from typing import Any
 from fuelid.errors import FuelidError
 from fuelid.io.jsonsafe import json_ready
 from fuelid.model import ProcessModel
-from fuelid.plc.site import Controller, Online
+from fuelid.online.evidence import (
+    EVENT_TOLERANCE_S,
+    WindowModel,
+    independent_windows,
+    weighted_mean_model,
+)
+from fuelid.online.gains import (
+    SECONDS_PER_MINUTE,
+    Gains,
+    controller_to_ideal,
+    ideal_to_controller,
+)
+from fuelid.plc.site import Online
 from fuelid.tuning import PISettings, robustness, tune
 
-EVENT_TOLERANCE_S = 1e-6
-"""Two excitation events within this time of each other are the same event [s]."""
 DETUNE_TOLERANCE = 1e-3
 """The detuning search stops when its bracket of Kc factors is this narrow (relative) [-]."""
-SECONDS_PER_MINUTE = 60.0
-"""Seconds in a minute, for ``integral_unit = "min"`` [s/min]."""
-
-
-# --- gains and the PLC's form ---------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Gains:
-    """Ideal-form PI gains C(s) = Kc·(1 + 1/(Ti·s)) in engineering units.
-
-    Attributes
-    ----------
-    Kc : float
-        Proportional gain [V per L/min], > 0.
-    Ti : float
-        Integral (reset) time [s], > 0.
-    """
-
-    Kc: float
-    Ti: float
-
-    def __post_init__(self) -> None:
-        for name in ("Kc", "Ti"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise FuelidError(f"PI gain {name} must be positive and finite, got {value}")
-
-    def to_dict(self) -> dict[str, float]:
-        """``{"Kc": ..., "Ti": ...}`` [V per L/min, s].
-
-        Examples
-        --------
-        >>> Gains(0.05, 2.0).to_dict()
-        {'Kc': 0.05, 'Ti': 2.0}
-        """
-        return {"Kc": float(self.Kc), "Ti": float(self.Ti)}
-
-
-def _gain_scale(controller: Controller) -> float:
-    """Engineering gain per gain of the block: u_span/y_span for percent, else 1 [V per L/min]."""
-    if controller.gain_units == "percent":
-        if controller.u_span_V is None or controller.y_span_Lpm is None:
-            raise FuelidError("percent gains need u_span_V and y_span_Lpm")
-        return controller.u_span_V / controller.y_span_Lpm
-    return 1.0
-
-
-def _time_scale(controller: Controller) -> float:
-    """Seconds per integral unit of the block [s]."""
-    return SECONDS_PER_MINUTE if controller.integral_unit == "min" else 1.0
-
-
-def controller_to_ideal(kc: float, ti: float, controller: Controller) -> Gains:
-    """Gains as the PLC's block holds them → ideal form in engineering units.
-
-    The block's two numbers ``kc`` and ``ti`` mean, by ``controller``:
-
-    - ``form = "ideal"``: kc = Kc, ti = Ti, u = Kc·(e + (1/Ti)·∫e dt);
-    - ``form = "parallel"``: kc = Kp, ti = **Ki** = Kp/Ti, the integral gain,
-      u = Kp·e + Ki·∫e dt (the ``ti`` field holds Ki, not a time: Kc = Kp, Ti = Kp/Ki);
-    - ``gain_units = "percent"``: Kp or Kc in % of output span per % of measurement span,
-      Kc [V per L/min] = kc·u_span_V/y_span_Lpm; ``"engineering"``: V per L/min as is;
-    - ``integral_unit = "min"``: Ti in minutes (ideal) or Ki per minute (parallel), else
-      seconds; Ti [s] = 60·ti (ideal) or 60·kc/ti (parallel).
-
-    Parameters
-    ----------
-    kc : float
-        The block's proportional gain, in ``gain_units``.
-    ti : float
-        The block's integral time (ideal) in ``integral_unit``, or integral gain (parallel) in
-        ``gain_units`` per ``integral_unit``.
-    controller : Controller
-        The site's ``[controller]`` table.
-
-    Returns
-    -------
-    Gains
-        Kc [V per L/min], Ti [s].
-
-    Examples
-    --------
-    1.25 %/% with spans 4 V and 100 L/min is 0.05 V per L/min; Ki = 2.5 %/% per minute is
-    Ti = 1.25/2.5 min = 30 s:
-
-    >>> c = Controller(form="parallel", gain_units="percent", u_span_V=4.0, y_span_Lpm=100.0,
-    ...                integral_unit="min")
-    >>> g = controller_to_ideal(1.25, 2.5, c)
-    >>> round(g.Kc, 12), round(g.Ti, 12)
-    (0.05, 30.0)
-    """
-    if not (math.isfinite(kc) and kc > 0.0 and math.isfinite(ti) and ti > 0.0):
-        raise FuelidError(f"the block's gains must be positive and finite, got kc={kc}, ti={ti}")
-    Kc = kc * _gain_scale(controller)
-    if controller.form == "parallel":
-        Ti = kc / ti * _time_scale(controller)  # Ti = Kp/Ki, in the block's units: spans cancel
-    else:
-        Ti = ti * _time_scale(controller)
-    return Gains(Kc=Kc, Ti=Ti)
-
-
-def ideal_to_controller(gains: Gains, controller: Controller) -> tuple[float, float]:
-    """Ideal-form engineering gains → the (kc, ti) the PLC's block takes.
-
-    The inverse of :func:`controller_to_ideal` (see there for what kc and ti mean in each form).
-
-    Parameters
-    ----------
-    gains : Gains
-        Kc [V per L/min], Ti [s].
-    controller : Controller
-        The site's ``[controller]`` table.
-
-    Returns
-    -------
-    tuple of float
-        (kc, ti): Kc or Kp in ``gain_units``; Ti in ``integral_unit`` (ideal) or Ki in
-        ``gain_units`` per ``integral_unit`` (parallel).
-
-    Examples
-    --------
-    >>> c = Controller(gain_units="percent", u_span_V=4.0, y_span_Lpm=100.0)
-    >>> kc, ti = ideal_to_controller(Gains(0.05, 2.0), c)
-    >>> round(kc, 12), ti
-    (1.25, 2.0)
-    """
-    kc = gains.Kc / _gain_scale(controller)
-    ti_block = gains.Ti / _time_scale(controller)
-    if controller.form == "parallel":
-        return kc, kc / ti_block
-    return kc, ti_block
-
-
-# --- windows and their independence ---------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class WindowModel:
-    """One accepted identification window, as the service keeps it.
-
-    Attributes
-    ----------
-    model_id : int
-        The store's id of the identified model.
-    t_from, t_to : float
-        Start and end of the window [s since the epoch, UTC].
-    model : ProcessModel
-        The identified model (K [(L/min)/V], times [s]).
-    stderr : Mapping
-        Standard errors of the model's parameters by name (``"K"`` [(L/min)/V], ``"T"`` [s], …);
-        None where not determined.
-    T_fuel_C : float or None
-        Mean fuel temperature over the window [°C].
-    u_mean : float
-        Mean command over the window [V].
-    events : tuple of float
-        Times of the excitation events (command steps, setpoint moves) the window contains [s]
-        (:attr:`fuelid.online.gates.WindowVerdict.excitation_events`).
-    """
-
-    model_id: int
-    t_from: float
-    t_to: float
-    model: ProcessModel
-    stderr: Mapping[str, float | None]
-    T_fuel_C: float | None
-    u_mean: float
-    events: tuple[float, ...]
-
-    @property
-    def se_K(self) -> float | None:
-        """The standard error of K if usable (finite, > 0) [(L/min)/V], else None."""
-        se = self.stderr.get("K")
-        if se is None or not (math.isfinite(se) and se > 0.0):
-            return None
-        return float(se)
-
-
-def _shares_event(events: Sequence[float], taken: Sequence[float]) -> bool:
-    return any(abs(a - b) <= EVENT_TOLERANCE_S for a in events for b in taken)
-
-
-def independent_windows(windows: Sequence[WindowModel], n: int) -> list[WindowModel]:
-    """Up to ``n`` windows that rest on separate excitation events, newest first.
-
-    Windows are taken by end time, newest first; a window counts only if it has at least one
-    event and none of its events (within :data:`EVENT_TOLERANCE_S`) is an event of a window
-    already counted: overlapping windows around one step are one piece of evidence.
-
-    Parameters
-    ----------
-    windows : sequence of WindowModel
-        Accepted windows, in any order.
-    n : int
-        How many are wanted [-].
-
-    Returns
-    -------
-    list of WindowModel
-        At most ``n``, newest first.
-
-    Examples
-    --------
-    >>> m = ProcessModel(K=13.0, T=1.0, delay=0.5)
-    >>> def w(i, t, ev):
-    ...     return WindowModel(i, t - 600.0, t, m, {"K": 0.1}, 20.0, 3.0, ev)
-    >>> ws = [w(1, 600.0, (100.0,)), w(2, 900.0, (100.0, 700.0)), w(3, 1500.0, (1200.0,))]
-    >>> [x.model_id for x in independent_windows(ws, 3)]
-    [3, 2]
-    """
-    ordered = sorted(windows, key=lambda w: (w.t_to, w.model_id), reverse=True)
-    counted: list[WindowModel] = []
-    taken: list[float] = []
-    for window in ordered:
-        if len(counted) >= n:
-            break
-        if not window.events or _shares_event(window.events, taken):
-            continue
-        counted.append(window)
-        taken.extend(window.events)
-    return counted
-
-
-def weighted_mean_model(windows: Sequence[WindowModel]) -> tuple[ProcessModel, list[float]]:
-    """Inverse-variance weighted mean of the windows' models.
-
-    Every parameter (K, T, T2, T_f, delay) is averaged with the weights w = 1/se(K)²,
-    normalised to sum 1; when any window lacks a usable se(K), all weigh alike.
-
-    Returns
-    -------
-    tuple
-        (mean model, normalised weights in the windows' order).
-
-    Examples
-    --------
-    >>> a = WindowModel(1, 0.0, 600.0, ProcessModel(K=12.0, T=1.0), {"K": 0.1}, None, 3.0, (1.0,))
-    >>> b = WindowModel(2, 0.0, 600.0, ProcessModel(K=13.0, T=1.0), {"K": 0.2}, None, 3.0, (2.0,))
-    >>> model, w = weighted_mean_model([a, b])
-    >>> round(model.K, 12), [round(x, 12) for x in w]
-    (12.2, [0.8, 0.2])
-    """
-    if not windows:
-        raise FuelidError("a mean model needs at least one window")
-    ses = [w.se_K for w in windows]
-    raw = [1.0 / se**2 for se in ses if se is not None]
-    weights = raw if len(raw) == len(windows) else [1.0] * len(windows)
-    total = sum(weights)
-    weights = [x / total for x in weights]
-    params = {
-        name: sum(wt * getattr(w.model, name) for wt, w in zip(weights, windows, strict=True))
-        for name in ("K", "T", "T2", "T_f", "delay")
-    }
-    return ProcessModel(**params), weights
 
 
 # --- the decision ---------------------------------------------------------------------------------
@@ -695,3 +453,18 @@ def _detune(
         else:
             hi = mid
     return math.exp(lo), ms_low
+
+
+__all__ = [
+    "DETUNE_TOLERANCE",
+    "EVENT_TOLERANCE_S",
+    "SECONDS_PER_MINUTE",
+    "Gains",
+    "ProposalDecision",
+    "WindowModel",
+    "controller_to_ideal",
+    "ideal_to_controller",
+    "independent_windows",
+    "propose",
+    "weighted_mean_model",
+]

@@ -23,7 +23,7 @@ import time as _time
 from typing import Any
 
 from fuelid.io.jsonsafe import json_ready
-from fuelid.online.service import TRACKER_OBSERVATIONS, observation_of
+from fuelid.online.context import TRACKER_OBSERVATIONS, observation_of
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.store.online import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore

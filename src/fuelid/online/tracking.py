@@ -44,8 +44,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -262,9 +262,15 @@ def plant_gain_function(config: PlantConfig) -> PlantGain:
     return k_plant
 
 
-@dataclass
 class KTracker:
     """Loop gain K against fuel temperature, as a ratio to the plant model or per command band.
+
+    An estimator as fuelid's others are: the settings are stored unchanged by ``__init__``,
+    :meth:`fit` returns ``self``, and the fitted attributes (ending in ``_``) exist only after
+    a fit that succeeded (before, or after a refused fit, they raise
+    :class:`~fuelid.errors.NotFittedError`). :meth:`update` refits with one more observation;
+    the observations it adds to are kept even when a fit is refused (the first window alone
+    cannot be tracked, the second with it can).
 
     Parameters
     ----------
@@ -284,6 +290,8 @@ class KTracker:
 
     Attributes
     ----------
+    observations_ : list of GainObservation
+        The observations of the fit (the newest ``max_observations``).
     mode_ : str
         ``"ratio"`` or ``"band"``.
     fit_ : LineFit or None
@@ -299,31 +307,78 @@ class KTracker:
     >>> K, se = tr.predict(25.0, K_plant=13.0)
     >>> round(K, 6), tr.mode_
     (11.7, 'ratio')
+    >>> hasattr(KTracker(), "mode_")
+    False
     """
 
-    k_plant: PlantGain | None = None
-    forgetting_time_s: float | None = None
-    min_spread_C: float = MIN_SPREAD_C
-    band_width_V: float = BAND_WIDTH_V
-    max_observations: int | None = None
-    observations_: list[GainObservation] = field(default_factory=list, init=False, repr=False)
-    mode_: str = field(default="", init=False)
-    fit_: LineFit | None = field(default=None, init=False, repr=False)
-    bands_: dict[int, LineFit | None] = field(default_factory=dict, init=False, repr=False)
+    _SETTINGS = ("k_plant", "forgetting_time_s", "min_spread_C", "band_width_V", "max_observations")
+    _FITTED = ("observations_", "mode_", "fit_", "bands_")
+    # the fitted attributes: annotated, never assigned on the class (absent until a fit)
+    observations_: list[GainObservation]
+    mode_: str
+    fit_: LineFit | None
+    bands_: dict[int, LineFit | None]
+
+    def __init__(
+        self,
+        k_plant: PlantGain | None = None,
+        forgetting_time_s: float | None = None,
+        min_spread_C: float = MIN_SPREAD_C,
+        band_width_V: float = BAND_WIDTH_V,
+        max_observations: int | None = None,
+    ) -> None:
+        self.k_plant = k_plant
+        self.forgetting_time_s = forgetting_time_s
+        self.min_spread_C = min_spread_C
+        self.band_width_V = band_width_V
+        self.max_observations = max_observations
+        self._held: list[GainObservation] = []
+
+    def get_params(self) -> dict[str, Any]:
+        """The constructor's settings by name (``KTracker(**tr.get_params())`` is a copy)."""
+        return {name: getattr(self, name) for name in self._SETTINGS}
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{name}={value!r}" for name, value in self.get_params().items())
+        return f"KTracker({args})"
+
+    if not TYPE_CHECKING:  # hidden from mypy, which would otherwise accept any attribute name
+
+        def __getattr__(self, name: str) -> Any:
+            # called only when normal lookup fails: a fitted attribute before a fit
+            if name in KTracker._FITTED:
+                raise NotFittedError(f"KTracker is not fitted: {name} exists only after fit()")
+            raise AttributeError(f"'KTracker' object has no attribute {name!r}")
+
+    @property
+    def observations(self) -> tuple[GainObservation, ...]:
+        """The observations held: those of the last fit, or of the last fit refused [-]."""
+        return tuple(self._held)
 
     # --- fitting ----------------------------------------------------------------------------------
 
     def fit(self, observations: Iterable[GainObservation]) -> KTracker:
-        """Fit on ``observations`` (replacing any earlier ones); returns ``self``."""
-        self.observations_ = []
-        for obs in observations:
-            self.observations_.append(self._checked(obs))
-        return self._refit()
+        """Fit on ``observations`` (replacing any earlier ones); returns ``self``.
+
+        Raises
+        ------
+        TrackingError
+            An observation with a bad value, fewer than two observations, or no command band
+            with two; the tracker is then not fitted.
+        """
+        for name in self._FITTED:
+            self.__dict__.pop(name, None)
+        self._held = [self._checked(obs) for obs in observations]
+        if self.max_observations is not None:
+            self._held = self._held[-self.max_observations :]
+        fitted = self._fitted(list(self._held))
+        self.__dict__.update(fitted)
+        return self
 
     def update(self, obs: GainObservation) -> KTracker:
-        """Add one observation and refit; returns ``self``."""
-        self.observations_.append(self._checked(obs))
-        return self._refit()
+        """Add one observation to those held and refit; returns ``self``."""
+        checked = self._checked(obs)
+        return self.fit([*self._held, checked])
 
     def _checked(self, obs: GainObservation) -> GainObservation:
         values = (obs.time, obs.T_fuel_C, obs.u, obs.K, obs.se_K)
@@ -339,10 +394,8 @@ class KTracker:
             raise TrackingError(f"plant gain must be finite and > 0, got {obs.K_plant}")
         return obs
 
-    def _refit(self) -> KTracker:
-        if self.max_observations is not None:
-            self.observations_ = self.observations_[-self.max_observations :]
-        obs = self.observations_
+    def _fitted(self, obs: list[GainObservation]) -> dict[str, Any]:
+        """The fitted attributes from ``obs``: set all at once, or none (refused)."""
         if len(obs) < 2:
             raise TrackingError(f"K(T) tracking needs at least 2 observations, got {len(obs)}")
         with_plant = [o.K_plant is not None for o in obs]
@@ -359,29 +412,25 @@ class KTracker:
         )
         if all(with_plant):
             Kp = np.array([o.K_plant for o in obs], dtype=float)
-            self.mode_ = "ratio"
-            self.fit_ = fit_line(T, K / Kp, (se / Kp) ** 2 * age_factor, self.min_spread_C)
-            self.bands_ = {}
-            return self
-        self.mode_ = "band"
-        self.fit_ = None
+            line = fit_line(T, K / Kp, (se / Kp) ** 2 * age_factor, self.min_spread_C)
+            return {"observations_": obs, "mode_": "ratio", "fit_": line, "bands_": {}}
         idx = np.floor(np.array([o.u for o in obs]) / self.band_width_V).astype(int)
-        self.bands_ = {}
+        bands: dict[int, LineFit | None] = {}
         for b in sorted(set(idx.tolist())):
             m = idx == b
-            self.bands_[b] = (
+            bands[b] = (
                 fit_line(T[m], K[m], se[m] ** 2 * age_factor[m], self.min_spread_C)
                 if np.count_nonzero(m) >= 2
                 else None
             )
-        if all(f is None for f in self.bands_.values()):
+        if all(f is None for f in bands.values()):
             raise TrackingError("no command band holds at least 2 observations")
-        return self
+        return {"observations_": obs, "mode_": "band", "fit_": None, "bands_": bands}
 
     # --- using the fit ----------------------------------------------------------------------------
 
     def _require_fit(self) -> None:
-        if not self.mode_:
+        if "mode_" not in vars(self):
             raise NotFittedError("KTracker is not fitted: call fit() or update() first")
 
     def _mean_command(self) -> float:

@@ -61,6 +61,9 @@ def setpoint_step_metrics(
 ) -> StepMetrics:
     """Overshoot, 2 % settling time and IAE of a response y(t) to a setpoint step r0 → r1.
 
+    The measures of :func:`fuelid.lti.step_measures` (fuelid's one implementation), the
+    settling time counted from ``start`` [s].
+
     Examples
     --------
     A first-order response with T = 1 s: no overshoot, settles at ln 50 = 3.91 s, IAE = T.
@@ -73,17 +76,15 @@ def setpoint_step_metrics(
     step = r1 - r0
     if step == 0.0:
         raise FuelidError("a setpoint step needs a non-zero size")
-    rel = (y - r0) / step
-    overshoot = max(0.0, float(np.max(rel)) - 1.0) * 100.0
-    settle = lti.settling_time(t - start, rel, 1.0, SETTLING_BAND)
+    measures = lti.step_measures(t, y, r0, r1, band=SETTLING_BAND, step_time=start)
     return StepMetrics(
         kind="setpoint",
         start=start,
         size=step,
-        overshoot_percent=overshoot,
-        peak_deviation=overshoot / 100.0 * abs(step),
-        settling_time=settle,
-        iae=float(scipy.integrate.trapezoid(np.abs(r1 - y), t)),
+        overshoot_percent=measures.overshoot_percent,
+        peak_deviation=measures.overshoot_percent / 100.0 * abs(step),
+        settling_time=measures.settling_time,
+        iae=measures.iae,
     )
 
 

@@ -1,0 +1,36 @@
+"""``fuelid online``: the online service at the command line, and what it has done.
+
+``fuelid online --config SITE.toml`` runs the service in the foreground (records as ``fuelid
+record``, identifies a gated window every ``identify_every_s`` of data time, tracks K(T),
+proposes PI gains, writes them when the site allows), with structured log lines and a status
+line on stderr; Ctrl-C or SIGTERM stop it cleanly. ``--virtual`` starts the virtual PLC in the
+same command (AUTO, wind-tunnel runs, the fuel cycling −10…+45 °C over a day) at a speed-up, so
+the whole adaptive story plays in minutes.
+
+``status``, ``history``, ``approve``, ``reject`` and ``revert`` read or mark the store (its
+SQLite file is shared with a running service: every change is committed at once). Every failure
+is one line on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fuelid.cli.online import decide, run, show  # noqa: F401 - they register the commands
+from fuelid.cli.online._app import app
+from fuelid.cli.online.run import check_window_length
+from fuelid.cli.online.show import status_lines
+from fuelid.online.logs import log_record
+
+
+def __getattr__(name: str) -> Any:
+    # the virtual run's profiles live in fuelid.profiles.runs (numpy: imported on use,
+    # so `fuelid --help` stays light); kept importable from here
+    if name in ("demo_run_profile", "demo_temperature"):
+        from fuelid.profiles import runs as profiles
+
+        return getattr(profiles, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = ["app", "check_window_length", "log_record", "status_lines"]

@@ -1,0 +1,346 @@
+"""``fuelid online [--virtual]``: run the service in the foreground, log lines and a live status.
+
+The log lines are the ``fuelid.online`` logger's records (:mod:`fuelid.online.logs`), printed
+on stderr by a handler with the key=value or the JSON formatter; the live status line on a
+terminal is a :class:`rich.live.Live` redrawn in place under them, into a file or a pipe a
+status line every ``QUIET_STATUS_EVERY_S``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+
+from fuelid.cli._common import guarded
+from fuelid.cli.serve import ServeProtocol
+from fuelid.errors import ConfigError
+
+if TYPE_CHECKING:
+    from fuelid.online.service import OnlineService
+    from fuelid.plc.site import SiteConfig
+
+from fuelid.cli.online._app import ConfigFile, StoreFile, app
+from fuelid.online.logs import (
+    LOGGER_NAME,
+    JsonLineFormatter,
+    KeyValueFormatter,
+    Quoted,
+    log_event,
+)
+
+if TYPE_CHECKING:
+    from rich.live import Live
+
+# --- running the service --------------------------------------------------------------------
+
+
+VIRTUAL_STORE = Path("fuelid-online-virtual.db")
+"""The store of ``fuelid online --virtual`` without ``--store`` (in the current folder)."""
+PLC_HEARTBEAT_TIMEOUT_S = 10.0
+"""The virtual PLC's heartbeat timeout [s of plant time]."""
+QUIET_STATUS_EVERY_S = 10.0
+"""Status line interval when stderr is not a terminal [s]."""
+
+
+class _Console(logging.Handler):
+    """The service's log records and the live status line on stderr.
+
+    The records are formatted by :class:`~fuelid.online.logs.KeyValueFormatter` (``online:
+    word key=value …``) or, with ``--json-log``, :class:`~fuelid.online.logs.JsonLineFormatter`.
+    On a terminal the status line is a :class:`rich.live.Live` display redrawn under the log
+    lines; otherwise it is logged every :data:`QUIET_STATUS_EVERY_S` (``{"event": "status",
+    "line": …}`` with ``--json-log``, the bare line after ``online:`` without).
+    """
+
+    def __init__(self, json_log: bool) -> None:
+        super().__init__(logging.INFO)
+        self.json_log = json_log
+        self.tty = sys.stderr.isatty() and not json_log
+        self.setFormatter(JsonLineFormatter() if json_log else KeyValueFormatter("online: "))
+        self.logger = logging.getLogger(LOGGER_NAME)
+        self._level = self.logger.level
+        self._last = -math.inf
+        self._live: Live | None = None
+        self.logger.addHandler(self)
+        self.logger.setLevel(logging.INFO)
+
+    def emit(self, record: logging.LogRecord) -> None:
+        """Print one record on stderr (above the live status line, if shown)."""
+        try:
+            text = self.format(record)
+            if self._live is not None:
+                self._live.console.print(text, markup=False, highlight=False, soft_wrap=True)
+            else:
+                typer.echo(text, err=True)
+        except Exception:  # a handler must not raise into the service: logging's own policy
+            self.handleError(record)
+
+    def status(self, line: str) -> None:
+        """Show the status line: redrawn in place on a terminal, else logged now and then."""
+        if self.tty:
+            from rich.console import Console
+            from rich.live import Live
+            from rich.text import Text
+
+            text = Text(line, no_wrap=True, overflow="ellipsis")  # one line, redrawn in place
+            if self._live is None:
+                self._live = Live(
+                    text, console=Console(stderr=True), auto_refresh=False, transient=True
+                )
+                self._live.start()
+            self._live.update(text, refresh=True)
+        elif time.monotonic() - self._last >= QUIET_STATUS_EVERY_S:
+            self._last = time.monotonic()
+            if self.json_log:
+                log_event(self.logger, "status", line=line)
+            else:
+                self.logger.info(line)
+
+    def close(self) -> None:
+        """Remove the status line and stop handling the service's records."""
+        if self._live is not None:
+            self._live.stop()
+            self._live = None
+        self.logger.removeHandler(self)
+        self.logger.setLevel(self._level)
+        super().close()
+
+
+def _online_table(config: Path | None) -> str:
+    """The ``[online]`` table for the virtual site: --config's, else write_back "auto"."""
+    if config is None:
+        return '[online]\nwrite_back = "auto"\n'
+    import tomllib
+
+    from pydantic import ValidationError
+
+    from fuelid.plc.site import Online
+
+    try:
+        data = tomllib.loads(config.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ConfigError(f"site file {str(config)!r} does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read site file {str(config)!r}: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{config}: not valid TOML ({exc})") from None
+    table = data.get("online", {})
+    if not isinstance(table, dict):
+        raise ConfigError(f"{config}: [online] must be a table")
+    try:
+        Online.model_validate(table)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first["loc"])
+        message = str(first["msg"]).removeprefix("Value error, ")
+        raise ConfigError(f"{config}: online.{where}: {message}" if where else message) from None
+    lines = ["[online]"]
+    for key, value in table.items():
+        lines.append(f"{key} = {json.dumps(value)}")
+    return "\n".join(lines) + "\n"
+
+
+def check_window_length(site: SiteConfig) -> None:
+    """Refuse a missing plant file or an ``[online] window_s`` shorter than its settling time."""
+    from fuelid.online.window import check_site_plant
+
+    check_site_plant(site.site.plant, site.online.window_s)
+
+
+def _run_service(
+    service: OnlineService, duration: float | None, console: _Console
+) -> tuple[Any, float]:
+    import asyncio
+
+    async def main() -> Any:
+        task = asyncio.create_task(service.run(duration))
+        while not task.done():
+            if service.recorder is not None:
+                console.status(service.stats.line())
+            await asyncio.wait({task}, timeout=0.5)
+        return task.result()
+
+    started = time.monotonic()
+    stats = asyncio.run(main())  # the caller closes the console, also after a failure
+    return stats, time.monotonic() - started
+
+
+def _summary(stats: Any, wall_s: float, target: str) -> None:
+    recorder = stats.recorder
+    stored = recorder.stored if recorder is not None else 0
+    typer.echo(
+        f"online: stopped after {wall_s:.1f} s: {stats.windows} windows ({stats.accepted} "
+        f"accepted), {stats.proposals} proposals, {stats.writes} writes, {stats.reverts} "
+        f"reverts; {stored} samples stored"
+    )
+    typer.echo(f"store: {target} (fuelid online status --store {target})")
+
+
+def _heartbeat_s(speed: float) -> float:
+    """Wall time between heartbeats: well inside the PLC's timeout at the speed-up [s]."""
+    return min(1.0, 0.25 * PLC_HEARTBEAT_TIMEOUT_S / speed)
+
+
+def _start(
+    site: SiteConfig,
+    target: str,
+    duration: float | None,
+    json_log: bool,
+    heartbeat_s: float = 1.0,
+) -> None:
+    from fuelid.online.service import OnlineService
+
+    check_window_length(site)
+    for line in site.missing():
+        typer.echo(f"online: the site file does not expose {line}", err=True)
+    console = _Console(json_log)
+    try:
+        service = OnlineService(site, target, heartbeat_s=heartbeat_s)
+    except BaseException:
+        console.close()
+        raise
+    try:
+        log_event(
+            console.logger,
+            "config",
+            site=Quoted(site.site.name),
+            store=Quoted(target),
+            every_s=f"{site.online.identify_every_s:g}",
+            window_s=f"{site.online.window_s:g}",
+            write_back=site.online.write_back,
+        )
+        stats, wall = _run_service(service, duration, console)
+    finally:
+        console.close()
+        service.close()
+    _summary(stats, wall, target)
+
+
+def _run_virtual(
+    config: Path | None,
+    store: Path | None,
+    duration: float | None,
+    json_log: bool,
+    speed: float,
+    hours: float,
+    protocol: ServeProtocol,
+) -> None:
+    import tempfile
+    from importlib import resources
+
+    from fuelid.plc.site import load_site
+    from fuelid.profiles.runs import demo_run_profile, demo_temperature
+    from fuelid.plc.virtual.runner import VirtualPlcThread
+
+    if not (math.isfinite(speed) and 0.0 < speed <= 1000.0):
+        raise ConfigError(f"--speed must be within (0, 1000], got {speed:g}")
+    if not (math.isfinite(hours) and hours > 0.0):
+        raise ConfigError(f"--hours must be a positive number of hours, got {hours:g}")
+    online = _online_table(config)
+    plant_s = hours * 3600.0
+    wall = plant_s / speed if duration is None else duration
+    path = VIRTUAL_STORE if store is None else store
+    if store is None and path.exists():
+        typer.echo(f"online: replacing the demo store {path}", err=True)
+        for suffix in ("", "-wal", "-shm"):
+            Path(f"{path}{suffix}").unlink(missing_ok=True)
+    target = str(path.resolve())
+    plant = resources.files("fuelid.data").joinpath("reference_plant.toml")
+    plant_path = str(plant) if Path(str(plant)).is_file() else None
+    times, temperatures = demo_temperature(plant_s)
+    with (
+        VirtualPlcThread(
+            protocol.value,
+            speed=speed,
+            seed=1,
+            setpoint_profile=demo_run_profile(),
+            fuel_temp_profile=(times, temperatures),
+        ) as virtual,
+        tempfile.TemporaryDirectory(prefix="fuelid-online-") as folder,
+    ):
+        text = virtual.site_text(store_url=f"sqlite:///{target}", plant=plant_path)
+        site_path = Path(folder) / "virtual-site.toml"
+        site_path.write_text(f"{text}\n{online}", encoding="utf-8")
+        site = load_site(site_path)
+        typer.echo(
+            f"online: virtual PLC ({protocol.value} on {virtual.host}:{virtual.port}), "
+            f"{speed:g}x real time, {hours:g} h of plant time in {wall:.1f} s",
+            err=True,
+        )
+        _start(site, target, wall, json_log, heartbeat_s=_heartbeat_s(speed))
+
+
+@app.callback()
+@guarded
+def online_command(
+    ctx: typer.Context,
+    config: ConfigFile = None,
+    store: StoreFile = None,
+    duration: Annotated[
+        float | None,
+        typer.Option(
+            metavar="SECONDS",
+            help="Stop after this long [s of wall time] (default: until Ctrl-C or SIGTERM; "
+            "with --virtual, --hours of plant time).",
+            show_default=False,
+        ),
+    ] = None,
+    json_log: Annotated[
+        bool, typer.Option("--json-log", help="Log lines on stderr as JSON objects.")
+    ] = False,
+    virtual: Annotated[
+        bool,
+        typer.Option(
+            "--virtual",
+            help="Run against a virtual PLC started in the same command (AUTO wind-tunnel runs, "
+            "fuel −10…+45 °C over 24 h); --config then only gives the [online] table.",
+        ),
+    ] = False,
+    speed: Annotated[
+        float,
+        typer.Option(
+            help="--virtual: plant time per wall time (≤ 1000; above ~50 a busy 2-core machine "
+            "loses samples: the gaps are counted and such windows rejected)."
+        ),
+    ] = 50.0,
+    hours: Annotated[float, typer.Option(help="--virtual: plant time to run [h].")] = 24.0,
+    protocol: Annotated[
+        ServeProtocol, typer.Option("--protocol", help="--virtual: the PLC's protocol.")
+    ] = ServeProtocol.modbus,
+) -> None:
+    """Run the online service in the foreground (or, with a subcommand, look at its store).
+
+    Records as fuelid record does and every [online] identify_every_s of data time identifies
+    the last window_s, gates it, tracks K against fuel temperature and proposes PI gains; with
+    write_back "approve" or "auto" it writes approved gains and checks the PLC's echo. Log lines
+    (key=value, or JSON with --json-log) and a status line go to stderr; Ctrl-C or SIGTERM stop
+    it cleanly, a summary goes to stdout. --virtual writes to fuelid-online-virtual.db (replaced)
+    unless --store is given.
+    """
+    if ctx.invoked_subcommand is not None:
+        return
+    if duration is not None and not (math.isfinite(duration) and duration > 0.0):
+        raise ConfigError(f"--duration must be a positive number of seconds, got {duration:g}")
+    if virtual:
+        _run_virtual(config, store, duration, json_log, speed, hours, protocol)
+        return
+    if config is None:
+        raise ConfigError(
+            "give --config SITE.toml (the site file of the loop), or --virtual for the demo; "
+            "subcommands: status, history, approve, reject, revert"
+        )
+    from fuelid.plc.site import load_site
+
+    site = load_site(config)
+    target = str(store) if store is not None else site.store.url
+    _start(site, target, duration, json_log)
+
+
+# --- the store ------------------------------------------------------------------------------

@@ -1,0 +1,273 @@
+"""``fuelid online status`` and ``history``: what the service has done, read from its store."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+
+from fuelid.cli._common import check_figure_path, emit_json, guarded, provenance
+
+if TYPE_CHECKING:
+    pass
+
+from fuelid.cli.online._app import ConfigFile, JsonFlag, StoreFile, _opened, _options, app
+
+RECENT_WINDOWS = 20
+"""Windows listed by ``fuelid online history`` without ``--json``."""
+
+
+def _stamp(t: float | None) -> str:
+    if t is None:
+        return "-"
+    from datetime import UTC, datetime
+
+    return datetime.fromtimestamp(t, tz=UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+
+
+def _pm(values: dict[str, Any] | None, errors: dict[str, Any] | None, key: str, unit: str) -> str:
+    value = (values or {}).get(key)
+    if value is None:
+        return f"{key} -"
+    se = (errors or {}).get(key)
+    text = f"{value:.4g}" + ("" if se is None else f" ± {se:.2g}")
+    return f"{text} {unit}".rstrip()
+
+
+def _model_text(entry: dict[str, Any]) -> str:
+    model, se = entry.get("model"), entry.get("stderr")
+    parts = [
+        "K = " + _pm(model, se, "K", "(L/min)/V"),
+        "T = " + _pm(model, se, "T", "s"),
+        "θ = " + _pm(model, se, "delay", "s"),
+    ]
+    return ", ".join(parts)
+
+
+def _gains_text(p: dict[str, Any]) -> str:
+    old, new = p.get("old") or {}, p.get("new") or {}
+
+    def g(d: dict[str, Any], k: str) -> str:
+        return "-" if d.get(k) is None else f"{d[k]:.4g}"
+
+    ms = p.get("Ms")
+    return (
+        f"#{p['id']} {p['status']}: Kc {g(old, 'Kc')} → {g(new, 'Kc')}, Ti {g(old, 'Ti')} → "
+        f"{g(new, 'Ti')}" + ("" if ms is None else f" (Ms {ms:.2f})")
+    )
+
+
+def _percent(x: Any) -> str:
+    return "-" if x is None else f"{100.0 * x:.1f} %"
+
+
+def _health_text(h: dict[str, Any] | None) -> str:
+    if not h:
+        return "not measured yet"
+    osc = (h.get("oscillation") or {}).get("oscillating")
+    iae = h.get("iae_per_unit_step_s")
+    harris = (h.get("harris") or {}).get("index")
+    sensor = h.get("sensor") or {}
+    noise = sensor.get("noise_Lpm")
+    return (
+        f"AUTO {_percent(h.get('time_in_auto'))}, at limits {_percent(h.get('time_at_limits'))}, "
+        f"oscillating {'yes' if osc else 'no'}, IAE/step "
+        + ("-" if iae is None else f"{iae:.3g} s")
+        + ", Harris "
+        + ("-" if harris is None else f"{harris:.2f}")
+        + ", sensor "
+        + ("stuck" if sensor.get("stuck") else "ok")
+        + ("" if noise is None else f" (noise {noise:.3g} L/min)")
+    )
+
+
+def _trend_text(trend: dict[str, Any]) -> str:
+    if not trend.get("available"):
+        return f"not yet ({trend.get('reason', '')})"
+    at = trend.get("at_newest") or {}
+    n = trend.get("n")
+    text = f"{trend.get('mode')} fit over {n} windows"
+    ratio = trend.get("ratio")
+    if isinstance(ratio, dict):
+        text += f", K/K_plant {ratio['intercept']:.3f} ± {ratio['se_intercept']:.2g}"
+        text += f" at {ratio['T_ref']:.1f} °C"
+        if ratio.get("slope") is not None:
+            text += f", slope {ratio['slope']:.2e} ± {ratio['se_slope']:.1e} /°C"
+    if at.get("K") is not None:
+        text += (
+            f"; K at {at['fuel_temperature']:.1f} °C, {at['u']:.2f} V: "
+            f"{at['K']:.4g} ± {at['se']:.2g} (L/min)/V"
+        )
+    drift = trend.get("drift")
+    if isinstance(drift, dict):
+        text += f"; drift from the tuned model {drift['ratio']:.3f} ± {drift['se']:.2g}"
+    return text
+
+
+def status_lines(status: dict[str, Any]) -> list[str]:
+    """The human form of :func:`~fuelid.online.report.status_json`, a few aligned lines."""
+    link = status["link"]
+    age = link.get("age_s")
+    if age is None:
+        when = ""
+    elif age >= 0.0:
+        when = f", {age:.1f} s ago"
+    else:  # an accelerated (virtual) PLC's clock runs ahead of the wall clock
+        when = f", {-age:.1f} s ahead of this clock"
+    link_text = f"{link['state']} (newest sample {_stamp(link.get('newest_sample'))}{when})"
+    w = status.get("last_window")
+    if w is None:
+        window_text = "none yet"
+    else:
+        verdict = "accepted" if w["accepted"] else "rejected"
+        fuel = w.get("fuel_temperature")
+        window_text = (
+            f"#{w['id']} ending {_stamp(w['end'])}, {w.get('mode') or '-'}, "
+            + ("" if fuel is None else f"fuel {fuel:.1f} °C, ")
+            + f"{verdict}: {w['reason']}"
+        )
+    m = status.get("current_model")
+    if m is None:
+        model_text = "none accepted yet"
+    else:
+        fuel = m.get("fuel_temperature")
+        model_text = (
+            _model_text(m)
+            + f" (window ending {_stamp(m.get('end'))}"
+            + ("" if fuel is None else f", fuel {fuel:.1f} °C")
+            + ")"
+        )
+    pending = status.get("pending_proposals") or []
+    proposals_text = "none" if not pending else "; ".join(_gains_text(p) for p in pending)
+    wb = status.get("write_back") or {}
+    last_write = status.get("last_write")
+    write_text = f"write_back {wb.get('setting') or 'unknown (give --config)'}"
+    if wb.get("write_held"):
+        write_text += f", held: {wb['write_held']}"
+    if wb.get("revert_requested"):
+        write_text += ", revert requested"
+    write_text += "; last write " + (
+        "none"
+        if last_write is None
+        else f"#{last_write['id']} {last_write['kind']} {last_write['status']} "
+        f"(Kc {last_write['Kc']:.4g}, Ti {last_write['Ti']:.4g}) at {_stamp(last_write['time'])}"
+    )
+    c = status.get("counts") or {}
+    last = status.get("last_window") or {}
+    step = last.get("step_ls") or {}
+    step_text = (
+        "-"
+        if not step
+        else (
+            _model_text(step)
+            if step.get("model")
+            else f"not fitted: {step.get('reason', 'no reason given')}"
+        )
+        + " (the article's method, reported beside, not gated)"
+    )
+    rows = [
+        ("site", f"{status['site']['name']} (store {status['site']['store']})"),
+        ("link", link_text),
+        ("window", window_text),
+        ("model", model_text),
+        ("step-ls", step_text),
+        ("K(T)", _trend_text(status.get("k_trend") or {})),
+        ("proposals", proposals_text),
+        ("health", _health_text(status.get("loop_health"))),
+        ("writes", write_text),
+        (
+            "counts",
+            f"{c.get('windows', 0)} windows, {c.get('accepted', 0)} accepted, "
+            f"{c.get('proposals', 0)} proposals, {c.get('writes', 0)} writes",
+        ),
+    ]
+    return [f"{name:<10} {text}" for name, text in rows]
+
+
+@app.command("status")
+@guarded
+def status_command(
+    config: ConfigFile = None, store: StoreFile = None, as_json: JsonFlag = False
+) -> None:
+    """Link, last window and its verdict, current model, K(T) trend, proposals, loop health.
+
+    Read from the store; a running service need not be stopped. --json prints one object
+    (keys site, link, last_window, current_model, k_trend, pending_proposals, loop_health,
+    counts, write_back, last_write, units).
+    """
+    from fuelid.online.report import status_json
+
+    with _opened(config, store) as (opened, history, settings):
+        status = status_json(history, opened, settings=settings)
+    if as_json:
+        emit_json(status | provenance(_options(config, store)))
+        return
+    typer.echo("\n".join(status_lines(status)))
+
+
+@app.command("history")
+@guarded
+def history_command(
+    config: ConfigFile = None,
+    store: StoreFile = None,
+    as_json: JsonFlag = False,
+    plot: Annotated[
+        Path | None,
+        typer.Option(
+            "--plot",
+            metavar="FILE.png",
+            help="Draw K over time and against fuel temperature with 95 % intervals, the gains "
+            "and the proposals.",
+            show_default=False,
+        ),
+    ] = None,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing --plot.")] = False,
+) -> None:
+    """Every window, proposal, event and write of the service, oldest first.
+
+    --json prints one object with windows (start, end, accepted, reason, fuel_temperature,
+    model, stderr, ci95 as fuelid identify's), proposals (id, time, status, old, new, Ms, reason,
+    history), events, writes, k_trend.
+    """
+    from fuelid.online.report import history_json
+
+    check_figure_path(plot, overwrite=force)
+    with _opened(config, store) as (opened, history, settings):
+        data = history_json(history, opened, settings=settings)
+    if plot is not None:
+        from fuelid.plots import plot_online_history
+
+        plot_online_history(data, plot)
+    if as_json:
+        emit_json(data | provenance(_options(config, store, plot=plot and str(plot))))
+        return
+    windows = data["windows"]
+    lines = [f"{len(windows)} windows, {sum(w['accepted'] for w in windows)} accepted"]
+    if len(windows) > RECENT_WINDOWS:
+        lines.append(f"(the newest {RECENT_WINDOWS}; --json for all)")
+    for w in windows[-RECENT_WINDOWS:]:
+        fitted = "" if w.get("model") is None else " " + _model_text(w)
+        fuel = w.get("fuel_temperature")
+        lines.append(
+            f"  #{w['id']:<5} {_stamp(w['end'])} {'ok ' if w['accepted'] else 'no '}"
+            + ("" if fuel is None else f"{fuel:6.1f} °C")
+            + f"{fitted} | {w['reason']}"
+        )
+    lines.append(f"{len(data['proposals'])} proposals")
+    lines += [f"  {_gains_text(p)} at {_stamp(p['time'])}" for p in data["proposals"]]
+    kinds: dict[str, int] = {}
+    for e in data["events"]:
+        kinds[e["kind"]] = kinds.get(e["kind"], 0) + 1
+    lines.append(
+        f"{len(data['events'])} events"
+        + ("" if not kinds else ": " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())))
+    )
+    lines.append(f"{len(data['writes'])} writes")
+    lines += [
+        f"  #{w['id']} {w['kind']} {w['status']} Kc {w['Kc']:.4g} Ti {w['Ti']:.4g} by {w['who']}"
+        for w in data["writes"]
+    ]
+    if plot is not None:
+        lines.append(f"figure: {plot}")
+    typer.echo("\n".join(lines))

@@ -1,0 +1,181 @@
+"""What the online service's parts share: the site, the store and its history, the log, the stats.
+
+The scheduler (:mod:`fuelid.online.scheduler`) and the write-back
+(:mod:`fuelid.online.writeback`) each hold one :class:`ServiceContext`; the service
+(:mod:`fuelid.online.service`) builds it and sets the recorder once the run starts.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from fuelid.errors import FuelidError
+from fuelid.model import ProcessModel
+from fuelid.online.gains import Gains, controller_to_ideal
+from fuelid.online.logs import LOGGER_NAME, log_event, log_line
+from fuelid.online.tracking import GainObservation
+from fuelid.online.window import WindowPriors
+from fuelid.plc.recorder import Recorder, RecorderStats
+from fuelid.plc.site import Online, SiteConfig
+from fuelid.store.base import SampleWriter
+from fuelid.store.online import OnlineHistory
+from fuelid.store.sqlite import SQLiteStore
+
+_LOGGER = logging.getLogger(LOGGER_NAME)
+
+TRACKER_OBSERVATIONS = 2000
+"""Accepted windows kept by the K(T) tracker (a week at 5-minute windows): bounded memory."""
+RECENT_WINDOWS_SPAN = 6.0
+"""Windows for a proposal end within this many window lengths (or agree_windows × the
+schedule, if longer) of the newest: a model from before an outage of days does not vote."""
+
+
+@dataclass
+class ServiceStats:
+    """What the service has done in this run."""
+
+    windows: int = 0
+    accepted: int = 0
+    proposals: int = 0
+    writes: int = 0
+    reverts: int = 0
+    recorder: RecorderStats | None = None
+    last_window: dict[str, Any] = field(default_factory=dict)
+
+    def line(self) -> str:
+        """One status line."""
+        rec = self.recorder.line() if self.recorder is not None else "recorder not started"
+        return (
+            f"{rec} | {self.windows} windows, {self.accepted} accepted, "
+            f"{self.proposals} proposals, {self.writes + self.reverts} writes "
+            f"({self.reverts} reverts)"
+        )
+
+
+@dataclass
+class ServiceContext:
+    """The state the scheduler and the write-back share (one per service run).
+
+    Parameters
+    ----------
+    site : SiteConfig
+        The site file.
+    store : SQLiteStore
+        The site's store.
+    history : OnlineHistory
+        The online history in the same SQLite file.
+    priors : WindowPriors
+        The window analysis' priors (the command's limits among them).
+    commissioning : Gains or None
+        The ``[controller]`` kc and ti in the ideal form; None when not given.
+    on_message : callable, optional
+        Gets each structured log line.
+    """
+
+    site: SiteConfig
+    store: SQLiteStore
+    history: OnlineHistory
+    priors: WindowPriors
+    commissioning: Gains | None
+    on_message: Callable[[str], None] | None = None
+    stats: ServiceStats = field(default_factory=ServiceStats)
+    recorder: Recorder | None = None
+    writer: SampleWriter | None = None
+
+    @property
+    def settings(self) -> Online:
+        """The site's ``[online]`` table."""
+        return self.site.online
+
+    @property
+    def latest(self) -> dict[str, float]:
+        """The recorder's newest reading of every tag (empty before the run)."""
+        return self.recorder.latest if self.recorder is not None else {}
+
+    def say(self, word: str, **fields: Any) -> None:
+        """Log one event to the ``fuelid.online`` logger, and its key=value line to on_message."""
+        log_event(_LOGGER, word, **fields)
+        if self.on_message is not None:
+            self.on_message(log_line(word, **fields))
+
+    def event(self, kind: str, detail: str, t: float | None = None) -> None:
+        """Record an event in the store and log it."""
+        if self.writer is not None:
+            self.writer.event(kind, detail, t)
+        self.say("event", kind=kind, detail=detail)
+
+    def current_gains(self) -> Gains | None:
+        """The PI's gains now (ideal form, engineering units).
+
+        The PLC's when its kc and ti are read, else the last verified write, else the
+        commissioning gains.
+        """
+        c = self.site.controller
+        latest = self.latest
+        if c is not None and latest.get("kc", 0.0) > 0.0 and latest.get("ti", 0.0) > 0.0:
+            return controller_to_ideal(latest["kc"], latest["ti"], c)
+        applied = self.history.state("current_gains")
+        if applied is not None:
+            return Gains(float(applied["Kc"]), float(applied["Ti"]))
+        return self.commissioning
+
+
+def model_of(value: Any) -> ProcessModel | None:
+    """A ProcessModel from a stored dict (``{"model": {...}}`` or the model keys themselves).
+
+    Examples
+    --------
+    >>> model_of({"model": {"K": 2.0, "T": 0.5}}).T
+    0.5
+    >>> model_of({"K": 2.0}) is None
+    True
+    """
+    if not isinstance(value, dict):
+        return None
+    inner = value.get("model", value)
+    if not isinstance(inner, dict) or "K" not in inner or "T" not in inner:
+        return None
+    try:
+        return ProcessModel(
+            K=float(inner["K"]),
+            T=float(inner["T"]),
+            T2=float(inner.get("T2") or 0.0),
+            T_f=float(inner.get("T_f") or 0.0),
+            delay=float(inner.get("delay") or 0.0),
+        )
+    except (TypeError, ValueError, FuelidError):
+        return None
+
+
+def observation_of(row: dict[str, Any]) -> GainObservation | None:
+    """A tracker observation from a stored accepted model (None when it lacks a value)."""
+    m = row.get("model") or {}
+    model = m.get("model") or {}
+    se = (m.get("stderr") or {}).get("K")
+    values = [model.get("K"), se, m.get("T_fuel"), m.get("u_mean")]
+    found = [float(v) for v in values if v is not None]
+    if len(found) < len(values) or not all(math.isfinite(v) for v in found):
+        return None
+    K, se_K, T_fuel, u = found
+    return GainObservation(
+        float(m.get("window_end") or row.get("t_to") or 0.0),
+        T_fuel,
+        u,
+        K,
+        se_K,
+        None if m.get("plant_K") is None else float(m["plant_K"]),
+    )
+
+
+__all__ = [
+    "RECENT_WINDOWS_SPAN",
+    "TRACKER_OBSERVATIONS",
+    "ServiceContext",
+    "ServiceStats",
+    "model_of",
+    "observation_of",
+]
