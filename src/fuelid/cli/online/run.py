@@ -236,8 +236,8 @@ def _run_virtual(
     from importlib import resources
 
     from fuelid.plc.site import load_site
-    from fuelid.profiles.runs import demo_run_profile, demo_temperature
     from fuelid.plc.virtual.runner import VirtualPlcThread
+    from fuelid.profiles.runs import demo_run_profile, demo_temperature
 
     if not (math.isfinite(speed) and 0.0 < speed <= 1000.0):
         raise ConfigError(f"--speed must be within (0, 1000], got {speed:g}")
