@@ -59,7 +59,7 @@ the output:
 Run on demand (the figure and the page are written only when run; about 0.2 s per MAN window
 and 0.5 s per AUTO window on an idle core, so ≈ 13 minutes with the default 100 + 50 runs):
 
-    .venv/bin/python benchmarks/bench_gate_study.py [--runs 100] [--bad-runs 50] [--out docs]
+    .venv/bin/python benchmarks/bench_gate_study.py [--runs 100] [--bad-runs 50] [--out docs/explanation]
         [--csv FILE] [--ar-pole 0.8] [--seed 23] [--no-reference]
 """
 
@@ -857,7 +857,7 @@ def page(
     cpu_s: float,
     version: str,
 ) -> None:
-    """``gate_study.md``: the setting, the tables, the choice and its criterion, provenance."""
+    """``gate-study.md``: the setting, the tables, the choice and its criterion, provenance."""
     chosen, verdicts = choose(new_plants(rows))
     plant_rows = [
         f"| {p.name} | {where(p)} | {p.config.vfd.lag_s:g} s | "
@@ -990,8 +990,8 @@ def main() -> None:
     parser.add_argument(
         "--out",
         type=Path,
-        default=HERE.parent / "docs",
-        help="folder for gate_study.md and figures/gate_study.png (default: docs)",
+        default=HERE.parent / "docs" / "explanation",
+        help="folder for gate-study.md and figures/gate_study.png (default: docs/explanation)",
     )
     parser.add_argument("--csv", type=Path, help="also write every window as a CSV row here")
     parser.add_argument(
@@ -1054,7 +1054,7 @@ def main() -> None:
     )
     figure_path = args.out / "figures" / "gate_study.png"
     figure(rows, figure_path)
-    page_path = args.out / "gate_study.md"
+    page_path = args.out / "gate-study.md"
     page(
         rows,
         page_path,
