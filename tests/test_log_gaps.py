@@ -342,9 +342,11 @@ def test_fuel_temperature_column_absent_named_or_implausible(tmp_path: Path) -> 
     message = refused(tmp_path / "kelvin.csv")
     assert "'T_fuel_degC' has 200 fuel temperature(s) outside -60 to 150 °C" in message
     assert "data row 1 (281.15): is it in °C?" in message
-    written.loc[7, "T_fuel_degC"] = np.nan
+    # an empty cell is a missing sample (issue 24); other text is refused
+    written = written.astype({"T_fuel_degC": object})
+    written.loc[7, "T_fuel_degC"] = "err"
     written.to_csv(tmp_path / "nan.csv", index=False)
-    assert "'T_fuel_degC' has 1 empty or non-numeric cell(s), first at data row 8" in refused(
+    assert "'T_fuel_degC' has 1 non-numeric cell(s), first at data row 8" in refused(
         tmp_path / "nan.csv"
     )
 

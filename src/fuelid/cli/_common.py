@@ -290,6 +290,17 @@ FuelTemperatureColumn = Annotated[
         help="Fuel temperature column [°C], read when present (another name must exist).",
     ),
 ]
+BadValues = Annotated[
+    str | None,
+    typer.Option(
+        "--bad-values",
+        metavar="TEXT[,TEXT...]",
+        help="Texts your historian writes for a bad sample, besides #N/A, Bad Input, Bad, "
+        "I/O Timeout, Comm Fail, Shutdown, NaN and empty cells (case and spaces ignored): such "
+        "a sample is missing (a gap), counted in the notes; other text is refused.",
+        show_default=False,
+    ),
+]
 InputScale = Annotated[
     str | None,
     typer.Option(
@@ -321,13 +332,15 @@ def read_log(
     fuel_temperature_col: str | None = "T_fuel_degC",
     fill_gaps: float | None = None,
     max_gap: float | None = None,
+    bad_values: str | None = None,
 ) -> IOData:
-    """Load a log with the shared column, scaling and gap options.
+    """Load a log with the shared column, scaling, gap and bad-value options.
 
     A sample time replaces a missing time column; with a time column present the two must agree
     and the time column is used (so that gaps are seen). An empty ``fuel_temperature_col`` reads
-    no fuel temperature.
+    no fuel temperature. ``bad_values`` is ``--bad-values``' comma-separated text.
     """
+    from fuelid.io.bad_values import parse_bad_values
     from fuelid.io.logs import load_log, parse_scale
 
     return load_log(
@@ -341,6 +354,7 @@ def read_log(
         fill_gaps=fill_gaps,
         max_gap=max_gap,
         fuel_temperature_col=fuel_temperature_col or None,
+        bad_values=parse_bad_values(bad_values),
     )
 
 

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from fuelid.cli._common import (
+    BadValues,
     FillGaps,
     ForceFigureOption,
     FuelTemperatureColumn,
@@ -159,6 +160,7 @@ def identify_command(
     fuel_temp_col: FuelTemperatureColumn = "T_fuel_degC",
     fill_gaps: FillGaps = None,
     max_gap: MaxGap = None,
+    bad_values: BadValues = None,
     plot: Annotated[
         Path | None,
         typer.Option(
@@ -215,6 +217,7 @@ def identify_command(
             fuel_temperature_col=fuel_temp_col,
             fill_gaps=fill_gaps,
             max_gap=max_gap,
+            bad_values=bad_values,
         )
 
     data = read(file)
@@ -269,6 +272,7 @@ def identify_command(
             "fuel_temp_col": fuel_temp_col,
             "fill_gaps": fill_gaps,
             "max_gap": max_gap,
+            "bad_values": bad_values,
         }
         emit_json(data_json | provenance(opts, file))
         return

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from fuelid.cli._common import (
+    BadValues,
     BandWidthOption,
     ControlPeriodOption,
     FillGaps,
@@ -143,6 +144,7 @@ def report_command(
     fuel_temp_col: FuelTemperatureColumn = "T_fuel_degC",
     fill_gaps: FillGaps = None,
     max_gap: MaxGap = None,
+    bad_values: BadValues = None,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print one JSON object (the numbers and the paths).")
     ] = False,
@@ -195,6 +197,7 @@ def report_command(
         fuel_temperature_col=fuel_temp_col,
         fill_gaps=fill_gaps,
         max_gap=max_gap,
+        bad_values=bad_values,
     )
     with progress_display() as stage:
         analysis = analyse_log(data, plant, settings, progress=stage)
@@ -236,6 +239,7 @@ def report_command(
             "fuel_temp_col": fuel_temp_col,
             "fill_gaps": fill_gaps,
             "max_gap": max_gap,
+            "bad_values": bad_values,
         }
         paths = {"report": str(written[0]), "figures": [str(p) for p in written[1:]]}
         emit_json(paths | analysis.to_json() | provenance(options, file))
