@@ -242,6 +242,60 @@ ConfigOption = Annotated[
 ]
 
 
+FlowSpanOption = Annotated[
+    float | None,
+    typer.Option(
+        "--flow-span",
+        metavar="L/MIN",
+        help="Flowmeter span for the %/% gain [L/min] (default: the plant's meter span).",
+        show_default=False,
+    ),
+]
+DriveSpanOption = Annotated[
+    float | None,
+    typer.Option(
+        "--u-span",
+        metavar="V",
+        help="Drive signal span for the %/% gain [V] (default: the plant's drive range).",
+        show_default=False,
+    ),
+]
+
+
+def check_spans(flow_span: float | None, u_span: float | None) -> None:
+    """Refuse a ``--flow-span`` or ``--u-span`` that is not a positive number."""
+    for option, value, unit in (("--flow-span", flow_span, "L/min"), ("--u-span", u_span, "V")):
+        if value is not None and not (math.isfinite(value) and value > 0.0):
+            raise FuelidError(f"{option} must be positive, got {value:g} {unit}")
+
+
+def fitted_part(
+    log: tuple[float, float], fitted: tuple[float, float], validated_on: str | None
+) -> str:
+    """The first line of ``identify`` and ``report``: the part of the log the model was fitted on.
+
+    ``log`` and ``fitted`` are (start, end) times [s]; ``validated_on`` says what the model was
+    scored on besides (None: nothing).
+
+    >>> fitted_part((0.0, 600.0), (0.0, 420.0), "the rest")
+    'fitted on 0–70 % of the log (0–420 s), validated on the rest'
+    >>> fitted_part((0.0, 600.0), (0.0, 600.0), None)
+    'fitted on all of the log (0–600 s), nothing held out for validation'
+    """
+    length = log[1] - log[0]
+    if abs(fitted[0] - log[0]) <= 1e-9 * length and abs(fitted[1] - log[1]) <= 1e-9 * length:
+        part = "all of the log"
+    else:
+        low, high = ((t - log[0]) / length * 100.0 for t in fitted)
+        part = f"{low:.0f}–{high:.0f} % of the log"
+    validated = (
+        "nothing held out for validation"
+        if validated_on is None
+        else (f"validated on {validated_on}")
+    )
+    return f"fitted on {part} ({fitted[0]:.6g}–{fitted[1]:.6g} s), {validated}"
+
+
 ForceFigureOption = Annotated[
     bool,
     typer.Option("--force", help="Overwrite an existing --plot figure (otherwise refused)."),

@@ -28,6 +28,7 @@ from fuelid.cli._common import (
     TimeColumn,
     check_figure_path,
     emit_json,
+    fitted_part,
     guarded,
     provenance,
     read_log,
@@ -247,7 +248,26 @@ def identify_command(
             unit=data.y_unit or None,
         )
         save_figure(fig, plot)
-    data_json = outcome.to_json()
+    log = (float(data.t[0]), float(data.t[-1]))
+    fitted = (
+        float(result.time[0]) if t_start is not None else log[0],
+        result.split_time
+        if result.split_time is not None
+        else float(result.time[-1])
+        if t_stop is not None
+        else log[1],
+    )
+    validated_on = (
+        "the rest"
+        if result.split_time is not None
+        else validate_file.name
+        if validate_file is not None
+        else None
+    )
+    part = fitted_part(log, fitted, validated_on)
+    if validated_on is None:  # report holds out 30 % by default: say why the two differ
+        part += " (fuelid report holds out the last 30 %: --validate-split 0.3 does so here)"
+    data_json = outcome.to_json() | {"fitted_part": part}
     if as_json:
         opts = {
             "method": method.value,
@@ -285,6 +305,8 @@ def _print_table(data: dict[str, Any], file: Path, gain_unit: str, units: tuple[
     from rich.console import Console
     from rich.table import Table
 
+    console = Console()
+    console.print(data["fitted_part"], highlight=False, soft_wrap=True)
     from fuelid.model import MODEL_KEYS
 
     table = Table(
@@ -303,7 +325,6 @@ def _print_table(data: dict[str, Any], file: Path, gain_unit: str, units: tuple[
             "" if ci is None else f"{ci[0]:.5g} … {ci[1]:.5g}",
             gain_unit if key == "K" else "s",
         )
-    console = Console()
     console.print(table)
     console.print(f"fit {data['fit_percent']:.2f} % (NRMSE, free-run simulation)")
     if data["validation_fit_percent"] is not None:

@@ -17,8 +17,10 @@ from fuelid.cli._common import (
     BadValues,
     BandWidthOption,
     ControlPeriodOption,
+    DriveSpanOption,
     FillGaps,
     FlowBandsOption,
+    FlowSpanOption,
     FuelTemperatureColumn,
     InputColumn,
     InputScale,
@@ -34,9 +36,11 @@ from fuelid.cli._common import (
     TimeColumn,
     TMaxOption,
     TMinOption,
+    check_spans,
     closed_loop_time,
     emit_json,
     file_sha256,
+    fitted_part,
     guarded,
     progress_display,
     provenance,
@@ -131,6 +135,8 @@ def report_command(
     band_width: BandWidthOption = 10.0,
     ms_target: MsTargetOption = 1.7,
     flow_bands: FlowBandsOption = 3,
+    flow_span: FlowSpanOption = None,
+    u_span: DriveSpanOption = None,
     validate_split: Annotated[
         float | None,
         typer.Option(help="Hold out the last fraction F of the log for validation (0: none)."),
@@ -164,6 +170,7 @@ def report_command(
     check_report_path(out, force)  # before any work: a typo must not cost a minute
     T_fuel, T_range = temperature_options(20.0 if fuel_temp is None else fuel_temp, t_min, t_max)
     check_prior_times(flowmeter_T, flowmeter_delay)
+    check_spans(flow_span, u_span)
     settings = AnalysisSettings(
         tune_from=method.value,
         rule=rule.value,
@@ -184,6 +191,8 @@ def report_command(
         ms_target=ms_target,
         flow_bands=flow_bands,
         validate_split=validate_split or None,
+        y_span=flow_span,
+        u_span=u_span,
     )
     plant = PlantSource(load_plant_config(config), None if config is None else str(config))
     data = read_log(
@@ -229,6 +238,8 @@ def report_command(
             "band_width": band_width,
             "ms_target": ms_target,
             "flow_bands": flow_bands,
+            "flow_span": flow_span,
+            "u_span": u_span,
             "validate_split": validate_split,
             "time_col": time_col,
             "input_col": input_col,
@@ -242,15 +253,27 @@ def report_command(
             "bad_values": bad_values,
         }
         paths = {"report": str(written[0]), "figures": [str(p) for p in written[1:]]}
-        emit_json(paths | analysis.to_json() | provenance(options, file))
+        part = {"fitted_part": _fitted_part(analysis)}
+        emit_json(paths | part | analysis.to_json() | provenance(options, file))
         return
     _print_summary(analysis, written)
+
+
+def _fitted_part(analysis: LogAnalysis) -> str:
+    """Which part of the log the models were fitted on: identify's default differs."""
+    data, result = analysis.data, analysis.model_result
+    log = (float(data.t[0]), float(data.t[-1]))
+    if result.split_time is None:
+        return fitted_part(log, log, None)
+    line = fitted_part(log, (log[0], result.split_time), "the rest")
+    return f"{line} (--validate-split 0 fits all of it, as fuelid identify does)"
 
 
 def _print_summary(analysis: LogAnalysis, written: list[Path]) -> None:
     from rich.console import Console
 
     console = Console()
+    console.print(_fitted_part(analysis), highlight=False, soft_wrap=True)
     from fuelid.workflow.assumptions import gain_unit
 
     pi = analysis.tuning.pi
@@ -271,6 +294,10 @@ def _print_summary(analysis: LogAnalysis, written: list[Path]) -> None:
             else f"schedule of {len(analysis.schedule.bands)} bands, worst Ms "
             f"{analysis.schedule.worst_Ms:.2f}"
         )
+    )
+    span_Kc = pi.plc_form(analysis.tuning.u_span, analysis.tuning.y_span)["percent_of_span"]["Kc"]
+    console.print(
+        f"percent of span: Kc = {span_Kc:.4g} %/% ({analysis.span_note})", highlight=False
     )
     if not analysis.plant.is_reference:
         console.print(f"plant: {analysis.plant.config.name} from {analysis.plant.path}")
