@@ -267,7 +267,7 @@ def identify_command(
     part = fitted_part(log, fitted, validated_on)
     if validated_on is None:  # report holds out 30 % by default: say why the two differ
         part += " (fuelid report holds out the last 30 %: --validate-split 0.3 does so here)"
-    data_json = outcome.to_json() | {"fitted_part": part}
+    data_json = outcome.to_json()
     if as_json:
         opts = {
             "method": method.value,
@@ -298,15 +298,17 @@ def identify_command(
         return
     from fuelid.workflow.assumptions import gain_unit
 
-    _print_table(data_json, file, gain_unit(data), (data.u_unit, data.y_unit))
+    _print_table(data_json, file, gain_unit(data), (data.u_unit, data.y_unit), part)
 
 
-def _print_table(data: dict[str, Any], file: Path, gain_unit: str, units: tuple[str, str]) -> None:
+def _print_table(
+    data: dict[str, Any], file: Path, gain_unit: str, units: tuple[str, str], part: str
+) -> None:
     from rich.console import Console
     from rich.table import Table
 
     console = Console()
-    console.print(data["fitted_part"], highlight=False, soft_wrap=True)
+    console.print(part, highlight=False, soft_wrap=True)  # first: which part was fitted
     from fuelid.model import MODEL_KEYS
 
     table = Table(

@@ -253,8 +253,7 @@ def report_command(
             "bad_values": bad_values,
         }
         paths = {"report": str(written[0]), "figures": [str(p) for p in written[1:]]}
-        part = {"fitted_part": _fitted_part(analysis)}
-        emit_json(paths | part | analysis.to_json() | provenance(options, file))
+        emit_json(paths | analysis.to_json() | provenance(options, file))
         return
     _print_summary(analysis, written)
 
