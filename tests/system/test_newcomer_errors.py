@@ -75,7 +75,8 @@ def test_plant_init_writes_every_parameter_with_its_unit_and_meaning(tmp_path: P
     for i in keys:
         # the comment above a key: `key = value` lines stay plain to edit (and for calibrate)
         comment = lines[i - 1]
-        assert comment.startswith("# ") and len(comment) > 12, f"no comment: {lines[i]}"
+        assert comment.startswith("# "), f"no comment: {lines[i]}"
+        assert len(comment) > 12, comment
         key = lines[i].split("=", 1)[0].strip()
         if key not in {"name", "description", "allow_extrapolation", "count"}:
             assert re.search(r"\[[^\]]+\]$", comment), f"no unit in brackets: {comment}"
@@ -149,8 +150,10 @@ def test_site_check_shows_long_addresses_whole(tmp_path: Path):
     node = "ns=2;s=Channel1.Device1.FuelLine.FlowMeter.Value"
     text = (
         SITE.format(port=4840)
-        .replace('protocol = "modbus"\nhost = "127.0.0.1"\nport = 4840', 'protocol = "opcua"\n'
-                 'endpoint = "opc.tcp://127.0.0.1:4840"')
+        .replace(
+            'protocol = "modbus"\nhost = "127.0.0.1"\nport = 4840',
+            'protocol = "opcua"\nendpoint = "opc.tcp://127.0.0.1:4840"',
+        )
         .replace('address = "ir:20"\ntype = "float32"', f'address = "{node}"\ntype = "float32"')
         .replace('address = "hr:100"\ntype = "float32"', 'address = "ns=2;s=Cmd"\ntype = "float32"')
     )

@@ -71,11 +71,8 @@ def test_report_says_the_spans_its_percent_gains_assume(report_text: str):
 
 def test_report_takes_the_spans_as_tune_does(log_path: Path):
     out = log_path.parent / "spans.html"
-    result = runner.invoke(
-        app,
-        ["report", str(log_path), "--out", str(out), "--flow-span", "50", "--u-span", "10"]
-        + ["--force", "--json"],
-    )
+    spans = ["--flow-span", "50", "--u-span", "10"]
+    result = runner.invoke(app, ["report", str(log_path), "--out", str(out), *spans, "--json"])
     assert result.exit_code == 0, result.stderr
     span = json.loads(result.stdout)["tuning"]["plc"]["percent_of_span"]
     assert (span["y_span"], span["u_span"]) == (50.0, 10.0)
