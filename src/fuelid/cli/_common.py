@@ -355,6 +355,16 @@ BadValues = Annotated[
         show_default=False,
     ),
 ]
+FlowUnit = Annotated[
+    str | None,
+    typer.Option(
+        "--flow-unit",
+        metavar="UNIT",
+        help="Unit of the flow column when its name does not say it (q_Lpm, 'F [L/min]'), "
+        "e.g. L/min: the gains are per L/min.",
+        show_default=False,
+    ),
+]
 InputScale = Annotated[
     str | None,
     typer.Option(
@@ -387,6 +397,7 @@ def read_log(
     fill_gaps: float | None = None,
     max_gap: float | None = None,
     bad_values: str | None = None,
+    flow_unit: str | None = None,
 ) -> IOData:
     """Load a log with the shared column, scaling, gap and bad-value options.
 
@@ -409,6 +420,22 @@ def read_log(
         max_gap=max_gap,
         fuel_temperature_col=fuel_temperature_col or None,
         bad_values=parse_bad_values(bad_values),
+        output_unit=flow_unit.strip() if flow_unit and flow_unit.strip() else None,
+    )
+
+
+def flow_unit_warning(data: IOData, output_col: str) -> str | None:
+    """The warning for a flow column whose unit nothing says (its name, a units row, an option).
+
+    The gains are per L/min; a flow in another unit gives gains off by the ratio, so the user is
+    asked for the unit rather than shown a gain per "(output unit)".
+    """
+    if data.y_unit:
+        return None
+    return (
+        f"flow column {output_col!r} has no unit: give --flow-unit (e.g. --flow-unit L/min), or "
+        f"name the column with its unit (q_Lpm, '{output_col} [L/min]'); the gains take it as "
+        "L/min"
     )
 
 

@@ -17,6 +17,7 @@ import typer
 from fuelid.cli._common import (
     BadValues,
     FillGaps,
+    FlowUnit,
     ForceFigureOption,
     FuelTemperatureColumn,
     InputColumn,
@@ -29,6 +30,7 @@ from fuelid.cli._common import (
     check_figure_path,
     emit_json,
     fitted_part,
+    flow_unit_warning,
     guarded,
     provenance,
     read_log,
@@ -162,6 +164,7 @@ def identify_command(
     fill_gaps: FillGaps = None,
     max_gap: MaxGap = None,
     bad_values: BadValues = None,
+    flow_unit: FlowUnit = None,
     plot: Annotated[
         Path | None,
         typer.Option(
@@ -219,6 +222,7 @@ def identify_command(
             fill_gaps=fill_gaps,
             max_gap=max_gap,
             bad_values=bad_values,
+            flow_unit=flow_unit,
         )
 
     data = read(file)
@@ -233,7 +237,9 @@ def identify_command(
         fuel_temperature=None if fuel_temp is None else celsius_to_kelvin(fuel_temp),
     )
     result = outcome.result
-    for message in outcome.warnings:
+    unit_warning = flow_unit_warning(data, output_col)
+    warnings = outcome.warnings + ([unit_warning] if unit_warning else [])
+    for message in warnings:
         warn(message)
     if plot is not None:
         from fuelid.plots import plot_identification, save_figure
@@ -267,7 +273,7 @@ def identify_command(
     part = fitted_part(log, fitted, validated_on)
     if validated_on is None:  # report holds out 30 % by default: say why the two differ
         part += " (fuelid report holds out the last 30 %: --validate-split 0.3 does so here)"
-    data_json = outcome.to_json()
+    data_json = outcome.to_json() | {"warnings": warnings}
     if as_json:
         opts = {
             "method": method.value,
@@ -293,12 +299,17 @@ def identify_command(
             "fill_gaps": fill_gaps,
             "max_gap": max_gap,
             "bad_values": bad_values,
+            "flow_unit": flow_unit,
         }
         emit_json(data_json | provenance(opts, file))
         return
+    from dataclasses import replace
+
     from fuelid.workflow.assumptions import gain_unit
 
-    _print_table(data_json, file, gain_unit(data), (data.u_unit, data.y_unit), part)
+    # an unknown flow unit is named by its column (and said on stderr), not "output unit"
+    named = data if data.y_unit else replace(data, y_unit=f"unit of {output_col}")
+    _print_table(data_json, file, gain_unit(named), (data.u_unit, named.y_unit), part)
 
 
 def _print_table(

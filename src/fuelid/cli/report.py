@@ -21,6 +21,7 @@ from fuelid.cli._common import (
     FillGaps,
     FlowBandsOption,
     FlowSpanOption,
+    FlowUnit,
     FuelTemperatureColumn,
     InputColumn,
     InputScale,
@@ -41,6 +42,7 @@ from fuelid.cli._common import (
     emit_json,
     file_sha256,
     fitted_part,
+    flow_unit_warning,
     guarded,
     progress_display,
     provenance,
@@ -151,6 +153,7 @@ def report_command(
     fill_gaps: FillGaps = None,
     max_gap: MaxGap = None,
     bad_values: BadValues = None,
+    flow_unit: FlowUnit = None,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print one JSON object (the numbers and the paths).")
     ] = False,
@@ -207,9 +210,13 @@ def report_command(
         fill_gaps=fill_gaps,
         max_gap=max_gap,
         bad_values=bad_values,
+        flow_unit=flow_unit,
     )
     with progress_display() as stage:
         analysis = analyse_log(data, plant, settings, progress=stage)
+    unit_warning = flow_unit_warning(data, output_col)
+    if unit_warning:  # the report's gains take the flow as L/min: the page says so too
+        analysis.warnings.append(unit_warning)
     for message in analysis.notices + analysis.warnings:
         warn(message)
     digest = file_sha256(file)
@@ -251,6 +258,7 @@ def report_command(
             "fill_gaps": fill_gaps,
             "max_gap": max_gap,
             "bad_values": bad_values,
+            "flow_unit": flow_unit,
         }
         paths = {"report": str(written[0]), "figures": [str(p) for p in written[1:]]}
         emit_json(paths | analysis.to_json() | provenance(options, file))

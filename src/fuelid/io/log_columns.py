@@ -30,6 +30,7 @@ __all__ = [
     "check_varies",
     "fuel_temperature_column",
     "read_columns",
+    "require_columns",
     "time_column",
 ]
 
@@ -136,6 +137,27 @@ def read_columns(
     if T_name is not None and table.T is not None:
         table.T = _fuel_temperature_kelvin(table.T, table.rows, T_name, source)
     return table, unit_row, datetime_start, time_name, bridgeable.astype(np.int64)
+
+
+def require_columns(
+    frame: pd.DataFrame, wanted: Sequence[tuple[str, str, str]], source: str
+) -> None:
+    """Refuse a log that lacks any of the ``wanted`` columns, naming all of them at once.
+
+    ``wanted`` holds (name, role, hint) triples; the hints of the missing ones end the message.
+    A newcomer whose export calls every column differently learns every name in one go.
+    """
+    missing = [item for item in wanted if match_column(frame, item[0]) is None]
+    if not missing:
+        return
+    present = ", ".join(str(column) for column in frame.columns)
+    names = ", ".join(f"{name} ({role})" for name, role, _ in missing)
+    hints = "; ".join(hint for _, _, hint in missing if hint)
+    noun = "column" if len(missing) == 1 else "columns"
+    raise DataError(
+        f"{source}: missing {noun}: {names}; columns present: {present}"
+        + (f" ({hints})" if hints else "")
+    )
 
 
 def time_column(

@@ -25,6 +25,7 @@ from fuelid.io.log_columns import (
     check_varies,
     fuel_temperature_column,
     read_columns,
+    require_columns,
     time_column,
 )
 from fuelid.io.log_grid import (
@@ -81,6 +82,7 @@ def load_log(
     drop_bad_rows: bool = False,
     fuel_temperature_col: str | None = FUEL_TEMPERATURE_COLUMN,
     bad_values: Sequence[str] = (),
+    output_unit: str | None = None,
 ) -> IOData:
     """Read a PLC log (CSV-like text or Parquet) into an input/output record on a uniform grid.
 
@@ -156,6 +158,9 @@ def load_log(
         gap), and a note counts the markers per column and text. Any other text in a numeric
         column is refused, naming the column, the data row and the text. (CLI:
         ``--bad-values``.)
+    output_unit : str, optional
+        Unit of the output column when neither its name (``q_Lpm``, ``F [L/min]``) nor a row of
+        units says it; a scaling (``output_scale``) gives L/min instead. (CLI: ``--flow-unit``.)
     fuel_temperature_col : str or None
         Fuel-temperature column [°C], read when present (finite, within −60 … 150 °C) and returned
         in kelvin as ``IOData.T_fuel``, aligned with u and y. The default name may be absent
@@ -199,6 +204,12 @@ def load_log(
             raise DataError(f"{name} must be a positive number of seconds, got {value}")
 
     frame, notes = read_frame(Path(path), source)
+    wanted = [(input_col, "input", ""), (output_col, "output", "")]
+    if time_col is not None and sample_time is None:
+        wanted.insert(0, (time_col, "time", "or give a sample time"))
+    if fuel_temperature_col not in (None, FUEL_TEMPERATURE_COLUMN):
+        wanted.append((fuel_temperature_col, "fuel temperature", ""))
+    require_columns(frame, wanted, source)
     time_name = time_column(frame, time_col, sample_time, source)
     u_name = find_column(frame, input_col, "input", source)
     y_name = find_column(frame, output_col, "output", source)
@@ -250,7 +261,9 @@ def load_log(
     # a scaling maps raw units to the engineering units of the contract: V and L/min
     u_unit = INPUT_UNIT if in_scale is not None else guess_unit(u_name) or unit_row.get(u_name, "")
     y_unit = (
-        OUTPUT_UNIT if out_scale is not None else guess_unit(y_name) or unit_row.get(y_name, "")
+        OUTPUT_UNIT
+        if out_scale is not None
+        else output_unit or guess_unit(y_name) or unit_row.get(y_name, "")
     )
     check_varies(record.u, "input", u_name, u_unit, source)
     check_varies(record.y, "output", y_name, y_unit, source)
