@@ -129,6 +129,33 @@ def test_every_refusal_line_ends_with_a_newline(tmp_path: Path):
         _refused(*args)
 
 
+def test_every_command_s_refusal_ends_with_a_newline(tmp_path: Path):
+    """The same through the runner, over every command that reads a file a newcomer may mix up."""
+    log = _log(tmp_path / "log.csv")
+    site = tmp_path / "site.toml"
+    site.write_text(SITE.format(port=5020), encoding="utf-8")
+    folder = str(tmp_path)
+    cases = [
+        ["report", folder],
+        ["report", str(site)],
+        ["calibrate", folder, "--free", "vfd.lag_s", "--fuel-temp", "20"],
+        ["calibrate", str(log), "--free", "vfd.lag_s", "--config", str(site)],
+        ["plant", "info", "--config", folder],
+        ["plant", "info", "--config", str(site)],
+        ["tune", "--K", "1", "--T", "1", "--config", str(site)],
+        ["simulate", str(tmp_path / "out.csv"), "--config", folder],
+        ["site", "check", "--config", folder],
+        ["site", "check", "--config", str(tmp_path / "absent.toml")],
+        ["identify", str(log), "--bad-values", "x", "--input-col", "volts"],
+    ]
+    for args in cases:
+        result = runner.invoke(app, args)
+        assert result.exit_code == 2, (args, result.stderr)
+        assert result.stderr_bytes.endswith(b"\n"), args
+        assert result.stderr.count("\n") == 1, (args, result.stderr)
+        assert result.stderr.startswith("error: "), (args, result.stderr)
+
+
 def _closed_port() -> int:
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
