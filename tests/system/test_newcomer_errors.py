@@ -135,6 +135,7 @@ def test_every_command_s_refusal_ends_with_a_newline(tmp_path: Path):
     site = tmp_path / "site.toml"
     site.write_text(SITE.format(port=5020), encoding="utf-8")
     folder = str(tmp_path)
+    assert runner.invoke(app, ["plant", "init", str(tmp_path / "plant.toml")]).exit_code == 0
     cases = [
         ["report", folder],
         ["report", str(site)],
@@ -146,10 +147,14 @@ def test_every_command_s_refusal_ends_with_a_newline(tmp_path: Path):
         ["simulate", str(tmp_path / "out.csv"), "--config", folder],
         ["site", "check", "--config", folder],
         ["site", "check", "--config", str(tmp_path / "absent.toml")],
+        ["site", "check", "--config", str(tmp_path / "plant.toml")],
+        ["record", "--config", str(tmp_path / "plant.toml")],
         ["identify", str(log), "--bad-values", "x", "--input-col", "volts"],
     ]
     for args in cases:
         result = runner.invoke(app, args)
+        if args[-1].endswith("plant.toml"):
+            assert "is a plant file (it has a [vfd] table)" in result.stderr
         assert result.exit_code == 2, (args, result.stderr)
         assert result.stderr_bytes.endswith(b"\n"), args
         assert result.stderr.count("\n") == 1, (args, result.stderr)
