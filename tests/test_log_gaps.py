@@ -328,7 +328,7 @@ def test_fuel_temperature_column_absent_named_or_implausible(tmp_path: Path) -> 
     written.drop(columns="T_fuel_degC").to_csv(tmp_path / "no_T.csv", index=False)
     assert load_log(tmp_path / "no_T.csv").T_fuel is None
     message = refused(tmp_path / "no_T.csv", fuel_temperature_col="Tf_degC")
-    assert "missing column: Tf_degC (fuel temperature)" in message
+    assert "missing column: 'Tf_degC' (fuel temperature)" in message
     assert "t_s, u_V, q_Lpm" in message
     written.rename(columns={"T_fuel_degC": "Tf"}).to_csv(tmp_path / "Tf.csv", index=False)
     data = read_log(

@@ -101,7 +101,7 @@ def test_a_folder_or_a_site_file_where_a_log_or_plant_file_is_expected(tmp_path:
 def test_all_missing_columns_are_named_at_once(tmp_path: Path):
     log = _log(tmp_path / "odd.csv", header="t,u,y_raw")
     line = _refused("identify", str(log))
-    assert "missing columns: t_s (time), u_V (input), q_Lpm (output)" in line
+    assert "missing columns: 't_s' (time), 'u_V' (input), 'q_Lpm' (output)" in line
     assert "columns present: t, u, y_raw" in line
 
 

@@ -151,7 +151,7 @@ def require_columns(
     if not missing:
         return
     present = ", ".join(str(column) for column in frame.columns)
-    names = ", ".join(f"{name} ({role})" for name, role, _ in missing)
+    names = ", ".join(f"{name!r} ({role})" for name, role, _ in missing)
     hints = "; ".join(hint for _, _, hint in missing if hint)
     noun = "column" if len(missing) == 1 else "columns"
     raise DataError(
