@@ -434,8 +434,8 @@ def flow_unit_warning(data: IOData, output_col: str) -> str | None:
         return None
     return (
         f"flow column {output_col!r} has no unit: give --flow-unit (e.g. --flow-unit L/min), or "
-        f"name the column with its unit (q_Lpm, '{output_col} [L/min]'); the gains take it as "
-        "L/min"
+        f"name the column with its unit (q_Lpm, '{output_col} [L/min]'); the PI gains take the "
+        "flow as L/min"
     )
 
 

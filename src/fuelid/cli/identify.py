@@ -309,7 +309,7 @@ def identify_command(
 
     # an unknown flow unit is named by its column (and said on stderr), not "output unit"
     named = data if data.y_unit else replace(data, y_unit=f"unit of {output_col}")
-    _print_table(data_json, file, gain_unit(named), (data.u_unit, named.y_unit), part)
+    _print_table(data_json, file, gain_unit(named), (data.u_unit, data.y_unit), part)
 
 
 def _print_table(
