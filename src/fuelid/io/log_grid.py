@@ -40,7 +40,7 @@ UNIFORM_TOLERANCE = 1e-3
 DEFAULT_GAP_FACTOR = 3.0
 """Default ``max_gap``: this many median intervals."""
 FILL_GAPS_MAX_PERIODS = 5.0
-"""Longest gap ``fill_gaps`` may bridge, in sample periods (see :func:`load_log`)."""
+"""Longest gap ``fill_gaps`` may bridge, in sample periods (see :func:`fuelid.io.logs.load_log`)."""
 SAMPLE_TIME_TOLERANCE = 0.01
 """A sample time given with a time column must agree with the column's period within 1 %."""
 GAPS_LISTED = 3
