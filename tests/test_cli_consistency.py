@@ -141,8 +141,8 @@ def test_identify_prints_the_gain_unit_the_columns_name(log_csv: Path, tmp_path:
     assert result.exit_code == 0, result.stderr
     assert "(L/min)/V" in result.stdout
     assert "(out)/(in)" not in result.stdout
-    # an input scaled to the drive's volts is in V, the contract of --input-scale; a column that
-    # names no unit and is not scaled gets the neutral label, never a guessed unit
+    # an input scaled to the drive's volts is in V, the contract of --input-scale; a flow column
+    # that names no unit and is not scaled is named as such (issue 24), never a guessed unit
     frame = pd.read_csv(log_csv)
     raw = tmp_path / "raw.csv"
     pd.DataFrame(
@@ -151,7 +151,8 @@ def test_identify_prints_the_gain_unit_the_columns_name(log_csv: Path, tmp_path:
     args = ["--input-col", "ao", "--output-col", "ft", "--input-scale", "4:20:1:5"]
     scaled = runner.invoke(app, ["identify", str(raw), *args, "--flowmeter-T", "0.3"])
     assert scaled.exit_code == 0, scaled.stderr
-    assert "(output unit)/V" in scaled.stdout
+    assert "(unit of ft)/V" in scaled.stdout
+    assert "flow column 'ft' has no unit: give --flow-unit" in " ".join(scaled.stderr.split())
     both = [*args, "--output-scale", "0:100:0:100"]
     scaled = runner.invoke(app, ["identify", str(raw), *both, "--flowmeter-T", "0.3"])
     assert scaled.exit_code == 0, scaled.stderr

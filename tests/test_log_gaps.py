@@ -328,7 +328,7 @@ def test_fuel_temperature_column_absent_named_or_implausible(tmp_path: Path) -> 
     written.drop(columns="T_fuel_degC").to_csv(tmp_path / "no_T.csv", index=False)
     assert load_log(tmp_path / "no_T.csv").T_fuel is None
     message = refused(tmp_path / "no_T.csv", fuel_temperature_col="Tf_degC")
-    assert "no fuel-temperature column 'Tf_degC'" in message
+    assert "missing column: 'Tf_degC' (fuel temperature)" in message
     assert "t_s, u_V, q_Lpm" in message
     written.rename(columns={"T_fuel_degC": "Tf"}).to_csv(tmp_path / "Tf.csv", index=False)
     data = read_log(
@@ -342,9 +342,11 @@ def test_fuel_temperature_column_absent_named_or_implausible(tmp_path: Path) -> 
     message = refused(tmp_path / "kelvin.csv")
     assert "'T_fuel_degC' has 200 fuel temperature(s) outside -60 to 150 °C" in message
     assert "data row 1 (281.15): is it in °C?" in message
-    written.loc[7, "T_fuel_degC"] = np.nan
+    # an empty cell is a missing sample (issue 24); other text is refused
+    written = written.astype({"T_fuel_degC": object})
+    written.loc[7, "T_fuel_degC"] = "err"
     written.to_csv(tmp_path / "nan.csv", index=False)
-    assert "'T_fuel_degC' has 1 empty or non-numeric cell(s), first at data row 8" in refused(
+    assert "'T_fuel_degC' has 1 non-numeric cell(s), first at data row 8" in refused(
         tmp_path / "nan.csv"
     )
 

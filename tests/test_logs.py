@@ -330,19 +330,21 @@ def test_resample_never_refuses_what_needs_interpolation(tmp_path: Path) -> None
     assert "resampling is off" in message
 
 
-def test_nan_cell_is_refused_with_column_and_row(tmp_path: Path) -> None:
+def test_non_numeric_cell_is_refused_with_column_and_row(tmp_path: Path) -> None:
+    # empty cells and "NaN" are historian bad-value markers (missing samples, issue 24): other
+    # text is refused
     rows = plain_rows()
-    rows[41] = (rows[41][0], rows[41][1], "")
-    rows[90] = (rows[90][0], rows[90][1], "NaN")
+    rows[41] = (rows[41][0], rows[41][1], "ERR")
+    rows[90] = (rows[90][0], rows[90][1], "?")
     rows[120] = (rows[120][0], "n/a", rows[120][2])
     path = write_csv(tmp_path / "nan.csv", rows)
     message = refused(path)
     assert "'u_V'" in message
-    assert "1 empty or non-numeric cell" in message
+    assert "1 non-numeric cell" in message
     assert "data row 121" in message
     rows[120] = plain_rows()[120]
     message = refused(write_csv(path, rows))
-    assert "'q_Lpm' has 2 empty or non-numeric cell(s), first at data row 42" in message
+    assert "'q_Lpm' has 2 non-numeric cell(s), first at data row 42 ('ERR')" in message
 
 
 def test_isolated_bad_rows_can_be_dropped(tmp_path: Path) -> None:
@@ -354,8 +356,11 @@ def test_isolated_bad_rows_can_be_dropped(tmp_path: Path) -> None:
     assert data.n_samples == N
     assert data.y[41] == pytest.approx((y[40] + y[42]) / 2)
     assert data.u[120] == u[119]
-    assert any("dropped 2 row(s)" in note and "42, 121" in note for note in data.notes)
-    rows[42] = (rows[42][0], rows[42][1], "")
+    # the empty cell is a bad-value marker, counted apart; the "?" row is dropped on request
+    assert any("1 sample marked bad in column q_Lpm" in note for note in data.notes)
+    assert any("dropped 1 row(s)" in note and "121" in note for note in data.notes)
+    rows[41] = (rows[41][0], rows[41][1], "?")
+    rows[42] = (rows[42][0], rows[42][1], "?")
     message = refused(write_csv(tmp_path / "nan2.csv", rows), drop_bad_rows=True)
     assert "data rows 42 and 43" in message
 
@@ -478,12 +483,13 @@ def test_a_dropped_blank_line_needs_no_resampling(tmp_path: Path) -> None:
     rows: list[tuple[str, ...]] = list(plain_rows())
     rows.insert(70, ("",))
     path = write_csv(tmp_path / "blank.csv", rows)
-    assert "data row 71 ('')" in refused(path)
-    data = load_log(path, drop_bad_rows=True)
     _, u, y = step_response()
-    np.testing.assert_array_equal(data.u, u)
-    np.testing.assert_array_equal(data.y, y)
-    assert not any("resampled" in note for note in data.notes)
+    # a blank line's empty cells are missing samples (issue 24): no slot is missing around it
+    for data in (load_log(path), load_log(path, drop_bad_rows=True)):
+        np.testing.assert_array_equal(data.u, u)
+        np.testing.assert_array_equal(data.y, y)
+        assert not any("resampled" in note for note in data.notes)
+        assert data.segment_starts == ()
 
 
 def test_unreadable_time_stamps_say_what_is_expected(tmp_path: Path) -> None:

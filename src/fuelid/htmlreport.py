@@ -334,6 +334,7 @@ def _context(
             "span_Kc": _fmt(plc["percent_of_span"]["Kc"], ".4g"),
             "u_span": _fmt(plc["percent_of_span"]["u_span"], "g"),
             "y_span": _fmt(plc["percent_of_span"]["y_span"], "g"),
+            "span_note": analysis.span_note,
             "discrete": None
             if plc["discrete"] is None
             else {

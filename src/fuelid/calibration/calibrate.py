@@ -85,6 +85,7 @@ def load_calibration_log(
     output_col: str = OUTPUT_COLUMN,
     pressure_col: str | None = None,
     sample_time: float | None = None,
+    bad_values: Sequence[str] = (),
 ) -> CalibrationLog:
     """Read a log for calibration.
 
@@ -98,6 +99,8 @@ def load_calibration_log(
         As for ``fuelid identify``; the output is the flow [L/min], the input the command [V].
     pressure_col : str, optional
         Column of the pump outlet pressure [MPa] (gauge), a second output.
+    bad_values : sequence of str
+        The site's own bad-sample texts besides the historians' usual ones (see ``load_log``).
 
     Raises
     ------
@@ -107,7 +110,7 @@ def load_calibration_log(
     file = Path(path)
     flow = load_log(
         file, time_col=time_col, input_col=input_col, output_col=output_col,
-        sample_time=sample_time,
+        sample_time=sample_time, bad_values=bad_values,
     )  # fmt: skip
     notes = list(flow.notes)
     n = flow.n_samples

@@ -242,6 +242,60 @@ ConfigOption = Annotated[
 ]
 
 
+FlowSpanOption = Annotated[
+    float | None,
+    typer.Option(
+        "--flow-span",
+        metavar="L/MIN",
+        help="Flowmeter span for the %/% gain [L/min] (default: the plant's meter span).",
+        show_default=False,
+    ),
+]
+DriveSpanOption = Annotated[
+    float | None,
+    typer.Option(
+        "--u-span",
+        metavar="V",
+        help="Drive signal span for the %/% gain [V] (default: the plant's drive range).",
+        show_default=False,
+    ),
+]
+
+
+def check_spans(flow_span: float | None, u_span: float | None) -> None:
+    """Refuse a ``--flow-span`` or ``--u-span`` that is not a positive number."""
+    for option, value, unit in (("--flow-span", flow_span, "L/min"), ("--u-span", u_span, "V")):
+        if value is not None and not (math.isfinite(value) and value > 0.0):
+            raise FuelidError(f"{option} must be positive, got {value:g} {unit}")
+
+
+def fitted_part(
+    log: tuple[float, float], fitted: tuple[float, float], validated_on: str | None
+) -> str:
+    """The first line of ``identify`` and ``report``: the part of the log the model was fitted on.
+
+    ``log`` and ``fitted`` are (start, end) times [s]; ``validated_on`` says what the model was
+    scored on besides (None: nothing).
+
+    >>> fitted_part((0.0, 600.0), (0.0, 420.0), "the rest")
+    'fitted on 0–70 % of the log (0–420 s), validated on the rest'
+    >>> fitted_part((0.0, 600.0), (0.0, 600.0), None)
+    'fitted on all of the log (0–600 s), nothing held out for validation'
+    """
+    length = log[1] - log[0]
+    if abs(fitted[0] - log[0]) <= 1e-9 * length and abs(fitted[1] - log[1]) <= 1e-9 * length:
+        part = "all of the log"
+    else:
+        low, high = ((t - log[0]) / length * 100.0 for t in fitted)
+        part = f"{low:.0f}–{high:.0f} % of the log"
+    validated = (
+        "nothing held out for validation"
+        if validated_on is None
+        else (f"validated on {validated_on}")
+    )
+    return f"fitted on {part} ({fitted[0]:.6g}–{fitted[1]:.6g} s), {validated}"
+
+
 ForceFigureOption = Annotated[
     bool,
     typer.Option("--force", help="Overwrite an existing --plot figure (otherwise refused)."),
@@ -290,6 +344,27 @@ FuelTemperatureColumn = Annotated[
         help="Fuel temperature column [°C], read when present (another name must exist).",
     ),
 ]
+BadValues = Annotated[
+    str | None,
+    typer.Option(
+        "--bad-values",
+        metavar="TEXT[,TEXT...]",
+        help="Texts your historian writes for a bad sample, besides #N/A, Bad Input, Bad, "
+        "I/O Timeout, Comm Fail, Shutdown, NaN and empty cells (case and spaces ignored): such "
+        "a sample is missing (a gap), counted in the notes; other text is refused.",
+        show_default=False,
+    ),
+]
+FlowUnit = Annotated[
+    str | None,
+    typer.Option(
+        "--flow-unit",
+        metavar="UNIT",
+        help="Unit of the flow column when its name does not say it (q_Lpm, 'F [L/min]'), "
+        "e.g. L/min: the gains are per L/min.",
+        show_default=False,
+    ),
+]
 InputScale = Annotated[
     str | None,
     typer.Option(
@@ -321,13 +396,16 @@ def read_log(
     fuel_temperature_col: str | None = "T_fuel_degC",
     fill_gaps: float | None = None,
     max_gap: float | None = None,
+    bad_values: str | None = None,
+    flow_unit: str | None = None,
 ) -> IOData:
-    """Load a log with the shared column, scaling and gap options.
+    """Load a log with the shared column, scaling, gap and bad-value options.
 
     A sample time replaces a missing time column; with a time column present the two must agree
     and the time column is used (so that gaps are seen). An empty ``fuel_temperature_col`` reads
-    no fuel temperature.
+    no fuel temperature. ``bad_values`` is ``--bad-values``' comma-separated text.
     """
+    from fuelid.io.bad_values import parse_bad_values
     from fuelid.io.logs import load_log, parse_scale
 
     return load_log(
@@ -341,6 +419,23 @@ def read_log(
         fill_gaps=fill_gaps,
         max_gap=max_gap,
         fuel_temperature_col=fuel_temperature_col or None,
+        bad_values=parse_bad_values(bad_values),
+        output_unit=flow_unit.strip() if flow_unit and flow_unit.strip() else None,
+    )
+
+
+def flow_unit_warning(data: IOData, output_col: str) -> str | None:
+    """The warning for a flow column whose unit nothing says (its name, a units row, an option).
+
+    The gains are per L/min; a flow in another unit gives gains off by the ratio, so the user is
+    asked for the unit rather than shown a gain per "(output unit)".
+    """
+    if data.y_unit:
+        return None
+    return (
+        f"flow column {output_col!r} has no unit: give --flow-unit (e.g. --flow-unit L/min), or "
+        f"name the column with its unit (q_Lpm, '{output_col} [L/min]'); the PI gains take the "
+        "flow as L/min"
     )
 
 

@@ -13,6 +13,7 @@ from typing import Annotated, Any
 import typer
 
 from fuelid.cli._common import (
+    BadValues,
     ConfigOption,
     SampleTime,
     check_figure_path,
@@ -73,6 +74,7 @@ def calibrate_command(
     input_col: Annotated[str, typer.Option("--input-col", help="Command column [V].")] = "u_V",
     output_col: Annotated[str, typer.Option("--output-col", help="Flow column [L/min].")] = "q_Lpm",
     sample_time: SampleTime = None,
+    bad_values: BadValues = None,
     holdout: Annotated[
         float,
         typer.Option(
@@ -127,6 +129,7 @@ def calibrate_command(
         check_free_names,
         load_calibration_log,
     )
+    from fuelid.io.bad_values import parse_bad_values
     from fuelid.io.plantfile import write_text_atomically
     from fuelid.plant.config import load_plant_config
 
@@ -148,6 +151,7 @@ def calibrate_command(
             output_col=output_col,
             pressure_col=pressure_col,
             sample_time=sample_time,
+            bad_values=parse_bad_values(bad_values),
         )
         for i, path in enumerate(logs)
     ]

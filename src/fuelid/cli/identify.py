@@ -15,7 +15,9 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from fuelid.cli._common import (
+    BadValues,
     FillGaps,
+    FlowUnit,
     ForceFigureOption,
     FuelTemperatureColumn,
     InputColumn,
@@ -27,6 +29,8 @@ from fuelid.cli._common import (
     TimeColumn,
     check_figure_path,
     emit_json,
+    fitted_part,
+    flow_unit_warning,
     guarded,
     provenance,
     read_log,
@@ -159,6 +163,8 @@ def identify_command(
     fuel_temp_col: FuelTemperatureColumn = "T_fuel_degC",
     fill_gaps: FillGaps = None,
     max_gap: MaxGap = None,
+    bad_values: BadValues = None,
+    flow_unit: FlowUnit = None,
     plot: Annotated[
         Path | None,
         typer.Option(
@@ -215,6 +221,8 @@ def identify_command(
             fuel_temperature_col=fuel_temp_col,
             fill_gaps=fill_gaps,
             max_gap=max_gap,
+            bad_values=bad_values,
+            flow_unit=flow_unit,
         )
 
     data = read(file)
@@ -229,7 +237,9 @@ def identify_command(
         fuel_temperature=None if fuel_temp is None else celsius_to_kelvin(fuel_temp),
     )
     result = outcome.result
-    for message in outcome.warnings:
+    unit_warning = flow_unit_warning(data, output_col)
+    warnings = outcome.warnings + ([unit_warning] if unit_warning else [])
+    for message in warnings:
         warn(message)
     if plot is not None:
         from fuelid.plots import plot_identification, save_figure
@@ -244,7 +254,26 @@ def identify_command(
             unit=data.y_unit or None,
         )
         save_figure(fig, plot)
-    data_json = outcome.to_json()
+    log = (float(data.t[0]), float(data.t[-1]))
+    fitted = (
+        float(result.time[0]) if t_start is not None else log[0],
+        result.split_time
+        if result.split_time is not None
+        else float(result.time[-1])
+        if t_stop is not None
+        else log[1],
+    )
+    validated_on = (
+        "the rest"
+        if result.split_time is not None
+        else validate_file.name
+        if validate_file is not None
+        else None
+    )
+    part = fitted_part(log, fitted, validated_on)
+    if validated_on is None:  # report holds out 30 % by default: say why the two differ
+        part += " (fuelid report holds out the last 30 %: --validate-split 0.3 does so here)"
+    data_json = outcome.to_json() | {"warnings": warnings}
     if as_json:
         opts = {
             "method": method.value,
@@ -269,18 +298,28 @@ def identify_command(
             "fuel_temp_col": fuel_temp_col,
             "fill_gaps": fill_gaps,
             "max_gap": max_gap,
+            "bad_values": bad_values,
+            "flow_unit": flow_unit,
         }
         emit_json(data_json | provenance(opts, file))
         return
+    from dataclasses import replace
+
     from fuelid.workflow.assumptions import gain_unit
 
-    _print_table(data_json, file, gain_unit(data), (data.u_unit, data.y_unit))
+    # an unknown flow unit is named by its column (and said on stderr), not "output unit"
+    named = data if data.y_unit else replace(data, y_unit=f"unit of {output_col}")
+    _print_table(data_json, file, gain_unit(named), (data.u_unit, data.y_unit), part)
 
 
-def _print_table(data: dict[str, Any], file: Path, gain_unit: str, units: tuple[str, str]) -> None:
+def _print_table(
+    data: dict[str, Any], file: Path, gain_unit: str, units: tuple[str, str], part: str
+) -> None:
     from rich.console import Console
     from rich.table import Table
 
+    console = Console()
+    console.print(part, highlight=False, soft_wrap=True)  # first: which part was fitted
     from fuelid.model import MODEL_KEYS
 
     table = Table(
@@ -299,7 +338,6 @@ def _print_table(data: dict[str, Any], file: Path, gain_unit: str, units: tuple[
             "" if ci is None else f"{ci[0]:.5g} … {ci[1]:.5g}",
             gain_unit if key == "K" else "s",
         )
-    console = Console()
     console.print(table)
     console.print(f"fit {data['fit_percent']:.2f} % (NRMSE, free-run simulation)")
     if data["validation_fit_percent"] is not None:

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from fuelid.cli._common import emit_json, guarded, provenance
-from fuelid.errors import DataError
+from fuelid.errors import DataError, FuelidError
 
 if TYPE_CHECKING:
     from fuelid.plc.recorder import RecorderStats
@@ -125,6 +125,15 @@ def record_command(
         )
     finally:
         status.close()
+    if stats.stored == 0:  # a store with nothing in it is no recording: say why, exit 2
+        why = (
+            f"the link to the PLC never came up ({stats.last_error})"
+            if stats.last_error and stats.link != "up"
+            else "the PLC answered but gave no new sample (is its sample counter running?)"
+            if stats.link == "up"
+            else "no link to the PLC within the time given"
+        )
+        raise FuelidError(f"recorded no sample into {target}: {why}")
     typer.echo(
         f"recorded {stats.stored} samples into {target}: {stats.lost} lost, {stats.flagged} "
         f"flagged, {stats.drops} link drop(s), {stats.restarts} PLC restart(s)"

@@ -14,10 +14,14 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from fuelid.cli._common import (
+    BadValues,
     BandWidthOption,
     ControlPeriodOption,
+    DriveSpanOption,
     FillGaps,
     FlowBandsOption,
+    FlowSpanOption,
+    FlowUnit,
     FuelTemperatureColumn,
     InputColumn,
     InputScale,
@@ -33,9 +37,12 @@ from fuelid.cli._common import (
     TimeColumn,
     TMaxOption,
     TMinOption,
+    check_spans,
     closed_loop_time,
     emit_json,
     file_sha256,
+    fitted_part,
+    flow_unit_warning,
     guarded,
     progress_display,
     provenance,
@@ -130,6 +137,8 @@ def report_command(
     band_width: BandWidthOption = 10.0,
     ms_target: MsTargetOption = 1.7,
     flow_bands: FlowBandsOption = 3,
+    flow_span: FlowSpanOption = None,
+    u_span: DriveSpanOption = None,
     validate_split: Annotated[
         float | None,
         typer.Option(help="Hold out the last fraction F of the log for validation (0: none)."),
@@ -143,6 +152,8 @@ def report_command(
     fuel_temp_col: FuelTemperatureColumn = "T_fuel_degC",
     fill_gaps: FillGaps = None,
     max_gap: MaxGap = None,
+    bad_values: BadValues = None,
+    flow_unit: FlowUnit = None,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print one JSON object (the numbers and the paths).")
     ] = False,
@@ -162,6 +173,7 @@ def report_command(
     check_report_path(out, force)  # before any work: a typo must not cost a minute
     T_fuel, T_range = temperature_options(20.0 if fuel_temp is None else fuel_temp, t_min, t_max)
     check_prior_times(flowmeter_T, flowmeter_delay)
+    check_spans(flow_span, u_span)
     settings = AnalysisSettings(
         tune_from=method.value,
         rule=rule.value,
@@ -182,6 +194,8 @@ def report_command(
         ms_target=ms_target,
         flow_bands=flow_bands,
         validate_split=validate_split or None,
+        y_span=flow_span,
+        u_span=u_span,
     )
     plant = PlantSource(load_plant_config(config), None if config is None else str(config))
     data = read_log(
@@ -195,9 +209,14 @@ def report_command(
         fuel_temperature_col=fuel_temp_col,
         fill_gaps=fill_gaps,
         max_gap=max_gap,
+        bad_values=bad_values,
+        flow_unit=flow_unit,
     )
     with progress_display() as stage:
         analysis = analyse_log(data, plant, settings, progress=stage)
+    unit_warning = flow_unit_warning(data, output_col)
+    if unit_warning:  # the report's gains take the flow as L/min: the page says so too
+        analysis.warnings.append(unit_warning)
     for message in analysis.notices + analysis.warnings:
         warn(message)
     digest = file_sha256(file)
@@ -226,6 +245,8 @@ def report_command(
             "band_width": band_width,
             "ms_target": ms_target,
             "flow_bands": flow_bands,
+            "flow_span": flow_span,
+            "u_span": u_span,
             "validate_split": validate_split,
             "time_col": time_col,
             "input_col": input_col,
@@ -236,6 +257,8 @@ def report_command(
             "fuel_temp_col": fuel_temp_col,
             "fill_gaps": fill_gaps,
             "max_gap": max_gap,
+            "bad_values": bad_values,
+            "flow_unit": flow_unit,
         }
         paths = {"report": str(written[0]), "figures": [str(p) for p in written[1:]]}
         emit_json(paths | analysis.to_json() | provenance(options, file))
@@ -243,10 +266,21 @@ def report_command(
     _print_summary(analysis, written)
 
 
+def _fitted_part(analysis: LogAnalysis) -> str:
+    """Which part of the log the models were fitted on: identify's default differs."""
+    data, result = analysis.data, analysis.model_result
+    log = (float(data.t[0]), float(data.t[-1]))
+    if result.split_time is None:
+        return fitted_part(log, log, None)
+    line = fitted_part(log, (log[0], result.split_time), "the rest")
+    return f"{line} (--validate-split 0 fits all of it, as fuelid identify does)"
+
+
 def _print_summary(analysis: LogAnalysis, written: list[Path]) -> None:
     from rich.console import Console
 
     console = Console()
+    console.print(_fitted_part(analysis), highlight=False, soft_wrap=True)
     from fuelid.workflow.assumptions import gain_unit
 
     pi = analysis.tuning.pi
@@ -267,6 +301,10 @@ def _print_summary(analysis: LogAnalysis, written: list[Path]) -> None:
             else f"schedule of {len(analysis.schedule.bands)} bands, worst Ms "
             f"{analysis.schedule.worst_Ms:.2f}"
         )
+    )
+    span_Kc = pi.plc_form(analysis.tuning.u_span, analysis.tuning.y_span)["percent_of_span"]["Kc"]
+    console.print(
+        f"percent of span: Kc = {span_Kc:.4g} %/% ({analysis.span_note})", highlight=False
     )
     if not analysis.plant.is_reference:
         console.print(f"plant: {analysis.plant.config.name} from {analysis.plant.path}")

@@ -47,7 +47,8 @@ def check(
         f"(PI every {site.sampling.control_period_s:g} s)"
     )
     for column in ("side", "role", "address", "type", "scaling", "unit"):
-        table.add_column(column)
+        # an address (an OPC UA node id) is copied into other tools: never cut or wrapped
+        table.add_column(column, no_wrap=column == "address")
     for side, tags in (("read", site.tags), ("write", site.write)):
         for role, tag in tags.items():
             scaling = ""
@@ -71,6 +72,8 @@ def check(
 
     settling = check_site_plant(site.site.plant, site.online.window_s)
     console = Console()
+    # wider than the terminal rather than an address cut short: the terminal wraps the line
+    console = Console(width=max(console.width, console.measure(table).maximum))
     console.print(table)
     for line in site.missing():
         console.print(f"missing {line}", highlight=False)

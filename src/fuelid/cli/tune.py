@@ -18,6 +18,7 @@ from fuelid.cli._common import (
     BandWidthOption,
     ControlPeriodOption,
     FlowBandsOption,
+    FlowSpanOption,
     ForceFigureOption,
     LambdaOption,
     MsTargetOption,
@@ -95,13 +96,7 @@ def tune_command(
             show_default=False,
         ),
     ] = None,
-    flow_span: Annotated[
-        float | None,
-        typer.Option(
-            help="Flowmeter span for the %/% gain [L/min] (default: the plant's meter span).",
-            show_default=False,
-        ),
-    ] = None,
+    flow_span: FlowSpanOption = None,
     fuel_temp: Annotated[
         float | None,
         typer.Option(

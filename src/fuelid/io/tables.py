@@ -10,6 +10,7 @@ scaling of a raw column (4–20 mA, counts). Every refusal is a one-line
 from __future__ import annotations
 
 import re
+import tomllib
 import unicodedata
 from collections.abc import Sequence
 from io import StringIO
@@ -82,6 +83,10 @@ def table_column(frame: pd.DataFrame, name: str, source: str) -> FloatArray:
 def read_frame(file: Path, source: str) -> tuple[pd.DataFrame, list[str]]:
     """Read the file as a DataFrame (text cells as strings), with notes on how it was read."""
     suffix = file.suffix.lower()
+    if file.is_dir():
+        raise DataError(f"{source} is a folder: give a log file (CSV or Parquet) in it")
+    if suffix == ".toml":
+        raise DataError(f"{source} {_toml_kind(file)}: a log is a CSV or Parquet file")
     if suffix not in TEXT_SUFFIXES + PARQUET_SUFFIXES:
         choices = ", ".join(TEXT_SUFFIXES + PARQUET_SUFFIXES)
         raise DataError(
@@ -98,6 +103,19 @@ def read_frame(file: Path, source: str) -> tuple[pd.DataFrame, list[str]]:
     if suffix in PARQUET_SUFFIXES or raw.startswith(b"PAR1"):
         return _read_parquet(file, source), []
     return _read_text(raw, source)
+
+
+def _toml_kind(file: Path) -> str:
+    """What a TOML file given as a log is: a site file, a plant file, or some TOML file."""
+    try:
+        data = tomllib.loads(file.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return "is a TOML file, not a log"
+    if "plc" in data:
+        return "is a site file (it has a [plc] table), not a log"
+    if "vfd" in data or "flowmeter" in data:
+        return "is a plant file (it has a [vfd] table), not a log"
+    return "is a TOML file, not a log"
 
 
 def _read_parquet(file: Path, source: str) -> pd.DataFrame:

@@ -324,11 +324,18 @@ def load_plant_config(path: str | Path | None = None) -> PlantConfig:
         except FileNotFoundError:
             raise ConfigError(f"plant config {source} does not exist") from None
         except IsADirectoryError:
-            raise ConfigError(f"plant config {source} is a directory, not a TOML file") from None
+            raise ConfigError(
+                f"{source} is a folder; --config takes a plant file (fuelid plant init writes one)"
+            ) from None
         except (OSError, UnicodeDecodeError) as exc:
             raise ConfigError(f"cannot read plant config {source}: {exc}") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{source} is not valid TOML: {exc}") from None
+    if "plc" in data and "vfd" not in data:  # the other TOML file a newcomer has at hand
+        raise ConfigError(
+            f"{source} is a site file (it has a [plc] table); --config takes a plant file "
+            "(fuelid plant init writes one)"
+        )
     return plant_config_from_dict(data, source)

@@ -502,6 +502,10 @@ def load_site(path: str | Path) -> SiteConfig:
         raise ConfigError(f"cannot read site file {source!r}: {exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{source}: not valid TOML ({exc})") from None
+    if "vfd" in data and "plc" not in data:  # the other TOML file a newcomer has at hand
+        raise ConfigError(
+            f"{source} is a plant file (it has a [vfd] table); --config takes a site file"
+        )
     try:
         site = SiteConfig.model_validate(data)
     except ValidationError as exc:

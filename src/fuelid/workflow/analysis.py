@@ -89,6 +89,10 @@ class AnalysisSettings:
     """Share of the log held out for validation (None: fit on all of it)."""
     step_percent: float = 10.0
     """Setpoint step of the nonlinear closed-loop runs [% of the flowmeter span]."""
+    y_span: float | None = None
+    """Flowmeter span of the %/% gains [L/min]; None: the plant's meter span."""
+    u_span: float | None = None
+    """Drive signal span of the %/% gains [V]; None: the plant's drive range."""
 
     def __post_init__(self) -> None:
         if self.tune_from not in (*METHODS, "pem"):
@@ -104,7 +108,7 @@ class AnalysisSettings:
 
         ``u`` [V] and ``T_fuel`` [K] are the identification's conditions; ``simulate`` runs the
         closed loop on the nonlinear plant (only a user's plant file is the user's loop). The
-        flow span is the plant's meter span.
+        spans of the %/% gains are ``y_span`` and ``u_span``, else the plant's.
         """
         return TuneRequest(
             model=model,
@@ -119,6 +123,8 @@ class AnalysisSettings:
             flow_bands=self.flow_bands,
             simulate=simulate,
             step_percent=self.step_percent,
+            y_span=self.y_span,
+            u_span=self.u_span,
         )
 
 
@@ -184,6 +190,30 @@ class LogAnalysis:
                 "structure (see its warnings): they hold if that structure is right"
             )
         return found
+
+    @property
+    def span_note(self) -> str:
+        """Where the spans of the %/% gains come from, said beside them.
+
+        Without a plant file a span not given is the reference plant's: an assumption the user
+        must see on the line of the gains, with the options that replace it.
+        """
+        y_span, u_span = self.tuning.y_span, self.tuning.u_span
+        missing = [
+            (text, option)
+            for given, text, option in (
+                (self.settings.y_span, f"a {y_span:g} L/min meter span", "--flow-span"),
+                (self.settings.u_span, f"a {u_span:g} V drive span", "--u-span"),
+            )
+            if given is None
+        ]
+        spans = f"{y_span:g} L/min meter span, {u_span:g} V drive span"
+        if not missing:
+            return f"{spans}, as given"
+        if self.plant.is_reference:
+            assumed = " and ".join(text for text, _ in missing)
+            return f"assuming {assumed}: give {'/'.join(option for _, option in missing)}"
+        return f"{spans}, {'from' if len(missing) == 2 else 'given and from'} {self.plant.path}"
 
     @property
     def model_result(self) -> IdentificationResult:

@@ -72,6 +72,8 @@ class TuneRequest:
     """PLC period h [s]; 0 for a continuous controller."""
     y_span: float | None = None
     """Flowmeter span of the percent-of-span gain [L/min]; None: the plant's meter span."""
+    u_span: float | None = None
+    """Drive signal span of the percent-of-span gain [V]; None: the plant's drive range."""
     T_fuel: float = T_REF
     """Fuel temperature the model was identified at [K] (anchors the physics)."""
     u: float | None = None
@@ -104,12 +106,18 @@ class TuneRequest:
             check_sweep_size(self.sweep)
         if self.y_span is not None and not (math.isfinite(self.y_span) and self.y_span > 0.0):
             raise FuelidError(f"the flow span must be positive, got {self.y_span:g} L/min")
+        if self.u_span is not None and not (math.isfinite(self.u_span) and self.u_span > 0.0):
+            raise FuelidError(f"the drive span must be positive, got {self.u_span:g} V")
         if self.model is not None:
             check_tunable(self.model, self.control_period)
 
     def flow_span(self, config: PlantConfig) -> float:
         """The flow span of the percent-of-span gain [L/min]: ``y_span`` or the meter's."""
         return config.flowmeter.span_Lpm if self.y_span is None else self.y_span
+
+    def drive_span(self, config: PlantConfig) -> float:
+        """The drive span of the percent-of-span gain [V]: ``u_span`` or the drive's range."""
+        return config.vfd.u_max_V - config.vfd.u_min_V if self.u_span is None else self.u_span
 
 
 def check_conditions(T_fuel: float, T_range: tuple[float, float], step_percent: float) -> None:
@@ -290,7 +298,7 @@ def _tune_model(
 ) -> TuneOutcome:
     announce(progress, TUNING)
     u, y_span = operating_command(config, request.u), request.flow_span(config)
-    u_span = config.vfd.u_max_V - config.vfd.u_min_V
+    u_span = request.drive_span(config)
     tuning = evaluate_tuning(
         model, request.rule, request.control_period, request.closed_loop_time, u_span, y_span
     )

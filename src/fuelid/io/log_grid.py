@@ -1,0 +1,408 @@
+"""The time axis of a PLC log: sorting, the steady period, jitter, gaps, bridging, resampling.
+
+The second half of :func:`fuelid.io.logs.load_log`, on the samples :mod:`fuelid.io.log_columns`
+read: what :func:`~fuelid.io.logs.load_log`'s docstring promises about the time axis is done
+here. Every refusal is a one-line :class:`~fuelid.errors.DataError` with the place (time, data
+row).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from fuelid.errors import DataError
+from fuelid.io.log_columns import MIN_SAMPLES, BoolArray, IntArray, LogTable
+from fuelid.io.timeseries import FloatArray
+
+__all__ = [
+    "DEFAULT_GAP_FACTOR",
+    "FILL_GAPS_MAX_PERIODS",
+    "MAX_SAMPLE_TIME",
+    "GridRecord",
+    "ResampleMode",
+    "period",
+    "regularise",
+    "sort_and_deduplicate",
+]
+
+ResampleMode = Literal["auto", "always", "never"]
+
+JITTER_FRACTION = 0.4
+"""Time stamps within ±0.4 of a period of a steady grid (one per slot) are placed on it."""
+RESAMPLE_TOLERANCE = 0.10
+"""``resample="auto"`` interpolates a stretch off any steady grid only if every interval is within
+±10 % of the period."""
+UNIFORM_TOLERANCE = 1e-3
+"""Time stamps within this fraction of a period of the grid are uniform (no jitter to report)."""
+DEFAULT_GAP_FACTOR = 3.0
+"""Default ``max_gap``: this many median intervals."""
+FILL_GAPS_MAX_PERIODS = 5.0
+"""Longest gap ``fill_gaps`` may bridge, in sample periods (see :func:`fuelid.io.logs.load_log`)."""
+SAMPLE_TIME_TOLERANCE = 0.01
+"""A sample time given with a time column must agree with the column's period within 1 %."""
+GAPS_LISTED = 3
+"""The gap note lists this many gaps with their time and data row, then counts the rest."""
+
+MAX_SAMPLE_TIME = 3600.0
+"""Longest sample interval [s] of a log (an hour): longer is a unit mix-up, not a flow log."""
+
+
+def sort_and_deduplicate(
+    table: LogTable, names: tuple[str, str, str], source: str, notes: list[str]
+) -> LogTable:
+    """Sort by time, drop identical repeated rows, refuse conflicting ones.
+
+    ``names`` are the columns of u, y and the fuel temperature (``""`` when there is none).
+    """
+    assert table.t is not None
+    dt = np.diff(table.t)
+    if np.any(dt < 0.0):
+        first = int(table.rows[int(np.flatnonzero(dt < 0.0)[0]) + 1])
+        table = table.take(np.argsort(table.t, kind="stable"))
+        notes.append(f"timestamps out of order (first at data row {first}): sorted by time")
+        assert table.t is not None
+        dt = np.diff(table.t)
+    repeated = dt == 0.0
+    if not repeated.any():
+        return table
+    signals = [table.u, table.y] + ([] if table.T is None else [table.T])
+    differs = [repeated & (values[1:] != values[:-1]) for values in signals]
+    conflict = np.logical_or.reduce(differs)
+    if conflict.any():
+        assert table.t is not None
+        i = int(np.flatnonzero(conflict)[0])
+        row_a, row_b = int(table.rows[i]), int(table.rows[i + 1])
+        which = next(j for j, d in enumerate(differs) if d[i])
+        values = signals[which]
+        raise DataError(
+            f"{source}: conflicting samples at t = {table.t[i]:.6g} s (data rows {row_a} and "
+            f"{row_b}): {names[which]} is {values[i]:g} and {values[i + 1]:g}"
+        )
+    keep = np.concatenate(([True], ~repeated))
+    notes.append(f"dropped {int(repeated.sum())} duplicated row(s) (same time, same values)")
+    return table.take(np.flatnonzero(keep))
+
+
+def period(
+    table: LogTable,
+    time_name: str,
+    sample_time: float | None,
+    max_gap: float | None,
+    source: str,
+    notes: list[str],
+) -> tuple[float, BoolArray]:
+    """The period h [s] of the time column and where its intervals exceed ``max_gap``.
+
+    Checks a sample time given against the column (1 %), and rounds h to the fewest digits that
+    move no sample by more than 2 % of a period over the log.
+    """
+    t = table.t
+    assert t is not None
+    dt = np.diff(t)
+    h0 = float(np.median(dt))
+    if h0 > MAX_SAMPLE_TIME:
+        raise DataError(
+            f"{source}: samples {h0:g} s apart; a flow-loop log is sampled at least every "
+            f"{MAX_SAMPLE_TIME:g} s (is the time column in seconds?)"
+        )
+    limit = DEFAULT_GAP_FACTOR * h0 if max_gap is None else float(max_gap)
+    if limit <= (1.0 + RESAMPLE_TOLERANCE) * h0:
+        raise DataError(
+            f"{source}: max_gap (--max-gap) {limit:g} s must be longer than the median interval "
+            f"{h0:.6g} s by more than {RESAMPLE_TOLERANCE:.0%}"
+        )
+    breaks = dt > limit
+    h = _refine_period(t, breaks, h0)
+    if sample_time is not None:
+        if abs(h - sample_time) > SAMPLE_TIME_TOLERANCE * sample_time:
+            raise DataError(
+                f"{source}: time column {time_name!r} says {h:.6g} s between samples, the sample "
+                f"time given (sample_time, --sample-time) says {sample_time:g} s: give one of them"
+            )
+        notes.append(
+            f"time column {time_name} used (gaps and jitter checked on it): its period "
+            f"{h:.6g} s agrees with the sample time given, {sample_time:g} s"
+        )
+    slots = (t[-1] - t[0]) / h
+    preferred = [] if sample_time is None else [float(sample_time)]
+    for candidate in preferred + [float(f"{h:.{digits}g}") for digits in range(1, 10)]:
+        if abs(candidate - h) * slots <= 0.02 * h:
+            return candidate, breaks
+    return round(h, 12), breaks
+
+
+def _refine_period(t: FloatArray, breaks: BoolArray, h0: float) -> float:
+    """The period [s], from pairs of samples ever further apart (4, 16, 64, ... samples).
+
+    The time between two samples n slots apart, divided by n, scatters by the jitter over n: the
+    median over pairs at a lag four times longer refines the period without letting a gap or an
+    outlier pull it. Pairs across an interval longer than the gap limit are left out.
+    """
+    chunk = np.concatenate(([0], np.cumsum(breaks)))
+    h = h0
+    lag = 4
+    while lag <= t.size // 2:
+        same = chunk[lag:] == chunk[:-lag]
+        if not same.any():
+            break
+        span = (t[lag:] - t[:-lag])[same]
+        h = float(np.median(span / np.maximum(np.rint(span / h), 1.0)))
+        lag *= 4
+    return h
+
+
+@dataclass
+class GridRecord:
+    """The samples on the grid: times [s], u, y, fuel temperature [K], where segments start."""
+
+    t: FloatArray
+    u: FloatArray
+    y: FloatArray
+    T: FloatArray | None
+    starts: BoolArray
+
+
+def regularise(
+    table: LogTable,
+    h: float,
+    breaks: BoolArray,
+    mode: ResampleMode,
+    fill_gaps: float | None,
+    source: str,
+    notes: list[str],
+    bridgeable: IntArray | None = None,
+) -> GridRecord:
+    """Place the samples on the grid, split the log at its gaps, bridge or resample where asked.
+
+    ``bridgeable`` are the data rows dropped on request (``drop_bad_rows``): a single missing
+    sample there is bridged; any other missing sample is a gap.
+    """
+    t = table.t
+    assert t is not None
+    n = t.size
+    dt = np.diff(t)
+    chunk = np.concatenate(([0], np.cumsum(breaks)))
+    first = np.flatnonzero(np.concatenate(([True], breaks)))
+
+    # each stretch between long intervals on a grid of its own phase, each sample on its slot
+    cycles = (t - t[first][chunk]) / h
+    phase = np.add.reduceat(np.exp(2j * np.pi * (cycles - np.rint(cycles))), first)
+    origin = t[first] + np.angle(phase) / (2.0 * np.pi) * h
+    k = np.rint((t - origin[chunk]) / h).astype(np.int64)
+    deviation = t - origin[chunk] - h * k
+    worst = np.maximum.reduceat(np.abs(deviation), first)
+    origin = np.where(worst <= UNIFORM_TOLERANCE * h, t[first], origin)
+    same = ~breaks
+    steps = np.diff(k)
+    collided = np.zeros(first.size, dtype=bool)
+    collided[chunk[1:][same & (steps < 1)]] = True
+    placed = (worst <= JITTER_FRACTION * h) & ~collided
+    if not placed.all():
+        _check_resampling(table, h, chunk, placed, mode, source)
+
+    # gaps: long intervals and missing slots; bridged when short enough (or a dropped bad row)
+    on_grid = placed[chunk]
+    both = on_grid[:-1] & on_grid[1:]
+    slots = np.where(same, steps, np.maximum(np.rint(dt / h), 1.0)).astype(np.int64)
+    gap = np.where(same, (slots > 1) & both, True)
+    length = np.where(same, slots * h, dt)  # whole periods within a stretch
+    dropped = np.zeros(0, dtype=np.int64) if bridgeable is None else bridgeable
+    bad_row = (
+        same & (slots == 2) & (np.diff(table.rows) == 2) & np.isin(table.rows[:-1] + 1, dropped)
+    )
+    fill = -np.inf if fill_gaps is None else fill_gaps * (1.0 + 1e-9)
+    filled = gap & both & (length <= fill)
+    bridge = filled | (gap & both & bad_row)
+    split = gap & ~bridge
+
+    pieces = [_placed_samples(table, h, chunk, on_grid, k, origin, slots, bridge, split)]
+    for c in np.flatnonzero(~placed):
+        stop = int(first[c + 1]) if c + 1 < first.size else n
+        pieces.append(_resampled_samples(table, h, int(first[c]), stop, int(c)))
+    order = np.argsort(np.concatenate([piece[0] for piece in pieces]), kind="stable")
+    rows = np.concatenate([piece[1] for piece in pieces])[order]
+    signals = [
+        np.concatenate([piece[2][j] for piece in pieces])[order]
+        for j in range(4 if table.T is not None else 3)
+    ]
+    record = GridRecord(
+        t=signals[0],
+        u=signals[1],
+        y=signals[2],
+        T=signals[3] if table.T is not None else None,
+        starts=np.concatenate([piece[3] for piece in pieces])[order],
+    )
+
+    if on_grid.any() and float(np.max(np.abs(deviation[on_grid]))) > UNIFORM_TOLERANCE * h:
+        jitter = deviation[on_grid]
+        notes.append(
+            f"time stamps scatter around a steady {h:g} s period (sd {np.std(jitter) * 1e3:.2g}"
+            f" ms, at most {np.max(np.abs(jitter)) * 1e3:.2g} ms, within ±{JITTER_FRACTION:g} of"
+            f" a period): samples placed on the {h:g} s grid, values unchanged"
+        )
+    if not placed.all():
+        stretches = "" if first.size == 1 else f"{int(np.sum(~placed))} of {first.size} stretches "
+        off = ~on_grid[:-1] & same
+        notes.append(
+            f"resampled {stretches}onto a uniform {h:g} s grid (intervals "
+            f"{float(dt[off].min()):.6g} to {float(dt[off].max()):.6g} s): y interpolated "
+            "linearly, u held"
+        )
+    if filled.any():
+        changes = int(np.count_nonzero(filled & (table.u[1:] != table.u[:-1])))
+        moved = (
+            f"; the input changes across {changes} of them (its step moved to the gap's end)"
+            if changes
+            else ""
+        )
+        notes.append(
+            f"bridged {int(filled.sum())} gap(s) up to {float(length[filled].max()):.3g} s "
+            f"(fill_gaps, --fill-gaps {fill_gaps:g} s): {int(np.sum(slots[filled] - 1))} "
+            f"sample(s) inserted, y interpolated linearly, u held{moved}"
+        )
+    if split.any():
+        notes.append(_describe_gaps(np.flatnonzero(split), length, t, table.rows))
+    return _drop_short_segments(record, rows, split, length, h, source, notes)
+
+
+def _placed_samples(
+    table: LogTable,
+    h: float,
+    chunk: IntArray,
+    on_grid: BoolArray,
+    k: IntArray,
+    origin: FloatArray,
+    slots: IntArray,
+    bridge: BoolArray,
+    split: BoolArray,
+) -> tuple[IntArray, IntArray, list[FloatArray], BoolArray]:
+    """The samples placed on their slots, with the bridged gaps filled in.
+
+    Returns the chunk and data row of each output sample, its time, u, y and fuel temperature,
+    and whether a segment starts at it.
+    """
+    n = table.u.size
+    index = np.flatnonzero(on_grid)
+    extra = np.zeros(n, dtype=np.int64)
+    extra[:-1] = np.where(bridge, slots - 1, 0)
+    count = 1 + extra[index]
+    source = np.repeat(index, count)
+    j = np.arange(source.size) - np.repeat(np.cumsum(count) - count, count)
+    following = np.minimum(source + 1, n - 1)
+    fraction = j / (1.0 + extra[source])
+    y = table.y[source] + (table.y[following] - table.y[source]) * fraction
+    t = origin[chunk[source]] + h * (k[source] + j)
+    signals = [t, table.u[source], y] + ([] if table.T is None else [table.T[source]])
+    starts = (j == 0) & np.concatenate(([True], split))[source]
+    return chunk[source], table.rows[source], signals, starts
+
+
+def _resampled_samples(
+    table: LogTable, h: float, start: int, stop: int, chunk: int
+) -> tuple[IntArray, IntArray, list[FloatArray], BoolArray]:
+    """Samples ``start:stop`` interpolated onto a grid from their first time (y linear, u held)."""
+    assert table.t is not None
+    t = table.t[start:stop]
+    grid = t[0] + h * np.arange(int(np.floor((t[-1] - t[0]) / h + 1e-6)) + 1)
+    held = np.clip(np.searchsorted(t, grid + 1e-6 * h, side="right") - 1, 0, t.size - 1)
+    y = np.interp(grid, t, table.y[start:stop])
+    signals = [grid, table.u[start:stop][held], y]
+    if table.T is not None:
+        signals.append(table.T[start:stop][held])
+    starts = np.zeros(grid.size, dtype=bool)
+    starts[0] = True
+    return np.full(grid.size, chunk), table.rows[start:stop][held], signals, starts
+
+
+def _check_resampling(
+    table: LogTable,
+    h: float,
+    chunk: IntArray,
+    placed: BoolArray,
+    mode: ResampleMode,
+    source: str,
+) -> None:
+    """Refuse stretches off any steady grid that ``mode`` does not let be resampled safely."""
+    assert table.t is not None
+    t = table.t
+    dt = np.diff(t)
+    inside = (chunk[1:] == chunk[:-1]) & ~placed[chunk[1:]]
+    off = np.abs(dt - h) > RESAMPLE_TOLERANCE * h
+    safe = np.ones(placed.size, dtype=bool)
+    safe[chunk[1:][inside & off]] = False
+    if mode == "always" or (mode == "auto" and safe[~placed].all()):
+        return
+    refused = inside & ~safe[chunk[1:]] if mode == "auto" else inside
+    candidates = np.flatnonzero(refused & off) if (refused & off).any() else np.flatnonzero(refused)
+    i = int(candidates[np.argmax(np.abs(dt[candidates] - h))])
+    why = (
+        "resampling is off"
+        if mode == "never"
+        else f"interpolating an interval beyond ±{RESAMPLE_TOLERANCE:.0%} of it is not safe"
+    )
+    hint = (
+        f"; a max_gap (--max-gap) below {dt[i]:.6g} s makes it a gap"
+        if dt[i] > (1.0 + RESAMPLE_TOLERANCE) * h
+        else ""
+    )
+    raise DataError(
+        f"{source}: irregular sampling: interval of {dt[i]:.6g} s at t = {t[i]:.6g} s (data row "
+        f"{int(table.rows[i])}) against a period of {h:g} s; the time stamps fit no steady grid "
+        f"within ±{JITTER_FRACTION:g} of a period and {why}{hint}"
+    )
+
+
+def _describe_gaps(where: IntArray, length: FloatArray, t: FloatArray, rows: IntArray) -> str:
+    """``"2 gaps split the log into 3 segments, ...: 0.04 s at t = 1.98 s (data row 100), ..."``."""
+    count = where.size
+    listed = ", ".join(
+        f"{float(length[i]):.3g} s at t = {float(t[i]):.6g} s (data row {int(rows[i])})"
+        for i in where[:GAPS_LISTED]
+    )
+    more = f", and {count - GAPS_LISTED} more" if count > GAPS_LISTED else ""
+    verb = "gap splits" if count == 1 else "gaps split"
+    return (
+        f"{count} {verb} the log into {count + 1} segments, identified jointly (each with its own "
+        f"initial state): {listed}{more}"
+    )
+
+
+def _drop_short_segments(
+    record: GridRecord,
+    rows: IntArray,
+    split: BoolArray,
+    length: FloatArray,
+    h: float,
+    source: str,
+    notes: list[str],
+) -> GridRecord:
+    """Drop the segments of fewer than :data:`MIN_SAMPLES` samples, or refuse if none is left."""
+    segment = np.cumsum(record.starts) - 1
+    sizes = np.bincount(segment)
+    short = sizes < MIN_SAMPLES
+    if not short.any():
+        return record
+    if short.all():
+        could = bool(np.any(length[split] <= FILL_GAPS_MAX_PERIODS * h))
+        hint = "; bridging the short gaps (fill_gaps, --fill-gaps) may help" if could else ""
+        raise DataError(
+            f"{source}: no stretch of {MIN_SAMPLES} samples or more between the "
+            f"{int(split.sum())} gap(s) (the longest has {int(sizes.max())}){hint}"
+        )
+    keep = ~short[segment]
+    first = int(np.flatnonzero(~keep)[0])
+    notes.append(
+        f"dropped {int(short.sum())} segment(s) shorter than {MIN_SAMPLES} samples "
+        f"({int(sizes[short].sum())} samples, the first at t = {float(record.t[first]):.6g} s, "
+        f"data row {int(rows[first])}): {int(np.sum(~short))} segment(s) left"
+    )
+    return GridRecord(
+        record.t[keep],
+        record.u[keep],
+        record.y[keep],
+        None if record.T is None else record.T[keep],
+        record.starts[keep],
+    )
