@@ -59,7 +59,8 @@ the output:
 Run on demand (the figure and the page are written only when run; about 0.2 s per MAN window
 and 0.5 s per AUTO window on an idle core, so ≈ 13 minutes with the default 100 + 50 runs):
 
-    .venv/bin/python benchmarks/bench_gate_study.py [--runs 100] [--bad-runs 50] [--out docs/explanation]
+    .venv/bin/python benchmarks/bench_gate_study.py [--runs 100] [--bad-runs 50]
+        [--out docs/explanation]
         [--csv FILE] [--ar-pole 0.8] [--seed 23] [--no-reference]
 """
 

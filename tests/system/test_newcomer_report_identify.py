@@ -16,8 +16,8 @@ from typer.testing import CliRunner
 
 from fuelid.cli import app
 from fuelid.plant import load_plant_config
+from fuelid.plant.simulate import simulate
 from fuelid.profiles import step_sequence
-from fuelid.simulate import simulate
 
 runner = CliRunner()
 
