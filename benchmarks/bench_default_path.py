@@ -155,7 +155,7 @@ def one_run(args: tuple[str, str, float, int]) -> list[dict[str, Any]]:
         except Exception as error:  # a refusal is a result too: counted, not hidden
             out.append({"path": path.name, "failed": str(error)})
             continue
-        fitted = result.model.as_dict()
+        fitted = result.model.to_json()
         T_hat, key = _lags(fitted)
         ci = result.ci95()
         out.append(

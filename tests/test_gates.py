@@ -213,7 +213,7 @@ def test_store_samples_and_json():
     v = prefit_samples(samples, SETTINGS)
     assert v.accepted, v.reasons
     assert v.measured["bad_share"] == pytest.approx(0.02)
-    d = json.loads(json.dumps(v.to_dict(), allow_nan=False))
+    d = json.loads(json.dumps(v.to_json(), allow_nan=False))
     assert d["accepted"] is True
     assert d["reason"] == "passed every gate"
     assert len(d["excitation_events_s"]) == 19

@@ -310,7 +310,7 @@ def test_loop_health_gathers_the_window_and_is_json_ready():
     h = health.harris
     assert h.samples == pytest.approx((400 - step.settling_time) / H, abs=2)
     assert h.index == pytest.approx(0.36, abs=0.03)
-    d = health.to_dict()
+    d = health.to_json()
     text = json.dumps(d, allow_nan=False)
     assert '"iae_Lpm_s"' in text
     assert d["sensor"]["stuck"] is False
@@ -328,7 +328,7 @@ def test_loop_health_sees_a_stuck_reading_the_recorder_flagged_bad():
     )
     assert health.sensor.stuck
     assert health.sensor.longest_run == pytest.approx(299 * H)
-    assert health.to_dict()["sensor"]["longest_run_s"] == pytest.approx(5.98)
+    assert health.to_json()["sensor"]["longest_run_s"] == pytest.approx(5.98)
     assert health.harris.delay_samples == 5
 
 

@@ -137,7 +137,7 @@ def test_two_independent_windows_propose_the_geometric_partial_move():
     assert d.Ms["newest"] == pytest.approx(max_ms(MODEL, d.new), rel=1e-9)
     assert d.Ms["newest"] <= Online().ms_target
     assert set(d.detail["skipped"]) == {"tuned_for", "K_low", "K_high"}
-    json.dumps(d.to_dict(), allow_nan=False)
+    json.dumps(d.to_json(), allow_nan=False)
 
 
 def test_weighted_target_is_the_rule_on_the_mean_model():
@@ -291,4 +291,4 @@ def test_gains_refuse_non_positive():
         Gains(0.0, 1.0)
     with pytest.raises(FuelidError):
         Gains(0.05, math.nan)
-    assert Gains(0.05, 2.0).to_dict() == {"Kc": 0.05, "Ti": 2.0}
+    assert Gains(0.05, 2.0).to_json() == {"Kc": 0.05, "Ti": 2.0}

@@ -86,7 +86,7 @@ def test_gains_follow_simc_with_the_half_rule_and_half_a_period(analysis: LogAna
 
 def test_closed_loop_at_the_coldest_and_warmest_fuel(analysis: LogAnalysis):
     assert [run.T_fuel for run in analysis.runs] == [COLD, WARM]
-    assert [run.as_dict()["fuel_temperature"] for run in analysis.runs] == [-20.0, 50.0]
+    assert [run.to_json()["fuel_temperature"] for run in analysis.runs] == [-20.0, 50.0]
     for run in analysis.runs:
         summary = run.summary()
         assert summary["overshoot_percent"] < 25.0

@@ -104,7 +104,7 @@ def test_schedule_covers_the_range_and_lookup_finds_the_band(schedule):
             assert band.u_low <= u <= band.u_high
     # beyond the range the nearest end applies
     assert schedule.lookup(celsius_to_kelvin(70.0), 3.0).T_high == WARM
-    data = json.loads(json.dumps(schedule.as_dict()))
+    data = json.loads(json.dumps(schedule.to_json()))
     assert data["worst_Ms"] <= 1.6 + 1e-6
     assert len(data["bands"]) == len(schedule.bands)
 
@@ -159,7 +159,7 @@ def test_model_covariance_is_the_model_parameters_block():
 
 
 def test_schedule_gives_kc_in_percent_of_span_per_band(schedule):
-    data = json.loads(json.dumps(schedule.as_dict()))
+    data = json.loads(json.dumps(schedule.to_json()))
     assert (data["u_span"], data["y_span"]) == (4.0, CONFIG.flowmeter.span_Lpm)
     for band, row in zip(schedule.bands, data["bands"], strict=True):
         # as PISettings.plc_form: Kc·y_span/u_span
@@ -169,7 +169,7 @@ def test_schedule_gives_kc_in_percent_of_span_per_band(schedule):
     assert data["single_set_suffices"] is False
     assert data["single_set"] is None
     wider = gain_schedule(CONFIG, "simc", 1.0, band_width=35.0, flow_bands=1, y_span=80.0)
-    assert wider.as_dict()["bands"][0]["Kc_percent_of_span"] == pytest.approx(
+    assert wider.to_json()["bands"][0]["Kc_percent_of_span"] == pytest.approx(
         wider.bands[0].pi.Kc * 80.0 / 4.0, rel=1e-12
     )
 
@@ -192,7 +192,7 @@ def test_one_set_of_gains_suffices_where_the_bands_agree():
     assert single.pi.Kc == min(Kc)  # the most cautious of the bands' gains
     assert single.worst_Ms <= narrow.ms_target
     assert len(single.cases) == 5 * 3  # every band's temperatures × commands, shared edge once
-    data = json.loads(json.dumps(narrow.as_dict()))
+    data = json.loads(json.dumps(narrow.to_json()))
     assert data["single_set_suffices"] is True
     assert data["single_set"]["Kc"] == single.pi.Kc
     assert data["single_set"]["Ti"] == single.pi.Ti

@@ -175,7 +175,7 @@ def test_refusals() -> None:
     assert "no slope" in narrow.fit_.note
     r, se = narrow.predict_ratio(20.0)
     assert abs(r - RATIO) < 3 * se
-    assert narrow.to_dict()["ratio"]["slope_estimated"] is False
+    assert narrow.to_json()["ratio"]["slope_estimated"] is False
     bad = GainObservation(0.0, 20.0, 3.0, -1.0, 0.1)
     with pytest.raises(TrackingError, match="K > 0"):
         KTracker().fit([bad, bad])
@@ -221,7 +221,7 @@ def test_bands_without_plant_model() -> None:
         tr.predict(15.0, u=0.5)
     with pytest.raises(TrackingError, match="not tracked"):
         tr.predict_ratio(15.0)
-    d = json.loads(json.dumps(tr.to_dict()))
+    d = json.loads(json.dumps(tr.to_json()))
     assert d["mode"] == "band"
     assert d["bands"][0]["band"] == [1.0, 2.0]
 
@@ -230,7 +230,7 @@ def test_to_dict_is_json() -> None:
     """to_dict() round-trips through JSON with a units map."""
     rng = np.random.default_rng(8)
     tr = KTracker(k_plant=k_ref()).fit(observations(rng, rng.uniform(0.0, 30.0, 10)))
-    d = json.loads(json.dumps(tr.to_dict()))
+    d = json.loads(json.dumps(tr.to_json()))
     assert d["mode"] == "ratio"
     assert d["ratio"]["slope_estimated"] is True
     assert "units" in d

@@ -79,7 +79,7 @@ def test_schedule_gains_is_what_fuelid_tune_schedule_prints(capsys: pytest.Captu
     cli = _cli("tune", *FLAGS, "--schedule", "--band-width", "35", "--flow-bands", "1")
     assert _as_printed(outcome.to_json(), capsys) == cli
     assert [(b["t_low"], b["t_high"]) for b in cli["bands"]] == [(-20.0, 15.0), (15.0, 50.0)]
-    assert cli["anchored_to_model"] == MODEL.as_dict()
+    assert cli["anchored_to_model"] == MODEL.to_json()
 
 
 def test_identify_log_is_what_fuelid_identify_prints(

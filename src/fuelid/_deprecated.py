@@ -53,3 +53,27 @@ def warn_moved(old: str, new: str) -> None:
         DeprecationWarning,
         stacklevel=_importer_stacklevel(),
     )
+
+
+def warn_renamed(owner: object, old: str, new: str = "to_json") -> None:
+    """Warn that method ``old`` of ``owner``'s class is now ``new`` (fuelid 0.2.0).
+
+    Every result object serialises itself with ``to_json()``; the ``to_dict()`` and ``as_dict()``
+    of 0.1 stay, for one minor version, as aliases that call this and then ``to_json()``.
+
+    Parameters
+    ----------
+    owner : object
+        The instance whose old method was called.
+    old : str
+        The old method's name, e.g. ``"as_dict"``.
+    new : str
+        Its new name.
+    """
+    name = type(owner).__name__
+    warnings.warn(
+        f"{name}.{old}() is renamed {name}.{new}() in fuelid 0.2.0; call {new}() instead "
+        f"(the old name will be removed in a future release)",
+        DeprecationWarning,
+        stacklevel=3,
+    )

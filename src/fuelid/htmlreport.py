@@ -289,7 +289,7 @@ def _context(
             }
         )
     bands = [
-        {k: _fmt(v, ".4g") if isinstance(v, float) else v for k, v in b.as_dict().items()}
+        {k: _fmt(v, ".4g") if isinstance(v, float) else v for k, v in b.to_json().items()}
         for b in analysis.schedule.bands
     ]
     rob = analysis.tuning.robustness

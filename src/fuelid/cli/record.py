@@ -200,7 +200,7 @@ def info_command(
     with SQLiteStore(store) as opened:
         info = opened.info()
     if as_json:
-        emit_json(info.to_dict() | provenance({"store": str(store)}))
+        emit_json(info.to_json() | provenance({"store": str(store)}))
         return
     from datetime import UTC, datetime
 

@@ -476,7 +476,7 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str) -> None:
         + ("" if check["all_stable"] else " — UNSTABLE in some case")
     )
     for result in outcome.runs:
-        run = result.as_dict(events=False)
+        run = result.to_json(events=False)
         s = run["summary"]
         console.print(
             f"nonlinear plant at {run['fuel_temperature']:g} °C, setpoint "

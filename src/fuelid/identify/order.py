@@ -114,7 +114,7 @@ class Candidate:
 
     def to_json(self, best_bic: float) -> dict[str, Any]:
         """The candidate as the JSON ``structure.compared`` lists it."""
-        values = self.model.as_dict()
+        values = self.model.to_json()
         return {
             "order": self.order,
             "bic": self.bic,

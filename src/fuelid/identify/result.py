@@ -164,7 +164,7 @@ class IdentificationResult:
     None for the free-run methods, whose residuals are y − y_hat."""
 
     def _intervals(self) -> dict[str, tuple[list[float], CiMethod] | None]:
-        values = self.model.as_dict()
+        values = self.model.to_json()
         return {
             key: interval95(values[key], self.stderr.get(key), positive=key in POSITIVE_PARAMETERS)
             for key in MODEL_KEYS
@@ -185,7 +185,7 @@ class IdentificationResult:
         """The documented JSON object of ``fuelid identify --json`` (without provenance)."""
         return {
             "method": self.method,
-            "model": {key: self.model.as_dict()[key] for key in MODEL_KEYS},
+            "model": {key: self.model.to_json()[key] for key in MODEL_KEYS},
             "fixed": list(self.fixed),
             "stderr": {key: self.stderr.get(key) for key in MODEL_KEYS},
             "ci95": self.ci95(),

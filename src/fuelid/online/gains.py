@@ -7,7 +7,9 @@
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
+from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
 from fuelid.plc.site import Controller
 
@@ -36,12 +38,17 @@ class Gains:
             if not (math.isfinite(value) and value > 0.0):
                 raise FuelidError(f"PI gain {name} must be positive and finite, got {value}")
 
-    def to_dict(self) -> dict[str, float]:
+    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, float]:
+        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
+        warn_renamed(self, "to_dict")
+        return self.to_json(*args, **kwargs)
+
+    def to_json(self) -> dict[str, float]:
         """``{"Kc": ..., "Ti": ...}`` [V per L/min, s].
 
         Examples
         --------
-        >>> Gains(0.05, 2.0).to_dict()
+        >>> Gains(0.05, 2.0).to_json()
         {'Kc': 0.05, 'Ti': 2.0}
         """
         return {"Kc": float(self.Kc), "Ti": float(self.Ti)}

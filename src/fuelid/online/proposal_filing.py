@@ -140,10 +140,10 @@ class ProposalFiling:
             )
         detail = json_ready(
             {
-                **decision.to_dict(),
+                **decision.to_json(),
                 "Ms": decision.Ms,
                 "reason": decision.reason,
-                "ideal": {"old": decision.old.to_dict(), "new": decision.new.to_dict()},
+                "ideal": {"old": decision.old.to_json(), "new": decision.new.to_json()},
                 "target_model": self._target_model(decision),
             }
         )

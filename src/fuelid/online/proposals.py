@@ -62,6 +62,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
+from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
 from fuelid.io.jsonsafe import json_ready
 from fuelid.model import ProcessModel
@@ -129,15 +130,20 @@ class ProposalDecision:
     clipped: bool
     detail: dict[str, Any]
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
+        warn_renamed(self, "to_dict")
+        return self.to_json(*args, **kwargs)
+
+    def to_json(self) -> dict[str, Any]:
         """JSON-ready dictionary (non-finite numbers as None)."""
         out: dict[str, Any] = json_ready(
             {
                 "propose": self.propose,
                 "reason": self.reason,
-                "old": self.old.to_dict(),
-                "new": None if self.new is None else self.new.to_dict(),
-                "target": None if self.target is None else self.target.to_dict(),
+                "old": self.old.to_json(),
+                "new": None if self.new is None else self.new.to_json(),
+                "target": None if self.target is None else self.target.to_json(),
                 "Ms": dict(self.Ms),
                 "model_ids": list(self.model_ids),
                 "clipped": self.clipped,
@@ -250,7 +256,7 @@ def propose(
         "hysteresis": settings.hysteresis,
         "move_fraction": settings.move_fraction,
         "move": "geometric: new = current * (target / current) ** move_fraction",
-        "commissioning": commissioning.to_dict(),
+        "commissioning": commissioning.to_json(),
         "bounds": {k: list(v) for k, v in bounds.items()},
         "windows_available": len(windows),
     }
@@ -319,12 +325,12 @@ def propose(
     # --- target, bounds, dead band ----------------------------------------------------------------
     mean, weights = weighted_mean_model(chosen)
     detail["weights"] = weights
-    detail["mean_model"] = mean.as_dict()
+    detail["mean_model"] = mean.to_json()
     raw_pi = tune(mean, settings.rule, control_period)
     raw = Gains(Kc=raw_pi.Kc, Ti=raw_pi.Ti)
     target = _clip_gains(raw, bounds)
     clipped = target != raw
-    detail["target_unclipped"] = raw.to_dict()
+    detail["target_unclipped"] = raw.to_json()
     change = _rel_change(target, current)
     detail["change_to_target"] = change
     largest = max(change.values())
@@ -339,7 +345,7 @@ def propose(
     moved = _move(current, target, settings.move_fraction)
     new = _clip_gains(moved, bounds)
     clipped = clipped or new != moved
-    detail["undetuned"] = new.to_dict()
+    detail["undetuned"] = new.to_json()
 
     # --- robustness -------------------------------------------------------------------------------
     newest = chosen[0]
@@ -375,7 +381,7 @@ def propose(
     detail["Ms_current"] = ms_current
     detail["Ms_undetuned"] = ms_undetuned
     detail["checks"] = {
-        c.name: {"model_id": c.model_id, "model": c.model.as_dict()} for c in checks
+        c.name: {"model_id": c.model_id, "model": c.model.to_json()} for c in checks
     }
     factor, ms_final = _detune(
         new, bounds["Kc"][0], lambda f: ms_of(Gains(new.Kc * f, new.Ti)), passes, ms_undetuned

@@ -224,7 +224,7 @@ def k_trend_json(history: OnlineHistory) -> dict[str, Any]:
     except TrackingError as error:
         return {"available": False, "reason": str(error), "n": len(observations)}
     newest = observations[-1]
-    out: dict[str, Any] = {"available": True, **tracker.to_dict()}
+    out: dict[str, Any] = {"available": True, **tracker.to_json()}
     try:
         K, se = tracker.predict(newest.T_fuel_C, newest.u, K_plant=newest.K_plant)
     except TrackingError as error:

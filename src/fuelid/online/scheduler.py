@@ -181,7 +181,7 @@ class Scheduler:
 
     def _record_window(self, result: WindowResult) -> None:
         context = self.context
-        detail = result.to_dict()
+        detail = result.to_json()
         model = None
         if result.accepted and result.model is not None:
             model = {

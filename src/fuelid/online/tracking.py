@@ -50,6 +50,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from fuelid._deprecated import warn_renamed
 from fuelid.errors import DataError, NotFittedError
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.linear import linearise
@@ -146,7 +147,12 @@ class LineFit:
         x = np.array([1.0, T_C - self.T_ref])
         return self.intercept + self.slope * (T_C - self.T_ref), math.sqrt(float(x @ self.cov @ x))
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
+        warn_renamed(self, "to_dict")
+        return self.to_json(*args, **kwargs)
+
+    def to_json(self) -> dict[str, Any]:
         """JSON-ready dictionary (NaN as None)."""
         sa, sb = self.se
         return {
@@ -502,7 +508,12 @@ class KTracker:
         K, se = self.predict(T_C, u, K_plant)
         return K / K_tuned, se / K_tuned
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
+        warn_renamed(self, "to_dict")
+        return self.to_json(*args, **kwargs)
+
+    def to_json(self) -> dict[str, Any]:
         """JSON-ready dictionary of the fit (settings, the line(s), units)."""
         self._require_fit()
         out: dict[str, Any] = {
@@ -514,13 +525,13 @@ class KTracker:
             "units": TRACKING_UNITS,
         }
         if self.fit_ is not None:
-            out["ratio"] = self.fit_.to_dict()
+            out["ratio"] = self.fit_.to_json()
         else:
             out["band_width"] = self.band_width_V
             out["bands"] = [
                 {
                     "band": [b * self.band_width_V, (b + 1) * self.band_width_V],
-                    "fit": None if f is None else f.to_dict(),
+                    "fit": None if f is None else f.to_json(),
                 }
                 for b, f in self.bands_.items()
             ]

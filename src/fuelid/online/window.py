@@ -44,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError, NotExcitingError
 from fuelid.identify.oe import OutputError
 from fuelid.identify.pem import PredictionError
@@ -165,7 +166,7 @@ class WindowResult:
         """95 % intervals as ``identify`` makes them (symmetric K, log-transformed times)."""
         if self.model is None:
             return {}
-        values = self.model.as_dict()
+        values = self.model.to_json()
         out: dict[str, list[float] | None] = {}
         for key in MODEL_KEYS:
             ci = interval95(values[key], self.stderr.get(key), positive=key in POSITIVE_PARAMETERS)
@@ -176,7 +177,7 @@ class WindowResult:
         """``model``, ``stderr``, ``ci95`` (as ``identify --json``), method, fit; None unfitted."""
         if self.model is None:
             return None
-        values = self.model.as_dict()
+        values = self.model.to_json()
         out: dict[str, Any] = json_ready(
             {
                 "model": {key: values[key] for key in MODEL_KEYS},
@@ -188,7 +189,12 @@ class WindowResult:
         )
         return out
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
+        warn_renamed(self, "to_dict")
+        return self.to_json(*args, **kwargs)
+
+    def to_json(self) -> dict[str, Any]:
         """JSON-ready record of the window (what the model history stores as its detail)."""
         out: dict[str, Any] = json_ready(
             {
@@ -207,9 +213,9 @@ class WindowResult:
                 "structure": self.structure,
                 "fit_percent": self.fit_percent,
                 "plant_K": self.plant_K,
-                "gates": self.verdict.to_dict(),
+                "gates": self.verdict.to_json(),
                 "step_ls": self.step_ls,
-                "health": None if self.health is None else self.health.to_dict(),
+                "health": None if self.health is None else self.health.to_json(),
                 "seconds": self.seconds,
                 "warnings": self.warnings,
             }
@@ -431,7 +437,7 @@ class WindowAnalyser:
             fitted, _ = identify_step_ls(data, options, oe_model=oe_model)
         except FuelidError as error:
             return {"model": None, "reason": " ".join(str(error).split())}
-        values = fitted.model.as_dict()
+        values = fitted.model.to_json()
         out: dict[str, Any] = json_ready(
             {
                 "model": {key: values[key] for key in MODEL_KEYS},

@@ -243,7 +243,7 @@ class WriteBack:
         if echoed:
             for applied in self.history.proposals("applied")[-1:]:
                 self.history.set_proposal_status(applied["id"], "reverted", who=who, why=why)
-            self.history.set_state("current_gains", gains.to_dict())
+            self.history.set_state("current_gains", gains.to_json())
             self.history.set_state("last_write", None)
         self.context.event("revert" if echoed else "revert_failed", f"{why} (by {who})")
         return echoed

@@ -18,6 +18,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
 
 FloatArray = NDArray[np.float64]
@@ -219,7 +220,12 @@ class StoreInfo:
     events: dict[str, int] = field(default_factory=dict)
     size_bytes: int = 0
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
+        warn_renamed(self, "to_dict")
+        return self.to_json(*args, **kwargs)
+
+    def to_json(self) -> dict[str, Any]:
         """Plain dictionary with a ``units`` map (for ``--json``)."""
         out = asdict(self)
         out["units"] = {"t_first": "s", "t_last": "s", "span_s": "s", "size_bytes": "B"}

@@ -28,6 +28,7 @@ import numpy as np
 import scipy.optimize
 from numpy.typing import NDArray
 
+from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.flowmeter import measure_flow
@@ -134,7 +135,12 @@ class ClosedLoopResult:
             "time_at_limits": self.time_at_limits,
         }
 
-    def as_dict(self, events: bool = True) -> dict[str, Any]:
+    def as_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
+        warn_renamed(self, "as_dict")
+        return self.to_json(*args, **kwargs)
+
+    def to_json(self, events: bool = True) -> dict[str, Any]:
         """The run as documented JSON: ``fuel_temperature`` [°C], ``start_flow``, ``summary``.
 
         With ``events`` also the metrics of every event (``events``), as ``fuelid tune --json``
@@ -146,7 +152,7 @@ class ClosedLoopResult:
             "summary": self.summary(),
         }
         if events:
-            out["events"] = [e.as_dict() for e in self.events]
+            out["events"] = [e.to_json() for e in self.events]
         return out
 
     def to_pandas(self) -> pd.DataFrame:

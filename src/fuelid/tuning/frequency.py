@@ -22,12 +22,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import scipy.optimize
 from numpy.typing import ArrayLike, NDArray
 
+from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
 from fuelid.lti import discretise, modified_z
 from fuelid.model import ProcessModel
@@ -184,7 +185,12 @@ class Robustness:
     stable: bool
     """Closed-loop stability from the Nyquist winding number (open-loop stable plant)."""
 
-    def as_dict(self) -> dict[str, float | bool]:
+    def as_dict(self, *args: Any, **kwargs: Any) -> dict[str, float | bool]:
+        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
+        warn_renamed(self, "as_dict")
+        return self.to_json(*args, **kwargs)
+
+    def to_json(self) -> dict[str, float | bool]:
         """Plain dictionary for JSON."""
         return {
             "gain_margin": self.gain_margin,

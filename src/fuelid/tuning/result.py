@@ -103,7 +103,7 @@ class TuningResult:
             "Ki": self.pi.Ki,
             "control_period": self.pi.control_period,
             "tuning_parameter": self.pi.tuning_parameter,
-            "model": self.model.as_dict(),
+            "model": self.model.to_json(),
             "reduced_model": None
             if reduced is None
             else {"K": reduced.K, "T1": reduced.T1, "theta": reduced.theta},
@@ -111,11 +111,11 @@ class TuningResult:
             "gain_margin": self.robustness.gain_margin,
             "phase_margin_deg": self.robustness.phase_margin_deg,
             "Ms": self.robustness.Ms,
-            "robustness": self.robustness.as_dict(),
+            "robustness": self.robustness.to_json(),
             "closed_loop": {
                 "model": "linear (the process model, exact ZOH)",
-                "setpoint_step": self.closed_loop.setpoint.as_dict(),
-                "load_step": self.closed_loop.disturbance.as_dict(),
+                "setpoint_step": self.closed_loop.setpoint.to_json(),
+                "load_step": self.closed_loop.disturbance.to_json(),
             },
             "warnings": self.warnings,
         }

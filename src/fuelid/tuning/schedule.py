@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
 from fuelid.plant.config import PlantConfig
 from fuelid.tuning.cases import (
@@ -83,7 +84,12 @@ class ScheduleBand:
     worst: FixedPIEvaluation
     """The band's gains on every case inside the band."""
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
+        warn_renamed(self, "as_dict")
+        return self.to_json(*args, **kwargs)
+
+    def to_json(self) -> dict[str, Any]:
         """The band as documented JSON (``t_low``, ``t_high`` in °C)."""
         return {
             "t_low": kelvin_to_celsius(self.T_low),
@@ -143,7 +149,12 @@ class GainSchedule:
             key=lambda b: min(abs(T_fuel - b.T_low), abs(T_fuel - b.T_high)),
         )
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
+        warn_renamed(self, "as_dict")
+        return self.to_json(*args, **kwargs)
+
+    def to_json(self) -> dict[str, Any]:
         """The schedule as documented JSON (``fuelid tune --schedule --json``)."""
         single = self.single_set
         return {
@@ -154,7 +165,7 @@ class GainSchedule:
             "u_span": self.u_span,
             "y_span": self.y_span,
             "bands": [
-                b.as_dict() | {"Kc_percent_of_span": self.percent_of_span(b.pi)} for b in self.bands
+                b.to_json() | {"Kc_percent_of_span": self.percent_of_span(b.pi)} for b in self.bands
             ],
             "single_set_suffices": self.single_set_suffices,
             "single_set": None

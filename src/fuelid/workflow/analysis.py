@@ -251,9 +251,9 @@ class LogAnalysis:
             "identification": {m: r.to_json() for m, r in self.identifications.items()},
             "tuned_from": self.settings.tune_from,
             "tuning": self.tuning.to_json() | {"structure_spread": self.outcome.structure_spread()},
-            "temperature_check": self.check.as_dict(cases=False),
-            "closed_loop_plant": [r.as_dict(events=False) for r in self.runs],
-            "schedule": self.schedule.as_dict(),
+            "temperature_check": self.check.to_json(cases=False),
+            "closed_loop_plant": [r.to_json(events=False) for r in self.runs],
+            "schedule": self.schedule.to_json(),
             "warnings": self.warnings,
             "units": UNITS,
         }

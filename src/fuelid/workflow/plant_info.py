@@ -70,7 +70,7 @@ class PlantInfo:
                 "reynolds": op.reynolds,
             },
             "model": {
-                **model.as_dict(),
+                **model.to_json(),
                 "settling_time": self.equivalent.settling_time,
                 "model_settling_time": self.equivalent.model_settling_time,
                 "reduction_rms": self.equivalent.fit_rms,

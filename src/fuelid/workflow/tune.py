@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fuelid._deprecated import warn_renamed
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
@@ -183,10 +184,15 @@ class StructureGains:
     Ms_of_chosen_gains: float
     """Ms of the gains tuned on the kept model, if this structure is the true one [-]."""
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
+        warn_renamed(self, "as_dict")
+        return self.to_json(*args, **kwargs)
+
+    def to_json(self) -> dict[str, Any]:
         """JSON form: the model, its gains (Kc [V per L/min], Ti [s]) and the chosen gains' Ms."""
         return {
-            "model": self.model.as_dict(),
+            "model": self.model.to_json(),
             "Kc": self.pi.Kc,
             "Ti": self.pi.Ti,
             "Ms_of_chosen_gains": self.Ms_of_chosen_gains,
@@ -233,15 +239,15 @@ class TuneOutcome:
         return {
             "Kc": [min(Kc), max(Kc)],
             "Ti": [min(Ti), max(Ti)],
-            "structures": [s.as_dict() for s in self.structures],
+            "structures": [s.to_json() for s in self.structures],
         }
 
     def to_json(self) -> dict[str, Any]:
         """The documented JSON object of ``fuelid tune --json`` (without provenance)."""
         return self.tuning.to_json() | {
             "structure_spread": self.structure_spread(),
-            "temperature_check": self.check.as_dict(cases=True),
-            "closed_loop_plant": [r.as_dict(events=True) for r in self.runs] or None,
+            "temperature_check": self.check.to_json(cases=True),
+            "closed_loop_plant": [r.to_json(events=True) for r in self.runs] or None,
             "sweep": None if self.sweep is None else self.sweep.summary(),
             "units": UNITS,
         }
@@ -362,8 +368,8 @@ class ScheduleOutcome:
     def to_json(self) -> dict[str, Any]:
         """The documented JSON of ``fuelid tune --schedule --json`` (without provenance)."""
         model = self.request.model
-        return self.schedule.as_dict() | {
-            "anchored_to_model": None if model is None else model.as_dict(),
+        return self.schedule.to_json() | {
+            "anchored_to_model": None if model is None else model.to_json(),
             "units": UNITS,
         }
 

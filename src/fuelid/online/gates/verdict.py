@@ -6,6 +6,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from fuelid._deprecated import warn_renamed
 from fuelid.io.jsonsafe import json_ready
 
 
@@ -84,12 +85,17 @@ class WindowVerdict:
             mode=self.mode or other.mode,
         )
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
+        warn_renamed(self, "to_dict")
+        return self.to_json(*args, **kwargs)
+
+    def to_json(self) -> dict[str, Any]:
         """JSON-ready dictionary (non-finite numbers as None).
 
         Examples
         --------
-        >>> WindowVerdict.of([], {"rel_stderr_K": float("nan")}).to_dict()["measured"]
+        >>> WindowVerdict.of([], {"rel_stderr_K": float("nan")}).to_json()["measured"]
         {'rel_stderr_K': None}
         """
         out: dict[str, Any] = json_ready(

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from fuelid._deprecated import warn_renamed
 from fuelid.io.jsonsafe import json_ready
 from fuelid.online.health._arrays import BoolArray, FloatArray
 from fuelid.online.health.harris import HarrisIndex, harris_index, harris_refusal
@@ -61,7 +62,12 @@ class LoopHealth:
             return math.nan
         return float(np.mean([r.iae / abs(r.step) for r in self.setpoint_changes]))
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
+        warn_renamed(self, "to_dict")
+        return self.to_json(*args, **kwargs)
+
+    def to_json(self) -> dict[str, Any]:
         """JSON-ready dictionary, the units in the key names, NaN as None.
 
         Examples
@@ -70,7 +76,7 @@ class LoopHealth:
         >>> y = 40.0 + np.random.default_rng(0).normal(scale=0.05, size=t.size)
         >>> d = loop_health(t, np.full(t.size, 3.0), y, np.full(t.size, 40.0),
         ...                 np.ones(t.size), np.ones(t.size, bool), ti_s=1.0, delay_s=0.1,
-        ...                 y_span=120.0).to_dict()
+        ...                 y_span=120.0).to_json()
         >>> d["time_in_auto"], d["oscillation"]["oscillating"], d["setpoint_changes"]
         (1.0, False, [])
         """
