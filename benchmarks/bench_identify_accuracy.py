@@ -225,7 +225,7 @@ def main() -> None:
         "\ntarget: RMSE/CRB <= 1.1 for oe (the Monte Carlo spread is the ± above).\n"
         "step-ls (N = 5 at 1 s) is not efficient, and on the slow plant its truncated step\n"
         "response has not settled after N periods: a_N and hence K and T are biased whatever\n"
-        "the noise (docs/identification.md); the bias/CRB column shows it."
+        "the noise (docs/explanation/identification.md); the bias/CRB column shows it."
     )
 
 

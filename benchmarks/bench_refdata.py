@@ -1,9 +1,9 @@
 """Benchmark: the two real DaISy records in ../shared/ref-data (skipped when absent).
 
-Protocol (docs/identification.md): fit on the first half, free-run simulation scored (NRMSE
-fit %) on the second half; and on the whole heating record, at rest versus estimated initial state
-versus the known pre-record input of 6 V. Peers measured on the same files (SysIdentPy and a plain
-FOPDT fit): ARX(3,3) about 85 % (dryer) and 64 % (plate); FOPDT output-error about 83 % /
+Protocol (docs/explanation/identification.md): fit on the first half, free-run simulation scored
+(NRMSE fit %) on the second half; and on the whole heating record, at rest versus estimated initial
+state versus the known pre-record input of 6 V. Peers measured on the same files (SysIdentPy and a
+plain FOPDT fit): ARX(3,3) about 85 % (dryer) and 64 % (plate); FOPDT output-error about 83 % /
 68–69 %; whole plate 76 % at rest and 86 % from the 6 V pre-record input.
 
     .venv/bin/python benchmarks/bench_refdata.py

@@ -218,7 +218,7 @@ class CalibrationResult:
         }
 
     def to_json(self) -> dict[str, Any]:
-        """The documented JSON keys (see the README, "Calibrating the physics model")."""
+        """The documented JSON keys (docs/reference/json.md, "fuelid calibrate")."""
         return {
             "parameters": self.parameters,
             "start": self.start,

@@ -3,8 +3,8 @@
 Only the standard library, typer and fuelid's light foundation (errors, units) are imported here
 and at the top of every command module, so ``fuelid --help`` and each command's ``--help`` start
 without numpy, pandas, scipy, python-control or matplotlib; a command imports the library inside
-its body, when it runs (docs/architecture.md, "Rules"). °C, L/min and V live here at the edge:
-the library gets kelvin.
+its body, when it runs (docs/explanation/architecture.md, "Rules"). °C, L/min and V live here at the
+edge: the library gets kelvin.
 """
 
 from __future__ import annotations

@@ -24,7 +24,8 @@ raises :class:`~fuelid.errors.OutOfRangeError` unless ``allow_extrapolation=True
 RP-3 is the default fuel (:data:`DEFAULT_FUEL`). It is the kerosene the source article's wind
 tunnel burns; it is close to TS-1 and Jet A-1, so it uses the TS-1 (Dubovkin) correlations. The
 choice matters: at 20 °C the Jet A fit gives a kinematic viscosity 40 % above the TS-1 one, and the
-viscosity sets the pump leakage and so the loop gain K(T) (docs/physics.md, "Fuel properties").
+viscosity sets the pump leakage and so the loop gain K(T) (docs/explanation/physics.md, "Fuel
+properties").
 
 Sources
 -------
@@ -35,7 +36,7 @@ Sources
 * Jet A density: typical 804 kg/m^3 at 15 °C (inside the ASTM D1655 limits 775–840 kg/m^3) with
   the jet-fuel thermal expansion coefficient of ASTM D1250 / API MPMS 11.1 (Table 54B).
 * JP-8 dynamic viscosity table (tabulated JP-8 data, 20–100 °C) and the RP-3 Andrade fit
-  μ ≈ 7.05e-6·exp(1480/T): the values listed in docs/physics.md, "Fuel properties".
+  μ ≈ 7.05e-6·exp(1480/T): the values listed in docs/explanation/physics.md, "Fuel properties".
 * RP-3 specification: GB 6537 (No. 3 jet fuel).
 """
 

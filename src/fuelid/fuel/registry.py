@@ -230,7 +230,7 @@ FUELS: dict[str, Fuel] = {
         T_min=max(_JP8_RANGE_C[0], _JETA_RHO_RANGE_C[0]) + T0,
         T_max=min(_JP8_RANGE_C[1], _JETA_RHO_RANGE_C[1]) + T0,
         reference=(
-            "Dynamic viscosity: the tabulated JP-8 data of docs/physics.md (Andrade "
+            "Dynamic viscosity: the tabulated JP-8 data of docs/explanation/physics.md (Andrade "
             "interpolation); density: the Jet A model (JP-8 is Jet A-1 with military "
             "additives, same 775–840 kg/m^3 band), "
             "not the table sample's own density, so ν carries the ±4 % band spread."

@@ -25,7 +25,7 @@ regression for given time constants, shared by oe, pem and noise),
 :mod:`~fuelid.identify.prediction_errors` (pem's criterion and noise model) and
 :mod:`~fuelid.identify.step_shape_fit` (step-ls's second stage).
 
-The methods, their assumptions and references: docs/identification.md.
+The methods, their assumptions and references: docs/explanation/identification.md.
 
 The estimator convention
 ------------------------

@@ -357,7 +357,7 @@ def sample_time_advice(
     came from: decimated data (``raw_sample_time`` shorter than ``sample_time``) are better fitted
     raw, with the output-error fit; a log that is already that coarse must be logged faster.
     Above 5000 decimating with anti-alias filtering fits as well and faster
-    (docs/identification.md §5, the sample-time check).
+    (docs/explanation/identification.md §5, the sample-time check).
 
     Examples
     --------

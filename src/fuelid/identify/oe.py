@@ -1,7 +1,7 @@
 """Output-error fit of the continuous-time gray-box model on the raw samples.
 
-Model (the family of :mod:`fuelid.model`; docs/identification.md §3), for a record ``u, y``
-sampled every ``h`` seconds::
+Model (the family of :mod:`fuelid.model`; docs/explanation/identification.md §3), for a
+record ``u, y`` sampled every ``h`` seconds::
 
     ŷ[k] = b + K · s[k](T, T2, θ) + Σ_i c_i · p_i^k
 

@@ -206,7 +206,7 @@ class OrderChoice:
         return text
 
     def to_json(self) -> dict[str, Any]:
-        """The JSON ``structure`` object (documented in docs/identification.md)."""
+        """The JSON ``structure`` object (documented in docs/explanation/identification.md)."""
         best = min(c.bic for c in self.candidates)
         return {
             "criterion": "BIC",

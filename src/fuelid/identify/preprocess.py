@@ -1,4 +1,4 @@
-"""Preprocessing of PLC records before identification (docs/identification.md, step-ls).
+"""Preprocessing of PLC records before identification (docs/explanation/identification.md, step-ls).
 
 Every function takes an :class:`~fuelid.io.timeseries.IOData` and returns a new one (the input
 is never modified) with a short note appended to ``notes`` saying what was done or noticed.

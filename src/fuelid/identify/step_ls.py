@@ -1,9 +1,9 @@
 r"""The source article's method: truncated step-response least squares, then K and T by Newton.
 
-Stage 1 (docs/identification.md §2.1). The input is held between control periods, so it is a
-sum of steps; with the unit step response sampled at the control period, :math:`a_i = s(i\,T_s)`,
-and N chosen so that the response has settled after N periods (:math:`a_i = a_N` for i ≥ N),
-superposition gives, in deviations from the initial steady state,
+Stage 1 (docs/explanation/identification.md §2.1). The input is held between control periods, so it
+is a sum of steps; with the unit step response sampled at the control period, :math:`a_i =
+s(i\,T_s)`, and N chosen so that the response has settled after N periods (:math:`a_i = a_N` for i ≥
+N), superposition gives, in deviations from the initial steady state,
 
 .. math:: y(k) = \sum_{i=1}^{N-1} a_i\,\Delta u(k-i) + a_N\,u(k-N) + e(k),
           \qquad \Delta u(k) = u(k) - u(k-1),
@@ -22,7 +22,8 @@ repeated-root limit when T → T_f). K enters linearly and is eliminated in clos
 T solves the nonlinear normal equation of the concentrated cost by a safeguarded Newton
 iteration.
 
-Choices made here (the article's equations are lost; docs/identification.md §2.1 records these):
+Choices made here (the article's equations are lost; docs/explanation/identification.md §2.1 records
+these):
 
 - **Deviations.** u is taken relative to ``u0 = u[0]`` and y relative to ``y0``, the mean of y
   over the samples up to and including the first input change (the output cannot react at the
@@ -42,8 +43,8 @@ Choices made here (the article's equations are lost; docs/identification.md §2.
   plant, one offset). A segment of N samples or fewer gives no row (a warning says so). The
   simulation restarts each later segment at rest at its first command (``"fitted"`` adds the
   free response of its initial state, fitted on the segment).
-- **Known weakness** (measured, docs/identification.md §2.4): if the true response has not
-  settled at N·T_s, the truncation biases a_N and hence K and T whatever the noise level; a
+- **Known weakness** (measured, docs/explanation/identification.md §2.4): if the true response has
+  not settled at N·T_s, the truncation biases a_N and hence K and T whatever the noise level; a
   warning is issued when the fitted model's 98 % settling time exceeds N·T_s.
 """
 

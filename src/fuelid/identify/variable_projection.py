@@ -252,7 +252,7 @@ def cramer_rao_bound(
     Examples
     --------
     One step of amplitude a = K·Δu = 1, noise σ = 0.01, h = 0.1 s ≪ T = 10 s, delay known.
-    With T alone free, the hand estimate of docs/identification.md §4 gives
+    With T alone free, the hand estimate of docs/explanation/identification.md §4 gives
     sd(T̂)/T = √(4h/T)·σ/a = 0.0020; estimating K and the offset as well costs a little (their
     columns correlate with ∂ŷ/∂T):
 

@@ -4,7 +4,7 @@ Over a few settling times of the model (:func:`acf_lags`), on output errors prew
 noise's own autoregressive model fitted where the output has settled (:func:`prewhiten`), so that
 the statistic measures the model's error and not the meter noise's colour
 (:func:`largest_residual_acf`). :func:`fuelid.online.gates.postfit_gates` compares it with
-``[online] max_residual_acf``; why that default is 0.7 is docs/gate_study.md.
+``[online] max_residual_acf``; why that default is 0.7 is docs/explanation/gate-study.md.
 
 Units: time [s], command u [V], residuals [L/min].
 """

@@ -4,7 +4,7 @@ The lag is the rotor's inertia and the meter's filtering; the delay τ is the me
 processing time plus the PLC's scan and sampling. It is not a transport delay: in an
 incompressible line a flow change travels at the speed of sound (about 0.1 s per 100 m).
 The turbine's lag shrinks as the flow grows (roughly T_f ∝ 1/q), so a fixed T_f is right near
-the operating point it was calibrated at. See ``docs/physics.md`` §3.7.
+the operating point it was calibrated at. See ``docs/explanation/physics.md`` §3.7.
 """
 
 from __future__ import annotations
@@ -68,8 +68,8 @@ def flowmeter_rate(q: float, q_m: float, T_f: float) -> float:
 
     References
     ----------
-    ``docs/physics.md`` §3.7; Baker, R. C., *Flow Measurement Handbook*, 2nd ed., Cambridge
-    University Press 2016 (the chapter on turbine flowmeters).
+    ``docs/explanation/physics.md`` §3.7; Baker, R. C., *Flow Measurement Handbook*, 2nd ed.,
+    Cambridge University Press 2016 (the chapter on turbine flowmeters).
 
     Examples
     --------

@@ -12,7 +12,7 @@ hydraulic poles are thereby lumped into T. T2 = 0 (first-order process).
 
 A plant without a meter lag (``flowmeter.time_constant_s = 0``) reads the line flow q directly;
 its linear model drops the meter state and has four states, and its reduced model has T_f = 0.
-See ``docs/physics.md`` §7.
+See ``docs/explanation/physics.md`` §7.
 
 python-control is imported only inside the methods that return or use its objects: importing it
 takes about a second, which the command line should not pay for every plant it loads.

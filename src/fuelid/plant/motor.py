@@ -8,8 +8,8 @@ is linear in the slip speed,
 
 with the same K_T at every frequency because the drive keeps U_1/f constant. K_T comes from the
 nameplate (rated torque over rated slip speed) or, equivalently, from the circuit parameters.
-See ``docs/physics.md`` §3.2. The motor section also carries the shaft's inertia and damping,
-which :mod:`fuelid.plant.shaft` uses.
+See ``docs/explanation/physics.md`` §3.2. The motor section also carries the shaft's inertia and
+damping, which :mod:`fuelid.plant.shaft` uses.
 """
 
 from __future__ import annotations
@@ -229,8 +229,8 @@ def electromagnetic_torque(f: float, omega_m: float, K_T: float, m_p: int) -> fl
 
     References
     ----------
-    Fitzgerald, Kingsley & Umans, *Electric Machinery*, 6th ed., ch. 6; ``docs/physics.md``
-    §3.2.
+    Fitzgerald, Kingsley & Umans, *Electric Machinery*, 6th ed., ch. 6;
+    ``docs/explanation/physics.md`` §3.2.
 
     Examples
     --------

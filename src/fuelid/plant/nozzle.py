@@ -1,4 +1,4 @@
-"""Combustor nozzles: a sharp-edged orifice law (``docs/physics.md`` §3.6).
+"""Combustor nozzles: a sharp-edged orifice law (``docs/explanation/physics.md`` §3.6).
 
 All nozzles are lumped into one orifice of the total area A_0 discharging against the combustor's
 back pressure. :func:`nozzle_inlet_pressure` and its derivative :func:`orifice_resistance` are the
@@ -181,7 +181,7 @@ def nozzle_inlet_pressure(q: float, rho: float, Cd: float, A0: float, p_back: fl
 
     References
     ----------
-    ISO 5167-1:2022, eq. (1); ``docs/physics.md`` §3.6.
+    ISO 5167-1:2022, eq. (1); ``docs/explanation/physics.md`` §3.6.
 
     Examples
     --------

@@ -6,7 +6,8 @@ fuel in the whole line) and a resistance from the Darcy–Weisbach pressure drop
 the line is turbulent (Re ~ 10⁴–10⁵); the friction factor comes from the ``fluids`` package. The
 default correlation, Churchill (1977), spans the laminar, transitional and turbulent regimes with
 one smooth expression, so the pressure drop (and the ODE) stay differentiable through the
-transition; its laminar limit is Hagen–Poiseuille, f = 64/Re. See ``docs/physics.md`` §3.5.
+transition; its laminar limit is Hagen–Poiseuille, f = 64/Re. See ``docs/explanation/physics.md``
+§3.5.
 """
 
 from __future__ import annotations
@@ -400,7 +401,7 @@ def pipe_pressure_drop(
     ----------
     White, F. M., *Fluid Mechanics*, 7th ed., McGraw-Hill 2011, ch. 6 (head loss and the friction
     factor);
-    ``docs/physics.md`` §3.5.
+    ``docs/explanation/physics.md`` §3.5.
 
     Examples
     --------
@@ -489,7 +490,7 @@ def pipe_pressure_rate(q_in: float, q_out: float, C: float) -> float:
     References
     ----------
     Merritt, *Hydraulic Control Systems*, Wiley 1967 (the continuity equation of a compressed
-    volume); ``docs/physics.md`` §3.5.
+    volume); ``docs/explanation/physics.md`` §3.5.
 
     Examples
     --------
@@ -550,7 +551,7 @@ def pipe_flow_rate(p_in: float, p_out: float, dp_friction: float, L: float) -> f
     References
     ----------
     Merritt, *Hydraulic Control Systems*, Wiley 1967 (lumped fluid inertance);
-    ``docs/physics.md`` §3.5.
+    ``docs/explanation/physics.md`` §3.5.
 
     Examples
     --------

@@ -3,7 +3,8 @@
 Fuel compressibility is negligible at about 1 MPa (bulk modulus 1000–1300 MPa), so the pump is a
 flow source: geometric flow minus a leakage through the clearances that is laminar and therefore
 proportional to pressure and inversely proportional to viscosity. Warm, thin fuel leaks more; this
-is what makes the loop gain drift with fuel temperature. See ``docs/physics.md`` §3.3–3.4.
+is what makes the loop gain drift with fuel temperature. See ``docs/explanation/physics.md``
+§3.3–3.4.
 """
 
 from __future__ import annotations
@@ -134,7 +135,7 @@ def pump_flow(omega_m: float, p: float, D_p: float, C_p: float) -> float:
     ----------
     Merritt, *Hydraulic Control Systems*, Wiley 1967 (the chapter on hydraulic pumps
     and motors: delivery with leakage);
-    ``docs/physics.md`` §3.4.
+    ``docs/explanation/physics.md`` §3.4.
 
     Examples
     --------
@@ -198,7 +199,7 @@ def pump_torque(p: float, D_p: float, eta_m: float) -> float:
     References
     ----------
     Merritt, *Hydraulic Control Systems*, Wiley 1967 (the chapter on hydraulic pumps
-    and motors: torque with mechanical losses); ``docs/physics.md`` §3.3.
+    and motors: torque with mechanical losses); ``docs/explanation/physics.md`` §3.3.
 
     Examples
     --------

@@ -1,4 +1,4 @@
-"""Torque balance of the motor–pump shaft (``docs/physics.md`` §3.3).
+"""Torque balance of the motor–pump shaft (``docs/explanation/physics.md`` §3.3).
 
 Its parameters, the inertia J_T and the viscous damping B_T, are read from the plant file's
 ``[motor]`` section (:meth:`fuelid.plant.motor.MotorConfig.shaft_coefficients`).
@@ -49,7 +49,7 @@ def shaft_acceleration(T_e: float, T_load: float, omega_m: float, J: float, B: f
     References
     ----------
     Ogata, K., *Modern Control Engineering*, 5th ed., Prentice Hall 2010, ch. 3 (rotational
-    mechanical systems); ``docs/physics.md`` §3.3.
+    mechanical systems); ``docs/explanation/physics.md`` §3.3.
 
     Examples
     --------

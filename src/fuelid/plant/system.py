@@ -15,7 +15,7 @@ when the meter has no lag, :func:`measured_state`).
 Topology: the pump discharges into the line's lumped capacitance C at its outlet; the fuel column
 (inductance L) is driven by the difference between p and the friction drop plus the nozzles'
 pressure. With the line capacitance the hydraulic mode sits at 1–3 Hz: the nonlinear simulation
-keeps it, the equivalent low-order model leaves it out. See ``docs/physics.md`` §4.
+keeps it, the equivalent low-order model leaves it out. See ``docs/explanation/physics.md`` §4.
 
 This module writes no physical law itself: the right-hand side, its Jacobian and the steady state
 are composed of the law functions of the component modules (:mod:`~fuelid.plant.vfd`,

@@ -4,7 +4,8 @@ The drive maps the standard signal linearly onto ``f_min … f_max`` and clips i
 are set with a minimum frequency (lubrication, motor cooling), so at the bottom of the signal range
 the pump already delivers. The drive's acceleration ramp dominates the response time of a small
 pump set; it is modelled as a first-order lag (which linearises) with an optional rate limit
-(which does not, and is therefore left out of the linear model). See ``docs/physics.md`` §3.1.
+(which does not, and is therefore left out of the linear model). See ``docs/explanation/physics.md``
+§3.1.
 
 The laws (:func:`vfd_frequency_command`, :func:`vfd_frequency_rate`) and their derivatives
 (:func:`vfd_command_slope`, :func:`vfd_frequency_rate_partials`) are the only place the drive's
@@ -96,7 +97,7 @@ def vfd_gain(u_min: float, u_max: float, f_min: float, f_max: float) -> float:
 
     References
     ----------
-    ``docs/physics.md`` §3.1; IEC 60381-2 (the 1–5 V analogue signal).
+    ``docs/explanation/physics.md`` §3.1; IEC 60381-2 (the 1–5 V analogue signal).
 
     Examples
     --------
@@ -132,7 +133,7 @@ def vfd_frequency_command(
 
     References
     ----------
-    ``docs/physics.md`` §3.1.
+    ``docs/explanation/physics.md`` §3.1.
 
     Examples
     --------
@@ -200,7 +201,7 @@ def vfd_frequency_rate(
 
     References
     ----------
-    ``docs/physics.md`` §3.1.
+    ``docs/explanation/physics.md`` §3.1.
 
     Examples
     --------

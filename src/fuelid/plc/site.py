@@ -2,7 +2,7 @@
 
 A TOML file, validated with pydantic; a bad file is refused with the key and the reason
 (:class:`~fuelid.errors.ConfigError`, exit code 2 at the command line). The shape (issue 14) is a
-contract: keys may be added, none renamed. Example (README, "Site file")::
+contract: keys may be added, none renamed. Example (docs/reference/site-file.md)::
 
     [site]
     name = "tunnel 2 fuel loop"
@@ -319,7 +319,7 @@ class Store(_Table):
 class Online(_Table):
     """``[online]``: the online service's schedule, gates and proposal rules (issue 15).
 
-    Every threshold has its default here; the README's table says what each does.
+    Every threshold has its default here; docs/reference/site-file.md says what each does.
     """
 
     identify_every_s: float = Field(

@@ -3,8 +3,8 @@
 Computation never lives here: every function takes results computed elsewhere and draws them.
 Figures are built with :class:`matplotlib.figure.Figure` directly (no pyplot state, no GUI
 backend), so they work on a headless machine. matplotlib is imported inside the functions, so a
-command that draws nothing never loads it (docs/architecture.md, "Rules"). Temperatures arrive in
-kelvin and are shown in °C.
+command that draws nothing never loads it (docs/explanation/architecture.md, "Rules"). Temperatures
+arrive in kelvin and are shown in °C.
 
 - :mod:`~fuelid.plots.identification`: a PLC log, step responses, the model against the data
   and the residual correlation tests;

@@ -17,7 +17,7 @@
 
 Inside, the fuel temperature is in kelvin (``T_fuel``); °C appears only in JSON and messages.
 The tuning parameter of the rules is the closed-loop time constant (τc or λ, ``closed_loop_time``
-[s]): larger is slower. See docs/tuning.md.
+[s]): larger is slower. See docs/explanation/tuning.md.
 
 The public API
 --------------

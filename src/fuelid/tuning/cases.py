@@ -4,8 +4,8 @@ The physics model (:mod:`fuelid.plant`) gives how the loop changes with fuel tem
 operating point; an identified model, when given, anchors it: every physics model is scaled so that
 at the identification's conditions it equals the identified one (K and T by ratio, the meter's
 T_f, T2 and the delay taken from the identified model). Data set the level, physics sets the
-trend (docs/tuning.md, section 7). Fuel temperatures are in kelvin (``T_fuel``); the JSON of
-:meth:`FixedPIEvaluation.as_dict` gives them in °C.
+trend (docs/explanation/tuning.md, section 7). Fuel temperatures are in kelvin (``T_fuel``); the
+JSON of :meth:`FixedPIEvaluation.to_json` gives them in °C.
 """
 
 from __future__ import annotations

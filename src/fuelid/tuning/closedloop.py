@@ -14,7 +14,7 @@ the plant input, in V: a drive offset, pump wear). :func:`standard_runs` is the 
 ``fuelid tune --simulate`` and ``fuelid report`` show. The fast linear loop on the process model
 lives in :mod:`fuelid.tuning.linearloop` and the step metrics in :mod:`fuelid.tuning.metrics`;
 both are re-exported here. Fuel temperatures are in kelvin (``T_fuel``), flows in L/min, commands
-in V (docs/tuning.md, section 6).
+in V (docs/explanation/tuning.md, section 6).
 """
 
 from __future__ import annotations

@@ -4,7 +4,8 @@ At each period h it reads the measurement, outputs u = sat(Kc·e + I) within the
 range and then updates the integral, I ← I + Kc·h/Ti·e + (h/Tt)·(u − v): forward Euler as in
 Åström & Hägglund's PID code, plus back-calculation anti-windup with tracking time Tt. Gain changes
 are bumpless: the integral absorbs the change of the proportional term so the output does not
-jump (docs/tuning.md, sections 1 and 6; Åström & Hägglund, *Advanced PID Control*, ISA 2006).
+jump (docs/explanation/tuning.md, sections 1 and 6; Åström & Hägglund, *Advanced PID Control*, ISA
+2006).
 """
 
 from __future__ import annotations

@@ -3,8 +3,8 @@
 A model or option outside these limits can only come from a unit mix-up (ms for s, mL for L) or a
 failed identification; tuning it would take minutes or overflow, and the gains would mean
 nothing. The guards run before any work is done and raise :class:`~fuelid.errors.FuelidError`
-with the reason (exit code 2 at the command line). The limits are documented in README.md under
-``fuelid tune`` and in docs/tuning.md section 10.
+with the reason (exit code 2 at the command line). The limits are documented in the command
+reference (docs/reference/cli.md, ``fuelid tune``) and in docs/explanation/tuning.md section 10.
 """
 
 from __future__ import annotations

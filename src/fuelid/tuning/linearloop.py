@@ -3,8 +3,8 @@
 The sampled closed loop is a rational filter at the control instants (exact zero-order hold and
 fractional delay, :mod:`fuelid.lti`); the output between the instants is computed on a finer grid
 with the same held command, so overshoot between samples is not missed. No limits: this is the
-fast path of the checks over fuel temperature and of the uncertainty sweep (docs/tuning.md,
-section 6).
+fast path of the checks over fuel temperature and of the uncertainty sweep
+(docs/explanation/tuning.md, section 6).
 """
 
 from __future__ import annotations

@@ -2,8 +2,8 @@
 
 Both simulators of :mod:`fuelid.tuning.linearloop` (the process model) and
 :mod:`fuelid.tuning.closedloop` (the nonlinear plant) score their responses with these, so the
-numbers of ``fuelid tune`` and ``fuelid report`` mean the same everywhere (docs/tuning.md,
-section 6).
+numbers of ``fuelid tune`` and ``fuelid report`` mean the same everywhere
+(docs/explanation/tuning.md, section 6).
 """
 
 from __future__ import annotations

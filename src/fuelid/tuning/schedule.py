@@ -3,9 +3,10 @@
 Each band is tuned by the rule on its most demanding case and detuned until every case in it
 meets the Ms target; the margins are computed on the full linearised plant (five states and the
 meter's delay), so the model-reduction error is part of what they see, or on the anchored models
-when an identified model anchors the physics (:mod:`fuelid.tuning.cases`; docs/tuning.md,
-section 8). Fuel temperatures are in kelvin (``T_fuel``, ``T_range``, ``T_low``…); the JSON of
-:meth:`GainSchedule.as_dict` gives them in °C.
+when an identified model anchors the physics (:mod:`fuelid.tuning.cases`;
+docs/explanation/tuning.md, section 8). Fuel temperatures are in kelvin (``T_fuel``, ``T_range``,
+``T_low``…); the JSON of
+:meth:`GainSchedule.to_json` gives them in °C.
 
 The plant cases, the check of one fixed PI (:mod:`fuelid.tuning.cases`) and the uncertainty sweep
 (:mod:`fuelid.tuning.sweep`) are re-exported here.

@@ -2,7 +2,7 @@
 
 The sweep uses the linear models (exact zero-order hold, the dead time exact in the frequency
 response): a thousand variants take a couple of seconds, where the nonlinear plant would take
-half a minute (docs/tuning.md, section 9).
+half a minute (docs/explanation/tuning.md, section 9).
 """
 
 from __future__ import annotations
@@ -73,7 +73,7 @@ def uncertainty_sweep(
     :func:`~fuelid.model.model_covariance`); the physics model then moves K and T from the
     identification's temperature to the drawn one (by ratio, interpolated on a 2 K grid). Draws
     with T ≤ 0 are redrawn; a negative delay is set to 0. Margins and the step overshoot come
-    from the linear models (exact ZOH, exact delay). See docs/tuning.md, section 9.
+    from the linear models (exact ZOH, exact delay). See docs/explanation/tuning.md, section 9.
     """
     check_sweep_size(n)
     rng = np.random.default_rng(seed)

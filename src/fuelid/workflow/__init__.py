@@ -1,8 +1,8 @@
 """The whole chain as library calls: identify → tune → check over temperature → runs → schedule.
 
 What the command line, the demo and (next) the online service run, with plain arguments and
-result objects whose ``to_json()`` is the documented JSON (README.md); nothing here prints, draws
-or writes files. Fuel temperatures are in kelvin throughout (``T_fuel``, ``T_range``).
+result objects whose ``to_json()`` is the documented JSON (docs/reference/json.md); nothing here
+prints, draws or writes files. Fuel temperatures are in kelvin throughout (``T_fuel``, ``T_range``).
 
 - :mod:`~fuelid.workflow.identification`: :func:`identify_log` (``fuelid identify``) and the plant
   file's priors, :func:`plant_priors`;
@@ -20,7 +20,7 @@ or writes files. Fuel temperatures are in kelvin throughout (``T_fuel``, ``T_ran
   greybox``): the model with its fixed and free parameters, the logs as records, the validation,
   the warnings and the JSON object.
 
-See docs/architecture.md for where this layer sits.
+See docs/explanation/architecture.md for where this layer sits.
 
 The public API
 --------------
@@ -33,7 +33,8 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 # Each stage is imported when first used, so `fuelid identify` does not load the tuning layer
-# and `fuelid tune` does not load the log reader: see docs/architecture.md, lazy imports.
+# and `fuelid tune` does not load the log reader: see docs/explanation/architecture.md, lazy
+# imports.
 _EXPORTS = {
     "AnalysisSettings": "analysis",
     "IDENTIFY_UNITS": "identification",

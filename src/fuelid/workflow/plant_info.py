@@ -2,7 +2,7 @@
 
 The operating point at one command and fuel temperature, the equivalent model of the family
 K·e^(−τs)/((T·s+1)(T_f·s+1)) it reduces to, and the full linear model's transfer function, as a
-result object whose :meth:`PlantInfo.to_json` is the documented JSON (README.md).
+result object whose :meth:`PlantInfo.to_json` is the documented JSON (docs/reference/json.md).
 """
 
 from __future__ import annotations

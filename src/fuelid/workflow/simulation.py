@@ -5,7 +5,8 @@ a table read from a file by :func:`read_profile`), the fuel temperature [K] (con
 the file's trajectory), the sampling and the meter's noise; :func:`simulate_log` builds the
 inputs (:func:`simulation_inputs`), runs :func:`fuelid.plant.simulate.simulate` and returns a
 :class:`SimulationOutcome` whose :meth:`~SimulationOutcome.to_json` is the documented summary
-(README.md). Nothing here writes the log: the caller writes :meth:`SimulationOutcome.to_log`.
+(docs/reference/json.md). Nothing here writes the log: the caller writes
+:meth:`SimulationOutcome.to_log`.
 """
 
 from __future__ import annotations

@@ -113,14 +113,14 @@ def postfit_gates(
     as well, so under strongly coloured noise a small misfit shows less: the noise has more
     power where the misfit lies.
 
-    Where the default comes from: docs/gate_study.md (``benchmarks/bench_gate_study.py``),
-    on two plants the gate was not tuned on (``benchmarks/gate_plants/``), 100 ten-minute
-    windows per plant × noise (white; AR(1), pole 0.8) × loop (MAN, output error; AUTO,
-    prediction error), fitted by the service's own analyser. 0.7 is the smallest value that in
-    every condition rejects at most 5 % of the good windows (|K error| ≤ 3 %) and keeps the
-    95th percentile of the accepted windows' |K error| at or below 5 %. The binding condition
-    is white noise in MAN on the fast plant: windows spanning most of the drive's range reach
-    0.66 (95th percentile) from the gain's nonlinearity, with K still within 0.5 %; coloured
+    Where the default comes from: docs/explanation/gate-study.md
+    (``benchmarks/bench_gate_study.py``), on two plants the gate was not tuned on
+    (``benchmarks/gate_plants/``), 100 ten-minute windows per plant × noise (white; AR(1), pole 0.8)
+    × loop (MAN, output error; AUTO, prediction error), fitted by the service's own analyser. 0.7 is
+    the smallest value that in every condition rejects at most 5 % of the good windows (|K error| ≤
+    3 %) and keeps the 95th percentile of the accepted windows' |K error| at or below 5 %. The
+    binding condition is white noise in MAN on the fast plant: windows spanning most of the drive's
+    range reach 0.66 (95th percentile) from the gain's nonlinearity, with K still within 0.5 %; coloured
     noise needs only 0.2 once prewhitened (the raw statistic, ≥ 0.79, rejected every MAN
     window with it). At 0.7 the gate catches 38 % of the MAN windows whose fit misses the
     meter's lag (step response off by 8–15 % of K, K itself within a few per cent), those with

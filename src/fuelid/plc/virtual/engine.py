@@ -29,7 +29,7 @@ must reject, as a drifting pump or a valve elsewhere in the line would be); in M
 only. It is part of the flow, so :meth:`VirtualPLC.clean_readings` contains it. With σ = 0 (the
 default) nothing is drawn and the samples are exactly those without the option.
 
-The PLC's rules (README, "The virtual PLC").
+The PLC's rules (docs/tutorials/plc-link.md).
 
 - PI, ideal form u = Kc·(e + (1/Ti)∫e dt), e = setpoint − flow, at the control period:
   :class:`fuelid.tuning.controller.DiscretePI`, the positional algorithm with a forward-Euler

@@ -1,4 +1,4 @@
-"""The virtual PLC's points: one table, three protocols (the README's register and node map).
+"""The virtual PLC's points: one table, three protocols (``plant serve --print-site`` prints it).
 
 Every point has a Modbus address (0-based, on the wire), an OPC UA string NodeId and an S7
 address. The layouts mirror each other: the S7 byte offset is twice the Modbus register address,
