@@ -74,7 +74,7 @@ TRACKING_UNITS = {
     "band": "V",
     "command": "V",
 }
-"""Units of the numbers in :meth:`KTracker.to_dict`."""
+"""Units of the numbers in :meth:`KTracker.to_json`."""
 
 
 class TrackingError(DataError):

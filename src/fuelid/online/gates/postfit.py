@@ -120,8 +120,8 @@ def postfit_gates(
     the smallest value that in every condition rejects at most 5 % of the good windows (|K error| ≤
     3 %) and keeps the 95th percentile of the accepted windows' |K error| at or below 5 %. The
     binding condition is white noise in MAN on the fast plant: windows spanning most of the drive's
-    range reach 0.66 (95th percentile) from the gain's nonlinearity, with K still within 0.5 %; coloured
-    noise needs only 0.2 once prewhitened (the raw statistic, ≥ 0.79, rejected every MAN
+    range reach 0.66 (95th percentile) from the gain's nonlinearity, with K still within 0.5 %;
+    coloured noise needs only 0.2 once prewhitened (the raw statistic, ≥ 0.79, rejected every MAN
     window with it). At 0.7 the gate catches 38 % of the MAN windows whose fit misses the
     meter's lag (step response off by 8–15 % of K, K itself within a few per cent), those with
     large moves, and 15 % of the AUTO ones: prediction errors are whitened by their noise
