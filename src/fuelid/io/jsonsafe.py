@@ -1,7 +1,7 @@
 """One JSON form for every result fuelid writes: NaN and ±inf as null, numpy values plain.
 
 JSON has no NaN: a number that is not there (an undetermined second lag, a window with no setpoint
-step) is written as ``null``. Every ``to_json``/``to_dict`` and every file or store row goes through
+step) is written as ``null``. Every ``to_json`` and every file or store row goes through
 :func:`json_ready`, so the rule is the same in the CLI's ``--json``, the HTML report's JSON and the
 online store.
 """

@@ -88,7 +88,7 @@ FloatArray = NDArray[np.float64]
 class ClosedLoopResult:
     """A closed-loop run on the nonlinear plant, on the fine output grid.
 
-    Signals in engineering units (the PLC's), the fuel temperature in kelvin; :meth:`as_dict`
+    Signals in engineering units (the PLC's), the fuel temperature in kelvin; :meth:`to_json`
     gives the documented JSON, the fuel temperature in °C.
     """
 

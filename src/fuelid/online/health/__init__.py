@@ -15,7 +15,7 @@ e = setpoint − y [L/min].
 - :func:`sensor_health`: noise level, exactly repeated values (a stuck transmitter) and the
   quantisation step of the flow reading;
 - :func:`loop_health`: all of the above for one window, in one :class:`LoopHealth` with a
-  JSON-ready :meth:`~LoopHealth.to_dict`.
+  JSON-ready :meth:`~LoopHealth.to_json`.
 
 One module per metric family (:mod:`~fuelid.online.health.shares`,
 :mod:`~fuelid.online.health.oscillation`, :mod:`~fuelid.online.health.setpoint`,
