@@ -17,6 +17,7 @@ import typer
 from fuelid.cli._common import (
     BandWidthOption,
     ControlPeriodOption,
+    DriveSpanOption,
     FlowBandsOption,
     FlowSpanOption,
     ForceFigureOption,
@@ -28,6 +29,7 @@ from fuelid.cli._common import (
     TMaxOption,
     TMinOption,
     check_figure_path,
+    check_spans,
     closed_loop_time,
     emit_json,
     guarded,
@@ -97,6 +99,7 @@ def tune_command(
         ),
     ] = None,
     flow_span: FlowSpanOption = None,
+    u_span: DriveSpanOption = None,
     fuel_temp: Annotated[
         float | None,
         typer.Option(
@@ -179,8 +182,7 @@ def tune_command(
         check_sweep_size(sweep)
     check_control_period(control_period)
     tau = closed_loop_time(rule, tau_c, lam)
-    if flow_span is not None and not (math.isfinite(flow_span) and flow_span > 0.0):
-        raise FuelidError(f"--flow-span must be positive, got {flow_span:g} L/min")
+    check_spans(flow_span, u_span)
     model, loaded = _model_from_options(
         model_file, K, T, T2, T_f, delay, need_cov=sweep is not None
     )
@@ -221,6 +223,7 @@ def tune_command(
         closed_loop_time=tau,
         control_period=control_period,
         y_span=flow_span,
+        u_span=u_span,
         T_fuel=T_fuel,
         u=u,
         T_range=T_range,
@@ -294,6 +297,7 @@ def tune_command(
         "control_period": control_period,
         "config": str(config) if config else None,
         "flow_span": request.flow_span(plant),
+        "u_span": request.drive_span(plant),
         "fuel_temp": fuel_temp,
         "accept_signals": accept_signals,
         "u": None,  # the command used, filled in below

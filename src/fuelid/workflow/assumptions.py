@@ -33,8 +33,9 @@ if TYPE_CHECKING:
 
 REFERENCE_PLANT_NOTICE = (
     "no plant file given (--config): how the loop changes with fuel temperature and flow, the "
-    "drive's signal range and the meter span of the %/% gains are those of fuelid's built-in "
-    "reference plant, not of your loop; the margins on the identified model are yours"
+    "drive's signal range and (unless --flow-span/--u-span give them) the spans of the %/% "
+    "gains are those of fuelid's built-in reference plant, not of your loop; the margins on the "
+    "identified model are yours"
 )
 """Said in every output (text, JSON, HTML) whose checks ran on the built-in reference plant."""
 
