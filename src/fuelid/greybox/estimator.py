@@ -57,6 +57,7 @@ from fuelid.greybox.profile import CHI2_95, PROFILE_DOUBLINGS, ProfileLikelihood
 from fuelid.greybox.sensitivity import SimulationError, Trajectory, simulate_record
 from fuelid.greybox.system import GreyBoxModel, Record
 from fuelid.model import nrmse_fit_columns
+from fuelid.params import Params
 
 __all__ = [
     "CHI2_95",
@@ -101,7 +102,7 @@ def fit_percent(y: FloatArray, y_hat: FloatArray) -> FloatArray:
     return nrmse_fit_columns(y, y_hat)
 
 
-class GreyBoxEstimator(SegmentedStart, ProfileLikelihood):
+class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
     """Fit a :class:`~fuelid.greybox.system.GreyBoxModel` to records by output error.
 
     Parameters
@@ -179,26 +180,6 @@ class GreyBoxEstimator(SegmentedStart, ProfileLikelihood):
                     f"{type(self).__name__} is not fitted: {name} exists only after fit(records)"
                 )
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-
-    def get_params(self) -> dict[str, Any]:
-        """The constructor's settings by name (``type(est)(**est.get_params())`` is a copy)."""
-        return {name: getattr(self, name) for name in self._SETTINGS}
-
-    def set_params(self, **params: Any) -> GreyBoxEstimator:
-        """Change settings (they take effect at the next ``fit``); returns the estimator."""
-        unknown = sorted(set(params) - set(self._SETTINGS))
-        if unknown:
-            raise FuelidError(
-                f"{type(self).__name__} has no setting {', '.join(unknown)}; its settings are "
-                f"{', '.join(self._SETTINGS)}"
-            )
-        for name, value in params.items():
-            setattr(self, name, value)
-        return self
-
-    def __repr__(self) -> str:
-        args = ", ".join(f"{name}={value!r}" for name, value in self.get_params().items())
-        return f"{type(self).__name__}({args})"
 
     def _unfit(self) -> None:
         """Forget a previous fit: only the settings remain."""

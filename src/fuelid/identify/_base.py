@@ -14,7 +14,7 @@ import math
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar, Literal, Self, get_args
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, get_args
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from fuelid.errors import FuelidError, NotFittedError
 from fuelid.io.timeseries import IOData
 from fuelid.model import nrmse_fit
+from fuelid.params import Params
 
 FloatArray = NDArray[np.float64]
 Initial = Literal["rest", "estimate", "fitted"]
@@ -61,7 +62,7 @@ class _Record:
         return None
 
 
-class Estimator:
+class Estimator(Params):
     """Base of the estimators: settings, fitted state, initial conditions, score.
 
     A subclass lists its constructor's parameters in ``_SETTINGS``, stores them unchanged in
@@ -71,26 +72,6 @@ class Estimator:
     _SETTINGS: ClassVar[tuple[str, ...]] = ()
 
     # ------------------------------------------------------------------ settings
-    def get_params(self) -> dict[str, Any]:
-        """The constructor's settings by name (``type(est)(**est.get_params())`` is a copy)."""
-        return {name: getattr(self, name) for name in self._SETTINGS}
-
-    def set_params(self, **params: Any) -> Self:
-        """Change settings (they take effect at the next ``fit``); returns ``self``."""
-        unknown = sorted(set(params) - set(self._SETTINGS))
-        if unknown:
-            raise FuelidError(
-                f"{type(self).__name__} has no setting {', '.join(unknown)}; its settings are "
-                f"{', '.join(self._SETTINGS)}"
-            )
-        for name, value in params.items():
-            setattr(self, name, value)
-        return self
-
-    def __repr__(self) -> str:
-        args = ", ".join(f"{name}={value!r}" for name, value in self.get_params().items())
-        return f"{type(self).__name__}({args})"
-
     # ------------------------------------------------------------------ fitted state
     @contextmanager
     def _fitting(self, data: IOData) -> Iterator[None]:

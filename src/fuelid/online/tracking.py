@@ -52,6 +52,7 @@ from numpy.typing import NDArray
 
 from fuelid._deprecated import warn_renamed
 from fuelid.errors import DataError, NotFittedError
+from fuelid.params import Params
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.linear import linearise
 from fuelid.units import celsius_to_kelvin
@@ -268,7 +269,7 @@ def plant_gain_function(config: PlantConfig) -> PlantGain:
     return k_plant
 
 
-class KTracker:
+class KTracker(Params):
     """Loop gain K against fuel temperature, as a ratio to the plant model or per command band.
 
     An estimator as fuelid's others are: the settings are stored unchanged by ``__init__``,
@@ -339,14 +340,6 @@ class KTracker:
         self.band_width_V = band_width_V
         self.max_observations = max_observations
         self._held: list[GainObservation] = []
-
-    def get_params(self) -> dict[str, Any]:
-        """The constructor's settings by name (``KTracker(**tr.get_params())`` is a copy)."""
-        return {name: getattr(self, name) for name in self._SETTINGS}
-
-    def __repr__(self) -> str:
-        args = ", ".join(f"{name}={value!r}" for name, value in self.get_params().items())
-        return f"KTracker({args})"
 
     if not TYPE_CHECKING:  # hidden from mypy, which would otherwise accept any attribute name
 
