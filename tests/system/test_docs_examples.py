@@ -174,7 +174,7 @@ def _environment() -> dict[str, str]:
     src = str(ROOT / "src")
     env["PYTHONPATH"] = os.pathsep.join(p for p in (src, env.get("PYTHONPATH")) if p)
     # a terminal of fixed width without colour, in UTC: the printed tables and times are stable
-    env.update(COLUMNS="100", NO_COLOR="1", TERM="dumb", TZ="UTC", LC_ALL="C.UTF-8")
+    env.update(COLUMNS="80", NO_COLOR="1", TERM="dumb", TZ="UTC", LC_ALL="C.UTF-8")
     env["FUELID_DOCS_PYTHON"] = sys.executable
     return env
 
