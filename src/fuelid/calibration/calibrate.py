@@ -7,6 +7,9 @@ the identifiability report come from :class:`~fuelid.greybox.GreyBoxEstimator` o
 left out of the fit and predicted by simulating the whole log from its start: the held-out fit %.
 A request the data cannot answer (a combination of parameters they leave undetermined, or two
 whose sensitivities correlate above 0.999) is refused with the names and what data would help.
+A fit that leaves residuals far above the logs' own noise is returned flagged as a misfit
+(:mod:`~fuelid.calibration.fit_quality`). The logs are read by :mod:`~fuelid.calibration.logs`
+(their names are re-exported here).
 """
 
 from __future__ import annotations
@@ -364,6 +367,10 @@ def calibrate(
     Returns
     -------
     CalibrationResult
+        With ``misfit`` (and ``trusted`` False) when a log's flow residuals exceed
+        :data:`~fuelid.calibration.fit_quality.MISFIT_NOISE_RATIO` times its own noise: the
+        model does not fit the data and the estimates are not to be trusted (the finding is
+        also the first warning, so it travels into the plant file's ``[calibration]`` table).
 
     Raises
     ------

@@ -49,7 +49,11 @@ def _floats(text: str | None, option: str) -> list[float] | None:
 def calibrate_command(
     logs: Annotated[
         list[Path],
-        typer.Argument(metavar="LOG...", help="Logs (CSV or Parquet), each starting at rest."),
+        typer.Argument(
+            metavar="LOG...",
+            help="Logs (CSV or Parquet), each starting at rest; the column, scaling, unit, gap "
+            "and bad-value options below apply to every one.",
+        ),
     ],
     free: Annotated[
         str,
