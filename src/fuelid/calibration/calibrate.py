@@ -7,13 +7,15 @@ the identifiability report come from :class:`~fuelid.greybox.GreyBoxEstimator` o
 left out of the fit and predicted by simulating the whole log from its start: the held-out fit %.
 A request the data cannot answer (a combination of parameters they leave undetermined, or two
 whose sensitivities correlate above 0.999) is refused with the names and what data would help.
+A fit that leaves residuals far above the logs' own noise is returned flagged as a misfit
+(:mod:`~fuelid.calibration.fit_quality`). The logs are read by :mod:`~fuelid.calibration.logs`
+(their names are re-exported here).
 """
 
 from __future__ import annotations
 
 import datetime as dt
 import difflib
-import hashlib
 import math
 import time
 import tomllib
@@ -26,13 +28,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid import __version__
-from fuelid.calibration.plant_model import FUEL_TEMPERATURE_KEY, NOT_CALIBRATABLE, PlantGreyBox
+from fuelid.calibration.fit_quality import LogFit, judge_fit, misfit_message
+from fuelid.calibration.logs import (
+    TEMPERATURE_SPREAD_K,
+    CalibrationLog,
+    calibration_log,
+    load_calibration_log,
+)
+from fuelid.calibration.plant_model import NOT_CALIBRATABLE, PlantGreyBox
 from fuelid.errors import ConfigError, DataError, FuelidError
 from fuelid.greybox import GreyBoxEstimator, Record
 from fuelid.greybox.identifiability import NotIdentifiableError, correlation_warning
-from fuelid.io.logs import load_log
 from fuelid.io.plantfile import update_plant_toml
-from fuelid.io.timeseries import INPUT_COLUMN, OUTPUT_COLUMN, TIME_COLUMN
 from fuelid.model import nrmse_fit_columns
 from fuelid.plant.config import (
     PlantConfig,
@@ -41,12 +48,22 @@ from fuelid.plant.config import (
     reference_plant_text,
 )
 from fuelid.plant.parameters import parameter_names, plant_parameters, with_parameters
-from fuelid.units import T0 as KELVIN
+
+__all__ = [
+    "TEMPERATURE_SPREAD_K",
+    "CalibrationLog",
+    "CalibrationRefused",
+    "CalibrationResult",
+    "calibrate",
+    "calibrated_plant_text",
+    "calibration_log",
+    "check_free_names",
+    "load_calibration_log",
+    "starts_at_rest",
+]
 
 FloatArray = NDArray[np.float64]
 METHOD = "output error on the nonlinear plant ODE (forward sensitivities), fuelid calibrate"
-TEMPERATURE_SPREAD_K = 1.0
-"""A log whose fuel temperature spans more than this is calibrated at its mean, with a warning."""
 PROFILE_RELATIVE_STDERR = 0.1
 """Relative standard error above which the profile-likelihood interval is computed too."""
 SEPARATE_TEMPERATURES_K = 5.0
@@ -59,110 +76,6 @@ REST_CHECK_S = 2.0
 
 class CalibrationRefused(FuelidError):
     """The data cannot support the requested calibration (names and advice in the message)."""
-
-
-@dataclass(frozen=True)
-class CalibrationLog:
-    """One log, loaded: its record (flow, and pressure when logged) and where it came from."""
-
-    path: Path
-    sha256: str
-    record: Record
-    fuel_temperature_C: float
-    notes: tuple[str, ...] = ()
-
-
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
-def load_calibration_log(
-    path: str | Path,
-    *,
-    fuel_temp_C: float | None = None,
-    time_col: str | None = TIME_COLUMN,
-    input_col: str = INPUT_COLUMN,
-    output_col: str = OUTPUT_COLUMN,
-    pressure_col: str | None = None,
-    sample_time: float | None = None,
-    bad_values: Sequence[str] = (),
-) -> CalibrationLog:
-    """Read a log for calibration.
-
-    Parameters
-    ----------
-    path : str or Path
-        CSV or Parquet log, as ``fuelid identify`` reads it.
-    fuel_temp_C : float, optional
-        The log's fuel temperature [°C]; default the mean of its fuel-temperature column.
-    time_col, input_col, output_col, sample_time
-        As for ``fuelid identify``; the output is the flow [L/min], the input the command [V].
-    pressure_col : str, optional
-        Column of the pump outlet pressure [MPa] (gauge), a second output.
-    bad_values : sequence of str
-        The site's own bad-sample texts besides the historians' usual ones (see ``load_log``).
-
-    Raises
-    ------
-    DataError
-        If the log has no fuel temperature and none is given, or cannot be read.
-    """
-    file = Path(path)
-    flow = load_log(
-        file, time_col=time_col, input_col=input_col, output_col=output_col,
-        sample_time=sample_time, bad_values=bad_values,
-    )  # fmt: skip
-    notes = list(flow.notes)
-    n = flow.n_samples
-    if flow.segment_starts:
-        n = flow.segment_starts[0]
-        notes.append(
-            f"{file.name}: the log has gaps; only its first stretch ({n} samples) is used "
-            "(a stretch after a gap does not start at rest)"
-        )
-    columns = [flow.y[:n]]
-    if pressure_col is not None:
-        pressure = load_log(
-            file, time_col=time_col, input_col=input_col, output_col=pressure_col,
-            sample_time=sample_time,
-        )  # fmt: skip
-        # read as a second output of the same table: the two reads must share the time grid
-        if pressure.n_samples < n or not np.array_equal(pressure.t[:n], flow.t[:n]):
-            raise DataError(
-                f"{file.name}: the pressure column {pressure_col!r} does not line up with the "
-                "flow (missing or bad values in other rows): clean the log's rows first"
-            )
-        columns.append(pressure.y[:n])
-    if fuel_temp_C is not None and flow.T_fuel is not None:
-        logged = float(np.mean(flow.T_fuel[:n])) - KELVIN
-        if abs(logged - fuel_temp_C) > TEMPERATURE_SPREAD_K:
-            notes.append(
-                f"{file.name}: --fuel-temp {fuel_temp_C:g} °C overrides the log's own fuel "
-                f"temperature column (mean {logged:.1f} °C)"
-            )
-    if fuel_temp_C is None:
-        if flow.T_fuel is None:
-            raise DataError(
-                f"{file.name} has no fuel-temperature column: give its fuel temperature "
-                "(--fuel-temp, one value per log); the plant's viscosity and density depend on it"
-            )
-        temps = flow.T_fuel[:n] - KELVIN
-        fuel_temp_C = float(np.mean(temps))
-        if float(np.ptp(temps)) > TEMPERATURE_SPREAD_K:
-            notes.append(
-                f"{file.name}: the fuel temperature spans {np.ptp(temps):.1f} K; the log is "
-                f"calibrated at its mean {fuel_temp_C:.1f} °C"
-            )
-    if not math.isfinite(fuel_temp_C):
-        raise DataError(f"{file.name}: the fuel temperature is not a number")
-    record = Record.from_arrays(
-        flow.t[:n],
-        flow.u[:n],
-        np.column_stack(columns),
-        name=file.name,
-        context={FUEL_TEMPERATURE_KEY: fuel_temp_C + KELVIN},
-    )
-    return CalibrationLog(file, _sha256(file), record, fuel_temp_C, tuple(notes))
 
 
 @dataclass
@@ -193,6 +106,16 @@ class CalibrationResult:
     """How many samples of each log the fit used (the rest were held out)."""
     profile_ci95: dict[str, tuple[float, float]] = field(default_factory=dict)
     """Profile-likelihood 95 % intervals, where asked for or where the Gaussian one is shaky."""
+    fit_quality: list[LogFit] = field(default_factory=list)
+    """Each log's flow residuals against its own noise (:mod:`~fuelid.calibration.fit_quality`)."""
+    misfit: str = ""
+    """Why the model does not fit the data and its parameters are not to be trusted ("": it
+    fits every log within the noise). Also the first of ``warnings``."""
+
+    @property
+    def trusted(self) -> bool:
+        """False when the calibrated model does not fit the data (see ``misfit``)."""
+        return not self.misfit
 
     def calibration_table(self) -> dict[str, Any]:
         """The plant file's ``[calibration]`` table."""
@@ -228,6 +151,9 @@ class CalibrationResult:
             "correlation": {"parameters": list(self.free), "matrix": self.correlation.tolist()},
             "covariance": {"parameters": list(self.free), "matrix": self.covariance.tolist()},
             "fit_percent": self.fit_percent,
+            "trusted": self.trusted,
+            "misfit": self.misfit or None,
+            "fit_quality": [judged.to_json() for judged in self.fit_quality],
             "noise_std": self.noise_std,
             "identifiability": self.identifiability,
             "warnings": self.warnings,
@@ -246,6 +172,7 @@ class CalibrationResult:
                 **self.units,
                 "fit_percent": "% (NRMSE fit: 100·(1 − ‖y − ŷ‖/‖y − ȳ‖))",
                 "noise_std": "flow L/min, pressure MPa",
+                "fit_quality": "noise_std, residual_rms: L/min; ratio: -; allowed_*: %",
                 "fuel_temperature_C": "°C",
             },
         }
@@ -440,6 +367,10 @@ def calibrate(
     Returns
     -------
     CalibrationResult
+        With ``misfit`` (and ``trusted`` False) when a log's flow residuals exceed
+        :data:`~fuelid.calibration.fit_quality.MISFIT_NOISE_RATIO` times its own noise: the
+        model does not fit the data and the estimates are not to be trusted (the finding is
+        also the first warning, so it travels into the plant file's ``[calibration]`` table).
 
     Raises
     ------
@@ -513,6 +444,10 @@ def calibrate(
             if bound is not None and bound != 0.0 and abs(values[name] - bound) < 1e-6 * abs(bound):
                 warnings.append(f"{name} ended on its bound {bound:g}: the interval is not valid")
     warnings.extend(correlation_warning(*pair) for pair in estimator.correlated_pairs())
+    fit_quality = judge_fit([log.record for log in logs], simulated, [n_fit for _, n_fit in splits])
+    misfit = misfit_message(fit_quality, fits)
+    if misfit:
+        warnings.insert(0, misfit)
     wanted = set(names) if "all" in profile else set(profile)
     unknown = wanted - set(names)
     if unknown:
@@ -524,6 +459,8 @@ def calibrate(
         if name in wanted or shaky:
             profiles[name] = estimator.profile_interval(name)
     return CalibrationResult(
+        fit_quality=fit_quality,
+        misfit=misfit,
         profile_ci95=profiles,
         config=calibrated,
         free=names,

@@ -15,12 +15,22 @@ import typer
 from fuelid.cli._common import (
     BadValues,
     ConfigOption,
+    FlowUnit,
+    FuelTemperatureColumn,
+    InputColumn,
+    InputScale,
+    MaxGap,
+    OutputColumn,
+    OutputScale,
     SampleTime,
+    TimeColumn,
     check_figure_path,
     emit_json,
+    flow_unit_warning,
     format_estimate,
     guarded,
     provenance,
+    read_log,
     warn,
 )
 from fuelid.errors import ConfigError, FuelidError
@@ -39,7 +49,11 @@ def _floats(text: str | None, option: str) -> list[float] | None:
 def calibrate_command(
     logs: Annotated[
         list[Path],
-        typer.Argument(metavar="LOG...", help="Logs (CSV or Parquet), each starting at rest."),
+        typer.Argument(
+            metavar="LOG...",
+            help="Logs (CSV or Parquet), each starting at rest; the column, scaling, unit, gap "
+            "and bad-value options below apply to every one.",
+        ),
     ],
     free: Annotated[
         str,
@@ -70,11 +84,24 @@ def calibrate_command(
             show_default=False,
         ),
     ] = None,
-    time_col: Annotated[str, typer.Option("--time-col", help="Time column [s].")] = "t_s",
-    input_col: Annotated[str, typer.Option("--input-col", help="Command column [V].")] = "u_V",
-    output_col: Annotated[str, typer.Option("--output-col", help="Flow column [L/min].")] = "q_Lpm",
+    time_col: TimeColumn = "t_s",
+    input_col: InputColumn = "u_V",
+    output_col: OutputColumn = "q_Lpm",
     sample_time: SampleTime = None,
+    input_scale: InputScale = None,
+    output_scale: OutputScale = None,
+    fuel_temp_col: FuelTemperatureColumn = "T_fuel_degC",
+    max_gap: MaxGap = None,
     bad_values: BadValues = None,
+    flow_unit: FlowUnit = None,
+    accept_signals: Annotated[
+        bool,
+        typer.Option(
+            "--accept-signals",
+            help="Calibrate logs whose command or flow the signal check finds outside the "
+            "plant file's drive range and meter span or in another unit (refused otherwise).",
+        ),
+    ] = False,
     holdout: Annotated[
         float,
         typer.Option(
@@ -93,6 +120,14 @@ def calibrate_command(
     ] = None,
     force: Annotated[
         bool, typer.Option("--force", help="Overwrite an existing --out file or --plot figure.")
+    ] = False,
+    force_misfit: Annotated[
+        bool,
+        typer.Option(
+            "--force-misfit",
+            help="Write --out even when the calibrated model does not fit the data (residuals "
+            "over 3× the logs' noise; refused otherwise); its [calibration] warnings say so.",
+        ),
     ] = False,
     plot: Annotated[
         Path | None,
@@ -122,16 +157,19 @@ def calibrate_command(
     estimates with standard errors and 95 % intervals, their correlations, the fit % per log
     (and on its held-out end), and the identifiability report; refuses (exit 2) parameters the
     data cannot determine, naming them and what data would help.
+
+    The column, scaling, unit, gap and bad-value options are those of fuelid identify and apply
+    to every log. Each log's command and flow are checked against the plant file's drive range
+    and meter span as identify checks them; a log in other units is refused (exit 2) with the
+    fix. Gaps of up to 5 sample periods are simulated through with the command held; a longer
+    gap ends the part of the log that is calibrated. A model that does not fit the data as well
+    as their noise allows is said to be untrustworthy, and --out is then refused.
     """
-    from fuelid.calibration.calibrate import (
-        calibrate,
-        calibrated_plant_text,
-        check_free_names,
-        load_calibration_log,
-    )
-    from fuelid.io.bad_values import parse_bad_values
+    from fuelid.calibration.calibrate import calibrate, calibrated_plant_text, check_free_names
+    from fuelid.calibration.logs import calibration_log
     from fuelid.io.plantfile import write_text_atomically
     from fuelid.plant.config import load_plant_config
+    from fuelid.workflow.assumptions import PlantSource, check_signals
 
     names = check_free_names(free.split(","))
     temps = _floats(fuel_temp, "--fuel-temp")
@@ -142,31 +180,55 @@ def calibrate_command(
     if plot is not None:
         check_figure_path(plot, force)
     plant = load_plant_config(config)
-    loaded = [
-        load_calibration_log(
-            path,
-            fuel_temp_C=None if temps is None else temps[i],
-            time_col=time_col,
-            input_col=input_col,
-            output_col=output_col,
-            pressure_col=pressure_col,
-            sample_time=sample_time,
-            bad_values=parse_bad_values(bad_values),
+    source = PlantSource(plant, str(config) if config is not None else None)
+    edge_warnings: list[str] = []
+    signal_check: dict[str, list[str]] = {}
+    loaded = []
+    for i, path in enumerate(logs):
+
+        def read(column: str, scale: str | None, unit: str | None, path: Path = path) -> Any:
+            return read_log(
+                path, time_col, input_col, column, sample_time, input_scale, scale,
+                fuel_temperature_col=fuel_temp_col, max_gap=max_gap, bad_values=bad_values,
+                flow_unit=unit,
+            )  # fmt: skip
+
+        flow = read(output_col, output_scale, flow_unit)
+        findings = check_signals(flow, source)
+        if findings and not accept_signals:
+            raise FuelidError(
+                f"{path.name}: {'; '.join(findings)}; the calibrated parameters would absorb "
+                "the wrong units (--accept-signals to calibrate anyway)"
+            )
+        if findings:
+            signal_check[str(path)] = findings
+            edge_warnings += [f"{path.name}: {finding}" for finding in findings]
+        unit_warning = flow_unit_warning(flow, output_col)
+        if unit_warning:
+            edge_warnings.append(f"{path.name}: {unit_warning}")
+        pressure = None if pressure_col is None else read(pressure_col, None, None)
+        loaded.append(
+            calibration_log(path, flow, pressure, fuel_temp_C=None if temps is None else temps[i])
         )
-        for i, path in enumerate(logs)
-    ]
     profiles = [] if profile is None else [p.strip() for p in profile.split(",") if p.strip()]
     result = calibrate(plant, loaded, names, holdout=holdout, profile=profiles)
+    if result.misfit and out is not None and not force_misfit:
+        raise FuelidError(
+            f"{result.misfit}; --out refused: the plant file would carry these numbers "
+            "(--force-misfit to write it anyway, with this warning in its [calibration] table)"
+        )
     written = None
     if out is not None:
         text = calibrated_plant_text(result, config)
         written = write_text_atomically(out, text)
     if plot is not None:
         _plot(result, plot)
-    for message in result.warnings:
+    for message in edge_warnings + result.warnings:
         warn(message)
     if as_json:
         document = result.to_json()
+        document["warnings"] = edge_warnings + document["warnings"]
+        document["signal_check"] = signal_check
         document["calibrated_file"] = str(written) if written else None
         document.update(
             provenance(
@@ -175,6 +237,18 @@ def calibrate_command(
                     "config": str(config) if config else None,
                     "fuel_temp_C": temps,
                     "pressure_col": pressure_col,
+                    "time_col": time_col,
+                    "input_col": input_col,
+                    "output_col": output_col,
+                    "sample_time": sample_time,
+                    "input_scale": input_scale,
+                    "output_scale": output_scale,
+                    "fuel_temp_col": fuel_temp_col,
+                    "max_gap": max_gap,
+                    "bad_values": bad_values,
+                    "flow_unit": flow_unit,
+                    "accept_signals": accept_signals,
+                    "force_misfit": force_misfit,
                     "holdout": holdout,
                     "profile": profiles,
                 },
@@ -267,10 +341,17 @@ def _print(result: Any, written: Path | None) -> None:
         ]
         console.print("correlation of the estimates: " + ", ".join(pairs))
     report = result.identifiability
+    verdict = (
+        "every parameter determined"
+        if result.trusted
+        else "but the model does not fit the data: the parameters are NOT to be trusted"
+    )
     console.print(
         f"identifiability: rank {report['rank']} of {report['n_estimated']}, collinearity index "
-        f"{report['collinearity_index']:.3g} (1 = independent), every parameter determined"
+        f"{report['collinearity_index']:.3g} (1 = independent), {verdict}"
     )
+    if not result.trusted:
+        console.print(f"MISFIT: {result.misfit}", highlight=False)
     noise = ", ".join(f"{k} {v:.3g}" for k, v in result.noise_std.items())
     console.print(f"residual noise std: {noise}; {result.iterations} iterations, "
                   f"{result.wall_time_s:.1f} s")  # fmt: skip
