@@ -32,7 +32,8 @@ def test_schedule_refuses_simulate_and_sweep(tmp_path: Path, extra: list[str], n
     assert result.exit_code == 2, result.output
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1, result.stderr
-    assert "--schedule" in lines[0] and named in lines[0]
+    assert "--schedule" in lines[0]
+    assert named in lines[0]
     assert not plot.exists()
 
 
