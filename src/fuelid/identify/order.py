@@ -14,7 +14,9 @@ With ``order="auto"`` an estimator fits one lag and two lags and hands both fits
 3. **Its 95 % interval excludes zero**: lag − 1.96·se(lag) > 0, with the fit's own standard
    error (the HAC sandwich when the residuals are coloured, so coloured noise, which inflates
    the BIC's improvement, does not pass here too).
-4. **With no meter lag given, the two lags are told apart** (|T − T2| > 1.96·se(T − T2)), **or
+4. **With no meter lag given, the two lags are told apart** (|T − T2| > 1.96·se(T − T2), and
+   |corr(T, T2)| ≤ :data:`LAGS_NOT_SEPARATED`: beyond it the separate intervals are withheld, and
+   the pair is never told apart, the split undetermined with or without a meter lag), **or
    BIC's preference is very strong** (by :data:`BIC_CLOSE` or more). The meter's lag is then one
    of the two fitted lags. Two lags the data cannot separate, with little to choose between the
    orders, are one lag's worth of information spent on two parameters; but when one lag fits
