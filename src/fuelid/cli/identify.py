@@ -309,7 +309,9 @@ def identify_command(
 
     # an unknown flow unit is named by its column (and said on stderr), not "output unit"
     named = data if data.y_unit else replace(data, y_unit=f"unit of {output_col}")
-    _print_table(data_json, file, gain_unit(named), (data.u_unit, data.y_unit), part)
+    # the operating point names its units as the table's K does: an unknown one in words
+    units = (data.u_unit or "input unit", named.y_unit)
+    _print_table(data_json, file, gain_unit(named), units, part)
 
 
 def _print_table(
@@ -334,7 +336,8 @@ def _print_table(
         table.add_row(
             key,
             f"{value:.5g}",
-            "fixed" if fixed or se is None else f"{se:.2g}",
+            # fixed is a prior the user gave; estimated without an interval is not determined
+            "fixed" if fixed else "not determined" if se is None else f"{se:.2g}",
             "" if ci is None else f"{ci[0]:.5g} … {ci[1]:.5g}",
             gain_unit if key == "K" else "s",
         )
@@ -344,8 +347,9 @@ def _print_table(
         console.print(f"validation fit {data['validation_fit_percent']:.2f} % (held-out data)")
     point = data["operating_point"]
     fuel = point["fuel_temperature"]
+    u_unit, y_unit = (f"({unit})" if " " in unit else unit for unit in units)
     console.print(
-        f"operating point: u = {point['u']:.3g} {units[0]}, flow {point['y']:.4g} {units[1]}; fuel "
+        f"operating point: u = {point['u']:.3g} {u_unit}, flow {point['y']:.4g} {y_unit}; fuel "
         + (f"{fuel:.3g} °C ({point['fuel_temperature_source']})" if fuel is not None else "unknown")
     )
     console.print(f"assumed: {_describe_priors(data['priors'])}", highlight=False)

@@ -66,7 +66,7 @@ def _table(summary: dict[str, Any]) -> Table:
         ("Reynolds number (line)", op["reynolds"], "-", ".0f"),
         ("K (static gain)", model["K"], "(L/min)/V", ".4f"),
         ("T (process lag, fitted)", model["T"], "s", ".4f"),
-        ("T2", model["T2"], "s", ".4f"),
+        ("T2 (second process lag)", model["T2"], "s", ".4f"),
         ("T_f (flowmeter lag)", model["T_f"], "s", ".4f"),
         ("delay (flowmeter)", model["delay"], "s", ".4f"),
         ("98 % settling time", model["settling_time"], "s", ".3f"),
@@ -153,9 +153,10 @@ def info(
 ) -> None:
     """Operating point and linearised model of a plant at one command and fuel temperature.
 
-    The model is the equivalent K·e^(−τs)/((T·s+1)(T_f·s+1)): K the exact static gain of the
-    linearised plant [(L/min)/V], T a least-squares fit of its step response [s], T_f and τ the
-    flowmeter's [s]; the settling time is that of the full linearised plant (98 %).
+    The model is the equivalent K·e^(−τs)/((T·s+1)(T2·s+1)(T_f·s+1)) of fuelid identify and
+    tune, with one process lag: K the exact static gain of the linearised plant [(L/min)/V], T a
+    least-squares fit of its step response [s], T2 = 0 (the hydraulics are lumped into T), T_f
+    and τ the flowmeter's [s]; the settling time is that of the full linearised plant (98 %).
 
     When the plant file has a [calibration] table with a covariance, K, T and the settling time
     also get a standard error and a 95 % interval (delta method over the calibrated parameters);

@@ -8,11 +8,17 @@ the same file (issue 14).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from fuelid.cli._common import emit_json, guarded, provenance
+
+if TYPE_CHECKING:
+    from rich.text import Text
+
+SCALING_WIDTH = 16
+"""Least width of site check's scaling column, which wraps [characters]."""
 
 app = typer.Typer(help="The site file: one loop as its PLC exposes it.", rich_markup_mode=None)
 
@@ -46,9 +52,15 @@ def check(
         title=f"{site.site.name}: {plc.protocol} at {where}, every {site.sampling.period_s:g} s "
         f"(PI every {site.sampling.control_period_s:g} s)"
     )
-    for column in ("side", "role", "address", "type", "scaling", "unit"):
-        # an address (an OPC UA node id) is copied into other tools: never cut or wrapped
-        table.add_column(column, no_wrap=column == "address")
+    columns = ("side", "role", "address", "type", "scaling", "unit")
+    for column in columns:
+        # an address (an OPC UA node id) is copied into other tools, a role or a type is
+        # searched for: never cut or wrapped (the scaling, a sentence, may wrap)
+        table.add_column(
+            column,
+            no_wrap=column != "scaling",
+            min_width=SCALING_WIDTH if column == "scaling" else None,
+        )
     for side, tags in (("read", site.tags), ("write", site.write)):
         for role, tag in tags.items():
             scaling = ""
@@ -56,24 +68,33 @@ def check(
                 scaling = (
                     f"{tag.raw[0]:g}…{tag.raw[1]:g} → {tag.eng[0]:g}…{tag.eng[1]:g} {tag.unit}"
                 )
-            table.add_row(side, role, tag.address, tag.type, scaling, tag.unit)
+            table.add_row(*_cells(side, role, tag.address, tag.type, scaling, tag.unit))
     if site.ring is not None:
         ring = site.ring
         from_ring = ", ".join(ring.fields[1:])
         table.add_row(
-            "read",
-            "ring",
-            f"{ring.address} (head {ring.head})",
-            f"{ring.size} × [{', '.join(ring.fields)}]",
-            f"{from_ring} come from here",
-            "",
+            *_cells(
+                "read",
+                "ring",
+                f"{ring.address} (head {ring.head})",
+                f"{ring.size} × [{', '.join(ring.fields)}]",
+                f"{from_ring} come from here",
+                "",
+            )
         )
     from fuelid.online.window import check_site_plant
 
     settling = check_site_plant(site.site.plant, site.online.window_s)
     console = Console()
-    # wider than the terminal rather than an address cut short: the terminal wraps the line
-    console = Console(width=max(console.width, console.measure(table).maximum))
+    # wider than the terminal rather than a cell cut short: the terminal wraps the line (rich
+    # would shrink every column to fit the terminal, ending the long ones with "…")
+    whole = [
+        max(len(header), *(len(cell) for cell in table.columns[i].cells))  # type: ignore[arg-type]
+        for i, header in enumerate(columns)
+        if header != "scaling"
+    ]
+    least = sum(whole) + SCALING_WIDTH + 3 * len(columns) + 1  # padding and rules
+    console = Console(width=max(console.width, least))
     console.print(table)
     for line in site.missing():
         console.print(f"missing {line}", highlight=False)
@@ -104,3 +125,10 @@ def _summary(site: Any, settling: float | None) -> list[str]:
         f'write_back "{o.write_back}", rule {o.rule}, Ms ≤ {o.ms_target:g}'
     )
     return [plant, controller, online]
+
+
+def _cells(*texts: str) -> list[Text]:
+    """Table cells shown as written: "[seq, command]" is text, not a rich markup tag."""
+    from rich.text import Text
+
+    return [Text(text) for text in texts]

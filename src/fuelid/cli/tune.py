@@ -152,8 +152,8 @@ def tune_command(
         Path | None,
         typer.Option(
             metavar="FIG.png",
-            help="Write the closed-loop figure (PNG, SVG, PDF); an existing file only with "
-            "--force.",
+            help="Write the figure (PNG, SVG, PDF): the closed-loop figure, or with --schedule "
+            "the gain schedule over fuel temperature; an existing file only with --force.",
             show_default=False,
         ),
     ] = None,
@@ -178,6 +178,13 @@ def tune_command(
 
     # options checked at the edge, before any work is done
     check_figure_path(plot, overwrite=force)
+    unused = [n for n, given in (("--simulate", simulate), ("--sweep", sweep is not None)) if given]
+    if schedule and unused:
+        verb = "checks" if len(unused) == 1 else "check"
+        raise FuelidError(
+            f"--schedule prints the gain schedule only: {' and '.join(unused)} {verb} one set of "
+            "gains, run without --schedule"
+        )
     if sweep is not None:
         check_sweep_size(sweep)
     check_control_period(control_period)

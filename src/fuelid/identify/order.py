@@ -14,7 +14,9 @@ With ``order="auto"`` an estimator fits one lag and two lags and hands both fits
 3. **Its 95 % interval excludes zero**: lag − 1.96·se(lag) > 0, with the fit's own standard
    error (the HAC sandwich when the residuals are coloured, so coloured noise, which inflates
    the BIC's improvement, does not pass here too).
-4. **With no meter lag given, the two lags are told apart** (|T − T2| > 1.96·se(T − T2)), **or
+4. **With no meter lag given, the two lags are told apart** (|T − T2| > 1.96·se(T − T2), and
+   |corr(T, T2)| ≤ :data:`LAGS_NOT_SEPARATED`: beyond it the separate intervals are withheld, and
+   the pair is never told apart, the split undetermined with or without a meter lag), **or
    BIC's preference is very strong** (by :data:`BIC_CLOSE` or more). The meter's lag is then one
    of the two fitted lags. Two lags the data cannot separate, with little to choose between the
    orders, are one lag's worth of information spent on two parameters; but when one lag fits
@@ -56,6 +58,9 @@ BIC_CLOSE = 10.0
 TRADE_CORRELATION = 0.95
 """|correlation| between two of T, T2 and the delay above which they trade against each other."""
 DYNAMIC_PARAMETERS = ("T", "T2", "delay")
+LAGS_NOT_SEPARATED = 0.999
+"""|corr(T, T2)| above which the two lags are not separately determined: their separate
+intervals are withheld, and the order rule does not count them as told apart."""
 
 
 def bic(sse: float, n: int, k: int) -> float:
@@ -135,7 +140,8 @@ class OrderChoice:
     trades: list[tuple[str, str, float]] = field(default_factory=list)
     """Pairs of T, T2, delay in the chosen fit with |correlation| > TRADE_CORRELATION."""
     split_undetermined: bool = False
-    """Two lags kept (no meter lag given) that the data do not tell apart (condition 4)."""
+    """Two lags kept that the data do not tell apart: with no meter lag given, not told apart
+    (condition 4); in any case, correlated beyond ±:data:`LAGS_NOT_SEPARATED`."""
 
     @property
     def chosen_candidate(self) -> Candidate:
@@ -282,8 +288,35 @@ def second_lag_verdict(
     return None
 
 
+def lags_not_separated(names: tuple[str, ...], cov: FloatArray) -> float | None:
+    """corr(T, T2) when it is beyond ±:data:`LAGS_NOT_SEPARATED`, else None.
+
+    Examples
+    --------
+    >>> lags_not_separated(("T", "T2"), np.array([[1.0, 0.9995], [0.9995, 1.0]]))
+    0.9995
+    >>> lags_not_separated(("T", "T2"), np.eye(2)) is None
+    True
+    """
+    if "T" not in names or "T2" not in names:
+        return None
+    i, j = names.index("T"), names.index("T2")
+    c = np.asarray(cov, dtype=float)
+    denominator = math.sqrt(abs(c[i, i] * c[j, j]))
+    if not (math.isfinite(denominator) and denominator > 0.0):
+        return None
+    corr = float(c[i, j] / denominator)
+    return corr if abs(corr) > LAGS_NOT_SEPARATED else None
+
+
 def lags_told_apart(c: Candidate) -> bool:
-    """Whether the two lags of a two-lag fit differ by more than 1.96 standard errors."""
+    """Whether the two lags of a two-lag fit differ by more than 1.96 standard errors.
+
+    Never when their correlation is beyond ±:data:`LAGS_NOT_SEPARATED`: their separate
+    intervals are then withheld, and a difference within them is not one the data determine.
+    """
+    if lags_not_separated(c.names, c.cov) is not None:
+        return False
     var = c.cov_of("T", "T") + c.cov_of("T2", "T2") - 2.0 * c.cov_of("T", "T2")
     se_diff = math.sqrt(var) if var > 0.0 else math.nan
     return math.isfinite(se_diff) and abs(c.model.T - c.model.T2) > Z95 * se_diff
@@ -325,13 +358,23 @@ def choose_order(
             )
             if objection is None:
                 chosen = 2
-                reason = (
-                    f"order 2: BIC prefers it by {gain:.1f}, the second lag is longer than the "
-                    "sample period and its 95 % interval excludes zero"
-                )
-                split = not meter_lag_given and not lags_told_apart(two)
-                if split:
-                    reason += "; the two lags are not told apart: their split is not determined"
+                merged = lags_not_separated(two.names, two.cov)
+                split = merged is not None or (not meter_lag_given and not lags_told_apart(two))
+                if merged is not None:
+                    # the intervals reported are withheld: the reason must not cite them
+                    reason = (
+                        f"order 2: BIC prefers it by {gain:.1f} and the second lag is longer "
+                        f"than the sample period; the two lags are not told apart "
+                        f"(correlation {merged:+.4f}): their split is not determined and "
+                        "neither has an interval of its own"
+                    )
+                else:
+                    reason = (
+                        f"order 2: BIC prefers it by {gain:.1f}, the second lag is longer than "
+                        "the sample period and its 95 % interval excludes zero"
+                    )
+                    if split:
+                        reason += "; the two lags are not told apart: their split is not determined"
             else:
                 chosen = 1
                 reason = (
@@ -345,11 +388,13 @@ def choose_order(
 
 __all__ = [
     "BIC_CLOSE",
+    "LAGS_NOT_SEPARATED",
     "TRADE_CORRELATION",
     "Candidate",
     "OrderChoice",
     "bic",
     "choose_order",
+    "lags_not_separated",
     "lags_told_apart",
     "second_lag_verdict",
 ]

@@ -30,6 +30,7 @@ from fuelid.errors import FuelidError
 from fuelid.identify import diagnostics
 from fuelid.identify.nonlinearity import gain_bands
 from fuelid.identify.oe import OutputError
+from fuelid.identify.order import lags_not_separated as _lags_not_separated
 from fuelid.identify.pem import PredictionError
 from fuelid.identify.preprocess import decimate
 from fuelid.identify.residual_warnings import residual_warnings
@@ -180,23 +181,6 @@ AUTO_VALIDATION_MARGIN = 2.0
 """pem's validation fit may be this many points below oe's before ``auto`` keeps oe [%]."""
 NEAR_INTEGRATING_POLE = 0.999
 """A noise pole above this (per sample) makes pem fit the differenced data: ``auto`` keeps oe."""
-
-
-LAGS_NOT_SEPARATED = 0.999
-"""|corr(T, T2)| above which the two lags' separate intervals are withheld."""
-
-
-def _lags_not_separated(names: tuple[str, ...], cov: FloatArray) -> float | None:
-    """corr(T, T2) when it is beyond ±:data:`LAGS_NOT_SEPARATED`, else None."""
-    if "T" not in names or "T2" not in names:
-        return None
-    i, j = names.index("T"), names.index("T2")
-    c = np.asarray(cov, dtype=float)
-    denominator = math.sqrt(abs(c[i, i] * c[j, j]))
-    if not (math.isfinite(denominator) and denominator > 0.0):
-        return None
-    corr = float(c[i, j] / denominator)
-    return corr if abs(corr) > LAGS_NOT_SEPARATED else None
 
 
 def _identify_auto(

@@ -38,9 +38,6 @@ DEFAULT_BAD_VALUES: tuple[str, ...] = (
 )
 """Cell texts read as a missing sample (case and surrounding spaces ignored; ``""``: empty)."""
 
-MARKS_LISTED = 4
-"""The note names this many marker texts per column, then counts the rest."""
-
 BadMarks = tuple[np.ndarray[tuple[int], np.dtype[np.bool_]], Counter[str]]
 """Where a column holds a marker, and how many of each (by the text as first written)."""
 
@@ -120,17 +117,18 @@ def describe_bad_marks(column: str, counts: Counter[str], rows: Sequence[int] = 
     --------
     >>> describe_bad_marks("flow", Counter({"Bad Input": 8, "#N/A": 4}))
     "12 samples marked bad in column flow: 8 'Bad Input', 4 '#N/A'"
+    >>> describe_bad_marks("q", Counter({"#N/A": 2, "Bad": 1, "Comm Fail": 1, "": 1, "No Data": 1}))
+    "6 samples marked bad in column q: 2 '#N/A', 1 'Bad', 1 'Comm Fail', 1 empty, 1 'No Data'"
     >>> describe_bad_marks("u", Counter({"": 1}), rows=[301])
     '1 sample marked bad in column u: 1 empty (data row 301)'
     """
     total = sum(counts.values())
     ranked = counts.most_common()
+    # every text counted by itself (the markers are few: the known ones and the user's), an
+    # empty cell as "empty": lumping them as "other" hid which marker the user's data held
     listed = ", ".join(
-        f"{count} empty" if text == "" else f"{count} {text!r}"
-        for text, count in ranked[:MARKS_LISTED]
+        f"{count} empty" if text == "" else f"{count} {text!r}" for text, count in ranked
     )
-    if len(ranked) > MARKS_LISTED:
-        listed += f", {sum(c for _, c in ranked[MARKS_LISTED:])} other"
     where = ""
     if rows:
         shown = ", ".join(str(row) for row in rows[:3]) + (", ..." if len(rows) > 3 else "")

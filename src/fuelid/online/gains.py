@@ -76,7 +76,7 @@ def controller_to_ideal(kc: float, ti: float, controller: Controller) -> Gains:
     - ``form = "ideal"``: kc = Kc, ti = Ti, u = Kc·(e + (1/Ti)·∫e dt);
     - ``form = "parallel"``: kc = Kp, ti = **Ki** = Kp/Ti, the integral gain,
       u = Kp·e + Ki·∫e dt (the ``ti`` field holds Ki, not a time: Kc = Kp, Ti = Kp/Ki);
-    - ``gain_units = "percent"``: Kp or Kc in % of output span per % of measurement span,
+    - ``gain_units = "percent"``: Kp or Kc in % of drive span per % of meter span,
       Kc [V per L/min] = kc·u_span_V/y_span_Lpm; ``"engineering"``: V per L/min as is;
     - ``integral_unit = "min"``: Ti in minutes (ideal) or Ki per minute (parallel), else
       seconds; Ti [s] = 60·ti (ideal) or 60·kc/ti (parallel).

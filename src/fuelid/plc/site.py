@@ -292,8 +292,10 @@ class Controller(_Table):
         "engineering", description="V per L/min, or percent of span per percent of span"
     )
     integral_unit: Literal["s", "min"] = "s"
-    u_span_V: float | None = Field(None, gt=0.0, description="output span of percent gains")
-    y_span_Lpm: float | None = Field(None, gt=0.0, description="input span of percent gains")
+    u_span_V: float | None = Field(None, gt=0.0, description="drive span [V] of percent gains")
+    y_span_Lpm: float | None = Field(
+        None, gt=0.0, description="meter span [L/min] of percent gains"
+    )
     kc: float | None = Field(None, gt=0.0, description="commissioning gain, in gain_units")
     ti: float | None = Field(None, gt=0.0, description="commissioning integral, in integral_unit")
 

@@ -57,3 +57,28 @@ def save_figure(fig: Figure, path: str | Path) -> Path:
         raise DataError(f"figure folder {str(out.parent)!r} does not exist")
     fig.savefig(out, dpi=120, bbox_inches="tight")
     return out
+
+
+LABEL_BAND = 0.14
+"""Share of an axes' height kept free of data at its top for labels (a span's name, a legend)."""
+
+LABEL_BOX = {"facecolor": "white", "alpha": 0.85, "edgecolor": "none", "pad": 1.5}
+"""The background of a label drawn over a figure's shading and grid."""
+
+
+def _reserve_label_band(ax: Axes) -> None:
+    """Raise the y range's top so that the top :data:`LABEL_BAND` of ``ax`` holds no data.
+
+    Call after the data are drawn (the range is the data's) and before labels go into the band:
+    a label there, at an axes y of 1 − LABEL_BAND or more, cannot cover a curve.
+    """
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo, hi + (hi - lo) * LABEL_BAND / (1.0 - LABEL_BAND))
+
+
+def _band_text(ax: Axes, x: float, text: str, ha: str = "left") -> None:
+    """``text`` at time ``x`` in the label band at the top of ``ax``, on a white box."""
+    ax.text(
+        x, 0.975, text, transform=ax.get_xaxis_transform(), ha=ha, va="top", fontsize=8,
+        zorder=5, bbox=LABEL_BOX,
+    )  # fmt: skip

@@ -9,12 +9,18 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from fuelid.errors import DataError
-from fuelid.plots._common import FloatArray
+from fuelid.plots._common import (
+    FloatArray,
+    _band_text,
+    _reserve_label_band,
+    _unit_of,
+    _with_unit,
+)
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -104,13 +110,17 @@ def plot_greybox_fit(
             ax.set_ylabel(name)
             ax_res.set_ylabel(f"residual {name}")
             if col == 0 and k == 0:
-                ax.legend(loc="best", fontsize=8)
+                # in the label band, clear of the curves, beside the spans' names
+                corner: Literal["upper center", "upper left"] = (
+                    "upper center" if panel.initial_span_end is not None else "upper left"
+                )
+                ax.legend(loc=corner, fontsize=8, ncols=2)
         if with_inputs and panel.input_u is not None:
             ax_u = fig.add_subplot(grid[rows - 1, col], sharex=axes[0])
             for j in range(panel.input_u.shape[1]):
                 label = panel.input_names[j] if j < len(panel.input_names) else f"u{j + 1}"
                 ax_u.step(panel.t, panel.input_u[:, j], where="post", lw=0.8, label=label)
-            ax_u.set_ylabel("input")
+            ax_u.set_ylabel(_input_label(panel.input_names))
             ax_u.legend(loc="best", fontsize=7)
             _shade(panel, (ax_u,), label=False)
             axes.append(ax_u)
@@ -140,15 +150,22 @@ def _shade(panel: FitPanel, axes: Sequence[Any], label: bool) -> None:
             axis.axvspan(panel.heldout_start, float(panel.t[-1]), color="tab:purple", alpha=0.08)
     if not label:
         return
-    # x in data, y in axes units: the labels sit just inside the top frame whatever the data
-    where = axes[0].get_xaxis_transform()
+    # the top of the signal axes is kept free of data: the spans' names cannot cover a curve
+    _reserve_label_band(axes[0])
     if panel.initial_span_end is not None:
-        axes[0].text(
-            float(panel.t[0]), 0.97, " initial state fitted here", transform=where, va="top",
-            fontsize=8,
-        )  # fmt: skip
+        _band_text(axes[0], float(panel.t[0]), " initial state fitted here")
     if panel.heldout_start is not None:
-        axes[0].text(
-            float(panel.t[-1]), 0.97, "held out: predicted ", transform=where, ha="right",
-            va="top", fontsize=8,
-        )  # fmt: skip
+        _band_text(axes[0], float(panel.t[-1]), "held out: predicted ", ha="right")
+
+
+def _input_label(names: Sequence[str]) -> str:
+    """The input axis' label with its unit.
+
+    The one input's name ("command [V]"), or "input [V]" when the inputs share a unit (``input
+    [unit not given]`` when they do not state one).
+    """
+    if len(names) == 1:
+        return _with_unit(names[0], None)
+    units = {_unit_of(name) for name in names}
+    unit = units.pop() if len(units) == 1 else None
+    return _with_unit("input", unit)

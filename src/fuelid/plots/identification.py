@@ -126,9 +126,10 @@ def plot_identification(
     for axis in (ax, ax_res):
         axis.grid(True, alpha=0.3)
         if split_time is not None:
-            axis.axvspan(split_time, float(t[-1]), color="tab:olive", alpha=0.08)
-    if split_time is not None:
-        ax.text(split_time, ax.get_ylim()[1], " validation", va="top", fontsize=8)
+            # named in the legend, which is placed clear of the curves (a text on the span sat
+            # on the data line)
+            span_label = "validation (held out)" if axis is ax else None
+            axis.axvspan(split_time, float(t[-1]), color="tab:olive", alpha=0.08, label=span_label)
     unit = unit or _unit_of(ylabel)
     ax.set_ylabel(_with_unit(ylabel, unit))
     ax.legend(loc="best", fontsize=8)

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from fuelid.plots._common import DRIVE_LIMITS, FloatArray, _include
+from fuelid.plots._common import DRIVE_LIMITS, LABEL_BAND, LABEL_BOX, FloatArray, _include
 from fuelid.units import kelvin_to_celsius
 
 if TYPE_CHECKING:
@@ -68,15 +68,18 @@ def plot_bode(
             xytext=(crossover, -180.0),
             arrowprops={"arrowstyle": "<->", "color": "tab:green", "lw": 1.5},
         )
+        # named in the band at the top of the axes, which the phase curve stays below (beside
+        # the arrow, the label sat on the curve where it falls through -180°)
         ax_phase.annotate(
             f"PM = {phase_margin_deg:.1f}°",
-            (crossover, -180.0 + phase_margin_deg / 2),
+            (crossover, 0.975),
+            xycoords=("data", "axes fraction"),
             textcoords="offset points",
-            xytext=(6, 0),
-            va="center",
+            xytext=(4, 0),
+            va="top",
             fontsize=9,
             color="tab:green",
-            bbox={"fc": "white", "ec": "none", "alpha": 0.8},
+            bbox=LABEL_BOX,
         )
     gm_db = 20.0 * np.log10(gain_margin) if gain_margin > 0 else np.nan
     if np.isfinite(phase_crossover) and np.isfinite(gm_db):
@@ -106,7 +109,9 @@ def plot_bode(
             bbox={"fc": "white", "ec": "none", "alpha": 0.8},
         )
     bottom = max(float(np.min(phase)), -720.0)
-    ax_phase.set_ylim(bottom, 0.0)
+    # the top LABEL_BAND of the phase axes free of the curve, for the PM label
+    top = float(np.max(phase))
+    ax_phase.set_ylim(bottom, max(0.0, top + (top - bottom) * LABEL_BAND / (1.0 - LABEL_BAND)))
     low = max(float(np.min(mag_db)), -60.0)
     if np.isfinite(gm_db):
         low = min(low, -gm_db - 5.0)

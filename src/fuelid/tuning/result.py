@@ -140,7 +140,7 @@ def evaluate_tuning(
         As for :func:`~fuelid.tuning.rules.tune`: the rule's key, the PLC period h [s] and τc or
         λ [s] (larger is slower; None for the rule's default).
     u_span, y_span : float
-        Controller output span [V] and measurement span [L/min] of the percent-of-span gain.
+        Drive span [V] and meter span [L/min] of the percent-of-span gain.
 
     Examples
     --------

@@ -118,7 +118,7 @@ class GainSchedule:
     ms_target: float
     bands: list[ScheduleBand] = field(default_factory=list)
     u_span: float = 4.0
-    """Controller output span of the percent-of-span gains [V]."""
+    """Drive span (the controller output's signal range) of the percent-of-span gains [V]."""
     y_span: float = 100.0
     """Measurement span of the percent-of-span gains [L/min]."""
     single_set: FixedPIEvaluation | None = None
@@ -253,7 +253,7 @@ def gain_schedule(
         An identified model that anchors the physics (:func:`~fuelid.tuning.cases.plant_cases`).
     y_span : float, optional
         Measurement span of the percent-of-span gains [L/min] (default: the meter's span); the
-        output span is the drive's signal range [V].
+        drive span is the command's signal range [V].
     cache : dict, optional
         Linearised plant cases by (T_fuel, u), shared with a temperature check of the same call
         so that no case is linearised twice.
