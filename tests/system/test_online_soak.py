@@ -98,7 +98,6 @@ import pytest
 
 pytest.importorskip("pymodbus")
 
-from bands import coverage_band, rmse_ratio_band, z_bound
 from fuelid.online.service import OnlineService, observation_of
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.online.window import WindowAnalyser
@@ -110,6 +109,7 @@ from fuelid.store.base import SampleArrays
 from fuelid.tuning.frequency import robustness
 from fuelid.tuning.rules import PISettings
 from fuelid.units import celsius_to_kelvin
+from support.bands import coverage_band, rmse_ratio_band, z_bound
 
 HOLD_S = 1020.0
 """The constant-setpoint stretch after each run cycle [s]: ≥ 900 s holds one whole 600 s window

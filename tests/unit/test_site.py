@@ -187,7 +187,7 @@ def test_site_check_prints_the_tag_map(tmp_path: Path):
 
 
 def test_the_readme_example_is_a_valid_site_file(tmp_path: Path):
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
     section = readme.split("### `fuelid site check")[1]
     block = section.split("```toml\n")[1].split("```")[0]
     site = load_site(_write(tmp_path, block))
