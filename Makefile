@@ -78,9 +78,10 @@ test: lint typecheck pytest
 
 # The slow set runs in one process: the fault runs and the soak drive the virtual PLC at 20-50x
 # real time, and a second worker on a 2-core machine would starve their recorders. The soak
-# runs FUELID_SOAK_HOURS of plant time (6 by default). -rP: they print their measurements.
+# runs FUELID_SOAK_HOURS of plant time (6 by default) with its own deadline; every other slow
+# test gets 15 min. -rP: they print their measurements.
 test-slow: $(STAMP)
-	$(BIN)/python -m pytest -q -m slow -rP -p no:xdist
+	$(BIN)/python -m pytest -q -m slow -rP -p no:xdist --timeout=900
 
 # The 24 h soak (tests/system/test_online_soak.py) on demand: about 30 min at 50x, prints its
 # table; SOAK_HOURS=… for another length (its bands are computed from the counts of the run).
