@@ -57,6 +57,7 @@ REAL_TIME_MODULES = frozenset(
 )
 
 
+@pytest.hookimpl(optionalhook=True)  # an xdist hook: unknown under -p no:xdist (the slow set)
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     """Under ``--dist loadgroup``: the real-time modules as one group, every other test alone.
 
