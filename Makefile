@@ -11,7 +11,7 @@ DEMO_DIR ?= demo-output
 help:
 	@echo "make demo   - install if needed, run the reference-plant demo (writes $(DEMO_DIR)/)"
 	@echo "make plc-demo - the virtual PLC over Modbus: record, export, identify (writes $(DEMO_DIR)/plc/)"
-	@echo "make test   - install if needed, run ruff, mypy and the whole pytest suite"
+	@echo "make test   - install if needed, run ruff, mypy and the fast pytest suite (about 4 min)"
 	@echo "make test-slow - the long fault runs and a 6 h soak (CI runs them after make test)"
 	@echo "make soak   - the 24 h soak against the virtual PLC (on demand, about 30 min, prints its table)"
 	@echo "make bench  - run the benchmarks (on demand, prints tables)"
@@ -53,9 +53,9 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
-# The browser test (tests/integration/test_report_browser.py) opens the HTML report in headless Chromium. As
-# root (CI, a container) Chromium is installed from Debian when missing; otherwise the test skips
-# and says why (under CI, with CI set, it fails instead).
+# The browser test (tests/integration/test_report_browser.py) opens the HTML report in headless
+# Chromium. As root (CI, a container) Chromium is installed from Debian when missing; otherwise
+# the test skips and says why (under CI, with CI set, it fails instead).
 browser:
 	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
 	if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
@@ -66,10 +66,10 @@ browser:
 		echo "chromium missing and not root (or no apt-get): the browser test will skip"; \
 	fi
 
-# `make test` runs the short version of every test, on every core (pytest-xdist; tests that
-# must not share the machine with each other carry one xdist_group mark and run in one worker:
-# --dist loadgroup); budget 6 min with lint and mypy on 2 cores (.ci/run). Every test has a
-# deadline (pytest-timeout, pyproject.toml). The long fault runs and the soak are marked slow.
+# `make test` runs the short version of every test, on every core (pytest-xdist; the tests that
+# run a PLC at speed share one worker under --dist loadgroup: tests/conftest.py); budget 6 min
+# with lint and mypy on 2 cores (.ci/run). Every test has a deadline (pytest-timeout,
+# pyproject.toml). The long fault runs and the soak are marked slow.
 PYTEST_WORKERS ?= auto
 pytest: $(STAMP) browser
 	$(BIN)/python -m pytest -q -m "not slow" -n $(PYTEST_WORKERS) --dist loadgroup
