@@ -6,14 +6,15 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.fuelid-installed
 DEMO_DIR ?= demo-output
 
-.PHONY: help install demo plc-demo test test-slow lint typecheck pytest browser bench clean \
+.PHONY: help install demo plc-demo test test-slow soak lint typecheck pytest browser bench clean \
 	docs docs-serve docs-assets
 
 help:
 	@echo "make demo   - install if needed, run the reference-plant demo (writes $(DEMO_DIR)/)"
 	@echo "make plc-demo - the virtual PLC over Modbus: record, export, identify (writes $(DEMO_DIR)/plc/)"
-	@echo "make test   - install if needed, run ruff, mypy and the whole pytest suite"
-	@echo "make test-slow - the long fault and soak runs (CI runs them after make test)"
+	@echo "make test   - install if needed, run ruff, mypy and the fast pytest suite (about 4 min)"
+	@echo "make test-slow - the long fault runs and a 6 h soak (CI runs them after make test)"
+	@echo "make soak   - the 24 h soak against the virtual PLC (on demand, about 30 min, prints its table)"
 	@echo "make bench  - run the benchmarks (on demand; prints tables, writes docs/benchmarks/)"
 	@echo "make docs   - build the documentation site into site/ (mkdocs build --strict)"
 	@echo "make docs-serve - serve the documentation with live reload on http://127.0.0.1:8000"
@@ -49,16 +50,16 @@ plc-demo: $(STAMP)
 	$(BIN)/python examples/plc_demo.py --out $(DEMO_DIR)/plc
 
 lint: $(STAMP)
-	$(BIN)/ruff check src tests benchmarks examples
-	$(BIN)/ruff format --check src tests benchmarks examples
+	$(BIN)/ruff check src tests benchmarks examples docs/hooks docs/scripts
+	$(BIN)/ruff format --check src tests benchmarks examples docs/hooks docs/scripts
 	$(BIN)/lint-imports
 
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
-# The browser test (tests/test_report_browser.py) opens the HTML report in headless Chromium. As
-# root (CI, a container) Chromium is installed from Debian when missing; otherwise the test skips
-# and says why (under CI, with CI set, it fails instead).
+# The browser test (tests/integration/test_report_browser.py) opens the HTML report in headless
+# Chromium. As root (CI, a container) Chromium is installed from Debian when missing; otherwise
+# the test skips and says why (under CI, with CI set, it fails instead).
 browser:
 	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
 	if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
@@ -69,15 +70,29 @@ browser:
 		echo "chromium missing and not root (or no apt-get): the browser test will skip"; \
 	fi
 
-# `make test` runs the short version of every test; the long fault and soak runs are marked slow
-# (`make test-slow`, which CI adds after `make test`).
+# `make test` runs the short version of every test, on every core (pytest-xdist; the tests that
+# run a PLC at speed share one worker under --dist loadgroup: tests/conftest.py); budget 6 min
+# with lint and mypy on 2 cores (.ci/run). Every test has a deadline (pytest-timeout,
+# pyproject.toml). The long fault runs and the soak are marked slow.
+PYTEST_WORKERS ?= auto
 pytest: $(STAMP) browser
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -m "not slow" -n $(PYTEST_WORKERS) --dist loadgroup
 
 test: lint typecheck pytest
 
+# The slow set runs in one process: the fault runs and the soak drive the virtual PLC at 20-50x
+# real time, and a second worker on a 2-core machine would starve their recorders. The soak
+# runs FUELID_SOAK_HOURS of plant time (6 by default) with its own deadline; every other slow
+# test gets 15 min. -rP: they print their measurements.
 test-slow: $(STAMP)
-	$(BIN)/python -m pytest -q -m slow -rP  # -rP: the soak and fault runs print their measurements
+	$(BIN)/python -m pytest -q -m slow -rP -p no:xdist --timeout=900
+
+# The 24 h soak (tests/system/test_online_soak.py) on demand: about 30 min at 50x, prints its
+# table; SOAK_HOURS=… for another length (its bands are computed from the counts of the run).
+SOAK_HOURS ?= 24
+soak: $(STAMP)
+	FUELID_SOAK_HOURS=$(SOAK_HOURS) $(BIN)/python -m pytest -q -m slow -s -p no:xdist \
+		tests/system/test_online_soak.py
 
 # The benchmarks get their own environment: the peer (sysidentpy) pins an older numpy, which
 # must not replace the one the tests run with.

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from bands import coverage_band
 from fuelid.errors import NotExcitingError
 from fuelid.identify.oe import OutputError, cramer_rao_bound
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel, nrmse_fit, simulate_model
+from support.bands import coverage_band
 
 H = 0.02
 # the reference plant's equivalent model at 3 V, 20 °C (fuelid plant info): K, T, T_f, delay

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from bands import rmse_ratio_band, z_bound
 from fuelid.errors import FuelidError, NotFittedError
 from fuelid.identify.diagnostics import residual_whiteness
 from fuelid.identify.noise import step_down, step_up
@@ -20,6 +19,7 @@ from fuelid.identify.pem import PredictionError
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel, simulate_model
+from support.bands import rmse_ratio_band, z_bound
 
 H = 0.02
 TRUTH = ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2)

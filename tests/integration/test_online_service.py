@@ -25,9 +25,9 @@ from fuelid.plc.adapters import open_source
 from fuelid.plc.adapters.modbus import ModbusSource
 from fuelid.plc.site import SiteConfig
 from fuelid.plc.virtual.runner import VirtualPlcThread
-from online_helpers import approve_directly as _approved_proposal
-from online_helpers import online_site as _site
-from online_helpers import open_history as _history
+from support.online import approve_directly as _approved_proposal
+from support.online import online_site as _site
+from support.online import open_history as _history
 
 SPEED = 20.0
 """Plant time per wall time: the PLC's 10 s heartbeat timeout is 0.5 s of wall time."""

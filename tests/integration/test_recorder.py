@@ -1,18 +1,16 @@
 """The recorder (issue 14, items 2 and 4): time base, back-fill, restarts, quality, link drops.
 
 Sources: a replayed CSV log (no extra needed) and a Modbus PLC written in the tests
-(test_modbus_adapter.FakePlc) whose program fills a ring buffer at 100 Hz with values that are
+(support.modbus.FakePlc) whose program fills a ring buffer at 100 Hz with values that are
 known functions of the sequence number, so every stored value can be checked against the number
 it is stored under.
 """
 
 from __future__ import annotations
 
-import asyncio
 import sqlite3
 import threading
 import time
-import tomllib
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -20,78 +18,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fuelid.plc.adapters import PlcSource, open_source
 from fuelid.plc.codec import encode
-from fuelid.plc.recorder import Recorder, RecorderStats, site_identity
+from fuelid.plc.recorder import site_identity
 from fuelid.plc.site import SiteConfig
-from fuelid.store import Quality, SampleWriter, SQLiteStore
+from fuelid.store import Quality, SQLiteStore
+from support.recorder import REPLAY, RING_REPLAY, kinds, load, record, rows, write_log
 
 UINT32 = 1 << 32
-
-
-def load(text: str) -> SiteConfig:
-    return SiteConfig.model_validate(tomllib.loads(text))
-
-
-def record(
-    site: SiteConfig, db: Path, duration_s: float, source: PlcSource | None = None, **kw: Any
-) -> RecorderStats:
-    store = SQLiteStore(db, period_s=site.sampling.period_s, **site_identity(site))
-    writer = SampleWriter(store, commit_interval_s=0.2)
-    try:
-        recorder = Recorder(source or open_source(site), writer, **kw)
-        return asyncio.run(recorder.run(duration_s))
-    finally:
-        writer.close()
-        store.close()
-
-
-def rows(db: Path) -> tuple[Any, list[Any], Any]:
-    with SQLiteStore(db) as store:
-        return store.read(), store.read_events(), store.info()
-
-
-def kinds(events: list[Any], kind: str) -> list[Any]:
-    return [e for e in events if e.kind == kind]
-
-
-# --- replay -------------------------------------------------------------------------------
-
-REPLAY = """
-[site]
-name = "replay loop"
-[plc]
-protocol = "replay"
-path = "{path}"
-speed = {speed}
-[sampling]
-period_s = {period}
-control_period_s = 1.0
-[tags.command]
-address = "u"
-unit = "V"
-[tags.flow]
-address = "counts"
-type = "int16"
-raw = [0, 27648]
-eng = [0.0, 120.0]
-unit = "L/min"
-[tags.fuel_temperature]
-address = "temp"
-unit = "degC"
-"""
-
-
-def write_log(path: Path, n: int, flow: np.ndarray | None = None, **extra: Any) -> None:
-    k = np.arange(n)
-    counts = flow if flow is not None else 13824.0 + 2000.0 * np.sin(0.05 * k) + (k * 7919) % 13
-    columns = {"u": 2.0 + 0.5 * np.sin(0.05 * k), "counts": counts, "temp": 20.0 + 0 * k}
-    columns.update(extra)
-    names = list(columns)
-    lines = [",".join(names)]
-    for i in range(n):
-        lines.append(",".join(repr(float(columns[c][i])) for c in names))
-    path.write_text("\n".join(lines) + "\n")
 
 
 def test_replay_with_a_seq_column_stores_each_row_once_or_counts_it_lost(tmp_path: Path) -> None:
@@ -115,11 +48,6 @@ def test_replay_with_a_seq_column_stores_each_row_once_or_counts_it_lost(tmp_pat
     assert np.allclose(np.diff(data.time), 0.01 * np.diff(data.seq), atol=1e-6)
     k = data.seq
     assert np.allclose(data.u, 2.0 + 0.5 * np.sin(0.05 * k))
-
-
-RING_REPLAY = (
-    '[ring]\nhead = "seq"\naddress = "seq"\nsize = 512\nfields = ["seq", "command", "flow"]\n'
-)
 
 
 def test_bad_values_and_a_stuck_sensor_become_flags_and_events(tmp_path: Path) -> None:
@@ -232,7 +160,7 @@ class RingProgram:
 @pytest.fixture
 def modbus_plc() -> Iterator[Any]:
     pytest.importorskip("pymodbus", reason="the [plc] extra (pymodbus) is not installed")
-    from test_modbus_adapter import FakePlc
+    from support.modbus import FakePlc
 
     servers: list[Any] = []
 
@@ -437,7 +365,7 @@ def test_an_unreachable_plc_is_retried_with_backoff_and_given_up_when_asked(
 ) -> None:
     pytest.importorskip("pymodbus", reason="the [plc] extra (pymodbus) is not installed")
     from fuelid.plc.adapters import LinkError
-    from test_modbus_adapter import free_port
+    from support.modbus import free_port
 
     site = load(RING_SITE.format(port=free_port()))
     messages: list[str] = []

@@ -12,11 +12,11 @@ import pytest
 import scipy.linalg
 import scipy.signal
 
-from bands import coverage_band, rmse_ratio_band
 from fuelid.identify import OutputError
 from fuelid.identify.covariance import ResidualAR, residual_ar, sandwich_covariance
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, simulate_model
+from support.bands import coverage_band, rmse_ratio_band
 
 H = 0.05
 TRUTH = ProcessModel(K=3.0, T=1.0, delay=0.2)

@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from bands import coverage_band, rmse_ratio_band
 from fuelid.errors import DataError, FuelidError
 from fuelid.greybox import (
     ConvergenceError,
@@ -28,6 +27,7 @@ from fuelid.greybox.estimator import NotIdentifiableError
 from fuelid.greybox.identifiability import identifiability
 from fuelid.greybox.parameters import ParameterMap
 from fuelid.greybox.sensitivity import simulate_record
+from support.bands import coverage_band, rmse_ratio_band
 
 FloatArray = NDArray[np.float64]
 TANK_TRUTH = {"k1": 0.05, "k2": 0.04, "k3": 0.05, "k4": 0.06}

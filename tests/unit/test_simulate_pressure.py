@@ -20,7 +20,7 @@ from typer.testing import CliRunner
 from fuelid.cli import app
 from fuelid.errors import FuelidError
 from fuelid.io.timeseries import PRESSURE_COLUMN
-from fuelid.plant import PlantConfig, load_plant_config
+from fuelid.plant import PlantConfig
 from fuelid.plant.simulate import SimulationResult, integrate_held, simulate
 from fuelid.plant.system import plant_coefficients, steady_state
 from fuelid.profiles import step_profile
@@ -28,11 +28,6 @@ from fuelid.profiles import step_profile
 T20 = 293.15
 MPA = 1e6  # Pa per MPa
 U0, U1, T_STEP, END = 1.0, 1.5, 10.0, 60.0
-
-
-@pytest.fixture(scope="module")
-def cfg() -> PlantConfig:
-    return load_plant_config()
 
 
 @pytest.fixture(scope="module")

@@ -64,11 +64,6 @@ def _finite_difference_jacobian(x0: np.ndarray, u: float, c: PlantCoefficients) 
     return fd
 
 
-@pytest.fixture(scope="module")
-def cfg() -> PlantConfig:
-    return load_plant_config()
-
-
 @functools.cache
 def _linear(u: float, T: float) -> LinearPlant:
     return linearise(load_plant_config(), u, T)

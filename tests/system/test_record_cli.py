@@ -145,7 +145,7 @@ def test_link_drops_on_the_virtual_plc_are_back_filled_from_its_ring(
 def test_an_unreachable_plc_exits_2_only_after_give_up(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from test_modbus_adapter import free_port
+    from support.modbus import free_port
 
     site = tmp_path / "site.toml"
     port = free_port()
@@ -432,7 +432,7 @@ def test_plc_server_process_killed_and_restarted_at_speed_is_two_restarts_in_the
     runs are stored from their first record, strictly after the old ones in time.
     """
     pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
-    from test_modbus_adapter import free_port
+    from support.modbus import free_port
 
     speed, period = 5.0, 0.02
     port = free_port()

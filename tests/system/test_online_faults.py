@@ -50,9 +50,9 @@ from fuelid.plc.site import SiteConfig
 from fuelid.plc.virtual.runner import VirtualPlcThread
 from fuelid.profiles.runs import Profile
 from fuelid.store.sqlite import SQLiteStore
-from online_helpers import approve_directly as _approve
-from online_helpers import online_site as _site
-from online_helpers import open_history as _open
+from support.online import approve_directly as _approve
+from support.online import online_site as _site
+from support.online import open_history as _open
 
 REFERENCE_PLANT = str(resources.files("fuelid.data").joinpath("reference_plant.toml"))
 HEARTBEAT_S = 0.05

@@ -20,7 +20,7 @@ from fuelid.plc.quality import RangeChecks
 from fuelid.plc.recorder import RecorderStats
 from fuelid.plc.site import Tag
 from fuelid.store import Event, Quality, Sample, SQLiteStore
-from test_recorder import REPLAY, RING_REPLAY, kinds, load, record, rows, write_log
+from support.recorder import REPLAY, RING_REPLAY, kinds, load, record, rows, write_log
 
 
 def virtual_plc(**kw: Any) -> Any:

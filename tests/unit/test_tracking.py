@@ -10,7 +10,6 @@ from functools import cache
 import numpy as np
 import pytest
 
-from bands import coverage_band, rmse_ratio_band
 from fuelid.errors import FuelidError, NotFittedError
 from fuelid.online.tracking import (
     GainObservation,
@@ -22,6 +21,7 @@ from fuelid.online.tracking import (
 from fuelid.plant.config import load_plant_config
 from fuelid.units import celsius_to_kelvin
 from fuelid.workflow.plant_info import plant_info
+from support.bands import coverage_band, rmse_ratio_band
 
 RATIO = 0.85
 """Pump wear: the loop's K is 85 % of the plant model's."""

@@ -66,11 +66,18 @@ What is measured, after the run, from the store, the history and the engine (the
   3 % of its samples on a loaded machine (Modbus answers later than the 1 s timeout, the link
   dropped and the ring overran), so it runs at 50× (about 30 min).
 
-How to run: the 2 h soak (50× real time, about 2.5 min) is part of ``make test``; the 24 h one
-(50×, about 30 min) is in the slow set::
+How to run: the soak is in the slow set and takes its plant time from ``FUELID_SOAK_HOURS``
+(default 6: the slow set CI runs, 50× real time, about 8 min); ``make soak`` runs 24 h (about
+30 min)::
 
-    .venv/bin/pytest tests/test_online_soak.py -s                 # 2 h, prints the table
-    .venv/bin/pytest -m slow tests/test_online_soak.py -s         # 24 h, prints the table
+    .venv/bin/pytest -m slow tests/system/test_online_soak.py -s                     # 6 h
+    FUELID_SOAK_HOURS=2 .venv/bin/pytest -m slow tests/system/test_online_soak.py -s  # 2 h
+    make soak                                                                          # 24 h
+
+Every band above is computed from the counts of the run (windows, held-out windows), so it holds
+at its stated false-alarm rate for any length; fewer hours mean fewer windows (the table prints
+the counts), wider relative bands and less power. The run needs at least 5 non-overlapping
+accepted windows (asserted), which 2 h already gives.
 
 ``-s`` prints a table of the numbers: windows, accepted, within 3 %, coverage, held-out
 prediction z, max Ms, RSS growth, samples lost, wall time; and the K error of every fitted
@@ -98,7 +105,6 @@ import pytest
 
 pytest.importorskip("pymodbus")
 
-from bands import coverage_band, rmse_ratio_band, z_bound
 from fuelid.online.service import OnlineService, observation_of
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.online.window import WindowAnalyser
@@ -110,6 +116,7 @@ from fuelid.store.base import SampleArrays
 from fuelid.tuning.frequency import robustness
 from fuelid.tuning.rules import PISettings
 from fuelid.units import celsius_to_kelvin
+from support.bands import coverage_band, rmse_ratio_band, z_bound
 
 HOLD_S = 1020.0
 """The constant-setpoint stretch after each run cycle [s]: ≥ 900 s holds one whole 600 s window
@@ -523,15 +530,27 @@ def check(result: SoakResult) -> None:
     )
 
 
-def test_a_2_hour_soak_against_the_virtual_plc(tmp_path: Path) -> None:
-    # 2 h at 50x: about 150 s; the fuel sweeps −10 → +45 °C (half of a 4 h sinusoid)
-    result = run_soak(tmp_path, hours=2.0, speed=50.0, temperature_period_s=4 * 3600.0)
-    check(result)
+SOAK_HOURS = float(os.environ.get("FUELID_SOAK_HOURS", "6"))
+"""Plant time of the soak [h]: 6 in CI's slow set, 24 with ``make soak``."""
+SOAK_SPEED = 50.0
+"""Times real time: 100x lost 3 % of the samples on a loaded 2-core machine, 50x none."""
+
+
+def temperature_period_s(hours: float) -> float:
+    """The fuel temperature's sinusoid period [s] for a soak of ``hours``.
+
+    Shorter than a day: twice the run, so the fuel sweeps −10 → +45 °C once (half a sinusoid);
+    a day or more: the daily cycle, −10 → +45 → −10 °C over each day.
+    """
+    return 86400.0 if hours >= 24.0 else 2.0 * hours * 3600.0
 
 
 @pytest.mark.slow
-def test_a_24_hour_soak_against_the_virtual_plc(tmp_path: Path) -> None:
-    # 24 h at 50x: about 30 min (100x lost 3 % of the samples on a loaded 2-core machine); the
-    # fuel cycles −10 → +45 → −10 °C over the day
-    result = run_soak(tmp_path, hours=24.0, speed=50.0, temperature_period_s=86400.0)
+# the wall time is hours·3600/speed; three times that plus 10 min of set-up and measuring
+@pytest.mark.timeout(600 + 3 * SOAK_HOURS * 3600.0 / SOAK_SPEED)
+@pytest.mark.parametrize("hours", [SOAK_HOURS], ids=lambda h: f"{h:g}h")
+def test_a_soak_against_the_virtual_plc(tmp_path: Path, hours: float) -> None:
+    result = run_soak(
+        tmp_path, hours=hours, speed=SOAK_SPEED, temperature_period_s=temperature_period_s(hours)
+    )
     check(result)

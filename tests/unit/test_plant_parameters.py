@@ -23,7 +23,6 @@ from fuelid.errors import ConfigError
 from fuelid.plant import (
     PlantConfig,
     get_parameter,
-    load_plant_config,
     operating_point,
     parameter_names,
     plant_config_from_dict,
@@ -35,11 +34,6 @@ from fuelid.units import LPM_PER_M3S
 REFERENCE = tomllib.loads(
     resources.files("fuelid.data").joinpath("reference_plant.toml").read_text("utf-8")
 )
-
-
-@pytest.fixture(scope="module")
-def cfg() -> PlantConfig:
-    return load_plant_config()
 
 
 def _float_keys() -> set[str]:

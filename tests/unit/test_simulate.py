@@ -15,7 +15,7 @@ import pytest
 
 import fuelid.plant.simulate
 from fuelid.errors import FuelidError
-from fuelid.plant import PlantConfig, linearise, load_plant_config, operating_point
+from fuelid.plant import PlantConfig, linearise, operating_point
 from fuelid.plant.simulate import FuelTemperature, SimulationResult, integrate_held, simulate
 from fuelid.plant.system import plant_coefficients, steady_state
 from fuelid.profiles import InputProfile, step_profile
@@ -23,11 +23,6 @@ from fuelid.profiles import InputProfile, step_profile
 LPM = 60_000.0  # L/min per m³/s
 T20 = 293.15
 DELAY = 0.2  # flowmeter delay of the reference plant [s]
-
-
-@pytest.fixture(scope="module")
-def cfg() -> PlantConfig:
-    return load_plant_config()
 
 
 def _clean(cfg: PlantConfig, profile: InputProfile, **kwargs: object) -> SimulationResult:

@@ -17,7 +17,7 @@ from fuelid.errors import ConfigError
 from fuelid.greybox import ParameterSpec
 from fuelid.greybox.modelfile import load_model_file, read_model_file
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 MODEL = EXAMPLES / "two_tanks.py"
 TRUTH = {"k1": 0.05, "k2": 0.04, "k3": 0.05, "k4": 0.06}
 JSON_KEYS = {

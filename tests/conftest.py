@@ -1,0 +1,81 @@
+"""Fixtures shared by tests/unit, tests/integration and tests/system.
+
+Plain helpers (statistical bands, the test PLC, site files) live in tests/support; fixtures live
+here and in each folder's conftest.py, so no test module imports another.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+# BLAS on one thread for the whole run, in every worker and every fuelid process a test starts
+# (set before numpy loads: this file is imported before any test module). fuelid's matrices are
+# small (scipy's expm of a plant's state matrix, thousands of times in a gain schedule), and a
+# multi-threaded OpenBLAS on a loaded 2-core machine spends its time waiting for its other
+# thread: measured 0.14 ms an 8×8 expm on one thread against 28 ms with the default threads while
+# a second worker ran (200×); the gain-schedule tests went from 2 min to seconds. The commands
+# limit BLAS themselves (fuelid.blas); tests/system/test_cli_consistency.py checks that with the
+# limit lifted. A developer's own setting wins.
+for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
+
+import pytest  # noqa: E402
+from threadpoolctl import threadpool_limits  # noqa: E402
+
+from fuelid.plant import PlantConfig, load_plant_config  # noqa: E402
+
+# and for a BLAS some plugin already loaded (the variables above act only on the next load)
+threadpool_limits(limits=1, user_api="blas")
+
+
+@pytest.fixture(scope="session")
+def cfg() -> PlantConfig:
+    """The packaged reference plant, loaded once per process (tests only read it)."""
+    return load_plant_config()
+
+
+# Tests that run a PLC (the virtual PLC, the Modbus test PLC, OPC UA and S7 servers) against a
+# recorder or the online service at 20-50x real time: their checks assume the recorder keeps up.
+# Under `pytest -n auto --dist loadgroup` they share one worker, one after another, so two of them
+# never compete for the same cores (two at once on a loaded 2-core machine lost samples and missed
+# restarts); the other workers run the rest meanwhile.
+REAL_TIME_MODULES = frozenset(
+    {
+        "test_modbus_adapter.py",
+        "test_opcua.py",
+        "test_s7.py",
+        "test_virtual_plc.py",
+        "test_write_side.py",
+        "test_recorder.py",
+        "test_recorder_guards.py",
+        "test_online_service.py",
+        "test_online_cli.py",
+        "test_online_faults.py",
+        "test_record_cli.py",
+    }
+)
+
+
+@pytest.hookimpl(optionalhook=True)  # an xdist hook: unknown under -p no:xdist (the slow set)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """Under ``--dist loadgroup``: the real-time modules as one group, every other test alone.
+
+    Not by ``xdist_group`` marks: pytest-xdist 3.8 writes the group into ``item._nodeid``, which
+    pytest 9 no longer reads, so its ``loadgroup`` silently spread a group over the workers. The
+    scheduler below groups by the node id's file instead (and still honours an ``@group`` suffix,
+    should a later xdist write one).
+    """
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadGroupScheduling
+
+    class RealTimeGroup(LoadGroupScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            if "@" in nodeid:
+                return nodeid.rsplit("@", 1)[-1]
+            if nodeid.split("::", 1)[0].rsplit("/", 1)[-1] in REAL_TIME_MODULES:
+                return "real-time"
+            return nodeid
+
+    return RealTimeGroup(config, log)
