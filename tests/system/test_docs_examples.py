@@ -187,12 +187,14 @@ _PRELUDE = (
 )
 
 
-def _bash(text: str, cwd: Path) -> tuple[int | None, str]:
+def _bash(text: str, cwd: Path, sessions: list[int]) -> tuple[int | None, str]:
     """Run ``text`` in bash; (exit code, or None after the timeout; stdout and stderr merged).
 
-    The command gets a session of its own, and whatever it left running in the background (a
-    virtual PLC started with ``&``) is stopped when it ends: nothing outlives its line. The
-    output goes to a file, not a pipe, which a background process could hold open.
+    The command gets a session of its own. Whatever it leaves running in the background (a
+    virtual PLC started with ``&`` for the next commands to talk to) lives on until the page
+    ends: its session id is appended to ``sessions``, which :func:`_run_page` stops. A command
+    that runs over its time is stopped at once. The output goes to a file, not a pipe, which a
+    background process could hold open.
     """
     with tempfile.TemporaryFile("w+", encoding="utf-8", errors="replace") as out:
         process = subprocess.Popen(
@@ -208,17 +210,17 @@ def _bash(text: str, cwd: Path) -> tuple[int | None, str]:
             code = process.wait(timeout=TIMEOUT_S)
         except subprocess.TimeoutExpired:
             code = None
-        finally:
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(process.pid, signal.SIGKILL)
             process.wait()
+        sessions.append(process.pid)
         out.seek(0)
         return code, out.read()
 
 
-def run_command(command: Command, cwd: Path, page: str) -> None:
+def run_command(command: Command, cwd: Path, page: str, sessions: list[int]) -> None:
     """Run one command in ``cwd`` and fail with the page, line, command and a diff."""
-    code, output = _bash(command.text, cwd)
+    code, output = _bash(command.text, cwd, sessions)
     if code is None:
         pytest.fail(f"{page}:{command.line}: `{command.text}` ran over {TIMEOUT_S} s")
     actual = [line.rstrip() for line in output.splitlines()]
@@ -248,11 +250,17 @@ def _pages_with(slow: bool) -> list[Path]:
 def _run_page(page: Path, tmp: Path, include_slow: bool) -> None:
     cwd = _workdir(tmp)
     name = str(page.relative_to(ROOT))
-    for block in parse_blocks(page):
-        if block.illustrative is not None or (block.slow and not include_slow):
-            continue
-        for command in block.commands:
-            run_command(command, cwd, name)
+    sessions: list[int] = []
+    try:
+        for block in parse_blocks(page):
+            if block.illustrative is not None or (block.slow and not include_slow):
+                continue
+            for command in block.commands:
+                run_command(command, cwd, name, sessions)
+    finally:  # what the page's commands left running in the background stops with the page
+        for session in sessions:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(session, signal.SIGKILL)
 
 
 @pytest.mark.parametrize("page", _pages_with(slow=False), ids=lambda p: str(p.relative_to(ROOT)))
