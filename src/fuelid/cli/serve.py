@@ -68,9 +68,10 @@ def serve_command(
         int | None,
         typer.Option(
             "--port",
-            min=1,
+            min=0,
             max=65535,
-            help="TCP port (default: modbus 5020, opcua 4840, s7 1102).",
+            help="TCP port (default: modbus 5020, opcua 4840, s7 1102; 0: a free port the "
+            "system chooses, said in the first line on stderr).",
             show_default=False,
         ),
     ] = None,
@@ -217,6 +218,10 @@ def _serve(
     )
     port = DEFAULT_PORTS[protocol] if port is None else port
     order: WordOrder = "little" if word_order == "little" else "big"
+    if print_site and port == 0:
+        raise FuelidError(
+            "--print-site needs the port the PLC will serve on: give --port N (not 0)"
+        )
     if print_site:
         typer.echo(
             site_text(
@@ -235,9 +240,10 @@ def _serve(
         )
         return
     frontend = frontend_class(protocol)(host, port, ring_size=plc.ring_size, word_order=order)
-    where = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
 
     def announce() -> None:
+        # the bound port: the one asked for, or the system's choice for 0
+        where = f"[{host}]:{frontend.port}" if ":" in host else f"{host}:{frontend.port}"
         typer.echo(
             f"virtual PLC: {protocol} on {where}, {speed:g}x real time, plant "
             f"{plc.config.name}, sample {plc.period_s:g} s, PI every {plc.control_period_s:g} s "
