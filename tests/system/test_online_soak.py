@@ -57,7 +57,7 @@ What is measured, after the run, from the store, the history and the engine (the
   readings (8 bytes a sample: a test instrument, not the service);
 - **windows accepted**: at least 75 % of the windows not wholly inside a hold (a requirement,
   asserted; the residual-correlation gate's default is set on other plants:
-  docs/gate_study.md);
+  docs/explanation/gate-study.md);
 - samples lost by the recorder are reported, not asserted (they depend on the machine's load;
   the checks above stand on what was stored). The virtual PLC's ring holds 8000 records
   (160 s of plant time, 3.2 s of wall time at 50×): the default 2048 records are 0.8 s of wall
@@ -67,8 +67,8 @@ What is measured, after the run, from the store, the history and the engine (the
   dropped and the ring overran), so it runs at 50× (about 30 min).
 
 How to run: the soak is in the slow set and takes its plant time from ``FUELID_SOAK_HOURS``
-(default 6: the slow set CI runs, 50× real time, about 8 min); ``make soak`` runs 24 h (about
-30 min)::
+(default 6, 50× real time, about 8 min; ``make test-slow``, which CI runs, sets 4 h to keep CI
+within its budget); ``make soak`` runs 24 h (about 30 min)::
 
     .venv/bin/pytest -m slow tests/system/test_online_soak.py -s                     # 6 h
     FUELID_SOAK_HOURS=2 .venv/bin/pytest -m slow tests/system/test_online_soak.py -s  # 2 h

@@ -2,9 +2,9 @@
 
 The operating point is checked against balances written out here from the component laws (the
 pipe friction factor from ``fluids``), not against the solver's own residual fields alone. The
-reference plant must reproduce the facts of docs/physics.md §8: about 1 MPa at full flow, a steady
-flow at 1 V, over-damped slow dynamics, 98 % settling in 5–6 s, and a gain K that drifts with
-fuel temperature by at least 5 % over −20…+50 °C while the settling time hardly moves.
+reference plant must reproduce the facts of docs/explanation/physics.md §8: about 1 MPa at full
+flow, a steady flow at 1 V, over-damped slow dynamics, 98 % settling in 5–6 s, and a gain K that
+drifts with fuel temperature by at least 5 % over −20…+50 °C while the settling time hardly moves.
 """
 
 from __future__ import annotations
@@ -139,7 +139,7 @@ def test_minimum_frequency_gives_steady_flow_at_1V(cfg: PlantConfig, T: float) -
 def test_full_flow_pressure_about_1_MPa(cfg: PlantConfig) -> None:
     op = operating_point(cfg, 5.0, T0 + 20.0)
     assert 0.8e6 < op.p_pump < 1.2e6
-    # turbulent line, as docs/physics.md §3.5 says (Re ~ 1e4–1e5)
+    # turbulent line, as docs/explanation/physics.md §3.5 says (Re ~ 1e4–1e5)
     assert 1e4 < op.reynolds < 1e5
 
 
@@ -228,7 +228,7 @@ def test_linear_model_stable_and_slow_modes_real(u: float, T: float) -> None:
     # the drive lag and the meter lag are decoupled rows/columns of A: exact eigenvalues
     assert np.min(np.abs(eig + 1.0 / T_VFD)) <= 1e-9 / T_VFD
     assert np.min(np.abs(eig + 1.0 / T_F)) <= 1e-9 / T_F
-    # the line's hydraulic mode (the complex pair) lies at 1–3 Hz (docs/physics.md §3.5)
+    # the line's hydraulic mode (the complex pair) lies at 1–3 Hz (docs/explanation/physics.md §3.5)
     pair = eig[np.abs(eig.imag) > 0.0]
     assert pair.size == 2
     assert np.all((np.abs(pair.imag) / TWO_PI > 1.0) & (np.abs(pair.imag) / TWO_PI < 3.0))
@@ -274,8 +274,8 @@ def test_gain_drifts_with_temperature_settling_time_does_not(u: float) -> None:
 
 
 def test_leakage_is_what_makes_gain_drift(cfg: PlantConfig) -> None:
-    # docs/physics.md §6: without pump leakage only slip (through the line pressure) depends on
-    # viscosity
+    # docs/explanation/physics.md §6: without pump leakage only slip (through the line pressure)
+    # depends on viscosity
     tight = cfg.model_copy(
         update={"pump": cfg.pump.model_copy(update={"leakage_Lpm_per_MPa": 0.0})}
     )
@@ -353,7 +353,7 @@ def _rhs_by_hand(
     p_back: float = 0.0,
     T_f: float = T_F,
 ) -> np.ndarray:
-    """docs/physics.md §4 written out with the reference plant's numbers (one may be changed)."""
+    """docs/explanation/physics.md §4 with the reference plant's numbers (one may be changed)."""
     props = fuel_properties(T)
     rho, mu = props.rho, props.mu
     f, omega, p, q, q_m = x

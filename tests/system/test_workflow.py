@@ -66,7 +66,7 @@ def test_tune_model_is_what_fuelid_tune_prints(capsys: pytest.CaptureFixture[str
     assert _as_printed(outcome.to_json(), capsys) == cli
     # the defaults resolved from the plant: the middle of 1…5 V and the meter's 100 L/min
     assert (outcome.u, outcome.y_span) == (3.0, 100.0)
-    # SIMC with the half rule and h/2 (docs/tuning.md §2–3): T1 = 1.41 s, θ = 0.85 s
+    # SIMC with the half rule and h/2 (docs/explanation/tuning.md §2–3): T1 = 1.41 s, θ = 0.85 s
     assert outcome.pi.Kc == pytest.approx(1.41 / (13.5 * 2 * 0.85), rel=1e-12)
     # kelvin inside, °C in the JSON
     assert [run.T_fuel for run in outcome.runs] == [celsius_to_kelvin(-20.0), celsius_to_kelvin(50)]

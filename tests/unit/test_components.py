@@ -94,7 +94,7 @@ def test_reynolds_number_by_hand() -> None:
     q = 1e-3  # 60 L/min
     v = q / (math.pi * D**2 / 4.0)  # 1.2434 m/s
     assert reynolds_number(q, D, RHO, MU) == pytest.approx(RHO * v * D / MU, rel=1e-14)
-    # ≈ 30 400: the line is turbulent at realistic flows, as docs/physics.md §3.5 says
+    # ≈ 30 400: the line is turbulent at realistic flows, as docs/explanation/physics.md §3.5 says
     assert 3.0e4 < reynolds_number(q, D, RHO, MU) < 3.1e4
 
 
@@ -171,7 +171,7 @@ def test_pipe_capacitance_by_hand() -> None:
     # C = πd²l/(4β) = π·0.001024·80/(4·1.2e9) = 0.257359/4.8e9 = 5.3617e-11 m³/Pa
     assert pipe_capacitance(80.0, 0.032, 1.2e9) == pytest.approx(5.3617e-11, rel=1e-4)
     # equivalently V/β: 1 MPa compresses 64.3 L of fuel by 1e6/1.2e9 = 0.083 %
-    # (docs/physics.md §3.4: ~0.1 %)
+    # (docs/explanation/physics.md §3.4: ~0.1 %)
     volume = math.pi * D**2 / 4.0 * LENGTH
     dV = pipe_capacitance(LENGTH, D, 1.2e9) * 1e6
     assert dV / volume == pytest.approx(1e6 / 1.2e9, rel=1e-14)

@@ -131,8 +131,8 @@ def test_RP3_Andrade_and_TS1_models_agree_within_15_percent() -> None:
 
 
 def test_JetA_viscosity_is_40_percent_above_RP3_at_20C() -> None:
-    # the fuels' viscosities differ by about 40 % at 20 °C (docs/physics.md, "Fuel properties").
-    # By hand: 1.8368 / 1.3096 = 1.4026.
+    # the fuels' viscosities differ by about 40 % at 20 °C (docs/explanation/physics.md, "Fuel
+    # properties"). By hand: 1.8368 / 1.3096 = 1.4026.
     T = 20.0 + T0
     assert nu_JetA_CRC(T) / nu_TS1(T) == pytest.approx(1.40, rel=0.01)
 

@@ -25,7 +25,8 @@ ANCHOR = Anchor(IDENTIFIED, T_fuel=ROOM, u=3.0)
 
 
 def test_gain_falls_as_the_fuel_warms():
-    # docs/physics.md (the pump): its leakage grows as viscosity falls, so less flow per volt
+    # docs/explanation/physics.md (the pump): its leakage grows as viscosity falls, so less flow per
+    # volt
     cases = plant_cases(CONFIG, TEMPS, (3.0,))
     gains = [c.model.K for c in cases]
     assert np.all(np.diff(gains) < 0.0)

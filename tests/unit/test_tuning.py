@@ -1,10 +1,10 @@
 """Tuning rules and loop robustness against numbers fixed by the formulas and by other tools.
 
-Rules: the worked example of docs/tuning.md §3 (K = 1, T = 2 s, θ = 1 s, continuous), the published
-formulas evaluated here by hand, the half rule, h/2 for a sampled PI, scaling invariances, the PLC
-forms. Margins: an integrator-plus-dead-time loop with a closed-form answer, python-control on
-loops it can represent exactly (no delay, or a delay of whole periods in discrete time), and the
-modified z-transform of a first-order lag written out by hand.
+Rules: the worked example of docs/explanation/tuning.md §3 (K = 1, T = 2 s, θ = 1 s, continuous),
+the published formulas evaluated here by hand, the half rule, h/2 for a sampled PI, scaling
+invariances, the PLC forms. Margins: an integrator-plus-dead-time loop with a closed-form answer,
+python-control on loops it can represent exactly (no delay, or a delay of whole periods in discrete
+time), and the modified z-transform of a first-order lag written out by hand.
 """
 
 from __future__ import annotations
@@ -53,7 +53,8 @@ def test_worked_example_amigo_matches_the_published_formula():
     Kp, Ti = _amigo_by_hand(1.0, 2.0, 1.0)
     assert pi.Kc == pytest.approx(Kp, rel=1e-12)
     assert pi.Ti == pytest.approx(Ti, rel=1e-12)
-    assert (round(pi.Kc, 2), round(pi.Ti, 2)) == (0.41, 1.84)  # docs/tuning.md's rounded values
+    # docs/explanation/tuning.md's rounded values
+    assert (round(pi.Kc, 2), round(pi.Ti, 2)) == (0.41, 1.84)
 
 
 @pytest.mark.parametrize(("T", "delay", "tau_c"), [(2.0, 1.0, 1.0), (50.0, 1.0, 1.0)])
