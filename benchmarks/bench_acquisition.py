@@ -29,7 +29,7 @@ import sys
 import tempfile
 import time
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -83,6 +83,10 @@ class Timed(PlcSource):
     async def write(self, values: Mapping[str, float]) -> None:
         """Write through the inner source."""
         await self.inner.write(values)
+
+    async def read_write_side(self, roles: Sequence[str]) -> dict[str, float]:
+        """Read the write side back through the inner source."""
+        return await self.inner.read_write_side(roles)
 
 
 def run_once(text: str, duration: float, ring: bool) -> list[tuple[str, str]]:
