@@ -1,0 +1,1 @@
+"""The control-room dashboard (``fuelid dashboard``): FastAPI pages over the loops' stores."""
