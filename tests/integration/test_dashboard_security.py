@@ -125,9 +125,11 @@ def test_allow_remote_with_a_users_file_is_fine(users: UsersFile, tokens: dict[s
     check_bind("0.0.0.0", allow_remote=True, users_file=users.path)
 
 
-def test_allow_remote_without_a_users_file_is_refused(tmp_path: Path) -> None:
+@pytest.mark.parametrize("host", ["0.0.0.0", "127.0.0.1"])
+def test_allow_remote_without_a_users_file_is_refused(tmp_path: Path, host: str) -> None:
+    # also on the loopback address, where a reverse proxy forwards to a dashboard needing logins
     with pytest.raises(ConfigError, match="nobody could log in"):
-        check_bind("0.0.0.0", allow_remote=True, users_file=None)
+        check_bind(host, allow_remote=True, users_file=None)
     with pytest.raises(ConfigError, match="does not exist"):
         check_bind("0.0.0.0", allow_remote=True, users_file=tmp_path / "none.json")
 

@@ -118,19 +118,24 @@ def check_bind(host: str, allow_remote: bool, users_file: Path | None = None) ->
     users_file
         The users file; with ``allow_remote`` it must exist, or nobody could log in.
 
+    The dashboard's ``require_login`` is ``allow_remote``: every page then needs a login.
+
     Raises
     ------
     ConfigError
-        A non-loopback address without ``allow_remote``, or ``allow_remote`` without a users file.
+        A non-loopback address without ``allow_remote``, or ``allow_remote`` without a users file
+        (on any address: behind a reverse proxy the dashboard listens on the loopback address
+        with ``--allow-remote``).
     """
-    if is_loopback(host):
-        return
     if not allow_remote:
+        if is_loopback(host):
+            return
         raise ConfigError(
             f"--host {host} is not a loopback address: the dashboard would be reachable from the "
             "network; give --allow-remote (every page then needs a login; put TLS in front, see "
             "the docs)"
         )
+    # --allow-remote, on any address (also the loopback one behind a reverse proxy): logins
     if users_file is None or not Path(users_file).is_file():
         where = "none given" if users_file is None else f"{users_file} does not exist"
         raise ConfigError(
