@@ -28,6 +28,7 @@ with warnings.catch_warnings():
 from fuelid.dashboard.security import (
     CONTENT_SECURITY_POLICY,
     CSRF_HEADER,
+    FORM_MAX_BYTES,
     LOGIN_MAX_FAILURES,
     LOGIN_WINDOW_S,
     SESSION_COOKIE,
@@ -305,6 +306,15 @@ def test_an_engineer_acts_only_with_the_csrf_token(
     assert done.status_code == 200
     assert done.json() == {"done_by": "eve"}
     assert client.post("/act", data={"csrf": csrf}).status_code == 200  # a form's field
+
+
+def test_a_form_too_large_to_read_carries_no_csrf_token(
+    users: UsersFile, tokens: dict[str, str], clock: FakeClock
+) -> None:
+    client = client_for(users, True, clock)
+    csrf = login(client, "eve", tokens["eve"])
+    padding = "x" * FORM_MAX_BYTES
+    assert client.post("/act", data={"csrf": csrf, "note": padding}).status_code == 403
 
 
 def test_actions_need_an_engineer_even_on_loopback_without_require_login(

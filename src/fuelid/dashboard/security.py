@@ -34,10 +34,16 @@ from typing import Any
 from urllib.parse import parse_qs, quote, urlsplit
 
 import jinja2
-from fastapi import APIRouter, HTTPException, Request, status
-from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse, Response
-from starlette.datastructures import MutableHeaders
-from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+try:
+    from fastapi import APIRouter, HTTPException, Request, status
+    from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse, Response
+    from starlette.datastructures import MutableHeaders
+    from starlette.types import ASGIApp, Message, Receive, Scope, Send
+except ImportError as exc:  # pragma: no cover - the dashboard extra is installed for the tests
+    raise ImportError(
+        "the dashboard needs fastapi and uvicorn: pip install 'fuelid[dashboard]'"
+    ) from exc
 
 from fuelid.dashboard.users import User, UsersFile
 from fuelid.errors import ConfigError
@@ -76,6 +82,9 @@ SECURITY_HEADERS = {
     "X-Frame-Options": "DENY",
 }
 """The headers :func:`add_security_headers` puts on every response (unless already set)."""
+
+FORM_MAX_BYTES = 64 * 1024
+"""The largest form body read for its fields (login, CSRF) [bytes]; a larger one has none."""
 
 NOT_ACCEPTED = "name or token not accepted"
 """The one message of a failed login: it never says whether the name exists."""
@@ -415,12 +424,17 @@ class Security:
 async def form_fields(request: Request) -> dict[str, str]:
     """The fields of a URL-encoded form body (the first value of each); {} for any other body.
 
+    A body over :data:`FORM_MAX_BYTES` is not read (its fields count as missing).
+
     Parsed here with the standard library, so the dashboard needs no multipart parser: the
     dashboard's forms post ``application/x-www-form-urlencoded`` (an HTML form's default).
     """
     kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if kind != "application/x-www-form-urlencoded":
         return {}
+    length = request.headers.get("content-length", "")
+    if not length.isdigit() or int(length) > FORM_MAX_BYTES:
+        return {}  # a browser's form always says its length; a huge body is not read here
     body = (await request.body()).decode("utf-8", "replace")
     return {key: values[0] for key, values in parse_qs(body, keep_blank_values=True).items()}
 

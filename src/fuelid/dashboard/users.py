@@ -307,17 +307,17 @@ def _parse(text: str, path: Path) -> dict[str, UserRecord]:
         digest = entry.get("sha256")
         if not isinstance(digest, str) or not _HEX64.fullmatch(digest):
             raise bad(f"user {name!r}: sha256 must be 64 lower-case hex digits")
-        created = entry.get("created")
+        created = _time(entry.get("created"))
         rotated = entry.get("rotated")
-        if not _is_time(created) or not (rotated is None or _is_time(rotated)):
+        if created is None or not (rotated is None or _time(rotated) is not None):
             raise bad(f"user {name!r}: created and rotated must be times in s (rotated or null)")
-        users[name] = UserRecord(name, role, digest, float(created), _opt_float(rotated))  # type: ignore[arg-type]
+        users[name] = UserRecord(name, role, digest, created, _time(rotated))
     return users
 
 
-def _is_time(value: object) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool) and value >= 0
-
-
-def _opt_float(value: Any) -> float | None:
-    return None if value is None else float(value)
+def _time(value: object) -> float | None:
+    """A wall-clock time [s] from JSON, or None when it is not a finite number ≥ 0."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    t = float(value)
+    return t if 0.0 <= t < float("inf") else None
