@@ -26,7 +26,7 @@ $(BIN)/python:
 
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --upgrade pip
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev,plc]'
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev,plc,dashboard]'
 	@touch $(STAMP)
 
 install: $(STAMP)
@@ -104,7 +104,7 @@ BENCH_VENV ?= .venv-bench
 $(BENCH_VENV)/.fuelid-installed: pyproject.toml
 	$(PYTHON) -m venv $(BENCH_VENV)
 	$(BENCH_VENV)/bin/python -m pip install --quiet --disable-pip-version-check --upgrade pip
-	$(BENCH_VENV)/bin/python -m pip install --quiet --disable-pip-version-check -e '.[dev,bench,plc]'
+	$(BENCH_VENV)/bin/python -m pip install --quiet --disable-pip-version-check -e '.[dev,bench,plc,dashboard]'
 	@touch $@
 
 bench: $(BENCH_VENV)/.fuelid-installed

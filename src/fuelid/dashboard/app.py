@@ -1,0 +1,352 @@
+"""The dashboard's web application: the pages, the JSON API and the live stream.
+
+Pages (HTML, rendered by Jinja2 with autoescape: every stored string is escaped):
+
+- ``/``: the fleet, one row per loop with its status chips, sorted by severity
+  (:mod:`fuelid.dashboard.fleet`);
+- ``/loops/{loop_id}``: one loop (live trend, model history, K against fuel temperature, gains
+  over time, proposals with their actions, health, windows, events);
+- ``/loops/{loop_id}/windows/{window_id}``: one window (data against the model, residuals and
+  their autocorrelation, every gate against its threshold, the article's step-ls model, the
+  robustness checks behind its proposal) and ``…/report``: the HTML report of that window.
+
+The API under ``/api/`` returns the same data as JSON, built by the functions ``fuelid online
+status --json`` and ``history --json`` use (one shape, not two); FastAPI's OpenAPI page is
+``/api/docs``. Charts are drawn by plotly.js served from the installed plotly package
+(``/static/plotly.min.js``): nothing comes from the internet, and no WebGL trace is used.
+"""
+
+from __future__ import annotations
+
+import math
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from fastapi import Depends, FastAPI, HTTPException, Request
+from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
+from fastapi.sse import EventSourceResponse, ServerSentEvent
+from fastapi.staticfiles import StaticFiles
+
+from fuelid.dashboard.fleet import fleet_row
+from fuelid.dashboard.registry import Loops
+from fuelid.dashboard.security import Security, add_security_headers, auth_router, form_fields
+from fuelid.dashboard.source import LoopReader
+from fuelid.dashboard.stream import Feeds
+from fuelid.dashboard.trend import trend
+from fuelid.errors import FuelidError
+
+__all__ = ["RECENT_HEALTH", "create_app"]
+
+RECENT_HEALTH = 30
+"""Windows whose IAE per unit step form a loop's own median (fleet chip)."""
+STATIC = "static"
+TEMPLATES = "templates"
+
+
+def _plotly_js() -> Path:
+    """plotly.js as the installed plotly package carries it."""
+    import plotly
+
+    path = Path(plotly.__file__).parent / "package_data" / "plotly.min.js"
+    if not path.is_file():
+        raise FuelidError(f"plotly.js not found in the installed plotly package ({path})")
+    return path
+
+
+def _recent_iae(loop: LoopReader) -> list[float]:
+    out = []
+    for row in loop.recent_windows(RECENT_HEALTH):
+        health = (row.get("detail") or {}).get("health") or {}
+        value = health.get("iae_per_unit_step_s")
+        if isinstance(value, int | float) and math.isfinite(value):
+            out.append(float(value))
+    return out
+
+
+def loop_summary(loop: LoopReader) -> dict[str, Any]:
+    """A loop's fleet row: identity, status chips, severity."""
+    status = loop.status()
+    identity = loop.identity()
+    row = fleet_row(loop.loop_id, identity["site_name"], status, _recent_iae(loop))
+    row["link"] = status.get("link")
+    row["timezone"] = status.get("timezone", "UTC")
+    return row
+
+
+def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> Any:
+    """The FastAPI application over ``loops`` (see the module docstring)."""
+    import jinja2
+
+    package = resources.files("fuelid.dashboard")
+    env = jinja2.Environment(
+        loader=jinja2.FileSystemLoader(str(package / TEMPLATES)),
+        autoescape=jinja2.select_autoescape(default=True, default_for_string=True),
+        undefined=jinja2.ChainableUndefined,  # a key a store lacks shows as nothing
+    )
+    app = FastAPI(
+        title=f"{title} dashboard",
+        docs_url="/api/docs",
+        openapi_url="/api/openapi.json",
+        redoc_url=None,
+    )
+    from fuelid.dashboard.views import fmt_num, link_text, now_rows, proposal_views, write_back_of
+    from fuelid.io.clock import format_time
+
+    env.filters["when"] = format_time
+    env.filters["num"] = fmt_num
+    app.state.loops = loops
+    app.state.security = security
+    feeds = Feeds()
+    plotly_js = _plotly_js()
+    add_security_headers(app)
+    app.include_router(auth_router(security))
+    # --- static --------------------------------------------------------------------------
+
+    @app.get("/static/plotly.min.js", include_in_schema=False)
+    def plotly_static() -> FileResponse:
+        return FileResponse(plotly_js, media_type="text/javascript")
+
+    app.mount("/static", StaticFiles(directory=str(package / STATIC)), name="static")
+
+    viewer = Depends(security.require_viewer)
+    engineer = Depends(security.require_engineer)
+
+    def get_loop(loop_id: str) -> LoopReader:
+        loop = loops.get(loop_id)
+        if loop is None:
+            raise HTTPException(404, f"no loop {loop_id!r}")
+        return loop
+
+    def fleet_rows() -> list[dict[str, Any]]:
+        rows = []
+        for loop_id in loops.ids():
+            loop = loops.get(loop_id)
+            if loop is not None:
+                rows.append(loop_summary(loop))
+        return sorted(rows, key=lambda r: r["sort_key"])
+
+    def page(name: str, request: Request, **context: Any) -> HTMLResponse:
+        user = security.current_user(request)
+        session = security.session(request)
+        html = env.get_template(name).render(
+            title=title,
+            user=user,
+            csrf=None if session is None else session.csrf,
+            login_required=security.require_login,
+            **context,
+        )
+        return HTMLResponse(html)
+
+    # --- pages ---------------------------------------------------------------------------
+
+    @app.get("/", response_class=HTMLResponse, include_in_schema=False, dependencies=[viewer])
+    def fleet_page(request: Request) -> HTMLResponse:
+        rows = fleet_rows()
+        tz = rows[0]["timezone"] if rows else "UTC"
+        return page(
+            "fleet.html.j2",
+            request,
+            page_title="Loops",
+            page="fleet",
+            tz=tz,
+            rows=rows,
+            refused=dict(loops.refused),
+        )
+
+    @app.get(
+        "/loops/{loop_id}",
+        response_class=HTMLResponse,
+        include_in_schema=False,
+        dependencies=[viewer],
+    )
+    def loop_page(request: Request, loop_id: str) -> HTMLResponse:
+        loop = get_loop(loop_id)
+        status = loop.status()
+        tz = status.get("timezone") or "UTC"
+        units = status.get("gain_units") or status.get("gains_units") or {}
+        settings = (status.get("service") or {}).get("settings") or {}
+        write_back = write_back_of(status)
+        return page(
+            "loop.html.j2",
+            request,
+            page_title=loop.loop_id,
+            page="loop",
+            tz=tz,
+            loop=loop.identity(),
+            status=status,
+            summary=loop_summary(loop),
+            link_text=link_text(status, tz),
+            proposals=proposal_views(status, loop.recent_windows(200)),
+            units={"Kc": units.get("Kc", ""), "Ti": units.get("Ti", "")},
+            ms_target=settings.get("ms_target", "the site's ms_target"),
+            write_back_text=f"Write-back: {write_back or 'unknown'}.",
+            now_rows=now_rows(status, tz),
+        )
+
+    @app.get(
+        "/loops/{loop_id}/windows/{window_id}",
+        response_class=HTMLResponse,
+        include_in_schema=False,
+        dependencies=[viewer],
+    )
+    def window_page(request: Request, loop_id: str, window_id: int) -> HTMLResponse:
+        loop = get_loop(loop_id)
+        evidence = window_json(loop, window_id)
+        units = evidence.get("gain_units") or {}
+        return page(
+            "window.html.j2",
+            request,
+            page_title=f"window {window_id}",
+            page="window",
+            tz=evidence["timezone"],
+            loop=loop.identity(),
+            w=evidence,
+            units={"Kc": units.get("Kc", ""), "Ti": units.get("Ti", "")},
+        )
+
+    @app.get(
+        "/loops/{loop_id}/windows/{window_id}/report",
+        response_class=HTMLResponse,
+        include_in_schema=False,
+        dependencies=[viewer],
+    )
+    def window_report(loop_id: str, window_id: int) -> HTMLResponse:
+        from fuelid.dashboard.window_report import window_report_html
+
+        loop = get_loop(loop_id)
+        row = loop.window(window_id)
+        if row is None:
+            raise HTTPException(404, f"no window {window_id} in loop {loop_id!r}")
+        return HTMLResponse(window_report_html(loop, row))
+
+    # --- API -----------------------------------------------------------------------------
+
+    @app.get("/api/loops", dependencies=[viewer])
+    def api_loops() -> dict[str, Any]:
+        """Every loop's fleet row, most severe first; the stores refused, with the reason."""
+        return {"loops": fleet_rows(), "refused": dict(loops.refused)}
+
+    @app.get("/api/loops/{loop_id}/status", dependencies=[viewer])
+    def api_status(loop_id: str) -> dict[str, Any]:
+        """The loop now: the object ``fuelid online status --json`` prints."""
+        return get_loop(loop_id).status()
+
+    @app.get("/api/loops/{loop_id}/history", dependencies=[viewer])
+    def api_history(loop_id: str) -> dict[str, Any]:
+        """Everything the service did: the object ``fuelid online history --json`` prints."""
+        return get_loop(loop_id).history()
+
+    @app.get("/api/loops/{loop_id}/trend", dependencies=[viewer])
+    def api_trend(
+        loop_id: str, start: float | None = None, end: float | None = None, width: int = 1000
+    ) -> dict[str, Any]:
+        """Samples in [start, end) [plant s] thinned for a chart ``width`` pixels wide.
+
+        Without ``start``/``end``: the newest 10 minutes.
+        """
+        loop = get_loop(loop_id)
+        span = loop.span()
+        if span is None:
+            return {
+                "source": "none",
+                "series": {},
+                "bad": [],
+                "points": 0,
+                "start": None,
+                "end": None,
+            }
+        stop = span[1] + 1e-6 if end is None else end
+        begin = max(span[0], stop - 600.0) if start is None else start
+        if not (math.isfinite(begin) and math.isfinite(stop) and stop > begin):
+            raise HTTPException(422, "start and end must be finite with end > start")
+        return dict(trend(loop, begin, stop, width))
+
+    def window_json(loop: LoopReader, window_id: int) -> dict[str, Any]:
+        from fuelid.dashboard.window_view import window_evidence
+        from fuelid.online.report import window_json as stored_window
+
+        row = loop.window(window_id)
+        if row is None:
+            raise HTTPException(404, f"no window {window_id} in loop {loop.loop_id!r}")
+        samples = loop.samples(float(row["t_from"]), float(row["t_to"]))
+        status = loop.status()
+        settings = ((status.get("service") or {}).get("settings")) or None
+        proposals = [
+            p
+            for p in loop.history()["proposals"]
+            if p.get("model_id") is not None and p["model_id"] == row.get("model_id")
+        ]
+        return {
+            "window": stored_window(row),
+            "gates_verdict": (row.get("detail") or {}).get("gates"),
+            "evidence": window_evidence(row, samples, loop.identity().get("period_s"), settings),
+            "proposals": proposals,
+            "timezone": status.get("timezone", "UTC"),
+            "gain_units": status.get("gain_units") or status.get("gains_units"),
+        }
+
+    @app.get("/api/loops/{loop_id}/windows/{window_id}", dependencies=[viewer])
+    def api_window(loop_id: str, window_id: int) -> dict[str, Any]:
+        """One window: its record, data against the model, residual ACF, gates, proposals."""
+        return window_json(get_loop(loop_id), window_id)
+
+    @app.get(
+        "/api/loops/{loop_id}/stream", response_class=EventSourceResponse, dependencies=[viewer]
+    )
+    async def api_stream(loop_id: str, request: Request):  # type: ignore[no-untyped-def]
+        """Server-sent events: ``samples``, ``status``, ``history`` (fuelid.dashboard.stream)."""
+        loop = get_loop(loop_id)
+        async for kind, data in feeds.events(loop, lambda: loop_summary(loop)):
+            if await request.is_disconnected():
+                break
+            yield ServerSentEvent(event=kind, data=data)
+
+    async def _request(
+        loop_id: str, kind: str, proposal_id: int | None, request: Request
+    ) -> JSONResponse:
+        user = security.current_user(request)
+        if user is None:  # require_engineer let it through: cannot happen
+            raise HTTPException(401, "an engineer's login is required")
+        loop = get_loop(loop_id)
+        why = (await form_fields(request)).get("why", "").strip()[:500]
+        try:
+            row = loop.file_request(kind, proposal_id, user.name, why or "(no reason given)")
+        except FuelidError as error:
+            return JSONResponse({"error": " ".join(str(error).split())}, status_code=409)
+        return JSONResponse({"request": row, "next": _next_step(loop, row)})
+
+    @app.post("/api/loops/{loop_id}/proposals/{proposal_id}/approve", dependencies=[engineer])
+    async def api_approve(loop_id: str, proposal_id: int, request: Request) -> JSONResponse:
+        """An engineer approves a pending proposal (form field ``why``): a request."""
+        return await _request(loop_id, "approve", proposal_id, request)
+
+    @app.post("/api/loops/{loop_id}/proposals/{proposal_id}/reject", dependencies=[engineer])
+    async def api_reject(loop_id: str, proposal_id: int, request: Request) -> JSONResponse:
+        """An engineer rejects a pending or approved proposal (form field ``why``)."""
+        return await _request(loop_id, "reject", proposal_id, request)
+
+    @app.post("/api/loops/{loop_id}/revert", dependencies=[engineer])
+    async def api_revert(loop_id: str, request: Request) -> JSONResponse:
+        """An engineer asks the service to write the last-known-good gains back (``why``)."""
+        return await _request(loop_id, "revert", None, request)
+
+    @app.get("/api/loops/{loop_id}/requests", dependencies=[viewer])
+    def api_requests(loop_id: str) -> dict[str, Any]:
+        """The requests people filed, newest last, with their outcome."""
+        return {"requests": get_loop(loop_id).requests()}
+
+    return app
+
+
+def _next_step(loop: LoopReader, request: dict[str, Any]) -> str:
+    """What happens to a request next, in one sentence."""
+    status = loop.status()
+    state = (status.get("link") or {}).get("state")
+    if request.get("status") == "done":
+        return request.get("outcome") or "done"
+    if request.get("status") == "refused":
+        return f"refused: {request.get('outcome')}"
+    if state == "stopped":
+        return "the service is stopped: the request waits until it runs again"
+    return "the service carries it out within a few seconds"

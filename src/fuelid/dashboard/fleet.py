@@ -1,0 +1,217 @@
+"""The fleet page's rows: one per loop, status chips, sorted by what needs attention first.
+
+Each loop gets the chips below, each at a level: ``alarm`` (act now), ``warn`` (look today),
+``unknown`` (not measured yet), ``ok``. The thresholds are the constants of this module.
+
+==================  =========================================================================
+chip                level
+==================  =========================================================================
+service             alarm when the service is stopped (its beat is stale) or the link is down;
+                    unknown before the first sample; ok when up
+mode                warn when the last window was in MAN or the loop spent less than
+                    :data:`AUTO_WARN` of it in AUTO
+limits              warn when the drive sat at its limits more than :data:`LIMITS_WARN` of the
+                    last window
+oscillation         alarm when the last window oscillates
+IAE                 warn when the IAE per unit setpoint step is more than :data:`IAE_WARN` times
+                    its own median over the recent windows
+drift               warn when K now / K the gains were tuned for is off 1 by more than
+                    :data:`DRIFT_WARN` and by more than two standard errors
+proposals           warn while a proposal waits for a person (pending) or for its write
+                    (approved)
+last write          alarm when the last write failed, a write is held or a revert is
+                    requested; ok otherwise
+==================  =========================================================================
+
+**Severity order** (:func:`severity_key`): loops with an alarm first, then with a warning, then
+those with something unknown, then the healthy ones; within a level, the loop with more chips at
+that level first; then by the first chip at that level in the table's order (a stopped service
+before an oscillation before a failed write); then by loop id.
+"""
+
+from __future__ import annotations
+
+import statistics
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = [
+    "AUTO_WARN",
+    "CHIP_ORDER",
+    "DRIFT_WARN",
+    "IAE_WARN",
+    "LEVELS",
+    "LIMITS_WARN",
+    "Chip",
+    "fleet_row",
+    "loop_chips",
+    "severity_key",
+]
+
+LEVELS = ("alarm", "warn", "unknown", "ok")
+"""Chip levels, the most severe first."""
+CHIP_ORDER = (
+    "service",
+    "oscillation",
+    "last write",
+    "proposals",
+    "drift",
+    "limits",
+    "IAE",
+    "mode",
+)
+"""Ties within a level are broken by the first chip at that level in this order."""
+AUTO_WARN = 0.9
+"""A window with less than this share of its time in AUTO warns [0-1]."""
+LIMITS_WARN = 0.05
+"""A window with more than this share of its time at the drive's limits warns [0-1]."""
+IAE_WARN = 2.0
+"""IAE per unit step more than this many times its own recent median warns [-]."""
+DRIFT_WARN = 0.10
+"""|K now / K tuned − 1| above this (and above 2 standard errors) warns [-]."""
+
+
+@dataclass(frozen=True)
+class Chip:
+    """One status chip: its name, level (:data:`LEVELS`) and the text shown."""
+
+    name: str
+    level: str
+    text: str
+
+    def to_json(self) -> dict[str, str]:
+        """``{"name", "level", "text"}``."""
+        return {"name": self.name, "level": self.level, "text": self.text}
+
+
+def _pct(x: float) -> str:
+    return f"{100.0 * x:.0f} %"
+
+
+def _service_chip(status: dict[str, Any]) -> Chip:
+    link = status.get("link") or {}
+    state = link.get("state")
+    text = link.get("text") or str(state)
+    if state in ("stopped", "link_down", "down"):
+        return Chip("service", "alarm", text)
+    if state == "up":
+        return Chip("service", "ok", text)
+    return Chip("service", "unknown", text)
+
+
+def _health_chips(status: dict[str, Any], recent_iae: list[float]) -> list[Chip]:
+    health = status.get("loop_health") or {}
+    window = status.get("last_window") or {}
+    chips = []
+    auto = health.get("time_in_auto")
+    mode = window.get("mode")
+    if auto is None and mode is None:
+        chips.append(Chip("mode", "unknown", "mode not measured yet"))
+    else:
+        text = f"{mode or '-'}" + ("" if auto is None else f", AUTO {_pct(auto)}")
+        low = mode == "MAN" or (auto is not None and auto < AUTO_WARN)
+        chips.append(Chip("mode", "warn" if low else "ok", text))
+    limits = health.get("time_at_limits")
+    if limits is None:
+        chips.append(Chip("limits", "unknown", "at limits: not measured"))
+    else:
+        level = "warn" if limits > LIMITS_WARN else "ok"
+        chips.append(Chip("limits", level, f"at limits {_pct(limits)}"))
+    osc = health.get("oscillation") or {}
+    if "oscillating" not in osc:
+        chips.append(Chip("oscillation", "unknown", "oscillation: not measured"))
+    elif osc.get("oscillating"):
+        period = osc.get("period_s")
+        text = "oscillating" + ("" if period is None else f" (period {period:.3g} s)")
+        chips.append(Chip("oscillation", "alarm", text))
+    else:
+        chips.append(Chip("oscillation", "ok", "no oscillation"))
+    iae = health.get("iae_per_unit_step_s")
+    if iae is None or not recent_iae:
+        chips.append(Chip("IAE", "unknown", "IAE/step: no setpoint step yet"))
+    else:
+        median = statistics.median(recent_iae)
+        ratio = iae / median if median > 0 else 1.0
+        level = "warn" if ratio > IAE_WARN else "ok"
+        chips.append(Chip("IAE", level, f"IAE/step {iae:.3g} s, {ratio:.2f}× its median"))
+    return chips
+
+
+def _drift_chip(status: dict[str, Any]) -> Chip:
+    drift = (status.get("k_trend") or {}).get("drift")
+    if not isinstance(drift, dict) or drift.get("ratio") is None:
+        return Chip("drift", "unknown", "K drift: not tracked yet")
+    ratio, se = float(drift["ratio"]), float(drift.get("se") or 0.0)
+    off = abs(ratio - 1.0)
+    level = "warn" if off > DRIFT_WARN and off > 2.0 * se else "ok"
+    return Chip("drift", level, f"K/K tuned {ratio:.2f} ± {se:.2f}")
+
+
+def _proposal_chip(status: dict[str, Any]) -> Chip:
+    pending = status.get("pending_proposals") or []
+    if not pending:
+        return Chip("proposals", "ok", "no proposal waiting")
+    waiting = [p for p in pending if p.get("status") == "pending"]
+    if waiting:
+        return Chip("proposals", "warn", f"{len(waiting)} proposal(s) wait for approval")
+    return Chip("proposals", "warn", f"{len(pending)} approved, waiting for the write")
+
+
+def _write_chip(status: dict[str, Any]) -> Chip:
+    wb = status.get("write_back") or {}
+    last = status.get("last_write")
+    if wb.get("revert_requested"):
+        return Chip("last write", "alarm", "revert requested")
+    if wb.get("write_held"):
+        return Chip("last write", "alarm", f"writes held: {wb['write_held']}")
+    if last is None:
+        return Chip("last write", "ok", "no write yet")
+    text = f"#{last['id']} {last['kind']} {last['status']}"
+    level = "alarm" if last.get("status") in ("failed", "not_applied") else "ok"
+    return Chip("last write", level, text)
+
+
+def loop_chips(status: dict[str, Any], recent_iae: list[float]) -> list[Chip]:
+    """Every chip of a loop, in :data:`CHIP_ORDER`.
+
+    Parameters
+    ----------
+    status : dict
+        The loop's status (the shape of ``fuelid online status --json``).
+    recent_iae : list of float
+        IAE per unit setpoint step [s] of the recent windows that had a step (the median's
+        sample).
+    """
+    chips = [
+        _service_chip(status),
+        *_health_chips(status, recent_iae),
+        _drift_chip(status),
+        _proposal_chip(status),
+        _write_chip(status),
+    ]
+    return sorted(chips, key=lambda c: CHIP_ORDER.index(c.name))
+
+
+def severity_key(chips: list[Chip], loop_id: str) -> tuple[Any, ...]:
+    """Sort key of a loop: the module docstring's severity order (smaller sorts first)."""
+    for rank, level in enumerate(LEVELS):
+        at_level = [c for c in chips if c.level == level]
+        if at_level:
+            first = min(CHIP_ORDER.index(c.name) for c in at_level)
+            return (rank, -len(at_level), first, loop_id)
+    return (len(LEVELS), 0, 0, loop_id)
+
+
+def fleet_row(
+    loop_id: str, site_name: str, status: dict[str, Any], recent_iae: list[float]
+) -> dict[str, Any]:
+    """One row of the fleet page (and of ``/api/loops``)."""
+    chips = loop_chips(status, recent_iae)
+    worst = next((lvl for lvl in LEVELS if any(c.level == lvl for c in chips)), "ok")
+    return {
+        "loop_id": loop_id,
+        "site_name": site_name,
+        "level": worst,
+        "chips": [c.to_json() for c in chips],
+        "sort_key": list(severity_key(chips, loop_id)),
+    }

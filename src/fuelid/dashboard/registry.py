@@ -1,0 +1,121 @@
+"""The loops a dashboard shows: one store per loop, known by its loop id, a folder watched.
+
+``--store`` names store files or folders. A file is opened at start; a store that cannot be
+opened (not a fuelid store, written by a newer fuelid) or whose loop id another store already has
+is refused then, with the reason (:class:`~fuelid.errors.ConfigError`: the command exits 2). A
+folder is scanned at start and every :data:`WATCH_EVERY_S` seconds for new ``*.db`` files; one
+found there that cannot be shown is listed among the refusals (the fleet page shows them) and not
+tried again until its file changes.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+from fuelid.dashboard.source import LoopReader, SQLiteLoop
+from fuelid.errors import ConfigError, FuelidError
+
+__all__ = ["WATCH_EVERY_S", "Loops"]
+
+WATCH_EVERY_S = 5.0
+"""How often the watched folders are scanned for new stores [s]."""
+
+
+class Loops:
+    """The loops by id (see the module docstring).
+
+    Parameters
+    ----------
+    paths : iterable of path
+        Store files and folders of stores.
+    opener : callable, optional
+        Opens one store file as a :class:`LoopReader` (the SQLite reader by default).
+    """
+
+    def __init__(
+        self,
+        paths: Iterable[str | Path],
+        opener: Callable[[Path], LoopReader] = SQLiteLoop,
+    ) -> None:
+        self._opener = opener
+        self._lock = threading.Lock()
+        self._loops: dict[str, LoopReader] = {}
+        self._files: dict[Path, str] = {}
+        self.refused: dict[str, str] = {}  # file name -> reason
+        self._tried: dict[Path, float] = {}
+        self.folders: list[Path] = []
+        self._scanned = 0.0
+        files = []
+        for raw in paths:
+            path = Path(raw)
+            if path.is_dir():
+                self.folders.append(path)
+            elif path.is_file():
+                files.append(path)
+            else:
+                raise ConfigError(f"--store {path}: no such file or folder")
+        try:
+            for path in files:
+                self._add(path)
+        except FuelidError as error:
+            self.close()
+            raise ConfigError(str(error)) from None
+        self.scan(force=True)
+
+    def _add(self, path: Path) -> None:
+        key = path.resolve()
+        if key in self._files:
+            return
+        loop = self._opener(path)
+        other = self._loops.get(loop.loop_id)
+        if other is not None:
+            loop.close()
+            raise ConfigError(
+                f"{path.name}: loop id {loop.loop_id!r} is already shown (another store has "
+                "it); give each loop its own [site] loop_id"
+            )
+        self._loops[loop.loop_id] = loop
+        self._files[key] = loop.loop_id
+
+    def scan(self, force: bool = False) -> None:
+        """Open the stores that appeared in the watched folders (at most every few seconds)."""
+        now = time.monotonic()
+        if not force and now - self._scanned < WATCH_EVERY_S:
+            return
+        self._scanned = now
+        for folder in self.folders:
+            for path in sorted(folder.glob("*.db")):
+                key = path.resolve()
+                try:
+                    mtime = path.stat().st_mtime
+                except OSError:
+                    continue
+                if key in self._files or self._tried.get(key) == mtime:
+                    continue
+                with self._lock:
+                    try:
+                        self._add(path)
+                        self.refused.pop(path.name, None)
+                    except FuelidError as error:
+                        self._tried[key] = mtime
+                        self.refused[path.name] = " ".join(str(error).split())
+
+    def ids(self) -> list[str]:
+        """The loop ids, sorted."""
+        self.scan()
+        return sorted(self._loops)
+
+    def get(self, loop_id: str) -> LoopReader | None:
+        """The loop with this id; None when there is none."""
+        self.scan()
+        return self._loops.get(loop_id)
+
+    def close(self) -> None:
+        """Close every store."""
+        for loop in self._loops.values():
+            loop.close()
+        self._loops.clear()
+        self._files.clear()

@@ -1,0 +1,111 @@
+"""Running the dashboard: its own process, uvicorn on one socket, the loops opened first.
+
+:func:`serve` checks the bind address (:func:`~fuelid.dashboard.security.check_bind`), opens
+every store (a refused one stops the start with the reason), binds the socket itself (so that
+``port=0`` gets a free port and the address printed is the real one) and runs uvicorn until
+SIGINT/SIGTERM. Behind a reverse proxy, uvicorn trusts ``X-Forwarded-*`` from 127.0.0.1 only.
+"""
+
+from __future__ import annotations
+
+import socket
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from fuelid.dashboard.registry import Loops
+from fuelid.dashboard.security import Security, check_bind
+from fuelid.dashboard.users import UsersFile
+from fuelid.errors import ConfigError
+
+__all__ = ["DEFAULT_HOST", "DEFAULT_PORT", "serve"]
+
+DEFAULT_HOST = "127.0.0.1"
+DEFAULT_PORT = 8050
+
+
+def _bind(host: str, port: int) -> socket.socket:
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, port))
+    except OSError as error:
+        sock.close()
+        raise ConfigError(
+            f"--host {host} --port {port}: cannot listen there ({error.strerror})"
+        ) from None
+    sock.listen(128)
+    sock.set_inheritable(True)
+    return sock
+
+
+def serve(
+    stores: Sequence[str | Path],
+    *,
+    host: str = DEFAULT_HOST,
+    port: int = DEFAULT_PORT,
+    users: Path | None = None,
+    allow_remote: bool = False,
+    ssl_certfile: Path | None = None,
+    ssl_keyfile: Path | None = None,
+    on_ready: Callable[[str, list[str]], None] | None = None,
+) -> None:
+    """Serve the dashboard until interrupted.
+
+    Parameters
+    ----------
+    stores : sequence of path
+        Store files and folders of stores (watched for new ones).
+    host, port : str, int
+        Where to listen (loopback unless ``allow_remote``); port 0: a free port.
+    users : Path, optional
+        The users file (needed to log in; required with ``allow_remote``).
+    allow_remote : bool
+        Listen on a non-loopback address; every page then needs a login.
+    ssl_certfile, ssl_keyfile : Path, optional
+        TLS by uvicorn itself (else a reverse proxy in front, see the docs).
+    on_ready : callable, optional
+        Called with the URL and the loop ids once listening.
+
+    Raises
+    ------
+    ConfigError
+        A refused address, users file or store (one-line reason).
+    """
+    import uvicorn
+
+    from fuelid.dashboard.app import create_app
+
+    users_file = users if users is not None and Path(users).exists() else None
+    check_bind(host, allow_remote, users_file)
+    if users is not None and users_file is None:
+        raise ConfigError(
+            f"--users {users}: no such file (add a user with fuelid dashboard user add)"
+        )
+    if (ssl_certfile is None) != (ssl_keyfile is None):
+        raise ConfigError("--ssl-certfile and --ssl-keyfile go together")
+    if not stores:
+        raise ConfigError("give --store: a store file or a folder of stores")
+    security = Security(UsersFile(users_file) if users_file else None, require_login=allow_remote)
+    loops = Loops(stores)
+    try:
+        sock = _bind(host, port)
+        app = create_app(loops, security)
+        config = uvicorn.Config(
+            app,
+            log_level="warning",
+            proxy_headers=True,
+            forwarded_allow_ips="127.0.0.1",
+            ssl_certfile=None if ssl_certfile is None else str(ssl_certfile),
+            ssl_keyfile=None if ssl_keyfile is None else str(ssl_keyfile),
+            timeout_graceful_shutdown=2,
+        )
+        server = uvicorn.Server(config)
+        bound = sock.getsockname()
+        scheme = "https" if ssl_certfile else "http"
+        shown = f"[{bound[0]}]" if ":" in bound[0] else bound[0]
+        if on_ready is not None:
+            on_ready(f"{scheme}://{shown}:{bound[1]}/", loops.ids())
+        server.run(sockets=[sock])
+    finally:
+        loops.close()

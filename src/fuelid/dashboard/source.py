@@ -1,0 +1,292 @@
+"""The dashboard's one read interface to a loop's data, and its SQLite implementation.
+
+Every page and every ``/api/`` answer reads a loop through :class:`LoopReader`: its identity,
+its state now (the shape ``fuelid online status --json`` prints), its history (the shape of
+``fuelid online history --json``), one window's record and samples, the trend of its samples at a
+level of detail, the samples committed after a point (for the live stream) and the requests
+people file. A central database implements the same protocol later (it holds many loops; each
+reader is one of them); nothing above this module knows where the rows come from.
+
+:class:`SQLiteLoop` reads one store file (one loop). It opens the store once as fuelid opens any
+store (a store of an older schema is migrated then, as ``fuelid store info`` would; a store of a
+newer fuelid is refused with both versions) and afterwards reads on a connection opened
+read-only (``mode=ro``): the only rows the dashboard writes are the requests it files, through
+the store's own history API.
+
+Times are plant time (the samples' time base) [s UTC] unless a key says ``wall``; flows in
+L/min, the command in V, fuel temperature in °C, the gains in the PLC block's units.
+"""
+
+from __future__ import annotations
+
+import math
+import sqlite3
+import threading
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from fuelid.store.records import SampleArrays, StoreError
+
+__all__ = ["TREND_COLUMNS", "LoopReader", "SQLiteLoop", "Trend"]
+
+TREND_COLUMNS = ("y", "setpoint", "u", "fuel_temperature")
+"""The trend's series: flow and setpoint [L/min], VFD command [V], fuel temperature [°C]."""
+
+_LOD_COLUMNS = {"y": "y", "setpoint": "sp", "u": "u", "fuel_temperature": "tf"}
+
+
+class Trend(dict[str, Any]):
+    """One trend answer (a plain dict, JSON as it is).
+
+    Keys: ``source`` ("raw" or "lod"), ``level_s`` (bucket width [s], None for raw), ``start``,
+    ``end`` [plant s], ``t`` (times [plant s]), one list per :data:`TREND_COLUMNS` (None for a
+    missing value), ``bad`` (times of samples not ok, or of buckets that hold one) and ``points``
+    (the number of points before thinning).
+    """
+
+
+@runtime_checkable
+class LoopReader(Protocol):
+    """What the dashboard reads of one loop (a store file today, a central database later)."""
+
+    loop_id: str
+    """The loop's id: in URLs, never a file path."""
+
+    def identity(self) -> dict[str, Any]:
+        """``loop_id``, ``site_name``, ``schema_version``, ``store_uuid``, ``period_s``."""
+        ...
+
+    def status(self, now_wall: float | None = None) -> dict[str, Any]:
+        """The loop now, shaped as ``fuelid online status --json``."""
+        ...
+
+    def history(self) -> dict[str, Any]:
+        """Everything the service did, shaped as ``fuelid online history --json``."""
+        ...
+
+    def window(self, window_id: int) -> dict[str, Any] | None:
+        """One window's stored row (``detail`` parsed), None when there is no such window."""
+        ...
+
+    def recent_windows(self, limit: int) -> list[dict[str, Any]]:
+        """The newest ``limit`` windows' stored rows (``detail`` parsed), oldest first."""
+        ...
+
+    def requests(self) -> list[dict[str, Any]]:
+        """The requests people filed (approve, reject, revert), oldest first."""
+        ...
+
+    def samples(self, t_from: float, t_to: float) -> SampleArrays:
+        """Raw samples with ``t_from <= time < t_to`` [plant s], sorted by time."""
+        ...
+
+    def span(self) -> tuple[float, float] | None:
+        """First and newest sample time [plant s]; None without samples."""
+        ...
+
+    def lod(self, level: int, t_from: float, t_to: float) -> dict[str, np.ndarray[Any, Any]]:
+        """Level-of-detail rows of ``level`` seconds in ``[t_from, t_to)`` as arrays."""
+        ...
+
+    def samples_after(self, cursor: int, limit: int) -> tuple[int, SampleArrays]:
+        """Samples committed after ``cursor`` (an opaque insertion mark), and the new cursor."""
+        ...
+
+    def cursor(self) -> int:
+        """The insertion mark of the newest committed sample (0 without samples)."""
+        ...
+
+    def file_request(
+        self, kind: str, proposal_id: int | None, who: str, why: str
+    ) -> dict[str, Any]:
+        """Record a person's request (approve, reject, revert) for the service to carry out."""
+        ...
+
+    def close(self) -> None:
+        """Release the connections."""
+        ...
+
+
+def _read_only(path: Path) -> sqlite3.Connection:
+    con = sqlite3.connect(
+        f"{path.resolve().as_uri()}?mode=ro", uri=True, check_same_thread=False, timeout=5.0
+    )
+    con.execute("PRAGMA busy_timeout=5000")
+    con.execute("PRAGMA query_only=ON")
+    return con
+
+
+def default_loop_id(site_name: str) -> str:
+    """The loop id of a store that names none: its site name in lower case, dashes between words.
+
+    Examples
+    --------
+    >>> default_loop_id("Tunnel 2 / fuel line A")
+    'tunnel-2-fuel-line-a'
+    >>> default_loop_id("---")
+    'loop'
+    """
+    out, dash = [], False
+    for ch in site_name.lower():
+        if ch.isascii() and ch.isalnum():
+            out.append(ch)
+            dash = False
+        elif not dash:
+            out.append("-")
+            dash = True
+    return "".join(out).strip("-")[:40].strip("-") or "loop"
+
+
+class SQLiteLoop:
+    """One loop's store file behind :class:`LoopReader`.
+
+    Parameters
+    ----------
+    path : str or Path
+        The store (an SQLite file fuelid wrote).
+
+    Raises
+    ------
+    StoreError
+        Not a fuelid store, or one written by a newer fuelid (the reason names both versions).
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        from fuelid.store.online import OnlineHistory
+        from fuelid.store.sqlite import SQLiteStore
+
+        self.path = Path(path)
+        self.store = SQLiteStore(self.path)  # migrates an older store; refuses a newer one
+        try:
+            self.online = OnlineHistory(self.store)
+            self._con = _read_only(self.path)
+        except (StoreError, sqlite3.Error) as error:
+            self.store.close()
+            raise StoreError(f"{self.path}: cannot read the store ({error})") from None
+        self._lock = threading.Lock()
+        meta = dict(self._query("SELECT key, value FROM meta"))
+        self.meta = meta
+        self.loop_id = meta.get("loop_id") or default_loop_id(self.store.site_name)
+
+    # --- plumbing ------------------------------------------------------------------------
+
+    def _query(self, sql: str, args: Sequence[Any] = ()) -> list[Any]:
+        with self._lock:
+            try:
+                return self._con.execute(sql, tuple(args)).fetchall()
+            except sqlite3.Error as error:
+                raise StoreError(f"{self.path}: {error}") from None
+
+    def close(self) -> None:
+        """Close the read connection, the history and the store."""
+        with self._lock:
+            self._con.close()
+        self.online.close()
+        self.store.close()
+
+    # --- identity and the service's view -------------------------------------------------
+
+    def identity(self) -> dict[str, Any]:
+        """``loop_id``, ``site_name``, ``schema_version``, ``store_uuid``, ``period_s``."""
+        return {
+            "loop_id": self.loop_id,
+            "site_name": self.store.site_name,
+            "schema_version": self.store.schema_version,
+            "store_uuid": self.meta.get("store_uuid"),
+            "period_s": self.store.period_s,
+        }
+
+    def status(self, now_wall: float | None = None) -> dict[str, Any]:
+        """The loop now, by :func:`fuelid.online.report.status_json` (one shape with the CLI)."""
+        from fuelid.online.report import status_json
+
+        out = status_json(self.online, self.store, now_wall)
+        out["site"] = {**out["site"], "store": None, "loop_id": self.loop_id}  # no file paths
+        return out
+
+    def history(self) -> dict[str, Any]:
+        """Everything the service did, by :func:`fuelid.online.report.history_json`."""
+        from fuelid.online.report import history_json
+
+        out = history_json(self.online, self.store)
+        out["site"] = {**out["site"], "store": None, "loop_id": self.loop_id}
+        return out
+
+    def window(self, window_id: int) -> dict[str, Any] | None:
+        """One window's row with its ``detail`` parsed; None when absent."""
+        rows = self._query("SELECT t_to FROM windows WHERE id = ?", (int(window_id),))
+        if not rows:
+            return None
+        t_to = float(rows[0][0])
+        for row in self.online.windows(t_from=t_to, t_to=math.nextafter(t_to, math.inf)):
+            if int(row["id"]) == int(window_id):
+                return row
+        return None
+
+    def recent_windows(self, limit: int) -> list[dict[str, Any]]:
+        """The newest ``limit`` windows' stored rows (``detail`` parsed), oldest first."""
+        return self.online.windows(limit=int(limit))
+
+    def requests(self) -> list[dict[str, Any]]:
+        """The requests people filed (approve, reject, revert), oldest first."""
+        return list(self.online.requests())
+
+    def file_request(
+        self, kind: str, proposal_id: int | None, who: str, why: str
+    ) -> dict[str, Any]:
+        """File a person's request through the store's history (the only write here)."""
+        from fuelid.online.requests import file_request
+
+        return file_request(self.online, kind, proposal_id, who=who, why=why, origin="dashboard")
+
+    # --- samples ---------------------------------------------------------------------------
+
+    def span(self) -> tuple[float, float] | None:
+        """First and newest sample time [plant s]; None without samples."""
+        row = self._query("SELECT min(time), max(time) FROM samples")[0]
+        return None if row[0] is None else (float(row[0]), float(row[1]))
+
+    def samples(self, t_from: float, t_to: float) -> SampleArrays:
+        """Raw samples with ``t_from <= time < t_to`` [plant s], sorted by time."""
+        rows = self._query(
+            "SELECT time, seq, u, y, setpoint, fuel_temperature, mode, quality FROM samples "
+            "WHERE time >= ? AND time < ? ORDER BY time",
+            (float(t_from), float(t_to)),
+        )
+        return SampleArrays.from_rows(rows)
+
+    def lod(self, level: int, t_from: float, t_to: float) -> dict[str, np.ndarray[Any, Any]]:
+        """Level-of-detail rows (``samples_lod``) of ``level`` s in ``[t_from, t_to)``."""
+        cols = ", ".join(f"{c}_min, {c}_max" for c in _LOD_COLUMNS.values())
+        rows = self._query(
+            f"SELECT bucket, n, bad, {cols} FROM samples_lod "
+            "WHERE level = ? AND bucket >= ? AND bucket < ? ORDER BY bucket",
+            (int(level), math.floor(t_from / level) * level, float(t_to)),
+        )
+        data = np.array(
+            [[math.nan if v is None else v for v in row] for row in rows], dtype=np.float64
+        ).reshape(len(rows), 3 + 2 * len(_LOD_COLUMNS))
+        out = {"bucket": data[:, 0], "n": data[:, 1], "bad": data[:, 2]}
+        for k, name in enumerate(_LOD_COLUMNS):
+            out[f"{name}_min"] = data[:, 3 + 2 * k]
+            out[f"{name}_max"] = data[:, 4 + 2 * k]
+        return out
+
+    def cursor(self) -> int:
+        """The rowid of the newest committed sample (0 without samples)."""
+        row = self._query("SELECT max(rowid) FROM samples")[0]
+        return int(row[0] or 0)
+
+    def samples_after(self, cursor: int, limit: int) -> tuple[int, SampleArrays]:
+        """Samples inserted after rowid ``cursor`` (at most ``limit``, oldest first)."""
+        rows = self._query(
+            "SELECT rowid, time, seq, u, y, setpoint, fuel_temperature, mode, quality "
+            "FROM samples WHERE rowid > ? ORDER BY rowid LIMIT ?",
+            (int(cursor), int(limit)),
+        )
+        if not rows:
+            return int(cursor), SampleArrays.from_rows([])
+        return int(rows[-1][0]), SampleArrays.from_rows([r[1:] for r in rows])

@@ -1,0 +1,143 @@
+"""The live stream of a loop page: one server-sent-event stream per page, typed events.
+
+Browsers allow six HTTP/1.1 connections per site across all tabs, so a page opens one stream
+(``/api/loops/{id}/stream``) and every chart listens to the event types it needs:
+
+- ``samples``: the samples committed since the last event (``t`` [plant s], ``y``,
+  ``setpoint`` [L/min], ``u`` [V], ``fuel_temperature`` [°C], ``quality``; NaN as null),
+  every :data:`POLL_S`;
+- ``status``: the loop's state (``link`` as ``online status`` gives it, the fleet chips), every
+  :data:`STATUS_EVERY_S` and at once on connecting;
+- ``history``: the counts of windows, proposals and writes changed (the page re-reads the
+  history it draws).
+
+One :class:`Feed` per loop reads the store for all its subscribers (three browsers cost the
+store what one does), in a worker thread so that the event loop never waits on SQLite, and only
+while someone listens.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+from collections.abc import AsyncIterator, Callable
+from typing import Any
+
+from fuelid.dashboard.source import LoopReader
+
+__all__ = ["MAX_BATCH", "POLL_S", "STATUS_EVERY_S", "Feed", "Feeds"]
+
+POLL_S = 0.2
+"""Interval between reads of new samples [s] (the latency a sample adds beyond its commit)."""
+STATUS_EVERY_S = 2.0
+"""Interval between status events [s]."""
+MAX_BATCH = 5000
+"""Samples per read at most (a page that connects late gets the backlog in pieces)."""
+QUEUE_EVENTS = 256
+"""Events kept for a slow subscriber; beyond, the oldest are dropped (a tab in the background)."""
+
+
+def _listed(values: Any) -> list[Any]:
+    return [None if isinstance(v, float) and not math.isfinite(v) else v for v in values.tolist()]
+
+
+class Feed:
+    """Reads one loop's new samples and state for every subscriber of its stream.
+
+    Parameters
+    ----------
+    loop : LoopReader
+        The loop.
+    status : callable
+        Returns the ``status`` event's data (run in a worker thread).
+    """
+
+    def __init__(self, loop: LoopReader, status: Callable[[], dict[str, Any]]) -> None:
+        self.loop = loop
+        self._status = status
+        self._queues: set[asyncio.Queue[tuple[str, Any]]] = set()
+        self._task: asyncio.Task[None] | None = None
+        self.last_status: dict[str, Any] | None = None
+        self.reads = 0
+
+    def subscribe(self) -> asyncio.Queue[tuple[str, Any]]:
+        """A queue of (event type, data) for a new subscriber; starts reading when needed."""
+        queue: asyncio.Queue[tuple[str, Any]] = asyncio.Queue(QUEUE_EVENTS)
+        self._queues.add(queue)
+        if self._task is None or self._task.done():
+            self._task = asyncio.get_running_loop().create_task(self._run())
+        return queue
+
+    def unsubscribe(self, queue: asyncio.Queue[tuple[str, Any]]) -> None:
+        """Forget a subscriber; the reading stops with the last one."""
+        self._queues.discard(queue)
+        if not self._queues and self._task is not None:
+            self._task.cancel()
+            self._task = None
+
+    def _publish(self, kind: str, data: Any) -> None:
+        for queue in list(self._queues):
+            if queue.full():
+                with contextlib.suppress(asyncio.QueueEmpty):
+                    queue.get_nowait()
+            queue.put_nowait((kind, data))
+
+    async def _run(self) -> None:
+        cursor = await asyncio.to_thread(self.loop.cursor)
+        counts: Any = None
+        next_status = 0.0
+        clock = asyncio.get_running_loop().time
+        while self._queues:
+            cursor, batch = await asyncio.to_thread(self.loop.samples_after, cursor, MAX_BATCH)
+            self.reads += 1
+            if len(batch):
+                self._publish(
+                    "samples",
+                    {
+                        "t": _listed(batch.time),
+                        "y": _listed(batch.y),
+                        "setpoint": _listed(batch.setpoint),
+                        "u": _listed(batch.u),
+                        "fuel_temperature": _listed(batch.fuel_temperature),
+                        "quality": batch.quality.tolist(),
+                    },
+                )
+            if clock() >= next_status:
+                next_status = clock() + STATUS_EVERY_S
+                status = await asyncio.to_thread(self._status)
+                self.last_status = status
+                self._publish("status", status)
+                if counts is not None and status.get("counts") != counts:
+                    self._publish("history", status.get("counts"))
+                counts = status.get("counts")
+            if len(batch) < MAX_BATCH:
+                await asyncio.sleep(POLL_S)
+
+
+class Feeds:
+    """One :class:`Feed` per loop id."""
+
+    def __init__(self) -> None:
+        self._feeds: dict[str, Feed] = {}
+
+    def get(self, loop: LoopReader, status: Callable[[], dict[str, Any]]) -> Feed:
+        """The loop's feed (made on first use)."""
+        feed = self._feeds.get(loop.loop_id)
+        if feed is None or feed.loop is not loop:
+            feed = self._feeds[loop.loop_id] = Feed(loop, status)
+        return feed
+
+    async def events(
+        self, loop: LoopReader, status: Callable[[], dict[str, Any]]
+    ) -> AsyncIterator[tuple[str, Any]]:
+        """(event type, data) for one subscriber, the current status first."""
+        feed = self.get(loop, status)
+        queue = feed.subscribe()
+        try:
+            if feed.last_status is not None:
+                yield "status", feed.last_status
+            while True:
+                yield await queue.get()
+        finally:
+            feed.unsubscribe(queue)

@@ -1,0 +1,144 @@
+"""Words and numbers the pages print: times in the site's zone, gains with their units, next steps.
+
+Pure functions of the status and history objects (the shapes ``fuelid online status --json`` and
+``history --json`` print), so the pages and the tests read the same sentences.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from fuelid.io.clock import format_time
+
+__all__ = ["fmt_num", "link_text", "now_rows", "proposal_next", "proposal_views", "write_back_of"]
+
+
+def fmt_num(value: Any, digits: int = 4) -> str:
+    """A number with ``digits`` significant digits; "-" for None, NaN or a non-number.
+
+    >>> fmt_num(0.049241555), fmt_num(None), fmt_num(1.4831393, 3)
+    ('0.04924', '-', '1.48')
+    """
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        return "-" if not isinstance(value, str) else value
+    return f"{value:.{digits}g}"
+
+
+def write_back_of(status: dict[str, Any]) -> str | None:
+    """The write-back setting in force: the running service's, else the one the caller knows."""
+    service = status.get("service") or {}
+    settings = service.get("settings") or {}
+    return settings.get("write_back") or (status.get("write_back") or {}).get("setting")
+
+
+def link_text(status: dict[str, Any], tz: str) -> str:
+    """The link line: the service's and the link's state in words."""
+    link = status.get("link") or {}
+    if link.get("text"):
+        return str(link["text"])
+    newest = link.get("newest_sample")
+    return f"{link.get('state', 'unknown')} (newest sample {format_time(newest, tz)})"
+
+
+def proposal_next(proposal: dict[str, Any], status: dict[str, Any]) -> str:
+    """What happens to a proposal next, or why it waits."""
+    state = (status.get("link") or {}).get("state")
+    write_back = write_back_of(status)
+    held = (status.get("write_back") or {}).get("write_held")
+    if proposal.get("status") == "pending":
+        text = "waits for an engineer to approve or reject it"
+        if write_back == "off":
+            text += '; write_back is "off": an approval is recorded, nothing is written'
+        return text
+    if proposal.get("status") != "approved":
+        return str(proposal.get("status"))
+    if state == "stopped":
+        return "approved; the service is stopped: written when it runs again and write-back allows"
+    if write_back == "off":
+        return 'approved; write_back is "off": the service does not write it'
+    if held:
+        return f"approved; writes are held: {held}"
+    if state in ("link_down", "down"):
+        return "approved; the link is down: written when it is back"
+    return (
+        "approved; written at the service's next write check (AUTO, drive off its limits, link "
+        "up), then verified by the PLC's echo"
+    )
+
+
+def proposal_views(status: dict[str, Any], windows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The pending and approved proposals with ``next`` and the window they came from."""
+    by_model = {w.get("model_id"): w["id"] for w in windows if w.get("model_id") is not None}
+    out = []
+    for p in status.get("pending_proposals") or []:
+        out.append(
+            {
+                **p,
+                "old": p.get("old") or {},
+                "new": p.get("new") or {},
+                "next": proposal_next(p, status),
+                "window_id": by_model.get(p.get("model_id")),
+            }
+        )
+    return out
+
+
+def now_rows(status: dict[str, Any], tz: str) -> list[tuple[str, str]]:
+    """The "Now" table: the model, K(T), health, write-back, counts."""
+    rows: list[tuple[str, str]] = []
+    model = status.get("current_model")
+    if model and model.get("model"):
+        m, se = model["model"], model.get("stderr") or {}
+        parts = [
+            f"{key} {fmt_num(m.get(key))}"
+            + (f" ± {fmt_num(se.get(key), 2)}" if se.get(key) else "")
+            for key in ("K", "T", "T2", "delay")
+            if m.get(key) is not None
+        ]
+        rows.append(
+            (
+                "model",
+                ", ".join(parts)
+                + f" (window ending {format_time(model.get('end'), tz)}; K [(L/min)/V], times [s])",
+            )
+        )
+    else:
+        rows.append(("model", "none accepted yet"))
+    trend = status.get("k_trend") or {}
+    drift = trend.get("drift")
+    at = trend.get("at_newest") or {}
+    if trend.get("available"):
+        text = f"{trend.get('mode')} fit over {trend.get('n')} windows"
+        if at.get("K") is not None:
+            text += f"; K at {fmt_num(at.get('fuel_temperature'), 3)} °C: {fmt_num(at['K'])}"
+        if isinstance(drift, dict):
+            text += f"; K now / K tuned for {fmt_num(drift.get('ratio'), 3)}"
+        rows.append(("K(T)", text))
+    else:
+        rows.append(("K(T)", f"not yet ({trend.get('reason', '')})"))
+    wb = status.get("write_back") or {}
+    units = status.get("gain_units") or status.get("gains_units") or {}
+    gains = wb.get("current_gains") or {}
+    rows.append(
+        (
+            "write-back",
+            f"{write_back_of(status) or 'unknown'}; gains now Kc {fmt_num(gains.get('Kc'))} "
+            f"{units.get('Kc', '')}, Ti {fmt_num(gains.get('Ti'))} {units.get('Ti', '')}".rstrip(),
+        )
+    )
+    last = status.get("last_write")
+    if last:
+        when = format_time(last["time"], tz)
+        rows.append(("last write", f"#{last['id']} {last['kind']} {last['status']} at {when}"))
+    else:
+        rows.append(("last write", "none"))
+    counts = status.get("counts") or {}
+    rows.append(
+        (
+            "counts",
+            f"{counts.get('windows', 0)} windows, {counts.get('accepted', 0)} accepted, "
+            f"{counts.get('proposals', 0)} proposals, {counts.get('writes', 0)} writes",
+        )
+    )
+    return rows

@@ -1,0 +1,65 @@
+"""The HTML report of one window, as ``fuelid report`` writes it for a log.
+
+The window's samples are analysed as a log (both identifications, the tuning, the check over
+fuel temperature) and rendered with the report's template, the figures embedded. The store
+keeps only the plant file's hash, not the file: the analysis uses the built-in reference plant
+for its trend over fuel temperature and says so on the report, as ``fuelid report`` does without
+``--plant``. The last few reports are kept in memory (an analysis takes seconds).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from typing import Any
+
+from fuelid.dashboard.source import LoopReader
+from fuelid.errors import FuelidError
+
+__all__ = ["CACHED_REPORTS", "window_report_html"]
+
+CACHED_REPORTS = 8
+"""Reports kept in memory."""
+
+_cache: OrderedDict[tuple[str, str, int], str] = OrderedDict()
+_lock = threading.Lock()
+
+
+def _error_page(title: str, reason: str) -> str:
+    import html
+
+    return (
+        "<!doctype html><html><head><meta charset='utf-8'><title>report</title></head><body>"
+        f"<h1>{html.escape(title)}</h1><p>{html.escape(reason)}</p></body></html>"
+    )
+
+
+def window_report_html(loop: LoopReader, row: dict[str, Any]) -> str:
+    """The report page of the window ``row`` of ``loop`` (an explanation page when it fails)."""
+    from fuelid.htmlreport import ReportFigure, _png, render_report, report_figures
+    from fuelid.plant import load_plant_config
+    from fuelid.store.base import iodata_from_samples
+    from fuelid.workflow import AnalysisSettings, PlantSource, analyse_log
+
+    key = (loop.loop_id, str(loop.identity().get("store_uuid")), int(row["id"]))
+    with _lock:
+        if key in _cache:
+            _cache.move_to_end(key)
+            return _cache[key]
+    samples = loop.samples(float(row["t_from"]), float(row["t_to"]))
+    title = f"Window {row['id']} of loop {loop.loop_id}"
+    try:
+        data = iodata_from_samples(samples, loop.identity().get("period_s"), source=title)
+        analysis = analyse_log(
+            data, PlantSource(load_plant_config(None)), AnalysisSettings(accept_signals=True)
+        )
+        drawn = report_figures(analysis)
+        figures = [ReportFigure(k, caption, _png(fig)) for k, (fig, caption) in drawn.items()]
+        html = render_report(analysis, figures)
+    except FuelidError as error:
+        html = _error_page(title, f"the report could not be made: {error}")
+    with _lock:
+        _cache[key] = html
+        while len(_cache) > CACHED_REPORTS:
+            _cache.popitem(last=False)
+    return html
