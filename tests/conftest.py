@@ -57,6 +57,17 @@ REAL_TIME_MODULES = frozenset(
 )
 
 
+# The dashboard's tests share one store made by a short virtual run (the session fixture
+# `dashboard_store`): one worker runs them all, so the run is made once.
+DASHBOARD_MODULES = frozenset(
+    {
+        "test_dashboard_api.py",
+        "test_dashboard_browser.py",
+        "test_dashboard_cli.py",
+    }
+)
+
+
 @pytest.hookimpl(optionalhook=True)  # an xdist hook: unknown under -p no:xdist (the slow set)
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     """Under ``--dist loadgroup``: the real-time modules as one group, every other test alone.
@@ -74,8 +85,39 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
         def _split_scope(self, nodeid: str) -> str:
             if "@" in nodeid:
                 return nodeid.rsplit("@", 1)[-1]
-            if nodeid.split("::", 1)[0].rsplit("/", 1)[-1] in REAL_TIME_MODULES:
+            module = nodeid.split("::", 1)[0].rsplit("/", 1)[-1]
+            if module in REAL_TIME_MODULES:
                 return "real-time"
+            if module in DASHBOARD_MODULES:
+                return "dashboard"
             return nodeid
 
     return RealTimeGroup(config, log)
+
+
+DASHBOARD_ONLINE = 'identify_every_s = 60\nwindow_s = 120\nwrite_back = "approve"\n'
+"""The [online] table of the dashboard tests' virtual run: a window every minute of plant time."""
+
+
+@pytest.fixture(scope="session")
+def dashboard_store(tmp_path_factory: pytest.TempPathFactory) -> Any:
+    """A store written by ``fuelid online --virtual``: 6 min of plant time at 25x.
+
+    Windows, a proposal left pending (write_back "approve"), events. Tests that change the
+    store copy it first.
+    """
+    pytest.importorskip("pymodbus")
+    from support.browser import Process
+
+    folder = tmp_path_factory.mktemp("dashboard-store")
+    config = folder / "online.toml"
+    config.write_text("[online]\n" + DASHBOARD_ONLINE)
+    store = folder / "loop.db"
+    proc = Process(
+        ["online", "--virtual", "--speed", "25", "--hours", "0.1", "--store", str(store),
+         "--config", str(config)],
+        folder,
+    )  # fmt: skip
+    code = proc.wait(timeout=120.0)
+    assert code == 0, "\n".join(proc.output[-20:])
+    return store
