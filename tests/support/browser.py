@@ -153,6 +153,22 @@ def browser_page(width: int = 1400, height: int = 1000) -> Iterator[tuple[Any, l
             browser.close()
 
 
-def wait_ready(page: Any, timeout_ms: float = 30_000) -> None:
+def wait_until(page: Any, expression: str, timeout: float = 30.0) -> Any:
+    """Poll a JavaScript expression until it is truthy; its value.
+
+    Not Playwright's ``wait_for_function``: that evaluates a string with ``eval``, which the
+    dashboard's Content-Security-Policy (``script-src 'self'``) rightly refuses.
+    """
+    deadline = time.monotonic() + timeout
+    while True:
+        value = page.evaluate(expression)
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f"{expression!r} still false after {timeout} s")
+        page.wait_for_timeout(100)
+
+
+def wait_ready(page: Any, timeout: float = 30.0) -> None:
     """Wait until the page's script says it has drawn (``<body data-ready="1">``)."""
-    page.wait_for_function("document.body.dataset.ready === '1'", timeout=timeout_ms)
+    wait_until(page, "document.body.dataset.ready === '1'", timeout)

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from fastapi import Depends, FastAPI, HTTPException, Request
-from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
+from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, Response
 from fastapi.sse import EventSourceResponse, ServerSentEvent
 from fastapi.staticfiles import StaticFiles
 
@@ -102,6 +102,10 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
     add_security_headers(app)
     app.include_router(auth_router(security))
     # --- static --------------------------------------------------------------------------
+
+    @app.get("/favicon.ico", include_in_schema=False)
+    def favicon() -> Response:
+        return Response(status_code=204)  # no icon (a 404 would be a console error)
 
     @app.get("/static/plotly.min.js", include_in_schema=False)
     def plotly_static() -> FileResponse:
