@@ -3,30 +3,25 @@
 Each loop gets the chips below, each at a level: ``alarm`` (act now), ``warn`` (look today),
 ``unknown`` (not measured yet), ``ok``. The thresholds are the constants of this module.
 
-==================  =========================================================================
-chip                level
-==================  =========================================================================
-service             alarm when the service is stopped (its beat is stale) or the link is down;
-                    unknown before the first sample; ok when up
-mode                warn when the last window was in MAN or the loop spent less than
-                    :data:`AUTO_WARN` of it in AUTO
-limits              warn when the drive sat at its limits more than :data:`LIMITS_WARN` of the
-                    last window
-oscillation         alarm when the last window oscillates
-IAE                 warn when the IAE per unit setpoint step is more than :data:`IAE_WARN` times
-                    its own median over the recent windows
-drift               warn when K now / K the gains were tuned for is off 1 by more than
-                    :data:`DRIFT_WARN` and by more than two standard errors
-proposals           warn while a proposal waits for a person (pending) or for its write
-                    (approved)
-last write          alarm when the last write failed, a write is held or a revert is
-                    requested; ok otherwise
-==================  =========================================================================
+- **service**: alarm when the service is stopped (its beat is stale) or the link is down;
+  unknown before the first sample; ok when up.
+- **oscillation**: alarm when the last window oscillates.
+- **last write**: alarm when the last write failed, a write is held or a revert is requested.
+- **proposals**: warn while a proposal waits for a person (pending) or for its write (approved).
+- **drift**: warn when K now / K the gains were tuned for is off 1 by more than `DRIFT_WARN`
+  (10 %) and by more than two standard errors.
+- **limits**: warn when the drive sat at its limits more than `LIMITS_WARN` (5 %) of the last
+  window.
+- **IAE**: warn when the IAE per unit setpoint step is more than `IAE_WARN` (2) times its own
+  median over the recent windows.
+- **mode**: warn when the last window was in MAN or spent less than `AUTO_WARN` (90 %) of its
+  time in AUTO.
 
 **Severity order** (:func:`severity_key`): loops with an alarm first, then with a warning, then
 those with something unknown, then the healthy ones; within a level, the loop with more chips at
-that level first; then by the first chip at that level in the table's order (a stopped service
-before an oscillation before a failed write); then by loop id.
+that level first; then by the first chip at that level in the list's order above
+(:data:`CHIP_ORDER`: a stopped service before an oscillation before a failed write); then by
+loop id.
 """
 
 from __future__ import annotations
