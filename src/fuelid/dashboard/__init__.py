@@ -1,1 +1,38 @@
-"""The control-room dashboard (``fuelid dashboard``): FastAPI pages over the loops' stores."""
+"""The control-room dashboard (``fuelid dashboard``): FastAPI pages over the loops' stores.
+
+A process of its own (never the recorder's): it opens each loop's store, reads it through one
+interface, :class:`~fuelid.dashboard.source.LoopReader` (a central database implements the same
+protocol later), and serves the fleet, loop and window pages, the JSON API under ``/api/`` and
+one live stream per page. It writes nothing into a store but the requests people file
+(approve, reject, revert), which the running service carries out.
+
+The public API: :class:`LoopReader` and :class:`SQLiteLoop` (one loop's data),
+:class:`Loops` (the loops by id, a folder watched), :func:`create_app` (the FastAPI
+application) and :func:`serve` (uvicorn on a socket), and the modules
+:mod:`fuelid.dashboard.fleet` (chips and the severity order), :mod:`fuelid.dashboard.trend`,
+:mod:`fuelid.dashboard.security` and :mod:`fuelid.dashboard.users`. ``create_app`` and
+``serve`` need the ``dashboard`` extra (FastAPI, uvicorn); the rest only fuelid's own
+dependencies and tsdownsample for the trend.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fuelid.dashboard.registry import Loops
+from fuelid.dashboard.source import LoopReader, SQLiteLoop
+
+__all__ = ["LoopReader", "Loops", "SQLiteLoop", "create_app", "serve"]
+
+
+def __getattr__(name: str) -> Any:
+    # the web parts import FastAPI: only when asked for, so the readers work without the extra
+    if name == "create_app":
+        from fuelid.dashboard.app import create_app
+
+        return create_app
+    if name == "serve":
+        from fuelid.dashboard.server import serve
+
+        return serve
+    raise AttributeError(f"module 'fuelid.dashboard' has no attribute {name!r}")
