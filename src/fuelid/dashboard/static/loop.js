@@ -6,7 +6,10 @@ const API = `/api/loops/${encodeURIComponent(LOOP)}`;
 const LIVE_SPAN_S = 600;       // the live trend shows the newest 10 minutes
 const LIVE_POINTS = 3000;      // points per series kept on screen while live
 const state = { live: true, newest: null, step: 1, taken: 0, units: { Kc: "", Ti: "" } };
-window.fuelidShown = { newest: null, at: null }; // read by the latency benchmark and the tests
+// what the trend shows, for the tests and the latency benchmark: the newest sample drawn [plant s]
+// and when [wall s], and the last 1,000 such moments
+window.fuelidShown = { newest: null, at: null };
+window.fuelidShownLog = [];
 
 const TREND_TRACES = [
   { key: "y", name: "flow [L/min]", yaxis: "y", color: "#1565c0" },
@@ -85,6 +88,8 @@ function appendSamples(batch) {
     Plotly.relayout(div, { "xaxis.range": [new Date(last - LIVE_SPAN_S * 1000).toISOString().replace("T", " ").replace("Z", ""), x[x.length - 1]] });
   }
   window.fuelidShown = { newest, at: Date.now() / 1000 };
+  window.fuelidShownLog.push([newest, window.fuelidShown.at]);
+  if (window.fuelidShownLog.length > 1000) window.fuelidShownLog.shift();
 }
 
 function bindTrend() {
