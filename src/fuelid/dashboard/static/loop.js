@@ -87,9 +87,12 @@ function appendSamples(batch) {
   if (last - first > LIVE_SPAN_S * 1000) {
     Plotly.relayout(div, { "xaxis.range": [new Date(last - LIVE_SPAN_S * 1000).toISOString().replace("T", " ").replace("Z", ""), x[x.length - 1]] });
   }
-  window.fuelidShown = { newest, at: Date.now() / 1000 };
-  window.fuelidShownLog.push([newest, window.fuelidShown.at]);
-  if (window.fuelidShownLog.length > 1000) window.fuelidShownLog.shift();
+  // stamped at the next frame: when the browser paints the new points
+  requestAnimationFrame(() => {
+    window.fuelidShown = { newest, at: Date.now() / 1000 };
+    window.fuelidShownLog.push([newest, window.fuelidShown.at]);
+    if (window.fuelidShownLog.length > 1000) window.fuelidShownLog.shift();
+  });
 }
 
 function bindTrend() {
