@@ -8,16 +8,20 @@ SIGINT/SIGTERM. Behind a reverse proxy, uvicorn trusts ``X-Forwarded-*`` from 12
 
 from __future__ import annotations
 
+import signal
 import socket
+import subprocess
+import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from types import TracebackType
 
 from fuelid.dashboard.registry import Loops
 from fuelid.dashboard.security import Security, check_bind
 from fuelid.dashboard.users import UsersFile
 from fuelid.errors import ConfigError
 
-__all__ = ["DEFAULT_HOST", "DEFAULT_PORT", "serve"]
+__all__ = ["DEFAULT_HOST", "DEFAULT_PORT", "Beside", "serve"]
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8050
@@ -109,3 +113,52 @@ def serve(
         server.run(sockets=[sock])
     finally:
         loops.close()
+
+
+class Beside:
+    """``fuelid dashboard`` as a process of its own beside the online service.
+
+    The service's process never serves a page (a browser must not cost the recorder a sample):
+    this starts ``python -m fuelid dashboard --store STORE --port PORT`` with the same
+    interpreter, its output going where the service's goes, and stops it (SIGINT, then a kill
+    after a grace period) when the service stops.
+
+    Parameters
+    ----------
+    store : str or Path
+        The service's store file.
+    port : int
+        The dashboard's port (on 127.0.0.1).
+    users : Path, optional
+        The users file.
+    """
+
+    GRACE_S = 5.0
+
+    def __init__(self, store: str | Path, port: int = DEFAULT_PORT, users: Path | None = None):
+        args = [sys.executable, "-m", "fuelid", "dashboard", "--store", str(store)]
+        args += ["--port", str(int(port))]
+        if users is not None:
+            args += ["--users", str(users)]
+        self.args = args
+        self.process: subprocess.Popen[bytes] | None = None
+
+    def __enter__(self) -> Beside:
+        self.process = subprocess.Popen(self.args)
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        process, self.process = self.process, None
+        if process is None or process.poll() is not None:
+            return
+        process.send_signal(signal.SIGINT)
+        try:
+            process.wait(self.GRACE_S)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()

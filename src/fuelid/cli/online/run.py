@@ -194,7 +194,10 @@ def _start(
     duration: float | None,
     json_log: bool,
     heartbeat_s: float = 1.0,
+    dashboard_port: int | None = None,
 ) -> None:
+    import contextlib
+
     from fuelid.online.service import OnlineService
 
     check_window_length(site)
@@ -216,7 +219,12 @@ def _start(
             window_s=f"{site.online.window_s:g}",
             write_back=site.online.write_back,
         )
-        stats, wall = _run_service(service, duration, console)
+        with contextlib.ExitStack() as beside:
+            if dashboard_port is not None:
+                from fuelid.dashboard.server import Beside
+
+                beside.enter_context(Beside(service.store.path, dashboard_port))
+            stats, wall = _run_service(service, duration, console)
     finally:
         console.close()
         service.close()
@@ -231,6 +239,7 @@ def _run_virtual(
     speed: float,
     hours: float,
     protocol: ServeProtocol,
+    dashboard_port: int | None = None,
 ) -> None:
     import tempfile
     from importlib import resources
@@ -274,7 +283,14 @@ def _run_virtual(
             f"{speed:g}x real time, {hours:g} h of plant time in {wall:.1f} s",
             err=True,
         )
-        _start(site, target, wall, json_log, heartbeat_s=_heartbeat_s(speed))
+        _start(
+            site,
+            target,
+            wall,
+            json_log,
+            heartbeat_s=_heartbeat_s(speed),
+            dashboard_port=dashboard_port,
+        )
 
 
 @app.callback()
@@ -314,6 +330,20 @@ def online_command(
     protocol: Annotated[
         ServeProtocol, typer.Option("--protocol", help="--virtual: the PLC's protocol.")
     ] = ServeProtocol.modbus,
+    dashboard: Annotated[
+        bool,
+        typer.Option(
+            "--dashboard",
+            help="Also start fuelid dashboard on the store, as a process of its own, on "
+            "http://127.0.0.1:8050/ (stopped with the service).",
+        ),
+    ] = False,
+    dashboard_port: Annotated[
+        int,
+        typer.Option(
+            "--dashboard-port", min=0, max=65535, help="--dashboard: its port (0: a free one)."
+        ),
+    ] = 8050,
 ) -> None:
     """Run the online service in the foreground (or, with a subcommand, look at its store).
 
@@ -328,8 +358,9 @@ def online_command(
         return
     if duration is not None and not (math.isfinite(duration) and duration > 0.0):
         raise ConfigError(f"--duration must be a positive number of seconds, got {duration:g}")
+    port = dashboard_port if dashboard else None
     if virtual:
-        _run_virtual(config, store, duration, json_log, speed, hours, protocol)
+        _run_virtual(config, store, duration, json_log, speed, hours, protocol, port)
         return
     if config is None:
         raise ConfigError(
@@ -340,7 +371,7 @@ def online_command(
 
     site = load_site(config)
     target = str(store) if store is not None else site.store.url
-    _start(site, target, duration, json_log)
+    _start(site, target, duration, json_log, dashboard_port=port)
 
 
 # --- the store ------------------------------------------------------------------------------
