@@ -72,6 +72,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
         "benchmarks/bench_calibration.py --runs 200 --minutes 2",
     ),
     "calibration_timing": ("Plant calibration speed", "benchmarks/bench_calibration.py --timing"),
+    "dashboard": ("The dashboard's speed", "benchmarks/bench_dashboard.py"),
 }
 
 _T = TypeVar("_T")
