@@ -50,7 +50,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from _docs_table import Table, write_page  # noqa: E402
+from _docs_table import Table, write_page
 
 PERIOD_S = 0.02
 WINDOW_EVERY_S = 300.0
@@ -144,9 +144,9 @@ Plotly.newPlot("c", [{{type: "scatter", mode: "lines", x, y}}]).then(() => {{
 
 def render_times(base: str, loop_id: str, repeat: int, work: Path) -> tuple[float, float, int]:
     """Median first render of the loop page [s], of a static page of as many points, points."""
-    from support.browser import browser_page, wait_ready
-
     import plotly
+
+    from support.browser import browser_page, wait_ready
 
     loads, points = [], 0
     with browser_page() as (page, errors):
