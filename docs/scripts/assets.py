@@ -1,5 +1,9 @@
 """Write the docs' generated pictures into docs/assets/ (``make docs-assets``; never ``make test``).
 
+The dashboard's pages (``dashboard_*.png``) are photographed the same way: ``fuelid online
+--virtual`` writes a store (write_back "approve", so a proposal waits), ``fuelid dashboard``
+serves it, and headless Chromium (Playwright, given Debian's executable) takes each page.
+
 The demo's HTML report is made the way a user makes it, by the command line: a simulated step
 sequence of the reference plant (``fuelid simulate``), then ``fuelid report`` on it. Headless
 Chromium takes a screenshot of the top of the page (``report.png``), and the report's own
@@ -64,6 +68,38 @@ def screenshot(page: Path, png: Path) -> None:
         raise SystemExit(f"chromium wrote no screenshot to {png}")
 
 
+DASHBOARD_ONLINE = 'identify_every_s = 120\nwindow_s = 240\nwrite_back = "approve"\n'
+DASHBOARD_PAGES = {"fleet": "/", "loop": "/loops/{loop}", "window": "/loops/{loop}/windows/{w}"}
+
+
+def dashboard_screenshots(work: Path, out: Path) -> None:
+    """The fleet, loop and window pages of a virtual run's store, as a user sees them."""
+    import json
+    import urllib.request
+
+    sys.path.insert(0, str(ROOT / "tests"))
+    from support.browser import browser_page, dashboard, wait_ready
+
+    config = work / "online.toml"
+    config.write_text("[online]\n" + DASHBOARD_ONLINE, encoding="utf-8")
+    fuelid(
+        "online", "--virtual", "--speed", "50", "--hours", "0.75", "--store", "loop.db",
+        "--config", str(config), cwd=work,
+    )  # fmt: skip
+    with dashboard(work, "--store", str(work / "loop.db")) as (_, base):
+        loop = json.loads(urllib.request.urlopen(f"{base}/api/loops").read())["loops"][0]["loop_id"]
+        history = json.loads(urllib.request.urlopen(f"{base}/api/loops/{loop}/history").read())
+        window = [w for w in history["windows"] if w["accepted"]][-1]["id"]
+        with browser_page(1400, 900) as (page, errors):
+            for name, path in DASHBOARD_PAGES.items():
+                page.goto(base + path.format(loop=loop, w=window))
+                wait_ready(page)
+                page.wait_for_timeout(1000)
+                page.screenshot(path=str(out / f"dashboard_{name}.png"), full_page=True)
+        if errors:
+            raise SystemExit(f"the dashboard's pages logged errors: {errors}")
+
+
 def main() -> None:
     """Simulate, report, screenshot: every picture of docs/assets/ from the command line."""
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
@@ -80,7 +116,8 @@ def main() -> None:
         screenshot(work / "report.html", args.out / "report.png")
         for key in FIGURES:
             shutil.copyfile(work / f"report_{key}.png", args.out / f"report_{key}.png")
-    for path in sorted(args.out.glob("report*.png")):
+        dashboard_screenshots(work, args.out)
+    for path in sorted([*args.out.glob("report*.png"), *args.out.glob("dashboard_*.png")]):
         print(f"wrote {path.relative_to(ROOT) if path.is_relative_to(ROOT) else path}")
 
 
