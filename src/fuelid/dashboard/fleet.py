@@ -103,7 +103,7 @@ def _health_chips(status: dict[str, Any], recent_iae: list[float]) -> list[Chip]
     if auto is None and mode is None:
         chips.append(Chip("mode", "unknown", "mode not measured yet"))
     else:
-        text = f"{mode or '-'}" + ("" if auto is None else f", AUTO {_pct(auto)}")
+        text = f"{mode or '-'}" + ("" if auto is None else f" ({_pct(auto)} of the window in AUTO)")
         low = mode == "MAN" or (auto is not None and auto < AUTO_WARN)
         chips.append(Chip("mode", "warn" if low else "ok", text))
     limits = health.get("time_at_limits")
@@ -139,7 +139,7 @@ def _drift_chip(status: dict[str, Any]) -> Chip:
     ratio, se = float(drift["ratio"]), float(drift.get("se") or 0.0)
     off = abs(ratio - 1.0)
     level = "warn" if off > DRIFT_WARN and off > 2.0 * se else "ok"
-    return Chip("drift", level, f"K/K tuned {ratio:.2f} ± {se:.2f}")
+    return Chip("drift", level, f"K now / K tuned for {ratio:.3f} ± {se:.3f}")
 
 
 def _proposal_chip(status: dict[str, Any]) -> Chip:

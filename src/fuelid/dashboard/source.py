@@ -169,7 +169,8 @@ class SQLiteLoop:
         self._lock = threading.Lock()
         meta = dict(self._query("SELECT key, value FROM meta"))
         self.meta = meta
-        self.loop_id = meta.get("loop_id") or default_loop_id(self.store.site_name)
+        # a loop id is part of URLs: whatever a store holds, only [a-z0-9-] reaches them
+        self.loop_id = default_loop_id(meta.get("loop_id") or self.store.site_name)
 
     # --- plumbing ------------------------------------------------------------------------
 
