@@ -215,8 +215,25 @@ function fillTables(history) {
   document.querySelector("#events tbody").replaceChildren(...events);
 }
 
+// link-down stretches (link_down to the next link_up) as grey bands on the trend
+function linkBands(events) {
+  const bands = [];
+  let down = null;
+  for (const e of events) {
+    if (e.kind === "link_down" && down === null) down = e.time;
+    if (e.kind === "link_up" && down !== null) { bands.push([down, e.time]); down = null; }
+  }
+  if (down !== null) bands.push([down, state.newest || down]);
+  return bands.map(([a, b]) => {
+    const [x0, x1] = toZone(TZ, [a, b]);
+    return { type: "rect", xref: "x", yref: "paper", x0, x1, y0: 0, y1: 1, fillcolor: "#c62828", opacity: 0.12, line: { width: 0 } };
+  });
+}
+
 async function loadHistory() {
   const history = await getJSON(`${API}/history`);
+  const trend = document.getElementById("trend");
+  if (trend.data) Plotly.relayout(trend, { shapes: linkBands(history.events) });
   drawModels(history);
   drawKTemperature(history);
   drawGains(history);
