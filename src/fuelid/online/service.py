@@ -260,7 +260,7 @@ class OnlineService:
             newest = self.store.last_time()
             if newest is not None:
                 try:
-                    now = newest if self.site.plc.protocol == "replay" else max(newest, time.time())
+                    now = newest if self.site.plc.protocol == "replay" else time.time()
                     await asyncio.to_thread(
                         self.store.prune,
                         self.site.store.retention_days,

@@ -97,7 +97,9 @@ def record_site(
                     store.prune(
                         site.store.retention_days,
                         site.store.thin_to_s,
-                        now=max(newest, time.time()) if site.plc.protocol != "replay" else newest,
+                        # a replayed log's own time base; else the wall clock (the samples carry
+                        # wall_time: an accelerated virtual PLC's plant time runs ahead of it)
+                        now=time.time() if site.plc.protocol != "replay" else newest,
                     )
 
             stats = asyncio.run(
