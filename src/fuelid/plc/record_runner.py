@@ -81,7 +81,10 @@ def record_site(
 
     plc = open_source(site) if source is None else source
     store = open_store(
-        store_url or site.store.url, period_s=site.sampling.period_s, **site_identity(site)
+        store_url or site.store.url,
+        period_s=site.sampling.period_s,
+        loop_id=site.site.loop_id,
+        **site_identity(site),
     )
     try:
         writer = SampleWriter(store, commit_interval_s=commit_interval_s)

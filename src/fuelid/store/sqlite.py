@@ -403,6 +403,36 @@ class SQLiteStore(SampleStore):
             value = self._read_con.execute("SELECT max(time) FROM samples").fetchone()[0]
         return None if value is None else float(value)
 
+    def newest_sample_clocks(self) -> tuple[float, float] | None:
+        """The newest sample's plant ``time`` and ``wall_time`` [s UTC]; None when empty.
+
+        ``wall_time`` is NaN when unknown (a sample written before schema 3).
+        """
+        with self._read_lock:
+            row = self._read_con.execute(
+                "SELECT time, wall_time FROM samples ORDER BY time DESC LIMIT 1"
+            ).fetchone()
+        if row is None:
+            return None
+        return float(row[0]), math.nan if row[1] is None else float(row[1])
+
+    def last_event(self, kinds: Iterable[str]) -> tuple[float, str, str, float | None] | None:
+        """The newest event of one of ``kinds``: (time, kind, detail, wall_time); None if none.
+
+        Newest by plant time, then by the order written.
+        """
+        names = [str(k) for k in kinds]
+        if not names:
+            return None
+        with self._read_lock:
+            row = self._read_con.execute(
+                "SELECT time, kind, detail, wall_time FROM events "
+                f"WHERE kind IN ({', '.join('?' * len(names))}) "
+                "ORDER BY time DESC, rowid DESC LIMIT 1",
+                names,
+            ).fetchone()
+        return None if row is None else (float(row[0]), str(row[1]), str(row[2]), row[3])
+
     def info(self) -> StoreInfo:
         """Rows, time span, gaps, link events and size on disk."""
         with self._read_lock:
