@@ -404,6 +404,16 @@ def test_approve_marks_the_proposal_and_a_second_approve_is_refused(
     assert proposal["history"][-1]["why"] == "looks right"
     code, out, err = run(capsys, "online", "approve", "1", "--store", str(db))
     assert_one_line_error(code, err, "proposal 1 is approved: it cannot be approved")
+    # no service runs: each command filed a request and applied it at once, with its outcome
+    with SQLiteStore(db) as store, OnlineHistory(store) as history:
+        requests = history.requests()
+    assert [(r["kind"], r["origin"], r["status"]) for r in requests] == [
+        ("approve", "cli", "done"),
+        ("approve", "cli", "refused"),
+    ]
+    assert requests[0]["who"] == "alice"
+    assert requests[1]["outcome"] == "proposal 1 is approved: it cannot be approved"
+    assert all(r["done_wall"] is not None for r in requests)
 
 
 def test_reject_then_approve_is_an_illegal_transition(

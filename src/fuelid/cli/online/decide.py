@@ -109,9 +109,11 @@ def _decide(
     if request["status"] != "done":
         raise StoreError(str(request["outcome"]))
     assert updated is not None
+    controller = settings.get("controller")
+    if controller is None and isinstance(record, dict):  # the service's, without --config
+        controller = (record.get("settings") or {}).get("controller")
     typer.echo(
-        f"{_gains_text(proposal_json(updated, settings.get('controller')))} by {name}; "
-        f"{after(updated, settings)}"
+        f"{_gains_text(proposal_json(updated, controller))} by {name}; {after(updated, settings)}"
     )
 
 
