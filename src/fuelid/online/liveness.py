@@ -52,10 +52,16 @@ LINK_FRESH_S = 30.0
 """A sample written (wall clock) no longer ago than this means a live link [s]."""
 
 
-def plant_hash(path: str | Path | None) -> str:
-    """SHA-256 hex of the plant file's bytes, or of the built-in reference plant's."""
+def plant_hash(path: str | Path | None) -> str | None:
+    """SHA-256 hex of the plant file's bytes, or of the built-in reference plant's.
+
+    None when the plant file cannot be read (the record is written anyway).
+    """
     if path is not None:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        try:
+            return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        except OSError:
+            return None
     from fuelid.plant.config import reference_plant_text
 
     return hashlib.sha256(reference_plant_text().encode("utf-8")).hexdigest()

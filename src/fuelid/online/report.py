@@ -440,7 +440,8 @@ def history_json(
     -------
     dict
         ``site``, ``windows`` (:func:`window_json`), ``proposals`` (:func:`proposal_json`),
-        ``events`` (``time``, ``kind``, ``detail`` of the recording's and the service's events),
+        ``events`` (``time`` [plant s], ``kind``, ``detail``, ``wall_time`` [wall s] of the
+        recording's and the service's events),
         ``writes`` (:func:`write_json`), ``requests`` (every one), ``k_trend``
         (:func:`k_trend_json`), ``counts``, ``timezone``, ``gains_units`` and ``gain_units``
         (the same: the block's units of Kc and Ti), ``units``.
@@ -453,9 +454,7 @@ def history_json(
         "timezone": merged.get("timezone") or "UTC",
         "windows": [window_json(row) for row in history.windows()],
         "proposals": [proposal_json(row, controller) for row in history.proposals()],
-        "events": [
-            {"time": e.time, "kind": e.kind, "detail": e.detail} for e in store.read_events()
-        ],
+        "events": store.read_event_rows(),
         "requests": history.requests(),
         "writes": [write_json(row) for row in history.writes()],
         "k_trend": k_trend_json(history),

@@ -385,6 +385,23 @@ class SQLiteStore(SampleStore):
             ).fetchall()
         return [Event(*row) for row in rows]
 
+    def read_event_rows(
+        self, t_from: float | None = None, t_to: float | None = None
+    ) -> list[dict[str, object]]:
+        """Events as :meth:`read_events` gives them, with ``wall_time`` (None before schema 3).
+
+        Each a dict: ``time`` [plant s UTC], ``kind``, ``detail``, ``wall_time`` [wall s UTC].
+        """
+        where, args = _range(t_from, t_to)
+        with self._read_lock:
+            rows = self._read_con.execute(
+                f"SELECT time, kind, detail, wall_time FROM events{where} ORDER BY time, rowid",
+                args,
+            ).fetchall()
+        return [
+            dict(zip(("time", "kind", "detail", "wall_time"), row, strict=True)) for row in rows
+        ]
+
     def last_seq(self) -> int | None:
         """The largest stored sequence number, from the index (None when there is none)."""
         with self._read_lock:

@@ -228,9 +228,10 @@ def status_command(
 ) -> None:
     """Link, last window and its verdict, current model, K(T) trend, proposals, loop health.
 
-    Read from the store; a running service need not be stopped. --json prints one object
-    (keys site, link, last_window, current_model, k_trend, pending_proposals, loop_health,
-    counts, write_back, last_write, units).
+    Read from the store; a running service need not be stopped. The link line says whether the
+    service runs (its beat, on the wall clock) and the link is up; times in the site's time zone.
+    --json prints one object (keys site, link, service, timezone, last_window, current_model,
+    k_trend, pending_proposals, requests, loop_health, counts, write_back, last_write, units).
     """
     from fuelid.online.report import status_json
 
