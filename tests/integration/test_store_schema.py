@@ -439,3 +439,20 @@ def test_retention_ages_a_virtual_runs_samples_by_the_wall_clock(tmp_path: Path)
     lod = _stored_lod(db, 1)
     assert min(lod) == ahead + 25.0  # the LOD rows of the deleted samples went with them
     assert sum(row[0] for row in lod.values()) == 50
+
+
+def test_a_reflag_recounts_the_bad_samples_of_the_buckets_it_touches(tmp_path: Path) -> None:
+    from fuelid.store.base import Requalify
+
+    db = tmp_path / "reflag.db"
+    samples = [Sample(T0 + 0.25 * k, k, 2.0, 40.0, 40.0, 21.0, 1, int(k == 3)) for k in range(80)]
+    with SQLiteStore(db, **SITE) as store:
+        store.append_samples(samples)
+        # 3.0 … 7.5 s: 19 samples still OK become bad (k = 3 already was: kept as it was)
+        assert store.requalify([Requalify(T0 + 3.0, T0 + 7.5, 3)]) == 19
+        flagged = [
+            s._replace(quality=3) if T0 + 3.0 <= s.time <= T0 + 7.5 and s.quality == 0 else s
+            for s in samples
+        ]
+    for level in (1, 10):
+        assert _stored_lod(db, level) == _lod_by_numpy(flagged, level)

@@ -119,9 +119,10 @@ versions, so that an older fuelid never writes into a schema it does not know.
                                                             -- fuel_temperature (NULLs ignored)
                 bad INTEGER NOT NULL)                       -- samples with quality != 0
         PRIMARY KEY (level, bucket), WITHOUT ROWID; the samples' min/max per bucket for plots
-        over long spans, kept by every append (levels :data:`LOD_LEVELS`). Re-flags keep
-        ``bad`` approximately (a re-flag raises it for the buckets it touches by the samples
-        changed); thinning keeps the rows (they summarise what was there), deleting samples
+        over long spans, kept by every append (levels :data:`LOD_LEVELS`). A re-flag
+        recounts ``bad`` in the buckets it touches, never lowering it (exact while the raw
+        samples are there, approximate after thinning; readers use ``bad`` > 0 as a quality
+        mark); thinning keeps the rows (they summarise what was there), deleting samples
         deletes them
 
 JSON is written with ``allow_nan=False``: NaN and ±inf are stored as ``null``.

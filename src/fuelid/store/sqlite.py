@@ -11,7 +11,12 @@ by a newer fuelid is refused.
 
 Re-flagging (:meth:`SQLiteStore.requalify`, the writer's ``set_quality``): ``UPDATE samples SET
 quality = ? WHERE time BETWEEN ? AND ? AND quality = 0`` on the ``samples_time`` index, in the
-transaction of the batch it was queued after, so it never races the inserts.
+transaction of the batch it was queued after, so it never races the inserts; the buckets of
+``samples_lod`` it touches recount their bad samples in the same transaction.
+
+Every append writes ``wall_time`` (the wall clock at the commit) beside the samples' plant
+``time``, and keeps ``samples_lod`` (min/max per bucket, :mod:`fuelid.store.schema`) for the
+samples actually inserted.
 
 Opening an existing file: its identity (``application_id`` and the ``meta`` table) is read
 before anything is written to it, ``journal_mode=WAL`` included, so that another application's
