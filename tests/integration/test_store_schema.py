@@ -389,10 +389,20 @@ def test_the_lod_at_ingest_counts_a_resent_batch_once(tmp_path: Path) -> None:
         Sample(T0 + 0.3 * k, k, 2.0 + 0.01 * k, 40.0 - 0.02 * k, 40.0, 21.0, 1, int(k % 9 == 0))
         for k in range(200)
     ]
+    from fuelid.store import SampleWriter
+
     with SQLiteStore(db, **SITE) as store:
         assert store.append_samples(samples[:120]) == 120
         assert store.append_samples(samples[100:]) == 80  # 20 re-sent: ignored
         assert store.append_samples(samples[150:170]) == 0  # a whole batch re-sent
+        # the recorder's path: the writer thread, a restart re-sending what it had sent
+        more = [s._replace(time=s.time + 60.0, seq=s.seq + 200) for s in samples]
+        writer = SampleWriter(store)
+        writer.put_many(more[:150])
+        writer.flush()
+        writer.put_many(more[90:])
+        writer.close()
+        samples = samples + more
     for level in (1, 10):
         assert _stored_lod(db, level) == _lod_by_numpy(samples, level)  # each sample once
     con = sqlite3.connect(db)
