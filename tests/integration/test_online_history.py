@@ -11,6 +11,7 @@ import sqlite3
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -72,6 +73,7 @@ def test_store_windows_and_models_round_trip(history: OnlineHistory) -> None:
     rows = history.windows()
     assert [w["id"] for w in rows] == [1, 2, 3, 4]
     first = rows[0]
+    assert abs(first.pop("wall_time") - time.time()) < 60.0  # the wall clock when written
     assert first == {
         "id": 1,
         "t_from": T0,
@@ -94,7 +96,8 @@ def test_store_windows_and_models_round_trip(history: OnlineHistory) -> None:
     assert [w["id"] for w in history.windows(T0 + 900.0, T0 + 1500.0)] == [2, 3]
     models = history.accepted_models()
     assert [m["id"] for m in models] == [1, 2]
-    assert models[1] == {
+    assert models[1]["wall_time"] is not None
+    assert {k: v for k, v in models[1].items() if k != "wall_time"} == {
         "id": 2,
         "window_id": 4,
         "time": T0 + 1501.0,
@@ -171,6 +174,8 @@ def test_store_proposals_round_trip_and_follow_their_transitions(history: Online
         time=T0 + 700.0,
     )
     proposal = history.proposal(pid)
+    wall = proposal.pop("wall_time")
+    assert abs(wall - time.time()) < 60.0
     assert proposal == {
         "id": pid,
         "time": T0 + 700.0,
@@ -179,7 +184,9 @@ def test_store_proposals_round_trip_and_follow_their_transitions(history: Online
         "old": _gains(0.8, 2.0),
         "new": _gains(1.1, 1.6),
         "detail": {"rule": "simc", "Ms": 1.68, "windows": [1]},
-        "history": [{"time": T0 + 700.0, "status": "pending", "who": "online", "why": ""}],
+        "history": [
+            {"time": T0 + 700.0, "wall_time": wall, "status": "pending", "who": "online", "why": ""}
+        ],
     }
     con = history._con
     assert con is not None
@@ -188,6 +195,7 @@ def test_store_proposals_round_trip_and_follow_their_transitions(history: Online
         pid, "approved", who="operator anna", why="looks fine", time=T0 + 800.0
     )
     assert updated["status"] == "approved"
+    assert updated["history"][-1].pop("wall_time") >= wall
     assert updated["history"][-1] == {
         "time": T0 + 800.0,
         "status": "approved",
@@ -305,7 +313,10 @@ def test_store_writes_record_intent_then_outcome(history: OnlineHistory) -> None
         "why": "approved",
         "detail": {},
         "finished": None,
+        "wall_time": intent["wall_time"],
+        "finished_wall": None,
     }
+    assert abs(intent["wall_time"] - time.time()) < 60.0
     assert history.unfinished_writes() == [intent]
     assert history.last_apply_seq() == 41  # an intent counts: the number is used
     with pytest.raises(StoreError, match=f"write {wid} .* is still an intent"):
@@ -415,7 +426,9 @@ def test_store_sample_store_works_with_the_history_tables(tmp_path: Path) -> Non
         rows = con.execute("SELECT name, sql FROM sqlite_schema WHERE type = 'table'").fetchall()
         tables = dict(rows)
         assert {"windows", "writes", "online_state", "models", "proposals"} <= set(tables)
-        assert all(sql.rstrip().endswith("STRICT") for sql in tables.values())
+        assert all(
+            sql.rstrip().endswith(("STRICT", "STRICT, WITHOUT ROWID")) for sql in tables.values()
+        )
         assert con.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
     finally:
         con.close()

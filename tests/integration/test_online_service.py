@@ -68,6 +68,56 @@ def test_an_approved_proposal_is_written_once_and_echoed(tmp_path: Path) -> None
     assert any(line.startswith("write ") and "ok=True" in line for line in lines)
 
 
+def test_an_approve_filed_by_the_cli_is_applied_by_the_running_service(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import threading
+    import time
+
+    from fuelid.cli import main
+
+    store = tmp_path / "s.db"
+    with VirtualPlcThread(speed=SPEED, setpoint_profile="run") as virtual:
+        site = _site(virtual, store, ONLINE_NO_WINDOWS)
+        kc0, ti0 = virtual.plc.gains
+        kc = round(1.2 * kc0, 6)
+        opened, history = _history(site, store)
+        pid = history.add_proposal(
+            model_id=None,
+            old={"Kc": kc0, "Ti": ti0},
+            new={"Kc": kc, "Ti": ti0},
+            detail={"reason": "test", "target": {"Kc": 1.5 * kc0, "Ti": ti0}},
+        )
+        history.close()
+        opened.close()
+        service = OnlineService(site, heartbeat_s=HEARTBEAT_S)
+        runner = threading.Thread(target=lambda: asyncio.run(service.run(6.0)))
+        runner.start()
+        try:
+            for _ in range(100):  # until the service beats
+                record = service.history.state("service")
+                if record and record["beat"] > record["started"]:
+                    break
+                time.sleep(0.05)
+            code = main(["online", "approve", str(pid), "--store", str(store), "--who", "anna"])
+            out = capsys.readouterr().out
+        finally:
+            runner.join()
+        try:
+            requests = service.history.requests()
+            proposal = service.history.proposal(pid)
+        finally:
+            service.close()
+    assert code == 0
+    assert f"#{pid} approved: Kc" in out
+    assert "(target " in out  # the target the rule moves toward, in the block's units
+    assert "by anna" in out
+    assert [(r["kind"], r["origin"], r["status"]) for r in requests] == [("approve", "cli", "done")]
+    assert proposal is not None
+    assert proposal["history"][1]["who"] == "anna"
+    assert proposal["status"] == "applied"  # and then written by the service
+
+
 def test_no_write_while_the_loop_is_in_man(tmp_path: Path) -> None:
     store = tmp_path / "s.db"
     # no profile: the virtual PLC starts in MAN at 1 V (and stays there)

@@ -76,13 +76,16 @@ def test_schema_is_versioned_strict_and_in_wal_mode(tmp_path: Path) -> None:
         assert set(tables) == {
             *("meta", "samples", "events", "models", "proposals"),
             *("windows", "writes", "online_state"),  # every store has them since schema 2
+            *("requests", "samples_lod"),  # since schema 3
         }
-        assert all(sql.rstrip().endswith("STRICT") for sql in tables.values())
+        assert all(
+            sql.rstrip().endswith(("STRICT", "STRICT, WITHOUT ROWID")) for sql in tables.values()
+        )
         meta = dict(con.execute("SELECT key, value FROM meta"))
         assert meta["site_name"] == SITE["site_name"]
         assert meta["tag_map_hash"] == SITE["tag_map_hash"]
         with pytest.raises(sqlite3.IntegrityError):  # STRICT: no text in a REAL column
-            con.execute("INSERT INTO samples VALUES (1.0, 1, 'x', 1.0, 1.0, 1.0, 1, 0)")
+            con.execute("INSERT INTO samples VALUES (1.0, 1, 'x', 1.0, 1.0, 1.0, 1, 0, NULL)")
     finally:
         con.close()
 

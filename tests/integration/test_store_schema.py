@@ -8,6 +8,7 @@ every row; :func:`test_a_store_of_every_older_version_opens_upgraded` does it fo
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import sqlite3
@@ -43,8 +44,12 @@ def _tables(db: Path) -> dict[str, list[tuple[object, ...]]]:
                 "SELECT name FROM sqlite_schema WHERE type = 'table' ORDER BY name"
             )
         ]
+        # samples_lod is WITHOUT ROWID: in the order of its key
         return {
-            name: con.execute(f"SELECT * FROM {name} ORDER BY rowid").fetchall() for name in names
+            name: con.execute(
+                f"SELECT * FROM {name} ORDER BY {'1, 2' if name == 'samples_lod' else 'rowid'}"
+            ).fetchall()
+            for name in names
         }
     finally:
         con.close()
@@ -83,12 +88,42 @@ def test_store_written_by_fuelid_0_1_is_upgraded_without_losing_a_row(tmp_path: 
     after = _tables(db)
     assert _pragma(db, "user_version") == SCHEMA_VERSION
     assert set(before) <= set(after)
-    for table, rows in before.items():
-        if table == "meta":
-            continue
-        assert after[table] == rows, table  # value for value, in the same order
+    # samples and events: value for value, in the same order, with wall_time NULL (unknown);
+    # the online rows' wall times (the windows ran at real time: plant = wall − 1 s by the
+    # anchors (601, 600) and (901, 900)) mapped onto plant time, the old value kept as wall_time
+    for table in ("samples", "events"):
+        assert after[table] == [(*row, None) for row in before[table]], table
+    assert after["online_state"] == before["online_state"]
+    assert after["models"] == [
+        (*row[:1], row[1] - 1.0, *row[2:], row[1]) for row in before["models"]
+    ]
+    assert after["windows"] == [
+        (row[0], max(row[3], row[1] - 1.0), *row[2:], row[1]) for row in before["windows"]
+    ]
+    (write,) = before["writes"]
+    assert after["writes"] == [
+        (*write[:1], write[1] - 1.0, *write[2:11], write[11] - 1.0, write[1], write[11])
+    ]
+    (proposal,) = after["proposals"]
+    assert proposal[1] == before["proposals"][0][1] - 1.0
+    assert proposal[-1] == before["proposals"][0][1]
+    history = json.loads(proposal[6])["history"]
+    assert [(h["time"], h["wall_time"]) for h in history] == [
+        (1700000901.0, 1700000902.0),
+        (1700000902.0, 1700000903.0),
+    ]
     meta_before, meta_after = dict(before["meta"]), dict(after["meta"])
-    assert meta_after == {**meta_before, "schema_version": str(SCHEMA_VERSION)}
+    assert re.fullmatch("[0-9a-f]{32}", meta_after.pop("store_uuid"))
+    assert meta_after == {
+        **meta_before,
+        "schema_version": str(SCHEMA_VERSION),
+        "loop_id": "tunnel-2-fuel-loop",
+    }
+    # the level-of-detail rows of the six samples: 1 s buckets T0 (5 samples) and T0 + 5
+    lod = {(row[0], row[1]): row[2:] for row in after["samples_lod"]}
+    assert lod[(1, T0)] == (5, 2.0, 2.3, 40.0, 41.75, 40.0, 42.0, 21.5, 21.625, 3)
+    assert lod[(1, T0 + 5.0)] == (1, 1.5, 1.5, 30.0, 30.0, None, None, 22.0, 22.0, 0)
+    assert lod[(10, T0)] == (6, 1.5, 2.3, 30.0, 41.75, 40.0, 42.0, 21.5, 22.0, 3)
     assert len(samples) == len(before["samples"]) == 6
     assert math.isnan(samples.y[2])
     assert samples.seq[5] == -1
@@ -132,7 +167,7 @@ def test_a_store_of_every_older_version_opens_upgraded(tmp_path: Path, version: 
     with SQLiteStore(db, **SITE) as store:
         assert store.info().schema_version == SCHEMA_VERSION
         assert store.read().y.tolist() == [40.0, 41.0, 42.0, 43.0, 44.0]
-    assert _tables(db)["samples"] == before["samples"]
+    assert _tables(db)["samples"] == [(*row, None) for row in before["samples"]]
     assert _schema(db) == _schema(_new_store(tmp_path))
 
 
@@ -196,18 +231,18 @@ def test_a_failed_migration_leaves_the_store_at_the_version_before(
 def test_a_migration_with_a_data_step_fills_rows_in_its_transaction(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    # the shape of the planned wall-clock migration: a new column, filled for the old rows
+    # the shape of a migration that fills a new column for the old rows
     db = _new_store(tmp_path)
     with SQLiteStore(db, **SITE) as store:
         store.append_samples([Sample(T0, 0, 2.0, 40.0), Sample(T0 + 0.02, 1, 2.0, 40.0)])
 
     def fill(con: sqlite3.Connection) -> None:
-        con.execute("UPDATE samples SET wall_time = time")
+        con.execute("UPDATE samples SET t_copy = time")
 
     wall = Migration(
         SCHEMA_VERSION + 1,
-        "wall-clock time beside plant time",
-        ("ALTER TABLE samples ADD COLUMN wall_time REAL",),
+        "a copy of the time",
+        ("ALTER TABLE samples ADD COLUMN t_copy REAL",),
         data=fill,
     )
     monkeypatch.setattr(store_schema, "MIGRATIONS", (*MIGRATIONS, wall))
@@ -216,8 +251,218 @@ def test_a_migration_with_a_data_step_fills_rows_in_its_transaction(
     try:
         assert upgrade(con, str(db), to_version=SCHEMA_VERSION + 1) == SCHEMA_VERSION + 1
         assert upgrade(con, str(db), to_version=SCHEMA_VERSION + 1) == SCHEMA_VERSION + 1
-        rows = con.execute("SELECT time, wall_time FROM samples ORDER BY time").fetchall()
+        rows = con.execute("SELECT time, t_copy FROM samples ORDER BY time").fetchall()
     finally:
         con.close()
     assert rows == [(T0, T0), (T0 + 0.02, T0 + 0.02)]
     assert _pragma(db, "user_version") == SCHEMA_VERSION + 1
+
+
+def _lod_by_numpy(samples: list[Sample], level: int) -> dict[float, tuple[object, ...]]:
+    """min/max per bucket of ``level`` s by numpy, NaN ignored (None when all NaN)."""
+    import numpy as np
+
+    t = np.array([s.time for s in samples])
+    buckets = np.floor(t / level) * level
+    out: dict[float, tuple[object, ...]] = {}
+    for b in np.unique(buckets):
+        rows = [s for s, bb in zip(samples, buckets, strict=True) if bb == b]
+        values: list[object] = [len(rows)]
+        for name in ("u", "y", "setpoint", "fuel_temperature"):
+            x = np.array([getattr(s, name) for s in rows], dtype=float)
+            x = x[~np.isnan(x)]
+            values += [None, None] if x.size == 0 else [float(x.min()), float(x.max())]
+        values.append(sum(s.quality != 0 for s in rows))
+        out[float(b)] = tuple(values)
+    return out
+
+
+def _stored_lod(db: Path, level: int) -> dict[float, tuple[object, ...]]:
+    con = sqlite3.connect(db)
+    try:
+        rows = con.execute(
+            "SELECT bucket, n, u_min, u_max, y_min, y_max, sp_min, sp_max, tf_min, tf_max, bad "
+            "FROM samples_lod WHERE level = ? ORDER BY bucket",
+            (level,),
+        ).fetchall()
+    finally:
+        con.close()
+    return {row[0]: tuple(row[1:]) for row in rows}
+
+
+def test_a_v2_store_of_a_virtual_time_run_is_mapped_onto_plant_time(tmp_path: Path) -> None:
+    # a virtual PLC at 20x: every window's data (t_to) runs ahead of its wall analysis time.
+    # Written the v2 way: windows/models/proposals/writes timed by the wall clock.
+    db = tmp_path / "v2.db"
+    build_at(str(db), 2, SITE)
+    wall0 = T0 + 1_000.0
+    plant0 = T0 + 50_000.0
+    speed = 20.0
+    anchors = [(wall0 + 15.0 * k, plant0 + 15.0 * k * speed) for k in range(5)]
+    rng = __import__("numpy").random.default_rng(3)
+    samples = [
+        Sample(
+            plant0 + 0.5 * k,
+            k,
+            float(rng.uniform(1, 3)),
+            float("nan") if k % 7 == 0 else float(rng.uniform(30, 50)),
+            40.0,
+            float(rng.uniform(20, 22)),
+            1,
+            int(k % 11 == 0),
+        )
+        for k in range(2_500)
+    ]
+    con = sqlite3.connect(db)
+    con.executemany("INSERT INTO samples VALUES (?, ?, ?, ?, ?, ?, ?, ?)", samples)
+    for k, (wall, plant) in enumerate(anchors, start=1):
+        con.execute(
+            "INSERT INTO models VALUES (?, ?, ?, ?, 21.0, '{}')", (k, wall, plant - 600.0, plant)
+        )
+        con.execute(
+            "INSERT INTO windows VALUES (?, ?, ?, ?, 1, 'ok', 21.0, 2.0, ?, '{}')",
+            (k, wall, plant - 600.0, plant, k),
+        )
+    proposal_wall = [wall0 + 20.0, wall0 + 47.5, wall0 + 70.0]  # the last after every window
+    for k, wall in enumerate(proposal_wall, start=1):
+        detail = {
+            "old": {"Kc": 1.0, "Ti": 2.0},
+            "new": {"Kc": 1.1, "Ti": 1.9},
+            "detail": {},
+            "history": [
+                {"time": wall, "status": "pending", "who": "online", "why": ""},
+                {"time": wall + 3.0, "status": "approved", "who": "anna", "why": ""},
+            ],
+        }
+        con.execute(
+            "INSERT INTO proposals VALUES (?, ?, ?, 1.1, 1.9, 'approved', ?)",
+            (k, wall, k, json.dumps(detail)),
+        )
+    con.execute(
+        "INSERT INTO writes VALUES (1, ?, 1, 'proposal', 1.1, 1.9, 1, 'verified', 'anna', '', "
+        "'{}', ?)",
+        (wall0 + 24.0, wall0 + 24.5),
+    )
+    con.commit()
+    con.close()
+
+    def plant(w: float) -> float:  # the stated band: exactly the interpolation
+        walls, plants = zip(*anchors, strict=True)
+        if w > walls[-1]:
+            return plants[-1] + (w - walls[-1])
+        return float(__import__("numpy").interp(w, walls, plants))
+
+    with SQLiteStore(db, **SITE) as store:
+        assert store.schema_version == SCHEMA_VERSION == 3
+        assert re.fullmatch("[0-9a-f]{32}", str(store.store_uuid))
+        assert store.loop_id == "tunnel-2-fuel-loop"
+        with OnlineHistory(store) as history:
+            windows = history.windows()
+            proposals = history.proposals()
+            (write,) = history.writes()
+            models = history.accepted_models()
+    assert [w["time"] for w in windows] == [p for _, p in anchors]
+    assert [w["wall_time"] for w in windows] == [w for w, _ in anchors]
+    assert [m["time"] for m in models] == [p for _, p in anchors]
+    for proposal, wall in zip(proposals, proposal_wall, strict=True):
+        assert proposal["time"] == pytest.approx(plant(wall), abs=1e-6)
+        assert proposal["wall_time"] == wall
+        assert [(h["time"], h["wall_time"]) for h in proposal["history"]] == [
+            pytest.approx((plant(wall), wall)),
+            pytest.approx((plant(wall + 3.0), wall + 3.0)),
+        ]
+    # each proposal lies between the windows around it in plant time, after its model's t_to
+    assert anchors[1][1] < proposals[0]["time"] < anchors[2][1]
+    assert anchors[3][1] < proposals[1]["time"] < anchors[4][1]
+    assert proposals[2]["time"] == anchors[-1][1] + 10.0  # real time after the last window
+    assert write["time"] == pytest.approx(plant(wall0 + 24.0))
+    assert write["finished"] == pytest.approx(plant(wall0 + 24.5))
+    assert (write["wall_time"], write["finished_wall"]) == (wall0 + 24.0, wall0 + 24.5)
+    assert write["time"] >= proposals[0]["time"]
+    for level in (1, 10):
+        assert _stored_lod(db, level) == _lod_by_numpy(samples, level)  # exact: min/max
+
+
+def test_the_lod_at_ingest_counts_a_resent_batch_once(tmp_path: Path) -> None:
+    db = tmp_path / "new.db"
+    samples = [
+        Sample(T0 + 0.3 * k, k, 2.0 + 0.01 * k, 40.0 - 0.02 * k, 40.0, 21.0, 1, int(k % 9 == 0))
+        for k in range(200)
+    ]
+    from fuelid.store import SampleWriter
+
+    with SQLiteStore(db, **SITE) as store:
+        assert store.append_samples(samples[:120]) == 120
+        assert store.append_samples(samples[100:]) == 80  # 20 re-sent: ignored
+        assert store.append_samples(samples[150:170]) == 0  # a whole batch re-sent
+        # the recorder's path: the writer thread, a restart re-sending what it had sent
+        more = [s._replace(time=s.time + 60.0, seq=s.seq + 200) for s in samples]
+        writer = SampleWriter(store)
+        writer.put_many(more[:150])
+        writer.flush()
+        writer.put_many(more[90:])
+        writer.close()
+        samples = samples + more
+    for level in (1, 10):
+        assert _stored_lod(db, level) == _lod_by_numpy(samples, level)  # each sample once
+    con = sqlite3.connect(db)
+    try:
+        walls = [row[0] for row in con.execute("SELECT wall_time FROM samples")]
+        meta = dict(con.execute("SELECT key, value FROM meta"))
+    finally:
+        con.close()
+    assert all(w is not None and abs(w - __import__("time").time()) < 60 for w in walls)
+    assert meta["loop_id"] == "tunnel-2-fuel-loop"
+    assert len(meta["store_uuid"]) == 32
+
+
+def test_a_store_keeps_its_loop_id_and_refuses_another(tmp_path: Path) -> None:
+    db = tmp_path / "loop.db"
+    with SQLiteStore(db, loop_id="t2-fuel", **SITE) as store:
+        assert store.loop_id == "t2-fuel"
+    with SQLiteStore(db, **SITE) as store:  # no loop_id given: whatever the store has
+        assert store.loop_id == "t2-fuel"
+    with pytest.raises(StoreError, match="belongs to loop 't2-fuel', not 'other'"):
+        SQLiteStore(db, loop_id="other", **SITE)
+    with pytest.raises(StoreError, match="loop_id must match"):
+        SQLiteStore(tmp_path / "x.db", loop_id="Bad Id", **SITE)
+
+
+def test_retention_ages_a_virtual_runs_samples_by_the_wall_clock(tmp_path: Path) -> None:
+    import time
+
+    db = tmp_path / "virtual.db"
+    now = time.time()
+    ahead = float(int(now)) + 20 * 86400.0  # a virtual PLC's plant time 20 days ahead
+    samples = [Sample(ahead + 0.5 * k, k, 2.0, 40.0) for k in range(100)]
+    with SQLiteStore(db, **SITE) as store:
+        store.append_samples(samples)
+        kept = store.prune(older_than_days=2.0, thin_to_period_s=None)  # wall clock now
+        assert kept.deleted == 0  # written just now: young, whatever their plant time
+        con = sqlite3.connect(db)
+        con.execute("UPDATE samples SET wall_time = ? WHERE seq < 50", (now - 3 * 86400.0,))
+        con.commit()
+        con.close()
+        gone = store.prune(older_than_days=2.0, thin_to_period_s=None)
+        assert gone.deleted == 50
+        assert store.read().seq.tolist() == list(range(50, 100))
+    lod = _stored_lod(db, 1)
+    assert min(lod) == ahead + 25.0  # the LOD rows of the deleted samples went with them
+    assert sum(row[0] for row in lod.values()) == 50
+
+
+def test_a_reflag_recounts_the_bad_samples_of_the_buckets_it_touches(tmp_path: Path) -> None:
+    from fuelid.store.base import Requalify
+
+    db = tmp_path / "reflag.db"
+    samples = [Sample(T0 + 0.25 * k, k, 2.0, 40.0, 40.0, 21.0, 1, int(k == 3)) for k in range(80)]
+    with SQLiteStore(db, **SITE) as store:
+        store.append_samples(samples)
+        # 3.0 … 7.5 s: 19 samples still OK become bad (k = 3 already was: kept as it was)
+        assert store.requalify([Requalify(T0 + 3.0, T0 + 7.5, 3)]) == 19
+        flagged = [
+            s._replace(quality=3) if T0 + 3.0 <= s.time <= T0 + 7.5 and s.quality == 0 else s
+            for s in samples
+        ]
+    for level in (1, 10):
+        assert _stored_lod(db, level) == _lod_by_numpy(flagged, level)

@@ -179,7 +179,12 @@ def test_status_json_has_the_documented_keys_and_values(
     ):
         assert key in status, key
     assert status["site"]["name"] == "virtual fuel loop"
-    assert status["link"]["state"] == "up"  # link_up after link_down, a sample 2 s old
+    # no service ever ran on this store: stopped, whatever the samples' age (issue "one clock")
+    assert status["link"]["state"] == "stopped"
+    assert status["link"]["service"] == "never started"
+    assert status["service"] is None
+    assert status["timezone"] == "UTC"
+    assert status["requests"] == []
     assert status["link"]["age_s"] < 30.0
     last = status["last_window"]
     assert last["id"] == 4
@@ -215,7 +220,50 @@ def test_status_json_has_the_documented_keys_and_values(
     assert code == 0, err
     status = json.loads(out)
     assert status["write_back"]["setting"] == "off"
+    assert status["write_back"]["setting_from"] == "site file"
     assert status["gains_units"] == {"Kc": "V per L/min", "Ti": "s"}
+    assert status["pending_proposals"][0]["gain_units"] == {"Kc": "V per L/min", "Ti": "s"}
+    # a running service's record: the link is up, and the write-back known without --config
+    _beating(db, write_back="approve", timezone="Europe/Zurich")
+    code, out, err = run(capsys, "online", "status", "--store", str(db), "--json")
+    assert code == 0, err
+    status = json.loads(out)
+    assert status["link"]["state"] == "up"  # a sample 2 s old (wall clock), the service beats
+    assert status["service"]["state"] == "running"
+    assert status["service"]["beat_age_s"] < 10.0
+    assert status["write_back"]["setting"] == "approve"
+    assert status["write_back"]["setting_from"] == "service"
+    assert status["timezone"] == "Europe/Zurich"
+    pending = status["pending_proposals"][0]
+    assert pending["target"] is None  # the proposal recorded no target
+    assert pending["gain_units"] == {"Kc": "V per L/min", "Ti": "s"}
+
+
+def _beating(db: Path, **settings: Any) -> None:
+    """Write a service record as a running service would (a beat now)."""
+    from fuelid.online.gains import gain_units
+    from fuelid.plc.site import Controller
+
+    wall = time.time()
+    controller = {"form": "ideal", "gain_units": "engineering", "integral_unit": "s"}
+    with SQLiteStore(db) as store, OnlineHistory(store) as history:
+        history.set_state(
+            "service",
+            {
+                "pid": 1,
+                "host": "test",
+                "version": "0",
+                "started": wall,
+                "beat": wall,
+                "beat_every_s": 2.0,
+                "stopped": None,
+                "settings": {
+                    **settings,
+                    "controller": controller,
+                    "gain_units": gain_units(Controller(**controller)),
+                },
+            },
+        )
 
 
 def test_status_text_is_a_few_aligned_lines(
@@ -234,6 +282,7 @@ def test_status_text_is_a_few_aligned_lines(
         "step-ls",
         "K(T)",
         "proposals",
+        "requests",
         "health",
         "writes",
         "counts",
@@ -242,6 +291,7 @@ def test_status_text_is_a_few_aligned_lines(
     assert "accepted: passed every gate" in text
     assert "K = 13.8 ± 0.02 (L/min)/V" in text
     assert "#1 pending: Kc 0.04 → 0.045" in text
+    assert "service never started" in text
     assert "oscillating no" in text
     assert "Harris 0.83" in text
 
@@ -354,6 +404,16 @@ def test_approve_marks_the_proposal_and_a_second_approve_is_refused(
     assert proposal["history"][-1]["why"] == "looks right"
     code, out, err = run(capsys, "online", "approve", "1", "--store", str(db))
     assert_one_line_error(code, err, "proposal 1 is approved: it cannot be approved")
+    # no service runs: each command filed a request and applied it at once, with its outcome
+    with SQLiteStore(db) as store, OnlineHistory(store) as history:
+        requests = history.requests()
+    assert [(r["kind"], r["origin"], r["status"]) for r in requests] == [
+        ("approve", "cli", "done"),
+        ("approve", "cli", "refused"),
+    ]
+    assert requests[0]["who"] == "alice"
+    assert requests[1]["outcome"] == "proposal 1 is approved: it cannot be approved"
+    assert all(r["done_wall"] is not None for r in requests)
 
 
 def test_reject_then_approve_is_an_illegal_transition(
@@ -578,20 +638,40 @@ def test_sigterm_stops_the_virtual_run_cleanly_with_a_summary(tmp_path: Path) ->
         assert store.info().rows > 1000
 
 
-def test_the_link_state_follows_the_newest_link_event_and_the_samples_age(
+def test_the_link_state_follows_the_service_the_newest_link_event_and_the_wall_clock(
     tmp_path: Path,
 ) -> None:
+    # issue "one clock": the state is judged on the wall clock and the service record, never
+    # on the samples' plant time (here T0, years away from the wall clock)
     from fuelid.online.report import link_json
 
     site = site_file(tmp_path)
     identity = site_identity(load_site(site))
     with SQLiteStore(tmp_path / "link.db", period_s=0.02, **identity) as store:
-        assert link_json(store)["state"] == "unknown"  # no sample at all
+        never = link_json(store)
+        assert (never["state"], never["service"]) == ("stopped", "never started")
+        wall = time.time()
+        record = {"started": wall, "beat": wall, "stopped": None}
+        assert link_json(store, now=wall + 1.0, service=record)["state"] == "no_data"
         store.append([Sample(T0, 0, 2.5, 40.0)], [Event(T0 + 1.0, "link_down", "timeout")])
-        assert link_json(store, now=T0 + 2.0)["state"] == "down"
+        wall = time.time()
+        record["beat"] = wall
+        assert link_json(store, now=wall + 1.0, service=record)["state"] == "link_down"
         store.append([Sample(T0 + 3.0, 1, 2.5, 40.0)], [Event(T0 + 3.0, "link_up", "")])
-        up = link_json(store, now=T0 + 5.0)
+        wall = time.time()
+        record["beat"] = wall
+        up = link_json(store, now=wall + 2.0, service=record)
         assert up["state"] == "up"
-        assert up["age_s"] == pytest.approx(2.0)
+        assert up["service"] == "running"
+        assert up["age_s"] == pytest.approx(2.0, abs=0.5)  # the wall age of the newest sample
+        assert up["newest_sample"] == T0 + 3.0  # its plant time
         assert up["last_event"]["kind"] == "link_up"
-        assert link_json(store, now=T0 + 3600.0)["state"] == "unknown"  # no recorder running
+        # the recorder silent for 40 s while the service beats: the link is down
+        late = link_json(store, now=wall + 40.0, service={**record, "beat": wall + 39.0})
+        assert late["state"] == "link_down"
+        # a service killed (no beat for 11 s) or stopped cleanly: stopped, nothing else trusted
+        killed = link_json(store, now=wall + 11.0, service=record)
+        assert (killed["state"], killed["service"]) == ("stopped", "stopped")
+        assert "last beat" in killed["text"]
+        clean = link_json(store, now=wall + 1.0, service={**record, "stopped": wall + 0.5})
+        assert clean["state"] == "stopped"

@@ -325,3 +325,18 @@ def test_relative_paths_are_taken_from_the_site_file_s_folder(
     site = load_site(path)
     assert site.site.plant == str(folder.resolve() / "worn.toml")
     assert site.store.url == f"sqlite:///{folder.resolve() / 'data' / 'loop.db'}"
+
+
+def test_the_site_time_zone_and_loop_id_are_checked(tmp_path: Path):
+    site = load_site(_write(tmp_path, EXAMPLE))
+    assert (site.site.timezone, site.site.loop_id) == ("UTC", None)
+    named = EXAMPLE.replace(
+        'name = "tunnel 2 fuel loop"\n',
+        'name = "tunnel 2 fuel loop"\ntimezone = "Europe/Zurich"\nloop_id = "t2-fuel"\n',
+    )
+    site = load_site(_write(tmp_path, named))
+    assert (site.site.timezone, site.site.loop_id) == ("Europe/Zurich", "t2-fuel")
+    with pytest.raises(ConfigError, match=r"site\.timezone.*'Mars/Olympus'"):
+        load_site(_write(tmp_path, named.replace("Europe/Zurich", "Mars/Olympus")))
+    with pytest.raises(ConfigError, match=r"site\.loop_id"):
+        load_site(_write(tmp_path, named.replace("t2-fuel", "T2 fuel")))

@@ -117,6 +117,30 @@ def controller_to_ideal(kc: float, ti: float, controller: Controller) -> Gains:
     return Gains(Kc=Kc, Ti=Ti)
 
 
+def gain_units(controller: Controller | None) -> dict[str, str] | None:
+    """The units of the block's two numbers, by what its registers hold: ``{"Kc", "Ti"}``.
+
+    ``Kc`` is the proportional gain: ``"%/%"`` (``gain_units = "percent"``) or ``"V per L/min"``;
+    ``Ti`` is the integral time in ``"s"`` or ``"min"`` (ideal form) or, in the parallel form,
+    the integral gain Ki (the ``ti`` register holds Ki): the gain's unit per ``s`` or ``min``.
+    None when the controller is unknown.
+
+    Examples
+    --------
+    >>> gain_units(Controller())
+    {'Kc': 'V per L/min', 'Ti': 's'}
+    >>> gain_units(Controller(form="parallel", gain_units="percent", u_span_V=4.0,
+    ...                       y_span_Lpm=100.0, integral_unit="min"))
+    {'Kc': '%/%', 'Ti': '%/% per min'}
+    """
+    if controller is None:
+        return None
+    kc = "%/%" if controller.gain_units == "percent" else "V per L/min"
+    if controller.form == "parallel":
+        return {"Kc": kc, "Ti": f"{kc} per {controller.integral_unit}"}
+    return {"Kc": kc, "Ti": controller.integral_unit}
+
+
 def ideal_to_controller(gains: Gains, controller: Controller) -> tuple[float, float]:
     """Ideal-form engineering gains → the (kc, ti) the PLC's block takes.
 
@@ -149,4 +173,10 @@ def ideal_to_controller(gains: Gains, controller: Controller) -> tuple[float, fl
     return kc, ti_block
 
 
-__all__ = ["SECONDS_PER_MINUTE", "Gains", "controller_to_ideal", "ideal_to_controller"]
+__all__ = [
+    "SECONDS_PER_MINUTE",
+    "Gains",
+    "controller_to_ideal",
+    "gain_units",
+    "ideal_to_controller",
+]

@@ -10,10 +10,16 @@ health, the write-back state. :func:`history_json` gives everything over time: e
 the model, standard errors and 95 % intervals shaped as ``fuelid identify --json``'s), every
 proposal with its history, every event of the recording and every write of gains.
 
-Units (:data:`ONLINE_UNITS`): times are UTC seconds since the Unix epoch [s]; the fuel
+Units (:data:`ONLINE_UNITS`): times are UTC seconds since the Unix epoch [s] on two clocks:
+``time`` (and ``start``, ``end``, ``finished``, ``newest_sample``) is plant time, the samples'
+time base (an accelerated virtual PLC runs it 20–50 times faster than the wall clock);
+``wall_time`` (and ``finished_wall``, ``newest_sample_wall``, the service record's times) the
+wall clock when written. The link and the service are judged on the wall clock alone
+(:func:`fuelid.online.liveness.loop_state`). The fuel
 temperature in °C; the command u in V; the flow, setpoint and noise in L/min; K in (L/min)/V;
 T, T2, T_f and the delay θ in s; the gains ``Kc`` and ``Ti`` in the controller's units (as the
-site's ``[controller]`` table says its registers hold them; ``gains_units`` when known).
+site's ``[controller]`` table says its registers hold them; ``gain_units`` when known, see
+:func:`fuelid.online.gains.gain_units`).
 """
 
 from __future__ import annotations
@@ -22,18 +28,31 @@ import math
 import time as _time
 from typing import Any
 
+from fuelid.errors import FuelidError
 from fuelid.io.jsonsafe import json_ready
 from fuelid.online.context import TRACKER_OBSERVATIONS, observation_of
+from fuelid.online.gains import Gains, gain_units, ideal_to_controller
+from fuelid.online.liveness import LINK_FRESH_S, SERVICE_KEY, loop_state
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.store.online import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
 
 ONLINE_UNITS: dict[str, str] = {
-    "time": "s (UTC since the epoch)",
-    "start": "s (UTC since the epoch)",
-    "end": "s (UTC since the epoch)",
-    "newest_sample": "s (UTC since the epoch)",
-    "age_s": "s",
+    "time": "s (plant time: the samples' time base, UTC since the epoch)",
+    "wall_time": "s (wall clock when written, UTC since the epoch)",
+    "start": "s (plant time, UTC since the epoch)",
+    "end": "s (plant time, UTC since the epoch)",
+    "finished": "s (plant time, UTC since the epoch)",
+    "finished_wall": "s (wall clock, UTC since the epoch)",
+    "done_wall": "s (wall clock, UTC since the epoch)",
+    "newest_sample": "s (plant time, UTC since the epoch)",
+    "newest_sample_wall": "s (wall clock when written, UTC since the epoch)",
+    "since": "s (wall clock, UTC since the epoch)",
+    "started": "s (wall clock, UTC since the epoch)",
+    "beat": "s (wall clock, UTC since the epoch)",
+    "stopped": "s (wall clock, UTC since the epoch)",
+    "age_s": "s (wall clock)",
+    "beat_age_s": "s (wall clock)",
     "fuel_temperature": "degC",
     "u_mean": "V",
     "K": "(L/min)/V",
@@ -43,15 +62,13 @@ ONLINE_UNITS: dict[str, str] = {
     "T_f": "s",
     "plant_K": "(L/min)/V",
     "fit_percent": "%",
-    "Kc": "controller units (see gains_units)",
-    "Ti": "controller units (see gains_units)",
+    "Kc": "the PLC block's units (see gain_units)",
+    "Ti": "the PLC block's units (see gain_units)",
     "Ms": "-",
     "health": "units in the key names (_s, _Lpm, _percent); shares 0-1",
 }
 """Units of the numbers in :func:`status_json` and :func:`history_json` (by key name)."""
 
-LINK_FRESH_S = 30.0
-"""The newest sample no older than this counts as a live link [s] (otherwise "unknown")."""
 ACTIVE_STATUSES = ("pending", "approved")
 """Proposals that wait for a person or for the service's write."""
 LINK_EVENTS = ("link_down", "link_up")
@@ -93,19 +110,31 @@ def window_json(row: dict[str, Any]) -> dict[str, Any]:
         **_window_model(detail),
         "method_reason": detail.get("method_reason") or None,
         "step_ls": detail.get("step_ls"),
+        "wall_time": row.get("wall_time"),
     }
     return out
 
 
-def proposal_json(row: dict[str, Any]) -> dict[str, Any]:
+def proposal_json(row: dict[str, Any], controller: Any = None) -> dict[str, Any]:
     """One stored proposal as the JSON prints it.
+
+    Parameters
+    ----------
+    row : dict
+        The proposal as :meth:`OnlineHistory.proposal` gives it.
+    controller : Controller or dict, optional
+        The site's ``[controller]`` (or its form, gain_units, integral_unit, u_span_V,
+        y_span_Lpm as a dict): converts the target to the block's units. None: unknown.
 
     Returns
     -------
     dict
-        ``id``, ``time`` [s UTC], ``status``, ``old`` and ``new`` ``{"Kc", "Ti"}`` (controller
-        units), ``Ms`` (the largest over the robustness checks), ``Ms_checks`` (check → Ms),
-        ``reason``, ``model_id`` and ``history`` (``time``, ``status``, ``who``, ``why``).
+        ``id``, ``time`` [plant s], ``wall_time`` [wall s], ``status``, ``old`` and ``new``
+        ``{"Kc", "Ti"}`` (controller units), ``target`` (the gains the rule moves toward, in
+        the same units; None when unknown, with ``target_note`` saying why), ``gain_units``
+        (``{"Kc", "Ti"}`` or None), ``Ms`` (the largest over the robustness checks),
+        ``Ms_checks`` (check → Ms), ``reason``, ``model_id`` and ``history`` (``time`` [plant
+        s], ``wall_time`` [wall s], ``status``, ``who``, ``why``).
     """
     detail = row.get("detail") or {}
     ms = detail.get("Ms")
@@ -114,18 +143,51 @@ def proposal_json(row: dict[str, Any]) -> dict[str, Any]:
         checks = ms
         values = [float(v) for v in ms.values() if isinstance(v, int | float)]
         ms = max(values) if values else None
+    c = _controller(controller)
+    target, note = _target(detail.get("target"), c)
     return {
         "id": row["id"],
         "time": row["time"],
+        "wall_time": row.get("wall_time"),
         "status": row["status"],
         "old": _gains(row.get("old")),
         "new": _gains(row.get("new")),
+        "target": target,
+        "target_note": note,
+        "gain_units": gain_units(c),
         "Ms": ms,
         "Ms_checks": checks,
         "reason": detail.get("reason", ""),
         "model_id": row.get("model_id"),
         "history": list(row.get("history") or []),
     }
+
+
+def _controller(value: Any) -> Any:
+    """A Controller from a Controller, its dict, or None."""
+    if value is None:
+        return None
+    if isinstance(value, dict):
+        from fuelid.plc.site import Controller
+
+        try:
+            return Controller(**{k: v for k, v in value.items() if v is not None})
+        except ValueError:
+            return None
+    return value
+
+
+def _target(ideal: Any, controller: Any) -> tuple[dict[str, float] | None, str | None]:
+    """The target in the block's units, or None and why."""
+    if not isinstance(ideal, dict) or ideal.get("Kc") is None or ideal.get("Ti") is None:
+        return None, "no target recorded"
+    if controller is None:
+        return None, "the controller is unknown (give --config): the target is in ideal form"
+    try:
+        kc, ti = ideal_to_controller(Gains(float(ideal["Kc"]), float(ideal["Ti"])), controller)
+    except (ValueError, FuelidError) as error:
+        return None, str(error)
+    return {"Kc": kc, "Ti": ti}, None
 
 
 def _gains(value: Any) -> dict[str, Any] | None:
@@ -148,38 +210,48 @@ def write_json(row: dict[str, Any]) -> dict[str, Any]:
         "who": row["who"],
         "why": row["why"],
         "finished": row.get("finished"),
+        "wall_time": row.get("wall_time"),
+        "finished_wall": row.get("finished_wall"),
         "detail": row.get("detail"),
     }
 
 
-def link_json(store: SQLiteStore, now: float | None = None) -> dict[str, Any]:
-    """The link as the store saw it last.
+def link_json(
+    store: SQLiteStore,
+    now: float | None = None,
+    service: dict[str, Any] | None = None,
+    tz: str | None = "UTC",
+) -> dict[str, Any]:
+    """The loop's state: the service and its link, judged on the wall clock.
 
-    ``state`` is "down" when the newest link event is ``link_down``; otherwise "up" when the
-    newest sample is at most :data:`LINK_FRESH_S` old (an accelerated virtual PLC's samples may
-    run ahead of the wall clock: a negative age counts as fresh), "unknown" when there is no
-    sample or the newest is older (no recorder running).
+    ``state`` is :func:`~fuelid.online.liveness.loop_state`'s ("stopped", "link_down", "up",
+    "no_data"), with its ``text``, ``service`` ("running", "stopped", "never started"),
+    ``beat_age_s``, ``sample_age_s`` and ``since``; ``newest_sample`` is the newest sample's
+    plant time, ``newest_sample_wall`` the wall clock it was written at (None before schema
+    3), ``age_s`` its wall age; ``last_event`` the newest link event.
     """
     now = _time.time() if now is None else float(now)
-    newest = store.last_time()
-    last_event = None
-    for event in store.read_events():
-        if event.kind in LINK_EVENTS:
-            last_event = event
-    age = None if newest is None else now - newest
-    if last_event is not None and last_event.kind == "link_down":
-        state = "down"
-    elif age is not None and age <= LINK_FRESH_S:
-        state = "up"
-    else:
-        state = "unknown"
+    newest = store.newest_sample_clocks()
+    event = store.last_event(LINK_EVENTS)
+    event_wall = None
+    if event is not None:
+        event_wall = event[3] if event[3] is not None else event[0]
+    state = loop_state(
+        service,
+        None if newest is None else newest[1],
+        None if event is None or event_wall is None else (event[1], float(event_wall)),
+        now,
+        tz,
+    )
+    newest_wall = None if newest is None or math.isnan(newest[1]) else newest[1]
     return {
-        "state": state,
-        "newest_sample": newest,
-        "age_s": age,
+        **state,
+        "newest_sample": None if newest is None else newest[0],
+        "newest_sample_wall": newest_wall,
+        "age_s": None if newest_wall is None else now - newest_wall,
         "last_event": None
-        if last_event is None
-        else {"time": last_event.time, "kind": last_event.kind, "detail": last_event.detail},
+        if event is None
+        else {"time": event[0], "wall_time": event[3], "kind": event[1], "detail": event[2]},
         "fresh_within_s": LINK_FRESH_S,
     }
 
@@ -265,14 +337,19 @@ def status_json(
         Reference time for the link's age [s UTC]; the wall clock by default.
     settings : dict, optional
         The site's ``[online]`` and ``[controller]`` as known to the caller (``write_back``,
-        ``gains_units``); None with a bare store.
+        ``gains_units``, ``controller``, ``timezone``); None with a bare store: then the
+        running (or last) service's record gives them.
 
     Returns
     -------
     dict
-        ``site``, ``link``, ``last_window``, ``current_model``, ``k_trend``,
-        ``pending_proposals``, ``loop_health``, ``counts``, ``write_back``, ``last_write``,
-        ``units`` (see the module docstring).
+        ``site``, ``link`` (:func:`link_json`), ``service`` (the service record with its
+        ``state`` and ``beat_age_s``; None when no service ever ran on this store),
+        ``timezone``, ``last_window``, ``current_model``, ``k_trend``, ``pending_proposals``
+        (each with ``target`` and ``gain_units``), ``requests`` (the waiting ones),
+        ``loop_health``, ``counts``, ``write_back`` (``setting`` and ``setting_from``: "site
+        file", "service" or None), ``last_write``, ``gains_units``, ``units`` (see the module
+        docstring).
     """
     last = history.last_window()
     last_window = None
@@ -284,27 +361,71 @@ def status_json(
     models = history.accepted_models(limit=1)
     writes = history.writes(limit=1)
     settings = dict(settings or {})
+    record, running = _service(history)
+    merged = _merged_settings(settings, running)
+    tz = merged.get("timezone") or "UTC"
+    link = link_json(store, now, record, tz)
+    service = (
+        None
+        if record is None
+        else {**record, "state": link["service"], "beat_age_s": link["beat_age_s"]}
+    )
+    setting_from = None
+    if settings.get("write_back") is not None:
+        setting_from = "site file"
+    elif merged.get("write_back") is not None:
+        setting_from = "service"
+    controller = merged.get("controller")
     out = {
         "site": _site(store),
-        "link": link_json(store, now),
+        "link": link,
+        "service": service,
+        "timezone": tz,
         "last_window": last_window,
         "current_model": _current_model(models[0] if models else None),
         "k_trend": k_trend_json(history),
-        "pending_proposals": [proposal_json(p) for p in history.proposals(list(ACTIVE_STATUSES))],
+        "pending_proposals": [
+            proposal_json(p, controller) for p in history.proposals(list(ACTIVE_STATUSES))
+        ],
+        "requests": history.requests(status="waiting"),
         "loop_health": health,
         "counts": history.counts(),
         "write_back": {
-            "setting": settings.get("write_back"),
+            "setting": merged.get("write_back"),
+            "setting_from": setting_from,
             "current_gains": history.state("current_gains"),
             "last_known_good": history.state("last_known_good"),
             "write_held": history.state("write_held"),
             "revert_requested": history.state("revert_requested"),
         },
         "last_write": write_json(writes[0]) if writes else None,
-        "gains_units": settings.get("gains_units"),
+        "gains_units": merged.get("gains_units"),
         "units": ONLINE_UNITS,
     }
     return json_ready(out)  # type: ignore[no-any-return]
+
+
+def _service(history: OnlineHistory) -> tuple[dict[str, Any] | None, dict[str, Any]]:
+    """The service record (None when none) and its settings (empty when none)."""
+    record = history.state(SERVICE_KEY)
+    if not isinstance(record, dict):
+        return None, {}
+    settings = record.get("settings")
+    if not isinstance(settings, dict):  # a record written before 0.3: write_back only
+        settings = {"write_back": record.get("write_back")}
+    return record, settings
+
+
+def _merged_settings(given: dict[str, Any], running: dict[str, Any]) -> dict[str, Any]:
+    """The caller's settings (the site file), completed by the service record's."""
+    out = {
+        "write_back": running.get("write_back"),
+        "timezone": running.get("timezone"),
+        "controller": running.get("controller"),
+        "gains_units": running.get("gain_units"),
+    }
+    out.update({k: v for k, v in given.items() if v is not None})
+    return out
 
 
 def history_json(
@@ -319,22 +440,27 @@ def history_json(
     -------
     dict
         ``site``, ``windows`` (:func:`window_json`), ``proposals`` (:func:`proposal_json`),
-        ``events`` (``time``, ``kind``, ``detail`` of the recording's and the service's events),
-        ``writes`` (:func:`write_json`), ``k_trend`` (:func:`k_trend_json`), ``counts``,
-        ``gains_units``, ``units``.
+        ``events`` (``time`` [plant s], ``kind``, ``detail``, ``wall_time`` [wall s] of the
+        recording's and the service's events),
+        ``writes`` (:func:`write_json`), ``requests`` (every one), ``k_trend``
+        (:func:`k_trend_json`), ``counts``, ``timezone``, ``gains_units`` and ``gain_units``
+        (the same: the block's units of Kc and Ti), ``units``.
     """
-    settings = dict(settings or {})
+    _, running = _service(history)
+    merged = _merged_settings(dict(settings or {}), running)
+    controller = merged.get("controller")
     out = {
         "site": _site(store),
+        "timezone": merged.get("timezone") or "UTC",
         "windows": [window_json(row) for row in history.windows()],
-        "proposals": [proposal_json(row) for row in history.proposals()],
-        "events": [
-            {"time": e.time, "kind": e.kind, "detail": e.detail} for e in store.read_events()
-        ],
+        "proposals": [proposal_json(row, controller) for row in history.proposals()],
+        "events": store.read_event_rows(),
+        "requests": history.requests(),
         "writes": [write_json(row) for row in history.writes()],
         "k_trend": k_trend_json(history),
         "counts": history.counts(),
-        "gains_units": settings.get("gains_units"),
+        "gains_units": merged.get("gains_units"),
+        "gain_units": merged.get("gains_units"),
         "units": ONLINE_UNITS,
     }
     return json_ready(out)  # type: ignore[no-any-return]

@@ -11,7 +11,15 @@ writes with an echo check. This module wires the parts and runs them in one asyn
 - with ``write_back`` "approve" or "auto": the heartbeat, and the writes of approved proposals
   (:class:`~fuelid.online.writeback.WriteBack`) through the PLC handshake on a connection of its
   own (:class:`~fuelid.plc.gain_handshake.GainWriter`);
-- the store's retention, hourly.
+- the store's retention, hourly;
+- the beat: the ``service`` record of ``online_state`` (:func:`~fuelid.online.liveness.
+  service_record`: pid, host, version, settings) has its ``beat`` refreshed every
+  :data:`~fuelid.online.liveness.SERVICE_BEAT_S` of wall time, and the waiting requests of the
+  CLI and the dashboard are applied (:mod:`fuelid.online.requests`); a clean stop sets its
+  ``stopped``. Readers judge the loop with :func:`~fuelid.online.liveness.loop_state`.
+
+Times: the rows the service writes carry plant time in ``time`` (the samples' time base: the
+window's analysis time is the newest committed sample's) and the wall clock in ``wall_time``.
 
 Restart: the schedule, the warm start, the tracker, the proposals and the last-known-good gains
 are read back from the store; an unfinished write (intent recorded, no verdict) is reconciled
@@ -50,8 +58,10 @@ from fuelid.online.context import (
     observation_of,
 )
 from fuelid.online.gains import Gains, controller_to_ideal
+from fuelid.online.liveness import SERVICE_BEAT_S, SERVICE_KEY, service_record
 from fuelid.online.logs import log_line
 from fuelid.online.proposal_filing import TURNED_DOWN_MEMORY
+from fuelid.online.requests import consume_requests
 from fuelid.online.scheduler import MAX_CATCH_UP_WINDOWS, SCHEDULE_POLL_S, Scheduler
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.online.window import WindowAnalyser, window_priors
@@ -114,7 +124,10 @@ class OnlineService:
         self.settings = site.online
         self.heartbeat_s = float(heartbeat_s)
         store = open_store(
-            store_url or site.store.url, period_s=site.sampling.period_s, **site_identity(site)
+            store_url or site.store.url,
+            period_s=site.sampling.period_s,
+            loop_id=site.site.loop_id,
+            **site_identity(site),
         )
         if not isinstance(store, SQLiteStore):  # the history lives in the same SQLite file
             store.close()
@@ -260,7 +273,7 @@ class OnlineService:
             newest = self.store.last_time()
             if newest is not None:
                 try:
-                    now = newest if self.site.plc.protocol == "replay" else max(newest, time.time())
+                    now = newest if self.site.plc.protocol == "replay" else time.time()
                     await asyncio.to_thread(
                         self.store.prune,
                         self.site.store.retention_days,
@@ -319,8 +332,8 @@ class OnlineService:
         finally:
             self._stopping.set()
             with contextlib.suppress(FuelidError):
-                running = self.history.state("service") or {}
-                self.history.set_state("service", {**running, "stopped": time.time()})
+                running = self.history.state(SERVICE_KEY) or {}
+                self.history.set_state(SERVICE_KEY, {**running, "stopped": time.time()})
             if self.gain_writer is not None:
                 await self.gain_writer.close()
             writer.flush()
@@ -351,10 +364,10 @@ class OnlineService:
             # write-back is switched on
             self.history.set_state("revert_requested", None)
             self.context.event("revert_refused", "write_back is off: the revert request is dropped")
-        self.history.set_state(
-            "service",
-            {"write_back": self.settings.write_back, "started": time.time(), "pid": _pid()},
-        )
+        record = service_record(self.site, self.site.site.plant)
+        record["write_back"] = self.settings.write_back  # where readers before 0.3 look
+        self.history.set_state(SERVICE_KEY, record)
+        tasks.create_task(self._supervised("beat", self._beat()), name="beat")
         self.context.say("start", **self.capabilities)
         if not self.capabilities["proposes"]:
             missing = "; ".join(self.capabilities["missing_for_proposals"])
@@ -364,6 +377,27 @@ class OnlineService:
         schedule = self.scheduler.run(self._stopping, self.stop)
         tasks.create_task(self._supervised("schedule", schedule), name="schedule")
         tasks.create_task(self._supervised("retention", self._housekeeping()), name="retention")
+
+    async def _beat(self) -> None:
+        """Refresh the record's beat and apply the waiting requests, every SERVICE_BEAT_S.
+
+        In a thread: the recorder shares this event loop and never waits on it.
+        """
+        can_write = self.gain_writer is not None
+        setting = self.settings.write_back if can_write else "off"
+        while not self._stopping.is_set():
+            await asyncio.to_thread(self.history.beat)
+            for row in await asyncio.to_thread(consume_requests, self.history, setting):
+                self.context.say(
+                    "request",
+                    id=row["id"],
+                    kind=row["kind"],
+                    status=row["status"],
+                    outcome=row["outcome"],
+                    origin=row["origin"],
+                )
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(self._stopping.wait(), SERVICE_BEAT_S)
 
     def _recorder_message(self, message: str) -> None:
         self.context.say("recorder", message=message)

@@ -81,7 +81,10 @@ def record_site(
 
     plc = open_source(site) if source is None else source
     store = open_store(
-        store_url or site.store.url, period_s=site.sampling.period_s, **site_identity(site)
+        store_url or site.store.url,
+        period_s=site.sampling.period_s,
+        loop_id=site.site.loop_id,
+        **site_identity(site),
     )
     try:
         writer = SampleWriter(store, commit_interval_s=commit_interval_s)
@@ -97,7 +100,9 @@ def record_site(
                     store.prune(
                         site.store.retention_days,
                         site.store.thin_to_s,
-                        now=max(newest, time.time()) if site.plc.protocol != "replay" else newest,
+                        # a replayed log's own time base; else the wall clock (the samples carry
+                        # wall_time: an accelerated virtual PLC's plant time runs ahead of it)
+                        now=time.time() if site.plc.protocol != "replay" else newest,
                     )
 
             stats = asyncio.run(

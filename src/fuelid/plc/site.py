@@ -41,7 +41,7 @@ import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from fuelid.errors import ConfigError
 from fuelid.plc.site_addresses import REGISTERS_OF as REGISTERS_OF  # re-exported
@@ -86,6 +86,27 @@ class SiteInfo(_Table):
 
     name: str = Field(min_length=1, description="a name for the loop (stored with every sample)")
     plant: str | None = Field(None, description="the loop's plant TOML, when there is one")
+    timezone: str = Field(
+        "UTC", description="IANA time zone of the times shown as text (stored times are UTC)"
+    )
+    loop_id: str | None = Field(
+        None,
+        pattern=r"^[a-z0-9-]{1,40}$",
+        description="the loop's id in its store (default: from the name)",
+    )
+
+    @field_validator("timezone")
+    @classmethod
+    def _known_timezone(cls, value: str) -> str:
+        from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
+
+        try:
+            ZoneInfo(value)
+        except (ZoneInfoNotFoundError, ValueError):
+            raise ValueError(
+                f"{value!r} is not an IANA time zone name (such as 'UTC' or 'Europe/Zurich')"
+            ) from None
+        return value
 
 
 class PlcEndpoint(_Table):

@@ -45,8 +45,8 @@ def plot_online_history(history: dict[str, Any], path: str | Path) -> Path:
     Parameters
     ----------
     history : dict
-        :func:`fuelid.online.report.history_json`'s object (``windows``, ``proposals``,
-        ``writes``, ``gains_units``).
+        :func:`fuelid.online.report.history_json`'s object (``windows``, ``proposals`` with
+        their ``target``, ``writes``, ``gain_units``), every time in plant time.
     path : str or Path
         Where to save (the suffix picks the format).
 
@@ -67,21 +67,11 @@ def plot_online_history(history: dict[str, Any], path: str | Path) -> Path:
     windows = [w for w in history.get("windows", []) or [] if isinstance(w, dict)]
     proposals = [p for p in history.get("proposals", []) or [] if isinstance(p, dict)]
     writes = [w for w in history.get("writes", []) or [] if isinstance(w, dict)]
-    # windows are on the samples' clock, proposals and writes on the service's wall clock: an
-    # accelerated (virtual) PLC runs ahead of it, so wall times are mapped onto the data clock
-    # through the windows' (analysed at, end) pairs; for a real PLC the two clocks agree
-    pairs = sorted((float(w["time"]), float(w["end"])) for w in windows if w.get("time"))
-    wall = np.array([a for a, _ in pairs])
-    data = np.array([b for _, b in pairs])
 
+    # every time is plant time (the samples' time base, schema 3): windows, proposals and
+    # writes share one axis even when a virtual PLC runs its clock faster than the wall's
     def on_data_clock(t: Any) -> float:
-        x = float(t)
-        if wall.size < 2 or not np.all(np.diff(wall) > 0.0):
-            return x if wall.size == 0 else x + float(data[-1] - wall[-1])
-        if x <= wall[0] or x >= wall[-1]:  # outside: the nearest window's clock offset
-            i = 0 if x <= wall[0] else -1
-            return x + float(data[i] - wall[i])
-        return float(np.interp(x, wall, data))
+        return float(t)
 
     times = [float(w["end"]) for w in windows] + [on_data_clock(p["time"]) for p in proposals]
     t0 = min(times) if times else 0.0
@@ -94,8 +84,8 @@ def plot_online_history(history: dict[str, Any], path: str | Path) -> Path:
 
     start = datetime.fromtimestamp(t0, tz=UTC).strftime("%Y-%m-%d %H:%M UTC")
     time_label = f"time since {start} [h]" if times else "time [h]"
-    units = history.get("gains_units")
-    kc_unit, ti_unit = ("controller units", "controller units")
+    units = history.get("gain_units") or history.get("gains_units")
+    kc_unit, ti_unit = ("the PLC block's units", "the PLC block's units")
     if isinstance(units, dict):
         kc_unit, ti_unit = str(units.get("Kc", kc_unit)), str(units.get("Ti", ti_unit))
 
@@ -193,13 +183,23 @@ def plot_online_history(history: dict[str, Any], path: str | Path) -> Path:
         shown.add(status)
         ax_g.plot(wall_hours(p["time"]), float(new["Kc"]), "o", color=colour, label=label)
         ax_ti.plot(wall_hours(p["time"]), float(new["Ti"]), "s", color=colour, mfc="none")
+        target = p.get("target")
+        if isinstance(target, dict) and target.get("Kc") is not None:
+            # the gains the rule moves toward, beside the step it proposes
+            first_target = "target" not in shown
+            shown.add("target")
+            ax_g.plot(wall_hours(p["time"]), float(target["Kc"]), "*", color=colour, ms=9,
+                      mfc="none", label="target of the rule" if first_target else None)  # fmt: skip
+            if target.get("Ti") is not None:
+                ax_ti.plot(wall_hours(p["time"]), float(target["Ti"]), "*", color=colour, ms=9,
+                           mfc="none")  # fmt: skip
     reverts = [w for w in writes if w.get("kind") == "revert" and w.get("status") == "verified"]
     for i, w in enumerate(reverts):
         ax_g.plot(wall_hours(w.get("finished") or w["time"]), float(w["Kc"]), "v",
                   color="tab:red", ms=8, label="revert written" if i == 0 else None)  # fmt: skip
     ax_g.set_xlabel(time_label)
-    ax_g.set_ylabel(f"Kc [{kc_unit}] (o)")
-    ax_ti.set_ylabel(f"Ti [{ti_unit}] (□, dashed)")
+    ax_g.set_ylabel(f"Kc [{kc_unit}] (o; ☆ target)")
+    ax_ti.set_ylabel(f"Ti [{ti_unit}] (□, dashed; ☆ target)")
     ax_g.set_title(f"PI gains and proposals ({len(proposals)} proposals, {len(steps)} writes)")
 
     for ax in (ax_t, ax_T, ax_g):

@@ -19,7 +19,10 @@ committed with ``synchronous=FULL``) and the outcome after (:meth:`OnlineHistory
 so that after a crash mid-write :meth:`OnlineHistory.unfinished_writes` tells what to reconcile
 against the PLC's echo.
 
-Times are UTC seconds since the Unix epoch [s]; ``T_fuel`` in °C (as the samples'
+Times are UTC seconds since the Unix epoch [s] on two clocks: every row's ``time`` is plant time
+(the samples' time base; a caller that gives none gets the newest committed sample's time,
+:meth:`OnlineHistory.plant_now`, or the wall clock in an empty store) and its ``wall_time`` the
+wall clock when it was written. ``T_fuel`` in °C (as the samples'
 ``fuel_temperature`` and the K(T) tracker have it; stored as given), ``u_mean`` in V; the gains
 ``Kc`` and ``Ti`` in the controller's units (as its registers hold them).
 """
@@ -33,9 +36,13 @@ from typing import Any
 from fuelid.io.jsonsafe import json_ready
 from fuelid.store.online_rows import (
     _MODEL,
+    _PROPOSAL,
+    _REQUEST,
     _WINDOW,
     PROPOSAL_STATUSES,
     PROPOSAL_TRANSITIONS,
+    REQUEST_KINDS,
+    REQUEST_STATUSES,
     WRITE_KINDS,
     WRITE_STATUSES,
     _check_status,
@@ -47,9 +54,10 @@ from fuelid.store.online_rows import (
     _loads,
     _model,
     _newest,
-    _now,
+    _plant,
     _proposal,
     _proposal_by_id,
+    _request,
     _window,
 )
 from fuelid.store.online_writes import GainWrites
@@ -58,6 +66,8 @@ from fuelid.store.records import StoreError
 __all__ = [
     "PROPOSAL_STATUSES",
     "PROPOSAL_TRANSITIONS",
+    "REQUEST_KINDS",
+    "REQUEST_STATUSES",
     "WRITE_KINDS",
     "WRITE_STATUSES",
     "OnlineHistory",
@@ -136,7 +146,8 @@ class OnlineHistory(GainWrites):
             (with ``t_from``, ``t_to``, ``T_fuel`` and ``time``) whose id the window keeps; for a
             refused window it is not stored (put what matters of it in ``detail``).
         time : float, optional
-            When the window was analysed, UTC [s]; now by default.
+            When the window was analysed, plant time [s UTC]; by default the newest committed
+            sample's time. Never before ``t_to`` (the larger of the two is stored).
 
         Returns
         -------
@@ -151,21 +162,23 @@ class OnlineHistory(GainWrites):
         t0, t1 = _finite("t_from", t_from), _finite("t_to", t_to)
         if t1 < t0:
             raise StoreError(f"window t_to {t_to} is before t_from {t_from}")
-        now = _now(time)
         temperature = _finite_or_none(T_fuel)
         detail_text = _dumps(detail)
         model_text = _dumps(model) if accepted and model is not None else None
+        wall = _time.time()
         with self._transaction() as con:
+            now = max(t1, _plant(con, time))
             model_id: int | None = None
             if model_text is not None:
                 cursor = con.execute(
-                    "INSERT INTO models(time, t_from, t_to, T_fuel, model) VALUES (?, ?, ?, ?, ?)",
-                    (now, t0, t1, temperature, model_text),
+                    "INSERT INTO models(time, t_from, t_to, T_fuel, model, wall_time) "
+                    "VALUES (?, ?, ?, ?, ?, ?)",
+                    (now, t0, t1, temperature, model_text, wall),
                 )
                 model_id = int(cursor.lastrowid or 0)
             cursor = con.execute(
                 f"INSERT INTO windows({_WINDOW.removeprefix('id, ')}) "
-                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (
                     t0,
                     t1,
@@ -176,6 +189,7 @@ class OnlineHistory(GainWrites):
                     _finite_or_none(u_mean),
                     model_id,
                     detail_text,
+                    wall,
                 ),
             )
             window_id = int(cursor.lastrowid or 0)
@@ -196,9 +210,9 @@ class OnlineHistory(GainWrites):
         Returns
         -------
         list of dict
-            ``id``, ``t_from``, ``t_to``, ``time`` [s UTC], ``accepted`` (bool), ``reason``,
-            ``T_fuel`` [°C] or None, ``u_mean`` [V] or None, ``model_id`` or None, ``detail``
-            (decoded).
+            ``id``, ``t_from``, ``t_to``, ``time`` [plant s UTC], ``accepted`` (bool),
+            ``reason``, ``T_fuel`` [°C] or None, ``u_mean`` [V] or None, ``model_id`` or None,
+            ``detail`` (decoded), ``wall_time`` [wall s UTC] or None.
         """
         where, args = [], []
         if t_from is not None:
@@ -232,7 +246,8 @@ class OnlineHistory(GainWrites):
         -------
         list of dict
             ``id``, ``window_id`` (None for a model stored without a window), ``time``,
-            ``t_from``, ``t_to`` [s UTC], ``T_fuel`` [°C] or None, ``model`` (decoded).
+            ``t_from``, ``t_to`` [plant s UTC], ``T_fuel`` [°C] or None, ``model`` (decoded),
+            ``wall_time`` [wall s UTC] or None.
         """
         sql, args = _newest(f"SELECT {_MODEL} FROM models m", "m.t_to, m.id", limit)
         with self._transaction(write=False) as con:
@@ -275,7 +290,7 @@ class OnlineHistory(GainWrites):
         status : str
             The first status, one of :data:`PROPOSAL_STATUSES` (``pending`` by default).
         time : float, optional
-            UTC [s]; now by default.
+            Plant time [s UTC]; the newest committed sample's by default.
         who, why : str
             The first entry of the proposal's history (who proposed it and why).
 
@@ -292,16 +307,22 @@ class OnlineHistory(GainWrites):
         _check_status(status)
         old_gains, new_gains = _gains("old", old), _gains("new", new)
         kc, ti = _finite("new Kc", new_gains["Kc"]), _finite("new Ti", new_gains["Ti"])
-        now = _now(time)
-        history = [{"time": now, "status": status, "who": str(who), "why": str(why)}]
-        text = _dumps({"old": old_gains, "new": new_gains, "detail": detail, "history": history})
+        wall = _time.time()
+        _dumps(detail)  # refused before the transaction when it has no JSON form
         with self._transaction() as con:
+            now = _plant(con, time)
+            history = [
+                {"time": now, "wall_time": wall, "status": status, "who": str(who), "why": str(why)}
+            ]
+            text = _dumps(
+                {"old": old_gains, "new": new_gains, "detail": detail, "history": history}
+            )
             if model_id is not None and not _exists(con, "models", model_id):
                 raise StoreError(f"no model {model_id} to propose gains for")
             cursor = con.execute(
-                "INSERT INTO proposals(time, model_id, kc, ti, status, detail) "
-                "VALUES (?, ?, ?, ?, ?, ?)",
-                (now, None if model_id is None else int(model_id), kc, ti, status, text),
+                "INSERT INTO proposals(time, model_id, kc, ti, status, detail, wall_time) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                (now, None if model_id is None else int(model_id), kc, ti, status, text, wall),
             )
             return int(cursor.lastrowid or 0)
 
@@ -311,8 +332,9 @@ class OnlineHistory(GainWrites):
         Returns
         -------
         dict or None
-            ``id``, ``time`` [s UTC], ``model_id``, ``status``, ``old``, ``new`` (gains),
-            ``detail`` and ``history`` (a list of ``{"time", "status", "who", "why"}``).
+            ``id``, ``time`` [plant s UTC], ``model_id``, ``status``, ``old``, ``new`` (gains),
+            ``detail``, ``history`` (a list of ``{"time", "wall_time", "status", "who",
+            "why"}``: plant and wall time) and ``wall_time`` [wall s UTC] or None.
         """
         with self._transaction(write=False) as con:
             return _proposal_by_id(con, proposal_id)
@@ -325,7 +347,7 @@ class OnlineHistory(GainWrites):
         list of dict
             As :meth:`proposal` gives them.
         """
-        query = "SELECT id, time, model_id, status, detail FROM proposals"
+        query = f"SELECT {_PROPOSAL} FROM proposals"
         args: list[str] = []
         if status is not None:
             args = [status] if isinstance(status, str) else [str(s) for s in status]
@@ -358,7 +380,7 @@ class OnlineHistory(GainWrites):
         why : str
             Why, one line.
         time : float, optional
-            UTC [s]; now by default.
+            Plant time [s UTC]; the newest committed sample's by default.
 
         Returns
         -------
@@ -372,8 +394,9 @@ class OnlineHistory(GainWrites):
             (``proposal 3 is applied: it cannot be approved``).
         """
         _check_status(status)
-        now = _now(time)
+        wall = _time.time()
         with self._transaction() as con:
+            now = _plant(con, time)
             current = _proposal_by_id(con, proposal_id)
             if current is None:
                 raise StoreError(f"no proposal {proposal_id}")
@@ -383,7 +406,13 @@ class OnlineHistory(GainWrites):
                 )
             history = [
                 *current["history"],
-                {"time": now, "status": status, "who": str(who), "why": str(why)},
+                {
+                    "time": now,
+                    "wall_time": wall,
+                    "status": status,
+                    "who": str(who),
+                    "why": str(why),
+                },
             ]
             text = _dumps(
                 {
@@ -418,6 +447,131 @@ class OnlineHistory(GainWrites):
                 "SET value = excluded.value, time = excluded.time",
                 (key, text, _time.time()),
             )
+
+    def beat(self, now: float | None = None, key: str = "service") -> None:
+        """Refresh the ``beat`` [wall s UTC] of the service record, one small transaction.
+
+        Only that field changes (``json_set`` in SQL); nothing happens when the record is
+        absent (the service writes it whole at its start).
+        """
+        wall = _time.time() if now is None else float(now)
+        with self._transaction() as con:
+            con.execute(
+                "UPDATE online_state SET value = json_set(value, '$.beat', ?1), time = ?1 "
+                "WHERE key = ?2",
+                (wall, key),
+            )
+
+    def plant_now(self) -> float | None:
+        """Plant time now: the newest committed sample's time [s UTC]; None in an empty store."""
+        with self._transaction(write=False) as con:
+            value = con.execute("SELECT max(time) FROM samples").fetchone()[0]
+        return None if value is None else float(value)
+
+    # -- requests -------------------------------------------------------------------------
+
+    def add_request(
+        self, kind: str, proposal_id: int | None, who: str, why: str, origin: str
+    ) -> dict[str, Any]:
+        """File a person's request (approve, reject, revert) for the service to apply.
+
+        Parameters
+        ----------
+        kind : str
+            One of :data:`REQUEST_KINDS`; approve and reject need ``proposal_id``.
+        proposal_id : int or None
+            The proposal decided on (None for a revert).
+        who, why : str
+            Who asks and why.
+        origin : str
+            Where it was filed: ``cli``, ``dashboard`` (later ``central``).
+
+        Returns
+        -------
+        dict
+            The request's row (every column: ``id``, ``time`` [plant s], ``wall_time`` [wall s],
+            ``kind``, ``proposal_id``, ``who``, ``why``, ``origin``, ``status`` "waiting",
+            ``outcome`` "", ``done_wall`` None).
+
+        Raises
+        ------
+        StoreError
+            An unknown kind or proposal, an approve or reject without a proposal.
+        """
+        if kind not in REQUEST_KINDS:
+            raise StoreError(f"unknown request kind {kind!r}; known: {', '.join(REQUEST_KINDS)}")
+        if kind != "revert" and proposal_id is None:
+            raise StoreError(f"a request to {kind} needs its proposal")
+        wall = _time.time()
+        with self._transaction() as con:
+            if proposal_id is not None and not _exists(con, "proposals", proposal_id):
+                raise StoreError(f"no proposal {proposal_id}")
+            cursor = con.execute(
+                f"INSERT INTO requests({_REQUEST.removeprefix('id, ')}) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, 'waiting', '', NULL)",
+                (
+                    _plant(con, None),
+                    wall,
+                    kind,
+                    None if proposal_id is None else int(proposal_id),
+                    str(who),
+                    str(why),
+                    str(origin),
+                ),
+            )
+            row = con.execute(
+                f"SELECT {_REQUEST} FROM requests WHERE id = ?", (cursor.lastrowid,)
+            ).fetchone()
+        return _request(row)
+
+    def requests(self, status: str | None = None, limit: int | None = None) -> list[dict[str, Any]]:
+        """Requests, oldest first, all or those with ``status``; ``limit`` keeps the newest."""
+        query = f"SELECT {_REQUEST} FROM requests"
+        args: list[Any] = []
+        if status is not None:
+            query += " WHERE status = ?"
+            args.append(str(status))
+        sql, more = _newest(query, "id", limit)
+        with self._transaction(write=False) as con:
+            rows = con.execute(sql, [*args, *more]).fetchall()
+        return [_request(row) for row in rows]
+
+    def request(self, request_id: int) -> dict[str, Any] | None:
+        """One request as :meth:`requests` gives it; None when there is no such id."""
+        with self._transaction(write=False) as con:
+            row = con.execute(
+                f"SELECT {_REQUEST} FROM requests WHERE id = ?", (int(request_id),)
+            ).fetchone()
+        return None if row is None else _request(row)
+
+    def finish_request(self, request_id: int, status: str, outcome: str) -> dict[str, Any]:
+        """Record what became of a waiting request (``done_wall`` = now, wall clock).
+
+        Raises
+        ------
+        StoreError
+            Unknown request or status, or a request no longer waiting.
+        """
+        if status not in REQUEST_STATUSES[1:]:
+            raise StoreError(
+                f"a request finishes as {', '.join(REQUEST_STATUSES[1:])}, not {status!r}"
+            )
+        with self._transaction() as con:
+            row = con.execute(
+                "SELECT status FROM requests WHERE id = ?", (int(request_id),)
+            ).fetchone()
+            if row is None:
+                raise StoreError(f"no request {request_id}")
+            if row[0] != "waiting":
+                raise StoreError(f"request {request_id} is {row[0]}: it was already consumed")
+            con.execute(
+                "UPDATE requests SET status = ?, outcome = ?, done_wall = ? WHERE id = ?",
+                (status, str(outcome), _time.time(), int(request_id)),
+            )
+            updated = con.execute(
+                f"SELECT {_REQUEST} FROM requests WHERE id = ?", (int(request_id),)
+            ).fetchone()
+        return _request(updated)
 
     def state(self, key: str, default: Any = None) -> Any:
         """The value stored under ``key`` (decoded); ``default`` when the key was never set."""

@@ -27,6 +27,8 @@ if TYPE_CHECKING:
 __all__ = [
     "PROPOSAL_STATUSES",
     "PROPOSAL_TRANSITIONS",
+    "REQUEST_KINDS",
+    "REQUEST_STATUSES",
     "WRITE_KINDS",
     "WRITE_STATUSES",
     "HistoryConnection",
@@ -58,12 +60,21 @@ WRITE_STATUSES = ("intent", "verified", "failed", "not_applied")
 echoes the gains), ``failed`` (the write failed or the echo disagrees), ``not_applied`` (the PLC
 never saw it, found when reconciling after a crash)."""
 
-_WINDOW = "id, t_from, t_to, time, accepted, reason, T_fuel, u_mean, model_id, detail"
+_WINDOW = "id, t_from, t_to, time, accepted, reason, T_fuel, u_mean, model_id, detail, wall_time"
 _MODEL = (
     "m.id, (SELECT w.id FROM windows w WHERE w.model_id = m.id ORDER BY w.id LIMIT 1) "
-    "AS window_id, m.time, m.t_from, m.t_to, m.T_fuel, m.model"
+    "AS window_id, m.time, m.t_from, m.t_to, m.T_fuel, m.model, m.wall_time"
 )
-_WRITE = "id, time, proposal_id, kind, kc, ti, apply_seq, status, who, why, detail, finished"
+_WRITE = (
+    "id, time, proposal_id, kind, kc, ti, apply_seq, status, who, why, detail, finished, "
+    "wall_time, finished_wall"
+)
+_PROPOSAL = "id, time, model_id, status, detail, wall_time"
+_REQUEST = "id, time, wall_time, kind, proposal_id, who, why, origin, status, outcome, done_wall"
+REQUEST_KINDS = ("approve", "reject", "revert")
+"""What a request asks for: approve or reject a proposal, revert to the last-known-good gains."""
+REQUEST_STATUSES = ("waiting", "done", "refused", "expired")
+"""``waiting`` until the service (or the CLI, when no service runs) applies it."""
 
 
 def _dumps(value: Any) -> str:
@@ -102,7 +113,19 @@ def _gains(name: str, gains: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _now(time: float | None) -> float:
+    """The wall clock [s UTC] (or the given time, checked)."""
     return _time.time() if time is None else _finite("time", time)
+
+
+def _plant(con: sqlite3.Connection, time: float | None) -> float:
+    """Plant time [s UTC]: the given one, else the newest committed sample's.
+
+    The wall clock in an empty store.
+    """
+    if time is not None:
+        return _finite("time", time)
+    value = con.execute("SELECT max(time) FROM samples").fetchone()[0]
+    return _time.time() if value is None else float(value)
 
 
 def _newest(query: str, order: str, limit: int | None) -> tuple[str, list[Any]]:
@@ -205,6 +228,7 @@ def _window(row: Sequence[Any]) -> dict[str, Any]:
     out = dict(zip(keys, row, strict=False))
     out["accepted"] = bool(out["accepted"])
     out["detail"] = _loads(row[9])
+    out["wall_time"] = row[10]
     return out
 
 
@@ -212,6 +236,7 @@ def _model(row: Sequence[Any]) -> dict[str, Any]:
     keys = ("id", "window_id", "time", "t_from", "t_to", "T_fuel")
     out = dict(zip(keys, row, strict=False))
     out["model"] = _loads(row[6])
+    out["wall_time"] = row[7]
     return out
 
 
@@ -226,13 +251,13 @@ def _proposal(row: Sequence[Any]) -> dict[str, Any]:
         "new": stored.get("new"),
         "detail": stored.get("detail"),
         "history": list(stored.get("history") or []),
+        "wall_time": row[5] if len(row) > 5 else None,
     }
 
 
 def _proposal_by_id(con: sqlite3.Connection, proposal_id: int) -> dict[str, Any] | None:
     row = con.execute(
-        "SELECT id, time, model_id, status, detail FROM proposals WHERE id = ?",
-        (int(proposal_id),),
+        f"SELECT {_PROPOSAL} FROM proposals WHERE id = ?", (int(proposal_id),)
     ).fetchone()
     return None if row is None else _proposal(row)
 
@@ -247,3 +272,7 @@ def _write(row: Sequence[Any]) -> dict[str, Any]:
 def _write_by_id(con: sqlite3.Connection, write_id: int) -> dict[str, Any] | None:
     row = con.execute(f"SELECT {_WRITE} FROM writes WHERE id = ?", (int(write_id),)).fetchone()
     return None if row is None else _write(row)
+
+
+def _request(row: Sequence[Any]) -> dict[str, Any]:
+    return dict(zip(_REQUEST.split(", "), row, strict=True))

@@ -3,12 +3,15 @@
 :meth:`GainWrites.begin_write` commits the intent (with ``synchronous=FULL``) *before* the PLC
 is written and :meth:`GainWrites.finish_write` the outcome after, so that after a crash
 mid-write :meth:`GainWrites.unfinished_writes` tells what to reconcile against the PLC's echo.
-The gains ``kc`` and ``ti`` are in the controller's units; times in UTC seconds [s].
+The gains ``kc`` and ``ti`` are in the controller's units; times in UTC seconds [s]: ``time``
+and ``finished`` plant time (the newest committed sample's by default), ``wall_time`` and
+``finished_wall`` the wall clock.
 """
 
 from __future__ import annotations
 
 import operator
+import time as _time
 from collections.abc import Mapping
 from typing import Any
 
@@ -21,7 +24,7 @@ from fuelid.store.online_rows import (
     _exists,
     _finite,
     _newest,
-    _now,
+    _plant,
     _write,
     _write_by_id,
 )
@@ -64,7 +67,7 @@ class GainWrites(HistoryConnection):
         proposal_id : int, optional
             The proposal written (or reverted).
         time : float, optional
-            UTC [s]; now by default.
+            Plant time [s UTC]; the newest committed sample's by default.
 
         Returns
         -------
@@ -88,8 +91,9 @@ class GainWrites(HistoryConnection):
         if seq is None or isinstance(apply_seq, bool):
             raise StoreError(f"apply_seq must be an integer, got {apply_seq!r}")
         values = (_finite("kc", kc), _finite("ti", ti), seq)
-        now = _now(time)
+        wall = _time.time()
         with self._transaction() as con:
+            now = _plant(con, time)
             if proposal_id is not None and not _exists(con, "proposals", proposal_id):
                 raise StoreError(f"no proposal {proposal_id} to write")
             row = con.execute(
@@ -105,7 +109,7 @@ class GainWrites(HistoryConnection):
                 raise StoreError(f"apply_seq {apply_seq} was already used by write {row[0]}")
             cursor = con.execute(
                 f"INSERT INTO writes({_WRITE.removeprefix('id, ')}) "
-                "VALUES (?, ?, ?, ?, ?, ?, 'intent', ?, ?, '{}', NULL)",
+                "VALUES (?, ?, ?, ?, ?, ?, 'intent', ?, ?, '{}', NULL, ?, NULL)",
                 (
                     now,
                     None if proposal_id is None else int(proposal_id),
@@ -113,6 +117,7 @@ class GainWrites(HistoryConnection):
                     *values,
                     str(who),
                     str(why),
+                    wall,
                 ),
             )
             return int(cursor.lastrowid or 0)
@@ -135,7 +140,8 @@ class GainWrites(HistoryConnection):
         detail : dict, optional
             The echo read back, the error: JSON.
         time : float, optional
-            When it finished, UTC [s] (the ``finished`` field); now by default.
+            When it finished, plant time [s UTC] (the ``finished`` field); the newest committed
+            sample's by default. ``finished_wall`` is the wall clock.
 
         Returns
         -------
@@ -149,9 +155,10 @@ class GainWrites(HistoryConnection):
         """
         if status not in WRITE_STATUSES[1:]:
             raise StoreError(f"a write finishes as {', '.join(WRITE_STATUSES[1:])}, not {status!r}")
-        now = _now(time)
         text = _dumps({} if detail is None else detail)
+        wall = _time.time()
         with self._transaction() as con:
+            now = _plant(con, time)
             current = _write_by_id(con, write_id)
             if current is None:
                 raise StoreError(f"no write {write_id}")
@@ -160,8 +167,9 @@ class GainWrites(HistoryConnection):
                     f"write {write_id} is {current['status']}: only an intent can be finished"
                 )
             con.execute(
-                "UPDATE writes SET status = ?, detail = ?, finished = ? WHERE id = ?",
-                (status, text, now, int(write_id)),
+                "UPDATE writes SET status = ?, detail = ?, finished = ?, finished_wall = ? "
+                "WHERE id = ?",
+                (status, text, now, wall, int(write_id)),
             )
             updated = _write_by_id(con, write_id)
         assert updated is not None
@@ -174,7 +182,8 @@ class GainWrites(HistoryConnection):
         -------
         dict or None
             ``id``, ``time`` [s UTC], ``proposal_id``, ``kind``, ``kc``, ``ti``, ``apply_seq``,
-            ``status``, ``who``, ``why``, ``detail`` (decoded) and ``finished`` [s UTC] or None.
+            ``status``, ``who``, ``why``, ``detail`` (decoded), ``finished`` [plant s UTC] or
+            None, ``wall_time`` and ``finished_wall`` [wall s UTC] or None.
         """
         with self._transaction(write=False) as con:
             return _write_by_id(con, write_id)

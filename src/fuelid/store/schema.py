@@ -3,7 +3,10 @@
 A fuelid store is one SQLite file. ``PRAGMA application_id`` (:data:`APPLICATION_ID`, "FUID")
 marks it as a fuelid store; ``PRAGMA user_version`` is its schema version, also written as
 ``schema_version`` in the ``meta`` table. Every table is STRICT. Times are UTC seconds since the
-Unix epoch [s]; u in V, flows in L/min, temperatures in °C (as the PLC gives them), the gains
+Unix epoch [s] on two clocks (since version 3): ``time`` is **plant time** (the samples' time
+base: the PLC's, which an accelerated virtual PLC runs 20–50 times faster than the wall clock),
+``wall_time`` the wall clock when the row was written. Units in one line: time: plant time;
+wall_time: wall clock. u in V, flows in L/min, temperatures in °C (as the PLC gives them), the gains
 ``kc`` and ``ti`` in the controller's units (as its registers hold them).
 
 **Versions.** Version N is reached by applying the migrations 1..N of :data:`MIGRATIONS` in order,
@@ -19,41 +22,66 @@ versions, so that an older fuelid never writes into a schema it does not know.
 2. The online service's tables are part of every store: ``windows``, ``writes`` and
    ``online_state`` (``IF NOT EXISTS``: a store of version 1 may have them already). No row
    changes.
+3. One clock: plant and wall time on every row; requests; the level-of-detail table. A
+   ``wall_time`` column on ``samples``, ``events``, ``models``, ``windows``, ``proposals`` and
+   ``writes`` (and ``finished_wall`` on ``writes``); the tables ``requests`` and
+   ``samples_lod``; ``store_uuid`` and ``loop_id`` in ``meta``. Its data step maps the old
+   online rows' times (wall clock before version 3) onto plant time through the windows:
+   the anchors (wall, plant) = (old ``windows.time``, ``windows.t_to``), linear interpolation
+   inside their range and real time outside it (:func:`plant_of_wall`; plant = wall without
+   windows); ``proposals.time``, ``writes.time``, ``writes.finished``, ``models.time``,
+   ``windows.time`` (at least its ``t_to``) and the ``time`` of every entry of a proposal's
+   history (the old value kept as its ``wall_time``) are mapped, the old value kept in
+   ``wall_time``/``finished_wall``. Samples and events keep their ``time`` (plant time
+   already), their ``wall_time`` stays NULL. ``samples_lod`` is built from the samples.
 
 **Tables**::
 
     meta(key TEXT PRIMARY KEY, value TEXT NOT NULL)
-        schema_version, site_name, tag_map_hash (SHA-256 hex of the tag map), created (s UTC),
-        period_s (the sampling period, when given)
-    samples(time REAL NOT NULL,          -- UTC seconds since the epoch [s]
+        schema_version, site_name, tag_map_hash (SHA-256 hex of the tag map), created (s UTC,
+        wall clock), period_s (the sampling period, when given), store_uuid (uuid4 hex, the
+        store's identity), loop_id (the site file's ``[site] loop_id``; by default the site
+        name lowercased, runs of other than [a-z0-9] as "-", "loop" when empty)
+
+    Every table's ``time`` is plant time [s UTC since the epoch, the samples' time base];
+    ``wall_time`` the wall clock when the row was written [s UTC] (NULL on rows from before
+    version 3 where it is not known: every sample and event written before it).
+
+    samples(time REAL NOT NULL,          -- plant time [s UTC]
             seq INTEGER,                 -- unwrapped sequence number, NULL without a counter
             u REAL,                      -- VFD command [V]
             y REAL,                      -- flow [L/min]
             setpoint REAL,               -- [L/min]
             fuel_temperature REAL,       -- [°C]
             mode INTEGER,                -- 0 MAN, 1 AUTO
-            quality INTEGER NOT NULL)    -- 0 ok, 1 stale, 2 link_down, 3 bad_value
+            quality INTEGER NOT NULL,    -- 0 ok, 1 stale, 2 link_down, 3 bad_value
+            wall_time REAL)              -- wall clock at commit [s UTC]
         UNIQUE (seq) WHERE seq IS NOT NULL; UNIQUE (time) WHERE seq IS NULL; INDEX (time)
         (INSERT … ON CONFLICT DO NOTHING: a restart that re-sends samples adds no duplicates);
         NaN is stored as NULL (SQLite has no NaN) and read back as NaN
-    events(time REAL NOT NULL, kind TEXT NOT NULL, detail TEXT NOT NULL)   INDEX (time)
+    events(time REAL NOT NULL, kind TEXT NOT NULL, detail TEXT NOT NULL,
+           wall_time REAL)                                                 INDEX (time)
         kinds: link_down, link_up, gap, gain_change, restart, site_mismatch, prune, …
     models(id INTEGER PRIMARY KEY, time REAL NOT NULL, t_from REAL, t_to REAL,
-           T_fuel REAL, model TEXT NOT NULL)
+           T_fuel REAL, model TEXT NOT NULL, wall_time REAL)
         one per accepted identification window of the online service: the window's span and
-        analysis time [s UTC], its mean fuel temperature [°C], the model as JSON
+        analysis time [plant s UTC], its mean fuel temperature [°C], the model as JSON
     proposals(id INTEGER PRIMARY KEY, time REAL NOT NULL, model_id INTEGER, kc REAL, ti REAL,
-              status TEXT NOT NULL, detail TEXT NOT NULL)
-        proposed PI gains (kc, ti: the new ones), their status (pending, approved, writing,
-        applied, failed, rejected, superseded, reverted) and as JSON
-        {"old", "new", "detail", "history": [{"time", "status", "who", "why"}, …]}
-    windows(id INTEGER PRIMARY KEY, time REAL NOT NULL,     -- analysis time [s UTC]
-            t_from REAL NOT NULL, t_to REAL NOT NULL,       -- the window's data [s UTC]
+              status TEXT NOT NULL, detail TEXT NOT NULL, wall_time REAL)
+        proposed PI gains (kc, ti: the new ones), filed at plant ``time``, their status
+        (pending, approved, writing, applied, failed, rejected, superseded, reverted) and as
+        JSON {"old", "new", "detail", "history": [{"time", "wall_time", "status", "who",
+        "why"}, …]} (an entry's ``time`` plant time, ``wall_time`` the wall clock)
+    windows(id INTEGER PRIMARY KEY, time REAL NOT NULL,     -- analysis [plant s UTC]: the
+                                                            -- newest committed sample's
+                                                            -- time, >= t_to
+            t_from REAL NOT NULL, t_to REAL NOT NULL,       -- the window's data [plant s]
             accepted INTEGER NOT NULL,                      -- 0 or 1
             reason TEXT NOT NULL, T_fuel REAL,              -- [°C]
             u_mean REAL,                                    -- [V]
             model_id INTEGER,                               -- models(id) when accepted
-            detail TEXT NOT NULL)                           -- JSON: gates, fit, health
+            detail TEXT NOT NULL,                           -- JSON: gates, fit, health
+            wall_time REAL)                                 -- [wall s UTC]
         INDEX (t_to); every identification window, accepted or not
     writes(id INTEGER PRIMARY KEY, time REAL NOT NULL, proposal_id INTEGER,
            kind TEXT NOT NULL,                              -- proposal, revert, restore
@@ -62,12 +90,40 @@ versions, so that an older fuelid never writes into a schema it does not know.
            status TEXT NOT NULL,                            -- intent, verified, failed,
                                                             -- not_applied
            who TEXT NOT NULL, why TEXT NOT NULL, detail TEXT NOT NULL,     -- JSON
-           finished REAL)                                   -- [s UTC], NULL while an intent
+           finished REAL,                                   -- [plant s], NULL while an intent
+           wall_time REAL, finished_wall REAL)              -- the same on the wall clock
         a write of gains to the PLC: the intent is committed before the PLC is written, the
-        outcome after, so an ``intent`` left by a crash is reconciled on restart
+        outcome after, so an ``intent`` left by a crash is reconciled on restart; ``time`` the
+        plant time of the intent, ``finished`` of the outcome
     online_state(key TEXT PRIMARY KEY, value TEXT NOT NULL,  -- JSON
-                 time REAL NOT NULL)                         -- last set [s UTC]
-        what the online service needs after a restart (last-known-good gains, …)
+                 time REAL NOT NULL)                         -- last set [wall s UTC]
+        what the online service needs after a restart (last-known-good gains, …) and the
+        ``service`` record (pid, host, version, started, beat, beat_every_s, stopped: wall
+        clock; settings), refreshed every 2 s of wall time while the service runs
+    requests(id INTEGER PRIMARY KEY, time REAL NOT NULL,    -- plant time when filed
+             wall_time REAL NOT NULL,                       -- wall clock when filed
+             kind TEXT NOT NULL,                            -- approve, reject, revert
+             proposal_id INTEGER,                           -- proposals(id); NULL for revert
+             who TEXT NOT NULL, why TEXT NOT NULL,
+             origin TEXT NOT NULL,                          -- cli, dashboard (later central)
+             status TEXT NOT NULL,                          -- waiting, done, refused, expired
+             outcome TEXT NOT NULL,                         -- what was done, or why not
+             done_wall REAL)                                -- wall clock when consumed
+        INDEX (status); a person's decision, filed by the CLI or the dashboard and applied by
+        the running service at its next beat (or at once by the CLI when no service runs)
+    samples_lod(level INTEGER NOT NULL,                     -- bucket width [s]: 1 or 10
+                bucket REAL NOT NULL,                       -- floor(time/level)*level [plant s]
+                n INTEGER NOT NULL,                         -- samples in the bucket
+                u_min REAL, u_max REAL, y_min REAL, y_max REAL,
+                sp_min REAL, sp_max REAL, tf_min REAL, tf_max REAL,  -- u, y, setpoint,
+                                                            -- fuel_temperature (NULLs ignored)
+                bad INTEGER NOT NULL)                       -- samples with quality != 0
+        PRIMARY KEY (level, bucket), WITHOUT ROWID; the samples' min/max per bucket for plots
+        over long spans, kept by every append (levels :data:`LOD_LEVELS`). A re-flag
+        recounts ``bad`` in the buckets it touches, never lowering it (exact while the raw
+        samples are there, approximate after thinning; readers use ``bad`` > 0 as a quality
+        mark); thinning keeps the rows (they summarise what was there), deleting samples
+        deletes them
 
 JSON is written with ``allow_nan=False``: NaN and ±inf are stored as ``null``.
 
@@ -79,12 +135,6 @@ as ``tests/data/store_v0_1.sql``), opens it with the current code and checks eve
 edit a released migration: a store in the field has already applied it. Migrations planned for the
 next issues:
 
-- a wall-clock column beside plant time on every row (``ALTER TABLE samples ADD COLUMN
-  wall_time REAL``, and the same on ``events``, ``windows``, …; NULL on the rows written
-  before it, where plant time was wall time unless the site ran a virtual PLC faster than
-  real time);
-- the service's liveness record (a ``liveness`` table, one row per service: pid, host, start
-  and last beat [s UTC]);
 - an outbox for sending rows to a central database (``outbox(id INTEGER PRIMARY KEY, tbl TEXT,
   row_id INTEGER, queued REAL, sent REAL)``, filled by the same transactions that write the
   rows).
@@ -95,20 +145,27 @@ transaction after its statements) for rows that need computing, such as filling 
 
 from __future__ import annotations
 
+import json
+import re
 import sqlite3
-from collections.abc import Callable, Mapping
+import uuid
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 from fuelid.store.records import StoreError
 
 __all__ = [
     "APPLICATION_ID",
+    "LOD_LEVELS",
+    "LOD_SELECT",
     "MIGRATIONS",
     "SCHEMA_VERSION",
     "Migration",
     "build_at",
     "check_not_newer",
     "create",
+    "default_loop_id",
+    "plant_of_wall",
     "stored_version",
     "upgrade",
 ]
@@ -188,9 +245,149 @@ _V2_ONLINE_TABLES = (
 ) STRICT""",
 )
 
+LOD_LEVELS: tuple[int, ...] = (1, 10)
+"""The ``samples_lod`` levels: bucket widths [s of plant time]."""
+
+_V3_ONE_CLOCK = (
+    "ALTER TABLE samples ADD COLUMN wall_time REAL",
+    "ALTER TABLE events ADD COLUMN wall_time REAL",
+    "ALTER TABLE models ADD COLUMN wall_time REAL",
+    "ALTER TABLE windows ADD COLUMN wall_time REAL",
+    "ALTER TABLE proposals ADD COLUMN wall_time REAL",
+    "ALTER TABLE writes ADD COLUMN wall_time REAL",
+    "ALTER TABLE writes ADD COLUMN finished_wall REAL",
+    """CREATE TABLE requests(
+    id INTEGER PRIMARY KEY, time REAL NOT NULL, wall_time REAL NOT NULL,
+    kind TEXT NOT NULL CHECK (kind IN ('approve', 'reject', 'revert')),
+    proposal_id INTEGER REFERENCES proposals(id), who TEXT NOT NULL, why TEXT NOT NULL,
+    origin TEXT NOT NULL,
+    status TEXT NOT NULL CHECK (status IN ('waiting', 'done', 'refused', 'expired')),
+    outcome TEXT NOT NULL, done_wall REAL
+) STRICT""",
+    "CREATE INDEX requests_status ON requests(status)",
+    """CREATE TABLE samples_lod(
+    level INTEGER NOT NULL, bucket REAL NOT NULL, n INTEGER NOT NULL,
+    u_min REAL, u_max REAL, y_min REAL, y_max REAL, sp_min REAL, sp_max REAL,
+    tf_min REAL, tf_max REAL, bad INTEGER NOT NULL,
+    PRIMARY KEY (level, bucket)
+) STRICT, WITHOUT ROWID""",
+)
+
+LOD_SELECT = (
+    "SELECT ?1, floor(time / ?1) * ?1 AS b, count(*), min(u), max(u), min(y), max(y), "
+    "min(setpoint), max(setpoint), min(fuel_temperature), max(fuel_temperature), "
+    "sum(quality != 0) FROM samples"
+)
+"""The level-of-detail rows of ``samples`` at level ``?1`` [s] (append ``WHERE`` and
+``GROUP BY b``)."""
+
+
+def default_loop_id(site_name: str) -> str:
+    """A loop id from a site name: lowercase, runs of other than ``[a-z0-9]`` as ``-``.
+
+    Examples
+    --------
+    >>> default_loop_id("Tunnel 2 / fuel")
+    'tunnel-2-fuel'
+    >>> default_loop_id("§§")
+    'loop'
+    """
+    text = re.sub(r"[^a-z0-9]+", "-", site_name.lower()).strip("-")
+    return text[:40].strip("-") or "loop"
+
+
+def plant_of_wall(anchors: Sequence[tuple[float, float]]) -> Callable[[float], float]:
+    """The map of a wall time onto plant time through ``(wall, plant)`` anchors [s UTC].
+
+    Inside the anchors' range: linear interpolation (``numpy.interp`` over the anchors sorted by
+    wall time); outside it the nearest anchor's plant time plus the wall time since it (real
+    time assumed); with no anchors plant time is wall time.
+
+    Examples
+    --------
+    >>> f = plant_of_wall([(100.0, 1000.0), (200.0, 3000.0)])
+    >>> f(150.0), f(90.0), f(210.0)
+    (2000.0, 990.0, 3010.0)
+    """
+    import numpy as np
+
+    if not anchors:
+        return float
+    pairs = sorted((float(w), float(p)) for w, p in anchors)
+    walls = np.array([w for w, _ in pairs])
+    plants = np.array([p for _, p in pairs])
+
+    def plant(wall: float) -> float:
+        w = float(wall)
+        if w < walls[0]:
+            return float(plants[0] + (w - walls[0]))
+        if w > walls[-1]:
+            return float(plants[-1] + (w - walls[-1]))
+        return float(np.interp(w, walls, plants))
+
+    return plant
+
+
+def _v3_data(con: sqlite3.Connection) -> None:
+    """Old wall times onto plant time, the LOD table from the samples, the store's ids."""
+    anchors = con.execute("SELECT time, t_to FROM windows").fetchall()
+    plant = plant_of_wall(anchors)
+
+    def mapped(value: float | None) -> float | None:
+        return None if value is None else plant(value)
+
+    for table in ("models", "proposals"):
+        rows = con.execute(f"SELECT rowid, time FROM {table}").fetchall()
+        con.executemany(
+            f"UPDATE {table} SET time = ?, wall_time = ? WHERE rowid = ?",
+            [(plant(t), t, rowid) for rowid, t in rows],
+        )
+    rows = con.execute("SELECT id, time, t_to FROM windows").fetchall()
+    con.executemany(
+        "UPDATE windows SET time = ?, wall_time = ? WHERE id = ?",
+        [(max(t_to, plant(t)), t, rowid) for rowid, t, t_to in rows],
+    )
+    rows = con.execute("SELECT id, time, finished FROM writes").fetchall()
+    con.executemany(
+        "UPDATE writes SET time = ?, wall_time = ?, finished = ?, finished_wall = ? WHERE id = ?",
+        [(plant(t), t, mapped(f), f, rowid) for rowid, t, f in rows],
+    )
+    updates = []
+    for rowid, text in con.execute("SELECT id, detail FROM proposals").fetchall():
+        try:
+            stored = json.loads(text)
+        except ValueError:
+            continue
+        history = stored.get("history") if isinstance(stored, dict) else None
+        if not isinstance(history, list):
+            continue
+        for entry in history:
+            if isinstance(entry, dict) and isinstance(entry.get("time"), int | float):
+                entry["wall_time"] = entry["time"]
+                entry["time"] = plant(entry["time"])
+        updates.append((json.dumps(stored, allow_nan=False, separators=(",", ":")), rowid))
+    con.executemany("UPDATE proposals SET detail = ? WHERE id = ?", updates)
+    for level in LOD_LEVELS:
+        con.execute(f"INSERT INTO samples_lod {LOD_SELECT} GROUP BY b", (level,))
+    meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
+    con.executemany(
+        "INSERT OR IGNORE INTO meta VALUES (?, ?)",
+        [
+            ("store_uuid", uuid.uuid4().hex),
+            ("loop_id", default_loop_id(meta.get("site_name", ""))),
+        ],
+    )
+
+
 MIGRATIONS: tuple[Migration, ...] = (
     Migration(1, "samples, events, models and proposals (fuelid 0.1)", _V1_SAMPLES_AND_EVENTS),
     Migration(2, "the online service's windows, writes and state everywhere", _V2_ONLINE_TABLES),
+    Migration(
+        3,
+        "one clock: plant and wall time on every row; requests; the level-of-detail table",
+        _V3_ONE_CLOCK,
+        _v3_data,
+    ),
 )
 """Every migration, in order; ``MIGRATIONS[k]`` takes a store to version ``k + 1``."""
 

@@ -11,7 +11,12 @@ by a newer fuelid is refused.
 
 Re-flagging (:meth:`SQLiteStore.requalify`, the writer's ``set_quality``): ``UPDATE samples SET
 quality = ? WHERE time BETWEEN ? AND ? AND quality = 0`` on the ``samples_time`` index, in the
-transaction of the batch it was queued after, so it never races the inserts.
+transaction of the batch it was queued after, so it never races the inserts; the buckets of
+``samples_lod`` it touches recount their bad samples in the same transaction.
+
+Every append writes ``wall_time`` (the wall clock at the commit) beside the samples' plant
+``time``, and keeps ``samples_lod`` (min/max per bucket, :mod:`fuelid.store.schema`) for the
+samples actually inserted.
 
 Opening an existing file: its identity (``application_id`` and the ``meta`` table) is read
 before anything is written to it, ``journal_mode=WAL`` included, so that another application's
@@ -21,11 +26,15 @@ SQLite file is refused untouched (WAL is a persistent property of the file).
 from __future__ import annotations
 
 import math
+import re
 import sqlite3
 import threading
 import time as _time
-from collections.abc import Iterable
+import uuid
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+
+import numpy as np
 
 from fuelid.store.base import (
     Event,
@@ -40,9 +49,11 @@ from fuelid.store.base import (
 )
 from fuelid.store.schema import (
     APPLICATION_ID,
+    LOD_LEVELS,
     SCHEMA_VERSION,
     check_not_newer,
     create,
+    default_loop_id,
     stored_version,
     upgrade,
 )
@@ -54,10 +65,81 @@ PRUNE_WINDOW_S = 3600.0
 """Samples pruned per transaction [s of data]."""
 
 # DO NOTHING only on a duplicate key: a NULL time or a bad quality code still fails the batch
-_INSERT_SAMPLE = "INSERT INTO samples VALUES (?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT DO NOTHING"
 _COLUMNS = "time, seq, u, y, setpoint, fuel_temperature, mode, quality"
+_INSERT_SAMPLE = (
+    f"INSERT INTO samples({_COLUMNS}, wall_time) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?) "
+    "ON CONFLICT DO NOTHING"
+)
+_AGE = "min(time, coalesce(wall_time, time))"
+"""What retention compares with its cutoff: the older of a sample's two clocks [s UTC]."""
+_INSERT_EVENT = "INSERT INTO events(time, kind, detail, wall_time) VALUES (?, ?, ?, ?)"
+_LOD_VALUES = ("u", "y", "sp", "tf")
+
+
+def _lod_merge(name: str) -> str:
+    """``name_min``/``name_max`` of a bucket merged with a new one (a NULL side is ignored)."""
+    return ", ".join(
+        f"{name}_{op} = {op}(coalesce({name}_{op}, excluded.{name}_{op}), "
+        f"coalesce(excluded.{name}_{op}, {name}_{op}))"
+        for op in ("min", "max")
+    )
+
+
+_UPSERT_LOD = (
+    "INSERT INTO samples_lod VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) "
+    "ON CONFLICT(level, bucket) DO UPDATE SET n = n + excluded.n, "
+    + ", ".join(_lod_merge(name) for name in _LOD_VALUES)
+    + ", bad = bad + excluded.bad"
+)
+# a re-flag: the buckets it touched recount their bad samples (never lower than before:
+# thinning may have deleted some of the samples a bucket counted)
+_RECOUNT_BAD = (
+    "UPDATE samples_lod SET bad = max(bad, (SELECT count(*) FROM samples WHERE time >= bucket "
+    "AND time < bucket + level AND quality != 0)) "
+    "WHERE level = ?3 AND bucket >= floor(?1 / ?3) * ?3 AND bucket <= ?2"
+)
 # only samples still OK: a stale or link-down flag says more than "bad value"
 _REQUALIFY = "UPDATE samples SET quality = ?3 WHERE time >= ?1 AND time <= ?2 AND quality = 0"
+
+
+def lod_rows(samples: Sequence[Sample], level: int) -> list[tuple[object, ...]]:
+    """The ``samples_lod`` rows of some samples at one level [s]: one row per bucket touched.
+
+    Min and max ignore NaN (as SQL's MIN and MAX ignore NULL); a bucket whose values are all
+    NaN has NULL there.
+    """
+    if not samples:
+        return []
+    t = np.array([s.time for s in samples], dtype=float)
+    bucket = np.floor(t / level) * level
+    values = [
+        np.array([np.nan if v is None else v for v in column], dtype=float)
+        for column in (
+            [s.u for s in samples],
+            [s.y for s in samples],
+            [s.setpoint for s in samples],
+            [s.fuel_temperature for s in samples],
+        )
+    ]
+    bad = np.array([int(s.quality) != 0 for s in samples], dtype=int)
+    order = np.argsort(bucket, kind="stable")
+    keys, starts, counts = np.unique(bucket[order], return_index=True, return_counts=True)
+    rows: list[tuple[object, ...]] = []
+    extremes = []
+    for column in values:
+        c = column[order]
+        extremes.append((np.fmin.reduceat(c, starts), np.fmax.reduceat(c, starts)))
+    bads = np.add.reduceat(bad[order], starts)
+    for k, key in enumerate(keys):
+        row: list[object] = [int(level), float(key), int(counts[k])]
+        for lo, hi in extremes:
+            row.extend(None if np.isnan(x) else float(x) for x in (lo[k], hi[k]))
+        row.append(int(bads[k]))
+        rows.append(tuple(row))
+    return rows
+
+
+_LOOP_ID = re.compile(r"[a-z0-9-]{1,40}")
 
 
 def _connect(path: Path) -> sqlite3.Connection:
@@ -115,7 +197,10 @@ class SQLiteStore(SampleStore):
         site_name: str | None = None,
         tag_map_hash: str | None = None,
         period_s: float | None = None,
+        loop_id: str | None = None,
     ) -> None:
+        if loop_id is not None and not _LOOP_ID.fullmatch(loop_id):
+            raise StoreError(f"loop_id must match [a-z0-9-]{{1,40}}, got {loop_id!r}")
         self._file = Path(path)
         self.path = str(self._file)
         self._lock = threading.Lock()  # the writer connection
@@ -141,7 +226,7 @@ class SQLiteStore(SampleStore):
             self._con.execute("PRAGMA journal_mode=WAL")
             self._con.execute("PRAGMA synchronous=FULL")
             if new:
-                self._create(str(site_name), str(tag_map_hash), period_s)
+                self._create(str(site_name), str(tag_map_hash), period_s, loop_id)
             else:
                 upgrade(self._con, self.path)
             meta = self._check_store()
@@ -155,6 +240,8 @@ class SQLiteStore(SampleStore):
         self.tag_map_hash = meta["tag_map_hash"]
         self.schema_version = int(meta["schema_version"])
         self.period_s = float(meta["period_s"]) if "period_s" in meta else None
+        self.store_uuid = meta.get("store_uuid")
+        self.loop_id = meta.get("loop_id") or default_loop_id(self.site_name)
         if self._writable and (site_name, tag_map_hash) != (self.site_name, self.tag_map_hash):
             reason = (
                 f"{self.path}: the store belongs to site {self.site_name!r} (tag map "
@@ -163,13 +250,30 @@ class SQLiteStore(SampleStore):
             self._raw_append((), [Event(_time.time(), "site_mismatch", reason)])
             self._close_quietly()
             raise StoreError(reason)
+        if (
+            self._writable
+            and loop_id is not None
+            and loop_id != default_loop_id(self.site_name)
+            and loop_id != self.loop_id
+        ):
+            reason = (
+                f"{self.path}: the store belongs to loop {self.loop_id!r}, not {loop_id!r} "
+                "(the site file's [site] loop_id)"
+            )
+            self._raw_append((), [Event(_time.time(), "site_mismatch", reason)])
+            self._close_quietly()
+            raise StoreError(reason)
         self._read_con = _connect(self._file)
 
-    def _create(self, site_name: str, tag_map_hash: str, period_s: float | None) -> None:
+    def _create(
+        self, site_name: str, tag_map_hash: str, period_s: float | None, loop_id: str | None
+    ) -> None:
         meta = {
             "site_name": site_name,
             "tag_map_hash": tag_map_hash,
             "created": repr(_time.time()),
+            "store_uuid": uuid.uuid4().hex,
+            "loop_id": loop_id or default_loop_id(site_name),
         }
         if period_s is not None:
             meta["period_s"] = repr(float(period_s))
@@ -202,18 +306,36 @@ class SQLiteStore(SampleStore):
         events: Iterable[Event],
         requalify: Iterable[Requalify] = (),
     ) -> tuple[int, int]:
-        """One transaction; (samples added, samples re-flagged)."""
+        """One transaction; (samples added, samples re-flagged).
+
+        Every sample and event gets ``wall_time`` = the wall clock at the commit, and the
+        samples actually inserted update ``samples_lod``. Only those: a re-sent duplicate
+        (ON CONFLICT DO NOTHING) must not be counted twice, so each sample is inserted on its
+        own and kept for the LOD when its ``rowcount`` is 1 (exact whatever the duplicate's
+        time: a sequence number re-sent after a PLC restart may carry a newer time, so "newer
+        than the newest stored" would not be).
+        """
         with self._lock:
             con = self._con
             con.execute("BEGIN IMMEDIATE")
             try:
-                before = con.total_changes
-                con.executemany(_INSERT_SAMPLE, samples)
-                added = con.total_changes - before
-                con.executemany("INSERT INTO events VALUES (?, ?, ?)", events)
-                before = con.total_changes
-                con.executemany(_REQUALIFY, requalify)
-                changed = con.total_changes - before
+                wall = _time.time()
+                inserted = []
+                for sample in samples:
+                    if con.execute(_INSERT_SAMPLE, (*sample, wall)).rowcount == 1:
+                        inserted.append(sample)
+                added = len(inserted)
+                for level in LOD_LEVELS:
+                    con.executemany(_UPSERT_LOD, lod_rows(inserted, level))
+                con.executemany(_INSERT_EVENT, ((*event, wall) for event in events))
+                changed = 0
+                for change in requalify:
+                    before = con.total_changes
+                    con.execute(_REQUALIFY, change)
+                    if con.total_changes > before:
+                        changed += con.total_changes - before
+                        for level in LOD_LEVELS:
+                            con.execute(_RECOUNT_BAD, (*change[:2], level))
                 con.execute("COMMIT")
             except BaseException:
                 con.execute("ROLLBACK")
@@ -268,6 +390,23 @@ class SQLiteStore(SampleStore):
             ).fetchall()
         return [Event(*row) for row in rows]
 
+    def read_event_rows(
+        self, t_from: float | None = None, t_to: float | None = None
+    ) -> list[dict[str, object]]:
+        """Events as :meth:`read_events` gives them, with ``wall_time`` (None before schema 3).
+
+        Each a dict: ``time`` [plant s UTC], ``kind``, ``detail``, ``wall_time`` [wall s UTC].
+        """
+        where, args = _range(t_from, t_to)
+        with self._read_lock:
+            rows = self._read_con.execute(
+                f"SELECT time, kind, detail, wall_time FROM events{where} ORDER BY time, rowid",
+                args,
+            ).fetchall()
+        return [
+            dict(zip(("time", "kind", "detail", "wall_time"), row, strict=True)) for row in rows
+        ]
+
     def last_seq(self) -> int | None:
         """The largest stored sequence number, from the index (None when there is none)."""
         with self._read_lock:
@@ -285,6 +424,36 @@ class SQLiteStore(SampleStore):
         with self._read_lock:
             value = self._read_con.execute("SELECT max(time) FROM samples").fetchone()[0]
         return None if value is None else float(value)
+
+    def newest_sample_clocks(self) -> tuple[float, float] | None:
+        """The newest sample's plant ``time`` and ``wall_time`` [s UTC]; None when empty.
+
+        ``wall_time`` is NaN when unknown (a sample written before schema 3).
+        """
+        with self._read_lock:
+            row = self._read_con.execute(
+                "SELECT time, wall_time FROM samples ORDER BY time DESC LIMIT 1"
+            ).fetchone()
+        if row is None:
+            return None
+        return float(row[0]), math.nan if row[1] is None else float(row[1])
+
+    def last_event(self, kinds: Iterable[str]) -> tuple[float, str, str, float | None] | None:
+        """The newest event of one of ``kinds``: (time, kind, detail, wall_time); None if none.
+
+        Newest by plant time, then by the order written.
+        """
+        names = [str(k) for k in kinds]
+        if not names:
+            return None
+        with self._read_lock:
+            row = self._read_con.execute(
+                "SELECT time, kind, detail, wall_time FROM events "
+                f"WHERE kind IN ({', '.join('?' * len(names))}) "
+                "ORDER BY time DESC, rowid DESC LIMIT 1",
+                names,
+            ).fetchone()
+        return None if row is None else (float(row[0]), str(row[1]), str(row[2]), row[3])
 
     def info(self) -> StoreInfo:
         """Rows, time span, gaps, link events and size on disk."""
@@ -352,6 +521,12 @@ class SQLiteStore(SampleStore):
         if not self._writable:
             raise StoreError(f"{self.path}: opened without the site's identity, cannot prune")
         cutoff = (_time.time() if now is None else float(now)) - older_than_days * DAY
+        # a sample's age is by the wall clock where known (coalesce(wall_time, time)), and by
+        # its plant time when that is older still (a replayed log's samples are written today
+        # with their own old times: counted back from the log's newest, as before). An
+        # accelerated virtual PLC's plant time runs ahead of the wall clock: then the wall
+        # clock rules. The windows below walk plant time, up to the plant time of the cutoff.
+        plant_cut = self._plant_at_wall(cutoff)
         with self._read_lock:
             first = self._read_con.execute("SELECT min(time) FROM samples").fetchone()[0]
         # one transaction per window of about an hour (whole thinning periods), so that the
@@ -359,37 +534,93 @@ class SQLiteStore(SampleStore):
         step = 1.0 if thin_to_period_s is None else thin_to_period_s
         window = step * math.ceil(PRUNE_WINDOW_S / step)
         deleted = 0
-        t = cutoff if first is None else math.floor(first / step) * step
-        while t < cutoff:
-            t_end = min(t + window, cutoff)
-            deleted += self._prune_window(t, t_end, thin_to_period_s)
+        t = plant_cut if first is None else math.floor(first / step) * step
+        while t < plant_cut:
+            t_end = min(t + window, plant_cut)
+            deleted += self._prune_window(t, t_end, thin_to_period_s, cutoff)
             t = t_end
         with self._lock:
             con = self._con
+            if thin_to_period_s is None:  # thinning keeps the LOD rows: they summarise
+                con.execute("DELETE FROM samples_lod WHERE bucket + level <= ?", (plant_cut,))
             kept = int(
-                con.execute("SELECT count(*) FROM samples WHERE time < ?", (cutoff,)).fetchone()[0]
+                con.execute("SELECT count(*) FROM samples WHERE time < ?", (plant_cut,)).fetchone()[
+                    0
+                ]
             )
             how = "none" if thin_to_period_s is None else f"one per {thin_to_period_s} s"
             detail = f"before {cutoff:.3f}: {deleted} deleted, {kept} kept ({how})"
-            con.execute("INSERT INTO events VALUES (?, 'prune', ?)", (_time.time(), detail))
+            wall = _time.time()
+            con.execute(
+                "INSERT INTO events(time, kind, detail, wall_time) "
+                "VALUES ((SELECT coalesce(max(time), ?1) FROM samples), 'prune', ?2, ?1)",
+                (wall, detail),
+            )
         return PruneResult(cutoff=cutoff, deleted=deleted, kept_thinned=kept)
 
-    def _prune_window(self, t_from: float, t_to: float, thin_to_period_s: float | None) -> int:
-        """Delete (or thin to one per period [s]) the samples in ``[t_from, t_to)``, committed."""
+    def _plant_at_wall(self, cutoff: float) -> float:
+        """The plant time before which samples were written before ``cutoff`` [wall s].
+
+        A bisection over the time index (the wall clock grows with plant time within a
+        recording): the age (:data:`_AGE`) of the first sample at or after a plant time.
+        """
+        with self._read_lock:
+            con = self._read_con
+            first, last = con.execute("SELECT min(time), max(time) FROM samples").fetchone()
+            if first is None:
+                return cutoff
+
+            def wall_at(t: float) -> float:
+                row = con.execute(
+                    f"SELECT {_AGE} FROM samples WHERE time >= ? ORDER BY time LIMIT 1",
+                    (t,),
+                ).fetchone()
+                return math.inf if row is None else float(row[0])
+
+            if wall_at(last) < cutoff:
+                return math.nextafter(float(last), math.inf)
+            if wall_at(first) >= cutoff:
+                return float(first)
+            lo, hi = float(first), float(last)
+            for _ in range(64):
+                if hi - lo <= 1e-4:
+                    break
+                mid = 0.5 * (lo + hi)
+                if wall_at(mid) < cutoff:
+                    lo = mid
+                else:
+                    hi = mid
+            # the first young sample's own time: every sample before it is old
+            row = con.execute(
+                "SELECT time FROM samples WHERE time >= ? ORDER BY time LIMIT 1", (hi,)
+            ).fetchone()
+            return hi if row is None else float(row[0])
+
+    def _prune_window(
+        self, t_from: float, t_to: float, thin_to_period_s: float | None, cutoff: float
+    ) -> int:
+        """Delete (or thin) the samples in ``[t_from, t_to)`` [plant s] older than ``cutoff``.
+
+        Thinning keeps one per period [s]; ``cutoff`` is compared with :data:`_AGE`; committed.
+        """
         with self._lock:
             con = self._con
             con.execute("BEGIN IMMEDIATE")
             try:
                 before = con.total_changes
                 if thin_to_period_s is None:
-                    con.execute("DELETE FROM samples WHERE time >= ? AND time < ?", (t_from, t_to))
+                    con.execute(
+                        f"DELETE FROM samples WHERE time >= ? AND time < ? AND {_AGE} < ?",
+                        (t_from, t_to, cutoff),
+                    )
                 else:
                     con.execute(
-                        "DELETE FROM samples WHERE time >= ?1 AND time < ?2 AND rowid NOT IN ("
+                        "DELETE FROM samples WHERE time >= ?1 AND time < ?2 "
+                        f"AND {_AGE} < ?4 AND rowid NOT IN ("
                         "SELECT rowid FROM (SELECT rowid, row_number() OVER (PARTITION BY "
                         "CAST(floor(time / ?3) AS INTEGER) ORDER BY time) AS k "
                         "FROM samples WHERE time >= ?1 AND time < ?2) WHERE k = 1)",
-                        (t_from, t_to, float(thin_to_period_s)),
+                        (t_from, t_to, float(thin_to_period_s), cutoff),
                     )
                 deleted = con.total_changes - before
                 con.execute("COMMIT")

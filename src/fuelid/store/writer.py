@@ -50,6 +50,7 @@ class SampleWriter:
         if not commit_interval_s > 0.0:
             raise StoreError(f"commit interval must be positive, got {commit_interval_s} s")
         self.store = store
+        self._newest_time: float | None = None  # plant time of the newest sample queued
         self.commit_interval_s = float(commit_interval_s)
         self.on_commit = on_commit
         self.rows_written = 0
@@ -63,17 +64,32 @@ class SampleWriter:
     def put(self, sample: Sample) -> None:
         """Queue one sample (returns at once)."""
         self._check()
+        self._see(sample)
         self._queue.put(sample)
 
     def put_many(self, samples: Iterable[Sample]) -> None:
         """Queue samples (returns at once)."""
         self._check()
         for sample in samples:
+            self._see(sample)
             self._queue.put(sample)
 
+    def _see(self, sample: Sample) -> None:
+        if self._newest_time is None or sample.time > self._newest_time:
+            self._newest_time = float(sample.time)
+
     def event(self, kind: str, detail: str = "", time: float | None = None) -> None:
-        """Queue an event at ``time`` [s UTC] (now by default)."""
+        """Queue an event at plant ``time`` [s UTC].
+
+        By default the newest sample queued so far (plant time: the samples' time base),
+        else the store's newest, else the wall clock; the store adds the wall clock of the
+        commit as ``wall_time``.
+        """
         self._check()
+        if time is None:
+            time = self._newest_time
+        if time is None:
+            time = self.store.last_time()
         self._queue.put(Event(_time.time() if time is None else time, kind, detail))
 
     def set_quality(self, t_from: float, t_to: float, quality: int = Quality.BAD_VALUE) -> None:

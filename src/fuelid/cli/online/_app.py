@@ -101,11 +101,13 @@ def _opened(
 
 
 def _settings(site: SiteConfig) -> dict[str, Any]:
-    out: dict[str, Any] = {"write_back": site.online.write_back}
+    from fuelid.online.gains import gain_units
+
+    out: dict[str, Any] = {"write_back": site.online.write_back, "timezone": site.site.timezone}
     c = site.controller
     if c is not None:
-        kc = "V per L/min" if c.gain_units == "engineering" else "% per %"
-        out["gains_units"] = {"Kc": kc, "Ti": c.integral_unit}
+        out["gains_units"] = gain_units(c)
+        out["controller"] = c
     return out
 
 

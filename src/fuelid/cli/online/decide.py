@@ -1,4 +1,10 @@
-"""``fuelid online approve | reject | revert``: a person's decisions, kept in the store."""
+"""``fuelid online approve | reject | revert``: a person's decisions, kept in the store.
+
+Each files a request (origin "cli", :mod:`fuelid.online.requests`). With a live service (per
+:func:`~fuelid.online.liveness.loop_state`) the service applies it at its next beat: the command
+waits up to two beats for the outcome, and says when the service has not taken it yet. With no
+live service it applies the request at once itself, with the same function.
+"""
 
 from __future__ import annotations
 
@@ -34,6 +40,45 @@ def _user() -> str:
         return "unknown"
 
 
+def _submit(
+    opened: Any,
+    history: Any,
+    kind: str,
+    proposal_id: int | None,
+    name: str,
+    why: str,
+    write_back: str | None,
+) -> dict[str, Any]:
+    """File a request; apply it here when no service is live, else wait for the service.
+
+    The request's row after: ``status`` "done" or "refused" with its ``outcome``, or still
+    "waiting" when the live service did not take it within two beats.
+    """
+    from fuelid.online.liveness import SERVICE_BEAT_S, SERVICE_KEY
+    from fuelid.online.report import link_json
+    from fuelid.online.requests import apply_request, file_request
+
+    live = link_json(opened, service=history.state(SERVICE_KEY))["service"] == "running"
+    request = file_request(history, kind, proposal_id, name, why, "cli")
+    if not live:
+        status, outcome = apply_request(history, request, write_back)
+        return dict(history.finish_request(request["id"], status, outcome))
+    deadline = time.monotonic() + 2.0 * SERVICE_BEAT_S
+    while time.monotonic() < deadline:
+        time.sleep(0.1)
+        row = history.request(request["id"])
+        if row is not None and row["status"] != "waiting":
+            return dict(row)
+    return dict(history.request(request["id"]) or request)
+
+
+def _waiting(request: dict[str, Any]) -> str:
+    return (
+        f"request #{request['id']} ({request['kind']}) filed: waiting for the service "
+        "(it applies it at its next beat; fuelid online status lists it)"
+    )
+
+
 def _decide(
     proposal_id: int,
     status: str,
@@ -47,19 +92,29 @@ def _decide(
     from fuelid.store.base import StoreError
 
     name = who or _user()
-    with _opened(config, store) as (_, history, settings):
-        try:
-            updated = history.set_proposal_status(proposal_id, status, who=name, why=why)
-        except StoreError as error:
-            current = history.proposal(proposal_id)
-            pending = history.proposals(["pending", "approved"])
-            if current is not None and current["status"] == "superseded" and pending:
-                raise StoreError(
-                    f"{error}; the open proposal now is #{pending[-1]['id']}"
-                ) from None
-            raise
-        settings = {**settings, "service": history.state("service")}
-    typer.echo(f"{_gains_text(proposal_json(updated))} by {name}; {after(updated, settings)}")
+    kind = {"approved": "approve", "rejected": "reject"}[status]
+    with _opened(config, store) as (opened, history, settings):
+        if history.proposal(proposal_id) is None:
+            raise StoreError(f"no proposal {proposal_id}")
+        request = _submit(opened, history, kind, proposal_id, name, why, settings.get("write_back"))
+        updated = history.proposal(proposal_id)
+        from fuelid.online.report import link_json
+
+        record = history.state("service")
+        running = link_json(opened, service=record)["service"] == "running"
+        settings = {**settings, "service": record if running else None}
+    if request["status"] == "waiting":
+        typer.echo(_waiting(request))
+        return
+    if request["status"] != "done":
+        raise StoreError(str(request["outcome"]))
+    assert updated is not None
+    controller = settings.get("controller")
+    if controller is None and isinstance(record, dict):  # the service's, without --config
+        controller = (record.get("settings") or {}).get("controller")
+    typer.echo(
+        f"{_gains_text(proposal_json(updated, controller))} by {name}; {after(updated, settings)}"
+    )
 
 
 @app.command("approve")
@@ -119,12 +174,19 @@ def revert_command(
     The request is kept in the store; the service writes the last-known-good gains (the
     commissioning gains when it has none) at its next chance, and records who asked and why.
     """
+    from fuelid.store.base import StoreError
+
     name = who or _user()
-    with _opened(config, store) as (_, history, settings):
-        history.set_state(
-            "revert_requested", {"who": name, "why": why or "requested", "time": time.time()}
-        )
+    with _opened(config, store) as (opened, history, settings):
+        # applied here, the CLI does not judge the write-back: a service that cannot write
+        # drops the request when it starts (and says so)
+        request = _submit(opened, history, "revert", None, name, why, None)
         good = history.state("last_known_good")
+    if request["status"] == "waiting":
+        typer.echo(_waiting(request))
+        return
+    if request["status"] != "done":
+        raise StoreError(str(request["outcome"]))
     target = (
         "the commissioning gains (no last-known-good kept)"
         if not good

@@ -18,12 +18,12 @@ RECENT_WINDOWS = 20
 """Windows listed by ``fuelid online history`` without ``--json``."""
 
 
-def _stamp(t: float | None) -> str:
+def _stamp(t: float | None, tz: str | None = "UTC") -> str:
     if t is None:
         return "-"
-    from datetime import UTC, datetime
+    from fuelid.io.clock import format_time
 
-    return datetime.fromtimestamp(t, tz=UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+    return format_time(t, tz)
 
 
 def _pm(values: dict[str, Any] | None, errors: dict[str, Any] | None, key: str, unit: str) -> str:
@@ -46,15 +46,28 @@ def _model_text(entry: dict[str, Any]) -> str:
 
 
 def _gains_text(p: dict[str, Any]) -> str:
+    """``#3 pending: Kc 0.8 → 0.9 %/% (target 1.0), Ti 3 → 2.8 s (target 2.6) (Ms 1.62)``.
+
+    Units and targets when the proposal carries them (``gain_units``, ``target``).
+    """
     old, new = p.get("old") or {}, p.get("new") or {}
+    units = p.get("gain_units") or {}
+    target = p.get("target") or {}
 
     def g(d: dict[str, Any], k: str) -> str:
         return "-" if d.get(k) is None else f"{d[k]:.4g}"
 
+    def one(k: str) -> str:
+        text = f"{k} {g(old, k)} → {g(new, k)}"
+        if units.get(k):
+            text += f" {units[k]}"
+        if target.get(k) is not None:
+            text += f" (target {target[k]:.4g})"
+        return text
+
     ms = p.get("Ms")
-    return (
-        f"#{p['id']} {p['status']}: Kc {g(old, 'Kc')} → {g(new, 'Kc')}, Ti {g(old, 'Ti')} → "
-        f"{g(new, 'Ti')}" + ("" if ms is None else f" (Ms {ms:.2f})")
+    return f"#{p['id']} {p['status']}: {one('Kc')}, {one('Ti')}" + (
+        "" if ms is None else f" (Ms {ms:.2f})"
     )
 
 
@@ -107,15 +120,9 @@ def _trend_text(trend: dict[str, Any]) -> str:
 
 def status_lines(status: dict[str, Any]) -> list[str]:
     """The human form of :func:`~fuelid.online.report.status_json`, a few aligned lines."""
+    tz = status.get("timezone") or "UTC"
     link = status["link"]
-    age = link.get("age_s")
-    if age is None:
-        when = ""
-    elif age >= 0.0:
-        when = f", {age:.1f} s ago"
-    else:  # an accelerated (virtual) PLC's clock runs ahead of the wall clock
-        when = f", {-age:.1f} s ahead of this clock"
-    link_text = f"{link['state']} (newest sample {_stamp(link.get('newest_sample'))}{when})"
+    link_text = _link_text(link, tz)
     w = status.get("last_window")
     if w is None:
         window_text = "none yet"
@@ -123,7 +130,7 @@ def status_lines(status: dict[str, Any]) -> list[str]:
         verdict = "accepted" if w["accepted"] else "rejected"
         fuel = w.get("fuel_temperature")
         window_text = (
-            f"#{w['id']} ending {_stamp(w['end'])}, {w.get('mode') or '-'}, "
+            f"#{w['id']} ending {_stamp(w['end'], tz)}, {w.get('mode') or '-'}, "
             + ("" if fuel is None else f"fuel {fuel:.1f} °C, ")
             + f"{verdict}: {w['reason']}"
         )
@@ -134,7 +141,7 @@ def status_lines(status: dict[str, Any]) -> list[str]:
         fuel = m.get("fuel_temperature")
         model_text = (
             _model_text(m)
-            + f" (window ending {_stamp(m.get('end'))}"
+            + f" (window ending {_stamp(m.get('end'), tz)}"
             + ("" if fuel is None else f", fuel {fuel:.1f} °C")
             + ")"
         )
@@ -143,6 +150,13 @@ def status_lines(status: dict[str, Any]) -> list[str]:
     wb = status.get("write_back") or {}
     last_write = status.get("last_write")
     write_text = f"write_back {wb.get('setting') or 'unknown (give --config)'}"
+    if wb.get("setting_from") == "service":
+        running = (status.get("service") or {}).get("state") == "running"
+        write_text += (
+            " (from the running service's settings)"
+            if running
+            else " (from the last service's settings)"
+        )
     if wb.get("write_held"):
         write_text += f", held: {wb['write_held']}"
     if wb.get("revert_requested"):
@@ -151,7 +165,8 @@ def status_lines(status: dict[str, Any]) -> list[str]:
         "none"
         if last_write is None
         else f"#{last_write['id']} {last_write['kind']} {last_write['status']} "
-        f"(Kc {last_write['Kc']:.4g}, Ti {last_write['Ti']:.4g}) at {_stamp(last_write['time'])}"
+        f"(Kc {last_write['Kc']:.4g}, Ti {last_write['Ti']:.4g}) at "
+        f"{_stamp(last_write['time'], tz)}"
     )
     c = status.get("counts") or {}
     last = status.get("last_window") or {}
@@ -174,6 +189,7 @@ def status_lines(status: dict[str, Any]) -> list[str]:
         ("step-ls", step_text),
         ("K(T)", _trend_text(status.get("k_trend") or {})),
         ("proposals", proposals_text),
+        ("requests", _requests_text(status.get("requests") or [])),
         ("health", _health_text(status.get("loop_health"))),
         ("writes", write_text),
         (
@@ -185,6 +201,26 @@ def status_lines(status: dict[str, Any]) -> list[str]:
     return [f"{name:<10} {text}" for name, text in rows]
 
 
+def _link_text(link: dict[str, Any], tz: str) -> str:
+    """``service stopped (last beat …)``, ``up (newest sample 0.6 s ago; plant time …)``."""
+    text = str(link.get("text") or link.get("state"))
+    plant = link.get("newest_sample")
+    if link.get("state") in ("up", "link_down") and plant is not None:
+        text = text[:-1] + f"; plant time {_stamp(plant, tz)})" if text.endswith(")") else text
+    return text
+
+
+def _requests_text(requests: list[dict[str, Any]]) -> str:
+    if not requests:
+        return "none waiting"
+    return "; ".join(
+        f"#{r['id']} {r['kind']}"
+        + ("" if r.get("proposal_id") is None else f" #{r['proposal_id']}")
+        + f" by {r['who']} ({r['origin']}), waiting"
+        for r in requests
+    )
+
+
 @app.command("status")
 @guarded
 def status_command(
@@ -192,9 +228,10 @@ def status_command(
 ) -> None:
     """Link, last window and its verdict, current model, K(T) trend, proposals, loop health.
 
-    Read from the store; a running service need not be stopped. --json prints one object
-    (keys site, link, last_window, current_model, k_trend, pending_proposals, loop_health,
-    counts, write_back, last_write, units).
+    Read from the store; a running service need not be stopped. The link line says whether the
+    service runs (its beat, on the wall clock) and the link is up; times in the site's time zone.
+    --json prints one object (keys site, link, service, timezone, last_window, current_model,
+    k_trend, pending_proposals, requests, loop_health, counts, write_back, last_write, units).
     """
     from fuelid.online.report import status_json
 
@@ -243,6 +280,10 @@ def history_command(
         emit_json(data | provenance(_options(config, store, plot=plot and str(plot))))
         return
     windows = data["windows"]
+    tz = data.get("timezone") or "UTC"
+    units = data.get("gain_units") or {}
+    for p in data["proposals"]:
+        p.setdefault("gain_units", units or None)
     lines = [f"{len(windows)} windows, {sum(w['accepted'] for w in windows)} accepted"]
     if len(windows) > RECENT_WINDOWS:
         lines.append(f"(the newest {RECENT_WINDOWS}; --json for all)")
@@ -250,12 +291,12 @@ def history_command(
         fitted = "" if w.get("model") is None else " " + _model_text(w)
         fuel = w.get("fuel_temperature")
         lines.append(
-            f"  #{w['id']:<5} {_stamp(w['end'])} {'ok ' if w['accepted'] else 'no '}"
+            f"  #{w['id']:<5} {_stamp(w['end'], tz)} {'ok ' if w['accepted'] else 'no '}"
             + ("" if fuel is None else f"{fuel:6.1f} °C")
             + f"{fitted} | {w['reason']}"
         )
     lines.append(f"{len(data['proposals'])} proposals")
-    lines += [f"  {_gains_text(p)} at {_stamp(p['time'])}" for p in data["proposals"]]
+    lines += [f"  {_gains_text(p)} at {_stamp(p['time'], tz)}" for p in data["proposals"]]
     kinds: dict[str, int] = {}
     for e in data["events"]:
         kinds[e["kind"]] = kinds.get(e["kind"], 0) + 1

@@ -1,0 +1,102 @@
+"""A person's requests (approve, reject, revert), filed in the store and applied in one place.
+
+The CLI (``fuelid online approve|reject|revert``, origin "cli") and the dashboard (origin
+"dashboard") file a request with :func:`file_request`; the running service consumes the
+waiting ones at every beat (:data:`~fuelid.online.liveness.SERVICE_BEAT_S`) with
+:func:`apply_request`, and records the outcome with
+:meth:`~fuelid.store.online.OnlineHistory.finish_request`. When no service runs (per
+:func:`~fuelid.online.liveness.loop_state`), the CLI applies its request at once itself, with
+the same function.
+
+What a request does: approve and reject move the proposal along its transitions (with the
+request's who and why) or are refused with the reason (a proposal superseded meanwhile names
+the open one); a revert leaves the ``revert_requested`` state that the service's write-back
+turns into a write of the last-known-good gains at its next chance.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from typing import Any
+
+from fuelid.store.base import StoreError
+from fuelid.store.online import OnlineHistory
+
+__all__ = ["apply_request", "consume_requests", "file_request"]
+
+_STATUS_OF = {"approve": "approved", "reject": "rejected"}
+
+
+def file_request(
+    history: OnlineHistory,
+    kind: str,
+    proposal_id: int | None,
+    who: str,
+    why: str,
+    origin: str,
+) -> dict[str, Any]:
+    """File a request (status "waiting"); the row as :meth:`OnlineHistory.add_request` gives it."""
+    return history.add_request(kind, proposal_id, who, why, origin)
+
+
+def apply_request(
+    history: OnlineHistory, request: dict[str, Any], write_back_setting: str | None
+) -> tuple[str, str]:
+    """Apply one request; ``(status, outcome)``: "done" or "refused" and one line.
+
+    Parameters
+    ----------
+    history : OnlineHistory
+        The store's online history.
+    request : dict
+        A request row (:meth:`OnlineHistory.requests`).
+    write_back_setting : str or None
+        The write-back of whoever applies it ("off", "approve", "auto"; None when unknown): a
+        revert is refused when it is "off" (nothing would ever write it).
+
+    The request row itself is not changed (the caller records the outcome with
+    :meth:`OnlineHistory.finish_request`).
+    """
+    kind = request["kind"]
+    who, why = str(request["who"]), str(request["why"])
+    if kind == "revert":
+        if write_back_setting == "off":
+            return "refused", 'write_back is "off": nothing writes the revert'
+        history.set_state(
+            "revert_requested",
+            {
+                "who": who,
+                "why": why or "requested",
+                "time": _time.time(),
+                "request_id": request["id"],
+            },
+        )
+        return "done", "revert requested: the service writes the last-known-good gains"
+    status = _STATUS_OF.get(kind)
+    if status is None:
+        return "refused", f"unknown request kind {kind!r}"
+    proposal_id = request["proposal_id"]
+    try:
+        updated = history.set_proposal_status(int(proposal_id), status, who=who, why=why)
+    except StoreError as error:
+        reason = str(error)
+        current = history.proposal(int(proposal_id))
+        pending = history.proposals(["pending", "approved"])
+        if current is not None and current["status"] == "superseded" and pending:
+            reason = f"{reason}; the open proposal now is #{pending[-1]['id']}"
+        return "refused", reason
+    return "done", f"proposal {updated['id']} {updated['status']} by {who}"
+
+
+def consume_requests(
+    history: OnlineHistory, write_back_setting: str | None
+) -> list[dict[str, Any]]:
+    """Apply every waiting request, oldest first, and record each outcome; the rows after."""
+    done = []
+    for request in history.requests(status="waiting"):
+        status, outcome = apply_request(history, request, write_back_setting)
+        try:
+            done.append(history.finish_request(request["id"], status, outcome))
+        except StoreError:  # consumed meanwhile by another (the CLI with a stale view)
+            continue
+    return done

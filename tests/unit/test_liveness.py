@@ -1,0 +1,142 @@
+"""One clock (issue "one clock"): the loop's state, the gains' units, times as text.
+
+The loop's state from the service record and the wall clock alone; the units of the PLC
+block's gains by its form; the one formatter of times.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from fuelid.io.clock import format_age, format_time
+from fuelid.online.gains import gain_units
+from fuelid.online.liveness import LINK_FRESH_S, SERVICE_BEAT_S, SERVICE_STALE_S, loop_state
+from fuelid.plc.site import Controller
+
+NOW = 1_795_767_303.0
+LIVE = {"started": NOW - 600.0, "beat": NOW - 1.0, "stopped": None}
+
+
+@pytest.mark.parametrize(
+    ("service", "sample_wall", "link_event", "state", "running"),
+    [
+        (None, NOW - 0.5, None, "stopped", "never started"),  # no record at all
+        ({**LIVE, "stopped": NOW - 5.0}, NOW - 0.5, None, "stopped", "stopped"),  # clean stop
+        ({**LIVE, "beat": NOW - 11.0}, NOW - 0.5, None, "stopped", "stopped"),  # kill -9
+        ({**LIVE, "beat": NOW - 9.0}, NOW - 0.5, None, "up", "running"),  # within 5 beats
+        (LIVE, NOW - 0.6, ("link_up", NOW - 100.0), "up", "running"),
+        (LIVE, NOW - 0.6, ("link_down", NOW - 3.0), "link_down", "running"),
+        (LIVE, NOW - 31.0, ("link_up", NOW - 100.0), "link_down", "running"),  # recorder silent
+        (LIVE, math.nan, None, "link_down", "running"),  # samples of before schema 3: unknown
+        (LIVE, None, None, "no_data", "running"),
+    ],
+)
+def test_loop_state_table(
+    service: dict | None,
+    sample_wall: float | None,
+    link_event: tuple[str, float] | None,
+    state: str,
+    running: str,
+) -> None:
+    out = loop_state(service, sample_wall, link_event, NOW)
+    assert (out["state"], out["service"]) == (state, running)
+    assert isinstance(out["text"], str)
+    assert "\n" not in out["text"]
+
+
+def test_a_killed_service_reads_stopped_with_its_last_beat() -> None:
+    out = loop_state({**LIVE, "beat": NOW - 11.0}, NOW - 12.0, None, NOW, "UTC")
+    assert out["state"] == "stopped"
+    assert out["beat_age_s"] == pytest.approx(11.0)
+    assert out["since"] == NOW - 11.0
+    assert out["text"] == f"service stopped (last beat {format_time(NOW - 11.0)}, 11 s ago)"
+
+
+def test_plant_time_running_ahead_is_never_used() -> None:
+    # an accelerated virtual PLC: the newest sample's plant time 7000 s ahead of the wall clock;
+    # the state is read from its wall_time (written 0.4 s ago), so the loop is up
+    plant_time = NOW + 7000.0
+    out = loop_state(LIVE, NOW - 0.4, None, NOW)
+    assert out["state"] == "up"
+    assert out["sample_age_s"] == pytest.approx(0.4)
+    assert "ahead" not in out["text"]
+    assert str(int(plant_time)) not in out["text"]
+
+
+def test_the_constants_hold_together() -> None:
+    assert SERVICE_STALE_S == 5 * SERVICE_BEAT_S
+    assert LINK_FRESH_S > SERVICE_STALE_S
+
+
+@pytest.mark.parametrize(
+    ("controller", "units"),
+    [
+        (Controller(), {"Kc": "V per L/min", "Ti": "s"}),
+        (Controller(integral_unit="min"), {"Kc": "V per L/min", "Ti": "min"}),
+        (
+            Controller(gain_units="percent", u_span_V=4.0, y_span_Lpm=100.0),
+            {"Kc": "%/%", "Ti": "s"},
+        ),
+        (Controller(form="parallel"), {"Kc": "V per L/min", "Ti": "V per L/min per s"}),
+        (
+            Controller(form="parallel", integral_unit="min"),
+            {"Kc": "V per L/min", "Ti": "V per L/min per min"},
+        ),
+        (
+            Controller(form="parallel", gain_units="percent", u_span_V=4.0, y_span_Lpm=100.0),
+            {"Kc": "%/%", "Ti": "%/% per s"},
+        ),
+        (None, None),
+    ],
+)
+def test_gain_units_name_what_the_registers_hold(
+    controller: Controller | None, units: dict | None
+) -> None:
+    assert gain_units(controller) == units
+
+
+def test_times_and_ages_as_text() -> None:
+    assert format_time(NOW) == "2026-11-27 08:15:03 UTC"
+    assert format_time(NOW, "Europe/Zurich") == "2026-11-27 09:15:03 CET"
+    assert format_time(NOW, "America/New_York").endswith(" EST")
+    assert format_time(None) == "never"
+    assert format_age(250.0) == "4 min"
+    assert format_age(0.62) == "0.6 s"
+
+
+def test_the_history_plot_labels_the_gains_in_the_blocks_units_with_the_targets(
+    tmp_path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from fuelid.plots import online as online_plots
+
+    figures = []
+    monkeypatch.setattr(online_plots, "save_figure", lambda fig, path: figures.append(fig))
+    t = 1_795_000_000.0
+    history = {
+        "windows": [],
+        "writes": [],
+        "gain_units": {"Kc": "%/%", "Ti": "%/% per min"},
+        "proposals": [
+            {
+                "id": 1,
+                "time": t,
+                "status": "pending",
+                "old": {"Kc": 1.0, "Ti": 2.0},
+                "new": {"Kc": 1.2, "Ti": 1.8},
+                "target": {"Kc": 1.44, "Ti": 1.6},
+            }
+        ],
+    }
+    online_plots.plot_online_history(history, tmp_path / "h.png")
+    (fig,) = figures
+    ax_g = fig.axes[2]
+    ax_ti = next(ax for ax in fig.axes[3:] if "Ti [" in ax.get_ylabel())
+    assert ax_g.get_ylabel().startswith("Kc [%/%]")
+    assert ax_ti.get_ylabel().startswith("Ti [%/% per min]")
+    stars = [line for line in ax_g.get_lines() if line.get_marker() == "*"]
+    assert [tuple(line.get_ydata()) for line in stars] == [(1.44,)]
+    assert [tuple(line.get_ydata()) for line in ax_ti.get_lines() if line.get_marker() == "*"] == [
+        (1.6,)
+    ]
