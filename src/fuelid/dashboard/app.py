@@ -18,6 +18,7 @@ status --json`` and ``history --json`` use (one shape, not two); FastAPI's OpenA
 
 from __future__ import annotations
 
+import asyncio
 import math
 from importlib import resources
 from pathlib import Path
@@ -314,10 +315,14 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
             raise HTTPException(401, "an engineer's login is required")
         loop = get_loop(loop_id)
         why = (await form_fields(request)).get("why", "").strip()[:500]
-        try:
-            row = loop.file_request(kind, proposal_id, user.name, why or "(no reason given)")
+        try:  # waits up to two of the service's beats for it: off the event loop
+            row = await asyncio.to_thread(
+                loop.file_request, kind, proposal_id, user.name, why or "(no reason given)"
+            )
         except FuelidError as error:
             return JSONResponse({"error": " ".join(str(error).split())}, status_code=409)
+        if row.get("status") == "refused":
+            return JSONResponse({"request": row, "error": row.get("outcome")}, status_code=409)
         return JSONResponse({"request": row, "next": _next_step(loop, row)})
 
     @app.post("/api/loops/{loop_id}/proposals/{proposal_id}/approve", dependencies=[engineer])
@@ -348,9 +353,8 @@ def _next_step(loop: LoopReader, request: dict[str, Any]) -> str:
     status = loop.status()
     state = (status.get("link") or {}).get("state")
     if request.get("status") == "done":
-        return request.get("outcome") or "done"
-    if request.get("status") == "refused":
-        return f"refused: {request.get('outcome')}"
-    if state == "stopped":
-        return "the service is stopped: the request waits until it runs again"
-    return "the service carries it out within a few seconds"
+        done = str(request.get("outcome") or "done")
+        if state == "stopped" and request.get("kind") == "approve":
+            return done + "; the service is stopped: written when it runs again"
+        return done
+    return "filed; the service carries it out at its next beat (a few seconds)"

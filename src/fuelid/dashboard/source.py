@@ -238,10 +238,20 @@ class SQLiteLoop:
     def file_request(
         self, kind: str, proposal_id: int | None, who: str, why: str
     ) -> dict[str, Any]:
-        """File a person's request through the store's history (the only write here)."""
-        from fuelid.online.requests import file_request
+        """File a person's request through the store's history (the only write here).
 
-        return file_request(self.online, kind, proposal_id, who=who, why=why, origin="dashboard")
+        As ``fuelid online approve|reject|revert``: the running service applies it within a
+        beat; with no live service it is applied here at once (the row comes back "done" or
+        "refused" with its outcome, or "waiting").
+        """
+        from fuelid.online.liveness import SERVICE_KEY
+        from fuelid.online.requests import submit_request
+
+        record = self.online.state(SERVICE_KEY) or {}
+        write_back = (record.get("settings") or {}).get("write_back") or record.get("write_back")
+        return submit_request(
+            self.store, self.online, kind, proposal_id, who, why, "dashboard", write_back
+        )
 
     # --- samples ---------------------------------------------------------------------------
 

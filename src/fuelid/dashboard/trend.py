@@ -64,7 +64,7 @@ def thin(x: np.ndarray[Any, Any], y: np.ndarray[Any, Any], n_out: int) -> np.nda
         return finite
     from tsdownsample import MinMaxLTTBDownsampler
 
-    chosen = MinMaxLTTBDownsampler().downsample(
+    chosen = MinMaxLTTBDownsampler().downsample(  # type: ignore[no-untyped-call]
         np.ascontiguousarray(x[finite], dtype=np.float64),
         np.ascontiguousarray(y[finite], dtype=np.float64),
         n_out=int(n_out),

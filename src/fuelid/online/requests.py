@@ -22,7 +22,7 @@ from typing import Any
 from fuelid.store.base import StoreError
 from fuelid.store.online import OnlineHistory
 
-__all__ = ["apply_request", "consume_requests", "file_request"]
+__all__ = ["apply_request", "consume_requests", "file_request", "submit_request"]
 
 _STATUS_OF = {"approve": "approved", "reject": "rejected"}
 
@@ -100,3 +100,54 @@ def consume_requests(
         except StoreError:  # consumed meanwhile by another (the CLI with a stale view)
             continue
     return done
+
+
+def submit_request(
+    store: Any,
+    history: OnlineHistory,
+    kind: str,
+    proposal_id: int | None,
+    who: str,
+    why: str,
+    origin: str,
+    write_back_setting: str | None,
+    wait_s: float | None = None,
+) -> dict[str, Any]:
+    """File a request; apply it at once when no service is live, else wait for the service.
+
+    What ``fuelid online approve|reject|revert`` and the dashboard's buttons both do.
+
+    Parameters
+    ----------
+    store : SQLiteStore
+        The loop's store (its newest sample and link events say whether a service is live).
+    history : OnlineHistory
+        Its online history.
+    kind, proposal_id, who, why, origin
+        The request (:func:`file_request`).
+    write_back_setting : str or None
+        The write-back the caller knows (used only when it applies the request itself).
+    wait_s : float, optional
+        How long to wait for a live service to apply it [s]; two beats by default.
+
+    Returns
+    -------
+    dict
+        The request's row after: ``status`` "done" or "refused" with its ``outcome``, or still
+        "waiting" when the live service did not take it within ``wait_s``.
+    """
+    from fuelid.online.liveness import SERVICE_BEAT_S, SERVICE_KEY
+    from fuelid.online.report import link_json
+
+    live = link_json(store, service=history.state(SERVICE_KEY))["service"] == "running"
+    request = file_request(history, kind, proposal_id, who, why, origin)
+    if not live:
+        status, outcome = apply_request(history, request, write_back_setting)
+        return dict(history.finish_request(request["id"], status, outcome))
+    deadline = _time.monotonic() + (2.0 * SERVICE_BEAT_S if wait_s is None else wait_s)
+    while _time.monotonic() < deadline:
+        _time.sleep(0.1)
+        row = history.request(request["id"])
+        if row is not None and row["status"] != "waiting":
+            return dict(row)
+    return dict(history.request(request["id"]) or request)

@@ -9,7 +9,6 @@ live service it applies the request at once itself, with the same function.
 from __future__ import annotations
 
 import getpass
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -49,27 +48,10 @@ def _submit(
     why: str,
     write_back: str | None,
 ) -> dict[str, Any]:
-    """File a request; apply it here when no service is live, else wait for the service.
+    """File a request; applied here when no service is live, else by the service."""
+    from fuelid.online.requests import submit_request
 
-    The request's row after: ``status`` "done" or "refused" with its ``outcome``, or still
-    "waiting" when the live service did not take it within two beats.
-    """
-    from fuelid.online.liveness import SERVICE_BEAT_S, SERVICE_KEY
-    from fuelid.online.report import link_json
-    from fuelid.online.requests import apply_request, file_request
-
-    live = link_json(opened, service=history.state(SERVICE_KEY))["service"] == "running"
-    request = file_request(history, kind, proposal_id, name, why, "cli")
-    if not live:
-        status, outcome = apply_request(history, request, write_back)
-        return dict(history.finish_request(request["id"], status, outcome))
-    deadline = time.monotonic() + 2.0 * SERVICE_BEAT_S
-    while time.monotonic() < deadline:
-        time.sleep(0.1)
-        row = history.request(request["id"])
-        if row is not None and row["status"] != "waiting":
-            return dict(row)
-    return dict(history.request(request["id"]) or request)
+    return submit_request(opened, history, kind, proposal_id, name, why, "cli", write_back)
 
 
 def _waiting(request: dict[str, Any]) -> str:
