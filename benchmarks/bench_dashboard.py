@@ -182,7 +182,7 @@ def _cpu_s(pid: int) -> float:
 
 def live(seconds: float, work: Path) -> dict[str, Any]:
     """Latency from commit to screen with one browser, then the CPU with three."""
-    from support.browser import browser_page, dashboard, virtual_service, wait_ready
+    from support.browser import browser_pages, dashboard, virtual_service, wait_ready
 
     store = work / "live.db"
     hours = (3 * seconds + 120.0) / 3600.0
@@ -193,14 +193,7 @@ def live(seconds: float, work: Path) -> dict[str, Any]:
             loop_id = json.loads(urllib.request.urlopen(f"{base}/api/loops").read())["loops"][0][
                 "loop_id"
             ]
-            with (
-                browser_page() as (one, _),
-                browser_page() as (two, _),
-                browser_page() as (
-                    three,
-                    _,
-                ),
-            ):
+            with browser_pages(3) as ((one, two, three), _):
                 one.goto(f"{base}/loops/{loop_id}")
                 wait_ready(one)
                 one.wait_for_timeout(seconds * 1000)

@@ -23,7 +23,14 @@ pytest.importorskip("fastapi")
 pytest.importorskip("pymodbus")
 
 from fuelid.dashboard.users import UsersFile
-from support.browser import browser_page, dashboard, virtual_service, wait_ready, wait_until
+from support.browser import (
+    browser_page,
+    browser_pages,
+    dashboard,
+    virtual_service,
+    wait_ready,
+    wait_until,
+)
 
 ONLINE_APPROVE = 'identify_every_s = 60\nwindow_s = 120\nwrite_back = "approve"\n'
 
@@ -89,7 +96,7 @@ def test_the_live_trend_gains_points_while_the_virtual_plc_runs(tmp_path: Path) 
     assert errors == []
     # 10 s of plant time more on the screen (at 10x: about a second of wall time)
     assert after > (before or 0) + 10
-    assert link.startswith("link up")
+    assert link.startswith("link up"), link
 
 
 def _pending(base: str, loop_id: str, timeout: float = 60.0) -> dict[str, Any]:
@@ -183,16 +190,12 @@ def test_three_browsers_on_a_running_service_cost_it_no_sample(tmp_path: Path) -
         service.wait_for(lambda line: "link up" in line)
         with dashboard(tmp_path, "--store", str(store)) as (_, base):
             (row,) = _get(f"{base}/api/loops")["loops"]
-            with (
-                browser_page() as (one, errors1),
-                browser_page() as (two, errors2),
-                browser_page() as (three, errors3),
-            ):
-                for page in (one, two, three):
+            with browser_pages(3) as (pages, errors):
+                for page in pages:
                     page.goto(f"{base}/loops/{row['loop_id']}")
                     wait_ready(page)
                 service.wait_for(lambda line: line.startswith("online: stopped"), timeout=90)
-    assert errors1 + errors2 + errors3 == []
+    assert errors == []
     counted = [line for line in service.output if " lost |" in line]
     assert counted, "the service printed no status line"
     assert "| 0 lost |" in counted[-1]

@@ -136,21 +136,37 @@ def virtual_service(cwd: Path, store: Path, *args: str) -> Iterator[Process]:
 
 
 @contextmanager
-def browser_page(width: int = 1400, height: int = 1000) -> Iterator[tuple[Any, list[str]]]:
-    """A Playwright page in headless Chromium, and the list its console errors go to."""
+def browser_pages(
+    n: int, width: int = 1400, height: int = 1000
+) -> Iterator[tuple[list[Any], list[str]]]:
+    """``n`` pages in headless Chromium, and the list their console errors go to.
+
+    Each page has a browser context of its own (its own cookies and connections): to the
+    dashboard, separate browsers.
+    """
     executable = find_chromium()
     sync_api = pytest.importorskip("playwright.sync_api")
     with sync_api.sync_playwright() as p:
         browser = p.chromium.launch(executable_path=executable, args=["--no-sandbox"])
         try:
-            context = browser.new_context(viewport={"width": width, "height": height})
-            page = context.new_page()
             errors: list[str] = []
-            page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-            page.on("pageerror", lambda e: errors.append(f"uncaught: {e}"))
-            yield page, errors
+            pages = []
+            for _ in range(n):
+                context = browser.new_context(viewport={"width": width, "height": height})
+                page = context.new_page()
+                page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+                page.on("pageerror", lambda e: errors.append(f"uncaught: {e}"))
+                pages.append(page)
+            yield pages, errors
         finally:
             browser.close()
+
+
+@contextmanager
+def browser_page(width: int = 1400, height: int = 1000) -> Iterator[tuple[Any, list[str]]]:
+    """A Playwright page in headless Chromium, and the list its console errors go to."""
+    with browser_pages(1, width, height) as (pages, errors):
+        yield pages[0], errors
 
 
 def wait_until(page: Any, expression: str, timeout: float = 30.0) -> Any:

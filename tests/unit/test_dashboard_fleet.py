@@ -30,7 +30,7 @@ RECENT_IAE = [2.0, 2.2, 1.8, 2.1, 1.9]  # median 2.0 s
 def healthy() -> dict[str, Any]:
     """A status every chip of which is ok."""
     return {
-        "link": {"state": "up", "text": "link up (newest sample 0.4 s ago)"},
+        "link": {"state": "up", "text": "up (newest sample 0.4 s ago)"},
         "last_window": {"mode": "AUTO"},
         "loop_health": {
             "time_in_auto": 1.0,

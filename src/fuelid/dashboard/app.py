@@ -35,7 +35,9 @@ from fuelid.dashboard.security import Security, add_security_headers, auth_route
 from fuelid.dashboard.source import LoopReader
 from fuelid.dashboard.stream import Feeds
 from fuelid.dashboard.trend import trend
+from fuelid.dashboard.views import fmt_num, link_text, now_rows, proposal_views, write_back_of
 from fuelid.errors import FuelidError
+from fuelid.io.clock import format_time
 
 __all__ = ["RECENT_HEALTH", "create_app"]
 
@@ -72,6 +74,7 @@ def loop_summary(loop: LoopReader) -> dict[str, Any]:
     row = fleet_row(loop.loop_id, identity["site_name"], status, _recent_iae(loop))
     row["link"] = status.get("link")
     row["timezone"] = status.get("timezone", "UTC")
+    row["link_text"] = link_text(status, row["timezone"])
     return row
 
 
@@ -91,9 +94,6 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
         openapi_url="/api/openapi.json",
         redoc_url=None,
     )
-    from fuelid.dashboard.views import fmt_num, link_text, now_rows, proposal_views, write_back_of
-    from fuelid.io.clock import format_time
-
     env.filters["when"] = format_time
     env.filters["num"] = fmt_num
     app.state.loops = loops

@@ -86,7 +86,9 @@ def _pct(x: float) -> str:
 def _service_chip(status: dict[str, Any]) -> Chip:
     link = status.get("link") or {}
     state = link.get("state")
-    text = link.get("text") or str(state)
+    text = str(link.get("text") or state)
+    if state == "up":
+        text = f"link {text}"
     if state in ("stopped", "link_down", "down"):
         return Chip("service", "alarm", text)
     if state == "up":

@@ -44,7 +44,9 @@ def link_text(status: dict[str, Any], tz: str) -> str:
     """The link line: the service's and the link's state in words."""
     link = status.get("link") or {}
     if link.get("text"):
-        return str(link["text"])
+        text = str(link["text"])
+        # the command prints it after the word "link"; a page shows it alone
+        return f"link {text}" if link.get("state") == "up" else text
     newest = link.get("newest_sample")
     return f"{link.get('state', 'unknown')} (newest sample {format_time(newest, tz)})"
 

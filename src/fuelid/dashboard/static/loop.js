@@ -271,7 +271,7 @@ function openStream() {
     const row = JSON.parse(event.data);
     chips(document.getElementById("chips"), row.chips || []);
     const link = document.getElementById("link");
-    link.textContent = (row.link && row.link.text) || (row.link && row.link.state) || "";
+    link.textContent = row.link_text || "";
     link.className = `link ${(row.link && row.link.state) || ""}`;
   });
   source.addEventListener("history", () => loadHistory().catch(console.warn));
