@@ -134,7 +134,7 @@ def test_an_engineer_approves_and_reverts_on_the_page_and_the_plc_echoes_it(
     config = tmp_path / "online.toml"
     config.write_text("[online]\n" + ONLINE_APPROVE)
     store = tmp_path / "loop.db"
-    args = ("--speed", "10", "--hours", "1", "--config", str(config))
+    args = ("--speed", "20", "--hours", "1", "--config", str(config))
     with virtual_service(tmp_path, store, *args) as service:
         service.wait_for(lambda line: "link up" in line)
         with dashboard(tmp_path, "--store", str(store), "--users", str(users.path)) as (_, base):
@@ -184,6 +184,7 @@ def test_an_engineer_approves_and_reverts_on_the_page_and_the_plc_echoes_it(
     assert ("approved", "eve") in steps
 
 
+@pytest.mark.slow  # 30 s of a virtual run with three pages open: the slow set (CI runs it)
 def test_three_browsers_on_a_running_service_cost_it_no_sample(tmp_path: Path) -> None:
     store = tmp_path / "loop.db"
     with virtual_service(tmp_path, store, "--speed", "20", "--hours", "0.15") as service:

@@ -54,9 +54,10 @@ def test_refusals_exit_2_with_one_line(
     assert "newer" in _refused(capsys, "--store", str(store))
 
 
+@pytest.mark.slow  # a 20 s virtual run: the slow set (CI runs it)
 def test_online_dashboard_serves_beside_the_service_and_ends_with_it(tmp_path: Path) -> None:
     store = tmp_path / "loop.db"
-    args = ["online", "--virtual", "--speed", "20", "--hours", "0.1", "--store", str(store)]
+    args = ["online", "--virtual", "--speed", "20", "--hours", "0.05", "--store", str(store)]
     proc = Process([*args, "--dashboard", "--dashboard-port", "0"], tmp_path)
     try:
         line = proc.wait_for(lambda s: s.startswith("dashboard: http"))
