@@ -110,34 +110,37 @@ def _health_chips(status: dict[str, Any], recent_iae: list[float]) -> list[Chip]
         chips.append(Chip("mode", "warn" if low else "ok", text))
     limits = health.get("time_at_limits")
     if limits is None:
-        chips.append(Chip("limits", "unknown", "at limits: not measured"))
+        chips.append(Chip("limits", "unknown", "not measured yet"))
     else:
         level = "warn" if limits > LIMITS_WARN else "ok"
-        chips.append(Chip("limits", level, f"at limits {_pct(limits)}"))
+        chips.append(Chip("limits", level, f"{_pct(limits)} of the window at the drive's limits"))
     osc = health.get("oscillation") or {}
     if "oscillating" not in osc:
-        chips.append(Chip("oscillation", "unknown", "oscillation: not measured"))
+        chips.append(Chip("oscillation", "unknown", "not measured yet"))
     elif osc.get("oscillating"):
         period = osc.get("period_s")
         text = "oscillating" + ("" if period is None else f" (period {period:.3g} s)")
         chips.append(Chip("oscillation", "alarm", text))
     else:
-        chips.append(Chip("oscillation", "ok", "no oscillation"))
+        chips.append(Chip("oscillation", "ok", "none"))
     iae = health.get("iae_per_unit_step_s")
     if iae is None or not recent_iae:
-        chips.append(Chip("IAE", "unknown", "IAE/step: no setpoint step yet"))
+        chips.append(Chip("IAE", "unknown", "no setpoint step yet"))
     else:
         median = statistics.median(recent_iae)
         ratio = iae / median if median > 0 else 1.0
         level = "warn" if ratio > IAE_WARN else "ok"
-        chips.append(Chip("IAE", level, f"IAE/step {iae:.3g} s, {ratio:.2f}× its median"))
+        chips.append(Chip("IAE", level, f"{iae:.3g} s per unit step, {ratio:.2f}× its median"))
     return chips
 
 
 def _drift_chip(status: dict[str, Any]) -> Chip:
-    drift = (status.get("k_trend") or {}).get("drift")
+    trend = status.get("k_trend") or {}
+    drift = trend.get("drift")
     if not isinstance(drift, dict) or drift.get("ratio") is None:
-        return Chip("drift", "unknown", "K drift: not tracked yet")
+        if trend.get("available"):
+            return Chip("drift", "unknown", "K tracked; the gains' own model not known yet")
+        return Chip("drift", "unknown", "K not tracked yet")
     ratio, se = float(drift["ratio"]), float(drift.get("se") or 0.0)
     off = abs(ratio - 1.0)
     level = "warn" if off > DRIFT_WARN and off > 2.0 * se else "ok"
@@ -147,7 +150,7 @@ def _drift_chip(status: dict[str, Any]) -> Chip:
 def _proposal_chip(status: dict[str, Any]) -> Chip:
     pending = status.get("pending_proposals") or []
     if not pending:
-        return Chip("proposals", "ok", "no proposal waiting")
+        return Chip("proposals", "ok", "none waiting")
     waiting = [p for p in pending if p.get("status") == "pending"]
     if waiting:
         return Chip("proposals", "warn", f"{len(waiting)} proposal(s) wait for approval")
@@ -162,7 +165,7 @@ def _write_chip(status: dict[str, Any]) -> Chip:
     if wb.get("write_held"):
         return Chip("last write", "alarm", f"writes held: {wb['write_held']}")
     if last is None:
-        return Chip("last write", "ok", "no write yet")
+        return Chip("last write", "ok", "none yet")
     text = f"#{last['id']} {last['kind']} {last['status']}"
     level = "alarm" if last.get("status") in ("failed", "not_applied") else "ok"
     return Chip("last write", level, text)

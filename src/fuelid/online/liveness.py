@@ -182,9 +182,9 @@ def loop_state(
     if stopped is not None or beat_age is None or beat_age > SERVICE_STALE_S:
         since = stopped if stopped is not None else beat
         how = (
-            f"stopped {format_time(stopped, tz)}, {format_age(now - stopped)} ago"
+            f"at {format_time(stopped, tz)}, {format_age(now - stopped)} ago"
             if stopped is not None
-            else f"last beat {format_time(beat, tz)}, {format_age(beat_age)} ago"
+            else f"no beat since {format_time(beat, tz)}, {format_age(beat_age)} ago"
         )
         return {
             **out,

@@ -168,14 +168,14 @@ function drawKTemperature(history) {
   }];
   const withPlant = sorted.filter((w) => w.plant_K !== null && w.plant_K !== undefined);
   if (withPlant.length) {
-    traces.push({ type: "scatter", mode: "lines", name: "the plant file's K", x: withPlant.map((w) => w.fuel_temperature), y: withPlant.map((w) => w.plant_K), line: { color: "#777", dash: "dash" } });
+    traces.push({ type: "scatter", mode: "markers", name: "the plant file's K", x: withPlant.map((w) => w.fuel_temperature), y: withPlant.map((w) => w.plant_K), marker: { symbol: "x-thin-open", size: 8, color: "#777" } });
   }
   const trend = history.k_trend || {};
   const ratio = trend.ratio;
   if (trend.available && ratio && withPlant.length) {
     const slope = ratio.slope || 0;
     traces.push({
-      type: "scatter", mode: "lines", name: "tracked K(T)", line: { color: "#2e7d32", width: 2 },
+      type: "scatter", mode: "markers", name: "tracked K(T) at each window's flow", marker: { symbol: "circle-open", size: 9, color: "#2e7d32" },
       x: withPlant.map((w) => w.fuel_temperature), y: withPlant.map((w) => w.plant_K * (ratio.intercept + slope * (w.fuel_temperature - ratio.T_ref))),
     });
   }
@@ -183,20 +183,36 @@ function drawKTemperature(history) {
   Plotly.react("ktemp", traces, layout, PLOT_CONFIG);
 }
 
+// the gains in force over time: each proposal's "old" gains held until the next verified write
+function gainsInForce(history) {
+  const points = [];
+  for (const p of history.proposals) if (p.old && p.old.Kc !== undefined) points.push([p.time, p.old.Kc, p.old.Ti]);
+  for (const w of history.writes) if (w.status === "verified") points.push([w.time, w.Kc, w.Ti]);
+  points.sort((a, b) => a[0] - b[0]);
+  const last = history.proposals.length || history.writes.length ? (state.newest || null) : null;
+  if (points.length && last !== null && last > points[points.length - 1][0]) {
+    const end = points[points.length - 1];
+    points.push([last, end[1], end[2]]);
+  }
+  return points;
+}
+
 function drawGains(history) {
   const units = history.gain_units || history.gains_units || state.units;
-  const writes = history.writes.filter((w) => w.status === "verified");
+  const inForce = gainsInForce(history);
   const traces = [];
-  [["Kc", "y"], ["Ti", "y2"]].forEach(([key, axis]) => {
-    traces.push({ type: "scatter", mode: "lines+markers", line: { shape: "hv" }, name: `${key} written`, yaxis: axis, x: toZone(TZ, writes.map((w) => w.time)), y: writes.map((w) => w[key]), text: writes.map((w) => `${w.kind} #${w.id} by ${w.who}`), hovertemplate: `%{text}: ${key} %{y:.4g}<extra></extra>` });
-    traces.push({ type: "scatter", mode: "markers", name: `${key} proposed`, yaxis: axis, x: toZone(TZ, history.proposals.map((p) => p.time)), y: history.proposals.map((p) => (p.new || {})[key]), marker: { symbol: "diamond", size: 9 }, text: history.proposals.map((p) => `#${p.id} ${p.status}`), hovertemplate: `proposal %{text}: ${key} %{y:.4g}<extra></extra>` });
+  [["Kc", "y", 1], ["Ti", "y2", 2]].forEach(([key, axis, column]) => {
+    traces.push({ type: "scatter", mode: "lines", line: { shape: "hv", color: "#263238" }, name: `${key} in force`, yaxis: axis, x: toZone(TZ, inForce.map((p) => p[0])), y: inForce.map((p) => p[column]), hovertemplate: `${key} %{y:.4g}<extra></extra>` });
+    traces.push({ type: "scatter", mode: "markers", name: `${key} proposed`, yaxis: axis, x: toZone(TZ, history.proposals.map((p) => p.time)), y: history.proposals.map((p) => (p.new || {})[key]), marker: { symbol: "diamond", size: 9, color: "#ef6c00" }, text: history.proposals.map((p) => `#${p.id} ${p.status}`), hovertemplate: `proposal %{text}: ${key} %{y:.4g}<extra></extra>` });
     const withTarget = history.proposals.filter((p) => p.target);
-    if (withTarget.length) traces.push({ type: "scatter", mode: "markers", name: `${key} target`, yaxis: axis, x: toZone(TZ, withTarget.map((p) => p.time)), y: withTarget.map((p) => p.target[key]), marker: { symbol: "circle-open", size: 11 }, hovertemplate: `target ${key} %{y:.4g}<extra></extra>` });
+    if (withTarget.length) traces.push({ type: "scatter", mode: "markers", name: `${key} target`, yaxis: axis, x: toZone(TZ, withTarget.map((p) => p.time)), y: withTarget.map((p) => p.target[key]), marker: { symbol: "circle-open", size: 11, color: "#2e7d32" }, hovertemplate: `target ${key} %{y:.4g}<extra></extra>` });
   });
+  const written = history.writes.filter((w) => w.kind === "proposal");
+  if (written.length) traces.push({ type: "scatter", mode: "markers", name: "write", yaxis: "y", x: toZone(TZ, written.map((w) => w.time)), y: written.map((w) => w.Kc), marker: { symbol: "square", size: 8, color: written.map((w) => (w.status === "verified" ? "#1565c0" : "#c62828")) }, text: written.map((w) => `write #${w.id} ${w.status}`), hovertemplate: "%{text}<extra></extra>" });
   const reverts = history.writes.filter((w) => w.kind !== "proposal");
   if (reverts.length) traces.push({ type: "scatter", mode: "markers", name: "revert / restore", yaxis: "y", x: toZone(TZ, reverts.map((w) => w.time)), y: reverts.map((w) => w.Kc), marker: { symbol: "triangle-down", color: "#c62828", size: 11 }, text: reverts.map((w) => `${w.kind} ${w.status}: ${w.why}`), hovertemplate: "%{text}<extra></extra>" });
   const layout = {
-    margin: { t: 20, r: 20, b: 40, l: 80 }, legend: { orientation: "h", y: 1.15 }, xaxis: { type: "date", anchor: "y2" },
+    margin: { t: 20, r: 20, b: 40, l: 80 }, legend: { orientation: "h", y: 1.18 }, xaxis: { type: "date", anchor: "y2" },
     yaxis: { domain: [0.55, 1], title: { text: `Kc [${(units || {}).Kc || "?"}]` } },
     yaxis2: { domain: [0, 0.45], title: { text: `Ti [${(units || {}).Ti || "?"}]` } },
   };
