@@ -152,12 +152,16 @@ def now_rows(status: dict[str, Any], tz: str) -> list[tuple[str, str]]:
     rows.append(("health", health_text(status.get("loop_health"))))
     wb = status.get("write_back") or {}
     units = status.get("gain_units") or status.get("gains_units") or {}
-    gains = wb.get("current_gains") or {}
+    gains, whence = wb.get("current_gains") or {}, ""
+    pending = status.get("pending_proposals") or []
+    if not gains and pending:  # no write yet: the gains the proposals start from
+        gains, whence = pending[-1].get("old") or {}, " (as commissioned: no write yet)"
     rows.append(
         (
             "write-back",
             f"{write_back_of(status) or 'unknown'}; gains now Kc {fmt_num(gains.get('Kc'))} "
-            f"{units.get('Kc', '')}, Ti {fmt_num(gains.get('Ti'))} {units.get('Ti', '')}".rstrip(),
+            f"{units.get('Kc', '')}, Ti {fmt_num(gains.get('Ti'))} {units.get('Ti', '')}"
+            f"{whence}",
         )
     )
     last = status.get("last_write")
