@@ -152,7 +152,7 @@ def now_rows(status: dict[str, Any], tz: str) -> list[tuple[str, str]]:
     rows.append(("health", health_text(status.get("loop_health"))))
     wb = status.get("write_back") or {}
     units = status.get("gain_units") or status.get("gains_units") or {}
-    gains, whence = wb.get("current_gains") or {}, ""
+    gains, whence = wb.get("current_gains_block") or {}, ""
     pending = status.get("pending_proposals") or []
     if not gains and pending:  # no write yet: the gains the proposals start from
         gains, whence = pending[-1].get("old") or {}, " (as commissioned: no write yet)"

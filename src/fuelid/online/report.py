@@ -348,8 +348,9 @@ def status_json(
         ``timezone``, ``last_window``, ``current_model``, ``k_trend``, ``pending_proposals``
         (each with ``target`` and ``gain_units``), ``requests`` (the waiting ones),
         ``loop_health``, ``counts``, ``write_back`` (``setting`` and ``setting_from``: "site
-        file", "service" or None), ``last_write``, ``gains_units``, ``units`` (see the module
-        docstring).
+        file", "service" or None; ``current_gains`` and ``last_known_good`` in the ideal form
+        [V per L/min, s], ``current_gains_block`` in the block's units), ``last_write``,
+        ``gains_units``, ``units`` (see the module docstring).
     """
     last = history.last_window()
     last_window = None
@@ -394,6 +395,10 @@ def status_json(
             "setting": merged.get("write_back"),
             "setting_from": setting_from,
             "current_gains": history.state("current_gains"),
+            # the same gains as the PLC's block holds them (None when the controller is unknown)
+            "current_gains_block": _target(history.state("current_gains"), _controller(controller))[
+                0
+            ],
             "last_known_good": history.state("last_known_good"),
             "write_held": history.state("write_held"),
             "revert_requested": history.state("revert_requested"),
