@@ -59,7 +59,7 @@ T0 = 1.8e9  # 2027-01-15: any fixed plant time
 
 def build_store(path: Path, hours: float) -> tuple[int, float]:
     """The synthetic 24-hour store; (samples, seconds to write)."""
-    from fuelid.store.base import Event
+    from fuelid.store.base import Event, Sample
     from fuelid.store.online import OnlineHistory
     from fuelid.store.sqlite import SQLiteStore
 
@@ -86,7 +86,7 @@ def build_store(path: Path, hours: float) -> tuple[int, float]:
             out += rng.normal(0.0, 0.1, k.size)
             tf = 10.0 + 20.0 * np.sin(2.0 * math.pi * (t - T0) / 86_400.0)
             rows = [
-                (float(ti), int(ki), float(ui), float(yi), float(si), float(fi), 1, 0)
+                Sample(float(ti), int(ki), float(ui), float(yi), float(si), float(fi), 1, 0)
                 for ti, ki, ui, yi, si, fi in zip(t, k, u, out, sp, tf, strict=True)
             ]
             for b in range(0, len(rows), 1000):  # the recorder commits about once a second
@@ -221,13 +221,20 @@ def main() -> None:
     parser.add_argument("--hours", type=float, default=24.0)
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--seconds", type=float, default=60.0)
+    parser.add_argument(
+        "--store",
+        type=Path,
+        default=None,
+        help="keep the synthetic store here and reuse it when it exists (it takes minutes)",
+    )
     args = parser.parse_args()
     started = time.perf_counter()
     work = Path(tempfile.mkdtemp(prefix="fuelid-bench-dashboard-"))
     try:
-        store = work / "day.db"
-        n, build_s = build_store(store, args.hours)
-        print(f"store: {n} samples ({args.hours:g} h at 50 Hz) written in {build_s:.0f} s")
+        store = work / "day.db" if args.store is None else args.store
+        if not store.exists():
+            n, build_s = build_store(store, args.hours)
+            print(f"store: {n} samples ({args.hours:g} h at 50 Hz) written in {build_s:.0f} s")
         query_s, read, sent = trend_query(store, args.repeat)
         from support.browser import dashboard
 
