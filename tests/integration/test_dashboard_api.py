@@ -275,3 +275,65 @@ def test_a_store_of_a_newer_fuelid_is_refused_with_both_versions(loop_db: Path) 
         SQLiteLoop(loop_db)
     with pytest.raises(ConfigError, match="newer"):
         Loops([loop_db])
+
+
+def test_a_store_of_the_previous_schema_is_migrated_and_shown(tmp_path: Path) -> None:
+    # written the v2 way (fuelid 0.2): a virtual run at 20x, windows timed by the wall clock
+    # while their data ran ahead in plant time; a proposal filed between two windows
+    from fuelid.store.records import Sample
+    from fuelid.store.schema import build_at
+
+    db = tmp_path / "v2.db"
+    build_at(str(db), 2, {"site_name": "tunnel 2", "tag_map_hash": "ab12"})
+    wall0, plant0 = 1.8e9, 1.8e9 + 50_000.0
+    samples = [
+        Sample(plant0 - 1_200.0 + 0.02 * k, k, 2.0, 40.0 + (k // 3000) % 2, 40.0, 20.0, 1, 0)
+        for k in range(60_000)
+    ]
+    con = sqlite3.connect(db)
+    con.executemany("INSERT INTO samples VALUES (?, ?, ?, ?, ?, ?, ?, ?)", samples)
+    model = json.dumps({"model": {"K": 14.0, "T": 1.2, "delay": 0.2}})
+    for k in (1, 2):
+        wall, plant = wall0 + 30.0 * k, plant0 + 600.0 * (k - 1)
+        con.execute(
+            "INSERT INTO models VALUES (?, ?, ?, ?, 20.0, ?)",
+            (k, wall, plant - 600.0, plant, model),
+        )
+        con.execute(
+            "INSERT INTO windows VALUES (?, ?, ?, ?, 1, 'passed every gate', 20.0, 2.0, ?, ?)",
+            (k, wall, plant - 600.0, plant, k, model),
+        )
+    detail = {
+        "old": {"Kc": 0.04, "Ti": 1.4},
+        "new": {"Kc": 0.045, "Ti": 1.38},
+        "detail": {"reason": "2 independent windows agree", "Ms": {"newest": 1.45}},
+        "history": [{"time": wall0 + 45.0, "status": "pending", "who": "online", "why": ""}],
+    }
+    con.execute(
+        "INSERT INTO proposals VALUES (1, ?, 1, 0.045, 1.38, 'pending', ?)",
+        (wall0 + 45.0, json.dumps(detail)),
+    )
+    con.commit()
+    con.close()
+    client, loops = _client([db])
+    try:
+        (loop_id,) = loops.ids()
+        pages = [client.get(u).status_code for u in ("/", f"/loops/{loop_id}")]
+        history = client.get(f"/api/loops/{loop_id}/history").json()
+        span = (plant0 - 1_200.0, plant0)
+        trend = client.get(
+            f"/api/loops/{loop_id}/trend?start={span[0]}&end={span[1]}&width=400"
+        ).json()
+    finally:
+        loops.close()
+    assert pages == [200, 200]
+    assert loop_id == "tunnel-2"
+    (proposal,) = history["proposals"]
+    windows = history["windows"]
+    # filed halfway between the windows' analyses in wall time: halfway in plant time too
+    assert windows[0]["end"] < proposal["time"] < windows[1]["end"]
+    assert proposal["time"] == pytest.approx(plant0 + 300.0)
+    # the level-of-detail table was built by the migration: 1,200 s of 50 Hz is 60,000 samples
+    assert trend["source"] == "lod"
+    assert trend["level_s"] == 1
+    assert trend["points"] == 2 * 1_200
