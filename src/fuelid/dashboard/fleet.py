@@ -17,10 +17,10 @@ Each loop gets the chips below, each at a level: ``alarm`` (act now), ``warn`` (
 - **mode**: warn when the last window was in MAN or spent less than `AUTO_WARN` (90 %) of its
   time in AUTO.
 
-**Severity order** (:func:`severity_key`): loops with an alarm first, then with a warning, then
+**Severity order** (``severity_key``): loops with an alarm first, then with a warning, then
 those with something unknown, then the healthy ones; within a level, the loop with more chips at
 that level first; then by the first chip at that level in the list's order above
-(:data:`CHIP_ORDER`: a stopped service before an oscillation before a failed write); then by
+(``CHIP_ORDER``: a stopped service before an oscillation before a failed write); then by
 loop id.
 """
 

@@ -5,13 +5,13 @@ Browsers allow six HTTP/1.1 connections per site across all tabs, so a page open
 
 - ``samples``: the samples committed since the last event (``t`` [plant s], ``y``,
   ``setpoint`` [L/min], ``u`` [V], ``fuel_temperature`` [°C], ``quality``; NaN as null),
-  every :data:`POLL_S`;
+  every ``POLL_S``;
 - ``status``: the loop's state (``link`` as ``online status`` gives it, the fleet chips), every
-  :data:`STATUS_EVERY_S` and at once on connecting;
+  ``STATUS_EVERY_S`` and at once on connecting;
 - ``history``: the counts of windows, proposals and writes changed (the page re-reads the
   history it draws).
 
-One :class:`Feed` per loop reads the store for all its subscribers (three browsers cost the
+One ``Feed`` per loop reads the store for all its subscribers (three browsers cost the
 store what one does), in a worker thread so that the event loop never waits on SQLite, and only
 while someone listens.
 """

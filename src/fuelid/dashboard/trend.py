@@ -1,12 +1,12 @@
 """A trend of one loop's samples at the detail a chart can show, never more.
 
-A chart ``width`` pixels wide shows at most about two points per pixel. :func:`trend` picks the
+A chart ``width`` pixels wide shows at most about two points per pixel. ``trend`` picks the
 source by the span asked for: raw samples when they are few enough (at most
-:data:`RAW_MAX_SAMPLES` in the span), else the finest level of the level-of-detail table
+``RAW_MAX_SAMPLES`` in the span), else the finest level of the level-of-detail table
 (min/max per 1 s or 10 s bucket, written at ingest) that keeps the bucket count under
-:data:`LOD_MAX_BUCKETS`. A day at 50 Hz (4.3 million samples) is then 8,640 buckets of 10 s, and
+``LOD_MAX_BUCKETS``. A day at 50 Hz (4.3 million samples) is then 8,640 buckets of 10 s, and
 raw rows are never fetched for a day-long view. What comes back is thinned further with
-tsdownsample's MinMaxLTTB to about ``2 × width`` points per series (the shape and every extreme
+tsdownsample's MinMaxLTTB to about ``2 × width`` points per series (the shape and its peaks
 kept; the charts ask again for a zoomed range).
 
 A bucket becomes two points, its minimum at the bucket's start and its maximum at its middle,
