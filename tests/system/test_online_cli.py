@@ -293,7 +293,7 @@ def test_status_text_is_a_few_aligned_lines(
     assert "#1 pending: Kc 0.04 → 0.045" in text
     assert "service never started" in text
     assert "oscillating no" in text
-    assert "Harris 0.83" in text
+    assert "Harris index 0.83" in text
 
 
 def test_history_json_windows_proposals_events(

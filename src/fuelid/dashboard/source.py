@@ -29,6 +29,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from fuelid.store.records import SampleArrays, StoreError
+from fuelid.store.schema import default_loop_id
 
 __all__ = ["TREND_COLUMNS", "LoopReader", "SQLiteLoop", "Trend"]
 
@@ -117,27 +118,6 @@ def _read_only(path: Path) -> sqlite3.Connection:
     con.execute("PRAGMA busy_timeout=5000")
     con.execute("PRAGMA query_only=ON")
     return con
-
-
-def default_loop_id(site_name: str) -> str:
-    """The loop id of a store that names none: its site name in lower case, dashes between words.
-
-    Examples
-    --------
-    >>> default_loop_id("Tunnel 2 / fuel line A")
-    'tunnel-2-fuel-line-a'
-    >>> default_loop_id("---")
-    'loop'
-    """
-    out, dash = [], False
-    for ch in site_name.lower():
-        if ch.isascii() and ch.isalnum():
-            out.append(ch)
-            dash = False
-        elif not dash:
-            out.append("-")
-            dash = True
-    return "".join(out).strip("-")[:40].strip("-") or "loop"
 
 
 class SQLiteLoop:

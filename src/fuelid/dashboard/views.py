@@ -10,10 +10,10 @@ import math
 from typing import Any
 
 from fuelid.io.clock import format_time
+from fuelid.online.report import health_line
 
 __all__ = [
     "fmt_num",
-    "health_text",
     "link_text",
     "now_rows",
     "proposal_next",
@@ -94,28 +94,6 @@ def proposal_views(status: dict[str, Any], windows: list[dict[str, Any]]) -> lis
     return out
 
 
-def _share(x: Any) -> str:
-    return "-" if not isinstance(x, int | float) else f"{100.0 * x:.0f} %"
-
-
-def health_text(health: dict[str, Any] | None) -> str:
-    """The loop's health over the last window, in one line."""
-    if not health:
-        return "not measured yet"
-    osc = (health.get("oscillation") or {}).get("oscillating")
-    harris = (health.get("harris") or {}).get("index")
-    sensor = health.get("sensor") or {}
-    noise = sensor.get("noise_Lpm")
-    return (
-        f"in AUTO {_share(health.get('time_in_auto'))} of the last window, at the drive's "
-        f"limits {_share(health.get('time_at_limits'))}, oscillating "
-        f"{'yes' if osc else 'no'}, IAE per unit step "
-        f"{fmt_num(health.get('iae_per_unit_step_s'), 3)} s, Harris index "
-        f"{fmt_num(harris, 2)}, flowmeter {'stuck' if sensor.get('stuck') else 'ok'}"
-        + ("" if noise is None else f" (noise {fmt_num(noise, 2)} L/min)")
-    )
-
-
 def now_rows(status: dict[str, Any], tz: str) -> list[tuple[str, str]]:
     """The "Now" table: the model, K(T), health, write-back, counts."""
     rows: list[tuple[str, str]] = []
@@ -149,7 +127,7 @@ def now_rows(status: dict[str, Any], tz: str) -> list[tuple[str, str]]:
         rows.append(("K(T)", text))
     else:
         rows.append(("K(T)", f"not yet ({trend.get('reason', '')})"))
-    rows.append(("health", health_text(status.get("loop_health"))))
+    rows.append(("health", health_line(status.get("loop_health"))))
     wb = status.get("write_back") or {}
     units = status.get("gain_units") or status.get("gains_units") or {}
     gains, whence = wb.get("current_gains_block") or {}, ""

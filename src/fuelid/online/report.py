@@ -471,6 +471,38 @@ def history_json(
     return json_ready(out)  # type: ignore[no-any-return]
 
 
+def health_line(health: dict[str, Any] | None) -> str:
+    """The loop's health over the last window in one line (``online status`` and the dashboard).
+
+    Examples
+    --------
+    >>> health_line(None)
+    'not measured yet'
+    >>> health_line({"time_in_auto": 0.5, "oscillation": {"oscillating": True}})[:31]
+    'in AUTO 50 % of the last window'
+    """
+    if not health:
+        return "not measured yet"
+
+    def share(x: Any) -> str:
+        return "-" if not isinstance(x, int | float) else f"{100.0 * x:.0f} %"
+
+    def number(x: Any, spec: str) -> str:
+        return "-" if not isinstance(x, int | float) else format(x, spec)
+
+    osc = (health.get("oscillation") or {}).get("oscillating")
+    harris = (health.get("harris") or {}).get("index")
+    sensor = health.get("sensor") or {}
+    noise = sensor.get("noise_Lpm")
+    return (
+        f"in AUTO {share(health.get('time_in_auto'))} of the last window, at the drive's "
+        f"limits {share(health.get('time_at_limits'))}, oscillating {'yes' if osc else 'no'}, "
+        f"IAE per unit step {number(health.get('iae_per_unit_step_s'), '.3g')} s, Harris index "
+        f"{number(harris, '.2f')}, flowmeter {'stuck' if sensor.get('stuck') else 'ok'}"
+        + ("" if noise is None else f" (noise {number(noise, '.2g')} L/min)")
+    )
+
+
 def _site(store: SQLiteStore) -> dict[str, Any]:
     return {"name": store.site_name, "tag_map_hash": store.tag_map_hash, "store": store.path}
 
@@ -478,6 +510,7 @@ def _site(store: SQLiteStore) -> dict[str, Any]:
 __all__ = [
     "LINK_FRESH_S",
     "ONLINE_UNITS",
+    "health_line",
     "history_json",
     "k_trend_json",
     "link_json",

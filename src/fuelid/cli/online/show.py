@@ -13,6 +13,7 @@ if TYPE_CHECKING:
     pass
 
 from fuelid.cli.online._app import ConfigFile, JsonFlag, StoreFile, _opened, _options, app
+from fuelid.online.report import health_line
 
 RECENT_WINDOWS = 20
 """Windows listed by ``fuelid online history`` without ``--json``."""
@@ -68,30 +69,6 @@ def _gains_text(p: dict[str, Any]) -> str:
     ms = p.get("Ms")
     return f"#{p['id']} {p['status']}: {one('Kc')}, {one('Ti')}" + (
         "" if ms is None else f" (Ms {ms:.2f})"
-    )
-
-
-def _percent(x: Any) -> str:
-    return "-" if x is None else f"{100.0 * x:.1f} %"
-
-
-def _health_text(h: dict[str, Any] | None) -> str:
-    if not h:
-        return "not measured yet"
-    osc = (h.get("oscillation") or {}).get("oscillating")
-    iae = h.get("iae_per_unit_step_s")
-    harris = (h.get("harris") or {}).get("index")
-    sensor = h.get("sensor") or {}
-    noise = sensor.get("noise_Lpm")
-    return (
-        f"AUTO {_percent(h.get('time_in_auto'))}, at limits {_percent(h.get('time_at_limits'))}, "
-        f"oscillating {'yes' if osc else 'no'}, IAE/step "
-        + ("-" if iae is None else f"{iae:.3g} s")
-        + ", Harris "
-        + ("-" if harris is None else f"{harris:.2f}")
-        + ", sensor "
-        + ("stuck" if sensor.get("stuck") else "ok")
-        + ("" if noise is None else f" (noise {noise:.3g} L/min)")
     )
 
 
@@ -190,7 +167,7 @@ def status_lines(status: dict[str, Any]) -> list[str]:
         ("K(T)", _trend_text(status.get("k_trend") or {})),
         ("proposals", proposals_text),
         ("requests", _requests_text(status.get("requests") or [])),
-        ("health", _health_text(status.get("loop_health"))),
+        ("health", health_line(status.get("loop_health"))),
         ("writes", write_text),
         (
             "counts",
