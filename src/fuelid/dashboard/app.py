@@ -29,6 +29,7 @@ from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, Response
 from fastapi.sse import EventSourceResponse, ServerSentEvent
 from fastapi.staticfiles import StaticFiles
 
+from fuelid import __version__
 from fuelid.dashboard.fleet import fleet_row
 from fuelid.dashboard.registry import Loops
 from fuelid.dashboard.security import Security, add_security_headers, auth_router, form_fields
@@ -55,6 +56,15 @@ def _plotly_js() -> Path:
     if not path.is_file():
         raise FuelidError(f"plotly.js not found in the installed plotly package ({path})")
     return path
+
+
+def _swagger_ui() -> Path | None:
+    """Swagger UI's files as the installed swagger-ui-bundle carries them (None without it)."""
+    try:
+        import swagger_ui_bundle
+    except ImportError:
+        return None
+    return Path(swagger_ui_bundle.swagger_ui_path)
 
 
 def _recent_iae(loop: LoopReader) -> list[float]:
@@ -90,12 +100,15 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
     )
     app = FastAPI(
         title=f"{title} dashboard",
-        docs_url="/api/docs",
+        version=__version__,
+        docs_url=None,  # FastAPI's own page loads Swagger UI from a CDN: served locally below
         openapi_url="/api/openapi.json",
         redoc_url=None,
     )
     env.filters["when"] = format_time
     env.filters["num"] = fmt_num
+    # the Swagger UI that swagger-ui-bundle carries (4.x) reads OpenAPI 3.0 documents
+    app.openapi_version = "3.0.3"
     app.state.loops = loops
     app.state.security = security
     feeds = Feeds()
@@ -108,14 +121,27 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
     def favicon() -> Response:
         return Response(status_code=204)  # no icon (a 404 would be a console error)
 
+    viewer = Depends(security.require_viewer)
+    engineer = Depends(security.require_engineer)
+
+    swagger = _swagger_ui()
+    if swagger is not None:
+        app.mount("/static/swagger", StaticFiles(directory=str(swagger)), name="swagger")
+
+    @app.get(
+        "/api/docs", response_class=HTMLResponse, include_in_schema=False, dependencies=[viewer]
+    )
+    def api_docs(request: Request) -> HTMLResponse:
+        """The OpenAPI page: Swagger UI from the installed swagger-ui-bundle, no CDN."""
+        if swagger is None:
+            raise HTTPException(404, "the API page needs swagger-ui-bundle (the dashboard extra)")
+        return page("api_docs.html.j2", request, page_title="API", page="api", tz="UTC")
+
     @app.get("/static/plotly.min.js", include_in_schema=False)
     def plotly_static() -> FileResponse:
         return FileResponse(plotly_js, media_type="text/javascript")
 
     app.mount("/static", StaticFiles(directory=str(package / STATIC)), name="static")
-
-    viewer = Depends(security.require_viewer)
-    engineer = Depends(security.require_engineer)
 
     def get_loop(loop_id: str) -> LoopReader:
         loop = loops.get(loop_id)
@@ -178,7 +204,7 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
             page_title=loop.loop_id,
             page="loop",
             tz=tz,
-            loop=loop.identity(),
+            lp=loop.identity(),
             status=status,
             summary=loop_summary(loop),
             link_text=link_text(status, tz),
@@ -205,7 +231,7 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
             page_title=f"window {window_id}",
             page="window",
             tz=evidence["timezone"],
-            loop=loop.identity(),
+            lp=loop.identity(),
             w=evidence,
             units={"Kc": units.get("Kc", ""), "Ti": units.get("Ti", "")},
         )

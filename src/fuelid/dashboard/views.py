@@ -78,17 +78,32 @@ def proposal_next(proposal: dict[str, Any], status: dict[str, Any]) -> str:
 
 
 def proposal_views(status: dict[str, Any], windows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The pending and approved proposals with ``next`` and the window they came from."""
-    by_model = {w.get("model_id"): w["id"] for w in windows if w.get("model_id") is not None}
+    """The pending and approved proposals, each with ``next``, ``window_id`` and ``stale``.
+
+    ``stale`` says why the service would no longer write it (the service's own rule), else None.
+    """
+    from fuelid.online.context import stale_reason
+    from fuelid.plc.site import Online
+
+    by_model = {w.get("model_id"): w for w in windows if w.get("model_id") is not None}
+    settings = (status.get("service") or {}).get("settings") or {}
+    window_s = float(settings.get("window_s") or Online().window_s)
+    newest = (status.get("link") or {}).get("newest_sample")
     out = []
     for p in status.get("pending_proposals") or []:
+        window = by_model.get(p.get("model_id"))
+        end = None if window is None else window.get("t_to")
+        stale = stale_reason(end, newest, window_s)
         out.append(
             {
                 **p,
                 "old": p.get("old") or {},
                 "new": p.get("new") or {},
-                "next": proposal_next(p, status),
-                "window_id": by_model.get(p.get("model_id")),
+                "next": (
+                    f"out of date, not written: {stale}" if stale else proposal_next(p, status)
+                ),
+                "stale": stale,
+                "window_id": None if window is None else window["id"],
             }
         )
     return out

@@ -171,6 +171,40 @@ def observation_of(row: dict[str, Any]) -> GainObservation | None:
     )
 
 
+def stale_reason(window_end: float | None, newest: float | None, window_s: float) -> str | None:
+    """Why a proposal is too old to write (its newest window long before the newest sample).
+
+    Its evidence predates the recent windows (e.g. across a restart and a change of fuel
+    temperature): new windows will propose afresh. The service supersedes such an approved
+    proposal instead of writing it; an approval of one is refused with the same reason.
+
+    Parameters
+    ----------
+    window_end : float or None
+        Plant time at which the proposal's newest window ended [s]; None when unknown.
+    newest : float or None
+        Plant time of the newest sample [s]; None without samples.
+    window_s : float
+        The service's window length [s] (``[online] window_s``).
+
+    Examples
+    --------
+    >>> stale_reason(1000.0, 1000.0 + 6 * 600.0 + 1.0, 600.0)[:45]
+    'stale: its newest window ended 3601 s of data'
+    >>> stale_reason(1000.0, 1600.0, 600.0) is None
+    True
+    """
+    if window_end is None or newest is None:
+        return None
+    span = RECENT_WINDOWS_SPAN * window_s
+    if float(window_end) < newest - span:
+        return (
+            f"stale: its newest window ended {newest - float(window_end):.0f} s of data "
+            f"before the newest sample (> {span:.0f} s); new windows will propose afresh"
+        )
+    return None
+
+
 __all__ = [
     "RECENT_WINDOWS_SPAN",
     "TRACKER_OBSERVATIONS",
@@ -178,4 +212,5 @@ __all__ = [
     "ServiceStats",
     "model_of",
     "observation_of",
+    "stale_reason",
 ]

@@ -76,6 +76,10 @@ def apply_request(
     if status is None:
         return "refused", f"unknown request kind {kind!r}"
     proposal_id = request["proposal_id"]
+    if kind == "approve":
+        stale = _stale(history, proposal_id)
+        if stale is not None:  # the service would supersede it instead of writing it
+            return "refused", f"proposal {proposal_id} is out of date ({stale})"
     try:
         updated = history.set_proposal_status(int(proposal_id), status, who=who, why=why)
     except StoreError as error:
@@ -86,6 +90,22 @@ def apply_request(
             reason = f"{reason}; the open proposal now is #{pending[-1]['id']}"
         return "refused", reason
     return "done", f"proposal {updated['id']} {updated['status']} by {who}"
+
+
+def _stale(history: OnlineHistory, proposal_id: Any) -> str | None:
+    """Why the proposal is too old to be written (the service's own rule); None when fresh."""
+    from fuelid.online.context import stale_reason
+    from fuelid.online.liveness import SERVICE_KEY
+    from fuelid.plc.site import Online
+
+    proposal = history.proposal(int(proposal_id)) if proposal_id is not None else None
+    model_id = None if proposal is None else proposal.get("model_id")
+    row = None if model_id is None else history.model(int(model_id))
+    record = history.state(SERVICE_KEY) or {}
+    settings = record.get("settings") if isinstance(record, dict) else None
+    window_s = (settings or {}).get("window_s") or Online().window_s
+    window_end = None if row is None else float(row["t_to"])
+    return stale_reason(window_end, history.plant_now(), float(window_s))
 
 
 def consume_requests(

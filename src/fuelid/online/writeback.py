@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from fuelid.errors import FuelidError
-from fuelid.online.context import RECENT_WINDOWS_SPAN, ServiceContext
+from fuelid.online.context import ServiceContext, stale_reason
 from fuelid.online.gains import Gains, ideal_to_controller
 from fuelid.online.window import WindowResult
 from fuelid.plc.adapters.base import LinkError
@@ -124,19 +124,9 @@ class WriteBack:
         temperature): new windows will propose afresh.
         """
         model_id = proposal.get("model_id")
-        newest = self.context.store.last_time()
-        if model_id is None or newest is None:
-            return None
-        row = self.history.model(int(model_id))
-        if row is None:
-            return None
-        span = RECENT_WINDOWS_SPAN * self.settings.window_s
-        if float(row["t_to"]) < newest - span:
-            return (
-                f"stale: its newest window ended {newest - float(row['t_to']):.0f} s of data "
-                f"before the newest sample (> {span:.0f} s); new windows will propose afresh"
-            )
-        return None
+        row = None if model_id is None else self.history.model(int(model_id))
+        window_end = None if row is None else float(row["t_to"])
+        return stale_reason(window_end, self.context.store.last_time(), self.settings.window_s)
 
     # --- writing ----------------------------------------------------------------------------
 
