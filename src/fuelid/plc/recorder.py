@@ -145,7 +145,7 @@ class Recorder:
         self._down_since = time.monotonic()
         self._down_utc = time.time()
         self._ever_up = False
-        self._seq = SampleSequence(self.period_s, writer.store.last_seq())
+        self._seq = SampleSequence(self.period_s, writer.store.last_seq(), writer.store.last_time())
         self._checks = RangeChecks(dict(self.site.tags), self._event)
         self._stuck = StuckDetector(
             self.site.tags.get("flow"), self._event_at, stuck_after_s, self._reflag

@@ -41,8 +41,9 @@ follows the old one one period later, sample times stay strictly increasing and 
 with stored ones, and the outage shows as the break in the sequence (the events give its wall
 time). A recorder started on a store continues after its largest stored number: if the PLC's
 counter is ahead of it, the PLC is taken to be the same run (stored number = the PLC's,
-back-filled from the ring when it still holds the missed records); if behind, a PLC restart
-since the last recording.
+back-filled from the ring when it still holds the missed records) and its times go on from the
+stored ones (anchor = last stored time − its number · period); if behind, a PLC restart since
+the last recording, anchored by the rule above.
 
 **Event times.** With a ring or a ``seq`` tag every event is on the samples' time base (data
 time, which runs X times faster than the wall clock on a PLC at X times real time): ``link_down``
@@ -87,10 +88,12 @@ class SampleSequence:
     the current run of the PLC (a restart starts a new run: new offset and anchor).
     """
 
-    def __init__(self, period_s: float, last_stored: int | None) -> None:
+    def __init__(
+        self, period_s: float, last_stored: int | None, last_time: float | None = None
+    ) -> None:
         self.period_s = period_s
         self.last_stored = last_stored
-        self.last_time = -math.inf
+        self.last_time = -math.inf if last_time is None else float(last_time)
         self.offset = 0
         self.anchor = math.nan
         self.raw: int | None = None
@@ -131,8 +134,15 @@ class SampleSequence:
         last = self.last_stored
         if last is None or raw > last:
             self.offset = 0  # the stored number is the PLC's own
+            if last is not None and math.isfinite(self.last_time):
+                # the same run of the PLC: its time base goes on from the stored samples (a PLC
+                # at X times real time is far ahead of the wall clock: re-anchoring to the wall
+                # clock would put the new samples before the stored ones)
+                self.anchor = self.last_time - last * self.period_s
             return True, ""
         self.offset = last + 2  # one number left out: a break readers see
+        # a new run: the wall-clock anchor, but strictly after the last stored sample
+        self.anchor = max(self.anchor, self.last_time + self.period_s)
         return False, f"the PLC's counter ({raw}) is behind the store's last sample ({last})"
 
     def advance(
