@@ -672,6 +672,6 @@ def test_the_link_state_follows_the_service_the_newest_link_event_and_the_wall_c
         # a service killed (no beat for 11 s) or stopped cleanly: stopped, nothing else trusted
         killed = link_json(store, now=wall + 11.0, service=record)
         assert (killed["state"], killed["service"]) == ("stopped", "stopped")
-        assert "no beat since" in killed["text"]
+        assert "no beat for" in killed["text"]
         clean = link_json(store, now=wall + 1.0, service={**record, "stopped": wall + 0.5})
         assert clean["state"] == "stopped"

@@ -96,7 +96,8 @@ def test_an_accelerated_run_files_everything_in_plant_time_order(
     code = main(["online", "status", "--store", str(db)])
     out = capsys.readouterr().out
     assert code == 0
-    assert "service stopped (at 20" in out
+    assert "service stopped (" in out
+    assert " ago)" in out
     assert "write_back auto (from the last service's settings)" in out
     code = main(["online", "history", "--store", str(db)])
     out = capsys.readouterr().out
@@ -147,5 +148,5 @@ def test_a_service_killed_with_sigkill_reads_stopped_within_five_beats_and_two(
     assert state == "stopped"
     assert status["service"]["stopped"] is None  # killed: never wrote its stop
     assert status["service"]["state"] == "stopped"
-    assert "no beat since" in status["link"]["text"]
+    assert "no beat for" in status["link"]["text"]
     assert json.dumps(status)  # plain JSON

@@ -51,7 +51,7 @@ def test_a_killed_service_reads_stopped_with_its_last_beat() -> None:
     assert out["state"] == "stopped"
     assert out["beat_age_s"] == pytest.approx(11.0)
     assert out["since"] == NOW - 11.0
-    assert out["text"] == f"service stopped (no beat since {format_time(NOW - 11.0)}, 11 s ago)"
+    assert out["text"] == "service stopped (no beat for 11 s)"
 
 
 def test_plant_time_running_ahead_is_never_used() -> None:

@@ -30,7 +30,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from fuelid.io.clock import format_age, format_time
+from fuelid.io.clock import format_age
 
 __all__ = [
     "LINK_FRESH_S",
@@ -181,10 +181,12 @@ def loop_state(
     stopped = _number(service.get("stopped"))
     if stopped is not None or beat_age is None or beat_age > SERVICE_STALE_S:
         since = stopped if stopped is not None else beat
+        # ages, not wall-clock stamps: the pages and the commands show plant time, which a PLC
+        # at X times real time runs ahead of the wall clock
         how = (
-            f"at {format_time(stopped, tz)}, {format_age(now - stopped)} ago"
+            f"{format_age(now - stopped)} ago"
             if stopped is not None
-            else f"no beat since {format_time(beat, tz)}, {format_age(beat_age)} ago"
+            else f"no beat for {format_age(beat_age)}"
         )
         return {
             **out,
@@ -196,7 +198,7 @@ def loop_state(
     out["service"] = "running"
     if last_link_event is not None and last_link_event[0] == "link_down":
         since = float(last_link_event[1])
-        text = f"link down (since {format_time(since, tz)}, {format_age(now - since)} ago)"
+        text = f"link down (for {format_age(now - since)})"
         return {**out, "state": "link_down", "since": since, "text": text}
     if newest_sample_wall is None:
         return {

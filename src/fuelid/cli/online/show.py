@@ -179,7 +179,7 @@ def status_lines(status: dict[str, Any]) -> list[str]:
 
 
 def _link_text(link: dict[str, Any], tz: str) -> str:
-    """``service stopped (no beat since …)``, ``up (newest sample 0.6 s ago; plant time …)``."""
+    """``service stopped (no beat for …)``, ``up (newest sample 0.6 s ago; plant time …)``."""
     text = str(link.get("text") or link.get("state"))
     plant = link.get("newest_sample")
     if link.get("state") in ("up", "link_down") and plant is not None:
