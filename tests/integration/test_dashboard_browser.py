@@ -165,7 +165,8 @@ def test_an_engineer_approves_and_reverts_on_the_page_and_the_plc_echoes_it(
                 page.fill(f"form[data-proposal='{proposal['id']}'] input[name=why]", "looks safe")
                 page.click(button)
                 wait_until(
-                    page, f"document.querySelector(\"{outcome}\").textContent.includes('filed')"
+                    page,
+                    f'/^approve (done|filed)/.test(document.querySelector("{outcome}").textContent)',
                 )
                 kc, ti = _verified_write(store, "proposal")
                 page.goto(base + path)
@@ -174,7 +175,8 @@ def test_an_engineer_approves_and_reverts_on_the_page_and_the_plc_echoes_it(
                 page.click("form.revert button[data-kind=revert]")
                 wait_until(
                     page,
-                    "document.querySelector('form.revert .outcome').textContent.includes('filed')",
+                    "/^revert (done|filed)/.test("
+                    "document.querySelector('form.revert .outcome').textContent)",
                 )
                 reverted = _verified_write(store, "revert")
             history = _get(f"{base}/api/loops/{loop_id}/history")

@@ -174,7 +174,8 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
     @app.get("/", response_class=HTMLResponse, include_in_schema=False, dependencies=[viewer])
     def fleet_page(request: Request) -> HTMLResponse:
         rows = fleet_rows()
-        tz = rows[0]["timezone"] if rows else "UTC"
+        zones = {row["timezone"] for row in rows}
+        tz = zones.pop() if len(zones) == 1 else None  # several zones: each loop its own
         return page(
             "fleet.html.j2",
             request,

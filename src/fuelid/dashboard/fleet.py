@@ -166,7 +166,12 @@ def _write_chip(status: dict[str, Any]) -> Chip:
         return Chip("last write", "alarm", f"writes held: {wb['write_held']}")
     if last is None:
         return Chip("last write", "ok", "none yet")
-    text = f"#{last['id']} {last['kind']} {last['status']}"
+    what = (
+        f"proposal #{last['proposal_id']}"
+        if last.get("kind") == "proposal" and last.get("proposal_id") is not None
+        else str(last.get("kind"))
+    )
+    text = f"write #{last['id']} ({what}) {last['status']}"
     level = "alarm" if last.get("status") in ("failed", "not_applied") else "ok"
     return Chip("last write", level, text)
 

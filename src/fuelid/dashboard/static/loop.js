@@ -269,8 +269,15 @@ function bindActions() {
       outcome.textContent = "sending…";
       const answer = await postForm(url, { why });
       if (answer.ok) {
-        outcome.textContent = `${kind} filed: ${answer.data.next || ""}`;
-        setTimeout(() => window.location.reload(), 4000);
+        const request = answer.data.request || {};
+        outcome.textContent = `${kind} ${request.status === "done" ? "done" : "filed"}: ${answer.data.next || ""}`;
+        form.querySelectorAll("button").forEach((b) => { b.disabled = true; });
+        const card = form.closest(".proposal");
+        const title = card && card.querySelector("h3");
+        if (title && request.status === "done") {
+          title.firstChild.textContent = `#${form.dataset.proposal} ${kind === "approve" ? "approved" : "rejected"} `;
+        }
+        setTimeout(() => window.location.reload(), 2500);
       } else {
         outcome.textContent = answer.data.error || answer.data.detail || `refused (${answer.status})`;
       }
