@@ -164,10 +164,8 @@ def test_an_engineer_approves_and_reverts_on_the_page_and_the_plc_echoes_it(
                 wait_ready(page)
                 page.fill(f"form[data-proposal='{proposal['id']}'] input[name=why]", "looks safe")
                 page.click(button)
-                wait_until(
-                    page,
-                    f'/^approve (done|filed)/.test(document.querySelector("{outcome}").textContent)',
-                )
+                shown = f'document.querySelector("{outcome}").textContent'
+                wait_until(page, f"/^approve (done|filed)/.test({shown})")
                 kc, ti = _verified_write(store, "proposal")
                 page.goto(base + path)
                 wait_ready(page)
