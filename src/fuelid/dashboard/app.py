@@ -36,7 +36,14 @@ from fuelid.dashboard.security import Security, add_security_headers, auth_route
 from fuelid.dashboard.source import LoopReader
 from fuelid.dashboard.stream import Feeds
 from fuelid.dashboard.trend import trend
-from fuelid.dashboard.views import fmt_num, link_text, now_rows, proposal_views, write_back_of
+from fuelid.dashboard.views import (
+    fmt_num,
+    gains_now,
+    link_text,
+    now_rows,
+    proposal_views,
+    write_back_of,
+)
 from fuelid.errors import FuelidError
 from fuelid.io.clock import format_time
 
@@ -214,6 +221,7 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
             ms_target=settings.get("ms_target", "the site's ms_target"),
             write_back_text=f"Write-back: {write_back or 'unknown'}.",
             now_rows=now_rows(status, tz),
+            gains=gains_now(status)[0],
         )
 
     @app.get(

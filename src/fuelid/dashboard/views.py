@@ -14,6 +14,7 @@ from fuelid.online.report import health_line
 
 __all__ = [
     "fmt_num",
+    "gains_now",
     "link_text",
     "now_rows",
     "proposal_next",
@@ -109,6 +110,22 @@ def proposal_views(status: dict[str, Any], windows: list[dict[str, Any]]) -> lis
     return out
 
 
+def gains_now(status: dict[str, Any]) -> tuple[dict[str, Any], str]:
+    """The gains in force in the block's units, and where they come from (a note, or "")."""
+    wb = status.get("write_back") or {}
+    if wb.get("current_gains_block"):
+        return dict(wb["current_gains_block"]), ""
+    pending = status.get("pending_proposals") or []
+    if pending and pending[-1].get("old"):  # no write yet: the gains the proposals start from
+        return dict(pending[-1]["old"]), " (as commissioned: no write yet)"
+    settings = (status.get("service") or {}).get("settings") or {}
+    controller = settings.get("controller") or {}
+    if controller.get("kc") is not None and controller.get("ti") is not None:
+        gains = {"Kc": controller["kc"], "Ti": controller["ti"]}
+        return gains, " (the site file's [controller] gains: no write yet)"
+    return {}, " (not known: no write yet, no [controller] kc and ti)"
+
+
 def now_rows(status: dict[str, Any], tz: str) -> list[tuple[str, str]]:
     """The "Now" table: the model, K(T), health, write-back, counts."""
     rows: list[tuple[str, str]] = []
@@ -143,12 +160,8 @@ def now_rows(status: dict[str, Any], tz: str) -> list[tuple[str, str]]:
     else:
         rows.append(("K(T)", f"not yet ({trend.get('reason', '')})"))
     rows.append(("health", health_line(status.get("loop_health"))))
-    wb = status.get("write_back") or {}
     units = status.get("gain_units") or status.get("gains_units") or {}
-    gains, whence = wb.get("current_gains_block") or {}, ""
-    pending = status.get("pending_proposals") or []
-    if not gains and pending:  # no write yet: the gains the proposals start from
-        gains, whence = pending[-1].get("old") or {}, " (as commissioned: no write yet)"
+    gains, whence = gains_now(status)
     rows.append(
         (
             "write-back",

@@ -1,16 +1,18 @@
 """The HTML report of one window, as ``fuelid report`` writes it for a log.
 
 The window's samples are analysed as a log (both identifications, the tuning, the check over
-fuel temperature) and rendered with the report's template, the figures embedded. The store
-keeps only the plant file's hash, not the file: the analysis uses the built-in reference plant
-for its trend over fuel temperature and says so on the report, as ``fuelid report`` does without
-``--plant``. The last few reports are kept in memory (an analysis takes seconds).
+fuel temperature) and rendered with the report's template, the figures embedded. The plant file
+is the one the service ran with (its path and SHA-256 are in the service's record), when it is
+still there with the same hash; otherwise the built-in reference plant stands in, and the report
+says so, as ``fuelid report`` does without ``--plant``. The last few reports are kept in memory
+(an analysis takes seconds).
 """
 
 from __future__ import annotations
 
 import threading
 from collections import OrderedDict
+from pathlib import Path
 from typing import Any
 
 from fuelid.dashboard.source import LoopReader
@@ -34,12 +36,24 @@ def _error_page(title: str, reason: str) -> str:
     )
 
 
+def _plant(loop: LoopReader) -> Any:
+    """The service's plant file when it is still there unchanged, else the reference plant."""
+    from fuelid.online.liveness import plant_hash
+    from fuelid.plant import load_plant_config
+    from fuelid.workflow import PlantSource
+
+    settings = (loop.status().get("service") or {}).get("settings") or {}
+    path, digest = settings.get("plant_file"), settings.get("plant_hash")
+    if path and digest and Path(path).is_file() and plant_hash(path) == digest:
+        return PlantSource(load_plant_config(path), path=str(path))
+    return PlantSource(load_plant_config(None))
+
+
 def window_report_html(loop: LoopReader, row: dict[str, Any]) -> str:
     """The report page of the window ``row`` of ``loop`` (an explanation page when it fails)."""
     from fuelid.htmlreport import ReportFigure, _png, render_report, report_figures
-    from fuelid.plant import load_plant_config
     from fuelid.store.base import iodata_from_samples
-    from fuelid.workflow import AnalysisSettings, PlantSource, analyse_log
+    from fuelid.workflow import AnalysisSettings, analyse_log
 
     key = (loop.loop_id, str(loop.identity().get("store_uuid")), int(row["id"]))
     with _lock:
@@ -50,9 +64,7 @@ def window_report_html(loop: LoopReader, row: dict[str, Any]) -> str:
     title = f"Window {row['id']} of loop {loop.loop_id}"
     try:
         data = iodata_from_samples(samples, loop.identity().get("period_s"), source=title)
-        analysis = analyse_log(
-            data, PlantSource(load_plant_config(None)), AnalysisSettings(accept_signals=True)
-        )
+        analysis = analyse_log(data, _plant(loop), AnalysisSettings(accept_signals=True))
         drawn = report_figures(analysis)
         figures = [ReportFigure(k, caption, _png(fig)) for k, (fig, caption) in drawn.items()]
         html = render_report(analysis, figures)

@@ -76,8 +76,9 @@ def service_record(
     ``beat_every_s`` [s], ``stopped`` (None while running) and ``settings``: every ``[online]``
     setting (``write_back``, ``rule``, ``ms_target``, ``move_fraction``, ``hysteresis``,
     ``gain_bounds``, the gates' thresholds, …), ``timezone``, ``loop_id``, ``plant_hash``,
-    ``controller`` (``form``, ``gain_units``, ``integral_unit``, ``u_span_V``, ``y_span_Lpm``;
-    None without a ``[controller]``) and ``gain_units`` (``{"Kc", "Ti"}``, see
+    ``plant_file`` (absolute path; None for the reference plant), ``controller`` (``form``,
+    ``gain_units``, ``integral_unit``, ``u_span_V``, ``y_span_Lpm``, ``kc``, ``ti``; None
+    without a ``[controller]``) and ``gain_units`` (``{"Kc", "Ti"}``, see
     :func:`fuelid.online.gains.gain_units`).
     """
     import fuelid
@@ -95,6 +96,8 @@ def service_record(
             "integral_unit": c.integral_unit,
             "u_span_V": c.u_span_V,
             "y_span_Lpm": c.y_span_Lpm,
+            "kc": c.kc,  # the commissioning gains as the block holds them (None: not given)
+            "ti": c.ti,
         }
     )
     online = site.online
@@ -104,6 +107,7 @@ def service_record(
             "timezone": site.site.timezone,
             "loop_id": site.site.loop_id or default_loop_id(site.site.name),
             "plant_hash": plant_hash(plant_file),
+            "plant_file": None if plant_file is None else str(Path(plant_file).resolve()),
             "controller": controller,
             "gain_units": gain_units(c),
         }

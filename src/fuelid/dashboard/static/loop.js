@@ -189,7 +189,12 @@ function gainsInForce(history) {
   for (const p of history.proposals) if (p.old && p.old.Kc !== undefined) points.push([p.time, p.old.Kc, p.old.Ti]);
   for (const w of history.writes) if (w.status === "verified") points.push([w.time, w.Kc, w.Ti]);
   points.sort((a, b) => a[0] - b[0]);
-  const last = history.proposals.length || history.writes.length ? (state.newest || null) : null;
+  const box = document.getElementById("gains").dataset;
+  const first = history.windows.length ? history.windows[0].start : null;
+  if (!points.length && box.kc !== "" && box.ti !== "" && first !== null) {
+    points.push([first, Number(box.kc), Number(box.ti)]); // no proposal, no write: as commissioned
+  }
+  const last = points.length ? (state.newest || null) : null;
   if (points.length && last !== null && last > points[points.length - 1][0]) {
     const end = points[points.length - 1];
     points.push([last, end[1], end[2]]);
