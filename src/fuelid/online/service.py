@@ -321,6 +321,8 @@ class OnlineService:
                 pass
         writer = SampleWriter(self.store)
         self.context.writer = writer
+        # windows, proposals and writes on the clock of the events: the newest sample queued
+        self.history.plant_clock = writer.newest_time
         self.context.recorder = Recorder(self.source, writer, on_message=self._recorder_message)
         self.stats.recorder = self.context.recorder.stats
         try:

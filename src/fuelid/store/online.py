@@ -167,7 +167,7 @@ class OnlineHistory(GainWrites):
         model_text = _dumps(model) if accepted and model is not None else None
         wall = _time.time()
         with self._transaction() as con:
-            now = max(t1, _plant(con, time))
+            now = max(t1, self._plant_time(con, time))
             model_id: int | None = None
             if model_text is not None:
                 cursor = con.execute(
@@ -310,7 +310,7 @@ class OnlineHistory(GainWrites):
         wall = _time.time()
         _dumps(detail)  # refused before the transaction when it has no JSON form
         with self._transaction() as con:
-            now = _plant(con, time)
+            now = self._plant_time(con, time)
             history = [
                 {"time": now, "wall_time": wall, "status": status, "who": str(who), "why": str(why)}
             ]
@@ -396,7 +396,7 @@ class OnlineHistory(GainWrites):
         _check_status(status)
         wall = _time.time()
         with self._transaction() as con:
-            now = _plant(con, time)
+            now = self._plant_time(con, time)
             current = _proposal_by_id(con, proposal_id)
             if current is None:
                 raise StoreError(f"no proposal {proposal_id}")

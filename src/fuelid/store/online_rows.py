@@ -13,7 +13,7 @@ import math
 import sqlite3
 import threading
 import time as _time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from types import MappingProxyType, TracebackType
 from typing import TYPE_CHECKING, Any, Self
@@ -173,6 +173,9 @@ class HistoryConnection:
             con.close()
             raise StoreError(f"{self.path}: cannot open the online history ({error})") from None
         self._con = con
+        # the service's plant clock (the newest sample it queued), so that its rows share the
+        # time base of its events; None: the newest committed sample
+        self.plant_clock: Callable[[], float | None] | None = None
 
     # -- plumbing -------------------------------------------------------------------------
 
@@ -193,6 +196,12 @@ class HistoryConnection:
         tb: TracebackType | None,
     ) -> None:
         self.close()
+
+    def _plant_time(self, con: sqlite3.Connection, time: float | None) -> float:
+        """Plant time for a row: the given one, else the plant clock's, else the store's."""
+        if time is None and self.plant_clock is not None:
+            time = self.plant_clock()
+        return _plant(con, time)
 
     @contextmanager
     def _transaction(self, write: bool = True) -> Iterator[sqlite3.Connection]:

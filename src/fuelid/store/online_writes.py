@@ -24,7 +24,6 @@ from fuelid.store.online_rows import (
     _exists,
     _finite,
     _newest,
-    _plant,
     _write,
     _write_by_id,
 )
@@ -93,7 +92,7 @@ class GainWrites(HistoryConnection):
         values = (_finite("kc", kc), _finite("ti", ti), seq)
         wall = _time.time()
         with self._transaction() as con:
-            now = _plant(con, time)
+            now = self._plant_time(con, time)
             if proposal_id is not None and not _exists(con, "proposals", proposal_id):
                 raise StoreError(f"no proposal {proposal_id} to write")
             row = con.execute(
@@ -158,7 +157,7 @@ class GainWrites(HistoryConnection):
         text = _dumps({} if detail is None else detail)
         wall = _time.time()
         with self._transaction() as con:
-            now = _plant(con, time)
+            now = self._plant_time(con, time)
             current = _write_by_id(con, write_id)
             if current is None:
                 raise StoreError(f"no write {write_id}")

@@ -74,6 +74,10 @@ class SampleWriter:
             self._see(sample)
             self._queue.put(sample)
 
+    def newest_time(self) -> float | None:
+        """Plant time of the newest sample queued so far [s UTC]; None before the first."""
+        return self._newest_time
+
     def _see(self, sample: Sample) -> None:
         if self._newest_time is None or sample.time > self._newest_time:
             self._newest_time = float(sample.time)
