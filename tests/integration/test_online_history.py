@@ -506,3 +506,32 @@ def test_store_history_and_sample_writer_share_the_file(tmp_path: Path) -> None:
         ends = [w["t_to"] for w in history.windows()]
         assert ends == sorted(ends)
         assert len(store.read()) == n_samples
+
+
+def test_an_approval_of_a_stale_proposal_is_refused_with_the_services_reason(
+    tmp_path: Path,
+) -> None:
+    # the service supersedes an approved proposal whose newest window ended more than
+    # RECENT_WINDOWS_SPAN (6) windows of data before the newest sample; approving one is refused
+    # with that reason instead of reading "approved" and never being written
+    from fuelid.online.requests import submit_request
+
+    with _store(tmp_path / "loop.db") as store, OnlineHistory(store) as history:
+        _, model_id = _window(history, 0)  # ends at T0 + 600 s
+        pid = history.add_proposal(
+            model_id=model_id, old=_gains(1.0, 2.0), new=_gains(1.1, 1.9), detail={}
+        )
+        fresh = T0 + 600.0 + 6 * 600.0 - 10.0  # default window_s 600 s: 3,600 s span
+        store.append([Sample(fresh, 1, 2.0, 40.0)])
+        fresh_one = submit_request(store, history, "approve", pid, "ana", "", "cli", "approve")
+        assert fresh_one["status"] == "done"
+        history.set_proposal_status(pid, "rejected", who="ana", why="reset for the next case")
+        pid = history.add_proposal(
+            model_id=model_id, old=_gains(1.0, 2.0), new=_gains(1.1, 1.9), detail={}
+        )
+        store.append([Sample(fresh + 20.0, 2, 2.0, 40.0)])  # 3,610 s after the window: stale
+        stale = submit_request(store, history, "approve", pid, "ana", "", "cli", "approve")
+        assert stale["status"] == "refused"
+        assert "out of date" in stale["outcome"]
+        assert "3610 s of data" in stale["outcome"]
+        assert history.proposal(pid)["status"] == "pending"  # type: ignore[index]

@@ -62,6 +62,9 @@ def dashboard_command(
             "--ssl-certfile", help="TLS certificate (PEM) for uvicorn.", show_default=False
         ),
     ] = None,
+    beside_service: Annotated[
+        bool, typer.Option("--beside-service", hidden=True, help="Started by fuelid online.")
+    ] = False,
     ssl_keyfile: Annotated[
         Path | None,
         typer.Option("--ssl-keyfile", help="TLS key (PEM) for uvicorn.", show_default=False),
@@ -77,7 +80,8 @@ def dashboard_command(
 
     def ready(url: str, loop_ids: list[str]) -> None:
         shown = ", ".join(loop_ids) or "none yet"
-        typer.echo(f"dashboard: {url} (loops: {shown}; Ctrl-C stops)", err=False)
+        stops = "stops with the service" if beside_service else "Ctrl-C stops"
+        typer.echo(f"dashboard: {url} (loops: {shown}; {stops})")
 
     serve(
         store or [],

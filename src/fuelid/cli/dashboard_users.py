@@ -120,7 +120,7 @@ def list_users(
     if not records:
         typer.echo(f"no users in {users}")
         return
-    width = max(len(r.name) for r in records)
+    width = max(len("name"), *(len(r.name) for r in records))
     typer.echo(f"{'name':<{width}}  {'role':<8}  {'created (UTC)':<16}  rotated (UTC)")
     for r in records:
         rotated = _utc(r.rotated) if r.rotated is not None else "-"

@@ -137,7 +137,7 @@ class Beside:
 
     def __init__(self, store: str | Path, port: int = DEFAULT_PORT, users: Path | None = None):
         args = [sys.executable, "-m", "fuelid", "dashboard", "--store", str(store)]
-        args += ["--port", str(int(port))]
+        args += ["--port", str(int(port)), "--beside-service"]
         if users is not None:
             args += ["--users", str(users)]
         self.args = args
