@@ -126,10 +126,12 @@ def populated(tmp_path: Path) -> tuple[Path, Path]:
     site = site_file(tmp_path)
     db = tmp_path / "loop.db"
     identity = site_identity(load_site(site))
-    now = time.time()
     with SQLiteStore(db, period_s=0.02, **identity) as store:
+        # plant time just after the last window (T0 + 300 s): the proposal is fresh (a service
+        # supersedes one whose windows are more than 6 windows of data old); the wall clock of
+        # the commit says the samples are fresh
         store.append(
-            [Sample(now - 2.0 + 0.02 * i, i, 2.5, 40.0, 40.0, 20.0, 1) for i in range(50)],
+            [Sample(T0 + 301.0 + 0.02 * i, i, 2.5, 40.0, 40.0, 20.0, 1) for i in range(50)],
             [Event(T0 + 10.0, "link_down", "timeout"), Event(T0 + 12.0, "link_up", "")],
         )
         with OnlineHistory(store) as history:

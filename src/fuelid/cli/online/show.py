@@ -13,7 +13,6 @@ if TYPE_CHECKING:
     pass
 
 from fuelid.cli.online._app import ConfigFile, JsonFlag, StoreFile, _opened, _options, app
-from fuelid.online.report import health_line
 
 RECENT_WINDOWS = 20
 """Windows listed by ``fuelid online history`` without ``--json``."""
@@ -97,6 +96,8 @@ def _trend_text(trend: dict[str, Any]) -> str:
 
 def status_lines(status: dict[str, Any]) -> list[str]:
     """The human form of :func:`~fuelid.online.report.status_json`, a few aligned lines."""
+    from fuelid.online.report import health_line  # numpy behind it: not at `fuelid --help`
+
     tz = status.get("timezone") or "UTC"
     link = status["link"]
     link_text = _link_text(link, tz)
