@@ -127,6 +127,7 @@ def _verified_write(store: Path, kind: str, timeout: float = 30.0) -> tuple[floa
     raise AssertionError(f"no verified {kind} write within {timeout} s")
 
 
+@pytest.mark.slow  # 40 s of a virtual run until a proposal, a write and a revert: the slow set
 def test_an_engineer_approves_and_reverts_on_the_page_and_the_plc_echoes_it(
     tmp_path: Path,
 ) -> None:
