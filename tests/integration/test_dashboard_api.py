@@ -160,6 +160,7 @@ def test_pages_load_and_an_unknown_loop_is_404(loop_db: Path) -> None:
         (loop_id,) = loops.ids()
         for url in ("/", f"/loops/{loop_id}", "/api/loops", "/api/docs", "/static/plotly.min.js"):
             assert client.get(url).status_code == 200, url
+        loop_page = client.get(f"/loops/{loop_id}").text
         assert client.get("/loops/no-such-loop").status_code == 404
         assert client.get("/api/loops/no-such-loop/status").status_code == 404
         fleet = client.get("/api/loops").json()
@@ -167,6 +168,9 @@ def test_pages_load_and_an_unknown_loop_is_404(loop_db: Path) -> None:
         loops.close()
     (row,) = fleet["loops"]
     assert row["loop_id"] == loop_id
+    # the pending proposal's evidence link names the loop (Jinja's own `loop` once hid it)
+    assert f'href="/loops/{loop_id}/windows/' in loop_page
+    assert 'href="/loops//' not in loop_page
     assert {c["name"] for c in row["chips"]} >= {"service", "proposals", "drift"}
 
 
