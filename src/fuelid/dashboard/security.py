@@ -2,10 +2,10 @@
 
 - :func:`check_bind`: the dashboard listens on the loopback address unless told otherwise, and a
   non-loopback address needs ``--allow-remote`` (every page then needs a login) and a users file.
-- :class:`Sessions`: logged-in browsers, in memory (a restart logs everybody out). A session ends
-  after :data:`SESSION_IDLE_S` without a request, and at the latest :data:`SESSION_MAX_S` after
-  the login.
-- :class:`LoginLimiter`: at most :data:`LOGIN_MAX_FAILURES` failed logins in
+- :class:`Sessions` (in :mod:`fuelid.dashboard.sessions`): logged-in browsers, in memory (a
+  restart logs everybody out). A session ends after :data:`SESSION_IDLE_S` without a request,
+  and at the latest :data:`SESSION_MAX_S` after the login.
+- :class:`LoginLimiter` (there too): at most :data:`LOGIN_MAX_FAILURES` failed logins in
   :data:`LOGIN_WINDOW_S` per client address and per name, then HTTP 429 with ``Retry-After``.
 - :class:`Security`: the FastAPI dependencies :meth:`~Security.require_viewer` (pages and data)
   and :meth:`~Security.require_engineer` (actions: approve, reject, revert), which also checks the
@@ -23,12 +23,8 @@ from __future__ import annotations
 import hmac
 import ipaddress
 import math
-import secrets
-import threading
 import time
-from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qs, quote, urlsplit
@@ -45,8 +41,45 @@ except ImportError as exc:  # pragma: no cover - the dashboard extra is installe
         "the dashboard needs fastapi and uvicorn: pip install 'fuelid[dashboard]'"
     ) from exc
 
+# the sessions' names, where the security layer's users found them before they moved
+from fuelid.dashboard.sessions import (
+    LOGIN_MAX_FAILURES,
+    LOGIN_WINDOW_S,
+    SESSION_IDLE_S,
+    SESSION_MAX_S,
+    LoginLimiter,
+    Session,
+    Sessions,
+)
 from fuelid.dashboard.users import User, UsersFile
 from fuelid.errors import ConfigError
+
+__all__ = [
+    "CONTENT_SECURITY_POLICY",
+    "CSRF_FIELD",
+    "CSRF_HEADER",
+    "FORM_MAX_BYTES",
+    "LOGIN_MAX_FAILURES",
+    "LOGIN_WINDOW_S",
+    "NOT_ACCEPTED",
+    "SECURITY_HEADERS",
+    "SESSION_COOKIE",
+    "SESSION_IDLE_S",
+    "SESSION_MAX_S",
+    "LoginLimiter",
+    "Security",
+    "SecurityHeadersMiddleware",
+    "Session",
+    "Sessions",
+    "add_security_headers",
+    "auth_router",
+    "check_bind",
+    "form_fields",
+    "is_https",
+    "is_loopback",
+    "login_page",
+    "safe_next",
+]
 
 SESSION_COOKIE = "fuelid_session"
 """The name of the session cookie (HttpOnly, SameSite=Strict, path ``/``)."""
@@ -57,17 +90,6 @@ CSRF_HEADER = "X-CSRF-Token"
 CSRF_FIELD = "csrf"
 """The form field that carries the session's CSRF token on an action posted by a form."""
 
-SESSION_IDLE_S = 12 * 3600.0
-"""A session ends after this long without a request [s]: 12 h."""
-
-SESSION_MAX_S = 7 * 24 * 3600.0
-"""A session ends this long after its login, however busy [s]: 7 days."""
-
-LOGIN_MAX_FAILURES = 5
-"""Failed logins allowed per client address and per name within :data:`LOGIN_WINDOW_S`."""
-
-LOGIN_WINDOW_S = 300.0
-"""The window over which failed logins are counted [s]: 5 minutes."""
 
 CONTENT_SECURITY_POLICY = (
     "default-src 'self'; img-src 'self' data:; style-src 'self' 'unsafe-inline'; "
@@ -151,159 +173,6 @@ def check_bind(host: str, allow_remote: bool, users_file: Path | None = None) ->
             f"--allow-remote needs a users file ({where}): nobody could log in; create one with "
             "`fuelid dashboard user add NAME --role engineer`"
         )
-
-
-# ------------------------------------------------------------------------------------------------
-# sessions
-
-
-@dataclass
-class Session:
-    """A logged-in browser. ``created`` and ``last_seen`` are on the monotonic clock [s]."""
-
-    sid: str
-    user: str
-    role: str
-    csrf: str
-    created: float
-    last_seen: float
-    token_sha256: str = ""
-    """The digest of the token the user logged in with: a rotated token ends the session."""
-
-    def as_user(self) -> User:
-        """The session's user."""
-        return User(self.user, self.role)
-
-
-class Sessions:
-    """Sessions in memory, by session id; lost when the dashboard restarts.
-
-    Parameters
-    ----------
-    clock
-        A monotonic clock [s]; :func:`time.monotonic` unless a test gives another.
-    """
-
-    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
-        self._clock = clock
-        self._lock = threading.Lock()
-        self._sessions: dict[str, Session] = {}
-
-    def create(self, user: User, token_sha256: str = "") -> Session:
-        """Start a session for ``user`` with a new random id and CSRF token."""
-        now = self._clock()
-        session = Session(
-            sid=secrets.token_urlsafe(32),
-            user=user.name,
-            role=user.role,
-            csrf=secrets.token_urlsafe(32),
-            created=now,
-            last_seen=now,
-            token_sha256=token_sha256,
-        )
-        with self._lock:
-            self._prune(now)
-            self._sessions[session.sid] = session
-        return session
-
-    def get(self, sid: str | None) -> Session | None:
-        """The live session of ``sid`` (its ``last_seen`` set to now), or None."""
-        if not sid:
-            return None
-        now = self._clock()
-        with self._lock:
-            session = self._sessions.get(sid)
-            if session is None:
-                return None
-            if self._expired(session, now):
-                del self._sessions[sid]
-                return None
-            session.last_seen = now
-            return session
-
-    def drop(self, sid: str) -> None:
-        """End a session (log out); an unknown id is ignored."""
-        with self._lock:
-            self._sessions.pop(sid, None)
-
-    def __len__(self) -> int:
-        with self._lock:
-            return len(self._sessions)
-
-    @staticmethod
-    def _expired(session: Session, now: float) -> bool:
-        return now - session.last_seen > SESSION_IDLE_S or now - session.created > SESSION_MAX_S
-
-    def _prune(self, now: float) -> None:
-        for sid in [s for s, session in self._sessions.items() if self._expired(session, now)]:
-            del self._sessions[sid]
-
-
-# ------------------------------------------------------------------------------------------------
-# failed logins
-
-
-class LoginLimiter:
-    """Failed logins counted per client address and per name over a sliding window.
-
-    After :data:`LOGIN_MAX_FAILURES` failures within :data:`LOGIN_WINDOW_S` from one address, or
-    for one name from anywhere, further attempts are refused until the oldest failure leaves the
-    window. A success clears its own address's count only.
-
-    Parameters
-    ----------
-    clock
-        A monotonic clock [s]; :func:`time.monotonic` unless a test gives another.
-    max_failures, window_s
-        The limit [failures] and its window [s].
-    """
-
-    def __init__(
-        self,
-        clock: Callable[[], float] = time.monotonic,
-        max_failures: int = LOGIN_MAX_FAILURES,
-        window_s: float = LOGIN_WINDOW_S,
-    ) -> None:
-        self._clock = clock
-        self.max_failures = max_failures
-        self.window_s = window_s
-        self._lock = threading.Lock()
-        self._failures: dict[tuple[str, str], deque[float]] = {}
-
-    def retry_after(self, address: str, name: str) -> float | None:
-        """Seconds until an attempt from ``address`` for ``name`` is allowed, or None if now."""
-        now = self._clock()
-        wait = 0.0
-        with self._lock:
-            for key in (("address", address), ("name", name)):
-                times = self._recent(key, now)
-                if len(times) >= self.max_failures:
-                    wait = max(wait, times[-self.max_failures] + self.window_s - now)
-        return wait if wait > 0.0 else None
-
-    def failure(self, address: str, name: str) -> None:
-        """Count a failed login from ``address`` for ``name``."""
-        now = self._clock()
-        with self._lock:
-            for key in (("address", address), ("name", name)):
-                self._recent(key, now).append(now)
-            for key in [k for k, times in self._failures.items() if not self._live(times, now)]:
-                del self._failures[key]
-
-    def success(self, address: str) -> None:
-        """A login from ``address`` succeeded: its own count starts again (no other's)."""
-        with self._lock:
-            self._failures.pop(("address", address), None)
-
-    def _live(self, times: deque[float], now: float) -> bool:
-        while times and now - times[0] >= self.window_s:
-            times.popleft()
-        return bool(times)
-
-    def _recent(self, key: tuple[str, str], now: float) -> deque[float]:
-        times = self._failures.setdefault(key, deque())
-        self._live(times, now)
-        return times
 
 
 # ------------------------------------------------------------------------------------------------
