@@ -31,10 +31,8 @@ import sqlite3
 import threading
 import time as _time
 import uuid
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from pathlib import Path
-
-import numpy as np
 
 from fuelid.store.base import (
     Event,
@@ -47,6 +45,7 @@ from fuelid.store.base import (
     StoreError,
     StoreInfo,
 )
+from fuelid.store.lod import RECOUNT_BAD, UPSERT_LOD, lod_rows
 from fuelid.store.schema import (
     APPLICATION_ID,
     LOD_LEVELS,
@@ -73,70 +72,8 @@ _INSERT_SAMPLE = (
 _AGE = "min(time, coalesce(wall_time, time))"
 """What retention compares with its cutoff: the older of a sample's two clocks [s UTC]."""
 _INSERT_EVENT = "INSERT INTO events(time, kind, detail, wall_time) VALUES (?, ?, ?, ?)"
-_LOD_VALUES = ("u", "y", "sp", "tf")
-
-
-def _lod_merge(name: str) -> str:
-    """``name_min``/``name_max`` of a bucket merged with a new one (a NULL side is ignored)."""
-    return ", ".join(
-        f"{name}_{op} = {op}(coalesce({name}_{op}, excluded.{name}_{op}), "
-        f"coalesce(excluded.{name}_{op}, {name}_{op}))"
-        for op in ("min", "max")
-    )
-
-
-_UPSERT_LOD = (
-    "INSERT INTO samples_lod VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) "
-    "ON CONFLICT(level, bucket) DO UPDATE SET n = n + excluded.n, "
-    + ", ".join(_lod_merge(name) for name in _LOD_VALUES)
-    + ", bad = bad + excluded.bad"
-)
-# a re-flag: the buckets it touched recount their bad samples (never lower than before:
-# thinning may have deleted some of the samples a bucket counted)
-_RECOUNT_BAD = (
-    "UPDATE samples_lod SET bad = max(bad, (SELECT count(*) FROM samples WHERE time >= bucket "
-    "AND time < bucket + level AND quality != 0)) "
-    "WHERE level = ?3 AND bucket >= floor(?1 / ?3) * ?3 AND bucket <= ?2"
-)
 # only samples still OK: a stale or link-down flag says more than "bad value"
 _REQUALIFY = "UPDATE samples SET quality = ?3 WHERE time >= ?1 AND time <= ?2 AND quality = 0"
-
-
-def lod_rows(samples: Sequence[Sample], level: int) -> list[tuple[object, ...]]:
-    """The ``samples_lod`` rows of some samples at one level [s]: one row per bucket touched.
-
-    Min and max ignore NaN (as SQL's MIN and MAX ignore NULL); a bucket whose values are all
-    NaN has NULL there.
-    """
-    if not samples:
-        return []
-    t = np.array([s.time for s in samples], dtype=float)
-    bucket = np.floor(t / level) * level
-    values = [
-        np.array([np.nan if v is None else v for v in column], dtype=float)
-        for column in (
-            [s.u for s in samples],
-            [s.y for s in samples],
-            [s.setpoint for s in samples],
-            [s.fuel_temperature for s in samples],
-        )
-    ]
-    bad = np.array([int(s.quality) != 0 for s in samples], dtype=int)
-    order = np.argsort(bucket, kind="stable")
-    keys, starts, counts = np.unique(bucket[order], return_index=True, return_counts=True)
-    rows: list[tuple[object, ...]] = []
-    extremes = []
-    for column in values:
-        c = column[order]
-        extremes.append((np.fmin.reduceat(c, starts), np.fmax.reduceat(c, starts)))
-    bads = np.add.reduceat(bad[order], starts)
-    for k, key in enumerate(keys):
-        row: list[object] = [int(level), float(key), int(counts[k])]
-        for lo, hi in extremes:
-            row.extend(None if np.isnan(x) else float(x) for x in (lo[k], hi[k]))
-        row.append(int(bads[k]))
-        rows.append(tuple(row))
-    return rows
 
 
 _LOOP_ID = re.compile(r"[a-z0-9-]{1,40}")
@@ -326,7 +263,7 @@ class SQLiteStore(SampleStore):
                         inserted.append(sample)
                 added = len(inserted)
                 for level in LOD_LEVELS:
-                    con.executemany(_UPSERT_LOD, lod_rows(inserted, level))
+                    con.executemany(UPSERT_LOD, lod_rows(inserted, level))
                 con.executemany(_INSERT_EVENT, ((*event, wall) for event in events))
                 changed = 0
                 for change in requalify:
@@ -335,7 +272,7 @@ class SQLiteStore(SampleStore):
                     if con.total_changes > before:
                         changed += con.total_changes - before
                         for level in LOD_LEVELS:
-                            con.execute(_RECOUNT_BAD, (*change[:2], level))
+                            con.execute(RECOUNT_BAD, (*change[:2], level))
                 con.execute("COMMIT")
             except BaseException:
                 con.execute("ROLLBACK")
