@@ -84,9 +84,9 @@ def _recent_iae(loop: LoopReader) -> list[float]:
     return out
 
 
-def loop_summary(loop: LoopReader) -> dict[str, Any]:
-    """A loop's fleet row: identity, status chips, severity."""
-    status = loop.status()
+def loop_summary(loop: LoopReader, status: dict[str, Any] | None = None) -> dict[str, Any]:
+    """A loop's fleet row: identity, status chips, severity (``status`` when already read)."""
+    status = loop.status() if status is None else status
     identity = loop.identity()
     row = fleet_row(loop.loop_id, identity["site_name"], status, _recent_iae(loop))
     row["link"] = status.get("link")
@@ -214,7 +214,7 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
             tz=tz,
             lp=loop.identity(),
             status=status,
-            summary=loop_summary(loop),
+            summary=loop_summary(loop, status),
             link_text=link_text(status, tz),
             proposals=proposal_views(status, loop.recent_windows(200)),
             units={"Kc": units.get("Kc", ""), "Ti": units.get("Ti", "")},

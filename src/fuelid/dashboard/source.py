@@ -237,17 +237,12 @@ class SQLiteLoop:
 
     def span(self) -> tuple[float, float] | None:
         """First and newest sample time [plant s]; None without samples."""
-        row = self._query("SELECT min(time), max(time) FROM samples")[0]
-        return None if row[0] is None else (float(row[0]), float(row[1]))
+        first, last = self.store.first_time(), self.store.last_time()
+        return None if first is None or last is None else (first, last)
 
     def samples(self, t_from: float, t_to: float) -> SampleArrays:
         """Raw samples with ``t_from <= time < t_to`` [plant s], sorted by time."""
-        rows = self._query(
-            "SELECT time, seq, u, y, setpoint, fuel_temperature, mode, quality FROM samples "
-            "WHERE time >= ? AND time < ? ORDER BY time",
-            (float(t_from), float(t_to)),
-        )
-        return SampleArrays.from_rows(rows)
+        return self.store.read(t_from, t_to)
 
     def lod(self, level: int, t_from: float, t_to: float) -> dict[str, np.ndarray[Any, Any]]:
         """Level-of-detail rows (``samples_lod``) of ``level`` s in ``[t_from, t_to)``."""

@@ -20,11 +20,11 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import math
 from collections.abc import AsyncIterator, Callable
 from typing import Any
 
 from fuelid.dashboard.source import LoopReader
+from fuelid.io.jsonsafe import json_ready
 
 __all__ = ["MAX_BATCH", "POLL_S", "STATUS_EVERY_S", "Feed", "Feeds"]
 
@@ -36,10 +36,6 @@ MAX_BATCH = 5000
 """Samples per read at most (a page that connects late gets the backlog in pieces)."""
 QUEUE_EVENTS = 256
 """Events kept for a slow subscriber; beyond, the oldest are dropped (a tab in the background)."""
-
-
-def _listed(values: Any) -> list[Any]:
-    return [None if isinstance(v, float) and not math.isfinite(v) else v for v in values.tolist()]
 
 
 class Feed:
@@ -95,11 +91,11 @@ class Feed:
                 self._publish(
                     "samples",
                     {
-                        "t": _listed(batch.time),
-                        "y": _listed(batch.y),
-                        "setpoint": _listed(batch.setpoint),
-                        "u": _listed(batch.u),
-                        "fuel_temperature": _listed(batch.fuel_temperature),
+                        "t": json_ready(batch.time),
+                        "y": json_ready(batch.y),
+                        "setpoint": json_ready(batch.setpoint),
+                        "u": json_ready(batch.u),
+                        "fuel_temperature": json_ready(batch.fuel_temperature),
                         "quality": batch.quality.tolist(),
                     },
                 )

@@ -15,12 +15,12 @@ so a thinned envelope still shows the band a noisy signal covers.
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 
 from fuelid.dashboard.source import TREND_COLUMNS, LoopReader, Trend
+from fuelid.io.jsonsafe import json_ready
 
 __all__ = ["LOD_LEVELS", "LOD_MAX_BUCKETS", "RAW_MAX_SAMPLES", "choose_source", "thin", "trend"]
 
@@ -72,10 +72,6 @@ def thin(x: np.ndarray[Any, Any], y: np.ndarray[Any, Any], n_out: int) -> np.nda
     return np.asarray(finite[np.asarray(chosen, dtype=np.int64)])
 
 
-def _listed(values: np.ndarray[Any, Any]) -> list[float | None]:
-    return [None if not math.isfinite(v) else float(v) for v in values.tolist()]
-
-
 def trend(loop: LoopReader, start: float, end: float, width: int = 1000) -> Trend:
     """The loop's samples in ``[start, end)`` [plant s] for a chart ``width`` pixels wide.
 
@@ -97,7 +93,7 @@ def trend(loop: LoopReader, start: float, end: float, width: int = 1000) -> Tren
         for name in TREND_COLUMNS:
             values = np.asarray(getattr(raw, name), dtype=np.float64)
             keep = thin(raw.time, values, n_out)
-            series[name] = {"t": _listed(raw.time[keep]), "v": _listed(values[keep])}
+            series[name] = {"t": json_ready(raw.time[keep]), "v": json_ready(values[keep])}
     else:
         rows = loop.lod(level, start, end)
         bucket = rows["bucket"]
@@ -110,7 +106,7 @@ def trend(loop: LoopReader, start: float, end: float, width: int = 1000) -> Tren
             v = np.empty(2 * bucket.size)
             v[0::2], v[1::2] = rows[f"{name}_min"], rows[f"{name}_max"]
             keep = thin(x, v, n_out)
-            series[name] = {"t": _listed(x[keep]), "v": _listed(v[keep])}
+            series[name] = {"t": json_ready(x[keep]), "v": json_ready(v[keep])}
     if bad.size > n_out:  # a mark per pixel is all a chart can show
         bad = bad[np.linspace(0, bad.size - 1, n_out).astype(np.int64)]
     return Trend(
@@ -119,6 +115,6 @@ def trend(loop: LoopReader, start: float, end: float, width: int = 1000) -> Tren
         start=float(start),
         end=float(end),
         series=series,
-        bad=_listed(np.asarray(bad, dtype=np.float64)),
+        bad=json_ready(np.asarray(bad, dtype=np.float64)),
         points=points,
     )

@@ -35,10 +35,8 @@ def fmt_num(value: Any, digits: int = 4) -> str:
 
 
 def write_back_of(status: dict[str, Any]) -> str | None:
-    """The write-back setting in force: the running service's, else the one the caller knows."""
-    service = status.get("service") or {}
-    settings = service.get("settings") or {}
-    return settings.get("write_back") or (status.get("write_back") or {}).get("setting")
+    """The write-back setting in force (``status`` already takes the running service's)."""
+    return (status.get("write_back") or {}).get("setting")
 
 
 def link_text(status: dict[str, Any], tz: str) -> str:

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from fuelid.errors import FuelidError
+from fuelid.identify.diagnostics import residual_whiteness
 from fuelid.model import nrmse_fit, simulate_model
 from fuelid.online.context import model_of
 from fuelid.plc.site import Online
@@ -92,16 +93,6 @@ def gate_table(measured: dict[str, Any], settings: dict[str, Any] | None) -> lis
     return rows
 
 
-def _acf(r: np.ndarray[Any, Any], lags: int) -> np.ndarray[Any, Any]:
-    """Normalised autocorrelation of r at lags 0…lags (FFT)."""
-    x = r - r.mean()
-    n = x.size
-    size = 1 << math.ceil(math.log2(2 * n))
-    spectrum = np.fft.rfft(x, size)
-    acov = np.fft.irfft(spectrum * np.conj(spectrum), size)[: lags + 1]
-    return np.asarray(acov / acov[0]) if acov[0] > 0 else np.zeros(lags + 1)
-
-
 def _every(n: int) -> int:
     return max(1, math.ceil(n / MAX_POINTS))
 
@@ -170,13 +161,11 @@ def window_evidence(
     lags = int(
         min(measured.get("residual_acf_lags") or ACF_MAX_LAGS, ACF_MAX_LAGS, residual.size - 1)
     )
-    rho = _acf(residual, lags)
-    out["acf"] = {
-        "lag_s": (np.arange(1, lags + 1) * data.sample_time).tolist(),
-        "value": rho[1:].tolist(),
-    }
+    # as identify and the gate compute it: within segments, over the record's variance
+    test = residual_whiteness(residual, lags, data.segment_starts)
+    out["acf"] = {"lag_s": (test.lags * data.sample_time).tolist(), "value": test.values.tolist()}
     values = {**Online().model_dump(), **(settings or {})}
     out["acf_bound"] = values.get("max_residual_acf")
     out["acf_basis"] = measured.get("residual_acf_basis")
-    out["white_band"] = 1.96 / math.sqrt(residual.size)
+    out["white_band"] = test.bound
     return out
