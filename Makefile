@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.fuelid-installed
 DEMO_DIR ?= demo-output
 
-.PHONY: help install demo plc-demo test test-slow soak lint typecheck pytest browser bench clean \
+.PHONY: help install demo plc-demo test test-slow soak lint typecheck pytest browser postgres bench clean \
 	docs docs-serve docs-assets
 
 help:
@@ -26,7 +26,7 @@ $(BIN)/python:
 
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --upgrade pip
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev,plc,dashboard]'
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev,plc,dashboard,fleet]'
 	@touch $(STAMP)
 
 install: $(STAMP)
@@ -70,12 +70,26 @@ browser:
 		echo "chromium missing and not root (or no apt-get): the browser test will skip"; \
 	fi
 
+# The central-store tests (issue 26) start a temporary PostgreSQL cluster (initdb, pg_ctl) on
+# 127.0.0.1. As root the server is installed from Debian when no initdb is found (on PATH or
+# under /usr/lib/postgresql/*/bin, where Debian puts it); otherwise those tests skip and say why
+# (under CI, with CI set, they fail instead).
+postgres:
+	@command -v initdb >/dev/null 2>&1 || ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || \
+	if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+		echo "installing postgresql for the central-store tests (apt-get)"; \
+		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+			--no-install-recommends postgresql >/dev/null; \
+	else \
+		echo "postgresql missing and not root (or no apt-get): the central-store tests will skip"; \
+	fi
+
 # `make test` runs the short version of every test, on every core (pytest-xdist; the tests that
 # run a PLC at speed share one worker under --dist loadgroup: tests/conftest.py); budget 6 min
 # with lint and mypy on 2 cores (.ci/run). Every test has a deadline (pytest-timeout,
 # pyproject.toml). The long fault runs and the soak are marked slow.
 PYTEST_WORKERS ?= auto
-pytest: $(STAMP) browser
+pytest: $(STAMP) browser postgres
 	$(BIN)/python -m pytest -q -m "not slow" -n $(PYTEST_WORKERS) --dist loadgroup
 
 test: lint typecheck pytest
@@ -86,7 +100,7 @@ test: lint typecheck pytest
 # for the hours run) with its own deadline; every other slow test gets 15 min. -rP: they print
 # their measurements.
 SLOW_SOAK_HOURS ?= 4
-test-slow: $(STAMP)
+test-slow: $(STAMP) postgres
 	FUELID_SOAK_HOURS=$(SLOW_SOAK_HOURS) $(BIN)/python -m pytest -q -m slow -rP -p no:xdist \
 		--timeout=900
 
@@ -104,7 +118,7 @@ BENCH_VENV ?= .venv-bench
 $(BENCH_VENV)/.fuelid-installed: pyproject.toml
 	$(PYTHON) -m venv $(BENCH_VENV)
 	$(BENCH_VENV)/bin/python -m pip install --quiet --disable-pip-version-check --upgrade pip
-	$(BENCH_VENV)/bin/python -m pip install --quiet --disable-pip-version-check -e '.[dev,bench,plc,dashboard]'
+	$(BENCH_VENV)/bin/python -m pip install --quiet --disable-pip-version-check -e '.[dev,bench,plc,dashboard,fleet]'
 	@touch $@
 
 bench: $(BENCH_VENV)/.fuelid-installed

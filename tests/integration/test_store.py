@@ -77,6 +77,7 @@ def test_schema_is_versioned_strict_and_in_wal_mode(tmp_path: Path) -> None:
             *("meta", "samples", "events", "models", "proposals"),
             *("windows", "writes", "online_state"),  # every store has them since schema 2
             *("requests", "samples_lod"),  # since schema 3
+            *("outbox", "archived_days"),  # since schema 4
         }
         assert all(
             sql.rstrip().endswith(("STRICT", "STRICT, WITHOUT ROWID")) for sql in tables.values()

@@ -91,8 +91,9 @@ def test_store_written_by_fuelid_0_1_is_upgraded_without_losing_a_row(tmp_path: 
     # samples and events: value for value, in the same order, with wall_time NULL (unknown);
     # the online rows' wall times (the windows ran at real time: plant = wall − 1 s by the
     # anchors (601, 600) and (901, 900)) mapped onto plant time, the old value kept as wall_time
-    for table in ("samples", "events"):
-        assert after[table] == [(*row, None) for row in before[table]], table
+    # (events gain a stable id in version 4: 1, 2, … in their stored order)
+    assert after["samples"] == [(*row, None) for row in before["samples"]]
+    assert after["events"] == [(k, *row, None) for k, row in enumerate(before["events"], start=1)]
     assert after["online_state"] == before["online_state"]
     assert after["models"] == [
         (*row[:1], row[1] - 1.0, *row[2:], row[1]) for row in before["models"]
@@ -158,7 +159,8 @@ def test_a_store_of_every_older_version_opens_upgraded(tmp_path: Path, version: 
     build_at(str(db), version, SITE)
     con = sqlite3.connect(db)
     con.executemany(
-        "INSERT INTO samples VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+        "INSERT INTO samples(time, seq, u, y, setpoint, fuel_temperature, mode, quality) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
         [Sample(T0 + 0.02 * k, k, 2.0, 40.0 + k) for k in range(5)],
     )
     con.commit()
@@ -167,7 +169,8 @@ def test_a_store_of_every_older_version_opens_upgraded(tmp_path: Path, version: 
     with SQLiteStore(db, **SITE) as store:
         assert store.info().schema_version == SCHEMA_VERSION
         assert store.read().y.tolist() == [40.0, 41.0, 42.0, 43.0, 44.0]
-    assert _tables(db)["samples"] == [(*row, None) for row in before["samples"]]
+    wall = [None] if version < 3 else []  # the wall_time column version 3 adds
+    assert _tables(db)["samples"] == [(*row, *wall) for row in before["samples"]]
     assert _schema(db) == _schema(_new_store(tmp_path))
 
 
@@ -212,7 +215,7 @@ def test_a_failed_migration_leaves_the_store_at_the_version_before(
     broken = Migration(
         SCHEMA_VERSION + 1,
         "a table, then a statement that fails",
-        ("CREATE TABLE outbox(id INTEGER PRIMARY KEY) STRICT", "SELECT * FROM no_such_table"),
+        ("CREATE TABLE future(id INTEGER PRIMARY KEY) STRICT", "SELECT * FROM no_such_table"),
     )
     monkeypatch.setattr(store_schema, "MIGRATIONS", (*MIGRATIONS, broken))
     monkeypatch.setattr(store_schema, "SCHEMA_VERSION", SCHEMA_VERSION + 1)
@@ -225,7 +228,29 @@ def test_a_failed_migration_leaves_the_store_at_the_version_before(
     finally:
         con.close()
     assert _pragma(db, "user_version") == SCHEMA_VERSION
-    assert "outbox" not in _tables(db)
+    assert "future" not in _tables(db)
+
+
+def test_the_outbox_logs_every_change_of_the_sent_tables_only_while_it_is_on(
+    tmp_path: Path,
+) -> None:
+    db = _new_store(tmp_path)
+    con = sqlite3.connect(db, isolation_level=None)
+    try:
+        con.execute("INSERT INTO events(time, kind, detail) VALUES (1.0, 'restart', 'off')")
+        assert con.execute("SELECT count(*) FROM outbox").fetchone()[0] == 0
+        con.execute("INSERT INTO meta VALUES ('outbox', 'on')")
+        con.execute("INSERT INTO events(time, kind, detail) VALUES (2.0, 'restart', 'on')")
+        con.execute(
+            "INSERT INTO proposals(time, kc, ti, status, detail) "
+            "VALUES (3.0, 1, 2, 'pending', '{}')"
+        )
+        con.execute("UPDATE proposals SET status = 'approved'")
+        con.execute("INSERT INTO samples(time, seq, quality) VALUES (4.0, 1, 0)")  # not sent
+        rows = con.execute("SELECT tbl, row_id FROM outbox ORDER BY id").fetchall()
+    finally:
+        con.close()
+    assert rows == [("events", 2), ("proposals", 1), ("proposals", 1)]
 
 
 def test_a_migration_with_a_data_step_fills_rows_in_its_transaction(
@@ -353,7 +378,7 @@ def test_a_v2_store_of_a_virtual_time_run_is_mapped_onto_plant_time(tmp_path: Pa
         return float(__import__("numpy").interp(w, walls, plants))
 
     with SQLiteStore(db, **SITE) as store:
-        assert store.schema_version == SCHEMA_VERSION == 3
+        assert store.schema_version == SCHEMA_VERSION
         assert re.fullmatch("[0-9a-f]{32}", str(store.store_uuid))
         assert store.loop_id == "tunnel-2-fuel-loop"
         with OnlineHistory(store) as history:

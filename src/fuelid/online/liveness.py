@@ -79,7 +79,8 @@ def service_record(
     ``plant_file`` (absolute path; None for the reference plant), ``controller`` (``form``,
     ``gain_units``, ``integral_unit``, ``u_span_V``, ``y_span_Lpm``, ``kc``, ``ti``; None
     without a ``[controller]``) and ``gain_units`` (``{"Kc", "Ti"}``, see
-    :func:`fuelid.online.gains.gain_units`).
+    :func:`fuelid.online.gains.gain_units`) and ``sampling`` (``period_s``,
+    ``control_period_s`` [s]).
     """
     import fuelid
     from fuelid.online.gains import gain_units
@@ -110,6 +111,12 @@ def service_record(
             "plant_file": None if plant_file is None else str(Path(plant_file).resolve()),
             "controller": controller,
             "gain_units": gain_units(c),
+            # the re-identification of archived history (fuelid.fleet) rebuilds the window
+            # analysis from these: the sampling and control periods [s]
+            "sampling": {
+                "period_s": site.sampling.period_s,
+                "control_period_s": site.sampling.control_period_s,
+            },
         }
     )
     return {

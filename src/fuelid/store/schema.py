@@ -34,6 +34,11 @@ versions, so that an older fuelid never writes into a schema it does not know.
    history (the old value kept as its ``wall_time``) are mapped, the old value kept in
    ``wall_time``/``finished_wall``. Samples and events keep their ``time`` (plant time
    already), their ``wall_time`` stays NULL. ``samples_lod`` is built from the samples.
+4. Many loops (issue 26): ``events`` gets a stable ``id INTEGER PRIMARY KEY`` (the table is
+   rebuilt, rows in their order: a VACUUM may renumber a plain rowid, and the central store
+   keys every row by the store's UUID and its id); the change log ``outbox`` and the triggers
+   that fill it; ``archived_days``. The outbox stays empty until a service with a ``[central]``
+   table switches it on (``meta`` ``outbox`` = ``on``, :data:`OUTBOX_TABLES`).
 
 **Tables**::
 
@@ -59,8 +64,8 @@ versions, so that an older fuelid never writes into a schema it does not know.
         UNIQUE (seq) WHERE seq IS NOT NULL; UNIQUE (time) WHERE seq IS NULL; INDEX (time)
         (INSERT … ON CONFLICT DO NOTHING: a restart that re-sends samples adds no duplicates);
         NaN is stored as NULL (SQLite has no NaN) and read back as NaN
-    events(time REAL NOT NULL, kind TEXT NOT NULL, detail TEXT NOT NULL,
-           wall_time REAL)                                                 INDEX (time)
+    events(id INTEGER PRIMARY KEY, time REAL NOT NULL, kind TEXT NOT NULL,
+           detail TEXT NOT NULL, wall_time REAL)                           INDEX (time)
         kinds: link_down, link_up, gap, gain_change, restart, site_mismatch, prune, …
     models(id INTEGER PRIMARY KEY, time REAL NOT NULL, t_from REAL, t_to REAL,
            T_fuel REAL, model TEXT NOT NULL, wall_time REAL)
@@ -125,6 +130,22 @@ versions, so that an older fuelid never writes into a schema it does not know.
         mark); thinning keeps the rows (they summarise what was there), deleting samples
         deletes them
 
+    outbox(id INTEGER PRIMARY KEY,                          -- the order rows are sent in
+           tbl TEXT NOT NULL, row_id INTEGER NOT NULL,      -- which row changed
+           wall_time REAL NOT NULL)                         -- when [wall s UTC]
+        the change log of the rows a central store receives: every insert and update of
+        ``events``, ``windows``, ``models``, ``proposals``, ``writes`` and ``requests`` adds a
+        row, by a trigger, in the transaction that changed the row, while ``meta`` ``outbox``
+        is ``on``; the sender reads the rows' current values, sends them and deletes the
+        entries it sent
+    archived_days(loop_id TEXT NOT NULL, date TEXT NOT NULL,   -- a loop-day (UTC)
+                  samples INTEGER NOT NULL,                    -- rows in its Parquet file
+                  t_first REAL, t_last REAL,                   -- [plant s UTC]
+                  path TEXT NOT NULL,                          -- the file, absolute
+                  wall_time REAL NOT NULL)                     -- archived at [wall s UTC]
+        PRIMARY KEY (loop_id, date); the days ``fuelid archive`` wrote and read back: with an
+        archive configured, retention deletes only the samples of these days
+
 JSON is written with ``allow_nan=False``: NaN and ±inf are stored as ``null``.
 
 **Adding a migration.** Append a :class:`Migration` to :data:`MIGRATIONS` (its ``version`` is the
@@ -132,12 +153,7 @@ next number; :data:`SCHEMA_VERSION` follows), describe it under **Versions** and
 above, and give the test of upgrades (``tests/integration/test_store_schema.py``) a case that builds
 a store at the version before with :func:`build_at` (or loads a dump written by the released fuelid,
 as ``tests/data/store_v0_1.sql``), opens it with the current code and checks every old row. Never
-edit a released migration: a store in the field has already applied it. Migrations planned for the
-next issues:
-
-- an outbox for sending rows to a central database (``outbox(id INTEGER PRIMARY KEY, tbl TEXT,
-  row_id INTEGER, queued REAL, sent REAL)``, filled by the same transactions that write the
-  rows).
+edit a released migration: a store in the field has already applied it.
 
 A migration may carry a ``data`` step (a function of the connection, run in the migration's
 transaction after its statements) for rows that need computing, such as filling a new column.
@@ -159,6 +175,7 @@ __all__ = [
     "LOD_LEVELS",
     "LOD_SELECT",
     "MIGRATIONS",
+    "OUTBOX_TABLES",
     "SCHEMA_VERSION",
     "Migration",
     "build_at",
@@ -379,6 +396,45 @@ def _v3_data(con: sqlite3.Connection) -> None:
     )
 
 
+OUTBOX_TABLES = ("events", "windows", "models", "proposals", "writes", "requests")
+"""The tables whose inserts and updates go to the outbox (a central store receives them)."""
+
+_WALL_NOW = "((julianday('now') - 2440587.5) * 86400.0)"  # SQLite 3.40 has no unixepoch('subsec')
+
+
+def _outbox_triggers() -> tuple[str, ...]:
+    statements = []
+    for table in OUTBOX_TABLES:
+        for op in ("INSERT", "UPDATE"):
+            statements.append(
+                f"CREATE TRIGGER outbox_{table}_{op.lower()} AFTER {op} ON {table} "
+                "WHEN (SELECT value FROM meta WHERE key = 'outbox') = 'on' BEGIN "
+                f"INSERT INTO outbox(tbl, row_id, wall_time) VALUES ('{table}', NEW.rowid, "
+                f"{_WALL_NOW}); END"
+            )
+    return tuple(statements)
+
+
+_V4_MANY_LOOPS = (
+    """CREATE TABLE events_v4(
+        id INTEGER PRIMARY KEY, time REAL NOT NULL, kind TEXT NOT NULL, detail TEXT NOT NULL,
+        wall_time REAL) STRICT""",
+    "INSERT INTO events_v4(time, kind, detail, wall_time) "
+    "SELECT time, kind, detail, wall_time FROM events ORDER BY rowid",
+    "DROP TABLE events",
+    "ALTER TABLE events_v4 RENAME TO events",
+    "CREATE INDEX events_time ON events(time)",
+    """CREATE TABLE outbox(
+        id INTEGER PRIMARY KEY, tbl TEXT NOT NULL, row_id INTEGER NOT NULL,
+        wall_time REAL NOT NULL) STRICT""",
+    """CREATE TABLE archived_days(
+        loop_id TEXT NOT NULL, date TEXT NOT NULL, samples INTEGER NOT NULL, t_first REAL,
+        t_last REAL, path TEXT NOT NULL, wall_time REAL NOT NULL,
+        PRIMARY KEY (loop_id, date)) STRICT""",
+    *_outbox_triggers(),
+)
+
+
 MIGRATIONS: tuple[Migration, ...] = (
     Migration(1, "samples, events, models and proposals (fuelid 0.1)", _V1_SAMPLES_AND_EVENTS),
     Migration(2, "the online service's windows, writes and state everywhere", _V2_ONLINE_TABLES),
@@ -387,6 +443,11 @@ MIGRATIONS: tuple[Migration, ...] = (
         "one clock: plant and wall time on every row; requests; the level-of-detail table",
         _V3_ONE_CLOCK,
         _v3_data,
+    ),
+    Migration(
+        4,
+        "many loops: a stable id on events, the outbox for a central store, archived days",
+        _V4_MANY_LOOPS,
     ),
 )
 """Every migration, in order; ``MIGRATIONS[k]`` takes a store to version ``k + 1``."""

@@ -1,0 +1,1 @@
+"""Fleet re-identification of archived history on Dask (issue 26)."""
