@@ -46,6 +46,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from fuelid.errors import ConfigError
 from fuelid.plc.site_addresses import REGISTERS_OF as REGISTERS_OF  # re-exported
 from fuelid.plc.site_addresses import check_address, check_overlaps, check_ring
+from fuelid.plc.site_fleet import Archive, Central
 
 TagType = Literal["float32", "int16", "uint16", "int32", "uint32", "bool"]
 Protocol = Literal["modbus", "opcua", "s7", "replay"]
@@ -436,6 +437,8 @@ class SiteConfig(_Table):
     controller: Controller | None = None
     store: Store = Field(default_factory=Store)
     online: Online = Field(default_factory=Online)
+    archive: Archive | None = None
+    central: Central | None = None
 
     @model_validator(mode="after")
     def _tag_map(self) -> SiteConfig:
