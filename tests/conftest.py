@@ -121,3 +121,34 @@ def dashboard_store(tmp_path_factory: pytest.TempPathFactory) -> Any:
     code = proc.wait(timeout=120.0)
     assert code == 0, "\n".join(proc.output[-20:])
     return store
+
+
+FLEET_HOURS = 3.0
+"""Plant hours of each of the two fleet tests' loops (issue 26: "two loops, a few hours each")."""
+
+
+@pytest.fixture(scope="session")
+def fleet_loops(tmp_path_factory: pytest.TempPathFactory) -> Any:
+    """Two sites' stores, written offline by the simulator and analysed as the service would.
+
+    ``line-a``: AUTO, the fuel warming from 15 to 25 °C over the run, seed 1. ``line-b``: MAN,
+    20 °C, seed 2, with samples whose values are missing (NULL, quality bad_value) in the first
+    30 s of its second and third hours (599 samples). Each store has its samples, a ``restart`` event, and every window of
+    the service's schedule (default ``[online]``: 10 min windows every 5 min) with the accepted
+    ones' models. Tests that change a store copy it first (:func:`support.fleet.copy_loop`).
+    """
+    from support.fleet import analyse_loop, simulate_loop
+
+    folder = tmp_path_factory.mktemp("fleet")
+    seconds = FLEET_HOURS * 3600.0
+    a = simulate_loop(
+        folder / "line-a.db", "line-a", hours=FLEET_HOURS, seed=1,
+        fuel_temp_profile=([0.0, seconds], [15.0, 25.0]),
+    )  # fmt: skip
+    b = simulate_loop(
+        folder / "line-b.db", "line-b", hours=FLEET_HOURS, seed=2, mode="MAN",
+        bad=lambda t: ((t - a.t_first) % 3600.0 < 30.0) & (t - a.t_first > 3600.0),
+    )  # fmt: skip
+    for loop in (a, b):
+        analyse_loop(loop)
+    return {"line-a": a, "line-b": b}

@@ -117,39 +117,38 @@ def simulate_loop(
         first_seq = store.last_seq()
         seq0 = 0 if first_seq is None else first_seq + 1
         store.append_events([Event(start, "restart", "simulated loop (tests/support/fleet.py)")])
-        chunk: list[Sample] = []
-        for k in range(n):
-            plc.advance(1)
-            p = plc.read_points()
-            chunk.append(
+        # advance a ring's worth at a time and take the records from the ring (seq, command,
+        # flow, setpoint); the fuel temperature and the mode as the PLC reports them at the
+        # chunk's end (the temperature drifts over hours, a chunk is minutes)
+        done = 0
+        while done < n:
+            count = min(plc.ring_size - 1, n - done)
+            records = np.array(list(plc.advance(count).values()))
+            points = plc.read_points()
+            times = start + (done + np.arange(count)) * period_s
+            u, y, setpoint = records[:, 1].copy(), records[:, 2].copy(), records[:, 3]
+            temperature = np.full(count, points["fuel_temperature"])
+            quality = np.full(count, int(Quality.OK))
+            if bad is not None:
+                mask = bad(times)
+                u[mask] = y[mask] = temperature[mask] = math.nan
+                quality[mask] = int(Quality.BAD_VALUE)
+            store.append_samples(
                 Sample(
-                    start + k * period_s,
-                    seq0 + k,
-                    p["command"],
-                    p["flow"],
-                    p["setpoint"],
-                    p["fuel_temperature"],
-                    int(p["mode"]),
-                    int(Quality.OK),
+                    float(t),
+                    seq0 + done + i,
+                    float(a),
+                    float(b),
+                    float(c),
+                    float(d),
+                    int(points["mode"]),
+                    int(q),
+                )
+                for i, (t, a, b, c, d, q) in enumerate(
+                    zip(times, u, y, setpoint, temperature, quality, strict=True)
                 )
             )
-            if len(chunk) == 20_000 or k == n - 1:
-                if bad is not None:
-                    times = np.array([s.time for s in chunk])
-                    mask = bad(times)
-                    chunk = [
-                        s._replace(
-                            u=math.nan,
-                            y=math.nan,
-                            fuel_temperature=math.nan,
-                            quality=int(Quality.BAD_VALUE),
-                        )
-                        if m
-                        else s
-                        for s, m in zip(chunk, mask, strict=True)
-                    ]
-                store.append_samples(chunk)
-                chunk = []
+            done += count
         t_first, t_last = store.first_time(), store.last_time()
     finally:
         store.close()
@@ -199,3 +198,22 @@ def analyse_loop(
     finally:
         store.close()
     return recorded
+
+
+def copy_loop(loop: SimulatedLoop, folder: Path) -> SimulatedLoop:
+    """A copy of a simulated loop's store in ``folder`` (its WAL checkpointed first)."""
+    import shutil
+    import sqlite3
+
+    con = sqlite3.connect(loop.path)
+    try:
+        con.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+    finally:
+        con.close()
+    folder.mkdir(parents=True, exist_ok=True)
+    target = folder / loop.path.name
+    shutil.copyfile(loop.path, target)
+    return SimulatedLoop(
+        target, loop.loop_id, loop.site_name, loop.period_s, loop.t_first, loop.t_last,
+        loop.samples,
+    )  # fmt: skip
