@@ -135,7 +135,8 @@ def fleet_loops(tmp_path_factory: pytest.TempPathFactory) -> Any:
     20 °C, seed 2, with samples whose values are missing (NULL, quality bad_value) in the first
     30 s of its second and third hours (599 samples). Each store has its samples, a
     ``restart`` event, and every window of the service's schedule (default ``[online]``: 10 min
-    windows every 5 min) with the accepted ones' models. Tests that change a store copy it first (:func:`support.fleet.copy_loop`).
+    windows every 5 min) with the accepted ones' models. Tests that change a store copy it
+    first (:func:`support.fleet.copy_loop`).
     """
     from support.fleet import analyse_loop, simulate_loop
 
