@@ -51,6 +51,7 @@ __all__ = [
     "EVENT_SCHEMA",
     "SAMPLE_SCHEMA",
     "LoopDay",
+    "arrays_of",
     "day_bounds",
     "day_of",
     "list_loop_days",
@@ -59,6 +60,7 @@ __all__ = [
     "read_day",
     "read_day_table",
     "read_loop_info",
+    "read_range_table",
     "write_table",
 ]
 
@@ -202,7 +204,17 @@ def read_day_table(root: str | Path, kind: str, loop_id: str, date: str) -> pa.T
 
 def read_day(root: str | Path, loop_id: str, date: str) -> SampleArrays:
     """One loop-day's samples as arrays (nulls as NaN and −1, as a store reads them)."""
-    table = read_day_table(root, "samples", loop_id, date)
+    return arrays_of(read_day_table(root, "samples", loop_id, date))
+
+
+def arrays_of(table: pa.Table) -> SampleArrays:
+    """A samples table (:data:`SAMPLE_SCHEMA`) as arrays: nulls as NaN and −1, as a store reads.
+
+    Examples
+    --------
+    >>> arrays_of(SAMPLE_SCHEMA.empty_table()).time.size
+    0
+    """
 
     def floats(name: str) -> np.ndarray[Any, Any]:
         column = table.column(name).to_numpy(zero_copy_only=False)
@@ -221,6 +233,43 @@ def read_day(root: str | Path, loop_id: str, date: str) -> SampleArrays:
         mode=ints("mode"),
         quality=ints("quality"),
     )
+
+
+def read_range_table(
+    root: str | Path,
+    kind: str,
+    loop_id: str,
+    t_from: float | None = None,
+    t_to: float | None = None,
+) -> pa.Table:
+    """A loop's rows of ``kind`` with ``t_from <= time < t_to`` [plant s UTC], across days.
+
+    Only the days that overlap the range are opened; sorted by time (empty when none).
+    """
+    import pyarrow.compute as pc
+
+    schema = SAMPLE_SCHEMA if kind == "samples" else EVENT_SCHEMA
+    date_from = None if t_from is None else day_of(t_from)
+    date_to = None if t_to is None else day_of(t_to)
+    base = Path(root) / kind / f"loop={_check_loop_id(loop_id)}"
+    dates = sorted(
+        d.name.removeprefix("date=")
+        for d in base.glob("date=*")
+        if _DATE.match(d.name.removeprefix("date="))
+    )
+    tables = [
+        read_day_table(root, kind, loop_id, date)
+        for date in dates
+        if (date_from is None or date >= date_from) and (date_to is None or date <= date_to)
+    ]
+    table = pa.concat_tables(tables) if tables else schema.empty_table()
+    time = table.column("time")
+    if t_from is not None:
+        table = table.filter(pc.greater_equal(time, float(t_from)))
+        time = table.column("time")
+    if t_to is not None:
+        table = table.filter(pc.less(time, float(t_to)))
+    return table
 
 
 def loop_info_files(root: str | Path, loop_id: str) -> list[Path]:

@@ -156,7 +156,11 @@ class SampleStore(ABC):
 
     @abstractmethod
     def prune(
-        self, older_than_days: float, thin_to_period_s: float | None = 1.0, now: float | None = None
+        self,
+        older_than_days: float,
+        thin_to_period_s: float | None = 1.0,
+        now: float | None = None,
+        archived_only: bool = False,
     ) -> PruneResult:
         """Keep raw samples for ``older_than_days`` [d]; thin older ones.
 
@@ -169,6 +173,8 @@ class SampleStore(ABC):
             them all.
         now : float, optional
             Reference time [s UTC]; the current time by default.
+        archived_only : bool
+            An archive is configured: thin or delete only the samples of archived days.
         """
 
     @abstractmethod

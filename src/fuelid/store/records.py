@@ -234,11 +234,16 @@ class StoreInfo:
 
 @dataclass(frozen=True)
 class PruneResult:
-    """What :meth:`SampleStore.prune` did: samples deleted and kept before the cutoff [s UTC]."""
+    """What :meth:`SampleStore.prune` did: samples deleted and kept before the cutoff [s UTC].
+
+    ``kept_thinned`` counts the old samples thinning kept; ``kept_unarchived`` those kept
+    whole because their day is not archived yet (0 without an archive).
+    """
 
     cutoff: float
     deleted: int
     kept_thinned: int
+    kept_unarchived: int = 0
 
 
 def tag_map_hash(tag_map: Mapping[str, Any] | str) -> str:

@@ -34,6 +34,7 @@ import uuid
 from collections.abc import Iterable
 from pathlib import Path
 
+from fuelid.store.archived import prunable_spans
 from fuelid.store.base import (
     Event,
     PruneResult,
@@ -71,6 +72,8 @@ _INSERT_SAMPLE = (
 )
 _AGE = "min(time, coalesce(wall_time, time))"
 """What retention compares with its cutoff: the older of a sample's two clocks [s UTC]."""
+_COUNT = "SELECT count(*) FROM samples WHERE time >= ? AND time < ?"
+_DELETE_LOD = "DELETE FROM samples_lod WHERE bucket >= ? AND bucket + level <= ?"
 _INSERT_EVENT = "INSERT INTO events(time, kind, detail, wall_time) VALUES (?, ?, ?, ?)"
 # only samples still OK: a stale or link-down flag says more than "bad value"
 _REQUALIFY = "UPDATE samples SET quality = ?3 WHERE time >= ?1 AND time <= ?2 AND quality = 0"
@@ -444,12 +447,19 @@ class SQLiteStore(SampleStore):
         )
 
     def prune(
-        self, older_than_days: float, thin_to_period_s: float | None = 1.0, now: float | None = None
+        self,
+        older_than_days: float,
+        thin_to_period_s: float | None = 1.0,
+        now: float | None = None,
+        archived_only: bool = False,
     ) -> PruneResult:
         """Keep raw samples ``older_than_days`` [d]; of older ones the first per period [s].
 
-        A ``prune`` event records what was done. The file does not shrink (SQLite reuses the
-        freed pages for new samples).
+        With ``archived_only`` (an archive is configured) only the samples of days archived and
+        read back are thinned or deleted (:func:`fuelid.store.archived.prunable_spans`); the
+        old samples kept because they are not archived are counted in the result. A ``prune``
+        event records what was done. The file does not shrink (SQLite reuses the freed pages
+        for new samples).
         """
         if not (math.isfinite(older_than_days) and older_than_days >= 0.0):
             raise StoreError(f"retention must be a non-negative number of days: {older_than_days}")
@@ -470,30 +480,42 @@ class SQLiteStore(SampleStore):
         # writer never waits long for the lock
         step = 1.0 if thin_to_period_s is None else thin_to_period_s
         window = step * math.ceil(PRUNE_WINDOW_S / step)
+        spans = [(-math.inf, math.inf)]
+        if archived_only:
+            with self._read_lock:
+                spans = prunable_spans(self._read_con, self.loop_id)
         deleted = 0
         t = plant_cut if first is None else math.floor(first / step) * step
         while t < plant_cut:
             t_end = min(t + window, plant_cut)
-            deleted += self._prune_window(t, t_end, thin_to_period_s, cutoff)
+            for a, b in spans:  # the window's parts inside spans that may be pruned
+                if max(a, t) < min(b, t_end):
+                    deleted += self._prune_window(
+                        max(a, t), min(b, t_end), thin_to_period_s, cutoff
+                    )
             t = t_end
         with self._lock:
             con = self._con
-            if thin_to_period_s is None:  # thinning keeps the LOD rows: they summarise
-                con.execute("DELETE FROM samples_lod WHERE bucket + level <= ?", (plant_cut,))
-            kept = int(
-                con.execute("SELECT count(*) FROM samples WHERE time < ?", (plant_cut,)).fetchone()[
-                    0
-                ]
-            )
+            for a, b in spans:  # thinning keeps the LOD rows: they summarise
+                if thin_to_period_s is None and a < plant_cut:
+                    con.execute(_DELETE_LOD, (a, min(b, plant_cut)))
+            kept = int(con.execute(_COUNT, (-math.inf, plant_cut)).fetchone()[0])
             how = "none" if thin_to_period_s is None else f"one per {thin_to_period_s} s"
             detail = f"before {cutoff:.3f}: {deleted} deleted, {kept} kept ({how})"
-            wall = _time.time()
+            unarchived = 0
+            if archived_only:
+                unarchived = kept - sum(
+                    int(con.execute(_COUNT, (a, min(b, plant_cut))).fetchone()[0])
+                    for a, b in spans
+                    if a < plant_cut
+                )
+                detail += f"; {unarchived} of them not archived"
             con.execute(
                 "INSERT INTO events(time, kind, detail, wall_time) "
                 "VALUES ((SELECT coalesce(max(time), ?1) FROM samples), 'prune', ?2, ?1)",
-                (wall, detail),
+                (_time.time(), detail),
             )
-        return PruneResult(cutoff=cutoff, deleted=deleted, kept_thinned=kept)
+        return PruneResult(cutoff, deleted, kept - unarchived, unarchived)
 
     def _plant_at_wall(self, cutoff: float) -> float:
         """The plant time before which samples were written before ``cutoff`` [wall s].
