@@ -6,14 +6,16 @@ file has an ``[archive]`` table (:func:`keep_store`); without one they prune as 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from fuelid.archive.writer import ArchiveReport, archive_store
 from fuelid.errors import FuelidError
-from fuelid.store.records import PruneResult
+from fuelid.store.base import SampleStore
+from fuelid.store.records import PruneResult, StoreError
 from fuelid.store.sqlite import SQLiteStore
 
-__all__ = ["Housekeeping", "keep_store"]
+__all__ = ["Housekeeping", "archiver", "keep_store"]
 
 
 @dataclass(frozen=True)
@@ -70,3 +72,20 @@ def keep_store(
             error = " ".join(str(failure).split())
     result = store.prune(retention_days, thin_to_s, now=now, archived_only=archive_dir is not None)
     return Housekeeping(report, result, error)
+
+
+def archiver(root: str) -> Callable[[SampleStore], ArchiveReport]:
+    """The archiving step ``fuelid record`` runs before its retention (``[archive] dir``).
+
+    Examples
+    --------
+    >>> callable(archiver("/srv/fuelid/archive"))
+    True
+    """
+
+    def archive(store: SampleStore) -> ArchiveReport:
+        if not isinstance(store, SQLiteStore):
+            raise StoreError(f"{store.path}: only an SQLite store can be archived")
+        return archive_store(store, root)
+
+    return archive

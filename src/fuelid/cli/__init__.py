@@ -12,6 +12,7 @@ import typer
 
 from fuelid import __version__
 from fuelid.cli import dashboard, online, plant, site
+from fuelid.cli.archive import archive_command
 from fuelid.cli.calibrate import calibrate_command
 from fuelid.cli.greybox import greybox_command
 from fuelid.cli.identify import identify_command
@@ -39,6 +40,7 @@ app.command("tune")(tune_command)
 app.command("report")(report_command)
 app.command("record")(record_command)
 app.command("export")(export_command)
+app.command("archive")(archive_command)
 app.add_typer(store_app, name="store")
 app.add_typer(online.app, name="online")
 app.add_typer(dashboard.app, name="dashboard")

@@ -112,6 +112,11 @@ def record_command(
     for line in site.missing():
         typer.echo(f"record: the site file does not expose {line}", err=True)
     target = str(store) if store is not None else site.store.url
+    archiver = None
+    if site.archive is not None and site.archive.auto:
+        from fuelid.archive.retention import archiver as site_archiver
+
+        archiver = site_archiver(site.archive.dir)
     status = _StatusLine()
     status.message(f"recording {site.site.name!r} into {target} (Ctrl-C stops)")
     try:
@@ -122,6 +127,7 @@ def record_command(
             give_up_after_s=give_up_after,
             on_message=status.message,
             on_status=status.status,
+            archiver=archiver,
         )
     finally:
         status.close()
@@ -142,7 +148,14 @@ def record_command(
 
 @guarded
 def export_command(
-    store: StoreFile,
+    store: Annotated[
+        Path,
+        typer.Option(
+            "--store",
+            metavar="FILE.db|DIR",
+            help="The store (an SQLite file) or a raw archive's folder (fuelid archive).",
+        ),
+    ],
     out: Annotated[
         Path,
         typer.Option("--out", "-o", metavar="LOG", help="Log to write: .csv or .parquet."),
@@ -166,12 +179,23 @@ def export_command(
         ),
     ] = None,
     force: Annotated[bool, typer.Option("--force", help="Replace an existing log.")] = False,
+    loop: Annotated[
+        str | None,
+        typer.Option(
+            "--loop",
+            metavar="ID",
+            help="The loop to export from an archive folder (default: its only loop).",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Write a store's ok samples as a log that fuelid identify reads without options.
 
     Columns t_s [s from the first sample], u_V [V], q_Lpm [L/min], sp_Lpm, T_fuel_degC [°C],
     mode, quality, seq, time_utc. Samples that are not ok are left out, so lost or flagged
-    stretches are gaps; nothing is interpolated.
+    stretches are gaps; nothing is interpolated. With --store DIR (a raw archive written by
+    fuelid archive) the loop --loop ID is read from its Parquet days, with the same columns
+    and the same rule: the archive exports as the store did before retention thinned it.
     """
     from fuelid.store import SQLiteStore
     from fuelid.store.export import export_log, parse_time
@@ -180,8 +204,15 @@ def export_command(
     hi = None if t_to is None else parse_time(t_to)
     if lo is not None and hi is not None and lo >= hi:
         raise DataError(f"--from {t_from} is not before --to {t_to}: the range holds nothing")
-    with SQLiteStore(store) as opened:
-        result = export_log(opened, out, lo, hi, overwrite=force)
+    if store.is_dir():
+        from fuelid.archive.reader import ArchiveLoop
+
+        result = export_log(ArchiveLoop(store, loop), out, lo, hi, overwrite=force)
+    else:
+        with SQLiteStore(store) as opened:
+            if loop is not None and loop != opened.loop_id:
+                raise DataError(f"{store}: the store is loop {opened.loop_id!r}, not {loop!r}")
+            result = export_log(opened, out, lo, hi, overwrite=force)
     typer.echo(
         f"wrote {result.rows} samples ({result.t_last - result.t_first:.3f} s) to {result.path}; "
         f"{result.left_out} not ok left out"

@@ -268,18 +268,30 @@ class OnlineService:
     # --- running ----------------------------------------------------------------------------
 
     async def _housekeeping(self) -> None:
-        """The store's retention, at start and hourly, as ``fuelid record`` applies it."""
+        """The store's retention, at start and hourly, as ``fuelid record`` applies it.
+
+        With an ``[archive]`` table the finished days are archived first (``auto``) and
+        retention deletes only archived days (:func:`fuelid.archive.retention.keep_store`).
+        """
+        from fuelid.archive.retention import keep_store
+
+        archive = self.site.archive
         while not self._stopping.is_set():
             newest = self.store.last_time()
             if newest is not None:
                 try:
                     now = newest if self.site.plc.protocol == "replay" else time.time()
-                    await asyncio.to_thread(
-                        self.store.prune,
+                    kept = await asyncio.to_thread(
+                        keep_store,
+                        self.store,
                         self.site.store.retention_days,
                         self.site.store.thin_to_s,
                         now=now,
+                        archive_dir=None if archive is None else archive.dir,
+                        auto=archive is not None and archive.auto,
                     )
+                    if kept.archive_error is not None:
+                        self.context.say("event", kind="archive", detail=kept.archive_error)
                 except FuelidError as error:  # retention must never stop the service
                     self.context.say("event", kind="retention", detail=str(error))
             with contextlib.suppress(asyncio.TimeoutError):

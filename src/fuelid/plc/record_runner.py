@@ -18,7 +18,7 @@ from fuelid.errors import FuelidError
 from fuelid.plc.adapters.base import PlcSource
 from fuelid.plc.recorder import Recorder, RecorderStats, site_identity
 from fuelid.plc.site import SiteConfig
-from fuelid.store import SampleWriter
+from fuelid.store import SampleStore, SampleWriter
 
 __all__ = ["PRUNE_EVERY_S", "record_error", "record_site"]
 
@@ -44,6 +44,7 @@ def record_site(
     status_every_s: float = 1.0,
     commit_interval_s: float = 1.0,
     source: PlcSource | None = None,
+    archiver: Callable[[SampleStore], object] | None = None,
     **options: Any,
 ) -> RecorderStats:
     """Record a site into its store until SIGINT/SIGTERM, the duration, or the end of a replay.
@@ -67,6 +68,11 @@ def record_site(
         Status and commit intervals [s].
     source : PlcSource, optional
         A source to use instead of the site's (tests).
+    archiver : callable, optional
+        Archives the store's finished days before each retention (the site's ``[archive]``
+        with ``auto``: :func:`fuelid.archive.retention.archiver`, passed in by the command, as
+        the recorder's layer does not import the archive's). With an ``[archive]`` table
+        retention deletes only archived days, whether or not this archives them.
     **options
         Further :class:`Recorder` settings (``ring_poll_s``, ``stuck_after_s``, ``backoff_s``).
 
@@ -97,12 +103,18 @@ def record_site(
                 # retention counts back from the newest sample (the data's own time base)
                 newest = store.last_time()
                 if newest is not None:
+                    if archiver is not None:
+                        try:  # a failed archive only keeps more: retention below is safe
+                            archiver(store)
+                        except FuelidError as error:
+                            recorder._say(f"archive not written: {record_error(error)}")
                     store.prune(
                         site.store.retention_days,
                         site.store.thin_to_s,
                         # a replayed log's own time base; else the wall clock (the samples carry
                         # wall_time: an accelerated virtual PLC's plant time runs ahead of it)
                         now=time.time() if site.plc.protocol != "replay" else newest,
+                        archived_only=site.archive is not None,
                     )
 
             stats = asyncio.run(

@@ -543,9 +543,9 @@ def load_site(path: str | Path) -> SiteConfig:
 def _relative_to(site: SiteConfig, folder: Path, data: dict[str, Any]) -> SiteConfig:
     """Relative paths written in the file, taken from the file's folder.
 
-    ``[site] plant`` and ``[store] url`` must not depend on where the service happens to start
-    (systemd starts it in /). The default store (no ``[store] url``) stays ``fuelid.db`` in the
-    current folder.
+    ``[site] plant``, ``[store] url`` and ``[archive] dir`` must not depend on where the
+    service happens to start (systemd starts it in /). The default store (no ``[store] url``)
+    stays ``fuelid.db`` in the current folder.
     """
     plant = site.site.plant
     if plant is not None and not Path(plant).is_absolute():
@@ -556,4 +556,7 @@ def _relative_to(site: SiteConfig, folder: Path, data: dict[str, Any]) -> SiteCo
     if given and not Path(location).is_absolute():
         store = site.store.model_copy(update={"url": f"sqlite:///{folder / location}"})
         site = site.model_copy(update={"store": store})
+    if site.archive is not None and not Path(site.archive.dir).is_absolute():
+        archive = site.archive.model_copy(update={"dir": str(folder / site.archive.dir)})
+        site = site.model_copy(update={"archive": archive})
     return site

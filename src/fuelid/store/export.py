@@ -17,12 +17,24 @@ import math
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
 from fuelid.errors import DataError
 from fuelid.io.files import check_output_path, write_table
-from fuelid.store.base import Quality, SampleStore
+from fuelid.store.base import Quality, SampleArrays
+
+
+class SampleSource(Protocol):
+    """What :func:`export_log` reads: a store, or a loop of an archive (``ArchiveLoop``)."""
+
+    @property
+    def path(self) -> str:
+        """The source's name, for messages."""
+
+    def read(self, t_from: float | None = None, t_to: float | None = None) -> SampleArrays:
+        """Samples with ``t_from <= time < t_to`` [s UTC], sorted by time."""
 
 
 def parse_time(text: str) -> float:
@@ -84,7 +96,7 @@ class ExportResult:
 
 
 def export_log(
-    store: SampleStore,
+    store: SampleSource,
     out: str | Path,
     t_from: float | None = None,
     t_to: float | None = None,
