@@ -163,6 +163,17 @@ def _check_folder(root: Path) -> None:
         raise StoreError(f"cannot write to the archive folder {root}: {error.strerror}") from None
 
 
+def _check_date(text: str) -> None:
+    """Refuse a ``before`` that is not a calendar date written YYYY-MM-DD."""
+    import datetime as _dt
+
+    try:
+        day_bounds(text)
+        _dt.date.fromisoformat(text)
+    except (StoreError, ValueError):
+        raise StoreError(f"--before {text!r} is not a date (YYYY-MM-DD, UTC)") from None
+
+
 def _connect(path: str) -> sqlite3.Connection:
     con = sqlite3.connect(path, isolation_level=None, check_same_thread=False, timeout=5.0)
     con.execute("PRAGMA busy_timeout=5000")
@@ -269,7 +280,7 @@ def archive_store(store: SQLiteStore, root: str | Path, before: str | None = Non
     """
     start_clock = _time.perf_counter()
     if before is not None:
-        day_bounds(before)  # validates the date
+        _check_date(before)
     folder = Path(root).resolve()
     _check_folder(folder)
     con = _connect(store.path)
