@@ -131,6 +131,7 @@ bench: $(BENCH_VENV)/.fuelid-installed
 	$(BENCH_VENV)/bin/python benchmarks/bench_tuning_sweep.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_cold_start.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_store.py
+	$(BENCH_VENV)/bin/python benchmarks/bench_archive.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_virtual_plant.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_dashboard.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_acquisition.py --minutes 2

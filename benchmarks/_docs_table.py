@@ -63,6 +63,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
         "benchmarks/bench_commands_loaded.py",
     ),
     "store": ("The SQLite store", "benchmarks/bench_store.py"),
+    "archive": ("The raw archive", "benchmarks/bench_archive.py"),
     "virtual_plant": ("The virtual PLC's speed", "benchmarks/bench_virtual_plant.py"),
     "acquisition": ("Acquisition at 50 Hz", "benchmarks/bench_acquisition.py --minutes 2"),
     "online": ("The online service's cost", "benchmarks/bench_online.py --minutes 2"),
