@@ -67,3 +67,51 @@ def test_without_an_archive_job_retention_keeps_what_is_not_archived(tmp_path: P
     assert np.count_nonzero(data.time < old + 60.0) == 500  # not archived: kept whole
     assert "500 of them not archived" in kinds(events, "prune")[-1].detail
     assert not (tmp_path / "archive").exists()
+
+
+def test_the_services_housekeeping_archives_then_prunes_archived_days_only(
+    tmp_path: Path,
+) -> None:
+    """The service's hourly task, run once on a store of four whole days (as a replay site).
+
+    Expected: the three finished days archived (8,640 rows each) and thinned to one per 60 s
+    (1,440); the fourth, the newest sample's day, kept whole; no archive failure logged.
+    """
+    import asyncio
+    from types import SimpleNamespace
+
+    from fuelid.online.service import OnlineService
+    from support.archive import DATES, days_store, rows_per_day
+
+    db = days_store(tmp_path / "loop.db")
+    said: list[dict[str, object]] = []
+    site = SimpleNamespace(
+        archive=SimpleNamespace(dir=str(tmp_path / "archive"), auto=True),
+        plc=SimpleNamespace(protocol="replay"),  # retention counts back from the newest sample
+        store=SimpleNamespace(retention_days=0.5, thin_to_s=60.0),
+    )
+
+    async def once() -> None:
+        service = SimpleNamespace(
+            site=site,
+            store=SQLiteStore(db, site_name="site line-x", tag_map_hash="ab12", loop_id="line-x"),
+            _stopping=asyncio.Event(),
+            context=SimpleNamespace(say=lambda event, **kw: said.append({"event": event, **kw})),
+        )
+        task = asyncio.create_task(OnlineService._housekeeping(service))  # type: ignore[arg-type]
+        try:
+            for _ in range(600):  # until its first round has pruned (at most 60 s)
+                await asyncio.sleep(0.1)
+                if service.store.last_event(["prune"]) is not None:
+                    break
+        finally:
+            service._stopping.set()
+            await task
+            service.store.close()
+
+    asyncio.run(once())
+    assert said == []
+    assert archived_rows(db) == dict.fromkeys(DATES[:3], 8640)
+    counts = rows_per_day(db)
+    assert [counts[d] for d in DATES[:3]] == [1440] * 3
+    assert counts[DATES[3]] == 8640
