@@ -196,3 +196,56 @@ def _last_prune_detail(path: Path) -> str:
     finally:
         con.close()
     return str(row[0])
+
+
+def _service_record(path: Path, settings: dict[str, object]) -> None:
+    """An ``online_state`` service record as a service writes it (only what the archive reads)."""
+    import json
+
+    con = sqlite3.connect(path)
+    con.execute(
+        "INSERT INTO online_state(key, value, time) VALUES ('service', ?, 0.0)",
+        (json.dumps({"pid": 1, "settings": settings}),),
+    )
+    con.commit()
+    con.close()
+
+
+def test_the_plant_file_is_copied_when_it_has_the_recorded_hash(
+    store_path: Path, tmp_path: Path
+) -> None:
+    import hashlib
+
+    from fuelid.archive.layout import read_loop_info
+
+    plant = tmp_path / "plant.toml"
+    plant.write_text('[vfd]\nname = "test"\n', encoding="utf-8")
+    digest = hashlib.sha256(plant.read_bytes()).hexdigest()
+    settings = {"plant_file": str(plant), "plant_hash": digest, "window_s": 600.0}
+    _service_record(store_path, settings)
+    root = tmp_path / "archive"
+    with SQLiteStore(store_path) as store:
+        report = archive_store(store, root)
+    info = read_loop_info(root, "line-x")
+    assert report.plant == info["plant"] == f"plant-{digest}.toml"
+    assert info["plant_note"] is None
+    assert info["settings"] == settings
+    assert (root / "loops" / "line-x" / f"plant-{digest}.toml").read_bytes() == plant.read_bytes()
+    # edited since: the copy made while it matched stays the loop's plant file
+    plant.write_text('[vfd]\nname = "edited"\n', encoding="utf-8")
+    with SQLiteStore(store_path) as store:
+        assert archive_store(store, root).plant == f"plant-{digest}.toml"
+
+
+def test_a_plant_file_changed_before_the_first_archive_is_not_copied(
+    store_path: Path, tmp_path: Path
+) -> None:
+    plant = tmp_path / "plant.toml"
+    plant.write_text('[vfd]\nname = "edited"\n', encoding="utf-8")
+    _service_record(store_path, {"plant_file": str(plant), "plant_hash": "0" * 64})
+    with SQLiteStore(store_path) as store:
+        report = archive_store(store, tmp_path / "archive")
+    assert report.plant is None
+    assert report.plant_note is not None
+    assert "changed since the service started" in report.plant_note
+    assert not list((tmp_path / "archive" / "loops" / "line-x").glob("plant-*"))

@@ -470,6 +470,8 @@ def _copy_plant(
     source, recorded = settings.get("plant_file"), settings.get("plant_hash")
     if source is None:
         return None, "the service ran with the built-in reference plant (no plant file)"
+    if recorded and (loop_folder / f"plant-{recorded}.toml").exists():
+        return f"plant-{recorded}.toml", None  # copied by an earlier run: the very bytes
     try:
         data = Path(source).read_bytes()
     except OSError as error:
