@@ -189,7 +189,7 @@ def _day_table(con: sqlite3.Connection, start: float, end: float) -> pa.Table:
             pa.array(columns[ARCHIVE_COLUMNS.index(f.name)], type=f.type) for f in SAMPLE_SCHEMA
         ]
         batches.append(pa.RecordBatch.from_arrays(arrays, schema=SAMPLE_SCHEMA))
-    return pa.Table.from_batches(batches, schema=SAMPLE_SCHEMA).combine_chunks()
+    return pa.Table.from_batches(batches, schema=SAMPLE_SCHEMA)  # no copy into one chunk
 
 
 def _event_table(con: sqlite3.Connection, start: float, end: float) -> pa.Table:

@@ -126,12 +126,16 @@ def record_day(
         raise
 
 
-def prunable_spans(con: sqlite3.Connection, loop_id: str) -> list[tuple[float, float]]:
+def prunable_spans(
+    con: sqlite3.Connection, loop_id: str, before: float = math.inf
+) -> list[tuple[float, float]]:
     """The plant-time spans [s UTC] whose samples retention may delete with an archive.
 
     A day qualifies when it is in ``archived_days`` with at least as many rows as the store
     holds for it now and no sample of the day has a ``wall_time`` at or after the day's
-    archiving (so neither a late row nor a re-sent one is lost). Ascending ``(start, end)``.
+    archiving (so neither a late row nor a re-sent one is lost). Only days that begin before
+    ``before`` [plant s UTC] (retention's cutoff) are checked: each check reads the day's rows.
+    Ascending ``(start, end)``.
     """
     import datetime as _dt
 
@@ -139,6 +143,8 @@ def prunable_spans(con: sqlite3.Connection, loop_id: str) -> list[tuple[float, f
     for date, (samples, wall, _path) in sorted(archived_days(con, loop_id).items()):
         start = _dt.datetime.fromisoformat(date).replace(tzinfo=_dt.UTC).timestamp()
         end = start + DAY_S
+        if start >= before:
+            continue
         count, newer = con.execute(
             "SELECT count(*), coalesce(sum(wall_time >= ?), 0) FROM samples "
             "WHERE time >= ? AND time < ?",

@@ -483,7 +483,7 @@ class SQLiteStore(SampleStore):
         spans = [(-math.inf, math.inf)]
         if archived_only:
             with self._read_lock:
-                spans = prunable_spans(self._read_con, self.loop_id)
+                spans = prunable_spans(self._read_con, self.loop_id, plant_cut)
         deleted = 0
         t = plant_cut if first is None else math.floor(first / step) * step
         while t < plant_cut:
