@@ -11,7 +11,7 @@ import sys
 import typer
 
 from fuelid import __version__
-from fuelid.cli import dashboard, online, plant, site
+from fuelid.cli import central, dashboard, online, plant, site
 from fuelid.cli.calibrate import calibrate_command
 from fuelid.cli.greybox import greybox_command
 from fuelid.cli.identify import identify_command
@@ -42,6 +42,7 @@ app.command("export")(export_command)
 app.add_typer(store_app, name="store")
 app.add_typer(online.app, name="online")
 app.add_typer(dashboard.app, name="dashboard")
+app.add_typer(central.app, name="central")
 
 
 def _version(value: bool) -> None:
