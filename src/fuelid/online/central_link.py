@@ -72,7 +72,7 @@ def changed_reason(history: OnlineHistory, request: dict[str, Any]) -> str | Non
     seen = request.get("seen_status")
     if seen is not None and status != seen:
         return f"proposal {pid} is now {status} (was {seen})"
-    entries = len((proposal.get("detail") or {}).get("history") or [])
+    entries = len(proposal.get("history") or [])
     seen_len = request.get("seen_history_len")
     if seen_len is not None and entries != int(seen_len):
         return (
@@ -143,6 +143,14 @@ class CentralLink:
                 self.requests_cycle(result, apply_now)
             except (psycopg.Error, FuelidError, OSError) as error:
                 result.error = self.sender.record_failure(error)
+        if result.error is None and (result.filed or result.reported):
+            # the requests changed local rows (the request, the proposal): send them now
+            again = self.sender.sync(max_batches=max_batches)
+            result.sync.sent_rows += again.sent_rows
+            result.sync.batches += again.batches
+            result.sync.backlog_rows = again.backlog_rows
+            result.sync.backlog_oldest_wall = again.backlog_oldest_wall
+            result.error = result.sync.error = again.error
         self._log(result)
         return result
 

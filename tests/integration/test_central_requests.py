@@ -1,0 +1,174 @@
+"""Central requests carried out by the site, and the ``fuelid central`` commands, on PostgreSQL.
+
+The central store never talks to a PLC: an approve filed centrally is fetched by the loop's
+link, filed in the site's store (origin ``central:<id>``), applied there (by the service's beat,
+or at once by ``fuelid central sync`` when no service runs) and its outcome reported back. A
+proposal that changed since the requester saw it is refused with the reason; an expired request
+is never applied.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from fuelid.central.connect import connect
+from fuelid.central.requests import central_requests, file_central_request
+from fuelid.central.schema import SCHEMA_VERSION
+from fuelid.cli import main
+from fuelid.online.central_link import CentralLink
+from fuelid.online.requests import consume_requests
+from fuelid.plc.site_fleet import Central
+from fuelid.store import OnlineHistory
+from fuelid.store.sqlite import SQLiteStore
+from support.fleet import SimulatedLoop, copy_loop
+
+pytest.importorskip("psycopg")
+
+
+def with_proposal(loop: SimulatedLoop) -> int:
+    """A pending proposal on the loop's newest accepted model; its id."""
+    with (
+        SQLiteStore(
+            loop.path, site_name=loop.site_name, tag_map_hash=f"hash-{loop.loop_id}",
+            loop_id=loop.loop_id,
+        ) as store,
+        OnlineHistory(store) as history,
+    ):  # fmt: skip
+        model_id = history.accepted_models(limit=1)[0]["id"]
+        return history.add_proposal(
+            model_id=model_id, old={"Kc": 0.10, "Ti": 2.0}, new={"Kc": 0.12, "Ti": 2.2},
+            detail={"rule": "test"}, who="online", why="test proposal",
+        )  # fmt: skip
+
+
+class Site:
+    """A loop's store, its history and its link (closed at the end of the test)."""
+
+    def __init__(self, loop: SimulatedLoop, url: str) -> None:
+        self.store = SQLiteStore(loop.path)
+        self.history = OnlineHistory(self.store)
+        self.link = CentralLink(loop.path, Central(url=url, batch_rows=1000), self.history)
+
+    def close(self) -> None:
+        self.link.close()
+        self.history.close()
+        self.store.close()
+
+
+@pytest.fixture
+def site(fleet_loops: Any, tmp_path: Path, central_url: str) -> Any:
+    loop = copy_loop(fleet_loops["line-a"], tmp_path)
+    pid = with_proposal(loop)
+    opened = Site(loop, central_url)
+    first = opened.link.cycle()  # the store's history, the proposal included, is central now
+    assert first.error is None
+    yield opened, pid
+    opened.close()
+
+
+def test_central_approve_is_applied_by_the_site(site: Any, central_url: str) -> None:
+    """Approve centrally → filed at the site, applied by its beat, outcome reported back."""
+    s, pid = site
+    with connect(central_url) as con:
+        request = file_central_request(con, "line-a", "approve", pid, "alice", "looks right")
+    assert (request["seen_status"], request["seen_history_len"]) == ("pending", 1)
+    cycle = s.link.cycle()  # a service runs: the link files it, the beat applies it
+    assert cycle.error is None
+    assert [r["origin"] for r in cycle.filed] == [f"central:{request['id']}"]
+    local = cycle.filed[0]
+    assert (local["who"], local["why"], local["status"]) == ("alice", "looks right", "waiting")
+    consume_requests(s.history, "approve")  # the service's beat
+    assert s.history.proposal(pid)["status"] == "approved"
+    assert s.link.cycle().error is None  # reports the outcome, sends the proposal's change
+    with connect(central_url) as con:
+        (row,) = central_requests(con, "line-a")
+        proposal = con.execute(
+            "SELECT status, history_len FROM proposals WHERE id = %s", (pid,)
+        ).fetchone()
+    assert row["status"] == "done"
+    assert row["outcome"] == f"proposal {pid} approved by alice"
+    assert row["local_id"] == local["id"]
+    assert proposal == ("approved", 2)
+
+
+def test_changed_proposal_is_refused_with_the_reason(site: Any, central_url: str) -> None:
+    """Rejected at the site after the requester looked: the central approve is refused."""
+    s, pid = site
+    with connect(central_url) as con:
+        request = file_central_request(con, "line-a", "approve", pid, "alice", "go")
+    s.history.set_proposal_status(pid, "rejected", who="bob", why="at the site")
+    cycle = s.link.cycle(apply_now=True)
+    assert cycle.error is None
+    assert cycle.filed == []
+    with connect(central_url) as con:
+        (row,) = central_requests(con, "line-a")
+    assert row["id"] == request["id"]
+    assert row["status"] == "refused"
+    assert row["outcome"] == f"proposal {pid} is now rejected (was pending)"
+    assert s.history.proposal(pid)["status"] == "rejected"
+    assert [r for r in s.history.requests() if r["origin"].startswith("central")] == []
+
+
+def test_expired_request_is_never_applied(site: Any, central_url: str) -> None:
+    """A request its site fetched only after its expiry: marked expired, nothing done."""
+    s, pid = site
+    with connect(central_url) as con:
+        file_central_request(con, "line-a", "reject", pid, "alice", "late", expires_s=0.05)
+    time.sleep(0.2)
+    cycle = s.link.cycle(apply_now=True)
+    assert cycle.error is None
+    assert cycle.filed == []
+    with connect(central_url) as con:
+        (row,) = central_requests(con, "line-a")
+    assert row["status"] == "expired"
+    assert s.history.proposal(pid)["status"] == "pending"
+    assert s.history.requests() == []
+
+
+def test_central_commands(
+    fleet_loops: Any, tmp_path: Path, pg_cluster: Any, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The commands: migrate, sync, status; one line and exit 2 when the store is unusable.
+
+    sync backfills, then applies a central reject at once (no service runs); an unreachable
+    server and a newer schema give one line on stderr, no password, exit code 2.
+    """
+    url = pg_cluster.create_database("central_cli")
+    assert main(["central", "migrate", "--url", url]) == 0
+    assert f"to {SCHEMA_VERSION}" in capsys.readouterr().out
+    loop = copy_loop(fleet_loops["line-b"], tmp_path)
+    pid = with_proposal(loop)
+    assert main(["central", "sync", "--store", str(loop.path), "--url", url, "--json"]) == 0
+    sent = json.loads(capsys.readouterr().out)
+    assert sent["backlog_rows"] == 0
+    assert sent["sent_rows"] == sent["backfilled"]
+    with connect(url) as con:
+        file_central_request(con, "line-b", "reject", pid, "carol", "not now")
+    assert main(["central", "sync", "--store", str(loop.path), "--url", url, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["requests_reported"] == 1
+    with SQLiteStore(loop.path) as store, OnlineHistory(store) as history:
+        assert history.proposal(pid)["status"] == "rejected"
+    assert main(["central", "status", "--url", url, "--json"]) == 0
+    (row,) = json.loads(capsys.readouterr().out)["loops"]
+    assert (row["loop_id"], row["backlog_rows"], row["waiting_requests"]) == ("line-b", 0, 0)
+    assert main(["online", "status", "--store", str(loop.path), "--json"]) == 0
+    central = json.loads(capsys.readouterr().out)["central"]
+    assert (central["outbox"], central["backlog_rows"]) == ("on", 0)
+    assert central["last_ok"] is not None
+    assert central["failing_since"] is None
+
+    down = f"postgresql://fuelid:secret@127.0.0.1:{pg_cluster.port + 1}/x?connect_timeout=2"
+    assert main(["central", "status", "--url", down]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "secret" not in err
+    assert "central store postgresql://fuelid:***@" in err
+    with connect(url) as con:
+        con.execute("INSERT INTO central_schema(version, summary) VALUES (99, 'future')")
+    assert main(["central", "migrate", "--url", url]) == 2
+    assert f"version 99 is newer than this fuelid's ({SCHEMA_VERSION})" in capsys.readouterr().err
