@@ -10,6 +10,7 @@ is never applied.
 from __future__ import annotations
 
 import json
+import os
 import time
 from pathlib import Path
 from typing import Any
@@ -172,3 +173,65 @@ def test_central_commands(
         con.execute("INSERT INTO central_schema(version, summary) VALUES (99, 'future')")
     assert main(["central", "migrate", "--url", url]) == 2
     assert f"version 99 is newer than this fuelid's ({SCHEMA_VERSION})" in capsys.readouterr().err
+
+
+def test_a_running_service_syncs_and_carries_out_a_central_approve(
+    tmp_path: Path, central_url: str
+) -> None:
+    """The service with [central]: its rows and liveness arrive; a central approve is written.
+
+    About 6 s of wall time (the virtual PLC at 20×): the link's cycle files the request, the
+    beat approves, the write-back writes the gains with the echo check, the next cycles report
+    the outcome and send the proposal's new status.
+    """
+    import asyncio
+
+    pytest.importorskip("pymodbus")
+    from fuelid.online.service import OnlineService
+    from fuelid.plc.virtual.runner import VirtualPlcThread
+    from support.online import online_site, open_history
+
+    store = tmp_path / "s.db"
+    online = (
+        'identify_every_s = 3600\nwindow_s = 3600\nwrite_back = "approve"\n'
+        f'[central]\nurl = "{central_url}"\nsend_every_s = 0.3\n'
+    )
+    with VirtualPlcThread(speed=20.0, setpoint_profile="run") as virtual:
+        site = online_site(virtual, store, online)
+        assert site.central is not None
+        kc0, ti0 = virtual.plc.gains
+        opened, history = open_history(site, store)
+        try:
+            pid = history.add_proposal(
+                model_id=None, old={"Kc": kc0, "Ti": ti0},
+                new={"Kc": round(1.1 * kc0, 6), "Ti": ti0}, detail={"reason": "test"},
+            )  # fmt: skip
+            loop_id = opened.loop_id
+            link = CentralLink(store, site.central, history)
+            assert link.cycle().error is None
+            link.close()
+        finally:
+            history.close()
+            opened.close()
+        with connect(central_url) as con:
+            file_central_request(con, loop_id, "approve", pid, "dana", "go")
+        service = OnlineService(site, heartbeat_s=0.05, isolate=False)
+        try:
+            asyncio.run(service.run(5.0))
+        finally:
+            service.close()
+    with connect(central_url) as con:
+        (request,) = central_requests(con)
+        status = con.execute("SELECT status FROM proposals WHERE id = %s", (pid,)).fetchone()
+        service_record = con.execute("SELECT service FROM liveness").fetchone()[0]
+        writes = con.execute("SELECT id, kind, proposal_id, status FROM writes").fetchall()
+    with SQLiteStore(store) as opened, OnlineHistory(opened) as history:
+        local_writes = [
+            (w["id"], w["kind"], w["proposal_id"], w["status"]) for w in history.writes()
+        ]
+    assert request["status"] == "done"
+    assert request["outcome"] == f"proposal {pid} approved by dana"
+    assert status == ("applied",)
+    assert service_record["pid"] == os.getpid()
+    assert writes == local_writes
+    assert (pid, "verified") in [(w[2], w[3]) for w in writes]
