@@ -293,3 +293,34 @@ def test_retention_drops_only_old_months(central_url: str) -> None:
         ).fetchall()
     assert left == [oct_15 + 40 * 86400.0, jan_20]
     assert [p[0] for p in parts] == ["windows_p202511", "windows_p202512", "windows_p202601"]
+
+
+def test_a_site_role_with_the_documented_grants_can_sync(
+    fleet_loops: Any, tmp_path: Path, central_url: str, pg_cluster: Any
+) -> None:
+    """The GRANTs of docs/reference/central.md are enough for a sender (partitions included)."""
+    import re
+
+    page = (Path(__file__).resolve().parents[2] / "docs/reference/central.md").read_text()
+    section = page.split("### One database role per site", 1)[1]
+    grants = re.search(r"```sql\n(.*?)```", section, re.DOTALL)
+    assert grants is not None
+    dbname = central_url.rsplit("/", 1)[1].split("?")[0]
+    sql = grants.group(1).replace("DATABASE fuelid", f'DATABASE "{dbname}"')
+    with connect(central_url, autocommit=True) as con:
+        con.execute("DROP ROLE IF EXISTS site_line_a")
+        for statement in re.sub(r"--[^\n]*", "", sql).split(";"):
+            if statement.strip():
+                con.execute(statement.encode())
+    loop = copy_loop(fleet_loops["line-a"], tmp_path)
+    url = central_url.replace("://fuelid@", "://site_line_a@")
+    try:
+        with Sender(loop.path, url, batch_rows=200) as sender:
+            result = sender.sync()
+        assert result.error is None
+        assert_same(central_url, loop.path)
+    finally:
+        with connect(central_url, autocommit=True) as con:
+            con.execute("REASSIGN OWNED BY site_line_a TO fuelid")
+            con.execute("DROP OWNED BY site_line_a")
+            con.execute("DROP ROLE site_line_a")
