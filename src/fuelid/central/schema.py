@@ -298,10 +298,18 @@ BEGIN
         part := parent || '_p' || to_char(m, 'YYYYMM');
         IF to_regclass(part) IS NULL THEN
             PERFORM pg_advisory_xact_lock(hashtext('fuelid partition ' || part));
-            IF to_regclass(part) IS NULL THEN
-                EXECUTE format('CREATE TABLE %I PARTITION OF %I FOR VALUES FROM (%s) TO (%s)',
-                               part, parent, extract(epoch FROM m),
-                               extract(epoch FROM m + interval '1 month'));
+            -- read pg_class itself: an advisory lock does not refresh this session's catalog
+            -- cache, so to_regclass may still miss a partition another sender just committed
+            IF NOT EXISTS (SELECT 1 FROM pg_class WHERE relname = part
+                           AND relnamespace = current_schema()::regnamespace) THEN
+                BEGIN
+                    EXECUTE format(
+                        'CREATE TABLE %I PARTITION OF %I FOR VALUES FROM (%s) TO (%s)',
+                        part, parent, extract(epoch FROM m),
+                        extract(epoch FROM m + interval '1 month'));
+                EXCEPTION WHEN duplicate_table OR unique_violation THEN
+                    NULL;  -- created meanwhile by another sender: what was wanted
+                END;
             END IF;
         END IF;
         m := m + interval '1 month';

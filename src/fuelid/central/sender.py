@@ -183,6 +183,7 @@ class Sender:
         self.pg: psycopg.Connection | None = None
         self.known_months: set[tuple[str, float]] = set()
         self._last_retention = 0.0
+        self._enabled = False
 
     def connection(self) -> psycopg.Connection:
         """The central connection, opened (and its schema checked) when there is none."""
@@ -198,8 +199,15 @@ class Sender:
         return self.pg
 
     def enable(self) -> int:
-        """Switch the store's outbox on; rows queued by the one-time backfill."""
-        return enable_outbox(self.lite)
+        """Switch the store's outbox on; rows queued by the one-time backfill.
+
+        Once per sender: the switch is a write transaction, not worth taking every cycle.
+        """
+        if self._enabled:
+            return 0
+        queued = enable_outbox(self.lite)
+        self._enabled = True
+        return queued
 
     def send_once(self) -> tuple[int, int]:
         """One batch (:func:`send_once`); raises on any failure."""
