@@ -235,3 +235,84 @@ def test_a_running_service_syncs_and_carries_out_a_central_approve(
     assert service_record["pid"] == os.getpid()
     assert writes == local_writes
     assert (pid, "verified") in [(w[2], w[3]) for w in writes]
+
+
+def test_a_failure_is_one_event_when_it_starts_and_one_when_it_ends(
+    tmp_path: Path, central_url: str, pg_cluster: Any, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A dead server: central_error once however many cycles fail, central_ok on recovery.
+
+    ``online status`` says what is failing and since when, then that all was sent.
+    """
+    from fuelid.store.base import Event
+
+    path = tmp_path / "loop.db"
+    with SQLiteStore(path, site_name="tiny", tag_map_hash="t1") as store:
+        store.append_events([Event(1.7e9, "restart", "tiny store")])
+    dead = f"postgresql://fuelid@127.0.0.1:{pg_cluster.port + 1}/x?connect_timeout=2"
+    events: list[tuple[str, str]] = []
+    with SQLiteStore(path) as store, OnlineHistory(store) as history:
+        link = CentralLink(
+            path, Central(url=dead), history, event=lambda k, d: events.append((k, d))
+        )
+        try:
+            assert link.cycle().error is not None
+            assert link.cycle().error is not None
+            assert [k for k, _ in events] == ["central_error"]
+            assert "Connection refused" in events[0][1]
+            assert main(["online", "status", "--store", str(path)]) == 0
+            line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("central"))
+            assert "backlog 1 rows" in line
+            assert "last send never" in line
+            assert "failing since" in line
+            link.sender.url = central_url
+            assert link.cycle().error is None
+            assert [k for k, _ in events] == ["central_error", "central_ok"]
+        finally:
+            link.close()
+    assert main(["online", "status", "--store", str(path)]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("central"))
+    assert line.startswith("central    backlog 0 rows, last send ")
+    assert "failing" not in line
+
+
+def test_concurrent_senders_of_a_new_month_create_its_partitions_once(
+    fleet_loops: Any, tmp_path: Path, central_url: str
+) -> None:
+    """Six stores sending windows of the same new month at once: no sender fails."""
+    import sqlite3
+    import threading
+    import uuid
+
+    paths = []
+    for i in range(6):
+        loop = copy_loop(fleet_loops["line-b"], tmp_path / f"s{i}")
+        con = sqlite3.connect(loop.path)
+        con.execute("UPDATE meta SET value = ? WHERE key = 'store_uuid'", (uuid.uuid4().hex,))
+        con.execute("UPDATE meta SET value = ? WHERE key = 'loop_id'", (f"loop-{i}",))
+        con.commit()
+        con.close()
+        paths.append(loop.path)
+    from fuelid.central.sender import Sender
+
+    senders = [Sender(p, central_url, batch_rows=50) for p in paths]
+    for sender in senders:
+        sender.connection()
+    start = threading.Barrier(len(senders))
+    errors: list[str | None] = [None] * len(senders)
+
+    def send(k: int) -> None:
+        start.wait()
+        errors[k] = senders[k].sync().error
+
+    threads = [threading.Thread(target=send, args=(k,)) for k in range(len(senders))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(60.0)
+    for sender in senders:
+        sender.close()
+    assert errors == [None] * len(senders)
+    with connect(central_url) as con:
+        loops = con.execute("SELECT count(DISTINCT loop_id) FROM windows").fetchone()
+    assert loops == (len(senders),)

@@ -13,10 +13,11 @@ shares the event loop and never waits on the network):
    is still as its requester saw it; the service's beat applies them like the CLI's and the
    dashboard's; their outcomes are reported back at the next cycle.
 
-A failure (the network, the database, a refused identity) is logged once when it starts
-(``event kind=central_error``) and once when it ends (``event kind=central_ok``), kept in the
-store's sync state for ``fuelid online status``, and never stops the task: the next cycle
-retries. Without a service, ``fuelid central sync`` runs one cycle with ``apply_now``.
+A failure (the network, the database, a refused identity) is recorded as an event of the store
+once when it starts (``central_error``, with the reason) and once when it ends (``central_ok``),
+so the central store learns of its own outages when they end; it is kept in the store's sync
+state for ``fuelid online status``, and never stops the task: the next cycle retries. Without
+a service, ``fuelid central sync`` runs one cycle with ``apply_now``.
 """
 
 from __future__ import annotations
@@ -104,6 +105,9 @@ class CentralLink:
         The store's online history (the service's own: thread-safe).
     say : callable, optional
         ``say(word, **fields)``: the service's structured log (:meth:`ServiceContext.say`).
+    event : callable, optional
+        ``event(kind, detail)``: records an event in the store and logs it
+        (:meth:`ServiceContext.event`); the start and the end of a failure go there.
     write_back_setting : str, optional
         Used only with ``apply_now`` (a revert is refused when "off").
     """
@@ -115,10 +119,12 @@ class CentralLink:
         history: OnlineHistory,
         say: Callable[..., None] | None = None,
         write_back_setting: str | None = None,
+        event: Callable[[str, str], None] | None = None,
     ) -> None:
         self.central = central
         self.history = history
         self.say = say
+        self.event = event
         self.write_back_setting = write_back_setting
         self.sender = Sender(
             store_path,
@@ -203,13 +209,19 @@ class CentralLink:
                 result.reported.append({**request, "status": status, "outcome": local["outcome"]})
 
     def _log(self, result: CycleResult) -> None:
+        """An event when a failure starts (or its reason changes) and when it ends."""
+        change: tuple[str, str] | None = None
+        if result.error is not None and result.error != self._failing:
+            change = ("central_error", result.error)
+        elif result.error is None and self._failing is not None:
+            change = ("central_ok", f"sent again: {result.sync.sent_rows} rows")
+        self._failing = result.error
+        if change is not None and self.event is not None:
+            self.event(*change)
+        elif change is not None and self.say is not None:
+            self.say("event", kind=change[0], detail=change[1])
         if self.say is None:
             return
-        if result.error is not None and result.error != self._failing:
-            self.say("event", kind="central_error", detail=result.error)
-        elif result.error is None and self._failing is not None:
-            self.say("event", kind="central_ok", detail=f"sent {result.sync.sent_rows} rows")
-        self._failing = result.error
         for row in result.reported:
             self.say(
                 "request",

@@ -384,7 +384,10 @@ class OnlineService:
         if self.site.central is not None:  # the central store (issue 26): a sync every few s
             from fuelid.online.central_link import CentralLink
 
-            link = CentralLink(self.store.path, self.site.central, self.history, self.context.say)
+            link = CentralLink(
+                self.store.path, self.site.central, self.history, self.context.say,
+                event=self.context.event,
+            )  # fmt: skip
             tasks.create_task(self._supervised("central", link.run(self._stopping)), name="central")
 
     async def _beat(self) -> None:
