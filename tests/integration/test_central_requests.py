@@ -28,8 +28,6 @@ from fuelid.store import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
 from support.fleet import SimulatedLoop, copy_loop
 
-pytest.importorskip("psycopg")
-
 
 def with_proposal(loop: SimulatedLoop) -> int:
     """A pending proposal on the loop's newest accepted model; its id."""
