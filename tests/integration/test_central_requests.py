@@ -139,7 +139,9 @@ def test_central_commands(
     """
     url = pg_cluster.create_database("central_cli")
     assert main(["central", "migrate", "--url", url]) == 0
-    assert f"to {SCHEMA_VERSION}" in capsys.readouterr().out
+    assert f"from version 0 to {SCHEMA_VERSION}" in capsys.readouterr().out
+    assert main(["central", "migrate", "--url", url]) == 0
+    assert "nothing to do" in capsys.readouterr().out
     loop = copy_loop(fleet_loops["line-b"], tmp_path)
     pid = with_proposal(loop)
     assert main(["central", "sync", "--store", str(loop.path), "--url", url, "--json"]) == 0
@@ -155,6 +157,11 @@ def test_central_commands(
     assert main(["central", "status", "--url", url, "--json"]) == 0
     (row,) = json.loads(capsys.readouterr().out)["loops"]
     assert (row["loop_id"], row["backlog_rows"], row["waiting_requests"]) == ("line-b", 0, 0)
+    assert main(["central", "status", "--url", url]) == 0
+    header, line = capsys.readouterr().out.splitlines()
+    assert header.split()[:2] == ["loop", "last"]
+    assert line.split()[0] == "line-b"
+    assert line.endswith("fuel line line-b")
     assert main(["online", "status", "--store", str(loop.path), "--json"]) == 0
     central = json.loads(capsys.readouterr().out)["central"]
     assert (central["outbox"], central["backlog_rows"]) == ("on", 0)
