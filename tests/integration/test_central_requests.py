@@ -253,7 +253,8 @@ def test_a_failure_is_one_event_when_it_starts_and_one_when_it_ends(
 
     path = tmp_path / "loop.db"
     with SQLiteStore(path, site_name="tiny", tag_map_hash="t1") as store:
-        store.append_events([Event(1.7e9, "restart", "tiny store")])
+        # a NUL from a PLC string: PostgreSQL refuses it, the outbox must not stick on it
+        store.append_events([Event(1.7e9, "restart", "tiny\x00store")])
     dead = f"postgresql://fuelid@127.0.0.1:{pg_cluster.port + 1}/x?connect_timeout=2"
     events: list[tuple[str, str]] = []
     with SQLiteStore(path) as store, OnlineHistory(store) as history:
@@ -275,6 +276,9 @@ def test_a_failure_is_one_event_when_it_starts_and_one_when_it_ends(
             assert [k for k, _ in events] == ["central_error", "central_ok"]
         finally:
             link.close()
+    with connect(central_url) as con:
+        details = [r[0] for r in con.execute("SELECT detail FROM events").fetchall()]
+    assert details == ["tiny\ufffdstore"]
     assert main(["online", "status", "--store", str(path)]) == 0
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("central"))
     assert line.startswith("central    backlog 0 rows, last send ")

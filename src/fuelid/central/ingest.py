@@ -118,6 +118,25 @@ def _kpi_sql() -> str:
     return _upsert_sql("kpis", "store_uuid, id, time", columns, select)
 
 
+def _storable(row: tuple[Any, ...]) -> tuple[Any, ...]:
+    r"""The row with NUL characters (and JSON's ``\u0000``) replaced by U+FFFD.
+
+    PostgreSQL refuses NUL in text and ``\u0000`` in jsonb; a PLC string carrying one must not
+    block the outbox (a batch that can never commit would be resent for ever).
+
+    Examples
+    --------
+    >>> _storable((1, "a\x00b", '{"s": "\\u0000"}', None))
+    (1, 'a�b', '{"s": "\\ufffd"}', None)
+    """
+    if not any(isinstance(v, str) and ("\x00" in v or "\\u0000" in v) for v in row):
+        return row
+    return tuple(
+        v.replace("\x00", "\ufffd").replace("\\u0000", "\\ufffd") if isinstance(v, str) else v
+        for v in row
+    )
+
+
 def months_of(rows: Sequence[tuple[Any, ...]]) -> set[float]:
     """The months (their first second [s UTC]) of the rows' plant ``time`` (column 1)."""
     return {month_start(float(r[1])) for r in rows}
@@ -149,7 +168,7 @@ def ingest_batch(pg: psycopg.Connection, ident: Identity, batch: Batch) -> int:
                     f"COPY {_stage_name(table)} ({', '.join(table.names)}) FROM STDIN"
                 ) as copy:
                     for row in rows:
-                        copy.write_row(row)
+                        copy.write_row(_storable(row))
                 if table.central in PARTITIONED:
                     # a row's time never changes at a site; if it did, its old copy would stay
                     # in another partition under the same (store_uuid, id)

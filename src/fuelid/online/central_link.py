@@ -239,7 +239,8 @@ class CentralLink:
                 await asyncio.to_thread(self.cycle)
                 with contextlib.suppress(asyncio.TimeoutError):
                     await asyncio.wait_for(stopping.wait(), float(self.central.send_every_s))
-            await asyncio.to_thread(self.cycle)  # what the stop wrote, while the network is up
+            if self._failing is None:  # what the stop wrote; not when the last cycle failed
+                await asyncio.to_thread(self.cycle)  # (no wait for a connect timeout at stop)
         finally:
             await asyncio.to_thread(self.sender.close)
 
