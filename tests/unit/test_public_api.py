@@ -108,6 +108,7 @@ PROMISED: dict[str, tuple[str, ...]] = {
     ),
     "fuelid.online": ("loop_health", "LoopHealth", "KTracker", "prefit_gates", "postfit_gates"),
     "fuelid.store": ("SampleStore", "SQLiteStore", "OnlineHistory", "open_store"),
+    "fuelid.central": ("Sender", "CentralError", "migrate", "file_central_request"),
     "fuelid.dashboard": ("LoopReader", "SQLiteLoop", "Loops", "create_app", "serve"),
     "fuelid.plc.site": ("load_site", "SiteConfig"),
     "fuelid.plc.adapters": ("PlcSource", "open_source"),
@@ -117,6 +118,7 @@ PROMISED: dict[str, tuple[str, ...]] = {
 PACKAGES = (
     "fuelid",
     "fuelid.calibration",
+    "fuelid.central",
     "fuelid.dashboard",
     "fuelid.data",
     "fuelid.greybox",

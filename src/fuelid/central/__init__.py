@@ -1,1 +1,42 @@
-"""The central PostgreSQL store every loop's service sends to (issue 26)."""
+"""The central PostgreSQL store every loop's service sends to (issue 26).
+
+One database shared by all loops holds their windows, KPIs, models, proposals, writes, events,
+requests and liveness, keyed by each site store's UUID and row id; the site's SQLite store stays
+the durable buffer. :mod:`~fuelid.central.schema` is the schema and its versioned migrations
+(monthly partitions, retention); :mod:`~fuelid.central.connect` the connection from a libpq
+URL; :mod:`~fuelid.central.outbox` the site's change log; :mod:`~fuelid.central.sender` the sync
+engine (:class:`Sender`: COPY into staging, upsert, exactly once);
+:mod:`~fuelid.central.requests` the actions taken centrally, which each site fetches and carries
+out itself; :mod:`~fuelid.central.status` the fleet's rows. The service's side is
+:mod:`fuelid.online.central_link`; the reference: docs/reference/central.md.
+
+psycopg (the ``fleet`` extra) is imported only when a connection is made.
+
+The public API
+--------------
+The names in ``__all__``, at ``fuelid.central`` itself.
+"""
+
+from __future__ import annotations
+
+from fuelid.central.connect import CentralError, connect
+from fuelid.central.outbox import enable_outbox, sync_status
+from fuelid.central.requests import file_central_request
+from fuelid.central.schema import SCHEMA_VERSION, check_schema, drop_old_partitions, migrate
+from fuelid.central.sender import Sender, SyncResult
+from fuelid.central.status import fleet_status
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "CentralError",
+    "Sender",
+    "SyncResult",
+    "check_schema",
+    "connect",
+    "drop_old_partitions",
+    "enable_outbox",
+    "file_central_request",
+    "fleet_status",
+    "migrate",
+    "sync_status",
+]

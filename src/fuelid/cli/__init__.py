@@ -11,7 +11,7 @@ import sys
 import typer
 
 from fuelid import __version__
-from fuelid.cli import dashboard, online, plant, site
+from fuelid.cli import central, dashboard, online, plant, site
 from fuelid.cli.archive import archive_command
 from fuelid.cli.calibrate import calibrate_command
 from fuelid.cli.greybox import greybox_command
@@ -44,6 +44,7 @@ app.command("archive")(archive_command)
 app.add_typer(store_app, name="store")
 app.add_typer(online.app, name="online")
 app.add_typer(dashboard.app, name="dashboard")
+app.add_typer(central.app, name="central")
 
 
 def _version(value: bool) -> None:

@@ -350,7 +350,8 @@ def status_json(
         ``loop_health``, ``counts``, ``write_back`` (``setting`` and ``setting_from``: "site
         file", "service" or None; ``current_gains`` and ``last_known_good`` in the ideal form
         [V per L/min, s], ``current_gains_block`` in the block's units), ``last_write``,
-        ``gains_units``, ``units`` (see the module docstring).
+        ``gains_units``, ``units`` (see the module docstring), ``central`` (the sync to the
+        central store: :func:`central_json`).
     """
     last = history.last_window()
     last_window = None
@@ -404,10 +405,32 @@ def status_json(
             "revert_requested": history.state("revert_requested"),
         },
         "last_write": write_json(writes[0]) if writes else None,
+        "central": central_json(store, now),
         "gains_units": merged.get("gains_units"),
         "units": ONLINE_UNITS,
     }
     return json_ready(out)  # type: ignore[no-any-return]
+
+
+def central_json(store: SQLiteStore, now: float | None = None) -> dict[str, Any] | None:
+    """The sync to the central store (:func:`fuelid.central.outbox.sync_status`).
+
+    None when the store cannot say (an older schema, a locked file).
+    """
+    import sqlite3
+
+    from fuelid.central.outbox import open_store_file, sync_status
+
+    try:
+        con = open_store_file(store.path)
+    except FuelidError:
+        return None
+    try:
+        return sync_status(con, now)
+    except sqlite3.Error:
+        return None
+    finally:
+        con.close()
 
 
 def _service(history: OnlineHistory) -> tuple[dict[str, Any] | None, dict[str, Any]]:
@@ -510,6 +533,7 @@ def _site(store: SQLiteStore) -> dict[str, Any]:
 __all__ = [
     "LINK_FRESH_S",
     "ONLINE_UNITS",
+    "central_json",
     "health_line",
     "history_json",
     "k_trend_json",

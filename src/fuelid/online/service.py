@@ -12,6 +12,8 @@ writes with an echo check. This module wires the parts and runs them in one asyn
   (:class:`~fuelid.online.writeback.WriteBack`) through the PLC handshake on a connection of its
   own (:class:`~fuelid.plc.gain_handshake.GainWriter`);
 - the store's retention, hourly;
+- with ``[central]``: the sync to the central store every ``send_every_s`` (the outbox, the
+  liveness, the central requests: :mod:`fuelid.online.central_link`), in a thread;
 - the beat: the ``service`` record of ``online_state`` (:func:`~fuelid.online.liveness.
   service_record`: pid, host, version, settings) has its ``beat`` refreshed every
   :data:`~fuelid.online.liveness.SERVICE_BEAT_S` of wall time, and the waiting requests of the
@@ -391,6 +393,14 @@ class OnlineService:
         schedule = self.scheduler.run(self._stopping, self.stop)
         tasks.create_task(self._supervised("schedule", schedule), name="schedule")
         tasks.create_task(self._supervised("retention", self._housekeeping()), name="retention")
+        if self.site.central is not None:  # the central store (issue 26): a sync every few s
+            from fuelid.online.central_link import CentralLink
+
+            link = CentralLink(
+                self.store.path, self.site.central, self.history, self.context.say,
+                event=self.context.event,
+            )  # fmt: skip
+            tasks.create_task(self._supervised("central", link.run(self._stopping)), name="central")
 
     async def _beat(self) -> None:
         """Refresh the record's beat and apply the waiting requests, every SERVICE_BEAT_S.

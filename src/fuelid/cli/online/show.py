@@ -176,7 +176,27 @@ def status_lines(status: dict[str, Any]) -> list[str]:
             f"{c.get('proposals', 0)} proposals, {c.get('writes', 0)} writes",
         ),
     ]
+    central = status.get("central")
+    if central and (central.get("outbox") == "on" or central.get("last_ok")):
+        rows.append(("central", _central_text(central, tz)))
     return [f"{name:<10} {text}" for name, text in rows]
+
+
+def _central_text(central: dict[str, Any], tz: str) -> str:
+    """``backlog 12 rows (oldest 4 s ago), last send …, last error …``."""
+    from fuelid.io.clock import format_age
+
+    age = central.get("backlog_age_s")
+    text = f"backlog {central.get('backlog_rows', 0)} rows" + (
+        "" if age is None else f" (oldest {format_age(age)} ago)"
+    )
+    last_ok = central.get("last_ok")
+    text += ", last send " + ("never" if last_ok is None else _stamp(last_ok, tz))
+    if central.get("failing_since") is not None:
+        text += (
+            f", failing since {_stamp(central['failing_since'], tz)}: {central.get('last_error')}"
+        )
+    return text
 
 
 def _link_text(link: dict[str, Any], tz: str) -> str:
@@ -209,7 +229,8 @@ def status_command(
     Read from the store; a running service need not be stopped. The link line says whether the
     service runs (its beat, on the wall clock) and the link is up; times in the site's time zone.
     --json prints one object (keys site, link, service, timezone, last_window, current_model,
-    k_trend, pending_proposals, requests, loop_health, counts, write_back, last_write, units).
+    k_trend, pending_proposals, requests, loop_health, counts, write_back, last_write, central,
+    units).
     """
     from fuelid.online.report import status_json
 

@@ -1,0 +1,310 @@
+"""The sync engine: a store's outbox to the central store, batch by batch, exactly once.
+
+:class:`Sender` is synchronous and meant for a thread (the service runs it with
+``asyncio.to_thread``; ``fuelid central sync`` calls it directly). One :meth:`Sender.sync`:
+
+1. the outbox is on (:func:`~fuelid.central.outbox.enable_outbox`: the first time, every row
+   already in the store is queued: the backfill, once);
+2. batches in outbox order (:meth:`Sender.send_once`): read at most ``batch_rows`` entries and
+   their rows' current values (one per row however often it changed), create the monthly
+   partitions the windows need (a short transaction of its own), then in one transaction COPY
+   into staging and upsert (:func:`~fuelid.central.ingest.ingest_batch`), commit, and only then
+   delete the sent entries locally;
+3. the store's liveness row (its service record, the backlog after the send);
+4. hourly, with ``retention_months``, the partitions older than that are dropped.
+
+**Exactly once.** An entry leaves the outbox only after the central transaction holding its row
+committed; the central upsert keyed by ``(store_uuid, id)`` makes a resend of a committed batch
+(a crash, a lost connection between the commit and the local delete) change nothing. Every
+change of a row after it was read adds a newer entry, so the last value sent is the last value
+written. During an outage the entries wait in the SQLite store (the recorder never waits on the
+network); the next sync resumes at the oldest.
+
+**Errors** (network, database, refused identity) are never raised into the caller by
+:meth:`Sender.sync`: they are returned in :class:`SyncResult` and kept in the store's sync
+state (``online_state`` ``central``: ``last_error``, ``last_error_wall``, ``failing_since``,
+``last_ok``), the connection is dropped and the next call reconnects.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sqlite3
+import time as _time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from fuelid.central.connect import CentralError, connect, one_line
+from fuelid.central.ingest import ingest_batch, months_of, upsert_liveness
+from fuelid.central.outbox import (
+    Batch,
+    Identity,
+    backlog,
+    delete_sent,
+    enable_outbox,
+    identity,
+    open_store_file,
+    read_batch,
+    write_state,
+)
+from fuelid.central.schema import (
+    PARTITIONED,
+    SITE_TABLES,
+    check_schema,
+    drop_old_partitions,
+    ensure_partitions,
+)
+from fuelid.errors import FuelidError
+
+if TYPE_CHECKING:
+    import psycopg
+
+__all__ = ["RETENTION_EVERY_S", "Sender", "SyncResult", "send_once"]
+
+RETENTION_EVERY_S = 3600.0
+"""Wall time between two retention passes of a sender [s]."""
+
+_COLUMNS = {name: [c for c, _ in t.columns] for name, t in SITE_TABLES.items()}
+
+
+@dataclass
+class SyncResult:
+    """What one :meth:`Sender.sync` did.
+
+    Attributes
+    ----------
+    sent_rows : int
+        Rows sent (one per changed row, however often it changed).
+    batches : int
+        Batches committed centrally.
+    backfilled : int
+        Rows queued by the one-time backfill in this call (0 after the first).
+    backlog_rows : int
+        Outbox entries still waiting after the call.
+    backlog_oldest_wall : float or None
+        The oldest waiting entry's wall time [s UTC].
+    error : str or None
+        Why the call stopped early (one line), None when the outbox was sent.
+    """
+
+    sent_rows: int = 0
+    batches: int = 0
+    backfilled: int = 0
+    backlog_rows: int = 0
+    backlog_oldest_wall: float | None = None
+    error: str | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        """The fields as a dictionary."""
+        return asdict(self)
+
+
+def send_once(
+    lite: sqlite3.Connection,
+    pg: psycopg.Connection,
+    ident: Identity,
+    batch_rows: int,
+    known_months: set[tuple[str, float]] | None = None,
+) -> tuple[int, int]:
+    """Send the oldest batch of the outbox; ``(entries consumed, rows sent)``, (0, 0) when empty.
+
+    Raises whatever fails (psycopg, sqlite3, :class:`CentralError`): nothing was deleted
+    locally unless the central transaction committed.
+
+    Parameters
+    ----------
+    lite : sqlite3.Connection
+        :func:`~fuelid.central.outbox.open_store_file`.
+    pg : psycopg.Connection
+        The central store (schema checked).
+    ident : Identity
+        The store's identity.
+    batch_rows : int
+        Outbox entries per batch at most.
+    known_months : set, optional
+        ``(table, month)`` partitions known to exist (filled here; saves a round trip).
+    """
+    batch: Batch = read_batch(lite, batch_rows, _COLUMNS)
+    if not batch.ids:
+        return 0, 0
+    windows = batch.rows.get("windows") or []
+    if windows:
+        known = known_months if known_months is not None else set()
+        months = sorted(months_of(windows))
+        if any((t, m) not in known for t in PARTITIONED for m in months):
+            with pg.transaction():  # DDL in a transaction of its own: short parent locks
+                for table in PARTITIONED:
+                    ensure_partitions(pg, table, months[0], months[-1])
+            known.update((t, m) for t in PARTITIONED for m in months)
+    sent = ingest_batch(pg, ident, batch)
+    delete_sent(lite, batch.ids)
+    return len(batch.ids), sent
+
+
+class Sender:
+    """One store's sync to one central store (see the module docstring).
+
+    Parameters
+    ----------
+    store_path : str or Path
+        The site's SQLite store (schema 4 or newer).
+    url : str
+        The central store's libpq URL (``[central] url``).
+    batch_rows : int
+        Outbox entries per batch (``[central] batch_rows``).
+    retention_months : int, optional
+        Drop central partitions older than this (``[central] retention_months``).
+    application_name : str, optional
+        For ``pg_stat_activity``; ``fuelid sync <loop_id>`` by default.
+
+    Raises
+    ------
+    StoreError
+        The store cannot be opened or has no outbox.
+    """
+
+    def __init__(
+        self,
+        store_path: str | Path,
+        url: str,
+        *,
+        batch_rows: int = 5000,
+        retention_months: int | None = None,
+        application_name: str | None = None,
+    ) -> None:
+        self.url = url
+        self.batch_rows = int(batch_rows)
+        self.retention_months = retention_months
+        self.lite = open_store_file(store_path)
+        self.ident = identity(self.lite)
+        self.application_name = application_name or f"fuelid sync {self.ident.loop_id}"
+        self.pg: psycopg.Connection | None = None
+        self.known_months: set[tuple[str, float]] = set()
+        self._last_retention = 0.0
+        self._enabled = False
+
+    def connection(self) -> psycopg.Connection:
+        """The central connection, opened (and its schema checked) when there is none."""
+        if self.pg is None or self.pg.closed:
+            pg = connect(self.url, application_name=self.application_name)
+            try:
+                check_schema(pg)
+            except BaseException:
+                pg.close()
+                raise
+            self.pg = pg
+            self.known_months.clear()
+        return self.pg
+
+    def enable(self) -> int:
+        """Switch the store's outbox on; rows queued by the one-time backfill.
+
+        Once per sender: the switch is a write transaction, not worth taking every cycle.
+        """
+        if self._enabled:
+            return 0
+        queued = enable_outbox(self.lite)
+        self._enabled = True
+        return queued
+
+    def send_once(self) -> tuple[int, int]:
+        """One batch (:func:`send_once`); raises on any failure."""
+        return send_once(
+            self.lite, self.connection(), self.ident, self.batch_rows, self.known_months
+        )
+
+    def sync(self, max_batches: int | None = None, now: float | None = None) -> SyncResult:
+        """Send the outbox (up to ``max_batches`` batches), the liveness, the retention.
+
+        Never raises for a network, database or store failure: see :class:`SyncResult`.
+        """
+        import psycopg
+
+        result = SyncResult()
+        try:
+            result.backfilled = self.enable()
+            while max_batches is None or result.batches < max_batches:
+                entries, rows = self.send_once()
+                if entries == 0:
+                    break
+                result.batches += 1
+                result.sent_rows += rows
+            result.backlog_rows, result.backlog_oldest_wall = backlog(self.lite)
+            wall = _time.time()
+            pg = self.connection()
+            upsert_liveness(
+                pg,
+                self.ident,
+                self._service_record(),
+                result.backlog_rows,
+                result.backlog_oldest_wall,
+                wall if result.batches else None,
+            )
+            when = wall if now is None else now
+            if self.retention_months and wall - self._last_retention >= RETENTION_EVERY_S:
+                drop_old_partitions(pg, self.retention_months, when)
+                self._last_retention = wall
+        except (psycopg.Error, sqlite3.Error, FuelidError, OSError) as error:
+            result.error = self.record_failure(error)
+        else:
+            self._record(last_ok=_time.time(), failing_since=None)
+        if result.error is not None:
+            with contextlib.suppress(sqlite3.Error):
+                result.backlog_rows, result.backlog_oldest_wall = backlog(self.lite)
+        return result
+
+    def _service_record(self) -> dict[str, Any] | None:
+        row = self.lite.execute("SELECT value FROM online_state WHERE key = 'service'").fetchone()
+        if row is None:
+            return None
+        try:
+            value = json.loads(row[0])
+        except ValueError:
+            return None
+        return value if isinstance(value, dict) else None
+
+    def record_failure(self, error: BaseException) -> str:
+        """Drop the connection, keep the reason (one line) in the sync state."""
+        reason = str(error) if isinstance(error, CentralError) else one_line(error)
+        if not isinstance(error, CentralError):
+            reason = f"{type(error).__name__}: {reason}"
+        if self.pg is not None:
+            with contextlib.suppress(Exception):  # a broken connection may fail to close
+                self.pg.close()
+            self.pg = None
+        now = _time.time()
+        try:
+            state = self._state()
+            self._record(
+                last_error=reason,
+                last_error_wall=now,
+                failing_since=state.get("failing_since") or now,
+            )
+        except sqlite3.Error:
+            pass
+        return reason
+
+    def _state(self) -> dict[str, Any]:
+        from fuelid.central.outbox import read_state
+
+        return read_state(self.lite)
+
+    def _record(self, **changes: Any) -> None:
+        with contextlib.suppress(sqlite3.Error):  # informative; the sync itself went on
+            write_state(self.lite, **changes)
+
+    def close(self) -> None:
+        """Close both connections."""
+        if self.pg is not None:
+            with contextlib.suppress(Exception):  # a connection the server already cut
+                self.pg.close()
+            self.pg = None
+        self.lite.close()
+
+    def __enter__(self) -> Sender:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
