@@ -138,18 +138,35 @@ def fleet_loops(tmp_path_factory: pytest.TempPathFactory) -> Any:
     windows every 5 min) with the accepted ones' models. Tests that change a store copy it
     first (:func:`support.fleet.copy_loop`).
     """
-    from support.fleet import analyse_loop, simulate_loop
+    import fcntl
+    import pickle
 
-    folder = tmp_path_factory.mktemp("fleet")
-    seconds = FLEET_HOURS * 3600.0
-    a = simulate_loop(
-        folder / "line-a.db", "line-a", hours=FLEET_HOURS, seed=1,
-        fuel_temp_profile=([0.0, seconds], [15.0, 25.0]),
-    )  # fmt: skip
-    b = simulate_loop(
-        folder / "line-b.db", "line-b", hours=FLEET_HOURS, seed=2, mode="MAN",
-        bad=lambda t: ((t - a.t_first) % 3600.0 < 30.0) & (t - a.t_first > 3600.0),
-    )  # fmt: skip
-    for loop in (a, b):
-        analyse_loop(loop)
-    return {"line-a": a, "line-b": b}
+    from support.fleet import analyse_loop, checkpoint, simulate_loop
+
+    # built once for the whole run: the xdist workers share the folder above their own base
+    # temp (a lock, then the pickled loops when another worker built them already); a run
+    # without workers builds in its own base temp
+    base = tmp_path_factory.getbasetemp()
+    shared = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "fleet-loops"
+    shared.mkdir(exist_ok=True)
+    with open(shared / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        built = shared / "loops.pickle"
+        if built.exists():
+            loops: dict[str, Any] = pickle.loads(built.read_bytes())
+            return loops
+        seconds = FLEET_HOURS * 3600.0
+        a = simulate_loop(
+            shared / "line-a.db", "line-a", hours=FLEET_HOURS, seed=1,
+            fuel_temp_profile=([0.0, seconds], [15.0, 25.0]),
+        )  # fmt: skip
+        b = simulate_loop(
+            shared / "line-b.db", "line-b", hours=FLEET_HOURS, seed=2, mode="MAN",
+            bad=lambda t: ((t - a.t_first) % 3600.0 < 30.0) & (t - a.t_first > 3600.0),
+        )  # fmt: skip
+        for loop in (a, b):
+            analyse_loop(loop)
+            checkpoint(loop.path)
+        loops = {"line-a": a, "line-b": b}
+        built.write_bytes(pickle.dumps(loops))
+        return loops

@@ -200,16 +200,21 @@ def analyse_loop(
     return recorded
 
 
-def copy_loop(loop: SimulatedLoop, folder: Path) -> SimulatedLoop:
-    """A copy of a simulated loop's store in ``folder`` (its WAL checkpointed first)."""
-    import shutil
+def checkpoint(path: Path) -> None:
+    """Move a store's write-ahead log into its main file (a copy of the file is then whole)."""
     import sqlite3
 
-    con = sqlite3.connect(loop.path)
+    con = sqlite3.connect(path)
     try:
         con.execute("PRAGMA wal_checkpoint(TRUNCATE)")
     finally:
         con.close()
+
+
+def copy_loop(loop: SimulatedLoop, folder: Path) -> SimulatedLoop:
+    """A copy of a simulated loop's store in ``folder`` (checkpointed when it was built)."""
+    import shutil
+
     folder.mkdir(parents=True, exist_ok=True)
     target = folder / loop.path.name
     shutil.copyfile(loop.path, target)
