@@ -566,8 +566,16 @@ def test_a_short_virtual_run_fills_the_store_with_windows(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     pytest.importorskip("pymodbus", reason="the [plc] extra (pymodbus) is not installed")
+    from importlib import resources
+
+    # --config gives the loop its name, id and plant file (which the virtual PLC simulates)
+    plant = tmp_path / "line7_plant.toml"
+    plant.write_text(resources.files("fuelid.data").joinpath("reference_plant.toml").read_text())
     online = tmp_path / "online.toml"
-    online.write_text("[online]\nidentify_every_s = 60\nwindow_s = 120\n")
+    online.write_text(
+        '[site]\nname = "Tunnel 7"\nloop_id = "line-7"\nplant = "line7_plant.toml"\n'
+        "[online]\nidentify_every_s = 60\nwindow_s = 120\n"
+    )
     db = tmp_path / "virtual.db"
     started = time.monotonic()
     code, out, err = run(
@@ -583,6 +591,8 @@ def test_a_short_virtual_run_fills_the_store_with_windows(
         "--config",
         str(online),
         "--json-log",
+        "--seed",
+        "3",
     )
     wall = time.monotonic() - started
     assert code == 0, err
@@ -594,6 +604,8 @@ def test_a_short_virtual_run_fills_the_store_with_windows(
     with SQLiteStore(db) as store, OnlineHistory(store) as history:
         assert history.counts()["windows"] >= 1
         assert store.info().rows > 10_000
+        assert (store.site_name, store.loop_id) == ("Tunnel 7", "line-7")
+        assert history.state("service")["settings"]["plant_file"] == str(plant.resolve())
         # every fitted window says which orders it compared and why it kept one
         fitted = [w["detail"] for w in history.windows() if w["detail"].get("model")]
         for detail in fitted:

@@ -8,7 +8,6 @@ status line every ``QUIET_STATUS_EVERY_S``.
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import sys
@@ -113,15 +112,24 @@ class _Console(logging.Handler):
         super().close()
 
 
-def _online_table(config: Path | None) -> str:
-    """The ``[online]`` table for the virtual site: --config's, else write_back "auto"."""
+VIRTUAL_SITE_KEYS = ("name", "loop_id", "plant", "timezone")
+"""The ``[site]`` keys --virtual takes from --config (the PLC's address and tags are its own)."""
+
+
+def _virtual_tables(config: Path | None) -> dict[str, Any]:
+    """The tables --virtual takes from --config; without it, write_back "auto".
+
+    ``[online]``, ``[central]``, ``[archive]`` and the ``[site]`` keys of
+    :data:`VIRTUAL_SITE_KEYS`, paths made absolute from the file's folder.
+    """
     if config is None:
-        return '[online]\nwrite_back = "auto"\n'
+        return {"online": {"write_back": "auto"}}
     import tomllib
 
     from pydantic import ValidationError
 
     from fuelid.plc.site import Online
+    from fuelid.plc.site_fleet import Archive, Central
 
     try:
         data = tomllib.loads(config.read_text(encoding="utf-8"))
@@ -131,20 +139,46 @@ def _online_table(config: Path | None) -> str:
         raise ConfigError(f"cannot read site file {str(config)!r}: {exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{config}: not valid TOML ({exc})") from None
-    table = data.get("online", {})
-    if not isinstance(table, dict):
-        raise ConfigError(f"{config}: [online] must be a table")
-    try:
-        Online.model_validate(table)
-    except ValidationError as exc:
-        first = exc.errors()[0]
-        where = ".".join(str(p) for p in first["loc"])
-        message = str(first["msg"]).removeprefix("Value error, ")
-        raise ConfigError(f"{config}: online.{where}: {message}" if where else message) from None
-    lines = ["[online]"]
-    for key, value in table.items():
-        lines.append(f"{key} = {json.dumps(value)}")
-    return "\n".join(lines) + "\n"
+    tables: dict[str, Any] = {}
+    for name, model in (("online", Online), ("central", Central), ("archive", Archive)):
+        table = data.get(name, {} if name == "online" else None)
+        if table is None:
+            continue
+        if not isinstance(table, dict):
+            raise ConfigError(f"{config}: [{name}] must be a table")
+        try:
+            model.model_validate(table)
+        except ValidationError as exc:
+            first = exc.errors()[0]
+            where = ".".join(str(p) for p in first["loc"])
+            message = str(first["msg"]).removeprefix("Value error, ")
+            reason = f"{config}: {name}.{where}: {message}" if where else message
+            raise ConfigError(reason) from None
+        tables[name] = dict(table)
+    site = data.get("site", {})
+    if not isinstance(site, dict):
+        raise ConfigError(f"{config}: [site] must be a table")
+    tables["site"] = {key: site[key] for key in VIRTUAL_SITE_KEYS if key in site}
+    folder = config.resolve().parent
+    if "plant" in tables["site"]:
+        tables["site"]["plant"] = str(folder / str(tables["site"]["plant"]))
+    if "archive" in tables:
+        tables["archive"]["dir"] = str(folder / str(tables["archive"]["dir"]))
+    return tables
+
+
+def _virtual_site_text(base: str, tables: dict[str, Any]) -> str:
+    """The virtual PLC's site file with the tables --config gives merged in."""
+    import tomllib
+
+    import tomlkit
+
+    data = tomllib.loads(base)
+    data["site"].update(tables.get("site", {}))
+    for name in ("online", "central", "archive"):
+        if name in tables:
+            data[name] = tables[name]
+    return tomlkit.dumps(data)
 
 
 def check_window_length(site: SiteConfig) -> None:
@@ -240,6 +274,7 @@ def _run_virtual(
     hours: float,
     protocol: ServeProtocol,
     dashboard_port: int | None = None,
+    seed: int = 1,
 ) -> None:
     import tempfile
     from importlib import resources
@@ -252,7 +287,7 @@ def _run_virtual(
         raise ConfigError(f"--speed must be within (0, 1000], got {speed:g}")
     if not (math.isfinite(hours) and hours > 0.0):
         raise ConfigError(f"--hours must be a positive number of hours, got {hours:g}")
-    online = _online_table(config)
+    tables = _virtual_tables(config)
     plant_s = hours * 3600.0
     wall = plant_s / speed if duration is None else duration
     path = VIRTUAL_STORE if store is None else store
@@ -261,14 +296,22 @@ def _run_virtual(
         for suffix in ("", "-wal", "-shm"):
             Path(f"{path}{suffix}").unlink(missing_ok=True)
     target = str(path.resolve())
-    plant = resources.files("fuelid.data").joinpath("reference_plant.toml")
-    plant_path = str(plant) if Path(str(plant)).is_file() else None
+    plant_path = tables["site"].get("plant")
+    plant_config = None
+    if plant_path is None:
+        plant = resources.files("fuelid.data").joinpath("reference_plant.toml")
+        plant_path = str(plant) if Path(str(plant)).is_file() else None
+    else:  # the virtual PLC simulates the loop's own plant file, the service anchors on it
+        from fuelid.plant import load_plant_config
+
+        plant_config = load_plant_config(plant_path)
     times, temperatures = demo_temperature(plant_s)
     with (
         VirtualPlcThread(
             protocol.value,
             speed=speed,
-            seed=1,
+            seed=seed,
+            config=plant_config,
             setpoint_profile=demo_run_profile(),
             fuel_temp_profile=(times, temperatures),
         ) as virtual,
@@ -276,7 +319,7 @@ def _run_virtual(
     ):
         text = virtual.site_text(store_url=f"sqlite:///{target}", plant=plant_path)
         site_path = Path(folder) / "virtual-site.toml"
-        site_path.write_text(f"{text}\n{online}", encoding="utf-8")
+        site_path.write_text(_virtual_site_text(text, tables), encoding="utf-8")
         site = load_site(site_path)
         typer.echo(
             f"online: virtual PLC ({protocol.value} on {virtual.host}:{virtual.port}), "
@@ -316,9 +359,14 @@ def online_command(
         typer.Option(
             "--virtual",
             help="Run against a virtual PLC started in the same command (AUTO wind-tunnel runs, "
-            "fuel −10…+45 °C over 24 h); --config then only gives the [online] table.",
+            "fuel −10…+45 °C over 24 h); --config then gives the [online], [central] and "
+            "[archive] tables and [site] name, loop_id, plant (the plant the virtual PLC "
+            "simulates) and timezone.",
         ),
     ] = False,
+    seed: Annotated[
+        int, typer.Option(help="--virtual: the virtual PLC's noise seed (one per loop).")
+    ] = 1,
     speed: Annotated[
         float,
         typer.Option(
@@ -360,7 +408,7 @@ def online_command(
         raise ConfigError(f"--duration must be a positive number of seconds, got {duration:g}")
     port = dashboard_port if dashboard else None
     if virtual:
-        _run_virtual(config, store, duration, json_log, speed, hours, protocol, port)
+        _run_virtual(config, store, duration, json_log, speed, hours, protocol, port, seed)
         return
     if config is None:
         raise ConfigError(
