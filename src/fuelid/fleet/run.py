@@ -13,6 +13,7 @@ Dask is the ``fleet`` extra: imported here, when a run starts.
 
 from __future__ import annotations
 
+import datetime as _dt
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -26,7 +27,7 @@ from fuelid.fleet.summary import loop_summary, read_results, track_loop, write_t
 from fuelid.fleet.task import LoopSettings, loop_settings, reidentify_day, result_path
 from fuelid.plc.site import Online
 
-__all__ = ["FleetError", "ReidentifyRun", "reidentify"]
+__all__ = ["FleetError", "ReidentifyRun", "online_from_toml", "reidentify"]
 
 CONNECT_TIMEOUT_S = 10.0
 """How long to wait for a scheduler given by address [s]."""
@@ -79,6 +80,36 @@ class ReidentifyRun:
         }
 
 
+def online_from_toml(path: str | Path) -> Online:
+    """The ``[online]`` table of a TOML file (``--settings``), validated as a site file's.
+
+    Raises
+    ------
+    FleetError
+        The file is missing, not TOML, has no ``[online]`` table, or an invalid one.
+    """
+    import tomllib
+
+    from pydantic import ValidationError
+
+    try:
+        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as error:
+        raise FleetError(f"--settings {path}: cannot read it ({error})") from None
+    except tomllib.TOMLDecodeError as error:
+        raise FleetError(f"--settings {path}: not TOML ({error})") from None
+    table = data.get("online")
+    if not isinstance(table, dict):
+        raise FleetError(f"--settings {path}: no [online] table")
+    try:
+        return Online(**table)
+    except ValidationError as error:
+        problems = "; ".join(
+            f"{'.'.join(str(p) for p in e['loc']) or 'online'}: {e['msg']}" for e in error.errors()
+        )
+        raise FleetError(f"--settings {path}: [online] {problems}") from None
+
+
 def select_loop_days(
     archive_root: str | Path,
     loops: list[str] | None,
@@ -92,7 +123,8 @@ def select_loop_days(
         if date is not None:
             try:
                 day_bounds(date)
-            except StoreError:
+                _dt.date.fromisoformat(date)
+            except (StoreError, ValueError):
                 raise FleetError(f"{name} {date!r}: not a date (YYYY-MM-DD)") from None
     if date_from is not None and date_to is not None and date_from > date_to:
         raise FleetError(f"--from {date_from} is after --to {date_to}")
@@ -118,11 +150,14 @@ def select_loop_days(
 def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
     """A Dask client: of a scheduler at ``scheduler``, else of a local cluster of ``workers``."""
     try:
-        from distributed import Client, LocalCluster
+        import distributed
     except ImportError:  # pragma: no cover - the fleet extra is missing
         raise FleetError(
             "fuelid reidentify needs Dask distributed: pip install 'fuelid[fleet]'"
         ) from None
+    # distributed is only partly typed: its classes are used as untyped (Any) here
+    Client: Any = distributed.Client
+    LocalCluster: Any = distributed.LocalCluster
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
@@ -144,7 +179,7 @@ def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
             threads_per_worker=1,
             processes=True,
             host="127.0.0.1",
-            dashboard_address=None,
+            dashboard_address="127.0.0.1:0",  # a free port on loopback, never 8787
         ) as cluster,
         Client(cluster) as client,
     ):
@@ -264,7 +299,9 @@ def _run(
     progress: Progress | None,
     offset: int,
 ) -> tuple[list[dict[str, Any]], str, int]:
-    from distributed import as_completed
+    import distributed
+
+    as_completed: Any = distributed.as_completed
 
     info = client.scheduler_info()
     label = str(info.get("address", "?"))

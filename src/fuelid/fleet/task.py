@@ -207,8 +207,12 @@ def loop_settings(
 
 def result_path(out_root: str | Path, loop_day: LoopDay) -> Path:
     """``RESULT/windows/loop=<loop_id>/date=<date>/part.parquet``."""
-    return Path(out_root) / "windows" / f"loop={loop_day.loop_id}" / f"date={loop_day.date}" / (
-        "part.parquet"
+    return (
+        Path(out_root)
+        / "windows"
+        / f"loop={loop_day.loop_id}"
+        / f"date={loop_day.date}"
+        / ("part.parquet")
     )
 
 
