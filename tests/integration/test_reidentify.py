@@ -266,6 +266,18 @@ def test_cli_on_a_scheduler_address_resumes_and_documents_its_json(
     assert stdout.splitlines()[2].startswith("line-a")
 
 
+def test_resuming_with_other_settings_is_refused(
+    archive: Path, two_workers: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "out"
+    shutil.copytree(two_workers, out)
+    (tmp_path / "online.toml").write_text("[online]\nmin_fit_percent = 90\n", encoding="utf-8")
+    code, _, err = cli(str(archive), "--out", str(out), "--settings", str(tmp_path / "online.toml"))
+    assert code == 2
+    assert "made with other settings ([online] min_fit_percent differ)" in err
+    assert results(out) == results(two_workers)
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [

@@ -242,6 +242,7 @@ def reidentify(
     specs = _prepared(archive_root, days, online, settings_source)
     out = Path(out_root)
     out.mkdir(parents=True, exist_ok=True)
+    check_settings(out, specs)
     pending = [d for d in days if not result_path(out, d).exists()]
     summaries: list[dict[str, Any]] = []
     if progress is not None:
@@ -260,7 +261,7 @@ def reidentify(
         label, n_workers = scheduler or "local", 0
     loops_out = []
     for loop_id, (settings, plant_path) in specs.items():
-        table = read_results(out, loop_id)
+        table = read_results(out, loop_id, date_from, date_to)
         k_plant = _k_plant(plant_path, settings)
         tracker, note = track_loop(table, k_plant)
         summary = loop_summary(loop_id, table, tracker, note)
@@ -280,6 +281,58 @@ def reidentify(
         loops=loops_out,
         settings={loop: spec[0].source for loop, spec in specs.items()},
     )
+
+
+def _fingerprint(settings: LoopSettings, plant_path: str | None) -> dict[str, Any]:
+    """What makes a loop's results: the analyser's settings and the plant file's SHA-256."""
+    import hashlib
+
+    return {
+        "online": settings.online.model_dump(mode="json"),
+        "sample_time": settings.sample_time,
+        "control_period": settings.control_period,
+        "ti_s": settings.ti_s,
+        "step_ls": settings.step_ls,
+        "plant_sha256": None
+        if plant_path is None
+        else hashlib.sha256(Path(plant_path).read_bytes()).hexdigest(),
+    }
+
+
+def check_settings(out: Path, specs: dict[str, tuple[LoopSettings, str | None]]) -> None:
+    """Refuse to resume into results made with other settings; record them for a new loop.
+
+    ``RESULT/settings/<loop_id>.json`` holds what a loop's results were made with; a run whose
+    settings differ would mix two analyses in one loop's results (the finished loop-days are
+    skipped, not recomputed).
+    """
+    import json
+    import os
+
+    folder = out / "settings"
+    folder.mkdir(parents=True, exist_ok=True)
+    for loop_id, (settings, plant_path) in specs.items():
+        now = _fingerprint(settings, plant_path)
+        path = folder / f"{loop_id}.json"
+        if path.exists():
+            before = json.loads(path.read_text(encoding="utf-8"))
+            if before != now:
+                keys = sorted(k for k in set(before) | set(now) if before.get(k) != now.get(k))
+                if "online" in keys:
+                    online = before.get("online") or {}
+                    keys.remove("online")
+                    keys += sorted(
+                        f"[online] {k}" for k in now["online"] if online.get(k) != now["online"][k]
+                    )
+                raise FleetError(
+                    f"{out} holds loop {loop_id}'s results made with other settings "
+                    f"({', '.join(keys)} differ): use another --out, or delete "
+                    f"{out / 'windows' / f'loop={loop_id}'} and {path}"
+                )
+            continue
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        tmp.write_text(json.dumps(now, indent=2, sort_keys=True), encoding="utf-8")
+        os.replace(tmp, path)
 
 
 def _k_plant(plant_path: str | None, settings: LoopSettings) -> Any:

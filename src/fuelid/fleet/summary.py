@@ -57,12 +57,19 @@ SUMMARY_UNITS = {
 """Units of the per-loop summary's numbers."""
 
 
-def read_results(out_root: str | Path, loop_id: str) -> pa.Table:
-    """Every finished loop-day of ``loop_id`` in ``RESULT/windows``, sorted by window end."""
+def read_results(
+    out_root: str | Path, loop_id: str, date_from: str | None = None, date_to: str | None = None
+) -> pa.Table:
+    """The finished loop-days of ``loop_id`` in ``RESULT/windows`` (dates inclusive), by end."""
     from fuelid.fleet.task import RESULT_SCHEMA
 
     folder = Path(out_root) / "windows" / f"loop={loop_id}"
-    files = sorted(folder.glob("date=*/part.parquet"))
+    files = [
+        f
+        for f in sorted(folder.glob("date=*/part.parquet"))
+        if (date_from is None or f.parent.name[5:] >= date_from)
+        and (date_to is None or f.parent.name[5:] <= date_to)
+    ]
     if not files:
         return RESULT_SCHEMA.empty_table()
     table = pa.concat_tables([pq.read_table(f, schema=RESULT_SCHEMA) for f in files])
