@@ -371,9 +371,17 @@ def _run(
         pure=False,
         retries=TASK_RETRIES,
     )
+    killed: Any = distributed.KilledWorker
     summaries = []
     for future in as_completed(futures):
-        summary = future.result()
+        try:
+            summary = future.result()
+        except killed as error:  # the same loop-day took down workers again and again
+            raise FleetError(
+                f"a loop-day's task killed its worker repeatedly ({error}): out of memory? "
+                "give workers more memory (dask worker --memory-limit); finished loop-days "
+                "are kept, run again to resume"
+            ) from None
         summaries.append(summary)
         if progress is not None:
             progress(offset + len(summaries), offset + len(pending), summary)
