@@ -322,3 +322,19 @@ def test_result_schema_has_every_window_column() -> None:
     for key in ("K", "T", "delay", "se_K", "fit_percent", "T_fuel", "u_mean", "plant_K",
                 "gates", "reason", "mode", "method", "seconds"):  # fmt: skip
         assert key in names
+
+
+def test_a_worker_that_does_not_see_the_archive_marks_nothing_done(
+    archive: Path, tmp_path: Path
+) -> None:
+    from fuelid.archive.layout import LoopDay
+    from fuelid.errors import DataError
+    from fuelid.fleet.task import loop_settings, reidentify_day, result_path
+
+    settings, plant = loop_settings(archive, "line-a")
+    elsewhere = tmp_path / "not-mounted"
+    shutil.copytree(archive / "loops", elsewhere / "loops")  # the settings, not the samples
+    day = LoopDay("line-a", DATE)
+    with pytest.raises(DataError, match="readable at the same path on every worker"):
+        reidentify_day(elsewhere, day, settings, plant, tmp_path / "out")
+    assert not result_path(tmp_path / "out", day).exists()

@@ -48,7 +48,7 @@ from fuelid.archive.layout import (
     read_loop_info,
     write_table,
 )
-from fuelid.errors import ConfigError, FuelidError
+from fuelid.errors import ConfigError, DataError, FuelidError
 from fuelid.model import MODEL_KEYS
 from fuelid.online.window import WindowAnalyser, WindowResult, window_priors
 from fuelid.plc.site import Controller, Online
@@ -270,6 +270,10 @@ def read_samples(archive_root: str | Path, loop_day: LoopDay, lookback_s: float)
     return _arrays(table)
 
 
+def _key(loop_day: LoopDay) -> tuple[str, str]:
+    return loop_day.loop_id, loop_day.date
+
+
 def _previous_date(date: str) -> str:
     import datetime as _dt
 
@@ -405,6 +409,16 @@ def reidentify_day(
             step_ls=settings.step_ls,
             ti_s=settings.ti_s,
         )
+        if not any(partition_dir(archive_root, "samples", *_key(loop_day)).glob("*.parquet")):
+            # listed by the client, absent here: a worker that does not see the archive at the
+            # same path must not mark the loop-day done with no windows
+            import socket
+
+            raise DataError(
+                f"{loop_day.key}: no samples file under {archive_root} on worker "
+                f"{socket.gethostname()}: is the archive readable at the same path on every "
+                "worker?"
+            )
         samples = read_samples(archive_root, loop_day, online.window_s)
         rows = []
         for t_from, t_to in day_windows(loop_day.date, online):
