@@ -93,13 +93,17 @@ def reidentify_command(
     ],
     loops: Annotated[
         str | None,
-        typer.Option("--loops", help="Comma-separated loop ids (default: every loop)."),
+        typer.Option(
+            "--loops", metavar="ID,ID", help="Comma-separated loop ids (default: every loop)."
+        ),
     ] = None,
     date_from: Annotated[
-        str | None, typer.Option("--from", help="First UTC date, YYYY-MM-DD (inclusive).")
+        str | None,
+        typer.Option("--from", metavar="DATE", help="First UTC date, YYYY-MM-DD (inclusive)."),
     ] = None,
     date_to: Annotated[
-        str | None, typer.Option("--to", help="Last UTC date, YYYY-MM-DD (inclusive).")
+        str | None,
+        typer.Option("--to", metavar="DATE", help="Last UTC date, YYYY-MM-DD (inclusive)."),
     ] = None,
     settings: Annotated[
         Path | None,
@@ -120,7 +124,10 @@ def reidentify_command(
     workers: Annotated[
         int | None,
         typer.Option(
-            "--workers", min=1, help="Worker processes of the local cluster (default: cores)."
+            "--workers",
+            min=1,
+            metavar="N",
+            help="Worker processes of the local cluster (default: cores).",
         ),
     ] = None,
     out: Annotated[
