@@ -75,6 +75,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "calibration_timing": ("Plant calibration speed", "benchmarks/bench_calibration.py --timing"),
     "dashboard": ("The dashboard's speed", "benchmarks/bench_dashboard.py"),
     "central": ("Central ingest from many senders", "benchmarks/bench_central.py"),
+    "reidentify": ("Re-identification on Dask", "benchmarks/bench_reidentify.py"),
 }
 
 _T = TypeVar("_T")

@@ -17,6 +17,7 @@ from fuelid.cli.calibrate import calibrate_command
 from fuelid.cli.greybox import greybox_command
 from fuelid.cli.identify import identify_command
 from fuelid.cli.record import export_command, record_command, store_app
+from fuelid.cli.reidentify import reidentify_command
 from fuelid.cli.report import report_command
 from fuelid.cli.simulate import simulate_command
 from fuelid.cli.tune import tune_command
@@ -45,6 +46,7 @@ app.add_typer(store_app, name="store")
 app.add_typer(online.app, name="online")
 app.add_typer(dashboard.app, name="dashboard")
 app.add_typer(central.app, name="central")
+app.command("reidentify")(reidentify_command)
 
 
 def _version(value: bool) -> None:

@@ -1,0 +1,214 @@
+"""The per-loop pass after the loop-days: the K(T) tracker and the loop's summary.
+
+**K(T).** The service's own :class:`~fuelid.online.tracking.KTracker` over the loop's accepted
+windows in time order, all of them (the service keeps its newest few hundred; a period's
+re-identification asks about the whole period): the ratio K/K_plant(u, T) against fuel
+temperature with a plant file, K per command band without one. Written to
+``RESULT/tracking/<loop_id>.json``.
+
+**K drift over the period.** Each accepted window's K is first *referred* to a common operating
+point, so that a period that happened to run warmer or at another command does not look like
+wear: with a plant file, q = K / K_plant(u, T) (the plant model's gain at the window's command
+and temperature; se_q = se_K / K_plant); without one, q = K − b·(T − T_ref) with b the slope of
+one weighted line K(T) over all accepted windows (no correction when the temperatures spread
+less than the tracker's 2 °C). The drift is then the relative change of the inverse-variance
+weighted mean of q between the first and the last tenth of the accepted windows (at least one
+window each)::
+
+    drift = q̄_last / q̄_first − 1,   se by the delta method from the two means' standard errors,
+
+each mean's standard error inflated by the Birge ratio max(1, χ²/dof) when its windows scatter
+more than their errors say (as the tracker does). Tenths rather than calendar weeks: the
+period may be two days or a year, and a tenth of the accepted windows always holds the same
+share of the evidence.
+
+**K(T) slope.** The tracker's slope with its 95 % interval (±1.96 se, the Birge inflation
+included): d(K/K_plant)/dT [1/°C] in ratio mode, dK/dT [(L/min)/V/°C] of the command band with
+the most windows in band mode.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from fuelid.model import Z95
+from fuelid.online.context import observation_of
+from fuelid.online.tracking import KTracker, PlantGain, TrackingError, fit_line
+
+__all__ = ["SUMMARY_UNITS", "k_drift", "loop_summary", "read_results", "track_loop"]
+
+SUMMARY_UNITS = {
+    "k_drift": "1 (relative change)",
+    "k_drift_se": "1",
+    "k_slope": "1/degC (ratio) or (L/min)/V/degC (band)",
+    "k_slope_ci95": "as k_slope",
+    "accepted_share": "1",
+    "seconds": "s",
+    "windows_per_s": "1/s",
+}
+"""Units of the per-loop summary's numbers."""
+
+
+def read_results(
+    out_root: str | Path, loop_id: str, date_from: str | None = None, date_to: str | None = None
+) -> pa.Table:
+    """The finished loop-days of ``loop_id`` in ``RESULT/windows`` (dates inclusive), by end."""
+    from fuelid.fleet.task import RESULT_SCHEMA
+
+    folder = Path(out_root) / "windows" / f"loop={loop_id}"
+    files = [
+        f
+        for f in sorted(folder.glob("date=*/part.parquet"))
+        if (date_from is None or f.parent.name[5:] >= date_from)
+        and (date_to is None or f.parent.name[5:] <= date_to)
+    ]
+    if not files:
+        return RESULT_SCHEMA.empty_table()
+    table = pa.concat_tables([pq.read_table(f, schema=RESULT_SCHEMA) for f in files])
+    return table.sort_by("t_to")
+
+
+def _accepted_rows(table: pa.Table) -> list[dict[str, Any]]:
+    columns = ["t_to", "K", "se_K", "T_fuel", "u_mean", "plant_K"]
+    rows = table.filter(table.column("accepted")).select(columns).to_pylist()
+    return [r for r in rows if r["K"] is not None and r["se_K"] is not None]
+
+
+def track_loop(table: pa.Table, k_plant: PlantGain | None) -> tuple[KTracker | None, str]:
+    """The K(T) tracker fitted on the accepted windows; (None, the reason) when it refuses."""
+    observations = []
+    for row in _accepted_rows(table):
+        model = {
+            "model": {"K": row["K"]},
+            "stderr": {"K": row["se_K"]},
+            "T_fuel": row["T_fuel"],
+            "u_mean": row["u_mean"],
+            "plant_K": row["plant_K"],
+            "window_end": row["t_to"],
+        }
+        obs = observation_of({"model": model, "t_to": row["t_to"]})
+        if obs is not None:
+            observations.append(obs)
+    try:
+        return KTracker(k_plant=k_plant).fit(observations), ""
+    except TrackingError as error:
+        return None, str(error)
+
+
+def _weighted_mean(q: np.ndarray[Any, Any], se: np.ndarray[Any, Any]) -> tuple[float, float]:
+    w = 1.0 / se**2
+    mean = float(np.sum(w * q) / np.sum(w))
+    var = 1.0 / float(np.sum(w))
+    if q.size > 1:
+        chi2 = float(np.sum(w * (q - mean) ** 2))
+        var *= max(1.0, chi2 / (q.size - 1))
+    return mean, math.sqrt(var)
+
+
+def k_drift(table: pa.Table) -> tuple[float | None, float | None, str]:
+    """Relative K drift over the period and its standard error (module docstring); a note."""
+    rows = [
+        r
+        for r in _accepted_rows(table)
+        if r["se_K"] > 0.0 and r["K"] > 0.0 and r["T_fuel"] is not None
+    ]
+    if len(rows) < 2:
+        return None, None, f"K drift needs at least 2 accepted windows, got {len(rows)}"
+    K = np.array([r["K"] for r in rows])
+    se = np.array([r["se_K"] for r in rows])
+    T = np.array([r["T_fuel"] for r in rows])
+    plant = [r["plant_K"] for r in rows]
+    if all(p is not None and p > 0.0 for p in plant):
+        Kp = np.array(plant, dtype=float)
+        q, se_q = K / Kp, se / Kp
+        how = "K/K_plant(u, T)"
+    else:
+        line = fit_line(T, K, se**2, 2.0)
+        slope = 0.0 if line.slope is None else line.slope
+        q, se_q = K - slope * (T - line.T_ref), se
+        how = f"K referred to {line.T_ref:.1f} degC by dK/dT = {slope:.4g} (L/min)/V/degC"
+    n = max(1, math.ceil(len(rows) / 10))
+    first, se_first = _weighted_mean(q[:n], se_q[:n])
+    last, se_last = _weighted_mean(q[-n:], se_q[-n:])
+    drift = last / first - 1.0
+    se_drift = math.hypot(se_last / first, last * se_first / first**2)
+    return drift, se_drift, f"{how}; first vs last {n} of {len(rows)} accepted windows"
+
+
+def _slope(tracker: KTracker | None) -> tuple[float | None, list[float] | None, str]:
+    if tracker is None:
+        return None, None, ""
+    if tracker.fit_ is not None:
+        line, unit = tracker.fit_, "1/degC (ratio K/K_plant)"
+    else:
+        fitted = [(b, f) for b, f in tracker.bands_.items() if f is not None and f.slope]
+        if not fitted:
+            return None, None, "no command band with a slope"
+        band, line = max(fitted, key=lambda item: item[1].n)
+        width = tracker.band_width_V
+        unit = f"(L/min)/V/degC (band {band * width:g}-{(band + 1) * width:g} V)"
+    if line.slope is None:
+        return None, None, line.note
+    se = line.se[1]
+    assert se is not None
+    return line.slope, [line.slope - Z95 * se, line.slope + Z95 * se], unit
+
+
+def loop_summary(
+    loop_id: str, table: pa.Table, tracker: KTracker | None, note: str = ""
+) -> dict[str, Any]:
+    """The loop's row of the summary table (keys in docs/reference/json.md)."""
+    dates = sorted({_date(t) for t in table.column("t_to").to_pylist()}) if table.num_rows else []
+    accepted = int(np.count_nonzero(table.column("accepted").to_numpy(zero_copy_only=False)))
+    drift, se_drift, drift_note = k_drift(table)
+    slope, ci, unit = _slope(tracker)
+    return {
+        "loop_id": loop_id,
+        "loop_days": len(dates),
+        "first_date": dates[0] if dates else None,
+        "last_date": dates[-1] if dates else None,
+        "windows": table.num_rows,
+        "accepted": accepted,
+        "accepted_share": accepted / table.num_rows if table.num_rows else None,
+        "k_drift": drift,
+        "k_drift_se": se_drift,
+        "k_drift_method": drift_note,
+        "k_slope": slope,
+        "k_slope_ci95": ci,
+        "k_slope_unit": unit or None,
+        "tracking_mode": None if tracker is None else tracker.mode_,
+        "tracking_note": note or None,
+    }
+
+
+def _date(t_to: float) -> str:
+    from fuelid.archive.layout import day_of
+
+    return day_of(t_to - 1e-6)  # a window ending at midnight belongs to the day before
+
+
+def write_tracking(
+    out_root: str | Path, loop_id: str, tracker: KTracker | None, summary: dict[str, Any]
+) -> Path:
+    """``RESULT/tracking/<loop_id>.json`` (the tracker's JSON and the summary), atomically."""
+    from fuelid.io.jsonsafe import json_ready
+
+    path = Path(out_root) / "tracking" / f"{loop_id}.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {
+        "loop_id": loop_id,
+        "summary": summary,
+        "tracking": None if tracker is None else tracker.to_json(),
+    }
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(json_ready(payload), indent=2, allow_nan=False), encoding="utf-8")
+    os.replace(tmp, path)
+    return path
