@@ -1,30 +1,26 @@
 """An archive written from a simulated loop's store, for the re-identification tests.
 
-A stand-in for ``fuelid archive`` (store → archive, built in parallel): the samples table is
-read with :mod:`sqlite3`, split by UTC day of plant time and written with the archive's own
-:func:`fuelid.archive.layout.write_table` in :data:`~fuelid.archive.layout.SAMPLE_SCHEMA`, one
-file per store and day; the loop's ``<store_uuid>.json`` carries the keys
-:func:`~fuelid.archive.layout.read_loop_info` documents, its ``settings`` those a service
-record holds (every ``[online]`` setting, ``sampling``, ``plant_hash``, ``controller``), and
-the plant file (when given) is copied beside it as ``plant-<sha256>.toml``. Replace with the
-real archiver once it lands.
+The store is copied (the shared ``fleet_loops`` stores stay as they are), given the service
+record a live service would have left (its ``settings``: every ``[online]`` setting,
+``sampling``, ``plant_hash``, ``plant_file``, ``controller``), and archived by the real
+archiver, :func:`fuelid.archive.writer.archive_store`, every day of it (``before`` the day
+after the newest sample).
 """
 
 from __future__ import annotations
 
+import datetime as dt
 import hashlib
-import json
 import shutil
-import sqlite3
+import tempfile
 from pathlib import Path
 from typing import Any
 
-import pyarrow as pa
-
-from fuelid.archive.layout import SAMPLE_SCHEMA, day_of, partition_dir, write_table
+from fuelid.archive.layout import day_of
+from fuelid.archive.writer import archive_store as archive_days
 from fuelid.plc.site import Online
-
-_COLUMNS = [field.name for field in SAMPLE_SCHEMA]
+from fuelid.store import OnlineHistory
+from fuelid.store.sqlite import SQLiteStore
 
 
 def service_settings(
@@ -72,50 +68,24 @@ def archive_store(
     with_settings : bool
         False writes ``settings: null`` (a store no service ran on).
     """
-    con = sqlite3.connect(f"file:{store_path}?mode=ro", uri=True)
-    try:
-        meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
-        rows = con.execute(
-            f"SELECT {', '.join(_COLUMNS)} FROM samples ORDER BY time, seq"
-        ).fetchall()
-    finally:
-        con.close()
-    loop_id = meta["loop_id"]
-    store_uuid = meta["store_uuid"]
-    period_s = float(meta["period_s"])
-    by_day: dict[str, list[tuple[Any, ...]]] = {}
-    for row in rows:
-        by_day.setdefault(day_of(row[0]), []).append(row)
-    for date, day_rows in sorted(by_day.items()):
-        columns = list(zip(*day_rows, strict=True))
-        table = pa.table(
-            {name: pa.array(list(col), type=SAMPLE_SCHEMA.field(name).type)
-             for name, col in zip(_COLUMNS, columns, strict=True)},
-            schema=SAMPLE_SCHEMA,
-        )  # fmt: skip
-        path = partition_dir(root, "samples", loop_id, date) / f"{store_uuid}.parquet"
-        write_table(table, path)
-    folder = root / "loops" / loop_id
-    folder.mkdir(parents=True, exist_ok=True)
-    plant_name = None
     plant_hash = None
     if plant_file is not None:
         plant_hash = hashlib.sha256(plant_file.read_bytes()).hexdigest()
-        plant_name = f"plant-{plant_hash}.toml"
-        shutil.copyfile(plant_file, folder / plant_name)
-    info = {
-        "loop_id": loop_id,
-        "store_uuid": store_uuid,
-        "site_name": meta["site_name"],
-        "tag_map_hash": meta["tag_map_hash"],
-        "created": float(meta.get("created", 0.0) or 0.0),
-        "period_s": period_s,
-        "settings": (
-            service_settings(online, period_s=period_s, plant_hash=plant_hash)
-            if with_settings
-            else None
-        ),
-        "plant": plant_name,
-    }
-    (folder / f"{store_uuid}.json").write_text(json.dumps(info, indent=2), encoding="utf-8")
-    return sorted(by_day)
+    with tempfile.TemporaryDirectory(prefix="fuelid-archive-fixture-") as folder:
+        copy = Path(folder) / store_path.name
+        shutil.copyfile(store_path, copy)
+        for suffix in ("-wal", "-shm"):  # a store that was not checkpointed
+            if Path(f"{store_path}{suffix}").exists():
+                shutil.copyfile(f"{store_path}{suffix}", f"{copy}{suffix}")
+        with SQLiteStore(copy) as store:
+            period_s = float(store.period_s or 0.1)
+            if with_settings:
+                settings = service_settings(online, period_s=period_s, plant_hash=plant_hash)
+                settings["plant_file"] = None if plant_file is None else str(plant_file)
+                with OnlineHistory(store) as history:
+                    history.set_state("service", {"settings": settings, "stopped": 0.0})
+            last = store.last_time()
+            assert last is not None
+            after = dt.date.fromisoformat(day_of(last)) + dt.timedelta(days=1)
+            report = archive_days(store, root, before=after.isoformat())
+    return sorted(day.date for day in report.days)
