@@ -175,6 +175,11 @@ class Table:
         return f"**{self.title}**\n\n{table}" if self.title else table
 
 
+RESULTS_START = "<!-- --8<-- [start:results] -->"
+RESULTS_END = "<!-- --8<-- [end:results] -->"
+"""The markers around a page's results (pymdownx.snippets sections)."""
+
+
 def _page_path(name: str, docs: Path | None) -> Path:
     return (PAGES if docs is None else docs) / f"{name}.md"
 
@@ -192,6 +197,9 @@ def write_page(
     """
     title = BENCHMARKS.get(name, (name.replace("_", " ").capitalize(), ""))[0]
     body = [p.markdown() if isinstance(p, Table) else p for p in parts]
+    # the results between snippet markers: a guide quotes them with
+    # --8<-- "docs/benchmarks/<name>.md:results" and shows what the page shows
+    body = [RESULTS_START, *body, RESULTS_END]
     text = "\n\n".join([f"# {title}", provenance(seconds), intro.strip(), *body]) + "\n"
     path = _page_path(name, docs)
     path.parent.mkdir(parents=True, exist_ok=True)
