@@ -176,6 +176,7 @@ def sandwich_covariance(
     J: FloatArray,
     noise: ResidualAR,
     bounds: Sequence[tuple[int, int]] | None = None,
+    inverse: tuple[FloatArray, list[int]] | None = None,
 ) -> tuple[FloatArray, list[int]]:
     """(JᵀJ)⁻¹·σ_e²(ΨᵀJ)ᵀ(ΨᵀJ)·(JᵀJ)⁻¹: the covariance under the residuals' AR noise ``noise``.
 
@@ -188,7 +189,8 @@ def sandwich_covariance(
     >>> round(float(cov[0, 0]) * 100000, 1)  # σ_e²/(1 − 0.9)² = 100
     100.0
     """
-    inverse, unidentified = bread(J)
+    # ``inverse``: bread(J) when the caller has it already (the same SVD, not done twice)
+    inverse, unidentified = bread(J) if inverse is None else inverse
     spans = list(bounds) if bounds else [(0, J.shape[0])]
     filtered = np.zeros_like(J)
     for a, b in spans:

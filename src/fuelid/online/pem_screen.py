@@ -50,6 +50,7 @@ from fuelid.identify.noise import (
 )
 from fuelid.identify.oe import OutputError
 from fuelid.identify.pem import PredictionError
+from fuelid.identify.variable_projection import search_tolerances
 from fuelid.io.timeseries import IOData
 
 FloatArray = NDArray[np.float64]
@@ -155,7 +156,7 @@ def _refine(
         C, D = shape.polys(eta)
         return filter_segments(D, C, residuals, spans)[used]
 
-    sol = least_squares(errors, eta0, method="trf", xtol=1e-10, ftol=1e-12, gtol=1e-12, max_nfev=50)
+    sol = least_squares(errors, eta0, method="trf", max_nfev=50, **search_tolerances())
     return np.asarray(sol.x, dtype=float)
 
 

@@ -49,6 +49,7 @@ from fuelid.errors import FuelidError, NotExcitingError
 from fuelid.identify.oe import OutputError
 from fuelid.identify.pem import PredictionError
 from fuelid.identify.procedure import POSITIVE_PARAMETERS, IdentifyOptions, interval95
+from fuelid.identify.variable_projection import statistical_tolerances
 from fuelid.io.jsonsafe import json_ready
 from fuelid.io.timeseries import IOData
 from fuelid.lti import reference_numerics
@@ -301,7 +302,10 @@ class WindowAnalyser:
         reason.
         """
         if self.fast:
-            return self._analyse(samples, t_from, t_to)
+            # the searches stop where what is left to gain is under 0.005 standard errors
+            # (fuelid.identify.variable_projection.STATISTICAL_TOLERANCES)
+            with statistical_tolerances():
+                return self._analyse(samples, t_from, t_to)
         with reference_numerics():  # today's path, for the benchmark: the same numbers, slower
             return self._analyse(samples, t_from, t_to)
 
