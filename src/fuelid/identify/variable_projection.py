@@ -35,7 +35,7 @@ TOLERANCES = {"xtol": 1e-10, "ftol": 1e-12, "gtol": 1e-12}
 #: to gain then moves the estimate by about √(1e-9·N) standard errors: 0.005 for a 10-minute
 #: window at 50 Hz (N = 30,000), 0.02 for a day. The default's 1e-12 is at the rounding noise
 #: of Σε², where the search spends about half its evaluations failing to improve (issue 26)
-STATISTICAL_TOLERANCES = {"xtol": 1e-8, "ftol": 1e-9, "gtol": 1e-10}
+STATISTICAL_TOLERANCES = {"xtol": 1e-6, "ftol": 1e-8, "gtol": 1e-10}
 _TOLERANCES: ContextVar[dict[str, float]] = ContextVar("fuelid_search_tolerances")
 
 
