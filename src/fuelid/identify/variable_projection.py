@@ -30,11 +30,13 @@ FloatArray = NDArray[np.float64]
 GRID_SAMPLES = 20_000
 #: the nonlinear searches' stopping tolerances (scipy's least_squares: xtol, ftol, gtol)
 TOLERANCES = {"xtol": 1e-10, "ftol": 1e-12, "gtol": 1e-12}
-#: :func:`statistical_tolerances`: stop when a step lowers Σε² by under 1e-9 of it. At the
-#: optimum Σε² grows by σ²·δ² for a step of δ standard errors, and Σε² ≈ N·σ², so what is left
-#: to gain then moves the estimate by about √(1e-9·N) standard errors: 0.005 for a 10-minute
-#: window at 50 Hz (N = 30,000), 0.02 for a day. The default's 1e-12 is at the rounding noise
-#: of Σε², where the search spends about half its evaluations failing to improve (issue 26)
+#: :func:`statistical_tolerances`: stop when a step lowers Σε² by under 1e-8 of it, or moves
+#: the search vector (log T, log T2, θ) by under 1e-6 of its size. At the optimum Σε² grows by
+#: σ²·δ² for a step of δ standard errors, and Σε² ≈ N·σ², so what is left to gain then moves
+#: the estimate by about √(1e-8·N) standard errors: 0.02 for a 10-minute window at 50 Hz
+#: (N = 30,000); a relative step of 1e-6 in T is 0.05 % of the smallest standard error seen on
+#: the windows (2·10⁻³ of T). The defaults (1e-12, 1e-10) sit at the rounding noise of Σε²,
+#: where the search spent about a third of its evaluations failing to improve (issue 26)
 STATISTICAL_TOLERANCES = {"xtol": 1e-6, "ftol": 1e-8, "gtol": 1e-10}
 _TOLERANCES: ContextVar[dict[str, float]] = ContextVar("fuelid_search_tolerances")
 

@@ -302,7 +302,7 @@ class WindowAnalyser:
         reason.
         """
         if self.fast:
-            # the searches stop where what is left to gain is under 0.005 standard errors
+            # the searches stop where what is left to gain is under 0.02 standard errors
             # (fuelid.identify.variable_projection.STATISTICAL_TOLERANCES)
             with statistical_tolerances():
                 return self._analyse(samples, t_from, t_to)
