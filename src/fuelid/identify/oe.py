@@ -257,8 +257,12 @@ class OutputError(Estimator):
                 }
                 # each order stored in turn for its covariance, which the order rule needs
                 candidates = []
+                stored = {}
                 for order, (z, ev) in fits.items():
                     self._store(data, self._structure(order), z, ev)
+                    # what _store set, kept: the chosen order's state is put back, not
+                    # recomputed (its covariance, colour test and Jacobian again)
+                    stored[order] = dict(vars(self))
                     criterion = bic(ev.sse, n, ev.beta.size + z.size)
                     candidates.append(Candidate.of_fit(self, order, criterion))
                 self.order_choice_ = choose_order(
@@ -266,8 +270,9 @@ class OutputError(Estimator):
                 )
                 best = self.order_choice_.chosen
                 if best != candidates[-1].order:
-                    z, ev = fits[best]
-                    self._store(data, self._structure(best), z, ev)
+                    choice = self.order_choice_
+                    vars(self).update(stored[best])
+                    self.order_choice_ = choice
                 self.order_choice_.misfit = self.residual_colour_ == "model"
                 self.bic_ = {c.order: c.bic for c in candidates}
         return self
