@@ -242,9 +242,52 @@ def report(mode: str, rows: list[dict[str, Any]], cores: int) -> None:
         )
 
 
+PIECES = (
+    ("the whole window", "window.py", "_analyse"),
+    ("output-error fit (both orders)", "oe.py", "fit"),
+    ("  its searches", "oe.py", "_fit_structure"),
+    ("  its covariances, colour tests", "oe.py", "_store"),
+    ("noise screen", "pem_screen.py", "noise_screen"),
+    ("prediction-error fit", "pem.py", "fit"),
+    ("step-ls alongside", "window.py", "_step_ls"),
+    ("post-fit gates (residual ACF)", "postfit.py", "postfit_gates"),
+    ("pre-fit gates", "prefit.py", "prefit_samples"),
+    ("loop health", "window.py", "_health"),
+)
+
+
+def profile_split(label: str, plc: VirtualPLC) -> None:
+    """Where one warm window's time goes, today's path and the fast one (cProfile, ms)."""
+    import cProfile
+    import pstats
+
+    pair = [analyser(False, plc.gains[1]), analyser(True, plc.gains[1])]
+    data = list(windows(plc, 2))
+    columns = []
+    for a in pair:
+        _warm(a, a.analyse(*data[0]))
+        noise = a._last_noise  # the same warm start for the timed run and the profiled one
+        profile = cProfile.Profile()
+        profile.enable()
+        a.analyse(*data[1])
+        profile.disable()
+        a._last_noise = noise
+        stats = pstats.Stats(profile).stats  # type: ignore[attr-defined]
+        column = {}
+        for name, file, function in PIECES:
+            column[name] = 1000.0 * sum(
+                v[3] for k, v in stats.items() if k[0].endswith(file) and k[2] == function
+            )
+        columns.append(column)
+    print(f"where the time goes, {label} (one warm window, ms under cProfile):")
+    print(f"  {'piece':34s} {'today':>7s} {'fast':>7s}")
+    for name, _, _ in PIECES:
+        print(f"  {name:34s} {columns[0][name]:7.1f} {columns[1][name]:7.1f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--windows", type=int, default=5, help="warm windows per run")
+    parser.add_argument("--windows", type=int, default=13, help="warm windows per run")
     parser.add_argument("--seeds", type=int, nargs="+", default=[101, 102])
     parser.add_argument("--cores", type=int, default=2, help="cores of the fleet projection")
     parser.add_argument("--modes", nargs="+", default=["MAN", "AUTO"], choices=["MAN", "AUTO"])
@@ -254,6 +297,12 @@ def main() -> None:
         f"one window: {WINDOW_S / 60:g} min at {1 / PERIOD_S:g} Hz; warm; step-ls on; "
         f"window every {every:g} s (default [online] identify_every_s)"
     )
+    first = args.seeds[0]
+    for mode in args.modes:
+        for label, plc in settings(mode, [first]):
+            profiled = "MAN" in label or "steps" in label
+            if profiled and label.endswith("35 °C") and "d 0.5" not in label:
+                profile_split(label, plc)
     for mode in args.modes:
         report(mode, run_mode(mode, args.seeds, args.windows), args.cores)
 

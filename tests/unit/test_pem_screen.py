@@ -52,7 +52,7 @@ def _engine(seed: int, disturbance: float, profile: str, temp_C: float) -> Virtu
 def _study(runs: list[tuple[int, float, str, float]], windows: int) -> list[dict[str, Any]]:
     """Per warm window: the screen's verdict, the full decision, and oe's and pem's K."""
     priors, _ = window_priors(PLANT, control_period=1.0)
-    settings = {"order": "auto", "delay": priors.delay, "T_f": priors.flowmeter_T}
+    settings: dict[str, Any] = {"order": "auto", "delay": priors.delay, "T_f": priors.flowmeter_T}
     rows = []
     for seed, disturbance, profile, temp_C in runs:
         plc = _engine(seed, disturbance, profile, temp_C)
@@ -81,6 +81,12 @@ def _study(runs: list[tuple[int, float, str, float]], windows: int) -> list[dict
 
 def _check(rows: list[dict[str, Any]], allowed: int) -> None:
     disagree = [r for r in rows if r["skip"] and r["pem_kept"]]
+    skipped = sum(r["skip"] for r in rows)
+    kept = sum(r["pem_kept"] for r in rows)
+    print(
+        f"{len(rows)} windows: pem skipped on {skipped}, kept by the full rule on {kept}; "
+        f"disagreements {len(disagree)} (band ≤ {allowed})"
+    )
     assert len(disagree) <= allowed, disagree
     for r in disagree:
         assert abs(r["K_oe"] - r["K_full"]) <= r["se_full"], r
@@ -96,6 +102,7 @@ def test_cheap_decision_agrees_with_the_full_one_on_held_out_windows() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)  # 312 windows, each fitted twice: about 8 min on a loaded 2-core box
 def test_cheap_decision_agrees_on_300_held_out_windows() -> None:
     runs = [
         (seed, disturbance, profile, temp_C)

@@ -6,7 +6,8 @@ Every ``identify_every_s`` of data time the service hands the last ``window_s`` 
 1. runs the pre-fit gates (:func:`~fuelid.online.gates.prefit_samples`: lost or flagged samples,
    the output at a limit, excitation judged by the mode the loop was in);
 2. fits the process model on the samples whose quality is ok, warm-started from the last
-   accepted window (one local search instead of a grid, ~0.1–0.2 s for 10 min at 50 Hz):
+   accepted window (one local search per order instead of a grid, stopped at statistical
+   tolerances: :func:`~fuelid.identify.variable_projection.statistical_tolerances`):
 
    - judged in MAN (open loop, or no mode recorded): the output-error fit, whose estimate is
      consistent whatever the colour of the noise when the input does not depend on it (Ljung
@@ -15,7 +16,11 @@ Every ``identify_every_s`` of data time the service hands the last ``window_s`` 
    - judged in AUTO (closed loop: the command depends on past noise through the PI): the
      prediction-error fit with its noise model (the direct method, Ljung §13.4), warm-started
      with the last window's noise model; when its noise pole is nearly integrating, or it
-     fails, the output-error fit is kept and the reason is recorded;
+     fails, the output-error fit is kept and the reason is recorded. First a cheap screen
+     (:mod:`fuelid.online.pem_screen`: pem's noise model fitted to the output errors alone)
+     skips pem when its pole would be nearly integrating anyway (a margin above 0.999), which
+     is most windows with a drifting disturbance; it agreed with the full decision on every
+     held-out window measured (docs/explanation/online.md);
 
    and the article's ``step-ls`` alongside, reported but never gated on;
 3. runs the post-fit gates (:func:`~fuelid.online.gates.postfit_gates`: relative standard
