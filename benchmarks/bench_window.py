@@ -7,11 +7,13 @@ decisions unchanged.
 Both analysers run in this process on the same windows of the virtual PLC's engine
 (:class:`fuelid.plc.virtual.engine.VirtualPLC`, reference plant, 50 Hz, PI at 1 s), each
 warm-started from its own previous window as the service does (the first window of each run is
-the warm-up and is not timed): ``WindowAnalyser(fast=False)`` fits pem on every AUTO window (the
-path before the noise screen) and ``fast=True`` skips it when the screen says its noise pole
-would be nearly integrating (:mod:`fuelid.online.pem_screen`). The numerical changes in the fit
-(exact ZOH coefficients without scipy's conversions, FFT autocorrelations) are in both paths;
-their gain is measured against the profile of the code before them (issue 26's report).
+the warm-up and is not timed): ``WindowAnalyser(fast=False)`` fits pem on every AUTO window
+with the numerics before issue 26 (:func:`fuelid.lti.reference_numerics`, the default search
+tolerances), ``fast=True`` skips pem when the noise screen says its noise pole would be nearly
+integrating (:mod:`fuelid.online.pem_screen`), with the faster numerics (exact ZOH coefficients
+without scipy's conversions, FFT autocorrelations, statistical search tolerances, one SVD per
+stored fit, cached settling times). A profile of one warm window of each kind (cProfile, both
+paths) says where the time goes.
 
 The runs are the HELD-OUT settings of the noise screen (its threshold was tuned on seeds 1–2,
 disturbances 0.1, 0.3, 1.0 L/min, 20 °C, the local and the demo setpoint profiles):
@@ -225,9 +227,10 @@ def report(mode: str, rows: list[dict[str, Any]], cores: int) -> None:
             f"{len(rows) - len(disagree)}/{len(rows)}"
         )
         for r in disagree:
+            why = "pem skipped by the screen" if r["skipped"] else "pem fitted on both paths"
             print(
-                f"    disagreement: {r['label']}: {r['method_old']} → {r['method_new']}, "
-                f"|ΔK| {r['dK']:.4g} vs stderr {r['se']:.4g}"
+                f"    disagreement: {r['label']}: {r['method_old']} → {r['method_new']} ({why}),"
+                f" |ΔK| {r['dK']:.4g} vs stderr {r['se']:.4g}"
             )
     every = Online().identify_every_s
     per_year = YEAR_S / every

@@ -29,8 +29,6 @@ import scipy.signal
 from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
-
-
 _REFERENCE = ContextVar("fuelid_reference_numerics", default=False)
 
 
@@ -242,17 +240,14 @@ def discretise(lags: Sequence[float], delay: float, h: float) -> DiscreteLagMode
         return _discretise_reference(A, B, C, lags, delay, h)
     d = math.floor(delay / h + 1e-12)
     frac = max(delay - d * h, 0.0)
-    # the modified z-transform (modified_z) with scipy's expm on the block matrix directly and
-    # the transfer function from the Markov parameters: cont2discrete's and ss2tf's checks and
-    # eigenvalue searches were a quarter of an output-error window fit (issue 26), for tiny
-    # matrices whose answer is known in closed form. Same numbers to rounding.
+    # modified_z with expm on the block matrix, the transfer function from the Markov
+    # parameters: cont2discrete's and ss2tf's checks and eigenvalue searches were a quarter of
+    # a window's output-error fit (issue 26). Same numbers to rounding.
     E1, G0 = _zoh(A, B, h - frac)
     E2, G2 = _zoh(A, B, frac)
     Ad, G1 = E1 @ E2, E1 @ G2
     poles = np.exp(-h / np.asarray(lags, dtype=float))
-    # Ad is lower triangular with the discrete poles on its diagonal: its characteristic
-    # polynomial is Π(1 − p_i z⁻¹)
-    den = np.poly(poles) if n else np.ones(1)
+    den = np.poly(poles) if n else np.ones(1)  # Ad is triangular, the poles on its diagonal
     # impulse response g_k = C·Ad^(k−1)·G0 + C·Ad^(k−2)·G1 (g_0 = 0), k = 0…n+1; the numerator
     # of H = b/a is the first n+2 terms of a·g (H is strictly proper: b_0 = 0)
     g = np.zeros(n + 2)
