@@ -67,6 +67,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "virtual_plant": ("The virtual PLC's speed", "benchmarks/bench_virtual_plant.py"),
     "acquisition": ("Acquisition at 50 Hz", "benchmarks/bench_acquisition.py --minutes 2"),
     "online": ("The online service's cost", "benchmarks/bench_online.py --minutes 2"),
+    "window": ("One online window, today's against the fast path", "benchmarks/bench_window.py"),
     "greybox": ("Gray-box estimation", "benchmarks/bench_greybox.py --runs 200"),
     "calibration": (
         "Plant calibration",

@@ -18,7 +18,9 @@ linearisation, the estimators and the tuning layer alike, so there is one implem
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +29,28 @@ import scipy.signal
 from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
+_REFERENCE = ContextVar("fuelid_reference_numerics", default=False)
+
+
+def reference_numerics_on() -> bool:
+    """True inside :func:`reference_numerics`."""
+    return _REFERENCE.get()
+
+
+@contextmanager
+def reference_numerics() -> Iterator[None]:
+    """Run the numerics as they were before issue 26 (for the benchmark's "today" path).
+
+    :func:`discretise` through scipy's ``cont2discrete`` and ``ss2tf``, autocorrelations over
+    many lags by one dot product per lag (:mod:`fuelid.identify.diagnostics`): the same numbers
+    to rounding, slower. ``WindowAnalyser(fast=False)`` runs inside it.
+    """
+    token = _REFERENCE.set(True)
+    try:
+        yield
+    finally:
+        _REFERENCE.reset(token)
+
 
 SETTLING_BAND = 0.02
 """Relative band of the settling time fuelid reports everywhere: 2 %, the 98 % settling time."""
@@ -212,6 +236,37 @@ def discretise(lags: Sequence[float], delay: float, h: float) -> DiscreteLagMode
     """
     A, B, C = lag_chain(lags)
     n = A.shape[0]
+    if _REFERENCE.get():
+        return _discretise_reference(A, B, C, lags, delay, h)
+    d = math.floor(delay / h + 1e-12)
+    frac = max(delay - d * h, 0.0)
+    # modified_z with expm on the block matrix, the transfer function from the Markov
+    # parameters: cont2discrete's and ss2tf's checks and eigenvalue searches were a quarter of
+    # a window's output-error fit (issue 26). Same numbers to rounding.
+    E1, G0 = _zoh(A, B, h - frac)
+    E2, G2 = _zoh(A, B, frac)
+    Ad, G1 = E1 @ E2, E1 @ G2
+    poles = np.exp(-h / np.asarray(lags, dtype=float))
+    den = np.poly(poles) if n else np.ones(1)  # Ad is triangular, the poles on its diagonal
+    # impulse response g_k = C·Ad^(k−1)·G0 + C·Ad^(k−2)·G1 (g_0 = 0), k = 0…n+1; the numerator
+    # of H = b/a is the first n+2 terms of a·g (H is strictly proper: b_0 = 0)
+    g = np.zeros(n + 2)
+    row = C.copy()  # C·Ad^(k−1)
+    previous = None  # C·Ad^(k−2)
+    for k in range(1, n + 2):
+        g[k] = (row @ G0).item() + ((previous @ G1).item() if previous is not None else 0.0)
+        previous, row = row, row @ Ad
+    b = np.convolve(den, g)[: n + 2]
+    a = np.zeros(n + 2)
+    a[: n + 1] = den
+    return DiscreteLagModel(b=b, a=a, shift=d, poles=poles)
+
+
+def _discretise_reference(
+    A: FloatArray, B: FloatArray, C: FloatArray, lags: Sequence[float], delay: float, h: float
+) -> DiscreteLagModel:
+    """:func:`discretise` as before issue 26 (scipy's conversions; :func:`reference_numerics`)."""
+    n = A.shape[0]
     mz = modified_z(A, B, h, delay)
     num0, den = scipy.signal.ss2tf(mz.Ad, mz.G0, C, np.zeros((1, 1)))
     num1, _ = scipy.signal.ss2tf(mz.Ad, mz.G1, C, np.zeros((1, 1)))
@@ -222,6 +277,18 @@ def discretise(lags: Sequence[float], delay: float, h: float) -> DiscreteLagMode
     a[: n + 1] = np.ravel(den)
     poles = np.exp(-h / np.asarray(lags, dtype=float))
     return DiscreteLagModel(b=b, a=a, shift=mz.shift, poles=poles)
+
+
+def _zoh(A: FloatArray, B: FloatArray, h: float) -> tuple[FloatArray, FloatArray]:
+    """(e^{Ah}, ∫₀ʰ e^{As} ds·B) from one matrix exponential (``zoh_discretise`` without checks)."""
+    n = A.shape[0]
+    if h == 0.0:
+        return np.eye(n), np.zeros_like(B)
+    M = np.zeros((n + 1, n + 1))
+    M[:n, :n] = A * h
+    M[:n, n:] = B * h
+    E = scipy.linalg.expm(M)
+    return E[:n, :n], E[:n, n:]
 
 
 def step_response(

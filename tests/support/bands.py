@@ -69,3 +69,41 @@ def rmse_ratio_band(runs: int, alarm: float = FALSE_ALARM) -> tuple[float, float
 
     low, high = chi2.ppf([alarm / 2.0, 1.0 - alarm / 2.0], runs)
     return math.sqrt(low / runs), math.sqrt(high / runs)
+
+
+def most_failures(n: int, p_fail: float, alarm: float = FALSE_ALARM) -> int:
+    """Largest count of failures in n trials that a failure rate of ``p_fail`` still explains.
+
+    The smallest c with P(X > c) ≤ alarm for X ~ Binomial(n, p_fail): with the true rate at
+    most p_fail, more than c failures happen with probability at most ``alarm``.
+
+    Examples
+    --------
+    >>> most_failures(12, 0.01), most_failures(100, 0.01)
+    (2, 5)
+    """
+    above, c = 1.0, -1
+    while above > alarm:
+        c += 1
+        above -= math.comb(n, c) * p_fail**c * (1.0 - p_fail) ** (n - c)
+    return c
+
+
+def most_failures_under(n: int, rate: float = 0.01, confidence: float = 0.95) -> int:
+    """Largest failure count in n trials whose one-sided upper bound stays under ``rate``.
+
+    The Clopper–Pearson upper bound of a binomial rate with c failures of n at ``confidence``
+    is the quantile ``confidence`` of Beta(c + 1, n − c); −1 when even no failure in n trials
+    bounds the rate under ``rate`` (n too small: n must be at least 299 for 1 % at 95 %).
+
+    Examples
+    --------
+    >>> most_failures_under(300), most_failures_under(100), most_failures_under(1000)
+    (0, -1, 4)
+    """
+    from scipy.stats import beta
+
+    c = -1
+    while c + 1 < n and float(beta.ppf(confidence, c + 2, n - c - 1)) < rate:
+        c += 1
+    return c

@@ -176,6 +176,7 @@ def sandwich_covariance(
     J: FloatArray,
     noise: ResidualAR,
     bounds: Sequence[tuple[int, int]] | None = None,
+    bread_of_J: tuple[FloatArray, list[int]] | None = None,
 ) -> tuple[FloatArray, list[int]]:
     """(JᵀJ)⁻¹·σ_e²(ΨᵀJ)ᵀ(ΨᵀJ)·(JᵀJ)⁻¹: the covariance under the residuals' AR noise ``noise``.
 
@@ -188,7 +189,8 @@ def sandwich_covariance(
     >>> round(float(cov[0, 0]) * 100000, 1)  # σ_e²/(1 − 0.9)² = 100
     100.0
     """
-    inverse, unidentified = bread(J)
+    # ``bread_of_J``: bread(J) when the caller has it already (the same SVD, not done twice)
+    inverse, unidentified = bread(J) if bread_of_J is None else bread_of_J
     spans = list(bounds) if bounds else [(0, J.shape[0])]
     filtered = np.zeros_like(J)
     for a, b in spans:

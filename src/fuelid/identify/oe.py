@@ -37,9 +37,9 @@ from fuelid.errors import FuelidError, NotExcitingError
 from fuelid.identify._base import Estimator, Initial
 from fuelid.identify.covariance import (
     ResidualAR,
+    bread,
     residual_ar,
     sandwich_covariance,
-    white_covariance,
 )
 from fuelid.identify.diagnostics import (
     CorrelationTest,
@@ -60,6 +60,7 @@ from fuelid.identify.variable_projection import (
     jacobian,
     n_modes,
     regressors,
+    search_tolerances,
     solve_linear,
     start_from_model,
     subsample,
@@ -256,8 +257,12 @@ class OutputError(Estimator):
                 }
                 # each order stored in turn for its covariance, which the order rule needs
                 candidates = []
+                stored = {}
                 for order, (z, ev) in fits.items():
                     self._store(data, self._structure(order), z, ev)
+                    # what _store set, kept: the chosen order's state is put back, not
+                    # recomputed (its covariance, colour test and Jacobian again)
+                    stored[order] = dict(vars(self))
                     criterion = bic(ev.sse, n, ev.beta.size + z.size)
                     candidates.append(Candidate.of_fit(self, order, criterion))
                 self.order_choice_ = choose_order(
@@ -265,8 +270,9 @@ class OutputError(Estimator):
                 )
                 best = self.order_choice_.chosen
                 if best != candidates[-1].order:
-                    z, ev = fits[best]
-                    self._store(data, self._structure(best), z, ev)
+                    choice = self.order_choice_
+                    vars(self).update(stored[best])
+                    self.order_choice_ = choice
                 self.order_choice_.misfit = self.residual_colour_ == "model"
                 self.bic_ = {c.order: c.bic for c in candidates}
         return self
@@ -481,10 +487,8 @@ class OutputError(Estimator):
                 bounds=(lo, hi),
                 method="trf",
                 x_scale=1.0,
-                xtol=1e-10,
-                ftol=1e-12,
-                gtol=1e-12,
                 max_nfev=100,
+                **search_tolerances(),
             )
             ev = evaluate(sol.x, data)
             if best is None or ev.sse < best[1].sse:
@@ -528,7 +532,9 @@ class OutputError(Estimator):
         # are the model's misfit (a nonlinear plant, a lag the structure lacks): the same in
         # every noise realisation, so the estimate does not scatter by it, and the sandwich
         # would count its slow colour as noise (2-40 times too wide, median 7, on the soak)
-        self.cov_white_, singular = white_covariance(J, self.sigma_)
+        # one SVD of J for every covariance below (white, sandwich, white at the settled level)
+        inverse = bread(J)
+        self.cov_white_, singular = self.sigma_**2 * inverse[0], inverse[1]
         self.residual_ar_ = residual_ar(ev.residual, bounds)
         coloured = not residual_whiteness(ev.residual, segment_starts=data.segment_starts).passed
         self.residual_colour_, self.settled_whiteness_ = None, None
@@ -539,12 +545,12 @@ class OutputError(Estimator):
             self.covariance == "auto" and coloured and self.residual_colour_ != "model"
         )
         if use_sandwich and self.residual_ar_.order > 0:
-            self.cov_, singular = sandwich_covariance(J, self.residual_ar_, bounds)
+            self.cov_, singular = sandwich_covariance(J, self.residual_ar_, bounds, inverse)
             self.covariance_ = "hac"
         elif noise_sigma is not None:
             # white noise of the level it has where the output settled: σ̂ over all residuals
             # counts the misfit's power as noise too
-            self.cov_, singular = white_covariance(J, noise_sigma)
+            self.cov_, singular = noise_sigma**2 * inverse[0], inverse[1]
             self.covariance_ = "white"
         else:
             self.cov_, self.covariance_ = self.cov_white_, "white"

@@ -25,7 +25,13 @@ from fuelid.identify.noise import (
     shift_segments,
     used_samples,
 )
-from fuelid.identify.variable_projection import Bounds, Structure, regressors, solve_linear
+from fuelid.identify.variable_projection import (
+    Bounds,
+    Structure,
+    regressors,
+    search_tolerances,
+    solve_linear,
+)
 from fuelid.io.timeseries import IOData
 
 FloatArray = NDArray[np.float64]
@@ -110,10 +116,8 @@ def joint_fit(
             bounds=(lo, hi),
             method="trf",
             x_scale=1.0,
-            xtol=1e-10,
-            ftol=1e-12,
-            gtol=1e-12,
             max_nfev=100,
+            **search_tolerances(),
         )
         x = np.asarray(sol.x, dtype=float)
     Phi, beta, eps = evaluate(x)
