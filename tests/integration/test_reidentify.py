@@ -176,14 +176,18 @@ def _weighted_line(T: np.ndarray, y: np.ndarray, se: np.ndarray) -> tuple[float,
     return float(beta[1]), math.sqrt(cov[1, 1]), T_ref
 
 
-def _weighted_mean(q: np.ndarray, se: np.ndarray) -> tuple[float, float]:
+def _wls(X: np.ndarray, y: np.ndarray, se: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Coefficients, covariance (unscaled) and Birge ratio of a weighted fit (normal equations)."""
     w = 1.0 / se**2
-    m = float(np.sum(w * q) / np.sum(w))
-    inflation = max(1.0, float(np.sum(w * (q - m) ** 2)) / (q.size - 1)) if q.size > 1 else 1.0
-    return m, math.sqrt(inflation / float(np.sum(w)))
+    cov = np.linalg.inv(X.T @ (w[:, None] * X))
+    beta = cov @ (X.T @ (w * y))
+    chi2 = float(np.sum(w * (y - X @ beta) ** 2))
+    return beta, cov, max(1.0, chi2 / (y.size - X.shape[1]))
 
 
 def test_summary_numbers_recomputed_from_the_parquet(two_workers: Path, archive: Path) -> None:
+    from scipy import stats
+
     tracking = json.loads((two_workers / "tracking" / "line-a.json").read_text())
     summary = tracking["summary"]
     frame = pq.read_table(two_workers / "windows" / "loop=line-a").to_pandas()
@@ -192,24 +196,41 @@ def test_summary_numbers_recomputed_from_the_parquet(two_workers: Path, archive:
     assert summary["accepted_share"] == pytest.approx(frame["accepted"].mean(), abs=1e-12)
     assert summary["loop_days"] == 1
     ok = frame[frame["accepted"]].sort_values("t_to")
-    T, K, se = (ok[c].to_numpy(float) for c in ("T_fuel", "K", "se_K"))
-    # K drift: no plant file, K referred to T_ref by one line K(T); first vs last tenth
-    slope_all, _, T_ref = _weighted_line(T, K, se)
-    q = K - slope_all * (T - T_ref)
+    # K drift: windows that share no sample (600 s every 300 s: every other one), no plant file:
+    # K referred to T_ref by K = a + b(T - T_ref) + c t; first vs last tenth, the errors
+    # inflated by the Birge ratio of a line q(t) over the period, b's error carried through
+    apart = ok.iloc[::2]
+    assert (apart["t_from"].to_numpy()[1:] >= apart["t_to"].to_numpy()[:-1]).all()
+    T, K, se, t = (apart[c].to_numpy(float) for c in ("T_fuel", "K", "se_K", "t_to"))
+    t = (t - t.mean()) / 86400.0
+    w = 1.0 / se**2
+    T_ref = float(np.sum(w * T) / np.sum(w))
+    beta, cov, birge_fit = _wls(np.column_stack([np.ones_like(T), T - T_ref, t]), K, se)
+    b, se_b = beta[1], math.sqrt(birge_fit * cov[1, 1])
+    q = K - b * (T - T_ref)
+    birge = _wls(np.column_stack([np.ones_like(t), t]), q, se)[2]
     n = math.ceil(len(q) / 10)
-    first, se_first = _weighted_mean(q[:n], se[:n])
-    last, se_last = _weighted_mean(q[-n:], se[-n:])
+    first = float(np.sum(w[:n] * q[:n]) / np.sum(w[:n]))
+    last = float(np.sum(w[-n:] * q[-n:]) / np.sum(w[-n:]))
+    se_first = math.sqrt(birge / np.sum(w[:n]))
+    se_last = math.sqrt(birge / np.sum(w[-n:]))
     assert summary["k_drift"] == pytest.approx(last / first - 1.0, rel=1e-9, abs=1e-12)
-    se_drift = math.hypot(se_last / first, last * se_first / first**2)
+    dT = float(np.mean(T[-n:]) - np.mean(T[:n]))
+    se_drift = math.sqrt(
+        (se_last / first) ** 2 + (last * se_first / first**2) ** 2 + (dT * se_b / first) ** 2
+    )
     assert summary["k_drift_se"] == pytest.approx(se_drift, rel=1e-9)
-    # K(T) slope: the command band with the most windows (1 V bands), 95 % = ±1.96 se
+    # K(T) slope: the command band with the most windows (1 V bands; all accepted windows, as
+    # the service's tracker), 95 % = Student's t with the line's degrees of freedom
+    T, K, se = (ok[c].to_numpy(float) for c in ("T_fuel", "K", "se_K"))
     band = np.floor(ok["u_mean"].to_numpy(float))
     values, counts = np.unique(band, return_counts=True)
     m = band == values[np.argmax(counts)]
     slope, se_slope, _ = _weighted_line(T[m], K[m], se[m])
     assert summary["k_slope"] == pytest.approx(slope, rel=1e-9)
     lo, hi = summary["k_slope_ci95"]
-    assert (hi - lo) / 2 == pytest.approx(1.959963984540054 * se_slope, rel=1e-9)
+    quantile = stats.t.ppf(0.975, int(m.sum()) - 2)
+    assert (hi - lo) / 2 == pytest.approx(quantile * se_slope, rel=1e-9)
     assert tracking["tracking"]["mode"] == "band"
     # the fuel warmed 15 → 25 °C: K (viscosity, the pump) moves with it, the slope is resolved
     assert hi < 0.0 or lo > 0.0

@@ -9,22 +9,26 @@ temperature with a plant file, K per command band without one. Written to
 **K drift over the period.** Each accepted window's K is first *referred* to a common operating
 point, so that a period that happened to run warmer or at another command does not look like
 wear: with a plant file, q = K / K_plant(u, T) (the plant model's gain at the window's command
-and temperature; se_q = se_K / K_plant); without one, q = K − b·(T − T_ref) with b the slope of
-one weighted line K(T) over all accepted windows (no correction when the temperatures spread
-less than the tracker's 2 °C). The drift is then the relative change of the inverse-variance
-weighted mean of q between the first and the last tenth of the accepted windows (at least one
-window each)::
+and temperature; se_q = se_K / K_plant); without one, q = K − b·(T − T_ref) with b from one
+weighted fit K = a + b·(T − T_ref) + c·(t − t̄) over the period (the time term keeps a seasonal
+temperature trend from absorbing real wear into b; no correction when the temperatures spread
+less than the tracker's 2 °C). Only windows that do not overlap are used (the service's windows
+overlap by default: 600 s every 300 s, so neighbours share half their samples and are not
+independent evidence). The drift is the relative change of the inverse-variance weighted mean
+of q between the first and the last tenth of those windows (at least one window each)::
 
     drift = q̄_last / q̄_first − 1,   se by the delta method from the two means' standard errors,
 
-each mean's standard error inflated by the Birge ratio max(1, χ²/dof) when its windows scatter
-more than their errors say (as the tracker does). Tenths rather than calendar weeks: the
-period may be two days or a year, and a tenth of the accepted windows always holds the same
-share of the evidence.
+both means' variances inflated by the Birge ratio max(1, χ²/dof) of a straight line q(t) over
+the whole period (the scatter the stated errors do not explain, slow correlations included as
+far as they show as scatter; a tenth of one window would have none of its own), and, without a
+plant file, b's standard error carried through the two tenths' mean temperatures. Tenths rather
+than calendar weeks: the period may be two days or a year, and a tenth of the windows always
+holds the same share of the evidence.
 
-**K(T) slope.** The tracker's slope with its 95 % interval (±1.96 se, the Birge inflation
-included): d(K/K_plant)/dT [1/°C] in ratio mode, dK/dT [(L/min)/V/°C] of the command band with
-the most windows in band mode.
+**K(T) slope.** The tracker's slope with its 95 % interval (Student's t with the fit's degrees
+of freedom, the Birge inflation included): d(K/K_plant)/dT [1/°C] in ratio mode, dK/dT
+[(L/min)/V/°C] of the command band with the most windows in band mode.
 """
 
 from __future__ import annotations
@@ -39,9 +43,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from fuelid.model import Z95
 from fuelid.online.context import observation_of
-from fuelid.online.tracking import KTracker, PlantGain, TrackingError, fit_line
+from fuelid.online.tracking import KTracker, PlantGain, TrackingError
 
 __all__ = ["SUMMARY_UNITS", "k_drift", "loop_summary", "read_results", "track_loop"]
 
@@ -77,7 +80,7 @@ def read_results(
 
 
 def _accepted_rows(table: pa.Table) -> list[dict[str, Any]]:
-    columns = ["t_to", "K", "se_K", "T_fuel", "u_mean", "plant_K"]
+    columns = ["t_from", "t_to", "K", "se_K", "T_fuel", "u_mean", "plant_K"]
     rows = table.filter(table.column("accepted")).select(columns).to_pylist()
     return [r for r in rows if r["K"] is not None and r["se_K"] is not None]
 
@@ -103,47 +106,88 @@ def track_loop(table: pa.Table, k_plant: PlantGain | None) -> tuple[KTracker | N
         return None, str(error)
 
 
-def _weighted_mean(q: np.ndarray[Any, Any], se: np.ndarray[Any, Any]) -> tuple[float, float]:
+def _non_overlapping(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The windows, in time order, that share no sample with the one kept before them."""
+    kept: list[dict[str, Any]] = []
+    for row in rows:
+        if not kept or row["t_from"] >= kept[-1]["t_to"]:
+            kept.append(row)
+    return kept
+
+
+def _weighted_mean(
+    q: np.ndarray[Any, Any], se: np.ndarray[Any, Any], birge: float
+) -> tuple[float, float]:
     w = 1.0 / se**2
     mean = float(np.sum(w * q) / np.sum(w))
-    var = 1.0 / float(np.sum(w))
-    if q.size > 1:
-        chi2 = float(np.sum(w * (q - mean) ** 2))
-        var *= max(1.0, chi2 / (q.size - 1))
-    return mean, math.sqrt(var)
+    return mean, math.sqrt(birge / float(np.sum(w)))
+
+
+def _weighted_fit(
+    X: np.ndarray[Any, Any], y: np.ndarray[Any, Any], se: np.ndarray[Any, Any]
+) -> tuple[np.ndarray[Any, Any], np.ndarray[Any, Any], float]:
+    """Weighted least squares: coefficients, their covariance (unscaled) and the Birge ratio."""
+    sw = 1.0 / se
+    coef, *_ = np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)
+    cov = np.linalg.pinv((X * sw[:, None]).T @ (X * sw[:, None]))
+    dof = y.size - X.shape[1]
+    chi2 = float(np.sum(((y - X @ coef) * sw) ** 2))
+    return coef, cov, max(1.0, chi2 / dof) if dof > 0 else 1.0
 
 
 def k_drift(table: pa.Table) -> tuple[float | None, float | None, str]:
     """Relative K drift over the period and its standard error (module docstring); a note."""
-    rows = [
-        r
-        for r in _accepted_rows(table)
-        if r["se_K"] > 0.0 and r["K"] > 0.0 and r["T_fuel"] is not None
-    ]
+    rows = _non_overlapping(
+        [
+            r
+            for r in _accepted_rows(table)
+            if r["se_K"] > 0.0 and r["K"] > 0.0 and r["T_fuel"] is not None
+        ]
+    )
     if len(rows) < 2:
-        return None, None, f"K drift needs at least 2 accepted windows, got {len(rows)}"
+        return None, None, f"K drift needs at least 2 accepted windows apart, got {len(rows)}"
     K = np.array([r["K"] for r in rows])
     se = np.array([r["se_K"] for r in rows])
     T = np.array([r["T_fuel"] for r in rows])
+    t = np.array([r["t_to"] for r in rows])
+    t = (t - t.mean()) / 86400.0  # [d] about the period's middle
     plant = [r["plant_K"] for r in rows]
+    n = max(1, math.ceil(len(rows) / 10))
+    se_b = 0.0
     if all(p is not None and p > 0.0 for p in plant):
         Kp = np.array(plant, dtype=float)
         q, se_q = K / Kp, se / Kp
         how = "K/K_plant(u, T)"
     else:
-        line = fit_line(T, K, se**2, 2.0)
-        slope = 0.0 if line.slope is None else line.slope
-        q, se_q = K - slope * (T - line.T_ref), se
-        how = f"K referred to {line.T_ref:.1f} degC by dK/dT = {slope:.4g} (L/min)/V/degC"
-    n = max(1, math.ceil(len(rows) / 10))
-    first, se_first = _weighted_mean(q[:n], se_q[:n])
-    last, se_last = _weighted_mean(q[-n:], se_q[-n:])
+        T_ref = float(np.sum(T / se**2) / np.sum(1.0 / se**2))
+        if float(np.ptp(T)) < 2.0 or len(rows) < 4:
+            slope = 0.0
+        else:
+            X = np.column_stack([np.ones(len(rows)), T - T_ref, t])
+            coef, cov, birge_fit = _weighted_fit(X, K, se)
+            slope, se_b = float(coef[1]), math.sqrt(birge_fit * float(cov[1, 1]))
+        q, se_q = K - slope * (T - T_ref), se
+        how = f"K referred to {T_ref:.1f} degC by dK/dT = {slope:.4g} (L/min)/V/degC"
+    # the scatter about a straight line q(t) over the whole period, beyond the stated errors
+    birge = _weighted_fit(np.column_stack([np.ones(len(rows)), t]), q, se_q)[2]
+    first, se_first = _weighted_mean(q[:n], se_q[:n], birge)
+    last, se_last = _weighted_mean(q[-n:], se_q[-n:], birge)
     drift = last / first - 1.0
-    se_drift = math.hypot(se_last / first, last * se_first / first**2)
-    return drift, se_drift, f"{how}; first vs last {n} of {len(rows)} accepted windows"
+    # without a plant file both means lean on b: their difference by b·(T̄_first − T̄_last)
+    dT = float(np.mean(T[-n:]) - np.mean(T[:n]))
+    se_diff_b = abs(dT) * se_b / first
+    se_drift = math.sqrt((se_last / first) ** 2 + (last * se_first / first**2) ** 2 + se_diff_b**2)
+    return (
+        drift,
+        se_drift,
+        f"{how}; first vs last {n} of {len(rows)} accepted windows that do not overlap "
+        f"(errors inflated by the period's Birge ratio {birge:.2f})",
+    )
 
 
 def _slope(tracker: KTracker | None) -> tuple[float | None, list[float] | None, str]:
+    from scipy import stats
+
     if tracker is None:
         return None, None, ""
     if tracker.fit_ is not None:
@@ -159,7 +203,8 @@ def _slope(tracker: KTracker | None) -> tuple[float | None, list[float] | None, 
         return None, None, line.note
     se = line.se[1]
     assert se is not None
-    return line.slope, [line.slope - Z95 * se, line.slope + Z95 * se], unit
+    quantile = float(stats.t.ppf(0.975, line.dof)) if line.dof > 0 else math.inf
+    return line.slope, [line.slope - quantile * se, line.slope + quantile * se], unit
 
 
 def loop_summary(
