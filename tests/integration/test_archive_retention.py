@@ -249,3 +249,27 @@ def test_a_plant_file_changed_before_the_first_archive_is_not_copied(
     assert report.plant_note is not None
     assert "changed since the service started" in report.plant_note
     assert not list((tmp_path / "archive" / "loops" / "line-x").glob("plant-*"))
+
+
+def test_a_row_that_arrives_between_the_check_and_the_delete_is_kept(
+    store_path: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # retention checks the archived days, then deletes window by window: a row of an archived
+    # day written in between (after the day's archiving) is not in the file and must stay
+    import fuelid.store.prune as prune_module
+
+    root = tmp_path / "archive"
+    with _writable(store_path) as store:
+        archive_store(store, root, before=DATES[1])
+        checked = prune_module.prunable_spans
+
+        def check_then_a_late_row(*args: object, **kwargs: object) -> object:
+            spans = checked(*args, **kwargs)  # type: ignore[arg-type]
+            late = Sample(T0 + 5.0, 20_000_000, 2.0, 41.0, 40.0, 20.0, 1, 0)
+            assert store.append_samples([late]) == 1
+            return spans
+
+        monkeypatch.setattr(prune_module, "prunable_spans", check_then_a_late_row)
+        store.prune(0.0, None, now=NOW, archived_only=True)
+        left = store.read(T0, T0 + 86400.0)
+    assert left.seq.tolist() == [20_000_000]  # the archived rows deleted, the late one kept

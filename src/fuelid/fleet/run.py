@@ -238,6 +238,9 @@ def reidentify(
         A loop's archived settings or plant file are unusable.
     """
     started = time.perf_counter()
+    # absolute before anything derives a path from it: the plant files' paths go to workers
+    # that may run in another folder (a remote scheduler's)
+    archive_root = Path(archive_root).resolve()
     days = select_loop_days(archive_root, loops, date_from, date_to)
     specs = _prepared(archive_root, days, online, settings_source)
     out = Path(out_root)

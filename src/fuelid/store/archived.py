@@ -128,14 +128,16 @@ def record_day(
 
 def prunable_spans(
     con: sqlite3.Connection, loop_id: str, before: float = math.inf
-) -> list[tuple[float, float]]:
+) -> list[tuple[float, float, float]]:
     """The plant-time spans [s UTC] whose samples retention may delete with an archive.
 
     A day qualifies when it is in ``archived_days`` with at least as many rows as the store
     holds for it now and no sample of the day has a ``wall_time`` at or after the day's
     archiving (so neither a late row nor a re-sent one is lost). Only days that begin before
     ``before`` [plant s UTC] (retention's cutoff) are checked: each check reads the day's rows.
-    Ascending ``(start, end)``.
+    Ascending ``(start, end, archived_wall)``: retention deletes only rows written before
+    ``archived_wall`` [wall s UTC], so a row that arrives between this check and the delete is
+    kept (it is not in the file).
     """
     import datetime as _dt
 
@@ -151,5 +153,5 @@ def prunable_spans(
             (wall, start, end),
         ).fetchone()
         if int(count) <= samples and int(newer) == 0:
-            spans.append((start, end))
+            spans.append((start, end, float(wall)))
     return spans
