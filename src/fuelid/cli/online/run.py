@@ -123,7 +123,7 @@ def _virtual_tables(config: Path | None) -> dict[str, Any]:
     :data:`VIRTUAL_SITE_KEYS`, paths made absolute from the file's folder.
     """
     if config is None:
-        return {"online": {"write_back": "auto"}}
+        return {"online": {"write_back": "auto"}, "site": {}}
     import tomllib
 
     from pydantic import ValidationError
