@@ -11,6 +11,7 @@ backlog of the loop's current store.
 
 from __future__ import annotations
 
+import json
 import math
 import sqlite3
 import threading
@@ -95,18 +96,23 @@ def local_of(s: Site, central_id: int) -> list[dict[str, Any]]:
     return [r for r in s.history.requests() if r["origin"] == origin_of(central_id)]
 
 
-def test_a_future_clock_drops_no_recent_month(central_url: str) -> None:
+def test_a_future_clock_drops_no_recent_month(
+    central_url: str, capsys: pytest.CaptureFixture[str]
+) -> None:
     """A caller's clock ten years ahead: only what the server's clock would drop goes.
 
     Months of the last ~100 days exist; keeping 1 month on the server's clock keeps the
-    current and the previous month, whatever ``now`` the caller gives.
+    current and the previous month, whatever ``now`` the caller gives. The owner's
+    ``fuelid central retention`` (the server's clock) drops the older ones.
     """
     now = time.time()
+    with connect(central_url) as con, con.transaction():
+        for table in ("windows", "kpis"):
+            ensure_partitions(con, table, now - 100 * 86400.0, now)
+    assert main(["central", "retention", "--url", central_url, "--months", "1", "--json"]) == 0
+    dropped = json.loads(capsys.readouterr().out)["dropped"]
     with connect(central_url) as con:
-        with con.transaction():
-            for table in ("windows", "kpis"):
-                ensure_partitions(con, table, now - 100 * 86400.0, now)
-        dropped = drop_old_partitions(con, 1, now=now + 10 * 365.25 * 86400.0)
+        assert drop_old_partitions(con, 1, now=now + 10 * 365.25 * 86400.0) == []
         kept = [
             r[0]
             for r in con.execute(
@@ -446,3 +452,11 @@ def test_status_shows_the_backlog_of_the_loops_current_store(central_url: str) -
         (row,) = fleet_status(con, now=2001.0)
     assert (row["stores"], row["backlog_rows"], row["backlog_oldest_wall"]) == (2, 0, None)
     assert (row["service_beat"], row["service_stopped"]) == (2000.0, None)
+
+
+def test_a_site_file_may_not_set_the_retention() -> None:
+    """The centre's retention is its owner's: ``[central] retention_months`` is refused."""
+    from pydantic import ValidationError
+
+    with pytest.raises(ValidationError, match=r"fuelid central retention --url URL --months N"):
+        Central(url="postgresql://site@db.example/fuelid", retention_months=24)  # type: ignore[call-arg]
