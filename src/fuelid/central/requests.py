@@ -224,14 +224,9 @@ def claim(con: psycopg.Connection, request_id: int, store_uuid: str | None = Non
     file one.
     """
     store = "" if store_uuid is None else " AND store_uuid = %s"
-    args: tuple[Any, ...] = (
-        (int(request_id),)
-        if store_uuid is None
-        else (
-            int(request_id),
-            store_uuid,
-        )
-    )
+    args: list[Any] = [int(request_id)]
+    if store_uuid is not None:
+        args.append(store_uuid)
     with con.transaction():
         row = con.execute(
             "UPDATE requests SET fetched = now() WHERE id = %s AND status = 'waiting' "

@@ -14,7 +14,10 @@
 3. the store's liveness row (its service record, the backlog after the send).
 
 The retention (dropping old months) is the central owner's job (``fuelid central
-retention``), not a sender's: a site's clock or settings never decide for the fleet.
+retention``), not a sender's: a site's clock or settings never decide for the fleet. The
+months a sender knows to exist are forgotten with its connection: a month the owner dropped
+meanwhile fails one batch (no partition for the row), the failure drops the connection, and the
+next cycle creates the month again.
 
 **Exactly once.** An entry leaves the outbox only after the central transaction holding its row
 committed; the central upsert keyed by ``(store_uuid, id)`` makes a resend of a committed batch

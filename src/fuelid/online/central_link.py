@@ -110,7 +110,8 @@ class CentralLink:
         ``event(kind, detail)``: records an event in the store and logs it
         (:meth:`ServiceContext.event`); the start and the end of a failure go there.
     write_back_setting : str, optional
-        Used only with ``apply_now`` (a revert is refused when "off").
+        Given to :func:`~fuelid.online.requests.apply_request` with ``apply_now`` (where a
+        revert is refused whatever it says: no service runs to write it).
     """
 
     def __init__(
