@@ -187,7 +187,8 @@ def test_a_running_service_syncs_and_carries_out_a_central_approve(
 
     About 6 s of wall time (the virtual PLC at 20×): the link's cycle files the request, the
     beat approves, the write-back writes the gains with the echo check, the next cycles report
-    the outcome and send the proposal's new status.
+    the outcome and send the proposal's new status; the last cycle sends the record of the
+    clean stop.
     """
     import asyncio
 
@@ -238,6 +239,7 @@ def test_a_running_service_syncs_and_carries_out_a_central_approve(
     assert request["outcome"] == f"proposal {pid} approved by dana"
     assert status == ("applied",)
     assert service_record["pid"] == os.getpid()
+    assert service_record["stopped"] is not None  # the clean stop reached the centre
     assert writes == local_writes
     assert (pid, "verified") in [(w[2], w[3]) for w in writes]
 

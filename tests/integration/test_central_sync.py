@@ -320,8 +320,14 @@ def test_retention_drops_only_old_months(central_url: str) -> None:
 def test_a_site_role_with_the_documented_grants_can_sync(
     fleet_loops: Any, tmp_path: Path, central_url: str, pg_cluster: Any
 ) -> None:
-    """The GRANTs of docs/reference/central.md are enough for a sender (partitions included)."""
+    """The GRANTs of docs/reference/central.md are enough for a sender (partitions included).
+
+    And no more: the role may not drop partitions (the owner's retention), although
+    PostgreSQL lets ``PUBLIC`` execute a new function unless the migration revoked it.
+    """
     import re
+
+    import psycopg
 
     page = (Path(__file__).resolve().parents[2] / "docs/reference/central.md").read_text()
     section = page.split("### One database role per site", 1)[1]
@@ -341,6 +347,18 @@ def test_a_site_role_with_the_documented_grants_can_sync(
             result = sender.sync()
         assert result.error is None
         assert_same(central_url, loop.path)
+        with (
+            connect(url, autocommit=True) as con,
+            pytest.raises(psycopg.errors.InsufficientPrivilege),
+        ):
+            con.execute("SELECT central_drop_partitions(1, 0.0)")
+        with connect(central_url) as con:
+            parts = con.execute(
+                "SELECT count(*) FROM pg_inherits i JOIN pg_class p ON p.oid = i.inhparent "
+                "WHERE p.relname IN ('windows', 'kpis')"
+            ).fetchone()
+        assert parts is not None
+        assert parts[0] >= 2  # the loop's month(s), both tables
     finally:
         with connect(central_url, autocommit=True) as con:
             con.execute("REASSIGN OWNED BY site_line_a TO fuelid")

@@ -33,8 +33,9 @@ plant time, ``wall_time`` the site's wall clock (:mod:`fuelid.store.schema`).
     liveness(store_uuid PK, loop_id, service jsonb, backlog_rows, backlog_oldest_wall,
              last_send_wall, updated)                           upserted at every send
     requests(id PK, loop_id, kind, proposal_id, seen_status, seen_history_len, who, why,
-             origin, status, outcome, created, expires, fetched, local_id, done)
-        actions taken centrally, carried out by the site (:mod:`fuelid.central.requests`)
+             origin, status, outcome, created, expires, fetched, local_id, done, store_uuid)
+        actions taken centrally, carried out by the site (:mod:`fuelid.central.requests`);
+        ``store_uuid`` the loop's store they are for (a replaced store never takes them)
 
 Keys: ``(store_uuid, id)`` on every site table; on the partitioned ``windows`` and ``kpis``
 ``(store_uuid, id, time)`` (PostgreSQL's unique keys on a partitioned table include the
@@ -45,9 +46,11 @@ pending or approved), liveness by loop, waiting requests by loop.
 **Partitions.** ``windows`` and ``kpis`` are partitioned by month of plant time
 (``<table>_pYYYYMM``, bounds the month's first second in UTC), created on demand by the sender
 through ``central_ensure_partitions(parent, t_lo, t_hi)``; ``central_drop_partitions(months, now)``
-drops the months that ended more than ``months`` months before ``now`` (the retention; the
-other tables are small: a few rows per window). Both are ``SECURITY DEFINER`` functions of the
-migrating role, so a site's role needs no right to create or drop tables.
+drops the months that ended more than ``months`` months before ``now``, never later than the
+server's clock (the retention, the owner's job: ``fuelid central retention``; the other tables
+are small: a few rows per window). Both are ``SECURITY DEFINER`` functions of the migrating
+role, so a site's role needs no right to create or drop tables; their ``EXECUTE`` is revoked
+from ``PUBLIC`` (granted explicitly: a site's role gets ``central_ensure_partitions`` only).
 
 **Versions.** :data:`MIGRATIONS` in order, each in one transaction with its row in
 ``central_schema`` (under an advisory lock: two migrators never apply one twice). A database
@@ -59,6 +62,7 @@ migrate``. Never edit a released migration: append one.
 from __future__ import annotations
 
 import datetime as _dt
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -278,7 +282,8 @@ _V1 = [
     status text NOT NULL DEFAULT 'waiting'
         CHECK (status IN ('waiting', 'done', 'refused', 'expired')),
     outcome text NOT NULL DEFAULT '', created timestamptz NOT NULL DEFAULT now(),
-    expires timestamptz NOT NULL, fetched timestamptz, local_id bigint, done timestamptz)""",
+    expires timestamptz NOT NULL, fetched timestamptz, local_id bigint, done timestamptz,
+    store_uuid text NOT NULL)""",
     "CREATE INDEX requests_waiting ON requests(loop_id, id) WHERE status = 'waiting'",
     # monthly partitions on demand, for roles that may not create tables (SECURITY DEFINER)
     """CREATE FUNCTION central_ensure_partitions(parent text, t_lo float8, t_hi float8)
@@ -318,8 +323,9 @@ END $$""",
     """CREATE FUNCTION central_drop_partitions(months integer, now_s float8)
 RETURNS SETOF text LANGUAGE plpgsql SECURITY DEFINER SET search_path FROM CURRENT AS $$
 DECLARE
-    cutoff timestamp := date_trunc('month', to_timestamp(now_s) AT TIME ZONE 'UTC')
-                        - make_interval(months => months);
+    -- the server's clock bounds the caller's: a clock in the future never drops this month
+    cutoff timestamp := date_trunc('month', to_timestamp(least(now_s, extract(epoch FROM now())))
+                        AT TIME ZONE 'UTC') - make_interval(months => months);
     part record;
 BEGIN
     IF months < 1 THEN
@@ -339,6 +345,10 @@ BEGIN
         END IF;
     END LOOP;
 END $$""",
+    # PostgreSQL lets PUBLIC execute a new function: these two run as the owner, so only the
+    # roles granted them (a site's sender: ensure; the owner's retention job: drop) may
+    "REVOKE EXECUTE ON FUNCTION central_ensure_partitions(text, float8, float8) FROM PUBLIC",
+    "REVOKE EXECUTE ON FUNCTION central_drop_partitions(integer, float8) FROM PUBLIC",
 ]
 
 
@@ -417,11 +427,12 @@ def migrate(con: psycopg.Connection) -> tuple[int, int]:
     before = schema_version(con)
     if before > SCHEMA_VERSION:
         raise _newer(before)
-    con.execute(
-        "CREATE TABLE IF NOT EXISTS central_schema(version integer PRIMARY KEY, "
-        "summary text NOT NULL, applied timestamptz NOT NULL DEFAULT now())"
-    )
-    con.commit()
+    with con.transaction():
+        con.execute(_LOCK)  # first: two migrators of an empty database create it once
+        con.execute(
+            "CREATE TABLE IF NOT EXISTS central_schema(version integer PRIMARY KEY, "
+            "summary text NOT NULL, applied timestamptz NOT NULL DEFAULT now())"
+        )
     for migration in MIGRATIONS:
         with con.transaction():
             con.execute(_LOCK)
@@ -448,7 +459,9 @@ def month_start(t: float) -> float:
     >>> month_start(1_767_225_600.0 + 40 * 86400.0)  # 2026-02-10 → 2026-02-01
     1769904000.0
     """
-    day = _dt.datetime.fromtimestamp(t, _dt.UTC)
+    # floor first: fromtimestamp rounds to microseconds, so the last instant of a month
+    # would land in the next one, where PostgreSQL's range partitions do not put it
+    day = _dt.datetime.fromtimestamp(math.floor(t), _dt.UTC)
     return _dt.datetime(day.year, day.month, 1, tzinfo=_dt.UTC).timestamp()
 
 
@@ -463,12 +476,11 @@ def drop_old_partitions(
     """Drop the monthly partitions older than ``months`` months; the names dropped.
 
     A partition goes when its whole month ended before the first of the month ``months``
-    months before ``now`` (wall clock by default) [s UTC]: with ``months=12`` on 2027-03-15,
-    February 2026 and older go, March 2026 stays.
+    months before ``now`` (the server's clock by default, and never later than it) [s UTC]:
+    with ``months=12`` on 2027-03-15, February 2026 and older go, March 2026 stays. The
+    owner's job (``fuelid central retention``): ``PUBLIC`` may not execute the function.
     """
-    import time as _time
-
-    when = _time.time() if now is None else float(now)
+    when = math.inf if now is None else float(now)  # least(inf, now()) is the server's now
     with con.transaction():
         rows = con.execute("SELECT central_drop_partitions(%s, %s)", (int(months), when)).fetchall()
     return [str(r[0]) for r in rows]

@@ -5,13 +5,19 @@
 
 1. the outbox is on (:func:`~fuelid.central.outbox.enable_outbox`: the first time, every row
    already in the store is queued: the backfill, once);
-2. batches in outbox order (:meth:`Sender.send_once`): read at most ``batch_rows`` entries and
-   their rows' current values (one per row however often it changed), create the monthly
-   partitions the windows need (a short transaction of its own), then in one transaction COPY
-   into staging and upsert (:func:`~fuelid.central.ingest.ingest_batch`), commit, and only then
-   delete the sent entries locally;
-3. the store's liveness row (its service record, the backlog after the send);
-4. hourly, with ``retention_months``, the partitions older than that are dropped.
+2. batches in outbox order (:meth:`Sender.send_once`): in one central transaction holding the
+   store's advisory lock (:func:`store_lock`), read at most ``batch_rows`` entries and their
+   rows' current values (one per row however often it changed), COPY into staging and upsert
+   (:func:`~fuelid.central.ingest.ingest_batch`), commit, and only then delete the sent
+   entries locally; the monthly partitions the windows need are created before, in a short
+   transaction of their own;
+3. the store's liveness row (its service record, the backlog after the send).
+
+The retention (dropping old months) is the central owner's job (``fuelid central
+retention``), not a sender's: a site's clock or settings never decide for the fleet. The
+months a sender knows to exist are forgotten with its connection: a month the owner dropped
+meanwhile fails one batch (no partition for the row), the failure drops the connection, and the
+next cycle creates the month again.
 
 **Exactly once.** An entry leaves the outbox only after the central transaction holding its row
 committed; the central upsert keyed by ``(store_uuid, id)`` makes a resend of a committed batch
@@ -19,6 +25,13 @@ committed; the central upsert keyed by ``(store_uuid, id)`` makes a resend of a 
 change of a row after it was read adds a newer entry, so the last value sent is the last value
 written. During an outage the entries wait in the SQLite store (the recorder never waits on the
 network); the next sync resumes at the oldest.
+
+**Two senders of one store** (the service and a manual ``fuelid central sync``, which refuses
+a store whose service is live, or two by mistake): each batch is read and committed under a
+central transaction-level advisory lock keyed by the store's UUID, so their batches never
+interleave, and a batch read after another's commit carries values at least as new: a row's
+central copy never goes back to an older value. The lock does not order the liveness rows (the
+last one sent wins) nor make a second sender useful: it only waits.
 
 **Errors** (network, database, refused identity) are never raised into the caller by
 :meth:`Sender.sync`: they are returned in :class:`SyncResult` and kept in the store's sync
@@ -53,7 +66,6 @@ from fuelid.central.schema import (
     PARTITIONED,
     SITE_TABLES,
     check_schema,
-    drop_old_partitions,
     ensure_partitions,
 )
 from fuelid.errors import FuelidError
@@ -61,10 +73,7 @@ from fuelid.errors import FuelidError
 if TYPE_CHECKING:
     import psycopg
 
-__all__ = ["RETENTION_EVERY_S", "Sender", "SyncResult", "send_once"]
-
-RETENTION_EVERY_S = 3600.0
-"""Wall time between two retention passes of a sender [s]."""
+__all__ = ["Sender", "SyncResult", "send_once", "store_lock"]
 
 _COLUMNS = {name: [c for c, _ in t.columns] for name, t in SITE_TABLES.items()}
 
@@ -101,6 +110,11 @@ class SyncResult:
         return asdict(self)
 
 
+def store_lock(pg: psycopg.Connection, store_uuid: str) -> None:
+    """Take the store's central advisory lock until the transaction ends (waits for it)."""
+    pg.execute("SELECT pg_advisory_xact_lock(hashtext('fuelid store ' || %s))", (store_uuid,))
+
+
 def send_once(
     lite: sqlite3.Connection,
     pg: psycopg.Connection,
@@ -111,7 +125,9 @@ def send_once(
     """Send the oldest batch of the outbox; ``(entries consumed, rows sent)``, (0, 0) when empty.
 
     Raises whatever fails (psycopg, sqlite3, :class:`CentralError`): nothing was deleted
-    locally unless the central transaction committed.
+    locally unless the central transaction committed. The batch is read under the store's lock
+    (:func:`store_lock`, the module docstring); a batch with windows of a month whose
+    partitions are not known is read again after creating them.
 
     Parameters
     ----------
@@ -126,19 +142,23 @@ def send_once(
     known_months : set, optional
         ``(table, month)`` partitions known to exist (filled here; saves a round trip).
     """
-    batch: Batch = read_batch(lite, batch_rows, _COLUMNS)
-    if not batch.ids:
-        return 0, 0
-    windows = batch.rows.get("windows") or []
-    if windows:
-        known = known_months if known_months is not None else set()
-        months = sorted(months_of(windows))
-        if any((t, m) not in known for t in PARTITIONED for m in months):
-            with pg.transaction():  # DDL in a transaction of its own: short parent locks
-                for table in PARTITIONED:
-                    ensure_partitions(pg, table, months[0], months[-1])
-            known.update((t, m) for t in PARTITIONED for m in months)
-    sent = ingest_batch(pg, ident, batch)
+    known = known_months if known_months is not None else set()
+    while True:
+        with pg.transaction():
+            store_lock(pg, ident.store_uuid)
+            batch: Batch = read_batch(lite, batch_rows, _COLUMNS)
+            if not batch.ids:
+                return 0, 0
+            months = sorted(months_of(batch.rows.get("windows") or []))
+            missing = any((t, m) not in known for t in PARTITIONED for m in months)
+            if not missing:
+                sent = ingest_batch(pg, ident, batch)  # a savepoint of this transaction
+        if not missing:
+            break
+        with pg.transaction():  # DDL in a transaction of its own: short parent locks
+            for table in PARTITIONED:
+                ensure_partitions(pg, table, months[0], months[-1])
+        known.update((t, m) for t in PARTITIONED for m in months)
     delete_sent(lite, batch.ids)
     return len(batch.ids), sent
 
@@ -154,8 +174,6 @@ class Sender:
         The central store's libpq URL (``[central] url``).
     batch_rows : int
         Outbox entries per batch (``[central] batch_rows``).
-    retention_months : int, optional
-        Drop central partitions older than this (``[central] retention_months``).
     application_name : str, optional
         For ``pg_stat_activity``; ``fuelid sync <loop_id>`` by default.
 
@@ -171,18 +189,15 @@ class Sender:
         url: str,
         *,
         batch_rows: int = 5000,
-        retention_months: int | None = None,
         application_name: str | None = None,
     ) -> None:
         self.url = url
         self.batch_rows = int(batch_rows)
-        self.retention_months = retention_months
         self.lite = open_store_file(store_path)
         self.ident = identity(self.lite)
         self.application_name = application_name or f"fuelid sync {self.ident.loop_id}"
         self.pg: psycopg.Connection | None = None
         self.known_months: set[tuple[str, float]] = set()
-        self._last_retention = 0.0
         self._enabled = False
 
     def connection(self) -> psycopg.Connection:
@@ -215,8 +230,8 @@ class Sender:
             self.lite, self.connection(), self.ident, self.batch_rows, self.known_months
         )
 
-    def sync(self, max_batches: int | None = None, now: float | None = None) -> SyncResult:
-        """Send the outbox (up to ``max_batches`` batches), the liveness, the retention.
+    def sync(self, max_batches: int | None = None) -> SyncResult:
+        """Send the outbox (up to ``max_batches`` batches), then the liveness.
 
         Never raises for a network, database or store failure: see :class:`SyncResult`.
         """
@@ -242,10 +257,6 @@ class Sender:
                 result.backlog_oldest_wall,
                 wall if result.batches else None,
             )
-            when = wall if now is None else now
-            if self.retention_months and wall - self._last_retention >= RETENTION_EVERY_S:
-                drop_old_partitions(pg, self.retention_months, when)
-                self._last_retention = wall
         except (psycopg.Error, sqlite3.Error, FuelidError, OSError) as error:
             result.error = self.record_failure(error)
         else:

@@ -20,18 +20,21 @@ SELECT l.loop_id, l.site_name,
        (SELECT count(*) FROM stores s WHERE s.loop_id = l.loop_id) AS stores,
        (SELECT extract(epoch FROM max(v.updated))::float8 FROM liveness v
          WHERE v.loop_id = l.loop_id) AS last_seen,
-       (SELECT sum(v.backlog_rows) FROM liveness v WHERE v.loop_id = l.loop_id) AS backlog_rows,
-       (SELECT min(v.backlog_oldest_wall) FROM liveness v
-         WHERE v.loop_id = l.loop_id) AS backlog_oldest_wall,
-       (SELECT v.service FROM liveness v WHERE v.loop_id = l.loop_id
-         ORDER BY v.updated DESC LIMIT 1) AS service,
+       cur.backlog_rows, cur.backlog_oldest_wall, cur.service,
        (SELECT k.time FROM kpis k WHERE k.loop_id = l.loop_id ORDER BY k.time DESC LIMIT 1)
          AS last_window_time,
        (SELECT count(*) FROM proposals p WHERE p.loop_id = l.loop_id
          AND p.status IN ('pending', 'approved')) AS open_proposals,
        (SELECT count(*) FROM requests r WHERE r.loop_id = l.loop_id
          AND r.status = 'waiting') AS waiting_requests
-FROM loops l ORDER BY l.loop_id
+FROM loops l LEFT JOIN LATERAL (
+    -- the loop's current store (fuelid.central.requests.newest_store): the one whose service
+    -- beat last; a replaced store's stale backlog is not the loop's
+    SELECT v.backlog_rows, v.backlog_oldest_wall, v.service FROM stores s
+    JOIN liveness v USING (store_uuid) WHERE s.loop_id = l.loop_id
+    ORDER BY (v.service ->> 'beat')::float8 DESC NULLS LAST, s.first_seen DESC LIMIT 1
+) cur ON true
+ORDER BY l.loop_id
 """
 
 
@@ -39,7 +42,9 @@ def fleet_status(con: psycopg.Connection, now: float | None = None) -> list[dict
     """One row per loop of the central store, by loop id.
 
     Keys: ``loop_id``, ``site_name``, ``stores``, ``last_seen`` [wall s UTC] and
-    ``last_seen_age_s`` [s], ``backlog_rows``, ``backlog_oldest_wall``, ``service_beat`` (the
+    ``last_seen_age_s`` [s], ``backlog_rows`` and ``backlog_oldest_wall`` (of the loop's current
+    store, whose service beat last: a replaced store's last backlog is not the loop's),
+    ``service_beat`` (the
     site's last beat [wall s UTC]), ``service_stopped`` (its clean stop, None while it ran),
     ``last_window_time`` [plant s UTC], ``open_proposals``, ``waiting_requests``.
     """

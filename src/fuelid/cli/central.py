@@ -106,7 +106,8 @@ def sync_command(
 ) -> None:
     """Send a store's outbox now (switching it on; the first time, its whole history).
 
-    Also files the loop's central requests; with no service running, applies them at once.
+    Also files and applies the store's central requests (a revert is refused: no service
+    writes it). A store whose service runs is refused: the service sends it.
     """
     from fuelid.central.connect import CentralError
     from fuelid.online.central_link import CentralLink
@@ -118,9 +119,14 @@ def sync_command(
 
     with SQLiteStore(store) as opened, OnlineHistory(opened) as history:
         live = link_json(opened, service=history.state(SERVICE_KEY))["service"] == "running"
+        if live:  # two senders of one store: the service's cycles would race this one
+            raise CentralError(
+                f"a running service sends {store}: stop it or let it sync (`fuelid online "
+                "status` shows its backlog)"
+            )
         link = CentralLink(opened.path, Central(url=url, batch_rows=batch_rows), history)
         try:
-            result = link.cycle(apply_now=not live, max_batches=None)
+            result = link.cycle(apply_now=True, max_batches=None)
         finally:
             link.close()
     if result.error is not None:

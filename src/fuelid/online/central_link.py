@@ -6,12 +6,13 @@ shares the event loop and never waits on the network):
 
 1. :meth:`Sender.sync <fuelid.central.sender.Sender.sync>`: the outbox in batches of
    ``batch_rows`` (at most :data:`MAX_BATCHES_PER_CYCLE` a cycle, so a long backlog after an
-   outage drains over a few cycles without holding the thread), the liveness row, the retention;
-2. :meth:`CentralLink.requests_cycle`: the loop's central requests
-   (:mod:`fuelid.central.requests`) are filed locally with :func:`~fuelid.online.requests.
-   file_request` (origin ``central:<id>``, who and why kept) after checking that the proposal
-   is still as its requester saw it; the service's beat applies them like the CLI's and the
-   dashboard's; their outcomes are reported back at the next cycle.
+   outage drains over a few cycles without holding the thread), the liveness row;
+2. :meth:`CentralLink.requests_cycle`: the central requests for the store
+   (:mod:`fuelid.central.requests`) are claimed centrally, then filed locally with
+   :func:`~fuelid.online.requests.file_request` (origin ``central:<id>``, who and why kept)
+   after checking that the proposal is still as its requester saw it; the service's beat
+   applies them like the CLI's and the dashboard's; their outcomes are reported back at the
+   next cycle.
 
 A failure (the network, the database, a refused identity) is recorded as an event of the store
 once when it starts (``central_error``, with the reason) and once when it ends (``central_ok``),
@@ -100,7 +101,7 @@ class CentralLink:
     store_path : str or Path
         The loop's SQLite store.
     central : Central
-        The site file's ``[central]`` (url, send_every_s, batch_rows, retention_months).
+        The site file's ``[central]`` (url, send_every_s, batch_rows).
     history : OnlineHistory
         The store's online history (the service's own: thread-safe).
     say : callable, optional
@@ -109,7 +110,8 @@ class CentralLink:
         ``event(kind, detail)``: records an event in the store and logs it
         (:meth:`ServiceContext.event`); the start and the end of a failure go there.
     write_back_setting : str, optional
-        Used only with ``apply_now`` (a revert is refused when "off").
+        Given to :func:`~fuelid.online.requests.apply_request` with ``apply_now`` (where a
+        revert is refused whatever it says: no service runs to write it).
     """
 
     def __init__(
@@ -130,7 +132,6 @@ class CentralLink:
             store_path,
             central.url,
             batch_rows=central.batch_rows,
-            retention_months=central.retention_months,
         )
         self._failing: str | None = None
 
@@ -161,28 +162,35 @@ class CentralLink:
         return result
 
     def requests_cycle(self, result: CycleResult, apply_now: bool) -> None:
-        """File the loop's waiting central requests locally; report the finished ones."""
-        from fuelid.central.requests import fetch_waiting, finish_central_request, mark_fetched
+        """File the store's waiting central requests locally; report the finished ones.
+
+        A request is claimed centrally first (:func:`~fuelid.central.requests.claim`) and filed
+        locally only when the claim succeeded: one that expired meanwhile is never applied. A
+        claimed request the site has no record of (the filing failed, or the site died between
+        the claim and the filing) is refused with that reason, never applied later unreported.
+        """
+        from fuelid.central.requests import (
+            claim,
+            fetch_waiting,
+            finish_central_request,
+            mark_fetched,
+        )
 
         pg = self.sender.connection()
-        waiting = fetch_waiting(pg, self.sender.ident.loop_id)
-        if not waiting:
-            return
-        local_by_origin = {
-            str(r["origin"]): r
-            for r in self.history.requests(limit=500)
-            if str(r["origin"]).startswith("central:")
-        }
+        ident = self.sender.ident
+        waiting = fetch_waiting(pg, ident.loop_id, ident.store_uuid)
         for request in waiting:
-            local = local_by_origin.get(origin_of(request["id"]))
+            local = self._local(request["id"])
+            if local is None and request.get("fetched") is not None:
+                outcome = "claimed but the site has no record of it"
+                finish_central_request(pg, request["id"], "refused", outcome)
+                result.reported.append({**request, "status": "refused", "outcome": outcome})
+                continue
             if local is None:
-                if request.get("fetched") is not None:
-                    finish_central_request(
-                        pg, request["id"], "refused", "the site has no record of it"
-                    )
-                    continue
                 reason = changed_reason(self.history, request)
                 if reason is None:
+                    if not claim(pg, request["id"], ident.store_uuid):
+                        continue  # expired or taken since the fetch: never filed here
                     try:
                         local = file_request(
                             self.history,
@@ -193,20 +201,39 @@ class CentralLink:
                             origin_of(request["id"]),
                         )
                     except StoreError as error:
-                        reason = str(error)
+                        reason = f"claimed but the site could not file it: {error}"
                 if reason is not None or local is None:
                     finish_central_request(pg, request["id"], "refused", str(reason))
                     result.reported.append({**request, "status": "refused", "outcome": reason})
                     continue
-                mark_fetched(pg, request["id"], int(local["id"]))
                 result.filed.append(local)
                 if apply_now:
-                    status, outcome = apply_request(self.history, local, self.write_back_setting)
+                    status, outcome = self._apply_now(local)
                     local = self.history.finish_request(local["id"], status, outcome)
+            if request.get("local_id") is None:
+                mark_fetched(pg, request["id"], int(local["id"]))
             if local["status"] != "waiting":
                 status = "done" if local["status"] == "done" else "refused"
                 finish_central_request(pg, request["id"], status, str(local["outcome"]))
                 result.reported.append({**request, "status": status, "outcome": local["outcome"]})
+
+    def _local(self, central_id: int) -> dict[str, Any] | None:
+        """The local request filed for central request ``central_id`` (by its origin)."""
+        row = self.sender.lite.execute(
+            "SELECT id FROM requests WHERE origin = ? ORDER BY id LIMIT 1",
+            (origin_of(central_id),),
+        ).fetchone()
+        return None if row is None else self.history.request(int(row[0]))
+
+    def _apply_now(self, local: dict[str, Any]) -> tuple[str, str]:
+        """Apply a request with no service running (``fuelid central sync``).
+
+        A revert needs a service that writes: recorded now, it would fire unseen at some later
+        start; so without one it is refused, and says so.
+        """
+        if local["kind"] == "revert":
+            return "refused", "no service runs at the site to write a revert: start it first"
+        return apply_request(self.history, local, self.write_back_setting)
 
     def _log(self, result: CycleResult) -> None:
         """An event when a failure starts (or its reason changes) and when it ends."""
@@ -232,13 +259,19 @@ class CentralLink:
                 origin="central",
             )
 
-    async def run(self, stopping: asyncio.Event) -> None:
-        """A cycle every ``send_every_s`` until ``stopping`` is set; a last one at the end."""
+    async def run(self, stopping: asyncio.Event, on_stop: Callable[[], None] | None = None) -> None:
+        """A cycle every ``send_every_s`` until ``stopping`` is set; a last one at the end.
+
+        ``on_stop`` (in a thread) runs before the last cycle: the service marks its record
+        stopped there, so that the centre learns of a clean stop.
+        """
         try:
             while not stopping.is_set():
                 await asyncio.to_thread(self.cycle)
                 with contextlib.suppress(asyncio.TimeoutError):
                     await asyncio.wait_for(stopping.wait(), float(self.central.send_every_s))
+            if on_stop is not None:
+                await asyncio.to_thread(on_stop)
             if self._failing is None:  # what the stop wrote; not when the last cycle failed
                 await asyncio.to_thread(self.cycle)  # (no wait for a connect timeout at stop)
         finally:

@@ -347,9 +347,7 @@ class OnlineService:
             raise group.exceptions[0] from None  # the recorder's error, as itself
         finally:
             self._stopping.set()
-            with contextlib.suppress(FuelidError):
-                running = self.history.state(SERVICE_KEY) or {}
-                self.history.set_state(SERVICE_KEY, {**running, "stopped": time.time()})
+            self._mark_stopped()
             if self.gain_writer is not None:
                 await self.gain_writer.close()
             writer.flush()
@@ -361,6 +359,12 @@ class OnlineService:
             if not isinstance(error, FuelidError):
                 raise error
         return self.stats
+
+    def _mark_stopped(self) -> None:
+        """Write the clean stop (``stopped``, wall s UTC) into the service record."""
+        with contextlib.suppress(FuelidError):
+            running = self.history.state(SERVICE_KEY) or {}
+            self.history.set_state(SERVICE_KEY, {**running, "stopped": time.time()})
 
     async def _start(self, tasks: asyncio.TaskGroup) -> None:
         """Reconcile, say what the service does, start the supervised tasks."""
@@ -400,7 +404,9 @@ class OnlineService:
                 self.store.path, self.site.central, self.history, self.context.say,
                 event=self.context.event,
             )  # fmt: skip
-            tasks.create_task(self._supervised("central", link.run(self._stopping)), name="central")
+            # the record says stopped before the link's last cycle: the centre learns of it
+            sending = link.run(self._stopping, on_stop=self._mark_stopped)
+            tasks.create_task(self._supervised("central", sending), name="central")
 
     async def _beat(self) -> None:
         """Refresh the record's beat and apply the waiting requests, every SERVICE_BEAT_S.

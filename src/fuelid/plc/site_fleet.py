@@ -39,9 +39,18 @@ class Central(_Table):
     url: str = Field(pattern=r"^postgres(ql)?://", description="postgresql://user@host/db?…")
     send_every_s: float = Field(5.0, gt=0.0, le=3600.0, description="send the outbox this often")
     batch_rows: int = Field(5000, ge=1, le=1_000_000, description="rows per send at most")
-    retention_months: int | None = Field(
-        None, ge=1, description="central partitions kept this many months; none: all"
-    )
+    # no retention here: the centre's owner drops old months (`fuelid central retention`), so
+    # one site's clock or setting never decides for the fleet
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_retention(cls, data: object) -> object:
+        if isinstance(data, dict) and "retention_months" in data:
+            raise ValueError(
+                "central.retention_months: the centre's owner keeps the retention "
+                "(`fuelid central retention --url URL --months N`, a cron job); remove it here"
+            )
+        return data
 
     @model_validator(mode="after")
     def _no_password(self) -> Central:
