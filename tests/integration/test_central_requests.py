@@ -26,23 +26,7 @@ from fuelid.online.requests import consume_requests
 from fuelid.plc.site_fleet import Central
 from fuelid.store import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
-from support.fleet import SimulatedLoop, copy_loop
-
-
-def with_proposal(loop: SimulatedLoop) -> int:
-    """A pending proposal on the loop's newest accepted model; its id."""
-    with (
-        SQLiteStore(
-            loop.path, site_name=loop.site_name, tag_map_hash=f"hash-{loop.loop_id}",
-            loop_id=loop.loop_id,
-        ) as store,
-        OnlineHistory(store) as history,
-    ):  # fmt: skip
-        model_id = history.accepted_models(limit=1)[0]["id"]
-        return history.add_proposal(
-            model_id=model_id, old={"Kc": 0.10, "Ti": 2.0}, new={"Kc": 0.12, "Ti": 2.2},
-            detail={"rule": "test"}, who="online", why="test proposal",
-        )  # fmt: skip
+from support.fleet import SimulatedLoop, copy_loop, with_proposal
 
 
 class Site:

@@ -222,3 +222,20 @@ def copy_loop(loop: SimulatedLoop, folder: Path) -> SimulatedLoop:
         target, loop.loop_id, loop.site_name, loop.period_s, loop.t_first, loop.t_last,
         loop.samples,
     )  # fmt: skip
+
+
+def with_proposal(loop: SimulatedLoop) -> int:
+    """A pending proposal on the loop's newest accepted model (as the service files one); its id."""
+    store = SQLiteStore(
+        loop.path, site_name=loop.site_name, tag_map_hash=f"hash-{loop.loop_id}",
+        loop_id=loop.loop_id,
+    )  # fmt: skip
+    try:
+        with OnlineHistory(store) as history:
+            model_id = history.accepted_models(limit=1)[0]["id"]
+            return history.add_proposal(
+                model_id=model_id, old={"Kc": 0.10, "Ti": 2.0}, new={"Kc": 0.12, "Ti": 2.2},
+                detail={"rule": "test"}, who="online", why="test proposal",
+            )  # fmt: skip
+    finally:
+        store.close()

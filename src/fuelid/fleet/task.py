@@ -43,6 +43,7 @@ import pyarrow.parquet as pq
 from fuelid.archive.layout import (
     SAMPLE_SCHEMA,
     LoopDay,
+    arrays_of,
     day_bounds,
     partition_dir,
     read_loop_info,
@@ -231,25 +232,6 @@ def day_windows(date: str, online: Online) -> list[tuple[float, float]]:
     return [(start + k * every - online.window_s, start + k * every) for k in range(1, count + 1)]
 
 
-def _arrays(table: pa.Table) -> SampleArrays:
-    def floats(name: str) -> np.ndarray[Any, Any]:
-        return np.asarray(table.column(name).to_numpy(zero_copy_only=False), dtype=np.float64)
-
-    def ints(name: str) -> np.ndarray[Any, Any]:
-        return np.asarray(table.column(name).fill_null(-1).to_numpy(), dtype=np.int64)
-
-    return SampleArrays(
-        time=floats("time"),
-        seq=ints("seq"),
-        u=floats("u"),
-        y=floats("y"),
-        setpoint=floats("setpoint"),
-        fuel_temperature=floats("fuel_temperature"),
-        mode=ints("mode"),
-        quality=ints("quality"),
-    )
-
-
 def read_samples(archive_root: str | Path, loop_day: LoopDay, lookback_s: float) -> SampleArrays:
     """The loop-day's samples and the previous day's last ``lookback_s`` [s], sorted by time.
 
@@ -265,9 +247,9 @@ def read_samples(archive_root: str | Path, loop_day: LoopDay, lookback_s: float)
             filters = None if condition is None else [condition]
             tables.append(pq.read_table(path, schema=SAMPLE_SCHEMA, filters=filters))
     if not tables:
-        return _arrays(SAMPLE_SCHEMA.empty_table())
+        return arrays_of(SAMPLE_SCHEMA.empty_table())
     table = pa.concat_tables(tables).sort_by([("time", "ascending"), ("seq", "ascending")])
-    return _arrays(table)
+    return arrays_of(table)
 
 
 def _key(loop_day: LoopDay) -> tuple[str, str]:
