@@ -351,11 +351,29 @@ class Migration:
     statements: tuple[str, ...]
 
 
+_V2 = [
+    "ALTER TABLE liveness ADD COLUMN site_wall double precision",
+    "ALTER TABLE liveness ADD COLUMN send_every_s double precision",
+    "ALTER TABLE liveness ADD COLUMN newest_sample_time double precision",
+    "ALTER TABLE liveness ADD COLUMN newest_sample_wall double precision",
+    "ALTER TABLE liveness ADD COLUMN first_sample_time double precision",
+    "ALTER TABLE liveness ADD COLUMN period_s double precision",
+    "ALTER TABLE liveness ADD COLUMN schema_version integer",
+    "ALTER TABLE liveness ADD COLUMN site_state jsonb",
+    # a model's window, as a central reader asks for it (the site's models.window_id join)
+    "CREATE INDEX windows_model ON windows(store_uuid, model_id) WHERE model_id IS NOT NULL",
+]
+
 MIGRATIONS: tuple[Migration, ...] = (
     Migration(
         1,
         "stores, loops, the site tables (windows and KPIs by month), liveness, requests",
         tuple(_V1),
+    ),
+    Migration(
+        2,
+        "liveness: the site's clock, send interval, newest sample, sampling period and state",
+        tuple(_V2),
     ),
 )
 """Every migration in order; ``MIGRATIONS[k]`` takes the database to version ``k + 1``."""

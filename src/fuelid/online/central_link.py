@@ -131,6 +131,7 @@ class CentralLink:
             central.url,
             batch_rows=central.batch_rows,
             retention_months=central.retention_months,
+            send_every_s=central.send_every_s,  # the centre tells "no contact" by it
         )
         self._failing: str | None = None
 
