@@ -127,7 +127,8 @@ def test_the_fleet_rows_are_the_same_from_the_stores_and_from_the_centre(
                 assert chip["text"] == mine["text"], (loop_id, chip)
     # the same chips mean something: line-b ran in MAN, line-a has a proposal waiting
     mode_b = next(c for c in central["line-b"]["chips"] if c["name"] == "mode")
-    assert mode_b["level"] == "warn" and mode_b["text"].startswith("MAN")
+    assert mode_b["level"] == "warn"
+    assert mode_b["text"].startswith("MAN")
     waiting = next(c for c in central["line-a"]["chips"] if c["name"] == "proposals")
     assert waiting["text"] == "1 proposal(s) wait for approval"
 
@@ -308,7 +309,8 @@ def test_a_central_store_lost_while_serving_leaves_the_local_loops(
 def test_an_unreachable_central_store_at_start_is_one_line_and_exit_2(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    code = cli_main(["dashboard", "--central", "postgresql://fuelid@127.0.0.1:9/none", "--port", "0"])
+    url = "postgresql://fuelid@127.0.0.1:9/none"  # nothing listens on port 9 (discard)
+    code = cli_main(["dashboard", "--central", url, "--port", "0"])
     err = capsys.readouterr().err
     assert code == 2
     assert err.count("\n") == 1
