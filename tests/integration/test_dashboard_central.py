@@ -12,6 +12,7 @@ while serving must leave the local loops served and say so.
 from __future__ import annotations
 
 import contextlib
+import datetime as dt
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -86,9 +87,12 @@ def sites(fleet_loops: Any, tmp_path: Path, central_url: str) -> Iterator[dict[s
 
 @contextlib.contextmanager
 def dashboard(
-    stores: list[Path], url: str | None, security: Security | None = None
+    stores: list[Path],
+    url: str | None,
+    security: Security | None = None,
+    archive: Path | None = None,
 ) -> Iterator[tuple[TestClient, Loops]]:
-    central = None if url is None else CentralLoops(url)
+    central = None if url is None else CentralLoops(url, archive=archive)
     loops = Loops(stores, central=central)
     try:
         yield TestClient(create_app(loops, security or Security(None, require_login=False))), loops
@@ -177,6 +181,38 @@ def test_a_window_page_from_the_centre(sites: dict[str, Site], central_url: str)
     assert "raw samples stay at the site" in page.text.lower()
     assert loop_page.status_code == 200
     assert "give --archive DIR" in loop_page.text
+
+
+def test_with_an_archive_the_trend_of_a_central_loop_is_the_stores(
+    sites: dict[str, Site], central_url: str, tmp_path: Path
+) -> None:
+    """Raw and level of detail: the archive's samples give the trend the store gives.
+
+    line-b: its NULL samples (599, quality bad) test the buckets' NaN rule and bad counts.
+    """
+    from fuelid.archive.writer import archive_store
+
+    site = sites["line-b"]
+    day_after = dt.datetime.fromtimestamp(site.loop.t_last, dt.UTC).date() + dt.timedelta(1)
+    archive_store(site.store, tmp_path / "archive", day_after.isoformat())
+    t0 = site.loop.t_first + 3600.0  # a bad stretch begins here: 30 s of NULL samples
+    spans = {"raw": (t0 - 60.0, t0 + 240.0), "lod": (t0 - 1800.0, t0 + 5400.0)}
+    answers: dict[str, dict[str, Any]] = {}
+    for name, stores, url in (("local", [site.loop.path], None), ("central", [], central_url)):
+        with dashboard(stores, url, archive=tmp_path / "archive") as (client, _):
+            for kind, (start, end) in spans.items():
+                got = client.get(f"/api/loops/line-b/trend?start={start}&end={end}&width=400")
+                assert got.status_code == 200, got.text
+                answers[f"{name} {kind}"] = got.json()
+            if name == "central":
+                page = client.get("/loops/line-b").text
+    assert answers["local raw"]["source"] == "raw"
+    assert answers["local lod"]["source"] == "lod"
+    assert answers["local lod"]["level_s"] == 1  # 2 h: 7,200 buckets of 1 s
+    for kind in spans:
+        assert answers[f"central {kind}"] == answers[f"local {kind}"], kind
+    assert len(answers["central raw"]["bad"]) == 299  # the NULL samples of the stretch, 30 s
+    assert "Samples from the raw archive" in page
 
 
 def test_an_approve_on_a_central_loop_is_relayed_and_carried_out_by_the_site(
@@ -315,3 +351,36 @@ def test_an_unreachable_central_store_at_start_is_one_line_and_exit_2(
     assert code == 2
     assert err.count("\n") == 1
     assert err.startswith("error: --central: central store postgresql://fuelid@127.0.0.1:9/none")
+
+
+def test_the_fleet_and_a_central_loop_page_load_in_a_browser_without_a_console_error(
+    sites: dict[str, Site], central_url: str, tmp_path: Path
+) -> None:
+    """``fuelid dashboard --central URL`` as a process, Debian's Chromium on its pages."""
+    from support.browser import browser_page, wait_ready
+    from support.browser import dashboard as dashboard_process
+
+    window = sites["line-a"].history.last_window()
+    assert window is not None
+    with (
+        dashboard_process(tmp_path, "--central", central_url) as (_, base),
+        browser_page() as (page, errors),
+    ):
+        for path in ("/", "/loops/line-a", f"/loops/line-a/windows/{window['id']}"):
+            page.goto(base + path)
+            wait_ready(page)
+            assert page.locator("h1").count() == 1, path
+        page.goto(base + "/")
+        wait_ready(page)
+        fleet = page.locator("#fleet tbody tr").count()
+        banner = page.locator("#central-banner").inner_text()
+        page.goto(base + "/loops/line-a")
+        wait_ready(page)
+        note = page.locator("#samples-note").inner_text()
+        models = page.evaluate("document.getElementById('models').data[0].x.length")
+    assert errors == []
+    assert fleet == 2
+    assert "loops of the central store" in banner
+    assert note.startswith("Raw samples stay at the site")
+    history = sites["line-a"].history
+    assert models == sum(w["accepted"] for w in history.windows())  # the model history drawn
