@@ -126,7 +126,7 @@ def test_the_fleet_rows_are_the_same_from_the_stores_and_from_the_centre(
             mine = chips[chip["name"]]
             assert chip["level"] == mine["level"], (loop_id, chip)
             if chip["name"] == "service":  # the same state, said as of the site's last sync
-                assert chip["text"].startswith(mine["text"] + " (as of the site's last sync")
+                assert chip["text"].startswith(mine["text"] + ", as of the site's last sync ")
             else:
                 assert chip["text"] == mine["text"], (loop_id, chip)
     # the same chips mean something: line-b ran in MAN, line-a has a proposal waiting
@@ -311,10 +311,16 @@ def test_a_site_not_heard_from_shows_no_contact_not_stopped(
 
 
 def test_a_central_store_lost_while_serving_leaves_the_local_loops(
-    sites: dict[str, Site], central_url: str, pg_cluster: Any
+    sites: dict[str, Site], central_url: str, pg_cluster: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    """The database goes (its connections cut, then renamed away) and comes back."""
+    from fuelid.dashboard import central_db
+
+    monkeypatch.setattr(central_db, "RETRY_S", 0.0)  # reconnect at the next read, not in 5 s
     dbname = central_url.rsplit("/", 1)[1].split("?")[0]
     with dashboard([sites["line-b"].loop.path], central_url) as (client, loops):
+        assert loops.central is not None
+        loops.central.every_s = 0.0  # the list of loops read at every request
         assert sorted(_rows(client)) == ["line-a", "line-b"]
         assert "central loop line-b" in loops.not_shown()  # shadowed by the local store
         with connect(pg_cluster.url()) as admin:
@@ -333,7 +339,10 @@ def test_a_central_store_lost_while_serving_leaves_the_local_loops(
             with connect(pg_cluster.url()) as admin:
                 admin.autocommit = True
                 admin.execute(f'ALTER DATABASE "{dbname}_gone" RENAME TO "{dbname}"')
+        back = client.get("/api/loops").json()
     assert [row["loop_id"] for row in answer["loops"]] == ["line-b"]
+    assert [row["loop_id"] for row in back["loops"]] == ["line-a", "line-b"]
+    assert back["central"]["error"] is None
     assert answer["central"]["error"] is not None
     assert "central loop line-a" in answer["refused"]
     assert page.status_code == 200

@@ -346,7 +346,7 @@ def contact_link(
     # the site said its service stopped (or never ran): nothing more is expected from it
     told_stopped = not isinstance(service, dict) or service.get("stopped") is not None
     if age <= limit or (told_stopped and link.get("state") == "stopped"):
-        out["text"] = f"{link.get('text')} (as of the site's last sync, {format_age(age)} ago)"
+        out["text"] = f"{link.get('text')}, as of the site's last sync {format_age(age)} ago"
         return out
     return {
         **out,
