@@ -71,7 +71,8 @@ CENTRAL_REQUESTS_SHOWN = 20
 
 _LIVENESS = (
     "service, backlog_rows, backlog_oldest_wall, last_send_wall, "
-    "extract(epoch FROM updated)::float8 AS updated, site_wall, send_every_s, "
+    "extract(epoch FROM updated)::float8 AS updated, "
+    "extract(epoch FROM now() - updated)::float8 AS contact_age_s, site_wall, send_every_s, "
     "newest_sample_time, newest_sample_wall, first_sample_time, period_s, schema_version, "
     "site_state"
 )
@@ -269,6 +270,7 @@ class CentralStoreView:
     def __init__(self, db: CentralDB, store: dict[str, Any], liveness: dict[str, Any]) -> None:
         self.db = db
         self.uuid = str(store["store_uuid"])
+        self.loop_id = str(store["loop_id"])
         self.site_name = str(store["site_name"])
         self.tag_map_hash = str(store["tag_map_hash"])
         self.liveness = liveness
@@ -284,9 +286,10 @@ class CentralStoreView:
     def last_event(self, kinds: Iterable[str]) -> tuple[float, str, str, float | None] | None:
         """The newest event of one of ``kinds``: (time, kind, detail, wall_time)."""
         rows = self.db.query(
-            "SELECT time, kind, detail, wall_time FROM events WHERE store_uuid = %s "
-            "AND kind = ANY(%s) ORDER BY time DESC, id DESC LIMIT 1",
-            (self.uuid, [str(k) for k in kinds]),
+            # loop_id too: the (loop_id, time DESC) index, read backwards, finds it at once
+            "SELECT time, kind, detail, wall_time FROM events WHERE loop_id = %s "
+            "AND store_uuid = %s AND kind = ANY(%s) ORDER BY time DESC, id DESC LIMIT 1",
+            (self.loop_id, self.uuid, [str(k) for k in kinds]),
         )
         if not rows:
             return None
@@ -304,7 +307,11 @@ class CentralStoreView:
 
 
 def contact_link(
-    link: dict[str, Any], liveness: dict[str, Any] | None, service: Any, now: float, tz: str
+    link: dict[str, Any],
+    liveness: dict[str, Any] | None,
+    service: Any,
+    now: float | None,
+    tz: str,
 ) -> dict[str, Any]:
     """The link as seen from the centre: the site's state at its last send, or no contact.
 
@@ -316,8 +323,9 @@ def contact_link(
         The liveness row (None: the site never told its liveness).
     service : dict or None
         The service record the site sent.
-    now : float
-        The wall clock now [s UTC].
+    now : float or None
+        The wall clock now [s UTC]; None: the contact's age on the central store's own clock
+        (``now() - updated``: no skew between the dashboard's clock and the database's).
     tz : str
         The loop's time zone (for the time of the last sync in the text).
 
@@ -339,7 +347,7 @@ def contact_link(
             "text": "no contact with the site yet (it never sent its liveness)",
         }
     updated = float(liveness["updated"])
-    age = max(0.0, now - updated)
+    age = max(0.0, (now - updated) if now is not None else float(liveness["contact_age_s"]))
     every = liveness.get("send_every_s") or DEFAULT_SEND_EVERY_S
     limit = max(NO_CONTACT_SENDS * float(every), NO_CONTACT_MIN_S)
     out = {**link, "contact_wall": updated, "contact_age_s": age, "no_contact_after_s": limit}
@@ -394,13 +402,14 @@ class CentralLoop:
 
     def _store(self) -> dict[str, Any]:
         rows = self.db.query(
-            "SELECT store_uuid, site_name, tag_map_hash FROM stores WHERE loop_id = %s "
+            "SELECT store_uuid, loop_id, site_name, tag_map_hash FROM stores WHERE loop_id = %s "
             "ORDER BY last_seen DESC LIMIT 1",
             (self.loop_id,),
         )
         if not rows:
             raise CentralError(f"the central store has no store of loop {self.loop_id!r}")
-        return dict(zip(("store_uuid", "site_name", "tag_map_hash"), rows[0], strict=True))
+        keys = ("store_uuid", "loop_id", "site_name", "tag_map_hash")
+        return dict(zip(keys, rows[0], strict=True))
 
     def _liveness(self, store_uuid: str) -> dict[str, Any] | None:
         rows = self.db.query(
@@ -448,16 +457,16 @@ class CentralLoop:
         """
         from fuelid.online.report import status_json
 
-        now = _time.time() if now_wall is None else float(now_wall)
         with self.db.reading():
             history, view, live = self._views()
-            as_of = now
+            as_of = _time.time() if now_wall is None else float(now_wall)
             if live is not None:
                 as_of = float(live.get("site_wall") or live["updated"])
             out = status_json(history, view, as_of)  # type: ignore[arg-type]
             requests = central_requests_of(self.db, self.loop_id)
         tz = str(out.get("timezone") or "UTC")
         out["site"] = {**out["site"], "store": None, "loop_id": self.loop_id}
+        now = None if now_wall is None else float(now_wall)
         out["link"] = contact_link(out["link"], live, history.state(SERVICE_KEY), now, tz)
         live = live or {}
         out["central"] = {
