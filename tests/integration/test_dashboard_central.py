@@ -393,3 +393,27 @@ def test_the_fleet_and_a_central_loop_page_load_in_a_browser_without_a_console_e
     assert note.startswith("Raw samples stay at the site")
     history = sites["line-a"].history
     assert models == sum(w["accepted"] for w in history.windows())  # the model history drawn
+
+
+def test_the_dashboards_role_needs_only_the_documented_rights(
+    sites: dict[str, Site], central_url: str, pg_cluster: Any
+) -> None:
+    """SELECT on the tables, INSERT on requests, USAGE on its sequence (docs: central.md)."""
+    dbname = central_url.rsplit("/", 1)[1].split("?")[0]
+    role = f"dash_{dbname}"
+    with connect(central_url) as owner:
+        owner.autocommit = True
+        owner.execute(f"CREATE ROLE {role} LOGIN")
+        owner.execute(f"GRANT CONNECT ON DATABASE {dbname} TO {role}")
+        owner.execute(f"GRANT USAGE ON SCHEMA public TO {role}")
+        owner.execute(f"GRANT SELECT ON ALL TABLES IN SCHEMA public TO {role}")
+        owner.execute(f"GRANT INSERT ON requests TO {role}")
+        owner.execute(f"GRANT USAGE ON SEQUENCE requests_id_seq TO {role}")
+    url = central_url.replace("://fuelid@", f"://{role}@")
+    with dashboard([], url) as (client, loops):
+        assert sorted(_rows(client)) == ["line-a", "line-b"]
+        (pending,) = client.get("/api/loops/line-a/status").json()["pending_proposals"]
+        loop = loops.get("line-a")
+        assert loop is not None
+        request = loop.file_request("approve", pending["id"], "eve", "with the dashboard's role")
+    assert request["status"] == "waiting"
