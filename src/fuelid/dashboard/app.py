@@ -449,7 +449,10 @@ def central_request_rows(status: dict[str, Any], tz: str) -> list[dict[str, Any]
             state = (
                 "fetched by the site, being carried out"
                 if r.get("fetched") is not None
-                else f"waiting for the site's next sync (expires {format_time(r['expires'], tz)})"
+                else (
+                    "waiting for the site's next sync (expires "
+                    f"{format_time(r['expires'], tz)}, wall clock)"
+                )
             )
         else:
             state = f"{r['status']}: {r.get('outcome') or ''}".rstrip(": ")
@@ -463,8 +466,8 @@ def _next_step(loop: LoopReader, request: dict[str, Any]) -> str:
         return (
             "relayed through the central store: the site's service fetches it at its next sync "
             "and carries it out (or refuses it if the proposal changed meanwhile); it expires "
-            f"unapplied at {format_time(request.get('expires'), 'UTC')} if the site does not "
-            "fetch it by then"
+            f"unapplied at {format_time(request.get('expires'), 'UTC')} (wall clock) if the site "
+            "does not fetch it by then"
         )
     status = loop.status()
     state = (status.get("link") or {}).get("state")
