@@ -48,8 +48,8 @@ def dashboard_command(
         typer.Option(
             "--archive",
             metavar="DIR",
-            help="The raw archive (fuelid export) the central loops' trends read; without it "
-            "their raw samples stay at the site.",
+            help="The raw archive (the folder fuelid archive writes) the central loops' trends "
+            "read; without it their raw samples stay at the site.",
             show_default=False,
         ),
     ] = None,

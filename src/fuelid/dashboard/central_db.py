@@ -164,7 +164,7 @@ class CentralLoops:
     url : str
         The central store's libpq URL.
     archive : Path, optional
-        The raw archive (``fuelid export``'s folder) the central loops' trends read.
+        The raw archive (the folder ``fuelid archive`` writes) the central loops' trends read.
     every_s : float
         How often the list of loops is read again [s].
 

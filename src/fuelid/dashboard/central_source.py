@@ -378,7 +378,7 @@ class CentralLoop:
     loop_id : str
         The loop.
     archive : Path, optional
-        The raw archive the trend reads (``fuelid export`` folder); None: no samples.
+        The raw archive the trend reads (the folder ``fuelid archive`` writes); None: no samples.
     expires_s : float
         How long a request filed here waits for the site [s of wall time].
     """
@@ -570,7 +570,7 @@ class CentralLoop:
         if self._archive_loop() is None:
             return f"No samples: {self._archive_note}"
         return (
-            f"Samples from the raw archive {self.archive_root} (as far as it was exported; "
+            f"Samples from the raw archive {self.archive_root} (as far as it was archived; "
             "nothing is streamed live from a central loop)."
         )
 

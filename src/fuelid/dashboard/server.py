@@ -75,7 +75,7 @@ def serve(
     central : str, optional
         The central store's libpq URL: its loops are shown beside the local stores.
     archive : Path, optional
-        The raw archive (``fuelid export`` folder) the central loops' trends read.
+        The raw archive (the folder ``fuelid archive`` writes) the central loops' trends read.
 
     Raises
     ------
