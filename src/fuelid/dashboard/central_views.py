@@ -55,6 +55,18 @@ def _proposal(row: Sequence[Any]) -> dict[str, Any]:
     }
 
 
+def _limit(limit: int) -> str:
+    """``LIMIT n`` written into the statement, not a parameter.
+
+    PostgreSQL plans a parameter's LIMIT as a tenth of the rows and then sorts them all rather
+    than reading the few newest from the index (a year of windows: 50 ms instead of 1 ms).
+
+    >>> _limit(30)
+    'LIMIT 30'
+    """
+    return f"LIMIT {int(limit):d}"
+
+
 def _newest_first(rows: list[Any]) -> list[Any]:
     rows.reverse()  # read newest first (for the limit), returned oldest first
     return rows
@@ -92,7 +104,7 @@ class CentralHistory:
             args.append(float(t_to))
         if limit is None:
             return [_window(r) for r in self.db.query(sql + " ORDER BY t_to, id", args)]
-        rows = self.db.query(sql + " ORDER BY t_to DESC, id DESC LIMIT %s", [*args, int(limit)])
+        rows = self.db.query(sql + f" ORDER BY t_to DESC, id DESC {_limit(limit)}", args)
         return [_window(r) for r in _newest_first(rows)]
 
     def window(self, window_id: int) -> dict[str, Any] | None:
@@ -109,27 +121,43 @@ class CentralHistory:
         return rows[0] if rows else None
 
     def accepted_models(self, limit: int | None = None) -> list[dict[str, Any]]:
-        """The models, oldest first (by their window's end); the newest ``limit``."""
+        """The models, oldest first (by their window's end); the newest ``limit``.
+
+        ``window_id`` (the first window naming the model, as the site's join gives it) comes from
+        one query over the models read (a subquery per model would probe every monthly
+        partition for each of the K(T) tracker's 2,000 models).
+        """
         sql = (
-            "SELECT m.id, (SELECT w.id FROM windows w WHERE w.store_uuid = m.store_uuid "
-            "AND w.model_id = m.id ORDER BY w.id LIMIT 1), m.time, m.t_from, m.t_to, m.t_fuel, "
-            "m.model, m.wall_time FROM models m WHERE m.store_uuid = %s "
-            "ORDER BY m.t_to DESC, m.id DESC"
+            "SELECT id, time, t_from, t_to, t_fuel, model, wall_time FROM models "
+            "WHERE store_uuid = %s ORDER BY t_to DESC, id DESC"
         )
-        args: list[Any] = [self.uuid]
         if limit is not None:
-            sql += " LIMIT %s"
-            args.append(int(limit))
-        keys = ("id", "window_id", "time", "t_from", "t_to", "T_fuel", "model", "wall_time")
-        return [dict(zip(keys, r, strict=True)) for r in _newest_first(self.db.query(sql, args))]
+            sql += f" {_limit(limit)}"
+        rows = _newest_first(self.db.query(sql, (self.uuid,)))
+        first = (
+            dict(
+                self.db.query(
+                    "SELECT model_id, min(id) FROM windows WHERE store_uuid = %s "
+                    "AND model_id = ANY(%s) GROUP BY model_id",
+                    (self.uuid, [int(r[0]) for r in rows]),
+                )
+            )
+            if rows
+            else {}
+        )
+        keys = ("id", "time", "t_from", "t_to", "T_fuel", "model", "wall_time")
+        out = []
+        for r in rows:
+            row = dict(zip(keys, r, strict=True))
+            out.append({"id": row["id"], "window_id": first.get(row["id"]), **row})
+        return out
 
     def writes(self, limit: int | None = None) -> list[dict[str, Any]]:
         """Writes of gains, oldest first; the newest ``limit``."""
         sql = f"SELECT {_WRITE} FROM writes WHERE store_uuid = %s ORDER BY id DESC"
         args: list[Any] = [self.uuid]
         if limit is not None:
-            sql += " LIMIT %s"
-            args.append(int(limit))
+            sql += f" {_limit(limit)}"
         keys = _WRITE.split(", ")
         return [dict(zip(keys, r, strict=True)) for r in _newest_first(self.db.query(sql, args))]
 
@@ -162,8 +190,7 @@ class CentralHistory:
             args.append(str(status))
         sql += " ORDER BY id DESC"
         if limit is not None:
-            sql += " LIMIT %s"
-            args.append(int(limit))
+            sql += f" {_limit(limit)}"
         keys = _REQUEST.split(", ")
         return [dict(zip(keys, r, strict=True)) for r in _newest_first(self.db.query(sql, args))]
 
