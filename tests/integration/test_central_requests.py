@@ -9,8 +9,10 @@ is never applied.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import sqlite3
 import time
 from pathlib import Path
 from typing import Any
@@ -18,6 +20,7 @@ from typing import Any
 import pytest
 
 from fuelid.central.connect import connect
+from fuelid.central.ingest import SITE_STATE_KEYS
 from fuelid.central.requests import central_requests, file_central_request
 from fuelid.central.schema import SCHEMA_VERSION
 from fuelid.cli import main
@@ -213,7 +216,9 @@ def test_a_running_service_syncs_and_carries_out_a_central_approve(
     with connect(central_url) as con:
         (request,) = central_requests(con)
         status = con.execute("SELECT status FROM proposals WHERE id = %s", (pid,)).fetchone()
-        service_record = con.execute("SELECT service FROM liveness").fetchone()[0]
+        service_record, every, state = con.execute(
+            "SELECT service, send_every_s, site_state FROM liveness"
+        ).fetchone()
         writes = con.execute("SELECT id, kind, proposal_id, status FROM writes").fetchall()
     with SQLiteStore(store) as opened, OnlineHistory(opened) as history:
         local_writes = [
@@ -224,6 +229,17 @@ def test_a_running_service_syncs_and_carries_out_a_central_approve(
     assert status == ("applied",)
     assert service_record["pid"] == os.getpid()
     assert service_record["stopped"] is not None  # the clean stop reached the centre
+    # schema 2: the site's send interval and its write-back state (the write set
+    # current_gains and tuned_for, here null: the test proposal carries no ideal form) arrive
+    assert every == 0.3
+    with contextlib.closing(sqlite3.connect(store)) as lite:
+        site_state = {
+            key: json.loads(value)
+            for key, value in lite.execute("SELECT key, value FROM online_state").fetchall()
+            if key in SITE_STATE_KEYS
+        }
+    assert {"current_gains", "tuned_for"} <= set(site_state)
+    assert state == site_state
     assert writes == local_writes
     assert (pid, "verified") in [(w[2], w[3]) for w in writes]
 

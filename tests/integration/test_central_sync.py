@@ -11,8 +11,10 @@ only the old months.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sqlite3
+import time
 from pathlib import Path
 from typing import Any
 
@@ -93,14 +95,41 @@ def counts(url: str) -> dict[str, int]:
         } | {"kpis": int(con.execute("SELECT count(*) FROM kpis").fetchone()[0])}
 
 
+def assert_liveness(url: str, path: Path, before: float, after: float) -> None:
+    """The schema-2 liveness columns are the site's own values (a sync by hand: no interval)."""
+    with contextlib.closing(sqlite3.connect(path)) as lite:
+        newest = lite.execute(
+            "SELECT time, wall_time FROM samples ORDER BY time DESC LIMIT 1"
+        ).fetchone()
+        first = lite.execute("SELECT min(time) FROM samples").fetchone()[0]
+        meta = dict(lite.execute("SELECT key, value FROM meta").fetchall())
+    with connect(url) as con:
+        row = con.execute(
+            "SELECT site_wall, send_every_s, newest_sample_time, newest_sample_wall, "
+            "first_sample_time, period_s, schema_version, site_state FROM liveness "
+            "WHERE store_uuid = %s",
+            (meta["store_uuid"],),
+        ).fetchone()
+    assert row is not None
+    site_wall, every, t_new, wall_new, t_first, period, version, state = row
+    assert before <= site_wall <= after
+    assert every is None
+    assert (t_new, wall_new, t_first) == (newest[0], newest[1], first)
+    assert period == float(meta["period_s"])
+    assert version == int(meta["schema_version"])
+    assert state == {}  # no service ever wrote gains into these stores
+
+
 def test_two_loops_sync_to_their_union(fleet_loops: Any, tmp_path: Path, central_url: str) -> None:
     """Both stores sent: every site row centrally, once; KPIs one per window, from its detail."""
     paths = [copy_loop(fleet_loops[name], tmp_path / name).path for name in ("line-a", "line-b")]
     for path in paths:
+        before = time.time()
         with Sender(path, central_url, batch_rows=500) as sender:
             result = sender.sync()
         assert result.error is None
         assert result.backlog_rows == 0
+        assert_liveness(central_url, path, before, time.time())
     for path in paths:
         assert_same(central_url, path)
     expected = {

@@ -109,7 +109,15 @@ PROMISED: dict[str, tuple[str, ...]] = {
     "fuelid.online": ("loop_health", "LoopHealth", "KTracker", "prefit_gates", "postfit_gates"),
     "fuelid.store": ("SampleStore", "SQLiteStore", "OnlineHistory", "open_store"),
     "fuelid.central": ("Sender", "CentralError", "migrate", "file_central_request"),
-    "fuelid.dashboard": ("LoopReader", "SQLiteLoop", "Loops", "create_app", "serve"),
+    "fuelid.dashboard": (
+        "LoopReader",
+        "SQLiteLoop",
+        "CentralLoop",
+        "CentralLoops",
+        "Loops",
+        "create_app",
+        "serve",
+    ),
     "fuelid.plc.site": ("load_site", "SiteConfig"),
     "fuelid.plc.adapters": ("PlcSource", "open_source"),
 }

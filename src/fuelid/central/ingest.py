@@ -13,6 +13,7 @@ commit and the site's deletion of its outbox entries leaves the central store as
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from fuelid.central.connect import CentralError
@@ -22,7 +23,55 @@ from fuelid.central.schema import KPI_COLUMNS, PARTITIONED, SITE_TABLES, SiteTab
 if TYPE_CHECKING:
     import psycopg
 
-__all__ = ["ingest_batch", "months_of", "register_store", "upsert_liveness"]
+__all__ = [
+    "SITE_STATE_KEYS",
+    "SiteView",
+    "ingest_batch",
+    "months_of",
+    "register_store",
+    "upsert_liveness",
+]
+
+SITE_STATE_KEYS = (
+    "current_gains",
+    "last_known_good",
+    "write_held",
+    "revert_requested",
+    "tuned_for",
+)
+"""The site's ``online_state`` values the liveness row carries (``site_state``)."""
+
+
+@dataclass(frozen=True)
+class SiteView:
+    """What the site tells the centre about itself at a send (the schema-2 liveness columns).
+
+    Attributes
+    ----------
+    site_wall : float or None
+        The site's wall clock when it wrote the row [s UTC].
+    send_every_s : float or None
+        The site's send interval [s] (None: syncs by hand, ``fuelid central sync``).
+    newest_sample_time, newest_sample_wall : float or None
+        The newest sample's plant time and the wall time it was written [s UTC].
+    first_sample_time : float or None
+        The oldest sample's plant time [s UTC].
+    period_s : float or None
+        The store's sampling period [s].
+    schema_version : int or None
+        The store's schema version.
+    state : dict or None
+        The site's ``online_state`` values of :data:`SITE_STATE_KEYS` (those set).
+    """
+
+    site_wall: float | None = None
+    send_every_s: float | None = None
+    newest_sample_time: float | None = None
+    newest_sample_wall: float | None = None
+    first_sample_time: float | None = None
+    period_s: float | None = None
+    schema_version: int | None = None
+    state: dict[str, Any] | None = None
 
 
 def register_store(pg: psycopg.Connection, ident: Identity) -> None:
@@ -192,19 +241,38 @@ def upsert_liveness(
     backlog_rows: int,
     backlog_oldest_wall: float | None,
     last_send_wall: float | None,
+    site: SiteView | None = None,
 ) -> None:
-    """The store's liveness row: its service record and its backlog (one transaction)."""
+    """The store's liveness row: its service record, its backlog and its view (one transaction).
+
+    ``site`` (schema 2) carries what a central reader needs to judge the loop as its own store
+    would (:class:`SiteView`); None leaves those columns as they were.
+    """
     from psycopg.types.json import Jsonb
 
+    view = site or SiteView()
+    keep = site is None  # an older caller: the version-2 columns are left as they were
+    extra = (
+        "site_wall",
+        "send_every_s",
+        "newest_sample_time",
+        "newest_sample_wall",
+        "first_sample_time",
+        "period_s",
+        "schema_version",
+        "site_state",
+    )
+    sets = ", ".join(f"{c} = liveness.{c}" if keep else f"{c} = EXCLUDED.{c}" for c in extra)
     with pg.transaction():
         pg.execute(
             "INSERT INTO liveness(store_uuid, loop_id, service, backlog_rows, "
-            "backlog_oldest_wall, last_send_wall, updated) VALUES (%s, %s, %s, %s, %s, %s, now()) "
+            f"backlog_oldest_wall, last_send_wall, {', '.join(extra)}, updated) "
+            "VALUES (%s, %s, %s, %s, %s, %s, %s, %s, %s, %s, %s, %s, %s, %s, now()) "
             "ON CONFLICT (store_uuid) DO UPDATE SET loop_id = EXCLUDED.loop_id, "
             "service = EXCLUDED.service, backlog_rows = EXCLUDED.backlog_rows, "
             "backlog_oldest_wall = EXCLUDED.backlog_oldest_wall, "
             "last_send_wall = coalesce(EXCLUDED.last_send_wall, liveness.last_send_wall), "
-            "updated = now()",
+            f"{sets}, updated = now()",
             (
                 ident.store_uuid,
                 ident.loop_id,
@@ -212,5 +280,13 @@ def upsert_liveness(
                 int(backlog_rows),
                 backlog_oldest_wall,
                 last_send_wall,
+                view.site_wall,
+                view.send_every_s,
+                view.newest_sample_time,
+                view.newest_sample_wall,
+                view.first_sample_time,
+                view.period_s,
+                view.schema_version,
+                None if view.state is None else Jsonb(view.state),
             ),
         )

@@ -52,6 +52,16 @@ are small: a few rows per window). Both are ``SECURITY DEFINER`` functions of th
 role, so a site's role needs no right to create or drop tables; their ``EXECUTE`` is revoked
 from ``PUBLIC`` (granted explicitly: a site's role gets ``central_ensure_partitions`` only).
 
+**Version 2** adds to ``liveness`` what a central reader (the dashboard's fleet page) needs to
+show a loop as its own store would: ``site_wall`` (the site's wall clock when it wrote the row:
+the loop's state is judged as of that instant), ``send_every_s`` (the site's send interval),
+``newest_sample_time`` and ``newest_sample_wall`` (the newest sample's plant and wall time),
+``first_sample_time``, ``period_s`` (the store's sampling period), ``schema_version`` (the
+store's) and ``site_state`` (jsonb: the site's ``online_state`` values ``current_gains``,
+``last_known_good``, ``write_held``, ``revert_requested``, ``tuned_for``); and indexes for a
+central reader: the windows by their model (``store_uuid, model_id``), a store's newest windows
+and models by their window's end (``store_uuid, t_to DESC, id DESC``).
+
 **Versions.** :data:`MIGRATIONS` in order, each in one transaction with its row in
 ``central_schema`` (under an advisory lock: two migrators never apply one twice). A database
 whose version is newer than :data:`SCHEMA_VERSION` is refused with both versions (an older
@@ -361,11 +371,33 @@ class Migration:
     statements: tuple[str, ...]
 
 
+_V2 = [
+    "ALTER TABLE liveness ADD COLUMN site_wall double precision",
+    "ALTER TABLE liveness ADD COLUMN send_every_s double precision",
+    "ALTER TABLE liveness ADD COLUMN newest_sample_time double precision",
+    "ALTER TABLE liveness ADD COLUMN newest_sample_wall double precision",
+    "ALTER TABLE liveness ADD COLUMN first_sample_time double precision",
+    "ALTER TABLE liveness ADD COLUMN period_s double precision",
+    "ALTER TABLE liveness ADD COLUMN schema_version integer",
+    "ALTER TABLE liveness ADD COLUMN site_state jsonb",
+    # a model's window, as a central reader asks for it (the site's models.window_id join)
+    "CREATE INDEX windows_model ON windows(store_uuid, model_id) WHERE model_id IS NOT NULL",
+    # a store's newest windows and models in the site's own order (by the window's end)
+    # (with accepted: the counts of a store's windows read the index alone)
+    "CREATE INDEX windows_store_end ON windows(store_uuid, t_to DESC, id DESC) INCLUDE (accepted)",
+    "CREATE INDEX models_store_end ON models(store_uuid, t_to DESC, id DESC)",
+]
+
 MIGRATIONS: tuple[Migration, ...] = (
     Migration(
         1,
         "stores, loops, the site tables (windows and KPIs by month), liveness, requests",
         tuple(_V1),
+    ),
+    Migration(
+        2,
+        "liveness: the site's clock, send interval, newest sample, sampling period and state",
+        tuple(_V2),
     ),
 )
 """Every migration in order; ``MIGRATIONS[k]`` takes the database to version ``k + 1``."""

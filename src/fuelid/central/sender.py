@@ -11,7 +11,8 @@
    (:func:`~fuelid.central.ingest.ingest_batch`), commit, and only then delete the sent
    entries locally; the monthly partitions the windows need are created before, in a short
    transaction of their own;
-3. the store's liveness row (its service record, the backlog after the send).
+3. the store's liveness row (its service record, the backlog after the send, and what a central
+   reader needs to judge the loop as its store would: :class:`~fuelid.central.ingest.SiteView`).
 
 The retention (dropping old months) is the central owner's job (``fuelid central
 retention``), not a sender's: a site's clock or settings never decide for the fleet. The
@@ -50,7 +51,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from fuelid.central.connect import CentralError, connect, one_line
-from fuelid.central.ingest import ingest_batch, months_of, upsert_liveness
+from fuelid.central.ingest import (
+    SITE_STATE_KEYS,
+    SiteView,
+    ingest_batch,
+    months_of,
+    upsert_liveness,
+)
 from fuelid.central.outbox import (
     Batch,
     Identity,
@@ -176,6 +183,9 @@ class Sender:
         Outbox entries per batch (``[central] batch_rows``).
     application_name : str, optional
         For ``pg_stat_activity``; ``fuelid sync <loop_id>`` by default.
+    send_every_s : float, optional
+        The service's send interval [s] (``[central] send_every_s``), told to the centre with
+        the liveness; None for a sync by hand.
 
     Raises
     ------
@@ -190,8 +200,10 @@ class Sender:
         *,
         batch_rows: int = 5000,
         application_name: str | None = None,
+        send_every_s: float | None = None,
     ) -> None:
         self.url = url
+        self.send_every_s = send_every_s
         self.batch_rows = int(batch_rows)
         self.lite = open_store_file(store_path)
         self.ident = identity(self.lite)
@@ -256,6 +268,7 @@ class Sender:
                 result.backlog_rows,
                 result.backlog_oldest_wall,
                 wall if result.batches else None,
+                self._site_view(wall),
             )
         except (psycopg.Error, sqlite3.Error, FuelidError, OSError) as error:
             result.error = self.record_failure(error)
@@ -275,6 +288,35 @@ class Sender:
         except ValueError:
             return None
         return value if isinstance(value, dict) else None
+
+    def _site_view(self, wall: float) -> SiteView:
+        """The store's clocks, sampling and state for the liveness row (schema 2)."""
+        newest = self.lite.execute(
+            "SELECT time, wall_time FROM samples ORDER BY time DESC LIMIT 1"
+        ).fetchone()
+        first = self.lite.execute("SELECT min(time) FROM samples").fetchone()
+        meta = dict(
+            self.lite.execute(
+                "SELECT key, value FROM meta WHERE key IN ('period_s', 'schema_version')"
+            ).fetchall()
+        )
+        keys = ", ".join("?" * len(SITE_STATE_KEYS))
+        state: dict[str, Any] = {}
+        for key, value in self.lite.execute(
+            f"SELECT key, value FROM online_state WHERE key IN ({keys})", SITE_STATE_KEYS
+        ).fetchall():
+            with contextlib.suppress(ValueError):  # an unreadable value is left out
+                state[str(key)] = json.loads(value)
+        return SiteView(
+            site_wall=wall,
+            send_every_s=self.send_every_s,
+            newest_sample_time=None if newest is None else float(newest[0]),
+            newest_sample_wall=None if newest is None or newest[1] is None else float(newest[1]),
+            first_sample_time=None if first is None or first[0] is None else float(first[0]),
+            period_s=_number(meta.get("period_s")),
+            schema_version=None if "schema_version" not in meta else int(meta["schema_version"]),
+            state=state,
+        )
 
     def record_failure(self, error: BaseException) -> str:
         """Drop the connection, keep the reason (one line) in the sync state."""
@@ -319,3 +361,11 @@ class Sender:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _number(text: str | None) -> float | None:
+    """A meta value as a number; None when absent or not a number."""
+    try:
+        return None if text is None else float(text)
+    except ValueError:
+        return None

@@ -32,6 +32,27 @@ def dashboard_command(
             show_default=False,
         ),
     ] = None,
+    central: Annotated[
+        str | None,
+        typer.Option(
+            "--central",
+            metavar="URL",
+            help="The central store (postgresql://user@host/db; the password from PGPASSWORD, "
+            "~/.pgpass or a service file): its loops beside the local stores; an action on them "
+            "is relayed to the site's service.",
+            show_default=False,
+        ),
+    ] = None,
+    archive: Annotated[
+        Path | None,
+        typer.Option(
+            "--archive",
+            metavar="DIR",
+            help="The raw archive (the folder fuelid archive writes) the central loops' trends "
+            "read; without it their raw samples stay at the site.",
+            show_default=False,
+        ),
+    ] = None,
     host: Annotated[
         str, typer.Option("--host", help="Address to listen on (loopback unless --allow-remote).")
     ] = "127.0.0.1",
@@ -92,4 +113,6 @@ def dashboard_command(
         ssl_certfile=ssl_certfile,
         ssl_keyfile=ssl_keyfile,
         on_ready=ready,
+        central=central,
+        archive=archive,
     )

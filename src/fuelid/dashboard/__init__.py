@@ -1,13 +1,15 @@
 """The control-room dashboard (``fuelid dashboard``): FastAPI pages over the loops' stores.
 
-A process of its own (never the recorder's): it opens each loop's store, reads it through one
-interface, :class:`~fuelid.dashboard.source.LoopReader` (a central database implements the same
-protocol later), and serves the fleet, loop and window pages, the JSON API under ``/api/`` and
-one live stream per page. It writes nothing into a store but the requests people file
-(approve, reject, revert), which the running service carries out.
+A process of its own (never the recorder's): it opens each loop's store, or the central store of
+many loops (``--central``), reads every loop through one interface,
+:class:`~fuelid.dashboard.source.LoopReader`, and serves the fleet, loop and window pages, the
+JSON API under ``/api/`` and one live stream per page. It writes nothing into a store but the
+requests people file (approve, reject, revert), which the running service carries out; on a
+central loop they are central requests, relayed to the site's service at its next sync.
 
 The public API: :class:`LoopReader` and :class:`SQLiteLoop` (one loop's data),
-:class:`Loops` (the loops by id, a folder watched), :func:`create_app` (the FastAPI
+:class:`CentralLoop` (one loop of the central store) and :class:`CentralLoops` (its loops,
+polled), :class:`Loops` (the loops by id, a folder watched), :func:`create_app` (the FastAPI
 application) and :func:`serve` (uvicorn on a socket), and the modules
 :mod:`fuelid.dashboard.fleet` (chips and the severity order), :mod:`fuelid.dashboard.trend`,
 :mod:`fuelid.dashboard.security` and :mod:`fuelid.dashboard.users`. ``create_app`` and
@@ -22,7 +24,15 @@ from typing import Any
 from fuelid.dashboard.registry import Loops
 from fuelid.dashboard.source import LoopReader, SQLiteLoop
 
-__all__ = ["LoopReader", "Loops", "SQLiteLoop", "create_app", "serve"]
+__all__ = [
+    "CentralLoop",
+    "CentralLoops",
+    "LoopReader",
+    "Loops",
+    "SQLiteLoop",
+    "create_app",
+    "serve",
+]
 
 
 def __getattr__(name: str) -> Any:
@@ -31,6 +41,14 @@ def __getattr__(name: str) -> Any:
         from fuelid.dashboard.app import create_app
 
         return create_app
+    if name == "CentralLoop":  # the central ones import psycopg only when they connect
+        from fuelid.dashboard.central_source import CentralLoop
+
+        return CentralLoop
+    if name == "CentralLoops":
+        from fuelid.dashboard.central_db import CentralLoops
+
+        return CentralLoops
     if name == "serve":
         from fuelid.dashboard.server import serve
 

@@ -10,6 +10,11 @@ Pages (HTML, rendered by Jinja2 with autoescape: every stored string is escaped)
   their autocorrelation, every gate against its threshold, the article's step-ls model, the
   robustness checks behind its proposal) and ``…/report``: the HTML report of that window.
 
+A loop is a store file or a loop of the central store (``--central``): both are read through
+:class:`~fuelid.dashboard.source.LoopReader`, so every page is the same; a central store that
+cannot be read answers 503 with the reason on its loops' pages, and the fleet page says so while
+serving the local loops.
+
 The API under ``/api/`` returns the same data as JSON, built by the functions ``fuelid online
 status --json`` and ``history --json`` use (one shape, not two); FastAPI's OpenAPI page is
 ``/api/docs``. Charts are drawn by plotly.js served from the installed plotly package
@@ -30,6 +35,7 @@ from fastapi.sse import EventSourceResponse, ServerSentEvent
 from fastapi.staticfiles import StaticFiles
 
 from fuelid import __version__
+from fuelid.central.connect import CentralError
 from fuelid.dashboard.fleet import fleet_row
 from fuelid.dashboard.registry import Loops
 from fuelid.dashboard.security import Security, add_security_headers, auth_router, form_fields
@@ -156,13 +162,30 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
             raise HTTPException(404, f"no loop {loop_id!r}")
         return loop
 
-    def fleet_rows() -> list[dict[str, Any]]:
+    def fleet_rows() -> tuple[list[dict[str, Any]], dict[str, str]]:
+        """The rows, most severe first, and the loops not shown with the reason."""
         rows = []
+        not_shown = loops.not_shown()
         for loop_id in loops.ids():
             loop = loops.get(loop_id)
-            if loop is not None:
+            if loop is None:
+                continue
+            try:
                 rows.append(loop_summary(loop))
-        return sorted(rows, key=lambda r: r["sort_key"])
+            except CentralError as error:  # lost while listing: the local loops still show
+                not_shown[f"central loop {loop_id}"] = " ".join(str(error).split())
+        return sorted(rows, key=lambda r: r["sort_key"]), not_shown
+
+    def central_state() -> dict[str, Any] | None:
+        """The central store as the fleet page shows it (None without ``--central``)."""
+        if loops.central is None:
+            return None
+        return {"url": loops.central.db.shown_url, "error": loops.central.error}
+
+    @app.exception_handler(CentralError)
+    def central_unreachable(request: Request, error: CentralError) -> JSONResponse:
+        """A central loop whose store cannot be read now: 503 with the reason."""
+        return JSONResponse({"detail": " ".join(str(error).split())}, status_code=503)
 
     def page(name: str, request: Request, **context: Any) -> HTMLResponse:
         user = security.current_user(request)
@@ -180,7 +203,7 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
 
     @app.get("/", response_class=HTMLResponse, include_in_schema=False, dependencies=[viewer])
     def fleet_page(request: Request) -> HTMLResponse:
-        rows = fleet_rows()
+        rows, not_shown = fleet_rows()
         zones = {row["timezone"] for row in rows}
         tz = zones.pop() if len(zones) == 1 else None  # several zones: each loop its own
         return page(
@@ -190,7 +213,8 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
             page="fleet",
             tz=tz,
             rows=rows,
-            refused=dict(loops.refused),
+            refused=not_shown,
+            central=central_state(),
         )
 
     @app.get(
@@ -222,6 +246,7 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
             write_back_text=f"Write-back: {write_back or 'unknown'}.",
             now_rows=now_rows(status, tz),
             gains=gains_now(status)[0],
+            relayed=central_request_rows(status, tz),
         )
 
     @app.get(
@@ -264,8 +289,13 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
 
     @app.get("/api/loops", dependencies=[viewer])
     def api_loops() -> dict[str, Any]:
-        """Every loop's fleet row, most severe first; the stores refused, with the reason."""
-        return {"loops": fleet_rows(), "refused": dict(loops.refused)}
+        """Every loop's fleet row, most severe first; what is not shown, with the reason.
+
+        ``central``: the central store's (redacted) URL and why it cannot be read now (None
+        while it can); None without ``--central``.
+        """
+        rows, not_shown = fleet_rows()
+        return {"loops": rows, "refused": not_shown, "central": central_state()}
 
     @app.get("/api/loops/{loop_id}/status", dependencies=[viewer])
     def api_status(loop_id: str) -> dict[str, Any]:
@@ -337,7 +367,7 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
     async def api_stream(loop_id: str, request: Request):  # type: ignore[no-untyped-def]
         """Server-sent events: ``samples``, ``status``, ``history`` (fuelid.dashboard.stream)."""
         loop = get_loop(loop_id)
-        async for kind, data in feeds.events(loop, lambda: loop_summary(loop)):
+        async for kind, data in feeds.events(loop, lambda: stream_summary(loop)):
             if await request.is_disconnected():
                 break
             yield ServerSentEvent(event=kind, data=data)
@@ -349,10 +379,12 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
         if user is None:  # require_engineer let it through: cannot happen
             raise HTTPException(401, "an engineer's login is required")
         loop = get_loop(loop_id)
-        why = (await form_fields(request)).get("why", "").strip()[:500]
+        fields = await form_fields(request)
+        why = fields.get("why", "").strip()[:500]
+        seen = seen_of(fields)
         try:  # waits up to two of the service's beats for it: off the event loop
             row = await asyncio.to_thread(
-                loop.file_request, kind, proposal_id, user.name, why or "(no reason given)"
+                loop.file_request, kind, proposal_id, user.name, why or "(no reason given)", seen
             )
         except FuelidError as error:
             return JSONResponse({"error": " ".join(str(error).split())}, status_code=409)
@@ -383,8 +415,60 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
     return app
 
 
+def stream_summary(loop: LoopReader) -> dict[str, Any]:
+    """The stream's ``status`` event; a central store lost meanwhile is said, not raised."""
+    try:
+        return loop_summary(loop)
+    except CentralError as error:
+        text = " ".join(str(error).split())
+        return {"chips": [], "link": {"state": "no_contact", "text": text}, "link_text": text}
+
+
+def seen_of(fields: dict[str, str]) -> dict[str, Any] | None:
+    """The proposal as the page showed it (``seen_status``, ``seen_history_len`` form fields).
+
+    >>> seen_of({"seen_status": "pending", "seen_history_len": "1"})
+    {'status': 'pending', 'history_len': 1}
+    >>> seen_of({"why": "x"}) is None
+    True
+    """
+    status = fields.get("seen_status", "").strip()[:32] or None
+    length = fields.get("seen_history_len", "").strip()
+    history_len = int(length) if length.isdigit() and len(length) < 7 else None
+    if status is None and history_len is None:
+        return None
+    return {"status": status, "history_len": history_len}
+
+
+def central_request_rows(status: dict[str, Any], tz: str) -> list[dict[str, Any]]:
+    """The loop's central requests as the loop page lists them (newest first)."""
+    out = []
+    for r in reversed((status.get("central") or {}).get("requests") or []):
+        what = r["kind"] + ("" if r.get("proposal_id") is None else f" #{r['proposal_id']}")
+        if r["status"] == "waiting":
+            state = (
+                "fetched by the site, being carried out"
+                if r.get("fetched") is not None
+                else (
+                    "waiting for the site's next sync (expires "
+                    f"{format_time(r['expires'], tz)}, wall clock)"
+                )
+            )
+        else:
+            state = f"{r['status']}: {r.get('outcome') or ''}".rstrip(": ")
+        out.append({**r, "what": what, "state": state, "filed": format_time(r["created"], tz)})
+    return out
+
+
 def _next_step(loop: LoopReader, request: dict[str, Any]) -> str:
     """What happens to a request next, in one sentence."""
+    if request.get("relayed"):
+        return (
+            "relayed through the central store: the site's service fetches it at its next sync "
+            "and carries it out (or refuses it if the proposal changed meanwhile); it expires "
+            f"unapplied at {format_time(request.get('expires'), 'UTC')} (wall clock) if the site "
+            "does not fetch it by then"
+        )
     status = loop.status()
     state = (status.get("link") or {}).get("state")
     if request.get("status") == "done":

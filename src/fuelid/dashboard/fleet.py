@@ -4,7 +4,10 @@ Each loop gets the chips below, each at a level: ``alarm`` (act now), ``warn`` (
 ``unknown`` (not measured yet), ``ok``. The thresholds are the constants of this module.
 
 - **service**: alarm when the service is stopped (its beat is stale) or the link is down;
-  unknown before the first sample; ok when up.
+  warn when a central loop's site has not been heard from for a few send intervals
+  ("no contact": the site may well run on, but what the page shows is as of its last sync and
+  an action waits for it; look at its network today); unknown before the first sample; ok
+  when up.
 - **oscillation**: alarm when the last window oscillates.
 - **last write**: alarm when the last write failed, a write is held or a revert is requested.
 - **proposals**: warn while a proposal waits for a person (pending) or for its write (approved).
@@ -21,7 +24,8 @@ Each loop gets the chips below, each at a level: ``alarm`` (act now), ``warn`` (
 those with something unknown, then the healthy ones; within a level, the loop with more chips at
 that level first; then by the first chip at that level in the list's order above
 (``CHIP_ORDER``: a stopped service before an oscillation before a failed write); then by
-loop id.
+loop id. A loop with no contact is a warning led by its service chip: it sorts after every
+alarm and before the other warnings of as many chips (the service chip is first in the order).
 """
 
 from __future__ import annotations
@@ -93,6 +97,8 @@ def _service_chip(status: dict[str, Any]) -> Chip:
         return Chip("service", "alarm", text)
     if state == "up":
         return Chip("service", "ok", text)
+    if state == "no_contact":
+        return Chip("service", "warn", text)
     return Chip("service", "unknown", text)
 
 

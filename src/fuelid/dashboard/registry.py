@@ -6,6 +6,13 @@ is refused then, with the reason (:class:`~fuelid.errors.ConfigError`: the comma
 folder is scanned at start and every :data:`WATCH_EVERY_S` seconds for new ``*.db`` files; one
 found there that cannot be shown is listed among the refusals (the fleet page shows them) and not
 tried again until its file changes.
+
+``--central URL`` adds the loops of the central store (:class:`~fuelid.dashboard.central_db.
+CentralLoops`, polled as often for new loops). A loop id both in a local store and centrally is
+shown from the local store (read live: its samples stream, an action is applied at once rather
+than relayed at the site's next sync); the central copy is listed among the loops not shown,
+with that reason. A central store lost while serving hides nothing local: its loops are listed
+as not shown with the reason until it is back.
 """
 
 from __future__ import annotations
@@ -14,9 +21,13 @@ import threading
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fuelid.dashboard.source import LoopReader, SQLiteLoop
 from fuelid.errors import ConfigError, FuelidError
+
+if TYPE_CHECKING:
+    from fuelid.dashboard.central_db import CentralLoops
 
 __all__ = ["WATCH_EVERY_S", "Loops"]
 
@@ -33,14 +44,18 @@ class Loops:
         Store files and folders of stores.
     opener : callable, optional
         Opens one store file as a :class:`LoopReader` (the SQLite reader by default).
+    central : CentralLoops, optional
+        The loops of a central store, shown beside the local ones.
     """
 
     def __init__(
         self,
         paths: Iterable[str | Path],
         opener: Callable[[Path], LoopReader] = SQLiteLoop,
+        central: CentralLoops | None = None,
     ) -> None:
         self._opener = opener
+        self.central = central
         self._lock = threading.Lock()
         self._loops: dict[str, LoopReader] = {}
         self._files: dict[Path, str] = {}
@@ -103,19 +118,52 @@ class Loops:
                         self._tried[key] = mtime
                         self.refused[path.name] = " ".join(str(error).split())
 
+    def _central_ids(self) -> list[str]:
+        """The central loops shown: reachable, and not shadowed by a local store."""
+        if self.central is None:
+            return []
+        ids = self.central.ids()  # polls (and so notices a store that is back)
+        if self.central.error is not None:
+            return []
+        return [i for i in ids if i not in self._loops]
+
     def ids(self) -> list[str]:
-        """The loop ids, sorted."""
+        """The loop ids shown, sorted (local stores and the central store's loops)."""
         self.scan()
-        return sorted(self._loops)
+        return sorted([*self._loops, *self._central_ids()])
 
     def get(self, loop_id: str) -> LoopReader | None:
-        """The loop with this id; None when there is none."""
+        """The loop with this id (a local store first); None when there is none."""
         self.scan()
-        return self._loops.get(loop_id)
+        loop = self._loops.get(loop_id)
+        if loop is None and self.central is not None:
+            return self.central.get(loop_id)
+        return loop
+
+    def not_shown(self) -> dict[str, str]:
+        """What is not shown, and why: stores refused, central loops shadowed or unreachable."""
+        out = dict(self.refused)
+        if self.central is None:
+            return out
+        ids = self.central.ids()
+        for loop_id in ids:
+            name = f"central loop {loop_id}"
+            if loop_id in self._loops:
+                out[name] = (
+                    "a local store has this loop id: shown from the local store (read live; "
+                    "an action there is applied at once, not relayed)"
+                )
+            elif self.central.error is not None:
+                out[name] = f"the central store is unreachable: {self.central.error}"
+        for loop_id, reason in self.central.skipped.items():
+            out[f"central loop {loop_id}"] = reason
+        return out
 
     def close(self) -> None:
-        """Close every store."""
+        """Close every store (and the central connection)."""
         for loop in self._loops.values():
             loop.close()
         self._loops.clear()
         self._files.clear()
+        if self.central is not None:
+            self.central.close()

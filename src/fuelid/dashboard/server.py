@@ -53,6 +53,8 @@ def serve(
     ssl_certfile: Path | None = None,
     ssl_keyfile: Path | None = None,
     on_ready: Callable[[str, list[str]], None] | None = None,
+    central: str | None = None,
+    archive: Path | None = None,
 ) -> None:
     """Serve the dashboard until interrupted.
 
@@ -70,6 +72,10 @@ def serve(
         TLS by uvicorn itself (else a reverse proxy in front, see the docs).
     on_ready : callable, optional
         Called with the URL and the loop ids once listening.
+    central : str, optional
+        The central store's libpq URL: its loops are shown beside the local stores.
+    archive : Path, optional
+        The raw archive (the folder ``fuelid archive`` writes) the central loops' trends read.
 
     Raises
     ------
@@ -88,10 +94,14 @@ def serve(
         )
     if (ssl_certfile is None) != (ssl_keyfile is None):
         raise ConfigError("--ssl-certfile and --ssl-keyfile go together")
-    if not stores:
-        raise ConfigError("give --store: a store file or a folder of stores")
+    if not stores and central is None:
+        raise ConfigError("give --store (a store file or a folder of stores) or --central URL")
+    if archive is not None and central is None:
+        raise ConfigError("--archive goes with --central (the central loops' raw samples)")
+    if archive is not None and not Path(archive).is_dir():
+        raise ConfigError(f"--archive {archive}: no such folder")
     security = Security(UsersFile(users_file) if users_file else None, require_login=allow_remote)
-    loops = Loops(stores)
+    loops = open_loops(stores, central, archive)
     try:
         sock = _bind(host, port)
         app = create_app(loops, security)
@@ -113,6 +123,34 @@ def serve(
         server.run(sockets=[sock])
     finally:
         loops.close()
+
+
+def open_loops(
+    stores: Sequence[str | Path], central: str | None = None, archive: Path | None = None
+) -> Loops:
+    """The loops of the stores and, with ``central``, of the central store.
+
+    Raises
+    ------
+    ConfigError
+        A refused store, or a central store that cannot be reached or used (one line).
+    """
+    from fuelid.central.connect import CentralError
+    from fuelid.dashboard.central_db import CentralLoops
+    from fuelid.dashboard.registry import WATCH_EVERY_S
+
+    fleet = None
+    if central is not None:
+        try:
+            fleet = CentralLoops(central, archive=archive, every_s=WATCH_EVERY_S)
+        except CentralError as error:
+            raise ConfigError(f"--central: {error}") from None
+    try:
+        return Loops(stores, central=fleet)
+    except BaseException:
+        if fleet is not None:
+            fleet.close()
+        raise
 
 
 class Beside:

@@ -4,8 +4,9 @@ Every page and every ``/api/`` answer reads a loop through :class:`LoopReader`: 
 its state now (the shape ``fuelid online status --json`` prints), its history (the shape of
 ``fuelid online history --json``), one window's record and samples, the trend of its samples at a
 level of detail, the samples committed after a point (for the live stream) and the requests
-people file. A central database implements the same protocol later (it holds many loops; each
-reader is one of them); nothing above this module knows where the rows come from.
+people file. The central store implements the same protocol
+(:class:`fuelid.dashboard.central_source.CentralLoop`: one reader per loop of it); nothing above
+these modules knows where the rows come from.
 
 :class:`SQLiteLoop` reads one store file (one loop). It opens the store once as fuelid opens any
 store (a store of an older schema is migrated then, as ``fuelid store info`` would; a store of a
@@ -51,7 +52,7 @@ class Trend(dict[str, Any]):
 
 @runtime_checkable
 class LoopReader(Protocol):
-    """What the dashboard reads of one loop (a store file today, a central database later)."""
+    """What the dashboard reads of one loop (a store file, or a loop of the central store)."""
 
     loop_id: str
     """The loop's id: in URLs, never a file path."""
@@ -101,9 +102,17 @@ class LoopReader(Protocol):
         ...
 
     def file_request(
-        self, kind: str, proposal_id: int | None, who: str, why: str
+        self,
+        kind: str,
+        proposal_id: int | None,
+        who: str,
+        why: str,
+        seen: dict[str, Any] | None = None,
     ) -> dict[str, Any]:
-        """Record a person's request (approve, reject, revert) for the service to carry out."""
+        """Record a person's request (approve, reject, revert) for the service to carry out.
+
+        ``seen``: the proposal as the page showed it (``status``, ``history_len``), or None.
+        """
         ...
 
     def close(self) -> None:
@@ -216,13 +225,19 @@ class SQLiteLoop:
         return list(self.online.requests())
 
     def file_request(
-        self, kind: str, proposal_id: int | None, who: str, why: str
+        self,
+        kind: str,
+        proposal_id: int | None,
+        who: str,
+        why: str,
+        seen: dict[str, Any] | None = None,
     ) -> dict[str, Any]:
         """File a person's request through the store's history (the only write here).
 
         As ``fuelid online approve|reject|revert``: the running service applies it within a
         beat; with no live service it is applied here at once (the row comes back "done" or
-        "refused" with its outcome, or "waiting").
+        "refused" with its outcome, or "waiting"). ``seen`` is not needed here: the request is
+        decided within a beat of the page, on the proposal's own transitions.
         """
         from fuelid.online.liveness import SERVICE_KEY
         from fuelid.online.requests import submit_request

@@ -64,6 +64,8 @@ def proposal_next(proposal: dict[str, Any], status: dict[str, Any]) -> str:
         return str(proposal.get("status"))
     if state == "stopped":
         return "approved; the service is stopped: written when it runs again and write-back allows"
+    if state == "no_contact":
+        return "approved; no contact with the site now: its service writes it on its own rules"
     if write_back == "off":
         return 'approved; write_back is "off": the service does not write it'
     if held:

@@ -132,6 +132,7 @@ class CentralLink:
             store_path,
             central.url,
             batch_rows=central.batch_rows,
+            send_every_s=central.send_every_s,  # the centre tells "no contact" by it
         )
         self._failing: str | None = None
 

@@ -415,12 +415,15 @@ def status_json(
 def central_json(store: SQLiteStore, now: float | None = None) -> dict[str, Any] | None:
     """The sync to the central store (:func:`fuelid.central.outbox.sync_status`).
 
-    None when the store cannot say (an older schema, a locked file).
+    None when the store cannot say (an older schema, a locked file, no file: a central reader's
+    view of a loop, which says it itself).
     """
     import sqlite3
 
     from fuelid.central.outbox import open_store_file, sync_status
 
+    if getattr(store, "path", None) is None:
+        return None
     try:
         con = open_store_file(store.path)
     except FuelidError:

@@ -272,7 +272,12 @@ function bindActions() {
       const url = kind === "revert" ? `${API}/revert` : `${API}/proposals/${form.dataset.proposal}/${kind}`;
       const outcome = form.querySelector(".outcome");
       outcome.textContent = "sending…";
-      const answer = await postForm(url, { why });
+      const fields = { why };
+      // the proposal as this page showed it: a central store's site refuses a request on a
+      // proposal that changed since
+      if (form.dataset.seenStatus) fields.seen_status = form.dataset.seenStatus;
+      if (form.dataset.seenHistory) fields.seen_history_len = form.dataset.seenHistory;
+      const answer = await postForm(url, fields);
       if (answer.ok) {
         const request = answer.data.request || {};
         outcome.textContent = `${kind} ${request.status === "done" ? "done" : "filed"}: ${answer.data.next || ""}`;

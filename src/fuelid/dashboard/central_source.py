@@ -1,0 +1,404 @@
+"""One loop of the central store, read as the dashboard reads a store file (``LoopReader``).
+
+The fleet page, the loop and window pages, the API and the stream read a central loop exactly as
+they read a store file: :class:`CentralLoop` runs the SAME report functions (``status_json``,
+``history_json``, ``window_json``, ``proposal_json`` of :mod:`fuelid.online.report`) over two
+small views of the central rows, :class:`CentralHistory` (what those functions ask of an
+:class:`~fuelid.store.online.OnlineHistory`) and :class:`CentralStoreView` (what they ask of a
+store), so the shapes cannot drift apart. A loop whose store file was replaced has several
+stores centrally; the newest one (by the central ``stores.last_seen``) is shown, as a central
+request is checked against it (:func:`fuelid.central.requests.file_central_request`).
+
+**Liveness from the centre.** The site's service record arrives with every send (the liveness
+row), so its beat is as old as the last send. The loop's state is judged as of the site's own
+clock at that send (``site_wall``: the state the site itself would have shown then), and the
+age of the contact decides whether that still holds: a liveness row older than
+:data:`NO_CONTACT_SENDS` send intervals (at least :data:`NO_CONTACT_MIN_S`) means "no contact
+with the site" (state ``no_contact``), never "service stopped": the site may run on while its
+network is down. A service the site reported stopped (a clean stop) stays "stopped".
+
+**Samples.** The central store holds none: raw samples stay at the site. Without an archive
+:meth:`CentralLoop.span` is None and the trend empty; with ``--archive DIR`` the trend reads the
+loop's Parquet days (:class:`fuelid.archive.reader.ArchiveLoop`), the level of detail computed
+from them in numpy (min and max per bucket as the store's ``samples_lod``). Nothing is streamed
+live from a central loop: the status is re-read every few seconds.
+
+**Actions.** :meth:`CentralLoop.file_request` files a central request with what the page showed
+of the proposal (status and history length); the site's service fetches it at its next sync,
+files it locally and carries it out (:mod:`fuelid.online.central_link`), or refuses it when the
+proposal changed meanwhile; a request no site fetches before its expiry is never applied. The
+loop's central requests, with their expiry and outcome, are in ``status()["central"]
+["requests"]``.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fuelid.central.connect import CentralError
+from fuelid.central.requests import DEFAULT_EXPIRY_S, central_requests, file_central_request
+from fuelid.dashboard.central_db import CentralDB
+from fuelid.dashboard.central_views import CentralHistory, CentralStoreView
+from fuelid.dashboard.source import TREND_COLUMNS
+from fuelid.io.clock import format_age, format_time
+from fuelid.online.liveness import SERVICE_KEY
+from fuelid.store.records import SampleArrays, StoreError
+
+__all__ = [
+    "DEFAULT_SEND_EVERY_S",
+    "NO_CONTACT_MIN_S",
+    "NO_CONTACT_SENDS",
+    "CentralLoop",
+    "contact_link",
+]
+
+NO_CONTACT_SENDS = 3.0
+"""A liveness row older than this many of the site's send intervals means no contact [-]."""
+NO_CONTACT_MIN_S = 30.0
+"""… and older than this at least [s of wall time] (a send of a long backlog takes a while)."""
+DEFAULT_SEND_EVERY_S = 5.0
+"""The send interval assumed when the site did not tell it (``[central] send_every_s``) [s]."""
+CENTRAL_REQUESTS_SHOWN = 20
+"""The newest central requests of a loop its status carries."""
+
+_LIVENESS = (
+    "service, backlog_rows, backlog_oldest_wall, last_send_wall, "
+    "extract(epoch FROM updated)::float8 AS updated, "
+    "extract(epoch FROM now() - updated)::float8 AS contact_age_s, site_wall, send_every_s, "
+    "newest_sample_time, newest_sample_wall, first_sample_time, period_s, schema_version, "
+    "site_state"
+)
+_LIVENESS_KEYS = tuple(c.split(" AS ")[-1].strip() for c in _LIVENESS.split(", "))
+
+
+def contact_link(
+    link: dict[str, Any],
+    liveness: dict[str, Any] | None,
+    service: Any,
+    now: float | None,
+    tz: str,
+) -> dict[str, Any]:
+    """The link as seen from the centre: the site's state at its last send, or no contact.
+
+    Parameters
+    ----------
+    link : dict
+        :func:`fuelid.online.report.link_json` as of the site's clock at its last send.
+    liveness : dict or None
+        The liveness row (None: the site never told its liveness).
+    service : dict or None
+        The service record the site sent.
+    now : float or None
+        The wall clock now [s UTC]; None: the contact's age on the central store's own clock
+        (``now() - updated``: no skew between the dashboard's clock and the database's).
+    tz : str
+        The loop's time zone (for the time of the last sync in the text).
+
+    Returns
+    -------
+    dict
+        ``link`` with ``contact_wall`` (the central time of the last send [wall s UTC]),
+        ``contact_age_s`` and ``no_contact_after_s`` [s]; with no contact ``state``
+        "no_contact", its ``text``, and ``state_at_contact`` (the state then).
+    """
+    if liveness is None:
+        return {
+            **link,
+            "state": "no_contact",
+            "state_at_contact": None,
+            "contact_wall": None,
+            "contact_age_s": None,
+            "no_contact_after_s": None,
+            "text": "no contact with the site yet (it never sent its liveness)",
+        }
+    updated = float(liveness["updated"])
+    age = max(0.0, (now - updated) if now is not None else float(liveness["contact_age_s"]))
+    every = liveness.get("send_every_s") or DEFAULT_SEND_EVERY_S
+    limit = max(NO_CONTACT_SENDS * float(every), NO_CONTACT_MIN_S)
+    out = {**link, "contact_wall": updated, "contact_age_s": age, "no_contact_after_s": limit}
+    # the site said its service stopped (or never ran): nothing more is expected from it
+    told_stopped = not isinstance(service, dict) or service.get("stopped") is not None
+    if age <= limit or (told_stopped and link.get("state") == "stopped"):
+        out["text"] = f"{link.get('text')}, as of the site's last sync {format_age(age)} ago"
+        return out
+    return {
+        **out,
+        "state": "no_contact",
+        "state_at_contact": link.get("state"),
+        "since": updated,
+        "text": (
+            f"no contact with the site for {format_age(age)} (last sync "
+            f"{format_time(updated, tz)}, wall clock; then: {link.get('text')})"
+        ),
+    }
+
+
+class CentralLoop:
+    """One loop of the central store as a :class:`~fuelid.dashboard.source.LoopReader`.
+
+    Parameters
+    ----------
+    db : CentralDB
+        The central store (shared by every central loop of the dashboard).
+    loop_id : str
+        The loop.
+    archive : Path, optional
+        The raw archive the trend reads (the folder ``fuelid archive`` writes); None: no samples.
+    expires_s : float
+        How long a request filed here waits for the site [s of wall time].
+    """
+
+    def __init__(
+        self,
+        db: CentralDB,
+        loop_id: str,
+        *,
+        archive: Path | None = None,
+        expires_s: float = DEFAULT_EXPIRY_S,
+    ) -> None:
+        self.db = db
+        self.loop_id = loop_id
+        self.archive_root = archive
+        self.expires_s = float(expires_s)
+        self._archive: Any = None
+        self._archive_note: str | None = None
+
+    # --- the central rows ---------------------------------------------------------------
+
+    def _store(self) -> dict[str, Any]:
+        rows = self.db.query(
+            "SELECT store_uuid, loop_id, site_name, tag_map_hash FROM stores WHERE loop_id = %s "
+            "ORDER BY last_seen DESC LIMIT 1",
+            (self.loop_id,),
+        )
+        if not rows:
+            raise CentralError(f"the central store has no store of loop {self.loop_id!r}")
+        keys = ("store_uuid", "loop_id", "site_name", "tag_map_hash")
+        return dict(zip(keys, rows[0], strict=True))
+
+    def _liveness(self, store_uuid: str) -> dict[str, Any] | None:
+        rows = self.db.query(
+            f"SELECT {_LIVENESS} FROM liveness WHERE store_uuid = %s", (store_uuid,)
+        )
+        return dict(zip(_LIVENESS_KEYS, rows[0], strict=True)) if rows else None
+
+    def _views(self) -> tuple[CentralHistory, CentralStoreView, dict[str, Any] | None]:
+        store = self._store()
+        live = self._liveness(store["store_uuid"])
+        history = CentralHistory(self.db, store["store_uuid"], live or {})
+        return history, CentralStoreView(self.db, store, live or {}), live
+
+    # --- LoopReader -----------------------------------------------------------------------
+
+    def identity(self) -> dict[str, Any]:
+        """The loop's identity, as a store file's and with where its samples are.
+
+        ``loop_id``, ``site_name``, ``schema_version``, ``store_uuid``, ``period_s``, and
+        ``source`` ("central") with ``samples_note`` (where the raw samples are).
+        """
+        with self.db.reading():
+            store = self._store()
+            live = self._liveness(store["store_uuid"]) or {}
+        period = live.get("period_s")
+        if period is None:
+            sampling = ((live.get("service") or {}).get("settings") or {}).get("sampling") or {}
+            period = sampling.get("period_s")
+        return {
+            "loop_id": self.loop_id,
+            "site_name": store["site_name"],
+            "schema_version": live.get("schema_version"),
+            "store_uuid": store["store_uuid"],
+            "period_s": period,
+            "source": "central",
+            "samples_note": self.samples_note(),
+        }
+
+    def status(self, now_wall: float | None = None) -> dict[str, Any]:
+        """The loop now, by :func:`fuelid.online.report.status_json` over the central rows.
+
+        The state is judged as of the site's clock at its last send (:func:`contact_link`);
+        ``central`` is the centre's view of the sync (the last contact, the backlog the site
+        reported, the loop's central requests with their expiry and outcome).
+        """
+        from fuelid.online.report import status_json
+
+        with self.db.reading():
+            history, view, live = self._views()
+            as_of = _time.time() if now_wall is None else float(now_wall)
+            if live is not None:
+                as_of = float(live.get("site_wall") or live["updated"])
+            out = status_json(history, view, as_of)  # type: ignore[arg-type]
+            requests = central_requests_of(self.db, self.loop_id)
+        tz = str(out.get("timezone") or "UTC")
+        out["site"] = {**out["site"], "store": None, "loop_id": self.loop_id}
+        now = None if now_wall is None else float(now_wall)
+        out["link"] = contact_link(out["link"], live, history.state(SERVICE_KEY), now, tz)
+        live = live or {}
+        out["central"] = {
+            "read_from": "central store",
+            "contact_wall": live.get("updated"),
+            "site_wall": live.get("site_wall"),
+            "send_every_s": live.get("send_every_s"),
+            "backlog_rows": live.get("backlog_rows"),
+            "backlog_oldest_wall": live.get("backlog_oldest_wall"),
+            "last_send_wall": live.get("last_send_wall"),
+            "requests": requests,
+        }
+        return out
+
+    def history(self) -> dict[str, Any]:
+        """Everything the service did, by :func:`fuelid.online.report.history_json`."""
+        from fuelid.online.report import history_json
+
+        with self.db.reading():
+            history, view, _ = self._views()
+            out = history_json(history, view)  # type: ignore[arg-type]
+        out["site"] = {**out["site"], "store": None, "loop_id": self.loop_id}
+        return out
+
+    def window(self, window_id: int) -> dict[str, Any] | None:
+        """One window's row (``detail`` parsed); None when absent."""
+        with self.db.reading():
+            history, _, _ = self._views()
+            return history.window(window_id)
+
+    def recent_windows(self, limit: int) -> list[dict[str, Any]]:
+        """The newest ``limit`` windows' rows, oldest first."""
+        with self.db.reading():
+            history, _, _ = self._views()
+            return history.windows(limit=int(limit))
+
+    def requests(self) -> list[dict[str, Any]]:
+        """The site's requests as its last send told them, oldest first.
+
+        A request relayed from here has origin ``central:<id>`` there.
+        """
+        with self.db.reading():
+            history, _, _ = self._views()
+            return history.requests()
+
+    def file_request(
+        self,
+        kind: str,
+        proposal_id: int | None,
+        who: str,
+        why: str,
+        seen: dict[str, Any] | None = None,
+    ) -> dict[str, Any]:
+        """File a central request for the site's service to carry out (a relay, never a write).
+
+        ``seen`` is the proposal as the page showed it (``status``, ``history_len``): the site
+        refuses the request when the proposal changed since. The row comes back ``waiting``
+        with its ``expires`` [wall s UTC] and ``relayed`` True.
+        """
+        seen = seen or {}
+
+        def file(con: Any) -> dict[str, Any]:
+            return file_central_request(
+                con,
+                self.loop_id,
+                kind,
+                proposal_id,
+                who,
+                why,
+                seen_status=seen.get("status"),
+                seen_history_len=seen.get("history_len"),
+                origin="dashboard",
+                expires_s=self.expires_s,
+            )
+
+        return {**self.db.call(file), "relayed": True}
+
+    # --- samples: the raw archive, when given ---------------------------------------------
+
+    def _archive_loop(self) -> Any:
+        if self.archive_root is None:
+            return None
+        if self._archive is None:
+            from fuelid.archive.reader import ArchiveLoop
+
+            try:
+                self._archive = ArchiveLoop(self.archive_root, self.loop_id)
+                self._archive_note = None
+            except StoreError as error:
+                self._archive_note = " ".join(str(error).split())
+                return None
+        return self._archive
+
+    def samples_note(self) -> str:
+        """Where this loop's raw samples are, in one sentence."""
+        if self.archive_root is None:
+            return (
+                "Raw samples stay at the site; give --archive DIR to draw them from the raw "
+                "archive. The status is re-read every few seconds; nothing is streamed live."
+            )
+        if self._archive_loop() is None:
+            return f"No samples: {self._archive_note}"
+        return (
+            f"Samples from the raw archive {self.archive_root} (as far as it was archived; "
+            "nothing is streamed live from a central loop)."
+        )
+
+    def span(self) -> tuple[float, float] | None:
+        """First and newest archived sample time [plant s]; None without an archive."""
+        archive = self._archive_loop()
+        if archive is None:
+            return None
+        first, last = archive.first_time(), archive.last_time()
+        return None if first is None or last is None else (float(first), float(last))
+
+    def samples(self, t_from: float, t_to: float) -> SampleArrays:
+        """Archived samples with ``t_from <= time < t_to`` [plant s]; none without an archive."""
+        archive = self._archive_loop()
+        if archive is None:
+            return SampleArrays.from_rows([])
+        out: SampleArrays = archive.read(t_from, t_to)
+        return out
+
+    def lod(self, level: int, t_from: float, t_to: float) -> dict[str, np.ndarray[Any, Any]]:
+        """Min and max per bucket of ``level`` s of the archived samples (as ``samples_lod``)."""
+        start = math.floor(t_from / level) * level
+        raw = self.samples(start, t_to)
+        t = np.asarray(raw.time, dtype=np.float64)
+        bucket = np.floor(t / level) * level
+        keys, starts, counts = np.unique(bucket, return_index=True, return_counts=True)
+        out: dict[str, np.ndarray[Any, Any]] = {
+            "bucket": keys.astype(np.float64),
+            "n": counts.astype(np.float64),
+            "bad": (
+                np.add.reduceat((np.asarray(raw.quality) != 0).astype(np.float64), starts)
+                if keys.size
+                else np.zeros(0)
+            ),
+        }
+        for name in TREND_COLUMNS:
+            values = np.asarray(getattr(raw, name), dtype=np.float64)
+            if keys.size:
+                with np.errstate(invalid="ignore"):  # an all-NaN bucket is NaN (SQL's NULL)
+                    out[f"{name}_min"] = np.fmin.reduceat(values, starts)
+                    out[f"{name}_max"] = np.fmax.reduceat(values, starts)
+            else:
+                out[f"{name}_min"] = out[f"{name}_max"] = np.zeros(0)
+        return out
+
+    def cursor(self) -> int:
+        """0: nothing is streamed from a central loop."""
+        return 0
+
+    def samples_after(self, cursor: int, limit: int) -> tuple[int, SampleArrays]:
+        """No samples: the central store has none to stream (the archive is not live)."""
+        return int(cursor), SampleArrays.from_rows([])
+
+    def close(self) -> None:
+        """Nothing of its own to close (the connection is the dashboard's)."""
+
+
+def central_requests_of(db: CentralDB, loop_id: str) -> list[dict[str, Any]]:
+    """The loop's newest central requests, oldest first (times [wall s UTC])."""
+    rows = db.call(lambda con: central_requests(con, loop_id))
+    return rows[-CENTRAL_REQUESTS_SHOWN:]
