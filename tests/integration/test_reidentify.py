@@ -27,6 +27,7 @@ pytest.importorskip("distributed")
 
 from distributed import Client, LocalCluster
 
+from fuelid.archive.layout import list_loop_days
 from fuelid.cli import main
 from fuelid.fleet import run as fleet_run
 from fuelid.fleet.run import reidentify
@@ -359,3 +360,60 @@ def test_a_worker_that_does_not_see_the_archive_marks_nothing_done(
     with pytest.raises(DataError, match="readable at the same path on every worker"):
         reidentify_day(elsewhere, day, settings, plant, tmp_path / "out")
     assert not result_path(tmp_path / "out", day).exists()
+
+
+# --- results to the central store -------------------------------------------------------------
+
+
+def test_results_sent_to_the_central_store_whole_per_loop_day_and_again_unchanged(
+    archive: Path, two_workers: Path, central_url: str, tmp_path: Path
+) -> None:
+    from fuelid.central.connect import connect
+    from fuelid.fleet.to_central import send_results
+
+    def central_rows() -> dict[tuple[str, float], tuple[Any, ...]]:
+        with connect(central_url) as con:
+            rows = con.execute(
+                "SELECT loop_id, t_to, accepted, k, se_k, reason, gates FROM reidentified"
+            ).fetchall()
+        return {(r[0], r[1]): r[2:] for r in rows}
+
+    days = list_loop_days(archive)
+    sent = send_results(central_url, two_workers, days)
+    frames = {
+        loop: pq.read_table(two_workers / "windows" / f"loop={loop}").to_pandas()
+        for loop in ("line-a", "line-b")
+    }
+    assert sent["loop_days"] == 2
+    assert sent["windows"] == sum(len(f) for f in frames.values())
+    rows = central_rows()
+    assert len(rows) == sent["windows"]
+    for loop, frame in frames.items():  # value for value (NaN as NULL)
+        for r in frame.itertuples():
+            accepted, k, se_k, reason, gates = rows[(loop, r.t_to)]
+            assert accepted == r.accepted
+            assert reason == r.reason
+            assert gates == json.loads(r.gates)
+            assert (k, se_k) == (
+                None if math.isnan(r.K) else r.K,
+                None if math.isnan(r.se_K) else r.se_K,
+            )
+    with connect(central_url) as con:
+        runs = con.execute("SELECT loop_id, run_id, summary FROM reidentify_runs").fetchall()
+    assert sorted(r[0] for r in runs) == ["line-a", "line-b"]
+    assert {r[0]: r[1] for r in runs} == sent["run_ids"]
+    assert all(r[2]["windows"] == len(frames[r[0]]) for r in runs)
+    # sent again: the same rows, none doubled
+    send_results(central_url, two_workers, days)
+    assert central_rows() == rows
+    # a loop-day recomputed with fewer windows replaces its rows whole
+    copy = tmp_path / "copy"
+    shutil.copytree(two_workers, copy)
+    part = copy / "windows" / "loop=line-b" / f"date={DATE}" / "part.parquet"
+    pq.write_table(pq.read_table(part).slice(0, 5), part)
+    send_results(central_url, copy, days)
+    after = central_rows()
+    assert sum(1 for key in after if key[0] == "line-b") == 5
+    assert {k: v for k, v in after.items() if k[0] == "line-a"} == {
+        k: v for k, v in rows.items() if k[0] == "line-a"
+    }

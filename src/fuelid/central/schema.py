@@ -62,6 +62,9 @@ store's) and ``site_state`` (jsonb: the site's ``online_state`` values ``current
 central reader: the windows by their model (``store_uuid, model_id``), a store's newest windows
 and models by their window's end (``store_uuid, t_to DESC, id DESC``).
 
+**Version 3** adds the results of ``fuelid reidentify --central``: ``reidentify_runs`` and
+``reidentified`` (:mod:`fuelid.central.reidentified`).
+
 **Versions.** :data:`MIGRATIONS` in order, each in one transaction with its row in
 ``central_schema`` (under an advisory lock: two migrators never apply one twice). A database
 whose version is newer than :data:`SCHEMA_VERSION` is refused with both versions (an older
@@ -77,6 +80,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from fuelid.central.connect import CentralError
+from fuelid.central.reidentified import TABLES as REIDENTIFIED
 
 if TYPE_CHECKING:
     import psycopg
@@ -399,6 +403,7 @@ MIGRATIONS: tuple[Migration, ...] = (
         "liveness: the site's clock, send interval, newest sample, sampling period and state",
         tuple(_V2),
     ),
+    Migration(3, "the results of fuelid reidentify: reidentify_runs, reidentified", REIDENTIFIED),
 )
 """Every migration in order; ``MIGRATIONS[k]`` takes the database to version ``k + 1``."""
 

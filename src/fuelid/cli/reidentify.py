@@ -134,6 +134,15 @@ def reidentify_command(
         Path,
         typer.Option("--out", metavar="RESULT", help="The result folder (resumable)."),
     ] = Path("reidentified"),
+    central: Annotated[
+        str | None,
+        typer.Option(
+            "--central",
+            metavar="URL",
+            help="Also send the results to the central store (postgresql://…; no password: "
+            "PGPASSWORD, ~/.pgpass or a service file).",
+        ),
+    ] = None,
     json_output: Annotated[
         bool, typer.Option("--json", help="Print the summary as one JSON object.")
     ] = False,
@@ -165,6 +174,7 @@ def reidentify_command(
             scheduler=scheduler,
             workers=workers,
             progress=progress,
+            central=central,
         )
     if json_output:
         options = {
@@ -174,6 +184,7 @@ def reidentify_command(
             "settings": None if settings is None else str(settings),
             "scheduler": scheduler,
             "workers": workers,
+            "central": None if run.central is None else run.central["url"],
         }
         emit_json({**run.to_json(), "provenance": provenance(options)})
         return
@@ -184,3 +195,8 @@ def reidentify_command(
     )
     for line in _table(run.loops):
         typer.echo(line)
+    if run.central is not None:
+        typer.echo(
+            f"sent to {run.central['url']}: {run.central['loop_days']} loop-day(s), "
+            f"{run.central['windows']} window(s)"
+        )

@@ -58,6 +58,7 @@ class ReidentifyRun:
     fit_seconds: float
     loops: list[dict[str, Any]] = field(default_factory=list)
     settings: dict[str, str] = field(default_factory=dict)
+    central: dict[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready record (keys in docs/reference/json.md)."""
@@ -76,6 +77,7 @@ class ReidentifyRun:
             "windows_per_s": self.windows / self.seconds if self.seconds > 0 else None,
             "settings": self.settings,
             "loops": self.loops,
+            "central": self.central,
             "units": SUMMARY_UNITS,
         }
 
@@ -208,6 +210,7 @@ def reidentify(
     workers: int | None = None,
     client: Any = None,
     progress: Progress | None = None,
+    central: str | None = None,
 ) -> ReidentifyRun:
     """Re-identify the selected loop-days of an archive into ``out_root`` (module docstring).
 
@@ -229,6 +232,9 @@ def reidentify(
         A client to use as is (tests; ``scheduler`` and ``workers`` are then ignored).
     progress : callable, optional
         Told of each finished loop-day.
+    central : str, optional
+        A central store's URL: every finished loop-day of the selection and each loop's
+        summary are sent there afterwards (:mod:`fuelid.fleet.to_central`).
 
     Raises
     ------
@@ -270,6 +276,11 @@ def reidentify(
         summary = loop_summary(loop_id, table, tracker, note)
         write_tracking(out, loop_id, tracker, summary)
         loops_out.append(summary)
+    sent = None
+    if central is not None:
+        from fuelid.fleet.to_central import send_results
+
+        sent = send_results(central, out, days)
     return ReidentifyRun(
         archive=str(archive_root),
         out=str(out),
@@ -283,6 +294,7 @@ def reidentify(
         fit_seconds=sum(float(s["fit_seconds"]) for s in summaries),
         loops=loops_out,
         settings={loop: spec[0].source for loop, spec in specs.items()},
+        central=sent,
     )
 
 
