@@ -47,6 +47,17 @@ def test_the_table_names_each_day_and_the_totals(
     assert "no service ran" in out[4]
 
 
+def test_no_finished_day_says_so_and_how_to_take_the_current_one(
+    store_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["archive", "--store", str(store_path), "--to", str(tmp_path / "a")]
+    assert main([*argv, "--before", DATES[0]]) == 0  # the first day: nothing before it
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith(f"no finished day of loop line-x before {DATES[0]}: nothing archived")
+    assert "--before YYYY-MM-DD" in out[0]
+    assert "nan" not in " ".join(out)
+
+
 def _keys(data: Any) -> Iterator[str]:
     if isinstance(data, dict):
         for key, value in data.items():

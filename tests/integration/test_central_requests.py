@@ -146,8 +146,8 @@ def test_central_commands(
     assert (row["loop_id"], row["backlog_rows"], row["waiting_requests"]) == ("line-b", 0, 0)
     assert main(["central", "status", "--url", url]) == 0
     header, line = capsys.readouterr().out.splitlines()
-    assert header.split()[:2] == ["loop", "last"]
-    assert line.split()[0] == "line-b"
+    assert header.split()[:3] == ["loop", "service", "last"]
+    assert line.split()[:2] == ["line-b", "none"]  # synced by hand: no service ran on it
     assert line.endswith("fuel line line-b")
     assert main(["online", "status", "--store", str(loop.path), "--json"]) == 0
     central = json.loads(capsys.readouterr().out)["central"]

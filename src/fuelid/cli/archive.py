@@ -6,6 +6,7 @@ object; every failure is one line on stderr and exit code 2.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -69,13 +70,22 @@ def archive_command(
             f"{day.date:<10}  {day.rows:>9}  {day.parquet_bytes / 1e6:>8.3f}  "
             f"{day.store_bytes / 1e6:>8.3f}  {ratio:>6.1f}  {'yes' if day.written else 'no'}"
         )
-    ratio = report.store_bytes / report.parquet_bytes if report.parquet_bytes else float("nan")
-    lines.append(
-        f"{len(report.days)} day(s) of loop {report.loop_id} before {report.before or '-'}: "
-        f"{report.rows} rows, {report.parquet_bytes / 1e6:.3f} MB of Parquet "
-        f"({report.bytes_written / 1e6:.3f} MB written), {ratio:.1f}x smaller than the "
-        f"store's share, {report.seconds:.2f} s, in {report.root}"
-    )
+    if not report.days:
+        # a trial within one UTC day: the day being recorded is not finished, so not archived
+        lines = [
+            f"no finished day of loop {report.loop_id} before {report.before or '-'}: nothing "
+            f"archived ({report.root}); --before YYYY-MM-DD takes the days before that date, "
+            "the day still being recorded as far as it goes"
+        ]
+    else:
+        ratio = report.store_bytes / report.parquet_bytes if report.parquet_bytes else math.nan
+        shrink = f", {ratio:.1f}x smaller than the store's share" if ratio == ratio else ""
+        lines.append(
+            f"{len(report.days)} day(s) of loop {report.loop_id} before {report.before or '-'}: "
+            f"{report.rows} rows, {report.parquet_bytes / 1e6:.3f} MB of Parquet "
+            f"({report.bytes_written / 1e6:.3f} MB written){shrink}, {report.seconds:.2f} s, "
+            f"in {report.root}"
+        )
     if report.plant_note:
         lines.append(f"plant file: {report.plant_note}")
     typer.echo("\n".join(lines))

@@ -10,7 +10,7 @@ a schema newer than this fuelid's: one line on stderr, exit code 2.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -82,14 +82,24 @@ def status_command(url: UrlOption, as_json: JsonOption = False) -> None:
         typer.echo(f"central schema version {version}: no loop has sent yet")
         return
     typer.echo(
-        f"{'loop':<20} {'last seen':>10} {'backlog':>8} {'proposals':>9} {'requests':>8}  site"
+        f"{'loop':<20} {'service':<10} {'last seen':>10} {'backlog':>8} {'proposals':>9} "
+        f"{'requests':>8}  site"
     )
     for row in loops:
         seen = format_age(row["last_seen_age_s"]) if row["last_seen"] is not None else "never"
         typer.echo(
-            f"{row['loop_id']:<20} {seen:>10} {row['backlog_rows'] or 0:>8} "
+            f"{row['loop_id']:<20} {_service(row):<10} {seen:>10} {row['backlog_rows'] or 0:>8} "
             f"{row['open_proposals']:>9} {row['waiting_requests']:>8}  {row['site_name']}"
         )
+
+
+def _service(row: dict[str, Any]) -> str:
+    """The service as the centre last heard of it: stopped (cleanly), running, none."""
+    if row.get("service_stopped") is not None:
+        return "stopped"
+    if row.get("service_beat") is not None:
+        return "running"  # as of its last sync ("last seen" says how long ago)
+    return "none"  # a store synced by hand: no service ever ran on it
 
 
 @app.command("sync")
