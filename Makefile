@@ -13,7 +13,7 @@ help:
 	@echo "make demo   - install if needed, run the reference-plant demo (writes $(DEMO_DIR)/)"
 	@echo "make plc-demo - the virtual PLC over Modbus: record, export, identify (writes $(DEMO_DIR)/plc/)"
 	@echo "make test   - install if needed, run ruff, mypy and the fast pytest suite (about 4 min)"
-	@echo "make test-slow - the long fault runs and a 4 h soak (CI runs them after make test)"
+	@echo "make test-slow - the long fault runs and a 3 h soak (CI runs them after make test)"
 	@echo "make soak   - the 24 h soak against the virtual PLC (on demand, about 30 min, prints its table)"
 	@echo "make bench  - run the benchmarks (on demand; prints tables, writes docs/benchmarks/)"
 	@echo "make docs   - build the documentation site into site/ (mkdocs build --strict)"
@@ -96,10 +96,10 @@ test: lint typecheck pytest
 
 # The slow set runs in one process: the fault runs and the soak drive the virtual PLC at 20-50x
 # real time, and a second worker on a 2-core machine would starve their recorders. The soak
-# runs SLOW_SOAK_HOURS of plant time (4 h here: the CI budget, .ci/run; its bands are computed
+# runs SLOW_SOAK_HOURS of plant time (3 h here: the CI budget, .ci/run; its bands are computed
 # for the hours run) with its own deadline; every other slow test gets 15 min. -rP: they print
 # their measurements.
-SLOW_SOAK_HOURS ?= 4
+SLOW_SOAK_HOURS ?= 3
 test-slow: $(STAMP) postgres
 	FUELID_SOAK_HOURS=$(SLOW_SOAK_HOURS) $(BIN)/python -m pytest -q -m slow -rP -p no:xdist \
 		--timeout=900
