@@ -178,9 +178,16 @@ def test_a_window_page_from_the_centre(sites: dict[str, Site], central_url: str)
     assert central["gates_verdict"] == local["gates_verdict"]
     assert central["evidence"]["samples"] == 0 < local["evidence"]["samples"]
     assert page.status_code == 200
-    assert "raw samples stay at the site" in page.text.lower()
+    hint = "raw samples stay at the site; start the dashboard with --archive dir to draw them"
+    assert hint in page.text.lower()
+    # no samples, no empty plots: the charts' containers and the report's link are absent
+    for chart in ('id="fit"', 'id="resid"', 'id="acf"', f"/windows/{window_id}/report"):
+        assert chart not in page.text, chart
     assert loop_page.status_code == 200
-    assert "give --archive DIR" in loop_page.text
+    assert hint in loop_page.text.lower()
+    assert 'id="trend"' not in loop_page.text
+    assert 'id="live"' not in loop_page.text  # nothing to follow live
+    assert 'id="models"' in loop_page.text  # the model history is drawn from the central rows
 
 
 def test_with_an_archive_the_trend_of_a_central_loop_is_the_stores(
@@ -213,6 +220,7 @@ def test_with_an_archive_the_trend_of_a_central_loop_is_the_stores(
         assert answers[f"central {kind}"] == answers[f"local {kind}"], kind
     assert len(answers["central raw"]["bad"]) == 299  # the NULL samples of the stretch, 30 s
     assert "Samples from the raw archive" in page
+    assert 'id="trend"' in page  # with its samples the chart is drawn
 
 
 def test_an_approve_on_a_central_loop_is_relayed_and_carried_out_by_the_site(

@@ -230,13 +230,17 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
         units = status.get("gain_units") or status.get("gains_units") or {}
         settings = (status.get("service") or {}).get("settings") or {}
         write_back = write_back_of(status)
+        identity = loop.identity()
+        # a central loop without its raw samples: a one-line hint instead of an empty chart
+        no_samples = identity.get("source") == "central" and loop.span() is None
         return page(
             "loop.html.j2",
             request,
             page_title=loop.loop_id,
             page="loop",
             tz=tz,
-            lp=loop.identity(),
+            lp=identity,
+            no_samples=no_samples,
             status=status,
             summary=loop_summary(loop, status),
             link_text=link_text(status, tz),

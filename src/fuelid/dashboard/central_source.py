@@ -334,8 +334,8 @@ class CentralLoop:
         """Where this loop's raw samples are, in one sentence."""
         if self.archive_root is None:
             return (
-                "Raw samples stay at the site; give --archive DIR to draw them from the raw "
-                "archive. The status is re-read every few seconds; nothing is streamed live."
+                "Raw samples stay at the site; start the dashboard with --archive DIR to draw "
+                "them from the raw archive."
             )
         if self._archive_loop() is None:
             return f"No samples: {self._archive_note}"
