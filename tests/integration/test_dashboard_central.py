@@ -318,6 +318,33 @@ def test_a_site_not_heard_from_shows_no_contact_not_stopped(
     assert (service["level"], service["text"]) == ("warn", old["text"])
 
 
+def test_a_stopped_service_says_when_it_stopped_and_how_long_ago_now(
+    sites: dict[str, Site], central_url: str
+) -> None:
+    """The stop's age runs to now (the centre's clock), not to the site's last sync."""
+    site = sites["line-b"]
+    stop = time.time() - 60.0  # stopped a minute before the sync below
+    record = {"pid": 1, "host": "site-b", "beat": stop, "started": stop - 600.0}
+    site.history.set_state(SERVICE_KEY, {**record, "stopped": stop, "settings": {}})
+    site.sync()
+    with dashboard([], central_url) as (client, _):
+        with connect(central_url) as con:  # and that sync was 2 minutes ago
+            con.execute("UPDATE liveness SET updated = now() - interval '2 minutes'")
+            con.commit()
+        link = client.get("/api/loops/line-b/status").json()["link"]
+        row = _rows(client)["line-b"]
+        page = client.get("/loops/line-b").text
+    clock = dt.datetime.fromtimestamp(stop, dt.UTC).strftime("%H:%M:%S")
+    # 60 s before the sync + 120 s since: 180 s (3 min) however long the test takes (< 30 s)
+    expected = f"service stopped at {clock} UTC (3 min ago, wall clock)"
+    assert link["state"] == "stopped"  # a clean stop stays stopped, not "no contact"
+    assert link["text"] == expected
+    assert 179.0 < link["stopped_age_s"] < 210.0
+    service = next(c for c in row["chips"] if c["name"] == "service")
+    assert (service["level"], service["text"]) == ("alarm", expected)
+    assert expected in page
+
+
 def test_a_central_store_lost_while_serving_leaves_the_local_loops(
     sites: dict[str, Site], central_url: str, pg_cluster: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:

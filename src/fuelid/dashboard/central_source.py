@@ -15,7 +15,9 @@ clock at that send (``site_wall``: the state the site itself would have shown th
 age of the contact decides whether that still holds: a liveness row older than
 :data:`NO_CONTACT_SENDS` send intervals (at least :data:`NO_CONTACT_MIN_S`) means "no contact
 with the site" (state ``no_contact``), never "service stopped": the site may run on while its
-network is down. A service the site reported stopped (a clean stop) stays "stopped".
+network is down. A service the site reported stopped (a clean stop) stays "stopped", said as
+"service stopped at HH:MM:SS (N ago)": its age counts from the stop to now (the site's clock up
+to its last send, then the contact's age on the centre's clock), not to the last sync.
 
 **Samples.** The central store holds none: raw samples stay at the site. Without an archive
 :meth:`CentralLoop.span` is None and the trend empty; with ``--archive DIR`` the trend reads the
@@ -104,7 +106,8 @@ def contact_link(
     dict
         ``link`` with ``contact_wall`` (the central time of the last send [wall s UTC]),
         ``contact_age_s`` and ``no_contact_after_s`` [s]; with no contact ``state``
-        "no_contact", its ``text``, and ``state_at_contact`` (the state then).
+        "no_contact", its ``text``, and ``state_at_contact`` (the state then); a service the
+        site said stopped: the stop's time and ``stopped_age_s`` (from the stop to now [s]).
     """
     if liveness is None:
         return {
@@ -123,6 +126,18 @@ def contact_link(
     out = {**link, "contact_wall": updated, "contact_age_s": age, "no_contact_after_s": limit}
     # the site said its service stopped (or never ran): nothing more is expected from it
     told_stopped = not isinstance(service, dict) or service.get("stopped") is not None
+    stopped_at = _stop_time(service)
+    if told_stopped and link.get("state") == "stopped" and stopped_at is not None:
+        # a clean stop is a fact, not a state as of the sync: its age runs from the stop to
+        # now, the site's clock up to its last send plus the contact's age on the centre's
+        site_wall = float(liveness.get("site_wall") or updated)
+        since = (site_wall - stopped_at) + age
+        out["text"] = (
+            f"service stopped at {_clock_time(stopped_at, tz, since)} "
+            f"({format_age(since)} ago, wall clock)"
+        )
+        out["stopped_age_s"] = since
+        return out
     if age <= limit or (told_stopped and link.get("state") == "stopped"):
         out["text"] = f"{link.get('text')}, as of the site's last sync {format_age(age)} ago"
         return out
@@ -136,6 +151,28 @@ def contact_link(
             f"{format_time(updated, tz)}, wall clock; then: {link.get('text')})"
         ),
     }
+
+
+def _stop_time(service: Any) -> float | None:
+    """The wall time the site's service said it stopped [s UTC]; None when it did not."""
+    if not isinstance(service, dict):
+        return None
+    value = service.get("stopped")
+    if isinstance(value, int | float) and math.isfinite(value):
+        return float(value)
+    return None
+
+
+def _clock_time(t: float, tz: str, age: float) -> str:
+    """``HH:MM:SS ZONE`` within the day, the date as well when older.
+
+    >>> _clock_time(1_795_767_303.4, "UTC", 72.0)
+    '08:15:03 UTC'
+    >>> _clock_time(1_795_767_303.4, "UTC", 200_000.0)
+    '2026-11-27 08:15:03 UTC'
+    """
+    text = format_time(t, tz)
+    return text if age >= 86_400.0 else text.split(" ", 1)[1]
 
 
 class CentralLoop:
