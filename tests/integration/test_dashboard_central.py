@@ -386,6 +386,45 @@ def test_a_central_store_lost_while_serving_leaves_the_local_loops(
     assert local_page.status_code == 200
 
 
+def test_the_fleet_page_of_an_unreachable_central_store_alone_says_so(
+    sites: dict[str, Site], central_url: str, pg_cluster: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """No local store: not "give --store or --central" but why the central loops are away."""
+    from fuelid.dashboard import central_db
+
+    monkeypatch.setattr(central_db, "RETRY_S", 0.0)  # reconnect at the next read, not in 5 s
+    dbname = central_url.rsplit("/", 1)[1].split("?")[0]
+    with dashboard([], central_url) as (client, loops):
+        assert loops.central is not None
+        loops.central.every_s = 0.0  # the list of loops read at every request
+        assert sorted(_rows(client)) == ["line-a", "line-b"]
+        with connect(pg_cluster.url()) as admin:
+            admin.autocommit = True
+            admin.execute(
+                "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = %s",
+                (dbname,),
+            )
+            admin.execute(f'ALTER DATABASE "{dbname}" RENAME TO "{dbname}_gone"')
+        try:
+            first = client.get("/api/loops").json()["central"]["error"]
+            page = client.get("/").text
+            latest = client.get("/api/loops").json()["central"]["error"]
+        finally:
+            with connect(pg_cluster.url()) as admin:
+                admin.autocommit = True
+                admin.execute(f'ALTER DATABASE "{dbname}_gone" RENAME TO "{dbname}"')
+    # the connection was cut, then the database went (renamed): the banner says the latter
+    assert first is not None
+    assert f'database "{dbname}" does not exist' in latest
+    assert "terminating connection" not in page
+    banner = page.split('id="central-banner">', 1)[1].split("</p>", 1)[0]
+    assert f"database &#34;{dbname}&#34; does not exist" in banner  # the latest error
+    assert "the local stores are" not in banner  # there are none
+    assert banner.count("central store postgresql://") == 1  # the URL said once
+    assert "No loop yet" not in page
+    assert "The central store is unreachable: " in page
+
+
 def test_an_unreachable_central_store_at_start_is_one_line_and_exit_2(
     capsys: pytest.CaptureFixture[str],
 ) -> None:

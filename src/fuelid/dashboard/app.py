@@ -180,7 +180,10 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
         """The central store as the fleet page shows it (None without ``--central``)."""
         if loops.central is None:
             return None
-        return {"url": loops.central.db.shown_url, "error": loops.central.error}
+        url, error = loops.central.db.shown_url, loops.central.error
+        if error is not None:  # the banner names the store once
+            error = error.removeprefix(f"central store {url}: ")
+        return {"url": url, "error": error}
 
     @app.exception_handler(CentralError)
     def central_unreachable(request: Request, error: CentralError) -> JSONResponse:
