@@ -273,6 +273,54 @@ def test_an_approve_on_a_central_loop_is_relayed_and_carried_out_by_the_site(
     assert f"done: proposal {pending['id']} approved by eve" in page
 
 
+def test_a_second_request_for_a_waiting_proposal_is_refused_and_a_stopped_site_warned(
+    sites: dict[str, Site], central_url: str, tmp_path: Path
+) -> None:
+    from fuelid.io.clock import format_time
+
+    users = UsersFile(tmp_path / "users.json")
+    token = users.add("eve", "engineer")
+    site = sites["line-a"]
+    stop = time.time() - 60.0
+    record = {"pid": 1, "host": "site-a", "beat": stop, "started": stop - 600.0}
+    site.history.set_state(SERVICE_KEY, {**record, "stopped": stop, "settings": {}})
+    site.sync()
+    with dashboard([], central_url, Security(users, require_login=False)) as (client, _):
+        client.post("/login", data={"name": "eve", "token": token, "next": "/"})
+        csrf = {CSRF_HEADER: client.get("/api/whoami").json()["csrf"]}
+        (pending,) = client.get("/api/loops/line-a/status").json()["pending_proposals"]
+        url = f"/api/loops/line-a/proposals/{pending['id']}"
+        first = client.post(f"{url}/approve", data={"why": "go"}, headers=csrf)
+        again = client.post(f"{url}/approve", data={"why": "go again"}, headers=csrf)
+        reject = client.post(f"{url}/reject", data={"why": "changed my mind"}, headers=csrf)
+        page = client.get("/loops/line-a").text
+        requests = client.get("/api/loops/line-a/status").json()["central"]["requests"]
+    assert first.status_code == 200, first.text
+    request = first.json()["request"]
+    expires = format_time(request["expires"], "UTC")
+    warning = (
+        "the site's service is stopped: the request will expire unless it starts before "
+        f"{expires} (wall clock)"
+    )
+    assert first.json()["next"].endswith(f"Warning: {warning}")
+    for answer in (again, reject):  # one request per proposal at a time, whatever its kind
+        assert answer.status_code == 409
+        assert answer.json()["error"] == (
+            f"request {request['id']} (approve by eve) for proposal #{pending['id']} already "
+            f"waits for the site (expires {expires}, wall clock): one at a time"
+        )
+    assert [r["id"] for r in requests] == [request["id"]]  # nothing else was filed
+    # the proposal says what waits, warns, and offers no button meanwhile
+    assert (
+        f"approve filed by eve, waiting for the site&#39;s next sync, expires {expires} "
+        "(wall clock)"
+    ) in page
+    assert warning.replace("'", "&#39;") in page
+    card = page.split(f'<div class="proposal" data-proposal="{pending["id"]}">', 1)[1]
+    card = card.split("</form>", 1)[0]
+    assert card.count("disabled") == 2  # approve and reject
+
+
 def test_a_request_on_a_proposal_changed_since_it_was_seen_is_refused(
     sites: dict[str, Site], central_url: str
 ) -> None:

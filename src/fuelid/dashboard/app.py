@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+import time
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -43,11 +44,13 @@ from fuelid.dashboard.source import LoopReader
 from fuelid.dashboard.stream import Feeds
 from fuelid.dashboard.trend import trend
 from fuelid.dashboard.views import (
+    central_waiting,
     fmt_num,
     gains_now,
     link_text,
     now_rows,
     proposal_views,
+    site_warning,
     write_back_of,
 )
 from fuelid.errors import FuelidError
@@ -254,6 +257,12 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
             now_rows=now_rows(status, tz),
             gains=gains_now(status)[0],
             relayed=central_request_rows(status, tz),
+            # a proposal with a central request waiting: said on it, its buttons disabled
+            waiting=(
+                central_waiting(status, tz, time.time())
+                if identity.get("source") == "central"
+                else {}
+            ),
         )
 
     @app.get(
@@ -469,14 +478,16 @@ def central_request_rows(status: dict[str, Any], tz: str) -> list[dict[str, Any]
 
 def _next_step(loop: LoopReader, request: dict[str, Any]) -> str:
     """What happens to a request next, in one sentence."""
+    status = loop.status()
     if request.get("relayed"):
-        return (
+        text = (
             "relayed through the central store: the site's service fetches it at its next sync "
             "and carries it out (or refuses it if the proposal changed meanwhile); it expires "
             f"unapplied at {format_time(request.get('expires'), 'UTC')} (wall clock) if the site "
             "does not fetch it by then"
         )
-    status = loop.status()
+        warning = site_warning(status, request.get("expires"), "UTC")
+        return text if warning is None else f"{text}. Warning: {warning}"
     state = (status.get("link") or {}).get("state")
     if request.get("status") == "done":
         done = str(request.get("outcome") or "done")

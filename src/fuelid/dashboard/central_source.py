@@ -43,10 +43,17 @@ from typing import Any
 import numpy as np
 
 from fuelid.central.connect import CentralError
-from fuelid.central.requests import DEFAULT_EXPIRY_S, central_requests, file_central_request
+from fuelid.central.requests import (
+    DEFAULT_EXPIRY_S,
+    central_requests,
+    file_central_request,
+    newest_store,
+)
 from fuelid.dashboard.central_db import CentralDB
 from fuelid.dashboard.central_views import CentralHistory, CentralStoreView
 from fuelid.dashboard.source import TREND_COLUMNS
+from fuelid.dashboard.views import is_waiting
+from fuelid.errors import FuelidError
 from fuelid.io.clock import format_age, format_time
 from fuelid.online.liveness import SERVICE_KEY
 from fuelid.store.records import SampleArrays, StoreError
@@ -336,6 +343,7 @@ class CentralLoop:
         seen = seen or {}
 
         def file(con: Any) -> dict[str, Any]:
+            _refuse_a_second(con, self.loop_id, kind, proposal_id)
             return file_central_request(
                 con,
                 self.loop_id,
@@ -433,6 +441,29 @@ class CentralLoop:
 
     def close(self) -> None:
         """Nothing of its own to close (the connection is the dashboard's)."""
+
+
+def _refuse_a_second(con: Any, loop_id: str, kind: str, proposal_id: int | None) -> None:
+    """Refuse a request while one for the same proposal (or a revert) still waits for the site.
+
+    Two requests for one proposal would both be carried out or refused in turn; the person who
+    filed the second one most likely did not see the first (its buttons are disabled meanwhile).
+
+    Raises
+    ------
+    FuelidError
+        A request for it waits (one line: which, by whom, until when).
+    """
+    store = newest_store(con, loop_id)
+    now = _time.time()
+    for r in central_requests(con, loop_id, "waiting"):
+        same = r["proposal_id"] == proposal_id and (proposal_id is not None or r["kind"] == kind)
+        if same and r.get("store_uuid") in (None, store) and is_waiting(r, now):
+            what = "a revert" if proposal_id is None else f"proposal #{proposal_id}"
+            raise FuelidError(
+                f"request {r['id']} ({r['kind']} by {r['who']}) for {what} already waits for "
+                f"the site (expires {format_time(r['expires'], 'UTC')}, wall clock): one at a time"
+            )
 
 
 def central_requests_of(db: CentralDB, loop_id: str) -> list[dict[str, Any]]:
