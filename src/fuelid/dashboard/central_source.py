@@ -28,7 +28,9 @@ live from a central loop: the status is re-read every few seconds.
 **Actions.** :meth:`CentralLoop.file_request` files a central request with what the page showed
 of the proposal (status and history length); the site's service fetches it at its next sync,
 files it locally and carries it out (:mod:`fuelid.online.central_link`), or refuses it when the
-proposal changed meanwhile; a request no site fetches before its expiry is never applied. The
+proposal changed meanwhile; a request no site fetches before its expiry is never applied. One
+request per proposal (and one revert) waits at a time: a second is refused with a one-line
+reason while the first waits (unfetched and unexpired, or fetched and being carried out). The
 loop's central requests, with their expiry and outcome, are in ``status()["central"]
 ["requests"]``.
 """

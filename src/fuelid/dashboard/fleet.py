@@ -1,7 +1,8 @@
 """The fleet page's rows: one per loop, status chips, sorted by what needs attention first.
 
 Each loop gets the chips below, each at a level: ``alarm`` (act now), ``warn`` (look today),
-``unknown`` (not measured yet), ``info`` (worth knowing, nothing to do), ``ok``. The thresholds are the constants of this module.
+``unknown`` (not measured yet), ``info`` (worth knowing, nothing to do), ``ok``. The
+thresholds are the constants of this module.
 
 - **service**: alarm when the service is stopped (its beat is stale) or the link is down;
   warn when a central loop's site has not been heard from for a few send intervals
