@@ -178,9 +178,16 @@ def test_a_window_page_from_the_centre(sites: dict[str, Site], central_url: str)
     assert central["gates_verdict"] == local["gates_verdict"]
     assert central["evidence"]["samples"] == 0 < local["evidence"]["samples"]
     assert page.status_code == 200
-    assert "raw samples stay at the site" in page.text.lower()
+    hint = "raw samples stay at the site; start the dashboard with --archive dir to draw them"
+    assert hint in page.text.lower()
+    # no samples, no empty plots: the charts' containers and the report's link are absent
+    for chart in ('id="fit"', 'id="resid"', 'id="acf"', f"/windows/{window_id}/report"):
+        assert chart not in page.text, chart
     assert loop_page.status_code == 200
-    assert "give --archive DIR" in loop_page.text
+    assert hint in loop_page.text.lower()
+    assert 'id="trend"' not in loop_page.text
+    assert 'id="live"' not in loop_page.text  # nothing to follow live
+    assert 'id="models"' in loop_page.text  # the model history is drawn from the central rows
 
 
 def test_with_an_archive_the_trend_of_a_central_loop_is_the_stores(
@@ -213,6 +220,7 @@ def test_with_an_archive_the_trend_of_a_central_loop_is_the_stores(
         assert answers[f"central {kind}"] == answers[f"local {kind}"], kind
     assert len(answers["central raw"]["bad"]) == 299  # the NULL samples of the stretch, 30 s
     assert "Samples from the raw archive" in page
+    assert 'id="trend"' in page  # with its samples the chart is drawn
 
 
 def test_an_approve_on_a_central_loop_is_relayed_and_carried_out_by_the_site(
@@ -265,6 +273,54 @@ def test_an_approve_on_a_central_loop_is_relayed_and_carried_out_by_the_site(
     assert f"done: proposal {pending['id']} approved by eve" in page
 
 
+def test_a_second_request_for_a_waiting_proposal_is_refused_and_a_stopped_site_warned(
+    sites: dict[str, Site], central_url: str, tmp_path: Path
+) -> None:
+    from fuelid.io.clock import format_time
+
+    users = UsersFile(tmp_path / "users.json")
+    token = users.add("eve", "engineer")
+    site = sites["line-a"]
+    stop = time.time() - 60.0
+    record = {"pid": 1, "host": "site-a", "beat": stop, "started": stop - 600.0}
+    site.history.set_state(SERVICE_KEY, {**record, "stopped": stop, "settings": {}})
+    site.sync()
+    with dashboard([], central_url, Security(users, require_login=False)) as (client, _):
+        client.post("/login", data={"name": "eve", "token": token, "next": "/"})
+        csrf = {CSRF_HEADER: client.get("/api/whoami").json()["csrf"]}
+        (pending,) = client.get("/api/loops/line-a/status").json()["pending_proposals"]
+        url = f"/api/loops/line-a/proposals/{pending['id']}"
+        first = client.post(f"{url}/approve", data={"why": "go"}, headers=csrf)
+        again = client.post(f"{url}/approve", data={"why": "go again"}, headers=csrf)
+        reject = client.post(f"{url}/reject", data={"why": "changed my mind"}, headers=csrf)
+        page = client.get("/loops/line-a").text
+        requests = client.get("/api/loops/line-a/status").json()["central"]["requests"]
+    assert first.status_code == 200, first.text
+    request = first.json()["request"]
+    expires = format_time(request["expires"], "UTC")
+    warning = (
+        "the site's service is stopped: the request will expire unless it starts before "
+        f"{expires} (wall clock)"
+    )
+    assert first.json()["next"].endswith(f"Warning: {warning}")
+    for answer in (again, reject):  # one request per proposal at a time, whatever its kind
+        assert answer.status_code == 409
+        assert answer.json()["error"] == (
+            f"request {request['id']} (approve by eve) for proposal #{pending['id']} already "
+            f"waits for the site (expires {expires}, wall clock): one at a time"
+        )
+    assert [r["id"] for r in requests] == [request["id"]]  # nothing else was filed
+    # the proposal says what waits, warns, and offers no button meanwhile
+    assert (
+        f"approve filed by eve, waiting for the site&#39;s next sync, expires {expires} "
+        "(wall clock)"
+    ) in page
+    assert warning.replace("'", "&#39;") in page
+    card = page.split(f'<div class="proposal" data-proposal="{pending["id"]}">', 1)[1]
+    card = card.split("</form>", 1)[0]
+    assert card.count("disabled") == 2  # approve and reject
+
+
 def test_a_request_on_a_proposal_changed_since_it_was_seen_is_refused(
     sites: dict[str, Site], central_url: str
 ) -> None:
@@ -310,6 +366,33 @@ def test_a_site_not_heard_from_shows_no_contact_not_stopped(
     assert (service["level"], service["text"]) == ("warn", old["text"])
 
 
+def test_a_stopped_service_says_when_it_stopped_and_how_long_ago_now(
+    sites: dict[str, Site], central_url: str
+) -> None:
+    """The stop's age runs to now (the centre's clock), not to the site's last sync."""
+    site = sites["line-b"]
+    stop = time.time() - 60.0  # stopped a minute before the sync below
+    record = {"pid": 1, "host": "site-b", "beat": stop, "started": stop - 600.0}
+    site.history.set_state(SERVICE_KEY, {**record, "stopped": stop, "settings": {}})
+    site.sync()
+    with dashboard([], central_url) as (client, _):
+        with connect(central_url) as con:  # and that sync was 2 minutes ago
+            con.execute("UPDATE liveness SET updated = now() - interval '2 minutes'")
+            con.commit()
+        link = client.get("/api/loops/line-b/status").json()["link"]
+        row = _rows(client)["line-b"]
+        page = client.get("/loops/line-b").text
+    clock = dt.datetime.fromtimestamp(stop, dt.UTC).strftime("%H:%M:%S")
+    # 60 s before the sync + 120 s since: 180 s (3 min) however long the test takes (< 30 s)
+    expected = f"service stopped at {clock} UTC (3 min ago, wall clock)"
+    assert link["state"] == "stopped"  # a clean stop stays stopped, not "no contact"
+    assert link["text"] == expected
+    assert 179.0 < link["stopped_age_s"] < 210.0
+    service = next(c for c in row["chips"] if c["name"] == "service")
+    assert (service["level"], service["text"]) == ("alarm", expected)
+    assert expected in page
+
+
 def test_a_central_store_lost_while_serving_leaves_the_local_loops(
     sites: dict[str, Site], central_url: str, pg_cluster: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -349,6 +432,45 @@ def test_a_central_store_lost_while_serving_leaves_the_local_loops(
     assert "cannot be read now" in page.text
     assert loop_page.status_code == 503
     assert local_page.status_code == 200
+
+
+def test_the_fleet_page_of_an_unreachable_central_store_alone_says_so(
+    sites: dict[str, Site], central_url: str, pg_cluster: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """No local store: not "give --store or --central" but why the central loops are away."""
+    from fuelid.dashboard import central_db
+
+    monkeypatch.setattr(central_db, "RETRY_S", 0.0)  # reconnect at the next read, not in 5 s
+    dbname = central_url.rsplit("/", 1)[1].split("?")[0]
+    with dashboard([], central_url) as (client, loops):
+        assert loops.central is not None
+        loops.central.every_s = 0.0  # the list of loops read at every request
+        assert sorted(_rows(client)) == ["line-a", "line-b"]
+        with connect(pg_cluster.url()) as admin:
+            admin.autocommit = True
+            admin.execute(
+                "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = %s",
+                (dbname,),
+            )
+            admin.execute(f'ALTER DATABASE "{dbname}" RENAME TO "{dbname}_gone"')
+        try:
+            first = client.get("/api/loops").json()["central"]["error"]
+            page = client.get("/").text
+            latest = client.get("/api/loops").json()["central"]["error"]
+        finally:
+            with connect(pg_cluster.url()) as admin:
+                admin.autocommit = True
+                admin.execute(f'ALTER DATABASE "{dbname}_gone" RENAME TO "{dbname}"')
+    # the connection was cut, then the database went (renamed): the banner says the latter
+    assert first is not None
+    assert f'database "{dbname}" does not exist' in latest
+    assert "terminating connection" not in page
+    banner = page.split('id="central-banner">', 1)[1].split("</p>", 1)[0]
+    assert f"database &#34;{dbname}&#34; does not exist" in banner  # the latest error
+    assert "the local stores are" not in banner  # there are none
+    assert banner.count("central store postgresql://") == 1  # the URL said once
+    assert "No loop yet" not in page
+    assert "The central store is unreachable: " in page
 
 
 def test_an_unreachable_central_store_at_start_is_one_line_and_exit_2(

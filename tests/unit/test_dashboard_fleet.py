@@ -136,3 +136,31 @@ def test_the_fleet_is_sorted_by_the_documented_severity_order() -> None:
         "warn",
         "unknown",
     ]
+
+
+def test_a_propose_only_loop_shows_its_waiting_proposal_as_info() -> None:
+    # write_back "off": nothing is written, so a waiting proposal is advice, not a hold-up
+    status = with_changes(
+        pending_proposals=[{"id": 5, "status": "pending"}], write_back__setting="off"
+    )
+    chips = {c.name: c for c in loop_chips(status, RECENT_IAE)}
+    assert chips["proposals"].level == "info"
+    assert chips["proposals"].text == "1 (propose only: nothing is written)"
+    row = fleet_row("p-only", "site", status, RECENT_IAE)
+    assert row["level"] == "info"
+    # sorts after a loop with something unknown and before a healthy one
+    rows = [
+        row,
+        fleet_row("a-healthy", "site", healthy(), RECENT_IAE),
+        fleet_row("z-new", "site", {"link": {"state": "no_data"}}, RECENT_IAE),
+    ]
+    assert [r["loop_id"] for r in sorted(rows, key=lambda r: r["sort_key"])] == [
+        "z-new",
+        "p-only",
+        "a-healthy",
+    ]
+    # with "approve" the same proposal still warns
+    approve = with_changes(
+        pending_proposals=[{"id": 5, "status": "pending"}], write_back__setting="approve"
+    )
+    assert levels(approve)["proposals"] == "warn"

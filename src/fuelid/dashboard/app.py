@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+import time
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -43,11 +44,13 @@ from fuelid.dashboard.source import LoopReader
 from fuelid.dashboard.stream import Feeds
 from fuelid.dashboard.trend import trend
 from fuelid.dashboard.views import (
+    central_waiting,
     fmt_num,
     gains_now,
     link_text,
     now_rows,
     proposal_views,
+    site_warning,
     write_back_of,
 )
 from fuelid.errors import FuelidError
@@ -180,7 +183,10 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
         """The central store as the fleet page shows it (None without ``--central``)."""
         if loops.central is None:
             return None
-        return {"url": loops.central.db.shown_url, "error": loops.central.error}
+        url, error = loops.central.db.shown_url, loops.central.error
+        if error is not None:  # the banner names the store once
+            error = error.removeprefix(f"central store {url}: ")
+        return {"url": url, "error": error}
 
     @app.exception_handler(CentralError)
     def central_unreachable(request: Request, error: CentralError) -> JSONResponse:
@@ -230,13 +236,17 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
         units = status.get("gain_units") or status.get("gains_units") or {}
         settings = (status.get("service") or {}).get("settings") or {}
         write_back = write_back_of(status)
+        identity = loop.identity()
+        # a central loop without its raw samples: a one-line hint instead of an empty chart
+        no_samples = identity.get("source") == "central" and loop.span() is None
         return page(
             "loop.html.j2",
             request,
             page_title=loop.loop_id,
             page="loop",
             tz=tz,
-            lp=loop.identity(),
+            lp=identity,
+            no_samples=no_samples,
             status=status,
             summary=loop_summary(loop, status),
             link_text=link_text(status, tz),
@@ -247,6 +257,12 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
             now_rows=now_rows(status, tz),
             gains=gains_now(status)[0],
             relayed=central_request_rows(status, tz),
+            # a proposal with a central request waiting: said on it, its buttons disabled
+            waiting=(
+                central_waiting(status, tz, time.time())
+                if identity.get("source") == "central"
+                else {}
+            ),
         )
 
     @app.get(
@@ -462,14 +478,16 @@ def central_request_rows(status: dict[str, Any], tz: str) -> list[dict[str, Any]
 
 def _next_step(loop: LoopReader, request: dict[str, Any]) -> str:
     """What happens to a request next, in one sentence."""
+    status = loop.status()
     if request.get("relayed"):
-        return (
+        text = (
             "relayed through the central store: the site's service fetches it at its next sync "
             "and carries it out (or refuses it if the proposal changed meanwhile); it expires "
             f"unapplied at {format_time(request.get('expires'), 'UTC')} (wall clock) if the site "
             "does not fetch it by then"
         )
-    status = loop.status()
+        warning = site_warning(status, request.get("expires"), "UTC")
+        return text if warning is None else f"{text}. Warning: {warning}"
     state = (status.get("link") or {}).get("state")
     if request.get("status") == "done":
         done = str(request.get("outcome") or "done")

@@ -15,7 +15,9 @@ clock at that send (``site_wall``: the state the site itself would have shown th
 age of the contact decides whether that still holds: a liveness row older than
 :data:`NO_CONTACT_SENDS` send intervals (at least :data:`NO_CONTACT_MIN_S`) means "no contact
 with the site" (state ``no_contact``), never "service stopped": the site may run on while its
-network is down. A service the site reported stopped (a clean stop) stays "stopped".
+network is down. A service the site reported stopped (a clean stop) stays "stopped", said as
+"service stopped at HH:MM:SS (N ago)": its age counts from the stop to now (the site's clock up
+to its last send, then the contact's age on the centre's clock), not to the last sync.
 
 **Samples.** The central store holds none: raw samples stay at the site. Without an archive
 :meth:`CentralLoop.span` is None and the trend empty; with ``--archive DIR`` the trend reads the
@@ -26,7 +28,9 @@ live from a central loop: the status is re-read every few seconds.
 **Actions.** :meth:`CentralLoop.file_request` files a central request with what the page showed
 of the proposal (status and history length); the site's service fetches it at its next sync,
 files it locally and carries it out (:mod:`fuelid.online.central_link`), or refuses it when the
-proposal changed meanwhile; a request no site fetches before its expiry is never applied. The
+proposal changed meanwhile; a request no site fetches before its expiry is never applied. One
+request per proposal (and one revert) waits at a time: a second is refused with a one-line
+reason while the first waits (unfetched and unexpired, or fetched and being carried out). The
 loop's central requests, with their expiry and outcome, are in ``status()["central"]
 ["requests"]``.
 """
@@ -41,10 +45,17 @@ from typing import Any
 import numpy as np
 
 from fuelid.central.connect import CentralError
-from fuelid.central.requests import DEFAULT_EXPIRY_S, central_requests, file_central_request
+from fuelid.central.requests import (
+    DEFAULT_EXPIRY_S,
+    central_requests,
+    file_central_request,
+    newest_store,
+)
 from fuelid.dashboard.central_db import CentralDB
 from fuelid.dashboard.central_views import CentralHistory, CentralStoreView
 from fuelid.dashboard.source import TREND_COLUMNS
+from fuelid.dashboard.views import is_waiting
+from fuelid.errors import FuelidError
 from fuelid.io.clock import format_age, format_time
 from fuelid.online.liveness import SERVICE_KEY
 from fuelid.store.records import SampleArrays, StoreError
@@ -104,7 +115,8 @@ def contact_link(
     dict
         ``link`` with ``contact_wall`` (the central time of the last send [wall s UTC]),
         ``contact_age_s`` and ``no_contact_after_s`` [s]; with no contact ``state``
-        "no_contact", its ``text``, and ``state_at_contact`` (the state then).
+        "no_contact", its ``text``, and ``state_at_contact`` (the state then); a service the
+        site said stopped: the stop's time and ``stopped_age_s`` (from the stop to now [s]).
     """
     if liveness is None:
         return {
@@ -123,6 +135,18 @@ def contact_link(
     out = {**link, "contact_wall": updated, "contact_age_s": age, "no_contact_after_s": limit}
     # the site said its service stopped (or never ran): nothing more is expected from it
     told_stopped = not isinstance(service, dict) or service.get("stopped") is not None
+    stopped_at = _stop_time(service)
+    if told_stopped and link.get("state") == "stopped" and stopped_at is not None:
+        # a clean stop is a fact, not a state as of the sync: its age runs from the stop to
+        # now, the site's clock up to its last send plus the contact's age on the centre's
+        site_wall = float(liveness.get("site_wall") or updated)
+        since = (site_wall - stopped_at) + age
+        out["text"] = (
+            f"service stopped at {_clock_time(stopped_at, tz, since)} "
+            f"({format_age(since)} ago, wall clock)"
+        )
+        out["stopped_age_s"] = since
+        return out
     if age <= limit or (told_stopped and link.get("state") == "stopped"):
         out["text"] = f"{link.get('text')}, as of the site's last sync {format_age(age)} ago"
         return out
@@ -136,6 +160,28 @@ def contact_link(
             f"{format_time(updated, tz)}, wall clock; then: {link.get('text')})"
         ),
     }
+
+
+def _stop_time(service: Any) -> float | None:
+    """The wall time the site's service said it stopped [s UTC]; None when it did not."""
+    if not isinstance(service, dict):
+        return None
+    value = service.get("stopped")
+    if isinstance(value, int | float) and math.isfinite(value):
+        return float(value)
+    return None
+
+
+def _clock_time(t: float, tz: str, age: float) -> str:
+    """``HH:MM:SS ZONE`` within the day, the date as well when older.
+
+    >>> _clock_time(1_795_767_303.4, "UTC", 72.0)
+    '08:15:03 UTC'
+    >>> _clock_time(1_795_767_303.4, "UTC", 200_000.0)
+    '2026-11-27 08:15:03 UTC'
+    """
+    text = format_time(t, tz)
+    return text if age >= 86_400.0 else text.split(" ", 1)[1]
 
 
 class CentralLoop:
@@ -299,6 +345,7 @@ class CentralLoop:
         seen = seen or {}
 
         def file(con: Any) -> dict[str, Any]:
+            _refuse_a_second(con, self.loop_id, kind, proposal_id)
             return file_central_request(
                 con,
                 self.loop_id,
@@ -334,8 +381,8 @@ class CentralLoop:
         """Where this loop's raw samples are, in one sentence."""
         if self.archive_root is None:
             return (
-                "Raw samples stay at the site; give --archive DIR to draw them from the raw "
-                "archive. The status is re-read every few seconds; nothing is streamed live."
+                "Raw samples stay at the site; start the dashboard with --archive DIR to draw "
+                "them from the raw archive."
             )
         if self._archive_loop() is None:
             return f"No samples: {self._archive_note}"
@@ -396,6 +443,29 @@ class CentralLoop:
 
     def close(self) -> None:
         """Nothing of its own to close (the connection is the dashboard's)."""
+
+
+def _refuse_a_second(con: Any, loop_id: str, kind: str, proposal_id: int | None) -> None:
+    """Refuse a request while one for the same proposal (or a revert) still waits for the site.
+
+    Two requests for one proposal would both be carried out or refused in turn; the person who
+    filed the second one most likely did not see the first (its buttons are disabled meanwhile).
+
+    Raises
+    ------
+    FuelidError
+        A request for it waits (one line: which, by whom, until when).
+    """
+    store = newest_store(con, loop_id)
+    now = _time.time()
+    for r in central_requests(con, loop_id, "waiting"):
+        same = r["proposal_id"] == proposal_id and (proposal_id is not None or r["kind"] == kind)
+        if same and r.get("store_uuid") in (None, store) and is_waiting(r, now):
+            what = "a revert" if proposal_id is None else f"proposal #{proposal_id}"
+            raise FuelidError(
+                f"request {r['id']} ({r['kind']} by {r['who']}) for {what} already waits for "
+                f"the site (expires {format_time(r['expires'], 'UTC')}, wall clock): one at a time"
+            )
 
 
 def central_requests_of(db: CentralDB, loop_id: str) -> list[dict[str, Any]]:

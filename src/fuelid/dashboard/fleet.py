@@ -1,7 +1,8 @@
 """The fleet page's rows: one per loop, status chips, sorted by what needs attention first.
 
 Each loop gets the chips below, each at a level: ``alarm`` (act now), ``warn`` (look today),
-``unknown`` (not measured yet), ``ok``. The thresholds are the constants of this module.
+``unknown`` (not measured yet), ``info`` (worth knowing, nothing to do), ``ok``. The
+thresholds are the constants of this module.
 
 - **service**: alarm when the service is stopped (its beat is stale) or the link is down;
   warn when a central loop's site has not been heard from for a few send intervals
@@ -10,7 +11,9 @@ Each loop gets the chips below, each at a level: ``alarm`` (act now), ``warn`` (
   when up.
 - **oscillation**: alarm when the last window oscillates.
 - **last write**: alarm when the last write failed, a write is held or a revert is requested.
-- **proposals**: warn while a proposal waits for a person (pending) or for its write (approved).
+- **proposals**: warn while a proposal waits for a person (pending) or for its write (approved);
+  info when the service's ``write_back`` is "off" (propose only: nothing is written, a proposal
+  is advice and waiting is its normal state).
 - **drift**: warn when K now / K the gains were tuned for is off 1 by more than `DRIFT_WARN`
   (10 %) and by more than two standard errors.
 - **limits**: warn when the drive sat at its limits more than `LIMITS_WARN` (5 %) of the last
@@ -21,7 +24,8 @@ Each loop gets the chips below, each at a level: ``alarm`` (act now), ``warn`` (
   time in AUTO.
 
 **Severity order** (``severity_key``): loops with an alarm first, then with a warning, then
-those with something unknown, then the healthy ones; within a level, the loop with more chips at
+those with something unknown, then those with only something to know (a propose-only loop's
+waiting proposals), then the healthy ones; within a level, the loop with more chips at
 that level first; then by the first chip at that level in the list's order above
 (``CHIP_ORDER``: a stopped service before an oscillation before a failed write); then by
 loop id. A loop with no contact is a warning led by its service chip: it sorts after every
@@ -47,7 +51,7 @@ __all__ = [
     "severity_key",
 ]
 
-LEVELS = ("alarm", "warn", "unknown", "ok")
+LEVELS = ("alarm", "warn", "unknown", "info", "ok")
 """Chip levels, the most severe first."""
 CHIP_ORDER = (
     "service",
@@ -158,6 +162,10 @@ def _proposal_chip(status: dict[str, Any]) -> Chip:
     if not pending:
         return Chip("proposals", "ok", "none waiting")
     waiting = [p for p in pending if p.get("status") == "pending"]
+    if waiting and (status.get("write_back") or {}).get("setting") == "off":
+        # propose only: a waiting proposal is advice, not something that holds a write up
+        text = f"{len(waiting)} (propose only: nothing is written)"
+        return Chip("proposals", "info", text)
     if waiting:
         return Chip("proposals", "warn", f"{len(waiting)} proposal(s) wait for approval")
     return Chip("proposals", "warn", f"{len(pending)} approved, waiting for the write")

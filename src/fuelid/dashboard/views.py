@@ -13,14 +13,73 @@ from fuelid.io.clock import format_time
 from fuelid.online.report import health_line
 
 __all__ = [
+    "central_waiting",
     "fmt_num",
     "gains_now",
+    "is_waiting",
     "link_text",
     "now_rows",
     "proposal_next",
     "proposal_views",
     "write_back_of",
 ]
+
+
+def is_waiting(request: dict[str, Any], now: float) -> bool:
+    """A central request still waits: fetched by the site (being carried out) or unexpired.
+
+    >>> is_waiting({"status": "waiting", "fetched": None, "expires": 10.0}, 5.0)
+    True
+    >>> is_waiting({"status": "waiting", "fetched": None, "expires": 10.0}, 11.0)
+    False
+    """
+    if request.get("status") != "waiting":
+        return False
+    expires = request.get("expires")
+    return request.get("fetched") is not None or expires is None or float(expires) > now
+
+
+def site_warning(status: dict[str, Any], expires: float | None, tz: str) -> str | None:
+    """Why a central request may expire unapplied (the site's service stopped, no contact).
+
+    >>> site_warning({"link": {"state": "stopped"}}, 0.0, "UTC")[-60:]
+    'unless it starts before 1970-01-01 00:00:00 UTC (wall clock)'
+    >>> site_warning({"link": {"state": "up"}}, 0.0, "UTC") is None
+    True
+    """
+    state = (status.get("link") or {}).get("state")
+    before = f"before {format_time(expires, tz)} (wall clock)"
+    if state == "stopped":
+        return f"the site's service is stopped: the request will expire unless it starts {before}"
+    if state == "no_contact":
+        return (
+            "no contact with the site: the request will expire unless the site syncs again "
+            + before
+        )
+    return None
+
+
+def central_waiting(status: dict[str, Any], tz: str, now: float) -> dict[Any, dict[str, Any]]:
+    """The loop's waiting central requests by proposal id (None: a revert), for the page.
+
+    Each: ``text`` ("approve filed by ana, waiting for the site's next sync, expires …") and
+    ``warning`` (:func:`site_warning`, None when the site is in contact and running).
+    """
+    out: dict[Any, dict[str, Any]] = {}
+    for r in (status.get("central") or {}).get("requests") or []:
+        if not is_waiting(r, now):
+            continue
+        if r.get("fetched") is not None:
+            text = f"{r['kind']} filed by {r.get('who')}, fetched by the site, being carried out"
+            warning = None
+        else:
+            text = (
+                f"{r['kind']} filed by {r.get('who')}, waiting for the site's next sync, expires "
+                f"{format_time(r.get('expires'), tz)} (wall clock)"
+            )
+            warning = site_warning(status, r.get("expires"), tz)
+        out[r.get("proposal_id")] = {"id": r.get("id"), "text": text, "warning": warning}
+    return out
 
 
 def fmt_num(value: Any, digits: int = 4) -> str:

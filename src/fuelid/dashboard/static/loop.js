@@ -53,6 +53,7 @@ function sourceText(data) {
 
 async function loadTrend(start, end) {
   const div = document.getElementById("trend");
+  if (!div) return null; // no samples to draw (a central loop without --archive)
   const width = Math.max(300, div.clientWidth || 1000);
   let url = `${API}/trend?width=${width}`;
   if (start !== undefined) url += `&start=${start}&end=${end}`;
@@ -68,7 +69,7 @@ async function loadTrend(start, end) {
 function appendSamples(batch) {
   if (!state.live || !batch.t.length) return;
   const div = document.getElementById("trend");
-  if (!div.data) return;
+  if (!div || !div.data) return;
   // keep every k-th sample (and always the newest): a 50 Hz loop draws at about 5 Hz
   const keep = [];
   for (let i = 0; i < batch.t.length; i += 1) {
@@ -97,6 +98,7 @@ function appendSamples(batch) {
 
 function bindTrend() {
   const div = document.getElementById("trend");
+  if (!div) return;
   div.on("plotly_relayout", (event) => {
     const a = event["xaxis.range[0]"] || (event["xaxis.range"] || [])[0];
     const b = event["xaxis.range[1]"] || (event["xaxis.range"] || [])[1];
@@ -254,7 +256,7 @@ function linkBands(events) {
 async function loadHistory() {
   const history = await getJSON(`${API}/history`);
   const trend = document.getElementById("trend");
-  if (trend.data) Plotly.relayout(trend, { shapes: linkBands(history.events) });
+  if (trend && trend.data) Plotly.relayout(trend, { shapes: linkBands(history.events) });
   drawModels(history);
   drawKTemperature(history);
   drawGains(history);
