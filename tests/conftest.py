@@ -101,10 +101,11 @@ DASHBOARD_ONLINE = 'identify_every_s = 60\nwindow_s = 120\nwrite_back = "approve
 
 @pytest.fixture(scope="session")
 def dashboard_store(tmp_path_factory: pytest.TempPathFactory) -> Any:
-    """A store written by ``fuelid online --virtual``: 6 min of plant time at 25x.
+    """A store written by ``fuelid online --virtual``: 9 min of plant time at 25x.
 
-    Windows, a proposal left pending (write_back "approve"), events. Tests that change the
-    store copy it first.
+    Windows, a proposal left pending (write_back "approve"; 9 min leave room for a window a
+    loaded machine refuses: the proposal needs two agreeing windows after the first), events.
+    Tests that change the store copy it first.
     """
     pytest.importorskip("pymodbus")
     from support.browser import Process
@@ -114,7 +115,7 @@ def dashboard_store(tmp_path_factory: pytest.TempPathFactory) -> Any:
     config.write_text("[online]\n" + DASHBOARD_ONLINE)
     store = folder / "loop.db"
     proc = Process(
-        ["online", "--virtual", "--speed", "25", "--hours", "0.1", "--store", str(store),
+        ["online", "--virtual", "--speed", "25", "--hours", "0.15", "--store", str(store),
          "--config", str(config)],
         folder,
     )  # fmt: skip
