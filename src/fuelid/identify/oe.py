@@ -27,7 +27,7 @@ its own free response ``Σ_i c_ji p_i^(k − k_j)``; the first segment follows `
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Literal, Self
+from typing import TYPE_CHECKING, Any, Literal, Self
 
 import numpy as np
 from numpy.typing import NDArray
@@ -59,14 +59,16 @@ from fuelid.identify.variable_projection import (
     grid_starts,
     jacobian,
     n_modes,
+    projected_jacobian,
     regressors,
     search_tolerances,
+    sensitivities,
     solve_linear,
     start_from_model,
     subsample,
 )
 from fuelid.io.timeseries import IOData
-from fuelid.lti import discretise
+from fuelid.lti import discretise, reference_numerics_on
 from fuelid.model import MODEL_KEYS, ProcessModel, nrmse_fit
 
 if TYPE_CHECKING:
@@ -470,8 +472,27 @@ class OutputError(Estimator):
             )
             return solve_linear(Phi, record.y)
 
+        # the last evaluation, for the Jacobian at the same point (least_squares asks for the
+        # residual first, then its Jacobian there)
+        last: list[tuple[FloatArray, LinearFit]] = []
+
         def residual(z: FloatArray) -> FloatArray:
-            return evaluate(z, data).residual
+            ev = evaluate(z, data)
+            last[:] = [(np.array(z, dtype=float), ev)]
+            return ev.residual
+
+        def analytic_jacobian(z: FloatArray) -> FloatArray:
+            ev = last[0][1] if last and np.array_equal(last[0][0], z) else evaluate(z, data)
+            T, T2, delay = st.unpack(z)
+            sens = sensitivities(st, T, T2, delay, ev.beta, data.u, h, u_ref, bounds)
+            # the search runs over log T, log T2: ∂/∂log T = T·∂/∂T
+            for c, tc in enumerate((T, T2)[: st.order]):
+                sens[:, c] *= tc
+            return projected_jacobian(ev.Phi, sens)
+
+        bounds = data.segment_bounds()
+        # before issue 26 (reference_numerics): scipy's finite differences of the residual
+        jac: Any = "2-point" if reference_numerics_on() else analytic_jacobian
 
         starts = (
             [start_from_model(init, st)]
@@ -484,6 +505,7 @@ class OutputError(Estimator):
             sol = least_squares(
                 residual,
                 z0,
+                jac=jac,
                 bounds=(lo, hi),
                 method="trf",
                 x_scale=1.0,

@@ -251,6 +251,101 @@ def jacobian(
     return names, J
 
 
+#: relative step of the central differences of the ZOH coefficients in :func:`sensitivities`
+#: (a 4-coefficient function, smooth in T: its truncation error ~1e-12, rounding ~1e-10)
+COEFFICIENT_STEP = 1e-5
+
+
+def _lag_sensitivity(
+    lags: list[float], i: int, delay: float, h: float, du: FloatArray
+) -> FloatArray:
+    """∂s/∂T_i of the response s = (b/a)·q^(−d)·du to ``du``: one filter of the same input.
+
+    ∂(b/a)/∂T = (∂b·a − b·∂a)/a², so the sensitivity is the input through one filter of twice the
+    order; ∂b and ∂a are central differences of the sampled coefficients (the whole-sample delay
+    d does not depend on T).
+    """
+    step = COEFFICIENT_STEP * lags[i]
+    up, down = list(lags), list(lags)
+    up[i] += step
+    down[i] -= step
+    hi, lo, mid = discretise(up, delay, h), discretise(down, delay, h), discretise(lags, delay, h)
+    db, da = (hi.b - lo.b) / (2.0 * step), (hi.a - lo.a) / (2.0 * step)
+    num = np.convolve(db, mid.a) - np.convolve(mid.b, da)
+    v = np.zeros_like(du)
+    if mid.shift < du.size:
+        v[mid.shift :] = du[: du.size - mid.shift]
+    # two passes through 1/a, not one through 1/a²: a direct-form filter of twice the order with
+    # poles near 1 (lags of many samples) loses digits to its coefficients' rounding
+    return np.asarray(scipy.signal.lfilter([1.0], mid.a, scipy.signal.lfilter(num, mid.a, v)))
+
+
+def sensitivities(
+    st: Structure,
+    T: float,
+    T2: float,
+    delay: float,
+    beta: FloatArray,
+    u: FloatArray,
+    h: float,
+    u_ref: float,
+    bounds: Bounds | None = None,
+) -> FloatArray:
+    """∂(Φ·β)/∂p at fixed β for the nonlinear parameters p (``st.nonlinear_names``) [unit/s].
+
+    The fast path's replacement of finite differences of Φ (:func:`jacobian`, the searches of
+    oe): the response column's sensitivity to a lag is a filter of the input
+    (:func:`_lag_sensitivity`), the free responses' is k·h/T²·p^k; the delay's is the central
+    difference of the response column alone (the free responses do not depend on it).
+    """
+    lags = [tc for tc in (T, T2, st.T_f) if tc > 0.0]
+    bounds = [(0, u.size)] if bounds is None else bounds
+    counts = [n_modes(st, len(lags), j) for j in range(len(bounds))]
+    names = st.nonlinear_names
+    out = np.zeros((u.size, len(names)), order="F")
+    col = 2
+    for j, ((a, b), m) in enumerate(zip(bounds, counts, strict=True)):
+        du = u[a:b] - (u_ref if j == 0 else float(u[a]))
+        k = np.arange(b - a)
+        for c, name in enumerate(names):
+            if name == "delay":
+                step = 1e-6 * max(delay, h)
+                lo_delay = max(delay - step, 0.0)
+                up = discretise(lags, delay + step, h).response(du)
+                down = discretise(lags, lo_delay, h).response(du)
+                out[a:b, c] = beta[0] * (up - down) / (delay + step - lo_delay)
+                continue
+            i = 0 if name == "T" else 1
+            out[a:b, c] = beta[0] * _lag_sensitivity(lags, i, delay, h, du)
+            if m:
+                tc = lags[i]
+                p = math.exp(-h / tc)
+                # p^k underflows far before the segment ends: only where it does not
+                length = min(b - a, math.ceil(-41.5 / math.log(p)) + 1) if p < 1.0 else b - a
+                kk = k[:length]
+                out[a : a + length, c] += beta[col + i] * kk * h / tc**2 * p**kk
+        col += m
+    return out
+
+
+def projected_jacobian(Phi: FloatArray, sens: FloatArray) -> FloatArray:
+    """∂r/∂p of the variable-projection residual r = y − Φβ̂ (Kaufman's form): −P⊥·sens.
+
+    Kaufman (1975) drops the term Φ⁺ᵀ·(∂Φ/∂p)ᵀ·r of the exact Jacobian (Golub & Pereyra 1973):
+    it vanishes as r → 0 and contributes nothing to the gradient Jᵀr (r ⊥ range Φ), so the
+    search has the same stationary points and converges as fast near them.
+    """
+    G = Phi.T @ Phi
+    scale = np.sqrt(np.diag(G))
+    scale[scale == 0.0] = 1.0
+    try:
+        coef = np.linalg.solve(G / np.outer(scale, scale), (Phi.T @ sens) / scale[:, None])
+        coef /= scale[:, None]
+    except np.linalg.LinAlgError:
+        coef = np.linalg.lstsq(Phi, sens, rcond=None)[0]
+    return np.asarray(Phi @ coef - sens, dtype=float)
+
+
 def cramer_rao_bound(
     model: ProcessModel,
     u: FloatArray,
