@@ -22,7 +22,7 @@ import scipy.signal
 from numpy.typing import NDArray
 
 from fuelid.io.timeseries import IOData
-from fuelid.lti import discretise
+from fuelid.lti import discretise, reference_numerics_on
 from fuelid.model import ProcessModel
 
 FloatArray = NDArray[np.float64]
@@ -221,7 +221,8 @@ def jacobian(
     """∂ŷ/∂p for p = (K, nonlinear parameters, offset, initial-state amplitudes).
 
     The linear parameters' columns are the regressors themselves; the time constants' and the
-    delay's are central differences of Φ(T, T2, θ)·β (two filter passes each, no optimisation).
+    delay's are :func:`sensitivities` (under :func:`fuelid.lti.reference_numerics`, as before
+    issue 26: central differences of Φ(T, T2, θ)·β, two regressor matrices each).
     With segments, every column runs over all of them (each segment's own simulation), so the
     covariance is that of the joint fit. The amplitudes are named ``c0, c1, …`` for the first
     segment and ``c0_seg2, …`` for the later ones.
@@ -238,6 +239,14 @@ def jacobian(
     names = ("K", *nl_names, "offset", *amplitudes)
     J = np.empty((u.size, len(names)))
     J[:, 0] = Phi[:, 0]
+    if not reference_numerics_on():
+        # the lags' columns as filters of the input (:func:`sensitivities`), not differences
+        # of two regressor matrices each
+        J[:, 1 : 1 + len(nl_names)] = sensitivities(
+            st, values["T"], values["T2"], values["delay"], beta, u, h, u_ref, bounds
+        )
+        J[:, len(nl_names) + 1 :] = Phi[:, 1:]
+        return names, J
     for j, name in enumerate(nl_names, start=1):
         step = 1e-6 * max(abs(values[name]), h)
         up, down = dict(values), dict(values)
