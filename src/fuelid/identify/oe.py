@@ -247,6 +247,8 @@ class OutputError(Estimator):
             # one BLAS thread: the fit alternates long thin products with tiny matrix
             # exponentials, and OpenBLAS's thread hand-over makes the tiny ones ~200x slower
             # (measured: 0.49 s vs 0.15 s for one hour of 50 Hz data)
+            # the searches' last sensitivities by order (for the stored fits' Jacobians)
+            vars(self)["_sensitivities"] = {}
             with single_threaded_blas():
                 fits = {
                     order: self._fit_structure(data, self._structure(order), init)
@@ -277,6 +279,7 @@ class OutputError(Estimator):
                     self.order_choice_ = choice
                 self.order_choice_.misfit = self.residual_colour_ == "model"
                 self.bic_ = {c.order: c.bic for c in candidates}
+            vars(self).pop("_sensitivities", None)
         return self
 
     @property
@@ -484,11 +487,13 @@ class OutputError(Estimator):
         def analytic_jacobian(z: FloatArray) -> FloatArray:
             ev = last[0][1] if last and np.array_equal(last[0][0], z) else evaluate(z, data)
             T, T2, delay = st.unpack(z)
-            sens = sensitivities(st, T, T2, delay, ev.beta, data.u, h, u_ref, bounds)
+            sens = sensitivities(st, T, T2, delay, ev.beta, data.u, h, u_ref, bounds, ev.Phi)
+            # ∂ŷ/∂(T, T2, delay) at fixed β, kept: at the search's end it is the stored fit's
+            vars(self).setdefault("_sensitivities", {})[st.order] = (ev, sens)
             # the search runs over log T, log T2: ∂/∂log T = T·∂/∂T
-            for c, tc in enumerate((T, T2)[: st.order]):
-                sens[:, c] *= tc
-            return projected_jacobian(ev.Phi, sens)
+            per_log = np.ones(sens.shape[1])
+            per_log[: st.order] = (T, T2)[: st.order]
+            return projected_jacobian(ev.Phi, sens * per_log)
 
         bounds = data.segment_bounds()
         # before issue 26 (reference_numerics): scipy's finite differences of the residual
@@ -512,7 +517,8 @@ class OutputError(Estimator):
                 max_nfev=100,
                 **search_tolerances(),
             )
-            ev = evaluate(sol.x, data)
+            # the search's own last evaluation when it ended there (it usually did)
+            ev = last[0][1] if last and np.array_equal(last[0][0], sol.x) else evaluate(sol.x, data)
             if best is None or ev.sse < best[1].sse:
                 best = (sol.x, ev)
         assert best is not None
@@ -543,7 +549,10 @@ class OutputError(Estimator):
         nl_names = st.nonlinear_names
         values = {"T": T, "T2": T2, "delay": delay}
         bounds = data.segment_bounds()
-        names, J = jacobian(st, values, ev.beta, data.u, h, u_ref, ev.Phi, bounds)
+        known = vars(self).get("_sensitivities", {}).get(st.order)
+        # the search's sensitivities at this very fit (its last Jacobian), not computed again
+        sens = known[1] if known is not None and known[0] is ev else None
+        names, J = jacobian(st, values, ev.beta, data.u, h, u_ref, ev.Phi, bounds, sens)
         dof = max(n - len(names), 1)
         self.sigma_ = math.sqrt(ev.sse / dof)
         self.param_names_ = names

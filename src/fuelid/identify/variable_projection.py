@@ -217,6 +217,7 @@ def jacobian(
     u_ref: float,
     Phi: FloatArray | None = None,
     bounds: Bounds | None = None,
+    sens: FloatArray | None = None,
 ) -> tuple[tuple[str, ...], FloatArray]:
     """∂ŷ/∂p for p = (K, nonlinear parameters, offset, initial-state amplitudes).
 
@@ -224,7 +225,8 @@ def jacobian(
     delay's are :func:`sensitivities` (under :func:`fuelid.lti.reference_numerics`, as before
     issue 26: central differences of Φ(T, T2, θ)·β, two regressor matrices each).
     With segments, every column runs over all of them (each segment's own simulation), so the
-    covariance is that of the joint fit. The amplitudes are named ``c0, c1, …`` for the first
+    covariance is that of the joint fit. ``sens``: the sensitivities when the caller has them
+    (the search's last Jacobian at this fit). The amplitudes are named ``c0, c1, …`` for the first
     segment and ``c0_seg2, …`` for the later ones.
     """
     if Phi is None:
@@ -242,8 +244,12 @@ def jacobian(
     if not reference_numerics_on():
         # the lags' columns as filters of the input (:func:`sensitivities`), not differences
         # of two regressor matrices each
-        J[:, 1 : 1 + len(nl_names)] = sensitivities(
-            st, values["T"], values["T2"], values["delay"], beta, u, h, u_ref, bounds
+        J[:, 1 : 1 + len(nl_names)] = (
+            sensitivities(
+                st, values["T"], values["T2"], values["delay"], beta, u, h, u_ref, bounds, Phi
+            )
+            if sens is None
+            else sens
         )
         J[:, len(nl_names) + 1 :] = Phi[:, 1:]
         return names, J
@@ -265,28 +271,23 @@ def jacobian(
 COEFFICIENT_STEP = 1e-5
 
 
-def _lag_sensitivity(
-    lags: list[float], i: int, delay: float, h: float, du: FloatArray
-) -> FloatArray:
-    """∂s/∂T_i of the response s = (b/a)·q^(−d)·du to ``du``: one filter of the same input.
+def _coefficient_derivatives(
+    lags: list[float], delay: float, h: float, index: list[int]
+) -> tuple[FloatArray, FloatArray]:
+    """(∂b/∂T_i, ∂a/∂T_i) of the sampled lag chain for each lag ``i`` in ``index`` (rows).
 
-    ∂(b/a)/∂T = (∂b·a − b·∂a)/a², so the sensitivity is the input through one filter of twice the
-    order; ∂b and ∂a are central differences of the sampled coefficients (the whole-sample delay
-    d does not depend on T).
+    Central differences of the few coefficients (the whole-sample delay d does not depend on T).
     """
-    step = COEFFICIENT_STEP * lags[i]
-    up, down = list(lags), list(lags)
-    up[i] += step
-    down[i] -= step
-    hi, lo, mid = discretise(up, delay, h), discretise(down, delay, h), discretise(lags, delay, h)
-    db, da = (hi.b - lo.b) / (2.0 * step), (hi.a - lo.a) / (2.0 * step)
-    num = np.convolve(db, mid.a) - np.convolve(mid.b, da)
-    v = np.zeros_like(du)
-    if mid.shift < du.size:
-        v[mid.shift :] = du[: du.size - mid.shift]
-    # two passes through 1/a, not one through 1/a²: a direct-form filter of twice the order with
-    # poles near 1 (lags of many samples) loses digits to its coefficients' rounding
-    return np.asarray(scipy.signal.lfilter([1.0], mid.a, scipy.signal.lfilter(num, mid.a, v)))
+    db, da = [], []
+    for i in index:
+        step = COEFFICIENT_STEP * lags[i]
+        up, down = list(lags), list(lags)
+        up[i] += step
+        down[i] -= step
+        hi, lo = discretise(up, delay, h), discretise(down, delay, h)
+        db.append((hi.b - lo.b) / (2.0 * step))
+        da.append((hi.a - lo.a) / (2.0 * step))
+    return np.array(db), np.array(da)
 
 
 def sensitivities(
@@ -299,22 +300,42 @@ def sensitivities(
     h: float,
     u_ref: float,
     bounds: Bounds | None = None,
+    Phi: FloatArray | None = None,
 ) -> FloatArray:
     """∂(Φ·β)/∂p at fixed β for the nonlinear parameters p (``st.nonlinear_names``) [unit/s].
 
     The fast path's replacement of finite differences of Φ (:func:`jacobian`, the searches of
-    oe): the response column's sensitivity to a lag is a filter of the input
-    (:func:`_lag_sensitivity`), the free responses' is k·h/T²·p^k; the delay's is the central
-    difference of the response column alone (the free responses do not depend on it).
+    oe). The response s = (b/a)·v to the (delayed) input v has the sensitivity to a lag
+    ∂s = (∂b·v − ∂a·s)/a: two short FIR filters and one pass through 1/a (the one the response
+    took), all lags in one call; ∂b, ∂a are central differences of the few sampled coefficients.
+    The free responses' sensitivity is k·h/T²·p^k. The delay's is the central difference of the
+    response column alone (the free responses do not depend on it). ``Phi`` (the regressors at
+    these values) saves recomputing s.
     """
     lags = [tc for tc in (T, T2, st.T_f) if tc > 0.0]
     bounds = [(0, u.size)] if bounds is None else bounds
     counts = [n_modes(st, len(lags), j) for j in range(len(bounds))]
     names = st.nonlinear_names
+    index = [0 if name == "T" else 1 for name in names if name != "delay"]
+    model = discretise(lags, delay, h)
+    db, da = _coefficient_derivatives(lags, delay, h, index)
     out = np.zeros((u.size, len(names)), order="F")
     col = 2
     for j, ((a, b), m) in enumerate(zip(bounds, counts, strict=True)):
         du = u[a:b] - (u_ref if j == 0 else float(u[a]))
+        # a later segment's response column carries its level u[a] − u_ref
+        s = model.response(du) if Phi is None else Phi[a:b, 0] - (float(u[a]) - u_ref if j else 0.0)
+        v = np.zeros_like(du)
+        if model.shift < du.size:
+            v[model.shift :] = du[: du.size - model.shift]
+        if index:
+            fir = np.array(
+                [
+                    np.convolve(v, db[r])[: b - a] - np.convolve(s, da[r])[: b - a]
+                    for r in range(len(index))
+                ]
+            )
+            lag_part = scipy.signal.lfilter([1.0], model.a, fir, axis=-1)
         k = np.arange(b - a)
         for c, name in enumerate(names):
             if name == "delay":
@@ -324,8 +345,8 @@ def sensitivities(
                 down = discretise(lags, lo_delay, h).response(du)
                 out[a:b, c] = beta[0] * (up - down) / (delay + step - lo_delay)
                 continue
-            i = 0 if name == "T" else 1
-            out[a:b, c] = beta[0] * _lag_sensitivity(lags, i, delay, h, du)
+            i = index[c]
+            out[a:b, c] = beta[0] * lag_part[c]
             if m:
                 tc = lags[i]
                 p = math.exp(-h / tc)
