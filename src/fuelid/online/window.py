@@ -444,7 +444,7 @@ class WindowAnalyser:
             control_period=self.priors.control_period,
         )
         try:
-            fitted, _ = identify_step_ls(data, options, oe_model=oe_model)
+            fitted, _ = identify_step_ls(data, options, oe_model=oe_model, diagnose=not self.fast)
         except FuelidError as error:
             return {"model": None, "reason": " ".join(str(error).split())}
         values = fitted.model.to_json()
