@@ -56,6 +56,7 @@ from fuelid.identify.variable_projection import (
     Structure,
     continue_fitted,
     cramer_rao_bound,
+    filter_sensitivities_on,
     grid_starts,
     jacobian,
     n_modes,
@@ -496,8 +497,10 @@ class OutputError(Estimator):
             return projected_jacobian(ev.Phi, sens * per_log)
 
         bounds = data.segment_bounds()
-        # before issue 26 (reference_numerics): scipy's finite differences of the residual
-        jac: Any = "2-point" if reference_numerics_on() else analytic_jacobian
+        # the online windows' numerics (statistical_tolerances): the analytic Jacobian; else
+        # (and before issue 26's second pass) scipy's finite differences of the residual
+        fast = filter_sensitivities_on() and not reference_numerics_on()
+        jac: Any = analytic_jacobian if fast else "2-point"
 
         starts = (
             [start_from_model(init, st)]

@@ -39,6 +39,7 @@ TOLERANCES = {"xtol": 1e-10, "ftol": 1e-12, "gtol": 1e-12}
 #: where the search spent about a third of its evaluations failing to improve (issue 26)
 STATISTICAL_TOLERANCES = {"xtol": 1e-6, "ftol": 1e-8, "gtol": 1e-10}
 _TOLERANCES: ContextVar[dict[str, float]] = ContextVar("fuelid_search_tolerances")
+_SENSITIVITIES: ContextVar[bool] = ContextVar("fuelid_filter_sensitivities", default=False)
 
 
 def search_tolerances() -> dict[str, float]:
@@ -46,13 +47,26 @@ def search_tolerances() -> dict[str, float]:
     return dict(_TOLERANCES.get(TOLERANCES))
 
 
+def filter_sensitivities_on() -> bool:
+    """True inside :func:`statistical_tolerances`: the Jacobians from :func:`sensitivities`."""
+    return _SENSITIVITIES.get()
+
+
 @contextmanager
 def statistical_tolerances() -> Iterator[None]:
-    """Stop the searches at :data:`STATISTICAL_TOLERANCES` (the online windows' fits)."""
+    """The online windows' numerics: the searches' tolerances and Jacobians.
+
+    The searches stop at :data:`STATISTICAL_TOLERANCES`; their Jacobians (and the stored fits')
+    come from :func:`sensitivities`, not finite differences. Outside it (``fuelid identify``,
+    the reports) the searches and covariances are as before issue 26's second pass, to their
+    last printed digit.
+    """
     token = _TOLERANCES.set(STATISTICAL_TOLERANCES)
+    sensitivity = _SENSITIVITIES.set(True)
     try:
         yield
     finally:
+        _SENSITIVITIES.reset(sensitivity)
         _TOLERANCES.reset(token)
 
 
@@ -222,8 +236,8 @@ def jacobian(
     """∂ŷ/∂p for p = (K, nonlinear parameters, offset, initial-state amplitudes).
 
     The linear parameters' columns are the regressors themselves; the time constants' and the
-    delay's are :func:`sensitivities` (under :func:`fuelid.lti.reference_numerics`, as before
-    issue 26: central differences of Φ(T, T2, θ)·β, two regressor matrices each).
+    delay's are :func:`sensitivities` inside :func:`statistical_tolerances` (the online
+    windows), else central differences of Φ(T, T2, θ)·β (two regressor matrices each).
     With segments, every column runs over all of them (each segment's own simulation), so the
     covariance is that of the joint fit. ``sens``: the sensitivities when the caller has them
     (the search's last Jacobian at this fit). The amplitudes are named ``c0, c1, …`` for the first
@@ -241,7 +255,7 @@ def jacobian(
     names = ("K", *nl_names, "offset", *amplitudes)
     J = np.empty((u.size, len(names)))
     J[:, 0] = Phi[:, 0]
-    if not reference_numerics_on():
+    if filter_sensitivities_on() and not reference_numerics_on():
         # the lags' columns as filters of the input (:func:`sensitivities`), not differences
         # of two regressor matrices each
         J[:, 1 : 1 + len(nl_names)] = (
