@@ -27,7 +27,7 @@ its own free response ``Σ_i c_ji p_i^(k − k_j)``; the first segment follows `
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, Literal, Self
+from typing import TYPE_CHECKING, Literal, Self
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,6 +48,7 @@ from fuelid.identify.diagnostics import (
     settled_stretches,
 )
 from fuelid.identify.order import Candidate, OrderChoice, bic, choose_order
+from fuelid.identify.search import search_structure
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, offset_and_free_responses
 from fuelid.identify.variable_projection import (
     GRID_SAMPLES,
@@ -56,20 +57,14 @@ from fuelid.identify.variable_projection import (
     Structure,
     continue_fitted,
     cramer_rao_bound,
-    filter_sensitivities_on,
-    grid_starts,
     jacobian,
     n_modes,
-    projected_jacobian,
     regressors,
-    search_tolerances,
-    sensitivities,
     solve_linear,
-    start_from_model,
     subsample,
 )
 from fuelid.io.timeseries import IOData
-from fuelid.lti import discretise, reference_numerics_on
+from fuelid.lti import discretise
 from fuelid.model import MODEL_KEYS, ProcessModel, nrmse_fit
 
 if TYPE_CHECKING:
@@ -458,74 +453,10 @@ class OutputError(Estimator):
     def _fit_structure(
         self, data: IOData, st: Structure, init: ProcessModel | None
     ) -> tuple[FloatArray, LinearFit]:
-        from scipy.optimize import least_squares  # slow to import: only when fitting
-
-        h = data.sample_time
-        record = data.n_samples * h
-        u_ref = st.u_before if st.u_before is not None else float(data.u[0])
-        lo = [math.log(h / 20.0)] * st.order
-        hi = [math.log(20.0 * record)] * st.order
-        if st.delay is None:
-            lo.append(0.0)
-            hi.append(max(self._delay_bound(data), 1e-9))
-
-        def evaluate(z: FloatArray, record: IOData) -> LinearFit:
-            T, T2, delay = st.unpack(z)
-            Phi = regressors(
-                st, T, T2, delay, record.u, record.sample_time, u_ref, record.segment_bounds()
-            )
-            return solve_linear(Phi, record.y)
-
-        # the last evaluation, for the Jacobian at the same point (least_squares asks for the
-        # residual first, then its Jacobian there)
-        last: list[tuple[FloatArray, LinearFit]] = []
-
-        def residual(z: FloatArray) -> FloatArray:
-            ev = evaluate(z, data)
-            last[:] = [(np.array(z, dtype=float), ev)]
-            return ev.residual
-
-        def analytic_jacobian(z: FloatArray) -> FloatArray:
-            ev = last[0][1] if last and np.array_equal(last[0][0], z) else evaluate(z, data)
-            T, T2, delay = st.unpack(z)
-            sens = sensitivities(st, T, T2, delay, ev.beta, data.u, h, u_ref, bounds, ev.Phi)
-            # ∂ŷ/∂(T, T2, delay) at fixed β, kept: at the search's end it is the stored fit's
-            vars(self).setdefault("_sensitivities", {})[st.order] = (ev, sens)
-            # the search runs over log T, log T2: ∂/∂log T = T·∂/∂T
-            per_log = np.ones(sens.shape[1])
-            per_log[: st.order] = (T, T2)[: st.order]
-            return projected_jacobian(ev.Phi, sens * per_log)
-
-        bounds = data.segment_bounds()
-        # the online windows' numerics (statistical_tolerances): the analytic Jacobian; else
-        # (and before issue 26's second pass) scipy's finite differences of the residual
-        fast = filter_sensitivities_on() and not reference_numerics_on()
-        jac: Any = analytic_jacobian if fast else "2-point"
-
-        starts = (
-            [start_from_model(init, st)]
-            if init is not None
-            else grid_starts(data, st, evaluate, hi[-1])
-        )
-        best: tuple[FloatArray, LinearFit] | None = None
-        for z0 in starts:
-            z0 = np.clip(z0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
-            sol = least_squares(
-                residual,
-                z0,
-                jac=jac,
-                bounds=(lo, hi),
-                method="trf",
-                x_scale=1.0,
-                max_nfev=100,
-                **search_tolerances(),
-            )
-            # the search's own last evaluation when it ended there (it usually did)
-            ev = last[0][1] if last and np.array_equal(last[0][0], sol.x) else evaluate(sol.x, data)
-            if best is None or ev.sse < best[1].sse:
-                best = (sol.x, ev)
-        assert best is not None
-        return best
+        z, fit, known = search_structure(data, st, init, self._delay_bound(data))
+        if known is not None:  # the search's last sensitivities, for the stored fit's Jacobian
+            vars(self).setdefault("_sensitivities", {})[st.order] = known
+        return z, fit
 
     def _store(self, data: IOData, st: Structure, z: FloatArray, ev: LinearFit) -> None:
         T, T2, delay = st.unpack(z)
