@@ -209,9 +209,16 @@ def sandwich_covariance(
     for a, b in spans:
         # Ψᵀ acts backwards in time: reverse, filter by 1/A(q), reverse
         filtered[a:b] = scipy.signal.lfilter([1.0], noise.a, J[a:b][::-1], axis=0)[::-1]
-    middle = noise.sigma_e**2 * (filtered.T @ filtered)
     clean = np.nan_to_num(inverse)
-    cov = clean @ middle @ clean
+    if reference_numerics_on():
+        middle = noise.sigma_e**2 * (filtered.T @ filtered)
+        cov = clean @ middle @ clean
+    else:
+        # as a Gram matrix BᵀB, B = ΨᵀJ·(JᵀJ)⁻¹: its diagonal is a sum of squares, never
+        # negative by rounding as (JᵀJ)⁻¹·M·(JᵀJ)⁻¹ can be when two lags nearly coincide
+        # (entries of 10⁴ cancelling to a variance); the same cost, N·k² either way
+        scaled = filtered @ clean
+        cov = noise.sigma_e**2 * (scaled.T @ scaled)
     cov[unidentified, :] = np.nan
     cov[:, unidentified] = np.nan
     return np.asarray(cov, dtype=float), unidentified

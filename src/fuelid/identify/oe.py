@@ -520,7 +520,9 @@ class OutputError(Estimator):
         else:
             self.cov_, self.covariance_ = self.cov_white_, "white"
         unidentified = [names[i] for i in singular]
-        sd = np.sqrt(np.diag(self.cov_))
+        variance = np.diag(self.cov_)
+        # a negative variance (rounding, an undetermined pair) is no standard error: None below
+        sd = np.sqrt(np.where(variance >= 0.0, variance, np.nan))
         self.stderr_ = {"K": None, "T": None, "T2": None, "delay": None, "T_f": None}
         for name, s in zip(names, sd, strict=False):
             if name in self.stderr_ and math.isfinite(s):
