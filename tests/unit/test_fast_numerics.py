@@ -22,7 +22,7 @@ import math
 import numpy as np
 import pytest
 
-from fuelid.identify.covariance import _autocovariance, bread
+from fuelid.identify.covariance import ResidualAR, _autocovariance, bread, sandwich_covariance
 from fuelid.identify.procedure import IdentifyOptions, identify
 from fuelid.identify.variable_projection import (
     Structure,
@@ -138,6 +138,21 @@ def test_bread_through_qr_equals_the_svd():
         slow, unidentified_slow = bread(J)
     assert unidentified == unidentified_slow == [0, 3, 4]
     assert np.allclose(fast, slow, rtol=1e-9, atol=0.0, equal_nan=True)
+
+
+def test_sandwich_as_a_gram_matrix_equals_the_product_and_stays_non_negative():
+    rng = np.random.default_rng(8)
+    noise = ResidualAR(a=np.array([1.0, -0.9]), sigma_e=0.3, bic={})
+    J = rng.normal(size=(5000, 4))
+    fast, _ = sandwich_covariance(J, noise)
+    with reference_numerics():
+        slow, _ = sandwich_covariance(J, noise)
+    assert np.allclose(fast, slow, rtol=1e-10, atol=0.0)
+    # two columns 1e-7 apart (two lags that nearly coincide): variances of ~1e14 relative to
+    # the others, which the product form can round below zero; a Gram matrix cannot
+    J[:, 2] = J[:, 1] + 1e-7 * rng.normal(size=5000)
+    fast, _ = sandwich_covariance(J, noise)
+    assert np.all(np.diag(fast) >= 0.0)
 
 
 def test_autocovariance_by_dot_products_equals_the_fft():
