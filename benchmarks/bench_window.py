@@ -12,8 +12,12 @@ with the numerics before issue 26 (:func:`fuelid.lti.reference_numerics`, the de
 tolerances), ``fast=True`` skips pem when the noise screen says its noise pole would be nearly
 integrating (:mod:`fuelid.online.pem_screen`), with the faster numerics (exact ZOH coefficients
 without scipy's conversions, FFT autocorrelations, statistical search tolerances, one SVD per
-stored fit, cached settling times). A profile of one warm window of each kind (cProfile, both
-paths) says where the time goes.
+stored fit, cached settling times; since the second pass: Levenberg–Marquardt searches with
+the lags' analytic sensitivities instead of scipy's trf with finite differences, the searches'
+last sensitivities reused by the stored fits, (JᵀJ)⁻¹ through the SVD of R, short
+autocovariances by dot products, settling times of distinct lags in closed form, step-ls
+without its diagnostics). A profile of one warm window of each kind (cProfile, both paths) says
+where the time goes.
 
 The runs are the HELD-OUT settings of the noise screen (its threshold was tuned on seeds 1–2,
 disturbances 0.1, 0.3, 1.0 L/min, 20 °C, the local and the demo setpoint profiles):

@@ -128,7 +128,9 @@ class ProcessModel:
         >>> round(ProcessModel(K=1.0, T=1.0, delay=0.5).settling_time(), 3)
         4.412
         """
-        return _settling_time(self.K, self.time_constants, self.delay, band)
+        return _settling_time(
+            self.K, self.time_constants, self.delay, band, not lti.reference_numerics_on()
+        )
 
     def describe(self, gain_unit: str = "(L/min)/V") -> str:
         """The parameters for titles and tables: K, every lag the model has, the dead time.
@@ -156,13 +158,39 @@ class ProcessModel:
         return asdict(self)
 
 
+#: lags closer than this (relative) are not told apart by the closed form of the step response
+#: (its coefficients T_i/(T_i − T_j) lose digits): the grid's settling time instead
+DISTINCT_LAGS = 1e-3
+
+
 @functools.lru_cache(maxsize=256)
-def _settling_time(K: float, lags: tuple[float, ...], delay: float, band: float) -> float:
+def _settling_time(
+    K: float, lags: tuple[float, ...], delay: float, band: float, exact: bool = False
+) -> float:
     # a model's settling time is asked for several times per window (the colour test of each
-    # order, the step-ls length, the residual gate's lags): 2 ms each on a 24,001-point grid,
-    # for the same few models; cached by value (the same number, computed once)
+    # order, the step-ls length, the residual gate's lags): 1.5-2 ms each on a 24,001-point
+    # grid, for the same few models; cached by value (the same number, computed once)
+    if exact and K != 0.0 and 0 < len(lags) <= 3 and _distinct(lags):
+        # the error of a chain of distinct real lags, e(t) = Σ c_i·e^(−t/T_i) with
+        # c_i = Π_(j≠i) T_i/(T_i − T_j), falls monotonically from 1 to 0 (no overshoot): its
+        # crossing of the band, found to 1e-12 s, is the grid's interpolated crossing to its
+        # interpolation error (under 1e-7 s), 0.05 ms instead of 1.5 ms
+        from scipy.optimize import brentq
+
+        c = [math.prod(ti / (ti - tj) for tj in lags if tj is not ti) for ti in lags]
+
+        def excess(t: float) -> float:
+            return sum(ci * math.exp(-t / ti) for ci, ti in zip(c, lags, strict=True)) - band
+
+        return delay + float(brentq(excess, 0.0, 12.0 * sum(lags), xtol=1e-12))
     A, B, C = lag_chain(lags)
     return lti.step_settling_time(A, K * B, C, 0.0, delay, band)
+
+
+def _distinct(lags: tuple[float, ...]) -> bool:
+    return all(
+        abs(a - b) > DISTINCT_LAGS * max(a, b) for i, a in enumerate(lags) for b in lags[i + 1 :]
+    )
 
 
 def simulate_model(model: ProcessModel, u: ArrayLike, h: float) -> FloatArray:

@@ -48,6 +48,7 @@ from fuelid.identify.diagnostics import (
     settled_stretches,
 )
 from fuelid.identify.order import Candidate, OrderChoice, bic, choose_order
+from fuelid.identify.search import search_structure
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, offset_and_free_responses
 from fuelid.identify.variable_projection import (
     GRID_SAMPLES,
@@ -56,13 +57,10 @@ from fuelid.identify.variable_projection import (
     Structure,
     continue_fitted,
     cramer_rao_bound,
-    grid_starts,
     jacobian,
     n_modes,
     regressors,
-    search_tolerances,
     solve_linear,
-    start_from_model,
     subsample,
 )
 from fuelid.io.timeseries import IOData
@@ -245,6 +243,8 @@ class OutputError(Estimator):
             # one BLAS thread: the fit alternates long thin products with tiny matrix
             # exponentials, and OpenBLAS's thread hand-over makes the tiny ones ~200x slower
             # (measured: 0.49 s vs 0.15 s for one hour of 50 Hz data)
+            # the searches' last sensitivities by order (for the stored fits' Jacobians)
+            vars(self)["_sensitivities"] = {}
             with single_threaded_blas():
                 fits = {
                     order: self._fit_structure(data, self._structure(order), init)
@@ -275,6 +275,7 @@ class OutputError(Estimator):
                     self.order_choice_ = choice
                 self.order_choice_.misfit = self.residual_colour_ == "model"
                 self.bic_ = {c.order: c.bic for c in candidates}
+            vars(self).pop("_sensitivities", None)
         return self
 
     @property
@@ -452,49 +453,10 @@ class OutputError(Estimator):
     def _fit_structure(
         self, data: IOData, st: Structure, init: ProcessModel | None
     ) -> tuple[FloatArray, LinearFit]:
-        from scipy.optimize import least_squares  # slow to import: only when fitting
-
-        h = data.sample_time
-        record = data.n_samples * h
-        u_ref = st.u_before if st.u_before is not None else float(data.u[0])
-        lo = [math.log(h / 20.0)] * st.order
-        hi = [math.log(20.0 * record)] * st.order
-        if st.delay is None:
-            lo.append(0.0)
-            hi.append(max(self._delay_bound(data), 1e-9))
-
-        def evaluate(z: FloatArray, record: IOData) -> LinearFit:
-            T, T2, delay = st.unpack(z)
-            Phi = regressors(
-                st, T, T2, delay, record.u, record.sample_time, u_ref, record.segment_bounds()
-            )
-            return solve_linear(Phi, record.y)
-
-        def residual(z: FloatArray) -> FloatArray:
-            return evaluate(z, data).residual
-
-        starts = (
-            [start_from_model(init, st)]
-            if init is not None
-            else grid_starts(data, st, evaluate, hi[-1])
-        )
-        best: tuple[FloatArray, LinearFit] | None = None
-        for z0 in starts:
-            z0 = np.clip(z0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
-            sol = least_squares(
-                residual,
-                z0,
-                bounds=(lo, hi),
-                method="trf",
-                x_scale=1.0,
-                max_nfev=100,
-                **search_tolerances(),
-            )
-            ev = evaluate(sol.x, data)
-            if best is None or ev.sse < best[1].sse:
-                best = (sol.x, ev)
-        assert best is not None
-        return best
+        z, fit, known = search_structure(data, st, init, self._delay_bound(data))
+        if known is not None:  # the search's last sensitivities, for the stored fit's Jacobian
+            vars(self).setdefault("_sensitivities", {})[st.order] = known
+        return z, fit
 
     def _store(self, data: IOData, st: Structure, z: FloatArray, ev: LinearFit) -> None:
         T, T2, delay = st.unpack(z)
@@ -521,7 +483,10 @@ class OutputError(Estimator):
         nl_names = st.nonlinear_names
         values = {"T": T, "T2": T2, "delay": delay}
         bounds = data.segment_bounds()
-        names, J = jacobian(st, values, ev.beta, data.u, h, u_ref, ev.Phi, bounds)
+        known = vars(self).get("_sensitivities", {}).get(st.order)
+        # the search's sensitivities at this very fit (its last Jacobian), not computed again
+        sens = known[1] if known is not None and known[0] is ev else None
+        names, J = jacobian(st, values, ev.beta, data.u, h, u_ref, ev.Phi, bounds, sens)
         dof = max(n - len(names), 1)
         self.sigma_ = math.sqrt(ev.sse / dof)
         self.param_names_ = names
@@ -555,7 +520,9 @@ class OutputError(Estimator):
         else:
             self.cov_, self.covariance_ = self.cov_white_, "white"
         unidentified = [names[i] for i in singular]
-        sd = np.sqrt(np.diag(self.cov_))
+        variance = np.diag(self.cov_)
+        # a negative variance (rounding, an undetermined pair) is no standard error: None below
+        sd = np.sqrt(np.where(variance >= 0.0, variance, np.nan))
         self.stderr_ = {"K": None, "T": None, "T2": None, "delay": None, "T_f": None}
         for name, s in zip(names, sd, strict=False):
             if name in self.stderr_ and math.isfinite(s):

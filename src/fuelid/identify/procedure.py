@@ -157,7 +157,11 @@ def gain_unit(data: IOData) -> str:
 
 
 def identify(
-    data: IOData, options: IdentifyOptions, validation: IOData | None = None
+    data: IOData,
+    options: IdentifyOptions,
+    validation: IOData | None = None,
+    *,
+    diagnose: bool = True,
 ) -> IdentificationResult:
     """Identify the model family on ``data`` with ``options``.
 
@@ -170,11 +174,14 @@ def identify(
     by ``simulate(validation, initial=options.validation_initial)``: by default with its offset
     and initial state estimated (a record rarely starts at rest), or from rest at its first input.
     A held-out part or record whose command never changes gets no score, and a warning says why.
+    ``diagnose=False`` stops there: the model, its standard errors and fits, without the
+    residual tests, steady-state errors, gain bands and their warnings (``diagnostics`` empty;
+    what the online windows' step-ls alongside needs). ``method="auto"`` always diagnoses.
     """
     with single_threaded_blas():
         if options.method == "auto":
             return _identify_auto(data, options, validation)
-        return _identify(data, options, validation)
+        return _identify(data, options, validation, diagnose)
 
 
 AUTO_VALIDATION_MARGIN = 2.0
@@ -224,7 +231,7 @@ def _identify_auto(
 
 
 def _identify(
-    data: IOData, options: IdentifyOptions, validation: IOData | None
+    data: IOData, options: IdentifyOptions, validation: IOData | None, diagnose: bool = True
 ) -> IdentificationResult:
     if validation is not None and options.validate_split is not None:
         raise FuelidError("give either a validation split or a validation file, not both")
@@ -357,6 +364,28 @@ def _identify(
             warnings.append(reason)
         else:
             validation_fit = estimator.score(validation, initial=options.validation_initial)
+    if not diagnose:
+        return IdentificationResult(
+            n_segments=work.n_segments,
+            method=options.method,
+            model=model,
+            fixed=estimator.fixed_,
+            stderr=stderr,
+            cov_names=cov_names,
+            cov=cov,
+            fit_percent=fit_percent,
+            validation_fit_percent=validation_fit,
+            validation_initial=validation_initial,
+            n_samples=fit_data.n_samples,
+            sample_time=work.sample_time,
+            warnings=list(dict.fromkeys(warnings)),
+            time=time,
+            y=y,
+            y_hat=y_model,
+            split_time=float(time[n_fit]) if n_fit < work.n_samples else None,
+            diagnostics={},
+            extra=extra,
+        )
     # pem's tests are on its prediction errors: white when its noise model is right
     residuals = (
         np.asarray(estimator.residuals_[:n_fit], dtype=float)

@@ -22,7 +22,7 @@ import scipy.signal
 from numpy.typing import NDArray
 
 from fuelid.io.timeseries import IOData
-from fuelid.lti import discretise
+from fuelid.lti import discretise, reference_numerics_on
 from fuelid.model import ProcessModel
 
 FloatArray = NDArray[np.float64]
@@ -39,6 +39,7 @@ TOLERANCES = {"xtol": 1e-10, "ftol": 1e-12, "gtol": 1e-12}
 #: where the search spent about a third of its evaluations failing to improve (issue 26)
 STATISTICAL_TOLERANCES = {"xtol": 1e-6, "ftol": 1e-8, "gtol": 1e-10}
 _TOLERANCES: ContextVar[dict[str, float]] = ContextVar("fuelid_search_tolerances")
+_SENSITIVITIES: ContextVar[bool] = ContextVar("fuelid_filter_sensitivities", default=False)
 
 
 def search_tolerances() -> dict[str, float]:
@@ -46,13 +47,26 @@ def search_tolerances() -> dict[str, float]:
     return dict(_TOLERANCES.get(TOLERANCES))
 
 
+def filter_sensitivities_on() -> bool:
+    """True inside :func:`statistical_tolerances`: the Jacobians from :func:`sensitivities`."""
+    return _SENSITIVITIES.get()
+
+
 @contextmanager
 def statistical_tolerances() -> Iterator[None]:
-    """Stop the searches at :data:`STATISTICAL_TOLERANCES` (the online windows' fits)."""
+    """The online windows' numerics: the searches' tolerances and Jacobians.
+
+    The searches stop at :data:`STATISTICAL_TOLERANCES`; their Jacobians (and the stored fits')
+    come from :func:`sensitivities`, not finite differences. Outside it (``fuelid identify``,
+    the reports) the searches and covariances are as before issue 26's second pass, to their
+    last printed digit.
+    """
     token = _TOLERANCES.set(STATISTICAL_TOLERANCES)
+    sensitivity = _SENSITIVITIES.set(True)
     try:
         yield
     finally:
+        _SENSITIVITIES.reset(sensitivity)
         _TOLERANCES.reset(token)
 
 
@@ -217,13 +231,16 @@ def jacobian(
     u_ref: float,
     Phi: FloatArray | None = None,
     bounds: Bounds | None = None,
+    sens: FloatArray | None = None,
 ) -> tuple[tuple[str, ...], FloatArray]:
     """∂ŷ/∂p for p = (K, nonlinear parameters, offset, initial-state amplitudes).
 
     The linear parameters' columns are the regressors themselves; the time constants' and the
-    delay's are central differences of Φ(T, T2, θ)·β (two filter passes each, no optimisation).
+    delay's are :func:`sensitivities` inside :func:`statistical_tolerances` (the online
+    windows), else central differences of Φ(T, T2, θ)·β (two regressor matrices each).
     With segments, every column runs over all of them (each segment's own simulation), so the
-    covariance is that of the joint fit. The amplitudes are named ``c0, c1, …`` for the first
+    covariance is that of the joint fit. ``sens``: the sensitivities when the caller has them
+    (the search's last Jacobian at this fit). The amplitudes are named ``c0, c1, …`` for the first
     segment and ``c0_seg2, …`` for the later ones.
     """
     if Phi is None:
@@ -238,6 +255,18 @@ def jacobian(
     names = ("K", *nl_names, "offset", *amplitudes)
     J = np.empty((u.size, len(names)))
     J[:, 0] = Phi[:, 0]
+    if filter_sensitivities_on() and not reference_numerics_on():
+        # the lags' columns as filters of the input (:func:`sensitivities`), not differences
+        # of two regressor matrices each
+        J[:, 1 : 1 + len(nl_names)] = (
+            sensitivities(
+                st, values["T"], values["T2"], values["delay"], beta, u, h, u_ref, bounds, Phi
+            )
+            if sens is None
+            else sens
+        )
+        J[:, len(nl_names) + 1 :] = Phi[:, 1:]
+        return names, J
     for j, name in enumerate(nl_names, start=1):
         step = 1e-6 * max(abs(values[name]), h)
         up, down = dict(values), dict(values)
@@ -249,6 +278,116 @@ def jacobian(
         J[:, j] = (Phi_up - Phi_down) @ beta / width
     J[:, len(nl_names) + 1 :] = Phi[:, 1:]
     return names, J
+
+
+#: relative step of the central differences of the ZOH coefficients in :func:`sensitivities`
+#: (a 4-coefficient function, smooth in T: its truncation error ~1e-12, rounding ~1e-10)
+COEFFICIENT_STEP = 1e-5
+
+
+def _coefficient_derivatives(
+    lags: list[float], delay: float, h: float, index: list[int]
+) -> tuple[FloatArray, FloatArray]:
+    """(∂b/∂T_i, ∂a/∂T_i) of the sampled lag chain for each lag ``i`` in ``index`` (rows).
+
+    Central differences of the few coefficients (the whole-sample delay d does not depend on T).
+    """
+    db, da = [], []
+    for i in index:
+        step = COEFFICIENT_STEP * lags[i]
+        up, down = list(lags), list(lags)
+        up[i] += step
+        down[i] -= step
+        hi, lo = discretise(up, delay, h), discretise(down, delay, h)
+        db.append((hi.b - lo.b) / (2.0 * step))
+        da.append((hi.a - lo.a) / (2.0 * step))
+    return np.array(db), np.array(da)
+
+
+def sensitivities(
+    st: Structure,
+    T: float,
+    T2: float,
+    delay: float,
+    beta: FloatArray,
+    u: FloatArray,
+    h: float,
+    u_ref: float,
+    bounds: Bounds | None = None,
+    Phi: FloatArray | None = None,
+) -> FloatArray:
+    """∂(Φ·β)/∂p at fixed β for the nonlinear parameters p (``st.nonlinear_names``) [unit/s].
+
+    The fast path's replacement of finite differences of Φ (:func:`jacobian`, the searches of
+    oe). The response s = (b/a)·v to the (delayed) input v has the sensitivity to a lag
+    ∂s = (∂b·v − ∂a·s)/a: two short FIR filters and one pass through 1/a (the one the response
+    took), all lags in one call; ∂b, ∂a are central differences of the few sampled coefficients.
+    The free responses' sensitivity is k·h/T²·p^k. The delay's is the central difference of the
+    response column alone (the free responses do not depend on it). ``Phi`` (the regressors at
+    these values) saves recomputing s.
+    """
+    lags = [tc for tc in (T, T2, st.T_f) if tc > 0.0]
+    bounds = [(0, u.size)] if bounds is None else bounds
+    counts = [n_modes(st, len(lags), j) for j in range(len(bounds))]
+    names = st.nonlinear_names
+    index = [0 if name == "T" else 1 for name in names if name != "delay"]
+    model = discretise(lags, delay, h)
+    db, da = _coefficient_derivatives(lags, delay, h, index)
+    out = np.zeros((u.size, len(names)), order="F")
+    col = 2
+    for j, ((a, b), m) in enumerate(zip(bounds, counts, strict=True)):
+        du = u[a:b] - (u_ref if j == 0 else float(u[a]))
+        # a later segment's response column carries its level u[a] − u_ref
+        s = model.response(du) if Phi is None else Phi[a:b, 0] - (float(u[a]) - u_ref if j else 0.0)
+        v = np.zeros_like(du)
+        if model.shift < du.size:
+            v[model.shift :] = du[: du.size - model.shift]
+        if index:
+            fir = np.array(
+                [
+                    np.convolve(v, db[r])[: b - a] - np.convolve(s, da[r])[: b - a]
+                    for r in range(len(index))
+                ]
+            )
+            lag_part = scipy.signal.lfilter([1.0], model.a, fir, axis=-1)
+        k = np.arange(b - a)
+        for c, name in enumerate(names):
+            if name == "delay":
+                step = 1e-6 * max(delay, h)
+                lo_delay = max(delay - step, 0.0)
+                up = discretise(lags, delay + step, h).response(du)
+                down = discretise(lags, lo_delay, h).response(du)
+                out[a:b, c] = beta[0] * (up - down) / (delay + step - lo_delay)
+                continue
+            i = index[c]
+            out[a:b, c] = beta[0] * lag_part[c]
+            if m:
+                tc = lags[i]
+                p = math.exp(-h / tc)
+                # p^k underflows far before the segment ends: only where it does not
+                length = min(b - a, math.ceil(-41.5 / math.log(p)) + 1) if p < 1.0 else b - a
+                kk = k[:length]
+                out[a : a + length, c] += beta[col + i] * kk * h / tc**2 * p**kk
+        col += m
+    return out
+
+
+def projected_jacobian(Phi: FloatArray, sens: FloatArray) -> FloatArray:
+    """∂r/∂p of the variable-projection residual r = y − Φβ̂ (Kaufman's form): −P⊥·sens.
+
+    Kaufman (1975) drops the term Φ⁺ᵀ·(∂Φ/∂p)ᵀ·r of the exact Jacobian (Golub & Pereyra 1973):
+    it vanishes as r → 0 and contributes nothing to the gradient Jᵀr (r ⊥ range Φ), so the
+    search has the same stationary points and converges as fast near them.
+    """
+    G = Phi.T @ Phi
+    scale = np.sqrt(np.diag(G))
+    scale[scale == 0.0] = 1.0
+    try:
+        coef = np.linalg.solve(G / np.outer(scale, scale), (Phi.T @ sens) / scale[:, None])
+        coef /= scale[:, None]
+    except np.linalg.LinAlgError:
+        coef = np.linalg.lstsq(Phi, sens, rcond=None)[0]
+    return np.asarray(Phi @ coef - sens, dtype=float)
 
 
 def cramer_rao_bound(

@@ -6,8 +6,9 @@ Every ``identify_every_s`` of data time the service hands the last ``window_s`` 
 1. runs the pre-fit gates (:func:`~fuelid.online.gates.prefit_samples`: lost or flagged samples,
    the output at a limit, excitation judged by the mode the loop was in);
 2. fits the process model on the samples whose quality is ok, warm-started from the last
-   accepted window (one local search per order instead of a grid, stopped at statistical
-   tolerances: :func:`~fuelid.identify.variable_projection.statistical_tolerances`):
+   accepted window (one local Levenberg–Marquardt search per order with the lags' analytic
+   sensitivities, :mod:`fuelid.identify.search`, stopped at statistical tolerances:
+   :func:`~fuelid.identify.variable_projection.statistical_tolerances`):
 
    - judged in MAN (open loop, or no mode recorded): the output-error fit, whose estimate is
      consistent whatever the colour of the noise when the input does not depend on it (Ljung
@@ -22,7 +23,8 @@ Every ``identify_every_s`` of data time the service hands the last ``window_s`` 
      is most windows with a drifting disturbance; it agreed with the full decision on 623 of
      624 held-out windows, K within its standard error on the other (online.md);
 
-   and the article's ``step-ls`` alongside, reported but never gated on;
+   and the article's ``step-ls`` alongside (its model, errors and fit; not its diagnostics),
+   reported but never gated on;
 3. runs the post-fit gates (:func:`~fuelid.online.gates.postfit_gates`: relative standard
    errors, the fit, the residual autocorrelation by size, the plant-ratio event);
 4. computes the loop's health over the whole window (:func:`~fuelid.online.health.loop_health`).
@@ -444,7 +446,7 @@ class WindowAnalyser:
             control_period=self.priors.control_period,
         )
         try:
-            fitted, _ = identify_step_ls(data, options, oe_model=oe_model)
+            fitted, _ = identify_step_ls(data, options, oe_model=oe_model, diagnose=not self.fast)
         except FuelidError as error:
             return {"model": None, "reason": " ".join(str(error).split())}
         values = fitted.model.to_json()

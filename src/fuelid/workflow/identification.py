@@ -164,6 +164,8 @@ def identify_step_ls(
     options: IdentifyOptions,
     oe_model: ProcessModel | None = None,
     validation: IOData | None = None,
+    *,
+    diagnose: bool = True,
 ) -> tuple[IdentificationResult, dict[str, PriorSource]]:
     """The article's step-ls fit with the prior knowledge it needs, and where that came from.
 
@@ -172,6 +174,8 @@ def identify_step_ls(
     when not given): its dead time, and N from its 98 % settling time. When the fitted step-ls
     model has not settled within N periods (its response would be truncated, biasing K and T)
     and N was not fixed by an option, the fit is repeated once with the N that model needs.
+    ``diagnose=False``: the fit without its diagnostics (:func:`~fuelid.identify.procedure.
+    identify`).
 
     Returns
     -------
@@ -192,10 +196,10 @@ def identify_step_ls(
     sources["N"] = (
         "option" if options.N is not None else "output-error fit" if needs_N else "plant file"
     )
-    result = identify(data, options, validation)
+    result = identify(data, options, validation, diagnose=diagnose)
     if options.N is None:
         needed = math.ceil(result.model.settling_time() / result.sample_time)
         if needed > int(result.extra.get("N", needed)):
-            result = identify(data, replace(options, N=needed), validation)
+            result = identify(data, replace(options, N=needed), validation, diagnose=diagnose)
             sources["N"] = "refit: the N its own model needs"
     return result, sources
