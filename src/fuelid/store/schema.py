@@ -169,6 +169,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 from fuelid.store.records import StoreError
+from fuelid.store.schema_v4 import OUTBOX_TABLES, V4_MANY_LOOPS
 
 __all__ = [
     "APPLICATION_ID",
@@ -396,45 +397,6 @@ def _v3_data(con: sqlite3.Connection) -> None:
     )
 
 
-OUTBOX_TABLES = ("events", "windows", "models", "proposals", "writes", "requests")
-"""The tables whose inserts and updates go to the outbox (a central store receives them)."""
-
-_WALL_NOW = "((julianday('now') - 2440587.5) * 86400.0)"  # SQLite 3.40 has no unixepoch('subsec')
-
-
-def _outbox_triggers() -> tuple[str, ...]:
-    statements = []
-    for table in OUTBOX_TABLES:
-        for op in ("INSERT", "UPDATE"):
-            statements.append(
-                f"CREATE TRIGGER outbox_{table}_{op.lower()} AFTER {op} ON {table} "
-                "WHEN (SELECT value FROM meta WHERE key = 'outbox') = 'on' BEGIN "
-                f"INSERT INTO outbox(tbl, row_id, wall_time) VALUES ('{table}', NEW.rowid, "
-                f"{_WALL_NOW}); END"
-            )
-    return tuple(statements)
-
-
-_V4_MANY_LOOPS = (
-    """CREATE TABLE events_v4(
-        id INTEGER PRIMARY KEY, time REAL NOT NULL, kind TEXT NOT NULL, detail TEXT NOT NULL,
-        wall_time REAL) STRICT""",
-    "INSERT INTO events_v4(time, kind, detail, wall_time) "
-    "SELECT time, kind, detail, wall_time FROM events ORDER BY rowid",
-    "DROP TABLE events",
-    "ALTER TABLE events_v4 RENAME TO events",
-    "CREATE INDEX events_time ON events(time)",
-    """CREATE TABLE outbox(
-        id INTEGER PRIMARY KEY, tbl TEXT NOT NULL, row_id INTEGER NOT NULL,
-        wall_time REAL NOT NULL) STRICT""",
-    """CREATE TABLE archived_days(
-        loop_id TEXT NOT NULL, date TEXT NOT NULL, samples INTEGER NOT NULL, t_first REAL,
-        t_last REAL, path TEXT NOT NULL, wall_time REAL NOT NULL,
-        PRIMARY KEY (loop_id, date)) STRICT""",
-    *_outbox_triggers(),
-)
-
-
 MIGRATIONS: tuple[Migration, ...] = (
     Migration(1, "samples, events, models and proposals (fuelid 0.1)", _V1_SAMPLES_AND_EVENTS),
     Migration(2, "the online service's windows, writes and state everywhere", _V2_ONLINE_TABLES),
@@ -447,7 +409,7 @@ MIGRATIONS: tuple[Migration, ...] = (
     Migration(
         4,
         "many loops: a stable id on events, the outbox for a central store, archived days",
-        _V4_MANY_LOOPS,
+        V4_MANY_LOOPS,
     ),
 )
 """Every migration, in order; ``MIGRATIONS[k]`` takes a store to version ``k + 1``."""
