@@ -18,6 +18,7 @@ from typing import Any
 from fuelid.dashboard.central_db import CentralDB
 from fuelid.online.liveness import SERVICE_KEY
 from fuelid.store.online import PROPOSAL_STATUSES, WRITE_STATUSES
+from fuelid.store.online_rows import proposal_row
 
 __all__ = ["CentralHistory", "CentralStoreView"]
 
@@ -37,22 +38,6 @@ def _window(row: Sequence[Any]) -> dict[str, Any]:
     out["detail"] = row[9]
     out["wall_time"] = row[10]
     return out
-
-
-def _proposal(row: Sequence[Any]) -> dict[str, Any]:
-    """A central proposal row as :meth:`OnlineHistory.proposal` gives a site's."""
-    stored = row[4] or {}
-    return {
-        "id": row[0],
-        "time": row[1],
-        "model_id": row[2],
-        "status": row[3],
-        "old": stored.get("old"),
-        "new": stored.get("new"),
-        "detail": stored.get("detail"),
-        "history": list(stored.get("history") or []),
-        "wall_time": row[5],
-    }
 
 
 def _limit(limit: int) -> str:
@@ -170,7 +155,7 @@ class CentralHistory:
             wanted = [status] if isinstance(status, str) else [str(s) for s in status]
             sql += " AND status = ANY(%s)"
             args.append(wanted)
-        return [_proposal(r) for r in self.db.query(sql + " ORDER BY time, id", args)]
+        return [proposal_row(r) for r in self.db.query(sql + " ORDER BY time, id", args)]
 
     def proposal(self, proposal_id: int) -> dict[str, Any] | None:
         """One proposal; None when absent."""
@@ -179,7 +164,7 @@ class CentralHistory:
             "WHERE store_uuid = %s AND id = %s",
             (self.uuid, int(proposal_id)),
         )
-        return _proposal(rows[0]) if rows else None
+        return proposal_row(rows[0]) if rows else None
 
     def requests(self, status: str | None = None, limit: int | None = None) -> list[dict[str, Any]]:
         """The site's requests (its ``requests`` table), oldest first."""

@@ -54,9 +54,9 @@ from fuelid.store.online_rows import (
     _loads,
     _model,
     _newest,
-    _proposal,
     _proposal_by_id,
     _window,
+    proposal_row,
 )
 from fuelid.store.online_writes import GainWrites
 from fuelid.store.records import StoreError
@@ -354,7 +354,7 @@ class OnlineHistory(GainWrites, PersonRequests):
             query += f" WHERE status IN ({', '.join('?' * len(args))})"
         with self._transaction(write=False) as con:
             rows = con.execute(query + " ORDER BY time, id", args).fetchall()
-        return [_proposal(row) for row in rows]
+        return [proposal_row(row) for row in rows]
 
     def set_proposal_status(
         self,

@@ -32,6 +32,7 @@ __all__ = [
     "WRITE_KINDS",
     "WRITE_STATUSES",
     "HistoryConnection",
+    "proposal_row",
 ]
 
 PROPOSAL_TRANSITIONS: Mapping[str, frozenset[str]] = MappingProxyType(
@@ -249,8 +250,12 @@ def _model(row: Sequence[Any]) -> dict[str, Any]:
     return out
 
 
-def _proposal(row: Sequence[Any]) -> dict[str, Any]:
-    stored = _loads(row[4]) or {}
+def proposal_row(row: Sequence[Any]) -> dict[str, Any]:
+    """A proposals row ``(id, time, model_id, status, detail, wall_time)`` as a dict.
+
+    ``detail`` is JSON text (SQLite) or already parsed (PostgreSQL's jsonb, the central store).
+    """
+    stored = (row[4] if isinstance(row[4], dict) else _loads(row[4])) or {}
     return {
         "id": row[0],
         "time": row[1],
@@ -268,7 +273,7 @@ def _proposal_by_id(con: sqlite3.Connection, proposal_id: int) -> dict[str, Any]
     row = con.execute(
         f"SELECT {_PROPOSAL} FROM proposals WHERE id = ?", (int(proposal_id),)
     ).fetchone()
-    return None if row is None else _proposal(row)
+    return None if row is None else proposal_row(row)
 
 
 def _write(row: Sequence[Any]) -> dict[str, Any]:
