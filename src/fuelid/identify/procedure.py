@@ -364,7 +364,8 @@ def _identify(
             warnings.append(reason)
         else:
             validation_fit = estimator.score(validation, initial=options.validation_initial)
-    if not diagnose:
+
+    def result(diag: dict[str, Any], prediction_errors: Any = None) -> IdentificationResult:
         return IdentificationResult(
             n_segments=work.n_segments,
             method=options.method,
@@ -383,9 +384,13 @@ def _identify(
             y=y,
             y_hat=y_model,
             split_time=float(time[n_fit]) if n_fit < work.n_samples else None,
-            diagnostics={},
+            diagnostics=diag,
             extra=extra,
+            prediction_errors=prediction_errors,
         )
+
+    if not diagnose:
+        return result({})
     # pem's tests are on its prediction errors: white when its noise model is right
     residuals = (
         np.asarray(estimator.residuals_[:n_fit], dtype=float)
@@ -460,25 +465,4 @@ def _identify(
     advice = diagnostics.sample_time_advice(settle, work.sample_time, data.sample_time)
     if advice:
         warnings.append(advice)
-    return IdentificationResult(
-        n_segments=work.n_segments,
-        method=options.method,
-        model=model,
-        fixed=estimator.fixed_,
-        stderr=stderr,
-        cov_names=cov_names,
-        cov=cov,
-        fit_percent=fit_percent,
-        validation_fit_percent=validation_fit,
-        validation_initial=validation_initial,
-        n_samples=fit_data.n_samples,
-        sample_time=work.sample_time,
-        warnings=list(dict.fromkeys(warnings)),
-        time=time,
-        y=y,
-        y_hat=y_model,
-        split_time=float(time[n_fit]) if n_fit < work.n_samples else None,
-        diagnostics=diag,
-        extra=extra,
-        prediction_errors=residuals if isinstance(estimator, PredictionError) else None,
-    )
+    return result(diag, residuals if isinstance(estimator, PredictionError) else None)
