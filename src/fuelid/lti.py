@@ -25,7 +25,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-import scipy.signal
 from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
@@ -95,6 +94,8 @@ def zoh_discretise(A: ArrayLike, B: ArrayLike, h: float) -> tuple[FloatArray, Fl
         return np.eye(A.shape[0]), np.zeros_like(B)
     C = np.zeros((1, A.shape[0]))
     D = np.zeros((1, B.shape[1]))
+    import scipy.signal  # 0.35 s to import (with scipy.stats): only where it is used
+
     Ad, Bd, _, _, _ = scipy.signal.cont2discrete((A, B, C, D), h, method="zoh")
     return np.asarray(Ad, dtype=float), np.asarray(Bd, dtype=float)
 
@@ -189,6 +190,8 @@ class DiscreteLagModel:
         v = np.zeros_like(du)
         if self.shift < du.size:
             v[self.shift :] = du[: du.size - self.shift]
+        import scipy.signal
+
         return np.asarray(scipy.signal.lfilter(self.b, self.a, v), dtype=float)
 
     def frequency_response(self, omega: ArrayLike, h: float) -> NDArray[np.complex128]:
@@ -266,6 +269,8 @@ def _discretise_reference(
     A: FloatArray, B: FloatArray, C: FloatArray, lags: Sequence[float], delay: float, h: float
 ) -> DiscreteLagModel:
     """:func:`discretise` as before issue 26 (scipy's conversions; :func:`reference_numerics`)."""
+    import scipy.signal
+
     n = A.shape[0]
     mz = modified_z(A, B, h, delay)
     num0, den = scipy.signal.ss2tf(mz.Ad, mz.G0, C, np.zeros((1, 1)))

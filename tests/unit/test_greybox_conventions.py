@@ -97,6 +97,10 @@ def test_settings_are_parameters_as_for_the_other_estimators() -> None:
         "initial_state": "auto",
         "max_iterations": 60,
         "segments": None,
+        "solver": "auto",
+        "max_step": None,
+        "substeps": None,
+        "hold_undetermined": False,
     }
     assert estimator.set_params(max_iterations=5) is estimator
     assert estimator.max_iterations == 5

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import scipy.optimize
 
-from fuelid.errors import DataError, FuelidError, NotFittedError
+from fuelid.errors import ConfigError, DataError, FuelidError, NotFittedError
 from fuelid.greybox.fitting import (
     COST_TOLERANCE,
     MAX_NOISE_PASSES,
@@ -55,6 +55,8 @@ from fuelid.greybox.multiple_shooting import (
 from fuelid.greybox.parameters import ParameterMap
 from fuelid.greybox.profile import CHI2_95, PROFILE_DOUBLINGS, ProfileLikelihood
 from fuelid.greybox.sensitivity import SimulationError, Trajectory, simulate_record
+from fuelid.greybox.solver_choice import SolverChoice, check_request, choose_solver
+from fuelid.greybox.solvers import Solver
 from fuelid.greybox.system import GreyBoxModel, Record
 from fuelid.model import nrmse_fit_columns
 from fuelid.params import Params
@@ -122,7 +124,21 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         in stages of a quarter as many segments; the whole records are then fitted from that
         start. "auto" (default): a single-shooting fit first, and a segmented start (segments of
         ≥ 50 samples) only when that fit did not converge or its residuals exceed 3× the noise
-        level the records show; the better fit is kept. None: single shooting only.
+        level the records show; the better fit is kept, and the segmented start may use no more
+        right-hand-side evaluations than the fit it retries did. None: single shooting only.
+    solver : {"auto", "lsoda", "bdf", "radau", "rk45", "rk4"}
+        The ODE solver (:mod:`fuelid.greybox.solvers`). "auto" (default): LSODA, or where it
+        cannot simulate the start values BDF with a bounded step, then RK4 with its steps per
+        sample doubled until they agree (:mod:`fuelid.greybox.solver_choice`).
+    max_step : float, optional
+        Longest step [s] of a variable-step solver (and of auto's choices).
+    substeps : int, optional
+        RK4 steps per sample interval (1…64); without it RK4 chooses them by doubling.
+    hold_undetermined : bool
+        A free parameter the outputs do not depend on at all (one acting only beyond a limit
+        or kink the records never reach) is held at its value and reported in
+        ``not_determined_`` instead of refusing the fit; it is freed again if it acts at the
+        estimate. Default False: such a fit is refused, naming the parameter.
 
     Attributes
     ----------
@@ -154,9 +170,23 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         well above it mean a model error, slow disturbances or a local minimum.
     start_ : str
         How the fit was started ("single shooting" or the segmented start's stages).
+    solver_ : SolverChoice
+        The solver the fit ran with, what was asked for and why.
+    not_determined_ : dict
+        Parameters held at their value because the outputs do not depend on them (with
+        ``hold_undetermined``), name → reason; empty otherwise.
     """
 
-    _SETTINGS = ("model", "initial_state", "max_iterations", "segments")
+    _SETTINGS = (
+        "model",
+        "initial_state",
+        "max_iterations",
+        "segments",
+        "solver",
+        "max_step",
+        "substeps",
+        "hold_undetermined",
+    )
     """The constructor's parameters: what ``get_params`` returns and a refit keeps."""
 
     def __init__(
@@ -165,11 +195,19 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         initial_state: str = "auto",
         max_iterations: int = 60,
         segments: int | str | None = "auto",
+        solver: str = "auto",
+        max_step: float | None = None,
+        substeps: int | None = None,
+        hold_undetermined: bool = False,
     ) -> None:
         self.model = model
         self.initial_state = initial_state
         self.max_iterations = max_iterations
         self.segments = segments
+        self.solver = solver
+        self.max_step = max_step
+        self.substeps = substeps
+        self.hold_undetermined = hold_undetermined
 
     if not TYPE_CHECKING:  # hidden from mypy, which would otherwise accept any attribute name
 
@@ -200,6 +238,10 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
             raise FuelidError(
                 f"segments must be 'auto', None or an integer ≥ 2, not {self.segments!r}"
             )
+        try:
+            check_request(self.solver, self.max_step, self.substeps)
+        except ConfigError as exc:
+            raise FuelidError(str(exc)) from None
         if not records:
             raise DataError("no record to fit")
         n_outputs = len(self.model.output_names)
@@ -277,16 +319,28 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
             )
         self._budgets: list[int] = []
         self._work = [0, 0]
+        self._work_limit: int | None = None
+        self.not_determined_: dict[str, str] = {}
         try:
+            self.solver_ = choose_solver(
+                self.solver,
+                self.max_step,
+                self.substeps,
+                lambda solver: self._start_outputs(phi, records, solver),
+                records,
+                sigma,
+            )
             evaluation = self._evaluate(phi, records, sigma, jacobian=True)
         except (SimulationError, FloatingPointError, OverflowError) as exc:
             raise ConvergenceError(
                 f"the model cannot be simulated at the start values ({exc})"
             ) from None
         # a trial point may cost 20× the start's work (chattering at a bound), not more
-        self._budgets = [max(20 * t.evaluations, 50_000) for t in evaluation.trajectories]
+        self._budgets = [max(20 * t.evaluations, 2_000) for t in evaluation.trajectories]
         if self.estimate_x0_:
             phi, evaluation = self._settle_initial_states(phi, records, sigma, evaluation)
+        if self.hold_undetermined:
+            phi, evaluation = self._hold_unused(phi, records, sigma, evaluation)
         self._refuse_structural(phi, evaluation)
         start_phi, start_sigma, start_evaluation = phi, sigma, evaluation
         self.start_ = "single shooting"
@@ -294,6 +348,7 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
             phi = self._segmented_start(phi, records, sigma, evaluation, int(self.segments))
             evaluation = self._evaluate(phi, records, sigma, jacobian=True)
         failure: ConvergenceError | None = None
+        plain_work = self._work[1]
         try:
             result = self._single_shooting(phi, records, sigma, evaluation)
         except ConvergenceError as exc:
@@ -301,18 +356,39 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
                 raise
             failure, result = exc, None
         if self.segments == "auto" and (result is None or self._suspect(result, self.noise_floor_)):
+            # the segmented start may spend what the fit it retries spent, no more
             retried = self._retry_segmented(
-                start_phi, records, start_sigma, start_evaluation, result
+                start_phi,
+                records,
+                start_sigma,
+                start_evaluation,
+                result,
+                allowance=max(self._work[1] - plain_work, 1),
             )
             if retried is not None:
                 result = retried
         if result is None:
             assert failure is not None
             raise failure
+        if self.not_determined_:
+            result = self._release_held(result, records)
         self.phi_ = result.phi
         self.sigma_ = result.sigma
         self._finish(result.phi, records, result.solution, result.evaluation)
         self.n_iterations_ = result.iterations
+
+    def _start_outputs(
+        self, phi: FloatArray, records: Sequence[Record], solver: Solver
+    ) -> list[FloatArray]:
+        """The records' outputs at φ with ``solver`` (no sensitivities): auto's trial runs."""
+        saved = getattr(self, "solver_", None)
+        self.solver_ = SolverChoice(solver, self.solver, "")
+        try:
+            trajectories = self._simulate_all(phi, records)
+        finally:
+            if saved is not None:
+                self.solver_ = saved
+        return [trajectory.outputs for trajectory in trajectories]
 
     def _settle_initial_states(
         self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, start: Evaluation
@@ -393,7 +469,9 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
             x0 = (
                 init[0] if init is not None else self.model.steady_state_guess(self.params_, record)
             )
-        return simulate_record(system, record, np.asarray(x0, dtype=float))
+        return simulate_record(
+            system, record, np.asarray(x0, dtype=float), solver=self.solver_.solver
+        )
 
     def predict(self, record: Record) -> FloatArray:
         """Predicted outputs for a record (N × n_y).
@@ -421,7 +499,9 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
             if key not in last:
                 last.clear()
                 try:
-                    last[key] = simulate_record(system, head, x0, identity)
+                    last[key] = simulate_record(
+                        system, head, x0, identity, solver=self.solver_.solver
+                    )
                 except SimulationError:
                     return None
             return last[key]

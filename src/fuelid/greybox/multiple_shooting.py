@@ -18,6 +18,7 @@ from fuelid.greybox.fitting import (
     ConvergenceError,
     Evaluation,
     FloatArray,
+    OutOfBudget,
     ShootingFit,
     ShootingResult,
 )
@@ -66,13 +67,23 @@ class SegmentedStart(ShootingFit):
         sigma: FloatArray,
         evaluation: Evaluation,
         first: ShootingResult | None,
+        allowance: int | None = None,
     ) -> ShootingResult | None:
-        """Fit again from a segmented start; the better of the two fits (None: no better one)."""
+        """Fit again from a segmented start; the better of the two fits (None: no better one).
+
+        ``allowance``: the right-hand-side evaluations the segmented start's stages may spend
+        (the fit from their result is not counted); None: no limit.
+        """
         count = self._segment_count(records)
         if count < 2:
             return None
         try:
-            phi = self._segmented_start(phi, records, sigma, evaluation, count)
+            if allowance is not None:
+                self._work_limit = self._work[1] + allowance
+            try:
+                phi = self._segmented_start(phi, records, sigma, evaluation, count)
+            finally:
+                self._work_limit = None
             evaluation = self._evaluate(phi, records, sigma, jacobian=True)
             second = self._single_shooting(phi, records, sigma, evaluation)
         except (ConvergenceError, SimulationError, FloatingPointError, OverflowError):
@@ -140,17 +151,21 @@ class SegmentedStart(ShootingFit):
                         guesses.append(states[i][a])
                 if not pieces:
                     break
+                # a piece's share of its record's budget (a chattering trial point stops early)
                 self._budgets = [
-                    max(saved[1][i] * (b - a) // len(records[i].t), 50_000) for i, a, b in spans
+                    max(saved[1][i] * (b - a) // len(records[i].t), 2_000) for i, a, b in spans
                 ]
                 phi_stage = np.concatenate([theta_phi, *guesses])
                 try:
                     phi_stage, _, found = self._solve(phi_stage, pieces, sigma)
-                except (SimulationError, FloatingPointError, OverflowError):
+                except (SimulationError, FloatingPointError, OverflowError, OutOfBudget):
                     break  # keep the last stage's values
                 theta_phi = phi_stage[:p]
                 for (i, a, b), trajectory in zip(spans, found.trajectories, strict=True):
                     states[i][a:b] = trajectory.states
+                if self._work_limit is not None and self._work[1] >= self._work_limit:
+                    self.start_ += " (stopped at its allowance of evaluations)"
+                    break
         finally:
             self.estimate_x0_, self._budgets = saved
         if not self.estimate_x0_:

@@ -42,8 +42,7 @@ def _call_batch(
     """
     out: FloatArray
     try:
-        with np.errstate(all="ignore"):
-            raw = function(*args)
+        raw = function(*args)  # (the simulation runs under np.errstate(all="ignore"))
         if isinstance(raw, list | tuple) and len(raw) == n_out:
             out = np.empty((n_out, columns))
             for i, row in enumerate(raw):
@@ -90,6 +89,12 @@ class FunctionSystem:
         self._all_steps[n:] = self._theta_steps
         self._state_scale = float(model.state_scale)
         self._last: tuple[float, bytes, FloatArray] | None = None
+        # the parameters with one free parameter stepped, for the scalar differences
+        self._perturbed = []
+        for j, name in enumerate(self.free):
+            stepped = dict(self.values)
+            stepped[name] += float(self._theta_steps[j])
+            self._perturbed.append(stepped)
 
     # --- batches of perturbed parameters --------------------------------------------------------
     def _batch_parameters(self, leading: int) -> dict[str, Any]:
@@ -107,13 +112,16 @@ class FunctionSystem:
         return batch
 
     def _perturbed_values(self, j: int) -> dict[str, float]:
-        values = dict(self.values)
-        values[self.free[j]] += float(self._theta_steps[j])
-        return values
+        return self._perturbed[j]
 
     def _f(self, t: float, x: FloatArray, u: FloatArray, values: Mapping[str, Any]) -> FloatArray:
-        with np.errstate(all="ignore"):
-            return np.asarray(self.model.f(t, x, u, values), dtype=float).reshape(self.n_states)
+        # no np.errstate here: it costs a microsecond a call, and every caller (the simulation,
+        # the steady-state guess) runs under one already
+        return np.array(self.model.f(t, x, u, values), dtype=float).reshape(self.n_states)
+
+    def rhs(self, t: float, x: FloatArray, u: FloatArray) -> FloatArray:
+        """f(t, x, u) alone: a simulation without sensitivities needs no Jacobian."""
+        return np.array(self.model.f(t, x, u, self.values), dtype=float).reshape(self.n_states)
 
     # --- OdeSystem ------------------------------------------------------------------------------
     def derivatives(
@@ -137,19 +145,25 @@ class FunctionSystem:
                 jac_x = jac[:, :n]
                 self._last = (t, x.tobytes(), jac_x)
                 return base, jac_x, jac[:, n:]
-        base = self._f(t, x, u, self.values)
-        jac_x = np.empty((n, n))
-        for i in range(n):
-            shifted = x.copy()
-            shifted[i] += dx_steps[i]
-            jac_x[:, i] = (self._f(t, shifted, u, self.values) - base) / dx_steps[i]
-        jac_theta = np.empty((n, p))
-        for j in range(p):
-            jac_theta[:, j] = (self._f(t, x, u, self._perturbed_values(j)) - base) / (
-                self._theta_steps[j]
-            )
+        # a function of scalars: one call per column, the results stacked once (the calls
+        # themselves are most of the cost of a simulation with sensitivities)
+        f = self.model.f
+        values = self.values
+        shifted = x[:, None] + np.diag(dx_steps)
+        rows = [f(t, x, u, values)]
+        rows.extend(f(t, shifted[:, i], u, values) for i in range(n))
+        rows.extend(f(t, x, u, stepped) for stepped in self._perturbed)
+        try:
+            table = np.array(rows, dtype=float).reshape(1 + n + p, n)
+        except ValueError as exc:  # a ragged return (a list and an array mixed)
+            raise ConfigError(f"f did not return {n} numbers ({exc})") from None
+        base = table[0]
+        steps = self._all_steps
+        steps[:n] = dx_steps
+        jac = ((table[1:] - base) / steps[:, None]).T
+        jac_x = jac[:, :n]
         self._last = (t, x.tobytes(), jac_x)
-        return base, jac_x, jac_theta
+        return base, jac_x, jac[:, n:]
 
     def _agrees(
         self, t: float, x: FloatArray, u: FloatArray, out: FloatArray, dx_steps: FloatArray
@@ -187,7 +201,7 @@ class FunctionSystem:
         return self._h_loop(x, u, values)
 
     def _h_loop(self, x: FloatArray, u: FloatArray, values: Mapping[str, Any]) -> FloatArray:
-        with np.errstate(all="ignore"):
+        with np.errstate(all="ignore"):  # (called outside a simulation too)
             rows = [
                 np.asarray(self.model.h(x_k, u_k, values), dtype=float).reshape(self.n_outputs)
                 for x_k, u_k in zip(x, u, strict=True)

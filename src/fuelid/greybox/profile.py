@@ -10,13 +10,15 @@ covariance, :mod:`fuelid.greybox.fitting`) is not to be trusted.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 import scipy.optimize
-import scipy.stats
+import scipy.special
 
 from fuelid.errors import FuelidError
-from fuelid.greybox.fitting import Evaluation, FloatArray, ShootingFit
+from fuelid.greybox.fitting import Evaluation, FloatArray, ShootingFit, ShootingResult
 from fuelid.greybox.identifiability import (
     ESTIMATE_CORRELATION_LIMIT,
     IdentifiabilityReport,
@@ -25,10 +27,12 @@ from fuelid.greybox.identifiability import (
     identifiability,
     structural_report,
 )
+from fuelid.greybox.parameters import ParameterMap
 from fuelid.greybox.sensitivity import SimulationError
 from fuelid.greybox.system import Record
 
-CHI2_95 = float(scipy.stats.chi2.ppf(0.95, 1))
+CHI2_95 = float(scipy.special.chdtri(1, 0.05))
+"""χ²₁'s 95 % quantile."""
 PROFILE_DOUBLINGS = 8
 """A profile steps out 2, 4, … 256 standard errors looking for the crossing."""
 
@@ -44,6 +48,8 @@ class ProfileLikelihood(ShootingFit):
     correlation_: FloatArray
     cost_: float
     identifiability_: IdentifiabilityReport
+    not_determined_: dict[str, str]
+    _all_free: ParameterMap
 
     def _structural(
         self, phi: FloatArray, start: Evaluation
@@ -63,6 +69,85 @@ class ProfileLikelihood(ShootingFit):
         report, structural = self._structural(phi, start)
         if structural or report.zero_sensitivity:
             raise NotIdentifiableError(structural_report(report, structural, self.free_names_))
+
+    # --- parameters the outputs do not depend on (hold_undetermined) ----------------------------
+    def _hold_unused(
+        self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, start: Evaluation
+    ) -> tuple[FloatArray, Evaluation]:
+        """Hold the free parameters the outputs do not depend on at all, at their values.
+
+        Such a parameter acts only where the records never go (beyond a limit, a kink or a
+        switch): no value of it changes the fit, so it is reported as not determined and held,
+        and the rest are fitted. Returns φ without those parameters and the evaluation there.
+        """
+        report, structural = self._structural(phi, start)
+        alone = [c.names[0] for c in structural if len(c.names) == 1]
+        unused = [
+            name for name in self.free_names_ if name in report.zero_sensitivity or name in alone
+        ]
+        if not unused:
+            return phi, start
+        p = len(self.free_names_)
+        values = self.map_.values(phi[:p])
+        for name in unused:
+            self.not_determined_[name] = (
+                "the outputs do not depend on it over these records (it acts only where the "
+                "data never go: beyond a limit, kink or switch they do not reach); held at "
+                f"{values[name]:.6g}, not estimated"
+            )
+        keep = [j for j, name in enumerate(self.free_names_) if name not in unused]
+        self._all_free = self.map_
+        self._use_map(self._held_map(set(unused)))
+        phi = np.concatenate([phi[:p][keep], phi[p:]])
+        return phi, self._evaluate(phi, records, sigma, jacobian=True)
+
+    def _held_map(self, held: set[str]) -> ParameterMap:
+        """The map of every free parameter with ``held`` ones fixed at their start values."""
+        return ParameterMap(
+            tuple(
+                replace(spec, fixed=True) if spec.name in held else spec
+                for spec in self._all_free.specs
+            )
+        )
+
+    def _use_map(self, parameter_map: ParameterMap) -> None:
+        self.map_ = parameter_map
+        self.free_names_ = parameter_map.free_names
+
+    def _release_held(self, result: ShootingResult, records: Sequence[Record]) -> ShootingResult:
+        """Free again a held parameter that acts at the estimate, and refit from there.
+
+        The outputs may not depend on a parameter at the start values yet depend on it at the
+        estimate (a level that reaches its rim only with the fitted outflows, say): holding it
+        would then bias the others without a word.
+        """
+        held = list(self.not_determined_)
+        p = len(self.free_names_)
+        values = self.map_.values(result.phi[:p])
+        full = self._all_free
+        phi_full = np.concatenate(
+            [full.to_phi(np.array([values[name] for name in full.free_names])), result.phi[p:]]
+        )
+        current = self.map_
+        self._use_map(full)
+        evaluation = self._evaluate(phi_full, records, result.sigma, jacobian=True)
+        assert evaluation.jacobian is not None
+        report = self._report(phi_full, evaluation.jacobian)
+        acting = [name for name in held if name not in report.zero_sensitivity]
+        if not acting:
+            self._use_map(current)
+            return result
+        still = {name for name in held if name not in acting}
+        for name in acting:
+            del self.not_determined_[name]
+        self._use_map(self._held_map(still))
+        keep = [j for j, name in enumerate(full.free_names) if name not in still]
+        phi = np.concatenate(
+            [phi_full[: len(full.free_names)][keep], phi_full[len(full.free_names) :]]
+        )
+        evaluation = self._evaluate(phi, records, result.sigma, jacobian=True)
+        self._refuse_structural(phi, evaluation)
+        return self._single_shooting(phi, records, result.sigma, evaluation)
 
     def _report(self, phi: FloatArray, jac: FloatArray) -> IdentifiabilityReport:
         p = len(self.free_names_)
@@ -113,7 +198,7 @@ class ProfileLikelihood(ShootingFit):
         if name not in self.free_names_:
             raise FuelidError(f"{name!r} is not a free parameter: {', '.join(self.free_names_)}")
         j = self.free_names_.index(name)
-        threshold = float(scipy.stats.chi2.ppf(level, 1))
+        threshold = float(scipy.special.chdtri(1, 1.0 - level))
         lower, upper = self.map_.bounds()
         sd = math.sqrt(max(float(self.cov_phi_[j, j]), 1e-30))
         best = self.cost_

@@ -7,35 +7,31 @@ estimated initial state) the forward sensitivity equations are
 
 integrated together with the state, so one simulation gives the output and its whole Jacobian
 ∂y/∂φ = ∂y/∂x · S + ∂y/∂φ|direct, instead of one simulation per parameter. The inputs are held
-between samples, so the span is integrated piece by piece between input changes with LSODA
-(:func:`scipy.integrate.odeint`), which turns to BDF when fast modes make the problem stiff; its
-Newton matrix is block-diagonal, ∂f/∂x for the state and ∂f/∂x ⊗ I for the row-major S (the
-exact Jacobian of the sensitivity rows also has ∂²f/∂x² terms, which only speed the corrector up
-and do not change the solution).
+between samples, so the span is integrated piece by piece between input changes with the chosen
+solver (:mod:`fuelid.greybox.solvers`; LSODA by default, which turns to BDF when fast modes make
+the problem stiff); the implicit methods' Newton matrix is block-diagonal, ∂f/∂x for the state
+and ∂f/∂x ⊗ I for the row-major S (the exact Jacobian of the sensitivity rows also has ∂²f/∂x²
+terms, which only speed the corrector up and do not change the solution).
 """
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.integrate
 from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError
+from fuelid.greybox.solvers import Rhs, SimulationError, Solver, integrate_piece
 from fuelid.greybox.system import OdeSystem, Record
+
+__all__ = ["RTOL", "SimulationError", "Solver", "Trajectory", "input_changes", "simulate_record"]
 
 FloatArray = NDArray[np.float64]
 RTOL = 1e-6
-MAX_STEPS = 50_000
 SENSITIVITY_ATOL_FACTOR = 1e3
 """Absolute tolerance of a sensitivity row over its state's (per unit of log θ or of θ)."""
-_SOLVED = "Integration successful."
-
-
-class SimulationError(FuelidError):
-    """The ODE could not be integrated at these parameter values."""
+DEFAULT_SOLVER = Solver()
 
 
 @dataclass(frozen=True)
@@ -66,6 +62,7 @@ def simulate_record(
     theta_scale: FloatArray | None = None,
     max_evaluations: int | None = None,
     rtol: float = RTOL,
+    solver: Solver = DEFAULT_SOLVER,
 ) -> Trajectory:
     """Integrate ``system`` over ``record`` from ``x0`` (with sensitivities when ``s0`` is given).
 
@@ -87,6 +84,8 @@ def simulate_record(
         where the solution chatters (a tank running dry under √x, say) costs no more than this.
     rtol : float
         Relative tolerance on the state (the absolute one is ``system.atol``).
+    solver : Solver
+        The method (:mod:`fuelid.greybox.solvers`); LSODA by default.
 
     Returns
     -------
@@ -139,9 +138,14 @@ def simulate_record(
             return dz
 
     else:
+        # the state alone: f, without the Jacobians the sensitivities need
+        plain = getattr(system, "rhs", None)
+        if plain is not None:
+            rhs = plain
+        else:
 
-        def rhs(t_now: float, z_now: FloatArray, u_now: FloatArray) -> FloatArray:
-            return system.derivatives(t_now, z_now, u_now)[0]
+            def rhs(t_now: float, z_now: FloatArray, u_now: FloatArray) -> FloatArray:
+                return system.derivatives(t_now, z_now, u_now)[0]
 
     newton_matrix = np.zeros((width, width))
     identity_q = np.eye(q)
@@ -156,59 +160,41 @@ def simulate_record(
         return newton_matrix
 
     evaluations = 0
-    for start, end in zip(starts.tolist(), ends.tolist(), strict=True):
-        if max_evaluations is not None and evaluations > max_evaluations:
-            raise SimulationError(
-                f"the ODE needed more than {max_evaluations} evaluations by {t[start]:g} s "
-                "(the solution chatters or is very stiff at these parameters)"
-            )
-        t_start = t[start]
-        t_end = t[end] if end < n_samples else t[-1] + (t[-1] - t[-2])
-        inside = np.flatnonzero((eval_times > t_start) & (eval_times <= t_end))
-        if not len(inside) and end >= n_samples:
-            break
-        times = np.concatenate(([t_start], eval_times[inside]))
-        if times[-1] < t_end and end < n_samples:
-            times = np.append(times, t_end)
-        try:
-            with warnings.catch_warnings(), np.errstate(all="ignore"):
-                warnings.simplefilter("ignore", scipy.integrate.ODEintWarning)
-                solution, info = scipy.integrate.odeint(
-                    rhs,
-                    z,
-                    times,
-                    args=(u[start],),
-                    Dfun=newton,
-                    tfirst=True,
-                    rtol=rtol,
-                    atol=atol,
-                    mxstep=MAX_STEPS,
-                    full_output=True,
+    with np.errstate(all="ignore"):
+        for start, end in zip(starts.tolist(), ends.tolist(), strict=True):
+            if max_evaluations is not None and evaluations > max_evaluations:
+                raise SimulationError(
+                    f"the ODE needed more than {max_evaluations} evaluations by {t[start]:g} s "
+                    "(the solution chatters or is very stiff at these parameters)"
                 )
-        except FuelidError:
-            raise
-        except (ArithmeticError, ValueError) as exc:
-            # the model's own arithmetic failed (math.sqrt of a negative state, say): a point
-            # where it cannot be simulated, like a solver failure
-            raise SimulationError(
-                f"the model raised {type(exc).__name__} ({exc}) on {t_start:g}…{t_end:g} s"
-            ) from exc
-        finite = bool(np.all(np.isfinite(solution)))
-        if info["message"] != _SOLVED or not finite:
-            # numpy arithmetic (√ of a negative, a division by zero) gives NaN or inf, not an
-            # exception: the solver then fails or returns non-finite values; say which
-            z_bad = np.asarray(rhs(t_start, z, u[start]), dtype=float)
-            if not finite or not np.all(np.isfinite(z_bad)):
-                reason = (
-                    "the model's derivatives are NaN or infinite there (a square root of a "
-                    "negative value, a division by zero?)"
+            t_start = t[start]
+            t_end = t[end] if end < n_samples else t[-1] + (t[-1] - t[-2])
+            inside = np.flatnonzero((eval_times > t_start) & (eval_times <= t_end))
+            if not len(inside) and end >= n_samples:
+                break
+            times = np.concatenate(([t_start], eval_times[inside]))
+            if times[-1] < t_end and end < n_samples:
+                times = np.append(times, t_end)
+            try:
+                solution, used = integrate_piece(
+                    solver, rhs, newton, z, times, u[start], rtol, atol
                 )
-            else:
-                reason = f"the ODE solver failed: {info['message']}"
-            raise SimulationError(f"on {t_start:g}…{t_end:g} s {reason}")
-        evaluations += int(info["nfe"][-1])
-        z_at[inside] = solution[1 : 1 + len(inside)]
-        z = solution[-1]
+            except SimulationError as exc:
+                reason = _reason(exc, rhs, float(t_start), z, u[start])
+                raise SimulationError(f"on {t_start:g}…{t_end:g} s {reason}") from None
+            except FuelidError:
+                raise
+            except (ArithmeticError, ValueError) as exc:
+                # the model's own arithmetic failed (math.sqrt of a negative state, say): a
+                # point where it cannot be simulated, like a solver failure
+                raise SimulationError(
+                    f"the model raised {type(exc).__name__} ({exc}) on {t_start:g}…{t_end:g} s"
+                ) from exc
+            if not np.all(np.isfinite(solution)):
+                raise SimulationError(f"on {t_start:g}…{t_end:g} s {_NOT_FINITE}")
+            evaluations += used
+            z_at[inside] = solution[: len(inside)]
+            z = solution[-1]
     # the input in effect at each (delayed) output time
     held_at = np.clip(np.searchsorted(t, eval_times, side="right") - 1, 0, n_samples - 1)
     parts = []
@@ -238,3 +224,24 @@ def simulate_record(
         if dy is not None and dy_k is not None:
             dy[:, columns] = dy_k[:, columns]
     return Trajectory(states, y, dy, evaluations)
+
+
+_NOT_FINITE = (
+    "the model's derivatives are NaN or infinite there (a square root of a negative value, a "
+    "division by zero?)"
+)
+
+
+def _reason(exc: SimulationError, rhs: Rhs, t: float, z: FloatArray, u: FloatArray) -> str:
+    """Why a piece failed: non-finite derivatives at its start, or the solver's own message.
+
+    numpy arithmetic (√ of a negative, a division by zero) gives NaN or inf, not an exception:
+    the solver then fails; the derivatives at the piece's start say which.
+    """
+    try:
+        derivative = np.asarray(rhs(t, z, u), dtype=float)
+    except (ArithmeticError, ValueError, FuelidError):
+        return str(exc)
+    if not np.all(np.isfinite(derivative)) or not np.all(np.isfinite(z)):
+        return _NOT_FINITE
+    return str(exc)

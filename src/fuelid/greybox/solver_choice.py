@@ -1,0 +1,201 @@
+"""Which solver a gray-box fit runs with: the user's, or ``auto``'s choice at the start values.
+
+``auto`` (the default) simulates the records at the start values with LSODA. Where LSODA fails
+(a right-hand side that switches on a state, say, where its error control shrinks the step
+without end) it tries BDF with its step bounded by the sample interval, then fixed-step RK4 with
+1, 2, 4, … steps per sample until a result agrees with the next doubling within
+:data:`RK4_AGREEMENT`; beyond :data:`~fuelid.greybox.solvers.MAX_SUBSTEPS` it refuses with the
+reason, since a model that needs more is stiff and RK4 would crawl (or diverge) where an
+implicit method strides. The fit then runs with the solver chosen, and says which.
+
+``rk4`` without a number of substeps chooses them by the same doubling; with one, it is used as
+given.
+
+The agreement is measured against the noise: ‖(y_s − y_2s)/σ‖₂ over every sample of every
+record, σ each output's sample-to-sample noise level. A systematic simulation error e moves no
+estimate by more than ‖e/σ‖₂ standard errors (the projection of e/σ on the sensitivities' span
+is no longer than e/σ), and the error of y_s is about the difference itself where RK4 converges
+only at first order (at a discontinuity): 0.05 keeps the integration's share of any estimate
+under about 0.1 standard error.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from fuelid.errors import ConfigError
+from fuelid.greybox.solvers import (
+    CHOICES,
+    MAX_SUBSTEPS,
+    FloatArray,
+    SimulationError,
+    Solver,
+    check_max_step,
+    check_substeps,
+)
+from fuelid.greybox.system import Record
+
+RK4_AGREEMENT = 0.05
+"""‖(y_s − y_2s)/σ‖₂ below which RK4 with s steps per sample is accurate enough (module
+docstring)."""
+
+
+@dataclass(frozen=True)
+class SolverChoice:
+    """The solver a fit runs with and why."""
+
+    solver: Solver
+    requested: str
+    """What the user asked for: ``auto`` or a method."""
+    reason: str
+    """One line: why this solver (empty when it is simply the one asked for)."""
+
+    def to_json(self) -> dict[str, object]:
+        """The JSON ``solver`` object: method, max_step, substeps, requested, reason."""
+        return {**self.solver.to_json(), "requested": self.requested, "reason": self.reason}
+
+    def describe(self) -> str:
+        """E.g. ``rk4 (8 steps per sample; auto: lsoda failed: …)``."""
+        text = self.solver.describe()
+        if self.requested == "auto":
+            return f"{text}, chosen by auto" + (f" ({self.reason})" if self.reason else "")
+        return text + (f" ({self.reason})" if self.reason else "")
+
+
+def check_request(method: str, max_step: float | None, substeps: int | None) -> None:
+    """Refuse an unknown solver, a bad max step or bad substeps (ConfigError)."""
+    if method not in CHOICES:
+        raise ConfigError(f"solver must be one of {', '.join(CHOICES)}, not {method!r}")
+    check_max_step(max_step)
+    check_substeps(substeps)
+    if substeps is not None and method not in {"rk4", "auto"}:
+        raise ConfigError(f"substeps apply to the rk4 solver only, not to {method}")
+
+
+Simulate = Callable[[Solver], Sequence[FloatArray]]
+"""Simulate every record with a solver: the outputs of each (raises SimulationError)."""
+
+
+def choose_solver(
+    method: str,
+    max_step: float | None,
+    substeps: int | None,
+    simulate: Simulate,
+    records: Sequence[Record],
+    noise: FloatArray,
+) -> SolverChoice:
+    """The solver for a fit, from the user's request and trial simulations at the start values.
+
+    Parameters
+    ----------
+    method : str
+        ``auto`` or one of :data:`~fuelid.greybox.solvers.METHODS`.
+    max_step : float or None
+        The user's longest step [s] (None: none).
+    substeps : int or None
+        The user's RK4 steps per sample (None: chosen by doubling).
+    simulate : callable
+        Simulates every record (outputs only) with a solver; raises SimulationError.
+    records : sequence of Record
+        The records (for the sample interval that bounds BDF's step).
+    noise : ndarray
+        Each output's noise level σ, the scale of RK4's agreement test.
+
+    Raises
+    ------
+    SimulationError
+        When no solver can integrate the model at the start values; the message gives each
+        one's reason.
+    """
+    check_request(method, max_step, substeps)
+    if method == "rk4" and substeps is not None:
+        return SolverChoice(Solver("rk4", max_step, substeps), "rk4", "")
+    if method == "rk4":
+        solver, agreement = _rk4_by_doubling(simulate, noise, [], max_step)
+        return SolverChoice(solver, "rk4", agreement)
+    if method != "auto":
+        return SolverChoice(Solver(method, max_step), method, "")
+    failures: list[str] = []
+    lsoda = Solver("lsoda", max_step)
+    try:
+        simulate(lsoda)
+        return SolverChoice(lsoda, "auto", "")
+    except SimulationError as exc:
+        failures.append(f"lsoda: {exc}")
+    interval = float(min(np.median(np.diff(record.t)) for record in records))
+    bdf = Solver("bdf", interval if max_step is None else min(max_step, interval))
+    try:
+        simulate(bdf)
+        return SolverChoice(bdf, "auto", f"lsoda failed: {_short(failures[0])}")
+    except SimulationError as exc:
+        failures.append(f"bdf: {exc}")
+    solver, agreement = _rk4_by_doubling(simulate, noise, failures, max_step)
+    return SolverChoice(
+        solver, "auto", f"lsoda and bdf failed ({_short(failures[0])}); {agreement}"
+    )
+
+
+def _rk4_by_doubling(
+    simulate: Simulate, noise: FloatArray, failures: list[str], max_step: float | None
+) -> tuple[Solver, str]:
+    """RK4 with the fewest steps per sample that agree with twice as many (see the module)."""
+    scale = np.asarray(noise, dtype=float)
+    substeps = 1
+    coarse = _outputs(simulate, Solver("rk4", max_step, substeps))
+    difference = math.inf
+    while substeps <= MAX_SUBSTEPS:
+        fine = _outputs(simulate, Solver("rk4", max_step, 2 * substeps))
+        if coarse is not None and fine is not None:
+            difference = _distance(coarse, fine, scale)
+            if difference <= RK4_AGREEMENT:
+                return Solver("rk4", max_step, substeps), (
+                    f"rk4 with {substeps} step{'s' if substeps != 1 else ''} per sample agrees "
+                    f"with {2 * substeps} to {difference:.2g} noise standard deviations"
+                )
+        coarse = fine
+        substeps *= 2
+    tried = "; ".join(_short(text) for text in failures)
+    shown = (
+        "did not give a finite result"
+        if not math.isfinite(difference)
+        else f"still differs from {2 * MAX_SUBSTEPS} by {difference:.3g} noise standard "
+        f"deviations (agreement needs {RK4_AGREEMENT:g})"
+    )
+    raise SimulationError(
+        (f"{tried}; " if tried else "")
+        + f"rk4 with {MAX_SUBSTEPS} steps per sample {shown}: the model is too stiff for a "
+        "fixed step (or not finite); give it an implicit solver (--solver bdf or radau, with "
+        "--max-step if its switches are missed) or remove its fastest mode"
+    )
+
+
+def _outputs(simulate: Simulate, solver: Solver) -> Sequence[FloatArray] | None:
+    """The records' outputs with this solver, or None where it failed."""
+    try:
+        return simulate(solver)
+    except SimulationError:
+        return None
+
+
+def _distance(
+    first: Sequence[FloatArray], second: Sequence[FloatArray], scale: FloatArray
+) -> float:
+    """‖(y₁ − y₂)/σ‖₂ over every finite sample of every record."""
+    total = 0.0
+    for a, b in zip(first, second, strict=True):
+        diff = (np.asarray(a) - np.asarray(b)) / scale
+        finite = np.isfinite(diff)
+        if not np.all(finite | ~np.isfinite(np.asarray(a))):
+            return math.inf
+        total += float(np.sum(diff[finite] ** 2))
+    return math.sqrt(total)
+
+
+def _short(text: str, limit: int = 160) -> str:
+    """A failure's message cut to one readable clause."""
+    text = " ".join(str(text).split())
+    return text if len(text) <= limit else text[: limit - 1] + "…"

@@ -1,0 +1,247 @@
+"""The ODE solvers a gray-box simulation can run with, one held-input piece at a time.
+
+The inputs are held between samples (the PLC's zero-order hold), so
+:func:`~fuelid.greybox.sensitivity.simulate_record` integrates the span piece by piece between
+input changes; inside a piece the right-hand side is smooth unless the model itself has kinks
+(``max``, ``min``, ``clip``, an ``if`` on a state). :func:`integrate_piece` integrates one piece
+with the chosen method:
+
+- ``lsoda`` (:func:`scipy.integrate.odeint`): Adams while the problem is non-stiff, BDF when it
+  turns stiff; the default, and the first try of ``auto``;
+- ``bdf``, ``radau``, ``rk45`` (:func:`scipy.integrate.solve_ivp`): variable-step, with the
+  Newton matrix given to the implicit two;
+- ``rk4``: the classical fixed-step Runge–Kutta method, ``substeps`` equal steps per sample
+  interval. It never fails on a discontinuous right-hand side (a branch that switches the
+  derivative's sign on a state, where an error-controlled solver shrinks its step without end),
+  and is accurate only where the step resolves the model's fastest mode: the estimator's
+  ``auto`` checks that by doubling the substeps (:mod:`fuelid.greybox.solver_choice`).
+
+Every method stops with :class:`SimulationError` when a piece needs more right-hand-side
+evaluations than its budget: a trial point where the solution chatters costs no
+more than that.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.integrate
+from numpy.typing import NDArray
+
+from fuelid.errors import ConfigError, FuelidError
+
+FloatArray = NDArray[np.float64]
+Rhs = Callable[[float, FloatArray, FloatArray], FloatArray]
+Newton = Callable[[float, FloatArray, FloatArray], FloatArray]
+
+METHODS = ("lsoda", "bdf", "radau", "rk45", "rk4")
+"""The solvers a simulation runs with."""
+CHOICES = ("auto", *METHODS)
+"""What a user may ask for: a solver, or ``auto`` (the estimator picks one, see
+:mod:`fuelid.greybox.solver_choice`)."""
+MAX_SUBSTEPS = 64
+"""Most RK4 steps per sample interval: a model that needs more is stiff, and RK4 would take
+ever smaller steps where an implicit method takes large ones."""
+STEPS_PER_SAMPLE = 50
+"""An error-controlled solver may take this many steps per sample of a piece (at least 500 a
+piece) before it gives up: a smooth model needs about one."""
+_SOLVED = "Integration successful."
+
+
+class SimulationError(FuelidError):
+    """The ODE could not be integrated at these parameter values."""
+
+
+@dataclass(frozen=True)
+class Solver:
+    """How a record is integrated.
+
+    Attributes
+    ----------
+    method : str
+        One of :data:`METHODS`.
+    max_step : float or None
+        Longest step [s] a variable-step method may take (None: no limit).
+    substeps : int
+        RK4 steps per sample interval (ignored by the others).
+    """
+
+    method: str = "lsoda"
+    max_step: float | None = None
+    substeps: int = 1
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ConfigError(f"solver must be one of {', '.join(CHOICES)}, not {self.method!r}")
+        check_max_step(self.max_step)
+        # twice the cap is allowed here: auto's check of the cap compares it with its doubling
+        if not 1 <= self.substeps <= 2 * MAX_SUBSTEPS:
+            raise ConfigError(f"substeps {self.substeps} outside 1…{MAX_SUBSTEPS}")
+
+    def describe(self) -> str:
+        """E.g. ``lsoda``, ``bdf (max step 0.5 s)``, ``rk4 (8 steps per sample)``."""
+        if self.method == "rk4":
+            return f"rk4 ({self.substeps} step{'s' if self.substeps != 1 else ''} per sample)"
+        if self.max_step is not None:
+            return f"{self.method} (max step {self.max_step:g} s)"
+        return self.method
+
+    def to_json(self) -> dict[str, object]:
+        """``method``, ``max_step`` [s] (None: none) and ``substeps`` (RK4 only, else None)."""
+        return {
+            "method": self.method,
+            "max_step": self.max_step,
+            "substeps": self.substeps if self.method == "rk4" else None,
+        }
+
+
+def check_max_step(value: float | None) -> None:
+    """Refuse a max step that is not a positive finite number of seconds."""
+    if value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ConfigError(f"max_step must be a number of seconds, got {value!r}")
+    if not (math.isfinite(value) and value > 0.0):
+        raise ConfigError(f"max_step must be a positive number of seconds, got {value!r}")
+
+
+def check_substeps(value: int | None) -> None:
+    """Refuse RK4 substeps that are not an integer 1…:data:`MAX_SUBSTEPS`."""
+    if value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_SUBSTEPS:
+        raise ConfigError(
+            f"substeps must be an integer from 1 to {MAX_SUBSTEPS} (RK4 steps per sample), "
+            f"got {value!r}"
+        )
+
+
+class _Budget(Exception):
+    """Raised inside a solve_ivp right-hand side when the piece's budget is spent."""
+
+
+def integrate_piece(
+    solver: Solver,
+    rhs: Rhs,
+    newton: Newton | None,
+    z: FloatArray,
+    times: FloatArray,
+    u: FloatArray,
+    rtol: float,
+    atol: FloatArray,
+) -> tuple[FloatArray, int]:
+    """Integrate dz/dt = rhs(t, z, u) from ``times[0]`` through ``times``, u held.
+
+    Returns the solution at ``times[1:]`` (one row each) and the right-hand-side evaluations.
+    The steps a variable-step method may take are limited to :data:`STEPS_PER_SAMPLE` per
+    interval of ``times`` (at least 500).
+
+    Raises
+    ------
+    SimulationError
+        When the solver fails, runs out of steps, or the solution is not finite.
+    """
+    intervals = len(times) - 1
+    max_steps = max(500, STEPS_PER_SAMPLE * intervals)
+    if solver.method == "rk4":
+        return _rk4(rhs, z, times, u, solver.substeps), 4 * solver.substeps * intervals
+    if solver.method == "lsoda":
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", scipy.integrate.ODEintWarning)
+            solution, info = scipy.integrate.odeint(
+                rhs,
+                z,
+                times,
+                args=(u,),
+                Dfun=newton,
+                tfirst=True,
+                rtol=rtol,
+                atol=atol,
+                mxstep=max_steps,
+                hmax=0.0 if solver.max_step is None else solver.max_step,
+                full_output=True,
+            )
+        if info["message"] != _SOLVED:
+            raise SimulationError(f"the ODE solver (lsoda) failed: {info['message']}")
+        return solution[1:], int(info["nfe"][-1])
+    return _solve_ivp(solver, rhs, newton, z, times, u, rtol, atol, max_steps)
+
+
+def _solve_ivp(
+    solver: Solver,
+    rhs: Rhs,
+    newton: Newton | None,
+    z: FloatArray,
+    times: FloatArray,
+    u: FloatArray,
+    rtol: float,
+    atol: FloatArray,
+    max_steps: int,
+) -> tuple[FloatArray, int]:
+    # a budget of evaluations rather than steps: solve_ivp has no step limit of its own
+    budget = 8 * max_steps
+    count = [0]
+
+    def fun(t: float, state: FloatArray) -> FloatArray:
+        count[0] += 1
+        if count[0] > budget:
+            raise _Budget
+        return np.array(rhs(t, state, u), dtype=float)
+
+    implicit = solver.method in {"bdf", "radau"}
+    jac = None
+    if implicit and newton is not None:
+        newton_matrix = newton
+
+        def jac(t: float, state: FloatArray) -> FloatArray:
+            return np.array(newton_matrix(t, state, u), dtype=float)
+
+    method = {"bdf": "BDF", "radau": "Radau", "rk45": "RK45"}[solver.method]
+    try:
+        result = scipy.integrate.solve_ivp(
+            fun,
+            (float(times[0]), float(times[-1])),
+            z,
+            method=method,
+            t_eval=times[1:],
+            rtol=rtol,
+            atol=atol,
+            max_step=math.inf if solver.max_step is None else solver.max_step,
+            **({"jac": jac} if jac is not None else {}),
+        )
+    except _Budget:
+        raise SimulationError(
+            f"the ODE solver ({solver.method}) needed more than {budget} evaluations "
+            f"on {times[0]:g}…{times[-1]:g} s"
+        ) from None
+    if not result.success or result.y.shape[1] != len(times) - 1:
+        raise SimulationError(f"the ODE solver ({solver.method}) failed: {result.message}")
+    return np.ascontiguousarray(result.y.T), count[0]
+
+
+def _rk4(rhs: Rhs, z: FloatArray, times: FloatArray, u: FloatArray, substeps: int) -> FloatArray:
+    """Classical RK4, ``substeps`` equal steps per interval of ``times``."""
+    out = np.empty((len(times) - 1, len(z)))
+    state = np.array(z, dtype=float)
+    for i in range(len(times) - 1):
+        h = (times[i + 1] - times[i]) / substeps
+        t = float(times[i])
+        for _ in range(substeps):
+            # the right-hand side may reuse its output buffer: each stage is copied
+            k1 = np.array(rhs(t, state, u))
+            k2 = np.array(rhs(t + 0.5 * h, state + (0.5 * h) * k1, u))
+            k3 = np.array(rhs(t + 0.5 * h, state + (0.5 * h) * k2, u))
+            k4 = np.array(rhs(t + h, state + h * k3, u))
+            state = state + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            t += h
+        out[i] = state
+    if not np.all(np.isfinite(out)):
+        raise SimulationError(
+            f"rk4 with {substeps} step(s) per sample diverged (the model is stiffer than the "
+            "step resolves, or its derivatives are not finite)"
+        )
+    return out
