@@ -50,6 +50,17 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
+class SolverName(enum.StrEnum):
+    """The ODE solver (``--solver``); the values of :data:`fuelid.greybox.solvers.CHOICES`."""
+
+    auto = "auto"
+    lsoda = "lsoda"
+    bdf = "bdf"
+    radau = "radau"
+    rk45 = "rk45"
+    rk4 = "rk4"
+
+
 class InitialState(enum.StrEnum):
     """How each record's initial state is set (``--initial-state``)."""
 
@@ -198,6 +209,42 @@ def greybox_command(
             "records' sample-to-sample noise; none: never.",
         ),
     ] = "auto",
+    solver: Annotated[
+        SolverName | None,
+        typer.Option(
+            help="ODE solver. auto: LSODA, or where it cannot simulate the start values BDF with "
+            "its step bounded by the sample interval, then fixed-step RK4 with its steps per "
+            "sample doubled until they agree (up to 64; a stiffer model is refused). Default: "
+            "the model file's solver, else auto.",
+            show_default=False,
+        ),
+    ] = None,
+    max_step: Annotated[
+        float | None,
+        typer.Option(
+            metavar="SECONDS",
+            help="Longest step of a variable-step solver (default: the model file's, else none).",
+            show_default=False,
+        ),
+    ] = None,
+    substeps: Annotated[
+        int | None,
+        typer.Option(
+            metavar="N",
+            help="RK4 steps per sample interval, 1…64 (default: the model file's, else chosen by "
+            "doubling until the result agrees with twice as many).",
+            show_default=False,
+        ),
+    ] = None,
+    hold_undetermined: Annotated[
+        bool,
+        typer.Option(
+            "--hold-undetermined",
+            help="Hold a parameter the outputs do not depend on at all (one that acts only beyond "
+            "a limit or kink the data never reach) at its value and fit the rest; the JSON lists "
+            "it under not_determined with the reason. Without it such a fit is refused.",
+        ),
+    ] = False,
     profile: Annotated[
         str | None,
         typer.Option(
@@ -231,6 +278,7 @@ def greybox_command(
     from fuelid.greybox.fitting import ConvergenceError
     from fuelid.greybox.identifiability import NotIdentifiableError, describe_identifiability
     from fuelid.greybox.modelfile import read_model_file
+    from fuelid.greybox.solver_choice import check_request as check_solver_request
     from fuelid.workflow.greybox_fit import (
         data_columns,
         fit_warnings,
@@ -265,12 +313,18 @@ def greybox_command(
     mf.check(float(records[0].t[0]), records[0].u[0])
 
     start = _segments(segments)
+    solver_name = solver.value if solver is not None else (mf.solver or "auto")
     estimator = GreyBoxEstimator(
         model,
         initial_state=initial_state.value,
         max_iterations=max_iterations,
         segments=start,
+        solver=solver_name,
+        max_step=max_step if max_step is not None else mf.max_step,
+        substeps=substeps if substeps is not None else mf.substeps,
+        hold_undetermined=hold_undetermined,
     )
+    check_solver_request(estimator.solver, estimator.max_step, estimator.substeps)
     started = time.perf_counter()
     with progress_display() as stage:
         stage("fitting")
@@ -278,7 +332,12 @@ def greybox_command(
             estimator.fit(records)
         except NotIdentifiableError as exc:
             raise FuelidError(
-                _refusal(exc.report.message(), exc.report.undetermined_names, specs)
+                _refusal(
+                    exc.report.message(),
+                    exc.report.undetermined_names,
+                    specs,
+                    exc.report.zero_sensitivity,
+                )
             ) from None
         except ConvergenceError as exc:
             hint = "; --segments auto or N tries a segmented start" if start is None else ""
@@ -322,6 +381,10 @@ def greybox_command(
         "initial_state": initial_state.value,
         "max_iterations": max_iterations,
         "segments": segments,
+        "solver": None if solver is None else solver.value,
+        "max_step": max_step,
+        "substeps": substeps,
+        "hold_undetermined": hold_undetermined,
         "profile": profiled,
         "plot": None if plot is None else str(plot),
     }
@@ -352,12 +415,18 @@ def _profiled(profile: str | None, estimated: list[str]) -> list[str]:
     return names
 
 
-def _refusal(message: str, names: tuple[str, ...], specs: Any) -> str:
-    """The one-line reason of a refused fit, with the --fix it suggests."""
+def _refusal(message: str, names: tuple[str, ...], specs: Any, unused: tuple[str, ...] = ()) -> str:
+    """The one-line reason of a refused fit, with the --fix (or --hold-undetermined) it suggests."""
     parameters = [spec.name for spec in specs if spec.name in names]
     example = parameters[-1] if parameters else (names[0] if names else "NAME")
     # the message already says which to fix; the command line is what the user types
-    return f"{message}; with this command: --fix {example} --set {example}=VALUE"
+    text = f"{message}; with this command: --fix {example} --set {example}=VALUE"
+    if any(spec.name in unused for spec in specs):
+        text += (
+            ", or --hold-undetermined to hold what the outputs do not depend on at its value "
+            "and report it as not determined"
+        )
+    return text
 
 
 def _plot(
@@ -420,13 +489,25 @@ def _print(
     console = Console()
     units = result["units"].get("parameter_units", {})
     table = Table(title=escape(f"{model_file.name}: parameters (units of the model file)"))
-    for column in ("parameter", "value", "std. error", "95 % interval", "", "unit"):
+    misfit = result["misfit"]
+    interval_heading = (
+        "95 % interval" if misfit is None else "95 % interval if the model were right"
+    )
+    for column in ("parameter", "value", "std. error", interval_heading, "", "unit"):
         if column != "unit" or units:
             table.add_column(column, justify="right")
     for name, value in result["parameters"].items():
         se, ci = result["stderr"][name], result["ci95"][name]
         fixed = name in result["fixed"]
-        status = "fixed" if fixed else "free" if se is not None else "free, undetermined"
+        status = (
+            "fixed"
+            if fixed
+            else "not determined, held"
+            if name in result["not_determined"]
+            else "free"
+            if se is not None
+            else "free, undetermined"
+        )
         cells = [
             name,
             format_estimate(value, se),
@@ -438,7 +519,10 @@ def _print(
             cells.append(units.get(name, ""))
         table.add_row(*(escape(cell) for cell in cells))
     console.print(table)
-    lines = [
+    lines = []
+    if misfit is not None:
+        lines.append(misfit["note"])
+    lines += [
         f"fit (NRMSE, free-run simulation) on {name}: "
         + ", ".join(f"{k} {v:.2f} %" for k, v in fits.items())
         for name, fits in result["fit_percent"].items()
@@ -466,7 +550,12 @@ def _print(
                 f"profile-likelihood 95 % interval of {name}: "
                 f"{format_estimate(lo, se)} … {format_estimate(hi, se)}"
             )
+    for name, reason in result["not_determined"].items():
+        lines.append(f"{name} not determined: {reason}")
     lines.extend(identifiability)
-    lines.append(f"{result['n_iterations']} iterations, {result['start']}, {seconds:.1f} s")
+    lines.append(
+        f"{result['n_iterations']} iterations, {result['start']}, solver "
+        f"{result['solver_description']}, {seconds:.1f} s"
+    )
     for line in lines:
         console.print(line, highlight=False, markup=False)

@@ -172,6 +172,11 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         How the fit was started ("single shooting" or the segmented start's stages).
     solver_ : SolverChoice
         The solver the fit ran with, what was asked for and why.
+    linearity_ : dict
+        Per free parameter, how far its sensitivity is from the simulation over ±1 standard
+        error (relative; None where not checked): above
+        :data:`~fuelid.greybox.profile.LINEARITY_LIMIT` its interval is not to be trusted (a
+        switch the sensitivities do not follow, or strong nonlinearity).
     not_determined_ : dict
         Parameters held at their value because the outputs do not depend on them (with
         ``hold_undetermined``), name → reason; empty otherwise.
@@ -440,6 +445,7 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         self.params_ = self.map_.values(phi[:p])
         self.stderr_ = uncertainty.stderr
         self.ci95_ = uncertainty.ci95
+        self.linearity_ = self._linearity(phi, records, evaluation, unknown)
         n = self.n_states_
         if self.estimate_x0_:
             self.x0_ = [phi[p + i * n : p + (i + 1) * n].copy() for i in range(len(records))]

@@ -21,7 +21,10 @@ The file is ordinary Python and is *executed* to read it (only load files you tr
 A parameter entry is a number (start, unbounded), a 2-tuple ``(start, lower)``, a 3-tuple
 ``(start, lower, upper)`` or a dict with ``value`` and optionally ``lower``, ``upper``, ``fixed``
 (and ``unit``, ``description``, shown but not used). ``state_scale`` (a typical state size) is
-optional. Other names in the file are the file's own business.
+optional, and so are the solver settings ``solver`` (``"auto"``, ``"lsoda"``, ``"bdf"``,
+``"radau"``, ``"rk45"`` or ``"rk4"``), ``max_step`` (the longest step [s]) and ``substeps`` (RK4
+steps per sample, 1…64), which the command line's ``--solver``, ``--max-step`` and
+``--substeps`` override. Other names in the file are the file's own business.
 
 Every error while loading the file becomes a one-line :class:`~fuelid.errors.ConfigError`
 naming the file and the line in it. An exception raised later inside ``f``, ``h`` or ``x0``
@@ -50,6 +53,7 @@ from fuelid.errors import ConfigError, FuelidError
 from fuelid.greybox.odemodel import OdeModel
 from fuelid.greybox.parameters import ParameterSpec
 from fuelid.greybox.sensitivity import SimulationError
+from fuelid.greybox.solvers import CHOICES, check_max_step, check_substeps
 
 __all__ = [
     "ModelArithmeticError",
@@ -93,6 +97,12 @@ class ModelFile:
         ``unit`` of the parameter entries that give one.
     has_x0 : bool
         The file defines ``x0``.
+    solver : str or None
+        ``solver`` of the file (None: not given; the fit's default is ``auto``).
+    max_step : float or None
+        ``max_step`` of the file [s].
+    substeps : int or None
+        ``substeps`` of the file (RK4 steps per sample).
     """
 
     def __init__(
@@ -103,6 +113,9 @@ class ModelFile:
         output_names: tuple[str, ...] | None,
         units: dict[str, str],
         has_x0: bool,
+        solver: str | None = None,
+        max_step: float | None = None,
+        substeps: int | None = None,
     ) -> None:
         self.path = path
         self.model = model
@@ -110,6 +123,9 @@ class ModelFile:
         self.output_names = output_names
         self.units = units
         self.has_x0 = has_x0
+        self.solver = solver
+        self.max_step = max_step
+        self.substeps = substeps
 
     def check(self, t0: float, u0: FloatArray) -> None:
         """Call ``f`` and ``h`` once at the start values, refusing outputs of the wrong size.
@@ -224,6 +240,7 @@ def read_model_file(path: str | Path) -> ModelFile:
         raise ConfigError(
             f"{at('state_scale')}: state_scale must be a positive number, got {state_scale!r}"
         )
+    solver, max_step, substeps = _solver_settings(namespace, at)
     try:
         model = OdeModel(
             f=_located(f, file, shown, "f"),
@@ -237,7 +254,31 @@ def read_model_file(path: str | Path) -> ModelFile:
         )
     except ConfigError as exc:
         raise ConfigError(f"{shown}: {exc}") from None
-    return ModelFile(file, model, inputs, outputs, units, x0 is not None)
+    return ModelFile(
+        file, model, inputs, outputs, units, x0 is not None, solver, max_step, substeps
+    )
+
+
+def _solver_settings(
+    namespace: Mapping[str, Any], at: Callable[..., str]
+) -> tuple[str | None, float | None, int | None]:
+    """The file's ``solver``, ``max_step`` and ``substeps`` (None where not given), checked."""
+    solver = namespace.get("solver")
+    max_step = namespace.get("max_step")
+    substeps = namespace.get("substeps")
+    if solver is not None and (not isinstance(solver, str) or solver not in CHOICES):
+        raise ConfigError(
+            f"{at('solver')}: solver must be one of {', '.join(CHOICES)}, got {solver!r}"
+        )
+    for name, value, check in (
+        ("max_step", max_step, check_max_step),
+        ("substeps", substeps, check_substeps),
+    ):
+        try:
+            check(value)
+        except ConfigError as exc:
+            raise ConfigError(f"{at(name)}: {exc}") from None
+    return solver, None if max_step is None else float(max_step), substeps
 
 
 # --- running the file ----------------------------------------------------------------------------

@@ -89,6 +89,9 @@ class FunctionSystem:
         self._all_steps[n:] = self._theta_steps
         self._state_scale = float(model.state_scale)
         self._last: tuple[float, bytes, FloatArray] | None = None
+        self.jacobian_limit = np.inf
+        """|∂f/∂x| beyond which a column is taken as a difference straddling a switch (set by
+        fixed-step RK4 to its stability limit: see :meth:`_one_sided`)."""
         # the parameters with one free parameter stepped, for the scalar differences
         self._perturbed = []
         for j, name in enumerate(self.free):
@@ -142,7 +145,7 @@ class FunctionSystem:
                 steps = self._all_steps
                 steps[:n] = dx_steps
                 jac = (out[:, 1:] - base[:, None]) / steps
-                jac_x = jac[:, :n]
+                jac_x = self._one_sided(t, x, u, base, jac[:, :n], dx_steps)
                 self._last = (t, x.tobytes(), jac_x)
                 return base, jac_x, jac[:, n:]
         # a function of scalars: one call per column, the results stacked once (the calls
@@ -161,9 +164,39 @@ class FunctionSystem:
         steps = self._all_steps
         steps[:n] = dx_steps
         jac = ((table[1:] - base) / steps[:, None]).T
-        jac_x = jac[:, :n]
+        jac_x = self._one_sided(t, x, u, base, jac[:, :n], dx_steps)
         self._last = (t, x.tobytes(), jac_x)
         return base, jac_x, jac[:, n:]
+
+    def _one_sided(
+        self,
+        t: float,
+        x: FloatArray,
+        u: FloatArray,
+        base: FloatArray,
+        jac_x: FloatArray,
+        dx_steps: FloatArray,
+    ) -> FloatArray:
+        """∂f/∂x with each column beyond ``jacobian_limit`` taken from the other side.
+
+        A forward difference whose step crosses a switch of the model (an ``if`` that makes f
+        jump) is the jump over the step, ~1e8 times the real slope: a "mode" a fixed step
+        cannot integrate, which would blow the sensitivities up. Such a column is recomputed
+        backwards, and the smaller of the two kept: the slope on the side the state is on.
+        """
+        if not np.isfinite(self.jacobian_limit):
+            return jac_x
+        large = np.flatnonzero(np.max(np.abs(jac_x), axis=0) > self.jacobian_limit)
+        if not len(large):
+            return jac_x
+        jac_x = jac_x.copy()
+        for i in large:
+            shifted = x.copy()
+            shifted[i] -= dx_steps[i]
+            backward = (base - self._f(t, shifted, u, self.values)) / dx_steps[i]
+            if np.max(np.abs(backward)) < np.max(np.abs(jac_x[:, i])):
+                jac_x[:, i] = backward
+        return jac_x
 
     def _agrees(
         self, t: float, x: FloatArray, u: FloatArray, out: FloatArray, dx_steps: FloatArray

@@ -33,6 +33,9 @@ from fuelid.greybox.system import Record
 
 CHI2_95 = float(scipy.special.chdtri(1, 0.05))
 """χ²₁'s 95 % quantile."""
+LINEARITY_LIMIT = 0.2
+"""A sensitivity that misses the simulated change over ±1 standard error by more than this share
+makes the parameter's Gaussian interval untrustworthy (:meth:`ProfileLikelihood._linearity`)."""
 PROFILE_DOUBLINGS = 8
 """A profile steps out 2, 4, … 256 standard errors looking for the crossing."""
 
@@ -148,6 +151,53 @@ class ProfileLikelihood(ShootingFit):
         evaluation = self._evaluate(phi, records, result.sigma, jacobian=True)
         self._refuse_structural(phi, evaluation)
         return self._single_shooting(phi, records, result.sigma, evaluation)
+
+    def _linearity(
+        self,
+        phi: FloatArray,
+        records: Sequence[Record],
+        evaluation: Evaluation,
+        unknown: set[str],
+    ) -> dict[str, float | None]:
+        """Per free parameter: ‖Δr − J·Δφ‖/‖J·Δφ‖ for a step of ±1 standard error in it.
+
+        Δr is the central difference of the simulated residuals (two simulations without
+        sensitivities), J·Δφ what the sensitivities predict. Where the model is smooth and the
+        parameter well determined this is curvature only (≪ 0.1); where a switch (an ``if`` that
+        makes the right-hand side jump) moves with the parameter, the sensitivity equations miss
+        it and the covariance with them. None: not checked (no standard error, or ±1 standard
+        error leaves the bounds).
+        """
+        out: dict[str, float | None] = {}
+        assert evaluation.jacobian is not None
+        lower, upper = self.map_.bounds()
+        sigma = self.sigma_ if "sigma_" in vars(self) else np.ones(1)
+        for j, name in enumerate(self.free_names_):
+            out[name] = None
+            step = math.sqrt(max(float(self.cov_phi_[j, j]), 0.0))
+            if (
+                name in unknown
+                or step == 0.0
+                or not (lower[j] < phi[j] - step and phi[j] + step < upper[j])
+            ):
+                continue
+            moved = []
+            for sign in (1.0, -1.0):
+                trial = phi.copy()
+                trial[j] += sign * step
+                try:
+                    moved.append(self._evaluate(trial, records, sigma, jacobian=False).residuals)
+                except (SimulationError, FloatingPointError, OverflowError):
+                    break
+            if len(moved) < 2:
+                out[name] = math.inf
+                continue
+            predicted = evaluation.jacobian[:, j] * step
+            size = float(np.linalg.norm(predicted))
+            if size > 0.0:
+                actual = 0.5 * (moved[0] - moved[1])
+                out[name] = float(np.linalg.norm(actual - predicted)) / size
+        return out
 
     def _report(self, phi: FloatArray, jac: FloatArray) -> IdentifiabilityReport:
         p = len(self.free_names_)

@@ -23,6 +23,7 @@ from fuelid.greybox.estimator import VALIDATION_HEAD_SHARE
 from fuelid.greybox.identifiability import correlation_warning
 from fuelid.greybox.modelfile import ModelFile
 from fuelid.greybox.multiple_shooting import SUSPECT_NOISE_RATIO
+from fuelid.greybox.profile import LINEARITY_LIMIT
 from fuelid.io.tables import find_column, match_column, read_table, to_float
 from fuelid.io.timeseries import INPUT_COLUMN, OUTPUT_COLUMN
 from fuelid.model import nrmse_fit_columns
@@ -192,8 +193,21 @@ def fit_warnings(estimator: GreyBoxEstimator) -> list[str]:
                 "(a model error, slow disturbances or a local minimum): the standard errors "
                 "assume white residuals and are too small"
             )
+    for name, discrepancy in estimator.linearity_.items():
+        if discrepancy is not None and not discrepancy <= LINEARITY_LIMIT:
+            shown = (
+                "cannot be simulated"
+                if math.isinf(discrepancy)
+                else (f"is missed by its sensitivity by {100 * discrepancy:.0f} %")
+            )
+            out.append(
+                f"{name}: the simulated change over ±1 standard error {shown} (a switch the "
+                "sensitivities do not follow, or strong nonlinearity): its standard error and "
+                f"interval are not reliable; --profile {name} gives an interval from "
+                "simulations alone"
+            )
     for spec in estimator.model.parameters:
-        if spec.fixed:
+        if spec.fixed or spec.name in estimator.not_determined_:
             continue
         value, se = estimator.params_[spec.name], estimator.stderr_[spec.name]
         if se is not None and value != 0.0 and se > RELATIVE_STDERR_LIMIT * abs(value):
@@ -269,10 +283,57 @@ def greybox_result(
         "noise_std": dict(zip(outputs, (float(s) for s in estimator.sigma_), strict=True)),
         "n_iterations": estimator.n_iterations_,
         "start": estimator.start_,
+        "solver": estimator.solver_.to_json(),
+        "solver_description": estimator.solver_.describe(),
+        "not_determined": dict(estimator.not_determined_),
+        "linearity": dict(estimator.linearity_),
+        "misfit": misfit(estimator, check),
         "identifiability": estimator.identifiability_.to_json(),
         "profile": profile,
         "warnings": warnings,
         "units": units,
+    }
+
+
+def misfit(estimator: GreyBoxEstimator, check: dict[str, Any] | None) -> dict[str, Any] | None:
+    """What the intervals rest on when the residuals are many times the records' noise.
+
+    None when every output's residual standard deviation is within
+    :data:`~fuelid.greybox.multiple_shooting.SUSPECT_NOISE_RATIO` times its sample-to-sample
+    noise. Otherwise ``residual_to_noise`` (the ratio per output) and ``note``: the standard
+    errors and intervals are conditional on the model being right, and the error to quote is
+    the validation RMSE (or, without a validation log, the residual standard deviation).
+    """
+    ratios = estimator.sigma_ / estimator.noise_floor_
+    if not np.any(ratios > SUSPECT_NOISE_RATIO):
+        return None
+    names = estimator.model.output_names
+    worst = int(np.argmax(ratios))
+    if check is not None:
+        quote = (
+            "the validation RMSE ("
+            + ", ".join(
+                f"{name} {rmse:.4g}" for name, rmse in zip(names, check["rmse"], strict=True)
+            )
+            + ")"
+        )
+    else:
+        quote = (
+            "the residual standard deviation ("
+            + ", ".join(
+                f"{name} {sigma:.4g}" for name, sigma in zip(names, estimator.sigma_, strict=True)
+            )
+            + "); give --validate-file for an error on unseen data"
+        )
+    note = (
+        f"the residuals are {ratios[worst]:.1f}× the records' sample-to-sample noise "
+        f"({names[worst]}): the model misses something the data show (or the fit sits in a local "
+        "minimum), so the standard errors "
+        "and 95 % intervals hold only if the model were right; the figure to quote is " + quote
+    )
+    return {
+        "residual_to_noise": dict(zip(names, (float(r) for r in ratios), strict=True)),
+        "note": note,
     }
 
 
