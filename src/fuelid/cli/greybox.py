@@ -488,12 +488,14 @@ def _print(
 
     console = Console()
     units = result["units"].get("parameter_units", {})
-    table = Table(title=escape(f"{model_file.name}: parameters (units of the model file)"))
     misfit = result["misfit"]
-    interval_heading = (
-        "95 % interval" if misfit is None else "95 % interval if the model were right"
+    # on a misfit the table itself says what its intervals rest on (the first screen)
+    table = Table(
+        title=escape(f"{model_file.name}: parameters (units of the model file)"),
+        caption=None if misfit is None else escape(misfit["note"]),
+        caption_justify="left",
     )
-    for column in ("parameter", "value", "std. error", interval_heading, "", "unit"):
+    for column in ("parameter", "value", "std. error", "95 % interval", "", "unit"):
         if column != "unit" or units:
             table.add_column(column, justify="right")
     for name, value in result["parameters"].items():
@@ -519,10 +521,7 @@ def _print(
             cells.append(units.get(name, ""))
         table.add_row(*(escape(cell) for cell in cells))
     console.print(table)
-    lines = []
-    if misfit is not None:
-        lines.append(misfit["note"])
-    lines += [
+    lines = [
         f"fit (NRMSE, free-run simulation) on {name}: "
         + ", ".join(f"{k} {v:.2f} %" for k, v in fits.items())
         for name, fits in result["fit_percent"].items()

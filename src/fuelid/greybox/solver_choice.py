@@ -14,9 +14,9 @@ given.
 The agreement is measured against the noise: ‖(y_s − y_2s)/σ‖₂ over every sample of every
 record, σ each output's sample-to-sample noise level. A systematic simulation error e moves no
 estimate by more than ‖e/σ‖₂ standard errors (the projection of e/σ on the sensitivities' span
-is no longer than e/σ), and the error of y_s is about the difference itself where RK4 converges
-only at first order (at a discontinuity): 0.05 keeps the integration's share of any estimate
-under about 0.1 standard error.
+is no longer than e/σ), and the error of y_s is at most about twice the difference (where RK4
+converges only at first order, across a switch; 16/15 of it where it is fourth order): 0.05
+keeps the integration's share of any estimate under about 0.1 standard error.
 """
 
 from __future__ import annotations
