@@ -133,6 +133,12 @@ def choose_solver(
         return SolverChoice(bdf, "auto", f"lsoda failed: {_short(failures[0])}")
     except SimulationError as exc:
         failures.append(f"bdf: {exc}")
+    if substeps is not None:  # the user's steps per sample, as given
+        given = Solver("rk4", max_step, substeps)
+        simulate(given)
+        return SolverChoice(
+            given, "auto", f"lsoda and bdf failed ({_short(failures[0])}); rk4 as given"
+        )
     solver, agreement = _rk4_by_doubling(simulate, noise, failures, max_step)
     return SolverChoice(
         solver, "auto", f"lsoda and bdf failed ({_short(failures[0])}); {agreement}"
