@@ -206,3 +206,16 @@ def test_a_wrong_model_says_its_intervals_are_conditional_and_what_to_quote(
     # on the first screen: the note is the table's caption, before any other figure
     assert text.index("hold only if the model were right") < text.index("fit (NRMSE")
     assert np.isfinite(result["validation_rmse"]["y"])
+
+
+def test_every_top_level_json_key_and_the_solver_s_are_in_the_reference(
+    tmp_path: Path, reaching: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from unit.test_docs_reference import REFERENCE, documented_names
+
+    code, out, _ = _run(capsys, str(_model(tmp_path)), str(reaching), "--json")
+    assert code == 0
+    result = json.loads(out)
+    keys = set(result) | set(result["solver"]) | {"residual_to_noise", "note"}
+    missing = sorted(keys - documented_names(REFERENCE / "json.md"))
+    assert not missing, f"fuelid greybox --json keys not in json.md: {missing}"
