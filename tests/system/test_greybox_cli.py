@@ -650,7 +650,8 @@ def test_a_wrong_fixed_value_is_warned_about_by_the_size_of_the_residuals(
 
     The fit still exits 0 (it is the best fit of this model), but the residuals are several times
     the 0.01 dm sample-to-sample noise, the standard errors that assume white residuals are
-    called too small, and the segmented start that "auto" tries finds nothing better.
+    called too small, and the segmented start that "auto" tries (within the plain fit's
+    allowance of evaluations) replaces nothing.
     """
     args = [str(MODEL), str(tank_logs[0]), "--fix", "k3,k4", "--set", "k3=0.2", "--json"]
     code, out, err = _run(capsys, *args)
@@ -658,5 +659,8 @@ def test_a_wrong_fixed_value_is_warned_about_by_the_size_of_the_residuals(
     result = json.loads(out)
     assert result["noise_std"]["h2_dm"] > 3 * 0.01
     assert any("sample-to-sample noise" in w and "too small" in w for w in result["warnings"])
-    assert result["start"] == "single shooting (a segmented start found no better fit)"
+    # the segmented start auto tries, within the evaluations the plain fit spent, gives no
+    # better fit of this wrong model (it may end where the model cannot be simulated): the
+    # single-shooting fit is kept and the start says so
+    assert result["start"].startswith("single shooting (a segmented start ")
     assert "sample-to-sample noise" in err

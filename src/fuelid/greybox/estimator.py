@@ -325,17 +325,21 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         self._budgets: list[int] = []
         self._work = [0, 0]
         self._work_limit: int | None = None
+        self._start_evaluation: dict[Solver, Evaluation] = {}
         self.not_determined_: dict[str, str] = {}
         try:
             self.solver_ = choose_solver(
                 self.solver,
                 self.max_step,
                 self.substeps,
-                lambda solver: self._start_outputs(phi, records, solver),
+                lambda solver: self._start_outputs(phi, records, sigma, solver),
                 records,
                 sigma,
             )
-            evaluation = self._evaluate(phi, records, sigma, jacobian=True)
+            evaluation = self._start_evaluation.pop(self.solver_.solver, None) or self._evaluate(
+                phi, records, sigma, jacobian=True
+            )
+            self._start_evaluation.clear()
         except (SimulationError, FloatingPointError, OverflowError) as exc:
             raise ConvergenceError(
                 f"the model cannot be simulated at the start values ({exc})"
@@ -383,13 +387,23 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         self.n_iterations_ = result.iterations
 
     def _start_outputs(
-        self, phi: FloatArray, records: Sequence[Record], solver: Solver
+        self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, solver: Solver
     ) -> list[FloatArray]:
-        """The records' outputs at φ with ``solver`` (no sensitivities): auto's trial runs."""
+        """The records' outputs at φ with ``solver``: the trial runs of the solver choice.
+
+        A variable-step solver's trial is the fit's start evaluation itself (with
+        sensitivities), kept for the fit when that solver is chosen; RK4's doublings simulate
+        the outputs alone.
+        """
         saved = getattr(self, "solver_", None)
         self.solver_ = SolverChoice(solver, self.solver, "")
         try:
-            trajectories = self._simulate_all(phi, records)
+            if solver.method == "rk4":
+                trajectories = self._simulate_all(phi, records)
+            else:
+                evaluation = self._evaluate(phi, records, sigma, jacobian=True)
+                self._start_evaluation[solver] = evaluation
+                trajectories = evaluation.trajectories
         finally:
             if saved is not None:
                 self.solver_ = saved

@@ -42,7 +42,15 @@ Z95 = float(scipy.special.ndtri(0.975))
 COST_TOLERANCE = 1e-4
 """The solver stops when an iteration lowers ½Σ(r/σ)² by less than this (see ``_solve``)."""
 GAUSS_NEWTON_STEP_SE = 0.005
-"""The fit stops when the Gauss–Newton step left is shorter than this many standard errors."""
+"""The fit stops when the Gauss–Newton step left is shorter than this many standard errors:
+no estimate would move by more than 0.005 of its standard error, and two fits from different
+starts agree to 0.01."""
+GAUSS_NEWTON_LAST_STEP_SE = 0.05
+"""A Gauss–Newton step shorter than this is taken without the trust region's test, and the fit
+stops there: the cost it would gain (½·0.05² of χ²) is below what the integrator's tolerance
+resolves, so scipy's trust region, which cannot know it, would reject ever shorter trial steps,
+one simulation each; at that distance from the optimum Gauss–Newton converges quadratically and
+the step lands within GAUSS_NEWTON_STEP_SE."""
 MAX_NOISE_PASSES = 4
 """Fits with re-estimated noise levels, at most (several outputs only)."""
 NOISE_TOLERANCE = math.log(1.05)
@@ -62,7 +70,7 @@ class OutOfBudget(Exception):
 
 
 class _Converged(Exception):
-    """Raised from the Jacobian callback when the optimum is reached (see :func:`_converged`)."""
+    """Raised from the Jacobian callback at the optimum (:data:`GAUSS_NEWTON_STEP_SE`)."""
 
     def __init__(self, phi: FloatArray, jacobians: int) -> None:
         super().__init__("converged")
@@ -70,25 +78,23 @@ class _Converged(Exception):
         self.jacobians = jacobians
 
 
-def _converged(
+def _gauss_newton_step(
     jacobian: FloatArray, residuals: FloatArray, phi: FloatArray, low: FloatArray, high: FloatArray
-) -> bool:
-    """Whether the Gauss–Newton step from here is shorter than GAUSS_NEWTON_STEP_SE.
+) -> tuple[FloatArray, float] | None:
+    """The Gauss–Newton step from φ and its length in standard errors (None: not usable).
 
-    The step's length in standard errors is ‖J·δ‖ (J weighted by σ, so JᵀJ is the Fisher
-    information): under 0.005 no estimate would move by more than 0.005 of its standard error,
-    and two fits from different starts agree to 0.01. scipy's trust region, which cannot know
-    that, would instead try ever shorter steps that the integrator's rounding makes fail, one
-    simulation each. Only for a step that stays inside the bounds (at a bound the trust region
-    decides).
+    The length is ‖J·δ‖ (J weighted by σ, so JᵀJ is the Fisher information): the most any
+    estimate would move, in its own standard errors. None for a step that leaves the bounds (at
+    a bound the trust region decides) or a Jacobian that is not finite.
     """
     if not np.all(np.isfinite(jacobian)):
-        return False
-    step, *_ = np.linalg.lstsq(jacobian, -residuals, rcond=None)
+        return None
+    solution, *_ = np.linalg.lstsq(jacobian, -residuals, rcond=None)
+    step: FloatArray = np.asarray(solution, dtype=float)
     if not np.all((phi + step > low) & (phi + step < high)):
-        return False
+        return None
     predicted = jacobian @ step
-    return bool(float(predicted @ predicted) < GAUSS_NEWTON_STEP_SE**2)
+    return step, float(np.sqrt(predicted @ predicted))
 
 
 @dataclass
@@ -399,8 +405,18 @@ class ShootingFit:
                 raise FuelidError("internal: an evaluation without its Jacobian")
             jacobian = evaluation.jacobian[:, active]
             jac_calls[0] += 1
-            if _converged(jacobian, evaluation.residuals, phi_active, clip_low, clip_high):
+            found = _gauss_newton_step(
+                jacobian, evaluation.residuals, phi_active, clip_low, clip_high
+            )
+            if found is not None and found[1] < GAUSS_NEWTON_STEP_SE:
                 raise _Converged(phi_active, jac_calls[0])
+            if found is not None and found[1] < GAUSS_NEWTON_LAST_STEP_SE:
+                last = phi_active + found[0]
+                try:
+                    remember(last.tobytes(), self._evaluate(full(last), records, sigma, True))
+                except (SimulationError, FloatingPointError, OverflowError):
+                    raise _Converged(phi_active, jac_calls[0]) from None
+                raise _Converged(last, jac_calls[0])
             return jacobian
 
         # Stop when an iteration lowers the weighted cost ½Σr² by less than COST_TOLERANCE

@@ -31,6 +31,7 @@ from fuelid.errors import ConfigError
 from fuelid.greybox.solvers import (
     CHOICES,
     MAX_SUBSTEPS,
+    TRIAL_STEPS_PER_SAMPLE,
     FloatArray,
     SimulationError,
     Solver,
@@ -122,14 +123,14 @@ def choose_solver(
     failures: list[str] = []
     lsoda = Solver("lsoda", max_step)
     try:
-        simulate(lsoda)
+        simulate(Solver("lsoda", max_step, steps_per_sample=TRIAL_STEPS_PER_SAMPLE))
         return SolverChoice(lsoda, "auto", "")
     except SimulationError as exc:
         failures.append(f"lsoda: {exc}")
     interval = float(min(np.median(np.diff(record.t)) for record in records))
     bdf = Solver("bdf", interval if max_step is None else min(max_step, interval))
     try:
-        simulate(bdf)
+        simulate(Solver(bdf.method, bdf.max_step, steps_per_sample=TRIAL_STEPS_PER_SAMPLE))
         return SolverChoice(bdf, "auto", f"lsoda failed: {_short(failures[0])}")
     except SimulationError as exc:
         failures.append(f"bdf: {exc}")

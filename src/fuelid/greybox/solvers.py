@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.integrate
@@ -46,9 +46,13 @@ CHOICES = ("auto", *METHODS)
 MAX_SUBSTEPS = 64
 """Most RK4 steps per sample interval: a model that needs more is stiff, and RK4 would take
 ever smaller steps where an implicit method takes large ones."""
-STEPS_PER_SAMPLE = 50
-"""An error-controlled solver may take this many steps per sample of a piece (at least 500 a
-piece) before it gives up: a smooth model needs about one."""
+STEPS_PER_SAMPLE = 500
+"""An error-controlled solver may take this many steps per sample of a piece (at least 5,000 a
+piece) before it gives up: a smooth model needs about one, a model with a switch (a clamp at a
+rim) many more near it."""
+TRIAL_STEPS_PER_SAMPLE = 50
+"""The same for ``auto``'s trial of a solver at the start values: a model that needs more there
+is handed to the next solver rather than left to grind."""
 _SOLVED = "Integration successful."
 
 
@@ -68,11 +72,15 @@ class Solver:
         Longest step [s] a variable-step method may take (None: no limit).
     substeps : int
         RK4 steps per sample interval (ignored by the others).
+    steps_per_sample : int
+        Most steps a variable-step method may take per sample interval of a piece (not part of
+        the solver's identity: a trial with fewer allowed is the same solver).
     """
 
     method: str = "lsoda"
     max_step: float | None = None
     substeps: int = 1
+    steps_per_sample: int = field(default=STEPS_PER_SAMPLE, compare=False)
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -137,8 +145,8 @@ def integrate_piece(
     """Integrate dz/dt = rhs(t, z, u) from ``times[0]`` through ``times``, u held.
 
     Returns the solution at ``times[1:]`` (one row each) and the right-hand-side evaluations.
-    The steps a variable-step method may take are limited to :data:`STEPS_PER_SAMPLE` per
-    interval of ``times`` (at least 500).
+    The steps a variable-step method may take are limited to the solver's ``steps_per_sample``
+    per interval of ``times`` (at least ten times that a piece).
 
     Raises
     ------
@@ -146,7 +154,7 @@ def integrate_piece(
         When the solver fails, runs out of steps, or the solution is not finite.
     """
     intervals = len(times) - 1
-    max_steps = max(500, STEPS_PER_SAMPLE * intervals)
+    max_steps = solver.steps_per_sample * max(10, intervals)
     if solver.method == "rk4":
         return _rk4(rhs, z, times, u, solver.substeps), 4 * solver.substeps * intervals
     if solver.method == "lsoda":
