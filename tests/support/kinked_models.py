@@ -73,7 +73,7 @@ FUNCTIONS: dict[str, Rhs] = {
     "drain": drain_f,
 }
 INPUT_RANGE = {
-    "overflow": (0.4, 0.95),  # the level crosses the rim (steady level (a·u/b)² is 0.6…3.6 m)
+    "overflow": (0.5, 1.1),  # the level crosses the rim (steady level (a·u/b)² is 1…4.8 m)
     "valve": (0.0, 1.2),  # the opening reaches its stop, 0.8
     "pump": (0.0, 1.0),  # falling inputs leave the head above what the pump gives
     "drain": (0.4, 0.95),
@@ -81,13 +81,19 @@ INPUT_RANGE = {
 
 
 def held_steps(rng: np.random.Generator, n: int, low: float, high: float) -> FloatArray:
-    """Random levels in [low, high], each held 30 to 90 samples."""
+    """Random levels, each held 30 to 90 samples, from the upper and lower half of the range.
+
+    The halves alternate: every record crosses its model's kinks both ways (the rim reached and
+    left, the check valve opened and closed), so what acts only beyond them is determined.
+    """
     u = np.empty(n)
-    k = 0
+    middle = 0.5 * (low + high)
+    k, upper = 0, bool(rng.integers(0, 2))
     while k < n:
         hold = int(rng.integers(30, 91))
-        u[k : k + hold] = rng.uniform(low, high)
+        u[k : k + hold] = rng.uniform(middle, high) if upper else rng.uniform(low, middle)
         k += hold
+        upper = not upper
     return u
 
 
