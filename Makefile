@@ -139,6 +139,7 @@ bench: $(BENCH_VENV)/.fuelid-installed
 	$(BENCH_VENV)/bin/python benchmarks/bench_online.py --minutes 2
 	$(BENCH_VENV)/bin/python benchmarks/bench_window.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_greybox.py --runs 200
+	$(BENCH_VENV)/bin/python benchmarks/bench_greybox_peer.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_calibration.py --timing
 	$(BENCH_VENV)/bin/python benchmarks/bench_calibration.py --runs 200 --minutes 2
 	$(BENCH_VENV)/bin/python benchmarks/bench_reidentify.py

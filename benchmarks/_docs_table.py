@@ -69,6 +69,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "online": ("The online service's cost", "benchmarks/bench_online.py --minutes 2"),
     "window": ("One online window, today's against the fast path", "benchmarks/bench_window.py"),
     "greybox": ("Gray-box estimation", "benchmarks/bench_greybox.py --runs 200"),
+    "greybox_peer": (
+        "Gray-box fit against a hand-written peer",
+        "benchmarks/bench_greybox_peer.py",
+    ),
     "calibration": (
         "Plant calibration",
         "benchmarks/bench_calibration.py --runs 200 --minutes 2",
