@@ -345,9 +345,12 @@ class ShootingFit:
         sigma: FloatArray,
         hold: int | Sequence[int] | None = None,
         seed: Evaluation | None = None,
+        jacobian_scaled: bool = False,
     ) -> tuple[FloatArray, Any, Evaluation]:
         """Least squares from phi0; ``hold`` keeps φ components fixed (profiles, initial states).
 
+        ``jacobian_scaled``: scipy's ``x_scale="jac"`` trust region (the segmented start's
+        stages, whose many initial states differ in scale) instead of the relative one.
         ``seed`` is the evaluation at phi0 with this σ, if already at hand. Returns φ̂, the
         solver's result and the evaluation at φ̂ (the solver's last accepted point, so the caller
         need not simulate it again).
@@ -428,6 +431,14 @@ class ShootingFit:
             else sum(int(np.isfinite(record.y).sum()) for record in records)
         )
         ftol = min(1e-6, max(1e-12, COST_TOLERANCE / (0.5 * max(n_residuals, 1))))
+        # the trust region in relative terms: log-space parameters already are, the others
+        # and the initial states at their size (not scipy's 'jac', which lets the least
+        # determined directions take the longest steps: a parameter near 0 runs off to 0)
+        theta_size = np.where(
+            self.map_.log_mask, 1.0, np.maximum(np.abs(self.map_.to_theta(phi0[:p])), 1e-3)
+        )
+        state_size = np.maximum(np.abs(phi0[p:]), getattr(self, "state_scale_", 1.0))
+        scale_of_phi = np.concatenate([theta_size, state_size])[active]
         evaluations_before = self._work[0]
         try:
             solution = scipy.optimize.least_squares(
@@ -436,7 +447,7 @@ class ShootingFit:
                 jac=jac,
                 bounds=(clip_low, clip_high),
                 method="trf",
-                x_scale="jac",
+                x_scale="jac" if jacobian_scaled else scale_of_phi,
                 xtol=XTOL,
                 ftol=ftol,
                 gtol=1e-10,

@@ -157,7 +157,9 @@ class SegmentedStart(ShootingFit):
                 ]
                 phi_stage = np.concatenate([theta_phi, *guesses])
                 try:
-                    phi_stage, _, found = self._solve(phi_stage, pieces, sigma)
+                    phi_stage, _, found = self._solve(
+                        phi_stage, pieces, sigma, jacobian_scaled=True
+                    )
                 except (SimulationError, FloatingPointError, OverflowError, OutOfBudget):
                     break  # keep the last stage's values
                 theta_phi = phi_stage[:p]

@@ -130,7 +130,10 @@ class ParameterMap:
         """The free parameters' natural values from φ."""
         mask = self.log_mask
         theta = np.array(phi, dtype=float)
-        theta[mask] = np.exp(theta[mask])
+        # a trial step far out in log space overflows to inf: a point the model cannot be
+        # simulated at (the fit steps back), not a warning for the user
+        with np.errstate(over="ignore"):
+            theta[mask] = np.exp(theta[mask])
         return theta
 
     def dtheta_dphi(self, phi: FloatArray) -> FloatArray:
