@@ -178,8 +178,9 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         :data:`~fuelid.greybox.profile.LINEARITY_LIMIT` its interval is not to be trusted (a
         switch the sensitivities do not follow, or strong nonlinearity).
     not_determined_ : dict
-        Parameters held at their value because the outputs do not depend on them (with
-        ``hold_undetermined``), name → reason; empty otherwise.
+        What was held because the outputs do not depend on it, name → reason: estimated initial
+        states always (``x0[state]``: a mode that settles before the first sample, say), and
+        parameters with ``hold_undetermined``; empty otherwise.
     """
 
     _SETTINGS = (
@@ -326,6 +327,7 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         self._work = [0, 0]
         self._work_limit: int | None = None
         self._start_evaluation: dict[Solver, Evaluation] = {}
+        self._held_states: list[int] = []
         self.not_determined_: dict[str, str] = {}
         try:
             self.solver_ = choose_solver(
@@ -347,9 +349,9 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         # a trial point may cost 20× the start's work (chattering at a bound), not more
         self._budgets = [max(20 * t.evaluations, 2_000) for t in evaluation.trajectories]
         if self.estimate_x0_:
+            self._hold_idle_states(phi, evaluation)
             phi, evaluation = self._settle_initial_states(phi, records, sigma, evaluation)
-        if self.hold_undetermined:
-            phi, evaluation = self._hold_unused(phi, records, sigma, evaluation)
+        phi, evaluation = self._hold_unused(phi, records, sigma, evaluation)
         self._refuse_structural(phi, evaluation)
         start_phi, start_sigma, start_evaluation = phi, sigma, evaluation
         self.start_ = "single shooting"
@@ -379,7 +381,7 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         if result is None:
             assert failure is not None
             raise failure
-        if self.not_determined_:
+        if "_all_free" in vars(self):  # parameters were held: do they act at the estimate?
             result = self._release_held(result, records)
         self.phi_ = result.phi
         self.sigma_ = result.sigma
@@ -452,7 +454,9 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         unknown = {
             name for combination in self.identifiability_.undetermined for name in combination.names
         } | set(self.identifiability_.zero_sensitivity)
-        uncertainty = parameter_uncertainty(self.map_, phi, jac, unknown)
+        estimated = jac.copy()
+        estimated[:, self._held_states] = 0.0  # held initial states carry no uncertainty
+        uncertainty = parameter_uncertainty(self.map_, phi, estimated, unknown)
         self.cov_phi_ = uncertainty.cov_phi
         self.cov_ = uncertainty.cov
         self.correlation_ = uncertainty.correlation

@@ -241,6 +241,9 @@ class ShootingFit:
     """Right-hand-side evaluations a simulation of each record may use (empty: no limit)."""
     _work: list[int]
     """Record simulations and right-hand-side evaluations so far."""
+    _held_states: list[int]
+    """Indices in φ of estimated initial states the outputs do not depend on: held (see
+    :meth:`fuelid.greybox.profile.ProfileLikelihood._hold_unused`)."""
     _work_limit: int | None
     """Right-hand-side evaluations after which :meth:`_evaluate` raises OutOfBudget (the
     segmented start's allowance); None: no limit."""
@@ -363,6 +366,8 @@ class ShootingFit:
         active = np.ones(len(phi0), dtype=bool)
         if hold is not None:
             active[np.atleast_1d(np.asarray(hold, dtype=int))] = False
+        if self._held_states:  # initial states the outputs do not depend on
+            active[self._held_states] = False
         clip_low, clip_high = lower[active], upper[active]
         start = np.clip(phi0[active], clip_low + 1e-12, clip_high - 1e-12)
         # evaluations by φ: the latest (for its Jacobian) and the best (the solver's answer)

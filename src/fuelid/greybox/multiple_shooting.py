@@ -129,8 +129,10 @@ class SegmentedStart(ShootingFit):
         n = self.n_states_
         theta_phi = phi[:p]
         states = [trajectory.states.copy() for trajectory in evaluation.trajectories]
-        saved = (self.estimate_x0_, self._budgets)
+        saved = (self.estimate_x0_, self._budgets, self._held_states)
         self.estimate_x0_ = True
+        self._held_states = []  # indices of the whole records' φ: not the segments'
+
         self.start_ = (
             "segmented start ("
             + ", ".join(str(c) for c in _stages(count))
@@ -169,7 +171,7 @@ class SegmentedStart(ShootingFit):
                     self.start_ += " (stopped at its allowance of evaluations)"
                     break
         finally:
-            self.estimate_x0_, self._budgets = saved
+            self.estimate_x0_, self._budgets, self._held_states = saved
         if not self.estimate_x0_:
             return theta_phi
         return np.concatenate([theta_phi, *[s[0] for s in states]])

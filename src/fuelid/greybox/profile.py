@@ -52,6 +52,7 @@ class ProfileLikelihood(ShootingFit):
     cost_: float
     identifiability_: IdentifiabilityReport
     not_determined_: dict[str, str]
+    hold_undetermined: bool
     _all_free: ParameterMap
 
     def _structural(
@@ -83,14 +84,16 @@ class ProfileLikelihood(ShootingFit):
         switch): no value of it changes the fit, so it is reported as not determined and held,
         and the rest are fitted. Returns φ without those parameters and the evaluation there.
         """
+        if not self.hold_undetermined:
+            return phi, start
         report, structural = self._structural(phi, start)
+        p = len(self.free_names_)
         alone = [c.names[0] for c in structural if len(c.names) == 1]
         unused = [
             name for name in self.free_names_ if name in report.zero_sensitivity or name in alone
         ]
         if not unused:
             return phi, start
-        p = len(self.free_names_)
         values = self.map_.values(phi[:p])
         for name in unused:
             self.not_determined_[name] = (
@@ -102,7 +105,40 @@ class ProfileLikelihood(ShootingFit):
         self._all_free = self.map_
         self._use_map(self._held_map(set(unused)))
         phi = np.concatenate([phi[:p][keep], phi[p:]])
+        # the held states' indices move with the parameters before them
+        self._held_states = [k - len(unused) for k in self._held_states]
         return phi, self._evaluate(phi, records, sigma, jacobian=True)
+
+    def _hold_idle_states(self, phi: FloatArray, start: Evaluation) -> None:
+        """Hold the estimated initial states the outputs do not depend on, where they start.
+
+        An initial state no output depends on, or one that only trades against another (a fast
+        mode's initial value, whose effect is gone before the first samples but for what it
+        moved into a slow state), is a nuisance the data cannot fix: it is held at its start
+        (the steady state at the first input) and listed in ``not_determined_``.
+        """
+        report, _ = self._structural(phi, start)
+        p = len(self.free_names_)
+        x0_names = self._x0_names()
+        assert start.jacobian is not None
+        norms = np.linalg.norm(start.jacobian[:, p:], axis=0)
+        held: list[str] = [name for name in x0_names if name in report.zero_sensitivity]
+        # an undetermined combination of initial states alone (a fast mode's initial value
+        # trading against a slow state's, say): all but its best-seen member are nuisances
+        for combination in report.undetermined:
+            if combination.names and all(name in x0_names for name in combination.names):
+                ranked = sorted(combination.names, key=lambda n: -norms[x0_names.index(n)])
+                held.extend(ranked[1:] if len(ranked) > 1 else ranked)
+        for name in dict.fromkeys(held):
+            k = x0_names.index(name)
+            if p + k in self._held_states:
+                continue
+            self._held_states.append(p + k)
+            self.not_determined_[name] = (
+                "the outputs do not depend on this initial state apart from others (its mode "
+                "settles before the first samples, or it is never seen): held at the value "
+                f"the fit started from, {phi[p + k]:.6g}"
+            )
 
     def _held_map(self, held: set[str]) -> ParameterMap:
         """The map of every free parameter with ``held`` ones fixed at their start values."""
@@ -124,26 +160,30 @@ class ProfileLikelihood(ShootingFit):
         estimate (a level that reaches its rim only with the fitted outflows, say): holding it
         would then bias the others without a word.
         """
-        held = list(self.not_determined_)
+        full = self._all_free
+        held = [name for name in self.not_determined_ if name in full.free_names]
         p = len(self.free_names_)
         values = self.map_.values(result.phi[:p])
-        full = self._all_free
         phi_full = np.concatenate(
             [full.to_phi(np.array([values[name] for name in full.free_names])), result.phi[p:]]
         )
-        current = self.map_
+        current, held_states = self.map_, self._held_states
         self._use_map(full)
+        shift = len(full.free_names) - p
+        self._held_states = [k + shift for k in held_states]
         evaluation = self._evaluate(phi_full, records, result.sigma, jacobian=True)
         assert evaluation.jacobian is not None
         report = self._report(phi_full, evaluation.jacobian)
         acting = [name for name in held if name not in report.zero_sensitivity]
         if not acting:
             self._use_map(current)
+            self._held_states = held_states
             return result
         still = {name for name in held if name not in acting}
         for name in acting:
             del self.not_determined_[name]
         self._use_map(self._held_map(still))
+        self._held_states = [k - len(still) for k in self._held_states]
         keep = [j for j, name in enumerate(full.free_names) if name not in still]
         phi = np.concatenate(
             [phi_full[: len(full.free_names)][keep], phi_full[len(full.free_names) :]]
@@ -210,7 +250,14 @@ class ProfileLikelihood(ShootingFit):
                 np.maximum(np.abs(phi[p:]), self.state_scale_),
             ]
         )
-        return identifiability(jac, names, column_scale, report_only=self.free_names_)
+        # held initial states are not estimated: not part of what the data must determine
+        kept = [j for j in range(len(names)) if j not in set(self._held_states)]
+        return identifiability(
+            jac[:, kept],
+            [names[j] for j in kept],
+            column_scale[kept],
+            report_only=self.free_names_,
+        )
 
     def correlated_pairs(
         self, limit: float = ESTIMATE_CORRELATION_LIMIT
