@@ -421,7 +421,12 @@ def _profiled(profile: str | None, estimated: list[str]) -> list[str]:
 def _refusal(message: str, names: tuple[str, ...], specs: Any, unused: tuple[str, ...] = ()) -> str:
     """The one-line reason of a refused fit, with the --fix (or --hold-undetermined) it suggests."""
     parameters = [spec.name for spec in specs if spec.name in names]
-    example = parameters[-1] if parameters else (names[0] if names else "NAME")
+    if not parameters:  # initial states alone: nothing --fix can hold
+        return (
+            f"{message}; give the model file an x0(p, u0, y0) that fixes the initial state, or "
+            "a record that starts where the states are seen"
+        )
+    example = parameters[-1]
     # the message already says which to fix; the command line is what the user types
     text = f"{message}; with this command: --fix {example} --set {example}=VALUE"
     if any(spec.name in unused for spec in specs):
