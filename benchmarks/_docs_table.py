@@ -69,6 +69,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "online": ("The online service's cost", "benchmarks/bench_online.py --minutes 2"),
     "window": ("One online window, today's against the fast path", "benchmarks/bench_window.py"),
     "greybox": ("Gray-box estimation", "benchmarks/bench_greybox.py --runs 200"),
+    "greybox_smoothing": (
+        "Gray-box: an exact kink against smoothed ones",
+        "benchmarks/bench_greybox_smoothing.py --runs 100",
+    ),
     "calibration": (
         "Plant calibration",
         "benchmarks/bench_calibration.py --runs 200 --minutes 2",
