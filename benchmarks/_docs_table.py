@@ -73,6 +73,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
         "Gray-box fit against a hand-written peer",
         "benchmarks/bench_greybox_peer.py",
     ),
+    "greybox_smoothing": (
+        "Gray-box: an exact kink against smoothed ones",
+        "benchmarks/bench_greybox_smoothing.py --runs 100",
+    ),
     "calibration": (
         "Plant calibration",
         "benchmarks/bench_calibration.py --runs 200 --minutes 2",
