@@ -9,10 +9,11 @@ the square root of its level, so with the levels x1 (upper) and x2 (lower) [dm]
 
 k1 and k2 both describe the flow from the upper tank to the lower one, divided by each tank's
 cross-section [dm^0.5/s]; k3 the lower tank's outflow [dm^0.5/s]; k4 the pump's flow per volt
-over the upper cross-section [dm/(s·V)]. A tank that is full (H_MAX, 10 dm) overflows: its level
-cannot rise above the rim. Only the lower level is measured.
+over the upper cross-section [dm/(s·V)]. A tank that is full (H_MAX, 10 dm) overflows through a
+pipe above its rim (K_OVERFLOW), which drains what rises above it within seconds. Only the lower
+level is measured.
 
-The functions are written with numpy (``np.sqrt``, ``np.where``) so that they work on a whole
+The functions are written with numpy (``np.sqrt``, ``np.maximum``) so that they work on a whole
 batch of states at once (each column one state), which makes the fit several times faster; a
 function written for scalars (``math.sqrt``, ``if``) works too, one state at a time.
 
@@ -22,6 +23,7 @@ This file is plain Python and ``fuelid greybox`` runs it: only run model files y
 import numpy as np
 
 H_MAX = 10.0  # height of each tank's rim [dm]: above it the tank overflows
+K_OVERFLOW = 1.0  # overflow pipe [1/s]: drains what rises above the rim within seconds
 
 states = ["x1", "x2"]  # upper and lower level [dm]
 inputs = ["u_V"]  # the data file's input column: pump voltage [V]
@@ -48,9 +50,9 @@ def f(t, x, u, p):
     x2 = np.maximum(x[1], 0.0)
     dx1 = -p["k1"] * np.sqrt(x1) + p["k4"] * u[0]
     dx2 = p["k2"] * np.sqrt(x1) - p["k3"] * np.sqrt(x2)
-    # a full tank overflows: its level does not rise above the rim
-    dx1 = np.where((x[0] >= H_MAX) & (dx1 > 0.0), 0.0, dx1)
-    dx2 = np.where((x[1] >= H_MAX) & (dx2 > 0.0), 0.0, dx2)
+    # a full tank overflows through a pipe above its rim (a kink, not a switch: see the guide)
+    dx1 = dx1 - K_OVERFLOW * np.maximum(x[0] - H_MAX, 0.0)
+    dx2 = dx2 - K_OVERFLOW * np.maximum(x[1] - H_MAX, 0.0)
     return [dx1, dx2]
 
 

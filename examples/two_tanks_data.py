@@ -21,6 +21,7 @@ from scipy.integrate import solve_ivp
 TRUE = {"k1": 0.05, "k2": 0.04, "k3": 0.05, "k4": 0.06}
 """The parameter values the logs are simulated with."""
 H_MAX = 10.0  # rim of each tank [dm], as in two_tanks.py
+K_OVERFLOW = 1.0  # overflow pipe above each rim [1/s], as in two_tanks.py
 
 
 def rhs(t: float, x: np.ndarray, u: float, p: dict[str, float]) -> list[float]:
@@ -28,10 +29,8 @@ def rhs(t: float, x: np.ndarray, u: float, p: dict[str, float]) -> list[float]:
     x1, x2 = max(x[0], 0.0), max(x[1], 0.0)
     dx1 = -p["k1"] * np.sqrt(x1) + p["k4"] * u
     dx2 = p["k2"] * np.sqrt(x1) - p["k3"] * np.sqrt(x2)
-    if x[0] >= H_MAX and dx1 > 0.0:
-        dx1 = 0.0
-    if x[1] >= H_MAX and dx2 > 0.0:
-        dx2 = 0.0
+    dx1 -= K_OVERFLOW * max(x[0] - H_MAX, 0.0)  # the overflow pipes above the rims
+    dx2 -= K_OVERFLOW * max(x[1] - H_MAX, 0.0)
     return [dx1, dx2]
 
 

@@ -512,7 +512,7 @@ def _print(
         status = (
             "fixed"
             if fixed
-            else "not determined, held"
+            else "not determined"
             if name in result["not_determined"]
             else "free"
             if se is not None

@@ -116,11 +116,22 @@ class IdentifiabilityReport:
         parts = []
         if self.zero_sensitivity:
             parts.append(f"the outputs do not depend on {', '.join(self.zero_sensitivity)}")
+        said: set[frozenset[str]] = set()
         for combination in self.undetermined:
-            parts.append(
-                f"{', '.join(combination.names)} trade against each other "
-                f"(only a combination is determined: ±{_percent(combination.uncertainty)})"
-            )
+            members = frozenset(combination.names)
+            if members in said:  # a second direction among the same names: named once
+                continue
+            said.add(members)
+            if len(combination.names) == 1:
+                parts.append(
+                    f"{combination.names[0]} is not determined "
+                    f"(±{_percent(combination.uncertainty)})"
+                )
+            else:
+                parts.append(
+                    f"{', '.join(combination.names)} trade against each other (only a "
+                    f"combination is determined: ±{_percent(combination.uncertainty)})"
+                )
         for first, second, rho in self.confounded_pairs:
             if not any(first in c.names and second in c.names for c in self.undetermined):
                 parts.append(f"{first} and {second} have sensitivities correlated at {rho:.4f}")

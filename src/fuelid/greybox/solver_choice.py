@@ -153,9 +153,10 @@ def _rk4_by_doubling(
     scale = np.asarray(noise, dtype=float)
     substeps = 1
     coarse = _outputs(simulate, Solver("rk4", max_step, substeps))
-    difference = math.inf
+    differences: list[float] = []
     while substeps <= MAX_SUBSTEPS:
         fine = _outputs(simulate, Solver("rk4", max_step, 2 * substeps))
+        difference = math.inf
         if coarse is not None and fine is not None:
             difference = _distance(coarse, fine, scale)
             if difference <= RK4_AGREEMENT:
@@ -163,21 +164,46 @@ def _rk4_by_doubling(
                     f"rk4 with {substeps} step{'s' if substeps != 1 else ''} per sample agrees "
                     f"with {2 * substeps} to {difference:.2g} noise standard deviations"
                 )
+        differences.append(difference)
         coarse = fine
         substeps *= 2
     tried = "; ".join(_short(text) for text in failures)
-    shown = (
-        "did not give a finite result"
-        if not math.isfinite(difference)
-        else f"still differs from {2 * MAX_SUBSTEPS} by {difference:.3g} noise standard "
-        f"deviations (agreement needs {RK4_AGREEMENT:g})"
-    )
-    raise SimulationError(
-        (f"{tried}; " if tried else "")
-        + f"rk4 with {MAX_SUBSTEPS} steps per sample {shown}: the model is too stiff for a "
-        "fixed step (or not finite); give it an implicit solver (--solver bdf or radau, with "
-        "--max-step if its switches are missed) or remove its fastest mode"
-    )
+    last = differences[-1]
+    implicit_failed = any(text.startswith("bdf") for text in failures)
+    if math.isfinite(last) and len(differences) > 1 and differences[-2] < 4.0 * last:
+        # halving the step only halves the difference: first order, the mark of a state held
+        # at a switch (or at a kink so steep it acts as one), not of a smooth stiff mode
+        remedy = (
+            "write a switch as a kink (max(level - rim, 0) times a coefficient: see the "
+            "gray-box guide)"
+            if implicit_failed
+            else "use an implicit solver (--solver bdf or radau) for a steep kink, write a "
+            "switch as a kink (see the gray-box guide)"
+        )
+        reason = (
+            f"rk4 converges only at first order here (with {MAX_SUBSTEPS} steps per sample it "
+            f"still differs from {2 * MAX_SUBSTEPS} by {last:.3g} noise standard deviations; "
+            f"agreement needs {RK4_AGREEMENT:g}): a state is held at a switch (an if that "
+            "reverses dx/dt across a level) or at a kink too steep for the step; "
+            f"{remedy}, or give --substeps N to accept RK4's error"
+        )
+    else:
+        shown = (
+            "did not give a finite result"
+            if not math.isfinite(last)
+            else f"still differs from {2 * MAX_SUBSTEPS} by {last:.3g} noise standard "
+            f"deviations (agreement needs {RK4_AGREEMENT:g})"
+        )
+        remedy = (
+            "remove its fastest mode or make it algebraic"
+            if implicit_failed
+            else "give it an implicit solver (--solver bdf or radau), or remove its fastest mode"
+        )
+        reason = (
+            f"rk4 with {MAX_SUBSTEPS} steps per sample {shown}: the model is too stiff for a "
+            f"fixed step; {remedy}"
+        )
+    raise SimulationError((f"{tried}; " if tried else "") + reason)
 
 
 def _outputs(simulate: Simulate, solver: Solver) -> Sequence[FloatArray] | None:
@@ -203,6 +229,6 @@ def _distance(
 
 
 def _short(text: str, limit: int = 160) -> str:
-    """A failure's message cut to one readable clause."""
-    text = " ".join(str(text).split())
+    """A failure's message cut to one readable clause (without odepack's guess at a cause)."""
+    text = " ".join(str(text).replace(" (perhaps wrong Dfun type)", "").split())
     return text if len(text) <= limit else text[: limit - 1] + "…"

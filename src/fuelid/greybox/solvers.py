@@ -174,7 +174,9 @@ def integrate_piece(
                 full_output=True,
             )
         if info["message"] != _SOLVED:
-            raise SimulationError(f"the ODE solver (lsoda) failed: {info['message']}")
+            # odepack's "(perhaps wrong Dfun type)" guesses at a cause that is not ours
+            message = str(info["message"]).replace(" (perhaps wrong Dfun type)", "")
+            raise SimulationError(f"the ODE solver (lsoda) failed: {message}")
         return solution[1:], int(info["nfe"][-1])
     return _solve_ivp(solver, rhs, newton, z, times, u, rtol, atol, max_steps)
 
