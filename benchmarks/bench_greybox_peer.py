@@ -16,8 +16,8 @@ Jacobian. Both load the same model file. The models:
 - kinked (if): the rim as a clamp, ``if x1 >= H and dx1 > 0: dx1 = 0``, k1…k3 estimated;
 - stiff: the pump's flow q follows the command with a 0.01 s lag (a third state, 100 times
   faster than the sample interval), k1…k3 estimated, k4 and the lag fixed. The pump's initial
-  flow cannot be told from the data (it settles in hundredths of a second), and fuelid refuses
-  to fit it: that refusal is the row's result;
+  flow cannot be told from the data (it settles in hundredths of a second): fuelid holds it at
+  the steady state of the first input and says so (``not_determined``), the peer estimates it;
 - stiff (x0): the same with the file's ``x0(p, u0, y0)``: the levels' initial values are two
   free parameters, the pump's initial flow its command's (the peer uses the file's x0 too).
 
