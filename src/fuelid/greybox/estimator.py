@@ -346,8 +346,9 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
             raise ConvergenceError(
                 f"the model cannot be simulated at the start values ({exc})"
             ) from None
-        # a trial point may cost 20× the start's work (chattering at a bound), not more
-        self._budgets = [max(20 * t.evaluations, 2_000) for t in evaluation.trajectories]
+        # a trial point may cost 8× the start's work (chattering at a switch), not more: one
+        # that needs more is a point the fit steps back from, like one that cannot be simulated
+        self._budgets = [max(8 * t.evaluations, 2_000) for t in evaluation.trajectories]
         if self.estimate_x0_:
             self._hold_idle_states(phi, evaluation)
             phi, evaluation = self._settle_initial_states(phi, records, sigma, evaluation)

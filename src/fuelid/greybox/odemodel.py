@@ -215,7 +215,18 @@ class FunctionSystem:
         """∂f/∂x (the one the last :meth:`derivatives` call at this point computed)."""
         if self._last is not None and self._last[0] == t and self._last[1] == x.tobytes():
             return self._last[2]
-        return self.derivatives(t, x, u)[1]
+        # the stiff solver's Newton matrix alone: the state columns, not the parameters'
+        n = self.n_states
+        dx_steps = _STEP * np.maximum(np.abs(x), self._state_scale)
+        base = self._f(t, x, u, self.values)
+        jac_x = np.empty((n, n))
+        for i in range(n):
+            shifted = x.copy()
+            shifted[i] += dx_steps[i]
+            jac_x[:, i] = (self._f(t, shifted, u, self.values) - base) / dx_steps[i]
+        jac_x = self._one_sided(t, x, u, base, jac_x, dx_steps)
+        self._last = (t, x.tobytes(), jac_x)
+        return jac_x
 
     def _h(self, x: FloatArray, u: FloatArray, values: Mapping[str, Any]) -> FloatArray:
         """Outputs for states x (N × n), inputs u (N × n_u): shape (N, n_y)."""

@@ -183,7 +183,15 @@ def simulate_record(
                 times = np.append(times, t_end)
             try:
                 solution, used = integrate_piece(
-                    solver, rhs, newton, z, times, u[start], rtol, atol
+                    solver,
+                    rhs,
+                    newton,
+                    z,
+                    times,
+                    u[start],
+                    rtol,
+                    atol,
+                    None if max_evaluations is None else max_evaluations - evaluations,
                 )
             except SimulationError as exc:
                 reason = _reason(exc, rhs, float(t_start), z, u[start])

@@ -141,12 +141,15 @@ def integrate_piece(
     u: FloatArray,
     rtol: float,
     atol: FloatArray,
+    budget: int | None = None,
 ) -> tuple[FloatArray, int]:
     """Integrate dz/dt = rhs(t, z, u) from ``times[0]`` through ``times``, u held.
 
     Returns the solution at ``times[1:]`` (one row each) and the right-hand-side evaluations.
     The steps a variable-step method may take are limited to the solver's ``steps_per_sample``
-    per interval of ``times`` (at least ten times that a piece).
+    per interval of ``times`` (at least ten times that a piece), and to ``budget`` (what is left
+    of the record's right-hand-side evaluations, None: no limit): a trial point where the
+    solution grinds at a switch fails after that, not after the whole step allowance.
 
     Raises
     ------
@@ -155,8 +158,13 @@ def integrate_piece(
     """
     intervals = len(times) - 1
     max_steps = solver.steps_per_sample * max(10, intervals)
+    if budget is not None:
+        max_steps = max(1, min(max_steps, budget))
     if solver.method == "rk4":
-        return _rk4(rhs, z, times, u, solver.substeps), 4 * solver.substeps * intervals
+        needed = 4 * solver.substeps * intervals
+        if budget is not None and needed > budget:
+            raise SimulationError(f"rk4 needs {needed} evaluations here, over the {budget} left")
+        return _rk4(rhs, z, times, u, solver.substeps), needed
     if solver.method == "lsoda":
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", scipy.integrate.ODEintWarning)
@@ -177,7 +185,8 @@ def integrate_piece(
             # odepack's "(perhaps wrong Dfun type)" guesses at a cause that is not ours
             message = str(info["message"]).replace(" (perhaps wrong Dfun type)", "")
             raise SimulationError(f"the ODE solver (lsoda) failed: {message}")
-        return solution[1:], int(info["nfe"][-1])
+        # the Newton matrices count too: at a switch LSODA asks for far more of them than of f
+        return solution[1:], int(info["nfe"][-1]) + int(info["nje"][-1])
     return _solve_ivp(solver, rhs, newton, z, times, u, rtol, atol, max_steps)
 
 
