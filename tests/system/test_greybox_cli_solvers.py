@@ -65,6 +65,7 @@ def test_the_json_says_which_solver_ran_and_that_nothing_was_held(
         "method": "lsoda",
         "max_step": None,
         "substeps": None,
+        "rtol": 1e-6,
         "requested": "auto",
         "reason": "",
     }

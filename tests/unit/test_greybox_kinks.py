@@ -99,7 +99,7 @@ def test_parameters_of_kinked_models_are_recovered(name: str) -> None:
         assert se is not None
         # band: 4 standard errors (a correct estimator misses it with probability 6e-5)
         assert abs(estimator.params_[key] - value) <= 4.0 * se, (key, estimator.params_[key])
-        # the sensitivities follow the kinks: the simulated change over ±1 se matches them
+        # the sensitivities follow the kinks: the simulated change over one se matches them
         discrepancy = estimator.linearity_[key]
         assert discrepancy is not None
         assert discrepancy < 0.2
@@ -267,6 +267,7 @@ def test_rk4_with_given_substeps_is_used_as_given_and_reported() -> None:
         "method": "rk4",
         "max_step": None,
         "substeps": 4,
+        "rtol": None,
         "requested": "rk4",
         "reason": "",
     }

@@ -35,6 +35,7 @@ from fuelid.greybox.fitting import (
     ConvergenceError,
     Evaluation,
     FloatArray,
+    ShootingResult,
     first_outputs,
     noise_level,
     parameter_uncertainty,
@@ -55,7 +56,7 @@ from fuelid.greybox.multiple_shooting import (
 from fuelid.greybox.parameters import ParameterMap
 from fuelid.greybox.profile import CHI2_95, PROFILE_DOUBLINGS, ProfileLikelihood
 from fuelid.greybox.sensitivity import SimulationError, Trajectory, simulate_record
-from fuelid.greybox.solver_choice import SolverChoice, check_request, choose_solver
+from fuelid.greybox.solver_choice import SolverChoice, check_request, choose_solver, verified
 from fuelid.greybox.solvers import Solver
 from fuelid.greybox.system import GreyBoxModel, Record
 from fuelid.model import nrmse_fit_columns
@@ -173,7 +174,7 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
     solver_ : SolverChoice
         The solver the fit ran with, what was asked for and why.
     linearity_ : dict
-        Per free parameter, how far its sensitivity is from the simulation over ±1 standard
+        Per free parameter, how far its sensitivity is from the simulation over one standard
         error (relative; None where not checked): above
         :data:`~fuelid.greybox.profile.LINEARITY_LIMIT` its interval is not to be trusted (a
         switch the sensitivities do not follow, or strong nonlinearity).
@@ -384,10 +385,47 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
             raise failure
         if "_all_free" in vars(self):  # parameters were held: do they act at the estimate?
             result = self._release_held(result, records)
+        result = self._recheck_solver(result, records)
         self.phi_ = result.phi
         self.sigma_ = result.sigma
         self._finish(result.phi, records, result.solution, result.evaluation)
         self.n_iterations_ = result.iterations
+
+    def _recheck_solver(self, result: ShootingResult, records: Sequence[Record]) -> ShootingResult:
+        """Check the solver's accuracy at the estimate; refit with a finer one where it fails.
+
+        The solver was checked at the start values; at the estimate the model's modes may be
+        faster (a shorter time constant, a steeper kink), and an error there biases the estimate.
+        A solver the user gave outright (RK4 with its substeps) is used as given.
+        """
+        choice = self.solver_
+        if choice.solver.method == "rk4" and self.substeps is not None:
+            return result
+        saved = self._budgets
+        self._budgets = []  # a finer solver may take more evaluations than the start's budget
+
+        def outputs(solver: Solver) -> list[FloatArray]:
+            self.solver_ = SolverChoice(solver, choice.requested, "")
+            try:
+                return [t.outputs for t in self._simulate_all(result.phi, records)]
+            finally:
+                self.solver_ = choice
+
+        try:
+            solver, note = verified(outputs, choice.solver, self.noise_floor_)
+        except SimulationError:
+            solver, note = choice.solver, ""
+        finally:
+            self._budgets = saved
+        if solver == choice.solver:
+            return result
+        reason = "; ".join(text for text in (choice.reason, f"at the estimate: {note}") if text)
+        self.solver_ = SolverChoice(solver, choice.requested, reason)
+        self._budgets = []
+        evaluation = self._evaluate(result.phi, records, result.sigma, jacobian=True)
+        refit = self._single_shooting(result.phi, records, result.sigma, evaluation)
+        refit.iterations += result.iterations
+        return refit
 
     def _start_outputs(
         self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, solver: Solver
@@ -398,6 +436,8 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         sensitivities), kept for the fit when that solver is chosen; RK4's doublings simulate
         the outputs alone.
         """
+        if solver in self._start_evaluation:
+            return [t.outputs for t in self._start_evaluation[solver].trajectories]
         saved = getattr(self, "solver_", None)
         self.solver_ = SolverChoice(solver, self.solver, "")
         try:

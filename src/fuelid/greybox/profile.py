@@ -34,7 +34,7 @@ from fuelid.greybox.system import Record
 CHI2_95 = float(scipy.special.chdtri(1, 0.05))
 """χ²₁'s 95 % quantile."""
 LINEARITY_LIMIT = 0.2
-"""A sensitivity that misses the simulated change over ±1 standard error by more than this share
+"""A sensitivity that misses the simulated change over one standard error by more than this share
 makes the parameter's Gaussian interval untrustworthy (:meth:`ProfileLikelihood._linearity`)."""
 PROFILE_DOUBLINGS = 8
 """A profile steps out 2, 4, … 256 standard errors looking for the crossing."""
@@ -199,14 +199,15 @@ class ProfileLikelihood(ShootingFit):
         evaluation: Evaluation,
         unknown: set[str],
     ) -> dict[str, float | None]:
-        """Per free parameter: ‖Δr − J·Δφ‖/‖J·Δφ‖ for a step of ±1 standard error in it.
+        """Per free parameter: ‖Δr − J·Δφ‖/‖J·Δφ‖ for a step of one standard error in it.
 
-        Δr is the central difference of the simulated residuals (two simulations without
-        sensitivities), J·Δφ what the sensitivities predict. Where the model is smooth and the
-        parameter well determined this is curvature only (≪ 0.1); where a switch (an ``if`` that
-        makes the right-hand side jump) moves with the parameter, the sensitivity equations miss
-        it and the covariance with them. None: not checked (no standard error, or ±1 standard
-        error leaves the bounds).
+        Δr is the change of the simulated residuals (one simulation without sensitivities),
+        J·Δφ what the sensitivities predict. Where the model is smooth and the parameter well
+        determined this is its curvature over one standard error, small when the Gaussian
+        interval holds; where a switch (an ``if`` that makes the right-hand side jump) moves
+        with the parameter, the sensitivity equations miss it and the covariance with them.
+        The step goes up, or down where up would leave the bounds. None: not checked (no
+        standard error, or a step of one standard error leaves the bounds both ways).
         """
         out: dict[str, float | None] = {}
         assert evaluation.jacobian is not None
@@ -215,27 +216,23 @@ class ProfileLikelihood(ShootingFit):
         for j, name in enumerate(self.free_names_):
             out[name] = None
             step = math.sqrt(max(float(self.cov_phi_[j, j]), 0.0))
-            if (
-                name in unknown
-                or step == 0.0
-                or not (lower[j] < phi[j] - step and phi[j] + step < upper[j])
-            ):
+            if name in unknown or step == 0.0:
                 continue
-            moved = []
-            for sign in (1.0, -1.0):
-                trial = phi.copy()
-                trial[j] += sign * step
-                try:
-                    moved.append(self._evaluate(trial, records, sigma, jacobian=False).residuals)
-                except (SimulationError, FloatingPointError, OverflowError):
-                    break
-            if len(moved) < 2:
+            if phi[j] + step >= upper[j]:
+                step = -step
+            if not lower[j] < phi[j] + step < upper[j]:
+                continue
+            trial = phi.copy()
+            trial[j] += step
+            try:
+                moved = self._evaluate(trial, records, sigma, jacobian=False).residuals
+            except (SimulationError, FloatingPointError, OverflowError):
                 out[name] = math.inf
                 continue
             predicted = evaluation.jacobian[:, j] * step
             size = float(np.linalg.norm(predicted))
             if size > 0.0:
-                actual = 0.5 * (moved[0] - moved[1])
+                actual = moved - evaluation.residuals
                 out[name] = float(np.linalg.norm(actual - predicted)) / size
         return out
 

@@ -22,13 +22,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError
-from fuelid.greybox.solvers import Rhs, SimulationError, Solver, integrate_piece
+from fuelid.greybox.solvers import RTOL, Rhs, SimulationError, Solver, integrate_piece
 from fuelid.greybox.system import OdeSystem, Record
 
 __all__ = ["RTOL", "SimulationError", "Solver", "Trajectory", "input_changes", "simulate_record"]
 
 FloatArray = NDArray[np.float64]
-RTOL = 1e-6
 SENSITIVITY_ATOL_FACTOR = 1e3
 """Absolute tolerance of a sensitivity row over its state's (per unit of log θ or of θ)."""
 DEFAULT_SOLVER = Solver()
@@ -61,7 +60,7 @@ def simulate_record(
     s0: FloatArray | None = None,
     theta_scale: FloatArray | None = None,
     max_evaluations: int | None = None,
-    rtol: float = RTOL,
+    rtol: float | None = None,
     solver: Solver = DEFAULT_SOLVER,
 ) -> Trajectory:
     """Integrate ``system`` over ``record`` from ``x0`` (with sensitivities when ``s0`` is given).
@@ -82,8 +81,9 @@ def simulate_record(
     max_evaluations : int, optional
         Give up (SimulationError) after this many right-hand-side evaluations: a trial point
         where the solution chatters (a tank running dry under √x, say) costs no more than this.
-    rtol : float
-        Relative tolerance on the state (the absolute one is ``system.atol``).
+    rtol : float, optional
+        Relative tolerance on the state (the absolute one is ``system.atol``); default the
+        solver's.
     solver : Solver
         The method (:mod:`fuelid.greybox.solvers`); LSODA by default.
 
@@ -189,7 +189,7 @@ def simulate_record(
                     z,
                     times,
                     u[start],
-                    rtol,
+                    solver.rtol if rtol is None else rtol,
                     atol,
                     None if max_evaluations is None else max_evaluations - evaluations,
                 )

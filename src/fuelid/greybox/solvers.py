@@ -43,14 +43,19 @@ METHODS = ("lsoda", "bdf", "radau", "rk45", "rk4")
 CHOICES = ("auto", *METHODS)
 """What a user may ask for: a solver, or ``auto`` (the estimator picks one, see
 :mod:`fuelid.greybox.solver_choice`)."""
+RTOL = 1e-6
+"""Relative tolerance of the variable-step methods before the accuracy check tightens it."""
+FINEST_RTOL = 1e-10
+"""The tightest relative tolerance the accuracy check goes to."""
 MAX_SUBSTEPS = 64
 """Most RK4 steps per sample interval: a model that needs more is stiff, and RK4 would take
 ever smaller steps where an implicit method takes large ones."""
-STEPS_PER_SAMPLE = 500
-"""An error-controlled solver may take this many steps per sample of a piece (at least 5,000 a
-piece) before it gives up: a smooth model needs about one, a model with a switch (a clamp at a
-rim) many more near it."""
-TRIAL_STEPS_PER_SAMPLE = 50
+STEPS_PER_SAMPLE = 5000
+"""An error-controlled solver may take this many steps in one sample interval before it gives up
+(LSODA; solve_ivp's methods this many evaluations per sample of a piece): a smooth model needs
+about one, a stiff one a few hundred while LSODA finds it stiff, a model with a switch (a clamp
+at a rim) many more near it."""
+TRIAL_STEPS_PER_SAMPLE = 500
 """The same for ``auto``'s trial of a solver at the start values: a model that needs more there
 is handed to the next solver rather than left to grind."""
 _SOLVED = "Integration successful."
@@ -72,14 +77,18 @@ class Solver:
         Longest step [s] a variable-step method may take (None: no limit).
     substeps : int
         RK4 steps per sample interval (ignored by the others).
+    rtol : float
+        Relative tolerance of a variable-step method (the accuracy check of
+        :mod:`fuelid.greybox.solver_choice` tightens it where the data need it).
     steps_per_sample : int
-        Most steps a variable-step method may take per sample interval of a piece (not part of
-        the solver's identity: a trial with fewer allowed is the same solver).
+        Most steps a variable-step method may take per sample interval (not part of the
+        solver's identity: a trial with fewer allowed is the same solver).
     """
 
     method: str = "lsoda"
     max_step: float | None = None
     substeps: int = 1
+    rtol: float = RTOL
     steps_per_sample: int = field(default=STEPS_PER_SAMPLE, compare=False)
 
     def __post_init__(self) -> None:
@@ -94,9 +103,10 @@ class Solver:
         """E.g. ``lsoda``, ``bdf (max step 0.5 s)``, ``rk4 (8 steps per sample)``."""
         if self.method == "rk4":
             return f"rk4 ({self.substeps} step{'s' if self.substeps != 1 else ''} per sample)"
+        details = [] if self.rtol == RTOL else [f"rtol {self.rtol:g}"]
         if self.max_step is not None:
-            return f"{self.method} (max step {self.max_step:g} s)"
-        return self.method
+            details.append(f"max step {self.max_step:g} s")
+        return f"{self.method} ({', '.join(details)})" if details else self.method
 
     def to_json(self) -> dict[str, object]:
         """``method``, ``max_step`` [s] (None: none) and ``substeps`` (RK4 only, else None)."""
@@ -104,7 +114,22 @@ class Solver:
             "method": self.method,
             "max_step": self.max_step,
             "substeps": self.substeps if self.method == "rk4" else None,
+            "rtol": None if self.method == "rk4" else self.rtol,
         }
+
+    def refined(self) -> Solver | None:
+        """The same solver made more accurate (None: already the most accurate allowed).
+
+        Twice the RK4 steps (up to :data:`MAX_SUBSTEPS`), or 1/100 of a variable-step method's
+        tolerance (down to :data:`FINEST_RTOL`).
+        """
+        if self.method == "rk4":
+            if self.substeps >= MAX_SUBSTEPS:
+                return None
+            return Solver("rk4", self.max_step, 2 * self.substeps)
+        if self.rtol <= FINEST_RTOL:
+            return None
+        return Solver(self.method, self.max_step, rtol=max(self.rtol / 100.0, FINEST_RTOL))
 
 
 def check_max_step(value: float | None) -> None:
@@ -157,9 +182,11 @@ def integrate_piece(
         When the solver fails, runs out of steps, or the solution is not finite.
     """
     intervals = len(times) - 1
+    # odeint's mxstep is per output interval (a sample); solve_ivp's budget is per piece
     max_steps = solver.steps_per_sample * max(10, intervals)
     if budget is not None:
         max_steps = max(1, min(max_steps, budget))
+    per_interval = max(1, min(solver.steps_per_sample, max_steps))
     if solver.method == "rk4":
         needed = 4 * solver.substeps * intervals
         if budget is not None and needed > budget:
@@ -177,7 +204,7 @@ def integrate_piece(
                 tfirst=True,
                 rtol=rtol,
                 atol=atol,
-                mxstep=max_steps,
+                mxstep=per_interval,
                 hmax=0.0 if solver.max_step is None else solver.max_step,
                 full_output=True,
             )
@@ -202,7 +229,7 @@ def _solve_ivp(
     max_steps: int,
 ) -> tuple[FloatArray, int]:
     # a budget of evaluations rather than steps: solve_ivp has no step limit of its own
-    budget = 8 * max_steps
+    budget = max_steps
     count = [0]
 
     def fun(t: float, state: FloatArray) -> FloatArray:

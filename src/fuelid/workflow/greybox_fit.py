@@ -201,7 +201,7 @@ def fit_warnings(estimator: GreyBoxEstimator) -> list[str]:
                 else (f"is missed by its sensitivity by {100 * discrepancy:.0f} %")
             )
             out.append(
-                f"{name}: the simulated change over ±1 standard error {shown} (a switch the "
+                f"{name}: the simulated change over one standard error {shown} (a switch the "
                 "sensitivities do not follow, or strong nonlinearity): its standard error and "
                 f"interval are not reliable; --profile {name} gives an interval from "
                 "simulations alone"
