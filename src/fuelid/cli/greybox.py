@@ -321,10 +321,10 @@ def greybox_command(
         segments=start,
         solver=solver_name,
         max_step=max_step if max_step is not None else mf.max_step,
-        # the file's substeps belong to its rk4: another solver on the command line drops them
+        # the file's substeps belong to rk4 (auto's too): another solver given drops them
         substeps=substeps
         if substeps is not None
-        else (mf.substeps if solver_name == "rk4" else None),
+        else (mf.substeps if solver_name in {"rk4", "auto"} else None),
         hold_undetermined=hold_undetermined,
     )
     check_solver_request(estimator.solver, estimator.max_step, estimator.substeps)

@@ -376,7 +376,8 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
                 start_sigma,
                 start_evaluation,
                 result,
-                allowance=max(self._work[1] - plain_work, 1),
+                # a fit that failed is rescued without a limit, as before the allowance
+                allowance=None if result is None else max(self._work[1] - plain_work, 1),
             )
             if retried is not None:
                 result = retried
@@ -505,6 +506,14 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         self.stderr_ = uncertainty.stderr
         self.ci95_ = uncertainty.ci95
         self.linearity_ = self._linearity(phi, records, evaluation, unknown)
+        if self.hold_undetermined:
+            for name in self.identifiability_.zero_sensitivity:
+                if name in self.free_names_:
+                    self.not_determined_[name] = (
+                        "at the estimate the outputs do not depend on it (the fit moved it "
+                        "beyond what the records reach): its value is where the fit left it, not "
+                        "an estimate"
+                    )
         n = self.n_states_
         if self.estimate_x0_:
             self.x0_ = [phi[p + i * n : p + (i + 1) * n].copy() for i in range(len(records))]

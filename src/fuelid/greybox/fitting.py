@@ -258,9 +258,12 @@ class ShootingFit:
         if not self.estimate_x0_:
             return []
         many = len(self.records_) > 1
+        names = [record.name or str(i + 1) for i, record in enumerate(self.records_)]
+        if len(set(names)) < len(names):  # two logs of one name: number them instead
+            names = [str(i + 1) for i in range(len(names))]
         return [
-            f"x0[{state}]" + (f"@{record.name or i + 1}" if many else "")
-            for i, record in enumerate(self.records_)
+            f"x0[{state}]" + (f"@{name}" if many else "")
+            for name in names
             for state in self.model.state_names
         ]
 

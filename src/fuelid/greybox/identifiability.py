@@ -301,13 +301,22 @@ def structural_report(
     advice = []
     for combination in structural:
         parameters = [n for n in combination.names if n in free_names]
-        if parameters:
+        if len(parameters) == 1:
+            advice.append(
+                f"no data of this kind determine {parameters[0]}: fix it at a known value, or "
+                "start it where the records reach what it describes"
+            )
+        elif parameters:
             advice.append(
                 f"no data of this kind determine {', '.join(parameters)} together: fix "
                 f"one of them (e.g. {parameters[0]}) at a known value"
             )
     if report.zero_sensitivity:
-        advice.append(f"fix {', '.join(report.zero_sensitivity)} or drop it from the model")
+        advice.append(
+            f"fix {', '.join(report.zero_sensitivity)} or drop it from the model, or start it "
+            "where the records reach what it describes (a limit or kink the simulation does not "
+            "reach from the start values)"
+        )
     return IdentifiabilityReport(
         report.names,
         report.singular_values,

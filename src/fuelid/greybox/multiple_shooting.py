@@ -174,4 +174,6 @@ class SegmentedStart(ShootingFit):
             self.estimate_x0_, self._budgets, self._held_states = saved
         if not self.estimate_x0_:
             return theta_phi
-        return np.concatenate([theta_phi, *[s[0] for s in states]])
+        out = np.concatenate([theta_phi, *[s[0] for s in states]])
+        out[self._held_states] = phi[self._held_states]  # held initial states stay where held
+        return out

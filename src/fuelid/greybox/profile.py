@@ -33,6 +33,9 @@ from fuelid.greybox.system import Record
 
 CHI2_95 = float(scipy.special.chdtri(1, 0.05))
 """χ²₁'s 95 % quantile."""
+IDLE_STATE_LIMIT = 10.0
+"""An estimated initial state in a combination of initial states whose standard deviation
+exceeds ten times the states' size (or that no data of this kind determine) is held."""
 LINEARITY_LIMIT = 0.2
 """A sensitivity that misses the simulated change over one standard error by more than this share
 makes the parameter's Gaussian interval untrustworthy (:meth:`ProfileLikelihood._linearity`)."""
@@ -97,9 +100,9 @@ class ProfileLikelihood(ShootingFit):
         values = self.map_.values(phi[:p])
         for name in unused:
             self.not_determined_[name] = (
-                "the outputs do not depend on it over these records (it acts only where the "
-                "data never go: beyond a limit, kink or switch they do not reach); held at "
-                f"{values[name]:.6g}, not estimated"
+                "the outputs do not depend on it over these records at the start values (it acts "
+                "only beyond a limit, kink or switch the simulation does not reach from there); "
+                f"held at {values[name]:.6g}, not estimated"
             )
         keep = [j for j, name in enumerate(self.free_names_) if name not in unused]
         self._all_free = self.map_
@@ -126,9 +129,15 @@ class ProfileLikelihood(ShootingFit):
         # an undetermined combination of initial states alone (a fast mode's initial value
         # trading against a slow state's, say): all but its best-seen member are nuisances
         for combination in report.undetermined:
-            if combination.names and all(name in x0_names for name in combination.names):
-                ranked = sorted(combination.names, key=lambda n: -norms[x0_names.index(n)])
-                held.extend(ranked[1:] if len(ranked) > 1 else ranked)
+            # what no data of this kind determine, or only to ten times the states' size
+            if combination.uncertainty <= IDLE_STATE_LIMIT:
+                continue
+            if not all(name in x0_names for name in combination.names):
+                continue
+            # greedy: one direction at a time, keeping its best-seen member not yet held
+            left = [name for name in combination.names if name not in held]
+            ranked = sorted(left, key=lambda n: -norms[x0_names.index(n)])
+            held.extend(ranked[1:] if len(combination.names) > 1 else ranked)
         for name in dict.fromkeys(held):
             k = x0_names.index(name)
             if p + k in self._held_states:
@@ -174,7 +183,10 @@ class ProfileLikelihood(ShootingFit):
         evaluation = self._evaluate(phi_full, records, result.sigma, jacobian=True)
         assert evaluation.jacobian is not None
         report = self._report(phi_full, evaluation.jacobian)
-        acting = [name for name in held if name not in report.zero_sensitivity]
+        alone = {
+            c.names[0] for c in report.undetermined if len(c.names) == 1 and np.isinf(c.uncertainty)
+        }
+        acting = [name for name in held if name not in set(report.zero_sensitivity) | alone]
         if not acting:
             self._use_map(current)
             self._held_states = held_states
@@ -190,7 +202,9 @@ class ProfileLikelihood(ShootingFit):
         )
         evaluation = self._evaluate(phi, records, result.sigma, jacobian=True)
         self._refuse_structural(phi, evaluation)
-        return self._single_shooting(phi, records, result.sigma, evaluation)
+        refit = self._single_shooting(phi, records, result.sigma, evaluation)
+        refit.iterations += result.iterations
+        return refit
 
     def _linearity(
         self,
@@ -289,6 +303,8 @@ class ProfileLikelihood(ShootingFit):
         Each side is bracketed by stepping out and then found by Brent's method.
         """
         self._check_fitted()
+        if name in self.not_determined_:
+            raise FuelidError(f"{name!r} was held as not determined: {self.not_determined_[name]}")
         if name not in self.free_names_:
             raise FuelidError(f"{name!r} is not a free parameter: {', '.join(self.free_names_)}")
         j = self.free_names_.index(name)

@@ -163,8 +163,9 @@ def simulate_record(
         # RK4's stability limit on the real axis, h·|λ| ≤ 2.785: a steeper slope in ∂f/∂x is a
         # difference across a switch, not a mode of the model (the step was checked to resolve
         # those), and is taken from the other side
-        shortest = float(np.min(np.diff(eval_times))) if len(eval_times) > 1 else 1.0
-        system.jacobian_limit = 2.785 * solver.substeps / shortest
+        # (the samples' median interval: a delayed output's extra times are not RK4 steps)
+        interval = float(np.median(np.diff(t)))
+        system.jacobian_limit = 2.785 * solver.substeps / interval
     evaluations = 0
     with np.errstate(all="ignore"):
         for start, end in zip(starts.tolist(), ends.tolist(), strict=True):

@@ -117,10 +117,18 @@ def choose_solver(
         one's reason.
     """
     check_request(method, max_step, substeps)
+    interval = float(min(np.median(np.diff(record.t)) for record in records))
+    if max_step is not None and (method in {"rk4", "auto"}):
+        # RK4's step is the interval over its substeps: at most max_step
+        fewest = min(math.ceil(interval / max_step - 1e-9), MAX_SUBSTEPS)
+        substeps = max(substeps or 1, fewest) if substeps is not None else None
+        first_substeps = fewest
+    else:
+        first_substeps = 1
     if method == "rk4" and substeps is not None:
         return SolverChoice(Solver("rk4", max_step, substeps), "rk4", "")
     if method == "rk4":
-        solver, agreement = _rk4_by_doubling(simulate, noise, [], max_step)
+        solver, agreement = _rk4_by_doubling(simulate, noise, [], max_step, first_substeps)
         return SolverChoice(solver, "rk4", agreement)
     if method != "auto":
         solver, note = verified(simulate, Solver(method, max_step), noise)
@@ -133,7 +141,6 @@ def choose_solver(
         return SolverChoice(solver, "auto", note)
     except SimulationError as exc:
         failures.append(f"lsoda: {exc}")
-    interval = float(min(np.median(np.diff(record.t)) for record in records))
     bdf = Solver("bdf", interval if max_step is None else min(max_step, interval))
     try:
         simulate(Solver(bdf.method, bdf.max_step, steps_per_sample=TRIAL_STEPS_PER_SAMPLE))
@@ -144,22 +151,33 @@ def choose_solver(
         failures.append(f"bdf: {exc}")
     if substeps is not None:  # the user's steps per sample, as given
         given = Solver("rk4", max_step, substeps)
-        simulate(given)
+        try:
+            simulate(given)
+        except SimulationError as exc:
+            tried = "; ".join(_short(text) for text in failures)
+            raise SimulationError(f"{tried}; rk4 as given: {_short(str(exc))}") from None
         return SolverChoice(
             given, "auto", f"lsoda and bdf failed ({_short(failures[0])}); rk4 as given"
         )
-    solver, agreement = _rk4_by_doubling(simulate, noise, failures, max_step)
+    solver, agreement = _rk4_by_doubling(simulate, noise, failures, max_step, first_substeps)
     return SolverChoice(
         solver, "auto", f"lsoda and bdf failed ({_short(failures[0])}); {agreement}"
     )
 
 
 def _rk4_by_doubling(
-    simulate: Simulate, noise: FloatArray, failures: list[str], max_step: float | None
+    simulate: Simulate,
+    noise: FloatArray,
+    failures: list[str],
+    max_step: float | None,
+    first: int = 1,
 ) -> tuple[Solver, str]:
-    """RK4 with the fewest steps per sample that agree with twice as many (see the module)."""
+    """RK4 with the fewest steps per sample that agree with twice as many (see the module).
+
+    ``first``: the fewest to try (the interval over ``max_step``, when given).
+    """
     scale = np.asarray(noise, dtype=float)
-    substeps = 1
+    substeps = first
     coarse = _outputs(simulate, Solver("rk4", max_step, substeps))
     differences: list[float] = []
     while substeps <= MAX_SUBSTEPS:
@@ -194,6 +212,12 @@ def _rk4_by_doubling(
             f"agreement needs {RK4_AGREEMENT:g}): a state is held at a switch (an if that "
             "reverses dx/dt across a level) or at a kink too steep for the step; "
             f"{remedy}, or give --substeps N to accept RK4's error"
+        )
+    elif not math.isfinite(last) and any("NaN or infinite" in text for text in failures):
+        reason = (
+            "rk4 did not give a finite result either: the model's derivatives are NaN or "
+            "infinite at the start values (a square root of a negative value, a division by "
+            "zero?), which no solver mends"
         )
     else:
         shown = (
@@ -268,7 +292,7 @@ def _distance(
     for a, b in zip(first, second, strict=True):
         diff = (np.asarray(a) - np.asarray(b)) / scale
         finite = np.isfinite(diff)
-        if not np.all(finite | ~np.isfinite(np.asarray(a))):
+        if not np.all(finite):  # a non-finite run on either side cannot agree
             return math.inf
         total += float(np.sum(diff[finite] ** 2))
     return math.sqrt(total)

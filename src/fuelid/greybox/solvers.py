@@ -97,7 +97,7 @@ class Solver:
         check_max_step(self.max_step)
         # twice the cap is allowed here: auto's check of the cap compares it with its doubling
         if not 1 <= self.substeps <= 2 * MAX_SUBSTEPS:
-            raise ConfigError(f"substeps {self.substeps} outside 1…{MAX_SUBSTEPS}")
+            raise ConfigError(f"substeps {self.substeps} outside 1…{2 * MAX_SUBSTEPS}")
 
     def describe(self) -> str:
         """E.g. ``lsoda``, ``bdf (max step 0.5 s)``, ``rk4 (8 steps per sample)``."""

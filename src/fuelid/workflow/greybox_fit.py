@@ -194,6 +194,11 @@ def fit_warnings(estimator: GreyBoxEstimator) -> list[str]:
                 "assume white residuals and are too small"
             )
     for name, discrepancy in estimator.linearity_.items():
+        if discrepancy is None and estimator.stderr_.get(name) is not None:
+            out.append(
+                f"{name}: its interval was not checked against the simulation (a step of one "
+                f"standard error reaches a bound): --profile {name} gives one from simulations"
+            )
         if discrepancy is not None and not discrepancy <= LINEARITY_LIMIT:
             shown = (
                 "cannot be simulated"
@@ -256,7 +261,7 @@ def greybox_result(
         "stderr": dict(estimator.stderr_),
         "ci95": {k: None if v is None else list(v) for k, v in estimator.ci95_.items()},
         "fixed": [spec.name for spec in specs if spec.fixed],
-        "free": list(estimator.free_names_),
+        "free": [n for n in estimator.free_names_ if n not in estimator.not_determined_],
         "correlation": {
             "parameters": list(estimator.free_names_),
             "matrix": estimator.correlation_.tolist(),
