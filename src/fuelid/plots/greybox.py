@@ -83,7 +83,7 @@ def plot_greybox_fit(
         raise DataError("nothing to plot: no record")
     with_inputs = all(panel.input_u is not None for panel in panels)
     rows = 2 * n_y + (1 if with_inputs else 0)
-    ratios = [2.2, 1.0] * n_y + ([0.8] if with_inputs else [])
+    ratios = [2.2, 1.0] * n_y + ([1.0] if with_inputs else [])
     height = 0.6 + 3.4 * n_y + (1.1 if with_inputs else 0.0)
     fig = Figure(figsize=(max(7.0, 5.2 * n_cols), height), layout="constrained")
     grid = fig.add_gridspec(rows, n_cols, height_ratios=ratios)
@@ -108,7 +108,8 @@ def plot_greybox_fit(
             heading = _heading(panel, k)
             ax.set_title(heading if n_y == 1 else f"{heading} ({name})", fontsize=10)
             ax.set_ylabel(name)
-            ax_res.set_ylabel(f"residual {name}")
+            # short: the name is on the panel above (a long label ran into the next one's)
+            ax_res.set_ylabel("residual" if n_y == 1 else f"residual {name}")
             if col == 0 and k == 0:
                 # in the label band, clear of the curves, beside the spans' names
                 corner: Literal["upper center", "upper left"] = (
@@ -129,6 +130,7 @@ def plot_greybox_fit(
         axes[-1].set_xlabel("time [s]")
     if title:
         fig.suptitle(title)
+    fig.align_ylabels()
     return fig
 
 
@@ -161,11 +163,11 @@ def _shade(panel: FitPanel, axes: Sequence[Any], label: bool) -> None:
 def _input_label(names: Sequence[str]) -> str:
     """The input axis' label with its unit.
 
-    The one input's name ("command [V]"), or "input [V]" when the inputs share a unit (``input
-    [unit not given]`` when they do not state one).
+    The one input's name ("command [V]"), "input [V]" when the inputs share a unit, else
+    "inputs" (the legend names each with its own unit; a longer label ran into the panel above).
     """
     if len(names) == 1:
         return _with_unit(names[0], None)
     units = {_unit_of(name) for name in names}
     unit = units.pop() if len(units) == 1 else None
-    return _with_unit("input", unit)
+    return _with_unit("input", unit) if unit is not None else "inputs"
