@@ -57,7 +57,7 @@ from fuelid.greybox.parameters import ParameterMap
 from fuelid.greybox.profile import CHI2_95, PROFILE_DOUBLINGS, ProfileLikelihood
 from fuelid.greybox.sensitivity import SimulationError, Trajectory, simulate_record
 from fuelid.greybox.solver_choice import SolverChoice, check_request, choose_solver, verified
-from fuelid.greybox.solvers import Solver
+from fuelid.greybox.solvers import RTOL, Solver
 from fuelid.greybox.system import GreyBoxModel, Record
 from fuelid.model import nrmse_fit_columns
 from fuelid.params import Params
@@ -413,7 +413,12 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
                 self.solver_ = choice
 
         try:
-            solver, note = verified(outputs, choice.solver, self.noise_floor_)
+            solver, note = verified(
+                outputs,
+                choice.solver,
+                self.noise_floor_,
+                [t.outputs for t in result.evaluation.trajectories],
+            )
         except SimulationError:
             solver, note = choice.solver, ""
         finally:
@@ -442,7 +447,8 @@ class GreyBoxEstimator(Params, SegmentedStart, ProfileLikelihood):
         saved = getattr(self, "solver_", None)
         self.solver_ = SolverChoice(solver, self.solver, "")
         try:
-            if solver.method == "rk4":
+            if solver.method == "rk4" or solver.rtol != RTOL:
+                # RK4's doublings and the accuracy check's finer tolerances: outputs alone
                 trajectories = self._simulate_all(phi, records)
             else:
                 evaluation = self._evaluate(phi, records, sigma, jacobian=True)

@@ -238,11 +238,17 @@ def _rk4_by_doubling(
     raise SimulationError((f"{tried}; " if tried else "") + reason)
 
 
-def verified(simulate: Simulate, solver: Solver, noise: FloatArray) -> tuple[Solver, str]:
+def verified(
+    simulate: Simulate,
+    solver: Solver,
+    noise: FloatArray,
+    outputs: Sequence[FloatArray] | None = None,
+) -> tuple[Solver, str]:
     """The solver refined until it agrees with its refinement within :data:`RK4_AGREEMENT`.
 
-    Returns the solver and a note (empty when the solver as given agreed; else what it took,
-    or that it could not be verified at the finest setting).
+    ``outputs``: the solver's outputs, when already simulated. Returns the solver and a note
+    (empty when the solver as given agreed; else what it took, or that it could not be verified
+    at the finest setting).
 
     Raises
     ------
@@ -250,7 +256,7 @@ def verified(simulate: Simulate, solver: Solver, noise: FloatArray) -> tuple[Sol
         When the solver as given cannot simulate at all.
     """
     scale = np.asarray(noise, dtype=float)
-    current = simulate(solver)
+    current = simulate(solver) if outputs is None else outputs
     start = solver
     while True:
         finer = solver.refined()
