@@ -18,38 +18,18 @@ linearisation, the estimators and the tuning layer alike, so there is one implem
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
-from contextvars import ContextVar
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
+# the switch's usual path is here (re-exported; its home is fuelid.numerics_mode)
+from fuelid.numerics_mode import reference_numerics as reference_numerics
+from fuelid.numerics_mode import reference_numerics_on as reference_numerics_on
+
 FloatArray = NDArray[np.float64]
-_REFERENCE = ContextVar("fuelid_reference_numerics", default=False)
-
-
-def reference_numerics_on() -> bool:
-    """True inside :func:`reference_numerics`."""
-    return _REFERENCE.get()
-
-
-@contextmanager
-def reference_numerics() -> Iterator[None]:
-    """Run the numerics as they were before issue 26 (for the benchmark's "today" path).
-
-    :func:`discretise` through scipy's ``cont2discrete`` and ``ss2tf``, autocorrelations over
-    many lags by one dot product per lag (:mod:`fuelid.identify.diagnostics`): the same numbers
-    to rounding, slower. ``WindowAnalyser(fast=False)`` runs inside it.
-    """
-    token = _REFERENCE.set(True)
-    try:
-        yield
-    finally:
-        _REFERENCE.reset(token)
-
 
 SETTLING_BAND = 0.02
 """Relative band of the settling time fuelid reports everywhere: 2 %, the 98 % settling time."""
@@ -239,7 +219,7 @@ def discretise(lags: Sequence[float], delay: float, h: float) -> DiscreteLagMode
     """
     A, B, C = lag_chain(lags)
     n = A.shape[0]
-    if _REFERENCE.get():
+    if reference_numerics_on():
         return _discretise_reference(A, B, C, lags, delay, h)
     d = math.floor(delay / h + 1e-12)
     frac = max(delay - d * h, 0.0)
