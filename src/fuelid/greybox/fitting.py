@@ -51,6 +51,12 @@ stops there: the cost it would gain (½·0.05² of χ²) is below what the integ
 resolves, so scipy's trust region, which cannot know it, would reject ever shorter trial steps,
 one simulation each; at that distance from the optimum Gauss–Newton converges quadratically and
 the step lands within GAUSS_NEWTON_STEP_SE."""
+GAUSS_NEWTON_FLOOR_SE = 0.15
+"""Below this many standard errors a Gauss–Newton step that is more than half the last one is
+the last taken: near the optimum the steps shrink quadratically, and one that halves at best is
+following the integrator's error as φ moves (a few hundredths of a standard error at its
+tolerance, checked by :func:`~fuelid.greybox.solver_choice.verified`), not the data; the
+estimate then lies within about half the step of where more iterations would wander."""
 MAX_NOISE_PASSES = 4
 """Fits with re-estimated noise levels, at most (several outputs only)."""
 NOISE_TOLERANCE = math.log(1.05)
@@ -407,6 +413,7 @@ class ShootingFit:
             return evaluation.residuals
 
         jac_calls = [0]
+        last_length = [math.inf]  # the previous Gauss–Newton step's, in standard errors
 
         def jac(phi_active: FloatArray) -> FloatArray:
             evaluation = latest.get(phi_active.tobytes())
@@ -421,7 +428,9 @@ class ShootingFit:
             )
             if found is not None and found[1] < GAUSS_NEWTON_STEP_SE:
                 raise _Converged(phi_active, jac_calls[0])
-            if found is not None and found[1] < GAUSS_NEWTON_LAST_STEP_SE:
+            at_floor = found is not None and GAUSS_NEWTON_FLOOR_SE > found[1] > 0.5 * last_length[0]
+            last_length[0] = math.inf if found is None else found[1]
+            if found is not None and (found[1] < GAUSS_NEWTON_LAST_STEP_SE or at_floor):
                 last = phi_active + found[0]
                 try:
                     remember(last.tobytes(), self._evaluate(full(last), records, sigma, True))

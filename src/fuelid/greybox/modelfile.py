@@ -355,6 +355,7 @@ def _located(function: Callable[..., Any], file: Path, shown: str, role: str) ->
 
     call.__name__ = getattr(function, "__name__", role)
     call.__doc__ = getattr(function, "__doc__", None)
+    call.__wrapped__ = function  # type: ignore[attr-defined]  # (the fast path calls it directly)
     return call
 
 

@@ -89,6 +89,9 @@ class FunctionSystem:
         self._all_steps[n:] = self._theta_steps
         self._state_scale = float(model.state_scale)
         self._last: tuple[float, bytes, FloatArray] | None = None
+        self._fused_at: tuple[float, bytes] | None = None
+        """Where :meth:`sensitivity_rhs`'s function last ran (its differences are kept)."""
+        self._fused: tuple[FloatArray, FloatArray] = (np.zeros((0, 0)), np.zeros((0, 1)))
         self.jacobian_limit = np.inf
         """|∂f/∂x| beyond which a column is taken as a difference straddling a switch (set by
         fixed-step RK4 to its stability limit: see :meth:`_one_sided`)."""
@@ -168,6 +171,74 @@ class FunctionSystem:
         self._last = (t, x.tobytes(), jac_x)
         return base, jac_x, jac[:, n:]
 
+    def sensitivity_rhs(
+        self, q: int, theta_scale: FloatArray, t0: float, x0: FloatArray, u0: FloatArray
+    ) -> Callable[[float, FloatArray, FloatArray], FloatArray] | None:
+        """d[x, S]/dt in one function for an ``f`` of scalars (None: use :meth:`derivatives`).
+
+        The state and its sensitivities S (n × q, row-major after x in z) move together:
+        dS/dt = ∂f/∂x·S + [∂f/∂θ·diag(∂θ/∂φ) | 0] = D·W with D = [∂f/∂x | ∂f/∂θ·diag(∂θ/∂φ)]
+        from the forward differences of f and W = [S; I_p 0] (p = len(theta_scale): all the
+        free parameters, or none when only the initial state's sensitivities are asked for);
+        one product instead of the general
+        path's Jacobians, copies and sums around the same 1 + n + p calls of ``f`` (those calls
+        then are most of a simulation's cost). The first call at (t0, x0, u0) settles whether f
+        takes batches; a batched f, and RK4's one-sided differences at a switch, keep the
+        general path.
+        """
+        if self._mode.f_vectorised is None:
+            try:
+                with np.errstate(all="ignore"):
+                    self.derivatives(t0, np.asarray(x0, dtype=float), u0)
+            except (ArithmeticError, ValueError):
+                return None  # the simulation says where the model fails
+        if self._mode.f_vectorised is not False or np.isfinite(self.jacobian_limit):
+            return None
+        n, p = self.n_states, len(theta_scale)
+        if p not in (0, len(self.free)):
+            return None
+        # the user's function itself: the model file's wrapper that names the failing line in
+        # an error costs a fifth of a call; a failing evaluation is repeated through it
+        f = getattr(self.model.f, "__wrapped__", self.model.f)
+        # (no θ columns asked for: the initial state's sensitivities alone, f at stepped x only)
+        values, perturbed = self.values, self._perturbed[:p]
+        state_floor = self._state_scale
+        stepped = np.empty((n, n))  # row i: the state with its i-th entry stepped
+        inverse_steps = np.empty((n, 1))
+        weights = np.zeros((n + p, q))  # [S / steps; diag(∂θ/∂φ / θ steps) 0]
+        weights[n:, :p] = np.diag(np.asarray(theta_scale, dtype=float) / self._theta_steps[:p])
+        changes = np.empty((n + p, n))
+        dz = np.empty(n * (1 + q))
+        dsens = dz[n:].reshape(n, q)
+        derivatives = self.derivatives
+        self._fused = (changes, inverse_steps)
+
+        def rhs(t: float, z: FloatArray, u: FloatArray) -> FloatArray:
+            x = z[:n]
+            try:
+                rows = [f(t, x, u, values)]
+                stepped[:] = x
+                for i, value in enumerate(x.tolist()):
+                    step = _STEP * max(abs(value), state_floor)
+                    inverse_steps[i, 0] = 1.0 / step
+                    stepped[i, i] = value + step
+                    rows.append(f(t, stepped[i], u, values))
+                rows.extend([f(t, x, u, changed) for changed in perturbed])
+                table = np.array(rows, dtype=float).reshape(1 + n + p, n)
+            except Exception:
+                derivatives(t, x, u)  # the general path raises the model file's located error
+                raise
+            dz[:n] = table[0]
+            np.subtract(table[1:], table[0], out=changes)
+            # dS/dt = ∂f/∂x·S + ∂f/∂θ·diag(∂θ/∂φ)·[I 0] = changesᵀ·weights, 1/steps in weights
+            np.multiply(z[n:].reshape(n, q), inverse_steps, out=weights[:n])
+            np.matmul(changes.T, weights, out=dsens)
+            self._last = None
+            self._fused_at = (t, x.tobytes())
+            return dz
+
+        return rhs
+
     def _one_sided(
         self,
         t: float,
@@ -215,6 +286,11 @@ class FunctionSystem:
         """∂f/∂x (the one the last :meth:`derivatives` call at this point computed)."""
         if self._last is not None and self._last[0] == t and self._last[1] == x.tobytes():
             return self._last[2]
+        if self._fused_at is not None and self._fused_at == (t, x.tobytes()):
+            # the differences the last fused right-hand side computed at this point
+            changes, inverse_steps = self._fused
+            jac: FloatArray = changes[: self.n_states].T * inverse_steps[:, 0]
+            return jac
         # the stiff solver's Newton matrix alone: the state columns, not the parameters'
         n = self.n_states
         dx_steps = _STEP * np.maximum(np.abs(x), self._state_scale)

@@ -125,7 +125,19 @@ def simulate_record(
     state_atol = np.broadcast_to(np.asarray(system.atol, dtype=float), (n,))
     atol = np.concatenate([state_atol, np.tile(SENSITIVITY_ATOL_FACTOR * state_atol, q)])
 
-    if with_sens:
+    if solver.method == "rk4" and hasattr(system, "jacobian_limit"):
+        # RK4's stability limit on the real axis, h·|λ| ≤ 2.785: a steeper slope in ∂f/∂x is a
+        # difference across a switch, not a mode of the model (the step was checked to resolve
+        # those), and is taken from the other side
+        # (the samples' median interval: a delayed output's extra times are not RK4 steps)
+        interval = float(np.median(np.diff(t)))
+        system.jacobian_limit = 2.785 * solver.substeps / interval
+    # the system's own right-hand side of the state with its sensitivities, where it has one
+    fused_for = getattr(system, "sensitivity_rhs", None) if with_sens else None
+    fused = None if fused_for is None else fused_for(q, scale, float(t[0]), x0, u[0])
+    if fused is not None:
+        rhs = fused
+    elif with_sens:
         dz = np.empty(width)
         dsens = dz[n:].reshape(n, q)
 
@@ -159,13 +171,6 @@ def simulate_record(
         newton_matrix[n:, n:] = np.kron(jac_x, identity_q)
         return newton_matrix
 
-    if solver.method == "rk4" and hasattr(system, "jacobian_limit"):
-        # RK4's stability limit on the real axis, h·|λ| ≤ 2.785: a steeper slope in ∂f/∂x is a
-        # difference across a switch, not a mode of the model (the step was checked to resolve
-        # those), and is taken from the other side
-        # (the samples' median interval: a delayed output's extra times are not RK4 steps)
-        interval = float(np.median(np.diff(t)))
-        system.jacobian_limit = 2.785 * solver.substeps / interval
     evaluations = 0
     with np.errstate(all="ignore"):
         for start, end in zip(starts.tolist(), ends.tolist(), strict=True):
