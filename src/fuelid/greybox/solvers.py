@@ -164,17 +164,19 @@ def integrate_piece(
     z: FloatArray,
     times: FloatArray,
     u: FloatArray,
-    rtol: float,
+    rtol: float | FloatArray,
     atol: FloatArray,
     budget: int | None = None,
 ) -> tuple[FloatArray, int]:
     """Integrate dz/dt = rhs(t, z, u) from ``times[0]`` through ``times``, u held.
 
     Returns the solution at ``times[1:]`` (one row each) and the right-hand-side evaluations.
-    The steps a variable-step method may take are limited to the solver's ``steps_per_sample``
-    per interval of ``times`` (at least ten times that a piece), and to ``budget`` (what is left
-    of the record's right-hand-side evaluations, None: no limit): a trial point where the
-    solution grinds at a switch fails after that, not after the whole step allowance.
+    ``rtol`` may give each component of z its own relative tolerance (LSODA; the solve_ivp
+    methods take the smallest for all). The steps a variable-step method may take are limited
+    to the solver's ``steps_per_sample`` per interval of ``times`` (at least ten times that a
+    piece), and to ``budget`` (what is left of the record's right-hand-side evaluations, None:
+    no limit): a trial point where the solution grinds at a switch fails after that, not after
+    the whole step allowance.
 
     Raises
     ------
@@ -224,7 +226,7 @@ def _solve_ivp(
     z: FloatArray,
     times: FloatArray,
     u: FloatArray,
-    rtol: float,
+    rtol: float | FloatArray,
     atol: FloatArray,
     max_steps: int,
 ) -> tuple[FloatArray, int]:
@@ -247,6 +249,8 @@ def _solve_ivp(
             return np.array(newton_matrix(t, state, u), dtype=float)
 
     method = {"bdf": "BDF", "radau": "Radau", "rk45": "RK45"}[solver.method]
+    # solve_ivp's implicit methods take one relative tolerance: the tightest (the state's)
+    rtol = float(np.min(rtol))
     try:
         result = scipy.integrate.solve_ivp(
             fun,
