@@ -160,6 +160,37 @@ def test_scalar_rhs_sensitivities_match_finite_differences(method: str, with_the
     assert np.all(error < 1e-4), error
 
 
+def tank_f_batch_below(t: float, x: Any, u: Any, p: Mapping[str, Any]) -> Any:
+    """tank_f, refusing a batch once the upper level is above 1.1 (a branch written later)."""
+    if np.ndim(x) > 1 and np.any(x[0] > 1.1):
+        raise TypeError("a batch above 1.1")
+    return tank_f(t, x, u, p)
+
+
+def test_a_batched_f_that_stops_broadcasting_keeps_its_sensitivities() -> None:
+    """Where the batched call fails partway, the scalar differences stand in (same band)."""
+    model = tank_model(f=tank_f_batch_below)
+    record, _ = tank_record(400)
+    pmap = ParameterMap(model.parameters)
+    p = len(pmap.free_names)
+    phi = np.concatenate([pmap.start(), TANK_X0])
+
+    def simulate(phi_: FloatArray, sens: bool = False) -> Any:
+        system = model.bind(pmap.values(phi_[:p]), pmap.free_names, record)
+        if not sens:
+            return simulate_record(system, record, phi_[p:], rtol=1e-11).outputs[:, 0]
+        s0 = np.hstack([np.zeros((2, p)), np.eye(2)])
+        out = simulate_record(system, record, phi_[p:], s0, pmap.dtheta_dphi(phi_[:p]))
+        assert np.any(out.states[:, 0] > 1.1)  # the batch was refused somewhere
+        return out
+
+    analytic = simulate(phi, sens=True).output_sensitivity[:, 0, :]
+    assert model._mode.f_vectorised is True
+    reference = central_difference(simulate, phi)
+    error = np.abs(analytic - reference).max(axis=0) / np.abs(reference).max(axis=0)
+    assert np.all(error < 1e-4), error
+
+
 class DelayedLag:
     """x' = (g·u − x)/T with the output read τ late: an OdeSystem written by hand."""
 

@@ -183,8 +183,8 @@ class FunctionSystem:
         one product instead of the general
         path's Jacobians, copies and sums around the same 1 + n + p calls of ``f`` (those calls
         then are most of a simulation's cost). The first call at (t0, x0, u0) settles whether f
-        takes batches; a batched f, and RK4's one-sided differences at a switch, keep the
-        general path.
+        takes batches (then one batched call: :meth:`_batched_sensitivity_rhs`); RK4's
+        one-sided differences at a switch keep the general path.
         """
         if self._mode.f_vectorised is None:
             try:
@@ -192,11 +192,11 @@ class FunctionSystem:
                     self.derivatives(t0, np.asarray(x0, dtype=float), u0)
             except (ArithmeticError, ValueError):
                 return None  # the simulation says where the model fails
-        if self._mode.f_vectorised is not False or np.isfinite(self.jacobian_limit):
-            return None
         n, p = self.n_states, len(theta_scale)
-        if p not in (0, len(self.free)):
+        if np.isfinite(self.jacobian_limit) or p not in (0, len(self.free)):
             return None
+        if self._mode.f_vectorised:
+            return self._batched_sensitivity_rhs(q, theta_scale)
         # the user's function itself: the model file's wrapper that names the failing line in
         # an error costs a fifth of a call; a failing evaluation is repeated through it
         f = getattr(self.model.f, "__wrapped__", self.model.f)
@@ -231,6 +231,55 @@ class FunctionSystem:
             dz[:n] = table[0]
             np.subtract(table[1:], table[0], out=changes)
             # dS/dt = ∂f/∂x·S + ∂f/∂θ·diag(∂θ/∂φ)·[I 0] = changesᵀ·weights, 1/steps in weights
+            np.multiply(z[n:].reshape(n, q), inverse_steps, out=weights[:n])
+            np.matmul(changes.T, weights, out=dsens)
+            self._last = None
+            self._fused_at = (t, x.tobytes())
+            return dz
+
+        return rhs
+
+    def _batched_sensitivity_rhs(
+        self, q: int, theta_scale: FloatArray
+    ) -> Callable[[float, FloatArray, FloatArray], FloatArray]:
+        """:meth:`sensitivity_rhs` for an f that takes a batch: one call on every perturbation.
+
+        The batch holds every free parameter's column; with none asked for (p = 0) their
+        weights are zero. Where f stops broadcasting (a branch on a state at this point) the
+        general path's differences stand in.
+        """
+        n, p, p_all = self.n_states, len(theta_scale), len(self.free)
+        f, columns, batch_values = self.model.f, self._columns, self._batch_values
+        state_floor = self._state_scale
+        states = self._batch_states  # column 0: x; column 1 + i: x with entry i stepped
+        diagonal = np.arange(n)
+        inverse_steps = np.empty((n, 1))
+        weights = np.zeros((n + p_all, q))
+        weights[n : n + p, :p] = np.diag(
+            np.asarray(theta_scale, dtype=float) / self._theta_steps[:p]
+        )
+        changes = np.empty((n + p_all, n))  # row k: f(variable k stepped) − f(x)
+        theta_steps = self._theta_steps[:, None]
+        dz = np.empty(n * (1 + q))
+        dsens = dz[n:].reshape(n, q)
+        derivatives = self.derivatives
+        self._fused = (changes, inverse_steps)
+
+        def rhs(t: float, z: FloatArray, u: FloatArray) -> FloatArray:
+            x = z[:n]
+            steps = _STEP * np.maximum(np.abs(x), state_floor)
+            states[...] = x[:, None]
+            states[diagonal, diagonal + 1] += steps
+            out = _call_batch(f, columns, n, t, states, u, batch_values)
+            if out is None:
+                base, jac_x, jac_theta = derivatives(t, x, u)
+                changes[:n] = jac_x.T * steps[:, None]
+                changes[n:] = jac_theta.T * theta_steps
+            else:
+                base = out[:, 0]
+                np.subtract(out[:, 1:].T, base, out=changes)
+            dz[:n] = base
+            inverse_steps[:, 0] = 1.0 / steps
             np.multiply(z[n:].reshape(n, q), inverse_steps, out=weights[:n])
             np.matmul(changes.T, weights, out=dsens)
             self._last = None
