@@ -26,7 +26,7 @@ from fuelid.greybox import (
 from fuelid.greybox.estimator import NotIdentifiableError
 from fuelid.greybox.identifiability import identifiability
 from fuelid.greybox.parameters import ParameterMap
-from fuelid.greybox.sensitivity import simulate_record
+from fuelid.greybox.sensitivity import Trajectory, simulate_record
 from fuelid.greybox.solvers import Solver
 from support.bands import coverage_band, rmse_ratio_band
 
@@ -106,23 +106,41 @@ def central_difference(simulate: Any, phi: FloatArray, relative_step: float = 1e
     return np.stack(columns, axis=-1)
 
 
-def test_tank_sensitivities_match_finite_differences() -> None:
-    model = tank_model()
+def tank_sensitivity_errors(
+    model: OdeModel, method: str = "lsoda", with_theta: bool = True
+) -> tuple[FloatArray, Trajectory]:
+    """Each sensitivity column's largest error against central differences, relative.
+
+    The tank record at the start values, the initial state estimated; the reference: central
+    differences of simulations at rtol 1e-11. Without ``with_theta`` only the initial state's
+    columns are integrated (as for a validation record's initial state). Also returns the
+    trajectory with sensitivities.
+    """
     record, _ = tank_record(400)
     pmap = ParameterMap(model.parameters)
     p = len(pmap.free_names)
     phi = np.concatenate([pmap.start(), TANK_X0])
+    solver = Solver(method)
 
-    def simulate(phi_: FloatArray, sens: bool = False) -> Any:
+    def simulate(phi_: FloatArray) -> FloatArray:
         system = model.bind(pmap.values(phi_[:p]), pmap.free_names, record)
-        if not sens:
-            return simulate_record(system, record, phi_[p:], rtol=1e-11).outputs[:, 0]
-        s0 = np.hstack([np.zeros((2, p)), np.eye(2)])
-        return simulate_record(system, record, phi_[p:], s0, pmap.dtheta_dphi(phi_[:p]))
+        out = simulate_record(system, record, phi_[p:], rtol=1e-11, solver=solver)
+        return out.outputs[:, 0]
 
-    analytic = simulate(phi, sens=True).output_sensitivity[:, 0, :]
-    reference = central_difference(simulate, phi)
-    error = np.abs(analytic - reference).max(axis=0) / np.abs(reference).max(axis=0)
+    system = model.bind(pmap.values(phi[:p]), pmap.free_names, record)
+    s0 = np.hstack([np.zeros((2, p)), np.eye(2)]) if with_theta else np.eye(2)
+    scale = pmap.dtheta_dphi(phi[:p]) if with_theta else None
+    trajectory = simulate_record(system, record, phi[p:], s0, scale, solver=solver)
+    assert trajectory.output_sensitivity is not None
+    assert system._fused_at is not None  # the fused right-hand side ran
+    reference = central_difference(simulate, phi)[:, slice(0 if with_theta else p, p + 2)]
+    analytic = trajectory.output_sensitivity[:, 0, :]
+    return np.abs(analytic - reference).max(axis=0) / np.abs(reference).max(axis=0), trajectory
+
+
+def test_tank_sensitivities_match_finite_differences() -> None:
+    # band: 1e-4 of each column's largest value (the integration's and the differences' error)
+    error, _ = tank_sensitivity_errors(tank_model())
     assert np.all(error < 1e-4), error
 
 
@@ -133,30 +151,9 @@ def test_scalar_rhs_sensitivities_match_finite_differences(method: str, with_the
 
     With and without the parameters' columns (a validation record's initial state alone), and
     under the implicit methods, whose Newton matrix reuses the fused differences. The band is
-    the general path's (above): 1e-4 of each column's largest value.
+    the batched f's (above): 1e-4 of each column's largest value.
     """
-    model = tank_model(f=tank_f_scalar)
-    record, _ = tank_record(400)
-    pmap = ParameterMap(model.parameters)
-    p = len(pmap.free_names)
-    phi = np.concatenate([pmap.start(), TANK_X0])
-    solver = Solver(method)
-    columns = slice(0, p + 2) if with_theta else slice(p, p + 2)
-
-    def simulate(phi_: FloatArray, sens: bool = False) -> Any:
-        system = model.bind(pmap.values(phi_[:p]), pmap.free_names, record)
-        if not sens:
-            out = simulate_record(system, record, phi_[p:], rtol=1e-11, solver=solver)
-            return out.outputs[:, 0]
-        s0 = np.hstack([np.zeros((2, p)), np.eye(2)]) if with_theta else np.eye(2)
-        scale = pmap.dtheta_dphi(phi_[:p]) if with_theta else None
-        trajectory = simulate_record(system, record, phi_[p:], s0, scale, solver=solver)
-        assert system._fused_at is not None  # the fused right-hand side ran
-        return trajectory
-
-    analytic = simulate(phi, sens=True).output_sensitivity[:, 0, :]
-    reference = central_difference(simulate, phi)[:, columns]
-    error = np.abs(analytic - reference).max(axis=0) / np.abs(reference).max(axis=0)
+    error, _ = tank_sensitivity_errors(tank_model(f=tank_f_scalar), method, with_theta)
     assert np.all(error < 1e-4), error
 
 
@@ -170,24 +167,9 @@ def tank_f_batch_below(t: float, x: Any, u: Any, p: Mapping[str, Any]) -> Any:
 def test_a_batched_f_that_stops_broadcasting_keeps_its_sensitivities() -> None:
     """Where the batched call fails partway, the scalar differences stand in (same band)."""
     model = tank_model(f=tank_f_batch_below)
-    record, _ = tank_record(400)
-    pmap = ParameterMap(model.parameters)
-    p = len(pmap.free_names)
-    phi = np.concatenate([pmap.start(), TANK_X0])
-
-    def simulate(phi_: FloatArray, sens: bool = False) -> Any:
-        system = model.bind(pmap.values(phi_[:p]), pmap.free_names, record)
-        if not sens:
-            return simulate_record(system, record, phi_[p:], rtol=1e-11).outputs[:, 0]
-        s0 = np.hstack([np.zeros((2, p)), np.eye(2)])
-        out = simulate_record(system, record, phi_[p:], s0, pmap.dtheta_dphi(phi_[:p]))
-        assert np.any(out.states[:, 0] > 1.1)  # the batch was refused somewhere
-        return out
-
-    analytic = simulate(phi, sens=True).output_sensitivity[:, 0, :]
+    error, trajectory = tank_sensitivity_errors(model)
     assert model._mode.f_vectorised is True
-    reference = central_difference(simulate, phi)
-    error = np.abs(analytic - reference).max(axis=0) / np.abs(reference).max(axis=0)
+    assert np.any(trajectory.states[:, 0] > 1.1)  # the batch was refused somewhere
     assert np.all(error < 1e-4), error
 
 

@@ -204,14 +204,8 @@ class FunctionSystem:
         values, perturbed = self.values, self._perturbed[:p]
         state_floor = self._state_scale
         stepped = np.empty((n, n))  # row i: the state with its i-th entry stepped
-        inverse_steps = np.empty((n, 1))
-        weights = np.zeros((n + p, q))  # [S / steps; diag(∂θ/∂φ / θ steps) 0]
-        weights[n:, :p] = np.diag(np.asarray(theta_scale, dtype=float) / self._theta_steps[:p])
-        changes = np.empty((n + p, n))
-        dz = np.empty(n * (1 + q))
-        dsens = dz[n:].reshape(n, q)
+        changes, inverse_steps, finish = self._fused_product(q, theta_scale, n + p)
         derivatives = self.derivatives
-        self._fused = (changes, inverse_steps)
 
         def rhs(t: float, z: FloatArray, u: FloatArray) -> FloatArray:
             x = z[:n]
@@ -228,16 +222,42 @@ class FunctionSystem:
             except Exception:
                 derivatives(t, x, u)  # the general path raises the model file's located error
                 raise
-            dz[:n] = table[0]
             np.subtract(table[1:], table[0], out=changes)
-            # dS/dt = ∂f/∂x·S + ∂f/∂θ·diag(∂θ/∂φ)·[I 0] = changesᵀ·weights, 1/steps in weights
+            return finish(t, z, table[0])
+
+        return rhs
+
+    def _fused_product(
+        self, q: int, theta_scale: FloatArray, rows: int
+    ) -> tuple[FloatArray, FloatArray, Callable[[float, FloatArray, Any], FloatArray]]:
+        """The buffers of a fused right-hand side and its last step, dS/dt = changesᵀ·weights.
+
+        ``changes`` (rows × n): row k is f with variable k stepped minus f (the n states, then
+        the parameters); ``inverse_steps`` (n × 1): 1 / each state's step, filled by the caller
+        before ``finish(t, z, f(x))``, which returns d[x, S]/dt. weights = [S / steps;
+        diag(∂θ/∂φ / θ steps) 0], so ∂f/∂x·S + ∂f/∂θ·diag(∂θ/∂φ)·[I 0] is one product. The
+        buffers are kept for the Newton matrix (:meth:`state_jacobian`).
+        """
+        n, p = self.n_states, len(theta_scale)
+        changes = np.empty((rows, n))
+        inverse_steps = np.empty((n, 1))
+        weights = np.zeros((rows, q))
+        weights[n : n + p, :p] = np.diag(
+            np.asarray(theta_scale, dtype=float) / self._theta_steps[:p]
+        )
+        dz = np.empty(n * (1 + q))
+        dsens = dz[n:].reshape(n, q)
+        self._fused = (changes, inverse_steps)
+
+        def finish(t: float, z: FloatArray, base: Any) -> FloatArray:
+            dz[:n] = base
             np.multiply(z[n:].reshape(n, q), inverse_steps, out=weights[:n])
             np.matmul(changes.T, weights, out=dsens)
             self._last = None
-            self._fused_at = (t, x.tobytes())
+            self._fused_at = (t, z[:n].tobytes())
             return dz
 
-        return rhs
+        return changes, inverse_steps, finish
 
     def _batched_sensitivity_rhs(
         self, q: int, theta_scale: FloatArray
@@ -248,22 +268,14 @@ class FunctionSystem:
         weights are zero. Where f stops broadcasting (a branch on a state at this point) the
         general path's differences stand in.
         """
-        n, p, p_all = self.n_states, len(theta_scale), len(self.free)
+        n, p_all = self.n_states, len(self.free)
         f, columns, batch_values = self.model.f, self._columns, self._batch_values
         state_floor = self._state_scale
         states = self._batch_states  # column 0: x; column 1 + i: x with entry i stepped
         diagonal = np.arange(n)
-        inverse_steps = np.empty((n, 1))
-        weights = np.zeros((n + p_all, q))
-        weights[n : n + p, :p] = np.diag(
-            np.asarray(theta_scale, dtype=float) / self._theta_steps[:p]
-        )
-        changes = np.empty((n + p_all, n))  # row k: f(variable k stepped) − f(x)
+        changes, inverse_steps, finish = self._fused_product(q, theta_scale, n + p_all)
         theta_steps = self._theta_steps[:, None]
-        dz = np.empty(n * (1 + q))
-        dsens = dz[n:].reshape(n, q)
         derivatives = self.derivatives
-        self._fused = (changes, inverse_steps)
 
         def rhs(t: float, z: FloatArray, u: FloatArray) -> FloatArray:
             x = z[:n]
@@ -278,13 +290,8 @@ class FunctionSystem:
             else:
                 base = out[:, 0]
                 np.subtract(out[:, 1:].T, base, out=changes)
-            dz[:n] = base
             inverse_steps[:, 0] = 1.0 / steps
-            np.multiply(z[n:].reshape(n, q), inverse_steps, out=weights[:n])
-            np.matmul(changes.T, weights, out=dsens)
-            self._last = None
-            self._fused_at = (t, x.tobytes())
-            return dz
+            return finish(t, z, base)
 
         return rhs
 
