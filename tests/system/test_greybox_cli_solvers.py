@@ -147,6 +147,21 @@ def test_a_limit_never_reached_is_refused_with_both_ways_out(
     assert "--hold-undetermined" in err
 
 
+def test_a_model_that_raises_is_refused_without_blaming_stiffness(
+    tmp_path: Path, reaching: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A division by zero in f fails every solver; the refusal names the line, not stiffness."""
+    model = _model(tmp_path).read_text(encoding="utf-8")
+    model = model.replace('/ p["T"]]', '/ p["T"] + t / t]')
+    path = tmp_path / "raising.py"
+    path.write_text(model, encoding="utf-8")
+    code, out, err = _run(capsys, str(path), str(reaching))
+    assert (code, out) == (2, "")
+    assert "raising.py line 9: ZeroDivisionError" in err
+    assert "which no solver mends" in err
+    assert "stiff" not in err
+
+
 def test_hold_undetermined_reports_the_held_parameter_apart_from_the_fixed(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -102,3 +102,44 @@ def test_on_the_solver_error_floor_the_fit_stops_within_it(monkeypatch: Any) -> 
     with_rule, without = np.array(counts[rule]), np.array(counts[0.0])
     assert np.all(with_rule <= without), (with_rule, without)
     assert with_rule.sum() < without.sum(), (with_rule, without)
+
+
+class LargeResidual(LinearWithSolverError):
+    """r(φ) = 20·(φ + 1, λφ² + φ − 1), exact Jacobian: Gauss–Newton converges at the rate λ.
+
+    The textbook large-residual problem (no solver error): the steps shrink by λ each, steadily,
+    because the Jacobian turns under a large residual, not because the residuals are noisy.
+    """
+
+    def __init__(self, rate: float) -> None:
+        super().__init__(np.ones((2, 1)), np.zeros(2), 0.0, 0.0)
+        self.rate = rate
+
+    def _evaluate(
+        self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, jacobian: bool
+    ) -> Evaluation:
+        self._work[0] += 1
+        x, rate = float(phi[0]), self.rate
+        residuals = 20.0 * np.array([x + 1.0, rate * x * x + x - 1.0])
+        slope = 20.0 * np.array([[1.0], [2.0 * rate * x + 1.0]])
+        return Evaluation(residuals, slope if jacobian else None, [])
+
+
+def test_a_slowly_converging_large_residual_fit_is_not_taken_for_the_floor(
+    monkeypatch: Any,
+) -> None:
+    """Steps shrinking by 0.8–0.95 each are the data's: the floor rule must not stop them.
+
+    The fit ends where it ends without the rule (the same point, to the last bit), whatever
+    the other stopping rules leave.
+    """
+    rule = fitting.GAUSS_NEWTON_FLOOR_SE
+    for rate in (0.8, 0.9, 0.95):
+        ends = []
+        for floor in (rule, 0.0):
+            monkeypatch.setattr(fitting, "GAUSS_NEWTON_FLOOR_SE", floor)
+            fit = LargeResidual(rate)
+            phi, solution, _ = fit._solve(np.array([1.0]), [], np.ones(1))
+            assert solution.success
+            ends.append(phi[0])
+        assert ends[0] == ends[1], (rate, ends)

@@ -52,11 +52,8 @@ resolves, so scipy's trust region, which cannot know it, would reject ever short
 one simulation each; at that distance from the optimum Gauss–Newton converges quadratically and
 the step lands within GAUSS_NEWTON_STEP_SE."""
 GAUSS_NEWTON_FLOOR_SE = 0.15
-"""Below this many standard errors a Gauss–Newton step that is more than half the last one is
-the last taken: near the optimum the steps shrink quadratically, and one that halves at best is
-following the integrator's error as φ moves (a few hundredths of a standard error at its
-tolerance, checked by :func:`~fuelid.greybox.solver_choice.verified`), not the data; the
-estimate then lies within about half the step of where more iterations would wander."""
+"""Below this many standard errors a Gauss–Newton step can be the integrator's error rather
+than the data's pull (:func:`_on_error_floor`): then it is the last step taken."""
 MAX_NOISE_PASSES = 4
 """Fits with re-estimated noise levels, at most (several outputs only)."""
 NOISE_TOLERANCE = math.log(1.05)
@@ -101,6 +98,40 @@ def _gauss_newton_step(
         return None
     predicted = jacobian @ step
     return step, float(np.sqrt(predicted @ predicted))
+
+
+@dataclass(frozen=True)
+class _Step:
+    """A Gauss–Newton step from an accepted point (with the point, its Jacobian, its length)."""
+
+    phi: FloatArray
+    jacobian: FloatArray
+    step: FloatArray
+    length: float
+
+
+def _on_error_floor(
+    previous: _Step | None, phi: FloatArray, residuals: FloatArray, length: float
+) -> bool:
+    """Whether the Gauss–Newton step of this length from φ is the simulation's error.
+
+    Near the optimum the steps shrink quadratically (a large-residual problem: by a steady
+    ratio). A step that is still more than half the last one, under GAUSS_NEWTON_FLOOR_SE,
+    after the trust region took that last step whole, and made of the residuals' departure
+    from the linear model at the last point (their projection on its Jacobian's columns is at
+    least half the new step), is the integrator's error moving with φ: it does not shrink with
+    the step, as curvature does, and does not come from the Jacobian turning, as a large
+    residual's pull does. Iterating on it wanders within that error (a few hundredths of a
+    standard error at the checked tolerance, :func:`~fuelid.greybox.solver_choice.verified`).
+    """
+    if previous is None or not GAUSS_NEWTON_FLOOR_SE > length > 0.5 * previous.length:
+        return False
+    shortfall = previous.jacobian @ (phi - previous.phi - previous.step)
+    if float(np.sqrt(shortfall @ shortfall)) > 0.1 * previous.length:
+        return False  # the trust region shortened the last step: what is left is the data's
+    departure, *_ = np.linalg.lstsq(previous.jacobian, -residuals, rcond=None)
+    along = previous.jacobian @ departure
+    return float(np.sqrt(along @ along)) >= 0.5 * length
 
 
 @dataclass
@@ -413,7 +444,7 @@ class ShootingFit:
             return evaluation.residuals
 
         jac_calls = [0]
-        last_length = [math.inf]  # the previous Gauss–Newton step's, in standard errors
+        previous: list[_Step | None] = [None]  # the Gauss–Newton step of the last Jacobian
 
         def jac(phi_active: FloatArray) -> FloatArray:
             evaluation = latest.get(phi_active.tobytes())
@@ -428,14 +459,20 @@ class ShootingFit:
             )
             if found is not None and found[1] < GAUSS_NEWTON_STEP_SE:
                 raise _Converged(phi_active, jac_calls[0])
-            at_floor = found is not None and GAUSS_NEWTON_FLOOR_SE > found[1] > 0.5 * last_length[0]
-            last_length[0] = math.inf if found is None else found[1]
+            residuals = evaluation.residuals
+            at_floor = found is not None and _on_error_floor(
+                previous[0], phi_active, residuals, found[1]
+            )
+            previous[0] = None if found is None else _Step(phi_active, jacobian, *found)
             if found is not None and (found[1] < GAUSS_NEWTON_LAST_STEP_SE or at_floor):
                 last = phi_active + found[0]
                 try:
-                    remember(last.tobytes(), self._evaluate(full(last), records, sigma, True))
+                    step_to = self._evaluate(full(last), records, sigma, True)
                 except (SimulationError, FloatingPointError, OverflowError):
                     raise _Converged(phi_active, jac_calls[0]) from None
+                if at_floor and step_to.residuals @ step_to.residuals > residuals @ residuals:
+                    raise _Converged(phi_active, jac_calls[0])  # the floor: keep the better
+                remember(last.tobytes(), step_to)
                 raise _Converged(last, jac_calls[0])
             return jacobian
 

@@ -248,11 +248,15 @@ class FunctionSystem:
         dz = np.empty(n * (1 + q))
         dsens = dz[n:].reshape(n, q)
         self._fused = (changes, inverse_steps)
+        self._fused_at = None  # the buffers are new: nothing cached in them yet
+        # the rows the product uses: the states' and the parameters asked for (a batch computes
+        # every parameter's column; one not asked for may be NaN there, and 0·NaN is NaN)
+        used_changes, used_weights = changes[: n + p], weights[: n + p]
 
         def finish(t: float, z: FloatArray, base: Any) -> FloatArray:
             dz[:n] = base
             np.multiply(z[n:].reshape(n, q), inverse_steps, out=weights[:n])
-            np.matmul(changes.T, weights, out=dsens)
+            np.matmul(used_changes.T, used_weights, out=dsens)
             self._last = None
             self._fused_at = (t, z[:n].tobytes())
             return dz

@@ -165,6 +165,11 @@ def choose_solver(
     )
 
 
+def _model_failed(failure: str) -> bool:
+    """Whether a solver's failure was the model's own (an exception in f, a NaN), not stiffness."""
+    return any(mark in failure for mark in ("NaN or infinite", "(raised in f)", "model raised"))
+
+
 def _rk4_by_doubling(
     simulate: Simulate,
     noise: FloatArray,
@@ -213,11 +218,11 @@ def _rk4_by_doubling(
             "reverses dx/dt across a level) or at a kink too steep for the step; "
             f"{remedy}, or give --substeps N to accept RK4's error"
         )
-    elif not math.isfinite(last) and any("NaN or infinite" in text for text in failures):
+    elif not math.isfinite(last) and any(_model_failed(text) for text in failures):
         reason = (
-            "rk4 did not give a finite result either: the model's derivatives are NaN or "
-            "infinite at the start values (a square root of a negative value, a division by "
-            "zero?), which no solver mends"
+            "rk4 did not give a finite result either: the model itself fails or gives NaN or "
+            "infinite derivatives at the start values (a square root of a negative value, a "
+            "division by zero?), which no solver mends"
         )
     else:
         shown = (

@@ -163,11 +163,12 @@ def _shade(panel: FitPanel, axes: Sequence[Any], label: bool) -> None:
 def _input_label(names: Sequence[str]) -> str:
     """The input axis' label with its unit.
 
-    The one input's name ("command [V]"), "input [V]" when the inputs share a unit, else
-    "inputs" (the legend names each with its own unit; a longer label ran into the panel above).
+    The one input's name as the log gives it ("command [V]", "u_V"), "input [V]" when the inputs
+    share a unit, else "inputs" (the legend names each with its own unit; a longer label, such
+    as a name with "[unit not given]", ran past its short panel into the one above).
     """
     if len(names) == 1:
-        return _with_unit(names[0], None)
+        return names[0]
     units = {_unit_of(name) for name in names}
     unit = units.pop() if len(units) == 1 else None
     return _with_unit("input", unit) if unit is not None else "inputs"
