@@ -34,6 +34,13 @@ from fuelid.errors import FuelidError, NotFittedError
 from fuelid.greybox.parameters import ParameterMap
 from fuelid.greybox.sensitivity import SimulationError, Trajectory, simulate_record
 from fuelid.greybox.solver_choice import SolverChoice
+from fuelid.greybox.stopping import (
+    GAUSS_NEWTON_LAST_STEP_SE,
+    GAUSS_NEWTON_STEP_SE,
+    Step,
+    gauss_newton_step,
+    last_step,
+)
 from fuelid.greybox.system import GreyBoxModel, Record
 
 FloatArray = NDArray[np.float64]
@@ -41,19 +48,9 @@ Z95 = float(scipy.special.ndtri(0.975))
 """The standard normal's 97.5 % quantile (scipy.stats costs 0.3 s to import: not here)."""
 COST_TOLERANCE = 1e-4
 """The solver stops when an iteration lowers ½Σ(r/σ)² by less than this (see ``_solve``)."""
-GAUSS_NEWTON_STEP_SE = 0.005
-"""The fit stops when the Gauss–Newton step left is shorter than this many standard errors:
-no estimate would move by more than 0.005 of its standard error, and two fits from different
-starts agree to 0.01."""
-GAUSS_NEWTON_LAST_STEP_SE = 0.05
-"""A Gauss–Newton step shorter than this is taken without the trust region's test, and the fit
-stops there: the cost it would gain (½·0.05² of χ²) is below what the integrator's tolerance
-resolves, so scipy's trust region, which cannot know it, would reject ever shorter trial steps,
-one simulation each; at that distance from the optimum Gauss–Newton converges quadratically and
-the step lands within GAUSS_NEWTON_STEP_SE."""
-GAUSS_NEWTON_FLOOR_SE = 0.15
-"""Below this many standard errors a Gauss–Newton step can be the integrator's error rather
-than the data's pull (:func:`_on_error_floor`): then it is the last step taken."""
+MAX_RESTARTS = 3
+"""Times a fit goes on from an extrapolated point (:mod:`fuelid.greybox.stopping`) before it
+stops at one."""
 MAX_NOISE_PASSES = 4
 """Fits with re-estimated noise levels, at most (several outputs only)."""
 NOISE_TOLERANCE = math.log(1.05)
@@ -73,7 +70,7 @@ class OutOfBudget(Exception):
 
 
 class _Converged(Exception):
-    """Raised from the Jacobian callback at the optimum (:data:`GAUSS_NEWTON_STEP_SE`)."""
+    """Raised from the Jacobian callback where the fit ends (:mod:`fuelid.greybox.stopping`)."""
 
     def __init__(self, phi: FloatArray, jacobians: int) -> None:
         super().__init__("converged")
@@ -81,57 +78,13 @@ class _Converged(Exception):
         self.jacobians = jacobians
 
 
-def _gauss_newton_step(
-    jacobian: FloatArray, residuals: FloatArray, phi: FloatArray, low: FloatArray, high: FloatArray
-) -> tuple[FloatArray, float] | None:
-    """The Gauss–Newton step from φ and its length in standard errors (None: not usable).
+class _Restart(Exception):
+    """Raised from the Jacobian callback to go on from an extrapolated point."""
 
-    The length is ‖J·δ‖ (J weighted by σ, so JᵀJ is the Fisher information): the most any
-    estimate would move, in its own standard errors. None for a step that leaves the bounds (at
-    a bound the trust region decides) or a Jacobian that is not finite.
-    """
-    if not np.all(np.isfinite(jacobian)):
-        return None
-    solution, *_ = np.linalg.lstsq(jacobian, -residuals, rcond=None)
-    step: FloatArray = np.asarray(solution, dtype=float)
-    if not np.all((phi + step > low) & (phi + step < high)):
-        return None
-    predicted = jacobian @ step
-    return step, float(np.sqrt(predicted @ predicted))
-
-
-@dataclass(frozen=True)
-class _Step:
-    """A Gauss–Newton step from an accepted point (with the point, its Jacobian, its length)."""
-
-    phi: FloatArray
-    jacobian: FloatArray
-    step: FloatArray
-    length: float
-
-
-def _on_error_floor(
-    previous: _Step | None, phi: FloatArray, residuals: FloatArray, length: float
-) -> bool:
-    """Whether the Gauss–Newton step of this length from φ is the simulation's error.
-
-    Near the optimum the steps shrink quadratically (a large-residual problem: by a steady
-    ratio). A step that is still more than half the last one, under GAUSS_NEWTON_FLOOR_SE,
-    after the trust region took that last step whole, and made of the residuals' departure
-    from the linear model at the last point (their projection on its Jacobian's columns is at
-    least half the new step), is the integrator's error moving with φ: it does not shrink with
-    the step, as curvature does, and does not come from the Jacobian turning, as a large
-    residual's pull does. Iterating on it wanders within that error (a few hundredths of a
-    standard error at the checked tolerance, :func:`~fuelid.greybox.solver_choice.verified`).
-    """
-    if previous is None or not GAUSS_NEWTON_FLOOR_SE > length > 0.5 * previous.length:
-        return False
-    shortfall = previous.jacobian @ (phi - previous.phi - previous.step)
-    if float(np.sqrt(shortfall @ shortfall)) > 0.1 * previous.length:
-        return False  # the trust region shortened the last step: what is left is the data's
-    departure, *_ = np.linalg.lstsq(previous.jacobian, -residuals, rcond=None)
-    along = previous.jacobian @ departure
-    return float(np.sqrt(along @ along)) >= 0.5 * length
+    def __init__(self, phi: FloatArray, rate: float) -> None:
+        super().__init__("restart")
+        self.phi = np.array(phi, dtype=float)
+        self.rate = rate
 
 
 @dataclass
@@ -444,7 +397,9 @@ class ShootingFit:
             return evaluation.residuals
 
         jac_calls = [0]
-        previous: list[_Step | None] = [None]  # the Gauss–Newton step of the last Jacobian
+        previous: list[Step | None] = [None]  # the Gauss–Newton step of the last Jacobian
+        restarts = [0]
+        restart_rate: list[float | None] = [None]  # the rate a restart was extrapolated with
 
         def jac(phi_active: FloatArray) -> FloatArray:
             evaluation = latest.get(phi_active.tobytes())
@@ -454,27 +409,37 @@ class ShootingFit:
                 raise FuelidError("internal: an evaluation without its Jacobian")
             jacobian = evaluation.jacobian[:, active]
             jac_calls[0] += 1
-            found = _gauss_newton_step(
-                jacobian, evaluation.residuals, phi_active, clip_low, clip_high
-            )
-            if found is not None and found[1] < GAUSS_NEWTON_STEP_SE:
-                raise _Converged(phi_active, jac_calls[0])
             residuals = evaluation.residuals
-            at_floor = found is not None and _on_error_floor(
-                previous[0], phi_active, residuals, found[1]
-            )
-            previous[0] = None if found is None else _Step(phi_active, jacobian, *found)
-            if found is not None and (found[1] < GAUSS_NEWTON_LAST_STEP_SE or at_floor):
-                last = phi_active + found[0]
-                try:
-                    step_to = self._evaluate(full(last), records, sigma, True)
-                except (SimulationError, FloatingPointError, OverflowError):
-                    raise _Converged(phi_active, jac_calls[0]) from None
-                if at_floor and step_to.residuals @ step_to.residuals > residuals @ residuals:
-                    raise _Converged(phi_active, jac_calls[0])  # the floor: keep the better
-                remember(last.tobytes(), step_to)
-                raise _Converged(last, jac_calls[0])
-            return jacobian
+            found = gauss_newton_step(jacobian, residuals, phi_active, clip_low, clip_high)
+            if found is None:
+                previous[0] = None
+                return jacobian
+            if found[1] < GAUSS_NEWTON_STEP_SE:
+                raise _Converged(phi_active, jac_calls[0])
+            current = Step(phi_active, jacobian, *found)
+            ending = last_step(previous[0], current, residuals, restart_rate[0])
+            restart_rate[0] = None
+            previous[0] = current
+            if ending is None:
+                return jacobian
+            last, rate = ending.phi, ending.rate
+            try:
+                step_to = self._evaluate(full(last), records, sigma, True)
+            except (SimulationError, FloatingPointError, OverflowError):
+                raise _Converged(phi_active, jac_calls[0]) from None
+            if ending.guarded and step_to.residuals @ step_to.residuals > residuals @ residuals:
+                raise _Converged(phi_active, jac_calls[0])  # the better of the two
+            remember(last.tobytes(), step_to)
+            if rate is not None and restarts[0] < MAX_RESTARTS and step_to.jacobian is not None:
+                left = gauss_newton_step(
+                    step_to.jacobian[:, active], step_to.residuals, last, clip_low, clip_high
+                )
+                # still converging at that rate, what is left is the step over 1 − ρ (half
+                # the last-step threshold: the rate measured so far may still be drifting)
+                left_se = math.inf if left is None else left[1] / (1.0 - rate)
+                if left_se >= 0.5 * GAUSS_NEWTON_LAST_STEP_SE:
+                    raise _Restart(last, rate)  # not there: iterate on from the nearer point
+            raise _Converged(last, jac_calls[0])
 
         # Stop when an iteration lowers the weighted cost ½Σr² by less than COST_TOLERANCE
         # (at the optimum ½Σr² ≈ m/2): the step then moves φ by ~0.01 standard errors, and
@@ -495,18 +460,24 @@ class ShootingFit:
         scale_of_phi = np.concatenate([theta_size, state_size])[active]
         evaluations_before = self._work[0]
         try:
-            solution = scipy.optimize.least_squares(
-                fun,
-                start,
-                jac=jac,
-                bounds=(clip_low, clip_high),
-                method="trf",
-                x_scale="jac" if jacobian_scaled else scale_of_phi,
-                xtol=XTOL,
-                ftol=ftol,
-                gtol=1e-10,
-                max_nfev=self.max_iterations,
-            )
+            while True:
+                try:
+                    solution = scipy.optimize.least_squares(
+                        fun,
+                        start,
+                        jac=jac,
+                        bounds=(clip_low, clip_high),
+                        method="trf",
+                        x_scale="jac" if jacobian_scaled else scale_of_phi,
+                        xtol=XTOL,
+                        ftol=ftol,
+                        gtol=1e-10,
+                        max_nfev=self.max_iterations,
+                    )
+                    break
+                except _Restart as again:  # from an extrapolated point (its evaluation kept)
+                    start, previous[0], restart_rate[0] = again.phi, None, again.rate
+                    restarts[0] += 1
         except OutOfBudget:
             if not best:
                 raise
