@@ -10,6 +10,7 @@ a number theory fixes.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from typing import Any
@@ -135,17 +136,53 @@ def test_a_slowly_converging_large_residual_fit_ends_at_its_optimum(monkeypatch:
     order). Distances in standard errors: |x − x*|·‖J(x*)‖.
     """
     rule = stopping.GAUSS_NEWTON_FLOOR_SE
-    for rate in (0.8, 0.9, 0.95):
+    for rate, start in itertools.product((0.8, 0.9, 0.95), (1.0, 3.0)):
         # the optimum: (x + 1) + (λx² + x − 1)(2λx + 1) = 0, the real root nearest 0
         roots = np.roots([2 * rate**2, 3 * rate, 2 - rate, 0.0])
         exact = float(min(roots[np.isreal(roots)].real, key=abs))
         unit = 20.0 * math.hypot(1.0, 2.0 * rate * exact + 1.0)
         with_rule = LargeResidual(rate)
-        phi, solution, _ = with_rule._solve(np.array([1.0]), [], np.ones(1))
+        phi, solution, _ = with_rule._solve(np.array([start]), [], np.ones(1))
         assert solution.success
-        assert abs(phi[0] - exact) * unit < stopping.GAUSS_NEWTON_LAST_STEP_SE, rate
+        assert abs(phi[0] - exact) * unit < stopping.GAUSS_NEWTON_LAST_STEP_SE, (rate, start)
         monkeypatch.setattr(stopping, "GAUSS_NEWTON_FLOOR_SE", 0.0)
         without = LargeResidual(rate)
-        without._solve(np.array([1.0]), [], np.ones(1))
+        without._solve(np.array([start]), [], np.ones(1))
         monkeypatch.setattr(stopping, "GAUSS_NEWTON_FLOOR_SE", rule)
         assert with_rule._work[0] <= without._work[0], (rate, with_rule._work, without._work)
+
+
+class BoundedLargeResidual(LinearWithSolverError):
+    """The large-residual pair in y = a + b, and 20·(a + 2b): b has an upper bound it nears.
+
+    Along the slow direction b moves towards its bound while y converges: an extrapolated step
+    would cross it (a reviewer's case).
+    """
+
+    def __init__(self, rate: float, upper: float) -> None:
+        super().__init__(np.eye(3)[:, :2], np.zeros(3), 0.0, 0.0)
+        specs = (ParameterSpec("a", 2.0), ParameterSpec("b", -1.0, lower=-10.0, upper=upper))
+        self.map_ = ParameterMap(specs)
+        self.free_names_ = self.map_.free_names
+        self.rate = rate
+
+    def _evaluate(
+        self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, jacobian: bool
+    ) -> Evaluation:
+        self._work[0] += 1
+        a, b = float(phi[0]), float(phi[1])
+        y, rate = a + b, self.rate
+        residuals = np.array(
+            [20.0 * (y + 1.0), 20.0 * (rate * y * y + y - 1.0), 20.0 * (a + 2 * b)]
+        )
+        slope = np.array([[20.0, 20.0], [20.0 * (2 * rate * y + 1.0)] * 2, [20.0, 40.0]])
+        return Evaluation(residuals, slope if jacobian else None, [])
+
+
+def test_an_extrapolation_never_leaves_the_bounds() -> None:
+    """The fit ends inside the bounds (a step beyond one is the trust region's to shorten)."""
+    for rate, upper in ((0.9, -0.02), (0.9, -0.01), (0.95, -0.03)):
+        fit = BoundedLargeResidual(rate, upper)
+        phi, solution, _ = fit._solve(np.array([2.0, -1.0]), [], np.ones(1))
+        assert solution.success, (rate, upper)
+        assert phi[1] < upper, (rate, upper, phi)

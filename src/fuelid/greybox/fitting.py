@@ -36,8 +36,8 @@ from fuelid.greybox.sensitivity import SimulationError, Trajectory, simulate_rec
 from fuelid.greybox.solver_choice import SolverChoice
 from fuelid.greybox.stopping import (
     GAUSS_NEWTON_LAST_STEP_SE,
-    GAUSS_NEWTON_STEP_SE,
     Step,
+    converged,
     gauss_newton_step,
     last_step,
 )
@@ -414,10 +414,12 @@ class ShootingFit:
             if found is None:
                 previous[0] = None
                 return jacobian
-            if found[1] < GAUSS_NEWTON_STEP_SE:
-                raise _Converged(phi_active, jac_calls[0])
             current = Step(phi_active, jacobian, *found)
-            ending = last_step(previous[0], current, residuals, restart_rate[0])
+            if converged(previous[0], current, restart_rate[0]):
+                raise _Converged(phi_active, jac_calls[0])
+            ending = last_step(
+                previous[0], current, residuals, (clip_low, clip_high), restart_rate[0]
+            )
             restart_rate[0] = None
             previous[0] = current
             if ending is None:
@@ -426,9 +428,13 @@ class ShootingFit:
             try:
                 step_to = self._evaluate(full(last), records, sigma, True)
             except (SimulationError, FloatingPointError, OverflowError):
+                if rate is not None:
+                    return jacobian  # an extrapolation too far: the trust region goes on
                 raise _Converged(phi_active, jac_calls[0]) from None
             if ending.guarded and step_to.residuals @ step_to.residuals > residuals @ residuals:
-                raise _Converged(phi_active, jac_calls[0])  # the better of the two
+                if rate is not None:
+                    return jacobian  # the series did not hold: the trust region goes on
+                raise _Converged(phi_active, jac_calls[0])  # the floor: the better of the two
             remember(last.tobytes(), step_to)
             if rate is not None and restarts[0] < MAX_RESTARTS and step_to.jacobian is not None:
                 left = gauss_newton_step(
@@ -472,8 +478,12 @@ class ShootingFit:
                         xtol=XTOL,
                         ftol=ftol,
                         gtol=1e-10,
-                        max_nfev=self.max_iterations,
+                        # the allowance is the whole fit's, restarts included
+                        max_nfev=max(1, self.max_iterations - jac_calls[0]),
                     )
+                    # scipy counts its own call only: the fit's, restarts included
+                    solution.nfev = self._work[0] - evaluations_before
+                    solution.njev = jac_calls[0]
                     break
                 except _Restart as again:  # from an extrapolated point (its evaluation kept)
                     start, previous[0], restart_rate[0] = again.phi, None, again.rate

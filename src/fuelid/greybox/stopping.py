@@ -129,15 +129,40 @@ class Ending:
     the quadratic regime (there a cost gain below the integrator's resolution means nothing)."""
 
 
+def current_rate(previous: Step | None, current: Step, rate: float | None = None) -> float | None:
+    """The linear rate the steps converge at, if they do so slowly (None: not measured).
+
+    ``rate``: the one a fit going on from an extrapolated point was extrapolated with (it has
+    no previous step of its own yet).
+    """
+    if previous is None:
+        return rate
+    if current.length <= SLOW * previous.length or not _taken_whole(previous, current):
+        return None
+    return linear_rate(previous, current)
+
+
+def converged(previous: Step | None, current: Step, rate: float | None = None) -> bool:
+    """Whether what is left is under GAUSS_NEWTON_STEP_SE: the step, or the series it starts."""
+    measured = current_rate(previous, current, rate)
+    left = current.length / (1.0 - measured) if measured is not None else current.length
+    return left < GAUSS_NEWTON_STEP_SE
+
+
 def last_step(
-    previous: Step | None, current: Step, residuals: FloatArray, rate: float | None = None
+    previous: Step | None,
+    current: Step,
+    residuals: FloatArray,
+    bounds: tuple[FloatArray, FloatArray],
+    rate: float | None = None,
 ) -> Ending | None:
     """The point to end the fit at from ``current`` (None: iterate on; see the module).
 
     An extrapolated point (a rate, not None) is where the series would end if its ratio held;
     the caller checks what is left there, the step left over 1 − ρ, and goes on from it if
     that is not short. ``current.length`` is at least GAUSS_NEWTON_STEP_SE (below it the
-    caller stops). ``rate``: the one a fit going on from an extrapolated point was
+    caller stops). ``bounds``: an extrapolated point must lie strictly inside them (else the
+    trust region goes on). ``rate``: the one a fit going on from an extrapolated point was
     extrapolated with; that fit takes a step of its own first.
     """
     length = current.length
@@ -154,6 +179,10 @@ def last_step(
     if on_error_floor(previous, current, residuals):
         return Ending(current.phi + current.step, guarded=True)
     measured = linear_rate(previous, current)
-    if measured is not None:
-        return Ending(current.phi + current.step / (1.0 - measured), measured, guarded=True)
-    return None
+    if measured is None:
+        return None
+    extrapolated = current.phi + current.step / (1.0 - measured)
+    low, high = bounds
+    if not np.all((extrapolated > low) & (extrapolated < high)):
+        return None  # beyond a bound: the trust region's business
+    return Ending(extrapolated, measured, guarded=True)
