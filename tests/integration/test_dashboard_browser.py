@@ -112,6 +112,29 @@ def _pending(base: str, loop_id: str, timeout: float = 60.0) -> dict[str, Any]:
     raise AssertionError("no pending proposal within the time")
 
 
+def _written_or_superseded(
+    store: Path, proposal_id: int, timeout: float = 30.0
+) -> tuple[float, float] | None:
+    """The verified write's gains of an approved proposal; None if a newer one superseded it."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        with sqlite3.connect(store) as con:
+            row = con.execute(
+                "SELECT kc, ti FROM writes WHERE kind = 'proposal' AND status = 'verified' "
+                "AND proposal_id = ? ORDER BY id DESC LIMIT 1",
+                (proposal_id,),
+            ).fetchone()
+            (status,) = con.execute(
+                "SELECT status FROM proposals WHERE id = ?", (proposal_id,)
+            ).fetchone()
+        if row is not None:
+            return float(row[0]), float(row[1])
+        if status == "superseded":
+            return None
+        time.sleep(0.3)
+    raise AssertionError(f"proposal {proposal_id}: no verified write within {timeout} s")
+
+
 def _verified_write(store: Path, kind: str, timeout: float = 30.0) -> tuple[float, float]:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -163,11 +186,25 @@ def test_an_engineer_approves_and_reverts_on_the_page_and_the_plc_echoes_it(
                 page.click("form.inline button")  # log out
                 _login(page, base, "eve", engineer, path)
                 wait_ready(page)
-                page.fill(f"form[data-proposal='{proposal['id']}'] input[name=why]", "looks safe")
-                page.click(button)
-                shown = f'document.querySelector("{outcome}").textContent'
-                wait_until(page, f"/^approve (done|filed)/.test({shown})")
-                kc, ti = _verified_write(store, "proposal")
+                # a newer proposal supersedes an approved one not yet written (as documented:
+                # the service may hold the write while the loop settles); then the engineer
+                # approves the newer one, a few times at most
+                for _ in range(3):
+                    form = f"form[data-proposal='{proposal['id']}']"
+                    page.fill(f"{form} input[name=why]", "looks safe")
+                    page.click(f"{form} button[data-kind=approve]")
+                    shown = f'document.querySelector("{form} .outcome").textContent'
+                    # (refused: superseded between the page's load and the click)
+                    wait_until(page, f"/^approve (done|filed|refused)/.test({shown})")
+                    written = _written_or_superseded(store, int(proposal["id"]))
+                    if written is not None:
+                        break
+                    proposal = _pending(base, loop_id)
+                    page.goto(base + path)
+                    wait_ready(page)
+                else:
+                    raise AssertionError("three approvals superseded before their write")
+                kc, ti = written
                 page.goto(base + path)
                 wait_ready(page)
                 page.fill("form.revert input[name=why]", "back to the old gains")
