@@ -111,8 +111,10 @@ def test_link_drops_on_the_virtual_plc_are_back_filled_from_its_ring(
     from fuelid.plc.site import load_site
 
     site = load_site(site_file(tmp_path, virtual))
-    # up longer than the answer timeout plus a ring poll: each drop is one the recorder sees
-    down_s, up_s = 0.15, 0.5
+    # up longer than the answer timeout plus a ring poll: each drop is one the recorder sees;
+    # down long enough that a poll falls into it on a busy machine too (at 0.15 s a CI run on
+    # a loaded 2-core machine saw 2 of 3 drops: no poll came while the link was down)
+    down_s, up_s = 0.4, 0.5
 
     def flap() -> None:
         time.sleep(up_s)
