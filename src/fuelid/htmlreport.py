@@ -125,7 +125,11 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
         rob.crossover_frequency,
         rob.phase_crossover_frequency,
         f"loop L = C·G on the {chosen.method} model, "
-        + (f"PI sampled every {s.control_period:g} s" if s.control_period > 0 else "continuous PI"),
+        + (
+            f"PI sampled every {s.control_period:g} s"
+            if s.control_period  # None only before analyse_log, which refuses it
+            else "continuous PI"
+        ),
     )
     if analysis.runs:
         closed = runs_figure(
@@ -155,7 +159,7 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
             "load step. No plant file was given, so no run on a nonlinear plant: the built-in "
             "reference plant is not your loop."
         )
-    schedule = schedule_figure(analysis.schedule)
+    schedule = None if analysis.schedule is None else schedule_figure(analysis.schedule)
     return {
         "overview": (overview, "The log: VFD command and measured flow."),
         "comparison": (
@@ -175,8 +179,11 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
             "phase margin (at the crossover) marked, and the sensitivity |S| whose peak is Ms.",
         ),
         "closed_loop": (closed, closed_caption),
-        "schedule": (schedule, "Gains per fuel-temperature band (one line per flow band)."),
-    }
+    } | (
+        {}
+        if schedule is None  # no plant file of the user's: no schedule (it would not be theirs)
+        else {"schedule": (schedule, "Gains per fuel-temperature band (one line per flow band).")}
+    )
 
 
 def _overview_series(data: IOData) -> TimeSeries:
@@ -271,8 +278,9 @@ def _context(
     check = analysis.check
     cases = [
         {k: _fmt(v, ".3g") if isinstance(v, float) else v for k, v in row.items()}
-        for row in check.rows()
+        for row in ([] if check is None else check.rows())
     ]
+    band_check = analysis.outcome.bands
     runs = []
     for run in analysis.runs:
         summary = run.summary()
@@ -290,8 +298,9 @@ def _context(
         )
     bands = [
         {k: _fmt(v, ".4g") if isinstance(v, float) else v for k, v in b.to_json().items()}
-        for b in analysis.schedule.bands
+        for b in ([] if analysis.schedule is None else analysis.schedule.bands)
     ]
+    span = plc["percent_of_span"]
     rob = analysis.tuning.robustness
     linear = tuning["closed_loop"]
     return {
@@ -317,10 +326,7 @@ def _context(
         "plant": analysis.plant.to_json(),
         "priors": _priors_rows(analysis.priors),
         "gain_unit": gain_unit(data),
-        # without a plant file the flows of the operating points are the reference plant's
-        "flow_header": "flow L/min (reference plant)"
-        if analysis.plant.is_reference
-        else "flow L/min",
+        "flow_header": "flow L/min",
         "settings": s,
         "t_range": f"{kelvin_to_celsius(s.T_range[0]):g}…{kelvin_to_celsius(s.T_range[1]):g}",
         "identifications": rows_ident,
@@ -331,9 +337,9 @@ def _context(
             "Ti": _fmt(tuning["Ti"], ".4g"),
             "Ki": _fmt(tuning["Ki"], ".5g"),
             "h": _fmt(tuning["control_period"], "g"),
-            "span_Kc": _fmt(plc["percent_of_span"]["Kc"], ".4g"),
-            "u_span": _fmt(plc["percent_of_span"]["u_span"], "g"),
-            "y_span": _fmt(plc["percent_of_span"]["y_span"], "g"),
+            "h_basis": s.control_period_basis,
+            "span_Kc": None if span is None else _fmt(span["Kc"], ".4g"),
+            "span_Ti_min": None if span is None else _fmt(span["Ti_min"], ".4g"),
             "span_note": analysis.span_note,
             "discrete": None
             if plc["discrete"] is None
@@ -356,7 +362,9 @@ def _context(
                 for item in analysis.outcome.structures
             ],
         },
-        "check": {
+        "check": None
+        if check is None
+        else {
             "worst_Ms": _fmt(check.worst_Ms, ".2f"),
             "worst_overshoot": _fmt(check.worst_overshoot, ".1f"),
             "worst_gain_margin": _fmt(check.worst_gain_margin, ".2f"),
@@ -364,8 +372,23 @@ def _context(
             "all_stable": check.all_stable,
             "cases": cases,
         },
+        "band_check": None
+        if band_check is None
+        else {
+            "u_range": f"{band_check.u_range[0]:.3g}…{band_check.u_range[1]:.3g}",
+            "worst_Ms": _fmt(band_check.worst_Ms, ".2f"),
+            "worst_overshoot": _fmt(band_check.worst_overshoot, ".1f"),
+            "worst_gain_margin": _fmt(band_check.worst_gain_margin, ".2f"),
+            "all_stable": band_check.all_stable,
+            "cases": [
+                {k: _fmt(v, ".3g") if isinstance(v, float) else v for k, v in c.to_json().items()}
+                for c in band_check.cases
+            ],
+        },
         "runs": runs,
-        "schedule": {
+        "schedule": None
+        if analysis.schedule is None
+        else {
             "ms_target": _fmt(analysis.schedule.ms_target, "g"),
             "worst_Ms": _fmt(analysis.schedule.worst_Ms, ".2f"),
             "bands": bands,

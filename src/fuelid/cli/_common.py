@@ -17,6 +17,7 @@ import math
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, ParamSpec, TypeVar
 
@@ -147,6 +148,32 @@ def celsius_to_kelvin(t_degC: float, name: str = "fuel temperature") -> float:
     return _to_kelvin(t_degC)
 
 
+@dataclass(frozen=True)
+class SiteFacts:
+    """What ``--site`` gives tune and report: the PI period and the block's spans and form."""
+
+    control_period: float | None
+    """``[sampling] control_period_s`` [s] when the file sets it (its default is not a fact)."""
+    spans: tuple[float | None, float | None]
+    """``[controller]`` u_span_V [V] and y_span_Lpm [L/min]."""
+    controller: Any
+    """The site's :class:`fuelid.plc.site.Controller`, or None."""
+
+
+def site_facts(path: Path | None) -> SiteFacts | None:
+    """Read ``--site``: the control period it sets and its controller block (None: no file)."""
+    if path is None:
+        return None
+    from fuelid.plc.site import load_site
+
+    site = load_site(path)
+    sampling = site.sampling
+    period = sampling.control_period_s if "control_period_s" in sampling.model_fields_set else None
+    controller = site.controller
+    spans = (None, None) if controller is None else (controller.u_span_V, controller.y_span_Lpm)
+    return SiteFacts(control_period=period, spans=spans, controller=controller)
+
+
 def temperature_options(
     fuel_temp: float, t_min: float, t_max: float
 ) -> tuple[float, tuple[float, float]]:
@@ -219,7 +246,31 @@ LambdaOption = Annotated[
     ),
 ]
 ControlPeriodOption = Annotated[
-    float, typer.Option(help="PLC control period h [s]; 0 for a continuous controller.")
+    float | None,
+    typer.Option(
+        metavar="SECONDS",
+        help="How often the PLC runs its PI, h [s]; 0 for a continuous controller (no default: "
+        "else --site's [sampling] control_period_s, or the model file's identify run).",
+        show_default=False,
+    ),
+]
+SiteOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--site",
+        metavar="SITE.toml",
+        help="Your site file: its [controller] (the block's form, units and spans) and its "
+        "[sampling] control_period_s, when set (see the site-file reference).",
+        show_default=False,
+    ),
+]
+AcceptUndeterminedOption = Annotated[
+    bool,
+    typer.Option(
+        "--accept-undetermined",
+        help="Tune a model whose K, T or dead time the log does not determine (95 % interval "
+        "unbounded or wider than the value): refused otherwise; every output then says so.",
+    ),
 ]
 TMinOption = Annotated[float, typer.Option(help="Coldest fuel [°C].")]
 TMaxOption = Annotated[float, typer.Option(help="Warmest fuel [°C].")]

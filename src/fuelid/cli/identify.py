@@ -72,6 +72,10 @@ class MethodChoice(enum.StrEnum):
     auto = "auto"
 
 
+STEP_LS_PERIOD = 1.0
+"""step-ls's decimation period without --control-period [s]: the article's PLC period."""
+
+
 @guarded
 def identify_command(
     file: Annotated[
@@ -94,8 +98,15 @@ def identify_command(
     n_steps: StepsOption = None,
     covariance: CovarianceOption = CovarianceChoice.auto,
     control_period: Annotated[
-        float, typer.Option(help="step-ls: controller period to decimate to [s].")
-    ] = 1.0,
+        float | None,
+        typer.Option(
+            metavar="SECONDS",
+            help="How often the PLC runs its PI [s]: step-ls decimates to it (default 1 s, the "
+            "article's period), and --json records it so that fuelid tune needs no "
+            "--control-period (without it, none is recorded).",
+            show_default=False,
+        ),
+    ] = None,
     validate_split: Annotated[
         float | None,
         typer.Option(
@@ -187,6 +198,10 @@ def identify_command(
 
     check_figure_path(plot, overwrite=force)
     check_prior_times(flowmeter_T, flowmeter_delay)
+    if control_period is not None:
+        from fuelid.tuning.limits import check_control_period
+
+        check_control_period(control_period)
     if fuel_temp is not None and not (math.isfinite(fuel_temp) and -60.0 <= fuel_temp <= 150.0):
         raise FuelidError(f"--fuel-temp must lie within -60…150 °C, got {fuel_temp:g}")
     options = IdentifyOptions(
@@ -197,7 +212,7 @@ def identify_command(
         flowmeter_delay=flowmeter_delay,
         N=n_steps,
         covariance=covariance.value,
-        control_period=control_period,
+        control_period=STEP_LS_PERIOD if control_period is None else control_period,
         validate_split=validate_split,
         u_before=u_before,
         validation_initial=validate_initial.value,
@@ -284,6 +299,7 @@ def identify_command(
             "N": n_steps,
             "covariance": covariance.value,
             "control_period": control_period,
+            "control_period_given": control_period is not None,
             "validate_split": validate_split,
             "validate_initial": validate_initial.value,
             "config": str(config) if config else None,

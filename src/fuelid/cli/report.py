@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from fuelid.cli._common import (
+    AcceptUndeterminedOption,
     BadValues,
     BandWidthOption,
     ControlPeriodOption,
@@ -33,6 +34,7 @@ from fuelid.cli._common import (
     RuleChoice,
     RuleOption,
     SampleTime,
+    SiteOption,
     TauCOption,
     TimeColumn,
     TMaxOption,
@@ -47,6 +49,7 @@ from fuelid.cli._common import (
     progress_display,
     provenance,
     read_log,
+    site_facts,
     temperature_options,
     warn,
 )
@@ -94,8 +97,9 @@ def report_command(
             "-c",
             metavar="PLANT.toml",
             help="Plant TOML of your loop: flowmeter priors, spans, temperature physics, the "
-            "nonlinear plant of the closed-loop runs (default: none; the checks then use the "
-            "built-in reference plant's physics, said on the page, and no nonlinear runs).",
+            "nonlinear plant of the closed-loop runs (default: none; then no temperature check, "
+            "schedule or nonlinear runs, said on the page: the built-in reference plant is not "
+            "your loop).",
             show_default=False,
         ),
     ] = None,
@@ -123,7 +127,9 @@ def report_command(
     rule: RuleOption = RuleChoice.simc,
     tau_c: TauCOption = None,
     lam: LambdaOption = None,
-    control_period: ControlPeriodOption = 1.0,
+    control_period: ControlPeriodOption = None,
+    site: SiteOption = None,
+    accept_undetermined: AcceptUndeterminedOption = False,
     fuel_temp: Annotated[
         float | None,
         typer.Option(
@@ -169,8 +175,11 @@ def report_command(
     from fuelid.identify.procedure import IdentifyOptions
     from fuelid.plant import load_plant_config
     from fuelid.workflow import AnalysisSettings, PlantSource, analyse_log
+    from fuelid.workflow.trust import control_period_from
 
     check_report_path(out, force)  # before any work: a typo must not cost a minute
+    facts = site_facts(site)
+    period = control_period_from(control_period, None if facts is None else facts.control_period)
     T_fuel, T_range = temperature_options(20.0 if fuel_temp is None else fuel_temp, t_min, t_max)
     check_prior_times(flowmeter_T, flowmeter_delay)
     check_spans(flow_span, u_span)
@@ -178,7 +187,10 @@ def report_command(
         tune_from=method.value,
         rule=rule.value,
         closed_loop_time=closed_loop_time(rule, tau_c, lam),
-        control_period=control_period,
+        control_period=period.value,
+        control_period_basis=period.basis,
+        accept_undetermined=accept_undetermined,
+        site_spans=(None, None) if facts is None else facts.spans,
         T_fuel=None if fuel_temp is None else T_fuel,
         identify=IdentifyOptions(
             order=parse_order(order),
@@ -239,6 +251,8 @@ def report_command(
             "tau_c": tau_c,
             "lambda": lam,
             "control_period": control_period,
+            "site": str(site) if site else None,
+            "accept_undetermined": accept_undetermined,
             "fuel_temp": fuel_temp,
             "t_min": t_min,
             "t_max": t_max,
@@ -291,21 +305,37 @@ def _print_summary(analysis: LogAnalysis, written: list[Path]) -> None:
         f"{analysis.settings.tune_from} model: {model.describe(k_unit)} "
         f"(fit {analysis.model_result.fit_percent:.1f} %)"
     )
+    h = pi.control_period
+    period = f"h = {h:g} s ({analysis.settings.control_period_basis})" if h > 0 else "continuous"
     console.print(
-        f"{pi.rule} PI: Kc = {pi.Kc:.4g} V/(L/min), Ti = {pi.Ti:.3g} s; on the identified model "
-        f"GM {rob.gain_margin:.2f}, PM {rob.phase_margin_deg:.1f}°, Ms {rob.Ms:.2f}; over "
-        f"temperature worst Ms {analysis.check.worst_Ms:.2f}; "
-        + (
-            "one set of gains suffices over the schedule's bands"
-            if analysis.schedule.single_set_suffices
-            else f"schedule of {len(analysis.schedule.bands)} bands, worst Ms "
-            f"{analysis.schedule.worst_Ms:.2f}"
+        f"{pi.rule} PI for {period}: Kc = {pi.Kc:.4g} V/(L/min), Ti = {pi.Ti:.3g} s; on the "
+        f"identified model GM {rob.gain_margin:.2f}, PM {rob.phase_margin_deg:.1f}°, "
+        f"Ms {rob.Ms:.2f}",
+        highlight=False,
+    )
+    check, bands, schedule = analysis.check, analysis.outcome.bands, analysis.schedule
+    if check is not None:
+        console.print(f"over fuel temperature (your plant file): worst Ms {check.worst_Ms:.2f}")
+    if bands is not None:
+        low, high = bands.u_range
+        console.print(
+            f"over the log's commands {low:.3g}…{high:.3g} V (K per band): worst Ms "
+            f"{bands.worst_Ms:.2f}",
+            highlight=False,
         )
-    )
-    span_Kc = pi.plc_form(analysis.tuning.u_span, analysis.tuning.y_span)["percent_of_span"]["Kc"]
-    console.print(
-        f"percent of span: Kc = {span_Kc:.4g} %/% ({analysis.span_note})", highlight=False
-    )
+    if schedule is not None:
+        console.print(
+            "one set of gains suffices over the schedule's bands"
+            if schedule.single_set_suffices
+            else f"schedule of {len(schedule.bands)} bands, worst Ms {schedule.worst_Ms:.2f}"
+        )
+    form = analysis.tuning.plc_form()["percent_of_span"]
+    if form is None:
+        console.print(f"no %/% gains: {analysis.span_note}", highlight=False, markup=False)
+    else:
+        console.print(
+            f"percent of span: Kc = {form['Kc']:.4g} %/% ({analysis.span_note})", highlight=False
+        )
     if not analysis.plant.is_reference:
         console.print(f"plant: {analysis.plant.config.name} from {analysis.plant.path}")
     for notice in analysis.notices:

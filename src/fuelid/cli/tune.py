@@ -8,13 +8,13 @@ return. The library is imported when the command runs, not when ``fuelid --help`
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from fuelid.cli._common import (
+    AcceptUndeterminedOption,
     BandWidthOption,
     ControlPeriodOption,
     DriveSpanOption,
@@ -25,6 +25,7 @@ from fuelid.cli._common import (
     MsTargetOption,
     RuleChoice,
     RuleOption,
+    SiteOption,
     TauCOption,
     TMaxOption,
     TMinOption,
@@ -35,15 +36,17 @@ from fuelid.cli._common import (
     guarded,
     progress_display,
     provenance,
+    site_facts,
     temperature_options,
     warn,
 )
 from fuelid.errors import FuelidError
 
 if TYPE_CHECKING:
+    from fuelid.cli._common import SiteFacts
     from fuelid.io.fitted_model import FittedModel
     from fuelid.model import ProcessModel
-    from fuelid.workflow import ScheduleOutcome, TuneOutcome
+    from fuelid.workflow import PlantSource, ScheduleOutcome, TuneOutcome
 
 
 @guarded
@@ -85,7 +88,8 @@ def tune_command(
     rule: RuleOption = RuleChoice.simc,
     tau_c: TauCOption = None,
     lam: LambdaOption = None,
-    control_period: ControlPeriodOption = 1.0,
+    control_period: ControlPeriodOption = None,
+    site: SiteOption = None,
     config: Annotated[
         Path | None,
         typer.Option(
@@ -93,8 +97,8 @@ def tune_command(
             "-c",
             metavar="PLANT.toml",
             help="Plant TOML of your loop: spans, temperature physics and the nonlinear plant "
-            "(default: none; the checks then use the built-in reference plant's physics, said "
-            "in the output, and --simulate is refused).",
+            "(default: none; then no temperature check, schedule or --simulate: the built-in "
+            "reference plant is not your loop, and the range check is the log's command bands).",
             show_default=False,
         ),
     ] = None,
@@ -125,6 +129,7 @@ def tune_command(
             "the spans the gains are computed for (refused otherwise).",
         ),
     ] = False,
+    accept_undetermined: AcceptUndeterminedOption = False,
     t_min: TMinOption = -20.0,
     t_max: TMaxOption = 50.0,
     band_width: BandWidthOption = 10.0,
@@ -173,8 +178,11 @@ def tune_command(
         _print_rules(as_json)
         return
     from fuelid.plant import load_plant_config
-    from fuelid.tuning.limits import check_control_period, check_sweep_size
-    from fuelid.workflow import TuneRequest, schedule_gains, tune_model
+    from fuelid.tuning.bands import CommandBand
+    from fuelid.tuning.limits import check_sweep_size
+    from fuelid.workflow import PlantSource, TuneRequest, schedule_gains, tune_model
+    from fuelid.workflow.trust import control_period_from, undetermined, undetermined_refusal
+    from fuelid.workflow.tune import tune_notices
 
     # options checked at the edge, before any work is done
     check_figure_path(plot, overwrite=force)
@@ -187,7 +195,6 @@ def tune_command(
         )
     if sweep is not None:
         check_sweep_size(sweep)
-    check_control_period(control_period)
     tau = closed_loop_time(rule, tau_c, lam)
     check_spans(flow_span, u_span)
     model, loaded = _model_from_options(
@@ -199,38 +206,44 @@ def tune_command(
             f"{'; '.join(loaded.signal_check)}; the gains would be wrong by the same factor "
             "(--accept-signals to tune anyway)"
         )
+    loose = (
+        [] if loaded is None else undetermined(loaded.model.to_json(), loaded.ci95, loaded.fixed)
+    )
+    if loose and not accept_undetermined:
+        raise FuelidError(undetermined_refusal(loose, f"the model of {model_file}"))
+    if model is None and not schedule:
+        raise FuelidError(
+            "give a model: --model ident.json, or --K and --T (with --delay, --flowmeter-T), "
+            "or --schedule for a schedule from the plant's physics"
+        )
+    facts = site_facts(site)
+    period = control_period_from(
+        control_period,
+        None if facts is None else facts.control_period,
+        None if loaded is None else loaded.control_period,
+    )
     # the model's own operating point unless the options say otherwise
     fuel_source = "option" if fuel_temp is not None else None
     if fuel_temp is None and loaded is not None and loaded.fuel_temperature is not None:
         fuel_temp, fuel_source = loaded.fuel_temperature, "model file"
     if u is None and loaded is not None and loaded.u is not None:
         u = loaded.u
-    if schedule and model is None and config is None:
-        raise FuelidError(
-            "a schedule from the plant's physics alone needs your plant file (--config "
-            "PLANT.toml), or a model (--model ident.json) to anchor the physics to: the built-in "
-            "reference plant's gains are not your loop's"
-        )
-    if simulate and config is None:
-        raise FuelidError(
-            "--simulate runs the closed loop on your plant's nonlinear model: give its plant "
-            "file with --config (the built-in reference plant is not your loop)"
-        )
     T_fuel, T_range = temperature_options(20.0 if fuel_temp is None else fuel_temp, t_min, t_max)
-    if model is None and not schedule:
-        raise FuelidError(
-            "give a model: --model ident.json, or --K and --T (with --delay, --flowmeter-T), "
-            "or --schedule for a schedule from the plant's physics"
-        )
+    plant = PlantSource(load_plant_config(config), None if config is None else str(config))
     request = TuneRequest(
         model=model,
         cov_names=loaded.cov_names if loaded is not None else (),
         cov=loaded.cov if loaded is not None else None,
         rule=rule.value,
         closed_loop_time=tau,
-        control_period=control_period,
+        control_period=period.value,
+        control_period_basis=period.basis,
         y_span=flow_span,
         u_span=u_span,
+        site_spans=(None, None) if facts is None else facts.spans,
+        command_bands=()
+        if loaded is None
+        else tuple(CommandBand(*band) for band in loaded.gain_bands),
         T_fuel=T_fuel,
         u=u,
         T_range=T_range,
@@ -241,55 +254,23 @@ def tune_command(
         sweep=sweep,
         alternatives=loaded.alternatives if loaded is not None else (),
     )
-    plant = load_plant_config(config)
-    if u is not None and loaded is not None:
-        # a model file's mean command inside the drive's range (the signal check has said why
-        # it may lie a little outside it)
-        u = min(max(u, plant.vfd.u_min_V), plant.vfd.u_max_V)
-        request = replace(request, u=u)
-    notices = []
-    if config is None:
-        from fuelid.workflow import REFERENCE_PLANT_NOTICE
-
-        notices.append(REFERENCE_PLANT_NOTICE)
-    if fuel_source is None and model is not None:  # a physics-only schedule has no model
+    notices = tune_notices(
+        plant,
+        request,
+        fuel_basis=fuel_source,
+        conditional=loaded is not None and loaded.conditional,
+        model_label=str(model_file),
+    )
+    if loose:
         notices.append(
-            "fuel temperature of the model assumed 20 °C: --fuel-temp not given"
-            + (" and the model file has no fuel temperature" if loaded is not None else "")
+            "accepted (--accept-undetermined): "
+            + undetermined_refusal(loose, f"the model of {model_file}")
         )
-    if loaded is not None and loaded.conditional:
-        notices.append(
-            f"the model's intervals are conditional on its structure ({model_file}: "
-            "structure.conditional): see the gains' spread across the structures the log "
-            "could not tell apart"
-            if loaded.alternatives
-            else f"the model's intervals are conditional on its structure ({model_file}: see "
-            "its structure and warnings): they hold if that structure is right; --sweep, which "
-            "draws from the covariance, shows the spread within that structure only"
-        )
-    calibration = None
-    if plant.calibration is not None:
-        from fuelid.plant.uncertainty import calibration_summary
-
-        # what the gains rest on at the model's temperature and over the checked range
-        calibration, _ = calibration_summary(plant, T_fuel)
-        warned = calibration["warnings"]
-        notices.extend(f"calibrated plant: the calibration warned: {w}" for w in warned)
-        for T_edge in T_range:
-            edge_notes = calibration_summary(plant, T_edge)[1]
-            # the calibration's own warnings come last in the notes and are given once above
-            for note in edge_notes[: len(edge_notes) - len(warned)]:
-                notices.append(f"calibrated plant: {note}")
     extra = {
-        "plant": {
-            "source": "built-in reference" if config is None else "file",
-            "path": None if config is None else str(config),
-            "name": plant.name,
-            # only for a calibrated plant file (the key is absent otherwise)
-            **({"calibration": calibration} if calibration is not None else {}),
-        },
+        "plant": plant.to_json() | _calibration_json(plant, T_fuel),
         "notices": notices,
         "fuel_temperature_source": fuel_source or "assumed",
+        "undetermined": loose,
     }
     options = {
         "model": str(model_file) if model_file else None,
@@ -302,11 +283,13 @@ def tune_command(
         "tau_c": tau_c,
         "lambda": lam,
         "control_period": control_period,
+        "site": str(site) if site else None,
         "config": str(config) if config else None,
-        "flow_span": request.flow_span(plant),
-        "u_span": request.drive_span(plant),
+        "flow_span": flow_span,
+        "u_span": u_span,
         "fuel_temp": fuel_temp,
         "accept_signals": accept_signals,
+        "accept_undetermined": accept_undetermined,
         "u": None,  # the command used, filled in below
         "t_min": t_min,
         "t_max": t_max,
@@ -320,8 +303,6 @@ def tune_command(
     if schedule:
         with progress_display() as stage:
             table = schedule_gains(plant, request, progress=stage)
-        # the %/% column uses --flow-span as the single gains do (the meter's span by default)
-        table = replace(table, schedule=replace(table.schedule, y_span=request.flow_span(plant)))
         options["u"] = table.u
         for notice in notices:  # after the work: a refusal stays one line
             warn(notice)
@@ -332,7 +313,7 @@ def tune_command(
         if as_json:
             emit_json(table.to_json() | extra | provenance(options, model_file))
         else:
-            _print_schedule(table, reference=config is None)
+            _print_schedule(table, period.basis)
         return
     with progress_display() as stage:
         outcome = tune_model(plant, request, progress=stage)
@@ -346,7 +327,16 @@ def tune_command(
     if as_json:
         emit_json(outcome.to_json() | extra | provenance(options, model_file))
         return
-    _print_tuning(outcome, fuel_source or "assumed")
+    _print_tuning(outcome, fuel_source or "assumed", facts)
+
+
+def _calibration_json(plant: PlantSource, T_fuel: float) -> dict[str, Any]:
+    """``{"calibration": ...}`` for a calibrated plant file (empty otherwise)."""
+    if plant.is_reference or plant.config.calibration is None:
+        return {}
+    from fuelid.plant.uncertainty import calibration_summary
+
+    return {"calibration": calibration_summary(plant.config, T_fuel)[0]}
 
 
 def _model_from_options(
@@ -420,11 +410,12 @@ def _print_rules(as_json: bool) -> None:
     Console().print(table)
 
 
-def _print_tuning(outcome: TuneOutcome, fuel_source: str) -> None:
+def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | None) -> None:
     """The gains in every form and their evidence, from the JSON (engineering units).
 
     ``fuel_source`` says where the model's fuel temperature came from (option, model file,
-    assumed).
+    assumed); ``facts`` is the site file's controller, whose block form is printed too. Only
+    figures about the user's loop are printed (:mod:`fuelid.workflow.trust`).
     """
     from rich.console import Console
     from rich.table import Table
@@ -434,20 +425,21 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str) -> None:
     data = outcome.to_json()
     plc, h = data["plc"], data["control_period"]
     console = Console()
-    gains = Table(
-        title=f"{data['rule']} PI for {outcome.tuning.model.describe()}, "
-        + (f"h = {h:g} s" if h > 0 else "continuous")
-    )
+    period = f"h = {h:g} s ({data['control_period_basis']})" if h > 0 else "continuous"
+    gains = Table(title=f"{data['rule']} PI for {outcome.tuning.model.describe()}, {period}")
     for column in ("form", "gain", "integral", "unit"):
         gains.add_column(column)
     gains.add_row("ideal (ISA)", f"Kc = {data['Kc']:.5g}", f"Ti = {data['Ti']:.4g}", "V/(L/min), s")
     span = plc["percent_of_span"]
-    gains.add_row(
-        "percent of span",
-        f"Kc = {span['Kc']:.4g}",
-        f"Ti = {span['Ti']:.4g}",
-        f"%/% ({span['u_span']:g} V, {span['y_span']:g} L/min), s",
-    )
+    if span is None:
+        gains.add_row("percent of span", "spans not given", "", "see below")
+    else:
+        gains.add_row(
+            "percent of span",
+            f"Kc = {span['Kc']:.4g}",
+            f"Ti = {span['Ti']:.4g} s = {span['Ti_min']:.4g} min",
+            f"%/% ({span['u_span']:g} V, {span['y_span']:g} L/min)",
+        )
     gains.add_row(
         "parallel",
         f"Kp = {data['Kc']:.5g}",
@@ -462,12 +454,12 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str) -> None:
             f"q1 = {d['q1']:.5g}",
             "V/(L/min)",
         )
+    block = _block_row(outcome, facts)
+    if block is not None:
+        gains.add_row(*block)
     console.print(gains)
-    fuel = kelvin_to_celsius(outcome.request.T_fuel)
-    console.print(
-        f"model found at u = {outcome.u:.3g} V with the fuel at {fuel:.3g} °C ({fuel_source}): "
-        "the temperature check is anchored there"
-    )
+    if span is None:
+        console.print(f"no %/% gains: {data['spans']['reason']}", highlight=False, markup=False)
     rob = data["robustness"]
     step = data["closed_loop"]["setpoint_step"]
     settle = step["settling_time"]
@@ -478,14 +470,36 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str) -> None:
         + ("does not settle" if math.isnan(settle) else f"settling {settle:.1f} s")
     )
     check = data["temperature_check"]
-    cases = check["cases"]
-    console.print(
-        f"over {cases[0]['fuel_temperature']:g}…{cases[-1]['fuel_temperature']:g}"
-        f" °C and the drive range: worst Ms {check['worst_Ms']:.2f}, worst overshoot "
-        f"{check['worst_overshoot_percent']:.1f} %, smallest gain margin "
-        f"{check['worst_gain_margin']:.2f}"
-        + ("" if check["all_stable"] else " — UNSTABLE in some case")
-    )
+    if check is not None:
+        fuel = kelvin_to_celsius(outcome.request.T_fuel)
+        console.print(
+            f"model found at u = {outcome.u:.3g} V with the fuel at {fuel:.3g} °C "
+            f"({fuel_source}): the temperature check is anchored there"
+        )
+        cases = check["cases"]
+        console.print(
+            f"over {cases[0]['fuel_temperature']:g}…{cases[-1]['fuel_temperature']:g}"
+            f" °C and the drive range (your plant file): worst Ms {check['worst_Ms']:.2f}, "
+            f"worst overshoot {check['worst_overshoot_percent']:.1f} %, smallest gain margin "
+            f"{check['worst_gain_margin']:.2f}"
+            + ("" if check["all_stable"] else " — UNSTABLE in some case")
+        )
+    bands = data["command_band_check"]
+    if bands is not None:
+        low, high = bands["u_range"]
+        console.print(
+            f"over the log's commands {low:.3g}…{high:.3g} V (K per band, 95 % interval): "
+            f"worst Ms {bands['worst_Ms']:.2f}, worst overshoot "
+            f"{bands['worst_overshoot_percent']:.1f} %, smallest gain margin "
+            f"{bands['worst_gain_margin']:.2f}"
+            + ("" if bands["all_stable"] else " — UNSTABLE in some band")
+        )
+    if check is None:
+        console.print(
+            "over fuel temperature: not checked, no plant file of yours (--config) says how "
+            "the loop moves with it",
+            highlight=False,
+        )
     for result in outcome.runs:
         run = result.to_json(events=False)
         s = run["summary"]
@@ -514,8 +528,26 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str) -> None:
         )
 
 
-def _print_schedule(outcome: ScheduleOutcome, reference: bool) -> None:
-    """The schedule table; ``reference``: the flows are the built-in reference plant's."""
+def _block_row(outcome: TuneOutcome, facts: SiteFacts | None) -> tuple[str, str, str, str] | None:
+    """The gains as the site's PI block takes them ([controller]), or None without a site."""
+    if facts is None or facts.controller is None:
+        return None
+    from fuelid.online.gains import Gains, gain_units, ideal_to_controller
+
+    controller = facts.controller
+    kc, ti = ideal_to_controller(Gains(outcome.pi.Kc, outcome.pi.Ti), controller)
+    units = gain_units(controller) or {"Kc": "", "Ti": ""}
+    integral = "Ki" if controller.form == "parallel" else "Ti"
+    return (
+        f"your block ({controller.form}, site file)",
+        f"Kc = {kc:.5g}",
+        f"{integral} = {ti:.5g}",
+        f"{units['Kc']}, {units['Ti']}",
+    )
+
+
+def _print_schedule(outcome: ScheduleOutcome, period_basis: str) -> None:
+    """The schedule table, on the user's plant file (``period_basis``: where h came from)."""
     from rich import box
     from rich.console import Console
     from rich.table import Table
@@ -523,13 +555,13 @@ def _print_schedule(outcome: ScheduleOutcome, reference: bool) -> None:
     data: dict[str, Any] = outcome.to_json()
     anchored = data["anchored_to_model"] is not None
     out = Table(
-        title=f"{data['rule']} gain schedule, h = {data['control_period']:g} s, Ms ≤ "
+        title=f"{data['rule']} gain schedule, h = {data['control_period']:g} s "
+        f"({period_basis}), Ms ≤ "
         f"{data['ms_target']:g}" + (" (anchored to the model)" if anchored else " (plant physics)"),
         box=box.SIMPLE_HEAD,  # nine columns: light rules keep them within 80 characters
         collapse_padding=True,
     )
-    flow = "ref. flow L/min" if reference else "flow L/min"
-    columns = ("fuel °C", "u V", flow, "Kc V/(L/min)", "Kc %/%", "Ti s", "Ms", "GM", "PM °")
+    columns = ("fuel °C", "u V", "flow L/min", "Kc V/(L/min)", "Kc %/%", "Ti s", "Ms", "GM", "PM °")
     for column in columns:
         out.add_column(column, justify="right")
     for row in data["bands"]:
@@ -538,7 +570,7 @@ def _print_schedule(outcome: ScheduleOutcome, reference: bool) -> None:
             f"{row['u_low']:.2f}…{row['u_high']:.2f}",
             f"{row['flow_low']:.1f}…{row['flow_high']:.1f}",
             f"{row['Kc']:.4g}",
-            f"{row['Kc_percent_of_span']:.4g}",
+            "—" if row["Kc_percent_of_span"] is None else f"{row['Kc_percent_of_span']:.4g}",
             f"{row['Ti']:.3g}",
             f"{row['Ms']:.2f}",
             f"{row['gain_margin']:.2f}",
@@ -546,13 +578,17 @@ def _print_schedule(outcome: ScheduleOutcome, reference: bool) -> None:
         )
     console = Console()
     console.print(out)
-    console.print(
-        f"%/%: Kc·{data['y_span']:g} L/min / {data['u_span']:g} V (the spans of a PLC block)"
-    )
+    if data["y_span"] is None or data["u_span"] is None:
+        console.print("no %/% gains: spans not given (--u-span/--flow-span, --site)")
+    else:
+        console.print(
+            f"%/%: Kc·{data['y_span']:g} L/min / {data['u_span']:g} V (the spans of a PLC block)"
+        )
     single = data["single_set"]
     if single is not None:
+        percent = single["Kc_percent_of_span"]
         console.print(
-            f"one set of gains suffices: Kc = {single['Kc']:.4g} V/(L/min) "
-            f"({single['Kc_percent_of_span']:.4g} %/%), Ti = {single['Ti']:.3g} s "
-            f"(Ms ≤ {single['Ms']:.2f} over every band)"
+            f"one set of gains suffices: Kc = {single['Kc']:.4g} V/(L/min)"
+            + ("" if percent is None else f" ({percent:.4g} %/%)")
+            + f", Ti = {single['Ti']:.3g} s (Ms ≤ {single['Ms']:.2f} over every band)"
         )

@@ -13,10 +13,13 @@ from __future__ import annotations
 import threading
 from collections import OrderedDict
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fuelid.dashboard.source import LoopReader
 from fuelid.errors import FuelidError
+
+if TYPE_CHECKING:
+    from fuelid.workflow import AnalysisSettings
 
 __all__ = ["CACHED_REPORTS", "window_report_html"]
 
@@ -49,11 +52,32 @@ def _plant(loop: LoopReader) -> Any:
     return PlantSource(load_plant_config(None))
 
 
+def _settings(loop: LoopReader) -> AnalysisSettings:
+    """The report's settings from the service's: its rule, PI period and the block's spans.
+
+    The site file's control period and spans are the user's facts (none is assumed); a service
+    that wrote no settings leaves the period unknown, and the page then says why it has none.
+    """
+    from fuelid.workflow import AnalysisSettings
+
+    settings = (loop.status().get("service") or {}).get("settings") or {}
+    sampling = settings.get("sampling") or {}
+    controller = settings.get("controller") or {}
+    rule = settings.get("rule")
+    return AnalysisSettings(
+        accept_signals=True,
+        rule=rule if isinstance(rule, str) else AnalysisSettings.rule,
+        control_period=sampling.get("control_period_s"),
+        control_period_basis="site file",
+        site_spans=(controller.get("u_span_V"), controller.get("y_span_Lpm")),
+    )
+
+
 def window_report_html(loop: LoopReader, row: dict[str, Any]) -> str:
     """The report page of the window ``row`` of ``loop`` (an explanation page when it fails)."""
     from fuelid.htmlreport import ReportFigure, _png, render_report, report_figures
     from fuelid.store.base import iodata_from_samples
-    from fuelid.workflow import AnalysisSettings, analyse_log
+    from fuelid.workflow import analyse_log
 
     key = (loop.loop_id, str(loop.identity().get("store_uuid")), int(row["id"]))
     with _lock:
@@ -64,7 +88,7 @@ def window_report_html(loop: LoopReader, row: dict[str, Any]) -> str:
     title = f"Window {row['id']} of loop {loop.loop_id}"
     try:
         data = iodata_from_samples(samples, loop.identity().get("period_s"), source=title)
-        analysis = analyse_log(data, _plant(loop), AnalysisSettings(accept_signals=True))
+        analysis = analyse_log(data, _plant(loop), _settings(loop))
         drawn = report_figures(analysis)
         figures = [ReportFigure(k, caption, _png(fig)) for k, (fig, caption) in drawn.items()]
         html = render_report(analysis, figures)

@@ -67,8 +67,14 @@ class TuningResult:
     pi: PISettings
     robustness: Robustness
     closed_loop: LinearResponse
-    u_span: float
-    y_span: float
+    u_span: float | None = None
+    """Drive span of the percent-of-span gain [V]; None: not known, no %/% gain."""
+    y_span: float | None = None
+    """Meter span of the percent-of-span gain [L/min]; None: not known, no %/% gain."""
+
+    def plc_form(self) -> dict[str, Any]:
+        """The gains as PLC blocks take them; ``percent_of_span`` None without both spans."""
+        return self.pi.plc_form(self.u_span, self.y_span)
 
     @property
     def warnings(self) -> list[str]:
@@ -107,7 +113,7 @@ class TuningResult:
             "reduced_model": None
             if reduced is None
             else {"K": reduced.K, "T1": reduced.T1, "theta": reduced.theta},
-            "plc": self.pi.plc_form(self.u_span, self.y_span),
+            "plc": self.plc_form(),
             "gain_margin": self.robustness.gain_margin,
             "phase_margin_deg": self.robustness.phase_margin_deg,
             "Ms": self.robustness.Ms,
@@ -126,8 +132,8 @@ def evaluate_tuning(
     rule: str = "simc",
     control_period: float = 1.0,
     closed_loop_time: float | None = None,
-    u_span: float = 4.0,
-    y_span: float = 100.0,
+    u_span: float | None = None,
+    y_span: float | None = None,
 ) -> TuningResult:
     """Tune ``model`` by ``rule`` and evaluate the gains on it.
 
@@ -139,8 +145,9 @@ def evaluate_tuning(
     rule, control_period, closed_loop_time
         As for :func:`~fuelid.tuning.rules.tune`: the rule's key, the PLC period h [s] and τc or
         λ [s] (larger is slower; None for the rule's default).
-    u_span, y_span : float
-        Drive span [V] and meter span [L/min] of the percent-of-span gain.
+    u_span, y_span : float, optional
+        Drive span [V] and meter span [L/min] of the percent-of-span gain, from the user's
+        facts; None: no %/% gain (no span is assumed).
 
     Examples
     --------

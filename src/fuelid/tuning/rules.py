@@ -140,20 +140,23 @@ class PISettings:
             raise FuelidError("the discrete PI needs a positive period")
         return self.Kc, -self.Kc * (1.0 - period / self.Ti)
 
-    def plc_form(self, u_span: float = 4.0, y_span: float = 100.0) -> dict[str, Any]:
+    def plc_form(self, u_span: float | None = None, y_span: float | None = None) -> dict[str, Any]:
         """The gains as a PLC block takes them.
 
         Parameters
         ----------
-        u_span : float
-            Span of the controller output [input unit], 4 V for the 1–5 V signal.
-        y_span : float
-            Span of the measurement [output unit], the flowmeter's full scale in L/min.
+        u_span : float, optional
+            Span of the controller output [input unit], 4 V for a 1–5 V signal.
+        y_span : float, optional
+            Span of the measurement [output unit], the flowmeter's full scale in L/min. Without
+            both spans ``percent_of_span`` is None: a %/% gain on spans nobody gave would be a
+            wrong number to type into the block.
 
         Returns
         -------
         dict
-            ``percent_of_span``: Kc in %/% (= Kc·y_span/u_span) and Ti; ``parallel``: Kp, Ki;
+            ``percent_of_span``: Kc in %/% (= Kc·y_span/u_span), Ti [s] and Ti in minutes
+            (None without the spans); ``parallel``: Kp, Ki;
             ``discrete``: for h > 0 the positional algorithm u[k] = Kc·e[k] + I[k] with the
             integral updated after the output, I[k+1] = I[k] + Kc·h/Ti·e[k] (forward Euler, as
             in Åström & Hägglund's PID code and :class:`~fuelid.tuning.closedloop.DiscretePI`),
@@ -167,7 +170,7 @@ class PISettings:
         >>> form["percent_of_span"]["Kc"], form["discrete"]["q0"], form["discrete"]["q1"]
         (1.25, 0.05, -0.025)
         """
-        if not (u_span > 0.0 and y_span > 0.0):
+        if any(span is not None and not span > 0.0 for span in (u_span, y_span)):
             raise FuelidError("the output and measurement spans must be positive")
         h = self.control_period
         discrete = None
@@ -189,9 +192,12 @@ class PISettings:
             "percent_of_span": {
                 "Kc": self.Kc * y_span / u_span,
                 "Ti": self.Ti,
+                "Ti_min": self.Ti / 60.0,
                 "u_span": u_span,
                 "y_span": y_span,
-            },
+            }
+            if u_span is not None and y_span is not None
+            else None,
             "parallel": {"Kp": self.Kc, "Ki": self.Ki},
             "discrete": discrete,
         }

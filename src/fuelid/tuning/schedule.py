@@ -117,10 +117,11 @@ class GainSchedule:
     control_period: float
     ms_target: float
     bands: list[ScheduleBand] = field(default_factory=list)
-    u_span: float = 4.0
-    """Drive span (the controller output's signal range) of the percent-of-span gains [V]."""
-    y_span: float = 100.0
-    """Measurement span of the percent-of-span gains [L/min]."""
+    u_span: float | None = None
+    """Drive span (the controller output's signal range) of the percent-of-span gains [V];
+    None: not known, no %/% gains."""
+    y_span: float | None = None
+    """Measurement span of the percent-of-span gains [L/min]; None: not known."""
     single_set: FixedPIEvaluation | None = None
     """One PI for every band, on every band's cases, when the bands' Kc and Ti agree within
     :data:`SINGLE_SET_TOLERANCE` and that PI meets the Ms target everywhere; else None."""
@@ -130,9 +131,13 @@ class GainSchedule:
         """Whether one set of gains meets the Ms target over the whole range (no schedule)."""
         return self.single_set is not None
 
-    def percent_of_span(self, pi: PISettings) -> float:
-        """Kc of ``pi`` in %/% of span (Kc·y_span/u_span, as :meth:`PISettings.plc_form`)."""
-        return float(pi.plc_form(self.u_span, self.y_span)["percent_of_span"]["Kc"])
+    def percent_of_span(self, pi: PISettings) -> float | None:
+        """Kc of ``pi`` in %/% of span (Kc·y_span/u_span, as :meth:`PISettings.plc_form`).
+
+        None when the spans are not known.
+        """
+        span = pi.plc_form(self.u_span, self.y_span)["percent_of_span"]
+        return None if span is None else float(span["Kc"])
 
     @property
     def worst_Ms(self) -> float:
@@ -222,6 +227,7 @@ def gain_schedule(
     flow_split: float = 0.10,
     anchor: Anchor | None = None,
     y_span: float | None = None,
+    u_span: float | None = None,
     cache: CaseCache | None = None,
 ) -> GainSchedule:
     """Gains per fuel-temperature band, split by flow where the gain depends on the flow.
@@ -251,9 +257,9 @@ def gain_schedule(
         Relative spread of K across the commands above which bands are split [-].
     anchor : Anchor, optional
         An identified model that anchors the physics (:func:`~fuelid.tuning.cases.plant_cases`).
-    y_span : float, optional
-        Measurement span of the percent-of-span gains [L/min] (default: the meter's span); the
-        drive span is the command's signal range [V].
+    y_span, u_span : float, optional
+        Measurement span [L/min] and drive span [V] of the percent-of-span gains (default: the
+        plant's meter span and the command's signal range).
     cache : dict, optional
         Linearised plant cases by (T_fuel, u), shared with a temperature check of the same call
         so that no case is linearised twice.
@@ -295,7 +301,7 @@ def gain_schedule(
         control_period=control_period,
         ms_target=ms_target,
         bands=bands,
-        u_span=u_hi - u_lo,
+        u_span=u_hi - u_lo if u_span is None else u_span,
         y_span=config.flowmeter.span_Lpm if y_span is None else y_span,
         single_set=_single_set(bands, list(every_case.values()), ms_target),
     )

@@ -60,7 +60,7 @@ def uncertainty_sweep(
     anchor: Anchor,
     cov_names: Sequence[str],
     cov: FloatArray,
-    config: PlantConfig,
+    config: PlantConfig | None,
     *,
     n: int = 1000,
     T_range: tuple[float, float] = DEFAULT_T_RANGE,
@@ -72,21 +72,29 @@ def uncertainty_sweep(
     parameters from N(estimate, cov) (the identification's covariance, its model-parameter block:
     :func:`~fuelid.model.model_covariance`); the physics model then moves K and T from the
     identification's temperature to the drawn one (by ratio, interpolated on a 2 K grid). Draws
-    with T ≤ 0 are redrawn; a negative delay is set to 0. Margins and the step overshoot come
-    from the linear models (exact ZOH, exact delay). See docs/explanation/tuning.md, section 9.
+    with T ≤ 0 are redrawn; a negative delay is set to 0. Without ``config`` (no plant file of
+    the user's says how the loop moves with temperature) every variant stays at the
+    identification's temperature: the draws are the covariance's alone. Margins and the step
+    overshoot come from the linear models (exact ZOH, exact delay). See
+    docs/explanation/tuning.md, section 9.
     """
     check_sweep_size(n)
     rng = np.random.default_rng(seed)
     names, cov = model_covariance(cov_names, cov)
     mean = np.array([getattr(anchor.model, name) for name in names], dtype=float)
-    grid = np.arange(T_range[0], T_range[1] + 1e-9, 2.0)
-    if grid[-1] < T_range[1]:
-        grid = np.append(grid, T_range[1])
-    ref = linearise(config, anchor.u, anchor.T_fuel).equivalent_model().model
-    phys = [linearise(config, anchor.u, T).equivalent_model().model for T in grid]
-    k_ratio = np.array([m.K / ref.K for m in phys])
-    t_ratio = np.array([m.T / ref.T for m in phys])
-    temps = rng.uniform(T_range[0], T_range[1], n)
+    if config is None:
+        grid = np.array([anchor.T_fuel, anchor.T_fuel + 1.0])
+        k_ratio = t_ratio = np.ones(2)
+        temps = np.full(n, anchor.T_fuel)
+    else:
+        grid = np.arange(T_range[0], T_range[1] + 1e-9, 2.0)
+        if grid[-1] < T_range[1]:
+            grid = np.append(grid, T_range[1])
+        ref = linearise(config, anchor.u, anchor.T_fuel).equivalent_model().model
+        phys = [linearise(config, anchor.u, T).equivalent_model().model for T in grid]
+        k_ratio = np.array([m.K / ref.K for m in phys])
+        t_ratio = np.array([m.T / ref.T for m in phys])
+        temps = rng.uniform(T_range[0], T_range[1], n)
     draws = np.empty((n, len(names)))
     filled = 0
     t_index = names.index("T") if "T" in names else None

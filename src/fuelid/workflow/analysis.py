@@ -27,6 +27,7 @@ from fuelid.identify.diagnostics import (
 from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, check_gain_identified
+from fuelid.tuning.bands import CommandBand
 from fuelid.tuning.cases import DEFAULT_T_RANGE, CaseCache, FixedPIEvaluation
 from fuelid.tuning.closedloop import ClosedLoopResult
 from fuelid.tuning.frequency import frequency_grid, loop_function, robustness
@@ -43,6 +44,7 @@ from fuelid.workflow.assumptions import (
 )
 from fuelid.workflow.identification import T_REF, identify_step_ls
 from fuelid.workflow.progress import DIAGNOSTICS, IDENTIFICATION, Progress, announce
+from fuelid.workflow.trust import NO_CONTROL_PERIOD, Basis, undetermined, undetermined_refusal
 from fuelid.workflow.tune import (
     TuneOutcome,
     TuneRequest,
@@ -67,8 +69,15 @@ class AnalysisSettings:
     closed_loop_time: float | None = None
     """The rule's τc (SIMC) or λ (lambda) [s], the desired closed-loop time constant: larger is
     slower and more robust; None for the rule's default."""
-    control_period: float = 1.0
-    """PLC period h [s] (0: continuous); also step-ls's decimation period."""
+    control_period: float | None = None
+    """PLC period h [s] (0: continuous); also step-ls's decimation period. None is refused by
+    :func:`analyse_log`: gains for another period are wrong gains, so none is assumed."""
+    control_period_basis: Basis = "option"
+    """Where the control period came from (:data:`~fuelid.workflow.trust.Basis`)."""
+    accept_undetermined: bool = False
+    """Tune even a model whose K, T or dead time the log does not determine
+    (:func:`~fuelid.workflow.trust.undetermined`; otherwise refused); every output then repeats
+    the refusal as a warning."""
     T_fuel: float | None = None
     """Fuel temperature during the log [K]; None: the log's fuel-temperature column, else 20 °C
     (said in the outputs)."""
@@ -90,9 +99,12 @@ class AnalysisSettings:
     step_percent: float = 10.0
     """Setpoint step of the nonlinear closed-loop runs [% of the flowmeter span]."""
     y_span: float | None = None
-    """Flowmeter span of the %/% gains [L/min]; None: the plant's meter span."""
+    """Flowmeter span of the %/% gains [L/min]; None: the site file's, else the user's plant
+    file's, else none (no %/% gains)."""
     u_span: float | None = None
-    """Drive signal span of the %/% gains [V]; None: the plant's drive range."""
+    """Drive signal span of the %/% gains [V]; None: as ``y_span``."""
+    site_spans: tuple[float | None, float | None] = (None, None)
+    """The site file's ``[controller]`` spans (u_span_V [V], y_span_Lpm [L/min])."""
 
     def __post_init__(self) -> None:
         if self.tune_from not in (*METHODS, "pem"):
@@ -102,19 +114,29 @@ class AnalysisSettings:
         )
 
     def tune_request(
-        self, model: ProcessModel, u: float, T_fuel: float, *, simulate: bool
+        self,
+        model: ProcessModel,
+        u: float,
+        T_fuel: float,
+        *,
+        simulate: bool,
+        command_bands: tuple[CommandBand, ...] = (),
     ) -> TuneRequest:
         """What :func:`~fuelid.workflow.tune.tune_model` is asked for a model found at ``u``.
 
         ``u`` [V] and ``T_fuel`` [K] are the identification's conditions; ``simulate`` runs the
-        closed loop on the nonlinear plant (only a user's plant file is the user's loop). The
-        spans of the %/% gains are ``y_span`` and ``u_span``, else the plant's.
+        closed loop on the nonlinear plant (only a user's plant file is the user's loop);
+        ``command_bands`` are K per command band of the log. The spans of the %/% gains are
+        ``u_span`` and ``y_span``, else the site file's, else the user's plant file's.
         """
         return TuneRequest(
             model=model,
             rule=self.rule,
             closed_loop_time=self.closed_loop_time,
             control_period=self.control_period,
+            control_period_basis=self.control_period_basis,
+            site_spans=self.site_spans,
+            command_bands=command_bands,
             T_fuel=T_fuel,
             u=u,
             T_range=self.T_range,
@@ -138,8 +160,9 @@ class LogAnalysis:
     """By method, in the order of :data:`METHODS`."""
     outcome: TuneOutcome
     """The gains from the chosen model, checked over temperature and run on the plant."""
-    schedule: GainSchedule
-    """Gains per temperature (and flow) band, anchored to the chosen model."""
+    schedule: GainSchedule | None
+    """Gains per temperature (and flow) band, anchored to the chosen model; None without the
+    user's plant file (the trend over temperature would be the reference plant's)."""
     whiteness: CorrelationTest
     """Residual autocorrelation of the tuned-from model on the fitted samples."""
     input_correlation: CorrelationTest
@@ -157,6 +180,8 @@ class LogAnalysis:
     signal_check: list[str] = field(default_factory=list)
     """Findings that the signals are not in the units the gains are computed for (accepted)."""
     warnings: list[str] = field(default_factory=list)
+    undetermined: list[str] = field(default_factory=list)
+    """The chosen model's parameters the log does not determine (accepted by the user)."""
 
     @property
     def T_fuel(self) -> float:
@@ -173,6 +198,11 @@ class LogAnalysis:
         found = []
         if self.plant.is_reference:
             found.append(REFERENCE_PLANT_NOTICE)
+        if self.undetermined:
+            found.append(
+                "accepted (--accept-undetermined): "
+                + undetermined_refusal(self.undetermined, f"the {self.settings.tune_from} model")
+            )
         if self.operating_point.T_fuel is None:
             found.append(
                 "fuel temperature assumed 20 °C: the log has no fuel-temperature column and "
@@ -193,27 +223,20 @@ class LogAnalysis:
 
     @property
     def span_note(self) -> str:
-        """Where the spans of the %/% gains come from, said beside them.
-
-        Without a plant file a span not given is the reference plant's: an assumption the user
-        must see on the line of the gains, with the options that replace it.
-        """
-        y_span, u_span = self.tuning.y_span, self.tuning.u_span
-        missing = [
-            (text, option)
-            for given, text, option in (
-                (self.settings.y_span, f"a {y_span:g} L/min meter span", "--flow-span"),
-                (self.settings.u_span, f"a {u_span:g} V drive span", "--u-span"),
-            )
-            if given is None
-        ]
-        spans = f"{y_span:g} L/min meter span, {u_span:g} V drive span"
-        if not missing:
-            return f"{spans}, as given"
-        if self.plant.is_reference:
-            assumed = " and ".join(text for text, _ in missing)
-            return f"assuming {assumed}: give {'/'.join(option for _, option in missing)}"
-        return f"{spans}, {'from' if len(missing) == 2 else 'given and from'} {self.plant.path}"
+        """Where the spans of the %/% gains come from, said beside them, or why there are none."""
+        spans = self.outcome.spans
+        if spans.u_span is None or spans.y_span is None:
+            return spans.missing_reason or ""
+        where = {
+            "option": "as given",
+            "site file": "from the site file",
+            "plant file": f"from {self.plant.path}",
+        }
+        bases = {spans.u_span.basis, spans.y_span.basis}
+        return (
+            f"{spans.y_span.value:g} L/min meter span, {spans.u_span.value:g} V drive span, "
+            + " and ".join(where.get(b, b) for b in sorted(bases))
+        )
 
     @property
     def model_result(self) -> IdentificationResult:
@@ -231,8 +254,8 @@ class LogAnalysis:
         return self.outcome.tuning
 
     @property
-    def check(self) -> FixedPIEvaluation:
-        """The gains on the plant over the temperature range and the drive's range."""
+    def check(self) -> FixedPIEvaluation | None:
+        """The gains on the user's plant over the temperature and drive ranges (None without)."""
         return self.outcome.check
 
     @property
@@ -250,10 +273,21 @@ class LogAnalysis:
             "notices": self.notices,
             "identification": {m: r.to_json() for m, r in self.identifications.items()},
             "tuned_from": self.settings.tune_from,
-            "tuning": self.tuning.to_json() | {"structure_spread": self.outcome.structure_spread()},
-            "temperature_check": self.check.to_json(cases=False),
+            "tuning": self.tuning.to_json()
+            | {
+                "structure_spread": self.outcome.structure_spread(),
+                "control_period_basis": self.settings.control_period_basis,
+                "spans": self.outcome.spans.to_json(),
+            },
+            "temperature_check": None if self.check is None else self.check.to_json(cases=False),
+            "command_band_check": None
+            if self.outcome.bands is None
+            else self.outcome.bands.to_json(),
             "closed_loop_plant": [r.to_json(events=False) for r in self.runs],
-            "schedule": self.schedule.to_json(),
+            "schedule": None if self.schedule is None else self.schedule.to_json(),
+            "provenance": self.outcome.provenance()
+            | {"schedule": None if self.schedule is None else "plant file"},
+            "undetermined": self.undetermined,
             "warnings": self.warnings,
             "units": UNITS,
         }
@@ -300,6 +334,8 @@ def _analyse(
 ) -> LogAnalysis:
     """:func:`analyse_log`'s stages."""
     config = plant.config
+    if settings.control_period is None:
+        raise FuelidError(NO_CONTROL_PERIOD)
     point = OperatingPoint.of(data, settings.T_fuel)
     T_fuel = T_REF if point.T_fuel is None else point.T_fuel
     findings = check_signals(data, plant)
@@ -334,6 +370,9 @@ def _analyse(
         warnings.extend(f"{name}: {w}" for w in result.warnings if w not in data.notes)
     chosen = identifications[settings.tune_from]
     check_gain_identified(chosen.model.K, chosen.stderr.get("K"), f"{settings.tune_from} fit")
+    loose = undetermined(chosen.model.to_json(), _intervals(chosen), chosen.fixed)
+    if loose and not settings.accept_undetermined:
+        raise FuelidError(undetermined_refusal(loose, f"the {settings.tune_from} model"))
     mismatch = check_gain_against_plant(chosen.model, plant, point, T_fuel)
     if mismatch is not None:
         findings.append(mismatch)
@@ -341,19 +380,27 @@ def _analyse(
             _refuse_signals([mismatch])
     warnings[:0] = [f"signals: {f}" for f in findings]
     u_op = float(np.clip(point.u, config.vfd.u_min_V, config.vfd.u_max_V))
-    request = settings.tune_request(chosen.model, u_op, T_fuel, simulate=not plant.is_reference)
+    request = settings.tune_request(
+        chosen.model,
+        u_op,
+        T_fuel,
+        simulate=not plant.is_reference,
+        command_bands=command_bands(chosen.diagnostics),
+    )
     # the structures the log could not tell from the chosen fit's: the gains on each are shown
     indistinct = chosen.extra.get("structure", {}).get("indistinct", [])
     request = replace(
         request, alternatives=tuple(ProcessModel(**item["model"]) for item in indistinct)
     )
     cache: CaseCache = {}  # the check and the schedule share linearisations
-    outcome = tune_model(config, request, progress, cache)
+    outcome = tune_model(plant, request, progress, cache)
     warnings.extend(f"tuning: {w}" for w in outcome.warnings)
     cross_check = _cross_check(identifications, settings.tune_from, outcome)
     if cross_check:
         warnings.append(cross_check)
-    schedule = schedule_gains(config, request, progress, cache).schedule
+    schedule = (
+        None if plant.is_reference else schedule_gains(plant, request, progress, cache).schedule
+    )
     announce(progress, DIAGNOSTICS)
     fitted = chosen.time < (chosen.split_time if chosen.split_time is not None else math.inf)
     residuals = (
@@ -384,7 +431,22 @@ def _analyse(
         priors=priors_json(base, sources, chosen, plant),
         signal_check=findings,
         warnings=warnings,
+        undetermined=loose,
     )
+
+
+def command_bands(diagnostics: dict[str, Any]) -> tuple[CommandBand, ...]:
+    """K per command band from an identification's ``diagnostics.nonlinearity`` (none: ())."""
+    nonlinearity = diagnostics.get("nonlinearity") or {}
+    return tuple(CommandBand.from_json(row) for row in nonlinearity.get("bands", []))
+
+
+def _intervals(result: IdentificationResult) -> dict[str, tuple[float, float] | None]:
+    """The 95 % intervals of an identification, by parameter (None: fixed or not known)."""
+    return {
+        name: None if interval is None else (float(interval[0]), float(interval[1]))
+        for name, interval in result.ci95().items()
+    }
 
 
 CROSS_CHECK_RATIO = 1.1

@@ -32,12 +32,12 @@ if TYPE_CHECKING:
     from fuelid.plant.config import PlantConfig
 
 REFERENCE_PLANT_NOTICE = (
-    "no plant file given (--config): how the loop changes with fuel temperature and flow, the "
-    "drive's signal range and (unless --flow-span/--u-span give them) the spans of the %/% "
-    "gains are those of fuelid's built-in reference plant, not of your loop; the margins on the "
-    "identified model are yours"
+    "no plant file given (--config): how your loop changes with fuel temperature is unknown, so "
+    "no temperature check, schedule or nonlinear run is made (fuelid's built-in reference plant "
+    "is not your loop); the margins are on the identified model and the range check on the "
+    "log's command bands"
 )
-"""Said in every output (text, JSON, HTML) whose checks ran on the built-in reference plant."""
+"""Said in every output (text, JSON, HTML) made without the user's plant file."""
 
 PLANT_GAIN_BOUND = (0.5, 2.0)
 """Identified K over the plant file's prediction outside this range is flagged [-]: a unit or

@@ -68,6 +68,11 @@ class PlantInfo:
                 "frequency": op.f,
                 "leakage": op.q_leak * LPM_PER_M3S,
                 "reynolds": op.reynolds,
+                # also here, where identify writes them and tune --model reads them first; the
+                # top-level keys stay (documented keys keep their meaning; issue 37). Last, so
+                # that the object still starts with the flow, as the docs' example shows it
+                "u": self.u,
+                "fuel_temperature": kelvin_to_celsius(self.T_fuel),
             },
             "model": {
                 **model.to_json(),
@@ -96,6 +101,8 @@ def plant_info(config: PlantConfig, T_fuel: float, u: float | None = None) -> Pl
     >>> info = plant_info(load_plant_config(), 293.15, 1.25)
     >>> info.to_json()["fuel_temperature"], info.equivalent.model.K > 0
     (20.0, True)
+    >>> {k: info.to_json()["operating_point"][k] for k in ("u", "fuel_temperature")}
+    {'u': 1.25, 'fuel_temperature': 20.0}
     """
     command = 0.5 * (config.vfd.u_min_V + config.vfd.u_max_V) if u is None else u
     linear = linearise(config, command, T_fuel)

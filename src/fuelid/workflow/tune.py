@@ -20,6 +20,7 @@ from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
 from fuelid.plant.config import PlantConfig
+from fuelid.tuning.bands import BandCheck, CommandBand, band_check
 from fuelid.tuning.cases import (
     DEFAULT_T_RANGE,
     Anchor,
@@ -36,6 +37,7 @@ from fuelid.tuning.rules import PISettings
 from fuelid.tuning.schedule import GainSchedule, band_edges, gain_schedule
 from fuelid.tuning.sweep import SweepResult, uncertainty_sweep
 from fuelid.units import kelvin_to_celsius
+from fuelid.workflow.assumptions import REFERENCE_PLANT_NOTICE, PlantSource
 from fuelid.workflow.identification import T_REF
 from fuelid.workflow.progress import (
     RUNS,
@@ -46,6 +48,7 @@ from fuelid.workflow.progress import (
     Progress,
     announce,
 )
+from fuelid.workflow.trust import NO_CONTROL_PERIOD, Basis, Spans, spans_from
 
 FloatArray = NDArray[np.float64]
 
@@ -69,12 +72,23 @@ class TuneRequest:
     closed_loop_time: float | None = None
     """The rule's τc (SIMC) or λ (lambda) [s]: the desired closed-loop time constant, larger is
     slower and more robust; None for the rule's default."""
-    control_period: float = 1.0
-    """PLC period h [s]; 0 for a continuous controller."""
+    control_period: float | None = None
+    """PLC period h [s]; 0 for a continuous controller. None is refused by :func:`tune_model`
+    and :func:`schedule_gains`: gains for another period are wrong gains, so none is assumed
+    (:func:`~fuelid.workflow.trust.control_period_from` finds it in the user's facts)."""
+    control_period_basis: Basis = "option"
+    """Where the control period came from (:data:`~fuelid.workflow.trust.Basis`)."""
     y_span: float | None = None
-    """Flowmeter span of the percent-of-span gain [L/min]; None: the plant's meter span."""
+    """Flowmeter span of the percent-of-span gain [L/min] given as an option; None: the site
+    file's (``site_spans``), else the user's plant file's, else none (no %/% gains)."""
     u_span: float | None = None
-    """Drive signal span of the percent-of-span gain [V]; None: the plant's drive range."""
+    """Drive signal span of the percent-of-span gain [V] given as an option; None: as
+    ``y_span``."""
+    site_spans: tuple[float | None, float | None] = (None, None)
+    """The site file's ``[controller]`` spans (u_span_V [V], y_span_Lpm [L/min])."""
+    command_bands: tuple[CommandBand, ...] = ()
+    """K per command band the identification's log shows (its ``diagnostics.nonlinearity``):
+    the range check when no plant file gives the physics."""
     T_fuel: float = T_REF
     """Fuel temperature the model was identified at [K] (anchors the physics)."""
     u: float | None = None
@@ -101,7 +115,8 @@ class TuneRequest:
     is reported."""
 
     def __post_init__(self) -> None:
-        check_control_period(self.control_period)
+        if self.control_period is not None:
+            check_control_period(self.control_period)
         check_conditions(self.T_fuel, self.T_range, self.step_percent)
         if self.sweep is not None:
             check_sweep_size(self.sweep)
@@ -109,16 +124,93 @@ class TuneRequest:
             raise FuelidError(f"the flow span must be positive, got {self.y_span:g} L/min")
         if self.u_span is not None and not (math.isfinite(self.u_span) and self.u_span > 0.0):
             raise FuelidError(f"the drive span must be positive, got {self.u_span:g} V")
-        if self.model is not None:
+        if self.model is not None and self.control_period is not None:
             check_tunable(self.model, self.control_period)
 
-    def flow_span(self, config: PlantConfig) -> float:
-        """The flow span of the percent-of-span gain [L/min]: ``y_span`` or the meter's."""
-        return config.flowmeter.span_Lpm if self.y_span is None else self.y_span
+    def period(self) -> float:
+        """The control period h [s], refused when nobody gave one."""
+        if self.control_period is None:
+            raise FuelidError(NO_CONTROL_PERIOD)
+        return self.control_period
 
-    def drive_span(self, config: PlantConfig) -> float:
-        """The drive span of the percent-of-span gain [V]: ``u_span`` or the drive's range."""
-        return config.vfd.u_max_V - config.vfd.u_min_V if self.u_span is None else self.u_span
+    def spans(self, plant: PlantSource) -> Spans:
+        """The spans of the %/% gains from the user's facts: options, site file, plant file."""
+        config = plant.config
+        return spans_from(
+            self.u_span,
+            self.y_span,
+            self.site_spans,
+            None
+            if plant.is_reference
+            else (config.vfd.u_max_V - config.vfd.u_min_V, config.flowmeter.span_Lpm),
+        )
+
+
+def tune_notices(
+    plant: PlantSource,
+    request: TuneRequest,
+    *,
+    fuel_basis: str | None,
+    conditional: bool = False,
+    model_label: str = "the model",
+) -> list[str]:
+    """The assumptions every output of a tuning states first, from the library, not the CLI.
+
+    ``fuel_basis`` says where the model's fuel temperature came from (None: nobody gave it and
+    20 °C is assumed); ``conditional`` that the model's intervals hold only within its
+    structure (the identification's ``structure.conditional``); ``model_label`` names the
+    model in the text (a file name).
+    """
+    notices = []
+    if plant.is_reference:
+        notices.append(REFERENCE_PLANT_NOTICE)
+    if fuel_basis is None and request.model is not None and not plant.is_reference:
+        notices.append(
+            f"fuel temperature of the model assumed {kelvin_to_celsius(T_REF):g} °C: "
+            "--fuel-temp not given and the model file has none; the temperature check is "
+            "anchored there"
+        )
+    if conditional:
+        notices.append(
+            f"the model's intervals are conditional on its structure ({model_label}: "
+            "structure.conditional): see the gains' spread across the structures the log "
+            "could not tell apart"
+            if request.alternatives
+            else f"the model's intervals are conditional on its structure ({model_label}: see "
+            "its structure and warnings): they hold if that structure is right; --sweep, which "
+            "draws from the covariance, shows the spread within that structure only"
+        )
+    return notices + calibration_notices(plant, request)
+
+
+def calibration_notices(plant: PlantSource, request: TuneRequest) -> list[str]:
+    """What a calibrated plant file's calibration warned, at the model's and edge temperatures."""
+    config = plant.config
+    if plant.is_reference or config.calibration is None:
+        return []
+    from fuelid.plant.uncertainty import calibration_summary
+
+    summary, _ = calibration_summary(config, request.T_fuel)
+    warned = summary["warnings"]
+    notices = [f"calibrated plant: the calibration warned: {w}" for w in warned]
+    for T_edge in request.T_range:
+        edge_notes = calibration_summary(config, T_edge)[1]
+        # the calibration's own warnings come last in the notes and are given once above
+        notices.extend(
+            f"calibrated plant: {n}" for n in edge_notes[: len(edge_notes) - len(warned)]
+        )
+    return notices
+
+
+def as_plant_source(plant: PlantSource | PlantConfig) -> PlantSource:
+    """A plant given to the library: a :class:`PlantSource`, or a bare config taken as the user's.
+
+    A script that passes a :class:`~fuelid.plant.config.PlantConfig` passes its own plant; the
+    built-in reference plant stands in only where a :class:`PlantSource` says so.
+    """
+    if isinstance(plant, PlantSource):
+        return plant
+    return PlantSource(plant, f"(plant {plant.name!r} given to the library)")
 
 
 def check_conditions(T_fuel: float, T_range: tuple[float, float], step_percent: float) -> None:
@@ -143,10 +235,16 @@ def check_conditions(T_fuel: float, T_range: tuple[float, float], step_percent: 
         raise FuelidError(f"the setpoint step must be 0…50 % of span, got {step_percent:g}")
 
 
-def operating_command(config: PlantConfig, u: float | None) -> float:
-    """The command [V] a model describes: ``u``, or the middle of the drive's range when None."""
+def operating_command(config: PlantConfig, u: float | None, clip: bool = False) -> float:
+    """The command [V] a model describes: ``u``, or the middle of the drive's range when None.
+
+    With ``clip`` a ``u`` a little outside the drive's range (a log's mean command, which the
+    signal check has judged) is taken to the nearest end; otherwise it is refused.
+    """
     lo, hi = config.vfd.u_min_V, config.vfd.u_max_V
     command = 0.5 * (lo + hi) if u is None else u
+    if clip and math.isfinite(command):
+        command = min(max(command, lo), hi)
     if not (math.isfinite(command) and lo <= command <= hi):
         raise FuelidError(
             f"the command u = {command:g} V lies outside the drive's signal range {lo:g}…{hi:g} V"
@@ -205,14 +303,20 @@ class TuneOutcome:
 
     request: TuneRequest
     """What was asked."""
+    plant: PlantSource
+    """The plant behind the checks: the user's plant file, or the reference plant standing in
+    (then no figure rests on it: no temperature check, no runs)."""
     u: float
     """The operating command the model describes [V] (``request.u`` or mid-range)."""
-    y_span: float
-    """The flow span of the percent-of-span gain [L/min] (``request.y_span`` or the meter's)."""
+    spans: Spans
+    """The spans of the %/% gains and where they come from, or why there are none."""
     tuning: TuningResult
     """The gains in every form, their margins and the linear closed loop on the model."""
-    check: FixedPIEvaluation
-    """The same gains over the temperature range, the drive's ends and the operating command."""
+    check: FixedPIEvaluation | None
+    """The same gains over the temperature range, the drive's ends and the operating command,
+    on the user's plant file's physics; None without a plant file."""
+    bands: BandCheck | None = None
+    """The same gains over the command bands the identification's log shows (K per band)."""
     runs: list[ClosedLoopResult] = field(default_factory=list)
     """The standard test on the nonlinear plant at the coldest and the warmest fuel."""
     sweep: SweepResult | None = None
@@ -224,6 +328,11 @@ class TuneOutcome:
     def pi(self) -> PISettings:
         """The gains."""
         return self.tuning.pi
+
+    @property
+    def y_span(self) -> float | None:
+        """The flow span of the percent-of-span gain [L/min], None when nobody gave one."""
+        return self.tuning.y_span
 
     @property
     def warnings(self) -> list[str]:
@@ -242,19 +351,43 @@ class TuneOutcome:
             "structures": [s.to_json() for s in self.structures],
         }
 
+    def provenance(self) -> dict[str, Basis | list[Basis] | None]:
+        """What each figure rests on (:mod:`fuelid.workflow.trust`); None: not computed."""
+        spans = self.spans
+        return {
+            "Kc": "identified model",
+            "Ti": "identified model",
+            "control_period": self.request.control_period_basis,
+            "percent_of_span": spans.basis,
+            "robustness": "identified model",
+            "closed_loop": "identified model",
+            "temperature_check": None if self.check is None else "plant file",
+            "command_band_check": None if self.bands is None else "log",
+            "closed_loop_plant": "plant file" if self.runs else None,
+            "sweep": None
+            if self.sweep is None
+            else "identified model"
+            if self.check is None
+            else "plant file",
+        }
+
     def to_json(self) -> dict[str, Any]:
         """The documented JSON object of ``fuelid tune --json`` (without provenance)."""
         return self.tuning.to_json() | {
+            "control_period_basis": self.request.control_period_basis,
+            "spans": self.spans.to_json(),
             "structure_spread": self.structure_spread(),
-            "temperature_check": self.check.to_json(cases=True),
+            "temperature_check": None if self.check is None else self.check.to_json(cases=True),
+            "command_band_check": None if self.bands is None else self.bands.to_json(),
             "closed_loop_plant": [r.to_json(events=True) for r in self.runs] or None,
             "sweep": None if self.sweep is None else self.sweep.summary(),
+            "provenance": self.provenance(),
             "units": UNITS,
         }
 
 
 def tune_model(
-    config: PlantConfig,
+    plant: PlantSource | PlantConfig,
     request: TuneRequest,
     progress: Progress | None = None,
     cache: CaseCache | None = None,
@@ -262,24 +395,28 @@ def tune_model(
     """Tune ``request.model`` and check the gains: the chain behind ``fuelid tune``.
 
     1. the rule's gains and their margins and linear closed loop on the model
-       (:func:`~fuelid.tuning.result.evaluate_tuning`);
-    2. the same gains over the fuel-temperature range and the drive's range, the physics
-       anchored to the model (:func:`check_over_temperature`);
-    3. with ``request.simulate``, the standard test on the nonlinear plant at the coldest and
-       the warmest fuel, from rest at the flow of ``request.u`` at ``request.T_fuel``
-       (:func:`~fuelid.tuning.closedloop.standard_runs`);
-    4. with ``request.sweep``, the gains on that many plant variants
-       (:func:`~fuelid.tuning.sweep.uncertainty_sweep`).
+       (:func:`~fuelid.tuning.result.evaluate_tuning`), with %/% gains only on spans the user
+       gave (:meth:`TuneRequest.spans`);
+    2. with the user's plant file, the same gains over the fuel-temperature range and the
+       drive's range, the physics anchored to the model (:func:`check_over_temperature`);
+       without one, no figure rests on the reference plant: the check is the log's command
+       bands (``request.command_bands``, :func:`~fuelid.tuning.bands.band_check`) when given;
+    3. with ``request.simulate`` (a plant file only), the standard test on the nonlinear plant
+       at the coldest and the warmest fuel, from rest at the flow of ``request.u`` at
+       ``request.T_fuel`` (:func:`~fuelid.tuning.closedloop.standard_runs`);
+    4. with ``request.sweep``, the gains on that many variants of the model
+       (:func:`~fuelid.tuning.sweep.uncertainty_sweep`), over temperature with a plant file.
 
     The work is many small matrices, so BLAS runs on one thread throughout
     (:func:`~fuelid.blas.single_threaded_blas`).
 
     Parameters
     ----------
-    config : PlantConfig
-        The plant: spans, how the loop changes with fuel temperature, the nonlinear plant.
+    plant : PlantSource or PlantConfig
+        The plant: the user's plant file, or the reference plant standing in
+        (:class:`~fuelid.workflow.assumptions.PlantSource`); a bare config is the user's.
     request : TuneRequest
-        What to tune and check; its ``model`` must be given.
+        What to tune and check; its ``model`` and ``control_period`` must be given.
     progress : callable, optional
         Called with each stage's name as it starts (:mod:`fuelid.workflow.progress`).
     cache : dict, optional
@@ -291,32 +428,48 @@ def tune_model(
     """
     if request.model is None:
         raise FuelidError("tuning needs a model (TuneRequest.model)")
+    source = as_plant_source(plant)
+    if request.simulate and source.is_reference:
+        raise FuelidError(
+            "the closed loop on the nonlinear plant needs your plant file (--config "
+            "PLANT.toml): the built-in reference plant is not your loop"
+        )
+    request.period()
     with single_threaded_blas():
-        return _tune_model(config, request, request.model, progress, cache)
+        return _tune_model(source, request, request.model, progress, cache)
 
 
 def _tune_model(
-    config: PlantConfig,
+    plant: PlantSource,
     request: TuneRequest,
     model: ProcessModel,
     progress: Progress | None,
     cache: CaseCache | None,
 ) -> TuneOutcome:
     announce(progress, TUNING)
-    u, y_span = operating_command(config, request.u), request.flow_span(config)
-    u_span = request.drive_span(config)
+    config, h = plant.config, request.period()
+    u, spans = operating_command(config, request.u, clip=True), request.spans(plant)
     tuning = evaluate_tuning(
-        model, request.rule, request.control_period, request.closed_loop_time, u_span, y_span
+        model,
+        request.rule,
+        h,
+        request.closed_loop_time,
+        None if spans.u_span is None else spans.u_span.value,
+        None if spans.y_span is None else spans.y_span.value,
     )
     anchor = Anchor(model, request.T_fuel, u)
     announce(progress, TEMPERATURE_CHECK)
-    check = check_over_temperature(
-        config, tuning.pi, anchor, request.T_range, request.band_width, u, cache
-    )
+    check = None
+    if not plant.is_reference:
+        check = check_over_temperature(
+            config, tuning.pi, anchor, request.T_range, request.band_width, u, cache
+        )
+    bands = band_check(tuning.pi, model, request.command_bands)
     runs = []
     if request.simulate:
         announce(progress, RUNS)
         start = flow_at(config, u, request.T_fuel)
+        y_span = config.flowmeter.span_Lpm if spans.y_span is None else spans.y_span.value
         step = request.step_percent / 100.0 * y_span
         runs = standard_runs(config, tuning.pi, request.T_range, start, step)
     sweep = None
@@ -328,7 +481,7 @@ def _tune_model(
             anchor,
             request.cov_names,
             cov,
-            config,
+            None if plant.is_reference else config,
             n=request.sweep,
             T_range=request.T_range,
             seed=request.seed,
@@ -336,19 +489,19 @@ def _tune_model(
     structures = [
         StructureGains(
             model=other,
-            pi=evaluate_tuning(
-                other, request.rule, request.control_period, request.closed_loop_time
-            ).pi,
+            pi=evaluate_tuning(other, request.rule, h, request.closed_loop_time).pi,
             Ms_of_chosen_gains=robustness(other, tuning.pi).Ms,
         )
         for other in request.alternatives
     ]
     return TuneOutcome(
         request=request,
+        plant=plant,
         u=u,
-        y_span=y_span,
+        spans=spans,
         tuning=tuning,
         check=check,
+        bands=bands,
         runs=runs,
         sweep=sweep,
         structures=structures,
@@ -375,7 +528,7 @@ class ScheduleOutcome:
 
 
 def schedule_gains(
-    config: PlantConfig,
+    plant: PlantSource | PlantConfig,
     request: TuneRequest,
     progress: Progress | None = None,
     cache: CaseCache | None = None,
@@ -384,23 +537,38 @@ def schedule_gains(
 
     From the plant's physics alone when ``request.model`` is None, else anchored to the model at
     ``request.T_fuel`` and ``request.u`` (:func:`~fuelid.tuning.schedule.gain_schedule`), with
-    BLAS on one thread. ``progress`` is called with the stage's name as it starts
-    (:mod:`fuelid.workflow.progress`).
+    BLAS on one thread. How the gains move with fuel temperature and flow is the plant file's
+    physics: with the built-in reference plant standing in, no schedule is made (refused), as
+    it would be the reference plant's, not the user's loop. ``progress`` is called with the
+    stage's name as it starts (:mod:`fuelid.workflow.progress`).
     """
-    u = operating_command(config, request.u)
+    source = as_plant_source(plant)
+    if source.is_reference:
+        raise FuelidError(NO_SCHEDULE_WITHOUT_PLANT)
+    config, h = source.config, request.period()
+    u = operating_command(config, request.u, clip=True)
     anchor = None if request.model is None else Anchor(request.model, request.T_fuel, u)
+    spans = request.spans(source)
     announce(progress, SCHEDULE)
     with single_threaded_blas():
         schedule = gain_schedule(
             config,
             request.rule,
-            request.control_period,
+            h,
             request.closed_loop_time,
             T_range=request.T_range,
             band_width=request.band_width,
             ms_target=request.ms_target,
             flow_bands=request.flow_bands,
             anchor=anchor,
+            y_span=None if spans.y_span is None else spans.y_span.value,
+            u_span=None if spans.u_span is None else spans.u_span.value,
             cache=cache,
         )
     return ScheduleOutcome(request=request, u=u, schedule=schedule)
+
+
+NO_SCHEDULE_WITHOUT_PLANT = (
+    "a gain schedule over fuel temperature and flow rests on your plant's physics: give your "
+    "plant file (--config PLANT.toml); the built-in reference plant's trend is not your loop's"
+)
