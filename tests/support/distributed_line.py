@@ -46,40 +46,48 @@ R = dp_1/dq = 2·p_1/q grows in proportion to the flow. The static gain is
     dq/du = k_n·D / (1 + C_leak·(R'·l + R_N)),
 
 so at low flow the pump's leakage hardly changes when the flow changes (R small: the leakage
-admittance sees almost no incremental pressure) and nearly all of the displacement reaches the
-nozzles, while at high flow a part C_leak·R/(1 + C_leak·R) of every extra displacement leaks back.
-The parameters below give C_leak·R ≈ 0.07 at 1.1 V, 0.21 at 3 V, 0.32 at 4.5 V: the gain at 1.1 V
-is about 12 % above that at 3 V. The dynamics point the same way: the line's characteristic
-impedance Z_0 = ρa/A ≈ 2.8e9 Pa·s/m³ is matched by the nozzles near full flow (R_N ≈ 2.9e9:
-the waves are absorbed) but not at low flow (R_N ≈ 0.7e9: the nozzle end reflects 60 % of a
-wave, inverted), so the quarter-wave mode of the line (a/(4l) ≈ 1.4 Hz) is lightly damped at the
-low end of the drive (lumped estimate ζ ≈ 0.25 at 1.1 V against ≈ 0.7 at 4.5 V). A first-order
-model identified at mid-range therefore underestimates Ms at the low end on both counts.
+admittance sees almost no incremental pressure) and nearly all of the extra displacement reaches
+the nozzles, while at high flow a part C_leak·R/(1 + C_leak·R) of it leaks back. The parameters
+below give C_leak·R ≈ 0.13 at 1.1 V, 0.34 at 3 V, 0.47 at 4.5 V: the gain at 1.1 V
+(5.29 (L/min)/V) is 17.7 % above that at 3 V (4.50) and 30 % above that at 4.5 V (4.07).
+
+The line is also least damped there: its characteristic impedance Z_0 = ρa/A ≈ 2.8e9 Pa·s/m³
+is matched by the nozzles near full flow (R_N ≈ 2.5e9 at 4.5 V: the waves are absorbed) but not
+at low flow (R_N ≈ 0.71e9 at 1.1 V: the nozzle end reflects 59 % of a wave, inverted), so the
+line's first mode (near its quarter-wave frequency a/(4l) ≈ 1.4 Hz; 0.93 Hz in the lumped
+estimate, ζ ≈ 0.35 at 1.1 V, 0.54 at 3 V, 0.66 at 4.5 V) lifts |G| by up to 62 % near 6 rad/s at
+1.1 V (14 % at 3 V, none at 4.5 V). For a PI tuned by SIMC on a mid-range model that mode sits
+above the crossover (about 2 rad/s), where it costs little: it is the gain that moves Ms. With
+SIMC gains from a first-order model identified at 3 V (h = 0.1 s) the true Ms is about 1.78 at
+1.1 V against about 1.68 printed on the model (and about 1.67 true at 3 V, 1.61 at 4.5 V).
 
 Parameters (:class:`DistributedLoop`, defaults) and why
 -------------------------------------------------------
-A small test-stand loop, 0–30 L/min meter span, about 1 MPa at the pump at full flow:
+A small test-stand loop, 0–30 L/min meter span, about 0.7 MPa at the pump at full flow:
 
 - VFD 10–50 Hz on a 4-pole motor over 1–5 V: n_min = 5 rev/s (300 rpm, the minimum frequency
   that keeps the motor cooled and the pump lubricated: u = 1 V already delivers), k_n = 5 rev/s
   per V (10 Hz/V → 1500 rpm at 5 V; the few % slip of the motor is left out, the drive being
   speed-controlled); T_d = 0.5 s, the acceleration ramp of a 1.5 kW drive.
 - Gear pump D = 20 cm³/rev: 30 L/min geometric at 1500 rpm, the meter's full scale.
-  C_leak = 8.0e-11 m³/(s·Pa): 4.8 L/min slip at 1 MPa, i.e. volumetric efficiency ≈ 84 % at
-  full speed and pressure, typical of a small gear pump on a 1.2 mm²/s fuel (laminar slip
-  through the gear clearances ∝ Δp/μ).
-- Line l = 200 m of 20 mm bore tube (velocity 1.4 m/s at 27 L/min, Re ≈ 2e4: turbulent);
-  ρ = 790 kg/m³ (RP-3 near 10 °C, 794 − 0.72·T); a = 1100 m/s: kerosene's bulk modulus
+  C_leak = 1.4e-10 m³/(s·Pa): 8.4 L/min slip at 1 MPa, 6.2 L/min at the 0.73 MPa of full speed,
+  i.e. a volumetric efficiency of 79 % there: a small gear pump rated on oil running on a fuel
+  of about 1.5 mm²/s (laminar slip through the clearances ∝ Δp/μ). This leakage is what makes
+  the gain fall with the flow (above).
+- Line l = 200 m of 20 mm bore tube (velocity 1.3 m/s at 24 L/min, Re ≈ 2e4: turbulent);
+  ρ = 790 kg/m³ (RP-3 near 5 °C, 794 − 0.72·T); a = 1100 m/s: kerosene's bulk modulus
   1.1–1.3 GPa gives 1180–1280 m/s in a rigid pipe, the steel wall (d/e = 10) and a few hose
   sections bring the effective value to 1100 m/s, so 2l/a ≈ 0.36 s. Friction factor f = 0.030
   held constant: Colebrook for drawn tube gives 0.040 at 5 L/min and 0.026 at 27 L/min; the
   constant value is what makes the plant's friction exactly quadratic (R' = 2·Δp/(q·l) is then
-  the exact slope) and the line loses about 0.2 MPa at full flow.
-- Nozzles C_d·A_N = 1.07e-5 m² (six 1.8 mm orifices, C_d ≈ 0.7): about 0.7 MPa at full flow.
+  the exact slope) and the line loses 0.19 MPa at full flow (a quarter of the pump pressure;
+  the nozzles take the rest).
+- Nozzles C_d·A_N = 1.07e-5 m² (six 1.8 mm orifices, C_d ≈ 0.7): 0.54 MPa at full flow.
 - Turbine meter (1/2"): lag T_m = 0.15 s, dead time τ = 0.1 s (its gate time and the PLC's
   scan). The lag is held constant (a real turbine's lag shrinks as the flow grows).
 
-With these, u = 1 V gives 4.97 L/min, 5 V gives 26.5 L/min at 0.94 MPa at the pump.
+With these, u = 1 V gives 5.65 L/min (0.04 MPa), 5 V gives 23.8 L/min at 0.73 MPa at the pump:
+the flow stays inside the meter's 0–30 L/min span over the whole drive range.
 """
 
 from __future__ import annotations
@@ -116,7 +124,7 @@ class DistributedLoop:
     """Drive (acceleration) lag [s]; 0 for none."""
     displacement: float = 20e-6
     """Pump displacement D [m³/rev]."""
-    C_leak: float = 8.0e-11
+    C_leak: float = 1.4e-10
     """Pump leakage (slip) coefficient [m³/(s·Pa)]."""
     length: float = 200.0
     """Pipeline length l [m]."""
@@ -142,12 +150,12 @@ class DistributedLoop:
 
     @property
     def inertance(self) -> float:
-        """L' = ρ/A per metre [kg/m⁵]."""
+        """L' = ρ/A per metre [Pa·s²/m³ per m]."""
         return self.rho / self.area
 
     @property
     def compliance(self) -> float:
-        """C' = A/(ρa²) per metre [m⁴/(Pa·... ) i.e. m³/Pa per m]."""
+        """C' = A/(ρa²) per metre [m³/Pa per m]."""
         return self.area / (self.rho * self.wave_speed**2)
 
     @property
@@ -199,7 +207,7 @@ def steady_state(loop: DistributedLoop, u: float) -> dict[str, float]:
     --------
     >>> s = steady_state(DistributedLoop(), 5.0)
     >>> round(s["q_Lpm"], 1), round(s["p1_Pa"] / 1e6, 2)
-    (26.5, 0.94)
+    (23.8, 0.73)
     """
     _check_command(loop, u)
     n = float(_speed_setpoint(loop, u))
@@ -269,8 +277,8 @@ def frequency_response(loop: DistributedLoop, u: float, omega: ArrayLike) -> Com
     --------
     >>> loop = DistributedLoop()
     >>> g0 = frequency_response(loop, 3.0, [0.0])[0]
-    >>> round(g0.real, 3), g0.imag
-    (5.361, 0.0)
+    >>> round(float(g0.real), 3), float(g0.imag)
+    (4.496, 0.0)
     """
     _check_command(loop, u)
     w = np.asarray(omega, dtype=float)
@@ -281,10 +289,7 @@ def static_gain(loop: DistributedLoop, u: float) -> float:
     """dq/du at ``u`` [(L/min)/V], closed form: k_n·D·60000/(1 + C_leak·(R'·l + R_N))."""
     st = steady_state(loop, u)
     return (
-        loop.k_n
-        * loop.displacement
-        * LPM
-        / (1.0 + loop.C_leak * (st["R_line"] + st["R_nozzle"]))
+        loop.k_n * loop.displacement * LPM / (1.0 + loop.C_leak * (st["R_line"] + st["R_nozzle"]))
     )
 
 
@@ -292,7 +297,7 @@ def static_gain(loop: DistributedLoop, u: float) -> float:
 # The sampled-data loop and the maximum sensitivity
 
 
-ALIAS_TERMS = 2000
+ALIAS_TERMS = 1000
 """Aliases k = −N…N summed in the zero-order-hold equivalent (see :func:`zoh_response`)."""
 
 
@@ -310,11 +315,12 @@ def zoh_response(
         \sum_{k=-N}^{N} \frac{G(j\omega_k)}{j\omega_k},\qquad \omega_k = \omega + 2\pi k/h,
 
     exact as N → ∞ (the step response is continuous and zero at t = 0, so the Poisson sum of its
-    samples has no half-jump term). With the two lags G/s falls as ω⁻³ and the tail beyond N is
-    O(N⁻²); with one lag (the drive lag 0) as ω⁻² and the tail is O(N⁻¹), bounded by
-    2·|G(jω_N)|·ω_N/(h·ω_s·N)·... about K·h/(π²·T_m·N) ≈ 3e-5·K for h = 0.1 s, T_m = 0.15 s,
-    N = 2000 (and much smaller in practice: the dead time's phase rotates from alias to alias).
-    ``omega`` must be in (0, π/h].
+    samples has no half-jump term). With both lags G/s falls as ω⁻³ and the tail beyond N is
+    O(N⁻²); with one lag (T_d = 0) as ω⁻² and the tail is O(N⁻¹), at most about
+    2·K/(T_m·ω_s²·N) in the sum, i.e. K·h/(π²·T_m·N) in G_d. Measured against N = 32000 at
+    h = 0.1 s: the default loop (two lags) within 1e-9 relative for N = 600; one lag
+    (T_m = 0.15 s, τ = h, the worst case: the dead time's phase then does not rotate from alias
+    to alias) within 5e-5 relative for N = 1000, the default. ``omega`` must be in (0, π/h].
     """
     w = np.asarray(omega, dtype=float)
     if np.any(w <= 0.0):
@@ -326,7 +332,7 @@ def zoh_response(
     for start in range(0, ks.size, 256):
         k = ks[start : start + 256]
         wk = w[:, None] + k[None, :] * ws
-        s = 1j * wk
+        s = np.asarray(1j * wk, dtype=np.complex128)
         total += (_transfer(loop, u, s) / s).sum(axis=1)
     z_inv = np.exp(-1j * w * h)
     return np.asarray((1.0 - z_inv) / h * total, dtype=complex)
@@ -382,10 +388,12 @@ def sensitivity_peak(
     rates (1/Ti, 1/T_d, 1/T_m, 1/τ, the quarter-wave mode πa/(2l)) up to π/h (sampled) or
     30 times the fastest of those (continuous: 15 harmonics of the line and a decade past the
     lags, where |L| < 0.02); then each of the three highest local maxima of |S| is refined by a
-    bounded scalar search between its grid neighbours. With n = 1200 the grid steps are under
-    1.4 % in ω, far finer than any resonance of the loop (the line's modes have relative
-    widths 2ζ ≥ 0.3); the refined peak is a local maximum found to 1e-5 in log ω, so Ms is
-    accurate to about 1e-6 relative, plus the alias sum's error for h > 0 (``zoh_response``).
+    bounded scalar search between its grid neighbours. With n = 1200 the grid steps are about
+    1 % in ω for the default loop (1.7 % for a 5 cm line, whose mode sits at 3.5e4 rad/s), far
+    finer than any resonance of the loop (the line's modes have relative widths 2ζ ≥ 0.3); the
+    refined peak is a local maximum found to 1e-5 in log ω, so Ms is accurate to about 1e-6
+    relative (a 4000-point grid gives the same Ms to 1e-11 at 1.1, 3 and 4.5 V), plus the
+    alias sum's error for h > 0 (``zoh_response``).
     The loop must be closed-loop stable for Ms to mean anything: that is the caller's to check
     (:func:`closed_loop_stable`).
     """
@@ -467,22 +475,23 @@ def simulate(
     (t, q_nozzle_Lpm, meter_undelayed_Lpm)
         The MOC time grid [s], the nozzle flow and the meter lag's output (before τ).
     """
+    u_of: Callable[[float], float]
+    switches: Callable[[float, float], list[float]]
     if isinstance(command, tuple):
         values, held = np.asarray(command[0], dtype=float), float(command[1])
 
-        def u_of(t: float) -> float:
-            k = min(int(math.floor(t / held + 1e-9)), values.size - 1)
+        def held_command(t: float) -> float:
+            k = min(math.floor(t / held + 1e-9), values.size - 1)
             return float(values[k])
 
-        def switches(t0: float, t1: float) -> list[float]:
+        def held_switches(t0: float, t1: float) -> list[float]:
             k0 = math.floor(t0 / held + 1e-9) + 1
             k1 = math.floor(t1 / held + 1e-9)
             return [k * held for k in range(k0, k1 + 1)]
-    else:
-        u_of = command
 
-        def switches(t0: float, t1: float) -> list[float]:
-            return []
+        u_of, switches = held_command, held_switches
+    else:
+        u_of, switches = command, lambda t0, t1: []
 
     N = n_segments
     dx = loop.length / N
@@ -499,7 +508,7 @@ def simulate(
     n = st["n_rps"]
     meter = q0 * LPM
     steps = math.ceil(duration / dt)
-    t_out = np.arange(steps + 1) * dt
+    t_out = np.asarray(np.arange(steps + 1) * dt, dtype=float)
     q_out = np.empty(steps + 1)
     m_out = np.empty(steps + 1)
     q_out[0], m_out[0] = q0 * LPM, meter
@@ -577,11 +586,11 @@ def simulate_log(
         t_k = k·h [s], the commands [V], the meter reading at t_k [L/min]: the meter lag's output
         at t_k − τ (the sample at t_k does not yet see the command written at t_k) plus noise.
     """
-    u = np.asarray(u_profile, dtype=float)
+    u: FloatArray = np.asarray(u_profile, dtype=float)
     if u.ndim != 1 or u.size < 2:
         raise ValueError("u_profile must be a 1-D array of at least two commands")
     N = default_segments(loop, h_sample) if n_segments is None else n_segments
-    t = np.arange(u.size) * h_sample
+    t = np.asarray(np.arange(u.size) * h_sample, dtype=float)
     duration = float(t[-1])
     tm, _, meter = simulate(loop, (u, h_sample), duration + 1e-9, N)
     delayed = np.interp(t - loop.tau, tm, meter, left=meter[0])
@@ -613,7 +622,7 @@ def step_from_frequency_response(
     the spectrum cut at π/dt ≈ 3200 rad/s leaves |G| ≲ K/(T_d·T_m·ω²) ≈ 1e-5·K, and the
     step's error from it is of that order.
     """
-    m = int(round(period / dt))
+    m = round(period / dt)
     w = 2.0 * math.pi * np.fft.rfftfreq(m, dt)
     g = frequency_response(loop, u, w)
     impulse = np.fft.irfft(g, m) / dt

@@ -179,6 +179,7 @@ def tune_command(
         return
     from fuelid.plant import load_plant_config
     from fuelid.tuning.bands import CommandBand
+    from fuelid.tuning.frequency import TransferFunctionPlant
     from fuelid.tuning.limits import check_sweep_size
     from fuelid.workflow import PlantSource, TuneRequest, schedule_gains, tune_model
     from fuelid.workflow.trust import control_period_from, undetermined, undetermined_refusal
@@ -244,6 +245,11 @@ def tune_command(
         command_bands=()
         if loaded is None
         else tuple(CommandBand(*band) for band in loaded.gain_bands),
+        full_order=None
+        if loaded is None or loaded.linear_model is None
+        else TransferFunctionPlant.from_coefficients(
+            loaded.linear_model.num, loaded.linear_model.den, loaded.linear_model.delay
+        ),
         T_fuel=T_fuel,
         u=u,
         T_range=T_range,
@@ -463,8 +469,16 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
     rob = data["robustness"]
     step = data["closed_loop"]["setpoint_step"]
     settle = step["settling_time"]
+    full = data["full_order"]
+    if full is not None:
+        console.print(
+            f"on the full-order model (the model file's linear_model): gain margin "
+            f"{full['gain_margin']:.2f}, phase margin {full['phase_margin_deg']:.1f}°, "
+            f"Ms {full['Ms']:.2f}"
+        )
     console.print(
-        f"on the model: gain margin {rob['gain_margin']:.2f}, phase margin "
+        ("on its reduction" if full is not None else "on the model")
+        + f": gain margin {rob['gain_margin']:.2f}, phase margin "
         f"{rob['phase_margin_deg']:.1f}°, Ms {rob['Ms']:.2f}; setpoint step overshoot "
         f"{step['overshoot_percent']:.1f} %, "
         + ("does not settle" if math.isnan(settle) else f"settling {settle:.1f} s")
@@ -509,6 +523,8 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
             f"{s['overshoot_percent']:.1f} %, settling {s['settling_time']:.1f} s, load peak "
             f"{s['disturbance_peak']:.2f} L/min, at the limits {s['time_at_limits']:g} s"
         )
+    for disagreement in data["disagreements"]:
+        console.print(f"[bold]DISAGREE:[/bold] {disagreement}", highlight=False)
     spread = data["structure_spread"]
     if spread is not None:
         worst = max(s["Ms_of_chosen_gains"] for s in spread["structures"])

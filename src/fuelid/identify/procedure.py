@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
 from fuelid.identify import diagnostics
+from fuelid.identify.causality import LEAD_MIN_SPAN, lead_check
 from fuelid.identify.nonlinearity import gain_bands
 from fuelid.identify.oe import OutputError
 from fuelid.identify.order import lags_not_separated as _lags_not_separated
@@ -408,6 +409,16 @@ def _identify(
         work.u, y, y_model, work.sample_time, settle, work.segment_starts
     )
     nonlinearity = gain_bands(fit_data, model)
+    # does the flow move before its command (a reversed clock, swapped columns)? on the raw
+    # record: step-ls's zero-phase filter smears each output step backwards in time
+    lead = lead_check(
+        data.u,
+        data.y,
+        data.sample_time,
+        span=max(LEAD_MIN_SPAN, settle) if math.isfinite(settle) else LEAD_MIN_SPAN,
+        segment_starts=data.segment_starts,
+        sign=-1.0 if model.K < 0.0 else 1.0,
+    )
     diag: dict[str, Any] = {
         "residual_whiteness": {
             "p_value": white.p_value,
@@ -424,7 +435,12 @@ def _identify(
         "steady_state_error_percent": [e.error_percent for e in steps],
         "settling_time": settle,
         "nonlinearity": None if nonlinearity is None else nonlinearity.to_json(),
+        "lead": lead.to_json(),
     }
+    lead_warning = lead.warning()
+    if lead_warning:
+        # first: it makes every number below meaningless
+        warnings.insert(0, lead_warning)
     warnings.extend(
         residual_warnings(
             options,
@@ -436,6 +452,7 @@ def _identify(
             (max_lag, settle),
             gain_unit(work),
             kept_order=2 if model.T2 > 0.0 else 1,
+            output_leads=lead.leads,
         )
     )
     if extra.get("residual_colour") == "model":
@@ -462,7 +479,12 @@ def _identify(
     no_gain = gain_not_identified(model.K, stderr.get("K"))
     if no_gain:
         warnings.append(f"{no_gain} in this log; do not tune from it")
-    advice = diagnostics.sample_time_advice(settle, work.sample_time, data.sample_time)
+    # a model fitted to a log that runs backwards has no settling time to advise on
+    advice = (
+        None
+        if lead.leads
+        else diagnostics.sample_time_advice(settle, work.sample_time, data.sample_time)
+    )
     if advice:
         warnings.append(advice)
     return result(diag, residuals if isinstance(estimator, PredictionError) else None)

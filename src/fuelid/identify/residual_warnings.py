@@ -92,6 +92,7 @@ def residual_warnings(
     lag_and_settle: tuple[int, float],
     K_unit: str,
     kept_order: int = 2,
+    output_leads: bool = False,
 ) -> list[str]:
     """The nonlinearity and residual-test warnings, each saying what the data show.
 
@@ -102,6 +103,12 @@ def residual_warnings(
     the whiteness warning says whether the noise itself is coloured: residuals white where the
     output has settled (:func:`~fuelid.identify.diagnostics.settled_whiteness`) mean white noise
     and a transient the model misses; coloured there, coloured noise or a drift.
+
+    ``output_leads`` is whether the output moves before its input
+    (:func:`~fuelid.identify.causality.lead_check`): a reversed clock or swapped columns. The
+    residuals then correlate with the input for that reason, not feedback or a missing lag, and
+    neither the closed-loop nor the unmodelled-dynamics warning (whose remedies, a noise model
+    or another structure, would not help) is given.
     """
     white, cross = tests
     max_lag, settle = lag_and_settle
@@ -137,7 +144,9 @@ def residual_warnings(
             out.append(not_white_warning(white, band_white, settled, significant))
     # a zero-phase filter smears each output step backwards in time, which looks like feedback
     # to the test below: it is only meaningful on unfiltered (oe) data
-    if options.method == "oe" and diagnostics.feedback_suspected(cross):
+    if output_leads:
+        pass  # the residuals follow the input the wrong way round: said first, by the caller
+    elif options.method == "oe" and diagnostics.feedback_suspected(cross):
         out.append(
             "the input reacts to the output residual: the data look closed-loop; an output-error "
             "fit is then biased when the noise is coloured: use the prediction-error fit with "

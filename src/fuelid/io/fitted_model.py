@@ -372,10 +372,14 @@ def _stderr(block: Any) -> dict[str, float | None]:
 
 
 def _intervals(block: Any) -> dict[str, tuple[float, float] | None]:
-    """Each model parameter's 95 % interval (:func:`_interval`)."""
-    return {
-        key: _interval(block.get(key) if isinstance(block, dict) else None) for key in MODEL_KEYS
-    }
+    """Each model parameter's 95 % interval (:func:`_interval`); empty without a ``ci95``.
+
+    A file without ``ci95`` (``plant info --json``: a model from physics, not from data) has no
+    intervals to judge; a file with one gives every key, None where it has no interval.
+    """
+    if not isinstance(block, dict):
+        return {}
+    return {key: _interval(block.get(key)) for key in MODEL_KEYS}
 
 
 def _interval(value: Any) -> tuple[float, float] | None:

@@ -18,11 +18,13 @@ from fuelid.io.log_columns import MIN_SAMPLES, BoolArray, IntArray, LogTable
 from fuelid.io.timeseries import FloatArray
 
 __all__ = [
+    "BACKWARDS_FRACTION",
     "DEFAULT_GAP_FACTOR",
     "FILL_GAPS_MAX_PERIODS",
     "MAX_SAMPLE_TIME",
     "GridRecord",
     "ResampleMode",
+    "check_clock_direction",
     "period",
     "regularise",
     "sort_and_deduplicate",
@@ -49,15 +51,70 @@ GAPS_LISTED = 3
 MAX_SAMPLE_TIME = 3600.0
 """Longest sample interval [s] of a log (an hour): longer is a unit mix-up, not a flow log."""
 
+BACKWARDS_FRACTION = 0.75
+"""A time column whose steps go back in time more often than this (a share of the steps that
+change the time) runs backwards and is refused, not sorted. A reversed clock column (or a
+newest-first export) makes every step go back, or all but a few stray rows; rows merely out of
+order make few steps go back (a swapped pair, pages of an export in the wrong order) or, shuffled
+at random, about half (50 % ± 3 % for 100 rows): such a table still has a clock that runs forward
+and is sorted. Three quarters lies well clear of both. A repeated time stamp is no step either
+way."""
+
+
+def check_clock_direction(table: LogTable, time_name: str, source: str) -> None:
+    """Refuse a time column that runs backwards over most of its steps.
+
+    Sorting such a log would reverse its rows: if the clock column counts down while the rows
+    are in time order (a historian export with a reversed clock), every response would come
+    before its cause, and any model fitted to it would be meaningless. Which of the two is in
+    time order (the rows, newest first, or the clock) the log cannot say: the user must.
+
+    Examples
+    --------
+    >>> rows, ones = np.arange(1, 11), np.ones(10)
+    >>> t = np.arange(10.0)
+    >>> t[[3, 4]] = t[[4, 3]]  # a swapped pair: sorted later, with a note
+    >>> check_clock_direction(LogTable(rows, t, ones, ones), "t_s", "log.csv")
+    >>> try:
+    ...     check_clock_direction(LogTable(rows, 9.0 - t, ones, ones), "t_s", "log.csv")
+    ... except DataError as error:
+    ...     for part in str(error).split(": ")[:3]:
+    ...         print(part)
+    log.csv
+    the time column 't_s' runs backwards
+    it falls from t = 9 s at data row 1 to t = 0 s at data row 10 (8 of 9 steps go back in time)
+    """
+    assert table.t is not None
+    dt = np.diff(table.t)
+    steps = int(np.count_nonzero(dt))
+    backwards = int(np.count_nonzero(dt < 0.0))
+    if steps == 0 or backwards <= BACKWARDS_FRACTION * steps:
+        return
+    first, last = int(table.rows[0]), int(table.rows[-1])
+    raise DataError(
+        f"{source}: the time column {time_name!r} runs backwards: it falls from "
+        f"t = {table.t[0]:.6g} s at data row {first} to t = {table.t[-1]:.6g} s at data row "
+        f"{last} ({backwards} of {steps} steps go back in time): a reversed clock column, or "
+        "rows in reverse order; if the rows are newest first, reverse them (oldest first), "
+        "otherwise check the time column (--time-col)"
+    )
+
 
 def sort_and_deduplicate(
-    table: LogTable, names: tuple[str, str, str], source: str, notes: list[str]
+    table: LogTable,
+    names: tuple[str, str, str],
+    source: str,
+    notes: list[str],
+    time_name: str = "time",
 ) -> LogTable:
     """Sort by time, drop identical repeated rows, refuse conflicting ones.
 
-    ``names`` are the columns of u, y and the fuel temperature (``""`` when there is none).
+    ``names`` are the columns of u, y and the fuel temperature (``""`` when there is none),
+    ``time_name`` the time column's. A time column that runs backwards over most of its steps
+    is refused (:func:`check_clock_direction`); a few rows out of order are sorted, with a note.
     """
     assert table.t is not None
+    check_clock_direction(table, time_name, source)
     dt = np.diff(table.t)
     if np.any(dt < 0.0):
         first = int(table.rows[int(np.flatnonzero(dt < 0.0)[0]) + 1])

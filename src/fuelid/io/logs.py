@@ -182,7 +182,9 @@ def load_log(
         One line saying what is wrong and where: unreadable or empty file, not a table, missing
         column (naming those present), non-numeric text that is no bad-value marker, infinite or
         huge cells (column, count, first data row, the text),
-        implausible fuel temperatures, conflicting duplicated times, a sample time that
+        implausible fuel temperatures, a time column that runs backwards (more than three
+        quarters of its steps go back in time: a reversed clock, or rows newest first; a few
+        rows out of order are sorted instead), conflicting duplicated times, a sample time that
         contradicts the time column, irregular sampling that cannot be placed or resampled
         safely (the worst interval, its time and data row), ``fill_gaps`` beyond its bound,
         constant signals, fewer than 10 samples (or no segment of 10 between the gaps).
@@ -244,9 +246,11 @@ def load_log(
     else:
         if datetime_start is not None:
             notes.append(f"date-time stamps converted to seconds from {datetime_start}")
-        table = sort_and_deduplicate(table, (u_name, y_name, T_name or ""), source, notes)
-        check_count(table.u.size, source)
         assert time_name is not None
+        table = sort_and_deduplicate(
+            table, (u_name, y_name, T_name or ""), source, notes, time_name
+        )
+        check_count(table.u.size, source)
         h, breaks = period(table, time_name, sample_time, max_gap, source, notes)
     if fill_gaps is not None and fill_gaps > FILL_GAPS_MAX_PERIODS * h * (1.0 + 1e-9):
         raise DataError(

@@ -20,12 +20,13 @@ the winding of 1 + L around the origin (the integrator's indentation included).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
 import scipy.optimize
+import scipy.signal
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid._deprecated import warn_renamed
@@ -52,6 +53,37 @@ class StateSpacePlant(Protocol):
     def D(self) -> FloatArray: ...  # noqa: D102
     @property
     def delay(self) -> float: ...  # noqa: D102
+
+
+@dataclass(frozen=True)
+class TransferFunctionPlant:
+    """num(s)/den(s)·e^(−s·delay) in the controllable canonical state space (a StateSpacePlant).
+
+    A model file's full-order ``linear_model`` (``fuelid plant info --json``): the gains are
+    certified on it rather than on its reduction to the model family.
+    """
+
+    A: FloatArray
+    B: FloatArray
+    C: FloatArray
+    D: FloatArray
+    delay: float
+    """Dead time [s]."""
+
+    @classmethod
+    def from_coefficients(
+        cls, num: Sequence[float], den: Sequence[float], delay: float
+    ) -> TransferFunctionPlant:
+        """From polynomial coefficients in descending powers of s (proper: len(num) ≤ len(den)).
+
+        Examples
+        --------
+        >>> plant = TransferFunctionPlant.from_coefficients([2.0], [1.0, 1.0], 0.5)
+        >>> complex(state_space_response(plant, [0.0])[0])
+        (2+0j)
+        """
+        A, B, C, D = scipy.signal.tf2ss(np.asarray(num, float), np.asarray(den, float))
+        return cls(A=A, B=B, C=C, D=D, delay=float(delay))
 
 
 def process_response(model: ProcessModel, omega: ArrayLike, h: float = 0.0) -> ComplexArray:

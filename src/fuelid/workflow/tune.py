@@ -30,7 +30,7 @@ from fuelid.tuning.cases import (
     plant_cases,
 )
 from fuelid.tuning.closedloop import ClosedLoopResult, flow_at, standard_runs
-from fuelid.tuning.frequency import robustness
+from fuelid.tuning.frequency import Robustness, TransferFunctionPlant, robustness
 from fuelid.tuning.limits import check_control_period, check_sweep_size, check_tunable
 from fuelid.tuning.result import UNITS, TuningResult, evaluate_tuning
 from fuelid.tuning.rules import PISettings
@@ -89,6 +89,9 @@ class TuneRequest:
     command_bands: tuple[CommandBand, ...] = ()
     """K per command band the identification's log shows (its ``diagnostics.nonlinearity``):
     the range check when no plant file gives the physics."""
+    full_order: TransferFunctionPlant | None = None
+    """The full-order linear model the reduced ``model`` stands for (a model file's
+    ``linear_model``): the gains' margins and Ms are certified on it."""
     T_fuel: float = T_REF
     """Fuel temperature the model was identified at [K] (anchors the physics)."""
     u: float | None = None
@@ -200,6 +203,23 @@ def calibration_notices(plant: PlantSource, request: TuneRequest) -> list[str]:
             f"calibrated plant: {n}" for n in edge_notes[: len(edge_notes) - len(warned)]
         )
     return notices
+
+
+OVERSHOOT_AGREEMENT = 5.0
+"""Percentage points between the nonlinear run's overshoot and the linear prediction above which
+the outputs say the two disagree and which to believe (issue 37)."""
+
+
+def _is_the_plant_files(
+    config: PlantConfig, model: ProcessModel, request: TuneRequest, u: float
+) -> bool:
+    """Whether ``model`` is the plant file's own reduction at the request's conditions.
+
+    Its static gain equals the linearisation's exactly (to rounding): a model identified from
+    data never does to 1e-6.
+    """
+    K = plant_cases(config, (request.T_fuel,), (u,))[0].model.K
+    return abs(K - model.K) <= 1e-6 * abs(K)
 
 
 def as_plant_source(plant: PlantSource | PlantConfig) -> PlantSource:
@@ -317,6 +337,9 @@ class TuneOutcome:
     on the user's plant file's physics; None without a plant file."""
     bands: BandCheck | None = None
     """The same gains over the command bands the identification's log shows (K per band)."""
+    full_order: Robustness | None = None
+    """The gains' margins and Ms on the full-order model (``request.full_order``), which the
+    headline reports instead of the reduction's."""
     runs: list[ClosedLoopResult] = field(default_factory=list)
     """The standard test on the nonlinear plant at the coldest and the warmest fuel."""
     sweep: SweepResult | None = None
@@ -335,9 +358,52 @@ class TuneOutcome:
         return self.tuning.y_span
 
     @property
+    def certified(self) -> Robustness:
+        """The margins and Ms to believe: on the full-order model when given, else the model's."""
+        return self.tuning.robustness if self.full_order is None else self.full_order
+
+    @property
     def warnings(self) -> list[str]:
         """What makes the gains unfit to use as they are (empty for a sound design)."""
-        return self.tuning.warnings
+        return self.tuning.warnings + self.disagreements()
+
+    def disagreements(self) -> list[str]:
+        """Where two figures of this outcome disagree, and which one to believe.
+
+        The full-order model's Ms more than 10 % above the reduction's; the nonlinear run's
+        overshoot more than :data:`OVERSHOOT_AGREEMENT` points from the linear prediction at the
+        same fuel temperature and command.
+        """
+        found = []
+        reduced = self.tuning.robustness.Ms
+        if self.full_order is not None and self.full_order.Ms > 1.1 * reduced:
+            found.append(
+                f"on the full-order linear_model these gains give Ms {self.full_order.Ms:.2f}, "
+                f"not the reduction's {reduced:.2f}: the reduction misses dynamics that matter; "
+                "believe the full-order figure (it is the one printed)"
+            )
+        for run in self.runs:
+            predicted = self._predicted_overshoot(run.T_fuel)
+            actual = run.summary()["overshoot_percent"]
+            if predicted is None or not math.isfinite(actual):
+                continue
+            if abs(actual - predicted) > OVERSHOOT_AGREEMENT:
+                found.append(
+                    f"the nonlinear plant overshoots {actual:.1f} % at "
+                    f"{kelvin_to_celsius(run.T_fuel):g} °C, the linear prediction "
+                    f"{predicted:.1f} %: believe the nonlinear run (your plant file's full "
+                    "dynamics, limits and nonlinearity); the linear figures miss what it shows"
+                )
+        return found
+
+    def _predicted_overshoot(self, T_fuel: float) -> float | None:
+        """The temperature check's overshoot at ``T_fuel`` [K] and the operating command [%]."""
+        if self.check is None:
+            return None
+        cases = [c for c in self.check.cases if abs(c.case.T_fuel - T_fuel) < 1e-6]
+        if not cases:
+            return None
+        return min(cases, key=lambda c: abs(c.case.u - self.u)).overshoot_percent
 
     def structure_spread(self) -> dict[str, Any] | None:
         """The gains' spread over the model and the structures it could not be told from."""
@@ -359,7 +425,7 @@ class TuneOutcome:
             "Ti": "identified model",
             "control_period": self.request.control_period_basis,
             "percent_of_span": spans.basis,
-            "robustness": "identified model",
+            "robustness": "identified model" if self.full_order is None else "model file",
             "closed_loop": "identified model",
             "temperature_check": None if self.check is None else "plant file",
             "command_band_check": None if self.bands is None else "log",
@@ -379,6 +445,10 @@ class TuneOutcome:
             "structure_spread": self.structure_spread(),
             "temperature_check": None if self.check is None else self.check.to_json(cases=True),
             "command_band_check": None if self.bands is None else self.bands.to_json(),
+            "full_order": None
+            if self.full_order is None
+            else self.full_order.to_json() | {"basis": "model file (linear_model)"},
+            "disagreements": self.disagreements(),
             "closed_loop_plant": [r.to_json(events=True) for r in self.runs] or None,
             "sweep": None if self.sweep is None else self.sweep.summary(),
             "provenance": self.provenance(),
@@ -461,9 +531,19 @@ def _tune_model(
     announce(progress, TEMPERATURE_CHECK)
     check = None
     if not plant.is_reference:
+        # a model that is the plant file's own linearisation (plant info's) needs no anchoring:
+        # the margins are then computed on the full linearised plant at every case
+        own = request.full_order is not None and _is_the_plant_files(config, model, request, u)
         check = check_over_temperature(
-            config, tuning.pi, anchor, request.T_range, request.band_width, u, cache
+            config,
+            tuning.pi,
+            None if own else anchor,
+            request.T_range,
+            request.band_width,
+            u,
+            cache,
         )
+    full_order = None if request.full_order is None else robustness(request.full_order, tuning.pi)
     bands = band_check(tuning.pi, model, request.command_bands)
     runs = []
     if request.simulate:
@@ -502,6 +582,7 @@ def _tune_model(
         tuning=tuning,
         check=check,
         bands=bands,
+        full_order=full_order,
         runs=runs,
         sweep=sweep,
         structures=structures,
