@@ -306,14 +306,15 @@ def test_cli_names_max_gap_when_it_would_help(tmp_path: Path) -> None:
 
 def test_fuel_temperature_is_read_in_kelvin_and_follows_the_samples(tmp_path: Path) -> None:
     written = frame(H * np.arange(N))
-    shuffled = pd.concat([written.iloc[::-1], written.iloc[[10]]])  # reversed, one duplicate
-    keep = np.ones(N + 1, dtype=bool)
-    keep[[100, 500, 501]] = False
+    # shuffled (about half the steps go back: sorted, not a reversed clock), one duplicate, and
+    # samples 899 (bridged: held like u), 499 and 498 (a gap) left out
+    order = np.random.default_rng(4).permutation(N)
+    shuffled = pd.concat([written.iloc[order], written.iloc[[10]]])
+    keep = ~np.isin(np.r_[order, 10], [899, 499, 498])
     shuffled[keep].to_csv(tmp_path / "log.csv", index=False)
     data = load_log(tmp_path / "log.csv", fill_gaps=0.04)
     assert data.T_fuel is not None
     T_K = written["T_fuel_degC"].to_numpy() + 273.15
-    # reversed rows 100, 500, 501 are samples 899 (bridged: held like u), 499 and 498 (a gap)
     assert data.n_samples == N - 2
     assert data.segment_starts == (498,)
     expected = T_K[np.r_[0:498, 500:899, 898, 900:N]]

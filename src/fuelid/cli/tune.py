@@ -182,7 +182,12 @@ def tune_command(
     from fuelid.tuning.frequency import TransferFunctionPlant
     from fuelid.tuning.limits import check_sweep_size
     from fuelid.workflow import PlantSource, TuneRequest, schedule_gains, tune_model
-    from fuelid.workflow.trust import control_period_from, undetermined, undetermined_refusal
+    from fuelid.workflow.trust import (
+        LEADING_RESPONSE,
+        control_period_from,
+        undetermined,
+        undetermined_refusal,
+    )
     from fuelid.workflow.tune import tune_notices
 
     # options checked at the edge, before any work is done
@@ -210,6 +215,8 @@ def tune_command(
     loose = (
         [] if loaded is None else undetermined(loaded.model.to_json(), loaded.ci95, loaded.fixed)
     )
+    if loaded is not None and loaded.leads:
+        loose.insert(0, LEADING_RESPONSE)
     if loose and not accept_undetermined:
         raise FuelidError(undetermined_refusal(loose, f"the model of {model_file}"))
     if model is None and not schedule:

@@ -175,6 +175,9 @@ class FittedModel:
     such as 1e300 stays as it is: an unbounded interval is visible as such."""
     fixed: tuple[str, ...] = ()
     """The parameters the identification held fixed (``fixed``): priors, not estimates."""
+    leads: bool = False
+    """Whether the identification found the flow moving before its command
+    (``diagnostics.lead.leads``): a reversed clock or swapped columns."""
     gain_bands: tuple[tuple[float, float, float, float | None], ...] = ()
     """K per command band of the identification's log (``diagnostics.nonlinearity.bands``):
     (u_low [V], u_high [V], K [(L/min)/V], its standard error or None)."""
@@ -265,6 +268,7 @@ def load_fitted_model(path: str | Path) -> FittedModel:
     return FittedModel(
         control_period=_control_period(data.get("options")),
         gain_bands=_gain_bands(data.get("diagnostics")),
+        leads=_leads(data.get("diagnostics")),
         linear_model=_linear_model(data.get("linear_model"), file),
         stderr=_stderr(errors),
         ci95=_intervals(data.get("ci95")),
@@ -302,6 +306,12 @@ def _gain_bands(diagnostics: Any) -> tuple[tuple[float, float, float, float | No
         if low < high and K > 0.0:
             bands.append((low, high, K, None if se is None else float(se)))
     return tuple(bands)
+
+
+def _leads(diagnostics: Any) -> bool:
+    """``diagnostics.lead.leads`` is true (anything else: false)."""
+    lead = diagnostics.get("lead") if isinstance(diagnostics, dict) else None
+    return isinstance(lead, dict) and lead.get("leads") is True
 
 
 def _finite_number(value: Any) -> bool:

@@ -44,7 +44,13 @@ from fuelid.workflow.assumptions import (
 )
 from fuelid.workflow.identification import T_REF, identify_step_ls
 from fuelid.workflow.progress import DIAGNOSTICS, IDENTIFICATION, Progress, announce
-from fuelid.workflow.trust import NO_CONTROL_PERIOD, Basis, undetermined, undetermined_refusal
+from fuelid.workflow.trust import (
+    LEADING_RESPONSE,
+    NO_CONTROL_PERIOD,
+    Basis,
+    undetermined,
+    undetermined_refusal,
+)
 from fuelid.workflow.tune import (
     TuneOutcome,
     TuneRequest,
@@ -371,6 +377,8 @@ def _analyse(
     chosen = identifications[settings.tune_from]
     check_gain_identified(chosen.model.K, chosen.stderr.get("K"), f"{settings.tune_from} fit")
     loose = undetermined(chosen.model.to_json(), _intervals(chosen), chosen.fixed)
+    if (chosen.diagnostics.get("lead") or {}).get("leads"):
+        loose.insert(0, LEADING_RESPONSE)
     if loose and not settings.accept_undetermined:
         raise FuelidError(undetermined_refusal(loose, f"the {settings.tune_from} model"))
     mismatch = check_gain_against_plant(chosen.model, plant, point, T_fuel)

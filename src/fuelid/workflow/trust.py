@@ -222,6 +222,13 @@ def undetermined(
     return found
 
 
+LEADING_RESPONSE = (
+    "the flow moves before its command (diagnostics.lead): a reversed clock or swapped "
+    "input and output columns"
+)
+"""Why a model from a log whose response leads its cause is no model of the loop."""
+
+
 def undetermined_refusal(found: list[str], what: str) -> str:
     """The one-line refusal (or, accepted, the warning) for an undetermined model."""
     return (
