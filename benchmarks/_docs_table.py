@@ -85,6 +85,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "dashboard": ("The dashboard's speed", "benchmarks/bench_dashboard.py"),
     "central": ("Central ingest from many senders", "benchmarks/bench_central.py"),
     "reidentify": ("Re-identification on Dask", "benchmarks/bench_reidentify.py"),
+    "trust": (
+        "What fuelid tune prints against the truth, on loops unlike the reference plant",
+        "benchmarks/bench_trust.py",
+    ),
 }
 
 _T = TypeVar("_T")

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from markupsafe import escape
 from typer.testing import CliRunner
 
 from fuelid.cli import app, main
@@ -29,12 +30,15 @@ from fuelid.profiles import step_sequence
 from fuelid.tuning.frequency import robustness
 from fuelid.units import celsius_to_kelvin
 from fuelid.workflow import AnalysisSettings, LogAnalysis, PlantSource, analyse_log
+from fuelid.workflow.assumptions import REFERENCE_PLANT_NOTICE
 
 runner = CliRunner()
 LEVELS = [1.0, 1.5, 2.5, 2.0, 3.5, 3.0, 1.5]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 COLD, WARM = celsius_to_kelvin(-20.0), celsius_to_kelvin(50.0)
-SETTINGS = AnalysisSettings(T_range=(COLD, WARM), band_width=35.0)
+# the control period is never assumed (issue 37): these numbers are for h = 1 s, given
+SETTINGS = AnalysisSettings(T_range=(COLD, WARM), band_width=35.0, control_period=1.0)
+H1 = ["--control-period", "1"]
 
 
 @pytest.fixture(scope="module")
@@ -183,6 +187,7 @@ def test_cli_report_json(
             "35",
             "--config",
             str(plant_file),
+            *H1,
             "--json",
         ],
     )
@@ -195,8 +200,11 @@ def test_cli_report_json(
         "tuned_from",
         "tuning",
         "temperature_check",
+        "command_band_check",
         "closed_loop_plant",
         "schedule",
+        "provenance",
+        "undetermined",
         "units",
         "fuelid_version",
         "input_sha256",
@@ -221,6 +229,15 @@ def test_cli_report_json(
     assert data["identification"]["oe"]["structure"]["conditional"] == bool(data["notices"])
     assert data["temperature_check"]["all_stable"] is True
     assert data["schedule"]["worst_Ms"] <= 1.7 + 1e-9
+    assert data["tuning"]["control_period"] == 1.0
+    assert data["tuning"]["control_period_basis"] == "option"
+    # the user's plant file (a copy of the reference plant's) gives the spans: 4 V, 100 L/min
+    span = data["tuning"]["plc"]["percent_of_span"]
+    assert (span["u_span"], span["y_span"]) == (4.0, 100.0)
+    assert span["Kc"] == pytest.approx(data["tuning"]["Kc"] * 100.0 / 4.0, rel=1e-12)
+    assert data["provenance"]["temperature_check"] == "plant file"
+    assert data["provenance"]["schedule"] == "plant file"
+    assert data["undetermined"] == []
     # the command only adds the paths and the provenance to the workflow's JSON
     capsys.readouterr()
     emit_json(analysis.to_json())
@@ -232,12 +249,14 @@ def test_cli_report_json(
 @pytest.mark.parametrize(
     ("args", "reason"),
     [
-        (["missing.csv"], "does not exist"),
+        (["missing.csv", *H1], "does not exist"),
         (["LOG", "--out", "report.pdf"], ".html"),
         (["LOG", "--out", "no/such/folder/r.html"], "does not exist"),
-        (["LOG", "--t-min", "50", "--t-max", "-20"], "low < high"),
+        (["LOG", "--t-min", "50", "--t-max", "-20", *H1], "low < high"),
         (["LOG", "--rule", "ziegler"], "ziegler"),
-        (["LOG", "--tau-c", "1", "--rule", "amigo"], "tau-c"),
+        (["LOG", "--tau-c", "1", "--rule", "amigo", *H1], "tau-c"),
+        # gains for a period nobody gave would be wrong gains: none is assumed (issue 37)
+        (["LOG"], "no control period: give --control-period SECONDS"),
     ],
 )
 def test_cli_report_bad_input(
@@ -265,7 +284,7 @@ def test_tune_from_the_reports_model_gives_the_reports_worst_case(
     # the operating point travels with the model: tune --model anchors its temperature check
     # at the log's command and fuel temperature, as the report did, so the worst Ms agrees
     out = tmp_path / "r.html"
-    common = ["--config", str(plant_file), "--band-width", "35", "--json"]
+    common = ["--config", str(plant_file), "--band-width", "35", *H1, "--json"]
     report = runner.invoke(app, ["report", str(log_path), "--out", str(out), *common])
     assert report.exit_code == 0, report.stderr
     data = json.loads(report.stdout)
@@ -284,14 +303,42 @@ def test_tune_from_the_reports_model_gives_the_reports_worst_case(
 
 def test_report_without_a_plant_file_says_so_and_assumes_no_meter(log_path: Path, tmp_path: Path):
     out = tmp_path / "r.html"
-    result = runner.invoke(app, ["report", str(log_path), "--out", str(out), "--band-width", "35"])
+    args = ["report", str(log_path), "--out", str(out), "--band-width", "35", *H1]
+    result = runner.invoke(app, args)
     assert result.exit_code == 0, result.stderr
     assert "built-in reference plant" in result.stdout
     assert "built-in reference plant" in result.stderr
+    # no figure from the reference plant: no temperature check, schedule or %/% gains; the
+    # range check is the log's command bands
+    summary = " ".join(result.stdout.split())
+    assert "over fuel temperature" not in summary
+    assert "schedule of" not in summary and "one set of gains suffices" not in summary
+    assert "over the log's commands" in summary
+    assert "no %/% gains: spans not given" in summary
     page = out.read_text(encoding="utf-8")
     assert 'id="notices"' in page
+    assert str(escape(REFERENCE_PLANT_NOTICE)) in page
     assert "not given" in page  # the priors table: no meter lag assumed
     assert "Closed loop on the nonlinear plant" not in page
+    assert "Gain schedule" not in page
+    assert "Fixed gains over fuel temperature" not in page
+    assert "Over the log's commands" in page
+    assert 'id="fig-schedule"' not in page
+    assert not figure_paths(out)["schedule"].exists()
+    data = json.loads(runner.invoke(app, [*args, "--force", "--json"]).stdout)
+    assert data["temperature_check"] is None
+    assert data["schedule"] is None
+    assert data["provenance"]["schedule"] is None
+    assert data["tuning"]["plc"]["percent_of_span"] is None
+    assert data["tuning"]["spans"]["reason"].startswith("spans not given")
+    bands = data["command_band_check"]
+    assert bands["basis"] == "log"
+    assert bands["cases"]
+    # the bands cover the commands the log visited (1…3.5 V)
+    assert bands["u_range"][0] <= min(LEVELS) + 0.5 and bands["u_range"][1] >= max(LEVELS) - 0.5
+    assert sorted(Path(p).name for p in data["figures"]) == sorted(
+        f"r_{key}.png" for key in FIGURE_KEYS if key != "schedule"
+    )
 
 
 def test_a_log_with_gaps_is_reported_from_its_segments(log_path: Path, tmp_path: Path):
@@ -302,7 +349,7 @@ def test_a_log_with_gaps_is_reported_from_its_segments(log_path: Path, tmp_path:
     frame.drop(index=[*range(3000, 3050), *range(7000, 7010)]).to_csv(gapped, index=False)
     out = tmp_path / "g.html"
     result = runner.invoke(
-        app, ["report", str(gapped), "--out", str(out), "--band-width", "35", "--json"]
+        app, ["report", str(gapped), "--out", str(out), "--band-width", "35", *H1, "--json"]
     )
     assert result.exit_code == 0, result.stderr
     data = json.loads(result.stdout)
@@ -310,7 +357,7 @@ def test_a_log_with_gaps_is_reported_from_its_segments(log_path: Path, tmp_path:
     assert any("2 gaps split the log into 3 segments" in w for w in data["warnings"])
     # the model of the whole log is found from the pieces: K within 2 % of the gap-free fit's
     whole = runner.invoke(
-        app, ["report", str(log_path), "--out", str(tmp_path / "w.html"), "--json"]
+        app, ["report", str(log_path), "--out", str(tmp_path / "w.html"), *H1, "--json"]
     )
     K_whole = json.loads(whole.stdout)["identification"]["oe"]["model"]["K"]
     assert data["identification"]["oe"]["model"]["K"] == pytest.approx(K_whole, rel=0.02)

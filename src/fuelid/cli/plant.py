@@ -13,6 +13,7 @@ import typer
 from fuelid.cli._common import ConfigOption, celsius_to_kelvin, emit_json, guarded, provenance
 from fuelid.cli.serve import serve_command
 from fuelid.errors import FuelidError
+from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 
 if TYPE_CHECKING:
     from rich.table import Table
@@ -138,7 +139,9 @@ def init(
 @guarded
 def info(
     config: ConfigOption = None,
-    fuel_temp: Annotated[float, typer.Option("--fuel-temp", help="Fuel temperature [°C].")] = 20.0,
+    fuel_temp: Annotated[
+        float, typer.Option("--fuel-temp", help="Fuel temperature [°C].")
+    ] = DEFAULT_FUEL_TEMPERATURE_C,
     u: Annotated[
         float | None,
         typer.Option(

@@ -66,6 +66,7 @@ from fuelid.cli._identify_options import (
     parse_delay,
     parse_order,
 )
+from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 
 if TYPE_CHECKING:
     from fuelid.workflow import LogAnalysis
@@ -180,7 +181,9 @@ def report_command(
     check_report_path(out, force)  # before any work: a typo must not cost a minute
     facts = site_facts(site)
     period = control_period_from(control_period, None if facts is None else facts.control_period)
-    T_fuel, T_range = temperature_options(20.0 if fuel_temp is None else fuel_temp, t_min, t_max)
+    T_fuel, T_range = temperature_options(
+        DEFAULT_FUEL_TEMPERATURE_C if fuel_temp is None else fuel_temp, t_min, t_max
+    )
     check_prior_times(flowmeter_T, flowmeter_delay)
     check_spans(flow_span, u_span)
     settings = AnalysisSettings(

@@ -14,6 +14,7 @@ import typer
 
 from fuelid.cli._common import ConfigOption, guarded
 from fuelid.errors import FuelidError
+from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 
 if TYPE_CHECKING:
     from fuelid.plc.codec import WordOrder
@@ -208,7 +209,7 @@ def _serve(
     )
     plc = VirtualPLC(
         load_plant_config(config),
-        fuel_temp_C=20.0 if fuel_temp is None else fuel_temp,
+        fuel_temp_C=DEFAULT_FUEL_TEMPERATURE_C if fuel_temp is None else fuel_temp,
         fuel_temp_profile=(
             load_profile(fuel_temp_profile, "fuel_temperature") if fuel_temp_profile else None
         ),

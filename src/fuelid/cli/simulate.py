@@ -18,6 +18,7 @@ import typer
 
 from fuelid.cli._common import celsius_to_kelvin, emit_json, guarded, provenance
 from fuelid.errors import FuelidError
+from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.units import LPM_PER_M3S, PA_PER_MPA
 
 if TYPE_CHECKING:
@@ -97,7 +98,9 @@ def simulate_command(
             help="Quantisation step of the reading [L/min] (default: config's).", show_default=False
         ),
     ] = None,
-    fuel_temp: Annotated[float, typer.Option(help="Fuel temperature at the start [°C].")] = 20.0,
+    fuel_temp: Annotated[
+        float, typer.Option(help="Fuel temperature at the start [°C].")
+    ] = DEFAULT_FUEL_TEMPERATURE_C,
     fuel_temp_end: Annotated[
         float | None,
         typer.Option(

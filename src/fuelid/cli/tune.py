@@ -41,6 +41,7 @@ from fuelid.cli._common import (
     warn,
 )
 from fuelid.errors import FuelidError
+from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 
 if TYPE_CHECKING:
     from fuelid.cli._common import SiteFacts
@@ -236,7 +237,9 @@ def tune_command(
         fuel_temp, fuel_source = loaded.fuel_temperature, "model file"
     if u is None and loaded is not None and loaded.u is not None:
         u = loaded.u
-    T_fuel, T_range = temperature_options(20.0 if fuel_temp is None else fuel_temp, t_min, t_max)
+    T_fuel, T_range = temperature_options(
+        DEFAULT_FUEL_TEMPERATURE_C if fuel_temp is None else fuel_temp, t_min, t_max
+    )
     plant = PlantSource(load_plant_config(config), None if config is None else str(config))
     request = TuneRequest(
         model=model,

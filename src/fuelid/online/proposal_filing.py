@@ -14,6 +14,7 @@ import math
 from typing import Any
 
 from fuelid.errors import NotFittedError
+from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.io.jsonsafe import json_ready
 from fuelid.online.context import RECENT_WINDOWS_SPAN, ServiceContext, model_of
 from fuelid.online.evidence import WindowModel
@@ -78,7 +79,7 @@ class ProposalFiling:
         """The tracker's K ± 2 standard errors at the window's conditions; None without one."""
         if result.model is None or len(self.tracker.observations) < 2:
             return None
-        T_C = result.T_fuel_C if result.T_fuel_C is not None else 20.0
+        T_C = result.T_fuel_C if result.T_fuel_C is not None else DEFAULT_FUEL_TEMPERATURE_C
         try:
             K, se = self.tracker.predict(T_C, result.u_mean, K_plant=result.plant_K)
         except (TrackingError, NotFittedError):  # the last refit was refused

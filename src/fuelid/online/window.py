@@ -53,6 +53,7 @@ import numpy as np
 
 from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError, NotExcitingError
+from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.identify.oe import OutputError
 from fuelid.identify.pem import PredictionError
 from fuelid.identify.procedure import POSITIVE_PARAMETERS, IdentifyOptions, interval95
@@ -338,7 +339,7 @@ class WindowAnalyser:
             result.seconds = time.perf_counter() - started
             return result
         if self.k_plant is not None and result.u_mean is not None:
-            T_C = 20.0 if result.T_fuel_C is None else result.T_fuel_C
+            T_C = DEFAULT_FUEL_TEMPERATURE_C if result.T_fuel_C is None else result.T_fuel_C
             try:
                 result.plant_K = float(self.k_plant(result.u_mean, T_C))
             except FuelidError as error:  # outside the plant's range: no ratio event
@@ -521,20 +522,16 @@ def window_priors(
         )
     from fuelid.online.tracking import plant_gain_function
     from fuelid.plant.config import load_plant_config
-    from fuelid.plant.linear import linearise
-    from fuelid.units import celsius_to_kelvin
+    from fuelid.workflow.identification import plant_knowledge
 
     config = load_plant_config(plant_path)
-    middle = 0.5 * (config.vfd.u_min_V + config.vfd.u_max_V)
-    settling = linearise(config, middle, celsius_to_kelvin(20.0)).settling_time()
-    meter = config.flowmeter
-    span = y_span if y_span is not None else float(meter.span_Lpm)
+    known = plant_knowledge(config)
     priors = WindowPriors(
-        flowmeter_T=float(meter.time_constant_s),
-        delay=float(meter.delay_s),  # as `identify --config`: the meter's dead time, fixed
-        settling_time=float(settling),
-        u_limits=(float(config.vfd.u_min_V), float(config.vfd.u_max_V)),
-        y_span=span,
+        flowmeter_T=known.flowmeter_T,
+        delay=known.flowmeter_delay,  # as `identify --config`: the meter's dead time, fixed
+        settling_time=known.settling_time,
+        u_limits=known.u_limits,
+        y_span=y_span if y_span is not None else known.y_span,
         control_period=control_period,
         source=f"plant file {plant_path}",
     )
@@ -569,8 +566,7 @@ def check_site_plant(plant_path: str | None, window_s: float) -> float | None:
 
     from fuelid.errors import ConfigError
     from fuelid.plant.config import load_plant_config
-    from fuelid.plant.linear import linearise
-    from fuelid.units import celsius_to_kelvin
+    from fuelid.workflow.identification import plant_knowledge
 
     if not Path(plant_path).is_file():
         raise ConfigError(f"[site] plant: no such plant file {plant_path}")
@@ -578,12 +574,13 @@ def check_site_plant(plant_path: str | None, window_s: float) -> float | None:
         config = load_plant_config(plant_path)
     except FuelidError as error:
         raise ConfigError(f"[site] plant {plant_path}: {' '.join(str(error).split())}") from None
-    middle = 0.5 * (config.vfd.u_min_V + config.vfd.u_max_V)
-    settling = float(linearise(config, middle, celsius_to_kelvin(20.0)).settling_time())
+    known = plant_knowledge(config)
+    settling, middle = known.settling_time, known.middle
     if window_s < settling:
         raise ConfigError(
             f"[online] window_s = {window_s:g} s is shorter than the plant's settling time "
-            f"{settling:.3g} s (plant {plant_path}, at {middle:g} V and 20 °C): a window must "
+            f"{settling:.3g} s (plant {plant_path}, at {middle:g} V and "
+            f"{DEFAULT_FUEL_TEMPERATURE_C:g} °C): a window must "
             "hold settled responses; make window_s at least that"
         )
     return settling

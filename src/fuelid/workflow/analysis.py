@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
+from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.identify.diagnostics import (
     CorrelationTest,
     input_residual_correlation,
@@ -211,7 +212,8 @@ class LogAnalysis:
             )
         if self.operating_point.T_fuel is None:
             found.append(
-                "fuel temperature assumed 20 °C: the log has no fuel-temperature column and "
+                f"fuel temperature assumed {DEFAULT_FUEL_TEMPERATURE_C:g} °C: the log has no "
+                "fuel-temperature column and "
                 "--fuel-temp was not given"
             )
         found.extend(f"signal check overridden: {f}" for f in self.signal_check)

@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
+from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.identify.preprocess import select
 from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
@@ -29,7 +30,7 @@ from fuelid.workflow.assumptions import (
 if TYPE_CHECKING:
     from fuelid.plant.config import PlantConfig
 
-T_REF = celsius_to_kelvin(20.0)
+T_REF = celsius_to_kelvin(DEFAULT_FUEL_TEMPERATURE_C)
 """Fuel temperature assumed when none is given [K]: 20 °C."""
 
 IDENTIFY_UNITS: dict[str, str] = {
@@ -46,6 +47,45 @@ IDENTIFY_UNITS: dict[str, str] = {
 """Units of the numbers in the JSON of ``fuelid identify`` (by key name)."""
 
 
+@dataclass(frozen=True)
+class PlantKnowledge:
+    """What a plant file tells an identification before it sees data: the one home of priors.
+
+    ``fuelid identify --config``, ``fuelid report --config`` and the online service's windows
+    (:func:`fuelid.online.window.window_priors`) all take their priors from here.
+    """
+
+    flowmeter_T: float
+    """The flowmeter's lag [s], held fixed in the fit."""
+    flowmeter_delay: float
+    """The meter's dead time [s], held fixed (the model's whole delay)."""
+    settling_time: float
+    """The 98 % settling time of the plant's linearisation at mid-range [s] (step-ls's N, the
+    online window's length check)."""
+    u_limits: tuple[float, float]
+    """The drive's signal range [V]."""
+    y_span: float
+    """The meter's span [L/min]."""
+    middle: float
+    """The mid-range command the settling time is for [V]."""
+
+
+def plant_knowledge(config: PlantConfig, T_fuel: float = T_REF) -> PlantKnowledge:
+    """The prior knowledge of a plant file at fuel temperature ``T_fuel`` [K] (default 20 °C)."""
+    from fuelid.plant.linear import linearise  # the physics only when a plant file is given
+
+    meter, vfd = config.flowmeter, config.vfd
+    middle = 0.5 * (vfd.u_min_V + vfd.u_max_V)
+    return PlantKnowledge(
+        flowmeter_T=float(meter.time_constant_s),
+        flowmeter_delay=float(meter.delay_s),
+        settling_time=float(linearise(config, middle, T_fuel).settling_time()),
+        u_limits=(float(vfd.u_min_V), float(vfd.u_max_V)),
+        y_span=float(meter.span_Lpm),
+        middle=float(middle),
+    )
+
+
 def plant_priors(
     options: IdentifyOptions, config: PlantConfig, T_fuel: float = T_REF
 ) -> IdentifyOptions:
@@ -58,7 +98,7 @@ def plant_priors(
     config : PlantConfig
         The plant: its flowmeter's lag and dead time (held fixed in the fit), and the 98 %
         settling time of its linearisation at the middle of the drive's range (which chooses
-        step-ls's N).
+        step-ls's N), as :func:`plant_knowledge` gives them.
     T_fuel : float
         Fuel temperature of the settling time [K].
 
@@ -69,10 +109,7 @@ def plant_priors(
     meter = config.flowmeter
     settling = options.settling_time
     if settling is None:
-        middle = 0.5 * (config.vfd.u_min_V + config.vfd.u_max_V)
-        from fuelid.plant.linear import linearise  # the physics only when a plant file is given
-
-        settling = linearise(config, middle, T_fuel).settling_time()
+        settling = plant_knowledge(config, T_fuel).settling_time
     return replace(
         options,
         flowmeter_T=meter.time_constant_s if options.flowmeter_T is None else options.flowmeter_T,

@@ -74,6 +74,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid.errors import ConfigError, DataError
+from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.plant import load_plant_config
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.simulate import FuelTemperature, integrate_held
@@ -200,7 +201,7 @@ class VirtualPLC:
         *,
         period_s: float = 0.02,
         control_period_s: float = 1.0,
-        fuel_temp_C: float = 20.0,
+        fuel_temp_C: float = DEFAULT_FUEL_TEMPERATURE_C,
         fuel_temp_profile: Profile | FuelTemperature | tuple[ArrayLike, ArrayLike] | None = None,
         setpoint_profile: str | ProfileLike | None = None,
         command_profile: str | ProfileLike | None = None,
