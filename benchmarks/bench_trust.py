@@ -265,7 +265,7 @@ def case_distributed(plant: str, log_name: str, seed: int) -> CaseResult:
 
     # (C) no %/% gains without spans; no temperature check without a plant file
     span = out["plc"]["percent_of_span"]
-    says = "spans not given" in text.stdout
+    says = "spans not given" in text.out
     rows.append(
         Row(label, "(C) %/% gains (no spans given)",
             "none" if span is None else f"Kc {span['Kc']:.4g} %/%", "no spans given",
@@ -273,7 +273,7 @@ def case_distributed(plant: str, log_name: str, seed: int) -> CaseResult:
             "null, text says so", passed(span is None and says))
     )  # fmt: skip
     temp = out["temperature_check"]
-    says = "over fuel temperature: not checked" in text.stdout
+    says = "over fuel temperature: not checked" in text.out
     rows.append(
         Row(label, "(C) temperature check (no plant file)",
             "none" if temp is None else f"worst Ms {temp['worst_Ms']:.3f}", "no plant file",
@@ -369,8 +369,8 @@ def case_long_line() -> CaseResult:
     # (D) the Ms printed first is the full-order model's
     full = out["full_order"]
     printed = float(full["Ms"]) if full else float(out["Ms"])
-    first = shown.stdout.find("on the full-order model")
-    reduction = shown.stdout.find("on its reduction")
+    first = shown.out.find("on the full-order model")
+    reduction = shown.out.find("on its reduction")
     printed_first = full is not None and 0 <= first < reduction
     ratio = printed / truth
     rows.append(

@@ -296,10 +296,16 @@ def _context(
                 "at_limits": _fmt(summary["time_at_limits"], "g"),
             }
         )
-    bands = [
-        {k: _fmt(v, ".4g") if isinstance(v, float) else v for k, v in b.to_json().items()}
-        for b in ([] if analysis.schedule is None else analysis.schedule.bands)
-    ]
+    schedule = analysis.schedule
+    bands = (
+        []
+        if schedule is None
+        else [
+            {k: _fmt(v, ".4g") if isinstance(v, float) else v for k, v in b.to_json().items()}
+            | {"Kc_percent": _fmt(schedule.percent_of_span(b.pi), ".4g")}
+            for b in schedule.bands
+        ]
+    )
     span = plc["percent_of_span"]
     rob = analysis.tuning.robustness
     linear = tuning["closed_loop"]

@@ -39,10 +39,15 @@ runner = CliRunner()
 CONFIG = load_plant_config()
 MODEL = ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2)
 REFERENCE_FILE = str(resources.files("fuelid.data").joinpath("reference_plant.toml"))
-FLAGS = ["--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2"]
+# the control period is never assumed (issue 37): the numbers below are for h = 1 s, given
+FLAGS = ["--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2", "--control-period", "1"]
+H = 1.0
+# the plant file given on the command line, as the library is given it
+USERS_PLANT = PlantSource(CONFIG, REFERENCE_FILE)
 PROVENANCE = {"fuelid_version", "input_sha256", "options"}
-# what the command adds about its own options: the plant file (or its absence) and the notices
-ASSUMPTIONS = {"plant", "notices", "fuel_temperature_source"}
+# what the command adds about its own options: the plant file (or its absence), the notices and
+# the parameters of a model file the log does not determine (accepted)
+ASSUMPTIONS = {"plant", "notices", "fuel_temperature_source", "undetermined"}
 
 
 def _cli(*args: str) -> dict:
@@ -60,12 +65,17 @@ def _as_printed(payload: dict, capsys: pytest.CaptureFixture[str]) -> dict:
 
 
 def test_tune_model_is_what_fuelid_tune_prints(capsys: pytest.CaptureFixture[str]):
-    request = TuneRequest(model=MODEL, T_fuel=celsius_to_kelvin(12.0), simulate=True)
-    outcome = tune_model(CONFIG, request)
+    request = TuneRequest(
+        model=MODEL, control_period=H, T_fuel=celsius_to_kelvin(12.0), simulate=True
+    )
+    outcome = tune_model(USERS_PLANT, request)
     cli = _cli("tune", *FLAGS, "--fuel-temp", "12", "--simulate", "--config", REFERENCE_FILE)
     assert _as_printed(outcome.to_json(), capsys) == cli
-    # the defaults resolved from the plant: the middle of 1…5 V and the meter's 100 L/min
+    # a bare PlantConfig is the script's own plant, as a plant file is
+    assert _as_printed(tune_model(CONFIG, request).to_json(), capsys) == cli
+    # the defaults resolved from the user's plant file: the middle of 1…5 V and its 100 L/min
     assert (outcome.u, outcome.y_span) == (3.0, 100.0)
+    assert outcome.spans.y_span is not None and outcome.spans.y_span.basis == "plant file"
     # SIMC with the half rule and h/2 (docs/explanation/tuning.md §2–3): T1 = 1.41 s, θ = 0.85 s
     assert outcome.pi.Kc == pytest.approx(1.41 / (13.5 * 2 * 0.85), rel=1e-12)
     # kelvin inside, °C in the JSON
@@ -74,12 +84,19 @@ def test_tune_model_is_what_fuelid_tune_prints(capsys: pytest.CaptureFixture[str
 
 
 def test_schedule_gains_is_what_fuelid_tune_schedule_prints(capsys: pytest.CaptureFixture[str]):
-    request = TuneRequest(model=MODEL, band_width=35.0, flow_bands=1)
-    outcome = schedule_gains(CONFIG, request)
-    cli = _cli("tune", *FLAGS, "--schedule", "--band-width", "35", "--flow-bands", "1")
+    request = TuneRequest(model=MODEL, control_period=H, band_width=35.0, flow_bands=1)
+    outcome = schedule_gains(USERS_PLANT, request)
+    cli = _cli(
+        "tune", *FLAGS, "--schedule", "--band-width", "35", "--flow-bands", "1",
+        "--config", REFERENCE_FILE,
+    )  # fmt: skip
     assert _as_printed(outcome.to_json(), capsys) == cli
     assert [(b["t_low"], b["t_high"]) for b in cli["bands"]] == [(-20.0, 15.0), (15.0, 50.0)]
     assert cli["anchored_to_model"] == MODEL.to_json()
+    assert (cli["u_span"], cli["y_span"]) == (4.0, 100.0)  # the plant file's
+    # the trend over temperature would be the reference plant's, not the user's loop: refused
+    with pytest.raises(FuelidError, match="rests on your plant's physics"):
+        schedule_gains(PlantSource(CONFIG), request)
 
 
 def test_identify_log_is_what_fuelid_identify_prints(
@@ -125,19 +142,40 @@ def test_identify_log_is_what_fuelid_identify_prints(
 )
 def test_a_request_is_refused_before_any_work(changes: dict, reason: str):
     with pytest.raises(FuelidError, match=reason):
-        TuneRequest(**{"model": MODEL, **changes})
+        TuneRequest(**{"model": MODEL, "control_period": H, **changes})
 
 
 def test_tuning_needs_a_model_and_a_command_the_drive_gives():
     with pytest.raises(FuelidError, match="needs a model"):
-        tune_model(CONFIG, TuneRequest())
+        tune_model(CONFIG, TuneRequest(control_period=H))
     assert operating_command(CONFIG, None) == 3.0
     with pytest.raises(FuelidError, match="signal range"):
-        tune_model(CONFIG, TuneRequest(model=MODEL, u=7.0))
+        tune_model(CONFIG, TuneRequest(model=MODEL, control_period=H, u=7.0))
+
+
+def test_tuning_needs_a_control_period():
+    """Gains for another period are wrong gains: the library assumes none (issue 37)."""
+    for plant in (CONFIG, PlantSource(CONFIG)):
+        with pytest.raises(FuelidError, match="no control period"):
+            tune_model(plant, TuneRequest(model=MODEL))
+    with pytest.raises(FuelidError, match="no control period"):
+        schedule_gains(USERS_PLANT, TuneRequest(model=MODEL))
+
+
+def test_without_a_plant_file_no_figure_rests_on_the_reference_plant():
+    outcome = tune_model(PlantSource(CONFIG), TuneRequest(model=MODEL, control_period=H))
+    assert outcome.check is None
+    assert outcome.tuning.plc_form()["percent_of_span"] is None
+    assert outcome.y_span is None
+    data = outcome.to_json()
+    assert data["temperature_check"] is None
+    assert data["provenance"]["temperature_check"] is None
+    with pytest.raises(FuelidError, match="needs your plant file"):
+        tune_model(PlantSource(CONFIG), TuneRequest(model=MODEL, control_period=H, simulate=True))
 
 
 def test_the_temperature_check_covers_the_range_in_kelvin():
-    pi = tune_model(CONFIG, TuneRequest(model=MODEL)).pi
+    pi = tune_model(CONFIG, TuneRequest(model=MODEL, control_period=H)).pi
     check = check_over_temperature(
         CONFIG, pi, None, (celsius_to_kelvin(-20.0), celsius_to_kelvin(50.0)), 35.0, 2.0
     )

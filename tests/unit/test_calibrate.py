@@ -213,7 +213,7 @@ def test_tune_on_a_calibrated_plant_says_where_the_calibration_has_no_data(
     calibrated.write_text(update_plant_toml(text, {}, table))
     code = main(["tune", "-c", str(calibrated), "--K", "13", "--T", "0.9", "--flowmeter-T", "0.3",
                  "--delay", "0.2", "--fuel-temp", "20", "--t-min", "0", "--t-max", "40",
-                 "--json"])  # fmt: skip
+                 "--control-period", "1", "--json"])  # fmt: skip
     out, err = capsys.readouterr()
     assert code == 0, err
     plant = json.loads(out)["plant"]

@@ -127,7 +127,8 @@ def test_conditional_intervals_are_said_and_the_gains_spread_shown(tmp_path) -> 
     assert "kept order" in text.stdout
     model_file = tmp_path / "ident.json"
     model_file.write_text(done.stdout)
-    tuned = runner.invoke(app, ["tune", "--model", str(model_file), "--json"])
+    h1 = ["--control-period", "1"]  # never assumed (issue 37); tune(other, "simc", 1.0) below
+    tuned = runner.invoke(app, ["tune", "--model", str(model_file), *h1, "--json"])
     assert tuned.exit_code == 0, tuned.stderr
     gains = json.loads(tuned.stdout)
     spread = gains["structure_spread"]
@@ -138,14 +139,16 @@ def test_conditional_intervals_are_said_and_the_gains_spread_shown(tmp_path) -> 
     assert math.isclose(spread["structures"][0]["Kc"], expected.Kc, rel_tol=1e-9)
     assert spread["Kc"] == [min(gains["Kc"], expected.Kc), max(gains["Kc"], expected.Kc)]
     assert any("conditional on its structure" in n for n in gains["notices"])
-    shown = runner.invoke(app, ["tune", "--model", str(model_file)])
+    shown = runner.invoke(app, ["tune", "--model", str(model_file), *h1])
     assert "structures the log could not tell apart" in shown.stdout
 
 
 def test_the_report_shows_the_gains_on_each_indistinct_structure(tmp_path) -> None:  # type: ignore[no-untyped-def]
     log = _conditional_log(tmp_path)
     page = tmp_path / "report.html"
-    done = CliRunner().invoke(app, ["report", str(log), "--out", str(page), "--json"])
+    done = CliRunner().invoke(
+        app, ["report", str(log), "--out", str(page), "--control-period", "1", "--json"]
+    )
     assert done.exit_code == 0, done.stderr
     html = page.read_text(encoding="utf-8")
     assert 'id="structures"' in html

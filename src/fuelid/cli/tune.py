@@ -329,7 +329,8 @@ def tune_command(
         if as_json:
             emit_json(table.to_json() | extra | provenance(options, model_file))
         else:
-            _print_schedule(table, period.basis)
+            minutes = facts is not None and getattr(facts.controller, "integral_unit", "") == "min"
+            _print_schedule(table, period.basis, minutes)
         return
     with progress_display() as stage:
         outcome = tune_model(plant, request, progress=stage)
@@ -572,8 +573,13 @@ def _block_row(outcome: TuneOutcome, facts: SiteFacts | None) -> tuple[str, str,
     )
 
 
-def _print_schedule(outcome: ScheduleOutcome, period_basis: str) -> None:
-    """The schedule table, on the user's plant file (``period_basis``: where h came from)."""
+def _print_schedule(outcome: ScheduleOutcome, period_basis: str, minutes: bool = False) -> None:
+    """The schedule table, on the user's plant file (``period_basis``: where h came from).
+
+    ``minutes``: the block's integral unit is minutes (the site file's ``[controller]``), so Ti
+    is printed in minutes. The band holding the model's operating point is marked ``*``; each
+    band's design point (the case its gains were tuned on) is printed below the table.
+    """
     from rich import box
     from rich.console import Console
     from rich.table import Table
@@ -587,23 +593,69 @@ def _print_schedule(outcome: ScheduleOutcome, period_basis: str) -> None:
         box=box.SIMPLE_HEAD,  # nine columns: light rules keep them within 80 characters
         collapse_padding=True,
     )
-    columns = ("fuel °C", "u V", "flow L/min", "Kc V/(L/min)", "Kc %/%", "Ti s", "Ms", "GM", "PM °")
+    ti_unit = "min" if minutes else "s"
+    columns = (
+        "fuel °C",
+        "u V",
+        "flow L/min",
+        "Kc V/(L/min)",
+        "Kc %/%",
+        f"Ti {ti_unit}",
+        "Ms",
+        "GM",
+        "PM °",
+    )
     for column in columns:
         out.add_column(column, justify="right")
     for row in data["bands"]:
         out.add_row(
-            f"{row['t_low']:g}…{row['t_high']:g}",
+            ("* " if row["operating"] else "") + f"{row['t_low']:g}…{row['t_high']:g}",
             f"{row['u_low']:.2f}…{row['u_high']:.2f}",
             f"{row['flow_low']:.1f}…{row['flow_high']:.1f}",
             f"{row['Kc']:.4g}",
             "—" if row["Kc_percent_of_span"] is None else f"{row['Kc_percent_of_span']:.4g}",
-            f"{row['Ti']:.3g}",
+            f"{row['Ti_min']:.3g}" if minutes else f"{row['Ti']:.3g}",
             f"{row['Ms']:.2f}",
             f"{row['gain_margin']:.2f}",
             f"{row['phase_margin_deg']:.1f}",
         )
     console = Console()
     console.print(out)
+    for row in data["bands"]:
+        if row["operating"]:
+            console.print(
+                f"* holds the model's operating point ({row['design_u']:.3g} V, "
+                f"{row['design_fuel_temperature']:g} °C): designed on the identified model, as "
+                "the headline gains are"
+                + (
+                    ""
+                    if row["detune"] == 1.0
+                    else f", detuned ×{row['detune']:.3g} to keep Ms ≤ {data['ms_target']:g} "
+                    "over the band"
+                ),
+                highlight=False,
+            )
+    others = [row for row in data["bands"] if not row["operating"]]
+    corner = all(
+        math.isclose(row["design_fuel_temperature"], row["t_low"], abs_tol=1e-9)
+        and math.isclose(row["design_u"], row["u_low"], abs_tol=1e-9)
+        for row in others
+    )
+    console.print(
+        "each band is designed on its most demanding case (largest K/T)"
+        + (
+            ": its coldest fuel and lowest command"
+            if corner
+            else ": "
+            + "; ".join(
+                f"{row['t_low']:g}…{row['t_high']:g} °C at {row['design_fuel_temperature']:g} "
+                f"°C, {row['design_u']:.2f} V"
+                for row in others
+            )
+        )
+        + " (JSON design_fuel_temperature, design_u)",
+        highlight=False,
+    )
     if data["y_span"] is None or data["u_span"] is None:
         console.print("no %/% gains: spans not given (--u-span/--flow-span, --site)")
     else:

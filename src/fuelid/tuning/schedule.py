@@ -84,6 +84,13 @@ class ScheduleBand:
     """Factor applied to the rule's Kc to meet the Ms target (1: none) [-]."""
     worst: FixedPIEvaluation
     """The band's gains on every case inside the band."""
+    design_T: float = math.nan
+    """Fuel temperature of the case the band's gains were designed on [K]."""
+    design_u: float = math.nan
+    """Command of that case [V]."""
+    operating: bool = False
+    """The band holds the operating point of the anchoring model: its gains are designed on that
+    model, as the headline gains are (equal to them unless ``detune`` < 1)."""
 
     def as_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
         """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
@@ -95,12 +102,16 @@ class ScheduleBand:
         return {
             "t_low": kelvin_to_celsius(self.T_low),
             "t_high": kelvin_to_celsius(self.T_high),
+            "design_fuel_temperature": kelvin_to_celsius(self.design_T),
+            "design_u": self.design_u,
+            "operating": self.operating,
             "u_low": self.u_low,
             "u_high": self.u_high,
             "flow_low": self.flow_low,
             "flow_high": self.flow_high,
             "Kc": self.pi.Kc,
             "Ti": self.pi.Ti,
+            "Ti_min": self.pi.Ti / 60.0,
             "detune": self.detune,
             "Ms": self.worst.worst_Ms,
             "gain_margin": self.worst.worst_gain_margin,
@@ -257,6 +268,9 @@ def gain_schedule(
         Relative spread of K across the commands above which bands are split [-].
     anchor : Anchor, optional
         An identified model that anchors the physics (:func:`~fuelid.tuning.cases.plant_cases`).
+        The band holding its operating point (``anchor.T_fuel``, ``anchor.u``) is designed on
+        the model itself, as the headline gains are: its gains equal theirs unless the band's
+        other cases need them detuned (``detune``), and it is marked ``operating``.
     y_span, u_span : float, optional
         Measurement span [L/min] and drive span [V] of the percent-of-span gains (default: the
         plant's meter span and the command's signal range).
@@ -293,8 +307,23 @@ def gain_schedule(
                 else plant_cases(config, temps, commands, anchor, cache)
             )
             every_case.update(((c.T_fuel, c.u), c) for c in cases)
+            holds = (
+                anchor is not None
+                and not any(band.operating for band in bands)
+                and T_low <= anchor.T_fuel <= T_high
+                and a <= anchor.u <= b
+            )
             bands.append(
-                _tune_band(cases, rule, control_period, closed_loop_time, ms_target, temps, (a, b))
+                _tune_band(
+                    cases,
+                    rule,
+                    control_period,
+                    closed_loop_time,
+                    ms_target,
+                    temps,
+                    (a, b),
+                    anchor if holds else None,
+                )
             )
     return GainSchedule(
         rule=rule,
@@ -334,10 +363,18 @@ def _tune_band(
     ms_target: float,
     temps: tuple[float, float, float],
     commands: tuple[float, float],
+    operating: Anchor | None = None,
 ) -> ScheduleBand:
-    """One band: tuned on its most demanding case (largest K/T), detuned to meet the target."""
+    """One band: tuned on its most demanding case (largest K/T), detuned to meet the target.
+
+    The band holding the operating point (``operating``) is tuned on the anchoring model
+    itself, as the headline gains are.
+    """
     design = max(cases, key=lambda c: c.model.K / c.model.T)
-    pi = tune(design.model, rule, control_period, closed_loop_time)
+    design_model, design_T, design_u = design.model, design.T_fuel, design.u
+    if operating is not None:
+        design_model, design_T, design_u = operating.model, operating.T_fuel, operating.u
+    pi = tune(design_model, rule, control_period, closed_loop_time)
     factor = 1.0
     evaluation = evaluate_fixed(pi, cases)
     while evaluation.worst_Ms > ms_target or not evaluation.all_stable:
@@ -360,4 +397,7 @@ def _tune_band(
         pi=evaluation.pi,
         detune=factor,
         worst=evaluation,
+        design_T=design_T,
+        design_u=design_u,
+        operating=operating is not None,
     )
