@@ -88,7 +88,9 @@ def report(browser: str, tmp_path_factory: pytest.TempPathFactory) -> Path:
     run = simulate(config, step_sequence([1.0, 2.0, 3.0, 2.0], dwell=20.0), seed=5)
     log = run.to_log().write(folder / "short.csv")
     settings = AnalysisSettings(
-        T_range=(celsius_to_kelvin(-20.0), celsius_to_kelvin(50.0)), band_width=35.0
+        T_range=(celsius_to_kelvin(-20.0), celsius_to_kelvin(50.0)),
+        band_width=35.0,
+        control_period=1.0,  # never assumed (issue 37)
     )
     analysis = analyse_log(load_log(log), PlantSource(config, "reference_plant.toml"), settings)
     return write_report(analysis, folder / "report.html")[0]

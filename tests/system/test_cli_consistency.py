@@ -17,7 +17,8 @@ from fuelid.cli import app, main
 from fuelid.model import ProcessModel, simulate_model
 
 runner = CliRunner()
-TUNE = ["tune", "--K", "13.5", "--T", "1.26", "--delay", "0.2"]
+# the PLC period is never assumed (issue 37): given, as a user gives it
+TUNE = ["tune", "--K", "13.5", "--T", "1.26", "--delay", "0.2", "--control-period", "1"]
 
 
 @pytest.fixture(scope="module")

@@ -94,7 +94,9 @@ def test_pems_report_tests_its_prediction_errors(tmp_path: Path):
 
     data = load_log(_log(tmp_path, 0.95))
     analysis = analyse_log(
-        data, PlantSource(load_plant_config()), AnalysisSettings(tune_from="pem", band_width=35)
+        data,
+        PlantSource(load_plant_config()),
+        AnalysisSettings(tune_from="pem", band_width=35, control_period=1.0),  # never assumed
     )
     chosen = analysis.model_result
     assert chosen.method == "pem"

@@ -3,7 +3,9 @@
 The trial of issue 12: a plant whose flowmeter has a 1.0 s lag and a 0.6 s dead time (the
 reference plant's meter has 0.3 s and 0.2 s). The user simulates nothing and knows nothing of
 fuelid's reference plant: they run ``fuelid report LOG`` and ``fuelid identify`` / ``fuelid tune``
-with default options. The gains printed must be right for *their* plant: the Ms of those gains on
+with default options but for their PLC's control period, which fuelid never assumes (issue 37):
+``report --control-period 1``, and ``identify --control-period 1 --json``, whose model file
+carries it to ``tune``. The gains printed must be right for *their* plant: the Ms of those gains on
 the true plant (its linearisation at the log's operating point, with the sampled PI and the exact
 dead time) within 10 % of the Ms printed, and at most 2. Before issue 12 the report held the
 reference meter's 0.3 s / 0.2 s fixed and printed Ms 1.51 for gains that give Ms ≈ 3 on this loop.
@@ -30,6 +32,7 @@ from fuelid.units import celsius_to_kelvin
 runner = CliRunner()
 METER_LAG, METER_DELAY = 1.0, 0.6
 FUEL_C = 20.0
+PERIOD = ["--control-period", "1"]  # the user's PLC runs its PI every second
 
 
 @pytest.fixture(scope="module")
@@ -86,7 +89,9 @@ def _ms_on_true_plant(true_plant: Path, u: float, Kc: float, Ti: float, h: float
 def test_report_with_defaults_prints_gains_right_for_the_users_plant(
     folder: Path, log: Path, true_plant: Path
 ):
-    result = runner.invoke(app, ["report", str(log), "--out", str(folder / "r.html"), "--json"])
+    result = runner.invoke(
+        app, ["report", str(log), "--out", str(folder / "r.html"), *PERIOD, "--json"]
+    )
     assert result.exit_code == 0, result.stderr
     data = json.loads(result.stdout)
     tuning = data["tuning"]
@@ -106,6 +111,12 @@ def test_report_with_defaults_prints_gains_right_for_the_users_plant(
     assert data["priors"]["flowmeter_T"]["source"] == "not given"
     assert data["priors"]["delay"]["source"] == "estimated"
     assert data["closed_loop_plant"] == []  # no run on a plant that is not the user's
+    # nor any other figure from the reference plant: its temperature trend, schedule and spans
+    # are not this loop's
+    assert data["temperature_check"] is None
+    assert data["schedule"] is None
+    assert tuning["plc"]["percent_of_span"] is None
+    assert tuning["control_period"] == 1.0
     page = (folder / "r.html").read_text(encoding="utf-8")
     assert "built-in reference plant" in page
 
@@ -113,7 +124,7 @@ def test_report_with_defaults_prints_gains_right_for_the_users_plant(
 def test_identify_then_tune_with_defaults_gives_the_same_safe_gains(
     folder: Path, log: Path, true_plant: Path
 ):
-    ident = runner.invoke(app, ["identify", str(log), "--json"])
+    ident = runner.invoke(app, ["identify", str(log), *PERIOD, "--json"])
     assert ident.exit_code == 0, ident.stderr
     model_file = folder / "ident.json"
     model_file.write_text(ident.stdout, encoding="utf-8")
@@ -121,9 +132,14 @@ def test_identify_then_tune_with_defaults_gives_the_same_safe_gains(
     point = identified["operating_point"]
     assert point["u"] == pytest.approx(2.5, abs=0.05)
     assert point["fuel_temperature"] == pytest.approx(FUEL_C)
+    assert identified["options"]["control_period"] == 1.0
+    assert identified["options"]["control_period_given"] is True
     tuned = runner.invoke(app, ["tune", "--model", str(model_file), "--json"])
     assert tuned.exit_code == 0, tuned.stderr
     data = json.loads(tuned.stdout)
+    # the period the identify run was given travels with the model file
+    assert data["control_period"] == 1.0
+    assert data["control_period_basis"] == "model file"
     true_ms = _ms_on_true_plant(
         true_plant, point["u"], data["Kc"], data["Ti"], data["control_period"]
     )
@@ -138,19 +154,22 @@ def test_a_command_left_in_milliamps_is_refused_with_the_cause(folder: Path, log
     raw = folder / "log_mA.csv"
     frame.drop(columns=["u_V"]).to_csv(raw, index=False)
     base = ["--input-col", "u_mA"]
-    report = runner.invoke(app, ["report", str(raw), "--out", str(folder / "mA.html"), *base])
+    report = runner.invoke(
+        app, ["report", str(raw), "--out", str(folder / "mA.html"), *base, *PERIOD]
+    )
     assert report.exit_code == 2
     assert "mA" in report.stderr
     assert "--input-scale 4:20:1:5" in report.stderr
     # the same column without its unit suffix: caught by its range
     frame.rename(columns={"u_mA": "command"}).to_csv(raw, index=False)
     anonymous = runner.invoke(
-        app, ["report", str(raw), "--out", str(folder / "mA2.html"), "--input-col", "command"]
+        app,
+        ["report", str(raw), "--out", str(folder / "mA2.html"), "--input-col", "command", *PERIOD],
     )
     assert anonymous.exit_code == 2
     assert "4–20 mA" in anonymous.stderr
     # identify warns and records the finding; tune refuses the model unless told otherwise
-    ident = runner.invoke(app, ["identify", str(raw), "--input-col", "command", "--json"])
+    ident = runner.invoke(app, ["identify", str(raw), "--input-col", "command", *PERIOD, "--json"])
     assert ident.exit_code == 0, ident.stderr
     assert np.size(json.loads(ident.stdout)["signal_check"]) == 1
     model_file = folder / "ident_mA.json"

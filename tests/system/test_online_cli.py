@@ -243,8 +243,7 @@ def test_status_json_has_the_documented_keys_and_values(
 
 def _beating(db: Path, **settings: Any) -> None:
     """Write a service record as a running service would (a beat now)."""
-    from fuelid.online.gains import gain_units
-    from fuelid.plc.site import Controller
+    from fuelid.tuning.block import BlockForm, block_units
 
     wall = time.time()
     controller = {"form": "ideal", "gain_units": "engineering", "integral_unit": "s"}
@@ -262,7 +261,7 @@ def _beating(db: Path, **settings: Any) -> None:
                 "settings": {
                     **settings,
                     "controller": controller,
-                    "gain_units": gain_units(Controller(**controller)),
+                    "gain_units": block_units(BlockForm.of(controller)),
                 },
             },
         )

@@ -312,7 +312,8 @@ def test_report_without_a_plant_file_says_so_and_assumes_no_meter(log_path: Path
     # range check is the log's command bands
     summary = " ".join(result.stdout.split())
     assert "over fuel temperature" not in summary
-    assert "schedule of" not in summary and "one set of gains suffices" not in summary
+    assert "schedule of" not in summary
+    assert "one set of gains suffices" not in summary
     assert "over the log's commands" in summary
     assert "no %/% gains: spans not given" in summary
     page = out.read_text(encoding="utf-8")
@@ -335,7 +336,8 @@ def test_report_without_a_plant_file_says_so_and_assumes_no_meter(log_path: Path
     assert bands["basis"] == "log"
     assert bands["cases"]
     # the bands cover the commands the log visited (1…3.5 V)
-    assert bands["u_range"][0] <= min(LEVELS) + 0.5 and bands["u_range"][1] >= max(LEVELS) - 0.5
+    assert bands["u_range"][0] <= min(LEVELS) + 0.5
+    assert bands["u_range"][1] >= max(LEVELS) - 0.5
     assert sorted(Path(p).name for p in data["figures"]) == sorted(
         f"r_{key}.png" for key in FIGURE_KEYS if key != "schedule"
     )

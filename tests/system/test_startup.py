@@ -105,7 +105,11 @@ def test_identify_does_not_import_control(log_csv: Path):
     assert loaded == []
 
 
-TUNE = ["tune", "--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2", "--json"]
+TUNE = [
+    "tune", "--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2",
+    "--control-period", "1",  # never assumed (issue 37)
+    "--json",
+]  # fmt: skip
 
 
 def test_tune_does_not_import_the_report_template_engine():

@@ -41,8 +41,10 @@ def test_the_given_spans_make_the_percent_gain() -> None:
 def test_without_spans_no_percent_gain_is_printed() -> None:
     data = _tune()
     assert data["plc"]["percent_of_span"] is None
-    assert data["spans"]["u_span"] is None and data["spans"]["y_span"] is None
-    assert "--u-span" in data["spans"]["reason"] and "--flow-span" in data["spans"]["reason"]
+    assert data["spans"]["u_span"] is None
+    assert data["spans"]["y_span"] is None
+    assert "--u-span" in data["spans"]["reason"]
+    assert "--flow-span" in data["spans"]["reason"]
     assert data["provenance"]["percent_of_span"] is None
 
 

@@ -75,7 +75,8 @@ def test_tune_model_is_what_fuelid_tune_prints(capsys: pytest.CaptureFixture[str
     assert _as_printed(tune_model(CONFIG, request).to_json(), capsys) == cli
     # the defaults resolved from the user's plant file: the middle of 1…5 V and its 100 L/min
     assert (outcome.u, outcome.y_span) == (3.0, 100.0)
-    assert outcome.spans.y_span is not None and outcome.spans.y_span.basis == "plant file"
+    assert outcome.spans.y_span is not None
+    assert outcome.spans.y_span.basis == "plant file"
     # SIMC with the half rule and h/2 (docs/explanation/tuning.md §2–3): T1 = 1.41 s, θ = 0.85 s
     assert outcome.pi.Kc == pytest.approx(1.41 / (13.5 * 2 * 0.85), rel=1e-12)
     # kelvin inside, °C in the JSON

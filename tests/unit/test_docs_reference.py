@@ -29,6 +29,7 @@ from fuelid.store import Sample, SQLiteStore
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs"
 REFERENCE = DOCS / "reference"
+PLANT_FILE = ROOT / "src" / "fuelid" / "data" / "reference_plant.toml"
 
 
 def load_hook() -> ModuleType:
@@ -104,12 +105,20 @@ def json_outputs(
         "simulate", str(log), "--profile", "steps", "--levels", "2,3,2.5,3.5",
         "--dwell", "20", "--seed", "1", "--pressure",
     )  # fmt: skip
-    outputs["identify"] = run("identify", str(log), "--validate-split", "0.3")
-    ident.write_text(json.dumps(outputs["identify"]), encoding="utf-8")
-    outputs["tune"] = run("tune", "--model", str(ident))
-    outputs["tune --schedule"] = run(
-        "tune", "--model", str(ident), "--schedule", "--band-width", "35", "--flow-bands", "1"
+    # the PLC period is never assumed (issue 37): identify records it for tune
+    outputs["identify"] = run(
+        "identify", str(log), "--validate-split", "0.3", "--control-period", "1"
     )
+    ident.write_text(json.dumps(outputs["identify"]), encoding="utf-8")
+    # without a plant file: the range check on the log's command bands, no %/% gains
+    outputs["tune"] = run("tune", "--model", str(ident))
+    # with the user's plant file (the packaged one, given as theirs): the temperature check and
+    # the %/% gains on its spans, the keys tune prints only then
+    outputs["tune --config"] = run("tune", "--model", str(ident), "--config", str(PLANT_FILE))
+    outputs["tune --schedule"] = run(
+        "tune", "--model", str(ident), "--schedule", "--band-width", "35", "--flow-bands", "1",
+        "--config", str(PLANT_FILE),
+    )  # fmt: skip
     site.write_text(
         '[site]\nname = "docs"\n[plc]\nprotocol = "replay"\npath = "log.csv"\n'
         '[sampling]\nperiod_s = 0.02\n[tags.command]\naddress = "u_V"\nunit = "V"\n'
@@ -125,7 +134,16 @@ def json_outputs(
 
 @pytest.mark.parametrize(
     "command",
-    ["plant info", "simulate", "identify", "tune", "tune --schedule", "site check", "store info"],
+    [
+        "plant info",
+        "simulate",
+        "identify",
+        "tune",
+        "tune --config",
+        "tune --schedule",
+        "site check",
+        "store info",
+    ],
 )
 def test_every_json_key_is_explained_in_the_reference(
     json_outputs: dict[str, dict[str, Any]], command: str

@@ -11,9 +11,9 @@ import math
 import pytest
 
 from fuelid.io.clock import format_age, format_time
-from fuelid.online.gains import gain_units
 from fuelid.online.liveness import LINK_FRESH_S, SERVICE_BEAT_S, SERVICE_STALE_S, loop_state
 from fuelid.plc.site import Controller
+from fuelid.tuning.block import BlockForm, block_units
 
 NOW = 1_795_767_303.0
 LIVE = {"started": NOW - 600.0, "beat": NOW - 1.0, "stopped": None}
@@ -88,13 +88,10 @@ def test_the_constants_hold_together() -> None:
             Controller(form="parallel", gain_units="percent", u_span_V=4.0, y_span_Lpm=100.0),
             {"Kc": "%/%", "Ti": "%/% per s"},
         ),
-        (None, None),
     ],
 )
-def test_gain_units_name_what_the_registers_hold(
-    controller: Controller | None, units: dict | None
-) -> None:
-    assert gain_units(controller) == units
+def test_gain_units_name_what_the_registers_hold(controller: Controller, units: dict) -> None:
+    assert block_units(BlockForm.of(controller)) == units
 
 
 def test_times_and_ages_as_text() -> None:

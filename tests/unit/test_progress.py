@@ -8,6 +8,7 @@ JSON on stdout stays exactly one object even when stderr is a terminal.
 from __future__ import annotations
 
 import json
+from importlib import resources
 from pathlib import Path
 
 import pytest
@@ -29,6 +30,8 @@ from fuelid.workflow import (
 )
 from fuelid.workflow.progress import (
     ANALYSIS_STAGES,
+    DIAGNOSTICS,
+    IDENTIFICATION,
     RUNS,
     SCHEDULE,
     SWEEP,
@@ -39,6 +42,9 @@ from fuelid.workflow.progress import (
 
 CONFIG = load_plant_config()
 MODEL = ProcessModel(K=13.5, T=1.26, T_f=0.3, delay=0.2)
+H = 1.0  # the PLC period is never assumed (issue 37): given, as a user gives it
+H_OPTION = ["--control-period", "1"]
+REFERENCE_FILE = str(resources.files("fuelid.data").joinpath("reference_plant.toml"))
 
 
 @pytest.fixture(scope="module")
@@ -54,22 +60,42 @@ def test_analyse_log_names_every_stage_in_order(
     analysis = analyse_log(
         load_log(short_log),
         PlantSource(CONFIG, "reference_plant.toml"),
-        AnalysisSettings(band_width=35.0, flow_bands=1),
+        AnalysisSettings(band_width=35.0, flow_bands=1, control_period=H),
         seen.append,
     )
     assert seen == list(ANALYSIS_STAGES)
+    assert analysis.schedule is not None
     assert analysis.schedule.bands
     assert capsys.readouterr() == ("", "")  # the library itself prints nothing
 
 
+def test_without_a_plant_file_there_are_no_runs_and_no_schedule_to_name(short_log: Path) -> None:
+    seen: list[str] = []
+    analysis = analyse_log(
+        load_log(short_log),
+        PlantSource(CONFIG),
+        AnalysisSettings(band_width=35.0, flow_bands=1, control_period=H),
+        seen.append,
+    )
+    assert seen == [IDENTIFICATION, TUNING, TEMPERATURE_CHECK, DIAGNOSTICS]
+    assert analysis.schedule is None
+    assert analysis.check is None
+
+
 def test_tune_model_names_only_the_stages_asked_for() -> None:
     seen: list[str] = []
-    tune_model(CONFIG, TuneRequest(model=MODEL, band_width=35.0, flow_bands=1), seen.append)
+    tune_model(
+        CONFIG,
+        TuneRequest(model=MODEL, control_period=H, band_width=35.0, flow_bands=1),
+        seen.append,
+    )
     assert seen == [TUNING, TEMPERATURE_CHECK]
     seen.clear()
     tune_model(
         CONFIG,
-        TuneRequest(model=MODEL, simulate=True, sweep=20, band_width=35.0, flow_bands=1),
+        TuneRequest(
+            model=MODEL, control_period=H, simulate=True, sweep=20, band_width=35.0, flow_bands=1
+        ),
         seen.append,
     )
     assert seen == list(TUNE_STAGES) == [TUNING, TEMPERATURE_CHECK, RUNS, SWEEP]
@@ -77,12 +103,18 @@ def test_tune_model_names_only_the_stages_asked_for() -> None:
 
 def test_schedule_gains_names_its_stage() -> None:
     seen: list[str] = []
-    schedule_gains(CONFIG, TuneRequest(model=MODEL, band_width=35.0, flow_bands=1), seen.append)
+    schedule_gains(
+        CONFIG,
+        TuneRequest(model=MODEL, control_period=H, band_width=35.0, flow_bands=1),
+        seen.append,
+    )
     assert seen == [SCHEDULE]
 
 
 def test_progress_is_optional_and_changes_no_number() -> None:
-    request = TuneRequest(model=MODEL, simulate=True, band_width=35.0, flow_bands=1)
+    request = TuneRequest(
+        model=MODEL, control_period=H, simulate=True, band_width=35.0, flow_bands=1
+    )
     quiet = tune_model(CONFIG, request).to_json()
     assert tune_model(CONFIG, request, lambda stage: None).to_json() == quiet
 
@@ -94,7 +126,8 @@ def test_report_json_stays_one_object_on_stdout(
     # TTY_COMPATIBLE=1 makes rich treat stderr as a terminal: the spinner runs, on stderr only
     monkeypatch.setenv("TTY_COMPATIBLE", terminal)
     out = tmp_path / "r.html"
-    args = ["report", str(short_log), "--out", str(out), "--band-width", "35", "--json"]
+    args = ["report", str(short_log), "--out", str(out), "--band-width", "35", *H_OPTION]
+    args.append("--json")
     result = CliRunner().invoke(app, [*args, "--flow-bands", "1"])
     assert result.exit_code == 0, result.stderr
     payload, end = json.JSONDecoder().raw_decode(result.stdout)
@@ -112,7 +145,11 @@ def test_tune_json_stays_one_object_on_stdout(
     # the same spinner as report's runs around tune's stages; stdout keeps exactly one object
     monkeypatch.setenv("TTY_COMPATIBLE", terminal)
     args = ["tune", "--K", "13.5", "--T", "1.26", "--T-f", "0.3", "--delay", "0.2", "--json"]
-    result = CliRunner().invoke(app, [*args, *extra, "--band-width", "35", "--flow-bands", "1"])
+    # a schedule rests on the user's plant file (issue 37): the packaged one, given as theirs
+    plant = ["--config", REFERENCE_FILE] if "--schedule" in extra else []
+    result = CliRunner().invoke(
+        app, [*args, *extra, *plant, *H_OPTION, "--band-width", "35", "--flow-bands", "1"]
+    )
     assert result.exit_code == 0, result.stderr
     payload, end = json.JSONDecoder().raw_decode(result.stdout)
     assert result.stdout[end:] == "\n"

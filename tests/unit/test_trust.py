@@ -112,3 +112,24 @@ def test_band_check_moves_only_the_gain():
     # a higher loop gain is less robust (the worked example's Ms ≈ 1.59 at K = 1)
     assert check.worst_Ms > 1.59
     assert band_check(pi, model, []) is None
+
+
+def test_the_schedule_band_at_the_operating_point_has_the_headline_gains():
+    from fuelid.workflow import schedule_gains
+
+    plant = PlantSource(load_plant_config(None), "reference_plant.toml")  # the user's file
+    request = TuneRequest(model=MODEL, control_period=1.0, T_fuel=293.15, u=1.9, band_width=35.0)
+    headline = tune_model(plant, request).pi
+    schedule = schedule_gains(plant, request).schedule
+    operating = [band for band in schedule.bands if band.operating]
+    assert len(operating) == 1
+    band = operating[0]
+    assert band.T_low <= 293.15 <= band.T_high
+    assert band.u_low <= 1.9 <= band.u_high
+    assert (band.design_T, band.design_u) == (293.15, 1.9)
+    # the same rule on the same model: the same gains, unless detuned for the band's other cases
+    assert band.pi.Kc == pytest.approx(headline.Kc * band.detune, rel=1e-12)
+    assert band.pi.Ti == pytest.approx(headline.Ti, rel=1e-12)
+    for other in schedule.bands:
+        assert other.T_low <= other.design_T <= other.T_high
+        assert other.u_low <= other.design_u <= other.u_high

@@ -46,7 +46,8 @@ def test_report_says_each_load_note_once(tmp_path) -> None:  # type: ignore[no-u
     t = np.arange(data.n_samples) * H
     rows = zip(t, data.u, data.y, strict=True)
     log.write_text("t_s;u_V;q_Lpm\n" + "\n".join(f"{a:.2f};{b:.4f};{c:.4f}" for a, b, c in rows))
-    args = ["report", str(log), "--out", str(tmp_path / "r.html"), "--json"]
+    args = ["report", str(log), "--out", str(tmp_path / "r.html"), "--control-period", "1"]
+    args.append("--json")
     result = CliRunner().invoke(app, [*args, "--band-width", "35", "--flow-bands", "1"])
     assert result.exit_code == 0, result.stderr
     warnings = json.loads(result.stdout)["warnings"]

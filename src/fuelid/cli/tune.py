@@ -178,6 +178,7 @@ def tune_command(
     if list_rules:
         _print_rules(as_json)
         return
+    from fuelid.identify.misfit import MisfitBound
     from fuelid.plant import load_plant_config
     from fuelid.tuning.bands import CommandBand
     from fuelid.tuning.frequency import TransferFunctionPlant
@@ -255,6 +256,9 @@ def tune_command(
         command_bands=()
         if loaded is None
         else tuple(CommandBand(*band) for band in loaded.gain_bands),
+        misfit=None
+        if loaded is None or loaded.misfit is None
+        else MisfitBound.from_json(loaded.misfit),
         full_order=None
         if loaded is None or loaded.linear_model is None
         else TransferFunctionPlant.from_coefficients(
@@ -494,6 +498,13 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
         f"{step['overshoot_percent']:.1f} %, "
         + ("does not settle" if math.isnan(settle) else f"settling {settle:.1f} s")
     )
+    misfit = data["misfit_Ms"]
+    if misfit is not None:
+        console.print(
+            f"allowing for the misfit the log shows (up to {misfit['up_to']:.3g} rad/s, 95 %): "
+            + ("Ms not bounded" if misfit["Ms"] is None else f"Ms ≤ {misfit['Ms']:.2f}"),
+            highlight=False,
+        )
     check = data["temperature_check"]
     if check is not None:
         fuel = kelvin_to_celsius(outcome.request.T_fuel)

@@ -165,7 +165,7 @@ def loop_settings(
         The archived settings are not a valid ``[online]`` table, or the plant file named is
         missing.
     """
-    from fuelid.online.gains import controller_to_ideal
+    from fuelid.tuning.block import BlockForm, from_block
 
     info = read_loop_info(archive_root, loop_id)
     recorded: dict[str, Any] = info.get("settings") or {}
@@ -189,7 +189,7 @@ def loop_settings(
     if controller:
         c = Controller(**{k: v for k, v in controller.items() if k in Controller.model_fields})
         if c.kc is not None and c.ti is not None:
-            ti_s = controller_to_ideal(c.kc, c.ti, c).Ti
+            _, ti_s = from_block(c.kc, c.ti, BlockForm.of(c))
     plant_path = None
     if info.get("plant"):
         plant = Path(archive_root) / "loops" / loop_id / str(info["plant"])

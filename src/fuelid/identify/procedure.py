@@ -29,6 +29,7 @@ from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
 from fuelid.identify import diagnostics
 from fuelid.identify.causality import LEAD_MIN_SPAN, lead_check
+from fuelid.identify.misfit import misfit_bound
 from fuelid.identify.nonlinearity import gain_bands
 from fuelid.identify.oe import OutputError
 from fuelid.identify.order import lags_not_separated as _lags_not_separated
@@ -409,6 +410,11 @@ def _identify(
         work.u, y, y_model, work.sample_time, settle, work.segment_starts
     )
     nonlinearity = gain_bands(fit_data, model)
+    # the model's error that the command explains, as a bound on |Δ(jω)| (output error: the
+    # simulated output's residuals, for pem too)
+    misfit = misfit_bound(
+        work.u[:n_fit], y[:n_fit] - y_model[:n_fit], work.sample_time, model, starts
+    )
     # does the flow move before its command (a reversed clock, swapped columns)? on the raw
     # record: step-ls's zero-phase filter smears each output step backwards in time
     lead = lead_check(
@@ -436,6 +442,7 @@ def _identify(
         "settling_time": settle,
         "nonlinearity": None if nonlinearity is None else nonlinearity.to_json(),
         "lead": lead.to_json(),
+        "misfit": None if misfit is None else misfit.to_json(),
     }
     lead_warning = lead.warning()
     if lead_warning:

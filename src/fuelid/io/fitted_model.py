@@ -175,6 +175,9 @@ class FittedModel:
     such as 1e300 stays as it is: an unbounded interval is visible as such."""
     fixed: tuple[str, ...] = ()
     """The parameters the identification held fixed (``fixed``): priors, not estimates."""
+    misfit: dict[str, Any] | None = None
+    """The identification's ``diagnostics.misfit`` as written (the model error its log shows:
+    ``omega``, ``delta_re``, ``delta_im``, ``radius``, ``averages``), when it is well formed."""
     leads: bool = False
     """Whether the identification found the flow moving before its command
     (``diagnostics.lead.leads``): a reversed clock or swapped columns."""
@@ -269,6 +272,7 @@ def load_fitted_model(path: str | Path) -> FittedModel:
         control_period=_control_period(data.get("options")),
         gain_bands=_gain_bands(data.get("diagnostics")),
         leads=_leads(data.get("diagnostics")),
+        misfit=_misfit(data.get("diagnostics")),
         linear_model=_linear_model(data.get("linear_model"), file),
         stderr=_stderr(errors),
         ci95=_intervals(data.get("ci95")),
@@ -306,6 +310,23 @@ def _gain_bands(diagnostics: Any) -> tuple[tuple[float, float, float, float | No
         if low < high and K > 0.0:
             bands.append((low, high, K, None if se is None else float(se)))
     return tuple(bands)
+
+
+def _misfit(diagnostics: Any) -> dict[str, Any] | None:
+    """``diagnostics.misfit`` when its arrays are equally long lists of finite numbers."""
+    block = diagnostics.get("misfit") if isinstance(diagnostics, dict) else None
+    if not isinstance(block, dict):
+        return None
+    keys = ("omega", "delta_re", "delta_im", "radius")
+    arrays: list[list[Any]] = []
+    for key in keys:
+        values = block.get(key)
+        if not (isinstance(values, list) and values and all(_finite_number(v) for v in values)):
+            return None
+        arrays.append(values)
+    if len({len(a) for a in arrays}) != 1 or not _finite_number(block.get("averages")):
+        return None
+    return {key: block[key] for key in (*keys, "averages")}
 
 
 def _leads(diagnostics: Any) -> bool:

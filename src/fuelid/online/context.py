@@ -15,7 +15,7 @@ from typing import Any
 
 from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
-from fuelid.online.gains import Gains, controller_to_ideal
+from fuelid.online.gains import Gains
 from fuelid.online.logs import LOGGER_NAME, log_event, log_line
 from fuelid.online.tracking import GainObservation
 from fuelid.online.window import WindowPriors
@@ -24,11 +24,16 @@ from fuelid.plc.site import Online, SiteConfig
 from fuelid.store.base import SampleWriter
 from fuelid.store.online import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
+from fuelid.tuning.block import BlockForm
 
 _LOGGER = logging.getLogger(LOGGER_NAME)
 
 TRACKER_OBSERVATIONS = 2000
 """Accepted windows kept by the K(T) tracker (a week at 5-minute windows): bounded memory."""
+PLC = "plc"
+"""The ``rule`` of the gains read from the PLC's block (:meth:`ServiceContext.current_gains`)."""
+COMMISSIONING = "commissioning"
+"""The ``rule`` of the ``[controller]`` kc and ti (the commissioning gains)."""
 RECENT_WINDOWS_SPAN = 6.0
 """Windows for a proposal end within this many window lengths (or agree_windows × the
 schedule, if longer) of the newest: a model from before an outage of days does not vote."""
@@ -117,10 +122,20 @@ class ServiceContext:
         c = self.site.controller
         latest = self.latest
         if c is not None and latest.get("kc", 0.0) > 0.0 and latest.get("ti", 0.0) > 0.0:
-            return controller_to_ideal(latest["kc"], latest["ti"], c)
+            return Gains.from_block(
+                latest["kc"],
+                latest["ti"],
+                BlockForm.of(c),
+                rule=PLC,
+                control_period=self.site.sampling.control_period_s,
+            )
         applied = self.history.state("current_gains")
         if applied is not None:
-            return Gains(float(applied["Kc"]), float(applied["Ti"]))
+            return Gains(
+                float(applied["Kc"]),
+                float(applied["Ti"]),
+                control_period=self.site.sampling.control_period_s,
+            )
         return self.commissioning
 
 

@@ -1,42 +1,75 @@
-"""PI gains in the ideal (ISA) form and engineering units, and the PLC block's form and units.
+"""The PI gains the online service holds, proposes and writes: :class:`Gains`, a PISettings.
 
-:class:`Gains` holds Kc [V per L/min] and Ti [s]; :func:`controller_to_ideal` and
-:func:`ideal_to_controller` convert from and to the form and units of the PLC's block
-(``[controller]``, :class:`fuelid.plc.site.Controller`).
+A :class:`Gains` *is* the tuning layer's :class:`~fuelid.tuning.rules.PISettings` (ideal form,
+Kc [V per L/min], Ti [s]), built from its two numbers; it adds no conversion of its own. The PLC
+block's form and units, and the one conversion to and from them, are
+:mod:`fuelid.tuning.block` (:class:`~fuelid.tuning.block.BlockForm`,
+:meth:`~fuelid.tuning.rules.PISettings.to_block`,
+:meth:`~fuelid.tuning.rules.PISettings.from_block`, :func:`~fuelid.tuning.block.block_units`).
+
+Moved in fuelid 0.2.0, kept here for one minor release with a DeprecationWarning on import:
+``controller_to_ideal`` (now :func:`fuelid.tuning.block.from_block`), ``ideal_to_controller``
+(:func:`fuelid.tuning.block.to_block`), ``gain_units`` (:func:`fuelid.tuning.block.block_units`)
+and ``SECONDS_PER_MINUTE`` (:data:`fuelid.tuning.block.SECONDS_PER_MINUTE`).
 """
 
-import math
-from dataclasses import dataclass
+from __future__ import annotations
+
+import warnings
 from typing import Any
 
 from fuelid._deprecated import warn_renamed
-from fuelid.errors import FuelidError
-from fuelid.plc.site import Controller
+from fuelid.tuning.block import SECONDS_PER_MINUTE as _SECONDS_PER_MINUTE
+from fuelid.tuning.block import BlockForm, block_units, from_block, to_block
+from fuelid.tuning.rules import PISettings, ReducedModel
 
-SECONDS_PER_MINUTE = 60.0
-"""Seconds in a minute, for ``integral_unit = "min"`` [s/min]."""
+HELD = "online"
+"""The ``rule`` of a :class:`Gains` built from its two numbers: gains the service holds (read
+from the PLC, stored, proposed), whose own rule is not part of them."""
 
 
-@dataclass(frozen=True)
-class Gains:
-    """Ideal-form PI gains C(s) = Kc·(1 + 1/(Ti·s)) in engineering units.
+class Gains(PISettings):
+    """Ideal-form PI gains C(s) = Kc·(1 + 1/(Ti·s)) in engineering units, as the service keeps them.
 
-    Attributes
+    A :class:`~fuelid.tuning.rules.PISettings` built from its two numbers (``Gains(Kc, Ti)``),
+    stored as ``{"Kc", "Ti"}`` (:meth:`to_json`). Its ``rule`` is :data:`HELD` and its
+    ``control_period`` 0 unless given: give the PLC's period before using one as a sampled
+    controller.
+
+    Parameters
     ----------
     Kc : float
         Proportional gain [V per L/min], > 0.
     Ti : float
         Integral (reset) time [s], > 0.
+    rule, control_period, tuning_parameter, reduced
+        As :class:`~fuelid.tuning.rules.PISettings` (keywords).
+
+    Examples
+    --------
+    >>> g = Gains(0.05, 2.0)
+    >>> isinstance(g, PISettings), g.to_json()
+    (True, {'Kc': 0.05, 'Ti': 2.0})
     """
 
-    Kc: float
-    Ti: float
-
-    def __post_init__(self) -> None:
-        for name in ("Kc", "Ti"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise FuelidError(f"PI gain {name} must be positive and finite, got {value}")
+    def __init__(
+        self,
+        Kc: float,
+        Ti: float,
+        *,
+        rule: str = HELD,
+        control_period: float = 0.0,
+        tuning_parameter: float | None = None,
+        reduced: ReducedModel | None = None,
+    ) -> None:
+        super().__init__(
+            rule=rule,
+            Kc=Kc,
+            Ti=Ti,
+            control_period=control_period,
+            tuning_parameter=tuning_parameter,
+            reduced=reduced,
+        )
 
     def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, float]:
         """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
@@ -44,7 +77,7 @@ class Gains:
         return self.to_json(*args, **kwargs)
 
     def to_json(self) -> dict[str, float]:
-        """``{"Kc": ..., "Ti": ...}`` [V per L/min, s].
+        """``{"Kc": ..., "Ti": ...}`` [V per L/min, s]: what the store holds.
 
         Examples
         --------
@@ -54,129 +87,67 @@ class Gains:
         return {"Kc": float(self.Kc), "Ti": float(self.Ti)}
 
 
-def _gain_scale(controller: Controller) -> float:
-    """Engineering gain per gain of the block: u_span/y_span for percent, else 1 [V per L/min]."""
-    if controller.gain_units == "percent":
-        if controller.u_span_V is None or controller.y_span_Lpm is None:
-            raise FuelidError("percent gains need u_span_V and y_span_Lpm")
-        return controller.u_span_V / controller.y_span_Lpm
-    return 1.0
+# --- the names that moved to fuelid.tuning.block (fuelid 0.2.0) -----------------------------------
 
 
-def _time_scale(controller: Controller) -> float:
-    """Seconds per integral unit of the block [s]."""
-    return SECONDS_PER_MINUTE if controller.integral_unit == "min" else 1.0
+def _controller_to_ideal(kc: float, ti: float, controller: Any) -> Gains:
+    """Deprecated: ``Gains(*from_block(kc, ti, BlockForm.of(controller)))``."""
+    return Gains(*from_block(kc, ti, BlockForm.of(controller)))
 
 
-def controller_to_ideal(kc: float, ti: float, controller: Controller) -> Gains:
-    """Gains as the PLC's block holds them → ideal form in engineering units.
+def _ideal_to_controller(gains: PISettings, controller: Any) -> tuple[float, float]:
+    """Deprecated: ``gains.to_block(BlockForm.of(controller))``."""
+    return to_block(gains.Kc, gains.Ti, BlockForm.of(controller))
 
-    The block's two numbers ``kc`` and ``ti`` mean, by ``controller``:
 
-    - ``form = "ideal"``: kc = Kc, ti = Ti, u = Kc·(e + (1/Ti)·∫e dt);
-    - ``form = "parallel"``: kc = Kp, ti = **Ki** = Kp/Ti, the integral gain,
-      u = Kp·e + Ki·∫e dt (the ``ti`` field holds Ki, not a time: Kc = Kp, Ti = Kp/Ki);
-    - ``gain_units = "percent"``: Kp or Kc in % of drive span per % of meter span,
-      Kc [V per L/min] = kc·u_span_V/y_span_Lpm; ``"engineering"``: V per L/min as is;
-    - ``integral_unit = "min"``: Ti in minutes (ideal) or Ki per minute (parallel), else
-      seconds; Ti [s] = 60·ti (ideal) or 60·kc/ti (parallel).
+def _gain_units(controller: Any) -> dict[str, str] | None:
+    """Deprecated: ``block_units(BlockForm.of(controller))`` (None for None)."""
+    return None if controller is None else block_units(BlockForm.of(controller))
 
-    Parameters
-    ----------
-    kc : float
-        The block's proportional gain, in ``gain_units``.
-    ti : float
-        The block's integral time (ideal) in ``integral_unit``, or integral gain (parallel) in
-        ``gain_units`` per ``integral_unit``.
-    controller : Controller
-        The site's ``[controller]`` table.
 
-    Returns
-    -------
-    Gains
-        Kc [V per L/min], Ti [s].
+MOVED: dict[str, tuple[Any, str]] = {
+    "controller_to_ideal": (
+        _controller_to_ideal,
+        "fuelid.tuning.block.from_block (or PISettings.from_block)",
+    ),
+    "ideal_to_controller": (
+        _ideal_to_controller,
+        "fuelid.tuning.block.to_block (or PISettings.to_block)",
+    ),
+    "gain_units": (_gain_units, "fuelid.tuning.block.block_units"),
+    "SECONDS_PER_MINUTE": (_SECONDS_PER_MINUTE, "fuelid.tuning.block.SECONDS_PER_MINUTE"),
+}
+"""Old name → (what it still gives, where it went)."""
 
-    Examples
-    --------
-    1.25 %/% with spans 4 V and 100 L/min is 0.05 V per L/min; Ki = 2.5 %/% per minute is
-    Ti = 1.25/2.5 min = 30 s:
 
-    >>> c = Controller(form="parallel", gain_units="percent", u_span_V=4.0, y_span_Lpm=100.0,
-    ...                integral_unit="min")
-    >>> g = controller_to_ideal(1.25, 2.5, c)
-    >>> round(g.Kc, 12), round(g.Ti, 12)
-    (0.05, 30.0)
+def moved_name(
+    module: str, name: str, only: tuple[str, ...] | None = None, stacklevel: int = 3
+) -> Any:
+    """The moved name ``name`` of ``module``, with its DeprecationWarning.
+
+    For a module's ``__getattr__`` (PEP 562): the warning is attributed to the line that imports
+    or reads the name (``stacklevel`` 3: this function, the module's ``__getattr__``, its caller).
+    ``only``: the names of :data:`MOVED` that ``module`` had (None: all of them).
+
+    Raises
+    ------
+    AttributeError
+        When ``name`` is not one of :data:`MOVED`.
     """
-    if not (math.isfinite(kc) and kc > 0.0 and math.isfinite(ti) and ti > 0.0):
-        raise FuelidError(f"the block's gains must be positive and finite, got kc={kc}, ti={ti}")
-    Kc = kc * _gain_scale(controller)
-    if controller.form == "parallel":
-        Ti = kc / ti * _time_scale(controller)  # Ti = Kp/Ki, in the block's units: spans cancel
-    else:
-        Ti = ti * _time_scale(controller)
-    return Gains(Kc=Kc, Ti=Ti)
+    if name not in MOVED or (only is not None and name not in only):
+        raise AttributeError(f"module {module!r} has no attribute {name!r}")
+    value, new = MOVED[name]
+    warnings.warn(
+        f"{module}.{name} moved to {new} in fuelid 0.2.0; use that instead "
+        f"(the old name will be removed in a future release)",
+        DeprecationWarning,
+        stacklevel=stacklevel,
+    )
+    return value
 
 
-def gain_units(controller: Controller | None) -> dict[str, str] | None:
-    """The units of the block's two numbers, by what its registers hold: ``{"Kc", "Ti"}``.
-
-    ``Kc`` is the proportional gain: ``"%/%"`` (``gain_units = "percent"``) or ``"V per L/min"``;
-    ``Ti`` is the integral time in ``"s"`` or ``"min"`` (ideal form) or, in the parallel form,
-    the integral gain Ki (the ``ti`` register holds Ki): the gain's unit per ``s`` or ``min``.
-    None when the controller is unknown.
-
-    Examples
-    --------
-    >>> gain_units(Controller())
-    {'Kc': 'V per L/min', 'Ti': 's'}
-    >>> gain_units(Controller(form="parallel", gain_units="percent", u_span_V=4.0,
-    ...                       y_span_Lpm=100.0, integral_unit="min"))
-    {'Kc': '%/%', 'Ti': '%/% per min'}
-    """
-    if controller is None:
-        return None
-    kc = "%/%" if controller.gain_units == "percent" else "V per L/min"
-    if controller.form == "parallel":
-        return {"Kc": kc, "Ti": f"{kc} per {controller.integral_unit}"}
-    return {"Kc": kc, "Ti": controller.integral_unit}
+def __getattr__(name: str) -> Any:
+    return moved_name(__name__, name)
 
 
-def ideal_to_controller(gains: Gains, controller: Controller) -> tuple[float, float]:
-    """Ideal-form engineering gains → the (kc, ti) the PLC's block takes.
-
-    The inverse of :func:`controller_to_ideal` (see there for what kc and ti mean in each form).
-
-    Parameters
-    ----------
-    gains : Gains
-        Kc [V per L/min], Ti [s].
-    controller : Controller
-        The site's ``[controller]`` table.
-
-    Returns
-    -------
-    tuple of float
-        (kc, ti): Kc or Kp in ``gain_units``; Ti in ``integral_unit`` (ideal) or Ki in
-        ``gain_units`` per ``integral_unit`` (parallel).
-
-    Examples
-    --------
-    >>> c = Controller(gain_units="percent", u_span_V=4.0, y_span_Lpm=100.0)
-    >>> kc, ti = ideal_to_controller(Gains(0.05, 2.0), c)
-    >>> round(kc, 12), ti
-    (1.25, 2.0)
-    """
-    kc = gains.Kc / _gain_scale(controller)
-    ti_block = gains.Ti / _time_scale(controller)
-    if controller.form == "parallel":
-        return kc, kc / ti_block
-    return kc, ti_block
-
-
-__all__ = [
-    "SECONDS_PER_MINUTE",
-    "Gains",
-    "controller_to_ideal",
-    "gain_units",
-    "ideal_to_controller",
-]
+__all__ = ["HELD", "Gains"]

@@ -79,12 +79,12 @@ def service_record(
     ``plant_file`` (absolute path; None for the reference plant), ``controller`` (``form``,
     ``gain_units``, ``integral_unit``, ``u_span_V``, ``y_span_Lpm``, ``kc``, ``ti``; None
     without a ``[controller]``) and ``gain_units`` (``{"Kc", "Ti"}``, see
-    :func:`fuelid.online.gains.gain_units`) and ``sampling`` (``period_s``,
+    :func:`fuelid.tuning.block.block_units`) and ``sampling`` (``period_s``,
     ``control_period_s`` [s]).
     """
     import fuelid
-    from fuelid.online.gains import gain_units
     from fuelid.store.schema import default_loop_id
+    from fuelid.tuning.block import BlockForm, block_units
 
     wall = _time.time() if now is None else float(now)
     c = site.controller
@@ -110,7 +110,7 @@ def service_record(
             "plant_hash": plant_hash(plant_file),
             "plant_file": None if plant_file is None else str(Path(plant_file).resolve()),
             "controller": controller,
-            "gain_units": gain_units(c),
+            "gain_units": None if c is None else block_units(BlockForm.of(c)),
             # the re-identification of archived history (fuelid.fleet) rebuilds the window
             # analysis from these: the sampling and control periods [s]
             "sampling": {

@@ -18,10 +18,10 @@ from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.io.jsonsafe import json_ready
 from fuelid.online.context import RECENT_WINDOWS_SPAN, ServiceContext, model_of
 from fuelid.online.evidence import WindowModel
-from fuelid.online.gains import ideal_to_controller
 from fuelid.online.proposals import ProposalDecision, propose
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.online.window import WindowResult
+from fuelid.tuning.block import BlockForm
 
 TURNED_DOWN_MEMORY = 20
 """Rejected or reverted proposals whose gains are not proposed again (the newest this many)."""
@@ -115,8 +115,9 @@ class ProposalFiling:
         c = self.context.site.controller
         assert c is not None
         assert decision.new is not None
-        old_kc, old_ti = ideal_to_controller(decision.old, c)
-        new_kc, new_ti = ideal_to_controller(decision.new, c)
+        block = BlockForm.of(c)
+        old_kc, old_ti = decision.old.to_block(block)
+        new_kc, new_ti = decision.new.to_block(block)
         open_ones = self.history.proposals(["pending", "approved"])
         for old in open_ones:
             if same_gains(old, new_kc, new_ti, 0.5 * self.settings.hysteresis):

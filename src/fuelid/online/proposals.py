@@ -36,11 +36,14 @@ online.md §5 (an adaptive tuner that trusts every window bursts):
    themselves fail the target (then any robust move is worth proposing).
 
 Gains are in the ideal (ISA) form and engineering units throughout, Kc [V per L/min] and Ti [s]
-(:class:`Gains`); :func:`controller_to_ideal` and :func:`ideal_to_controller` convert from and
-to the form and units of the PLC's block (``[controller]``, :class:`fuelid.plc.site.Controller`).
-They live in :mod:`fuelid.online.gains`, the windows' evidence (:class:`WindowModel`,
-:func:`independent_windows`, :func:`weighted_mean_model`) in :mod:`fuelid.online.evidence`;
-this module re-exports them.
+(:class:`Gains`, a :class:`~fuelid.tuning.rules.PISettings`, from :mod:`fuelid.online.gains`);
+:meth:`~fuelid.tuning.rules.PISettings.to_block` and
+:meth:`~fuelid.tuning.rules.PISettings.from_block` convert to and from the form and units of
+the PLC's block (:mod:`fuelid.tuning.block`, from the site's ``[controller]``). The windows'
+evidence (:class:`WindowModel`, :func:`independent_windows`, :func:`weighted_mean_model`) lives
+in :mod:`fuelid.online.evidence`; this module re-exports it and :class:`Gains`. The names
+``controller_to_ideal``, ``ideal_to_controller`` and ``SECONDS_PER_MINUTE`` moved to
+:mod:`fuelid.tuning.block` (fuelid 0.2.0) and import from here with a DeprecationWarning.
 
 Units: time [s], K [(L/min)/V], Kc [V per L/min], Ti [s], Ms [-].
 
@@ -72,12 +75,7 @@ from fuelid.online.evidence import (
     independent_windows,
     weighted_mean_model,
 )
-from fuelid.online.gains import (
-    SECONDS_PER_MINUTE,
-    Gains,
-    controller_to_ideal,
-    ideal_to_controller,
-)
+from fuelid.online.gains import Gains, moved_name
 from fuelid.plc.site import Online
 from fuelid.tuning import PISettings, robustness, tune
 
@@ -461,15 +459,19 @@ def _detune(
     return math.exp(lo), ms_low
 
 
+def __getattr__(name: str) -> Any:
+    # controller_to_ideal, ideal_to_controller, SECONDS_PER_MINUTE: moved to fuelid.tuning.block
+    return moved_name(
+        __name__, name, only=("controller_to_ideal", "ideal_to_controller", "SECONDS_PER_MINUTE")
+    )
+
+
 __all__ = [
     "DETUNE_TOLERANCE",
     "EVENT_TOLERANCE_S",
-    "SECONDS_PER_MINUTE",
     "Gains",
     "ProposalDecision",
     "WindowModel",
-    "controller_to_ideal",
-    "ideal_to_controller",
     "independent_windows",
     "propose",
     "weighted_mean_model",

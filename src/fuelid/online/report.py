@@ -19,7 +19,7 @@ wall clock when written. The link and the service are judged on the wall clock a
 temperature in °C; the command u in V; the flow, setpoint and noise in L/min; K in (L/min)/V;
 T, T2, T_f and the delay θ in s; the gains ``Kc`` and ``Ti`` in the controller's units (as the
 site's ``[controller]`` table says its registers hold them; ``gain_units`` when known, see
-:func:`fuelid.online.gains.gain_units`).
+:func:`fuelid.tuning.block.block_units`).
 """
 
 from __future__ import annotations
@@ -31,11 +31,11 @@ from typing import Any
 from fuelid.errors import FuelidError
 from fuelid.io.jsonsafe import json_ready
 from fuelid.online.context import TRACKER_OBSERVATIONS, observation_of
-from fuelid.online.gains import Gains, gain_units, ideal_to_controller
 from fuelid.online.liveness import LINK_FRESH_S, SERVICE_KEY, loop_state
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.store.online import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
+from fuelid.tuning.block import BlockForm, block_units, to_block
 
 ONLINE_UNITS: dict[str, str] = {
     "time": "s (plant time: the samples' time base, UTC since the epoch)",
@@ -64,6 +64,7 @@ ONLINE_UNITS: dict[str, str] = {
     "fit_percent": "%",
     "Kc": "the PLC block's units (see gain_units)",
     "Ti": "the PLC block's units (see gain_units)",
+    "decision": "Kc V per L/min, Ti s (the ideal form, whatever the block's); control_period_s s",
     "Ms": "-",
     "health": "units in the key names (_s, _Lpm, _percent); shares 0-1",
 }
@@ -133,8 +134,9 @@ def proposal_json(row: dict[str, Any], controller: Any = None) -> dict[str, Any]
         ``{"Kc", "Ti"}`` (controller units), ``target`` (the gains the rule moves toward, in
         the same units; None when unknown, with ``target_note`` saying why), ``gain_units``
         (``{"Kc", "Ti"}`` or None), ``Ms`` (the largest over the robustness checks),
-        ``Ms_checks`` (check → Ms), ``reason``, ``model_id`` and ``history`` (``time`` [plant
-        s], ``wall_time`` [wall s], ``status``, ``who``, ``why``).
+        ``Ms_checks`` (check → Ms), ``reason``, ``model_id``, ``history`` (``time`` [plant
+        s], ``wall_time`` [wall s], ``status``, ``who``, ``why``) and ``decision`` (what the
+        gains rest on, in the ideal form: :func:`decision_json`).
     """
     detail = row.get("detail") or {}
     ms = detail.get("Ms")
@@ -154,12 +156,70 @@ def proposal_json(row: dict[str, Any], controller: Any = None) -> dict[str, Any]
         "new": _gains(row.get("new")),
         "target": target,
         "target_note": note,
-        "gain_units": gain_units(c),
+        "gain_units": None if c is None else block_units(BlockForm.of(c)),
         "Ms": ms,
         "Ms_checks": checks,
         "reason": detail.get("reason", ""),
         "model_id": row.get("model_id"),
+        "decision": decision_json(detail),
         "history": list(row.get("history") or []),
+    }
+
+
+def decision_json(detail: dict[str, Any]) -> dict[str, Any] | None:
+    """What a stored proposal rests on, from its detail; None when nothing was recorded.
+
+    The gains here are in the ideal form and engineering units, Kc [V per L/min] and Ti [s],
+    whatever the block's form (the proposal's ``old``, ``new`` and ``target`` are in the
+    block's): what a report's gains compare with.
+
+    Returns
+    -------
+    dict or None
+        ``rule``, ``control_period_s`` [s], ``move_fraction``, ``hysteresis``, ``ms_target``,
+        ``clipped``, ``detune_factor`` (the Kc factor the robustness check applied, 1 when
+        none), ``bounds`` (``Kc``, ``Ti``: [low, high]), ``model_ids`` (the agreeing windows'
+        models, newest first), ``window_gains`` (``model_id``, ``Kc``, ``Ti``: the rule on each
+        of those models) and ``ideal``: ``old`` (the gains in the PLC then), ``target`` (the
+        rule on the windows' weighted mean model, clipped to the bounds), ``target_unclipped``,
+        ``undetuned`` (after the partial move, before the robustness check) and ``new``, each
+        ``{"Kc", "Ti"}`` or None.
+
+    Examples
+    --------
+    >>> decision_json({}) is None
+    True
+    >>> decision_json({"ideal": {"new": {"Kc": 0.05, "Ti": 2.0}}})["ideal"]["new"]
+    {'Kc': 0.05, 'Ti': 2.0}
+    """
+    inner = detail.get("detail")
+    inner = inner if isinstance(inner, dict) else {}
+    ideal = detail.get("ideal")
+    ideal = ideal if isinstance(ideal, dict) else {}
+    if not inner and not ideal:
+        return None
+    return {
+        "rule": inner.get("rule"),
+        "control_period_s": inner.get("control_period_s"),
+        "move_fraction": inner.get("move_fraction"),
+        "hysteresis": inner.get("hysteresis"),
+        "ms_target": inner.get("ms_target"),
+        "clipped": detail.get("clipped"),
+        "detune_factor": inner.get("detune_factor"),
+        "bounds": inner.get("bounds"),
+        "model_ids": list(detail.get("model_ids") or []),
+        "window_gains": [
+            {"model_id": w.get("model_id"), "Kc": w.get("Kc"), "Ti": w.get("Ti")}
+            for w in inner.get("window_gains") or []
+            if isinstance(w, dict)
+        ],
+        "ideal": {
+            "old": _gains(ideal.get("old") or detail.get("old")),
+            "target": _gains(detail.get("target")),
+            "target_unclipped": _gains(inner.get("target_unclipped")),
+            "undetuned": _gains(inner.get("undetuned")),
+            "new": _gains(ideal.get("new") or detail.get("new")),
+        },
     }
 
 
@@ -184,7 +244,7 @@ def _target(ideal: Any, controller: Any) -> tuple[dict[str, float] | None, str |
     if controller is None:
         return None, "the controller is unknown (give --config): the target is in ideal form"
     try:
-        kc, ti = ideal_to_controller(Gains(float(ideal["Kc"]), float(ideal["Ti"])), controller)
+        kc, ti = to_block(float(ideal["Kc"]), float(ideal["Ti"]), BlockForm.of(controller))
     except (ValueError, FuelidError) as error:
         return None, str(error)
     return {"Kc": kc, "Ti": ti}, None

@@ -20,12 +20,12 @@ from typing import Any
 
 from fuelid.errors import ConfigError, FuelidError
 from fuelid.online.context import ServiceContext, observation_of
-from fuelid.online.gains import controller_to_ideal
 from fuelid.online.proposal_filing import ProposalFiling
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.online.window import WindowAnalyser, WindowResult
 from fuelid.online.worker import WindowWorker
 from fuelid.online.writeback import WriteBack
+from fuelid.tuning.block import BlockForm, from_block
 
 SCHEDULE_POLL_S = 0.25
 """Wall time between looks at the store's newest sample [s]."""
@@ -101,11 +101,11 @@ class Scheduler:
             return None
         if not (latest["kc"] > 0.0 and latest["ti"] > 0.0):
             return None
-        now = controller_to_ideal(latest["kc"], latest["ti"], c)
+        Kc, Ti = from_block(latest["kc"], latest["ti"], BlockForm.of(c))
         low, high = self.settings.gain_bounds
         for name, value, base in (
-            ("Kc", now.Kc, commissioning.Kc),
-            ("Ti", now.Ti, commissioning.Ti),
+            ("Kc", Kc, commissioning.Kc),
+            ("Ti", Ti, commissioning.Ti),
         ):
             if not low * base * (1 - 1e-6) <= value <= high * base * (1 + 1e-6):
                 return (

@@ -52,6 +52,7 @@ from typing import Any
 
 from fuelid.errors import ConfigError, FuelidError
 from fuelid.online.context import (
+    COMMISSIONING,
     RECENT_WINDOWS_SPAN,
     TRACKER_OBSERVATIONS,
     ServiceContext,
@@ -59,7 +60,7 @@ from fuelid.online.context import (
     model_of,
     observation_of,
 )
-from fuelid.online.gains import Gains, controller_to_ideal
+from fuelid.online.gains import Gains
 from fuelid.online.liveness import SERVICE_BEAT_S, SERVICE_KEY, service_record
 from fuelid.online.logs import log_line
 from fuelid.online.proposal_filing import TURNED_DOWN_MEMORY
@@ -76,6 +77,7 @@ from fuelid.plc.site import SiteConfig
 from fuelid.store.base import SampleWriter
 from fuelid.store.online import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
+from fuelid.tuning.block import BlockForm
 
 # the names this module held before it was split (users' scripts import them from here)
 _log_line = log_line
@@ -181,7 +183,13 @@ class OnlineService:
         c = self.site.controller
         if c is None or c.kc is None or c.ti is None:
             return None
-        return controller_to_ideal(c.kc, c.ti, c)
+        return Gains.from_block(
+            c.kc,
+            c.ti,
+            BlockForm.of(c),
+            rule=COMMISSIONING,
+            control_period=self.site.sampling.control_period_s,
+        )
 
     def _capabilities(self) -> dict[str, Any]:
         """What the service can do with this site's tags, and why not."""

@@ -21,10 +21,11 @@ import numpy as np
 
 from fuelid.errors import FuelidError
 from fuelid.online.context import ServiceContext, stale_reason
-from fuelid.online.gains import Gains, ideal_to_controller
+from fuelid.online.gains import Gains
 from fuelid.online.window import WindowResult
 from fuelid.plc.adapters.base import LinkError
 from fuelid.plc.gain_handshake import GainWriter
+from fuelid.tuning.block import BlockForm
 
 AUTO = 1
 """The mode tag's value in AUTO."""
@@ -209,7 +210,15 @@ class WriteBack:
         if self.gain_writer is None or controller is None:
             return False
         good = self.history.state("last_known_good")
-        gains = Gains(float(good["Kc"]), float(good["Ti"])) if good else self.context.commissioning
+        gains = (
+            Gains(
+                float(good["Kc"]),
+                float(good["Ti"]),
+                control_period=self.context.site.sampling.control_period_s,
+            )
+            if good
+            else self.context.commissioning
+        )
         if gains is None:
             self.context.event("revert_failed", "no last-known-good or commissioning gains")
             return False
@@ -221,7 +230,7 @@ class WriteBack:
                 "revert", f"nothing to write: the PLC holds those gains ({why}, by {who})"
             )
             return True
-        kc, ti = ideal_to_controller(gains, controller)
+        kc, ti = gains.to_block(BlockForm.of(controller))
         apply_seq = await self._next_apply()
         write_id = self.history.begin_write(
             kind="revert", kc=kc, ti=ti, apply_seq=apply_seq, who=who, why=why

@@ -2,6 +2,8 @@
 
 - :mod:`~fuelid.tuning.rules`: the tuning rules in a registry (SIMC, improved SIMC, lambda,
   AMIGO) and the PLC forms of the gains;
+- :mod:`~fuelid.tuning.block`: the PLC's PI block (its form and units: :class:`BlockForm`)
+  and the one conversion of the gains to and from it;
 - :mod:`~fuelid.tuning.limits`: what fuelid tunes, and the guards that refuse the rest;
 - :mod:`~fuelid.tuning.frequency`: loop frequency responses with the dead time exact and the
   sampled controller included; gain and phase margins, Ms;
@@ -27,7 +29,19 @@ The names in ``__all__``, and :func:`~fuelid.tuning.closedloop.simulate_closed_l
 
 from __future__ import annotations
 
+from fuelid.tuning.block import BlockForm, block_units, from_block, to_block
 from fuelid.tuning.frequency import Robustness, robustness
 from fuelid.tuning.rules import TUNING_RULES, PISettings, list_rules, tune
 
-__all__ = ["TUNING_RULES", "PISettings", "Robustness", "list_rules", "robustness", "tune"]
+__all__ = [
+    "TUNING_RULES",
+    "BlockForm",
+    "PISettings",
+    "Robustness",
+    "block_units",
+    "from_block",
+    "list_rules",
+    "robustness",
+    "to_block",
+    "tune",
+]

@@ -9,7 +9,9 @@ Every rule works on a first-order-plus-dead-time (FOPDT) reduction of the model:
 
 The controller is the ideal (standard, ISA) PI, C(s) = Kc·(1 + 1/(Ti·s)); for the fuel loop Kc is
 in V per L/min and Ti in s. :meth:`PISettings.plc_form` converts it to percent of span and to the
-discrete algorithm a PLC block runs.
+discrete algorithm a PLC block runs; :meth:`PISettings.to_block` and
+:meth:`PISettings.from_block` to and from the form and units of the site's PI block
+(:mod:`fuelid.tuning.block`).
 
 References
 ----------
@@ -26,10 +28,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Self
 
 from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
+from fuelid.tuning.block import BlockForm, from_block, to_block
 
 
 @dataclass(frozen=True)
@@ -117,6 +120,51 @@ class PISettings:
             reduced=self.reduced,
         )
 
+    def to_block(self, block: BlockForm) -> tuple[float, float]:
+        """The (kc, ti) the PLC's block takes: :func:`fuelid.tuning.block.to_block`.
+
+        Parameters
+        ----------
+        block : BlockForm
+            The block's form and units (:meth:`BlockForm.of` of the site's ``[controller]``).
+
+        Examples
+        --------
+        >>> pi = PISettings(rule="simc", Kc=0.05, Ti=30.0, control_period=1.0)
+        >>> pi.to_block(BlockForm(form="parallel", gain_units="percent", integral_unit="min",
+        ...                       u_span=4.0, y_span=100.0))
+        (1.25, 2.5)
+        """
+        return to_block(self.Kc, self.Ti, block)
+
+    @classmethod
+    def from_block(
+        cls, kc: float, ti: float, block: BlockForm, *, rule: str, control_period: float
+    ) -> Self:
+        """The settings a PLC block holds as (kc, ti): :func:`fuelid.tuning.block.from_block`.
+
+        Parameters
+        ----------
+        kc, ti : float
+            The block's two numbers, in its form and units.
+        block : BlockForm
+            The block's form and units.
+        rule : str
+            Where the gains came from (a rule's name, or e.g. ``"commissioning"``).
+        control_period : float
+            The PLC's PI period h [s]; 0 for continuous control.
+
+        Examples
+        --------
+        >>> pi = PISettings.from_block(1.25, 2.5, BlockForm(form="parallel",
+        ...     gain_units="percent", integral_unit="min", u_span=4.0, y_span=100.0),
+        ...     rule="commissioning", control_period=1.0)
+        >>> round(pi.Kc, 12), round(pi.Ti, 12)
+        (0.05, 30.0)
+        """
+        Kc, Ti = from_block(kc, ti, block)
+        return cls(rule=rule, Kc=Kc, Ti=Ti, control_period=control_period)
+
     def velocity_coefficients(self, h: float | None = None) -> tuple[float, float]:
         """(q0, q1) of the PLC's PI at period h: Δu[k] = q0·e[k] + q1·e[k−1].
 
@@ -155,8 +203,10 @@ class PISettings:
         Returns
         -------
         dict
-            ``percent_of_span``: Kc in %/% (= Kc·y_span/u_span), Ti [s] and Ti in minutes
-            (None without the spans); ``parallel``: Kp, Ki;
+            ``percent_of_span``: Kc in %/% (= Kc·y_span/u_span,
+            :func:`~fuelid.tuning.block.percent_of_span`), Ti [s] and Ti in minutes (the ideal
+            percent block of :func:`~fuelid.tuning.block.to_block`; None without the spans);
+            ``parallel``: Kp, Ki;
             ``discrete``: for h > 0 the positional algorithm u[k] = Kc·e[k] + I[k] with the
             integral updated after the output, I[k+1] = I[k] + Kc·h/Ti·e[k] (forward Euler, as
             in Åström & Hägglund's PID code and :class:`~fuelid.tuning.closedloop.DiscretePI`),
@@ -184,20 +234,23 @@ class PISettings:
                 "q1": q1,
                 "integral_gain_per_sample": q0 + q1,
             }
+        percent: dict[str, float | None] | None = None
+        if u_span is not None and y_span is not None:
+            # the ideal block in %/% and minutes: the one conversion (fuelid.tuning.block)
+            kc, ti_min = self.to_block(BlockForm("ideal", "percent", "min", u_span, y_span))
+            percent = {
+                "Kc": kc,
+                "Ti": self.Ti,
+                "Ti_min": ti_min,
+                "u_span": u_span,
+                "y_span": y_span,
+            }
         return {
             "form": "ideal (standard, ISA): u = Kc*(e + (1/Ti)*integral(e dt)), e = setpoint - "
             "measurement",
             "Kc": self.Kc,
             "Ti": self.Ti,
-            "percent_of_span": {
-                "Kc": self.Kc * y_span / u_span,
-                "Ti": self.Ti,
-                "Ti_min": self.Ti / 60.0,
-                "u_span": u_span,
-                "y_span": y_span,
-            }
-            if u_span is not None and y_span is not None
-            else None,
+            "percent_of_span": percent,
             "parallel": {"Kp": self.Kc, "Ki": self.Ki},
             "discrete": discrete,
         }

@@ -25,6 +25,7 @@ from fuelid.identify.diagnostics import (
     input_residual_correlation,
     residual_whiteness,
 )
+from fuelid.identify.misfit import MisfitBound
 from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, check_gain_identified
@@ -397,6 +398,9 @@ def _analyse(
         simulate=not plant.is_reference,
         command_bands=command_bands(chosen.diagnostics),
     )
+    found_misfit = chosen.diagnostics.get("misfit")
+    if found_misfit is not None:
+        request = replace(request, misfit=MisfitBound.from_json(found_misfit))
     # the structures the log could not tell from the chosen fit's: the gains on each are shown
     indistinct = chosen.extra.get("structure", {}).get("indistinct", [])
     request = replace(

@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from fuelid._deprecated import warn_renamed
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
+from fuelid.identify.misfit import MisfitBound
 from fuelid.model import ProcessModel
 from fuelid.plant.config import PlantConfig
 from fuelid.tuning.bands import BandCheck, CommandBand, band_check
@@ -30,7 +31,13 @@ from fuelid.tuning.cases import (
     plant_cases,
 )
 from fuelid.tuning.closedloop import ClosedLoopResult, flow_at, standard_runs
-from fuelid.tuning.frequency import Robustness, TransferFunctionPlant, robustness
+from fuelid.tuning.frequency import (
+    Robustness,
+    RobustPeak,
+    TransferFunctionPlant,
+    robust_peak,
+    robustness,
+)
 from fuelid.tuning.limits import check_control_period, check_sweep_size, check_tunable
 from fuelid.tuning.result import UNITS, TuningResult, evaluate_tuning
 from fuelid.tuning.rules import PISettings
@@ -92,6 +99,9 @@ class TuneRequest:
     full_order: TransferFunctionPlant | None = None
     """The full-order linear model the reduced ``model`` stands for (a model file's
     ``linear_model``): the gains' margins and Ms are certified on it."""
+    misfit: MisfitBound | None = field(default=None, compare=False)
+    """The identified model's error that its log shows (``diagnostics.misfit``): the gains' Ms
+    is also given as the worst over it."""
     T_fuel: float = T_REF
     """Fuel temperature the model was identified at [K] (anchors the physics)."""
     u: float | None = None
@@ -340,6 +350,8 @@ class TuneOutcome:
     full_order: Robustness | None = None
     """The gains' margins and Ms on the full-order model (``request.full_order``), which the
     headline reports instead of the reduction's."""
+    misfit_peak: RobustPeak | None = None
+    """The worst Ms over the model error the log shows (``request.misfit``), where it bounds it."""
     runs: list[ClosedLoopResult] = field(default_factory=list)
     """The standard test on the nonlinear plant at the coldest and the warmest fuel."""
     sweep: SweepResult | None = None
@@ -376,6 +388,20 @@ class TuneOutcome:
         """
         found = []
         reduced = self.tuning.robustness.Ms
+        worst = None if self.misfit_peak is None else self.misfit_peak.Ms
+        if worst is not None and math.isfinite(worst) and worst > 1.1 * reduced:
+            found.append(
+                f"allowing for the misfit its log shows, these gains' Ms may reach {worst:.2f}, "
+                f"not the model's {reduced:.2f}: the model misses dynamics the log holds; "
+                "believe the larger figure"
+            )
+        elif worst is not None and not math.isfinite(worst):
+            found.append(
+                "the model's misfit its log shows could make this loop unstable, or the log "
+                "does not excite the loop near its crossover to bound it: the model's Ms "
+                f"{reduced:.2f} is not certain; a slower loop (a larger --tau-c or --lambda) "
+                "or a log with faster command changes"
+            )
         if self.full_order is not None and self.full_order.Ms > 1.1 * reduced:
             found.append(
                 f"on the full-order linear_model these gains give Ms {self.full_order.Ms:.2f}, "
@@ -430,6 +456,7 @@ class TuneOutcome:
             "temperature_check": None if self.check is None else "plant file",
             "command_band_check": None if self.bands is None else "log",
             "closed_loop_plant": "plant file" if self.runs else None,
+            "misfit_Ms": None if self.misfit_peak is None else "log",
             "sweep": None
             if self.sweep is None
             else "identified model"
@@ -448,6 +475,9 @@ class TuneOutcome:
             "full_order": None
             if self.full_order is None
             else self.full_order.to_json() | {"basis": "model file (linear_model)"},
+            "misfit_Ms": None
+            if self.misfit_peak is None
+            else self.misfit_peak.to_json() | {"basis": "log"},
             "disagreements": self.disagreements(),
             "closed_loop_plant": [r.to_json(events=True) for r in self.runs] or None,
             "sweep": None if self.sweep is None else self.sweep.summary(),
@@ -544,6 +574,10 @@ def _tune_model(
             cache,
         )
     full_order = None if request.full_order is None else robustness(request.full_order, tuning.pi)
+    misfit = request.misfit
+    misfit_peak = (
+        None if misfit is None else robust_peak(model, tuning.pi, misfit.at, misfit.excited_up_to)
+    )
     bands = band_check(tuning.pi, model, request.command_bands)
     runs = []
     if request.simulate:
@@ -583,6 +617,7 @@ def _tune_model(
         check=check,
         bands=bands,
         full_order=full_order,
+        misfit_peak=misfit_peak,
         runs=runs,
         sweep=sweep,
         structures=structures,

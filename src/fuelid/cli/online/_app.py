@@ -101,12 +101,12 @@ def _opened(
 
 
 def _settings(site: SiteConfig) -> dict[str, Any]:
-    from fuelid.online.gains import gain_units
+    from fuelid.tuning.block import BlockForm, block_units
 
     out: dict[str, Any] = {"write_back": site.online.write_back, "timezone": site.site.timezone}
     c = site.controller
     if c is not None:
-        out["gains_units"] = gain_units(c)
+        out["gains_units"] = block_units(BlockForm.of(c))
         out["controller"] = c
     return out
 
