@@ -11,7 +11,7 @@ what it prints is compared with the truth, which the benchmark computes by itsel
    ``--control-period 0.1``. Two logs: steps around 3 V (2.5…3.5 V) and steps over most of the
    drive (1.1…4.5 V). The truth is ``sensitivity_peak`` (the exact distributed plant, its exact
    zero-order-hold equivalent, fuelid's sampled-PI convention) with ``closed_loop_stable``, and
-   for the overshoot the sampled loop's exact setpoint step (:func:`step_overshoot`), on a
+   for the overshoot the sampled loop's exact setpoint step (``step_overshoot``), on a
    0.2 V grid over the commands the band check claims.
 2. Held-out variants of that loop nobody tuned fuelid on (a 400 m line, a leakier pump, a slow
    meter on a 100 m line), the same two logs each.

@@ -37,6 +37,12 @@ import math
 T0: float = 273.15
 """0 °C in kelvin [K]; a Celsius temperature t is T = t + T0."""
 
+DEFAULT_FUEL_TEMPERATURE_C: float = 20.0
+"""The fuel temperature [°C] fuelid takes when nothing gives one (a log without a fuel
+temperature column, no ``--fuel-temp``): every output that rests on it says it was assumed. The
+one home of this default (here, where the command line's help can read it without numpy);
+:data:`fuelid.workflow.T_REF` is the same in kelvin."""
+
 LPM_PER_M3S: float = 60_000.0
 """L/min in one m³/s: q_Lpm = q·LPM_PER_M3S, q = q_Lpm/LPM_PER_M3S."""
 

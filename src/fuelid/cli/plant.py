@@ -13,7 +13,7 @@ import typer
 from fuelid.cli._common import ConfigOption, celsius_to_kelvin, emit_json, guarded, provenance
 from fuelid.cli.serve import serve_command
 from fuelid.errors import FuelidError
-from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
+from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
 if TYPE_CHECKING:
     from rich.table import Table

@@ -66,7 +66,7 @@ from fuelid.cli._identify_options import (
     parse_delay,
     parse_order,
 )
-from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
+from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
 if TYPE_CHECKING:
     from fuelid.workflow import LogAnalysis

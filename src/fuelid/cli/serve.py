@@ -14,7 +14,7 @@ import typer
 
 from fuelid.cli._common import ConfigOption, guarded
 from fuelid.errors import FuelidError
-from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
+from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
 if TYPE_CHECKING:
     from fuelid.plc.codec import WordOrder

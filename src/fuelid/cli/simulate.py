@@ -18,8 +18,7 @@ import typer
 
 from fuelid.cli._common import celsius_to_kelvin, emit_json, guarded, provenance
 from fuelid.errors import FuelidError
-from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
-from fuelid.units import LPM_PER_M3S, PA_PER_MPA
+from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C, LPM_PER_M3S, PA_PER_MPA
 
 if TYPE_CHECKING:
     pass

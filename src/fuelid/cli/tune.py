@@ -41,7 +41,7 @@ from fuelid.cli._common import (
     warn,
 )
 from fuelid.errors import FuelidError
-from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
+from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
 if TYPE_CHECKING:
     from fuelid.cli._common import SiteFacts
@@ -236,8 +236,11 @@ def tune_command(
     fuel_source = "option" if fuel_temp is not None else None
     if fuel_temp is None and loaded is not None and loaded.fuel_temperature is not None:
         fuel_temp, fuel_source = loaded.fuel_temperature, "model file"
+    clip_u = False
     if u is None and loaded is not None and loaded.u is not None:
-        u = loaded.u
+        # the model file's mean command: a little outside the drive's range is taken to its end
+        # (its signal check has said why), a command given with --u is refused there
+        u, clip_u = loaded.u, True
     T_fuel, T_range = temperature_options(
         DEFAULT_FUEL_TEMPERATURE_C if fuel_temp is None else fuel_temp, t_min, t_max
     )
@@ -266,6 +269,7 @@ def tune_command(
         ),
         T_fuel=T_fuel,
         u=u,
+        clip_u=clip_u,
         T_range=T_range,
         band_width=band_width,
         ms_target=ms_target,
@@ -570,14 +574,14 @@ def _block_row(outcome: TuneOutcome, facts: SiteFacts | None) -> tuple[str, str,
     """The gains as the site's PI block takes them ([controller]), or None without a site."""
     if facts is None or facts.controller is None:
         return None
-    from fuelid.online.gains import Gains, gain_units, ideal_to_controller
+    from fuelid.tuning.block import BlockForm, block_units
 
-    controller = facts.controller
-    kc, ti = ideal_to_controller(Gains(outcome.pi.Kc, outcome.pi.Ti), controller)
-    units = gain_units(controller) or {"Kc": "", "Ti": ""}
-    integral = "Ki" if controller.form == "parallel" else "Ti"
+    block = BlockForm.of(facts.controller)
+    kc, ti = outcome.pi.to_block(block)
+    units = block_units(block)
+    integral = "Ki" if block.form == "parallel" else "Ti"
     return (
-        f"your block ({controller.form}, site file)",
+        f"your block ({block.form}, site file)",
         f"Kc = {kc:.5g}",
         f"{integral} = {ti:.5g}",
         f"{units['Kc']}, {units['Ti']}",

@@ -50,7 +50,6 @@ from fuelid.fuel.correlations import (
 )
 from fuelid.fuel.registry import (
     DEFAULT_FUEL,
-    DEFAULT_FUEL_TEMPERATURE_C,
     FUELS,
     Correlation,
     Fuel,
@@ -62,7 +61,6 @@ from fuelid.fuel.registry import (
 
 __all__ = [
     "DEFAULT_FUEL",
-    "DEFAULT_FUEL_TEMPERATURE_C",
     "FUELS",
     "Correlation",
     "Fuel",

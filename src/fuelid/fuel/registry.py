@@ -244,11 +244,6 @@ FUELS: dict[str, Fuel] = {
 DEFAULT_FUEL: str = "RP-3"
 """The default fuel: RP-3, the kerosene of the source article's wind tunnel."""
 
-DEFAULT_FUEL_TEMPERATURE_C: float = 20.0
-"""The fuel temperature [°C] fuelid takes when nothing gives one (a log without a fuel
-temperature column, no ``--fuel-temp``): every output that rests on it says it was assumed. The
-one home of this default; :data:`fuelid.workflow.T_REF` is the same in kelvin."""
-
 
 def _normalise(name: str) -> str:
     """Return ``name`` lower-cased with everything but letters and digits removed."""

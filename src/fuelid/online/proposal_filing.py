@@ -14,7 +14,6 @@ import math
 from typing import Any
 
 from fuelid.errors import NotFittedError
-from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.io.jsonsafe import json_ready
 from fuelid.online.context import RECENT_WINDOWS_SPAN, ServiceContext, model_of
 from fuelid.online.evidence import WindowModel
@@ -22,6 +21,7 @@ from fuelid.online.proposals import ProposalDecision, propose
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.online.window import WindowResult
 from fuelid.tuning.block import BlockForm
+from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
 TURNED_DOWN_MEMORY = 20
 """Rejected or reverted proposals whose gains are not proposed again (the newest this many)."""

@@ -53,7 +53,6 @@ import numpy as np
 
 from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError, NotExcitingError
-from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.identify.oe import OutputError
 from fuelid.identify.pem import PredictionError
 from fuelid.identify.procedure import POSITIVE_PARAMETERS, IdentifyOptions, interval95
@@ -73,6 +72,7 @@ from fuelid.online.pem_screen import NEAR_INTEGRATING_POLE, closed_loop_choice
 from fuelid.online.tracking import PlantGain
 from fuelid.plc.site import Online
 from fuelid.store.base import Quality, SampleArrays, iodata_from_samples
+from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
 MIN_GOOD_SAMPLES = 100
 """Fewer good samples than this in a window: nothing is fitted [-]."""

@@ -19,7 +19,6 @@ from numpy.typing import NDArray
 
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
-from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.identify.diagnostics import (
     CorrelationTest,
     input_residual_correlation,
@@ -35,6 +34,7 @@ from fuelid.tuning.closedloop import ClosedLoopResult
 from fuelid.tuning.frequency import frequency_grid, loop_function, robustness
 from fuelid.tuning.result import UNITS, TuningResult
 from fuelid.tuning.schedule import GainSchedule
+from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.workflow.assumptions import (
     REFERENCE_PLANT_NOTICE,
     OperatingPoint,
@@ -138,6 +138,7 @@ class AnalysisSettings:
         ``u_span`` and ``y_span``, else the site file's, else the user's plant file's.
         """
         return TuneRequest(
+            clip_u=True,  # the log's mean command, judged by the signal check
             model=model,
             rule=self.rule,
             closed_loop_time=self.closed_loop_time,

@@ -11,12 +11,11 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
-from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.identify.preprocess import select
 from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel
-from fuelid.units import celsius_to_kelvin
+from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C, celsius_to_kelvin
 from fuelid.workflow.assumptions import (
     OperatingPoint,
     PlantSource,

@@ -106,6 +106,9 @@ class TuneRequest:
     """Fuel temperature the model was identified at [K] (anchors the physics)."""
     u: float | None = None
     """Command the model was identified around [V]; None: the middle of the drive's range."""
+    clip_u: bool = False
+    """Take a ``u`` outside the drive's range to its nearest end (a model file's or a log's mean
+    command, which the signal check has judged) instead of refusing it (a command given)."""
     T_range: tuple[float, float] = DEFAULT_T_RANGE
     """Coldest and warmest fuel of the checks, the runs and the schedule [K]."""
     band_width: float = 10.0
@@ -548,7 +551,7 @@ def _tune_model(
 ) -> TuneOutcome:
     announce(progress, TUNING)
     config, h = plant.config, request.period()
-    u, spans = operating_command(config, request.u, clip=True), request.spans(plant)
+    u, spans = operating_command(config, request.u, clip=request.clip_u), request.spans(plant)
     tuning = evaluate_tuning(
         model,
         request.rule,
@@ -662,7 +665,7 @@ def schedule_gains(
     if source.is_reference:
         raise FuelidError(NO_SCHEDULE_WITHOUT_PLANT)
     config, h = source.config, request.period()
-    u = operating_command(config, request.u, clip=True)
+    u = operating_command(config, request.u, clip=request.clip_u)
     anchor = None if request.model is None else Anchor(request.model, request.T_fuel, u)
     spans = request.spans(source)
     announce(progress, SCHEDULE)

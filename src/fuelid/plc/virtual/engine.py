@@ -74,7 +74,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid.errors import ConfigError, DataError
-from fuelid.fuel import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.plant import load_plant_config
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.simulate import FuelTemperature, integrate_held
@@ -92,7 +91,12 @@ from fuelid.profiles.runs import Profile, run_profile, steps_profile
 from fuelid.tuning.closedloop import steady_command
 from fuelid.tuning.controller import DiscretePI
 from fuelid.tuning.rules import PISettings
-from fuelid.units import LPM_PER_M3S, celsius_to_kelvin, kelvin_to_celsius
+from fuelid.units import (
+    DEFAULT_FUEL_TEMPERATURE_C,
+    LPM_PER_M3S,
+    celsius_to_kelvin,
+    kelvin_to_celsius,
+)
 
 FloatArray = NDArray[np.float64]
 ProfileLike: TypeAlias = Profile | tuple[ArrayLike, ArrayLike]
