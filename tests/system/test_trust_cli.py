@@ -182,14 +182,24 @@ def test_a_reduced_model_is_certified_on_its_full_order_model(tmp_path: Path):
     assert out["full_order"]["Ms"] == pytest.approx(robustness(linear, pi).Ms, rel=1e-6)
     # the issue measured Ms 1.67 on the reduction and 2.7–2.8 on the full-order model
     assert out["Ms"] < 1.8 < 2.6 < out["full_order"]["Ms"]
-    assert out["provenance"]["robustness"] == "model file"
+    assert out["provenance"]["full_order"] == "model file"
     assert any("full-order" in d for d in out["disagreements"])
     text_out = runner.invoke(app, [*args, "--simulate"])
     assert "on the full-order model" in text_out.stdout
-    # its nonlinear runs overshoot far more than the linear prediction (48 % and 27 % against
-    # 19.8 % in the issue): the outputs say so and which figure to believe
+    # the issue's nonlinear runs overshot 48 % and 27 % where the check printed 19.8 % (the
+    # reduction's steps): the check's overshoot is now the full linearisation's, and predicts
+    # each run within 5 points, or the outputs say which figure to believe
     runs = json.loads(runner.invoke(app, [*args, "--simulate", "--json"]).stdout)
-    assert any("believe the nonlinear run" in d for d in runs["disagreements"])
+    for run in runs["closed_loop_plant"]:
+        predicted = [
+            case["overshoot_percent"]
+            for case in runs["temperature_check"]["cases"]
+            if case["fuel_temperature"] == run["fuel_temperature"] and case["u"] == 3.0
+        ]
+        agree = abs(run["summary"]["overshoot_percent"] - predicted[0]) <= 5.0
+        said = any("believe the nonlinear run" in d for d in runs["disagreements"])
+        assert agree or said
+    assert runs["temperature_check"]["worst_overshoot_percent"] > 40.0
 
 
 def test_a_response_that_leads_its_command_gets_no_gains(log: Path, tmp_path: Path):

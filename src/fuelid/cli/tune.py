@@ -490,10 +490,12 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
     settle = step["settling_time"]
     full = data["full_order"]
     if full is not None:
+        full_step = full["setpoint_step"]
         console.print(
             f"on the full-order model (the model file's linear_model): gain margin "
             f"{full['gain_margin']:.2f}, phase margin {full['phase_margin_deg']:.1f}°, "
-            f"Ms {full['Ms']:.2f}"
+            f"Ms {full['Ms']:.2f}; setpoint step overshoot "
+            f"{full_step['overshoot_percent']:.1f} %"
         )
     console.print(
         ("on its reduction" if full is not None else "on the model")
@@ -512,9 +514,13 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
     check = data["temperature_check"]
     if check is not None:
         fuel = kelvin_to_celsius(outcome.request.T_fuel)
+        anchored = outcome.check is not None and outcome.check.cases[0].case.anchored
         console.print(
             f"model found at u = {outcome.u:.3g} V with the fuel at {fuel:.3g} °C "
             f"({fuel_source}): the temperature check is anchored there"
+            if anchored
+            else "the temperature check runs on your plant file's full linearisation at every "
+            "case (the model is its own reduction)"
         )
         cases = check["cases"]
         console.print(

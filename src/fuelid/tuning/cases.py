@@ -19,7 +19,7 @@ from fuelid.model import ProcessModel
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.linear import LinearPlant, linearise
 from fuelid.tuning.frequency import Robustness, robustness
-from fuelid.tuning.linearloop import linear_closed_loop
+from fuelid.tuning.linearloop import full_order_closed_loop, linear_closed_loop, step_duration
 from fuelid.tuning.rules import PISettings
 from fuelid.units import LPM_PER_M3S, celsius_to_kelvin, kelvin_to_celsius
 
@@ -143,7 +143,7 @@ class CaseEvaluation:
     robustness: Robustness
     """Margins on the full linearised plant (or the anchored model)."""
     overshoot_percent: float
-    """Setpoint-step overshoot on the reduced model (linear closed loop) [%]."""
+    """Setpoint-step overshoot of the linear closed loop on the margins' plant [%]."""
     settling_time: float
     """2 % settling time of that step [s]."""
 
@@ -229,10 +229,18 @@ class FixedPIEvaluation:
 
 
 def evaluate_fixed(pi: PISettings, cases: Sequence[PlantCase]) -> FixedPIEvaluation:
-    """Margins (full linearised plant) and step metrics (reduced model) of one PI on every case."""
+    """Margins and step metrics of one PI on every case, both on :attr:`PlantCase.margin_plant`.
+
+    On the full linearised plant when the cases come from physics alone (its lightly damped
+    line modes are in the overshoot as in the Ms), on the anchored model when one anchors them.
+    """
     evaluations = []
     for case in cases:
-        step = linear_closed_loop(case.model, pi)
+        step = (
+            linear_closed_loop(case.model, pi)
+            if case.anchored
+            else full_order_closed_loop(case.linear, pi, step_duration(case.model, pi))
+        )
         evaluations.append(
             CaseEvaluation(
                 case=case,

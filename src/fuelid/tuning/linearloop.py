@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.signal
 from numpy.typing import NDArray
 
-from fuelid.lti import discretise
+from fuelid.lti import discretise, modified_z
 from fuelid.model import ProcessModel
 from fuelid.tuning.metrics import (
     SETTLING_BAND,
@@ -25,6 +26,9 @@ from fuelid.tuning.metrics import (
     setpoint_step_metrics,
 )
 from fuelid.tuning.rules import PISettings
+
+if TYPE_CHECKING:
+    from fuelid.tuning.frequency import StateSpacePlant
 
 FloatArray = NDArray[np.float64]
 CONTINUOUS_PERIOD = 0.02
@@ -68,13 +72,29 @@ def linear_period(model: ProcessModel, pi: PISettings) -> float:
     return max(CONTINUOUS_PERIOD, scale / 500.0)
 
 
+def step_duration(model: ProcessModel, pi: PISettings) -> float:
+    """How long the closed loop's steps are simulated [s]: ten of its slowest times, and more."""
+    scale = _loop_time_scale(model, pi) + model.delay + sum(model.time_constants)
+    return 10.0 * scale + 20.0 * linear_period(model, pi)
+
+
 def _closed_loop_polynomials(
     model: ProcessModel, pi: PISettings, h: float
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
     """(r→u numerator, d→u numerator, characteristic polynomial, plant b, plant a) in z⁻¹."""
     d = discretise(model.time_constants, model.delay, h)
     gn = np.concatenate((np.zeros(d.shift), model.K * d.b))
-    gd = d.a
+    r_to_u, d_to_u, char = _loop_polynomials(gn, d.a, pi, h)
+    return r_to_u, d_to_u, char, d.b, d.a
+
+
+def _loop_polynomials(
+    gn: FloatArray, gd: FloatArray, pi: PISettings, h: float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(r→u numerator, d→u numerator, characteristic polynomial) in z⁻¹: the PI on gn/gd.
+
+    The plant gn/gd is sampled at the PI's period h, in z⁻¹, the delay's whole samples in gn.
+    """
     cn = np.array(pi.velocity_coefficients(h))
     cd = np.array([1.0, -1.0])
     n = max(gn.size, gd.size) + 1
@@ -86,7 +106,7 @@ def _closed_loop_polynomials(
     # u = C·S·r and, for a load d at the plant input, u = −C·G·S·d
     r_to_u = np.convolve(cn, gd)
     d_to_u = -np.convolve(cn, gn)
-    return r_to_u, d_to_u, char, d.b, d.a
+    return r_to_u, d_to_u, char
 
 
 def linear_closed_loop(
@@ -109,8 +129,7 @@ def linear_closed_loop(
     """
     h = linear_period(model, pi)
     if duration is None:
-        duration = 10.0 * (_loop_time_scale(model, pi) + model.delay + sum(model.time_constants))
-        duration += 20.0 * h
+        duration = step_duration(model, pi)
     n = min(max(math.ceil(duration / h), 4), MAX_LINEAR_STEPS)
     r_to_u, d_to_u, char, _, _ = _closed_loop_polynomials(model, pi, h)
     ones = np.ones(n)
@@ -129,6 +148,56 @@ def linear_closed_loop(
         setpoint=setpoint_step_metrics(t, y_r, 0.0, 1.0),
         # recovered: within 2 % of what the unit load would do to the output without control
         disturbance=disturbance_metrics(t, y_d, 0.0, 1.0, band=SETTLING_BAND * abs(model.K)),
+    )
+
+
+def sampled_plant(plant: StateSpacePlant, h: float) -> tuple[FloatArray, FloatArray]:
+    """(numerator, denominator) in z⁻¹ of a state-space plant with dead time under a ZOH at h.
+
+    The modified z-transform (:func:`fuelid.lti.modified_z`): x[k+1] = A_d·x[k] + Γ₀·u[k−d]
+    + Γ₁·u[k−d−1], y = C·x, so Y/U = z^(−d)·C(zI − A_d)⁻¹(Γ₀ + Γ₁z⁻¹); strictly proper (no
+    feedthrough D, which no plant here has).
+    """
+    A = np.asarray(plant.A, dtype=float)
+    C = np.asarray(plant.C, dtype=float).reshape(1, -1)
+    mz = modified_z(A, np.asarray(plant.B, dtype=float), h, plant.delay)
+    zero = np.zeros((1, 1))
+    num0, den = scipy.signal.ss2tf(mz.Ad, mz.G0, C, zero)
+    num1, _ = scipy.signal.ss2tf(mz.Ad, mz.G1, C, zero)
+    # degree-n polynomials in z over z^n are the same coefficients in z⁻¹; Γ₁ is one sample later
+    numerator = np.r_[num0[0], 0.0] + np.r_[0.0, num1[0]]
+    return np.r_[np.zeros(mz.shift), numerator], np.asarray(den, dtype=float)
+
+
+def full_order_closed_loop(
+    plant: StateSpacePlant, pi: PISettings, duration: float, oversample: int = 10
+) -> LinearResponse:
+    """The unit setpoint and load steps of ``pi`` on a state-space plant with dead time.
+
+    As :func:`linear_closed_loop`, on the full linearisation (a
+    :class:`~fuelid.plant.linear.LinearPlant`, a model file's ``linear_model``) instead of its
+    reduction: the overshoot beside the Ms computed on the same plant. ``duration`` [s].
+    """
+    h = pi.control_period if pi.control_period > 0.0 else CONTINUOUS_PERIOD
+    n = min(max(math.ceil(duration / h), 4), MAX_LINEAR_STEPS)
+    gn, gd = sampled_plant(plant, h)
+    r_to_u, d_to_u, char = _loop_polynomials(gn, gd, pi, h)
+    ones = np.ones(n)
+    u_r = scipy.signal.lfilter(r_to_u, char, ones)
+    u_d = scipy.signal.lfilter(d_to_u, char, ones)
+    m = oversample if pi.control_period > 0.0 else 1
+    fine_n, fine_d = sampled_plant(plant, h / m)
+    t = np.arange(n * m, dtype=np.float64) * (h / m)
+    y_r = scipy.signal.lfilter(fine_n, fine_d, np.repeat(u_r, m))
+    y_d = scipy.signal.lfilter(fine_n, fine_d, np.repeat(u_d, m) + 1.0)
+    gain = abs(float(np.sum(gn) / np.sum(gd)))
+    return LinearResponse(
+        time=t,
+        setpoint_response=y_r,
+        setpoint_command=np.repeat(u_r, m),
+        disturbance_response=y_d,
+        setpoint=setpoint_step_metrics(t, y_r, 0.0, 1.0),
+        disturbance=disturbance_metrics(t, y_d, 0.0, 1.0, band=SETTLING_BAND * gain),
     )
 
 

@@ -39,6 +39,7 @@ from fuelid.tuning.frequency import (
     robustness,
 )
 from fuelid.tuning.limits import check_control_period, check_sweep_size, check_tunable
+from fuelid.tuning.linearloop import LinearResponse, full_order_closed_loop, step_duration
 from fuelid.tuning.result import UNITS, TuningResult, evaluate_tuning
 from fuelid.tuning.rules import PISettings
 from fuelid.tuning.schedule import GainSchedule, band_edges, gain_schedule
@@ -352,7 +353,9 @@ class TuneOutcome:
     """The same gains over the command bands the identification's log shows (K per band)."""
     full_order: Robustness | None = None
     """The gains' margins and Ms on the full-order model (``request.full_order``), which the
-    headline reports instead of the reduction's."""
+    headline reports first."""
+    full_order_step: LinearResponse | None = None
+    """The linear closed loop's steps on the full-order model."""
     misfit_peak: RobustPeak | None = None
     """The worst Ms over the model error the log shows (``request.misfit``), where it bounds it."""
     runs: list[ClosedLoopResult] = field(default_factory=list)
@@ -420,8 +423,8 @@ class TuneOutcome:
                 found.append(
                     f"the nonlinear plant overshoots {actual:.1f} % at "
                     f"{kelvin_to_celsius(run.T_fuel):g} °C, the linear prediction "
-                    f"{predicted:.1f} %: believe the nonlinear run (your plant file's full "
-                    "dynamics, limits and nonlinearity); the linear figures miss what it shows"
+                    f"{predicted:.1f} %: believe the nonlinear run (your plant file's "
+                    "nonlinearity and limits, which the linear figures leave out)"
                 )
         return found
 
@@ -454,7 +457,8 @@ class TuneOutcome:
             "Ti": "identified model",
             "control_period": self.request.control_period_basis,
             "percent_of_span": spans.basis,
-            "robustness": "identified model" if self.full_order is None else "model file",
+            "robustness": "identified model",
+            "full_order": None if self.full_order is None else "model file",
             "closed_loop": "identified model",
             "temperature_check": None if self.check is None else "plant file",
             "command_band_check": None if self.bands is None else "log",
@@ -477,7 +481,13 @@ class TuneOutcome:
             "command_band_check": None if self.bands is None else self.bands.to_json(),
             "full_order": None
             if self.full_order is None
-            else self.full_order.to_json() | {"basis": "model file (linear_model)"},
+            else self.full_order.to_json()
+            | {
+                "basis": "model file (linear_model)",
+                "setpoint_step": None
+                if self.full_order_step is None
+                else self.full_order_step.setpoint.to_json(),
+            },
             "misfit_Ms": None
             if self.misfit_peak is None
             else self.misfit_peak.to_json() | {"basis": "log"},
@@ -576,7 +586,12 @@ def _tune_model(
             u,
             cache,
         )
-    full_order = None if request.full_order is None else robustness(request.full_order, tuning.pi)
+    full_order = full_order_step = None
+    if request.full_order is not None:
+        full_order = robustness(request.full_order, tuning.pi)
+        full_order_step = full_order_closed_loop(
+            request.full_order, tuning.pi, step_duration(model, tuning.pi)
+        )
     misfit = request.misfit
     misfit_peak = (
         None if misfit is None else robust_peak(model, tuning.pi, misfit.at, misfit.excited_up_to)
@@ -620,6 +635,7 @@ def _tune_model(
         check=check,
         bands=bands,
         full_order=full_order,
+        full_order_step=full_order_step,
         misfit_peak=misfit_peak,
         runs=runs,
         sweep=sweep,
