@@ -27,8 +27,10 @@ def log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("trust") / "steps.csv"
     result = runner.invoke(
         app,
-        ["simulate", str(path), "--profile", "steps", "--levels", "1.5,2.5,2", "--dwell", "20"]
-        + ["--quiet", "--seed", "3"],
+        [
+            *("simulate", str(path), "--profile", "steps", "--levels", "1.5,2.5,2"),
+            *("--dwell", "20", "--quiet", "--seed", "3"),
+        ],
     )
     assert result.exit_code == 0, result.output
     return path

@@ -1,5 +1,4 @@
-"""The model error a log shows, and the worst Ms over it (issue 37, robustness to what the model
-misses).
+"""The model error a log shows, and the worst Ms over it (issue 37: what the model misses).
 
 The loop is K·e^(−0.2s)/((s+1)(0.3s+1)); the model leaves out the 0.3 s lag, so the true error
 is Δ(jω) = 1/(1 + 0.3jω) − 1, known exactly, and so is the true Ms of any PI on the loop.

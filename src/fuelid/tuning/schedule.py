@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
 from fuelid.plant.config import PlantConfig
+from fuelid.tuning.block import BlockForm
 from fuelid.tuning.cases import (
     DEFAULT_T_RANGE,
     Anchor,
@@ -111,7 +112,7 @@ class ScheduleBand:
             "flow_high": self.flow_high,
             "Kc": self.pi.Kc,
             "Ti": self.pi.Ti,
-            "Ti_min": self.pi.Ti / 60.0,
+            "Ti_min": self.pi.to_block(BlockForm(integral_unit="min"))[1],
             "detune": self.detune,
             "Ms": self.worst.worst_Ms,
             "gain_margin": self.worst.worst_gain_margin,
