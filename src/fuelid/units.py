@@ -28,6 +28,8 @@ Each conversion pair, there and back:
 (157.079633, 1500.0)
 >>> 0.5 * TWO_PI == math.pi, math.pi / TWO_PI  # revolutions ↔ rad: half a turn is π rad
 (True, 0.5)
+>>> kelvin_to_celsius(celsius_to_kelvin(DEFAULT_FUEL_TEMPERATURE_C)) == DEFAULT_FUEL_TEMPERATURE_C
+True
 """
 
 from __future__ import annotations

@@ -406,10 +406,13 @@ def _intervals(block: Any) -> dict[str, tuple[float, float] | None]:
     """Each model parameter's 95 % interval (:func:`_interval`); empty without a ``ci95``.
 
     A file without ``ci95`` (``plant info --json``: a model from physics, not from data) has no
-    intervals to judge; a file with one gives every key, None where it has no interval.
+    intervals to judge; a file with one gives every key, None where it has no interval, and a
+    ``ci95`` that is not an object gives None for every key.
     """
-    if not isinstance(block, dict):
+    if block is None:
         return {}
+    if not isinstance(block, dict):  # there, but damaged: every interval unknown, judged so
+        return dict.fromkeys(MODEL_KEYS)
     return {key: _interval(block.get(key)) for key in MODEL_KEYS}
 
 
