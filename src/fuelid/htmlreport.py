@@ -378,6 +378,13 @@ def _context(
             "all_stable": check.all_stable,
             "cases": cases,
         },
+        "misfit": None
+        if analysis.outcome.misfit_peak is None
+        else {
+            "Ms": _fmt(analysis.outcome.misfit_peak.Ms, ".2f"),
+            "up_to": _fmt(analysis.outcome.misfit_peak.up_to, ".3g"),
+            "bounded": math.isfinite(analysis.outcome.misfit_peak.Ms),
+        },
         "band_check": None
         if band_check is None
         else {

@@ -158,6 +158,8 @@ class SiteFacts:
     """``[controller]`` u_span_V [V] and y_span_Lpm [L/min]."""
     controller: Any
     """The site's :class:`fuelid.plc.site.Controller`, or None."""
+    plant: Path | None = None
+    """The site's ``[site] plant`` (taken from the site file's folder), or None."""
 
 
 def site_facts(path: Path | None) -> SiteFacts | None:
@@ -171,7 +173,8 @@ def site_facts(path: Path | None) -> SiteFacts | None:
     period = sampling.control_period_s if "control_period_s" in sampling.model_fields_set else None
     controller = site.controller
     spans = (None, None) if controller is None else (controller.u_span_V, controller.y_span_Lpm)
-    return SiteFacts(control_period=period, spans=spans, controller=controller)
+    plant = None if site.site.plant is None else Path(site.site.plant)
+    return SiteFacts(control_period=period, spans=spans, controller=controller, plant=plant)
 
 
 def temperature_options(

@@ -336,7 +336,7 @@ def _print_table(
     from rich.console import Console
     from rich.table import Table
 
-    console = Console()
+    console = Console(emoji=False)
     console.print(part, highlight=False, soft_wrap=True)  # first: which part was fitted
     from fuelid.model import MODEL_KEYS
 

@@ -8,6 +8,7 @@ command runs. While it works, a spinner on stderr (a terminal only) names the cu
 from __future__ import annotations
 
 import enum
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -180,6 +181,8 @@ def report_command(
 
     check_report_path(out, force)  # before any work: a typo must not cost a minute
     facts = site_facts(site)
+    if config is None and facts is not None and facts.plant is not None:
+        config = facts.plant  # the plant file the site file names
     period = control_period_from(control_period, None if facts is None else facts.control_period)
     T_fuel, T_range = temperature_options(
         DEFAULT_FUEL_TEMPERATURE_C if fuel_temp is None else fuel_temp, t_min, t_max
@@ -296,7 +299,7 @@ def _fitted_part(analysis: LogAnalysis) -> str:
 def _print_summary(analysis: LogAnalysis, written: list[Path]) -> None:
     from rich.console import Console
 
-    console = Console()
+    console = Console(emoji=False)  # ":100:" in a suggested --input-scale is not an emoji
     console.print(_fitted_part(analysis), highlight=False, soft_wrap=True)
     from fuelid.workflow.assumptions import gain_unit
 
@@ -319,6 +322,13 @@ def _print_summary(analysis: LogAnalysis, written: list[Path]) -> None:
     check, bands, schedule = analysis.check, analysis.outcome.bands, analysis.schedule
     if check is not None:
         console.print(f"over fuel temperature (your plant file): worst Ms {check.worst_Ms:.2f}")
+    misfit = analysis.outcome.misfit_peak
+    if misfit is not None:
+        console.print(
+            f"allowing for the misfit the log shows (up to {misfit.up_to:.3g} rad/s, 95 %): "
+            + ("Ms not bounded" if not math.isfinite(misfit.Ms) else f"Ms ≤ {misfit.Ms:.2f}"),
+            highlight=False,
+        )
     if bands is not None:
         low, high = bands.u_range
         console.print(

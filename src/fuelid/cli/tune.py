@@ -187,8 +187,10 @@ def tune_command(
     from fuelid.workflow.trust import (
         LEADING_RESPONSE,
         control_period_from,
+        overridden,
         undetermined,
         undetermined_refusal,
+        undetermined_refusal_line,
     )
     from fuelid.workflow.tune import tune_notices
 
@@ -208,6 +210,8 @@ def tune_command(
     model, loaded = _model_from_options(
         model_file, K, T, T2, T_f, delay, need_cov=sweep is not None
     )
+    if loaded is not None and loaded.leads:
+        raise FuelidError(f"{model_file}: {LEADING_RESPONSE}")
     if loaded is not None and loaded.signal_check and not accept_signals:
         raise FuelidError(
             f"{model_file}: its identification's signal check found: "
@@ -217,10 +221,8 @@ def tune_command(
     loose = (
         [] if loaded is None else undetermined(loaded.model.to_json(), loaded.ci95, loaded.fixed)
     )
-    if loaded is not None and loaded.leads:
-        loose.insert(0, LEADING_RESPONSE)
     if loose and not accept_undetermined:
-        raise FuelidError(undetermined_refusal(loose, f"the model of {model_file}"))
+        raise FuelidError(undetermined_refusal_line(loose, f"the model of {model_file}"))
     if model is None and not schedule:
         raise FuelidError(
             "give a model: --model ident.json, or --K and --T (with --delay, --flowmeter-T), "
@@ -241,6 +243,8 @@ def tune_command(
         # the model file's mean command: a little outside the drive's range is taken to its end
         # (its signal check has said why), a command given with --u is refused there
         u, clip_u = loaded.u, True
+    if config is None and facts is not None and facts.plant is not None:
+        config = facts.plant  # the plant file the site file names
     T_fuel, T_range = temperature_options(
         DEFAULT_FUEL_TEMPERATURE_C if fuel_temp is None else fuel_temp, t_min, t_max
     )
@@ -285,6 +289,16 @@ def tune_command(
         conditional=loaded is not None and loaded.conditional,
         model_label=str(model_file),
     )
+    notices += overridden(
+        {
+            "option": control_period,
+            "site file": None if facts is None else facts.control_period,
+            "model file": None if loaded is None else loaded.control_period,
+        },
+        "s",
+        period,
+    )
+    notices += span_notes(request, plant, facts, flow_span, u_span)
     if loose:
         notices.append(
             "accepted (--accept-undetermined): "
@@ -353,6 +367,43 @@ def tune_command(
         emit_json(outcome.to_json() | extra | provenance(options, model_file))
         return
     _print_tuning(outcome, fuel_source or "assumed", facts)
+
+
+def span_notes(
+    request: Any,
+    plant: PlantSource,
+    facts: SiteFacts | None,
+    flow: float | None,
+    drive: float | None,
+) -> list[str]:
+    """Where another source gave a different span than the one the %/% gains use."""
+    from fuelid.workflow.trust import overridden
+
+    spans = request.spans(plant)
+    config = plant.config
+    notes: list[str] = []
+    for kept, unit, option, site, own in (
+        (
+            spans.u_span,
+            "V",
+            drive,
+            None if facts is None else facts.spans[0],
+            config.vfd.u_max_V - config.vfd.u_min_V,
+        ),
+        (
+            spans.y_span,
+            "L/min",
+            flow,
+            None if facts is None else facts.spans[1],
+            config.flowmeter.span_Lpm,
+        ),
+    ):
+        if kept is not None:
+            sources = {"option": option, "site file": site}
+            if not plant.is_reference:
+                sources["plant file"] = own
+            notes += overridden(sources, unit, kept)
+    return notes
 
 
 def _calibration_json(plant: PlantSource, T_fuel: float) -> dict[str, Any]:
@@ -449,7 +500,7 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
 
     data = outcome.to_json()
     plc, h = data["plc"], data["control_period"]
-    console = Console()
+    console = Console(emoji=False)
     period = f"h = {h:g} s ({data['control_period_basis']})" if h > 0 else "continuous"
     gains = Table(title=f"{data['rule']} PI for {outcome.tuning.model.describe()}, {period}")
     for column in ("form", "gain", "integral", "unit"):
@@ -463,7 +514,9 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
             "percent of span",
             f"Kc = {span['Kc']:.4g}",
             f"Ti = {span['Ti']:.4g} s = {span['Ti_min']:.4g} min",
-            f"%/% ({span['u_span']:g} V, {span['y_span']:g} L/min)",
+            f"%/% ({span['u_span']:g} V, {span['y_span']:g} L/min; "
+            + _span_basis(data["spans"])
+            + ")",
         )
     gains.add_row(
         "parallel",
@@ -576,6 +629,12 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
         )
 
 
+def _span_basis(spans: dict[str, Any]) -> str:
+    """Where the spans came from, for the %/% row: one basis, or each span's."""
+    u, y = spans["u_span"]["basis"], spans["y_span"]["basis"]
+    return u if u == y else f"{u}, {y}"
+
+
 def _block_row(outcome: TuneOutcome, facts: SiteFacts | None) -> tuple[str, str, str, str] | None:
     """The gains as the site's PI block takes them ([controller]), or None without a site."""
     if facts is None or facts.controller is None:
@@ -640,7 +699,7 @@ def _print_schedule(outcome: ScheduleOutcome, period_basis: str, minutes: bool =
             f"{row['gain_margin']:.2f}",
             f"{row['phase_margin_deg']:.1f}",
         )
-    console = Console()
+    console = Console(emoji=False)
     console.print(out)
     for row in data["bands"]:
         if row["operating"]:

@@ -115,7 +115,10 @@ class BandCheck:
         return all(c.stable for c in self.cases)
 
     def to_json(self) -> dict[str, Any]:
-        """The documented ``command_band_check`` JSON object."""
+        """The documented ``command_band_check`` JSON object.
+
+        ``temperature`` says what it tells of fuel temperature: nothing, the log is at one.
+        """
         return {
             "basis": "log",
             "u_range": list(self.u_range),
@@ -123,7 +126,7 @@ class BandCheck:
             "worst_overshoot_percent": self.worst_overshoot,
             "worst_gain_margin": self.worst_gain_margin,
             "all_stable": self.all_stable,
-            "temperature": "unknown: no plant file says how the loop moves with fuel temperature",
+            "temperature": "the log's own: these bands say nothing of other fuel temperatures",
             "cases": [c.to_json() for c in self.cases],
         }
 

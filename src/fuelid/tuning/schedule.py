@@ -241,6 +241,7 @@ def gain_schedule(
     y_span: float | None = None,
     u_span: float | None = None,
     cache: CaseCache | None = None,
+    operating: Anchor | None = None,
 ) -> GainSchedule:
     """Gains per fuel-temperature band, split by flow where the gain depends on the flow.
 
@@ -272,6 +273,10 @@ def gain_schedule(
         The band holding its operating point (``anchor.T_fuel``, ``anchor.u``) is designed on
         the model itself, as the headline gains are: its gains equal theirs unless the band's
         other cases need them detuned (``detune``), and it is marked ``operating``.
+    operating : Anchor, optional
+        The model and point the headline gains were designed on, when it does not anchor the
+        physics (a plant file's own reduction: the cases are then its full linearisation);
+        default ``anchor``.
     y_span, u_span : float, optional
         Measurement span [L/min] and drive span [V] of the percent-of-span gains (default: the
         plant's meter span and the command's signal range).
@@ -289,6 +294,7 @@ def gain_schedule(
         raise FuelidError(
             f"the number of flow bands must be 1 to {MAX_FLOW_BANDS}, got {flow_bands}"
         )
+    operating = anchor if operating is None else operating
     edges = band_edges(T_range[0], T_range[1], band_width)
     u_lo, u_hi = config.vfd.u_min_V, config.vfd.u_max_V
     bands: list[ScheduleBand] = []
@@ -309,10 +315,10 @@ def gain_schedule(
             )
             every_case.update(((c.T_fuel, c.u), c) for c in cases)
             holds = (
-                anchor is not None
+                operating is not None
                 and not any(band.operating for band in bands)
-                and T_low <= anchor.T_fuel <= T_high
-                and a <= anchor.u <= b
+                and T_low <= operating.T_fuel <= T_high
+                and a <= operating.u <= b
             )
             bands.append(
                 _tune_band(
@@ -323,7 +329,7 @@ def gain_schedule(
                     ms_target,
                     temps,
                     (a, b),
-                    anchor if holds else None,
+                    operating if holds else None,
                 )
             )
     return GainSchedule(

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
+from fuelid.identify.causality import lead_check
 from fuelid.identify.diagnostics import (
     CorrelationTest,
     input_residual_correlation,
@@ -52,6 +53,7 @@ from fuelid.workflow.trust import (
     Basis,
     undetermined,
     undetermined_refusal,
+    undetermined_refusal_line,
 )
 from fuelid.workflow.tune import (
     TuneOutcome,
@@ -219,6 +221,7 @@ class LogAnalysis:
                 "--fuel-temp was not given"
             )
         found.extend(f"signal check overridden: {f}" for f in self.signal_check)
+        found.extend(f"figures disagree: {d}" for d in self.outcome.disagreements())
         chosen = self.identifications[self.settings.tune_from]
         if chosen.extra.get("structure", {}).get("conditional"):
             found.append(
@@ -285,9 +288,16 @@ class LogAnalysis:
             "tuned_from": self.settings.tune_from,
             "tuning": self.tuning.to_json()
             | {
-                "structure_spread": self.outcome.structure_spread(),
-                "control_period_basis": self.settings.control_period_basis,
-                "spans": self.outcome.spans.to_json(),
+                key: value
+                for key, value in self.outcome.to_json().items()
+                if key
+                in (
+                    "structure_spread",
+                    "control_period_basis",
+                    "spans",
+                    "misfit_Ms",
+                    "disagreements",
+                )
             },
             "temperature_check": None if self.check is None else self.check.to_json(cases=False),
             "command_band_check": None
@@ -349,6 +359,9 @@ def _analyse(
     point = OperatingPoint.of(data, settings.T_fuel)
     T_fuel = T_REF if point.T_fuel is None else point.T_fuel
     findings = check_signals(data, plant)
+    # a flow that moves before its command first: the signal check's unit remedies would mislead
+    if lead_check(data.u, data.y, data.sample_time, segment_starts=data.segment_starts).leads:
+        raise FuelidError(LEADING_RESPONSE)
     if findings and not settings.accept_signals:
         _refuse_signals(findings)
     announce(progress, IDENTIFICATION)
@@ -382,9 +395,9 @@ def _analyse(
     check_gain_identified(chosen.model.K, chosen.stderr.get("K"), f"{settings.tune_from} fit")
     loose = undetermined(chosen.model.to_json(), _intervals(chosen), chosen.fixed)
     if (chosen.diagnostics.get("lead") or {}).get("leads"):
-        loose.insert(0, LEADING_RESPONSE)
+        raise FuelidError(LEADING_RESPONSE)
     if loose and not settings.accept_undetermined:
-        raise FuelidError(undetermined_refusal(loose, f"the {settings.tune_from} model"))
+        raise FuelidError(undetermined_refusal_line(loose, f"the {settings.tune_from} model"))
     mismatch = check_gain_against_plant(chosen.model, plant, point, T_fuel)
     if mismatch is not None:
         findings.append(mismatch)

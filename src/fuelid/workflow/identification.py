@@ -134,6 +134,9 @@ class IdentifyOutcome:
     @property
     def warnings(self) -> list[str]:
         """What the user should know about the fit and the signals (also inside the JSON)."""
+        if (self.result.diagnostics.get("lead") or {}).get("leads"):
+            # the flow moving before its command comes first: a unit remedy would mislead
+            return [*self.result.warnings, *self.signal_check]
         return [*self.signal_check, *self.result.warnings]
 
     def to_json(self) -> dict[str, Any]:

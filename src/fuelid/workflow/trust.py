@@ -99,6 +99,25 @@ def control_period_from(
     raise FuelidError(NO_CONTROL_PERIOD)
 
 
+def overridden(facts: dict[str, float | None], unit: str, kept: Fact) -> list[str]:
+    """A note for each other source that gave a different value than the one ``kept``.
+
+    ``facts`` maps a basis to the value it gives (None: gives none). Settled silently, a site
+    file's 0.5 s over the model file's recorded 0.2 s would hide a mistake in one of them.
+
+    Examples
+    --------
+    >>> overridden({"option": None, "site file": 0.5, "model file": 0.2}, "s",
+    ...            Fact(0.5, "site file"))
+    ['the model file gives 0.2 s, not the site file's 0.5 s used']
+    """
+    return [
+        f"the {basis} gives {value:g} {unit}, not the {kept.basis}'s {kept.value:g} {unit} used"
+        for basis, value in facts.items()
+        if value is not None and basis != kept.basis and not math.isclose(value, kept.value)
+    ]
+
+
 @dataclass(frozen=True)
 class Spans:
     """The spans that turn V per L/min into %/%, or why there are none."""
@@ -223,16 +242,21 @@ def undetermined(
 
 
 LEADING_RESPONSE = (
-    "the flow moves before its command (diagnostics.lead): a reversed clock or swapped "
-    "input and output columns"
+    "the flow moves before its command (diagnostics.lead): a reversed clock or swapped input "
+    "and output columns; no model or gains from this log: check the time column and which "
+    "column is the command (--input-col) and which the flow (--output-col)"
 )
-"""Why a model from a log whose response leads its cause is no model of the loop."""
+"""Why a log whose response leads its cause gives no model of the loop (never overridden)."""
 
 
 def undetermined_refusal(found: list[str], what: str) -> str:
     """The one-line refusal (or, accepted, the warning) for an undetermined model."""
     return (
         f"{what} is not determined by its data: {'; '.join(found)}; gains from it would be a "
-        "guess: give a log with larger or more command steps, or fix a prior "
-        "(--accept-undetermined to tune anyway)"
+        "guess: give a log with larger or more command steps, or fix a prior"
     )
+
+
+def undetermined_refusal_line(found: list[str], what: str) -> str:
+    """The refusal with its way out, as a one-line error."""
+    return undetermined_refusal(found, what) + " (--accept-undetermined to tune anyway)"

@@ -34,6 +34,7 @@ from fuelid.tuning.closedloop import ClosedLoopResult, flow_at, standard_runs
 from fuelid.tuning.frequency import (
     Robustness,
     RobustPeak,
+    StateSpacePlant,
     TransferFunctionPlant,
     robust_peak,
     robustness,
@@ -219,9 +220,33 @@ def calibration_notices(plant: PlantSource, request: TuneRequest) -> list[str]:
     return notices
 
 
+PLANT_MODEL_AGREEMENT = 0.15
+"""Relative gap between the plant file's K and the model's above which the outputs say the plant
+file describes another loop (its runs and trend then are not this loop's)."""
+
 OVERSHOOT_AGREEMENT = 5.0
 """Percentage points between the nonlinear run's overshoot and the linear prediction above which
 the outputs say the two disagree and which to believe (issue 37)."""
+
+
+def detuned_for(
+    plant: StateSpacePlant | ProcessModel, pi: PISettings, ms_target: float
+) -> PISettings | None:
+    """``pi`` with Kc lowered (Ti kept) until its Ms on ``plant`` is ``ms_target``.
+
+    Bisection on the factor, to 0.1 %; None when even a factor of 0.05 does not reach it.
+    """
+    if robustness(plant, pi.with_gain_factor(0.05)).Ms > ms_target:
+        return None
+    low, high = 0.05, 1.0
+    while high - low > 1e-3:
+        middle = 0.5 * (low + high)
+        r = robustness(plant, pi.with_gain_factor(middle))
+        if r.stable and r.Ms <= ms_target:
+            low = middle
+        else:
+            high = middle
+    return pi.with_gain_factor(low)
 
 
 def _is_the_plant_files(
@@ -356,6 +381,12 @@ class TuneOutcome:
     headline reports first."""
     full_order_step: LinearResponse | None = None
     """The linear closed loop's steps on the full-order model."""
+    full_order_detuned: PISettings | None = None
+    """The gains with Kc lowered until Ms on the full-order model meets ``request.ms_target``,
+    when the rule's do not (None otherwise)."""
+    plant_gain: float | None = None
+    """The user's plant file's static gain at the model's command and fuel temperature
+    [(L/min)/V]; None without a plant file."""
     misfit_peak: RobustPeak | None = None
     """The worst Ms over the model error the log shows (``request.misfit``), where it bounds it."""
     runs: list[ClosedLoopResult] = field(default_factory=list)
@@ -409,11 +440,28 @@ class TuneOutcome:
                 "or a log with faster command changes"
             )
         if self.full_order is not None and self.full_order.Ms > 1.1 * reduced:
+            detuned = self.full_order_detuned
             found.append(
                 f"on the full-order linear_model these gains give Ms {self.full_order.Ms:.2f}, "
                 f"not the reduction's {reduced:.2f}: the reduction misses dynamics that matter; "
                 "believe the full-order figure (it is the one printed)"
+                + (
+                    ""
+                    if detuned is None
+                    else f"; for Ms ≤ {self.request.ms_target:g} on it: Kc = {detuned.Kc:.4g} "
+                    f"V/(L/min), Ti = {detuned.Ti:.4g} s"
+                )
             )
+        if self.plant_gain is not None:
+            ratio = self.tuning.model.K / self.plant_gain
+            if abs(ratio - 1.0) > PLANT_MODEL_AGREEMENT:
+                found.append(
+                    f"your plant file's K at the model's operating point is "
+                    f"{self.plant_gain:.4g} (L/min)/V, the model's {self.tuning.model.K:.4g} "
+                    f"({ratio:.2f}×): the plant file describes another loop, so its nonlinear "
+                    "runs and its trend over temperature are not this loop's; calibrate it to "
+                    "your logs (fuelid calibrate) before trusting them"
+                )
         for run in self.runs:
             predicted = self._predicted_overshoot(run.T_fuel)
             actual = run.summary()["overshoot_percent"]
@@ -423,8 +471,14 @@ class TuneOutcome:
                 found.append(
                     f"the nonlinear plant overshoots {actual:.1f} % at "
                     f"{kelvin_to_celsius(run.T_fuel):g} °C, the linear prediction "
-                    f"{predicted:.1f} %: believe the nonlinear run (your plant file's "
-                    "nonlinearity and limits, which the linear figures leave out)"
+                    f"{predicted:.1f} %: believe the larger, "
+                    + (
+                        "the nonlinear run's (your plant file's nonlinearity and limits, which "
+                        "the linear figures leave out)"
+                        if actual > predicted
+                        else "the linear prediction's (the run starts from rest at one flow and "
+                        "its limits can hold the command back; the loop need not)"
+                    )
                 )
         return found
 
@@ -483,6 +537,9 @@ class TuneOutcome:
             if self.full_order is None
             else self.full_order.to_json()
             | {
+                "detuned": None
+                if self.full_order_detuned is None
+                else {"Kc": self.full_order_detuned.Kc, "Ti": self.full_order_detuned.Ti},
                 "basis": "model file (linear_model)",
                 "setpoint_step": None
                 if self.full_order_step is None
@@ -586,12 +643,17 @@ def _tune_model(
             u,
             cache,
         )
-    full_order = full_order_step = None
+    full_order = full_order_step = full_order_detuned = None
     if request.full_order is not None:
         full_order = robustness(request.full_order, tuning.pi)
         full_order_step = full_order_closed_loop(
             request.full_order, tuning.pi, step_duration(model, tuning.pi)
         )
+        if full_order.Ms > request.ms_target:
+            full_order_detuned = detuned_for(request.full_order, tuning.pi, request.ms_target)
+    plant_gain = None
+    if check is not None:
+        plant_gain = float(plant_cases(config, (request.T_fuel,), (u,), None, cache)[0].model.K)
     misfit = request.misfit
     misfit_peak = (
         None if misfit is None else robust_peak(model, tuning.pi, misfit.at, misfit.excited_up_to)
@@ -636,6 +698,8 @@ def _tune_model(
         bands=bands,
         full_order=full_order,
         full_order_step=full_order_step,
+        full_order_detuned=full_order_detuned,
+        plant_gain=plant_gain,
         misfit_peak=misfit_peak,
         runs=runs,
         sweep=sweep,
@@ -652,12 +716,25 @@ class ScheduleOutcome:
     u: float
     """The operating command the anchoring model describes [V] (``request.u`` or mid-range)."""
     schedule: GainSchedule
+    plant: PlantSource | None = None
+    """The user's plant file the schedule rests on."""
+    anchored: bool = True
+    """Whether the model anchors the physics (False for physics alone, or a plant file's own
+    reduction, whose full linearisation the bands are checked on)."""
 
     def to_json(self) -> dict[str, Any]:
         """The documented JSON of ``fuelid tune --schedule --json`` (without provenance)."""
         model = self.request.model
+        spans = self.request.spans(self.plant) if self.plant is not None else None
         return self.schedule.to_json() | {
-            "anchored_to_model": None if model is None else model.to_json(),
+            "anchored_to_model": None if model is None or not self.anchored else model.to_json(),
+            "control_period_basis": self.request.control_period_basis,
+            "provenance": {
+                "bands": "plant file",
+                "control_period": self.request.control_period_basis,
+                "percent_of_span": None if spans is None else spans.basis,
+                "anchored_to_model": None if model is None or not self.anchored else "model",
+            },
             "units": UNITS,
         }
 
@@ -683,6 +760,10 @@ def schedule_gains(
     config, h = source.config, request.period()
     u = operating_command(config, request.u, clip=request.clip_u)
     anchor = None if request.model is None else Anchor(request.model, request.T_fuel, u)
+    operating = anchor
+    own = request.model is not None and request.full_order is not None
+    if own and _is_the_plant_files(config, request.model, request, u):  # type: ignore[arg-type]
+        anchor = None  # the plant file's own reduction: the cases are its linearisation
     spans = request.spans(source)
     announce(progress, SCHEDULE)
     with single_threaded_blas():
@@ -696,11 +777,14 @@ def schedule_gains(
             ms_target=request.ms_target,
             flow_bands=request.flow_bands,
             anchor=anchor,
+            operating=operating,
             y_span=None if spans.y_span is None else spans.y_span.value,
             u_span=None if spans.u_span is None else spans.u_span.value,
             cache=cache,
         )
-    return ScheduleOutcome(request=request, u=u, schedule=schedule)
+    return ScheduleOutcome(
+        request=request, u=u, schedule=schedule, plant=source, anchored=anchor is not None
+    )
 
 
 NO_SCHEDULE_WITHOUT_PLANT = (
