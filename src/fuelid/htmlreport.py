@@ -347,6 +347,7 @@ def _context(
             "span_Kc": None if span is None else _fmt(span["Kc"], ".4g"),
             "span_Ti_min": None if span is None else _fmt(span["Ti_min"], ".4g"),
             "span_note": analysis.span_note,
+            "block": _block_row(analysis),
             "discrete": None
             if plc["discrete"] is None
             else {
@@ -473,6 +474,24 @@ def write_report(
     html = render_report(analysis, figures, source_sha256)
     written.insert(0, atomic_write_bytes(out, html.encode("utf-8")))
     return written
+
+
+def _block_row(analysis: LogAnalysis) -> dict[str, str] | None:
+    """The gains as the site file's PI block takes them (form, units), or None without one."""
+    block = analysis.settings.block
+    if block is None:
+        return None
+    from fuelid.tuning.block import block_units
+
+    kc, ti = analysis.tuning.pi.to_block(block)
+    units = block_units(block)
+    return {
+        "form": block.form,
+        "kc": _fmt(kc, ".5g"),
+        "integral": "Ki" if block.form == "parallel" else "Ti",
+        "ti": _fmt(ti, ".5g"),
+        "units": f"{units['Kc']}, {units['Ti']}",
+    }
 
 
 def _describe_model(model: ProcessModel) -> str:

@@ -176,6 +176,7 @@ def report_command(
     from fuelid.htmlreport import check_report_path, write_report
     from fuelid.identify.procedure import IdentifyOptions
     from fuelid.plant import load_plant_config
+    from fuelid.tuning.block import BlockForm
     from fuelid.workflow import AnalysisSettings, PlantSource, analyse_log
     from fuelid.workflow.trust import control_period_from
 
@@ -197,6 +198,7 @@ def report_command(
         control_period_basis=period.basis,
         accept_undetermined=accept_undetermined,
         site_spans=(None, None) if facts is None else facts.spans,
+        block=None if facts is None or facts.controller is None else BlockForm.of(facts.controller),
         T_fuel=None if fuel_temp is None else T_fuel,
         identify=IdentifyOptions(
             order=parse_order(order),

@@ -351,8 +351,7 @@ def tune_command(
         if as_json:
             emit_json(table.to_json() | extra | provenance(options, model_file))
         else:
-            minutes = facts is not None and getattr(facts.controller, "integral_unit", "") == "min"
-            _print_schedule(table, period.basis, minutes)
+            _print_schedule(table, period.basis, facts)
         return
     with progress_display() as stage:
         outcome = tune_model(plant, request, progress=stage)
@@ -653,16 +652,20 @@ def _block_row(outcome: TuneOutcome, facts: SiteFacts | None) -> tuple[str, str,
     )
 
 
-def _print_schedule(outcome: ScheduleOutcome, period_basis: str, minutes: bool = False) -> None:
+def _print_schedule(outcome: ScheduleOutcome, period_basis: str, facts: SiteFacts | None) -> None:
     """The schedule table, on the user's plant file (``period_basis``: where h came from).
 
-    ``minutes``: the block's integral unit is minutes (the site file's ``[controller]``), so Ti
-    is printed in minutes. The band holding the model's operating point is marked ``*``; each
-    band's design point (the case its gains were tuned on) is printed below the table.
+    With a site file's ``[controller]`` the gains are printed as the block takes them (its form
+    and units: Ki for a parallel block, minutes where it counts in minutes); otherwise in
+    V per L/min, %/% where the spans are known, and Ti in s. The band holding the model's
+    operating point is marked ``*``; each band's design point is said below the table.
     """
     from rich import box
     from rich.console import Console
     from rich.table import Table
+
+    from fuelid.tuning.block import BlockForm, block_units
+    from fuelid.tuning.rules import PISettings
 
     data: dict[str, Any] = outcome.to_json()
     anchored = data["anchored_to_model"] is not None
@@ -673,28 +676,30 @@ def _print_schedule(outcome: ScheduleOutcome, period_basis: str, minutes: bool =
         box=box.SIMPLE_HEAD,  # nine columns: light rules keep them within 80 characters
         collapse_padding=True,
     )
-    ti_unit = "min" if minutes else "s"
-    columns = (
-        "fuel °C",
-        "u V",
-        "flow L/min",
-        "Kc V/(L/min)",
-        "Kc %/%",
-        f"Ti {ti_unit}",
-        "Ms",
-        "GM",
-        "PM °",
-    )
+    block = None if facts is None or facts.controller is None else BlockForm.of(facts.controller)
+    if block is None:
+        gain_columns: tuple[str, str] = ("Kc %/%", "Ti s")
+    else:
+        units = block_units(block)
+        integral = "Ki" if block.form == "parallel" else "Ti"
+        gain_columns = (f"Kc {units['Kc']}", f"{integral} {units['Ti']}")
+    columns = ("fuel °C", "u V", "flow L/min", "Kc V/(L/min)", *gain_columns, "Ms", "GM", "PM °")
     for column in columns:
         out.add_column(column, justify="right")
     for row in data["bands"]:
+        if block is None:
+            percent = row["Kc_percent_of_span"]
+            gains = ("—" if percent is None else f"{percent:.4g}", f"{row['Ti']:.3g}")
+        else:
+            pi = PISettings("schedule", row["Kc"], row["Ti"], data["control_period"])
+            kc, ti = pi.to_block(block)
+            gains = (f"{kc:.4g}", f"{ti:.4g}")
         out.add_row(
             ("* " if row["operating"] else "") + f"{row['t_low']:g}…{row['t_high']:g}",
             f"{row['u_low']:.2f}…{row['u_high']:.2f}",
             f"{row['flow_low']:.1f}…{row['flow_high']:.1f}",
             f"{row['Kc']:.4g}",
-            "—" if row["Kc_percent_of_span"] is None else f"{row['Kc_percent_of_span']:.4g}",
-            f"{row['Ti_min']:.3g}" if minutes else f"{row['Ti']:.3g}",
+            *gains,
             f"{row['Ms']:.2f}",
             f"{row['gain_margin']:.2f}",
             f"{row['phase_margin_deg']:.1f}",
@@ -716,6 +721,11 @@ def _print_schedule(outcome: ScheduleOutcome, period_basis: str, minutes: bool =
                 highlight=False,
             )
     others = [row for row in data["bands"] if not row["operating"]]
+    if block is not None:
+        console.print(
+            f"gains as your block takes them ({block.form}, site file); Kc V/(L/min) for reference",
+            highlight=False,
+        )
     corner = all(
         math.isclose(row["design_fuel_temperature"], row["t_low"], abs_tol=1e-9)
         and math.isclose(row["design_u"], row["u_low"], abs_tol=1e-9)

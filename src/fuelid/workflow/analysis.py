@@ -30,6 +30,7 @@ from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, ide
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, check_gain_identified
 from fuelid.tuning.bands import CommandBand
+from fuelid.tuning.block import BlockForm
 from fuelid.tuning.cases import DEFAULT_T_RANGE, CaseCache, FixedPIEvaluation
 from fuelid.tuning.closedloop import ClosedLoopResult
 from fuelid.tuning.frequency import frequency_grid, loop_function, robustness
@@ -115,6 +116,8 @@ class AnalysisSettings:
     """Drive signal span of the %/% gains [V]; None: as ``y_span``."""
     site_spans: tuple[float | None, float | None] = (None, None)
     """The site file's ``[controller]`` spans (u_span_V [V], y_span_Lpm [L/min])."""
+    block: BlockForm | None = None
+    """The site file's PI block (``[controller]``): the page gives the gains in its form too."""
 
     def __post_init__(self) -> None:
         if self.tune_from not in (*METHODS, "pem"):
