@@ -500,7 +500,11 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
     data = outcome.to_json()
     plc, h = data["plc"], data["control_period"]
     console = Console(emoji=False)
-    period = f"h = {h:g} s ({data['control_period_basis']})" if h > 0 else "continuous"
+    period = (
+        f"h = {h:g} s ({data['control_period_basis']})"
+        if h > 0
+        else f"continuous ({data['control_period_basis']})"
+    )
     gains = Table(title=f"{data['rule']} PI for {outcome.tuning.model.describe()}, {period}")
     for column in ("form", "gain", "integral", "unit"):
         gains.add_column(column)

@@ -552,6 +552,7 @@ class TuneOutcome:
             "closed_loop_plant": [r.to_json(events=True) for r in self.runs] or None,
             "sweep": None if self.sweep is None else self.sweep.summary(),
             "provenance": self.provenance(),
+            "warnings": self.warnings,
             "units": UNITS,
         }
 
