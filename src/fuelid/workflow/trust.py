@@ -109,7 +109,7 @@ def overridden(facts: dict[str, float | None], unit: str, kept: Fact) -> list[st
     --------
     >>> overridden({"option": None, "site file": 0.5, "model file": 0.2}, "s",
     ...            Fact(0.5, "site file"))
-    ['the model file gives 0.2 s, not the site file's 0.5 s used']
+    ["the model file gives 0.2 s, not the site file's 0.5 s used"]
     """
     return [
         f"the {basis} gives {value:g} {unit}, not the {kept.basis}'s {kept.value:g} {unit} used"
