@@ -76,3 +76,20 @@ def test_a_log_that_does_not_reach_the_crossover_bounds_nothing():
     peak = robust_peak(NOMINAL, pi, bound.at, bound.excited_up_to)
     assert peak.up_to < robustness(NOMINAL, pi).crossover_frequency
     assert peak.Ms == np.inf
+
+
+def test_the_overshoot_with_the_misfit_is_the_loops():
+    # the step on the model with the estimated error: the loop's own step at the instants,
+    # within 10 % or 1 point (the estimate's bias, a few % of Δ); the model alone is far off
+    from fuelid.tuning.linearloop import linear_closed_loop, misfit_overshoot
+
+    u, y = _log()
+    bound = misfit_bound(u, y - simulate_model(NOMINAL, u, H), H, NOMINAL)
+    assert bound is not None
+    pi = tune(NOMINAL, "simc", 0.1)
+    true = linear_closed_loop(TRUTH, pi, oversample=1).setpoint.overshoot_percent
+    nominal = linear_closed_loop(NOMINAL, pi, oversample=1).setpoint.overshoot_percent
+    with_misfit = misfit_overshoot(NOMINAL, pi, bound.at, bound.excited_up_to)
+    assert with_misfit is not None
+    assert abs(with_misfit - true) <= max(0.1 * true, 1.0)
+    assert abs(nominal - true) > 5.0

@@ -564,7 +564,12 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
     if misfit is not None:
         console.print(
             f"allowing for the misfit the log shows (up to {misfit['up_to']:.3g} rad/s, 95 %): "
-            + ("Ms not bounded" if misfit["Ms"] is None else f"Ms ≤ {misfit['Ms']:.2f}"),
+            + ("Ms not bounded" if misfit["Ms"] is None else f"Ms ≤ {misfit['Ms']:.2f}")
+            + (
+                ""
+                if misfit["overshoot_percent"] is None
+                else f"; setpoint overshoot {misfit['overshoot_percent']:.1f} % with the misfit"
+            ),
             highlight=False,
         )
     check = data["temperature_check"]

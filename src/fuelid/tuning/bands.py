@@ -18,7 +18,7 @@ from typing import Any
 
 from fuelid.model import ProcessModel
 from fuelid.tuning.frequency import robustness
-from fuelid.tuning.linearloop import linear_closed_loop
+from fuelid.tuning.linearloop import MisfitFunction, linear_closed_loop, misfit_overshoot
 from fuelid.tuning.rules import PISettings
 
 Z95 = 1.959963984540054
@@ -132,9 +132,17 @@ class BandCheck:
 
 
 def band_check(
-    pi: PISettings, model: ProcessModel, bands: Iterable[CommandBand]
+    pi: PISettings,
+    model: ProcessModel,
+    bands: Iterable[CommandBand],
+    misfit: tuple[MisfitFunction, float] | None = None,
 ) -> BandCheck | None:
     """``pi`` on ``model`` with K at each band's 95 % interval ends; None without a band.
+
+    With ``misfit`` (the model's error the log shows and the frequency up to which it holds),
+    each case's overshoot is the larger of the model's and that of the model with the misfit
+    (:func:`~fuelid.tuning.linearloop.misfit_overshoot`): the dynamics the model leaves out
+    shape the overshoot as much as the gain does.
 
     Examples
     --------
@@ -146,6 +154,7 @@ def band_check(
     ...                    [CommandBand(1.0, 2.0, 1.0, None), CommandBand(2.0, 3.0, 1.2, None)])
     >>> round(check.cases[0].Ms, 2), check.worst_Ms > check.cases[0].Ms
     (1.59, True)
+
     """
     cases = []
     for band in bands:
@@ -155,6 +164,10 @@ def band_check(
             variant = replace(model, K=K)
             r = robustness(variant, pi)
             step = linear_closed_loop(variant, pi)
+            overshoot = step.setpoint.overshoot_percent
+            if misfit is not None and r.stable:
+                with_misfit = misfit_overshoot(model, pi, misfit[0], misfit[1], K / model.K)
+                overshoot = max(overshoot, with_misfit if with_misfit is not None else 0.0)
             cases.append(
                 BandCase(
                     band=band,
@@ -162,7 +175,7 @@ def band_check(
                     Ms=r.Ms,
                     gain_margin=r.gain_margin,
                     phase_margin_deg=r.phase_margin_deg,
-                    overshoot_percent=step.setpoint.overshoot_percent if r.stable else math.inf,
+                    overshoot_percent=overshoot if r.stable else math.inf,
                     stable=r.stable,
                 )
             )

@@ -40,7 +40,12 @@ from fuelid.tuning.frequency import (
     robustness,
 )
 from fuelid.tuning.limits import check_control_period, check_sweep_size, check_tunable
-from fuelid.tuning.linearloop import LinearResponse, full_order_closed_loop, step_duration
+from fuelid.tuning.linearloop import (
+    LinearResponse,
+    full_order_closed_loop,
+    misfit_overshoot,
+    step_duration,
+)
 from fuelid.tuning.result import UNITS, TuningResult, evaluate_tuning
 from fuelid.tuning.rules import PISettings
 from fuelid.tuning.schedule import GainSchedule, band_edges, gain_schedule
@@ -389,6 +394,8 @@ class TuneOutcome:
     [(L/min)/V]; None without a plant file."""
     misfit_peak: RobustPeak | None = None
     """The worst Ms over the model error the log shows (``request.misfit``), where it bounds it."""
+    misfit_step: float | None = None
+    """The setpoint overshoot of the model with that error [%] (a sampled PI only)."""
     runs: list[ClosedLoopResult] = field(default_factory=list)
     """The standard test on the nonlinear plant at the coldest and the warmest fuel."""
     sweep: SweepResult | None = None
@@ -547,7 +554,11 @@ class TuneOutcome:
             },
             "misfit_Ms": None
             if self.misfit_peak is None
-            else self.misfit_peak.to_json() | {"basis": "log"},
+            else {
+                **self.misfit_peak.to_json(),
+                "overshoot_percent": self.misfit_step,
+                "basis": "log",
+            },
             "disagreements": self.disagreements(),
             "closed_loop_plant": [r.to_json(events=True) for r in self.runs] or None,
             "sweep": None if self.sweep is None else self.sweep.summary(),
@@ -656,10 +667,12 @@ def _tune_model(
     if check is not None:
         plant_gain = float(plant_cases(config, (request.T_fuel,), (u,), None, cache)[0].model.K)
     misfit = request.misfit
-    misfit_peak = (
-        None if misfit is None else robust_peak(model, tuning.pi, misfit.at, misfit.excited_up_to)
-    )
-    bands = band_check(tuning.pi, model, request.command_bands)
+    misfit_peak = misfit_step = None
+    if misfit is not None:
+        misfit_peak = robust_peak(model, tuning.pi, misfit.at, misfit.excited_up_to)
+        misfit_step = misfit_overshoot(model, tuning.pi, misfit.at, misfit.excited_up_to)
+    misfit_fn = None if misfit is None else (misfit.at, misfit.excited_up_to)
+    bands = band_check(tuning.pi, model, request.command_bands, misfit_fn)
     runs = []
     if request.simulate:
         announce(progress, RUNS)
@@ -702,6 +715,7 @@ def _tune_model(
         full_order_detuned=full_order_detuned,
         plant_gain=plant_gain,
         misfit_peak=misfit_peak,
+        misfit_step=misfit_step,
         runs=runs,
         sweep=sweep,
         structures=structures,
