@@ -141,14 +141,21 @@ def linear_closed_loop(
     t = np.arange(n * m, dtype=np.float64) * (h / m)
     y_r = model.K * fine.response(np.repeat(u_r, m))
     y_d = model.K * fine.response(np.repeat(u_d, m) + 1.0)
+    return _response(t, np.repeat(u_r, m), y_r, y_d, abs(model.K))
+
+
+def _response(
+    t: FloatArray, command: FloatArray, y_r: FloatArray, y_d: FloatArray, gain: float
+) -> LinearResponse:
+    """The steps with their metrics; ``gain`` the plant's static gain [output per input unit]."""
     return LinearResponse(
         time=t,
         setpoint_response=y_r,
-        setpoint_command=np.repeat(u_r, m),
+        setpoint_command=command,
         disturbance_response=y_d,
         setpoint=setpoint_step_metrics(t, y_r, 0.0, 1.0),
         # recovered: within 2 % of what the unit load would do to the output without control
-        disturbance=disturbance_metrics(t, y_d, 0.0, 1.0, band=SETTLING_BAND * abs(model.K)),
+        disturbance=disturbance_metrics(t, y_d, 0.0, 1.0, band=SETTLING_BAND * gain),
     )
 
 
@@ -191,15 +198,7 @@ def full_order_closed_loop(
     t = np.arange(n * m, dtype=np.float64) * (h / m)
     y_r = scipy.signal.lfilter(fine_n, fine_d, np.repeat(u_r, m))
     y_d = scipy.signal.lfilter(fine_n, fine_d, np.repeat(u_d, m) + 1.0)
-    gain = abs(float(np.sum(gn) / np.sum(gd)))
-    return LinearResponse(
-        time=t,
-        setpoint_response=y_r,
-        setpoint_command=np.repeat(u_r, m),
-        disturbance_response=y_d,
-        setpoint=setpoint_step_metrics(t, y_r, 0.0, 1.0),
-        disturbance=disturbance_metrics(t, y_d, 0.0, 1.0, band=SETTLING_BAND * gain),
-    )
+    return _response(t, np.repeat(u_r, m), y_r, y_d, abs(float(np.sum(gn) / np.sum(gd))))
 
 
 MisfitFunction = Callable[[FloatArray], tuple[NDArray[np.complex128], FloatArray]]

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 from fuelid.errors import FuelidError
 
@@ -37,14 +37,7 @@ Basis = Literal[
 ]
 """Where a figure comes from: the user's facts, or the built-in reference plant."""
 
-USERS_FACTS: tuple[Basis, ...] = (
-    "identified model",
-    "model file",
-    "plant file",
-    "log",
-    "option",
-    "site file",
-)
+USERS_FACTS: tuple[Basis, ...] = tuple(b for b in get_args(Basis) if b != "reference plant")
 """The bases a figure about the user's loop may rest on (all but the reference plant)."""
 
 
