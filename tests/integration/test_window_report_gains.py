@@ -198,6 +198,7 @@ def _notices(page: str) -> list[str]:
     return [html.unescape(item) for item in re.findall(r"<li>(.*?)</li>", box.group(1), re.DOTALL)]
 
 
+@pytest.mark.slow  # a window's whole report (identify, tune, six figures): 5 s, the slow set
 def test_the_window_report_names_the_proposal_from_its_window(loop: SQLiteLoop) -> None:
     proposals = [p for p in loop.history()["proposals"] if p.get("model_id") is not None]
     assert proposals, "the virtual run filed no proposal"
