@@ -12,7 +12,7 @@ DEMO_DIR ?= demo-output
 help:
 	@echo "make demo   - install if needed, run the reference-plant demo (writes $(DEMO_DIR)/)"
 	@echo "make plc-demo - the virtual PLC over Modbus: record, export, identify (writes $(DEMO_DIR)/plc/)"
-	@echo "make test   - install if needed, run ruff, mypy and the fast pytest suite (about 4 min)"
+	@echo "make test   - install if needed, run ruff, mypy and the fast pytest suite (about 6 min)"
 	@echo "make test-slow - the long fault runs and a 3 h soak (CI runs them after make test)"
 	@echo "make soak   - the 24 h soak against the virtual PLC (on demand, about 30 min, prints its table)"
 	@echo "make bench  - run the benchmarks (on demand; prints tables, writes docs/benchmarks/)"
