@@ -19,7 +19,7 @@ the names are importable from here as well.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -232,6 +232,161 @@ def _identify_auto(
     return pem
 
 
+@dataclass(frozen=True)
+class _Fit:
+    """One estimator fitted: the record it worked on, its covariance and its JSON extras."""
+
+    estimator: StepResponseLS | OutputError | PredictionError
+    work: IOData
+    """The record the estimator saw (decimated for step-ls)."""
+    fit_data: IOData
+    n_fit: int
+    """Samples of ``work`` fitted on (the rest is held out)."""
+    cov_names: tuple[str, ...]
+    cov: Any
+    extra: dict[str, Any]
+    delay: float | None
+    """The dead time the fit took (step-ls assumes 0 without one)."""
+
+
+def _fit_step_ls(
+    data: IOData, options: IdentifyOptions, T_f: float, delay: float | None, warnings: list[str]
+) -> _Fit:
+    work = _decimated(data, options.control_period)
+    if delay is None:
+        warnings.append(
+            "step-ls needs the dead time as prior knowledge: none given (--flowmeter-delay or "
+            "--delay SECONDS), assumed 0"
+        )
+        delay = 0.0
+    fit_data, n_fit = _split(work, options.validate_split)
+    ls = StepResponseLS(N=options.N, T_f=T_f, delay=delay, settling_time=options.settling_time).fit(
+        fit_data
+    )
+    cov = np.diag([ls.K_stderr_**2, ls.T_stderr_**2])
+    cov[0, 1] = cov[1, 0] = np.nan  # the two-stage method gives no joint covariance
+    # what decimation did is information, not a warning; the loader's notes stay warnings
+    preprocessing = [n for n in work.notes if n not in data.notes]
+    # a segment the decimation had to leave out is a warning, not just information
+    warnings.extend(n for n in preprocessing if n.startswith("segments left out"))
+    warnings.extend(w for w in ls.warnings_ if w not in preprocessing)
+    extra: dict[str, Any] = {
+        "covariance": "white",
+        "N": ls.N_,
+        "step_coefficients": ls.a_.tolist(),
+        "preprocessing": preprocessing,
+    }
+    return _Fit(ls, work, fit_data, n_fit, ("K", "T"), cov, extra, delay)
+
+
+def _fit_pem(
+    data: IOData, options: IdentifyOptions, T_f: float, delay: float | None, warnings: list[str]
+) -> _Fit:
+    fit_data, n_fit = _split(data, options.validate_split)
+    pem = PredictionError(order=options.order, delay=delay, T_f=T_f, u_before=options.u_before).fit(
+        fit_data
+    )
+    warnings.extend(pem.warnings_)
+    extra = {
+        "covariance": "noise-model",
+        "noise_model": pem.noise_model_,
+        "one_step_fit_percent": pem.one_step_fit_percent_,
+        "aic": {str(k): v for k, v in pem.aic_.items()},
+        "bic": {str(k): v for k, v in pem.bic_.items()},
+        "structure": pem.order_choice_.to_json(),
+        "noise_std": pem.noise_model_["sigma_v"],
+        "innovation_std": pem.sigma_,
+    }
+    return _Fit(pem, data, fit_data, n_fit, pem.param_names_, pem.cov_, extra, delay)
+
+
+def _fit_oe(
+    data: IOData, options: IdentifyOptions, T_f: float, delay: float | None, warnings: list[str]
+) -> _Fit:
+    if options.order not in (1, 2, "auto"):
+        raise FuelidError(f"--order must be 1, 2 or auto, got {options.order!r}")
+    fit_data, n_fit = _split(data, options.validate_split)
+    oe = OutputError(
+        order=options.order,
+        delay=delay,
+        T_f=T_f,
+        u_before=options.u_before,
+        covariance=options.covariance,
+    ).fit(fit_data)
+    warnings.extend(oe.warnings_)
+    extra: dict[str, Any] = {
+        "covariance": oe.covariance_,
+        "residual_colour": oe.residual_colour_,
+        "residual_noise_model": oe.residual_ar_.to_json(),
+        "aic": {str(k): v for k, v in oe.aic_.items()},
+        "bic": {str(k): v for k, v in oe.bic_.items()},
+        "structure": oe.order_choice_.to_json(),
+        "noise_std": oe.sigma_,
+    }
+    if "T2" in oe.param_names_ and "delay" in oe.param_names_:
+        names = oe.param_names_
+        extra["correlation_T2_delay"] = float(
+            oe.correlation_[names.index("T2"), names.index("delay")]
+        )
+    return _Fit(oe, data, fit_data, n_fit, oe.param_names_, oe.cov_, extra, delay)
+
+
+_FITTERS = {"step-ls": _fit_step_ls, "pem": _fit_pem}
+"""The estimators by method; output error for any other (``oe``)."""
+
+
+def _separate_lags(
+    cov_names: tuple[str, ...], cov: Any, stderr: dict[str, float | None], warnings: list[str]
+) -> Any:
+    """The covariance with T and T2 unknown when the fit cannot tell the two lags apart."""
+    lags_merged = _lags_not_separated(cov_names, cov)
+    if lags_merged is None:
+        return cov
+    # two equal lags: only their combination is determined, and the separate intervals,
+    # however narrow, mean nothing
+    stderr["T"] = stderr["T2"] = None
+    i, j = cov_names.index("T"), cov_names.index("T2")
+    cov = np.array(cov, dtype=float)
+    cov[[i, j], :] = np.nan
+    cov[:, [i, j]] = np.nan
+    warnings.append(
+        f"T and T2 are not separately determined (correlation {lags_merged:+.4f}): no "
+        "interval for either; the model's response is, but prefer order 1 or a meter prior "
+        "(--flowmeter-T) for the parameters themselves"
+    )
+    return cov
+
+
+def _validation_fits(
+    fit: _Fit,
+    y_model: FloatArray,
+    validation: IOData | None,
+    options: IdentifyOptions,
+    warnings: list[str],
+) -> tuple[float | None, str | None]:
+    """(validation fit [%], how the validation was simulated) on the held-out part or file."""
+    work, n_fit = fit.work, fit.n_fit
+    validation_fit: float | None = None
+    validation_initial: str | None = None
+    if n_fit < work.n_samples:
+        validation_initial = "continued"
+        reason = _no_excitation(work.u[n_fit:], "the held-out part of the record")
+        if reason:
+            warnings.append(reason)
+        else:
+            validation_fit = nrmse_fit(work.y[n_fit:], y_model[n_fit:])
+    if validation is not None:
+        if options.method == "step-ls":
+            validation = _decimated(validation, options.control_period)
+        validation_initial = options.validation_initial
+        reason = _no_excitation(validation.u, "the validation record")
+        if reason:
+            warnings.append(reason)
+        else:
+            validation_fit = fit.estimator.score(validation, initial=options.validation_initial)
+    return validation_fit, validation_initial
+
+
 def _identify(
     data: IOData, options: IdentifyOptions, validation: IOData | None, diagnose: bool = True
 ) -> IdentificationResult:
@@ -246,82 +401,8 @@ def _identify(
     if validation is not None:
         validation, dropped = drop_short_segments(validation)
         warnings.extend(f"validation record: {w}" for w in dropped)
-    estimator: StepResponseLS | OutputError | PredictionError
-    if options.method == "step-ls":
-        work = _decimated(data, options.control_period)
-        if delay is None:
-            warnings.append(
-                "step-ls needs the dead time as prior knowledge: none given (--flowmeter-delay or "
-                "--delay SECONDS), assumed 0"
-            )
-            delay = 0.0
-        fit_data, n_fit = _split(work, options.validate_split)
-        ls = StepResponseLS(
-            N=options.N, T_f=T_f, delay=delay, settling_time=options.settling_time
-        ).fit(fit_data)
-        estimator = ls
-        cov_names: tuple[str, ...] = ("K", "T")
-        cov = np.diag([ls.K_stderr_**2, ls.T_stderr_**2])
-        cov[0, 1] = cov[1, 0] = np.nan  # the two-stage method gives no joint covariance
-        # what decimation did is information, not a warning; the loader's notes stay warnings
-        preprocessing = [n for n in work.notes if n not in data.notes]
-        # a segment the decimation had to leave out is a warning, not just information
-        warnings.extend(n for n in preprocessing if n.startswith("segments left out"))
-        warnings.extend(w for w in ls.warnings_ if w not in preprocessing)
-        extra: dict[str, Any] = {
-            "covariance": "white",
-            "N": ls.N_,
-            "step_coefficients": ls.a_.tolist(),
-            "preprocessing": preprocessing,
-        }
-    elif options.method == "pem":
-        work = data
-        fit_data, n_fit = _split(work, options.validate_split)
-        pem = PredictionError(
-            order=options.order, delay=delay, T_f=T_f, u_before=options.u_before
-        ).fit(fit_data)
-        estimator = pem
-        cov_names, cov = pem.param_names_, pem.cov_
-        warnings.extend(pem.warnings_)
-        extra = {
-            "covariance": "noise-model",
-            "noise_model": pem.noise_model_,
-            "one_step_fit_percent": pem.one_step_fit_percent_,
-            "aic": {str(k): v for k, v in pem.aic_.items()},
-            "bic": {str(k): v for k, v in pem.bic_.items()},
-            "structure": pem.order_choice_.to_json(),
-            "noise_std": pem.noise_model_["sigma_v"],
-            "innovation_std": pem.sigma_,
-        }
-    else:
-        work = data
-        if options.order not in (1, 2, "auto"):
-            raise FuelidError(f"--order must be 1, 2 or auto, got {options.order!r}")
-        fit_data, n_fit = _split(work, options.validate_split)
-        oe = OutputError(
-            order=options.order,
-            delay=delay,
-            T_f=T_f,
-            u_before=options.u_before,
-            covariance=options.covariance,
-        ).fit(fit_data)
-        estimator = oe
-        cov_names, cov = oe.param_names_, oe.cov_
-        warnings.extend(oe.warnings_)
-        extra = {
-            "covariance": oe.covariance_,
-            "residual_colour": oe.residual_colour_,
-            "residual_noise_model": oe.residual_ar_.to_json(),
-            "aic": {str(k): v for k, v in oe.aic_.items()},
-            "bic": {str(k): v for k, v in oe.bic_.items()},
-            "structure": oe.order_choice_.to_json(),
-            "noise_std": oe.sigma_,
-        }
-        if "T2" in oe.param_names_ and "delay" in oe.param_names_:
-            names = oe.param_names_
-            extra["correlation_T2_delay"] = float(
-                oe.correlation_[names.index("T2"), names.index("delay")]
-            )
+    fit = _FITTERS.get(options.method, _fit_oe)(data, options, T_f, delay, warnings)
+    estimator, work, n_fit = fit.estimator, fit.work, fit.n_fit
     model = estimator.model_
     stderr = dict(estimator.stderr_)
     if isinstance(estimator, OutputError | PredictionError):
@@ -330,42 +411,11 @@ def _identify(
         note = estimator.order_choice_.conditional_note()
         if note:
             warnings.append(note)
-    lags_merged = _lags_not_separated(cov_names, cov)
-    if lags_merged is not None:
-        # two equal lags: only their combination is determined, and the separate intervals,
-        # however narrow, mean nothing
-        stderr["T"] = stderr["T2"] = None
-        i, j = cov_names.index("T"), cov_names.index("T2")
-        cov = np.array(cov, dtype=float)
-        cov[[i, j], :] = np.nan
-        cov[:, [i, j]] = np.nan
-        warnings.append(
-            f"T and T2 are not separately determined (correlation {lags_merged:+.4f}): no "
-            "interval for either; the model's response is, but prefer order 1 or a meter prior "
-            "(--flowmeter-T) for the parameters themselves"
-        )
+    cov = _separate_lags(fit.cov_names, fit.cov, stderr, warnings)
     y_model = estimator.simulate(work, initial="fitted")
-    time = work.t
-    y = work.y
-    fit_percent = nrmse_fit(y[:n_fit], y_model[:n_fit])
-    validation_fit: float | None = None
-    validation_initial: str | None = None
-    if n_fit < work.n_samples:
-        validation_initial = "continued"
-        reason = _no_excitation(work.u[n_fit:], "the held-out part of the record")
-        if reason:
-            warnings.append(reason)
-        else:
-            validation_fit = nrmse_fit(y[n_fit:], y_model[n_fit:])
-    if validation is not None:
-        if options.method == "step-ls":
-            validation = _decimated(validation, options.control_period)
-        validation_initial = options.validation_initial
-        reason = _no_excitation(validation.u, "the validation record")
-        if reason:
-            warnings.append(reason)
-        else:
-            validation_fit = estimator.score(validation, initial=options.validation_initial)
+    validation_fit, validation_initial = _validation_fits(
+        fit, y_model, validation, options, warnings
+    )
 
     def result(diag: dict[str, Any], prediction_errors: Any = None) -> IdentificationResult:
         return IdentificationResult(
@@ -374,20 +424,20 @@ def _identify(
             model=model,
             fixed=estimator.fixed_,
             stderr=stderr,
-            cov_names=cov_names,
+            cov_names=fit.cov_names,
             cov=cov,
-            fit_percent=fit_percent,
+            fit_percent=nrmse_fit(work.y[:n_fit], y_model[:n_fit]),
             validation_fit_percent=validation_fit,
             validation_initial=validation_initial,
-            n_samples=fit_data.n_samples,
+            n_samples=fit.fit_data.n_samples,
             sample_time=work.sample_time,
             warnings=list(dict.fromkeys(warnings)),
-            time=time,
-            y=y,
+            time=work.t,
+            y=work.y,
             y_hat=y_model,
-            split_time=float(time[n_fit]) if n_fit < work.n_samples else None,
+            split_time=float(work.t[n_fit]) if n_fit < work.n_samples else None,
             diagnostics=diag,
-            extra=extra,
+            extra=fit.extra,
             prediction_errors=prediction_errors,
         )
 
@@ -397,8 +447,26 @@ def _identify(
     residuals = (
         np.asarray(estimator.residuals_[:n_fit], dtype=float)
         if isinstance(estimator, PredictionError)
-        else y[:n_fit] - y_model[:n_fit]
+        else work.y[:n_fit] - y_model[:n_fit]
     )
+    diag = _diagnose(data, fit, y_model, residuals, options, warnings)
+    no_gain = gain_not_identified(model.K, stderr.get("K"))
+    if no_gain:
+        warnings.append(f"{no_gain} in this log; do not tune from it")
+    return result(diag, residuals if isinstance(estimator, PredictionError) else None)
+
+
+def _diagnose(
+    data: IOData,
+    fit: _Fit,
+    y_model: FloatArray,
+    residuals: FloatArray,
+    options: IdentifyOptions,
+    warnings: list[str],
+) -> dict[str, Any]:
+    """The diagnostics of a fit (``diagnostics`` in the JSON), their warnings added in place."""
+    work, n_fit, fit_data, model = fit.work, fit.n_fit, fit.fit_data, fit.estimator.model_
+    y = work.y
     starts = fit_data.segment_starts
     white = diagnostics.residual_whiteness(residuals, segment_starts=starts)
     # lags must span the controller's reaction: two control periods at least
@@ -425,7 +493,32 @@ def _identify(
         segment_starts=data.segment_starts,
         sign=-1.0 if model.K < 0.0 else 1.0,
     )
-    diag: dict[str, Any] = {
+    lead_warning = lead.warning()
+    if lead_warning:
+        # first: it makes every number below meaningless
+        warnings.insert(0, lead_warning)
+    found = residual_warnings(
+        options,
+        fit.delay,
+        (white, cross),
+        residuals,
+        nonlinearity,
+        fit_data,
+        (max_lag, settle),
+        gain_unit(work),
+        kept_order=2 if model.T2 > 0.0 else 1,
+        output_leads=lead.leads,
+    )
+    warnings.extend(_what_the_errors_hold(found, fit.extra))
+    # a model fitted to a log that runs backwards has no settling time to advise on
+    advice = (
+        None
+        if lead.leads
+        else diagnostics.sample_time_advice(settle, work.sample_time, data.sample_time)
+    )
+    if advice:
+        warnings.append(advice)
+    return {
         "residual_whiteness": {
             "p_value": white.p_value,
             "passed": white.passed,
@@ -444,24 +537,10 @@ def _identify(
         "lead": lead.to_json(),
         "misfit": None if misfit is None else misfit.to_json(),
     }
-    lead_warning = lead.warning()
-    if lead_warning:
-        # first: it makes every number below meaningless
-        warnings.insert(0, lead_warning)
-    warnings.extend(
-        residual_warnings(
-            options,
-            delay,
-            (white, cross),
-            residuals,
-            nonlinearity,
-            fit_data,
-            (max_lag, settle),
-            gain_unit(work),
-            kept_order=2 if model.T2 > 0.0 else 1,
-            output_leads=lead.leads,
-        )
-    )
+
+
+def _what_the_errors_hold(warnings: list[str], extra: dict[str, Any]) -> list[str]:
+    """The residual warnings with "standard errors may be optimistic" said as it is for the fit."""
     if extra.get("residual_colour") == "model":
         # coloured only after command changes: the misfit is the same in every realisation of
         # the noise, so the standard errors count the noise alone (its level where the output
@@ -483,15 +562,4 @@ def _identify(
             )
             for w in warnings
         ]
-    no_gain = gain_not_identified(model.K, stderr.get("K"))
-    if no_gain:
-        warnings.append(f"{no_gain} in this log; do not tune from it")
-    # a model fitted to a log that runs backwards has no settling time to advise on
-    advice = (
-        None
-        if lead.leads
-        else diagnostics.sample_time_advice(settle, work.sample_time, data.sample_time)
-    )
-    if advice:
-        warnings.append(advice)
-    return result(diag, residuals if isinstance(estimator, PredictionError) else None)
+    return warnings
