@@ -8,6 +8,7 @@ return. The library is imported when the command runs, not when ``fuelid --help`
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -47,7 +48,7 @@ if TYPE_CHECKING:
     from fuelid.cli._common import SiteFacts
     from fuelid.io.fitted_model import FittedModel
     from fuelid.model import ProcessModel
-    from fuelid.workflow import PlantSource, ScheduleOutcome, TuneOutcome
+    from fuelid.workflow import PlantSource, ScheduleOutcome, TuneOutcome, TuneRequest
 
 
 @guarded
@@ -178,71 +179,33 @@ def tune_command(
     if list_rules:
         _print_rules(as_json)
         return
-    from fuelid.identify.misfit import MisfitBound
     from fuelid.plant import load_plant_config
-    from fuelid.tuning.bands import CommandBand
-    from fuelid.tuning.frequency import TransferFunctionPlant
-    from fuelid.tuning.limits import check_sweep_size
-    from fuelid.workflow import PlantSource, TuneRequest, schedule_gains, tune_model
-    from fuelid.workflow.trust import (
-        LEADING_RESPONSE,
-        control_period_from,
-        overridden,
-        undetermined,
-        undetermined_refusal,
-        undetermined_refusal_line,
-    )
-    from fuelid.workflow.tune import tune_notices
+    from fuelid.workflow import PlantSource, TuneRequest
+    from fuelid.workflow.trust import control_period_from, overridden
+    from fuelid.workflow.tune import model_file_fields
 
     # options checked at the edge, before any work is done
     check_figure_path(plot, overwrite=force)
-    unused = [n for n, given in (("--simulate", simulate), ("--sweep", sweep is not None)) if given]
-    if schedule and unused:
-        verb = "checks" if len(unused) == 1 else "check"
-        raise FuelidError(
-            f"--schedule prints the gain schedule only: {' and '.join(unused)} {verb} one set of "
-            "gains, run without --schedule"
-        )
-    if sweep is not None:
-        check_sweep_size(sweep)
+    _check_run_options(schedule, simulate, sweep)
     tau = closed_loop_time(rule, tau_c, lam)
     check_spans(flow_span, u_span)
     model, loaded = _model_from_options(
         model_file, K, T, T2, T_f, delay, need_cov=sweep is not None
     )
-    if loaded is not None and loaded.leads:
-        raise FuelidError(f"{model_file}: {LEADING_RESPONSE}")
-    if loaded is not None and loaded.signal_check and not accept_signals:
-        raise FuelidError(
-            f"{model_file}: its identification's signal check found: "
-            f"{'; '.join(loaded.signal_check)}; the gains would be wrong by the same factor "
-            "(--accept-signals to tune anyway)"
-        )
-    loose = (
-        [] if loaded is None else undetermined(loaded.model.to_json(), loaded.ci95, loaded.fixed)
-    )
-    if loose and not accept_undetermined:
-        raise FuelidError(undetermined_refusal_line(loose, f"the model of {model_file}"))
+    loose = _check_model_file(loaded, model_file, accept_signals, accept_undetermined)
     if model is None and not schedule:
         raise FuelidError(
             "give a model: --model ident.json, or --K and --T (with --delay, --flowmeter-T), "
             "or --schedule for a schedule from the plant's physics"
         )
     facts = site_facts(site)
-    period = control_period_from(
-        control_period,
-        None if facts is None else facts.control_period,
-        None if loaded is None else loaded.control_period,
-    )
-    # the model's own operating point unless the options say otherwise
-    fuel_source = "option" if fuel_temp is not None else None
-    if fuel_temp is None and loaded is not None and loaded.fuel_temperature is not None:
-        fuel_temp, fuel_source = loaded.fuel_temperature, "model file"
-    clip_u = False
-    if u is None and loaded is not None and loaded.u is not None:
-        # the model file's mean command: a little outside the drive's range is taken to its end
-        # (its signal check has said why), a command given with --u is refused there
-        u, clip_u = loaded.u, True
+    period_sources = {
+        "option": control_period,
+        "site file": None if facts is None else facts.control_period,
+        "model file": None if loaded is None else loaded.control_period,
+    }
+    period = control_period_from(*period_sources.values())
+    fuel_temp, fuel_source, u, clip_u = _operating_point(fuel_temp, u, loaded)
     if config is None and facts is not None and facts.plant is not None:
         config = facts.plant  # the plant file the site file names
     T_fuel, T_range = temperature_options(
@@ -251,8 +214,6 @@ def tune_command(
     plant = PlantSource(load_plant_config(config), None if config is None else str(config))
     request = TuneRequest(
         model=model,
-        cov_names=loaded.cov_names if loaded is not None else (),
-        cov=loaded.cov if loaded is not None else None,
         rule=rule.value,
         closed_loop_time=tau,
         control_period=period.value,
@@ -260,17 +221,6 @@ def tune_command(
         y_span=flow_span,
         u_span=u_span,
         site_spans=(None, None) if facts is None else facts.spans,
-        command_bands=()
-        if loaded is None
-        else tuple(CommandBand(*band) for band in loaded.gain_bands),
-        misfit=None
-        if loaded is None or loaded.misfit is None
-        else MisfitBound.from_json(loaded.misfit),
-        full_order=None
-        if loaded is None or loaded.linear_model is None
-        else TransferFunctionPlant.from_coefficients(
-            loaded.linear_model.num, loaded.linear_model.den, loaded.linear_model.delay
-        ),
         T_fuel=T_fuel,
         u=u,
         clip_u=clip_u,
@@ -280,30 +230,10 @@ def tune_command(
         flow_bands=flow_bands,
         simulate=simulate,
         sweep=sweep,
-        alternatives=loaded.alternatives if loaded is not None else (),
+        **model_file_fields(loaded),
     )
-    notices = tune_notices(
-        plant,
-        request,
-        fuel_basis=fuel_source,
-        conditional=loaded is not None and loaded.conditional,
-        model_label=str(model_file),
-    )
-    notices += overridden(
-        {
-            "option": control_period,
-            "site file": None if facts is None else facts.control_period,
-            "model file": None if loaded is None else loaded.control_period,
-        },
-        "s",
-        period,
-    )
-    notices += span_notes(request, plant, facts, flow_span, u_span)
-    if loose:
-        notices.append(
-            "accepted (--accept-undetermined): "
-            + undetermined_refusal(loose, f"the model of {model_file}")
-        )
+    notices = _notices(plant, request, fuel_source, loaded, model_file, loose)
+    notices += overridden(period_sources, "s", period)
     extra = {
         "plant": plant.to_json() | _calibration_json(plant, T_fuel),
         "notices": notices,
@@ -328,7 +258,7 @@ def tune_command(
         "fuel_temp": fuel_temp,
         "accept_signals": accept_signals,
         "accept_undetermined": accept_undetermined,
-        "u": None,  # the command used, filled in below
+        "u": None,  # the command used, filled in by the run
         "t_min": t_min,
         "t_max": t_max,
         "band_width": band_width,
@@ -338,71 +268,150 @@ def tune_command(
         "simulate": simulate,
         "sweep": sweep,
     }
+    output = _Output(plot, as_json, extra, options, model_file, facts)
     if schedule:
-        with progress_display() as stage:
-            table = schedule_gains(plant, request, progress=stage)
-        options["u"] = table.u
-        for notice in notices:  # after the work: a refusal stays one line
-            warn(notice)
-        if plot is not None:
-            from fuelid.plots import save_figure, schedule_figure
+        _run_schedule(plant, request, output)
+    else:
+        _run_tune(plant, request, output, fuel_source or "assumed")
 
-            save_figure(schedule_figure(table.schedule), plot)
-        if as_json:
-            emit_json(table.to_json() | extra | provenance(options, model_file))
-        else:
-            _print_schedule(table, period.basis, facts)
-        return
+
+@dataclass(frozen=True)
+class _Output:
+    """Where and how a run's results go: the figure, JSON or text, and what goes with them."""
+
+    plot: Path | None
+    as_json: bool
+    extra: dict[str, Any]
+    """The JSON's plant, notices, fuel-temperature source and undetermined parameters."""
+    options: dict[str, Any]
+    model_file: Path | None
+    facts: SiteFacts | None
+
+
+def _run_schedule(plant: PlantSource, request: TuneRequest, output: _Output) -> None:
+    """``tune --schedule``: the schedule, its figure, its JSON or its table."""
+    from fuelid.workflow import schedule_gains
+
+    with progress_display() as stage:
+        table = schedule_gains(plant, request, progress=stage)
+    for notice in output.extra["notices"]:  # after the work: a refusal stays one line
+        warn(notice)
+    if output.plot is not None:
+        from fuelid.plots import save_figure, schedule_figure
+
+        save_figure(schedule_figure(table.schedule), output.plot)
+    if output.as_json:
+        options = output.options | {"u": table.u}
+        emit_json(table.to_json() | output.extra | provenance(options, output.model_file))
+    else:
+        _print_schedule(table, request.control_period_basis, output.facts)
+
+
+def _run_tune(plant: PlantSource, request: TuneRequest, output: _Output, fuel_source: str) -> None:
+    """``tune``: one set of gains and its checks, its figure, its JSON or its text."""
+    from fuelid.workflow import tune_model
+
     with progress_display() as stage:
         outcome = tune_model(plant, request, progress=stage)
-    options["u"] = outcome.u
-    for message in notices + outcome.warnings:
+    for message in output.extra["notices"] + outcome.warnings:
         warn(message)
-    if plot is not None:
+    if output.plot is not None:
         from fuelid.plots import save_figure, tune_figure
 
-        save_figure(tune_figure(outcome), plot)
-    if as_json:
-        emit_json(outcome.to_json() | extra | provenance(options, model_file))
+        save_figure(tune_figure(outcome), output.plot)
+    if output.as_json:
+        options = output.options | {"u": outcome.u}
+        emit_json(outcome.to_json() | output.extra | provenance(options, output.model_file))
         return
-    _print_tuning(outcome, fuel_source or "assumed", facts)
+    _print_tuning(outcome, fuel_source, output.facts)
 
 
-def span_notes(
-    request: Any,
-    plant: PlantSource,
-    facts: SiteFacts | None,
-    flow: float | None,
-    drive: float | None,
+def _check_run_options(schedule: bool, simulate: bool, sweep: int | None) -> None:
+    """Refuse checks that --schedule does not run, and a sweep of a size out of range."""
+    from fuelid.tuning.limits import check_sweep_size
+
+    unused = [n for n, given in (("--simulate", simulate), ("--sweep", sweep is not None)) if given]
+    if schedule and unused:
+        verb = "checks" if len(unused) == 1 else "check"
+        raise FuelidError(
+            f"--schedule prints the gain schedule only: {' and '.join(unused)} {verb} one set of "
+            "gains, run without --schedule"
+        )
+    if sweep is not None:
+        check_sweep_size(sweep)
+
+
+def _operating_point(
+    fuel_temp: float | None, u: float | None, loaded: FittedModel | None
+) -> tuple[float | None, str | None, float | None, bool]:
+    """(fuel temperature [°C], its source, command [V], clip it): the options, else the file's.
+
+    The model file's mean command a little outside the drive's range is taken to its end (its
+    signal check has said why); a command given with --u is refused there.
+    """
+    fuel_source = "option" if fuel_temp is not None else None
+    if fuel_temp is None and loaded is not None and loaded.fuel_temperature is not None:
+        fuel_temp, fuel_source = loaded.fuel_temperature, "model file"
+    if u is None and loaded is not None and loaded.u is not None:
+        return fuel_temp, fuel_source, loaded.u, True
+    return fuel_temp, fuel_source, u, False
+
+
+def _check_model_file(
+    loaded: FittedModel | None,
+    model_file: Path | None,
+    accept_signals: bool,
+    accept_undetermined: bool,
 ) -> list[str]:
-    """Where another source gave a different span than the one the %/% gains use."""
-    from fuelid.workflow.trust import overridden
+    """Refuse a model file that is no model of the loop; return what it leaves undetermined.
 
-    spans = request.spans(plant)
-    config = plant.config
-    notes: list[str] = []
-    for kept, unit, option, site, own in (
-        (
-            spans.u_span,
-            "V",
-            drive,
-            None if facts is None else facts.spans[0],
-            config.vfd.u_max_V - config.vfd.u_min_V,
-        ),
-        (
-            spans.y_span,
-            "L/min",
-            flow,
-            None if facts is None else facts.spans[1],
-            config.flowmeter.span_Lpm,
-        ),
-    ):
-        if kept is not None:
-            sources = {"option": option, "site file": site}
-            if not plant.is_reference:
-                sources["plant file"] = own
-            notes += overridden(sources, unit, kept)
-    return notes
+    A flow that moves before its command always; signal findings unless ``accept_signals``;
+    a K, T or delay the log does not determine unless ``accept_undetermined``.
+    """
+    from fuelid.workflow.trust import LEADING_RESPONSE, undetermined, undetermined_refusal_line
+
+    if loaded is None:
+        return []
+    if loaded.leads:
+        raise FuelidError(f"{model_file}: {LEADING_RESPONSE}")
+    if loaded.signal_check and not accept_signals:
+        raise FuelidError(
+            f"{model_file}: its identification's signal check found: "
+            f"{'; '.join(loaded.signal_check)}; the gains would be wrong by the same factor "
+            "(--accept-signals to tune anyway)"
+        )
+    loose = undetermined(loaded.model.to_json(), loaded.ci95, loaded.fixed)
+    if loose and not accept_undetermined:
+        raise FuelidError(undetermined_refusal_line(loose, f"the model of {model_file}"))
+    return loose
+
+
+def _notices(
+    plant: PlantSource,
+    request: TuneRequest,
+    fuel_source: str | None,
+    loaded: FittedModel | None,
+    model_file: Path | None,
+    loose: list[str],
+) -> list[str]:
+    """The assumptions said first: the library's, the spans' conflicts, an accepted model."""
+    from fuelid.workflow.trust import undetermined_refusal
+    from fuelid.workflow.tune import tune_notices
+
+    notices = tune_notices(
+        plant,
+        request,
+        fuel_basis=fuel_source,
+        conditional=loaded is not None and loaded.conditional,
+        model_label=str(model_file),
+    )
+    notices += request.span_notes(plant)
+    if loose:
+        notices.append(
+            "accepted (--accept-undetermined): "
+            + undetermined_refusal(loose, f"the model of {model_file}")
+        )
+    return notices
 
 
 def _calibration_json(plant: PlantSource, T_fuel: float) -> dict[str, Any]:

@@ -19,6 +19,7 @@ from fuelid._deprecated import warn_renamed
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
 from fuelid.identify.misfit import MisfitBound
+from fuelid.io.fitted_model import FittedModel
 from fuelid.model import ProcessModel
 from fuelid.plant.config import PlantConfig
 from fuelid.tuning.bands import BandCheck, CommandBand, band_check
@@ -62,7 +63,7 @@ from fuelid.workflow.progress import (
     Progress,
     announce,
 )
-from fuelid.workflow.trust import NO_CONTROL_PERIOD, Basis, Spans, spans_from
+from fuelid.workflow.trust import NO_CONTROL_PERIOD, Basis, Spans, overridden, spans_from
 
 FloatArray = NDArray[np.float64]
 
@@ -156,6 +157,26 @@ class TuneRequest:
             raise FuelidError(NO_CONTROL_PERIOD)
         return self.control_period
 
+    def span_notes(self, plant: PlantSource) -> list[str]:
+        """Where another source gave a different span than the one the %/% gains use."""
+        spans = self.spans(plant)
+        config = plant.config
+        notes: list[str] = []
+        for kept, unit, index, own in (
+            (spans.u_span, "V", 0, config.vfd.u_max_V - config.vfd.u_min_V),
+            (spans.y_span, "L/min", 1, config.flowmeter.span_Lpm),
+        ):
+            if kept is None:
+                continue
+            sources = {
+                "option": (self.u_span, self.y_span)[index],
+                "site file": self.site_spans[index],
+            }
+            if not plant.is_reference:
+                sources["plant file"] = own
+            notes += overridden(sources, unit, kept)
+        return notes
+
     def spans(self, plant: PlantSource) -> Spans:
         """The spans of the %/% gains from the user's facts: options, site file, plant file."""
         config = plant.config
@@ -167,6 +188,27 @@ class TuneRequest:
             if plant.is_reference
             else (config.vfd.u_max_V - config.vfd.u_min_V, config.flowmeter.span_Lpm),
         )
+
+
+def model_file_fields(loaded: FittedModel | None) -> dict[str, Any]:
+    """What a model file gives a :class:`TuneRequest` beyond its model; empty for no file.
+
+    Its covariance, the log's command bands, the model's misfit, its full-order linear model and
+    the structures it could not rule out.
+    """
+    if loaded is None:
+        return {}
+    linear = loaded.linear_model
+    return {
+        "cov_names": loaded.cov_names,
+        "cov": loaded.cov,
+        "command_bands": tuple(CommandBand(*band) for band in loaded.gain_bands),
+        "misfit": None if loaded.misfit is None else MisfitBound.from_json(loaded.misfit),
+        "full_order": None
+        if linear is None
+        else TransferFunctionPlant.from_coefficients(linear.num, linear.den, linear.delay),
+        "alternatives": loaded.alternatives,
+    }
 
 
 def tune_notices(
