@@ -296,16 +296,19 @@ def detuned_for(
     return pi.with_gain_factor(low)
 
 
-def _is_the_plant_files(
-    config: PlantConfig, model: ProcessModel, request: TuneRequest, u: float
-) -> bool:
-    """Whether ``model`` is the plant file's own reduction at the request's conditions.
+def plant_static_gain(
+    config: PlantConfig, T_fuel: float, u: float, cache: CaseCache | None = None
+) -> float:
+    """The plant file's static gain at fuel temperature ``T_fuel`` [K] and command ``u`` [V]."""
+    return float(plant_cases(config, (T_fuel,), (u,), None, cache)[0].model.K)
 
-    Its static gain equals the linearisation's exactly (to rounding): a model identified from
-    data never does to 1e-6.
+
+def _same_gain(model_K: float, plant_K: float) -> bool:
+    """Whether a model's K is the plant file's own, to rounding: the plant file's reduction.
+
+    A plant info file's model agrees to rounding; one identified from data never to 1e-6.
     """
-    K = plant_cases(config, (request.T_fuel,), (u,))[0].model.K
-    return abs(K - model.K) <= 1e-6 * abs(K)
+    return abs(plant_K - model_K) <= 1e-6 * abs(plant_K)
 
 
 def as_plant_source(plant: PlantSource | PlantConfig) -> PlantSource:
@@ -683,11 +686,12 @@ def _tune_model(
     )
     anchor = Anchor(model, request.T_fuel, u)
     announce(progress, TEMPERATURE_CHECK)
-    check = None
+    check = plant_gain = None
     if not plant.is_reference:
+        plant_gain = plant_static_gain(config, request.T_fuel, u, cache)
         # a model that is the plant file's own linearisation (plant info's) needs no anchoring:
         # the margins are then computed on the full linearised plant at every case
-        own = request.full_order is not None and _is_the_plant_files(config, model, request, u)
+        own = request.full_order is not None and _same_gain(model.K, plant_gain)
         check = check_over_temperature(
             config,
             tuning.pi,
@@ -705,9 +709,6 @@ def _tune_model(
         )
         if full_order.Ms > request.ms_target:
             full_order_detuned = detuned_for(request.full_order, tuning.pi, request.ms_target)
-    plant_gain = None
-    if check is not None:
-        plant_gain = float(plant_cases(config, (request.T_fuel,), (u,), None, cache)[0].model.K)
     misfit = request.misfit
     misfit_peak = misfit_step = None
     if misfit is not None:
@@ -818,8 +819,11 @@ def schedule_gains(
     u = operating_command(config, request.u, clip=request.clip_u)
     anchor = None if request.model is None else Anchor(request.model, request.T_fuel, u)
     operating = anchor
-    own = request.model is not None and request.full_order is not None
-    if own and _is_the_plant_files(config, request.model, request, u):  # type: ignore[arg-type]
+    if (
+        request.model is not None
+        and request.full_order is not None
+        and _same_gain(request.model.K, plant_static_gain(config, request.T_fuel, u, cache))
+    ):
         anchor = None  # the plant file's own reduction: the cases are its linearisation
     spans = request.spans(source)
     announce(progress, SCHEDULE)
