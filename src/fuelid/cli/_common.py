@@ -452,6 +452,7 @@ def read_log(
     max_gap: float | None = None,
     bad_values: str | None = None,
     flow_unit: str | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> IOData:
     """Load a log with the shared column, scaling, gap and bad-value options.
 
@@ -475,6 +476,7 @@ def read_log(
         fuel_temperature_col=fuel_temperature_col or None,
         bad_values=parse_bad_values(bad_values),
         output_unit=flow_unit.strip() if flow_unit and flow_unit.strip() else None,
+        progress=progress,
     )
 
 

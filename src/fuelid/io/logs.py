@@ -12,7 +12,7 @@ Data rows are numbered from 1 after the header line.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -59,12 +59,19 @@ from fuelid.io.timeseries import (
 __all__ = [
     "DEFAULT_BAD_VALUES",
     "FILL_GAPS_MAX_PERIODS",
+    "GRIDDING",
     "MIN_SAMPLES",
+    "READING",
     "ResampleMode",
     "Scale",
     "load_log",
     "parse_scale",
 ]
+
+READING = "reading the log"
+"""Stage of :func:`load_log`: the file read and its columns parsed."""
+GRIDDING = "placing the samples on their grid"
+"""Stage of :func:`load_log`: sorting, the period, jitter, gaps, resampling."""
 
 
 def load_log(
@@ -83,6 +90,7 @@ def load_log(
     fuel_temperature_col: str | None = FUEL_TEMPERATURE_COLUMN,
     bad_values: Sequence[str] = (),
     output_unit: str | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> IOData:
     """Read a PLC log (CSV-like text or Parquet) into an input/output record on a uniform grid.
 
@@ -205,6 +213,8 @@ def load_log(
         if value is not None and not (np.isfinite(value) and value > 0.0):
             raise DataError(f"{name} must be a positive number of seconds, got {value}")
 
+    if progress is not None:
+        progress(READING)
     frame, notes = read_frame(Path(path), source)
     wanted = [(input_col, "input", ""), (output_col, "output", "")]
     if time_col is not None and sample_time is None:
@@ -238,6 +248,8 @@ def load_log(
         table.y = apply_scale(table.y, out_scale)
         notes.append(f"output {y_name} scaled linearly: {describe_scale(out_scale)}")
 
+    if progress is not None:
+        progress(GRIDDING)
     if table.t is None:  # uniform at the sample time given: the row number is the time
         assert sample_time is not None
         h = round(float(sample_time), 9)
