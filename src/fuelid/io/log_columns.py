@@ -9,6 +9,7 @@ The time axis (gaps, jitter, resampling) is :mod:`fuelid.io.log_grid`'s.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -17,6 +18,7 @@ import pandas as pd
 
 from fuelid.errors import DataError
 from fuelid.io.bad_values import describe_bad_marks, find_bad_marks
+from fuelid.io.log_time import ANY_STAMPS, StampFormat, stamps_to_seconds
 from fuelid.io.tables import find_column, match_column, to_float
 from fuelid.io.timeseries import FUEL_TEMPERATURE_COLUMN, FloatArray
 from fuelid.units import celsius_to_kelvin
@@ -78,6 +80,7 @@ def read_columns(
     source: str,
     notes: list[str],
     bad_values: Sequence[str] = (),
+    form: StampFormat = ANY_STAMPS,
 ) -> tuple[LogTable, dict[str, str], str | None, str | None, IntArray]:
     """The time, u, y and fuel-temperature columns as checked floats.
 
@@ -88,6 +91,7 @@ def read_columns(
     Returns the table (fuel temperature in kelvin), the units of a skipped row of units, the
     first date-time stamp (None for times in seconds or no time column), the time column used,
     and the data rows dropped that a single-sample gap may be bridged over (``drop_bad_rows``).
+    Date-time stamps are read as ``form`` says (:mod:`fuelid.io.log_time`).
     """
     time_name, u_name, y_name, T_name = names
     table = LogTable(
@@ -99,7 +103,9 @@ def read_columns(
     )
     datetime_start = None
     if time_name is not None:
-        table.t, datetime_start = _to_seconds(frame[time_name])
+        table.t, datetime_start = stamps_to_seconds(
+            frame[time_name], form, time_name, source, notes
+        )
         if sample_time is not None and bool(np.all(np.isnan(table.t))):
             cell = str(frame[time_name].iloc[0])
             notes.append(
@@ -109,6 +115,8 @@ def read_columns(
             table.t, time_name = None, None
     signals = tuple(name for name in (u_name, y_name, T_name) if name is not None)
     marks = {name: find_bad_marks(frame[name], bad_values) for name in signals}
+    for name, (mask, counts) in marks.items():
+        _refuse_all_marked(name, mask, counts, source)
     marked = np.logical_or.reduce([mask for mask, _ in marks.values()])
     table, unit_row = _skip_unit_row(table, frame, (time_name, *names[1:]), notes, marked)
     dropped = table.rows[marked[table.rows - 1]]
@@ -118,7 +126,8 @@ def read_columns(
             notes.append(
                 f"{describe_bad_marks(name, counts, rows.tolist())}: taken out as missing samples"
             )
-    table = table.take(np.flatnonzero(~marked[table.rows - 1]))
+    if marked.any():
+        table = table.take(np.flatnonzero(~marked[table.rows - 1]))
     columns = {u_name: table.u, y_name: table.y}
     if T_name is not None and table.T is not None:
         columns[T_name] = table.T
@@ -137,6 +146,19 @@ def read_columns(
     if T_name is not None and table.T is not None:
         table.T = _fuel_temperature_kelvin(table.T, table.rows, T_name, source)
     return table, unit_row, datetime_start, time_name, bridgeable.astype(np.int64)
+
+
+def _refuse_all_marked(name: str, mask: BoolArray, counts: Counter[str], source: str) -> None:
+    """Refuse a signal column none of whose cells holds a number (every cell a marker)."""
+    marked = int(mask.sum())
+    if mask.size < 2 or marked < mask.size - 1:  # a first row of units may be the one exception
+        return
+    texts = ", ".join(f"{text or '(empty)'!r} ×{count}" for text, count in counts.most_common(3))
+    raise DataError(
+        f"{source}: column {name!r} holds no samples: {marked} of its {mask.size} cells are "
+        f"bad-value markers or empty ({texts}): was the tag recorded, and is this the column "
+        "meant?"
+    )
 
 
 def require_columns(
@@ -197,40 +219,6 @@ def _fuel_temperature_kelvin(
             f"{high:g} °C, first at data row {int(rows[i])} ({T_degC[i]:g}): is it in °C?"
         )
     return T_degC + celsius_to_kelvin(0.0)  # the offset of fuelid.units, on every sample
-
-
-def _to_seconds(series: pd.Series) -> tuple[FloatArray, str | None]:
-    """Time in seconds; date-time stamps become seconds from the first valid stamp.
-
-    Returns the times (NaN where a cell is not a time) and the first stamp, or None when the
-    column holds plain numbers.
-    """
-    if pd.api.types.is_datetime64_any_dtype(series.dtype):
-        return _stamps_to_seconds(pd.Series(pd.to_datetime(series)))
-    numbers = to_float(series)
-    if pd.api.types.is_numeric_dtype(series.dtype):
-        return numbers, None
-    text = series.astype(str).str.strip()
-    filled = int(np.count_nonzero(text.to_numpy() != ""))
-    if 2 * int(np.count_nonzero(~np.isnan(numbers))) >= filled:
-        return numbers, None  # mostly plain numbers (bad cells among them are refused later)
-    iso = (
-        text.str.replace(r"^(\d{4})/(\d{1,2})/(\d{1,2})", r"\1-\2-\3", regex=True)
-        .str.replace(r"^(\d{1,2})\.(\d{1,2})\.(\d{4})", r"\3-\2-\1", regex=True)
-        .str.replace(r"(\d{1,2}:\d{2}:\d{2}),(\d+)", r"\1.\2", regex=True)
-    )
-    stamps = pd.to_datetime(iso, format="ISO8601", errors="coerce")
-    return _stamps_to_seconds(pd.Series(stamps))
-
-
-def _stamps_to_seconds(stamps: pd.Series) -> tuple[FloatArray, str | None]:
-    """Seconds from the first valid stamp (NaN for NaT) and that stamp as text."""
-    valid = stamps.dropna()
-    if valid.empty:
-        return np.full(len(stamps), np.nan), None
-    start = valid.iloc[0]
-    seconds = (stamps - start).dt.total_seconds()
-    return np.asarray(seconds.to_numpy(dtype=float, na_value=np.nan), dtype=np.float64), str(start)
 
 
 def _check_values(

@@ -45,6 +45,11 @@ FILL_GAPS_MAX_PERIODS = 5.0
 """Longest gap ``fill_gaps`` may bridge, in sample periods (see :func:`fuelid.io.logs.load_log`)."""
 SAMPLE_TIME_TOLERANCE = 0.01
 """A sample time given with a time column must agree with the column's period within 1 %."""
+DRIFT_TOLERANCE = 0.02
+"""A rounded period may move no sample by more than this fraction of a period over the log
+(for stamps without jitter; jittered stamps allow three standard errors of the fitted period)."""
+REFINE_PAIRS = 200_000
+"""Pairs of samples whose median refines the first estimate of the period, at most."""
 GAPS_LISTED = 3
 """The gap note lists this many gaps with their time and data row, then counts the rest."""
 
@@ -153,8 +158,10 @@ def period(
 ) -> tuple[float, BoolArray]:
     """The period h [s] of the time column and where its intervals exceed ``max_gap``.
 
-    Checks a sample time given against the column (1 %), and rounds h to the fewest digits that
-    move no sample by more than 2 % of a period over the log.
+    h is fitted to the stamps (:func:`fit_period`) and rounded to the fewest digits the stamps
+    support (:func:`round_period`). A sample time given must agree with the stamps within 1 %;
+    it is the grid when the stamps lie on it within the jitter, else the stamps' own period is
+    (:func:`_given_period`).
     """
     t = table.t
     assert t is not None
@@ -172,23 +179,187 @@ def period(
             f"{h0:.6g} s by more than {RESAMPLE_TOLERANCE:.0%}"
         )
     breaks = dt > limit
-    h = _refine_period(t, breaks, h0)
+    fitted = fit_period(t, breaks, _refine_period(t, breaks, h0))
     if sample_time is not None:
-        if abs(h - sample_time) > SAMPLE_TIME_TOLERANCE * sample_time:
-            raise DataError(
-                f"{source}: time column {time_name!r} says {h:.6g} s between samples, the sample "
-                f"time given (sample_time, --sample-time) says {sample_time:g} s: give one of them"
-            )
-        notes.append(
-            f"time column {time_name} used (gaps and jitter checked on it): its period "
-            f"{h:.6g} s agrees with the sample time given, {sample_time:g} s"
+        return _given_period(t, breaks, fitted, float(sample_time), time_name, source, notes), (
+            breaks
         )
-    slots = (t[-1] - t[0]) / h
-    preferred = [] if sample_time is None else [float(sample_time)]
-    for candidate in preferred + [float(f"{h:.{digits}g}") for digits in range(1, 10)]:
-        if abs(candidate - h) * slots <= 0.02 * h:
-            return candidate, breaks
-    return round(h, 12), breaks
+    h = round_period(fitted, (t[-1] - t[0]) / fitted.h)
+    if fitted.se > 0.0 and abs(h - fitted.h) > DRIFT_TOLERANCE * h / ((t[-1] - t[0]) / h):
+        notes.append(
+            f"sample time {h:g} s, fitted to the time stamps ({fitted.h:.9g} ± {fitted.se:.2g} s "
+            f"over {t.size} samples) and rounded to the digits they support"
+        )
+    return h, breaks
+
+
+@dataclass(frozen=True)
+class PeriodFit:
+    """The period fitted to the stamps: ``h`` [s] and its standard error ``se`` [s]."""
+
+    h: float
+    se: float
+
+
+def fit_period(t: FloatArray, breaks: BoolArray, h: float) -> PeriodFit:
+    """The period [s] as the least-squares slope of the stamps on their slot numbers.
+
+    Each stretch between gaps has an origin of its own and all share the period: for stamps
+    that scatter independently around a steady grid (jitter of standard deviation σ) this is
+    the most precise estimate, with a standard error σ / √Σ(k − k̄)² that falls as N^-3/2.
+    ``h`` is a first estimate good enough to number the slots (:func:`_refine_period`).
+    """
+    chunk = np.concatenate(([0], np.cumsum(breaks)))
+    first = np.flatnonzero(np.concatenate(([True], breaks)))
+    k = np.rint((t - t[first][chunk]) / h)
+    counts = np.bincount(chunk).astype(np.float64)
+    k_c = k - (np.bincount(chunk, weights=k) / counts)[chunk]
+    t_c = t - t[first][chunk]
+    t_c -= (np.bincount(chunk, weights=t_c) / counts)[chunk]
+    spread = float(k_c @ k_c)
+    if spread == 0.0:
+        return PeriodFit(h, 0.0)
+    slope = float(k_c @ t_c) / spread
+    residual = t_c - slope * k_c
+    dof = max(t.size - counts.size - 1, 1)
+    sigma = float(np.sqrt(residual @ residual / dof))
+    return PeriodFit(slope, sigma / np.sqrt(spread))
+
+
+def round_period(fit: PeriodFit, slots: float) -> float:
+    """The period with the fewest significant digits the stamps support.
+
+    A rounding is supported when it lies within three standard errors of the fitted period
+    (jittered stamps cannot tell it apart), or when it moves no sample by more than 2 % of a
+    period over the log's ``slots`` periods (stamps without jitter).
+
+    Examples
+    --------
+    >>> round_period(PeriodFit(0.1000012, 4e-7), 3000.0)  # ±15 ms of jitter over 300 s
+    0.1
+    >>> round_period(PeriodFit(0.0204, 0.0), 50.0)  # a clock 2 % slow
+    0.0204
+    """
+    tolerance = max(3.0 * fit.se, DRIFT_TOLERANCE * fit.h / max(slots, 1.0))
+    for digits in range(1, 10):
+        candidate = float(f"{fit.h:.{digits}g}")
+        if abs(candidate - fit.h) <= tolerance:
+            return candidate
+    return round(fit.h, 12)
+
+
+def _given_period(
+    t: FloatArray,
+    breaks: BoolArray,
+    fitted: PeriodFit,
+    sample_time: float,
+    time_name: str,
+    source: str,
+    notes: list[str],
+) -> float:
+    """The sample time given, as the grid, when the stamps fit it within the jitter."""
+    if abs(fitted.h - sample_time) > SAMPLE_TIME_TOLERANCE * sample_time:
+        raise DataError(
+            f"{source}: time column {time_name!r} says {fitted.h:.6g} s between samples, the "
+            f"sample time given (sample_time, --sample-time) says {sample_time:g} s: give one "
+            "of them"
+        )
+    placement = place_on_grid(t, breaks, sample_time)
+    worst = float(np.max(np.abs(placement.deviation)))
+    if placement.fits(sample_time):
+        notes.append(
+            f"time column {time_name} used (gaps and jitter checked on it): its stamps lie on "
+            f"the {sample_time:g} s grid given (sample_time, --sample-time) within "
+            f"{worst * 1e3:.2g} ms"
+        )
+        return sample_time
+    h = round_period(fitted, (t[-1] - t[0]) / fitted.h)
+    notes.append(
+        f"time column {time_name} used (gaps and jitter checked on it): its stamps drift off "
+        f"the {sample_time:g} s grid given (sample_time, --sample-time) by up to "
+        f"{worst / sample_time:.2f} of a period, so their own period, {h:.6g} s, is the grid"
+    )
+    return h
+
+
+@dataclass(frozen=True)
+class Placement:
+    """The slot of every sample on a grid of period h, one origin per stretch between gaps.
+
+    ``k`` the slot numbers, ``origin`` [s] each stretch's grid origin, ``deviation`` [s] each
+    stamp's distance from its slot, ``moved`` the late and early polls put on the slot next to
+    the nearest (:func:`place_on_grid`), ``collided`` the stretches where two samples still
+    share a slot.
+    """
+
+    k: IntArray
+    origin: FloatArray
+    deviation: FloatArray
+    moved: BoolArray
+    collided: BoolArray
+    chunk: IntArray
+    first: IntArray
+
+    def placed(self, h: float) -> BoolArray:
+        """The stretches whose every sample lies on its own slot within the jitter bound."""
+        bound = np.where(self.moved, h, JITTER_FRACTION * h)
+        off = np.abs(self.deviation) > bound * (1.0 - 1e-9)
+        worst = np.maximum.reduceat(off.astype(np.int8), self.first).astype(bool)
+        return ~worst & ~self.collided
+
+    def fits(self, h: float) -> bool:
+        """Whether every stretch is placed."""
+        return bool(self.placed(h).all())
+
+
+def place_on_grid(t: FloatArray, breaks: BoolArray, h: float) -> Placement:
+    """Each sample on its slot of a steady grid; a late poll followed by an early one too.
+
+    A poll answered late (by more than half a period) rounds onto the next slot, where the
+    next, early, sample also lands, and leaves its own slot empty: two samples share a slot
+    beside an empty one. The samples keep their order, so the late one goes back to the empty
+    slot before it (or an early one forward to the empty slot after it); such a sample may lie
+    up to a period off its slot. Each stretch's origin is the stamps' mean phase.
+    """
+    chunk = np.concatenate(([0], np.cumsum(breaks)))
+    first = np.flatnonzero(np.concatenate(([True], breaks)))
+    cycles = (t - t[first][chunk]) / h
+    phase = np.add.reduceat(np.exp(2j * np.pi * (cycles - np.rint(cycles))), first)
+    origin = t[first] + np.angle(phase) / (2.0 * np.pi) * h
+    k = np.rint((t - origin[chunk]) / h).astype(np.int64)
+    moved = _unshare_slots(k, ~breaks)
+    deviation = t - origin[chunk] - h * k
+    worst = np.maximum.reduceat(np.abs(deviation), first)
+    exact = worst <= UNIFORM_TOLERANCE * h
+    if exact.any():  # a grid without jitter starts at the first stamp, exactly
+        origin = np.where(exact, t[first], origin)
+        deviation = t - origin[chunk] - h * k
+    collided = np.zeros(first.size, dtype=bool)
+    collided[chunk[1:][~breaks & (np.diff(k) < 1)]] = True
+    return Placement(k, origin, deviation, moved, collided, chunk, first)
+
+
+def _unshare_slots(k: IntArray, same: BoolArray) -> BoolArray:
+    """Move a sample that shares a slot beside an empty one onto the empty slot (in place).
+
+    ``same`` says which intervals lie within a stretch. Returns which samples moved.
+    """
+    moved = np.zeros(k.size, dtype=bool)
+    steps = np.diff(k)
+    shared = np.flatnonzero(same & (steps == 0))
+    if shared.size == 0:
+        return moved
+    before = np.zeros(shared.size, dtype=bool)
+    inner = shared > 0
+    before[inner] = (steps[shared[inner] - 1] == 2) & same[shared[inner] - 1]
+    after = np.zeros(shared.size, dtype=bool)
+    tail = shared + 1 < steps.size
+    after[tail] = (steps[shared[tail] + 1] == 2) & same[shared[tail] + 1] & ~before[tail]
+    k[shared[before]] -= 1
+    k[shared[after] + 1] += 1
+    moved[shared[before]] = True
+    moved[shared[after] + 1] = True
+    return moved
 
 
 def _refine_period(t: FloatArray, breaks: BoolArray, h0: float) -> float:
@@ -202,13 +373,19 @@ def _refine_period(t: FloatArray, breaks: BoolArray, h0: float) -> float:
     h = h0
     lag = 4
     while lag <= t.size // 2:
-        same = chunk[lag:] == chunk[:-lag]
+        # a median over a sample of the pairs is as good as over all of them
+        start = np.arange(0, t.size - lag, max(1, t.size // REFINE_PAIRS))
+        same = chunk[start + lag] == chunk[start]
         if not same.any():
             break
-        span = (t[lag:] - t[:-lag])[same]
+        span = (t[start + lag] - t[start])[same]
         h = float(np.median(span / np.maximum(np.rint(span / h), 1.0)))
         lag *= 4
     return h
+
+
+Piece = tuple[IntArray, IntArray, list[FloatArray], BoolArray]
+"""Samples on the grid: their stretch, data row, signals (t, u, y[, T]), segment starts."""
 
 
 @dataclass
@@ -241,22 +418,14 @@ def regularise(
     assert t is not None
     n = t.size
     dt = np.diff(t)
-    chunk = np.concatenate(([0], np.cumsum(breaks)))
-    first = np.flatnonzero(np.concatenate(([True], breaks)))
 
     # each stretch between long intervals on a grid of its own phase, each sample on its slot
-    cycles = (t - t[first][chunk]) / h
-    phase = np.add.reduceat(np.exp(2j * np.pi * (cycles - np.rint(cycles))), first)
-    origin = t[first] + np.angle(phase) / (2.0 * np.pi) * h
-    k = np.rint((t - origin[chunk]) / h).astype(np.int64)
-    deviation = t - origin[chunk] - h * k
-    worst = np.maximum.reduceat(np.abs(deviation), first)
-    origin = np.where(worst <= UNIFORM_TOLERANCE * h, t[first], origin)
+    placement = place_on_grid(t, breaks, h)
+    chunk, first, k = placement.chunk, placement.first, placement.k
+    origin, deviation = placement.origin, placement.deviation
     same = ~breaks
     steps = np.diff(k)
-    collided = np.zeros(first.size, dtype=bool)
-    collided[chunk[1:][same & (steps < 1)]] = True
-    placed = (worst <= JITTER_FRACTION * h) & ~collided
+    placed = placement.placed(h)
     if not placed.all():
         _check_resampling(table, h, chunk, placed, mode, source)
 
@@ -279,26 +448,16 @@ def regularise(
     for c in np.flatnonzero(~placed):
         stop = int(first[c + 1]) if c + 1 < first.size else n
         pieces.append(_resampled_samples(table, h, int(first[c]), stop, int(c)))
-    order = np.argsort(np.concatenate([piece[0] for piece in pieces]), kind="stable")
-    rows = np.concatenate([piece[1] for piece in pieces])[order]
-    signals = [
-        np.concatenate([piece[2][j] for piece in pieces])[order]
-        for j in range(4 if table.T is not None else 3)
-    ]
-    record = GridRecord(
-        t=signals[0],
-        u=signals[1],
-        y=signals[2],
-        T=signals[3] if table.T is not None else None,
-        starts=np.concatenate([piece[3] for piece in pieces])[order],
-    )
+    record, rows = _merged(pieces, table.T is not None)
 
     if on_grid.any() and float(np.max(np.abs(deviation[on_grid]))) > UNIFORM_TOLERANCE * h:
-        jitter = deviation[on_grid]
+        notes.append(_describe_jitter(deviation, on_grid & ~placement.moved, h))
+    polls = placement.moved & on_grid
+    if polls.any():
+        off_ms = float(np.max(np.abs(deviation[polls]))) * 1e3
         notes.append(
-            f"time stamps scatter around a steady {h:g} s period (sd {np.std(jitter) * 1e3:.2g}"
-            f" ms, at most {np.max(np.abs(jitter)) * 1e3:.2g} ms, within ±{JITTER_FRACTION:g} of"
-            f" a period): samples placed on the {h:g} s grid, values unchanged"
+            f"{int(polls.sum())} late or early poll(s) put on their own slots (a sample that "
+            f"shared a slot beside an empty one; at most {off_ms:.3g} ms off): values unchanged"
         )
     if not placed.all():
         stretches = "" if first.size == 1 else f"{int(np.sum(~placed))} of {first.size} stretches "
@@ -325,6 +484,38 @@ def regularise(
     return _drop_short_segments(record, rows, split, length, h, source, notes)
 
 
+def _merged(pieces: list[Piece], with_temperature: bool) -> tuple[GridRecord, IntArray]:
+    """The pieces in time order (by stretch) as one record, and the data row of each sample."""
+    if len(pieces) == 1:  # all placed: already in order, no copy
+        _, rows, signals, starts = pieces[0]
+    else:
+        order = np.argsort(np.concatenate([piece[0] for piece in pieces]), kind="stable")
+        rows = np.concatenate([piece[1] for piece in pieces])[order]
+        signals = [
+            np.concatenate([piece[2][j] for piece in pieces])[order]
+            for j in range(4 if with_temperature else 3)
+        ]
+        starts = np.concatenate([piece[3] for piece in pieces])[order]
+    record = GridRecord(
+        t=signals[0],
+        u=signals[1],
+        y=signals[2],
+        T=signals[3] if with_temperature else None,
+        starts=starts,
+    )
+    return record, rows
+
+
+def _describe_jitter(deviation: FloatArray, regular: BoolArray, h: float) -> str:
+    """The note on stamps that scatter around their slots (the late and early polls apart)."""
+    jitter = deviation[regular] if regular.any() else deviation
+    return (
+        f"time stamps scatter around a steady {h:g} s period (sd {np.std(jitter) * 1e3:.2g}"
+        f" ms, at most {np.max(np.abs(jitter)) * 1e3:.2g} ms, within ±{JITTER_FRACTION:g} of"
+        f" a period): samples placed on the {h:g} s grid, values unchanged"
+    )
+
+
 def _placed_samples(
     table: LogTable,
     h: float,
@@ -335,7 +526,7 @@ def _placed_samples(
     slots: IntArray,
     bridge: BoolArray,
     split: BoolArray,
-) -> tuple[IntArray, IntArray, list[FloatArray], BoolArray]:
+) -> Piece:
     """The samples placed on their slots, with the bridged gaps filled in.
 
     Returns the chunk and data row of each output sample, its time, u, y and fuel temperature,
@@ -343,6 +534,11 @@ def _placed_samples(
     """
     n = table.u.size
     index = np.flatnonzero(on_grid)
+    if not bridge.any():  # every sample once, as it is: no gather through repeated indices
+        t = origin[chunk[index]] + h * k[index]
+        signals = [t] + [x[index] for x in (table.u, table.y, table.T) if x is not None]
+        starts = np.concatenate(([True], split))[index]
+        return chunk[index], table.rows[index], signals, starts
     extra = np.zeros(n, dtype=np.int64)
     extra[:-1] = np.where(bridge, slots - 1, 0)
     count = 1 + extra[index]
@@ -359,7 +555,7 @@ def _placed_samples(
 
 def _resampled_samples(
     table: LogTable, h: float, start: int, stop: int, chunk: int
-) -> tuple[IntArray, IntArray, list[FloatArray], BoolArray]:
+) -> Piece:
     """Samples ``start:stop`` interpolated onto a grid from their first time (y linear, u held)."""
     assert table.t is not None
     t = table.t[start:stop]

@@ -36,7 +36,9 @@ from fuelid.io.log_grid import (
     regularise,
     sort_and_deduplicate,
 )
+from fuelid.io.log_time import StampFormat, check_timezone
 from fuelid.io.tables import (
+    HeaderSearch,
     Scale,
     apply_scale,
     check_scale,
@@ -91,6 +93,9 @@ def load_log(
     bad_values: Sequence[str] = (),
     output_unit: str | None = None,
     progress: Callable[[str], None] | None = None,
+    timezone: str | None = None,
+    time_format: str | None = None,
+    skip_rows: int | None = None,
 ) -> IOData:
     """Read a PLC log (CSV-like text or Parquet) into an input/output record on a uniform grid.
 
@@ -215,7 +220,14 @@ def load_log(
 
     if progress is not None:
         progress(READING)
-    frame, notes = read_frame(Path(path), source)
+    if skip_rows is not None and skip_rows < 0:
+        raise DataError(f"skip_rows (--skip-rows) must be 0 or more lines, got {skip_rows}")
+    form = StampFormat(
+        timezone=None if timezone is None else check_timezone(timezone).key,
+        time_format=time_format or None,
+    )
+    names = tuple(name for name in (time_col, input_col, output_col) if name)
+    frame, notes = read_frame(Path(path), source, HeaderSearch(names, skip_rows))
     wanted = [(input_col, "input", ""), (output_col, "output", "")]
     if time_col is not None and sample_time is None:
         wanted.insert(0, (time_col, "time", "or give a sample time"))
@@ -239,6 +251,7 @@ def load_log(
         source,
         notes,
         bad_values,
+        form,
     )
 
     if in_scale is not None:

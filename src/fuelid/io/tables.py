@@ -13,8 +13,10 @@ import re
 import tomllib
 import unicodedata
 from collections.abc import Sequence
+from dataclasses import dataclass
 from io import StringIO
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -23,11 +25,14 @@ from fuelid.errors import DataError
 from fuelid.io.timeseries import FloatArray
 
 __all__ = [
+    "NO_HEADER_SEARCH",
+    "HeaderSearch",
     "Scale",
     "apply_scale",
     "check_scale",
     "describe_scale",
     "find_column",
+    "find_header",
     "guess_unit",
     "match_column",
     "parse_scale",
@@ -42,6 +47,107 @@ PARQUET_SUFFIXES = (".parquet", ".pq")
 _SEPARATORS = ("\t", ";", ",")
 _SEPARATOR_NAMES = {"\t": "tab", ";": "';'", ",": "','"}
 _ENCODINGS = ("utf-8-sig", "gbk")
+HEAD_BYTES = 65536
+"""The start of a text file looked at for its encoding, preamble, header and separator."""
+PREAMBLE_LINES = 200
+"""Lines above the header an export's preamble may have (tag descriptions, settings)."""
+
+
+@dataclass(frozen=True)
+class HeaderSearch:
+    """Where a table's header is: below ``skip_rows`` lines, or the first row naming ``names``.
+
+    ``skip_rows`` (``--skip-rows``) counts the lines above the header (blank lines at the top
+    of the file not counted);
+    None looks for the first line among the first :data:`PREAMBLE_LINES` whose cells include
+    every one of ``names`` (the columns asked for; case and spaces ignored).
+    """
+
+    names: tuple[str, ...] = ()
+    skip_rows: int | None = None
+
+
+NO_HEADER_SEARCH = HeaderSearch()
+"""The header is the first line (for tables that are not logs)."""
+
+
+def find_header(lines: Sequence[str], header: HeaderSearch, source: str) -> int:
+    """The index of the header line in ``lines`` (the file's first lines, blank ones stripped).
+
+    Raises
+    ------
+    DataError
+        ``skip_rows`` beyond the lines there are, or lines above the first one that looks like a
+        header (more cells, like the rows below it) that do not name the columns asked for.
+
+    Examples
+    --------
+    >>> lines = ["Export of FIC-101", "From;2026-03-28", "t_s;u_V;q_Lpm", "0;1;20"]
+    >>> find_header(lines, HeaderSearch(("t_s", "u_V", "q_Lpm")), "log.csv")
+    2
+    """
+    if header.skip_rows is not None:
+        if header.skip_rows >= len(lines) - 1:
+            raise DataError(
+                f"{source}: --skip-rows {header.skip_rows} skips every line read ("
+                f"{len(lines)} at the top of the file)"
+            )
+        return header.skip_rows
+    wanted = {name.strip().casefold() for name in header.names if name}
+    for index, line in enumerate(lines[:PREAMBLE_LINES]):
+        if wanted and wanted <= _cells(line):
+            return index
+    likely = _likely_header(lines)
+    if likely == 0:
+        return 0
+    shown = lines[likely] if len(lines[likely]) <= 60 else lines[likely][:57] + "..."
+    asked = ", ".join(sorted(header.names)) or "the columns"
+    raise DataError(
+        f"{source}: line {likely + 1} ({shown!r}) looks like the header, below {likely} line(s) "
+        f"of preamble, but no line names {asked}: give --skip-rows {likely} and the columns' "
+        "names (--time-col, --input-col, --output-col)"
+    )
+
+
+def _cells(line: str) -> set[str]:
+    """The cells of a line under any separator, unquoted, stripped and case-folded."""
+    cells: set[str] = set()
+    for separator in _SEPARATORS:
+        cells.update(cell.strip().strip('"').strip().casefold() for cell in line.split(separator))
+    return cells
+
+
+def _likely_header(lines: Sequence[str]) -> int:
+    """The line just above the first data row (0: none is found, or the first line is it).
+
+    A data row has as many cells as the rows at the end of ``lines``, each holding a digit
+    (numbers, stamps); the header above it has as many cells too.
+    """
+    rows = lines[-min(len(lines) - 1, 20) :] if len(lines) > 1 else lines
+    counts = [_width(row) for row in rows]
+    width = max(set(counts), key=counts.count)
+    for index, line in enumerate(lines[1 : PREAMBLE_LINES + 1], start=1):
+        if _width(line) == width and _is_data_row(line) and _width(lines[index - 1]) == width:
+            return index - 1 if not _is_data_row(lines[index - 1]) else 0
+    return 0
+
+
+def _width(line: str) -> int:
+    """The number of separators in a line (of the separator most frequent in it)."""
+    return max(line.count(separator) for separator in _SEPARATORS)
+
+
+def _is_data_row(line: str) -> bool:
+    """Whether every cell of a line holds a digit (a number or a stamp), under its separator."""
+    separator = max(_SEPARATORS, key=line.count)
+    return all(any(ch.isdigit() for ch in cell) for cell in line.split(separator))
+
+
+def _preamble_note(lines: Sequence[str], at: int) -> str:
+    """``"skipped 3 line(s) above the header (an export's preamble: 'Export of FIC-101', ...)"``."""
+    first = lines[0] if len(lines[0]) <= 40 else lines[0][:37] + "..."
+    more = ", ..." if at > 1 else ""
+    return f"skipped {at} line(s) above the header (an export's preamble: {first!r}{more})"
 
 
 def read_table(path: str | Path) -> tuple[pd.DataFrame, list[str]]:
@@ -80,8 +186,13 @@ def table_column(frame: pd.DataFrame, name: str, source: str) -> FloatArray:
     return values
 
 
-def read_frame(file: Path, source: str) -> tuple[pd.DataFrame, list[str]]:
-    """Read the file as a DataFrame (text cells as strings), with notes on how it was read."""
+def read_frame(
+    file: Path, source: str, header: HeaderSearch = NO_HEADER_SEARCH
+) -> tuple[pd.DataFrame, list[str]]:
+    """Read the file as a DataFrame (text cells as strings), with notes on how it was read.
+
+    ``header`` finds the header row below an export's preamble (:class:`HeaderSearch`).
+    """
     suffix = file.suffix.lower()
     if file.is_dir():
         raise DataError(f"{source} is a folder: give a log file (CSV or Parquet) in it")
@@ -98,11 +209,17 @@ def read_frame(file: Path, source: str) -> tuple[pd.DataFrame, list[str]]:
         raw = file.read_bytes()
     except OSError as exc:
         raise DataError(f"cannot read {source}: {exc.strerror or exc}") from None
-    if not raw.strip():
+    if not raw or raw.isspace():
         raise DataError(f"{source} is empty")
-    if suffix in PARQUET_SUFFIXES or raw.startswith(b"PAR1"):
+    if raw.startswith(b"PAR1"):
         return _read_parquet(file, source), []
-    return _read_text(raw, source)
+    if suffix in PARQUET_SUFFIXES:
+        kind = "text" if b"\x00" not in raw[:4096] else "binary data"
+        raise DataError(
+            f"{source} is not a Parquet file (it does not start with Parquet's 'PAR1' mark; it "
+            f"holds {kind}): if it is a CSV export, name it .csv"
+        )
+    return _read_text(raw, source, header)
 
 
 def _toml_kind(file: Path) -> str:
@@ -131,22 +248,44 @@ def _read_parquet(file: Path, source: str) -> pd.DataFrame:
     return frame
 
 
-def _read_text(raw: bytes, source: str) -> tuple[pd.DataFrame, list[str]]:
-    """Decode, sniff the separator and parse a CSV-like text table.
+def _read_text(raw: bytes, source: str, header: HeaderSearch) -> tuple[pd.DataFrame, list[str]]:
+    """Decode, find the header, sniff the separator and parse a CSV-like text table.
 
-    Columns that are plain numbers come back as floats (parsed by pandas' C reader, the fast
-    path for a long log); anything else (decimal commas, date-time stamps, unit rows, bad cells)
-    stays as strings for :func:`to_float` and the log reader to interpret or refuse.
+    Columns that are plain numbers come back as floats (parsed by pyarrow's multithreaded reader
+    for plain ASCII text, the fast path for a day-long log, else by pandas' C reader); anything
+    else (decimal commas, date-time stamps, unit rows, bad cells) stays as strings for
+    :func:`to_float` and the log reader to interpret or refuse.
     """
-    text, encoding = _decode(raw, source)
-    text = _strip_blank_lines(text)
-    if not text:
+    ascii_fast = raw.isascii()
+    text, encoding = _decode(raw[:HEAD_BYTES] if ascii_fast else raw, source)
+    head = _strip_blank_lines(text[:HEAD_BYTES]).splitlines()
+    if len(text) > HEAD_BYTES and len(head) > 1:
+        head = head[:-1]  # the last line read may be cut short
+    if not head:
         raise DataError(f"{source} is empty")
-    head = text[:65536].splitlines()
-    separator = _sniff_separator(head, source)
+    at = find_header(head, header, source)
+    separator = _sniff_separator(head[at:], source)
+    notes = [] if at == 0 else [_preamble_note(head, at)]
+    if encoding != "utf-8-sig":
+        notes.append(f"read as {encoding.upper()} text")
+    if separator != ",":
+        notes.append(f"columns separated by {_SEPARATOR_NAMES[separator]}")
+    frame = _read_ascii(raw, head[at], separator) if ascii_fast else None
+    if frame is None:
+        full = raw.decode(encoding) if ascii_fast else text
+        frame = _read_with_pandas(_strip_blank_lines(full), head[at], separator, source)
+    frame.columns = [str(name).strip().lstrip("\ufeff").strip() for name in frame.columns]
+    if frame.empty:
+        raise DataError(f"{source} has a header but no data rows")
+    return frame, notes
+
+
+def _read_with_pandas(text: str, header_line: str, separator: str, source: str) -> pd.DataFrame:
+    """The table from its header line on, by pandas' C reader (any encoding, any cells)."""
+    start = text.find(header_line)
     try:
-        frame = pd.read_csv(
-            StringIO(text),
+        return pd.read_csv(
+            StringIO(text[max(start, 0) :]),
             sep=separator,
             keep_default_na=False,
             skip_blank_lines=False,
@@ -157,15 +296,54 @@ def _read_text(raw: bytes, source: str) -> tuple[pd.DataFrame, list[str]]:
     except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise DataError(f"cannot read {source} as a table: {reason}") from None
-    frame.columns = [str(name).strip().lstrip("\ufeff").strip() for name in frame.columns]
-    if frame.empty:
-        raise DataError(f"{source} has a header but no data rows")
-    notes = []
-    if encoding != "utf-8-sig":
-        notes.append(f"read as {encoding.upper()} text")
-    if separator != ",":
-        notes.append(f"columns separated by {_SEPARATOR_NAMES[separator]}")
-    return frame, notes
+
+
+def _read_ascii(raw: bytes, header_line: str, separator: str) -> pd.DataFrame | None:
+    """The table by pyarrow's reader, or None where pandas' reader must decide.
+
+    pyarrow parses a column of numbers several times faster, on both cores, but reads ``NaN``
+    and ``inf`` cells as numbers, infers its own types for dates and times, and keeps repeated
+    column names: such a table (and any pyarrow refuses) goes to pandas, whose reading the
+    bad-value markers and the refusals rely on.
+    """
+    import pyarrow as pa
+    import pyarrow.csv as pa_csv
+
+    start = raw.find(header_line.encode("ascii"))
+    try:
+        table = pa_csv.read_csv(
+            pa.py_buffer(memoryview(raw)[max(start, 0) :]),
+            parse_options=pa_csv.ParseOptions(delimiter=separator),
+            convert_options=pa_csv.ConvertOptions(
+                strings_can_be_null=False, quoted_strings_can_be_null=False, null_values=[]
+            ),
+        )
+    except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+        return None
+    names = [str(name).strip() for name in table.column_names]
+    if len(set(names)) != len(names) or not all(
+        _plain_column(column.type) for column in table.columns
+    ):
+        return None
+    for column in table.columns:
+        if pa.types.is_floating(column.type) and not _all_finite(column):
+            return None
+    frame: pd.DataFrame = table.to_pandas()
+    return frame
+
+
+def _plain_column(kind: Any) -> bool:
+    """Whether a pyarrow column type reads as pandas' reader would: numbers or text."""
+    import pyarrow as pa
+
+    return bool(pa.types.is_floating(kind) or pa.types.is_integer(kind) or pa.types.is_string(kind))
+
+
+def _all_finite(column: Any) -> bool:
+    """Whether a pyarrow float column holds no NaN or infinite value."""
+    import pyarrow.compute as pa_compute
+
+    return bool(pa_compute.all(pa_compute.is_finite(column)).as_py())
 
 
 def _strip_blank_lines(text: str) -> str:
