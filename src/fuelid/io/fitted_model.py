@@ -28,6 +28,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.errors import DataError, FuelidError
+from fuelid.io.model_units import in_default_units
+from fuelid.lti import check_control_period
 from fuelid.model import MODEL_KEYS, ProcessModel, check_gain_identified, model_covariance
 
 if TYPE_CHECKING:
@@ -157,9 +159,9 @@ class FittedModel:
     """Whether the file's intervals hold only within its structure (``structure.conditional``)."""
     control_period: float | None = None
     """The control period identify was given with ``--control-period`` [s] (0: continuous PI):
-    the file's ``options.control_period`` only when ``options.control_period_given`` is true and
-    it is a finite number ≥ 0; else None (files written before the flag recorded 1.0 whether it
-    was given or not)."""
+    the file's ``options.control_period`` only when ``options.control_period_given`` is true
+    (a recorded value that is not 0 … 10 s is refused); else None (files written before the flag
+    recorded 1.0 whether it was given or not)."""
     linear_model: LinearModelSpec | None = None
     """The full linearisation u [V] → meter reading [L/min] with its dead time [s]
     (``linear_model`` of ``plant info --json``), or None when the file has none."""
@@ -195,8 +197,11 @@ def load_fitted_model(path: str | Path) -> FittedModel:
         If the file is missing, not JSON, not such a result, or its model is incomplete or
         physically impossible (non-positive T, negative delay); if its operating point is not
         finite numbers, or its ``linear_model`` is not a proper transfer function of finite
-        coefficients with a finite delay ≥ 0 (the message names the key). A malformed
-        ``stderr``, ``ci95`` or ``options.control_period`` entry is read as None, not refused.
+        coefficients with a finite delay ≥ 0 (the message names the key); if its ``units`` map
+        gives a unit fuelid neither writes nor converts (:mod:`fuelid.io.model_units`) for a
+        number it reads. A malformed
+        ``stderr`` or ``ci95`` entry is read as None, not refused; a recorded control period
+        (``options.control_period`` with ``control_period_given``) that is not 0 … 10 s is.
     """
     file = Path(path)
     try:
@@ -213,6 +218,7 @@ def load_fitted_model(path: str | Path) -> FittedModel:
             f"model file {str(file)!r} is not a fuelid identification result: it has no "
             "'model' object (write one with fuelid identify --json > ident.json)"
         )
+    data = in_default_units(data, file)  # an edited units map is converted or refused
     raw = data["model"]
     missing = [key for key in ("K", "T") if raw.get(key) is None]
     if missing:
@@ -269,7 +275,7 @@ def load_fitted_model(path: str | Path) -> FittedModel:
     alternatives, conditional = _structure(data.get("structure"), file)
     fixed = data.get("fixed")
     return FittedModel(
-        control_period=_control_period(data.get("options")),
+        control_period=_control_period(data.get("options"), file),
         gain_bands=_gain_bands(data.get("diagnostics")),
         leads=_leads(data.get("diagnostics")),
         misfit=_misfit(data.get("diagnostics")),
@@ -362,14 +368,20 @@ def _operating_point(data: dict[str, Any], file: Path) -> tuple[float | None, fl
     return found[0], found[1]
 
 
-def _control_period(options: Any) -> float | None:
-    """``options.control_period`` [s] when ``options.control_period_given`` is true, else None."""
+def _control_period(options: Any, file: Path) -> float | None:
+    """``options.control_period`` [s] when ``options.control_period_given`` is true, else None.
+
+    A recorded period is the PLC's: one that is not a number, negative, not finite or beyond
+    10 s is refused (:func:`~fuelid.lti.check_control_period`), never read as absent.
+    """
     if not isinstance(options, dict) or options.get("control_period_given") is not True:
         return None
     value = options.get("control_period")
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return None
-    return float(value) if math.isfinite(value) and value >= 0.0 else None
+    try:
+        check_control_period(value, "options.control_period")
+    except FuelidError as exc:
+        raise DataError(f"model file {str(file)!r}: {exc}") from None
+    return float(value)  # type: ignore[arg-type]  # a number: checked above
 
 
 def _linear_model(block: Any, file: Path) -> LinearModelSpec | None:

@@ -227,7 +227,8 @@ def _check_values(
     """Refuse infinite values anywhere and huge ones (|x| > 1e12) in the signals."""
     for name, values in columns.items():
         limit = HUGE if name in signals else np.inf
-        wrong = np.flatnonzero(np.isinf(values) | (np.abs(np.nan_to_num(values)) > limit))
+        # NaN compares false: an empty cell is judged later, as a missing sample
+        wrong = np.flatnonzero(np.isinf(values) if np.isinf(limit) else np.abs(values) > limit)
         if wrong.size:
             what = "infinite or huge (|x| > 1e12)" if name in signals else "infinite"
             raise DataError(
@@ -259,7 +260,8 @@ def _handle_bad_rows(
                 f"; if the historian writes {cell.strip()!r} for a bad sample, name it with "
                 "--bad-values (bad_values) and it is read as a missing sample"
                 if name in signals
-                else "; expected seconds or stamps like 2026-03-01 12:00:00"
+                else "; expected seconds or stamps like 2026-03-01 12:00:00 (give "
+                "--time-format for another form, e.g. '%d-%b-%y %H:%M:%S')"
             )
             raise DataError(
                 f"{source}: column {name!r} has {index.size} {what} cell(s), "

@@ -48,6 +48,8 @@ SAMPLE_TIME_TOLERANCE = 0.01
 DRIFT_TOLERANCE = 0.02
 """A rounded period may move no sample by more than this fraction of a period over the log
 (for stamps without jitter; jittered stamps allow three standard errors of the fitted period)."""
+PHASE_SAMPLES = 200_000
+"""Stamps whose mean phase places a stretch's grid, at most (spread evenly over the log)."""
 REFINE_PAIRS = 200_000
 """Pairs of samples whose median refines the first estimate of the period, at most."""
 GAPS_LISTED = 3
@@ -323,9 +325,7 @@ def place_on_grid(t: FloatArray, breaks: BoolArray, h: float) -> Placement:
     """
     chunk = np.concatenate(([0], np.cumsum(breaks)))
     first = np.flatnonzero(np.concatenate(([True], breaks)))
-    cycles = (t - t[first][chunk]) / h
-    phase = np.add.reduceat(np.exp(2j * np.pi * (cycles - np.rint(cycles))), first)
-    origin = t[first] + np.angle(phase) / (2.0 * np.pi) * h
+    origin = t[first] + _mean_phase(t, chunk, first, h) * h
     k = np.rint((t - origin[chunk]) / h).astype(np.int64)
     moved = _unshare_slots(k, ~breaks)
     deviation = t - origin[chunk] - h * k
@@ -337,6 +337,21 @@ def place_on_grid(t: FloatArray, breaks: BoolArray, h: float) -> Placement:
     collided = np.zeros(first.size, dtype=bool)
     collided[chunk[1:][~breaks & (np.diff(k) < 1)]] = True
     return Placement(k, origin, deviation, moved, collided, chunk, first)
+
+
+def _mean_phase(t: FloatArray, chunk: IntArray, first: IntArray, h: float) -> FloatArray:
+    """Each stretch's mean phase [periods] of its stamps on a grid from its first stamp.
+
+    The mean of the unit phasors (a circular mean), over at most :data:`PHASE_SAMPLES` stamps of
+    each stretch spread evenly: the jitter averages out long before, and a day of samples would
+    otherwise need four arrays of its length.
+    """
+    sample = np.arange(0, t.size, max(1, t.size // PHASE_SAMPLES))
+    sample = np.union1d(sample, first)  # every stretch has its first stamp among them
+    cycles = (t[sample] - t[first][chunk[sample]]) / h
+    phasors = np.exp(2j * np.pi * (cycles - np.rint(cycles)))
+    phase = np.add.reduceat(phasors, np.searchsorted(sample, first))
+    return np.asarray(np.angle(phase) / (2.0 * np.pi), dtype=np.float64)
 
 
 def _unshare_slots(k: IntArray, same: BoolArray) -> BoolArray:
@@ -533,8 +548,12 @@ def _placed_samples(
     and whether a segment starts at it.
     """
     n = table.u.size
+    if not bridge.any() and on_grid.all():  # every sample once, as it is: no copies
+        t = origin[chunk] + h * k
+        signals = [t] + [x for x in (table.u, table.y, table.T) if x is not None]
+        return chunk, table.rows, signals, np.concatenate(([True], split))
     index = np.flatnonzero(on_grid)
-    if not bridge.any():  # every sample once, as it is: no gather through repeated indices
+    if not bridge.any():  # every sample once: no gather through repeated indices
         t = origin[chunk[index]] + h * k[index]
         signals = [t] + [x[index] for x in (table.u, table.y, table.T) if x is not None]
         starts = np.concatenate(([True], split))[index]

@@ -146,7 +146,8 @@ def _parse_guessed(text: pd.Series, sample: pd.Series, utc: bool, notes: list[st
     fraction = text.str.replace(r"(\d{1,2}:\d{2}:\d{2}),(\d+)", r"\1.\2", regex=True)
     if _MONTH_NAME.match(first):
         year = "%Y" if re.match(r"^\d{1,2}-[A-Za-z]{3}-\d{4}", first) else "%y"
-        return _strptime(fraction, f"%d-%b-{year} %H:%M:%S", utc)
+        clock = "%I:%M:%S %p" if _AM_PM.search(first) else "%H:%M:%S"
+        return _strptime(fraction, f"%d-%b-{year} {clock}", utc)
     slashed = _SLASHED.match(first)
     if slashed and len(slashed.group(3)) in (2, 4):
         return _strptime(fraction, _slashed_form(sample, notes), utc)
@@ -189,7 +190,8 @@ def _strptime(text: pd.Series, form: str, utc: bool) -> pd.Series:
     )
     stamps = pd.to_datetime(whole, format=form, errors="coerce", utc=utc)
     seconds = pd.to_numeric("0" + fraction, errors="coerce").fillna(0.0)
-    return pd.Series(stamps + pd.to_timedelta(seconds, unit="s"), index=text.index)
+    micro = pd.to_timedelta(np.round(seconds.to_numpy(dtype=float) * 1e6), unit="us")
+    return pd.Series(stamps + micro, index=text.index)
 
 
 def _in_utc(

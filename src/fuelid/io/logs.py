@@ -253,6 +253,7 @@ def load_log(
         bad_values,
         form,
     )
+    del frame  # a day of samples: the table as read is not needed past here
 
     if in_scale is not None:
         table.u = apply_scale(table.u, in_scale)

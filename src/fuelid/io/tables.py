@@ -14,9 +14,8 @@ import tomllib
 import unicodedata
 from collections.abc import Sequence
 from dataclasses import dataclass
-from io import StringIO
+from io import BytesIO, StringIO
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -251,13 +250,13 @@ def _read_parquet(file: Path, source: str) -> pd.DataFrame:
 def _read_text(raw: bytes, source: str, header: HeaderSearch) -> tuple[pd.DataFrame, list[str]]:
     """Decode, find the header, sniff the separator and parse a CSV-like text table.
 
-    Columns that are plain numbers come back as floats (parsed by pyarrow's multithreaded reader
-    for plain ASCII text, the fast path for a day-long log, else by pandas' C reader); anything
+    Columns that are plain numbers come back as floats, parsed by pandas' C reader; anything
     else (decimal commas, date-time stamps, unit rows, bad cells) stays as strings for
-    :func:`to_float` and the log reader to interpret or refuse.
+    :func:`to_float` and the log reader to interpret or refuse. Plain ASCII text (a day-long
+    log) is parsed from its bytes: no decoded copy, no copy of the text.
     """
-    ascii_fast = raw.isascii()
-    text, encoding = _decode(raw[:HEAD_BYTES] if ascii_fast else raw, source)
+    ascii_text = raw.isascii()
+    text, encoding = _decode(raw[:HEAD_BYTES] if ascii_text else raw, source)
     head = _strip_blank_lines(text[:HEAD_BYTES]).splitlines()
     if len(text) > HEAD_BYTES and len(head) > 1:
         head = head[:-1]  # the last line read may be cut short
@@ -270,80 +269,35 @@ def _read_text(raw: bytes, source: str, header: HeaderSearch) -> tuple[pd.DataFr
         notes.append(f"read as {encoding.upper()} text")
     if separator != ",":
         notes.append(f"columns separated by {_SEPARATOR_NAMES[separator]}")
-    frame = _read_ascii(raw, head[at], separator) if ascii_fast else None
-    if frame is None:
-        full = raw.decode(encoding) if ascii_fast else text
-        frame = _read_with_pandas(_strip_blank_lines(full), head[at], separator, source)
+    # a space before a quoted cell hides the quote from the reader unless it skips the space
+    spaced = any(f'{separator} "' in line for line in head[at:])
+    if ascii_text:
+        start = raw.find(head[at].encode("ascii"))
+        body: StringIO | BytesIO = BytesIO(raw if start <= 0 else raw[start:])
+    else:
+        stripped = _strip_blank_lines(text)
+        body = StringIO(stripped[max(stripped.find(head[at]), 0) :])
+    frame = _parse(body, separator, spaced, source)
     frame.columns = [str(name).strip().lstrip("\ufeff").strip() for name in frame.columns]
     if frame.empty:
         raise DataError(f"{source} has a header but no data rows")
     return frame, notes
 
 
-def _read_with_pandas(text: str, header_line: str, separator: str, source: str) -> pd.DataFrame:
-    """The table from its header line on, by pandas' C reader (any encoding, any cells)."""
-    start = text.find(header_line)
+def _parse(body: StringIO | BytesIO, separator: str, spaced: bool, source: str) -> pd.DataFrame:
+    """The table by pandas' C reader (its default chunked reading: half the memory)."""
     try:
         return pd.read_csv(
-            StringIO(text[max(start, 0) :]),
+            body,
             sep=separator,
             keep_default_na=False,
             skip_blank_lines=False,
-            skipinitialspace=True,
+            skipinitialspace=spaced,
             engine="c",
-            low_memory=False,
         )
     except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise DataError(f"cannot read {source} as a table: {reason}") from None
-
-
-def _read_ascii(raw: bytes, header_line: str, separator: str) -> pd.DataFrame | None:
-    """The table by pyarrow's reader, or None where pandas' reader must decide.
-
-    pyarrow parses a column of numbers several times faster, on both cores, but reads ``NaN``
-    and ``inf`` cells as numbers, infers its own types for dates and times, and keeps repeated
-    column names: such a table (and any pyarrow refuses) goes to pandas, whose reading the
-    bad-value markers and the refusals rely on.
-    """
-    import pyarrow as pa
-    import pyarrow.csv as pa_csv
-
-    start = raw.find(header_line.encode("ascii"))
-    try:
-        table = pa_csv.read_csv(
-            pa.py_buffer(memoryview(raw)[max(start, 0) :]),
-            parse_options=pa_csv.ParseOptions(delimiter=separator),
-            convert_options=pa_csv.ConvertOptions(
-                strings_can_be_null=False, quoted_strings_can_be_null=False, null_values=[]
-            ),
-        )
-    except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
-        return None
-    names = [str(name).strip() for name in table.column_names]
-    if len(set(names)) != len(names) or not all(
-        _plain_column(column.type) for column in table.columns
-    ):
-        return None
-    for column in table.columns:
-        if pa.types.is_floating(column.type) and not _all_finite(column):
-            return None
-    frame: pd.DataFrame = table.to_pandas()
-    return frame
-
-
-def _plain_column(kind: Any) -> bool:
-    """Whether a pyarrow column type reads as pandas' reader would: numbers or text."""
-    import pyarrow as pa
-
-    return bool(pa.types.is_floating(kind) or pa.types.is_integer(kind) or pa.types.is_string(kind))
-
-
-def _all_finite(column: Any) -> bool:
-    """Whether a pyarrow float column holds no NaN or infinite value."""
-    import pyarrow.compute as pa_compute
-
-    return bool(pa_compute.all(pa_compute.is_finite(column)).as_py())
 
 
 def _strip_blank_lines(text: str) -> str:
