@@ -213,18 +213,20 @@ def fit_period(t: FloatArray, breaks: BoolArray, h: float) -> PeriodFit:
     """
     chunk = np.concatenate(([0], np.cumsum(breaks)))
     first = np.flatnonzero(np.concatenate(([True], breaks)))
-    k = np.rint((t - t[first][chunk]) / h)
     counts = np.bincount(chunk).astype(np.float64)
-    k_c = k - (np.bincount(chunk, weights=k) / counts)[chunk]
-    t_c = t - t[first][chunk]
+    # in place where it can be: a day of samples is 35 MB an array
+    t_c = t - t[first][chunk]  # each stretch's times from its first stamp
+    k_c = np.rint(t_c / h)
+    k_c -= (np.bincount(chunk, weights=k_c) / counts)[chunk]
     t_c -= (np.bincount(chunk, weights=t_c) / counts)[chunk]
     spread = float(k_c @ k_c)
     if spread == 0.0:
         return PeriodFit(h, 0.0)
     slope = float(k_c @ t_c) / spread
-    residual = t_c - slope * k_c
+    k_c *= slope
+    t_c -= k_c  # the residuals
     dof = max(t.size - counts.size - 1, 1)
-    sigma = float(np.sqrt(residual @ residual / dof))
+    sigma = float(np.sqrt(t_c @ t_c / dof))
     return PeriodFit(slope, sigma / np.sqrt(spread))
 
 
