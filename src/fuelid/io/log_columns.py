@@ -291,19 +291,18 @@ def _skip_unit_row(
     notes: list[str],
     marked: BoolArray,
 ) -> tuple[LogTable, dict[str, str]]:
-    """Skip a first data row of units (text in every chosen column) and read the units from it.
+    """Skip a first data row of units (text in every signal column) and read the units from it.
 
-    A first row of bad-value markers (``marked``) is a missing sample, not a row of units.
+    ``names`` are the time, u, y and fuel-temperature columns; the time column's cell may be
+    empty (exports often leave it so). A first row of bad-value markers (``marked``) is a
+    missing sample, not a row of units.
     """
     first = [table.u[0], table.y[0]] + [x[0] for x in (table.t, table.T) if x is not None]
     cells = {name: str(frame[name].iloc[0]).strip() for name in names if name is not None}
-    if (
-        table.u.size < 2
-        or bool(marked[0])
-        or not np.all(np.isnan(first))
-        or not all(cells.values())
-    ):
+    signal_cells = [str(frame[name].iloc[0]).strip() for name in names[1:] if name is not None]
+    if table.u.size < 2 or not np.all(np.isnan(first)) or not all(signal_cells) or bool(marked[0]):
         return table, {}
+    cells = {name: cell for name, cell in cells.items() if cell}
     shown = ", ".join(cells.values())
     notes.append(f"first data row ({shown}) holds no numbers: skipped as a row of units")
     units = {name: cell.strip("[]() ") for name, cell in cells.items()}

@@ -33,7 +33,8 @@ __all__ = [
 ResampleMode = Literal["auto", "always", "never"]
 
 JITTER_FRACTION = 0.4
-"""Time stamps within ±0.4 of a period of a steady grid (one per slot) are placed on it."""
+"""Stamps within ±0.4 of a period of their slots are jitter; one beyond is a late or early poll,
+and stamps beyond it either side of an empty slot are a clock slipping a period."""
 RESAMPLE_TOLERANCE = 0.10
 """``resample="auto"`` interpolates a stretch off any steady grid only if every interval is within
 ±10 % of the period."""
@@ -45,13 +46,21 @@ FILL_GAPS_MAX_PERIODS = 5.0
 """Longest gap ``fill_gaps`` may bridge, in sample periods (see :func:`fuelid.io.logs.load_log`)."""
 SAMPLE_TIME_TOLERANCE = 0.01
 """A sample time given with a time column must agree with the column's period within 1 %."""
-DRIFT_TOLERANCE = 0.02
-"""A rounded period may move no sample by more than this fraction of a period over the log
-(for stamps without jitter; jittered stamps allow three standard errors of the fitted period)."""
+EXACT_DRIFT = 0.02
+"""For stamps on an exact grid, a rounded period may move no sample by more than this fraction
+of a period over the log."""
+JITTERED_DRIFT = 0.1
+"""For jittered stamps, a rounded period may move the stamps of the longest stretch between
+gaps by this fraction of a period end to end (±0.05 about its mean phase, well inside the
+±0.4 the jitter may take), or lie within three standard errors of the fit. Receipt delays
+that wander slowly (a loaded recorder) make the standard error, which takes them as
+independent, too small; the drift bound does not rest on it."""
 PHASE_SAMPLES = 200_000
 """Stamps whose mean phase places a stretch's grid, at most (spread evenly over the log)."""
 REFINE_PAIRS = 200_000
 """Pairs of samples whose median refines the first estimate of the period, at most."""
+COARSE_STAMPS = 0.1
+"""When this share of the rows repeat their stamp, the stamps are coarser than the samples."""
 GAPS_LISTED = 3
 """The gap note lists this many gaps with their time and data row, then counts the rest."""
 
@@ -144,10 +153,24 @@ def sort_and_deduplicate(
         raise DataError(
             f"{source}: conflicting samples at t = {table.t[i]:.6g} s (data rows {row_a} and "
             f"{row_b}): {names[which]} is {values[i]:g} and {values[i + 1]:g}"
+            + _coarse_stamps_hint(table.t, int(repeated.sum()))
         )
     keep = np.concatenate(([True], ~repeated))
     notes.append(f"dropped {int(repeated.sum())} duplicated row(s) (same time, same values)")
     return table.take(np.flatnonzero(keep))
+
+
+def _coarse_stamps_hint(t: FloatArray, repeated: int) -> str:
+    """Advice when many stamps repeat: a clock written coarser than the samples come."""
+    if repeated < COARSE_STAMPS * t.size:
+        return ""
+    per_row = (t[-1] - t[0]) / max(t.size - 1, 1)
+    return (
+        f"; {repeated} of {t.size} rows repeat the stamp before them: stamps written coarser "
+        "than the samples (whole seconds?) cannot time them; give the sample time with no "
+        f"time column (--sample-time {per_row:.2g} --time-col '') to take the rows as uniform "
+        "(a gap then goes unseen)"
+    )
 
 
 def period(
@@ -186,8 +209,8 @@ def period(
         return _given_period(t, breaks, fitted, float(sample_time), time_name, source, notes), (
             breaks
         )
-    h = round_period(fitted, (t[-1] - t[0]) / fitted.h)
-    if fitted.se > 0.0 and abs(h - fitted.h) > DRIFT_TOLERANCE * h / ((t[-1] - t[0]) / h):
+    h = round_period(fitted, (t[-1] - t[0]) / fitted.h, _longest_stretch(t, breaks) / fitted.h)
+    if not fitted.exact and h != round(fitted.h, 12):
         notes.append(
             f"sample time {h:g} s, fitted to the time stamps ({fitted.h:.9g} ± {fitted.se:.2g} s "
             f"over {t.size} samples) and rounded to the digits they support"
@@ -201,6 +224,13 @@ class PeriodFit:
 
     h: float
     se: float
+    sigma: float = 0.0
+    """The stamps' scatter about the fitted grid [s]."""
+
+    @property
+    def exact(self) -> bool:
+        """Whether the stamps lie on the grid to within rounding (no jitter)."""
+        return self.sigma <= UNIFORM_TOLERANCE * self.h
 
 
 def fit_period(t: FloatArray, breaks: BoolArray, h: float) -> PeriodFit:
@@ -227,29 +257,44 @@ def fit_period(t: FloatArray, breaks: BoolArray, h: float) -> PeriodFit:
     t_c -= k_c  # the residuals
     dof = max(t.size - counts.size - 1, 1)
     sigma = float(np.sqrt(t_c @ t_c / dof))
-    return PeriodFit(slope, sigma / np.sqrt(spread))
+    return PeriodFit(slope, sigma / np.sqrt(spread), sigma)
 
 
-def round_period(fit: PeriodFit, slots: float) -> float:
+def round_period(fit: PeriodFit, slots: float, stretch: float | None = None) -> float:
     """The period with the fewest significant digits the stamps support.
 
-    A rounding is supported when it lies within three standard errors of the fitted period
-    (jittered stamps cannot tell it apart), or when it moves no sample by more than 2 % of a
-    period over the log's ``slots`` periods (stamps without jitter).
+    ``slots`` is the log's length and ``stretch`` its longest stretch between gaps, in
+    periods. For stamps on an exact grid a rounding may move no sample by more than 2 % of a
+    period over the log (:data:`EXACT_DRIFT`); for jittered stamps it may lie within three
+    standard errors of the fit, or move the longest stretch's stamps by 0.1 of a period end to
+    end (:data:`JITTERED_DRIFT`).
 
     Examples
     --------
-    >>> round_period(PeriodFit(0.1000012, 4e-7), 3000.0)  # ±15 ms of jitter over 300 s
+    >>> round_period(PeriodFit(0.1000012, 4e-7, 0.0087), 3000.0)  # ±15 ms of jitter, 300 s
     0.1
     >>> round_period(PeriodFit(0.0204, 0.0), 50.0)  # a clock 2 % slow
     0.0204
+    >>> round_period(PeriodFit(0.0203994, 1.8e-7, 7e-4), 1000.0)  # delays that wander
+    0.0204
     """
-    tolerance = max(3.0 * fit.se, DRIFT_TOLERANCE * fit.h / max(slots, 1.0))
+    if fit.exact:
+        tolerance = EXACT_DRIFT * fit.h / max(slots, 1.0)
+    else:
+        longest = slots if stretch is None else stretch
+        tolerance = max(3.0 * fit.se, JITTERED_DRIFT * fit.h / max(longest, 1.0))
     for digits in range(1, 10):
         candidate = float(f"{fit.h:.{digits}g}")
         if abs(candidate - fit.h) <= tolerance:
             return candidate
     return round(fit.h, 12)
+
+
+def _longest_stretch(t: FloatArray, breaks: BoolArray) -> float:
+    """The longest time [s] between a stretch's first and last stamps."""
+    first = np.flatnonzero(np.concatenate(([True], breaks)))
+    last = np.concatenate((first[1:] - 1, [t.size - 1]))
+    return float(np.max(t[last] - t[first]))
 
 
 def _given_period(
@@ -262,7 +307,7 @@ def _given_period(
     notes: list[str],
 ) -> float:
     """The sample time given, as the grid, when the stamps fit it within the jitter."""
-    if abs(fitted.h - sample_time) > SAMPLE_TIME_TOLERANCE * sample_time:
+    if abs(fitted.h - sample_time) > SAMPLE_TIME_TOLERANCE * sample_time * (1.0 + 1e-9):
         raise DataError(
             f"{source}: time column {time_name!r} says {fitted.h:.6g} s between samples, the "
             f"sample time given (sample_time, --sample-time) says {sample_time:g} s: give one "
@@ -277,11 +322,13 @@ def _given_period(
             f"{worst * 1e3:.2g} ms"
         )
         return sample_time
-    h = round_period(fitted, (t[-1] - t[0]) / fitted.h)
+    longest = _longest_stretch(t, breaks) / fitted.h
+    h = round_period(fitted, (t[-1] - t[0]) / fitted.h, longest)
+    drift = abs(fitted.h - sample_time) / sample_time * longest
     notes.append(
         f"time column {time_name} used (gaps and jitter checked on it): its stamps drift off "
-        f"the {sample_time:g} s grid given (sample_time, --sample-time) by up to "
-        f"{worst / sample_time:.2f} of a period, so their own period, {h:.6g} s, is the grid"
+        f"the {sample_time:g} s grid given (sample_time, --sample-time) by {drift:.2g} periods "
+        f"over the longest stretch, so their own period, {h:.6g} s, is the grid"
     )
     return h
 
@@ -304,10 +351,34 @@ class Placement:
     chunk: IntArray
     first: IntArray
 
+    def late_or_early(self, h: float) -> BoolArray:
+        """The polls placed beyond ±0.4 of a period: moved ones, and those up to half a period.
+
+        A sample rounds onto its nearest slot, so it lies within half a period of it; one
+        beyond ±0.4 (:data:`JITTER_FRACTION`) is a poll answered late or early.
+        """
+        return self.moved | (np.abs(self.deviation) > JITTER_FRACTION * h)
+
+    def slipped(self, h: float) -> BoolArray:
+        """The intervals across which the stamps slip a whole period: a clock, not a lost sample.
+
+        A clock slower than the grid pushes its stamps ever later until one rounds onto the slot
+        after next: an empty slot between a stamp beyond +0.4 of a period and one beyond −0.4.
+        """
+        late = self.deviation[:-1] > JITTER_FRACTION * h
+        early = self.deviation[1:] < -JITTER_FRACTION * h
+        slips: BoolArray = (np.diff(self.k) == 2) & (self.chunk[1:] == self.chunk[:-1])
+        return slips & late & early
+
     def placed(self, h: float) -> BoolArray:
-        """The stretches whose every sample lies on its own slot within the jitter bound."""
-        bound = np.where(self.moved, h, JITTER_FRACTION * h)
+        """The stretches whose every sample lies on a slot of its own, none slipping a period.
+
+        A sample lies within half a period of its slot (a late or early poll moved to the empty
+        slot beside it, within a period).
+        """
+        bound = np.where(self.moved, h, 0.5 * h)
         off = np.abs(self.deviation) > bound * (1.0 - 1e-9)
+        off[1:] |= self.slipped(h)
         worst = np.maximum.reduceat(off.astype(np.int8), self.first).astype(bool)
         return ~worst & ~self.collided
 
@@ -359,23 +430,26 @@ def _mean_phase(t: FloatArray, chunk: IntArray, first: IntArray, h: float) -> Fl
 def _unshare_slots(k: IntArray, same: BoolArray) -> BoolArray:
     """Move a sample that shares a slot beside an empty one onto the empty slot (in place).
 
-    ``same`` says which intervals lie within a stretch. Returns which samples moved.
+    ``same`` says which intervals lie within a stretch. A late poll shares the next sample's
+    slot and leaves its own empty (or one of several empty, after a lost sample), or starts a
+    stretch after a stall: it goes back one slot. Otherwise the later sample, an early poll,
+    goes forward one slot when that one is empty (or its stretch ends). Returns which moved.
     """
     moved = np.zeros(k.size, dtype=bool)
     steps = np.diff(k)
     shared = np.flatnonzero(same & (steps == 0))
     if shared.size == 0:
         return moved
-    before = np.zeros(shared.size, dtype=bool)
-    inner = shared > 0
-    before[inner] = (steps[shared[inner] - 1] == 2) & same[shared[inner] - 1]
-    after = np.zeros(shared.size, dtype=bool)
-    tail = shared + 1 < steps.size
-    after[tail] = (steps[shared[tail] + 1] == 2) & same[shared[tail] + 1] & ~before[tail]
-    k[shared[before]] -= 1
-    k[shared[after] + 1] += 1
-    moved[shared[before]] = True
-    moved[shared[after] + 1] = True
+    opens = np.concatenate(([True], ~same))  # a sample that starts its stretch
+    closes = np.concatenate((~same, [True]))  # a sample that ends its stretch
+    previous = np.concatenate(([0], steps))
+    following = np.concatenate((steps, [0]))
+    back = opens[shared] | (previous[shared] >= 2)
+    forward = ~back & (closes[shared + 1] | (following[shared + 1] >= 2))
+    k[shared[back]] -= 1
+    k[shared[forward] + 1] += 1
+    moved[shared[back]] = True
+    moved[shared[forward] + 1] = True
     return moved
 
 
@@ -444,14 +518,17 @@ def regularise(
     steps = np.diff(k)
     placed = placement.placed(h)
     if not placed.all():
-        _check_resampling(table, h, chunk, placed, mode, source)
+        _check_resampling(table, h, chunk, placed, mode, source, _misfit(placement, h))
 
     # gaps: long intervals and missing slots; bridged when short enough (or a dropped bad row)
     on_grid = placed[chunk]
     both = on_grid[:-1] & on_grid[1:]
     slots = np.where(same, steps, np.maximum(np.rint(dt / h), 1.0)).astype(np.int64)
     gap = np.where(same, (slots > 1) & both, True)
-    length = np.where(same, slots * h, dt)  # whole periods within a stretch
+    # a jittered stamp does not lengthen a gap: whole periods, where the interval is near them
+    periods = dt / h
+    near_grid = np.abs(periods - np.rint(periods)) <= JITTER_FRACTION
+    length: FloatArray = np.where(same | near_grid, slots * h, dt)
     dropped = np.zeros(0, dtype=np.int64) if bridgeable is None else bridgeable
     bad_row = (
         same & (slots == 2) & (np.diff(table.rows) == 2) & np.isin(table.rows[:-1] + 1, dropped)
@@ -468,13 +545,14 @@ def regularise(
     record, rows = _merged(pieces, table.T is not None)
 
     if on_grid.any() and float(np.max(np.abs(deviation[on_grid]))) > UNIFORM_TOLERANCE * h:
-        notes.append(_describe_jitter(deviation, on_grid & ~placement.moved, h))
-    polls = placement.moved & on_grid
+        notes.append(_describe_jitter(deviation, on_grid & ~placement.late_or_early(h), h))
+    polls = placement.late_or_early(h) & on_grid
     if polls.any():
         off_ms = float(np.max(np.abs(deviation[polls]))) * 1e3
         notes.append(
-            f"{int(polls.sum())} late or early poll(s) put on their own slots (a sample that "
-            f"shared a slot beside an empty one; at most {off_ms:.3g} ms off): values unchanged"
+            f"{int(polls.sum())} late or early poll(s) put on their own slots (beyond ±"
+            f"{JITTER_FRACTION:g} of a period, their neighbours within it; at most {off_ms:.3g} "
+            "ms off): values unchanged"
         )
     if not placed.all():
         stretches = "" if first.size == 1 else f"{int(np.sum(~placed))} of {first.size} stretches "
@@ -598,8 +676,12 @@ def _check_resampling(
     placed: BoolArray,
     mode: ResampleMode,
     source: str,
+    misfit: int | None = None,
 ) -> None:
-    """Refuse stretches off any steady grid that ``mode`` does not let be resampled safely."""
+    """Refuse stretches off any steady grid that ``mode`` does not let be resampled safely.
+
+    ``misfit`` is the first sample where the stamps fit no grid (:func:`_misfit`), named too.
+    """
     assert table.t is not None
     t = table.t
     dt = np.diff(t)
@@ -625,8 +707,24 @@ def _check_resampling(
     raise DataError(
         f"{source}: irregular sampling: interval of {dt[i]:.6g} s at t = {t[i]:.6g} s (data row "
         f"{int(table.rows[i])}) against a period of {h:g} s; the time stamps fit no steady grid "
-        f"within ±{JITTER_FRACTION:g} of a period and {why}{hint}"
+        f"(two in one slot, or a clock slipping a period{_misfit_place(table, misfit)}) and "
+        f"{why}{hint}"
     )
+
+
+def _misfit(placement: Placement, h: float) -> int | None:
+    """The first sample that shares its slot with the next, or slips a period after it."""
+    same = placement.chunk[1:] == placement.chunk[:-1]
+    wrong = np.flatnonzero((same & (np.diff(placement.k) < 1)) | placement.slipped(h))
+    return int(wrong[0]) if wrong.size else None
+
+
+def _misfit_place(table: LogTable, misfit: int | None) -> str:
+    """``", first at t = 6 s, data rows 301 and 302"`` (empty without a place)."""
+    if misfit is None or table.t is None:
+        return ""
+    rows = table.rows[misfit : misfit + 2]
+    return f", first at t = {table.t[misfit]:.6g} s, data rows {int(rows[0])} and {int(rows[-1])}"
 
 
 def _describe_gaps(where: IntArray, length: FloatArray, t: FloatArray, rows: IntArray) -> str:

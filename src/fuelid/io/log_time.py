@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from datetime import datetime
 from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
 import numpy as np
@@ -88,7 +89,9 @@ def stamps_to_seconds(
     if pd.api.types.is_datetime64_any_dtype(series.dtype):
         return _seconds(_in_utc(pd.Series(series), form, name, source, notes))
     if pd.api.types.is_numeric_dtype(series.dtype):
-        return to_float(series), None
+        if form.time_format is None:
+            return to_float(series), None
+        series = _digits(series)  # stamps of digits only (20260328015830) read as numbers
     text = series.astype(str).str.strip()
     if form.time_format is None:
         numbers = to_float(series)
@@ -99,12 +102,20 @@ def stamps_to_seconds(
     return _seconds(_in_utc(stamps, form, name, source, notes))
 
 
+def _digits(series: pd.Series) -> pd.Series:
+    """A numeric column as the text of its digits, for a time format to read."""
+    if pd.api.types.is_integer_dtype(series.dtype):
+        return series.astype("int64").astype(str)
+    return series.map(lambda value: format(value, "f").rstrip("0").rstrip("."))
+
+
 def _parse(
     text: pd.Series, form: StampFormat, name: str, source: str, notes: list[str]
 ) -> pd.Series:
     """The stamps as datetimes (NaT where a cell is not one), offsets kept as UTC."""
     filled = text[text != ""]
     sample = filled.iloc[:SAMPLE_STAMPS]
+    sample = sample[sample.str.contains(r"\d")]  # not a row of units above the stamps
     with_offset = sample.str.contains(_OFFSET)
     if with_offset.any() and not with_offset.all():
         row = int(sample.index[int(np.argmin(with_offset.to_numpy()))]) + 1
@@ -123,9 +134,16 @@ def _parse(
 def _parse_with_format(
     text: pd.Series, time_format: str, utc: bool, name: str, source: str
 ) -> pd.Series:
-    """Stamps in the strptime form given; refused when the first one does not match it."""
+    """Stamps in the strptime form given; refused when the first one does not match it.
+
+    A form without ``%f`` reads stamps with fractions of a second too (``.104`` or ``,104``).
+    """
     try:
-        stamps = pd.to_datetime(text, format=time_format, errors="coerce", utc=utc)
+        if "%f" in time_format:
+            stamps = pd.to_datetime(text, format=time_format, errors="coerce", utc=utc)
+        else:
+            decimal = text.str.replace(r"(\d{1,2}:\d{2}:\d{2}),(\d+)", r"\1.\2", regex=True)
+            stamps = _strptime(decimal, time_format, utc)
     except ValueError as error:
         raise DataError(
             f"time format {time_format!r} is not valid strptime codes: {error}"
@@ -174,10 +192,16 @@ def _slashed_form(sample: pd.Series, notes: list[str]) -> str:
     else:
         day_first = not am_pm
         order = "day/month" if day_first else "month/day (with AM/PM)"
+        other = _slashed(not day_first, year, clock, am_pm)
         notes.append(
             f"date stamps like {sample.iloc[0]!r} read as {order}: no day above 12 tells the "
-            "order; give --time-format (e.g. %m/%d/%Y %I:%M:%S %p) if that is wrong"
+            f"order; give --time-format '{other}' if that is wrong"
         )
+    return _slashed(day_first, year, clock, am_pm)
+
+
+def _slashed(day_first: bool, year: str, clock: str, am_pm: bool) -> str:
+    """The strptime form of a slashed date: ``%d/%m/%Y %H:%M:%S`` and its cousins."""
     date = f"%d/%m/{year}" if day_first else f"%m/%d/{year}"
     return f"{date} {clock}" + (" %p" if am_pm else "")
 
@@ -197,20 +221,27 @@ def _strptime(text: pd.Series, form: str, utc: bool) -> pd.Series:
 def _in_utc(
     stamps: pd.Series, form: StampFormat, name: str, source: str, notes: list[str]
 ) -> pd.Series:
-    """Stamps on one steady clock: offsets as read, local ones placed in the zone given."""
+    """Stamps on one steady clock: offsets as read, local ones placed in the zone given.
+
+    A clock that still steps back by an hour is refused, and an hour-long jump forward of
+    local stamps without a zone is named (the clock changes, :func:`_check_hour_steps`).
+    """
     if stamps.dt.tz is not None:
-        offsets = stamps.dropna()
         if form.timezone is not None:
             notes.append(
-                f"time stamps carry UTC offsets: the time zone {form.timezone} is not used"
+                f"time stamps carry UTC offsets: the time zone {form.timezone} is not needed"
             )
-        elif not offsets.empty:
+        elif stamps.notna().any():
             notes.append("time stamps with UTC offsets converted to UTC")
-        return pd.Series(stamps.dt.tz_convert("UTC"))
+        steady = pd.Series(stamps.dt.tz_convert("UTC"))
+        _check_hour_steps(steady, stamps, "with their UTC offsets", name, source, notes)
+        return steady
     if form.timezone is None:
-        _refuse_clock_change(stamps, name, source)
+        _check_hour_steps(stamps, stamps, None, name, source, notes)
         return stamps
-    return _localised(stamps, form.timezone, name, source, notes)
+    steady = _localised(stamps, form.timezone, name, source, notes)
+    _check_hour_steps(steady, stamps, f"in {form.timezone}", name, source, notes)
+    return steady
 
 
 def _localised(
@@ -239,8 +270,7 @@ def _localisation_refusal(
             f"{source}: column {name!r} data row {int(rows[0]) if rows.size else '?'} "
             f"({stamps.iloc[int(rows[0]) - 1] if rows.size else ''}) does not exist in "
             f"{zone.key}: it lies in the hour skipped at the spring clock change; is the log "
-            "in standard time all year? then give a fixed-offset zone (e.g. Etc/GMT-1 for "
-            "UTC+1)"
+            f"in standard time all year? then give a fixed-offset zone ({_fixed_zone(zone)})"
         )
     rows = np.flatnonzero(skipped.to_numpy()) + 1
     where = f"data rows {int(rows[0])} to {int(rows[-1])}" if rows.size else "its rows"
@@ -251,25 +281,64 @@ def _localisation_refusal(
     )
 
 
-def _refuse_clock_change(stamps: pd.Series, name: str, source: str) -> None:
-    """Refuse local stamps that step back by an hour: the autumn clock change, no zone given."""
-    seconds = (
-        (stamps - stamps.dropna().iloc[0]).dt.total_seconds().to_numpy()
-        if stamps.notna().any()
-        else None
-    )
-    if seconds is None:
+def _fixed_zone(zone: ZoneInfo) -> str:
+    """The fixed-offset IANA zone of ``zone``'s standard time: ``Etc/GMT+5`` for UTC−5.
+
+    Examples
+    --------
+    >>> _fixed_zone(ZoneInfo("America/New_York")), _fixed_zone(ZoneInfo("Europe/Berlin"))
+    ('Etc/GMT+5 for UTC−5', 'Etc/GMT-1 for UTC+1')
+    """
+    offsets = [zone.utcoffset(datetime(2026, month, 1)) for month in (1, 7)]
+    hours = min(offset.total_seconds() for offset in offsets if offset is not None) / 3600.0
+    if hours != int(hours):
+        return "an Etc/GMT zone of its standard offset"
+    sign = "-" if hours > 0 else "+"  # IANA's Etc/GMT zones count west as positive
+    shown = f"UTC+{int(hours)}" if hours >= 0 else f"UTC−{int(-hours)}"
+    return f"Etc/GMT{sign}{abs(int(hours))} for {shown}"
+
+
+def _check_hour_steps(
+    steady: pd.Series,
+    written: pd.Series,
+    placed: str | None,
+    name: str,
+    source: str,
+    notes: list[str],
+) -> None:
+    """Refuse a clock that steps back by an hour; name an hour-long jump forward (no zone).
+
+    ``steady`` are the stamps on the clock they were placed on, ``written`` as read, ``placed``
+    how they were placed (None: local, no zone given). A step back by an hour is the autumn
+    clock change: without a zone the zone is missing, with one it is the wrong zone.
+    """
+    valid = steady.dropna()
+    if valid.size < 2:
         return
-    steps = np.diff(seconds)
-    back = np.flatnonzero((steps < -0.9 * CLOCK_CHANGE_S) & (steps > -1.1 * CLOCK_CHANGE_S))
-    if back.size == 0:
-        return
-    i = int(back[0])
-    raise DataError(
-        f"{source}: column {name!r} steps back by an hour at data row {i + 2} "
-        f"({stamps.iloc[i]} then {stamps.iloc[i + 1]}): local time through the autumn clock "
-        "change; give the log's time zone (--timezone, e.g. Europe/Berlin) or export in UTC"
-    )
+    steps = np.diff((steady - valid.iloc[0]).dt.total_seconds().to_numpy(dtype=float))
+    hour = np.abs(np.abs(steps) - CLOCK_CHANGE_S) <= 0.1 * CLOCK_CHANGE_S
+    back = np.flatnonzero(hour & (steps < 0.0))
+    if back.size:
+        i = int(back[0])
+        stamps = f"{written.iloc[i]} then {written.iloc[i + 1]}"
+        why = (
+            "local time through the autumn clock change; give the log's time zone (--timezone, "
+            "e.g. Europe/Berlin) or export in UTC"
+            if placed is None
+            else f"even {placed}: is that the zone the log was written in?"
+        )
+        raise DataError(
+            f"{source}: column {name!r} steps back by an hour at data row {i + 2} ({stamps}): "
+            f"{why}"
+        )
+    ahead = np.flatnonzero(hour & (steps > 0.0))
+    if ahead.size and placed is None:
+        i = int(ahead[0])
+        notes.append(
+            f"the time stamps jump forward by an hour at data row {i + 2} ({written.iloc[i]} "
+            f"then {written.iloc[i + 1]}): if that is the spring clock change, give the log's "
+            "time zone (--timezone) and the hour is no gap"
+        )
 
 
 def _seconds(stamps: pd.Series) -> tuple[FloatArray, str | None]:

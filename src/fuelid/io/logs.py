@@ -104,11 +104,13 @@ def load_log(
 
     * **Jitter**: a log time-stamped on receipt (OPC UA subscriptions, historians, PC-side
       recorders; a Modbus poll at 20 ms scatters with a standard deviation of 0.7 ms, single
-      intervals 7 to 33 ms) is not irregular. When every sample lies within ±0.4 h
-      (:data:`JITTER_FRACTION`) of its own slot of a steady grid ``t0 + k·h``, one sample per
-      slot, the samples are placed on the grid with their values unchanged, and the jitter is
-      reported (standard deviation and largest deviation). The margin below half a period keeps
-      a drifting clock from passing as a missing sample.
+      intervals 7 to 33 ms) is not irregular. When every sample has a slot of its own (its
+      nearest) on a steady grid ``t0 + k·h``, the samples are placed on the grid with their
+      values unchanged, and the jitter is reported (standard deviation and largest deviation
+      within ±0.4 h, :data:`JITTER_FRACTION`; samples beyond it counted as late or early
+      polls). A late poll that rounds onto the next sample's slot goes back to its own empty
+      one. Two samples in one slot with no empty slot beside, or an empty slot between stamps
+      beyond +0.4 h and −0.4 h (a clock slipping a period), make a stretch irregular.
     * **Gaps**: an interval longer than ``max_gap`` (default 3 median intervals) is a gap, and so
       are missing grid slots after the placement (a single missing row). Nothing is interpolated
       across a gap unless ``fill_gaps`` asks for it: the log is returned as segments
@@ -116,7 +118,7 @@ def load_log(
       gap's length is the time between the samples on either side (on the grid: whole
       periods); its time and data row are those of the last sample before it. A segment of
       fewer than 10 samples (:data:`MIN_SAMPLES`) is dropped.
-    * **Larger irregularity** (stamps off any steady grid): ``resample="auto"`` interpolates a
+    * **Larger irregularity** (stamps no steady grid can place): ``resample="auto"`` interpolates a
       stretch between gaps onto the grid only if every interval in it is within ±10 % of h
       (:data:`RESAMPLE_TOLERANCE`, a clock that drifts), where interpolation spans no missing
       sample; ``"always"`` interpolates any such stretch; ``"never"`` refuses it. Interpolation

@@ -91,6 +91,14 @@ def find_header(lines: Sequence[str], header: HeaderSearch, source: str) -> int:
                 f"{source}: --skip-rows {header.skip_rows} skips every line read ("
                 f"{len(lines)} at the top of the file)"
             )
+        if _width(lines[header.skip_rows]) == 0:
+            likely = _likely_header(lines)
+            hint = f"; line {likely + 1} looks like it: --skip-rows {likely}" if likely else ""
+            raise DataError(
+                f"{source}: line {header.skip_rows + 1}, below --skip-rows "
+                f"{header.skip_rows}, is no header ({_shown(lines[header.skip_rows])}: one "
+                f"column){hint}"
+            )
         return header.skip_rows
     wanted = {name.strip().casefold() for name in header.names if name}
     for index, line in enumerate(lines[:PREAMBLE_LINES]):
@@ -99,13 +107,19 @@ def find_header(lines: Sequence[str], header: HeaderSearch, source: str) -> int:
     likely = _likely_header(lines)
     if likely == 0:
         return 0
-    shown = lines[likely] if len(lines[likely]) <= 60 else lines[likely][:57] + "..."
-    asked = ", ".join(sorted(header.names)) or "the columns"
+    named = set().union(*(_cells(line) for line in lines[:PREAMBLE_LINES]))
+    missing = [name for name in header.names if name.strip().casefold() not in named]
+    asked = ", ".join(missing or sorted(header.names)) or "the columns"
     raise DataError(
-        f"{source}: line {likely + 1} ({shown!r}) looks like the header, below {likely} line(s) "
-        f"of preamble, but no line names {asked}: give --skip-rows {likely} and the columns' "
-        "names (--time-col, --input-col, --output-col)"
+        f"{source}: line {likely + 1} ({_shown(lines[likely])}) looks like the header, below "
+        f"{likely} line(s) of preamble, but no line names {asked}: give --skip-rows {likely} "
+        "and the columns' names (--time-col, --input-col, --output-col)"
     )
+
+
+def _shown(line: str) -> str:
+    """A line as quoted in a message, cut to 60 characters."""
+    return repr(line if len(line) <= 60 else line[:57] + "...")
 
 
 def _cells(line: str) -> set[str]:
@@ -255,7 +269,7 @@ def _read_text(raw: bytes, source: str, header: HeaderSearch) -> tuple[pd.DataFr
     :func:`to_float` and the log reader to interpret or refuse. Plain ASCII text (a day-long
     log) is parsed from its bytes: no decoded copy, no copy of the text.
     """
-    ascii_text = raw.isascii()
+    ascii_text = raw.isascii() and b"\x00" not in raw  # UTF-16 of ASCII is ASCII bytes too
     text, encoding = _decode(raw[:HEAD_BYTES] if ascii_text else raw, source)
     head = _strip_blank_lines(text[:HEAD_BYTES]).splitlines()
     if len(text) > HEAD_BYTES and len(head) > 1:
@@ -278,6 +292,13 @@ def _read_text(raw: bytes, source: str, header: HeaderSearch) -> tuple[pd.DataFr
         stripped = _strip_blank_lines(text)
         body = StringIO(stripped[max(stripped.find(head[at]), 0) :])
     frame = _parse(body, separator, spaced, source)
+    if not isinstance(frame.index, pd.RangeIndex):  # pandas took the first field as an index
+        raise DataError(
+            f"{source}: the data rows have one field more than the header "
+            f"({len(frame.columns) + 1} against {len(frame.columns)}): a "
+            f"{_SEPARATOR_NAMES[separator]} inside a cell (a decimal comma, milliseconds "
+            "after a comma)? quote such cells, or export with another separator"
+        )
     frame.columns = [str(name).strip().lstrip("\ufeff").strip() for name in frame.columns]
     if frame.empty:
         raise DataError(f"{source} has a header but no data rows")
@@ -331,6 +352,8 @@ def _decode(raw: bytes, source: str) -> tuple[str, str]:
     """Decode as UTF-16 (with its BOM), UTF-8 (BOM stripped) or GBK; refuse binary content."""
     if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
         candidates: tuple[str, ...] = ("utf-16",)
+    elif _utf16_without_mark(raw[:HEAD_BYTES]):
+        candidates = (_utf16_without_mark(raw[:HEAD_BYTES]),)
     elif b"\x00" in raw:
         raise DataError(f"{source} is not a text table (it holds binary data)")
     else:
@@ -344,6 +367,29 @@ def _decode(raw: bytes, source: str) -> tuple[str, str]:
             raise DataError(f"{source} is not a text table (it holds control characters)")
         return text, encoding
     raise DataError(f"{source} is not a text table (neither UTF-8 nor GBK text)")
+
+
+def _utf16_without_mark(head: bytes) -> str:
+    r"""``"utf-16-le"`` or ``"utf-16-be"`` for UTF-16 text without a byte-order mark, else ``""``.
+
+    ASCII text in UTF-16 has a zero byte in every character: the odd bytes (little-endian) or
+    the even ones (big-endian).
+
+    Examples
+    --------
+    >>> _utf16_without_mark("t_s,u_V\n0,1\n".encode("utf-16-le"))
+    'utf-16-le'
+    >>> _utf16_without_mark(b"t_s,u_V,q_Lpm")
+    ''
+    """
+    pairs = len(head) // 2
+    if pairs < 4:
+        return ""
+    if head[1 : 2 * pairs : 2].count(0) >= 0.9 * pairs:
+        return "utf-16-le"
+    if head[0 : 2 * pairs : 2].count(0) >= 0.9 * pairs:
+        return "utf-16-be"
+    return ""
 
 
 def _sniff_separator(lines: Sequence[str], source: str) -> str:
