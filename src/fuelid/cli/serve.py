@@ -113,6 +113,50 @@ def serve_command(
         ),
     ] = None,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the flowmeter noise.")] = 0,
+    clock_slow: Annotated[
+        float,
+        typer.Option(
+            "--clock-slow",
+            metavar="FRACTION",
+            help="The PLC's clock runs slow by this fraction (−0.5…0.5): 0.02 makes its 0.02 s "
+            "cycle last 0.0204 s of real time; negative: fast. The plant runs in real time.",
+        ),
+    ] = 0.0,
+    reply_in_cycle: Annotated[
+        bool,
+        typer.Option(
+            "--reply-in-cycle",
+            help="Modbus: answer each request at the end of the PLC's next cycle (a server "
+            "block in the cyclic task), not at once: replies come on the PLC's clock.",
+        ),
+    ] = False,
+    reply_jitter: Annotated[
+        float,
+        typer.Option(
+            "--reply-jitter",
+            min=0.0,
+            metavar="SECONDS",
+            help="Modbus: delay each reply by a random time up to this [s] (seeded by --seed).",
+        ),
+    ] = 0.0,
+    late_reply_every: Annotated[
+        int,
+        typer.Option(
+            "--late-reply-every",
+            min=0,
+            metavar="N",
+            help="Modbus: every N-th reply leaves --late-reply seconds later (0: none).",
+        ),
+    ] = 0,
+    late_reply: Annotated[
+        float,
+        typer.Option(
+            "--late-reply",
+            min=0.0,
+            metavar="SECONDS",
+            help="Modbus: the extra delay of a late reply [s].",
+        ),
+    ] = 0.0,
     word_order: Annotated[
         WordOrderChoice,
         typer.Option("--word-order", help="Modbus 32-bit word order: big = ABCD, little = CDAB."),
@@ -140,6 +184,8 @@ def serve_command(
     MAN/AUTO, staged gains with apply and echo, a heartbeat, flowmeter noise and quantisation,
     and a ring buffer of (seq, u, flow, setpoint) every 0.02 s. Without a profile it starts in
     MAN at 1 V; clients write the mode, setpoint and manual command. Ctrl-C or SIGTERM stops it.
+    --clock-slow makes the PLC's clock run slow (or fast); --reply-in-cycle, --reply-jitter and
+    --late-reply-every/--late-reply make its Modbus server answer as a PLC's cyclic task does.
     """
     _serve(
         config,
@@ -152,6 +198,8 @@ def serve_command(
         setpoint_profile=setpoint_profile,
         command_profile=command_profile,
         seed=seed,
+        clock_slow=clock_slow,
+        reply=(reply_in_cycle, reply_jitter, late_reply_every, late_reply),
         word_order=word_order.value,
         duration=duration,
         allow_remote=allow_remote,
@@ -171,6 +219,8 @@ def _serve(
     setpoint_profile: str | None,
     command_profile: str | None,
     seed: int,
+    clock_slow: float,
+    reply: tuple[bool, float, int, float],
     word_order: str,
     duration: float | None,
     allow_remote: bool,
@@ -182,7 +232,9 @@ def _serve(
     from fuelid.plc.virtual.engine import VirtualPLC
     from fuelid.plc.virtual.runner import (
         DEFAULT_PORTS,
+        ReplyTiming,
         frontend_class,
+        frontend_kwargs,
         serve_until_stopped,
         site_text,
     )
@@ -216,7 +268,11 @@ def _serve(
         setpoint_profile=sp_profile,
         command_profile=u_profile,
         seed=seed,
+        clock_slow=clock_slow,
     )
+    in_cycle, jitter_s, late_every, late_s = reply
+    timing = ReplyTiming(in_cycle, jitter_s, late_every, late_s, seed=seed)
+    extra = frontend_kwargs(protocol, timing)
     port = DEFAULT_PORTS[protocol] if port is None else port
     order: WordOrder = "little" if word_order == "little" else "big"
     if print_site and port == 0:
@@ -240,15 +296,24 @@ def _serve(
             nl=False,
         )
         return
-    frontend = frontend_class(protocol)(host, port, ring_size=plc.ring_size, word_order=order)
+    frontend = frontend_class(protocol)(
+        host, port, ring_size=plc.ring_size, word_order=order, **extra
+    )
+
+    clock = (
+        f" of a clock {100 * abs(plc.clock_slow):.3g} % {'slow' if plc.clock_slow > 0 else 'fast'} "
+        f"({plc.plant_period_s:g} s real)"
+        if plc.clock_slow
+        else ""
+    )
 
     def announce() -> None:
         # the bound port: the one asked for, or the system's choice for 0
         where = f"[{host}]:{frontend.port}" if ":" in host else f"{host}:{frontend.port}"
         typer.echo(
             f"virtual PLC: {protocol} on {where}, {speed:g}x real time, plant "
-            f"{plc.config.name}, sample {plc.period_s:g} s, PI every {plc.control_period_s:g} s "
-            "(Ctrl-C stops)",
+            f"{plc.config.name}, sample {plc.period_s:g} s{clock}, PI every "
+            f"{plc.control_period_s:g} s (Ctrl-C stops)",
             err=True,
         )
 
@@ -256,5 +321,7 @@ def _serve(
         serve_until_stopped(plc, frontend, speed=speed, duration_s=duration, on_ready=announce)
     )
     typer.echo(
-        f"virtual PLC stopped after {plc.time_s:.1f} s of plant time (seq {plc.seq})", err=True
+        f"virtual PLC stopped after {plc.time_s * (1.0 + plc.clock_slow):.1f} s of plant time "
+        f"(seq {plc.seq})",
+        err=True,
     )

@@ -5,7 +5,8 @@ same samples, whatever the speed and however :meth:`VirtualPLC.advance` is slice
 front end (:mod:`fuelid.plc.virtual.frontend`) and the runner (:mod:`fuelid.plc.virtual.runner`)
 put it on a socket.
 
-Time. Sample ``k`` is taken at plant time ``t_k = k·period_s``; its sequence number is
+Time. Sample ``k`` is taken at plant time ``t_k = k·plant_period_s`` (``k·period_s`` on the PLC's
+clock, the same with an exact clock, see below); its sequence number is
 ``(seq0 + k) mod 2**32``. Every ``control_period_s`` (sample k a multiple of
 ``n = control_period_s/period_s``) the PLC scans: it reads the write area (what clients wrote by
 then), the flow reading of that sample, runs the PI (or takes the manual command) and holds the
@@ -13,6 +14,16 @@ command over the next ``n`` samples. The plant (:func:`fuelid.plant.simulate.int
 same nonlinear ODE as ``fuelid simulate``) is therefore integrated once per control period with the
 ``n + 1`` sample times as its output times, not once per sample, which is what makes 50–1000 times
 real time possible. The fuel temperature is held within a control period at its midpoint value.
+
+The PLC's clock (exact by default). With ``clock_slow`` = s the PLC's clock runs slow by the
+fraction s: a period of its clock, ``period_s``, lasts ``period_s·(1 + s)`` of real time (0.02: its
+20 ms cyclic task takes 20.4 ms; negative: a fast clock). The plant is physics and runs in real
+time: it is integrated, delayed, disturbed and warmed over ``plant_period_s = period_s·(1 + s)``
+per sample. The PLC's logic runs on its own clock: the PI's period and integral, the heartbeat
+timeout, the profiles it plays, :attr:`VirtualPLC.time_s`. The runner
+(:mod:`fuelid.plc.virtual.runner`) paces its ticks by ``plant_period_s`` of wall time, so a client
+that times samples by their receipt (a recorder without ring or ``seq``) sees ``plant_period_s``
+between them. With s = 0 the two periods are the same number and nothing changes.
 
 Measurement. The reading of sample k is the meter state ``delay`` earlier (linear interpolation
 between samples), plus white noise (a seeded :class:`numpy.random.Generator`), then quantised as a
@@ -22,7 +33,7 @@ same counts in L/min.
 Disturbance (off by default). With ``disturbance_sd_Lpm`` > 0 a slow coloured disturbance d is
 added to the flow the meter sees, before the white noise: a first-order autoregressive (AR(1),
 sampled Ornstein–Uhlenbeck) sequence per sample, d_k = φ·d_{k−1} + σ·√(1 − φ²)·e_k with
-φ = exp(−period_s/``disturbance_time_s``), e_k standard normal from the same seeded generator,
+φ = exp(−plant_period_s/``disturbance_time_s``), e_k standard normal from the same seeded generator,
 d_0 = 0; its stationary standard deviation is σ = ``disturbance_sd_Lpm`` and its correlation
 time ``disturbance_time_s``. The PI acts on the reading, so in AUTO it fights d (a load the loop
 must reject, as a drifting pump or a valve elsewhere in the line would be); in MAN it is seen
@@ -115,6 +126,8 @@ MAX_RING_SIZE = 8000
 """Most records in the ring: 1000 + 8·8000 registers stay inside the Modbus address space."""
 TEMPERATURE_RESOLUTION_K = 0.01
 """The plant coefficients are re-evaluated when the fuel temperature has moved this much [K]."""
+MAX_CLOCK_SLOW = 0.5
+"""``clock_slow`` stays within ±this fraction: beyond, it is another period, not a clock error."""
 MAN, AUTO = 0, 1
 
 READ_POINTS = tuple(name for name, point in POINTS.items() if point.access == "read")
@@ -192,6 +205,11 @@ class VirtualPLC:
         docstring, "Disturbance"); 0 (the default): none.
     disturbance_time_s : float
         Its correlation time [s] (plant time), > 0.
+    clock_slow : float
+        How slow the PLC's clock runs, a fraction within (−0.5, 0.5): a period of its clock
+        (``period_s``) lasts ``period_s·(1 + clock_slow)`` of real (plant) time; 0.02 is a clock
+        2 % slow (its 20 ms cycle 20.4 ms), negative a fast one; 0 (the default): exact (module
+        docstring, "The PLC's clock").
 
     Raises
     ------
@@ -221,6 +239,7 @@ class VirtualPLC:
         keep_clean_readings: bool = False,
         disturbance_sd_Lpm: float = 0.0,
         disturbance_time_s: float = 60.0,
+        clock_slow: float = 0.0,
     ) -> None:
         self.config = config if config is not None else load_plant_config()
         if not (math.isfinite(period_s) and period_s > 0.0):
@@ -237,7 +256,15 @@ class VirtualPLC:
             raise ConfigError("heartbeat_timeout_s must be positive")
         if setpoint_profile is not None and command_profile is not None:
             raise ConfigError("give a setpoint profile (AUTO) or a command profile (MAN), not both")
+        if not (math.isfinite(clock_slow) and abs(clock_slow) < MAX_CLOCK_SLOW):
+            raise ConfigError(
+                f"clock_slow must be within (−{MAX_CLOCK_SLOW:g}, {MAX_CLOCK_SLOW:g}), "
+                f"got {clock_slow!r}"
+            )
         self.period_s = float(period_s)
+        self.clock_slow = float(clock_slow)
+        self.plant_period_s = self.period_s * (1.0 + self.clock_slow)
+        """Real (plant) time between samples [s]: ``period_s`` of the PLC's clock."""
         self.control_period_s = float(control_period_s)
         self.n_control = n_control
         self.ring_size = int(ring_size)
@@ -254,7 +281,7 @@ class VirtualPLC:
             raise ConfigError("disturbance_time_s must be positive")
         self.disturbance_sd_Lpm = float(disturbance_sd_Lpm)
         self.disturbance_time_s = float(disturbance_time_s)
-        self._disturbance_phi = math.exp(-self.period_s / self.disturbance_time_s)
+        self._disturbance_phi = math.exp(-self.plant_period_s / self.disturbance_time_s)
         self._disturbance = 0.0  # d of the last sample read [L/min]
         self._rng = np.random.default_rng(seed)
         self._temperature = _fuel_temperature(fuel_temp_C, fuel_temp_profile)
@@ -320,7 +347,7 @@ class VirtualPLC:
         self._clean: list[FloatArray] | None = [] if keep_clean_readings else None
         self.ring = np.zeros((self.ring_size, len(RING_FIELDS)))
         # the meter state at the samples, for the reading `delay` later: a short history
-        self._delay_samples = self._coefficients.delay / self.period_s
+        self._delay_samples = self._coefficients.delay / self.plant_period_s
         self._history_len = math.ceil(self._delay_samples) + self.n_control + 3
         self._history = np.full(self._history_len, self._x[measured_state(self._coefficients)])
         self._history_first_k = -self._history_len + 1  # history[i] is sample first_k + i
@@ -340,7 +367,7 @@ class VirtualPLC:
 
     @property
     def time_s(self) -> float:
-        """Plant time of the newest sample since start [s]."""
+        """Time of the newest sample since start on the PLC's clock [s] (plant time when exact)."""
         return self._k * self.period_s
 
     @property
@@ -556,8 +583,8 @@ class VirtualPLC:
         self._span_k0 = k0
         y0, c0 = self._readings(k0, 1)  # the reading the PI acts on
         self._scan(k0, float(y0[0]))
-        times = (k0 + np.arange(n + 1, dtype=np.float64)) * self.period_s
-        T = float(self._temperature.at(times[0] + 0.5 * n * self.period_s))
+        times = (k0 + np.arange(n + 1, dtype=np.float64)) * self.plant_period_s
+        T = float(self._temperature.at(times[0] + 0.5 * n * self.plant_period_s))
         if abs(T - self._coefficients.T_fuel) >= TEMPERATURE_RESOLUTION_K:
             self._coefficients = plant_coefficients(self.config, T)
         c = self._coefficients

@@ -5,20 +5,86 @@ wrote (:meth:`Frontend.collect`), hands it to the engine, advances the plant and
 values and ring records (:meth:`Frontend.publish`). A front end is a real server of its protocol
 on a real socket (pymodbus, asyncua, python-snap7), laid out as :mod:`fuelid.plc.virtual.points`
 says; it holds no plant logic.
+
+:class:`ReplyTiming` says when a server answers (Modbus only): at once by default, or in the PLC's
+cycle, with jitter and an occasional late reply, as a PLC whose server block runs in its cyclic
+task answers; the client's receipt times then follow the PLC's clock.
 """
 
 from __future__ import annotations
 
+import math
 import socket
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from fuelid.errors import ConfigError
 from fuelid.plc.codec import WordOrder
 from fuelid.plc.virtual.points import DEFAULT_RING_SIZE
+
+
+@dataclass(frozen=True)
+class ReplyTiming:
+    """When the virtual PLC's server answers a request; the default: at once.
+
+    A real PLC whose Modbus server block (an S7's ``MB_SERVER``) is called in its cyclic task
+    answers once per cycle, when the block runs: a client that polls faster than the PLC's
+    cycle gets its replies at the PLC's cycle, on the PLC's clock (a clock 2 % slow: 20.4 ms
+    apart for a 20 ms cycle), and a busy network or CPU now and then delays one.
+
+    Attributes
+    ----------
+    in_cycle : bool
+        Answer each request at the end of the PLC's next cycle (after the cycle has published its
+        values; a write is taken at the scan after), not at once.
+    jitter_s : float
+        Each reply leaves a further random delay after it was made, uniform in
+        [0, ``jitter_s``) [s] (seeded). The values are those of the cycle that made it.
+    late_every : int
+        Every ``late_every``-th reply (counting from the first request served) leaves ``late_s``
+        later still: a delayed poll; 0: none.
+    late_s : float
+        The extra delay of a late reply [s].
+    seed : int, optional
+        Seed of the jitter (None: fresh entropy).
+
+    Raises
+    ------
+    ConfigError
+        If a delay is negative or not finite, or ``late_every`` negative.
+
+    Examples
+    --------
+    >>> ReplyTiming().immediate
+    True
+    >>> ReplyTiming(in_cycle=True, jitter_s=0.002, late_every=250, late_s=0.0172).immediate
+    False
+    """
+
+    in_cycle: bool = False
+    jitter_s: float = 0.0
+    late_every: int = 0
+    late_s: float = 0.0
+    seed: int | None = 0
+
+    def __post_init__(self) -> None:
+        for name in ("jitter_s", "late_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ConfigError(f"reply timing: {name} must be zero or positive, got {value!r}")
+        if self.late_every < 0:
+            raise ConfigError(f"reply timing: late_every must be 0 or more, got {self.late_every}")
+
+    @property
+    def immediate(self) -> bool:
+        """True when every reply leaves at once (the default)."""
+        late = self.late_every > 0 and self.late_s > 0.0
+        return not (self.in_cycle or self.jitter_s > 0.0 or late)
 
 
 class Frontend(ABC):

@@ -17,17 +17,27 @@ pymodbus copies the datastore into the server, so values are written through the
 ``async_setValues`` (writing into a context of one's own changes nothing). The front end keeps a
 mirror of every register, so a stopped and restarted server (a link drop) comes back with the
 PLC's memory: the ring and what clients last wrote.
+
+**Reply timing** (:class:`~fuelid.plc.virtual.frontend.ReplyTiming`, off by default): with
+``in_cycle`` a request waits for the end of the PLC's next cycle (the next :meth:`publish`) and
+is answered then, from that cycle's values; jitter and late replies delay the reply's sending
+after it was made. A server of its own class (:class:`_PacedServer`) gives each connection a
+request handler that waits and delays so (pymodbus's ``ServerRequestHandler`` with
+``handle_request`` and ``server_send`` wrapped).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import asyncio
+import random
+from collections.abc import Callable, Mapping
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.plc.codec import WordOrder, decode, encode
-from fuelid.plc.virtual.frontend import Frontend, bound_port
+from fuelid.plc.virtual.frontend import Frontend, ReplyTiming, bound_port
 from fuelid.plc.virtual.points import (
     DEFAULT_RING_SIZE,
     POINTS,
@@ -37,6 +47,7 @@ from fuelid.plc.virtual.points import (
 
 try:
     from pymodbus.server import ModbusTcpServer
+    from pymodbus.server.requesthandler import ServerRequestHandler
     from pymodbus.simulator import DataType, SimData, SimDevice
 except ImportError as exc:  # pragma: no cover - the plc extra is installed for the tests
     raise ImportError(
@@ -84,6 +95,96 @@ def ring_registers(
     return out
 
 
+class _ReplyPacer:
+    """Holds requests until the PLC's cycle ends and delays replies, as a :class:`ReplyTiming` says.
+
+    Lives on the server's event loop (the runner's): every method is called from it.
+    """
+
+    def __init__(self, timing: ReplyTiming) -> None:
+        self.timing = timing
+        self._waiting: list[asyncio.Future[bool]] = []
+        self._timers: set[asyncio.TimerHandle] = set()
+        self._replies = 0
+        self._rng = random.Random(timing.seed)
+
+    async def wait_for_cycle(self) -> bool:
+        """Until the end of the PLC's next cycle (at once without ``in_cycle``); False: stopped."""
+        if not self.timing.in_cycle:
+            return True
+        future: asyncio.Future[bool] = asyncio.get_running_loop().create_future()
+        self._waiting.append(future)
+        return await future
+
+    def cycle_ended(self) -> None:
+        """The PLC published a cycle: the requests waiting for it go on."""
+        waiting, self._waiting = self._waiting, []
+        for future in waiting:
+            if not future.done():
+                future.set_result(True)
+
+    def next_delay(self) -> float:
+        """How long the next reply waits after it was made [s]."""
+        self._replies += 1
+        timing = self.timing
+        delay = self._rng.uniform(0.0, timing.jitter_s) if timing.jitter_s > 0.0 else 0.0
+        if timing.late_every > 0 and self._replies % timing.late_every == 0:
+            delay += timing.late_s
+        return delay
+
+    def later(self, delay: float, send: Callable[..., None], *args: Any) -> None:
+        """Call ``send(*args)`` after ``delay`` [s] (dropped if the server stops first)."""
+        loop = asyncio.get_running_loop()
+
+        def fire() -> None:
+            self._timers.discard(handle)
+            send(*args)
+
+        handle = loop.call_later(delay, fire)
+        self._timers.add(handle)
+
+    def close(self) -> None:
+        """The server stopped: waiting requests get no answer, delayed replies are dropped."""
+        waiting, self._waiting = self._waiting, []
+        for future in waiting:
+            if not future.done():
+                future.set_result(False)
+        for handle in self._timers:
+            handle.cancel()
+        self._timers.clear()
+
+
+class _PacedHandler(ServerRequestHandler):
+    """A connection's request handler that answers as the server's :class:`_ReplyPacer` says."""
+
+    async def handle_request(self) -> None:
+        """Wait for the end of the PLC's cycle, then answer from its values."""
+        if await self.server.pacer.wait_for_cycle():
+            await super().handle_request()  # type: ignore[no-untyped-call]
+
+    def server_send(self, pdu: Any, addr: Any) -> None:
+        """Send the reply after the pacer's delay."""
+        delay = self.server.pacer.next_delay()
+        if delay > 0.0:
+            self.server.pacer.later(delay, super().server_send, pdu, addr)
+        else:
+            super().server_send(pdu, addr)  # type: ignore[no-untyped-call]
+
+
+class _PacedServer(ModbusTcpServer):
+    """pymodbus's TCP server whose connections answer as a :class:`_ReplyPacer` says."""
+
+    def __init__(self, *args: Any, pacer: _ReplyPacer, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.pacer = pacer
+
+    def callback_new_connection(self) -> _PacedHandler:
+        """A handler for a new connection."""
+        return _PacedHandler(  # type: ignore[no-untyped-call]
+            self, self.trace_packet, self.trace_pdu, self.trace_connect
+        )
+
+
 class ModbusFrontend(Frontend):
     """The virtual PLC's points on a Modbus TCP server (see the module docstring)."""
 
@@ -97,12 +198,17 @@ class ModbusFrontend(Frontend):
         ring_size: int = DEFAULT_RING_SIZE,
         word_order: WordOrder = "big",
         byte_swap: bool = False,
+        reply: ReplyTiming | None = None,
     ) -> None:
         super().__init__(
             host, port, ring_size=ring_size, word_order=word_order, byte_swap=byte_swap
         )
         if not host:
             raise ValueError("bind the virtual PLC to an address (never all interfaces by '')")
+        self.reply = ReplyTiming() if reply is None else reply
+        """When requests are answered (at once by default)."""
+        # None: pymodbus's own server, untouched (the default timing)
+        self._pacer = None if self.reply.immediate else _ReplyPacer(self.reply)
         self._server: ModbusTcpServer | None = None
         # the PLC's memory, which outlives a stopped server
         self._ir = [0] * IR_POINTS_COUNT
@@ -125,7 +231,12 @@ class ModbusFrontend(Frontend):
             SimData(RING_FIRST_REGISTER, values=list(self._ring), datatype=DataType.REGISTERS),
         ]
         device = SimDevice(id=DEVICE_ID, simdata=(bits, bits, holding, inputs))
-        server = ModbusTcpServer(device, address=(self.host, self.port))
+        address = (self.host, self.port)
+        server = (
+            ModbusTcpServer(device, address=address)
+            if self._pacer is None
+            else _PacedServer(device, address=address, pacer=self._pacer)
+        )
         await server.serve_forever(background=True)
         if self.port == 0:  # the OS chose it: say which (a restart binds the same one)
             self.port = bound_port(server.transport, self.port)
@@ -136,6 +247,8 @@ class ModbusFrontend(Frontend):
         server, self._server = self._server, None
         if server is None:
             return
+        if self._pacer is not None:
+            self._pacer.close()
         self._hr = [
             int(r) for r in await server.async_getValues(DEVICE_ID, FC_HOLDING, 0, HR_COUNT)
         ]
@@ -176,6 +289,8 @@ class ModbusFrontend(Frontend):
                     )
         if server is not None:
             await server.async_setValues(DEVICE_ID, FC_INPUT, head, self._ir[head:])
+        if self._pacer is not None:
+            self._pacer.cycle_ended()
 
     async def collect(self) -> dict[str, float]:
         """The write points as clients last left them (engineering units)."""

@@ -1,12 +1,15 @@
 """The virtual PLC's clock: the engine on a protocol front end, in real time or X times faster.
 
-:func:`serve` ticks on an absolute wall-clock schedule (every ``period_s/min(speed, 1)`` of wall
-time, never drifting: each deadline is the start plus a whole number of ticks). Each tick it
+:func:`serve` ticks on an absolute wall-clock schedule (every ``plant_period_s/min(speed, 1)`` of
+wall time, never drifting: each deadline is the start plus a whole number of ticks). Each tick it
 collects what clients wrote, hands it to the engine, advances plant time by every sample now due
-(``floor(wall elapsed · speed / period_s)`` minus those done, so at speed X the sequence counter
-advances X times faster than wall time, several samples a tick) and publishes the new values and
-ring records. A late tick is not skipped but caught up: the samples it owes are all produced,
-so plant time keeps pace with X × wall time and no sample is lost.
+(``floor(wall elapsed · speed / plant_period_s)`` minus those done, so at speed X the sequence
+counter advances X times faster than wall time, several samples a tick) and publishes the new
+values and ring records. ``plant_period_s`` is the engine's ``period_s`` unless its clock runs
+slow or fast (``clock_slow``, :mod:`fuelid.plc.virtual.engine`): a PLC whose clock is 2 % slow
+takes 20.4 ms of wall time for each 20 ms sample at real time. A late tick is not skipped but
+caught up: the samples it owes are all produced, so plant time keeps pace with X × wall time and
+no sample is lost.
 
 :class:`VirtualPlcThread` runs engine and front end in a background thread with its own event
 loop, for tests, benchmarks and the command line; :func:`site_text` (in
@@ -33,18 +36,20 @@ from numpy.typing import NDArray
 from fuelid.errors import ConfigError
 from fuelid.plc.codec import WordOrder
 from fuelid.plc.virtual.engine import VirtualPLC
-from fuelid.plc.virtual.frontend import Frontend, free_port
+from fuelid.plc.virtual.frontend import Frontend, ReplyTiming, free_port
 from fuelid.plc.virtual.sitefile import site_text
 
 __all__ = [
     "DEFAULT_PORTS",
     "FRONTENDS",
     "MAX_SPEED",
+    "ReplyTiming",
     "ServeStats",
     "VirtualPlcThread",
     "check_port",
     "free_port",
     "frontend_class",
+    "frontend_kwargs",
     "serve",
     "serve_until_stopped",
     "site_text",
@@ -60,6 +65,24 @@ DEFAULT_PORTS = {"modbus": 5020, "opcua": 4840, "s7": 1102}
 """The virtual PLC's default ports: above 1024, so no privileges are needed."""
 MAX_SPEED = 1000.0
 """Fastest plant time the runner accepts, times real time."""
+
+
+def frontend_kwargs(protocol: str, reply: ReplyTiming | None) -> dict[str, Any]:
+    """The front end's keyword for a reply timing: ``reply`` on Modbus, nothing by default.
+
+    Raises
+    ------
+    ConfigError
+        A reply timing other than the default on a protocol other than Modbus.
+    """
+    if reply is None or reply.immediate:
+        return {}
+    if protocol != "modbus":
+        raise ConfigError(
+            f"the virtual PLC's reply timing (in cycle, jitter, late replies) is a Modbus "
+            f"option; its {protocol} server answers at once"
+        )
+    return {"reply": reply}
 
 
 def frontend_class(protocol: str) -> type[Frontend]:
@@ -137,8 +160,8 @@ async def serve(
     if not (math.isfinite(speed) and 0.0 < speed <= MAX_SPEED):
         raise ConfigError(f"speed must be within (0, {MAX_SPEED:g}], got {speed!r}")
     loop = asyncio.get_running_loop()
-    tick = plc.period_s / min(speed, 1.0)  # wall time between ticks [s]
-    samples_per_wall_s = speed / plc.period_s
+    tick = plc.plant_period_s / min(speed, 1.0)  # wall time between ticks [s]
+    samples_per_wall_s = speed / plc.plant_period_s
     start = loop.time()
     done = 0
     ticks = 0
@@ -293,6 +316,10 @@ class VirtualPlcThread:
         Plant time per wall time.
     word_order, byte_swap
         32-bit layout (Modbus).
+    reply : ReplyTiming, optional
+        When the server answers (Modbus only; default: at once). With ``clock_slow`` among the
+        engine's arguments and ``ReplyTiming(in_cycle=True)``, replies come on the PLC's slow
+        clock.
     **engine_kwargs
         Passed to :class:`~fuelid.plc.virtual.engine.VirtualPLC` (``ring_size`` to the front end
         too).
@@ -314,9 +341,12 @@ class VirtualPlcThread:
         speed: float = 1.0,
         word_order: WordOrder = "big",
         byte_swap: bool = False,
+        reply: ReplyTiming | None = None,
         **engine_kwargs: Any,
     ) -> None:
         self.protocol = protocol
+        self.reply = reply
+        self._frontend_kwargs = frontend_kwargs(protocol, reply)
         self.host = host
         # 0: bound by the server itself, so no other process can take the port in between
         self.port = 0 if port is None else int(port)
@@ -411,6 +441,7 @@ class VirtualPlcThread:
             ring_size=self.plc.ring_size,
             word_order=self.word_order,
             byte_swap=self.byte_swap,
+            **self._frontend_kwargs,
         )
         await self.frontend.start()
         self.port = self.frontend.port  # the bound one, when 0 was asked for
