@@ -34,7 +34,7 @@ from fuelid.plots import (
     runs_figure,
     schedule_figure,
 )
-from fuelid.units import T0, kelvin_to_celsius
+from fuelid.units import T0, format_celsius, kelvin_to_celsius
 from fuelid.workflow import LogAnalysis
 from fuelid.workflow.assumptions import gain_unit
 
@@ -70,19 +70,17 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
     overview = plot_log(
         _overview_series(data),
         f"{data.source or 'log'}: {data.n_samples} samples every {data.sample_time:g} s "
-        f"(fuel at {kelvin_to_celsius(analysis.T_fuel):g} °C, "
+        f"(fuel at {format_celsius(analysis.T_fuel)} °C, "
         + {"log": "from the log", "option": "as given"}.get(
             str(analysis.operating_point.T_fuel_source), "assumed"
         )
         + ")",
     )
     oe = analysis.identifications["oe"]
-    y_unit = f"({data.y_unit})" if "/" in data.y_unit else data.y_unit
-    gain_unit = f"{y_unit}/{data.u_unit}"
     curves = [
         (
-            f"{method} model ({r.model.describe(gain_unit)})",
-            np.interp(oe.time, r.time, r.y_hat),
+            f"{method} model ({r.model.describe(gain_unit(data))})",
+            r.y_hat_at(oe.time),
         )
         for method, r in analysis.identifications.items()
     ]
@@ -286,7 +284,7 @@ def _context(
         summary = run.summary()
         runs.append(
             {
-                "fuel_temperature": _fmt(kelvin_to_celsius(run.T_fuel), "g"),
+                "fuel_temperature": format_celsius(run.T_fuel),
                 "setpoint": f"{run.setpoint[0]:.1f} → {run.setpoint[-1]:.1f}",
                 "overshoot": _fmt(summary["overshoot_percent"], ".1f"),
                 "settling": _fmt(summary["settling_time"], ".1f"),
@@ -325,7 +323,7 @@ def _context(
             "y_unit": data.y_unit,
             "notes": list(data.notes),
             "u_operating": _fmt(analysis.u_operating, ".3g"),
-            "fuel_temperature": _fmt(kelvin_to_celsius(analysis.T_fuel), "g"),
+            "fuel_temperature": format_celsius(analysis.T_fuel),
             "fuel_temperature_origin": _fuel_temperature_origin(analysis),
         },
         "notices": analysis.notices,

@@ -25,6 +25,8 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
+from fuelid.errors import FuelidError
+
 # the switch's usual path is here (re-exported; its home is fuelid.numerics_mode)
 from fuelid.numerics_mode import reference_numerics as reference_numerics
 from fuelid.numerics_mode import reference_numerics_on as reference_numerics_on
@@ -36,6 +38,44 @@ SETTLING_BAND = 0.02
 
 _UNIFORM_TOLERANCE = 1e-9
 """Relative spread of the time steps below which a grid counts as uniform."""
+
+MAX_CONTROL_PERIOD = 10.0
+"""Longest PLC control period [s] fuelid takes (a flow loop's PLC runs in 0.01…1 s)."""
+
+
+def check_control_period(control_period: object, name: str = "control period") -> None:
+    """Refuse a control period that is negative, not finite or beyond :data:`MAX_CONTROL_PERIOD`.
+
+    The one check of every control period fuelid is given (options, site files, model files,
+    the simulator, the tuning rules): 0 means a continuous controller (in a simulation, a
+    command applied at once). ``name`` says where the value came from, e.g. ``--control-period``
+    or ``the site file's [sampling] control_period_s``.
+
+    Raises
+    ------
+    FuelidError
+        One line: ``name``, the allowed range and the value found.
+
+    Examples
+    --------
+    >>> check_control_period(1.0)
+    >>> check_control_period(0.0)
+    >>> check_control_period(-1.0, "--control-period")
+    Traceback (most recent call last):
+    ...
+    fuelid.errors.FuelidError: --control-period must be 0 (continuous) or up to 10 s, got -1 s
+    >>> check_control_period(float("nan"))
+    Traceback (most recent call last):
+    ...
+    fuelid.errors.FuelidError: control period must be 0 (continuous) or up to 10 s, got nan s
+    """
+    if isinstance(control_period, bool) or not isinstance(control_period, int | float):
+        raise FuelidError(f"{name} must be a number of seconds, got {control_period!r}")
+    if not (math.isfinite(control_period) and 0.0 <= control_period <= MAX_CONTROL_PERIOD):
+        raise FuelidError(
+            f"{name} must be 0 (continuous) or up to {MAX_CONTROL_PERIOD:g} s, "
+            f"got {control_period:g} s"
+        )
 
 
 def zoh_discretise(A: ArrayLike, B: ArrayLike, h: float) -> tuple[FloatArray, FloatArray]:

@@ -90,3 +90,18 @@ def kelvin_to_celsius(T: float) -> float:
     (0.0, -20.0)
     """
     return T - T0
+
+
+def format_celsius(T: float) -> str:
+    """A fuel temperature given in K, as text in °C to 0.1 °C.
+
+    A fuel-temperature sensor resolves about 0.1 °C, so a log's mean temperature has no more
+    digits worth reading. Trailing zeros are dropped: a whole degree reads as one (``20``, not
+    ``20.0``).
+
+    >>> format_celsius(celsius_to_kelvin(12.9985)), format_celsius(celsius_to_kelvin(-20.0))
+    ('13', '-20')
+    >>> format_celsius(celsius_to_kelvin(12.94)), format_celsius(celsius_to_kelvin(-0.04))
+    ('12.9', '0')
+    """
+    return f"{round(kelvin_to_celsius(T), 1) + 0.0:.1f}".removesuffix(".0")

@@ -81,7 +81,7 @@ def test_the_issues_example_loads_as_written(tmp_path: Path):
         (('protocol = "modbus"', 'protocol = "profibus"'), "plc.protocol", "modbus"),
         (("control_period_s = 1.0", "control_period_s = 0.01"), "sampling", "shorter"),
         (("[tags.mode]", "[tags.moed]"), "tags.moed", "unknown role"),
-        (("device_id = 1", 'device_id = 1\nwordorder = "big"'), "plc.wordorder", "xtra"),
+        (("device_id = 1", 'device_id = 1\nwordorder = "big"'), "plc.wordorder", "unknown key"),
     ],
 )
 def test_bad_site_files_are_refused_with_the_key_and_the_reason(

@@ -21,7 +21,7 @@ from fuelid.cli.reidentify import reidentify_command
 from fuelid.cli.report import report_command
 from fuelid.cli.simulate import simulate_command
 from fuelid.cli.tune import tune_command
-from fuelid.errors import FuelidError
+from fuelid.errors import FuelidError, plain_reason
 
 app = typer.Typer(
     name="fuelid",
@@ -79,7 +79,8 @@ def main(argv: list[str] | None = None) -> int:
         # usage errors (unknown option, bad value) of the click that typer carries: they have an
         # exit code of 2 and a format_message(); recognised by shape, not by a private class
         if getattr(exc, "exit_code", None) == 2 and hasattr(exc, "format_message"):
-            typer.echo(f"error: {' '.join(exc.format_message().split())}", err=True)
+            message = plain_reason(exc.format_message())
+            typer.echo(f"error: {' '.join(message.split())}", err=True)
             return 2
         typer.echo(f"internal error: {type(exc).__name__}: {exc}", err=True)
         return 1

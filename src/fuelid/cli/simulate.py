@@ -157,11 +157,13 @@ def simulate_command(
 
     from fuelid.io.files import check_output_path
     from fuelid.io.timeseries import PRESSURE_COLUMN
+    from fuelid.lti import check_control_period
     from fuelid.plant import load_plant_config
     from fuelid.plant.simulate import PRESSURE_NOISE_STD, PRESSURE_RESOLUTION
     from fuelid.workflow.simulation import SimulationRequest, simulate_log, simulation_inputs
 
     out = check_output_path(output, overwrite=force)
+    check_control_period(control_period, "control period (--control-period)")  # 0: changes at once
     given = [
         name
         for name, value in (

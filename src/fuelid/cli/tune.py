@@ -34,6 +34,7 @@ from fuelid.cli._common import (
     check_spans,
     closed_loop_time,
     emit_json,
+    format_interval,
     guarded,
     progress_display,
     provenance,
@@ -42,7 +43,7 @@ from fuelid.cli._common import (
     warn,
 )
 from fuelid.errors import FuelidError
-from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
+from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C, format_celsius
 
 if TYPE_CHECKING:
     from fuelid.cli._common import SiteFacts
@@ -504,8 +505,6 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
     from rich.console import Console
     from rich.table import Table
 
-    from fuelid.units import kelvin_to_celsius
-
     data = outcome.to_json()
     plc, h = data["plc"], data["control_period"]
     console = Console(emoji=False)
@@ -583,10 +582,10 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
         )
     check = data["temperature_check"]
     if check is not None:
-        fuel = kelvin_to_celsius(outcome.request.T_fuel)
+        fuel = format_celsius(outcome.request.T_fuel)
         anchored = outcome.check is not None and outcome.check.cases[0].case.anchored
         console.print(
-            f"model found at u = {outcome.u:.3g} V with the fuel at {fuel:.3g} °C "
+            f"model found at u = {outcome.u:.3g} V with the fuel at {fuel} °C "
             f"({fuel_source}): the temperature check is anchored there"
             if anchored
             else "the temperature check runs on your plant file's full linearisation at every "
@@ -632,8 +631,8 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
         worst = max(s["Ms_of_chosen_gains"] for s in spread["structures"])
         console.print(
             f"across the {len(spread['structures']) + 1} structures the log could not tell apart:"
-            f" Kc {spread['Kc'][0]:.4g}…{spread['Kc'][1]:.4g} V/(L/min), Ti "
-            f"{spread['Ti'][0]:.3g}…{spread['Ti'][1]:.3g} s; these gains' Ms on the others "
+            f" Kc {format_interval(spread['Kc'][0], spread['Kc'][1], minimum=4)} V/(L/min), Ti "
+            f"{format_interval(spread['Ti'][0], spread['Ti'][1])} s; these gains' Ms on the others "
             f"at most {worst:.2f}",
             highlight=False,
         )

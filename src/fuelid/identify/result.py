@@ -163,6 +163,36 @@ class IdentificationResult:
     """pem's one-step prediction errors on the fitted samples (what its residual tests use);
     None for the free-run methods, whose residuals are y − y_hat."""
 
+    def y_hat_at(self, times: FloatArray) -> FloatArray:
+        """The model output at other times [output unit], interpolated within segments only.
+
+        A record with gaps is simulated segment by segment (each restarts from its own
+        state), so a value between two segments would mix the state before a gap with the
+        one after it: each time takes the segment of :attr:`time` it falls in (NaN in a gap
+        or in a segment this identification left out), and the value held at the segment's
+        ends (step-ls's decimated samples start up to a control period after the segment).
+
+        Examples
+        --------
+        >>> r = IdentificationResult(
+        ...     "oe", ProcessModel(K=1.0, T=1.0), (), {}, (), np.zeros((0, 0)), 100.0, None, 4,
+        ...     1.0, [], np.array([0.0, 1.0, 5.0, 6.0]), np.zeros(4), np.array([1.0, 1, 3, 3]), None
+        ... )
+        >>> r.y_hat_at(np.array([0.5, 3.0, 4.8, 5.5])).tolist()
+        [1.0, nan, 3.0, 3.0]
+        """
+        times = np.asarray(times, dtype=float)
+        out = np.full(times.shape, np.nan)
+        edges = np.flatnonzero(np.diff(self.time) > 1.5 * self.sample_time) + 1
+        for segment in np.split(np.arange(self.time.size), edges):
+            t_seg = self.time[segment]
+            # the segment's span and one of its sample periods each side: a decimated record's
+            # samples begin and end up to one period inside the raw segment's
+            reach = self.sample_time
+            inside = (times >= t_seg[0] - reach) & (times <= t_seg[-1] + reach)
+            out[inside] = np.interp(times[inside], t_seg, self.y_hat[segment])
+        return out
+
     def _intervals(self) -> dict[str, tuple[list[float], CiMethod] | None]:
         values = self.model.to_json()
         return {

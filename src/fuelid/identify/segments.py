@@ -23,6 +23,8 @@ model. :func:`drop_short_segments` leaves shorter segments out, with a warning.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from fuelid.identify.preprocess import join_segments
@@ -78,3 +80,45 @@ def offset_and_free_responses(
     for j, (a, b) in enumerate(bounds):
         basis[a:b, 1 + j * n_lags : 1 + (j + 1) * n_lags] = discrete.modes(b - a)
     return basis
+
+
+RESTART_WINDOW_TIME_CONSTANTS = 3.0
+"""Fewest slowest-lag time constants a segment's own first samples must span for its initial
+state to be read from them (e^(−3) ≈ 5 % of a transient left at the window's end) [-]."""
+
+
+def state_from_first_samples(
+    discrete: DiscreteLagModel, y: FloatArray, response: FloatArray
+) -> FloatArray | None:
+    """A later segment's start as its own first samples show it: level plus free response.
+
+    ``y`` is the segment's measured output and ``response`` the model's response to the
+    segment's command changes (zero until the first change reaches the output). Until then the
+    output is the free response of the state at the restart: the level where it settles and
+    one amplitude per lag, fitted by least squares on those samples, as the record's first
+    segment starts from the measured steady state before its first change. Returns that
+    initial-state part of ŷ over the whole segment, or None when those samples are too few
+    (fewer than twice the parameters) or span less than
+    :data:`RESTART_WINDOW_TIME_CONSTANTS` of the slowest lag (level and free response would
+    not be told apart).
+
+    Examples
+    --------
+    A segment at rest at 5.0 for 30 samples, then a unit command change (lag T = 2 samples):
+
+    >>> from fuelid.lti import discretise
+    >>> d = discretise([2.0], 0.0, 1.0)
+    >>> response = d.response(np.r_[np.zeros(30), np.ones(30)])
+    >>> state = state_from_first_samples(d, 5.0 + response, response)
+    >>> [round(float(v), 6) for v in state[[0, -1]]]
+    [5.0, 5.0]
+    """
+    reached = np.flatnonzero(response != 0.0)
+    window = int(reached[0]) if reached.size else y.size
+    n_lags = discrete.poles.size
+    slowest = float(discrete.poles.max()) if n_lags else 0.0
+    if window < 2 * (1 + n_lags) or slowest**window > math.exp(-RESTART_WINDOW_TIME_CONSTANTS):
+        return None
+    basis = np.column_stack((np.ones(y.size), discrete.modes(y.size)))
+    coefficients = np.linalg.lstsq(basis[:window], y[:window], rcond=None)[0]
+    return np.asarray(basis @ coefficients, dtype=float)

@@ -59,7 +59,7 @@ from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError, NotExcitingError
 from fuelid.identify._base import Estimator, Initial
-from fuelid.identify.segments import offset_and_free_responses
+from fuelid.identify.segments import offset_and_free_responses, state_from_first_samples
 from fuelid.identify.step_shape_fit import _MAX_ITER, fit_step_shape, step_shape
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
@@ -274,10 +274,17 @@ class StepResponseLS(Estimator):
         """:meth:`simulate` of a record with gaps: each segment from rest at its first command.
 
         The first segment starts as for a contiguous record. With ``"fitted"`` a later segment
-        adds the free response of its unknown initial state (the lags' modes), fitted by least
-        squares on its own samples with the offset held: the regression used no sample within
-        N of a segment's start, so the fit has no state there to continue from. With
-        ``"estimate"`` one offset for the record and one free response per segment are fitted.
+        starts from the state its own first samples show, as the fit takes the record's
+        initial steady state from the samples before its first change: until the segment's
+        first command change reaches the output, the output is the level and free response
+        of that state, fitted by least squares on those samples
+        (:func:`~fuelid.identify.segments.state_from_first_samples`). The regression used no
+        sample within N of a segment's start, so the fit has no state there to continue from;
+        holding the fit's level instead put a dip at every restart where the model's level was
+        off the measured one (the free response's least squares overshoots a constant error).
+        When those samples are too few, the free response (the lags' modes) is fitted on the
+        whole segment with the offset held. With ``"estimate"`` one offset for the record and
+        one free response per segment are fitted.
         """
         u = data.u
         bounds = data.segment_bounds()
@@ -285,7 +292,16 @@ class StepResponseLS(Estimator):
         y_hat = np.empty(u.size)
         for j, (a, b) in enumerate(bounds):
             u_rest = self.u0_ if (j == 0 and initial == "fitted") else float(u[a])
-            y_hat[a:b] = np.convolve(u[a:b] - u_rest, impulse)[: b - a]
+            response = np.convolve(u[a:b] - u_rest, impulse)[: b - a]
+            restart = (
+                state_from_first_samples(discrete, data.y[a:b], response)
+                if j and initial == "fitted"
+                else None
+            )
+            if restart is not None:
+                y_hat[a:b] = response + restart
+                continue
+            y_hat[a:b] = response
             if initial != "estimate":
                 y_hat[a:b] += self.offset_ + self.K_ * (u_rest - self.u0_)
             elif j:  # a later segment's level relative to the first: one offset for all

@@ -377,11 +377,13 @@ def _control_period(options: Any, file: Path) -> float | None:
     if not isinstance(options, dict) or options.get("control_period_given") is not True:
         return None
     value = options.get("control_period")
+    if value is None:  # given, but not recorded: none, as in a file written without it
+        return None
     try:
         check_control_period(value, "options.control_period")
     except FuelidError as exc:
         raise DataError(f"model file {str(file)!r}: {exc}") from None
-    return float(value)  # type: ignore[arg-type]  # a number: checked above
+    return float(value)  # a number: checked above
 
 
 def _linear_model(block: Any, file: Path) -> LinearModelSpec | None:

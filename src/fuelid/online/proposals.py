@@ -68,6 +68,7 @@ from typing import Any
 from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
 from fuelid.io.jsonsafe import json_ready
+from fuelid.lti import check_control_period
 from fuelid.model import ProcessModel
 from fuelid.online.evidence import (
     EVENT_TOLERANCE_S,
@@ -235,8 +236,7 @@ def propose(
     FuelidError
         On a negative control period or a K_range with K_low > K_high or a non-finite end.
     """
-    if not (math.isfinite(control_period) and control_period >= 0.0):
-        raise FuelidError(f"control period must be zero or positive, got {control_period:g} s")
+    check_control_period(control_period)
     if K_range is not None:
         k_lo, k_hi = K_range
         if not (math.isfinite(k_lo) and math.isfinite(k_hi) and k_lo <= k_hi and k_hi > 0.0):

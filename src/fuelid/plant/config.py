@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 from pydantic import Field, ValidationError, field_validator, model_validator
 
-from fuelid.errors import ConfigError, FuelidError
+from fuelid.errors import ConfigError, FuelidError, validation_reason
 from fuelid.fuel import DEFAULT_FUEL, get_fuel
 from fuelid.plant._section import Section
 from fuelid.plant.flowmeter import FlowmeterConfig
@@ -247,15 +247,7 @@ def calibrated_temperature_range(config: PlantConfig) -> tuple[float, float] | N
 
 def _describe(error: Any) -> str:
     where = ".".join(str(part) for part in error["loc"]) or "(top level)"
-    kind = error["type"]
-    if kind == "missing":
-        return f"{where}: missing required key"
-    if kind == "extra_forbidden":
-        return f"{where}: unknown key"
-    message = str(error["msg"]).removeprefix("Value error, ")
-    if kind not in {"value_error", "model_type"} and "input" in error:
-        message += f" (got {error['input']!r})"
-    return f"{where}: {message}"
+    return f"{where}: {validation_reason(error)}"
 
 
 def plant_config_from_dict(data: dict[str, Any], source: str = "plant config") -> PlantConfig:

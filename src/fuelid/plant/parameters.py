@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 from pydantic import ValidationError
 
-from fuelid.errors import ConfigError
+from fuelid.errors import ConfigError, validation_reason
 from fuelid.plant._section import Section
 from fuelid.plant.flowmeter import FlowmeterConfig
 from fuelid.plant.motor import MotorConfig
@@ -309,8 +309,5 @@ def _describe(section: str, exc: ValidationError) -> str:
     parts = []
     for error in exc.errors():
         where = ".".join([section, *(str(part) for part in error["loc"])])
-        message = str(error["msg"]).removeprefix("Value error, ")
-        if error["type"] != "value_error" and "input" in error:
-            message += f" (got {error['input']!r})"
-        parts.append(f"{where}: {message}")
+        parts.append(f"{where}: {validation_reason(error)}")
     return "; ".join(parts)

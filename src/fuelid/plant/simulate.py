@@ -36,6 +36,7 @@ from fuelid.io.timeseries import (
     PRESSURE_COLUMN,
     TimeSeries,
 )
+from fuelid.lti import check_control_period
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.flowmeter import measure_flow
 from fuelid.plant.system import (
@@ -262,8 +263,7 @@ def simulate(
         raise FuelidError(
             f"temperature resolution must be positive, got {temperature_resolution:g} K"
         )
-    if not (math.isfinite(control_period) and control_period >= 0.0):
-        raise FuelidError(f"control period must be zero or positive, got {control_period:g} s")
+    check_control_period(control_period)
     lo, hi = profile.u_range
     u_min, u_max = config.vfd.u_min_V, config.vfd.u_max_V
     if lo < u_min or hi > u_max:

@@ -43,7 +43,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from fuelid.errors import ConfigError
+from fuelid.errors import ConfigError, validation_reason
+from fuelid.lti import check_control_period
 from fuelid.plc.site_addresses import REGISTERS_OF as REGISTERS_OF  # re-exported
 from fuelid.plc.site_addresses import check_address, check_overlaps, check_ring
 from fuelid.plc.site_fleet import Archive, Central
@@ -213,7 +214,15 @@ class Sampling(_Table):
     """``[sampling]``: how often the PC reads, and how often the PLC runs its PI."""
 
     period_s: float = Field(0.02, gt=0.0, le=10.0)
-    control_period_s: float = Field(1.0, gt=0.0, le=10.0)
+    control_period_s: float = Field(1.0)
+
+    @field_validator("control_period_s")
+    @classmethod
+    def _control_period(cls, value: float) -> float:
+        # the one check of every control period; 0 (continuous) is then refused below: the
+        # PLC's PI cannot run faster than the samples it is read with
+        check_control_period(value, "the PLC's PI period")
+        return value
 
     @model_validator(mode="after")
     def _control_not_faster(self) -> Sampling:
@@ -507,7 +516,7 @@ def _meaning(role: str) -> str:
 
 def _describe(error: Any) -> str:
     location = ".".join(str(part) for part in error["loc"])
-    message = str(error["msg"]).removeprefix("Value error, ")
+    message = validation_reason(error)
     return f"{location}: {message}" if location else message
 
 

@@ -92,6 +92,31 @@ def plot_step_responses(
     return fig
 
 
+def broken_at_gaps(t: FloatArray, *series: FloatArray) -> list[FloatArray]:
+    """``t`` and each series with a NaN sample half-way across every gap: no line drawn over it.
+
+    A gap is a step in ``t`` of more than 1.5 typical (median) sample periods; the segments
+    of a record with gaps are simulated each from its own state, and a line joining them
+    would draw a transient that is not there.
+
+    Examples
+    --------
+    >>> t, y = broken_at_gaps(np.array([0.0, 1.0, 5.0, 6.0]), np.array([1.0, 1.0, 3.0, 3.0]))
+    >>> t.tolist(), y.tolist()
+    ([0.0, 1.0, 3.0, 5.0, 6.0], [1.0, 1.0, nan, 3.0, 3.0])
+    """
+    t = np.asarray(t, dtype=float)
+    arrays = [np.asarray(v, dtype=float) for v in series]
+    if t.size < 3:
+        return [t, *arrays]
+    steps = np.diff(t)
+    starts = np.flatnonzero(steps > 1.5 * float(np.median(steps))) + 1
+    if not starts.size:
+        return [t, *arrays]
+    middles = 0.5 * (t[starts - 1] + t[starts])
+    return [np.insert(t, starts, middles), *(np.insert(v, starts, np.nan) for v in arrays)]
+
+
 def plot_identification(
     t: FloatArray,
     y: FloatArray,
@@ -119,6 +144,8 @@ def plot_identification(
 
     fig = Figure(figsize=(9, 6), layout="constrained")
     ax, ax_res = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    t, y, *model_outputs = broken_at_gaps(t, y, *(y_hat for _, y_hat in curves))
+    curves = [(label, y_hat) for (label, _), y_hat in zip(curves, model_outputs, strict=True)]
     ax.plot(t, y, lw=0.6, color="0.55", label="measured")
     for label, y_hat in curves:
         ax.plot(t, y_hat, lw=1.3, label=label)

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.plots._common import DRIVE_LIMITS, LABEL_BAND, LABEL_BOX, FloatArray, _include
-from fuelid.units import kelvin_to_celsius
+from fuelid.units import format_celsius, kelvin_to_celsius
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -313,7 +313,7 @@ def runs_figure(
     drawn = []
     temperatures = []
     for r in runs:
-        temperature = f"{kelvin_to_celsius(r.T_fuel):g}"
+        temperature = format_celsius(r.T_fuel)
         temperatures.append(temperature)
         drawn.append((label.format(temperature), r.time, r.setpoint, r.flow, r.command))
     loads = [t for t in (_load_step_time(r) for r in runs) if t is not None]

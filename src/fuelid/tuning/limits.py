@@ -9,13 +9,13 @@ reference (docs/reference/cli.md, ``fuelid tune``) and in docs/explanation/tunin
 
 from __future__ import annotations
 
-import math
-
 from fuelid.errors import FuelidError
+
+# the control period's one check lives with the sampling tools; its usual path is here too
+from fuelid.lti import MAX_CONTROL_PERIOD as MAX_CONTROL_PERIOD
+from fuelid.lti import check_control_period as check_control_period
 from fuelid.model import ProcessModel
 
-MAX_CONTROL_PERIOD = 10.0
-"""Longest PLC control period [s] fuelid tunes for (a flow loop's PLC runs in 0.01…1 s)."""
 MAX_TIME_SCALE = 1e5
 """Longest time constant or delay [s] of a model fuelid tunes (about a day)."""
 MIN_TIME_CONSTANT = 1e-6
@@ -30,24 +30,6 @@ MAX_BANDS = 50
 """Most temperature bands of a schedule or a temperature check (each band is a tuning)."""
 MAX_FLOW_BANDS = 10
 """Most flow (command) bands per temperature band of a schedule."""
-
-
-def check_control_period(control_period: float) -> None:
-    """Refuse a control period that is negative, not finite or beyond 10 s.
-
-    Examples
-    --------
-    >>> check_control_period(1.0)
-    >>> check_control_period(60.0)
-    Traceback (most recent call last):
-    ...
-    fuelid.errors.FuelidError: control period must be 0 (continuous) or up to 10 s, got 60 s
-    """
-    if not (math.isfinite(control_period) and 0.0 <= control_period <= MAX_CONTROL_PERIOD):
-        raise FuelidError(
-            f"control period must be 0 (continuous) or up to {MAX_CONTROL_PERIOD:g} s, "
-            f"got {control_period:g} s"
-        )
 
 
 def check_sweep_size(n: int) -> None:

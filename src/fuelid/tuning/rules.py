@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from typing import Any, Self
 
 from fuelid.errors import FuelidError
+from fuelid.lti import check_control_period
 from fuelid.model import ProcessModel
 from fuelid.tuning.block import BlockForm, from_block, to_block
 
@@ -99,10 +100,7 @@ class PISettings:
             raise FuelidError(f"controller gain Kc must be positive, got {self.Kc:g}")
         if not (math.isfinite(self.Ti) and self.Ti > 0.0):
             raise FuelidError(f"integral time Ti must be positive, got {self.Ti:g} s")
-        if not (math.isfinite(self.control_period) and self.control_period >= 0.0):
-            raise FuelidError(
-                f"control period must be zero or positive, got {self.control_period:g} s"
-            )
+        check_control_period(self.control_period)
 
     @property
     def Ki(self) -> float:
@@ -452,8 +450,7 @@ def tune(
     """
     if rule not in TUNING_RULES:
         raise FuelidError(f"unknown tuning rule {rule!r}; choose from {', '.join(TUNING_RULES)}")
-    if not (math.isfinite(control_period) and control_period >= 0.0):
-        raise FuelidError(f"control period must be zero or positive, got {control_period:g} s")
+    check_control_period(control_period)
     if model.K <= 0.0:
         raise FuelidError(
             f"the process gain K must be positive for these rules, got {model.K:g} "

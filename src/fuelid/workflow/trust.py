@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from typing import Literal, get_args
 
 from fuelid.errors import FuelidError
+from fuelid.lti import check_control_period
 
 Basis = Literal[
     "identified model",
@@ -79,14 +80,30 @@ def control_period_from(
     Raises
     ------
     FuelidError
-        When none of the three gives one (:data:`NO_CONTROL_PERIOD`): fuelid assumes none.
+        When none of the three gives one (:data:`NO_CONTROL_PERIOD`): fuelid assumes none; or
+        when any that is given is negative, not finite or beyond 10 s
+        (:func:`~fuelid.lti.check_control_period`, naming the source), used or not: a
+        damaged value is refused, never passed over.
 
     Examples
     --------
     >>> control_period_from(None, site=0.1)
     Fact(value=0.1, basis='site file')
+    >>> try:
+    ...     control_period_from(None, model_file=-1.0)
+    ... except FuelidError as exc:
+    ...     print(exc)
+    the model file's options.control_period must be 0 (continuous) or up to 10 s, got -1 s
     """
-    for value, basis in ((option, "option"), (site, "site file"), (model_file, "model file")):
+    sources = (
+        (option, "option", "control period (--control-period)"),
+        (site, "site file", "the site file's [sampling] control_period_s"),
+        (model_file, "model file", "the model file's options.control_period"),
+    )
+    for value, _, name in sources:
+        if value is not None:
+            check_control_period(value, name)
+    for value, basis, _ in sources:
         if value is not None:
             return Fact(float(value), basis)  # type: ignore[arg-type]
     raise FuelidError(NO_CONTROL_PERIOD)

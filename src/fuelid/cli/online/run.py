@@ -19,7 +19,7 @@ import typer
 
 from fuelid.cli._common import guarded
 from fuelid.cli.serve import ServeProtocol
-from fuelid.errors import ConfigError
+from fuelid.errors import ConfigError, validation_reason
 
 if TYPE_CHECKING:
     from fuelid.online.service import OnlineService
@@ -151,7 +151,7 @@ def _virtual_tables(config: Path | None) -> dict[str, Any]:
         except ValidationError as exc:
             first = exc.errors()[0]
             where = ".".join(str(p) for p in first["loc"])
-            message = str(first["msg"]).removeprefix("Value error, ")
+            message = validation_reason(first)
             reason = f"{config}: {name}.{where}: {message}" if where else message
             raise ConfigError(reason) from None
         tables[name] = dict(table)
