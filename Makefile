@@ -124,6 +124,7 @@ $(BENCH_VENV)/.fuelid-installed: pyproject.toml
 bench: $(BENCH_VENV)/.fuelid-installed
 	$(BENCH_VENV)/bin/python benchmarks/bench_simulate.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_identify_speed.py
+	$(BENCH_VENV)/bin/python benchmarks/bench_day_log.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_identify_accuracy.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_default_path.py --runs 500
 	$(BENCH_VENV)/bin/python benchmarks/bench_gate_study.py

@@ -42,6 +42,10 @@ PAGES = ROOT / "docs" / "benchmarks"
 BENCHMARKS: dict[str, tuple[str, str]] = {
     "simulate": ("Simulation speed", "benchmarks/bench_simulate.py"),
     "identify_speed": ("Identification speed", "benchmarks/bench_identify_speed.py"),
+    "day_log": (
+        "A day of data: identify and report against read-and-solve",
+        "benchmarks/bench_day_log.py",
+    ),
     "identify_accuracy": (
         "Identification accuracy against the Cramér–Rao bound",
         "benchmarks/bench_identify_accuracy.py",

@@ -105,14 +105,31 @@ def _segments(n: int, segment_starts: Sequence[int]) -> list[tuple[int, int]]:
 
 
 def _xcorr(du: FloatArray, dy: FloatArray, max_lag: int) -> FloatArray:
-    """Σ_k du[k]·dy[k+τ] for τ = −max_lag…max_lag (zero beyond the record), by FFT."""
+    """Σ_k du[k]·dy[k+τ] for τ = −max_lag…max_lag (zero beyond the record), by FFT.
+
+    A long record whose command changes at few samples (a day of held levels: one sample in
+    a thousand) is summed over those samples only, lag by lag: (2M + 1)·(changes) products
+    instead of FFTs of 2²³ points.
+    """
     n = du.size
+    changes = np.flatnonzero(du)
+    if n > SPARSE_XCORR_SAMPLES and changes.size * (2 * max_lag + 1) < n:
+        out = np.zeros(2 * max_lag + 1)
+        for i, lag in enumerate(range(-max_lag, max_lag + 1)):
+            at = changes[(changes + lag >= 0) & (changes + lag < n)]
+            out[i] = du[at] @ dy[at + lag]
+        return out
     size = 1 << math.ceil(math.log2(n + max_lag + 1))
     full = np.fft.irfft(np.conj(np.fft.rfft(du, size)) * np.fft.rfft(dy, size), size)
     lags = np.arange(-max_lag, max_lag + 1)
     out = full[lags % size]
     out[np.abs(lags) >= n] = 0.0
     return out
+
+
+SPARSE_XCORR_SAMPLES = 1 << 20
+"""Records longer than this [samples] may sum the cross-correlation over the command's changes
+only (:func:`_xcorr`); shorter ones are computed exactly as before, by FFT."""
 
 
 def _levels(y: FloatArray, span: int, window: int) -> tuple[FloatArray, FloatArray, FloatArray]:

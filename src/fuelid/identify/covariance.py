@@ -154,19 +154,78 @@ def residual_ar(
     return ResidualAR(a=best_a, sigma_e=math.sqrt(max(variance, 0.0)), bic=bic)
 
 
+ROW_BLOCK = 1 << 20
+"""Rows of J handled at once by :func:`bread` and :func:`sandwich_covariance` [-]: a day at
+50 Hz is done in five blocks of 1 M × k rather than with whole N × k copies (240 MB each for
+k = 7); a record of up to a million samples is one block, computed exactly as before."""
+
+
+def _r_factor(J: FloatArray, scale: FloatArray) -> FloatArray:
+    """R of the QR factorisation of J/scale, by blocks of :data:`ROW_BLOCK` rows (TSQR).
+
+    The R of the stacked R factors of the blocks is the R of the whole (up to the signs of its
+    rows, which the SVD of R does not see): Demmel et al., "Communication-optimal parallel and
+    sequential QR and LU factorizations", SIAM J. Sci. Comput. 34 (2012) A206–A239.
+    """
+    if J.shape[0] <= ROW_BLOCK:
+        return np.asarray(np.linalg.qr(J / scale, mode="r"), dtype=float)
+    stacked = [
+        np.linalg.qr(J[a : a + ROW_BLOCK] / scale, mode="r")
+        for a in range(0, J.shape[0], ROW_BLOCK)
+    ]
+    return np.asarray(np.linalg.qr(np.vstack(stacked), mode="r"), dtype=float)
+
+
+def column_norms(J: FloatArray) -> FloatArray:
+    """‖J[:, c]‖ for every column: a dot product per column past :data:`ROW_BLOCK` rows.
+
+    ``np.linalg.norm(J, axis=0)`` squares all of J first (an N × k temporary, 240 MB for a
+    day's Jacobian); a record of up to :data:`ROW_BLOCK` rows keeps it (the same numbers as
+    before, to the last bit).
+    """
+    if J.shape[0] <= ROW_BLOCK:
+        return np.asarray(np.linalg.norm(J, axis=0), dtype=float)
+    return np.asarray(np.sqrt([float(column @ column) for column in J.T]), dtype=float)
+
+
+def least_squares(Phi: FloatArray, y: FloatArray) -> FloatArray:
+    """β of y ≈ Φ·β, columns scaled: ``np.linalg.lstsq``, by blocks past :data:`ROW_BLOCK` rows.
+
+    Past it, the R factor of [Φ/scale, y] by blocks (:func:`_r_factor`'s TSQR) holds Φ's R and
+    Qᵀy in its last column, and the small triangular problem gives β, with ``lstsq``'s
+    threshold for the singular values (machine precision times the longer side); a record of
+    up to a million rows is solved exactly as before.
+    """
+    scale = column_norms(Phi)
+    scale[scale == 0.0] = 1.0
+    rcond = np.finfo(float).eps * max(Phi.shape)
+    if Phi.shape[0] <= ROW_BLOCK:
+        beta, *_ = np.linalg.lstsq(Phi / scale, y, rcond=None)
+        return np.asarray(beta / scale, dtype=float)
+    k = Phi.shape[1]
+    stacked = [
+        np.linalg.qr(np.column_stack([Phi[a : a + ROW_BLOCK] / scale, y[a : a + ROW_BLOCK]]), "r")
+        for a in range(0, Phi.shape[0], ROW_BLOCK)
+    ]
+    R: FloatArray = np.asarray(np.linalg.qr(np.vstack(stacked), mode="r"), dtype=float)
+    beta, *_ = np.linalg.lstsq(R[:k, :k], R[:k, k], rcond=rcond)
+    return np.asarray(beta / scale, dtype=float)
+
+
 def bread(J: FloatArray) -> tuple[FloatArray, list[int]]:
     """(JᵀJ)⁻¹ through the SVD of the column-scaled J, and the parameters it cannot give.
 
     Directions whose singular value is below :data:`SINGULAR_INFORMATION` of the largest are
     not inverted; every parameter with weight in them gets a NaN row and column and is listed.
     """
-    scale = np.linalg.norm(J, axis=0)
+    scale = column_norms(J)
     scale[scale == 0.0] = 1.0
-    scaled = J / scale
     if not reference_numerics_on() and J.shape[0] > J.shape[1]:
         # the SVD of R of J = QR: the same singular values and right vectors, without forming
         # the tall left ones (0.6 ms against 2–5 ms for a 30,000 × 6 Jacobian)
-        scaled = np.linalg.qr(scaled, mode="r")
+        scaled = _r_factor(J, scale)
+    else:
+        scaled = J / scale
     _, singular, vt = np.linalg.svd(scaled, full_matrices=False)
     determined = singular > SINGULAR_INFORMATION * singular[0]
     null = vt[~determined]
@@ -190,8 +249,13 @@ def sandwich_covariance(
     noise: ResidualAR,
     bounds: Sequence[tuple[int, int]] | None = None,
     bread_of_J: tuple[FloatArray, list[int]] | None = None,
+    *,
+    overwrite: bool = False,
 ) -> tuple[FloatArray, list[int]]:
     """(JᵀJ)⁻¹·σ_e²(ΨᵀJ)ᵀ(ΨᵀJ)·(JᵀJ)⁻¹: the covariance under the residuals' AR noise ``noise``.
+
+    ``overwrite=True`` filters J in place (ΨᵀJ replaces it) instead of into a copy: the
+    caller's J is spent, and a day's N × k copy (240 MB) is not made.
 
     Examples
     --------
@@ -205,10 +269,12 @@ def sandwich_covariance(
     # ``bread_of_J``: bread(J) when the caller has it already (the same SVD, not done twice)
     inverse, unidentified = bread(J) if bread_of_J is None else bread_of_J
     spans = list(bounds) if bounds else [(0, J.shape[0])]
-    filtered = np.zeros_like(J)
+    filtered = J if overwrite else np.zeros_like(J)
     for a, b in spans:
-        # Ψᵀ acts backwards in time: reverse, filter by 1/A(q), reverse
-        filtered[a:b] = scipy.signal.lfilter([1.0], noise.a, J[a:b][::-1], axis=0)[::-1]
+        # Ψᵀ acts backwards in time: reverse, filter by 1/A(q), reverse; a column at a time
+        # in place (the same numbers as the whole block at once)
+        for c in range(J.shape[1]):
+            filtered[a:b, c] = scipy.signal.lfilter([1.0], noise.a, J[a:b, c][::-1])[::-1]
     clean = np.nan_to_num(inverse)
     if reference_numerics_on():
         middle = noise.sigma_e**2 * (filtered.T @ filtered)
@@ -216,9 +282,13 @@ def sandwich_covariance(
     else:
         # as a Gram matrix BᵀB, B = ΨᵀJ·(JᵀJ)⁻¹: its diagonal is a sum of squares, never
         # negative by rounding as (JᵀJ)⁻¹·M·(JᵀJ)⁻¹ can be when two lags nearly coincide
-        # (entries of 10⁴ cancelling to a variance); the same cost, N·k² either way
-        scaled = filtered @ clean
-        cov = noise.sigma_e**2 * (scaled.T @ scaled)
+        # (entries of 10⁴ cancelling to a variance); the same cost, N·k² either way; summed
+        # over blocks of rows, each sum still one of squares
+        gram = np.zeros((J.shape[1], J.shape[1]))
+        for a in range(0, J.shape[0], ROW_BLOCK):
+            scaled = filtered[a : a + ROW_BLOCK] @ clean
+            gram += scaled.T @ scaled
+        cov = noise.sigma_e**2 * gram
     cov[unidentified, :] = np.nan
     cov[:, unidentified] = np.nan
     return np.asarray(cov, dtype=float), unidentified

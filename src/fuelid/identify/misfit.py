@@ -45,6 +45,16 @@ MAX_RADIUS = 0.5
 """Largest error radius of Δ̂ [-] at which the log still bounds the misfit (±50 % of the loop)."""
 MIN_AVERAGES = 4
 """Fewest averaged segments for a bound: fewer give an estimate too rough to mean anything."""
+MAX_SEGMENT = 2**16
+"""Longest Welch segment [samples] (22 min at 50 Hz), unless the model needs a longer one
+(:data:`CORNER_RESOLUTION`). A longer segment only resolves frequencies far below the loop's,
+and thins the averages: on a day at 50 Hz the rule of :data:`MIN_AVERAGES` alone gave 2²⁰
+samples, 7 averages and 524,288 frequencies (a 72 MB JSON) where this gives 130 averages,
+an error radius √(130/7) ≈ 4 times smaller, and 32,768 frequencies."""
+CORNER_RESOLUTION = 100.0
+"""The lowest frequency resolved lies at least this factor below the model's corner
+1/(T + T2 + T_f + θ) [-]: a slow model (or fast sampling) lengthens the segment past
+:data:`MAX_SEGMENT` as far as that needs."""
 
 
 @dataclass(frozen=True)
@@ -120,7 +130,9 @@ def misfit_bound(
     Each segment between ``segment_starts`` gives its own periodograms (a gap breaks the
     record); segments shorter than one Welch segment are left out. The Welch segment is the
     largest power of two giving at least :data:`MIN_AVERAGES` halves-overlapped segments over the
-    whole record. None when the record is too short or the command never moves.
+    whole record, at most :data:`MAX_SEGMENT` samples unless the model's corner frequency needs
+    more (:data:`CORNER_RESOLUTION`). None when the record is too short or the command never
+    moves.
 
     Examples
     --------
@@ -139,6 +151,11 @@ def misfit_bound(
     r = np.asarray(residuals, dtype=float)
     bounds = np.r_[0, np.asarray(segment_starts, dtype=int), u.size]
     length = 2 ** math.floor(math.log2(max(u.size * 2 / (MIN_AVERAGES + 1), 2)))
+    # the lowest frequency 1/(length·h) a decade or two below the corner 1/Στ is all the bound
+    # needs; more resolution only costs averages (and a day's JSON)
+    time_scale = sum(model.time_constants) + model.delay
+    needed = 2 ** math.ceil(math.log2(max(2.0 * math.pi * CORNER_RESOLUTION * time_scale / h, 2)))
+    length = min(length, max(MAX_SEGMENT, needed))
     spectra: list[tuple[FloatArray, FloatArray, NDArray[np.complex128], int]] = []
     frequencies: FloatArray | None = None
     for a, b in itertools.pairwise(bounds):

@@ -33,13 +33,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import scipy.special
 from numpy.typing import NDArray
 
-from fuelid.identify.covariance import residual_ar, sandwich_covariance, white_covariance
+from fuelid.identify.covariance import (
+    ROW_BLOCK,
+    least_squares,
+    residual_ar,
+    sandwich_covariance,
+    white_covariance,
+)
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel
@@ -163,6 +169,12 @@ def _band_inputs(u: FloatArray, edges: FloatArray) -> FloatArray:
     return np.clip(u[:, None], edges[None, :-1], edges[None, 1:]) - edges[None, :-1]
 
 
+def _free_response_length(poles: FloatArray) -> int:
+    """Samples after which every p^k has fallen below 1e-18 (as ``DiscreteLagModel.modes``)."""
+    lengths = [math.ceil(-41.5 / math.log(p)) + 1 for p in poles if 0.0 < p < 1.0]
+    return max(lengths, default=1) if all(0.0 <= p < 1.0 for p in poles) else 2**62
+
+
 def gain_bands(data: IOData, model: ProcessModel) -> NonlinearityCheck | None:
     """Static gain per command band, with the dynamics of ``model`` held.
 
@@ -199,28 +211,35 @@ def gain_bands(data: IOData, model: ProcessModel) -> NonlinearityCheck | None:
     edges = _edges(u)
     if edges.size < 3:
         return None
-    W = _band_inputs(u, edges)
     bounds = data.segment_bounds()
-    # a band must be crossed by a change inside a segment, or its gain is not determined
-    moved = np.zeros(W.shape[1], dtype=bool)
+    lows, highs = edges[:-1], edges[1:]
+    # a band must be crossed by a change inside a segment, or its gain is not determined:
+    # clip(u) to the band moves within a segment when the segment's range overlaps the band
+    # (the bands' inputs are formed one at a time below, not as an N × bands matrix)
+    moved = np.zeros(lows.size, dtype=bool)
     for a, b in bounds:
-        moved |= np.ptp(W[a:b], axis=0) > 0.0
+        u_min, u_max = float(np.min(u[a:b])), float(np.max(u[a:b]))
+        moved |= np.minimum(u_max, highs) > np.maximum(u_min, lows)
     if not np.all(moved):
         return None
     discrete = discretise(model.time_constants, model.delay, h)
-    n_bands, n_lags = W.shape[1], discrete.poles.size
-    Phi = np.zeros((u.size, n_bands + 1 + n_lags * len(bounds)))
+    n_bands, n_lags = lows.size, discrete.poles.size
+    # Fortran order past a million rows: each column contiguous, for the blocked solve and the
+    # sandwich's filters (a record up to it is computed exactly as before)
+    order: Literal["C", "F"] = "F" if u.size > ROW_BLOCK else "C"
+    Phi = np.zeros((u.size, n_bands + 1 + n_lags * len(bounds)), order=order)
     for j, (a, b) in enumerate(bounds):
         for band in range(n_bands):
-            w = W[a:b, band]
+            w = np.clip(u[a:b], lows[band], highs[band]) - lows[band]
             # from rest at the segment's first command; its level stays in the column
             Phi[a:b, band] = discrete.response(w - w[0]) + w[0]
-        Phi[a:b, n_bands + 1 + j * n_lags : n_bands + 1 + (j + 1) * n_lags] = discrete.modes(b - a)
+        # the free responses only as far as they have not underflowed (Φ is zero beyond)
+        rows = min(b - a, _free_response_length(discrete.poles))
+        Phi[a : a + rows, n_bands + 1 + j * n_lags : n_bands + 1 + (j + 1) * n_lags] = (
+            discrete.modes(rows)
+        )
     Phi[:, n_bands] = 1.0
-    scale = np.linalg.norm(Phi, axis=0)
-    scale[scale == 0.0] = 1.0
-    beta_s, *_ = np.linalg.lstsq(Phi / scale, y, rcond=None)
-    beta = beta_s / scale
+    beta = least_squares(Phi, y)
     residuals = np.asarray(y - Phi @ beta, dtype=float)
     dof = max(u.size - Phi.shape[1], 1)
     sigma = math.sqrt(float(residuals @ residuals) / dof)
@@ -228,7 +247,8 @@ def gain_bands(data: IOData, model: ProcessModel) -> NonlinearityCheck | None:
     # then "varies" with the command: the sandwich with the residuals' spectrum, as oe's
     noise = residual_ar(residuals, bounds)
     cov = (
-        sandwich_covariance(Phi, noise, bounds)[0]
+        # Φ is not needed after: filtered in place (a day's Φ is 200 MB)
+        sandwich_covariance(Phi, noise, bounds, overwrite=True)[0]
         if noise.order > 0
         else white_covariance(Phi, sigma)[0]
     )

@@ -47,8 +47,10 @@ from fuelid.identify.diagnostics import (
     settled_residuals,
     settled_stretches,
 )
+from fuelid.identify.long_record import LongRecordSearch, is_long
 from fuelid.identify.order import Candidate, OrderChoice, bic, choose_order
-from fuelid.identify.search import search_structure
+from fuelid.identify.progress import StageCallback, StepCounter
+from fuelid.identify.search import StepCallback, search_structure
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, offset_and_free_responses
 from fuelid.identify.variable_projection import (
     GRID_SAMPLES,
@@ -158,6 +160,9 @@ class OutputError(Estimator):
         Size and sample time [s] of the fitting record.
     warnings_ : list of str
         The data's notes, then what the fit noticed.
+    long_record_ : dict
+        By order, how a long record was searched (on a copy, then polished on all of it:
+        :mod:`fuelid.identify.long_record`); empty for a record searched on itself.
 
     Examples
     --------
@@ -200,6 +205,7 @@ class OutputError(Estimator):
     n_samples_: int
     sample_time_: float
     warnings_: list[str]
+    long_record_: dict[int, LongRecordSearch]
     _state: tuple[Structure, FloatArray]
 
     def __init__(
@@ -222,8 +228,17 @@ class OutputError(Estimator):
         self.covariance = covariance
 
     # ------------------------------------------------------------------ public API
-    def fit(self, data: IOData, init: ProcessModel | None = None) -> Self:
+    def fit(
+        self,
+        data: IOData,
+        init: ProcessModel | None = None,
+        *,
+        progress: StageCallback | None = None,
+    ) -> Self:
         """Fit the model to ``data``; ``init`` warm-starts the search (e.g. the last window).
+
+        ``progress``, when it can show steps (:class:`~fuelid.identify.progress.StepDisplay`),
+        is told as each structure's search, polish (a long record) and standard errors start.
 
         Returns
         -------
@@ -245,26 +260,31 @@ class OutputError(Estimator):
             # (measured: 0.49 s vs 0.15 s for one hour of 50 Hz data)
             # the searches' last sensitivities by order (for the stored fits' Jacobians)
             vars(self)["_sensitivities"] = {}
+            steps = StepCounter(progress, len(orders) * (3 if is_long(data) else 2))
+            n = data.n_samples
+            self.aic_ = {}
+            self.long_record_ = {}
+            # each order searched and stored in turn for its covariance, which the order rule
+            # needs; what _store set is kept, so the chosen order's state is put back, not
+            # recomputed (its covariance, colour test and Jacobian again)
+            candidates = []
+            stored = {}
             with single_threaded_blas():
-                fits = {
-                    order: self._fit_structure(data, self._structure(order), init)
-                    for order in orders
-                }
-                n = data.n_samples
-                self.aic_ = {
-                    order: n * math.log(max(ev.sse, 1e-300) / n) + 2 * (ev.beta.size + z.size)
-                    for order, (z, ev) in fits.items()
-                }
-                # each order stored in turn for its covariance, which the order rule needs
-                candidates = []
-                stored = {}
-                for order, (z, ev) in fits.items():
-                    self._store(data, self._structure(order), z, ev)
-                    # what _store set, kept: the chosen order's state is put back, not
-                    # recomputed (its covariance, colour test and Jacobian again)
+                for order in orders:
+                    st = self._structure(order)
+                    steps.label = f"order {order}: "
+                    z, ev = self._fit_structure(data, st, init, steps)
+                    self.aic_[order] = n * math.log(max(ev.sse, 1e-300) / n) + 2 * (
+                        ev.beta.size + z.size
+                    )
+                    steps("standard errors")
+                    self._store(data, st, z, ev)
                     stored[order] = dict(vars(self))
                     criterion = bic(ev.sse, n, ev.beta.size + z.size)
                     candidates.append(Candidate.of_fit(self, order, criterion))
+                    # a day's regressors are 140 MB: not kept while the next order is fitted
+                    vars(self)["_sensitivities"].pop(order, None)
+                    del ev
                 self.order_choice_ = choose_order(
                     candidates, data.sample_time, meter_lag_given=self.T_f > 0.0
                 )
@@ -451,12 +471,20 @@ class OutputError(Estimator):
         return self.max_delay if self.max_delay is not None else min(0.25 * record, 60.0)
 
     def _fit_structure(
-        self, data: IOData, st: Structure, init: ProcessModel | None
+        self,
+        data: IOData,
+        st: Structure,
+        init: ProcessModel | None,
+        step: StepCallback | None = None,
     ) -> tuple[FloatArray, LinearFit]:
-        z, fit, known = search_structure(data, st, init, self._delay_bound(data))
-        if known is not None:  # the search's last sensitivities, for the stored fit's Jacobian
-            vars(self).setdefault("_sensitivities", {})[st.order] = known
-        return z, fit
+        if step is not None and not is_long(data):
+            step("search")
+        found = search_structure(data, st, init, self._delay_bound(data), step)
+        if found.sensitivities is not None:  # the search's last, for the stored fit's Jacobian
+            vars(self).setdefault("_sensitivities", {})[st.order] = found.sensitivities
+        if found.long_record is not None:
+            vars(self).setdefault("long_record_", {})[st.order] = found.long_record
+        return found.z, found.fit
 
     def _store(self, data: IOData, st: Structure, z: FloatArray, ev: LinearFit) -> None:
         T, T2, delay = st.unpack(z)
@@ -487,6 +515,11 @@ class OutputError(Estimator):
         # the search's sensitivities at this very fit (its last Jacobian), not computed again
         sens = known[1] if known is not None and known[0] is ev else None
         names, J = jacobian(st, values, ev.beta, data.u, h, u_ref, ev.Phi, bounds, sens)
+        # spent: J holds their columns now (a day's regressors and sensitivities are 140 and
+        # 100 MB, not to be kept beside J's 240 through the covariances)
+        vars(self).get("_sensitivities", {}).pop(st.order, None)
+        ev.Phi = ev.Phi[:0]
+        del known, sens
         dof = max(n - len(names), 1)
         self.sigma_ = math.sqrt(ev.sse / dof)
         self.param_names_ = names
@@ -510,7 +543,10 @@ class OutputError(Estimator):
             self.covariance == "auto" and coloured and self.residual_colour_ != "model"
         )
         if use_sandwich and self.residual_ar_.order > 0:
-            self.cov_, singular = sandwich_covariance(J, self.residual_ar_, bounds, inverse)
+            # J is not needed after: filtered in place (a day's J is 240 MB)
+            self.cov_, singular = sandwich_covariance(
+                J, self.residual_ar_, bounds, inverse, overwrite=True
+            )
             self.covariance_ = "hac"
         elif noise_sigma is not None:
             # white noise of the level it has where the output settled: σ̂ over all residuals

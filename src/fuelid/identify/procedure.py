@@ -29,12 +29,14 @@ from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
 from fuelid.identify import diagnostics
 from fuelid.identify.causality import LEAD_MIN_SPAN, lead_check
+from fuelid.identify.long_record import long_record_json
 from fuelid.identify.misfit import misfit_bound
 from fuelid.identify.nonlinearity import gain_bands
 from fuelid.identify.oe import OutputError
 from fuelid.identify.order import lags_not_separated as _lags_not_separated
 from fuelid.identify.pem import PredictionError
 from fuelid.identify.preprocess import decimate
+from fuelid.identify.progress import DIAGNOSING, FITTING, StageCallback, announce
 from fuelid.identify.residual_warnings import residual_warnings
 from fuelid.identify.result import (
     METHODS,
@@ -164,6 +166,7 @@ def identify(
     validation: IOData | None = None,
     *,
     diagnose: bool = True,
+    progress: StageCallback | None = None,
 ) -> IdentificationResult:
     """Identify the model family on ``data`` with ``options``.
 
@@ -179,11 +182,13 @@ def identify(
     ``diagnose=False`` stops there: the model, its standard errors and fits, without the
     residual tests, steady-state errors, gain bands and their warnings (``diagnostics`` empty;
     what the online windows' step-ls alongside needs). ``method="auto"`` always diagnoses.
+    ``progress``, when given, is told as the fit and the diagnostics start, and the fit's steps
+    when it can show them (:mod:`fuelid.identify.progress`).
     """
     with single_threaded_blas():
         if options.method == "auto":
-            return _identify_auto(data, options, validation)
-        return _identify(data, options, validation, diagnose)
+            return _identify_auto(data, options, validation, progress)
+        return _identify(data, options, validation, diagnose, progress)
 
 
 AUTO_VALIDATION_MARGIN = 2.0
@@ -193,7 +198,10 @@ NEAR_INTEGRATING_POLE = 0.999
 
 
 def _identify_auto(
-    data: IOData, options: IdentifyOptions, validation: IOData | None
+    data: IOData,
+    options: IdentifyOptions,
+    validation: IOData | None,
+    progress: StageCallback | None = None,
 ) -> IdentificationResult:
     """``method="auto"``: the output-error fit, or pem when the noise model is significant.
 
@@ -201,11 +209,11 @@ def _identify_auto(
     picks a noise model other than white (its own significance test), unless a noise pole is so
     close to 1 that pem would fit the differenced data and lose the low-frequency fit.
     """
-    oe = _identify(data, replace(options, method="oe"), validation)
+    oe = _identify(data, replace(options, method="oe"), validation, progress=progress)
     if oe.diagnostics["residual_whiteness"]["passed"]:
         oe.extra["method_choice"] = "auto: oe (its residuals are white)"
         return oe
-    pem = _identify(data, replace(options, method="pem"), validation)
+    pem = _identify(data, replace(options, method="pem"), validation, progress=progress)
     noise = pem.extra["noise_model"]
     poles = [abs(complex(*p)) if isinstance(p, list) else abs(p) for p in noise["poles"]]
     if noise["nc"] + noise["nd"] == 0:
@@ -250,7 +258,12 @@ class _Fit:
 
 
 def _fit_step_ls(
-    data: IOData, options: IdentifyOptions, T_f: float, delay: float | None, warnings: list[str]
+    data: IOData,
+    options: IdentifyOptions,
+    T_f: float,
+    delay: float | None,
+    warnings: list[str],
+    progress: StageCallback | None = None,
 ) -> _Fit:
     work = _decimated(data, options.control_period)
     if delay is None:
@@ -280,7 +293,12 @@ def _fit_step_ls(
 
 
 def _fit_pem(
-    data: IOData, options: IdentifyOptions, T_f: float, delay: float | None, warnings: list[str]
+    data: IOData,
+    options: IdentifyOptions,
+    T_f: float,
+    delay: float | None,
+    warnings: list[str],
+    progress: StageCallback | None = None,
 ) -> _Fit:
     fit_data, n_fit = _split(data, options.validate_split)
     pem = PredictionError(order=options.order, delay=delay, T_f=T_f, u_before=options.u_before).fit(
@@ -301,7 +319,12 @@ def _fit_pem(
 
 
 def _fit_oe(
-    data: IOData, options: IdentifyOptions, T_f: float, delay: float | None, warnings: list[str]
+    data: IOData,
+    options: IdentifyOptions,
+    T_f: float,
+    delay: float | None,
+    warnings: list[str],
+    progress: StageCallback | None = None,
 ) -> _Fit:
     if options.order not in (1, 2, "auto"):
         raise FuelidError(f"--order must be 1, 2 or auto, got {options.order!r}")
@@ -312,7 +335,7 @@ def _fit_oe(
         T_f=T_f,
         u_before=options.u_before,
         covariance=options.covariance,
-    ).fit(fit_data)
+    ).fit(fit_data, progress=progress)
     warnings.extend(oe.warnings_)
     extra: dict[str, Any] = {
         "covariance": oe.covariance_,
@@ -322,6 +345,8 @@ def _fit_oe(
         "bic": {str(k): v for k, v in oe.bic_.items()},
         "structure": oe.order_choice_.to_json(),
         "noise_std": oe.sigma_,
+        # how a long record was searched (a copy, then polished on all of it), else None
+        "long_record": long_record_json(oe.long_record_),
     }
     if "T2" in oe.param_names_ and "delay" in oe.param_names_:
         names = oe.param_names_
@@ -388,7 +413,11 @@ def _validation_fits(
 
 
 def _identify(
-    data: IOData, options: IdentifyOptions, validation: IOData | None, diagnose: bool = True
+    data: IOData,
+    options: IdentifyOptions,
+    validation: IOData | None,
+    diagnose: bool = True,
+    progress: StageCallback | None = None,
 ) -> IdentificationResult:
     if validation is not None and options.validate_split is not None:
         raise FuelidError("give either a validation split or a validation file, not both")
@@ -401,7 +430,8 @@ def _identify(
     if validation is not None:
         validation, dropped = drop_short_segments(validation)
         warnings.extend(f"validation record: {w}" for w in dropped)
-    fit = _FITTERS.get(options.method, _fit_oe)(data, options, T_f, delay, warnings)
+    announce(progress, FITTING)
+    fit = _FITTERS.get(options.method, _fit_oe)(data, options, T_f, delay, warnings, progress)
     estimator, work, n_fit = fit.estimator, fit.work, fit.n_fit
     model = estimator.model_
     stderr = dict(estimator.stderr_)
@@ -443,6 +473,7 @@ def _identify(
 
     if not diagnose:
         return result({})
+    announce(progress, DIAGNOSING)
     # pem's tests are on its prediction errors: white when its noise model is right
     residuals = (
         np.asarray(estimator.residuals_[:n_fit], dtype=float)

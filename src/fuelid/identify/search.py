@@ -23,10 +23,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
 
+from fuelid.identify.long_record import LongRecordSearch, is_long, polish, search_copy
 from fuelid.identify.variable_projection import (
     LinearFit,
     Structure,
@@ -38,6 +41,7 @@ from fuelid.identify.variable_projection import (
     sensitivities,
     solve_linear,
     start_from_model,
+    statistical_tolerances,
 )
 from fuelid.io.timeseries import IOData
 from fuelid.lti import reference_numerics_on
@@ -179,55 +183,124 @@ class ProjectedSearch:
         return projected_jacobian(fit.Phi, sens * per_log)
 
 
+StepCallback = Callable[[str], None]
+"""Told what a long search does next (a phase's description)."""
+
+
+@dataclass(frozen=True)
+class StructureSearch:
+    """One structure's search: where it ended, and how."""
+
+    z: FloatArray
+    """The search vector [log T, (log T2), (θ)]."""
+    fit: LinearFit
+    """The linear fit at ``z``."""
+    sensitivities: tuple[LinearFit, FloatArray] | None
+    """The search's last (fit, ∂(Φβ)/∂(T, T2, θ)), or None: the stored fit's Jacobian when it
+    is at that fit."""
+    long_record: LongRecordSearch | None = None
+    """For a long record: the copy it searched and the polish on the whole (None otherwise)."""
+
+
 def search_structure(
-    data: IOData, st: Structure, init: ProcessModel | None, delay_bound: float
-) -> tuple[FloatArray, LinearFit, tuple[LinearFit, FloatArray] | None]:
+    data: IOData,
+    st: Structure,
+    init: ProcessModel | None,
+    delay_bound: float,
+    step: StepCallback | None = None,
+) -> StructureSearch:
     """The output-error fit's nonlinear search for one structure (oe's and pem's start).
 
     From ``init`` (a warm start: one local search) or from the best points of a coarse grid;
-    the delay, when free, searched within [0, ``delay_bound``] s.
+    the delay, when free, searched within [0, ``delay_bound``] s. A long record
+    (:func:`~fuelid.identify.long_record.is_long`) is searched on a copy of spread-out
+    stretches and the optimum polished on the whole record (:mod:`fuelid.identify.long_record`,
+    which says why the result is the whole record's optimum); ``step(what)``, when given, is
+    told as each of those phases starts.
 
     Returns
     -------
-    z, fit, sensitivities
-        The search vector [log T, (log T2), (θ)], the linear fit there, and the search's last
-        (fit, ∂(Φβ)/∂(T, T2, θ)) or None (the stored fit's Jacobian when it is at that fit).
+    StructureSearch
     """
-    from scipy.optimize import least_squares  # slow to import: only when fitting
-
     h = data.sample_time
     record = data.n_samples * h
-    u_ref = st.u_before if st.u_before is not None else float(data.u[0])
     lo = [math.log(h / 20.0)] * st.order
     hi = [math.log(20.0 * record)] * st.order
     if st.delay is None:
         lo.append(0.0)
         hi.append(max(delay_bound, 1e-9))
-
-    def evaluate(z: FloatArray, record: IOData) -> LinearFit:
-        T, T2, delay = st.unpack(z)
-        Phi = regressors(
-            st, T, T2, delay, record.u, record.sample_time, u_ref, record.segment_bounds()
+    if not is_long(data):
+        return StructureSearch(*_search(data, st, init, (lo, hi)))
+    copy = search_copy(data)
+    if step is not None:
+        step(f"searching on {copy.n_samples:,} samples in {copy.n_segments} stretches")
+    # the copy's optimum is only a start: the online windows' numerics find it to a few
+    # hundredths of its own standard error, and every stretch starts where it finds itself
+    with statistical_tolerances():
+        z0, _, _ = _search(copy, replace(st, later="estimate"), init, (lo, hi))
+    if step is not None:
+        step(f"polishing on all {data.n_samples:,} samples")
+    u_ref = st.u_before if st.u_before is not None else float(data.u[0])
+    problem = _problem(data, st)
+    polished = polish(data, st, problem.at, z0, (np.array(lo), np.array(hi)), u_ref)
+    done = LongRecordSearch(
+        data.n_samples, copy.n_samples, copy.n_segments, polished.steps, polished.converged
+    )
+    if polished.converged and polished.sensitivities is not None:
+        return StructureSearch(
+            polished.z, polished.fit, (polished.fit, polished.sensitivities), done
         )
-        return solve_linear(Phi, record.y)
+    # outside the basin after all: the whole record's own local search from the copy's optimum
+    return StructureSearch(*_local_searches(problem, [polished.z], (lo, hi)), done)
 
+
+def _evaluate(st: Structure, u_ref: float, z: FloatArray, record: IOData) -> LinearFit:
+    T, T2, delay = st.unpack(z)
+    Phi = regressors(st, T, T2, delay, record.u, record.sample_time, u_ref, record.segment_bounds())
+    return solve_linear(Phi, record.y)
+
+
+def _problem(data: IOData, st: Structure) -> ProjectedSearch:
+    """The projected residual and Jacobian of ``st`` on ``data``."""
+    h = data.sample_time
+    u_ref = st.u_before if st.u_before is not None else float(data.u[0])
     bounds = data.segment_bounds()
-    problem = ProjectedSearch(
-        lambda z: evaluate(z, data),
+    return ProjectedSearch(
+        lambda z: _evaluate(st, u_ref, z, data),
         lambda z, fit: sensitivities(
             st, *st.unpack(z), fit.beta, data.u, h, u_ref, bounds, fit.Phi
         ),
         st.order,
     )
+
+
+def _search(
+    data: IOData,
+    st: Structure,
+    init: ProcessModel | None,
+    bounds: tuple[list[float], list[float]],
+) -> tuple[FloatArray, LinearFit, tuple[LinearFit, FloatArray] | None]:
+    """The grid (or the warm start) and the local searches from its best points, on ``data``."""
+    u_ref = st.u_before if st.u_before is not None else float(data.u[0])
+    starts = (
+        [start_from_model(init, st)]
+        if init is not None
+        else grid_starts(data, st, partial(_evaluate, st, u_ref), bounds[1][-1])
+    )
+    return _local_searches(_problem(data, st), starts, bounds)
+
+
+def _local_searches(
+    problem: ProjectedSearch, starts: list[FloatArray], bounds: tuple[list[float], list[float]]
+) -> tuple[FloatArray, LinearFit, tuple[LinearFit, FloatArray] | None]:
+    """The best of the local searches from ``starts``."""
+    from scipy.optimize import least_squares  # slow to import: only when fitting
+
+    lo, hi = bounds
     # the online windows' numerics (statistical_tolerances): Levenberg–Marquardt with the
     # analytic Jacobian; else (and before issue 26's second pass) scipy's trf with finite
     # differences of the residual
     fast = filter_sensitivities_on() and not reference_numerics_on()
-    starts = (
-        [start_from_model(init, st)]
-        if init is not None
-        else grid_starts(data, st, evaluate, hi[-1])
-    )
     best: tuple[FloatArray, LinearFit] | None = None
     for z0 in starts:
         z0 = np.clip(z0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
@@ -259,4 +332,10 @@ def search_structure(
     return (*best, problem.last_sensitivities)
 
 
-__all__ = ["ProjectedSearch", "levenberg_marquardt", "search_structure"]
+__all__ = [
+    "ProjectedSearch",
+    "StepCallback",
+    "StructureSearch",
+    "levenberg_marquardt",
+    "search_structure",
+]

@@ -47,7 +47,13 @@ from fuelid.workflow.assumptions import (
     resolve_priors,
 )
 from fuelid.workflow.identification import T_REF, identify_step_ls
-from fuelid.workflow.progress import DIAGNOSTICS, IDENTIFICATION, Progress, announce
+from fuelid.workflow.progress import (
+    DIAGNOSTICS,
+    IDENTIFICATION,
+    Progress,
+    announce,
+    steps_only,
+)
 from fuelid.workflow.trust import (
     LEADING_RESPONSE,
     NO_CONTROL_PERIOD,
@@ -382,7 +388,10 @@ def _analyse(
     warnings: list[str] = [f"log: {note}" for note in data.notes]
     # the output-error fit first: without a plant file its settling time is the data's own
     # prior for step-ls's response length N
-    identifications["oe"] = identify(data, replace(base, method="oe"))
+    # the fit's own steps (its structures, a long record's search and polish) under this stage
+    identifications["oe"] = identify(
+        data, replace(base, method="oe"), progress=steps_only(progress)
+    )
     identifications["step-ls"], step_sources = identify_step_ls(
         data, replace(base, method="step-ls"), identifications["oe"].model
     )

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 from fuelid.identify.preprocess import select
 from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, identify
+from fuelid.identify.progress import StageCallback
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C, celsius_to_kelvin
@@ -161,6 +162,7 @@ def identify_log(
     t_stop: float | None = None,
     plant: PlantSource | None = None,
     fuel_temperature: float | None = None,
+    progress: StageCallback | None = None,
 ) -> IdentifyOutcome:
     """Identify the model of a loaded log, on the samples with ``t_start ≤ t < t_stop`` [s].
 
@@ -171,7 +173,9 @@ def identify_log(
     and the signals are checked against the fuel loop's 1…5 V drive range.
     ``fuel_temperature`` [K] is the fuel's during the log when the log has no such column.
     Refusals (non-exciting data, priors the record contradicts) raise
-    :class:`~fuelid.errors.FuelidError` with the reason.
+    :class:`~fuelid.errors.FuelidError` with the reason. ``progress`` is told as the fit and
+    its diagnostics start, and the fit's steps when it can show them
+    (:mod:`fuelid.workflow.progress`).
     """
     from fuelid.plant.config import load_plant_config
 
@@ -182,10 +186,12 @@ def identify_log(
     T_fuel = T_REF if point.T_fuel is None else point.T_fuel
     resolved, sources = resolve_priors(options, source, T_fuel)
     if resolved.method == "step-ls":
-        result, step_sources = identify_step_ls(data, resolved, validation=validation)
+        result, step_sources = identify_step_ls(
+            data, resolved, validation=validation, progress=progress
+        )
         sources |= step_sources
     else:
-        result = identify(data, resolved, validation)
+        result = identify(data, resolved, validation, progress=progress)
     findings = check_signals(data, source)
     mismatch = check_gain_against_plant(result.model, source, point, T_fuel)
     if mismatch is not None:
@@ -205,6 +211,7 @@ def identify_step_ls(
     validation: IOData | None = None,
     *,
     diagnose: bool = True,
+    progress: StageCallback | None = None,
 ) -> tuple[IdentificationResult, dict[str, PriorSource]]:
     """The article's step-ls fit with the prior knowledge it needs, and where that came from.
 
@@ -214,7 +221,7 @@ def identify_step_ls(
     model has not settled within N periods (its response would be truncated, biasing K and T)
     and N was not fixed by an option, the fit is repeated once with the N that model needs.
     ``diagnose=False``: the fit without its diagnostics (:func:`~fuelid.identify.procedure.
-    identify`).
+    identify`). ``progress``: told as each fit and its diagnostics start.
 
     Returns
     -------
@@ -226,7 +233,9 @@ def identify_step_ls(
     needs_N = options.N is None and options.settling_time is None
     needs_delay = options.resolved_delay() is None
     if (needs_N or needs_delay) and oe_model is None:
-        oe_model = identify(data, replace(options, method="oe", validate_split=None)).model
+        oe_model = identify(
+            data, replace(options, method="oe", validate_split=None), progress=progress
+        ).model
     if oe_model is not None and needs_N:
         options = replace(options, settling_time=oe_model.settling_time())
     if oe_model is not None and needs_delay:
@@ -235,10 +244,12 @@ def identify_step_ls(
     sources["N"] = (
         "option" if options.N is not None else "output-error fit" if needs_N else "plant file"
     )
-    result = identify(data, options, validation, diagnose=diagnose)
+    result = identify(data, options, validation, diagnose=diagnose, progress=progress)
     if options.N is None:
         needed = math.ceil(result.model.settling_time() / result.sample_time)
         if needed > int(result.extra.get("N", needed)):
-            result = identify(data, replace(options, N=needed), validation, diagnose=diagnose)
+            result = identify(
+                data, replace(options, N=needed), validation, diagnose=diagnose, progress=progress
+            )
             sources["N"] = "refit: the N its own model needs"
     return result, sources
