@@ -233,17 +233,38 @@ def test_jitter_and_a_missing_row_give_a_gap_not_a_slip(tmp_path: Path) -> None:
     assert any("1 gap splits the log" in note for note in data.notes)
 
 
-def test_a_late_sample_beyond_the_jitter_fraction_is_refused_with_where(tmp_path: Path) -> None:
+def test_a_late_sample_within_half_a_period_is_a_late_poll_on_its_slot(tmp_path: Path) -> None:
+    # issue 38: a poll answered 0.45 of a period late is still nearest its own slot, alone there
     t = H * np.arange(N)
-    t[300] += 0.45 * H  # beyond the jitter fraction: not placeable, and not resampled safely
+    t[300] += 0.45 * H
     t[301] += 0.1 * H
     frame(t).to_csv(tmp_path / "late.csv", index=False)
-    message = refused(tmp_path / "late.csv")
-    assert "irregular sampling: interval of 0.029 s at t = 5.98 s (data row 300)" in message
-    assert "--max-gap" in message
-    data = load_log(tmp_path / "late.csv", resample="always")
+    data = load_log(tmp_path / "late.csv")
+    assert data.n_samples == N
+    assert data.n_segments == 1
+    assert any("1 late or early poll(s) put on their own slots" in note for note in data.notes)
+
+
+def test_two_samples_for_one_slot_are_refused_with_where(tmp_path: Path) -> None:
+    # an extra stamp 0.1 of a period after slot 300: two samples for one slot, no empty one
+    t = H * np.arange(N)
+    t = np.insert(t, 301, t[300] + 0.1 * H)
+    pd.DataFrame(frame(t)).to_csv(tmp_path / "extra.csv", index=False)
+    message = refused(tmp_path / "extra.csv")
+    assert "irregular sampling: interval of 0.002 s at t = 6 s (data row 301)" in message
+    data = load_log(tmp_path / "extra.csv", resample="always")
     assert data.n_samples == N
     assert any("resampled" in note for note in data.notes)
+
+
+def test_a_clock_that_slips_a_period_is_not_a_lost_sample(tmp_path: Path) -> None:
+    # a clock whose phase wanders by ±0.6 of a period: its stamps creep past the half-period
+    # line, leaving a slot empty between one beyond +0.4 and one beyond −0.4 (and, going back,
+    # two in one slot); a steady period cannot absorb a wander that is not linear
+    k = np.arange(N)
+    t = H * k + 0.6 * H * np.sin(2.0 * np.pi * k / N)
+    frame(t).to_csv(tmp_path / "slip.csv", index=False)
+    assert "irregular sampling" in refused(tmp_path / "slip.csv", resample="never")
 
 
 # --- a sample time and a time column -------------------------------------------------------------

@@ -132,6 +132,28 @@ def format_estimate(value: float, stderr: float | None, minimum: int = 5) -> str
     return text.rstrip(".")
 
 
+def format_interval(low: float, high: float, minimum: int = 3) -> str:
+    """An interval ``low … high`` with the digits its width needs: the width to 2 digits.
+
+    Each end gets at least ``minimum`` significant digits and as many more as it takes to show
+    the interval's width (high − low) to two significant digits, so two ends that differ by
+    more than rounding never print alike (a 95 % interval of 21.0004 ± 1.96 · 0.0002 is not
+    "21 … 21").
+
+    >>> format_interval(21.0004 - 1.96 * 0.0002, 21.0004 + 1.96 * 0.0002)
+    '21.00001 … 21.00079'
+    >>> format_interval(20.8, 21.2), format_interval(0.5, 0.5), format_interval(-1.0, 1e6)
+    ('20.80 … 21.20', '0.5 … 0.5', '-1.00 … 1.00e+06')
+    """
+    width = high - low
+    largest = max(abs(low), abs(high))
+    if not (math.isfinite(width) and width > 0.0 and largest > 0.0):
+        return f"{low:.{minimum}g} … {high:.{minimum}g}"
+    digits = math.floor(math.log10(largest)) - math.floor(math.log10(width)) + 2
+    spec = f"#.{min(max(digits, minimum), 17)}g"
+    return f"{format(low, spec).rstrip('.')} … {format(high, spec).rstrip('.')}"
+
+
 def provenance(options: dict[str, Any], input_file: Path | None = None) -> dict[str, Any]:
     """The provenance block every JSON result carries."""
     return {
@@ -160,6 +182,8 @@ class SiteFacts:
     """The site's :class:`fuelid.plc.site.Controller`, or None."""
     plant: Path | None = None
     """The site's ``[site] plant`` (taken from the site file's folder), or None."""
+    timezone: str | None = None
+    """``[site] timezone`` when the file sets it: the zone of a log's stamps without offsets."""
 
 
 def site_facts(path: Path | None) -> SiteFacts | None:
@@ -174,7 +198,10 @@ def site_facts(path: Path | None) -> SiteFacts | None:
     controller = site.controller
     spans = (None, None) if controller is None else (controller.u_span_V, controller.y_span_Lpm)
     plant = None if site.site.plant is None else Path(site.site.plant)
-    return SiteFacts(control_period=period, spans=spans, controller=controller, plant=plant)
+    zone = site.site.timezone if "timezone" in site.site.model_fields_set else None
+    return SiteFacts(
+        control_period=period, spans=spans, controller=controller, plant=plant, timezone=zone
+    )
 
 
 def temperature_options(
@@ -419,6 +446,37 @@ FlowUnit = Annotated[
         show_default=False,
     ),
 ]
+TimeZoneOption = Annotated[
+    str | None,
+    typer.Option(
+        "--timezone",
+        metavar="ZONE",
+        help="IANA time zone of date-time stamps written without a UTC offset (local time), "
+        "e.g. Europe/Berlin: converted to UTC through the clock changes. Stamps with offsets "
+        "need none.",
+        show_default=False,
+    ),
+]
+TimeFormatOption = Annotated[
+    str | None,
+    typer.Option(
+        "--time-format",
+        metavar="CODES",
+        help="strptime codes of the date-time stamps when fuelid does not guess their form, "
+        "e.g. '%d-%b-%y %H:%M:%S' for 28-Mar-26 01:58:30.",
+        show_default=False,
+    ),
+]
+SkipRowsOption = Annotated[
+    int | None,
+    typer.Option(
+        "--skip-rows",
+        metavar="N",
+        help="Lines above the header (an export's preamble); by default the header is the "
+        "first line naming the time, input and output columns.",
+        show_default=False,
+    ),
+]
 InputScale = Annotated[
     str | None,
     typer.Option(
@@ -453,6 +511,9 @@ def read_log(
     bad_values: str | None = None,
     flow_unit: str | None = None,
     progress: Callable[[str], None] | None = None,
+    timezone: str | None = None,
+    time_format: str | None = None,
+    skip_rows: int | None = None,
 ) -> IOData:
     """Load a log with the shared column, scaling, gap and bad-value options.
 
@@ -477,6 +538,9 @@ def read_log(
         bad_values=parse_bad_values(bad_values),
         output_unit=flow_unit.strip() if flow_unit and flow_unit.strip() else None,
         progress=progress,
+        timezone=timezone.strip() if timezone and timezone.strip() else None,
+        time_format=time_format or None,
+        skip_rows=skip_rows,
     )
 
 
@@ -496,34 +560,25 @@ def flow_unit_warning(data: IOData, output_col: str) -> str | None:
 
 
 @contextmanager
-def progress_display() -> Iterator[Callable[[str], None]]:
-    """A spinner on stderr with the current stage and the time it has taken so far.
+def progress_display(
+    quiet: bool = False, *, console: Any = None, show_after: float | None = None
+) -> Iterator[Callable[[str], None]]:
+    """A line on stderr with the current stage, its bar (steps known) or spinner, and its time.
 
-    Shown only when stderr is a terminal, and gone when the block ends, so stdout (the JSON of
-    ``--json``) and a redirected stderr see nothing of it. Yields the workflow's ``progress``
-    callback (:mod:`fuelid.workflow.progress`).
+    Shown only when stderr is a terminal and not ``quiet`` (``--quiet``), once a stage has run
+    a moment (:mod:`fuelid.cli._progress`), and gone when the block ends, so stdout (the JSON
+    of ``--json``) and a redirected stderr see nothing of it. Yields the workflow's
+    ``progress`` callback (:mod:`fuelid.workflow.progress`), which also takes a stage's steps.
+    ``console`` (a rich console, for tests) and ``show_after`` [s] replace the defaults.
     """
     from rich.console import Console
 
-    console = Console(stderr=True)
-    if not console.is_terminal:
+    console = Console(stderr=True) if console is None else console
+    if quiet or not console.is_terminal:
         yield lambda stage: None
         return
-    from rich.progress import Progress, SpinnerColumn, TaskID, TextColumn, TimeElapsedColumn
+    from fuelid.cli._progress import SHOW_AFTER, stage_bar
 
-    display = Progress(
-        SpinnerColumn(),
-        TextColumn("{task.description}"),
-        TimeElapsedColumn(),
-        console=console,
-        transient=True,
-    )
-    tasks: list[TaskID] = []
-
-    def stage(name: str) -> None:
-        for task in tasks:  # one line: the stage that runs now
-            display.remove_task(task)
-        tasks[:] = [display.add_task(f"{name}…", total=None)]
-
+    display, stage = stage_bar(console, SHOW_AFTER if show_after is None else show_after)
     with display:
         yield stage

@@ -23,7 +23,10 @@ from fuelid.cli._common import (
     OutputColumn,
     OutputScale,
     SampleTime,
+    SkipRowsOption,
     TimeColumn,
+    TimeFormatOption,
+    TimeZoneOption,
     check_figure_path,
     emit_json,
     flow_unit_warning,
@@ -94,6 +97,9 @@ def calibrate_command(
     max_gap: MaxGap = None,
     bad_values: BadValues = None,
     flow_unit: FlowUnit = None,
+    timezone: TimeZoneOption = None,
+    time_format: TimeFormatOption = None,
+    skip_rows: SkipRowsOption = None,
     accept_signals: Annotated[
         bool,
         typer.Option(
@@ -190,7 +196,7 @@ def calibrate_command(
             return read_log(
                 path, time_col, input_col, column, sample_time, input_scale, scale,
                 fuel_temperature_col=fuel_temp_col, max_gap=max_gap, bad_values=bad_values,
-                flow_unit=unit,
+                flow_unit=unit, timezone=timezone, time_format=time_format, skip_rows=skip_rows,
             )  # fmt: skip
 
         flow = read(output_col, output_scale, flow_unit)

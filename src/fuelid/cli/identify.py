@@ -2,13 +2,15 @@
 
 The command checks its options, reads the log and prints what
 :func:`~fuelid.workflow.identify_log` returns; the library is imported when the command runs
-(matplotlib only with ``--plot``).
+(matplotlib only with ``--plot``). While it reads, grids, fits and tests, a line on stderr (a
+terminal only, not with ``--quiet``) names the stage, with a bar when its steps are counted.
 """
 
 from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -26,12 +28,17 @@ from fuelid.cli._common import (
     OutputColumn,
     OutputScale,
     SampleTime,
+    SkipRowsOption,
     TimeColumn,
+    TimeFormatOption,
+    TimeZoneOption,
     check_figure_path,
     emit_json,
     fitted_part,
     flow_unit_warning,
+    format_interval,
     guarded,
+    progress_display,
     provenance,
     read_log,
     warn,
@@ -50,7 +57,7 @@ from fuelid.cli._identify_options import (
     parse_order,
 )
 from fuelid.errors import FuelidError
-from fuelid.units import celsius_to_kelvin
+from fuelid.units import celsius_to_kelvin, format_celsius
 
 if TYPE_CHECKING:
     from fuelid.io.timeseries import IOData
@@ -176,6 +183,9 @@ def identify_command(
     max_gap: MaxGap = None,
     bad_values: BadValues = None,
     flow_unit: FlowUnit = None,
+    timezone: TimeZoneOption = None,
+    time_format: TimeFormatOption = None,
+    skip_rows: SkipRowsOption = None,
     plot: Annotated[
         Path | None,
         typer.Option(
@@ -187,6 +197,7 @@ def identify_command(
     ] = None,
     force: ForceFigureOption = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
 ) -> None:
     """Identify K·e^(−θs)/((T·s+1)(T2·s+1)(T_f·s+1)) from a logged input and output.
 
@@ -201,7 +212,7 @@ def identify_command(
     if control_period is not None:
         from fuelid.tuning.limits import check_control_period
 
-        check_control_period(control_period)
+        check_control_period(control_period, "control period (--control-period)")
     if fuel_temp is not None and not (math.isfinite(fuel_temp) and -60.0 <= fuel_temp <= 150.0):
         raise FuelidError(f"--fuel-temp must lie within -60…150 °C, got {fuel_temp:g}")
     options = IdentifyOptions(
@@ -224,7 +235,7 @@ def identify_command(
 
         plant = PlantSource(load_plant_config(config), str(config))
 
-    def read(path: Path) -> IOData:
+    def read(path: Path, progress: Callable[[str], None] | None = None) -> IOData:
         return read_log(
             path,
             time_col,
@@ -238,19 +249,26 @@ def identify_command(
             max_gap=max_gap,
             bad_values=bad_values,
             flow_unit=flow_unit,
+            timezone=timezone,
+            time_format=time_format,
+            skip_rows=skip_rows,
+            progress=progress,
         )
 
-    data = read(file)
-    validation = read(validate_file) if validate_file is not None else None
-    outcome = identify_log(
-        data,
-        options,
-        validation=validation,
-        t_start=t_start,
-        t_stop=t_stop,
-        plant=plant,
-        fuel_temperature=None if fuel_temp is None else celsius_to_kelvin(fuel_temp),
-    )
+    # reading, gridding, fitting and testing a day at 50 Hz take seconds each: shown on stderr
+    with progress_display(quiet) as stage:
+        data = read(file, stage)
+        validation = read(validate_file) if validate_file is not None else None
+        outcome = identify_log(
+            data,
+            options,
+            validation=validation,
+            t_start=t_start,
+            t_stop=t_stop,
+            plant=plant,
+            fuel_temperature=None if fuel_temp is None else celsius_to_kelvin(fuel_temp),
+            progress=stage,
+        )
     result = outcome.result
     unit_warning = flow_unit_warning(data, output_col)
     warnings = outcome.warnings + ([unit_warning] if unit_warning else [])
@@ -354,7 +372,7 @@ def _print_table(
             f"{value:.5g}",
             # fixed is a prior the user gave; estimated without an interval is not determined
             "fixed" if fixed else "not determined" if se is None else f"{se:.2g}",
-            "" if ci is None else f"{ci[0]:.5g} … {ci[1]:.5g}",
+            "" if ci is None else format_interval(ci[0], ci[1], minimum=5),
             gain_unit if key == "K" else "s",
         )
     console.print(table)
@@ -366,7 +384,11 @@ def _print_table(
     u_unit, y_unit = (f"({unit})" if " " in unit else unit for unit in units)
     console.print(
         f"operating point: u = {point['u']:.3g} {u_unit}, flow {point['y']:.4g} {y_unit}; fuel "
-        + (f"{fuel:.3g} °C ({point['fuel_temperature_source']})" if fuel is not None else "unknown")
+        + (
+            f"{format_celsius(celsius_to_kelvin(fuel))} °C ({point['fuel_temperature_source']})"
+            if fuel is not None
+            else "unknown"
+        )
     )
     console.print(f"assumed: {_describe_priors(data['priors'])}", highlight=False)
     conventions = {
@@ -396,6 +418,11 @@ def _print_table(
         console.print(f"orders compared: {compared}; kept {structure['reason']}", highlight=False)
     if "method_choice" in data:
         console.print(data["method_choice"], highlight=False)
+    from fuelid.identify.long_record import long_record_note
+
+    note = long_record_note(data.get("long_record"))
+    if note:  # a day's search ran on a copy: say so, and that the numbers are the whole record's
+        console.print(note, highlight=False)
 
 
 def _describe_priors(priors: dict[str, Any]) -> str:

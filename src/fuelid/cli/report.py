@@ -2,7 +2,8 @@
 
 The command checks its options, reads the log, calls :func:`~fuelid.workflow.analyse_log` and
 writes the page with :func:`~fuelid.htmlreport.write_report`; the library is imported when the
-command runs. While it works, a spinner on stderr (a terminal only) names the current stage.
+command runs. While it works, a line on stderr (a terminal only, not with ``--quiet``) names the
+current stage, with a bar when its steps are counted (:mod:`fuelid.cli._progress`).
 """
 
 from __future__ import annotations
@@ -36,8 +37,11 @@ from fuelid.cli._common import (
     RuleOption,
     SampleTime,
     SiteOption,
+    SkipRowsOption,
     TauCOption,
     TimeColumn,
+    TimeFormatOption,
+    TimeZoneOption,
     TMaxOption,
     TMinOption,
     check_spans,
@@ -162,9 +166,13 @@ def report_command(
     max_gap: MaxGap = None,
     bad_values: BadValues = None,
     flow_unit: FlowUnit = None,
+    timezone: TimeZoneOption = None,
+    time_format: TimeFormatOption = None,
+    skip_rows: SkipRowsOption = None,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print one JSON object (the numbers and the paths).")
     ] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
 ) -> None:
     """Identify, tune and check a log; write an HTML report with every figure embedded.
 
@@ -218,21 +226,26 @@ def report_command(
         u_span=u_span,
     )
     plant = PlantSource(load_plant_config(config), None if config is None else str(config))
-    data = read_log(
-        file,
-        time_col,
-        input_col,
-        output_col,
-        sample_time,
-        input_scale,
-        output_scale,
-        fuel_temperature_col=fuel_temp_col,
-        fill_gaps=fill_gaps,
-        max_gap=max_gap,
-        bad_values=bad_values,
-        flow_unit=flow_unit,
-    )
-    with progress_display() as stage:
+    # reading, gridding and the fits of a day at 50 Hz take seconds each: shown on stderr
+    with progress_display(quiet) as stage:
+        data = read_log(
+            file,
+            time_col,
+            input_col,
+            output_col,
+            sample_time,
+            input_scale,
+            output_scale,
+            fuel_temperature_col=fuel_temp_col,
+            fill_gaps=fill_gaps,
+            max_gap=max_gap,
+            bad_values=bad_values,
+            flow_unit=flow_unit,
+            timezone=timezone if timezone or facts is None else facts.timezone,
+            time_format=time_format,
+            skip_rows=skip_rows,
+            progress=stage,
+        )
         analysis = analyse_log(data, plant, settings, progress=stage)
     unit_warning = flow_unit_warning(data, output_col)
     if unit_warning:  # the report's gains take the flow as L/min: the page says so too
@@ -240,7 +253,7 @@ def report_command(
     for message in analysis.notices + analysis.warnings:
         warn(message)
     digest = file_sha256(file)
-    with progress_display() as stage:
+    with progress_display(quiet) as stage:
         stage("figures")
         written = write_report(analysis, out, overwrite=force, source_sha256=digest)
     if as_json:

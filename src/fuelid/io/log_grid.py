@@ -652,9 +652,7 @@ def _placed_samples(
     return chunk[source], table.rows[source], signals, starts
 
 
-def _resampled_samples(
-    table: LogTable, h: float, start: int, stop: int, chunk: int
-) -> Piece:
+def _resampled_samples(table: LogTable, h: float, start: int, stop: int, chunk: int) -> Piece:
     """Samples ``start:stop`` interpolated onto a grid from their first time (y linear, u held)."""
     assert table.t is not None
     t = table.t[start:stop]

@@ -328,8 +328,7 @@ def _check_hour_steps(
             else f"even {placed}: is that the zone the log was written in?"
         )
         raise DataError(
-            f"{source}: column {name!r} steps back by an hour at data row {i + 2} ({stamps}): "
-            f"{why}"
+            f"{source}: column {name!r} steps back by an hour at data row {i + 2} ({stamps}): {why}"
         )
     ahead = np.flatnonzero(hour & (steps > 0.0))
     if ahead.size and placed is None:
