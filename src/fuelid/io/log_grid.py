@@ -399,14 +399,17 @@ def place_on_grid(t: FloatArray, breaks: BoolArray, h: float) -> Placement:
     chunk = np.concatenate(([0], np.cumsum(breaks)))
     first = np.flatnonzero(np.concatenate(([True], breaks)))
     origin = t[first] + _mean_phase(t, chunk, first, h) * h
-    k = np.rint((t - origin[chunk]) / h).astype(np.int64)
+    # in place where it can be: a day of samples is 35 MB an array
+    deviation = t - origin[chunk]
+    k = np.rint(deviation / h).astype(np.int64)
     moved = _unshare_slots(k, ~breaks)
-    deviation = t - origin[chunk] - h * k
+    deviation -= h * k
     worst = np.maximum.reduceat(np.abs(deviation), first)
     exact = worst <= UNIFORM_TOLERANCE * h
     if exact.any():  # a grid without jitter starts at the first stamp, exactly
-        origin = np.where(exact, t[first], origin)
-        deviation = t - origin[chunk] - h * k
+        shift = np.where(exact, t[first] - origin, 0.0)
+        origin = origin + shift
+        deviation -= shift[chunk]
     collided = np.zeros(first.size, dtype=bool)
     collided[chunk[1:][~breaks & (np.diff(k) < 1)]] = True
     return Placement(k, origin, deviation, moved, collided, chunk, first)
@@ -507,61 +510,120 @@ def regularise(
     """
     t = table.t
     assert t is not None
-    n = t.size
-    dt = np.diff(t)
-
     # each stretch between long intervals on a grid of its own phase, each sample on its slot
     placement = place_on_grid(t, breaks, h)
-    chunk, first, k = placement.chunk, placement.first, placement.k
-    origin, deviation = placement.origin, placement.deviation
-    same = ~breaks
-    steps = np.diff(k)
     placed = placement.placed(h)
     if not placed.all():
-        _check_resampling(table, h, chunk, placed, mode, source, _misfit(placement, h))
+        _check_resampling(table, h, placement.chunk, placed, mode, source, _misfit(placement, h))
+    on_grid = placed[placement.chunk]
+    gaps = _find_gaps(table, h, breaks, placement.k, on_grid, fill_gaps, bridgeable)
 
-    # gaps: long intervals and missing slots; bridged when short enough (or a dropped bad row)
-    on_grid = placed[chunk]
-    both = on_grid[:-1] & on_grid[1:]
-    slots = np.where(same, steps, np.maximum(np.rint(dt / h), 1.0)).astype(np.int64)
-    gap = np.where(same, (slots > 1) & both, True)
-    # a jittered stamp does not lengthen a gap: whole periods, where the interval is near them
-    periods = dt / h
-    near_grid = np.abs(periods - np.rint(periods)) <= JITTER_FRACTION
-    length: FloatArray = np.where(same | near_grid, slots * h, dt)
-    dropped = np.zeros(0, dtype=np.int64) if bridgeable is None else bridgeable
-    bad_row = (
-        same & (slots == 2) & (np.diff(table.rows) == 2) & np.isin(table.rows[:-1] + 1, dropped)
-    )
-    fill = -np.inf if fill_gaps is None else fill_gaps * (1.0 + 1e-9)
-    filled = gap & both & (length <= fill)
-    bridge = filled | (gap & both & bad_row)
-    split = gap & ~bridge
-
-    pieces = [_placed_samples(table, h, chunk, on_grid, k, origin, slots, bridge, split)]
+    pieces = [_placed_samples(table, h, placement, on_grid, gaps)]
+    first = placement.first
     for c in np.flatnonzero(~placed):
-        stop = int(first[c + 1]) if c + 1 < first.size else n
+        stop = int(first[c + 1]) if c + 1 < first.size else t.size
         pieces.append(_resampled_samples(table, h, int(first[c]), stop, int(c)))
     record, rows = _merged(pieces, table.T is not None)
+    notes.extend(_grid_notes(table, h, placement, placed, on_grid, breaks))
+    notes.extend(_gap_notes(table, gaps, fill_gaps))
+    return _drop_short_segments(record, rows, gaps.split, gaps.length, h, source, notes)
 
-    if on_grid.any() and float(np.max(np.abs(deviation[on_grid]))) > UNIFORM_TOLERANCE * h:
-        notes.append(_describe_jitter(deviation, on_grid & ~placement.late_or_early(h), h))
+
+@dataclass
+class Gaps:
+    """Where the log has missing slots or long intervals, and what becomes of each.
+
+    Per interval between consecutive samples: ``slots`` the periods it spans, ``length`` [s]
+    (whole periods where the interval is near them), ``filled`` bridged on request
+    (``fill_gaps``), ``bridge`` bridged (those and single dropped bad rows), ``split`` a
+    segment break.
+    """
+
+    slots: IntArray
+    length: FloatArray
+    filled: BoolArray
+    bridge: BoolArray
+    split: BoolArray
+
+
+def _find_gaps(
+    table: LogTable,
+    h: float,
+    breaks: BoolArray,
+    k: IntArray,
+    on_grid: BoolArray,
+    fill_gaps: float | None,
+    bridgeable: IntArray | None,
+) -> Gaps:
+    """Long intervals and missing slots; bridged when short enough (or a dropped bad row)."""
+    assert table.t is not None
+    slots = np.diff(k)
+    at_breaks = np.flatnonzero(breaks)
+    # across a long interval the stretches' grids differ: count its periods from the stamps
+    periods = (table.t[at_breaks + 1] - table.t[at_breaks]) / h
+    slots[at_breaks] = np.maximum(np.rint(periods), 1.0)
+    both = on_grid[:-1] & on_grid[1:]
+    gap = (slots > 1) & both
+    gap[at_breaks] = True
+    length = slots * h  # a jittered stamp does not lengthen a gap: whole periods
+    far = np.abs(periods - np.rint(periods)) > JITTER_FRACTION  # a restart off the grid
+    length[at_breaks[far]] = periods[far] * h
+    bridge = np.zeros_like(gap)
+    if bridgeable is not None and bridgeable.size:
+        bridge = (
+            ~breaks
+            & (slots == 2)
+            & (np.diff(table.rows) == 2)
+            & np.isin(table.rows[:-1] + 1, bridgeable)
+        )
+    fill = -np.inf if fill_gaps is None else fill_gaps * (1.0 + 1e-9)
+    filled = gap & both & (length <= fill)
+    bridge = filled | (gap & both & bridge)
+    return Gaps(slots, length, filled, bridge, gap & ~bridge)
+
+
+def _grid_notes(
+    table: LogTable,
+    h: float,
+    placement: Placement,
+    placed: BoolArray,
+    on_grid: BoolArray,
+    breaks: BoolArray,
+) -> list[str]:
+    """The notes on the placement: the jitter, the late and early polls, the resampling."""
+    assert table.t is not None
+    notes = []
+    deviation = placement.deviation
     polls = placement.late_or_early(h) & on_grid
+    regular = on_grid & ~polls
+    if on_grid.any() and float(np.max(np.abs(deviation), where=on_grid, initial=0.0)) > (
+        UNIFORM_TOLERANCE * h
+    ):
+        notes.append(_describe_jitter(deviation, regular if regular.any() else on_grid, h))
     if polls.any():
-        off_ms = float(np.max(np.abs(deviation[polls]))) * 1e3
+        off_ms = float(np.max(np.abs(deviation), where=polls, initial=0.0)) * 1e3
         notes.append(
             f"{int(polls.sum())} late or early poll(s) put on their own slots (beyond ±"
             f"{JITTER_FRACTION:g} of a period, their neighbours within it; at most {off_ms:.3g} "
             "ms off): values unchanged"
         )
     if not placed.all():
+        first = placement.first
         stretches = "" if first.size == 1 else f"{int(np.sum(~placed))} of {first.size} stretches "
-        off = ~on_grid[:-1] & same
+        dt = np.diff(table.t)[~on_grid[:-1] & ~breaks]
         notes.append(
             f"resampled {stretches}onto a uniform {h:g} s grid (intervals "
-            f"{float(dt[off].min()):.6g} to {float(dt[off].max()):.6g} s): y interpolated "
+            f"{float(dt.min()):.6g} to {float(dt.max()):.6g} s): y interpolated "
             "linearly, u held"
         )
+    return notes
+
+
+def _gap_notes(table: LogTable, gaps: Gaps, fill_gaps: float | None) -> list[str]:
+    """The notes on the gaps bridged and the gaps that split the log."""
+    assert table.t is not None
+    notes = []
+    filled = gaps.filled
     if filled.any():
         changes = int(np.count_nonzero(filled & (table.u[1:] != table.u[:-1])))
         moved = (
@@ -570,13 +632,13 @@ def regularise(
             else ""
         )
         notes.append(
-            f"bridged {int(filled.sum())} gap(s) up to {float(length[filled].max()):.3g} s "
-            f"(fill_gaps, --fill-gaps {fill_gaps:g} s): {int(np.sum(slots[filled] - 1))} "
+            f"bridged {int(filled.sum())} gap(s) up to {float(gaps.length[filled].max()):.3g} s "
+            f"(fill_gaps, --fill-gaps {fill_gaps:g} s): {int(np.sum(gaps.slots[filled] - 1))} "
             f"sample(s) inserted, y interpolated linearly, u held{moved}"
         )
-    if split.any():
-        notes.append(_describe_gaps(np.flatnonzero(split), length, t, table.rows))
-    return _drop_short_segments(record, rows, split, length, h, source, notes)
+    if gaps.split.any():
+        notes.append(_describe_gaps(np.flatnonzero(gaps.split), gaps.length, table.t, table.rows))
+    return notes
 
 
 def _merged(pieces: list[Piece], with_temperature: bool) -> tuple[GridRecord, IntArray]:
@@ -603,35 +665,35 @@ def _merged(pieces: list[Piece], with_temperature: bool) -> tuple[GridRecord, In
 
 def _describe_jitter(deviation: FloatArray, regular: BoolArray, h: float) -> str:
     """The note on stamps that scatter around their slots (the late and early polls apart)."""
-    jitter = deviation[regular] if regular.any() else deviation
+    sd = float(np.std(deviation, where=regular))
+    most = float(np.max(np.abs(deviation), where=regular, initial=0.0))
     return (
-        f"time stamps scatter around a steady {h:g} s period (sd {np.std(jitter) * 1e3:.2g}"
-        f" ms, at most {np.max(np.abs(jitter)) * 1e3:.2g} ms, within ±{JITTER_FRACTION:g} of"
+        f"time stamps scatter around a steady {h:g} s period (sd {sd * 1e3:.2g}"
+        f" ms, at most {most * 1e3:.2g} ms, within ±{JITTER_FRACTION:g} of"
         f" a period): samples placed on the {h:g} s grid, values unchanged"
     )
 
 
 def _placed_samples(
-    table: LogTable,
-    h: float,
-    chunk: IntArray,
-    on_grid: BoolArray,
-    k: IntArray,
-    origin: FloatArray,
-    slots: IntArray,
-    bridge: BoolArray,
-    split: BoolArray,
+    table: LogTable, h: float, placement: Placement, on_grid: BoolArray, gaps: Gaps
 ) -> Piece:
     """The samples placed on their slots, with the bridged gaps filled in.
 
     Returns the chunk and data row of each output sample, its time, u, y and fuel temperature,
     and whether a segment starts at it.
     """
+    chunk, k, origin = placement.chunk, placement.k, placement.origin
+    bridge, split, slots = gaps.bridge, gaps.split, gaps.slots
     n = table.u.size
+    signals: list[FloatArray]
+    starts: BoolArray
     if not bridge.any() and on_grid.all():  # every sample once, as it is: no copies
-        t = origin[chunk] + h * k
+        t: FloatArray = k.astype(np.float64)
+        t *= h
+        t += origin[chunk]
         signals = [t] + [x for x in (table.u, table.y, table.T) if x is not None]
-        return chunk, table.rows, signals, np.concatenate(([True], split))
+        starts = np.concatenate(([True], split))
+        return chunk, table.rows, signals, starts
     index = np.flatnonzero(on_grid)
     if not bridge.any():  # every sample once: no gather through repeated indices
         t = origin[chunk[index]] + h * k[index]
