@@ -244,6 +244,15 @@ def white_covariance(J: FloatArray, sigma: float) -> tuple[FloatArray, list[int]
     return sigma**2 * inverse, unidentified
 
 
+def _support(column: FloatArray) -> int:
+    """One past the last nonzero entry of ``column`` (0 when it is all zero)."""
+    nonzero = np.flatnonzero(column[-1:])
+    if nonzero.size:  # the usual case: nonzero to the end, found without a pass over it
+        return int(column.size)
+    nonzero = np.flatnonzero(column)
+    return int(nonzero[-1]) + 1 if nonzero.size else 0
+
+
 def sandwich_covariance(
     J: FloatArray,
     noise: ResidualAR,
@@ -274,7 +283,13 @@ def sandwich_covariance(
         # Ψᵀ acts backwards in time: reverse, filter by 1/A(q), reverse; a column at a time
         # in place (the same numbers as the whole block at once)
         for c in range(J.shape[1]):
-            filtered[a:b, c] = scipy.signal.lfilter([1.0], noise.a, J[a:b, c][::-1])[::-1]
+            # a column that is zero from some sample on (a free response, underflowed) stays
+            # zero there: the backward filter starts at rest and meets only zeros until then,
+            # so only the part before is filtered (the same numbers; on a day at 50 Hz the
+            # initial states' columns are 4,000 samples, not 4.3 million)
+            stop = a + _support(J[a:b, c])
+            filtered[stop:b, c] = 0.0
+            filtered[a:stop, c] = scipy.signal.lfilter([1.0], noise.a, J[a:stop, c][::-1])[::-1]
     clean = np.nan_to_num(inverse)
     if reference_numerics_on():
         middle = noise.sigma_e**2 * (filtered.T @ filtered)

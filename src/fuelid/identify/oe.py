@@ -50,7 +50,7 @@ from fuelid.identify.diagnostics import (
 from fuelid.identify.long_record import LongRecordSearch, is_long
 from fuelid.identify.order import Candidate, OrderChoice, bic, choose_order
 from fuelid.identify.progress import StageCallback, StepCounter
-from fuelid.identify.search import StepCallback, search_structure
+from fuelid.identify.search import StepCallback, evaluate_structure, search_structure
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, offset_and_free_responses
 from fuelid.identify.variable_projection import (
     GRID_SAMPLES,
@@ -255,48 +255,120 @@ class OutputError(Estimator):
         with self._fitting(data):
             self._validate(data)
             orders = (1, 2) if self.order == "auto" else (int(self.order),)
+            # the searches' last sensitivities by order (for the stored fits' Jacobians)
+            vars(self)["_sensitivities"] = {}
+            self.aic_ = {}
+            self.long_record_ = {}
             # one BLAS thread: the fit alternates long thin products with tiny matrix
             # exponentials, and OpenBLAS's thread hand-over makes the tiny ones ~200x slower
             # (measured: 0.49 s vs 0.15 s for one hour of 50 Hz data)
-            # the searches' last sensitivities by order (for the stored fits' Jacobians)
-            vars(self)["_sensitivities"] = {}
-            steps = StepCounter(progress, len(orders) * (3 if is_long(data) else 2))
-            n = data.n_samples
-            self.aic_ = {}
-            self.long_record_ = {}
-            # each order searched and stored in turn for its covariance, which the order rule
-            # needs; what _store set is kept, so the chosen order's state is put back, not
-            # recomputed (its covariance, colour test and Jacobian again)
-            candidates = []
-            stored = {}
             with single_threaded_blas():
-                for order in orders:
-                    st = self._structure(order)
-                    steps.label = f"order {order}: "
-                    z, ev = self._fit_structure(data, st, init, steps)
-                    self.aic_[order] = n * math.log(max(ev.sse, 1e-300) / n) + 2 * (
-                        ev.beta.size + z.size
-                    )
-                    steps("standard errors")
-                    self._store(data, st, z, ev)
-                    stored[order] = dict(vars(self))
-                    criterion = bic(ev.sse, n, ev.beta.size + z.size)
-                    candidates.append(Candidate.of_fit(self, order, criterion))
-                    # a day's regressors are 140 MB: not kept while the next order is fitted
-                    vars(self)["_sensitivities"].pop(order, None)
-                    del ev
-                self.order_choice_ = choose_order(
-                    candidates, data.sample_time, meter_lag_given=self.T_f > 0.0
-                )
-                best = self.order_choice_.chosen
-                if best != candidates[-1].order:
-                    choice = self.order_choice_
-                    vars(self).update(stored[best])
-                    self.order_choice_ = choice
+                if is_long(data) and len(orders) > 1:
+                    candidates = self._fit_orders_lazily(data, orders, init, progress)
+                else:
+                    candidates = self._fit_orders(data, orders, init, progress)
                 self.order_choice_.misfit = self.residual_colour_ == "model"
                 self.bic_ = {c.order: c.bic for c in candidates}
             vars(self).pop("_sensitivities", None)
         return self
+
+    def _fit_orders(
+        self,
+        data: IOData,
+        orders: tuple[int, ...],
+        init: ProcessModel | None,
+        progress: StageCallback | None,
+    ) -> list[Candidate]:
+        """Every order searched and stored in turn, then the rule's choice put back.
+
+        Each order's covariance is computed (the order rule needs them); what ``_store`` set
+        is kept, so the chosen order's state is put back, not recomputed (its covariance,
+        colour test and Jacobian again).
+        """
+        steps = StepCounter(progress, len(orders) * (3 if is_long(data) else 2))
+        n = data.n_samples
+        candidates = []
+        stored = {}
+        for order in orders:
+            st = self._structure(order)
+            steps.label = f"order {order}: "
+            z, ev = self._fit_structure(data, st, init, steps)
+            self.aic_[order] = _aic(ev, z, n)
+            steps("standard errors")
+            self._store(data, st, z, ev)
+            stored[order] = dict(vars(self))
+            criterion = bic(ev.sse, n, ev.beta.size + z.size)
+            candidates.append(Candidate.of_fit(self, order, criterion))
+            # a day's regressors are 140 MB: not kept while the next order is fitted
+            vars(self)["_sensitivities"].pop(order, None)
+            del ev
+        self.order_choice_ = choose_order(
+            candidates, data.sample_time, meter_lag_given=self.T_f > 0.0
+        )
+        best = self.order_choice_.chosen
+        if best != candidates[-1].order:
+            choice = self.order_choice_
+            vars(self).update(stored[best])
+            self.order_choice_ = choice
+        return candidates
+
+    def _fit_orders_lazily(
+        self,
+        data: IOData,
+        orders: tuple[int, ...],
+        init: ProcessModel | None,
+        progress: StageCallback | None,
+    ) -> list[Candidate]:
+        """A long record's orders searched, then stored only as far as the order rule needs.
+
+        The rule reads of a structure its BIC (from the whole record's residuals, there after
+        the polish), and a covariance only of the two-lag fit when BIC prefers it and of the
+        order kept (:meth:`~fuelid.identify.order.Candidate.without_covariance`). So the order
+        BIC prefers is stored first; when the rule keeps the other, that one is stored too (and
+        is the one left in place). The others' standard errors are not computed
+        (``stderr_computed`` false in the JSON ``structure.compared``): on a day at 50 Hz each
+        costs over a second, and no number printed for the kept model depends on them.
+        """
+        steps = StepCounter(progress, 2 * len(orders) + 1)
+        n = data.n_samples
+        found: dict[int, tuple[Structure, FloatArray, FloatArray]] = {}
+        candidates: dict[int, Candidate] = {}
+        last: LinearFit | None = None
+        for order in orders:
+            st = self._structure(order)
+            steps.label = f"order {order}: "
+            z, last = self._fit_structure(data, st, init, steps)
+            self.aic_[order] = _aic(last, z, n)
+            criterion = bic(last.sse, n, last.beta.size + z.size)
+            found[order] = (st, z, last.beta.copy())
+            T, T2, delay = st.unpack(z)
+            model = ProcessModel(K=float(last.beta[0]), T=T, T2=T2, T_f=st.T_f, delay=delay)
+            candidates[order] = Candidate.without_covariance(
+                order, criterion, model, ("K", *st.nonlinear_names), last.beta.size + z.size
+            )
+            if order != orders[-1]:  # a day's regressors are 140 MB: only the last one kept
+                vars(self)["_sensitivities"].pop(order, None)
+                last = None
+        need = min(candidates.values(), key=lambda c: c.bic).order  # BIC's preference
+        while True:
+            st, z, _ = found[need]
+            steps.label = f"order {need}: "
+            steps("standard errors")
+            if last is None or need != orders[-1]:
+                # the other order's regressors go before these are formed
+                last = None
+                vars(self)["_sensitivities"].pop(orders[-1], None)
+                last = evaluate_structure(data, st, z)
+            self._store(data, st, z, last)
+            last = None
+            candidates[need] = Candidate.of_fit(self, need, candidates[need].bic)
+            self.order_choice_ = choose_order(
+                list(candidates.values()), data.sample_time, meter_lag_given=self.T_f > 0.0
+            )
+            if candidates[self.order_choice_.chosen].stderr_computed:
+                return list(candidates.values())
+            need = self.order_choice_.chosen
+            steps.extend(1)
 
     @property
     def model_(self) -> ProcessModel:
@@ -574,6 +646,11 @@ class OutputError(Estimator):
                 "log (their information is singular, e.g. two equal lags): no standard error "
                 "or interval for them; a log with more or larger steps, or a prior, fixes it"
             )
+
+
+def _aic(fit: LinearFit, z: FloatArray, n: int) -> float:
+    """Akaike's criterion N·ln(SSE/N) + 2k of a fit with ``z`` searched and β linear."""
+    return n * math.log(max(fit.sse, 1e-300) / n) + 2 * (fit.beta.size + z.size)
 
 
 # the names this module had before the variable-projection model moved out (benchmarks and

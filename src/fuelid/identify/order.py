@@ -94,6 +94,37 @@ class Candidate:
     stderr: dict[str, float | None]
     names: tuple[str, ...]
     cov: FloatArray
+    stderr_computed: bool = True
+    """False for a structure whose covariance was not computed (a long record's order the
+    rule did not need it for: :meth:`without_covariance`); its ``stderr`` are then None."""
+
+    @classmethod
+    def without_covariance(
+        cls,
+        order: int,
+        criterion: float,
+        model: ProcessModel,
+        names: tuple[str, ...],
+        n_params: int,
+    ) -> Candidate:
+        """A fitted structure whose covariance is not computed: NaN, and every stderr None.
+
+        What the order rule reads of a structure it does not keep, or keeps on BIC alone, is
+        its BIC; the covariance only of a two-lag fit BIC prefers (conditions 3 and 4) and of
+        the one kept (the trades). On a long record (:mod:`fuelid.identify.long_record`) the
+        estimator computes it for those only: on a day at 50 Hz one costs a second and a
+        quarter of a gigabyte. ``names``: the free parameters the covariance would be of.
+        """
+        return cls(
+            order=order,
+            bic=criterion,
+            n_params=n_params,
+            model=model,
+            stderr=dict.fromkeys(MODEL_KEYS),
+            names=names,
+            cov=np.full((len(names), len(names)), np.nan),
+            stderr_computed=False,
+        )
 
     @classmethod
     def of_fit(cls, estimator: Any, order: int, criterion: float) -> Candidate:
@@ -127,6 +158,7 @@ class Candidate:
             "n_params": self.n_params,
             "model": {key: values[key] for key in MODEL_KEYS},
             "stderr": {key: self.stderr.get(key) for key in MODEL_KEYS},
+            "stderr_computed": self.stderr_computed,
         }
 
 

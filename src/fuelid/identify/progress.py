@@ -107,6 +107,10 @@ class StepCounter:
         advance(self._progress, self._done, self._total, self.label + what)
         self._done += 1
 
+    def extend(self, more: int) -> None:
+        """``more`` steps found necessary after the count began (a second covariance, say)."""
+        self._total += more
+
 
 def steps_only(progress: StageCallback | None) -> StepDisplay | None:
     """``progress``'s steps, not its stages: for a call inside a stage the caller announced.

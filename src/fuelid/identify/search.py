@@ -254,6 +254,11 @@ def search_structure(
     return StructureSearch(*_local_searches(problem, [polished.z], (lo, hi)), done)
 
 
+def evaluate_structure(data: IOData, st: Structure, z: FloatArray) -> LinearFit:
+    """The linear fit of ``st`` on ``data`` at the search vector ``z`` (a found optimum)."""
+    return _evaluate(st, st.u_before if st.u_before is not None else float(data.u[0]), z, data)
+
+
 def _evaluate(st: Structure, u_ref: float, z: FloatArray, record: IOData) -> LinearFit:
     T, T2, delay = st.unpack(z)
     Phi = regressors(st, T, T2, delay, record.u, record.sample_time, u_ref, record.segment_bounds())
@@ -336,6 +341,7 @@ __all__ = [
     "ProjectedSearch",
     "StepCallback",
     "StructureSearch",
+    "evaluate_structure",
     "levenberg_marquardt",
     "search_structure",
 ]

@@ -197,15 +197,23 @@ def fitted_output(
             out[a:b] += u_pre - u_ref
         out[a:b] *= beta[0]
         out[a:b] += beta[1]
-        for i, p in enumerate(model.poles[:m]):
-            # p^k underflows long before a long segment ends: only where it does not
-            length = b - a if not 0.0 < p < 1.0 else min(b - a, math.ceil(-41.5 / math.log(p)) + 1)
-            if p > 0.0:
-                out[a : a + length] += beta[col + i] * np.exp(np.arange(length) * math.log(p))
-            else:
-                out[a] += beta[col + i]
+        add_free_responses(out[a:b], model.poles[:m], beta[col : col + m])
         col += m
     return out
+
+
+def add_free_responses(out: FloatArray, poles: FloatArray, amplitudes: FloatArray) -> None:
+    """``out[k] += Σ_i c_i·p_i^k`` in place, k from 0, for the poles p_i and amplitudes c_i.
+
+    p^k underflows long before a long segment ends: each term only where it does not.
+    """
+    for c, p in zip(amplitudes, poles, strict=True):
+        n = out.size
+        length = n if not 0.0 < p < 1.0 else min(n, math.ceil(-41.5 / math.log(p)) + 1)
+        if p > 0.0:
+            out[:length] += c * np.exp(np.arange(length) * math.log(p))
+        else:
+            out[0] += c
 
 
 def subsample(data: IOData, step: int) -> IOData:

@@ -205,29 +205,15 @@ def load_log(
         constant signals, fewer than 10 samples (or no segment of 10 between the gaps).
     """
     source = str(path)
-    if resample not in ("auto", "always", "never"):
-        raise DataError(f"resample must be 'auto', 'always' or 'never', got {resample!r}")
+    _check_options(resample, sample_time, max_gap, fill_gaps, skip_rows)
     in_scale = None if input_scale is None else check_scale(input_scale, "input scale")
     out_scale = None if output_scale is None else check_scale(output_scale, "output scale")
-    if sample_time is not None and not (
-        np.isfinite(sample_time) and 0.0 < sample_time <= MAX_SAMPLE_TIME
-    ):
-        raise DataError(
-            f"sample time must be a positive number of seconds up to {MAX_SAMPLE_TIME:g}, "
-            f"got {sample_time}"
-        )
-    for name, value in (("max_gap (--max-gap)", max_gap), ("fill_gaps (--fill-gaps)", fill_gaps)):
-        if value is not None and not (np.isfinite(value) and value > 0.0):
-            raise DataError(f"{name} must be a positive number of seconds, got {value}")
-
-    if progress is not None:
-        progress(READING)
-    if skip_rows is not None and skip_rows < 0:
-        raise DataError(f"skip_rows (--skip-rows) must be 0 or more lines, got {skip_rows}")
     form = StampFormat(
         timezone=None if timezone is None else check_timezone(timezone).key,
         time_format=time_format or None,
     )
+    if progress is not None:
+        progress(READING)
     names = tuple(name for name in (time_col, input_col, output_col) if name)
     frame, notes = read_frame(Path(path), source, HeaderSearch(names, skip_rows))
     wanted = [(input_col, "input", ""), (output_col, "output", "")]
@@ -313,3 +299,27 @@ def load_log(
         segment_t0=tuple(round(float(record.t[i]), 9) for i in starts),
         T_fuel=record.T,
     )
+
+
+def _check_options(
+    resample: str,
+    sample_time: float | None,
+    max_gap: float | None,
+    fill_gaps: float | None,
+    skip_rows: int | None,
+) -> None:
+    """Refuse options no log can satisfy, before the file is read."""
+    if resample not in ("auto", "always", "never"):
+        raise DataError(f"resample must be 'auto', 'always' or 'never', got {resample!r}")
+    if sample_time is not None and not (
+        np.isfinite(sample_time) and 0.0 < sample_time <= MAX_SAMPLE_TIME
+    ):
+        raise DataError(
+            f"sample time must be a positive number of seconds up to {MAX_SAMPLE_TIME:g}, "
+            f"got {sample_time}"
+        )
+    for name, value in (("max_gap (--max-gap)", max_gap), ("fill_gaps (--fill-gaps)", fill_gaps)):
+        if value is not None and not (np.isfinite(value) and value > 0.0):
+            raise DataError(f"{name} must be a positive number of seconds, got {value}")
+    if skip_rows is not None and skip_rows < 0:
+        raise DataError(f"skip_rows (--skip-rows) must be 0 or more lines, got {skip_rows}")

@@ -82,3 +82,59 @@ def _band_text(ax: Axes, x: float, text: str, ha: str = "left") -> None:
         x, 0.975, text, transform=ax.get_xaxis_transform(), ha=ha, va="top", fontsize=8,
         zorder=5, bbox=LABEL_BOX,
     )  # fmt: skip
+
+
+MAX_LINE_POINTS = 100_000
+"""A line of more samples than this is drawn from its extremes per pixel column
+(:func:`pixel_extremes`); a shorter one is drawn as it is."""
+PIXEL_COLUMNS = 2_000
+"""Time bins of :func:`pixel_extremes`: more than the pixel columns of any figure's axes (the
+widest, 9 in at 120 dpi, is 1,080 pixels), so each column holds at least one whole bin."""
+
+
+def pixel_extremes(
+    t: FloatArray, y: FloatArray, columns: int = PIXEL_COLUMNS
+) -> tuple[FloatArray, FloatArray]:
+    """The samples of ``(t, y)`` a line drawing shows at ``columns`` pixel columns: M4.
+
+    In each of ``columns`` equal runs of samples the first, the last, the lowest and the
+    highest are kept, in time order (Jugel et al., "M4: a visualization-oriented time series
+    data aggregation", Proc. VLDB Endow. 7 (2014) 797–808): a line through them covers, in
+    every pixel column, the same vertical span as the line through all samples, and enters
+    and leaves it at the same heights, so the figure looks the same at its pixel width. A
+    NaN (a gap: no line across it) is kept with its neighbours, so the line still breaks
+    there. A series of at most :data:`MAX_LINE_POINTS` samples is returned as it is; a day at
+    50 Hz (4.3 million samples, which matplotlib took 10 s and 0.4 GB per line to draw) keeps
+    under 8,000.
+
+    Examples
+    --------
+    >>> t = np.arange(200_000.0)
+    >>> y = np.sin(t / 1000.0)
+    >>> y[150_000] = np.nan
+    >>> tr, yr = pixel_extremes(t, y)
+    >>> tr.size < 9_000, float(np.nanmax(yr)) == float(np.nanmax(y)), int(np.isnan(yr).sum())
+    (True, True, 1)
+    """
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    n = y.size
+    if n <= MAX_LINE_POINTS:
+        return t, y
+    width = -(-n // columns)
+    rows = -(-n // width)
+    padded = np.full(rows * width, np.nan)
+    padded[:n] = y
+    blocks = padded.reshape(rows, width)
+    missing = np.isnan(blocks)
+    starts = np.arange(rows) * width
+    lowest = starts + np.argmin(np.where(missing, np.inf, blocks), axis=1)
+    highest = starts + np.argmax(np.where(missing, -np.inf, blocks), axis=1)
+    gaps = np.flatnonzero(np.isnan(y))
+    keep = np.unique(
+        np.concatenate(
+            [starts, np.minimum(starts + width, n) - 1, lowest, highest, gaps - 1, gaps, gaps + 1]
+        )
+    )
+    keep = keep[(keep >= 0) & (keep < n)]
+    return t[keep], y[keep]
