@@ -90,6 +90,15 @@ def test_without_a_plant_file_no_figure_rests_on_the_reference_plant():
         ({"K": 13.7, "T": 1.2, "delay": 0.3}, {"T": (1.1, 1.3), "delay": None}, ("delay",), []),
         # wider than its value: 0.1 ± 0.06 (width 0.12 > 0.1)
         ({"K": 13.7, "T": 0.1}, {"T": (0.04, 0.16)}, (), ["T"]),
+        # a dead time of nought, known to 4 ms, in a loop whose lag is 1.2 s: determined
+        ({"K": 13.8, "T": 1.2, "delay": 4e-27}, {"T": (1.1, 1.3), "delay": (0.0, 0.004)}, (), []),
+        # a dead time of 0.05 ± 0.2 s in that loop: not (width 0.4 > 0.12 = T/10)
+        (
+            {"K": 13.8, "T": 1.2, "delay": 0.05},
+            {"T": (1.1, 1.3), "delay": (0.0, 0.4)},
+            (),
+            ["delay"],
+        ),
         # the tour's model: determined
         ({"K": 13.66, "T": 1.2177}, {"K": (13.66, 13.667), "T": (1.2141, 1.2213)}, (), []),
     ],
