@@ -298,7 +298,9 @@ def test_the_spring_jump_without_a_zone_is_named(tmp_path: Path) -> None:
     local = instants.tz_convert("America/New_York").tz_localize(None)
     path = write(tmp_path / "ny.csv", [f"{s:%Y-%m-%d %H:%M:%S.%f}" for s in local])
     data = load_log(path, time_col="t")
-    assert any("jump forward by an hour at data row 1501" in note for note in data.notes)
+    assert any("jump forward by an hour between data rows 1500 and 1501" in n for n in data.notes)
+    in_berlin = load_log(path, time_col="t", timezone="Europe/Berlin")  # the wrong zone
+    assert any("even in Europe/Berlin" in note for note in in_berlin.notes)
 
 
 def test_stamps_coarser_than_the_samples_say_what_to_do(tmp_path: Path) -> None:
@@ -359,4 +361,38 @@ def test_skip_rows_that_land_off_the_header_point_at_it(tmp_path: Path) -> None:
     path.write_text(PREAMBLE + body)
     message = refused(path, "--skip-rows", "3")
     assert "line 4, below --skip-rows 3, is no header" in message
+    assert "--skip-rows 4" in message
+
+
+def test_a_preamble_line_naming_the_columns_is_not_the_header(tmp_path: Path) -> None:
+    body = write(tmp_path / "body.csv", list(H * np.arange(N))).read_text()
+    path = tmp_path / "tags.csv"
+    path.write_text("Historian export,,\nTags:,t,u_V,q_Lpm\n\n" + body)
+    data = load_log(path, time_col="t")
+    assert data.n_samples == N
+    assert any("skipped 3 line(s) above the header" in note for note in data.notes)
+
+
+def test_a_trailing_separator_on_the_data_rows_is_named(tmp_path: Path) -> None:
+    lines = ["t,u_V,q_Lpm"] + [f"{k * H:.1f},{1 + k // 100},{20 + k % 7}," for k in range(300)]
+    path = tmp_path / "trailing.csv"
+    path.write_text("\n".join(lines) + "\n")
+    assert "an empty last one: each row ends with a ','" in refused(path)
+
+
+def test_stamps_to_the_minute_are_guessed_and_called_coarse(tmp_path: Path) -> None:
+    # Excel's default 28/03/2026 13:58 for samples every second
+    instants = utc_grid("2026-03-28 13:58:00", n=300, h=1.0).tz_localize(None)
+    path = write(tmp_path / "excel.csv", [f"{s:%d/%m/%Y %H:%M}" for s in instants], n=300)
+    message = refused(path)
+    assert "(whole minutes?)" in message
+    assert "--sample-time 1 --time-col ''" in message
+
+
+def test_skip_rows_beside_the_header_point_at_it(tmp_path: Path) -> None:
+    body = write(tmp_path / "body.csv", list(H * np.arange(N)), sep=";").read_text()
+    path = tmp_path / "preamble.csv"
+    path.write_text(PREAMBLE + body)
+    message = refused(path, "--skip-rows", "5")
+    assert "line 6, below --skip-rows 5, does not name the columns asked for" in message
     assert "--skip-rows 4" in message

@@ -135,7 +135,9 @@ def read_columns(
         columns = {time_name: table.t, **columns}
     _check_values(columns, table.rows, signals, source)
     kept = table.rows
-    table = _handle_bad_rows(table, frame, columns, signals, drop_bad_rows, source, notes)
+    table = _handle_bad_rows(
+        table, frame, columns, signals, drop_bad_rows, source, notes, form.time_format
+    )
     check_count(table.u.size, source)
     # only rows dropped on request are bridged; a marked sample is otherwise a gap like any other
     bridgeable = (
@@ -245,8 +247,13 @@ def _handle_bad_rows(
     drop: bool,
     source: str,
     notes: list[str],
+    time_format: str | None = None,
 ) -> LogTable:
-    """Refuse empty or non-numeric cells, or drop their rows when asked and they are isolated."""
+    """Refuse empty or non-numeric cells, or drop their rows when asked and they are isolated.
+
+    ``time_format`` is the form the stamps were given in (``--time-format``), named in the
+    refusal of a stamp that does not match it.
+    """
     bad_any = np.zeros(table.u.size, dtype=bool)
     for name, values in columns.items():
         bad = np.isnan(values)
@@ -255,13 +262,12 @@ def _handle_bad_rows(
             what = "non-numeric" if name in signals else "empty or unreadable time"
             row = int(table.rows[int(index[0])])
             cell = str(frame[name].iloc[row - 1])
-            shown = repr(cell if len(cell) <= 24 else cell[:21] + "...")
+            shown = repr(cell if len(cell) <= 40 else cell[:37] + "...")
             hint = (
                 f"; if the historian writes {cell.strip()!r} for a bad sample, name it with "
                 "--bad-values (bad_values) and it is read as a missing sample"
                 if name in signals
-                else "; expected seconds or stamps like 2026-03-01 12:00:00 (give "
-                "--time-format for another form, e.g. '%d-%b-%y %H:%M:%S')"
+                else _time_hint(time_format)
             )
             raise DataError(
                 f"{source}: column {name!r} has {index.size} {what} cell(s), "
@@ -282,6 +288,16 @@ def _handle_bad_rows(
     shown += ", ..." if index.size > 5 else ""
     notes.append(f"dropped {index.size} row(s) with non-numeric cells (data row(s) {shown})")
     return table.take(np.flatnonzero(~bad_any))
+
+
+def _time_hint(time_format: str | None) -> str:
+    """What to do about a time cell that is not a time: the form expected, or given."""
+    if time_format is not None:
+        return f"; it does not match the time format given, {time_format!r}"
+    return (
+        "; expected seconds or stamps like 2026-03-01 12:00:00 (give --time-format for another "
+        "form, e.g. '%d-%b-%y %H:%M:%S')"
+    )
 
 
 def _skip_unit_row(

@@ -164,10 +164,13 @@ def _coarse_stamps_hint(t: FloatArray, repeated: int) -> str:
     """Advice when many stamps repeat: a clock written coarser than the samples come."""
     if repeated < COARSE_STAMPS * t.size:
         return ""
-    per_row = (t[-1] - t[0]) / max(t.size - 1, 1)
+    steps = np.diff(t)
+    tick = float(np.min(steps[steps > 0.0])) if np.any(steps > 0.0) else 0.0
+    per_row = (t[-1] - t[0] + tick) / t.size  # the rows fill the last stamp's tick too
+    written = "whole minutes" if tick >= 59.5 else "whole seconds" if tick >= 0.95 else "coarse"
     return (
         f"; {repeated} of {t.size} rows repeat the stamp before them: stamps written coarser "
-        "than the samples (whole seconds?) cannot time them; give the sample time with no "
+        f"than the samples ({written}?) cannot time them; give the sample time with no "
         f"time column (--sample-time {per_row:.2g} --time-col '') to take the rows as uniform "
         "(a gap then goes unseen)"
     )

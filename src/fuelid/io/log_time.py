@@ -164,7 +164,7 @@ def _parse_guessed(text: pd.Series, sample: pd.Series, utc: bool, notes: list[st
     fraction = text.str.replace(r"(\d{1,2}:\d{2}:\d{2}),(\d+)", r"\1.\2", regex=True)
     if _MONTH_NAME.match(first):
         year = "%Y" if re.match(r"^\d{1,2}-[A-Za-z]{3}-\d{4}", first) else "%y"
-        clock = "%I:%M:%S %p" if _AM_PM.search(first) else "%H:%M:%S"
+        clock = _clock(first, bool(_AM_PM.search(first)))
         return _strptime(fraction, f"%d-%b-{year} {clock}", utc)
     slashed = _SLASHED.match(first)
     if slashed and len(slashed.group(3)) in (2, 4):
@@ -184,7 +184,7 @@ def _slashed_form(sample: pd.Series, notes: list[str]) -> str:
     fields = sample.str.extract(_SLASHED).astype(float)
     am_pm = bool(sample.str.contains(_AM_PM).any())
     year = "%Y" if len(str(sample.iloc[0]).split("/")[2].split()[0]) == 4 else "%y"
-    clock = "%I:%M:%S" if am_pm else "%H:%M:%S"
+    clock = _clock(str(sample.iloc[0]), False).replace("%H", "%I" if am_pm else "%H")
     if (fields[0] > 12).any():
         day_first = True
     elif (fields[1] > 12).any():
@@ -198,6 +198,19 @@ def _slashed_form(sample: pd.Series, notes: list[str]) -> str:
             f"order; give --time-format '{other}' if that is wrong"
         )
     return _slashed(day_first, year, clock, am_pm)
+
+
+def _clock(stamp: str, am_pm: bool) -> str:
+    """The strptime form of a stamp's time of day: with seconds or without, 24 h or AM/PM.
+
+    Examples
+    --------
+    >>> _clock("28/03/2026 13:58", False), _clock("3/28/2026 1:58:30 PM", True)
+    ('%H:%M', '%I:%M:%S %p')
+    """
+    seconds = re.search(r"\d{1,2}:\d{2}:\d{2}", stamp) is not None
+    hours = "%I" if am_pm else "%H"
+    return f"{hours}:%M" + (":%S" if seconds else "") + (" %p" if am_pm else "")
 
 
 def _slashed(day_first: bool, year: str, clock: str, am_pm: bool) -> str:
@@ -306,7 +319,7 @@ def _check_hour_steps(
     source: str,
     notes: list[str],
 ) -> None:
-    """Refuse a clock that steps back by an hour; name an hour-long jump forward (no zone).
+    """Refuse a clock that steps back by an hour; name an hour-long jump forward.
 
     ``steady`` are the stamps on the clock they were placed on, ``written`` as read, ``placed``
     how they were placed (None: local, no zone given). A step back by an hour is the autumn
@@ -323,7 +336,7 @@ def _check_hour_steps(
         stamps = f"{written.iloc[i]} then {written.iloc[i + 1]}"
         why = (
             "local time through the autumn clock change; give the log's time zone (--timezone, "
-            "e.g. Europe/Berlin) or export in UTC"
+            "an IANA name such as Europe/Berlin or Australia/Sydney) or export in UTC"
             if placed is None
             else f"even {placed}: is that the zone the log was written in?"
         )
@@ -331,12 +344,17 @@ def _check_hour_steps(
             f"{source}: column {name!r} steps back by an hour at data row {i + 2} ({stamps}): {why}"
         )
     ahead = np.flatnonzero(hour & (steps > 0.0))
-    if ahead.size and placed is None:
+    if ahead.size:
         i = int(ahead[0])
+        why = (
+            "if that is the spring clock change, give the log's time zone (--timezone) and the "
+            "hour is no gap"
+            if placed is None
+            else f"even {placed}: if the log was written in another zone, the hour is no gap"
+        )
         notes.append(
-            f"the time stamps jump forward by an hour at data row {i + 2} ({written.iloc[i]} "
-            f"then {written.iloc[i + 1]}): if that is the spring clock change, give the log's "
-            "time zone (--timezone) and the hour is no gap"
+            f"the time stamps jump forward by an hour between data rows {i + 1} and {i + 2} "
+            f"({written.iloc[i]} then {written.iloc[i + 1]}): {why}"
         )
 
 

@@ -99,16 +99,25 @@ def find_header(lines: Sequence[str], header: HeaderSearch, source: str) -> int:
                 f"{header.skip_rows}, is no header ({_shown(lines[header.skip_rows])}: one "
                 f"column){hint}"
             )
+        named = _naming_lines(lines, header.names)
+        if named and header.skip_rows not in named:
+            raise DataError(
+                f"{source}: line {header.skip_rows + 1}, below --skip-rows {header.skip_rows}, "
+                f"does not name the columns asked for; line {named[-1] + 1} does: --skip-rows "
+                f"{named[-1]}"
+            )
         return header.skip_rows
-    wanted = {name.strip().casefold() for name in header.names if name}
-    for index, line in enumerate(lines[:PREAMBLE_LINES]):
-        if wanted and wanted <= _cells(line):
-            return index
+    named = _naming_lines(lines, header.names)
+    if named:  # a preamble line may name them too: the header is the one above the data
+        above_data = [  # the data, or a row of units and the data, below it
+            i for i in named if any(_is_data_row(line) for line in lines[i + 1 : i + 3])
+        ]
+        return (above_data or named)[0]
     likely = _likely_header(lines)
     if likely == 0:
         return 0
-    named = set().union(*(_cells(line) for line in lines[:PREAMBLE_LINES]))
-    missing = [name for name in header.names if name.strip().casefold() not in named]
+    cells = set().union(*(_cells(line) for line in lines[:PREAMBLE_LINES]))
+    missing = [name for name in header.names if name.strip().casefold() not in cells]
     asked = ", ".join(missing or sorted(header.names)) or "the columns"
     raise DataError(
         f"{source}: line {likely + 1} ({_shown(lines[likely])}) looks like the header, below "
@@ -120,6 +129,14 @@ def find_header(lines: Sequence[str], header: HeaderSearch, source: str) -> int:
 def _shown(line: str) -> str:
     """A line as quoted in a message, cut to 60 characters."""
     return repr(line if len(line) <= 60 else line[:57] + "...")
+
+
+def _naming_lines(lines: Sequence[str], names: Sequence[str]) -> list[int]:
+    """The lines among the first :data:`PREAMBLE_LINES` whose cells include every name."""
+    wanted = {name.strip().casefold() for name in names if name}
+    if not wanted:
+        return []
+    return [i for i, line in enumerate(lines[:PREAMBLE_LINES]) if wanted <= _cells(line)]
 
 
 def _cells(line: str) -> set[str]:
@@ -286,23 +303,55 @@ def _read_text(raw: bytes, source: str, header: HeaderSearch) -> tuple[pd.DataFr
     # a space before a quoted cell hides the quote from the reader unless it skips the space
     spaced = any(f'{separator} "' in line for line in head[at:])
     if ascii_text:
-        start = raw.find(head[at].encode("ascii"))
+        start = _line_start(raw, head[at].encode("ascii"))
         body: StringIO | BytesIO = BytesIO(raw if start <= 0 else raw[start:])
     else:
         stripped = _strip_blank_lines(text)
-        body = StringIO(stripped[max(stripped.find(head[at]), 0) :])
+        body = StringIO(stripped[_line_start(stripped, head[at]) :])
     frame = _parse(body, separator, spaced, source)
     if not isinstance(frame.index, pd.RangeIndex):  # pandas took the first field as an index
-        raise DataError(
-            f"{source}: the data rows have one field more than the header "
-            f"({len(frame.columns) + 1} against {len(frame.columns)}): a "
-            f"{_SEPARATOR_NAMES[separator]} inside a cell (a decimal comma, milliseconds "
-            "after a comma)? quote such cells, or export with another separator"
-        )
+        raise DataError(_extra_field_refusal(frame, separator, source))
     frame.columns = [str(name).strip().lstrip("\ufeff").strip() for name in frame.columns]
     if frame.empty:
         raise DataError(f"{source} has a header but no data rows")
     return frame, notes
+
+
+def _line_start(text: bytes | str, line: bytes | str) -> int:
+    r"""Where the first line that is ``line`` and nothing else starts in ``text`` (0: none).
+
+    A preamble line may hold the header's text (``Tags:,t,u``): only a whole line is the header.
+
+    Examples
+    --------
+    >>> _line_start("Tags:,t,u\n\nt,u\n0,1\n", "t,u")
+    11
+    """
+    if isinstance(text, bytes) and isinstance(line, bytes):
+        found_bytes = re.search(b"(?m)^" + re.escape(line) + b"\r?$", text)
+        return found_bytes.start() if found_bytes else 0
+    assert isinstance(text, str)
+    assert isinstance(line, str)
+    found = re.search("(?m)^" + re.escape(line) + "\r?$", text)
+    return found.start() if found else 0
+
+
+def _extra_field_refusal(frame: pd.DataFrame, separator: str, source: str) -> str:
+    """Why the data rows have a field more than the header: an empty last one, or a cell split."""
+    sep = _SEPARATOR_NAMES[separator]
+    counts = f"({len(frame.columns) + 1} against {len(frame.columns)})"
+    last = frame.iloc[:, -1]
+    if bool((last.isna() | (last.astype(str).str.strip() == "")).all()):
+        return (
+            f"{source}: the data rows have one field more than the header {counts}, an empty "
+            f"last one: each row ends with a {sep} the header does not; remove it, or name the "
+            "column in the header"
+        )
+    return (
+        f"{source}: the data rows have one field more than the header {counts}: a {sep} inside "
+        "a cell (a decimal comma, milliseconds after a comma)? quote such cells, or export with "
+        "another separator"
+    )
 
 
 def _parse(body: StringIO | BytesIO, separator: str, spaced: bool, source: str) -> pd.DataFrame:
