@@ -28,7 +28,12 @@ optimum:
   Each step shrinks the distance to the optimum by about the relative curvature over the step
   (under 1 % here), so two or three steps do.
 - The standard errors come from the Jacobian and the residuals at that optimum on the whole
-  record (:meth:`~fuelid.identify.oe.OutputError.fit`'s ``_store``), as for a short record.
+  record (:meth:`~fuelid.identify.oe.OutputError.fit`'s ``_store``), as for a short record,
+  for the orders the order rule reads a covariance of: the one BIC prefers, and the one kept
+  when that is the other. The BIC of every order is its whole-record residuals'; an order whose
+  covariance was not needed has its standard errors marked as not computed
+  (:meth:`~fuelid.identify.order.Candidate.without_covariance`): on a day at 50 Hz each costs
+  over a second and a quarter of a gigabyte, and no number of the kept model depends on it.
 
 A polish that does not converge within :data:`MAX_POLISH_STEPS` (a start outside the basin: a
 copy that misses what only some stretches show) falls back to the local search on the whole

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from fuelid.plots._common import NO_UNIT, FloatArray, _unit_of, _with_unit
+from fuelid.plots._common import NO_UNIT, FloatArray, _unit_of, _with_unit, pixel_extremes
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -32,20 +32,39 @@ def plot_log(log: TimeSeries, title: str = "") -> Figure:
     fig = Figure(figsize=(9, 7.5 if has_temperature else 5.5), layout="constrained")
     axes = fig.subplots(3 if has_temperature else 2, 1, sharex=True)
     ax_u, ax_q = axes[0], axes[1]
-    ax_u.step(log.time, log["u_V"], where="post", color="tab:blue", label="VFD command u [V]")
+    # a long log's lines from their extremes per pixel column: the same figure at its width
+    # (pixel_extremes), drawn in a fraction of a second instead of tens
+    ax_u.step(
+        *pixel_extremes(log.time, log["u_V"]),
+        where="post",
+        color="tab:blue",
+        label="VFD command u [V]",
+    )
     ax_u.set_ylabel("command u [V]")
     ax_u.legend(loc="upper right", fontsize=8)
-    ax_q.plot(log.time, log["q_Lpm"], lw=0.6, color="tab:orange", label="measured q [L/min]")
+    ax_q.plot(
+        *pixel_extremes(log.time, log["q_Lpm"]),
+        lw=0.6,
+        color="tab:orange",
+        label="measured q [L/min]",
+    )
     if "q_true_Lpm" in log.signals:
         ax_q.plot(
-            log.time, log["q_true_Lpm"], lw=1.2, color="k", label="noise-free reading [L/min]"
+            *pixel_extremes(log.time, log["q_true_Lpm"]),
+            lw=1.2,
+            color="k",
+            label="noise-free reading [L/min]",
         )
     ax_q.legend(loc="best", fontsize=8)
     ax_q.set_ylabel("flow q [L/min]")
     if has_temperature:
         ax_t = axes[2]
         temperature = log[FUEL_TEMPERATURE_COLUMN]
-        ax_t.plot(log.time, temperature, color="tab:red", label="fuel temperature [°C]")
+        ax_t.plot(
+            *pixel_extremes(log.time, temperature),
+            color="tab:red",
+            label="fuel temperature [°C]",
+        )
         ax_t.set_ylabel("fuel temperature [°C]")
         # NaN marks a gap in the log (no line across it)
         low, high = float(np.nanmin(temperature)), float(np.nanmax(temperature))
@@ -146,10 +165,12 @@ def plot_identification(
     ax, ax_res = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     t, y, *model_outputs = broken_at_gaps(t, y, *(y_hat for _, y_hat in curves))
     curves = [(label, y_hat) for (label, _), y_hat in zip(curves, model_outputs, strict=True)]
-    ax.plot(t, y, lw=0.6, color="0.55", label="measured")
+    # a long record's lines from their extremes per pixel column: the same figure at its
+    # width (pixel_extremes), drawn in a fraction of a second instead of tens
+    ax.plot(*pixel_extremes(t, y), lw=0.6, color="0.55", label="measured")
     for label, y_hat in curves:
-        ax.plot(t, y_hat, lw=1.3, label=label)
-        ax_res.plot(t, y - y_hat, lw=0.6, label=label)
+        ax.plot(*pixel_extremes(t, y_hat), lw=1.3, label=label)
+        ax_res.plot(*pixel_extremes(t, y - y_hat), lw=0.6, label=label)
     for axis in (ax, ax_res):
         axis.grid(True, alpha=0.3)
         if split_time is not None:
