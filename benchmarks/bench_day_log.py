@@ -24,6 +24,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from _docs_table import run_to_docs
 
@@ -103,6 +104,15 @@ def main() -> None:
         commands = {
             READ_AND_SOLVE: [sys.executable, str(HERE / "read_and_solve.py"), str(log)],
             "fuelid identify": [fuelid(), "identify", str(log), *period, "--json"],
+            # every sample fitted (the copy only searches): the numbers before the copy fit
+            "fuelid identify --full-record": [
+                fuelid(),
+                "identify",
+                str(log),
+                *period,
+                "--json",
+                "--full-record",
+            ],
             "fuelid report": [fuelid(), "report", str(log), *period, *report],
         }
         best: dict[str, Run] = {}
@@ -128,17 +138,34 @@ def main() -> None:
         f"(goal 0.5 GB): {best['fuelid identify'].peak_bytes / 1e9:.2f} GB; report ≤ 2× "
         f"identify: {best['fuelid report'].seconds / identify_s:.1f}×"
     )
-    result = json.loads(best["fuelid identify"].stdout)
-    estimates = ", ".join(
-        f"{key} {result['model'][key]:.6g} ± {result['stderr'][key]:.2g}"
-        for key in ("K", "T", "T2", "delay")
-        if result["stderr"].get(key) is not None
+    print(
+        f"identify --full-record: {best['fuelid identify --full-record'].seconds / base:.1f}× "
+        "read-and-solve"
     )
-    print(f"identify's estimates: {estimates}")
+    for name in ("fuelid identify", "fuelid identify --full-record"):
+        _estimates(name, json.loads(best[name].stdout))
+
+
+def _estimates(name: str, result: dict[str, Any]) -> None:
+    """The estimates, their standard errors and how the long record was fitted."""
+    model, stderr = result["model"], result["stderr"]
+    estimates = ", ".join(
+        f"{key} {model[key]:.6g} ± {stderr[key]:.2g}"
+        for key in ("K", "T", "T2", "delay")
+        if stderr.get(key) is not None
+    )
+    print(f"{name}: {estimates}; fit {result['fit_percent']:.2f} %")
     info = result.get("long_record")
-    if info is not None:
+    if info is None:
+        return
+    if info.get("fitted_on") == "copy":
         print(
-            f"searched on {info['copy_samples']:,} samples in {info['stretches']} stretches, "
+            f"  fitted on a copy of {info['copy_samples']:,} samples in {info['stretches']} "
+            f"stretches of the {info['samples']:,}"
+        )
+    else:
+        print(
+            f"  searched on {info['copy_samples']:,} samples in {info['stretches']} stretches, "
             f"polished on all {info['samples']:,} (Gauss–Newton steps by order: "
             f"{info['polish_steps']}, converged: {info['converged']})"
         )

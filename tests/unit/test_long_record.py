@@ -46,7 +46,7 @@ def test_the_polished_optimum_is_the_whole_records(
     assert whole.long_record_ == {}
     monkeypatch.setattr(long_record, "LONG_RECORD", 30_000)
     monkeypatch.setattr(long_record, "SEARCH_SAMPLES", 12_000)
-    polished = OutputError(order="auto").fit(record)
+    polished = OutputError(order="auto", full_record=True).fit(record)
     assert set(polished.long_record_) == {1, 2}
     assert all(s.converged for s in polished.long_record_.values())
     assert polished.order_choice_.chosen == whole.order_choice_.chosen
@@ -70,7 +70,7 @@ def test_a_short_record_is_searched_on_itself(record: IOData) -> None:
 
 
 def test_the_json_and_the_note_say_what_was_done(record: IOData, long_rule: None) -> None:
-    est = OutputError(order="auto").fit(record)
+    est = OutputError(order="auto", full_record=True).fit(record)
     info = long_record_json(est.long_record_)
     assert info is not None
     assert info["samples"] == record.n_samples
@@ -80,6 +80,34 @@ def test_the_json_and_the_note_say_what_was_done(record: IOData, long_rule: None
     assert note is not None
     assert "12,000 samples" in note
     assert "whole record's" in note
+
+
+def test_by_default_a_long_record_is_fitted_on_its_copy(record: IOData, long_rule: None) -> None:
+    # the copy's estimates and standard errors (√(N/n) times the whole record's), the whole
+    # record's fit % and fitted state
+    est = OutputError(order="auto").fit(record)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(long_record, "LONG_RECORD", 10**9)
+        whole = OutputError(order="auto").fit(record)
+    assert est.copy_ is not None
+    assert est.copy_.n_samples == 12_000
+    ratio = np.sqrt(record.n_samples / est.copy_.n_samples)
+    for name in ("K", "T", "T2", "delay"):
+        se, se_whole = est.stderr_[name], whole.stderr_[name]
+        assert se is not None
+        assert se_whole is not None
+        assert abs(getattr(est, f"{name}_") - getattr(whole, f"{name}_")) < 3.0 * se, name
+        assert se == pytest.approx(ratio * se_whole, rel=0.25), name
+    assert est.n_samples_ == record.n_samples
+    assert est.fit_percent_ == pytest.approx(whole.fit_percent_, abs=0.05)
+    assert est.simulate(record).shape == (record.n_samples,)
+    info = long_record_json(est.long_record_)
+    assert info is not None
+    assert info["fitted_on"] == "copy"
+    assert info["polish_steps"] == {}
+    note = long_record_note(info, H)
+    assert note is not None
+    assert "fitted on a copy of the record: 12,000 of 60,000 samples" in note
 
 
 def test_the_copy_spreads_over_the_record_and_keeps_its_gaps() -> None:

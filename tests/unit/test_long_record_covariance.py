@@ -46,8 +46,8 @@ def test_only_the_orders_the_rule_needs_get_a_covariance(
     long_rule: None, model: ProcessModel, kept: int
 ) -> None:
     data = _record(model, seed=kept)
-    est = OutputError(order="auto").fit(data)
-    alone = OutputError(order=kept).fit(data)  # one order: stored as it is fitted
+    est = OutputError(order="auto", full_record=True).fit(data)
+    alone = OutputError(order=kept, full_record=True).fit(data)  # one order: stored as it is fitted
     choice = est.order_choice_
     assert choice.chosen == kept
     by_order = {c.order: c for c in choice.candidates}

@@ -79,6 +79,19 @@ class MethodChoice(enum.StrEnum):
     auto = "auto"
 
 
+FullRecordOption = Annotated[
+    bool,
+    typer.Option(
+        "--full-record",
+        help="oe on a log of over 500,000 samples (a day at 50 Hz): fit every sample (search "
+        "on a copy, then polish, standard errors and tests on all of it; slower). Without it "
+        "such a log is fitted on a copy of 100,000 samples in 8 stretches spread over it: its "
+        "estimates, standard errors and tests are the copy's, the fit % the whole log's. No "
+        "effect on shorter logs.",
+    ),
+]
+"""``--full-record`` of the commands that identify (identify, report)."""
+
 STEP_LS_PERIOD = 1.0
 """step-ls's decimation period without --control-period [s]: the article's PLC period."""
 
@@ -104,6 +117,7 @@ def identify_command(
     flowmeter_delay: FlowmeterDelayOption = None,
     n_steps: StepsOption = None,
     covariance: CovarianceOption = CovarianceChoice.auto,
+    full_record: FullRecordOption = False,
     control_period: Annotated[
         float | None,
         typer.Option(
@@ -227,6 +241,7 @@ def identify_command(
         validate_split=validate_split,
         u_before=u_before,
         validation_initial=validate_initial.value,
+        full_record=full_record,
     )
     plant = None
     if config is not None:
@@ -316,6 +331,7 @@ def identify_command(
             "flowmeter_delay": flowmeter_delay,
             "N": n_steps,
             "covariance": covariance.value,
+            "full_record": full_record,
             "control_period": control_period,
             "control_period_given": control_period is not None,
             "validate_split": validate_split,
@@ -420,8 +436,8 @@ def _print_table(
         console.print(data["method_choice"], highlight=False)
     from fuelid.identify.long_record import long_record_note
 
-    note = long_record_note(data.get("long_record"))
-    if note:  # a day's search ran on a copy: say so, and that the numbers are the whole record's
+    note = long_record_note(data.get("long_record"), data.get("sample_time"))
+    if note:  # a day fitted on a copy, or searched there and polished: say which
         console.print(note, highlight=False)
 
 

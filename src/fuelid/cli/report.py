@@ -71,6 +71,7 @@ from fuelid.cli._identify_options import (
     parse_delay,
     parse_order,
 )
+from fuelid.cli.identify import FullRecordOption
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
 if TYPE_CHECKING:
@@ -115,6 +116,7 @@ def report_command(
     flowmeter_delay: FlowmeterDelayOption = None,
     n_steps: StepsOption = None,
     covariance: CovarianceOption = CovarianceChoice.auto,
+    full_record: FullRecordOption = False,
     accept_signals: Annotated[
         bool,
         typer.Option(
@@ -215,6 +217,7 @@ def report_command(
             flowmeter_delay=flowmeter_delay,
             N=n_steps,
             covariance=covariance.value,
+            full_record=full_record,
         ),
         accept_signals=accept_signals,
         T_range=T_range,
@@ -266,6 +269,7 @@ def report_command(
             "flowmeter_delay": flowmeter_delay,
             "N": n_steps,
             "covariance": covariance.value,
+            "full_record": full_record,
             "accept_signals": accept_signals,
             "method": settings.tune_from,
             "rule": rule.value,

@@ -255,6 +255,8 @@ class _Fit:
     extra: dict[str, Any]
     delay: float | None
     """The dead time the fit took (step-ls assumes 0 without one)."""
+    copy: tuple[IOData, FloatArray] | None = None
+    """oe on a long record fitted on its copy: the copy and its ŷ, which the tests read."""
 
 
 def _fit_step_ls(
@@ -335,6 +337,7 @@ def _fit_oe(
         T_f=T_f,
         u_before=options.u_before,
         covariance=options.covariance,
+        full_record=options.full_record,
     ).fit(fit_data, progress=progress)
     warnings.extend(oe.warnings_)
     extra: dict[str, Any] = {
@@ -345,7 +348,7 @@ def _fit_oe(
         "bic": {str(k): v for k, v in oe.bic_.items()},
         "structure": oe.order_choice_.to_json(),
         "noise_std": oe.sigma_,
-        # how a long record was searched (a copy, then polished on all of it), else None
+        # how a long record was fitted (on a copy, or searched there and polished), else None
         "long_record": long_record_json(oe.long_record_),
     }
     if "T2" in oe.param_names_ and "delay" in oe.param_names_:
@@ -353,7 +356,8 @@ def _fit_oe(
         extra["correlation_T2_delay"] = float(
             oe.correlation_[names.index("T2"), names.index("delay")]
         )
-    return _Fit(oe, data, fit_data, n_fit, oe.param_names_, oe.cov_, extra, delay)
+    copy = None if oe.copy_ is None or oe.copy_y_hat_ is None else (oe.copy_, oe.copy_y_hat_)
+    return _Fit(oe, data, fit_data, n_fit, oe.param_names_, oe.cov_, extra, delay, copy)
 
 
 _FITTERS = {"step-ls": _fit_step_ls, "pem": _fit_pem}
@@ -474,13 +478,21 @@ def _identify(
     if not diagnose:
         return result({})
     announce(progress, DIAGNOSING)
-    # pem's tests are on its prediction errors: white when its noise model is right
-    residuals = (
-        np.asarray(estimator.residuals_[:n_fit], dtype=float)
-        if isinstance(estimator, PredictionError)
-        else work.y[:n_fit] - y_model[:n_fit]
-    )
-    diag = _diagnose(data, fit, y_model, residuals, options, warnings)
+    residuals = None
+    if fit.copy is not None:
+        # a long record fitted on its copy: the tests are the copy's, as its estimates and
+        # standard errors are (the lead check still reads the whole record: _diagnose's data)
+        copy, copy_y_hat = fit.copy
+        on_copy = replace(fit, work=copy, fit_data=copy, n_fit=copy.n_samples)
+        diag = _diagnose(data, on_copy, copy_y_hat, copy.y - copy_y_hat, options, warnings)
+    else:
+        # pem's tests are on its prediction errors: white when its noise model is right
+        residuals = (
+            np.asarray(estimator.residuals_[:n_fit], dtype=float)
+            if isinstance(estimator, PredictionError)
+            else work.y[:n_fit] - y_model[:n_fit]
+        )
+        diag = _diagnose(data, fit, y_model, residuals, options, warnings)
     no_gain = gain_not_identified(model.K, stderr.get("K"))
     if no_gain:
         warnings.append(f"{no_gain} in this log; do not tune from it")
@@ -539,6 +551,8 @@ def _diagnose(
         gain_unit(work),
         kept_order=2 if model.T2 > 0.0 else 1,
         output_leads=lead.leads,
+        # a copy's covariance may follow the whole record's settled test: so do the words
+        settled_test=getattr(fit.estimator, "whole_record_settled_", None),
     )
     warnings.extend(_what_the_errors_hold(found, fit.extra))
     # a model fitted to a log that runs backwards has no settling time to advise on

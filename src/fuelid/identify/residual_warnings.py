@@ -93,6 +93,7 @@ def residual_warnings(
     K_unit: str,
     kept_order: int = 2,
     output_leads: bool = False,
+    settled_test: diagnostics.CorrelationTest | None = None,
 ) -> list[str]:
     """The nonlinearity and residual-test warnings, each saying what the data show.
 
@@ -108,7 +109,9 @@ def residual_warnings(
     (:func:`~fuelid.identify.causality.lead_check`): a reversed clock or swapped columns. The
     residuals then correlate with the input for that reason, not feedback or a missing lag, and
     neither the closed-loop nor the unmodelled-dynamics warning (whose remedies, a noise model
-    or another structure, would not help) is given.
+    or another structure, would not help) is given. ``settled_test``, when given, is the
+    settled whiteness already judged elsewhere (a long record fitted on its copy: on the whole
+    record, which the copy's covariance followed), used instead of judging it on ``fit_data``.
     """
     white, cross = tests
     max_lag, settle = lag_and_settle
@@ -129,7 +132,7 @@ def residual_warnings(
         # is the noise itself white? judged where the output has settled, on the residuals of
         # the best model at hand (the band model's when the gain changes with the command)
         e = nonlinearity.residuals if significant and nonlinearity is not None else residuals
-        settled = diagnostics.settled_whiteness(
+        settled = settled_test or diagnostics.settled_whiteness(
             e, fit_data.u, fit_data.sample_time, settle, fit_data.segment_starts
         )
         noise_white = None if settled is None else settled.passed

@@ -63,6 +63,12 @@ class IdentifyOptions:
     validation_initial: Literal["estimate", "rest"] = "estimate"
     """How a separate validation record starts: "estimate" (offset and initial state fitted to
     it, as a record that does not start at rest needs) or "rest" (at rest at its first input)."""
+    full_record: bool = False
+    """oe on a record over :data:`~fuelid.identify.long_record.LONG_RECORD` samples: False
+    fits a copy of spread-out stretches (estimates, standard errors and tests the copy's, the
+    fit % the whole record's); True searches on the copy and polishes, computes the covariance
+    and tests on every sample (:mod:`fuelid.identify.long_record`). No effect on shorter
+    records."""
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
