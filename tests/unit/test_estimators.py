@@ -141,6 +141,7 @@ def test_init_only_stores_settings_and_fit_checks_them():
         "u_before": None,
         "max_delay": None,
         "covariance": "auto",
+        "full_record": False,
     }
     with pytest.raises(FuelidError, match="order must be 1, 2 or 'auto'"):
         est.fit(_oe_record(2))
