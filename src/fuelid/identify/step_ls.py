@@ -390,9 +390,10 @@ class StepResponseLS(Estimator):
         phi, target = phi[active], target[active]
         self.n_rows_used_ = int(active.sum())
         self.n_exciting_rows_ = int(exciting.sum())
-        self._check_excitation(phi, N, changes.size)
-
+        if phi.shape[0] < N:
+            self._check_excitation(phi, N, changes.size, np.zeros(0))  # refused: too few rows
         U, sv, Vt = np.linalg.svd(phi, full_matrices=False)
+        self._check_excitation(phi, N, changes.size, sv)  # the fit's own singular values
         self.condition_number_ = float(sv[0] / sv[-1])
         a = Vt.T @ ((U.T @ target) / sv)
         resid = target - phi @ a
@@ -444,7 +445,11 @@ class StepResponseLS(Estimator):
                 f"(t = {T_s:g} … {N * T_s:g} s) after the dead time: increase N"
             )
 
-    def _check_excitation(self, phi: FloatArray, N: int, n_changes: int) -> None:
+    def _check_excitation(self, phi: FloatArray, N: int, n_changes: int, sv: FloatArray) -> None:
+        """Refuse too few rows, a rank below N, or a condition beyond ``max_condition``.
+
+        ``sv`` are Φ's singular values (the fit's SVD, computed once).
+        """
         rows = phi.shape[0]
         changes = f"{n_changes} input change{'' if n_changes == 1 else 's'}"
         if rows < N:
@@ -452,7 +457,6 @@ class StepResponseLS(Estimator):
                 f"only {rows} regression rows carry input information ({changes}): at least "
                 f"N={N} needed"
             )
-        sv = np.linalg.svd(phi, compute_uv=False)
         rank = int(np.count_nonzero(sv > sv[0] * max(phi.shape) * np.finfo(float).eps))
         if rank < N:
             dead = np.flatnonzero(~np.any(phi != 0.0, axis=0)) + 1
