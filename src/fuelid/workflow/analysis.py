@@ -25,6 +25,7 @@ from fuelid.identify.diagnostics import (
     input_residual_correlation,
     residual_whiteness,
 )
+from fuelid.identify.long_record import long_record_note
 from fuelid.identify.misfit import MisfitBound
 from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
@@ -241,6 +242,9 @@ class LogAnalysis:
                 else f"the {self.settings.tune_from} model's intervals are conditional on its "
                 "structure (see its warnings): they hold if that structure is right"
             )
+        fitted = self.identifications["oe"].extra.get("long_record") or {}
+        if fitted.get("fitted_on") == "copy":  # a day-long log: its errors and tests the copy's
+            found.append(f"the oe model was {long_record_note(fitted, self.data.sample_time)}")
         return found
 
     @property
