@@ -187,15 +187,17 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
 def _overview_series(data: IOData) -> TimeSeries:
     """The log for the overview figure, with its fuel temperature when it has one.
 
-    At every gap a NaN sample half-way breaks the lines: none is drawn across missing data.
+    At every gap a NaN sample one period after the last sample before it breaks the lines:
+    none is drawn across missing data, and the command, drawn as held, is held for that one
+    period only (a NaN half-way drew it flat across half the gap).
     """
     t, signals = data.t, {"u_V": data.u, "q_Lpm": data.y}
     if data.T_fuel is not None:
         signals["T_fuel_degC"] = data.T_fuel - T0
     starts = np.asarray(data.segment_starts, dtype=int)
     if starts.size:
-        middles = 0.5 * (t[starts - 1] + t[starts])
-        t = np.insert(t, starts, middles)
+        breaks = np.minimum(t[starts - 1] + data.sample_time, 0.5 * (t[starts - 1] + t[starts]))
+        t = np.insert(t, starts, breaks)
         signals = {name: np.insert(v, starts, np.nan) for name, v in signals.items()}
     return TimeSeries(t, signals, {"u_V": "V", "q_Lpm": "L/min", "T_fuel_degC": "°C"})
 
