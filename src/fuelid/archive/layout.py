@@ -157,6 +157,7 @@ def write_table(table: pa.Table, path: Path) -> None:
         if not back.equals(table):
             raise StoreError(f"the archive file {path} did not read back as written")
         os.replace(tmp, path)
+        _remove_stale_temporaries(path)
         directory = os.open(path.parent, os.O_RDONLY)
         try:
             os.fsync(directory)
@@ -165,6 +166,30 @@ def write_table(table: pa.Table, path: Path) -> None:
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+def _remove_stale_temporaries(path: Path) -> None:
+    """Remove the temporary files of ``path`` that writers killed mid-write left behind.
+
+    A writer names its temporary file by its process id; one whose process is gone (killed
+    between writing and renaming) will never rename it, and the file written now replaces
+    what it was for. A live writer's file is left alone.
+    """
+    for stale in path.parent.glob(f".{path.name}.*.tmp"):
+        pid = stale.name.removeprefix(f".{path.name}.").removesuffix(".tmp")
+        if pid.isdigit() and int(pid) != os.getpid() and not _process_alive(int(pid)):
+            stale.unlink(missing_ok=True)
+
+
+def _process_alive(pid: int) -> bool:
+    """Whether a process with this id runs (one of another user's counts as running)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def list_loop_days(
