@@ -543,7 +543,8 @@ FAULT_ONLINE = f"identify_every_s = {FAULT_EVERY_S:g}\nwindow_s = 60\n"
 
 
 # both in the slow set: 16 s of a real-time run for [3] (the fast set's budget, issue 39); the
-# link's blips and the recorder's back-fill stay in the fast set (test_recorder.py, test_record_cli.py)
+# link's blips and the recorder's back-fill stay in the fast set (test_recorder.py,
+# test_record_cli.py)
 @pytest.mark.slow
 @pytest.mark.parametrize("drops", [3, 12])
 def test_link_drops_and_a_plc_restart_leave_the_schedule_going(tmp_path: Path, drops: int) -> None:
