@@ -87,6 +87,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     ),
     "calibration_timing": ("Plant calibration speed", "benchmarks/bench_calibration.py --timing"),
     "dashboard": ("The dashboard's speed", "benchmarks/bench_dashboard.py"),
+    "window_report": (
+        "The dashboard's window report: first request, quiet and loaded",
+        "benchmarks/bench_window_report.py",
+    ),
     "central": ("Central ingest from many senders", "benchmarks/bench_central.py"),
     "reidentify": ("Re-identification on Dask", "benchmarks/bench_reidentify.py"),
     "trust": (

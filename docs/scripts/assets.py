@@ -1,8 +1,10 @@
 """Write the docs' generated pictures into docs/assets/ (``make docs-assets``; never ``make test``).
 
-The dashboard's pages (``dashboard_*.png``) are photographed the same way: ``fuelid online
---virtual`` writes a store (write_back "approve", so a proposal waits), ``fuelid dashboard``
-serves it, and headless Chromium (Playwright, given Debian's executable) takes each page.
+The dashboard's pages (``dashboard_*.png``) are photographed the same way, live: ``fuelid online
+--virtual`` runs (write_back "approve", so proposals wait), ``fuelid dashboard`` serves its store,
+and headless Chromium (Playwright, given Debian's executable) follows the loop page as an engineer
+through every state an operator meets: a proposal waiting, its confirmation, its write verified,
+the service killed (kill -9), the dashboard killed; a second browser takes the fleet and a window.
 
 The demo's HTML report is made the way a user makes it, by the command line: a simulated step
 sequence of the reference plant (``fuelid simulate``), then ``fuelid report`` on it. Headless
@@ -16,11 +18,16 @@ writes, never a hand-edited picture. Run from the repository root with fuelid im
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
+import time
+import urllib.request
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[2]
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
@@ -69,35 +76,212 @@ def screenshot(page: Path, png: Path) -> None:
 
 
 DASHBOARD_ONLINE = 'identify_every_s = 120\nwindow_s = 240\nwrite_back = "approve"\n'
-DASHBOARD_PAGES = {"fleet": "/", "loop": "/loops/{loop}", "window": "/loops/{loop}/windows/{w}"}
+#: the live virtual loop photographed: 1 h of plant time at 20x, 3 min of wall time
+DASHBOARD_RUN = ("--speed", "20", "--hours", "1")
+DASHBOARD_VIEWPORT = (1400, 900)
+PROPOSAL_WAIT_S = 120.0
+"""Wall time a waiting proposal may take to appear on the loop page [s]."""
+WRITTEN_WAIT_S = 60.0
+"""Wall time an approved proposal may take to be written and verified [s]."""
+STOP_WAIT_S = 30.0
+"""Wall time the page may take to say the service, then the dashboard, stopped [s]."""
+LOOP_WINDOWS = 8
+"""Windows judged before the loop page is photographed: its model history has a history."""
+APPROVE_ATTEMPTS = 4
+"""Proposals tried: one superseded by a newer window before its write is tried again."""
+KILLED_MID_ANSWER = ("ERR_EMPTY_RESPONSE",)
+"""A request the dashboard was answering when it was killed: expected then, as the stream's
+retries (``support.browser.NETWORK_FAILURES``)."""
+_CARD_STATE = (
+    '(() => {{ const c = document.querySelector("#proposals-part div.proposal'
+    "[data-proposal='{0}']\"); return c ? c.dataset.state : 'absent'; }})()"
+)
+_WAITING_CARD = (
+    "(() => { const c = document.querySelector("
+    "'#proposals-part div.proposal[data-state=waiting]'); return c ? c.dataset.proposal : ''; })()"
+)
+
+
+def _wait(page: Any, expression: str, what: str, timeout: float) -> Any:
+    """``expression`` once truthy on ``page``; a clear error naming ``what`` past ``timeout`` s."""
+    from support.browser import wait_until
+
+    try:
+        return wait_until(page, expression, timeout)
+    except AssertionError as error:
+        raise SystemExit(f"dashboard screenshots: {what}: not within {timeout:.0f} s") from error
+
+
+def _clip_top(page: Any, until: str, png: Path) -> None:
+    """The top of ``page`` down to the bottom of the element ``until`` (a state, not a page)."""
+    page.evaluate("window.scrollTo(0, 0)")
+    bottom = page.evaluate(f"document.querySelector({until!r}).getBoundingClientRect().bottom")
+    width = page.viewport_size["width"]
+    page.screenshot(path=str(png), clip={"x": 0, "y": 0, "width": width, "height": bottom + 12})
+
+
+def _login(page: Any, base: str, token: str, path: str) -> None:
+    """Log in as the engineer "eve" at /login, landing on ``path``."""
+    page.goto(f"{base}/login?next={path}")
+    page.fill("input[name=name]", "eve")
+    page.fill("input[name=token]", token)
+    page.click("button[type=submit]")
+    page.wait_for_url(f"{base}{path}")
+
+
+def _shoot_loop(page: Any, out: Path) -> None:
+    """The loop page following live with a proposal waiting, its analysis charts drawn."""
+    _wait(
+        page,
+        f"document.querySelectorAll('#windows tr[data-window]').length >= {LOOP_WINDOWS}",
+        f"{LOOP_WINDOWS} windows on the loop page",
+        PROPOSAL_WAIT_S,
+    )
+    _wait(page, _WAITING_CARD, "a waiting proposal on the loop page", PROPOSAL_WAIT_S)
+    _wait(page, "document.getElementById('trend').dataset.newest", "the live trend", 30)
+    page.locator("#analysis").scroll_into_view_if_needed()
+    _wait(page, "document.getElementById('analysis').dataset.drawn", "the analysis charts", 60)
+    page.evaluate("window.scrollTo(0, 0)")
+    page.wait_for_timeout(1000)
+    if page.evaluate("document.getElementById('trend').dataset.following") != "1":
+        raise SystemExit("dashboard screenshots: the loop page's trend stopped following")
+    page.screenshot(path=str(out / "dashboard_loop.png"), full_page=True)
+
+
+def _shoot_fleet_and_window(page: Any, base: str, loop: str, out: Path) -> None:
+    """The fleet page and the page of the newest accepted window (a second browser)."""
+    from support.browser import wait_ready
+
+    history = json.loads(urllib.request.urlopen(f"{base}/api/loops/{loop}/history").read())
+    window = [w for w in history["windows"] if w["accepted"]][-1]["id"]
+    page.goto(f"{base}/")
+    wait_ready(page)
+    page.wait_for_timeout(1000)
+    _clip_top(page, "footer", out / "dashboard_fleet.png")  # one loop: not the empty screen
+    page.goto(f"{base}/loops/{loop}/windows/{window}")
+    wait_ready(page)
+    page.wait_for_timeout(1000)
+    page.screenshot(path=str(out / "dashboard_window.png"), full_page=True)
+
+
+def _approve_one(page: Any, out: Path) -> bool:
+    """Approve the waiting proposal (a reason, its confirmation photographed) and wait for it.
+
+    True when it was written and verified, False when it went another way before its write
+    (superseded by a newer window's proposal).
+    """
+    proposal = _wait(page, _WAITING_CARD, "a waiting proposal", PROPOSAL_WAIT_S)
+    form = f"form.action[data-proposal='{proposal}']"
+    card = f"#proposals-part div.proposal[data-proposal='{proposal}']"
+    new_kc = page.locator(f"{card} table.kv tr:first-child td b").inner_text()
+    page.fill(f"{form} input[name=why]", "the newest windows agree; the loop is calm")
+    page.click(f"{form} button[data-kind=approve]")
+    page.locator(f"{form} .confirm").wait_for(state="visible", timeout=5000)
+    page.locator("#proposals-part").screenshot(path=str(out / "dashboard_proposal_confirm.png"))
+    page.click(f"{form} .confirm button.yes", timeout=5000)
+    deadline = time.monotonic() + WRITTEN_WAIT_S
+    while time.monotonic() < deadline:
+        state = page.evaluate(_CARD_STATE.format(proposal))
+        if state == "written":  # and the gains in force are the ones the PLC echoed
+            _wait(
+                page,
+                "document.getElementById('gains-in-force').textContent"
+                f".startsWith('Gains in force: Kc {new_kc} ')",
+                f"the gains of proposal #{proposal} in force",
+                WRITTEN_WAIT_S,
+            )
+            page.locator("#proposals-part").screenshot(
+                path=str(out / "dashboard_proposal_written.png")
+            )
+            return True
+        if state not in ("waiting", "approved", "writing"):
+            print(f"proposal #{proposal}: {state} before its write; the next one", flush=True)
+            return False
+        page.wait_for_timeout(300)
+    raise SystemExit(
+        f"dashboard screenshots: proposal #{proposal} not written within {WRITTEN_WAIT_S:.0f} s"
+    )
+
+
+def _shoot_approval(page: Any, out: Path) -> None:
+    """A proposal's confirmation, then its card written and verified with the gains in force."""
+    for _ in range(APPROVE_ATTEMPTS):
+        if _approve_one(page, out):
+            return
+    raise SystemExit(f"dashboard screenshots: {APPROVE_ATTEMPTS} proposals superseded unwritten")
+
+
+def _shoot_service_stopped(page: Any, service: Any, out: Path) -> None:
+    """After ``kill -9`` of the service: its chip red, the live chips grey "unknown since …"."""
+    from fuelid.dashboard.fleet import LIVE_CHIPS
+    from support.browser import page_chips
+
+    if service.proc.poll() is not None:
+        raise SystemExit("dashboard screenshots: the virtual run ended before its kill")
+    service.stop(signal.SIGKILL)
+    deadline = time.monotonic() + STOP_WAIT_S
+    while True:
+        chips = page_chips(page)
+        live = [chips.get(name, ("", ""))[1] for name in LIVE_CHIPS]
+        if chips.get("service", ("", ""))[0] == "alarm" and all(
+            text.startswith("unknown since the stop") for text in live
+        ):
+            break
+        if time.monotonic() > deadline:
+            raise SystemExit(f"dashboard screenshots: the page did not say the stop: {chips}")
+        page.wait_for_timeout(500)
+    _clip_top(page, "#link", out / "dashboard_service_stopped.png")
+
+
+def _shoot_disconnected(page: Any, board: Any, errors: list[str], out: Path) -> None:
+    """After killing the dashboard: the banner, the page greyed. Only network errors then."""
+    from support.browser import NETWORK_FAILURES
+
+    page.evaluate("1")  # the console events so far are in
+    before = list(errors)
+    board.stop(signal.SIGKILL)
+    _wait(page, "document.body.dataset.connection === 'disconnected'", "disconnected", STOP_WAIT_S)
+    page.wait_for_timeout(500)
+    _clip_top(page, "#proposals-part", out / "dashboard_disconnected.png")
+    if before:
+        raise SystemExit(f"the dashboard's pages logged errors: {before}")
+    expected = (*NETWORK_FAILURES, *KILLED_MID_ANSWER)
+    print(f"after the dashboard's kill the pages logged: {errors[len(before) :]}", flush=True)
+    after = [e for e in errors[len(before) :] if not any(n in e for n in expected)]
+    if after:
+        raise SystemExit(f"the loop page logged errors after the dashboard's kill: {after}")
 
 
 def dashboard_screenshots(work: Path, out: Path) -> None:
-    """The fleet, loop and window pages of a virtual run's store, as a user sees them."""
-    import json
-    import urllib.request
+    """Every state of the pages an operator meets, from a live virtual loop.
 
+    ``fuelid online --virtual`` runs (write_back "approve") beside ``fuelid dashboard``; an
+    engineer's page follows the loop through a waiting proposal, its approval and write, the
+    service's kill -9 and the dashboard's; a second browser photographs the fleet and a window.
+    """
     sys.path.insert(0, str(ROOT / "tests"))
-    from support.browser import browser_page, dashboard, wait_ready
+    from fuelid.dashboard.users import UsersFile
+    from support.browser import browser_pages, dashboard, virtual_service, wait_ready
 
+    users = UsersFile(work / "users.json")
+    token = users.add("eve", "engineer")
     config = work / "online.toml"
     config.write_text("[online]\n" + DASHBOARD_ONLINE, encoding="utf-8")
-    fuelid(
-        "online", "--virtual", "--speed", "50", "--hours", "0.75", "--store", "loop.db",
-        "--config", str(config), cwd=work,
-    )  # fmt: skip
-    with dashboard(work, "--store", str(work / "loop.db")) as (_, base):
-        loop = json.loads(urllib.request.urlopen(f"{base}/api/loops").read())["loops"][0]["loop_id"]
-        history = json.loads(urllib.request.urlopen(f"{base}/api/loops/{loop}/history").read())
-        window = [w for w in history["windows"] if w["accepted"]][-1]["id"]
-        with browser_page(1400, 900) as (page, errors):
-            for name, path in DASHBOARD_PAGES.items():
-                page.goto(base + path.format(loop=loop, w=window))
+    store = work / "loop.db"
+    print(f"$ fuelid online --virtual {' '.join(DASHBOARD_RUN)} (and fuelid dashboard)", flush=True)
+    with virtual_service(work, store, *DASHBOARD_RUN, "--config", str(config)) as service:
+        service.wait_for(lambda line: "link up" in line)
+        with dashboard(work, "--store", str(store), "--users", str(users.path)) as (board, base):
+            loops = json.loads(urllib.request.urlopen(f"{base}/api/loops").read())["loops"]
+            loop = loops[0]["loop_id"]
+            with browser_pages(2, *DASHBOARD_VIEWPORT) as ((page, other), errors):
+                _login(page, base, token, f"/loops/{loop}")
                 wait_ready(page)
-                page.wait_for_timeout(1000)
-                page.screenshot(path=str(out / f"dashboard_{name}.png"), full_page=True)
-        if errors:
-            raise SystemExit(f"the dashboard's pages logged errors: {errors}")
+                _shoot_loop(page, out)
+                _shoot_fleet_and_window(other, base, loop, out)
+                _shoot_approval(page, out)
+                _shoot_service_stopped(page, service, out)
+                _shoot_disconnected(page, board, errors, out)
 
 
 def main() -> None:
@@ -112,7 +296,8 @@ def main() -> None:
             "simulate", "log.csv", "--profile", "steps", "--levels", "2,3,2.5,3.5,3",
             "--dwell", "30", "--seed", "7", "--fuel-temp", "15", "--quiet", cwd=work,
         )  # fmt: skip
-        fuelid("report", "log.csv", "--out", "report.html", cwd=work)
+        # the PLC's PI period: the simulation's (``fuelid simulate --control-period``, 1 s)
+        fuelid("report", "log.csv", "--control-period", "1", "--out", "report.html", cwd=work)
         screenshot(work / "report.html", args.out / "report.png")
         for key in FIGURES:
             shutil.copyfile(work / f"report_{key}.png", args.out / f"report_{key}.png")

@@ -29,6 +29,7 @@ from fuelid.dashboard.security import (
     CSRF_HEADER,
     FORM_MAX_BYTES,
     LOGIN_MAX_FAILURES,
+    LOGIN_MAX_SHARED,
     LOGIN_WINDOW_S,
     SESSION_COOKIE,
     SESSION_IDLE_S,
@@ -199,8 +200,8 @@ def test_failures_for_one_name_from_many_addresses_are_limited(
     users: UsersFile, tokens: dict[str, str], clock: FakeClock
 ) -> None:
     security = Security(users, require_login=True, clock=clock)
-    for i in range(LOGIN_MAX_FAILURES):
-        security.limiter.failure(f"10.0.0.{i}", "eve")
+    for i in range(LOGIN_MAX_SHARED):  # a guess spread over addresses, a few tries from each
+        security.limiter.failure(f"10.0.0.{i % 7}", "eve")
     assert security.limiter.retry_after("10.0.0.99", "eve") is not None
     assert security.limiter.retry_after("10.0.0.99", "vic") is None
 
@@ -210,8 +211,51 @@ def test_a_success_does_not_clear_another_addresses_count(clock: FakeClock) -> N
     limiter = security.limiter
     for _ in range(LOGIN_MAX_FAILURES):
         limiter.failure("10.0.0.1", "a")
-    limiter.success("10.0.0.2")
-    assert limiter.retry_after("10.0.0.1", "b") is not None
+    limiter.success("10.0.0.2", "a")
+    assert limiter.retry_after("10.0.0.1", "a") is not None
+
+
+def test_one_persons_typos_do_not_lock_out_the_others_at_the_same_console(
+    users: UsersFile, tokens: dict[str, str], clock: FakeClock
+) -> None:
+    # issue 39: five typos by one engineer locked every engineer at that console out
+    client = client_for(users, True, clock)
+    for _ in range(LOGIN_MAX_FAILURES):
+        assert client.post("/login", data={"name": "vic", "token": "typo"}).status_code == 401
+    assert client.post("/login", data={"name": "vic", "token": tokens["vic"]}).status_code == 429
+    other = client.post("/login", data={"name": "eve", "token": tokens["eve"]})
+    assert other.status_code == 303  # the same address, another name: let in
+
+
+def test_an_address_guessing_many_names_is_stopped_at_the_shared_limit(clock: FakeClock) -> None:
+    limiter = Security(None, require_login=False, clock=clock).limiter
+    assert LOGIN_MAX_SHARED > LOGIN_MAX_FAILURES
+    names = [f"user{i}" for i in range(LOGIN_MAX_SHARED)]
+    for name in names[:-1]:  # one failure per name: no name reaches its own limit
+        limiter.failure("10.0.0.1", name)
+        assert limiter.retry_after("10.0.0.1", "nobody-yet") is None
+    limiter.failure("10.0.0.1", names[-1])
+    wait = limiter.retry_after("10.0.0.1", "nobody-yet")
+    assert wait is not None
+    assert 0.0 < wait <= LOGIN_WINDOW_S
+    assert limiter.retry_after("10.0.0.2", "nobody-yet") is None  # another address is not
+    clock.now += LOGIN_WINDOW_S
+    assert limiter.retry_after("10.0.0.1", "nobody-yet") is None  # the window slid past
+
+
+def test_a_success_clears_only_its_own_name_at_its_address(clock: FakeClock) -> None:
+    limiter = Security(None, require_login=False, clock=clock).limiter
+    for _ in range(LOGIN_MAX_FAILURES):
+        limiter.failure("10.0.0.1", "eve")
+        limiter.failure("10.0.0.1", "vic")
+    limiter.success("10.0.0.1", "eve")
+    assert limiter.retry_after("10.0.0.1", "eve") is None
+    assert limiter.retry_after("10.0.0.1", "vic") is not None
+    # the address's count stays: a guesser's own account does not reset it
+    for _ in range(LOGIN_MAX_SHARED - 2 * LOGIN_MAX_FAILURES):
+        limiter.failure("10.0.0.1", "mallory")
+        limiter.success("10.0.0.1", "mallory")
+    assert limiter.retry_after("10.0.0.1", "eve") is not None
 
 
 def test_next_is_followed_only_to_a_local_path(

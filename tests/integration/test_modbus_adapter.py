@@ -8,6 +8,7 @@ registers as hand-computed numbers: 3.5 = 0x4060_0000 (float32), 74565 = 0x0001_
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 from collections.abc import Iterator
 from typing import Any
@@ -190,6 +191,43 @@ def test_an_unreachable_plc_is_a_link_error_naming_host_and_port() -> None:
     port = free_port()
     with pytest.raises(LinkError, match=rf"127\.0\.0\.1:{port}"):
         read(site_for(port, TAGS))
+
+
+def test_no_answer_within_the_timeout_gives_no_device_id_advice() -> None:
+    # issue 39: a 0.09 s blip asked "is plc.device_id = 1 right?"; a timeout is the link's
+    # trouble, and only a device that answers (a Modbus exception) can say its unit is wrong
+    import socket
+    import threading
+
+    listener = socket.create_server(("127.0.0.1", 0))
+    accepted: list[socket.socket] = []
+
+    def accept() -> None:  # accepts the connection, never answers a request
+        with contextlib.suppress(OSError):
+            accepted.append(listener.accept()[0])
+
+    threading.Thread(target=accept, daemon=True).start()
+    site = site_for(listener.getsockname()[1], TAGS)
+
+    async def go() -> None:
+        source = ModbusSource(site, timeout_s=0.2)
+        await source.connect()
+        try:
+            await source.read()
+        finally:
+            await source.close()
+
+    try:
+        with pytest.raises(LinkError) as caught:
+            asyncio.run(go())
+    finally:
+        listener.close()
+        for connection in accepted:
+            connection.close()
+    message = str(caught.value)
+    assert "no answer from modbus 127.0.0.1" in message
+    assert "within 0.2 s" in message
+    assert "device_id" not in message
 
 
 def test_a_dropped_link_is_a_link_error_and_a_reconnect_works(plc: FakePlc) -> None:

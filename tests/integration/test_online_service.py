@@ -251,3 +251,59 @@ def test_gains_in_the_plc_outside_the_bounds_stop_the_service_with_the_reason(
                 asyncio.run(service.run(5.0))
         finally:
             service.close()
+
+
+MODEL_BEFORE = {"K": 11.0, "T": 0.42, "delay": 0.1}
+"""The model the gains in the PLC were tuned for before the write (an earlier write's)."""
+MODEL_WRITTEN = {"K": 13.0, "T": 0.38, "delay": 0.1}
+"""The model the written proposal's gains were tuned for."""
+
+
+@pytest.mark.parametrize("tuned_before", [True, False], ids=["earlier-write", "commissioning"])
+def test_a_revert_makes_tuned_for_the_model_of_the_gains_it_writes_back(
+    tmp_path: Path, tuned_before: bool
+) -> None:
+    """The drift chip compares K now with ``tuned_for``: after a revert, the reverted-to gains'.
+
+    The PLC runs gains an earlier write tuned for MODEL_BEFORE (or the commissioning gains, for
+    no known model); a proposal tuned for MODEL_WRITTEN is written, then a revert is requested.
+    """
+    from fuelid.online.writeback import GOOD_TUNED_FOR
+
+    store = tmp_path / "s.db"
+    with VirtualPlcThread(speed=SPEED, setpoint_profile="run") as virtual:
+        site = _site(virtual, store, ONLINE_NO_WINDOWS)
+        kc0, ti0 = virtual.plc.gains
+        old, new = {"Kc": kc0, "Ti": ti0}, {"Kc": round(1.2 * kc0, 6), "Ti": ti0}
+        opened, history = _history(site, store)
+        if tuned_before:  # what the earlier write left
+            history.set_state("current_gains", old)
+            history.set_state("tuned_for", MODEL_BEFORE)
+        pid = history.add_proposal(
+            model_id=None, old=old, new=new,
+            detail={"reason": "test", "ideal": {"old": old, "new": new},
+                    "target_model": MODEL_WRITTEN},
+        )  # fmt: skip
+        history.set_proposal_status(pid, "approved", who="tester", why="test")
+        history.close()
+        opened.close()
+        service, _ = _run(site, 3.0)
+        try:
+            written = (service.history.state("tuned_for"), service.history.state(GOOD_TUNED_FOR))
+            service.history.set_state("revert_requested", {"who": "tester", "why": "test"})
+        finally:
+            service.close()
+        service, _ = _run(site, 3.0)
+        try:
+            kinds = [(w["kind"], w["status"]) for w in service.history.writes()]
+            reverted = service.history.state("tuned_for")
+            current = service.history.state("current_gains")
+        finally:
+            service.close()
+        gains = virtual.plc.gains
+    before = MODEL_BEFORE if tuned_before else None
+    assert written == (MODEL_WRITTEN, before)
+    assert kinds == [("proposal", "verified"), ("revert", "verified")]
+    assert reverted == before  # not the model of the gains reverted away from
+    assert current == pytest.approx(old)
+    assert gains == pytest.approx((kc0, ti0))

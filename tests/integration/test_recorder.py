@@ -8,6 +8,7 @@ it is stored under.
 
 from __future__ import annotations
 
+import re
 import sqlite3
 import threading
 import time
@@ -249,6 +250,47 @@ def test_link_drops_are_events_and_the_ring_back_fills_every_sample(
     assert np.all(data.quality == Quality.OK)
     assert np.all(data.fuel_temperature == 20.0)
     assert np.all(data.mode == 1)
+
+
+def test_a_blip_is_said_as_one_with_the_samples_back_filled(
+    modbus_plc: Any, tmp_path: Path
+) -> None:
+    # issue 39: a 0.09 s loss the next poll recovered from read as a wrong device id
+    import asyncio
+
+    from fuelid.plc.adapters import LinkError
+    from fuelid.plc.adapters.modbus import ModbusSource
+
+    class TimesOutOnce(ModbusSource):
+        """One read of the tags gets no answer (the server stays up): a blip."""
+
+        reads = 0
+
+        async def read(self) -> Any:
+            self.reads += 1
+            if self.reads == 5:
+                await asyncio.sleep(0.09)
+                raise LinkError(f"no answer from {self.where} within 0.09 s (timed out)")
+            return await super().read()
+
+    plc = modbus_plc()
+    site = ring_site(plc)
+    stats = record(site, tmp_path / "b.db", 2.0, TimesOutOnce(site, timeout_s=0.25))
+    data, events, info = rows(tmp_path / "b.db")
+    assert stats.drops == 1
+    (down,), (up,) = kinds(events, "link_down"), kinds(events, "link_up")
+    assert "device_id" not in down.detail
+    found = re.fullmatch(r"link blip of (\d+\.\d\d) s; (\d+) samples? back-filled", up.detail)
+    assert found is not None, up.detail
+    assert float(found.group(1)) < 1.0  # from the loss seen to the link back
+    assert int(found.group(2)) >= 9  # the 0.09 s alone held 9 samples at ~ 100 Hz
+    for event in (down, up):
+        assert "wall clock" not in event.detail  # one clock: the wall time is wall_time
+    assert up.time == down.time  # back-filled: no hole between them
+    seqs = data.seq.tolist()
+    assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
+    assert kinds(events, "gap") == []
+    assert info.gaps == 0
 
 
 def test_the_sequence_wraps_past_uint32_without_a_break(modbus_plc: Any, tmp_path: Path) -> None:

@@ -297,6 +297,42 @@ def test_status_text_is_a_few_aligned_lines(
     assert "Harris index 0.83" in text
 
 
+def test_status_gives_the_plcs_gains_as_the_recorder_kept_them(
+    populated: tuple[Path, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``plc_gains``: null until the recorder keeps a reading, then in both units, timed."""
+    from fuelid.plc.gain_reading import PLC_GAINS_KEY
+    from fuelid.store import SampleWriter
+
+    site, db = populated
+    code, out, err = run(capsys, "online", "status", "--config", str(site), "--json")
+    assert code == 0, err
+    assert json.loads(out)["plc_gains"] is None
+    read_at = T0 + 301.5
+    reading = {"kc": 0.05, "ti": 1.2, "units": "block", "time": read_at, "wall_time": time.time()}
+    identity = site_identity(load_site(site))
+    with SQLiteStore(db, period_s=0.02, **identity) as opened, SampleWriter(opened) as writer:
+        writer.set_state(PLC_GAINS_KEY, reading)  # as the recorder does: the store's one writer
+    code, out, err = run(capsys, "online", "status", "--config", str(site), "--json")
+    assert code == 0, err
+    gains = json.loads(out)["plc_gains"]
+    assert (gains["Kc"], gains["Ti"], gains["time"]) == (0.05, 1.2, read_at)
+    assert gains["units"] == {"Kc": "V per L/min", "Ti": "s"}  # the site's [controller]
+    assert gains["ideal"] == {"Kc": 0.05, "Ti": 1.2}
+    assert gains["wall_time"] <= time.time()
+    # without the site file nor a service record the block's form is unknown: no conversion
+    code, out, err = run(capsys, "online", "status", "--store", str(db), "--json")
+    gains = json.loads(out)["plc_gains"]
+    assert (gains["Kc"], gains["units"], gains["ideal"]) == (0.05, None, None)
+    code, out, err = run(capsys, "online", "status", "--config", str(site))
+    assert code == 0, err
+    (line,) = [line for line in out.splitlines() if line.startswith("PLC gains")]
+    assert line == (
+        "PLC gains  Kc 0.05 V per L/min, Ti 1.2 s, read at 2026-09-21 14:18:21 UTC "
+        "(the kc, ti tags)"
+    )
+
+
 def test_history_json_windows_proposals_events(
     populated: tuple[Path, Path], capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -540,6 +576,29 @@ def test_a_bad_online_table_for_the_virtual_run_is_exit_2(
     bad.write_text("[online]\nidentify_every_s = 5\n")
     code, _out, err = run(capsys, "online", "--virtual", "--config", str(bad))
     assert_one_line_error(code, err, "online.identify_every_s")
+
+
+@pytest.mark.parametrize(
+    ("site", "needle"),
+    [
+        ('loop_id = "Bad_ID"', "site.loop_id"),
+        ('timezone = "Mars/Olympus"', "site.timezone"),
+    ],
+)
+def test_a_bad_site_key_for_the_virtual_run_names_the_users_file(
+    site: str, needle: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # issue 39: the error named the site file --virtual writes in a temporary folder
+    config = tmp_path / "loop.toml"
+    config.write_text(f'[site]\nname = "tunnel 2"\n{site}\n')
+    store = tmp_path / "loop.db"
+    code, _out, err = run(
+        capsys, "online", "--virtual", "--config", str(config), "--store", str(store)
+    )
+    assert_one_line_error(code, err, str(config), needle)
+    assert "virtual-site.toml" not in err
+    assert "fuelid-online-" not in err
+    assert not store.exists()  # refused before anything started
 
 
 def test_log_records_are_json_objects() -> None:

@@ -38,6 +38,8 @@ SITE_STATE_KEYS = (
     "write_held",
     "revert_requested",
     "tuned_for",
+    "last_known_good_tuned_for",
+    "plc_gains",  # the PLC's kc and ti as the recorder last read them: the gains in force
 )
 """The site's ``online_state`` values the liveness row carries (``site_state``)."""
 

@@ -90,6 +90,16 @@ def dashboard_command(
         Path | None,
         typer.Option("--ssl-keyfile", help="TLS key (PEM) for uvicorn.", show_default=False),
     ] = None,
+    trend_minutes: Annotated[
+        float,
+        typer.Option(
+            "--trend-minutes",
+            min=1.0,
+            max=1440.0,
+            metavar="MIN",
+            help="The span the loop page's live trend shows and follows [min].",
+        ),
+    ] = 10.0,
 ) -> None:
     """Serve the dashboard until Ctrl-C (fleet page, loop pages, window pages, the /api/ JSON)."""
     if ctx.invoked_subcommand is not None:
@@ -115,4 +125,5 @@ def dashboard_command(
         on_ready=ready,
         central=central,
         archive=archive,
+        trend_minutes=trend_minutes,
     )

@@ -17,50 +17,50 @@ serving the local loops.
 
 The API under ``/api/`` returns the same data as JSON, built by the functions ``fuelid online
 status --json`` and ``history --json`` use (one shape, not two); FastAPI's OpenAPI page is
-``/api/docs``. Charts are drawn by plotly.js served from the installed plotly package
-(``/static/plotly.min.js``): nothing comes from the internet, and no WebGL trace is used.
+``/api/docs``. The live trend is drawn by uPlot (vendored: ``static/vendor/``), the analysis
+charts by plotly.js served from the installed plotly package (``/static/plotly.min.js``), loaded
+only when they are scrolled into view: nothing comes from the internet, and no WebGL trace is
+used. Static files are compressed once and cached (:mod:`fuelid.dashboard.static_files`); pages
+and JSON answers are gzip-compressed when large; the event stream is not.
 """
 
 from __future__ import annotations
 
 import asyncio
 import math
-import time
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from fastapi import Depends, FastAPI, HTTPException, Request
-from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, Response
+from fastapi.responses import HTMLResponse, JSONResponse, Response
 from fastapi.sse import EventSourceResponse, ServerSentEvent
-from fastapi.staticfiles import StaticFiles
+from fastapi.staticfiles import StaticFiles as MountedFiles
+from starlette.middleware.gzip import GZipMiddleware
 
 from fuelid import __version__
 from fuelid.central.connect import CentralError
 from fuelid.dashboard.fleet import fleet_row
+from fuelid.dashboard.loop_page import PARTS, loop_context
 from fuelid.dashboard.registry import Loops
 from fuelid.dashboard.security import Security, add_security_headers, auth_router, form_fields
 from fuelid.dashboard.source import LoopReader
+from fuelid.dashboard.static_files import StaticFiles
 from fuelid.dashboard.stream import Feeds
 from fuelid.dashboard.trend import trend
-from fuelid.dashboard.views import (
-    central_waiting,
-    fmt_num,
-    gains_now,
-    link_text,
-    now_rows,
-    proposal_views,
-    site_warning,
-    write_back_of,
-)
+from fuelid.dashboard.views import fmt_num, link_text, site_warning
 from fuelid.errors import FuelidError
 from fuelid.io.clock import format_time
 
-__all__ = ["RECENT_HEALTH", "create_app"]
+__all__ = ["GZIP_MIN_BYTES", "RECENT_HEALTH", "TREND_MINUTES", "create_app"]
 
 RECENT_HEALTH = 30
 """Windows whose IAE per unit step form a loop's own median (fleet chip)."""
 STATIC = "static"
+TREND_MINUTES = 10
+"""The live trend's span by default [min] (``fuelid dashboard --trend-minutes``)."""
+GZIP_MIN_BYTES = 2048
+"""Pages and JSON answers larger than this are gzip-compressed [bytes]."""
 TEMPLATES = "templates"
 
 
@@ -83,9 +83,9 @@ def _swagger_ui() -> Path | None:
     return Path(swagger_ui_bundle.swagger_ui_path)
 
 
-def _recent_iae(loop: LoopReader) -> list[float]:
+def _recent_iae(windows: list[dict[str, Any]]) -> list[float]:
     out = []
-    for row in loop.recent_windows(RECENT_HEALTH):
+    for row in windows:
         health = (row.get("detail") or {}).get("health") or {}
         value = health.get("iae_per_unit_step_s")
         if isinstance(value, int | float) and math.isfinite(value):
@@ -97,15 +97,28 @@ def loop_summary(loop: LoopReader, status: dict[str, Any] | None = None) -> dict
     """A loop's fleet row: identity, status chips, severity (``status`` when already read)."""
     status = loop.status() if status is None else status
     identity = loop.identity()
-    row = fleet_row(loop.loop_id, identity["site_name"], status, _recent_iae(loop))
+    windows = loop.recent_windows(RECENT_HEALTH)
+    # the windows also date the proposals (the out-of-date rule: views.proposal_state)
+    row = fleet_row(loop.loop_id, identity["site_name"], status, _recent_iae(windows), windows)
     row["link"] = status.get("link")
     row["timezone"] = status.get("timezone", "UTC")
     row["link_text"] = link_text(status, row["timezone"])
+    # the stream's typed events compare these between two status events (stream.changed_topics)
+    row["counts"] = status.get("counts")
     return row
 
 
-def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> Any:
-    """The FastAPI application over ``loops`` (see the module docstring)."""
+def create_app(
+    loops: Loops,
+    security: Security,
+    *,
+    title: str = "fuelid",
+    trend_minutes: float = TREND_MINUTES,
+) -> Any:
+    """The FastAPI application over ``loops`` (see the module docstring).
+
+    ``trend_minutes``: the span the loop page's live trend follows [min].
+    """
     import jinja2
 
     package = resources.files("fuelid.dashboard")
@@ -128,7 +141,10 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
     app.state.loops = loops
     app.state.security = security
     feeds = Feeds()
-    plotly_js = _plotly_js()
+    static_files = StaticFiles(Path(str(package / STATIC)), {"plotly.min.js": _plotly_js()})
+    env.globals["static"] = static_files.url
+    # the event stream is never compressed (Starlette leaves text/event-stream alone)
+    app.add_middleware(GZipMiddleware, minimum_size=GZIP_MIN_BYTES)
     add_security_headers(app)
     app.include_router(auth_router(security))
     # --- static --------------------------------------------------------------------------
@@ -142,7 +158,7 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
 
     swagger = _swagger_ui()
     if swagger is not None:
-        app.mount("/static/swagger", StaticFiles(directory=str(swagger)), name="swagger")
+        app.mount("/static/swagger", MountedFiles(directory=str(swagger)), name="swagger")
 
     @app.get(
         "/api/docs", response_class=HTMLResponse, include_in_schema=False, dependencies=[viewer]
@@ -153,11 +169,12 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
             raise HTTPException(404, "the API page needs swagger-ui-bundle (the dashboard extra)")
         return page("api_docs.html.j2", request, page_title="API", page="api", tz="UTC")
 
-    @app.get("/static/plotly.min.js", include_in_schema=False)
-    def plotly_static() -> FileResponse:
-        return FileResponse(plotly_js, media_type="text/javascript")
-
-    app.mount("/static", StaticFiles(directory=str(package / STATIC)), name="static")
+    @app.get("/static/{name:path}", include_in_schema=False)
+    def static(name: str, request: Request) -> Response:
+        """A static file, gzipped when the browser takes it, with its ETag; cached a week."""
+        return static_files.response(  # type: ignore[no-any-return]
+            name, request.headers.get("accept-encoding", ""), request.headers.get("if-none-match")
+        )
 
     def get_loop(loop_id: str) -> LoopReader:
         loop = loops.get(loop_id)
@@ -193,17 +210,29 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
         """A central loop whose store cannot be read now: 503 with the reason."""
         return JSONResponse({"detail": " ".join(str(error).split())}, status_code=503)
 
-    def page(name: str, request: Request, **context: Any) -> HTMLResponse:
+    def is_engineer(request: Request) -> bool:
+        """The actions are offered to an engineer's session only (the others cannot act)."""
+        user = security.current_user(request)
+        return user is not None and user.role == "engineer"
+
+    def render(name: str, request: Request, context: dict[str, Any]) -> str:
         user = security.current_user(request)
         session = security.session(request)
-        html = env.get_template(name).render(
+        return env.get_template(name).render(
             title=title,
             user=user,
             csrf=None if session is None else session.csrf,
             login_required=security.require_login,
             **context,
         )
-        return HTMLResponse(html)
+
+    def page(name: str, request: Request, **context: Any) -> HTMLResponse:
+        return HTMLResponse(render(name, request, context))
+
+    part = render  # a part of a page: the same rendering, without the page around it
+    from fuelid.dashboard.not_found import install_not_found  # a page's 404: an HTML page
+
+    install_not_found(app, render)
 
     # --- pages ---------------------------------------------------------------------------
 
@@ -231,39 +260,29 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
     )
     def loop_page(request: Request, loop_id: str) -> HTMLResponse:
         loop = get_loop(loop_id)
-        status = loop.status()
-        tz = status.get("timezone") or "UTC"
-        units = status.get("gain_units") or status.get("gains_units") or {}
-        settings = (status.get("service") or {}).get("settings") or {}
-        write_back = write_back_of(status)
-        identity = loop.identity()
-        # a central loop without its raw samples: a one-line hint instead of an empty chart
-        no_samples = identity.get("source") == "central" and loop.span() is None
+        context = loop_context(loop, engineer=is_engineer(request))
+        identity = context["lp"]
         return page(
             "loop.html.j2",
             request,
             page_title=loop.loop_id,
             page="loop",
-            tz=tz,
-            lp=identity,
-            no_samples=no_samples,
-            status=status,
-            summary=loop_summary(loop, status),
-            link_text=link_text(status, tz),
-            proposals=proposal_views(status, loop.recent_windows(200)),
-            units={"Kc": units.get("Kc", ""), "Ti": units.get("Ti", "")},
-            ms_target=settings.get("ms_target", "the site's ms_target"),
-            write_back_text=f"Write-back: {write_back or 'unknown'}.",
-            now_rows=now_rows(status, tz),
-            gains=gains_now(status)[0],
-            relayed=central_request_rows(status, tz),
-            # a proposal with a central request waiting: said on it, its buttons disabled
-            waiting=(
-                central_waiting(status, tz, time.time())
-                if identity.get("source") == "central"
-                else {}
-            ),
+            # a central loop without its raw samples: a one-line hint instead of an empty chart
+            no_samples=identity.get("source") == "central" and loop.span() is None,
+            summary=loop_summary(loop, context["status"]),
+            relayed=central_request_rows(context["status"], context["tz"]),
+            trend_minutes=f"{trend_minutes:g}",
+            **context,
         )
+
+    @app.get("/loops/{loop_id}/parts", include_in_schema=False, dependencies=[viewer])
+    def loop_parts(request: Request, loop_id: str) -> dict[str, Any]:
+        """The loop page's live parts as HTML, rendered as on the first view (loop_page)."""
+        loop = get_loop(loop_id)
+        context = loop_context(loop, engineer=is_engineer(request))
+        context["relayed"] = central_request_rows(context["status"], context["tz"])
+        html = {name: part(f"part_{name}.html.j2", request, context) for name in PARTS}
+        return {"html": html, "link_bands": context["link_bands"]}
 
     @app.get(
         "/loops/{loop_id}/windows/{window_id}",
@@ -319,17 +338,26 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
         return get_loop(loop_id).status()
 
     @app.get("/api/loops/{loop_id}/history", dependencies=[viewer])
-    def api_history(loop_id: str) -> dict[str, Any]:
-        """Everything the service did: the object ``fuelid online history --json`` prints."""
-        return get_loop(loop_id).history()
+    def api_history(loop_id: str, windows: int | None = None) -> dict[str, Any]:
+        """Everything the service did: the object ``fuelid online history --json`` prints.
+
+        ``windows``: only the newest this many windows (``counts`` still counts them all).
+        """
+        if windows is not None and windows < 1:
+            raise HTTPException(422, "windows must be at least 1")
+        return get_loop(loop_id).history(windows)
 
     @app.get("/api/loops/{loop_id}/trend", dependencies=[viewer])
     def api_trend(
-        loop_id: str, start: float | None = None, end: float | None = None, width: int = 1000
+        loop_id: str,
+        start: float | None = None,
+        end: float | None = None,
+        width: int = 1000,
+        minutes: float | None = None,
     ) -> dict[str, Any]:
         """Samples in [start, end) [plant s] thinned for a chart ``width`` pixels wide.
 
-        Without ``start``/``end``: the newest 10 minutes.
+        Without ``start``/``end``: the newest ``minutes`` (the dashboard's --trend-minutes).
         """
         loop = get_loop(loop_id)
         span = loop.span()
@@ -343,7 +371,8 @@ def create_app(loops: Loops, security: Security, *, title: str = "fuelid") -> An
                 "end": None,
             }
         stop = span[1] + 1e-6 if end is None else end
-        begin = max(span[0], stop - 600.0) if start is None else start
+        back = 60.0 * (trend_minutes if minutes is None else minutes)
+        begin = max(span[0], stop - back) if start is None else start
         if not (math.isfinite(begin) and math.isfinite(stop) and stop > begin):
             raise HTTPException(422, "start and end must be finite with end > start")
         return dict(trend(loop, begin, stop, width))

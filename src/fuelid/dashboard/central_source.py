@@ -53,7 +53,7 @@ from fuelid.central.requests import (
 )
 from fuelid.dashboard.central_db import CentralDB
 from fuelid.dashboard.central_views import CentralHistory, CentralStoreView
-from fuelid.dashboard.source import TREND_COLUMNS
+from fuelid.dashboard.source import TREND_COLUMNS, service_plant_file, without_folders
 from fuelid.dashboard.views import is_waiting
 from fuelid.errors import FuelidError
 from fuelid.io.clock import format_age, format_time
@@ -295,17 +295,33 @@ class CentralLoop:
             "last_send_wall": live.get("last_send_wall"),
             "requests": requests,
         }
-        return out
+        return without_folders(out)
 
-    def history(self) -> dict[str, Any]:
+    def plant_file(self) -> str | None:
+        """The plant file the site's service named (a path on the site's host, rarely here)."""
+        with self.db.reading():
+            history, _, _ = self._views()
+            return service_plant_file(history.state(SERVICE_KEY))
+
+    def history(self, windows: int | None = None) -> dict[str, Any]:
         """Everything the service did, by :func:`fuelid.online.report.history_json`."""
         from fuelid.online.report import history_json
 
         with self.db.reading():
             history, view, _ = self._views()
-            out = history_json(history, view)  # type: ignore[arg-type]
+            out = history_json(history, view, windows=windows)  # type: ignore[arg-type]
         out["site"] = {**out["site"], "store": None, "loop_id": self.loop_id}
         return out
+
+    def recent_events(self, limit: int) -> list[dict[str, Any]]:
+        """The newest ``limit`` events the site sent, oldest first."""
+        with self.db.reading():
+            _, view, _ = self._views()
+            rows = view.read_event_rows()
+        return [
+            {"time": r["time"], "kind": r["kind"], "detail": r["detail"]}
+            for r in rows[-int(limit) :]
+        ]
 
     def window(self, window_id: int) -> dict[str, Any] | None:
         """One window's row (``detail`` parsed); None when absent."""

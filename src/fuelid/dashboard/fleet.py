@@ -1,21 +1,28 @@
 """The fleet page's rows: one per loop, status chips, sorted by what needs attention first.
 
 Each loop gets the chips below, each at a level: ``alarm`` (act now), ``warn`` (look today),
-``unknown`` (not measured yet), ``info`` (worth knowing, nothing to do), ``ok``. The
-thresholds are the constants of this module.
+``unknown`` (not measured, or no longer: the measurement is missing), ``info`` (worth knowing,
+nothing to do), ``ok``. The thresholds are the constants of this module.
 
 - **service**: alarm when the service is stopped (its beat is stale) or the link is down;
   warn when a central loop's site has not been heard from for a few send intervals
   ("no contact": the site may well run on, but what the page shows is as of its last sync and
-  an action waits for it; look at its network today); unknown before the first sample; ok
-  when up.
+  an action waits for it; look at its network today); unknown before the first sample, and
+  while the link is "up" but its newest sample is older than the page's freshness bound
+  (``fuelid.dashboard.views.FRESH_SAMPLE_S``, 5 s of wall time, or three sampling periods when
+  longer: "no new sample for 9.3 s", where "link up (newest sample 9.3 s ago)" would mislead in
+  the seconds before a killed service is judged stopped); ok when up with a fresh sample.
 - **oscillation**: alarm when the last window oscillates.
 - **last write**: alarm when the last write failed, a write is held or a revert is requested.
 - **proposals**: warn while a proposal waits for a person (pending) or for its write (approved);
   info when the service's ``write_back`` is "off" (propose only: nothing is written, a proposal
-  is advice and waiting is its normal state).
+  is advice and waiting is its normal state), and for proposals out of date (the service would
+  not write them: "1 out of date, not written"); the states are those of the loop page's cards
+  (``fuelid.dashboard.views.proposal_state``), so the chip and the cards say the same.
 - **drift**: warn when K now / K the gains were tuned for is off 1 by more than `DRIFT_WARN`
-  (10 %) and by more than two standard errors.
+  (10 %) and by more than two standard errors; info while K is tracked but the gains in force
+  have no model of their own (as commissioned: the model is known once a proposal's gains are
+  written and verified).
 - **limits**: warn when the drive sat at its limits more than `LIMITS_WARN` (5 %) of the last
   window.
 - **IAE**: warn when the IAE per unit setpoint step is more than `IAE_WARN` (2) times its own
@@ -23,20 +30,31 @@ thresholds are the constants of this module.
 - **mode**: warn when the last window was in MAN or spent less than `AUTO_WARN` (90 %) of its
   time in AUTO.
 
+**A stopped service** (state "stopped"): the chips about the running loop (oscillation, drift,
+limits, IAE, mode: `LIVE_CHIPS`) turn unknown, "unknown since the stop at 08:15:03 CET (last:
+…)", the time that of the newest sample (plant time, the pages' only clock, in the site's zone);
+the service chip stays an alarm. What the store still proves keeps its colour: the last write
+and the proposals.
+
 **Severity order** (``severity_key``): loops with an alarm first, then with a warning, then
 those with something unknown, then those with only something to know (a propose-only loop's
-waiting proposals), then the healthy ones; within a level, the loop with more chips at
-that level first; then by the first chip at that level in the list's order above
-(``CHIP_ORDER``: a stopped service before an oscillation before a failed write); then by
-loop id. A loop with no contact is a warning led by its service chip: it sorts after every
-alarm and before the other warnings of as many chips (the service chip is first in the order).
+waiting proposals, an out-of-date proposal, a drift not measurable yet), then the healthy ones;
+within a level, the loop with more chips at that level first; then by the first chip at that
+level in the list's order above (``CHIP_ORDER``: a stopped service before an oscillation before
+a failed write); then by loop id. A loop with no contact is a warning led by its service chip:
+it sorts after every alarm and before the other warnings of as many chips (the service chip is
+first in the order). A stopped loop is an alarm of one chip (its service) unless its last write
+failed too: its greyed chips no longer add alarms.
 """
 
 from __future__ import annotations
 
 import statistics
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
+
+from fuelid.dashboard.views import link_text, proposal_state, quiet_sample_age, stop_time_text
 
 __all__ = [
     "AUTO_WARN",
@@ -45,6 +63,7 @@ __all__ = [
     "IAE_WARN",
     "LEVELS",
     "LIMITS_WARN",
+    "LIVE_CHIPS",
     "Chip",
     "fleet_row",
     "loop_chips",
@@ -64,6 +83,8 @@ CHIP_ORDER = (
     "mode",
 )
 """Ties within a level are broken by the first chip at that level in this order."""
+LIVE_CHIPS = ("oscillation", "drift", "limits", "IAE", "mode")
+"""Chips about the running loop: unknown while the service is stopped (module docstring)."""
 AUTO_WARN = 0.9
 """A window with less than this share of its time in AUTO warns [0-1]."""
 LIMITS_WARN = 0.05
@@ -92,18 +113,15 @@ def _pct(x: float) -> str:
 
 
 def _service_chip(status: dict[str, Any]) -> Chip:
-    link = status.get("link") or {}
-    state = link.get("state")
-    text = str(link.get("text") or state)
-    if state == "up":
-        text = f"link {text}"
+    state = (status.get("link") or {}).get("state")
+    text = link_text(status, status.get("timezone") or "UTC")
     if state in ("stopped", "link_down", "down"):
         return Chip("service", "alarm", text)
-    if state == "up":
+    if state == "up" and quiet_sample_age(status) is None:
         return Chip("service", "ok", text)
     if state == "no_contact":
         return Chip("service", "warn", text)
-    return Chip("service", "unknown", text)
+    return Chip("service", "unknown", text)  # no sample yet, or none fresh
 
 
 def _health_chips(status: dict[str, Any], recent_iae: list[float]) -> list[Chip]:
@@ -148,8 +166,12 @@ def _drift_chip(status: dict[str, Any]) -> Chip:
     trend = status.get("k_trend") or {}
     drift = trend.get("drift")
     if not isinstance(drift, dict) or drift.get("ratio") is None:
-        if trend.get("available"):
-            return Chip("drift", "unknown", "K tracked; the gains' own model not known yet")
+        if trend.get("available"):  # the drift's reference is set when a proposal is written
+            text = (
+                "K tracked; no model yet for the gains in force (known once a proposal's gains "
+                "are written and verified)"
+            )
+            return Chip("drift", "info", text)
         return Chip("drift", "unknown", "K not tracked yet")
     ratio, se = float(drift["ratio"]), float(drift.get("se") or 0.0)
     off = abs(ratio - 1.0)
@@ -157,18 +179,31 @@ def _drift_chip(status: dict[str, Any]) -> Chip:
     return Chip("drift", level, f"K now / K tuned for {ratio:.3f} ± {se:.3f}")
 
 
-def _proposal_chip(status: dict[str, Any]) -> Chip:
-    pending = status.get("pending_proposals") or []
-    if not pending:
+def _proposal_chip(status: dict[str, Any], windows: Sequence[dict[str, Any]]) -> Chip:
+    states = [proposal_state(p, status, windows) for p in status.get("pending_proposals") or []]
+    count = {name: sum(s.state == name for s in states) for name in ("waiting", "approved")}
+    late = sum(s.state == "out_of_date" for s in states)
+    propose_only = (status.get("write_back") or {}).get("setting") == "off"
+    parts = []
+    if count["waiting"]:
+        parts.append(
+            f"{count['waiting']} (propose only: nothing is written)"
+            if propose_only
+            else f"{count['waiting']} proposal(s) wait for approval"
+        )
+    if count["approved"]:
+        parts.append(
+            f"{count['approved']} approved (propose only: not written)"
+            if propose_only
+            else f"{count['approved']} approved, waiting for the write"
+        )
+    if late:
+        parts.append(f"{late} out of date, not written")
+    if not parts:
         return Chip("proposals", "ok", "none waiting")
-    waiting = [p for p in pending if p.get("status") == "pending"]
-    if waiting and (status.get("write_back") or {}).get("setting") == "off":
-        # propose only: a waiting proposal is advice, not something that holds a write up
-        text = f"{len(waiting)} (propose only: nothing is written)"
-        return Chip("proposals", "info", text)
-    if waiting:
-        return Chip("proposals", "warn", f"{len(waiting)} proposal(s) wait for approval")
-    return Chip("proposals", "warn", f"{len(pending)} approved, waiting for the write")
+    # the states' own levels: warn while one waits for a person or a write, info otherwise
+    level = min((s.level for s in states), key=LEVELS.index)
+    return Chip("proposals", level, "; ".join(parts))
 
 
 def _write_chip(status: dict[str, Any]) -> Chip:
@@ -190,7 +225,25 @@ def _write_chip(status: dict[str, Any]) -> Chip:
     return Chip("last write", level, text)
 
 
-def loop_chips(status: dict[str, Any], recent_iae: list[float]) -> list[Chip]:
+def _grey_when_stopped(chips: list[Chip], status: dict[str, Any]) -> list[Chip]:
+    """The :data:`LIVE_CHIPS` unknown while the service is stopped, their last text kept."""
+    link = status.get("link") or {}
+    if link.get("state") != "stopped":
+        return chips
+    since = (
+        "unknown: the service never ran"
+        if link.get("service") == "never started"
+        else f"unknown since the stop at {stop_time_text(status)}"
+    )
+    return [
+        Chip(c.name, "unknown", f"{since} (last: {c.text})") if c.name in LIVE_CHIPS else c
+        for c in chips
+    ]
+
+
+def loop_chips(
+    status: dict[str, Any], recent_iae: list[float], windows: Sequence[dict[str, Any]] = ()
+) -> list[Chip]:
     """Every chip of a loop, in :data:`CHIP_ORDER`.
 
     Parameters
@@ -200,14 +253,19 @@ def loop_chips(status: dict[str, Any], recent_iae: list[float]) -> list[Chip]:
     recent_iae : list of float
         IAE per unit setpoint step [s] of the recent windows that had a step (the median's
         sample).
+    windows : sequence of dict, optional
+        The loop's recent stored windows (``model_id``, ``t_to`` [plant s]): an open proposal's
+        age is judged on its window's end (else on its filing time, see
+        :func:`fuelid.dashboard.views.proposal_stale`).
     """
     chips = [
         _service_chip(status),
         *_health_chips(status, recent_iae),
         _drift_chip(status),
-        _proposal_chip(status),
+        _proposal_chip(status, windows),
         _write_chip(status),
     ]
+    chips = _grey_when_stopped(chips, status)
     return sorted(chips, key=lambda c: CHIP_ORDER.index(c.name))
 
 
@@ -222,10 +280,14 @@ def severity_key(chips: list[Chip], loop_id: str) -> tuple[Any, ...]:
 
 
 def fleet_row(
-    loop_id: str, site_name: str, status: dict[str, Any], recent_iae: list[float]
+    loop_id: str,
+    site_name: str,
+    status: dict[str, Any],
+    recent_iae: list[float],
+    windows: Sequence[dict[str, Any]] = (),
 ) -> dict[str, Any]:
-    """One row of the fleet page (and of ``/api/loops``)."""
-    chips = loop_chips(status, recent_iae)
+    """One row of the fleet page (and of ``/api/loops``); ``windows`` as :func:`loop_chips`."""
+    chips = loop_chips(status, recent_iae, windows)
     worst = next((lvl for lvl in LEVELS if any(c.level == lvl for c in chips)), "ok")
     return {
         "loop_id": loop_id,

@@ -13,6 +13,10 @@ shown from the local store (read live: its samples stream, an action is applied 
 than relayed at the site's next sync); the central copy is listed among the loops not shown,
 with that reason. A central store lost while serving hides nothing local: its loops are listed
 as not shown with the reason until it is back.
+
+``prefetch_reports=True`` (what the server asks for) makes the newest windows' HTML reports of
+every local store ahead, in a background thread
+(:class:`~fuelid.dashboard.window_report.ReportPrefetcher`), stopped by :meth:`Loops.close`.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from fuelid.errors import ConfigError, FuelidError
 
 if TYPE_CHECKING:
     from fuelid.dashboard.central_db import CentralLoops
+    from fuelid.dashboard.window_report import ReportPrefetcher
 
 __all__ = ["WATCH_EVERY_S", "Loops"]
 
@@ -46,6 +51,8 @@ class Loops:
         Opens one store file as a :class:`LoopReader` (the SQLite reader by default).
     central : CentralLoops, optional
         The loops of a central store, shown beside the local ones.
+    prefetch_reports : bool
+        Make each local store's newest windows' reports ahead (the module docstring).
     """
 
     def __init__(
@@ -53,6 +60,7 @@ class Loops:
         paths: Iterable[str | Path],
         opener: Callable[[Path], LoopReader] = SQLiteLoop,
         central: CentralLoops | None = None,
+        prefetch_reports: bool = False,
     ) -> None:
         self._opener = opener
         self.central = central
@@ -63,6 +71,7 @@ class Loops:
         self._tried: dict[Path, float] = {}
         self.folders: list[Path] = []
         self._scanned = 0.0
+        self._prefetch: ReportPrefetcher | None = None
         files = []
         for raw in paths:
             path = Path(raw)
@@ -79,6 +88,10 @@ class Loops:
             self.close()
             raise ConfigError(str(error)) from None
         self.scan(force=True)
+        if prefetch_reports:
+            from fuelid.dashboard.window_report import ReportPrefetcher
+
+            self._prefetch = ReportPrefetcher(self.local_loops).start()
 
     def _add(self, path: Path) -> None:
         key = path.resolve()
@@ -117,6 +130,11 @@ class Loops:
                     except FuelidError as error:
                         self._tried[key] = mtime
                         self.refused[path.name] = " ".join(str(error).split())
+
+    def local_loops(self) -> list[LoopReader]:
+        """The loops of the local stores now (not the central store's)."""
+        with self._lock:
+            return list(self._loops.values())
 
     def _central_ids(self) -> list[str]:
         """The central loops shown: reachable, and not shadowed by a local store."""
@@ -160,7 +178,10 @@ class Loops:
         return out
 
     def close(self) -> None:
-        """Close every store (and the central connection)."""
+        """Close every store (and the central connection); the prefetch stops first."""
+        prefetch, self._prefetch = self._prefetch, None
+        if prefetch is not None:
+            prefetch.stop()
         for loop in self._loops.values():
             loop.close()
         self._loops.clear()

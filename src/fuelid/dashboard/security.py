@@ -6,7 +6,8 @@
   restart logs everybody out). A session ends after :data:`SESSION_IDLE_S` without a request,
   and at the latest :data:`SESSION_MAX_S` after the login.
 - :class:`LoginLimiter` (there too): at most :data:`LOGIN_MAX_FAILURES` failed logins in
-  :data:`LOGIN_WINDOW_S` per client address and per name, then HTTP 429 with ``Retry-After``.
+  :data:`LOGIN_WINDOW_S` per client address and name together, and :data:`LOGIN_MAX_SHARED` per
+  address and per name alone, then HTTP 429 with ``Retry-After``.
 - :class:`Security`: the FastAPI dependencies :meth:`~Security.require_viewer` (pages and data)
   and :meth:`~Security.require_engineer` (actions: approve, reject, revert), which also checks the
   session's CSRF token (header :data:`CSRF_HEADER` or form field :data:`CSRF_FIELD`).
@@ -44,6 +45,7 @@ except ImportError as exc:  # pragma: no cover - the dashboard extra is installe
 # the sessions' names, where the security layer's users found them before they moved
 from fuelid.dashboard.sessions import (
     LOGIN_MAX_FAILURES,
+    LOGIN_MAX_SHARED,
     LOGIN_WINDOW_S,
     SESSION_IDLE_S,
     SESSION_MAX_S,
@@ -60,6 +62,7 @@ __all__ = [
     "CSRF_HEADER",
     "FORM_MAX_BYTES",
     "LOGIN_MAX_FAILURES",
+    "LOGIN_MAX_SHARED",
     "LOGIN_WINDOW_S",
     "NOT_ACCEPTED",
     "SECURITY_HEADERS",
@@ -417,7 +420,7 @@ def auth_router(security: Security) -> APIRouter:
         if user is None:
             security.limiter.failure(address, name)
             return login_page(next_path, name, NOT_ACCEPTED, status.HTTP_401_UNAUTHORIZED)
-        security.limiter.success(address)
+        security.limiter.success(address, name)
         record = security.users.lookup(user.name) if security.users is not None else None
         session = security.sessions.create(user, record.sha256 if record is not None else "")
         old = request.cookies.get(SESSION_COOKIE)

@@ -55,6 +55,7 @@ def serve(
     on_ready: Callable[[str, list[str]], None] | None = None,
     central: str | None = None,
     archive: Path | None = None,
+    trend_minutes: float = 10.0,
 ) -> None:
     """Serve the dashboard until interrupted.
 
@@ -76,6 +77,8 @@ def serve(
         The central store's libpq URL: its loops are shown beside the local stores.
     archive : Path, optional
         The raw archive (the folder ``fuelid archive`` writes) the central loops' trends read.
+    trend_minutes : float
+        The span the loop pages' live trend follows [min].
 
     Raises
     ------
@@ -104,7 +107,7 @@ def serve(
     loops = open_loops(stores, central, archive)
     try:
         sock = _bind(host, port)
-        app = create_app(loops, security)
+        app = create_app(loops, security, trend_minutes=trend_minutes)
         config = uvicorn.Config(
             app,
             log_level="warning",
@@ -146,7 +149,7 @@ def open_loops(
         except CentralError as error:
             raise ConfigError(f"--central: {error}") from None
     try:
-        return Loops(stores, central=fleet)
+        return Loops(stores, central=fleet, prefetch_reports=True)
     except BaseException:
         if fleet is not None:
             fleet.close()

@@ -40,6 +40,27 @@ TREND_COLUMNS = ("y", "setpoint", "u", "fuel_temperature")
 _LOD_COLUMNS = {"y": "y", "setpoint": "sp", "u": "u", "fuel_temperature": "tf"}
 
 
+def service_plant_file(record: dict[str, Any] | None) -> str | None:
+    """The plant file a service record names (its ``settings.plant_file``), or None."""
+    path = ((record or {}).get("settings") or {}).get("plant_file")
+    return str(path) if path else None
+
+
+def without_folders(status: dict[str, Any]) -> dict[str, Any]:
+    """``status`` with the service's plant file named without its folder (no page shows a path).
+
+    >>> without_folders({"service": {"settings": {"plant_file": "/srv/p/line2.toml"}}})
+    {'service': {'settings': {'plant_file': 'line2.toml'}}}
+    """
+    service = status.get("service") or {}
+    settings = service.get("settings") or {}
+    path = settings.get("plant_file")
+    if not path:
+        return status
+    name = str(path).replace("\\", "/").rsplit("/", 1)[-1]  # a Windows service's path too
+    return {**status, "service": {**service, "settings": {**settings, "plant_file": name}}}
+
+
 class Trend(dict[str, Any]):
     """One trend answer (a plain dict, JSON as it is).
 
@@ -65,8 +86,22 @@ class LoopReader(Protocol):
         """The loop now, shaped as ``fuelid online status --json``."""
         ...
 
-    def history(self) -> dict[str, Any]:
-        """Everything the service did, shaped as ``fuelid online history --json``."""
+    def history(self, windows: int | None = None) -> dict[str, Any]:
+        """Everything the service did, shaped as ``fuelid online history --json``.
+
+        ``windows``: only the newest this many windows (None: all).
+        """
+        ...
+
+    def recent_events(self, limit: int) -> list[dict[str, Any]]:
+        """The newest ``limit`` events (``time`` [plant s], ``kind``, ``detail``), oldest first."""
+        ...
+
+    def plant_file(self) -> str | None:
+        """The service's plant file as its host names it; None: the reference plant, no service.
+
+        Only the window's report reads it; no page shows it (``status`` gives its name only).
+        """
         ...
 
     def window(self, window_id: int) -> dict[str, Any] | None:
@@ -195,15 +230,29 @@ class SQLiteLoop:
 
         out = status_json(self.online, self.store, now_wall)
         out["site"] = {**out["site"], "store": None, "loop_id": self.loop_id}  # no file paths
-        return out
+        return without_folders(out)
 
-    def history(self) -> dict[str, Any]:
+    def plant_file(self) -> str | None:
+        """The service's plant file as its record names it (None: the reference plant)."""
+        from fuelid.online.liveness import SERVICE_KEY
+
+        return service_plant_file(self.online.state(SERVICE_KEY))
+
+    def history(self, windows: int | None = None) -> dict[str, Any]:
         """Everything the service did, by :func:`fuelid.online.report.history_json`."""
         from fuelid.online.report import history_json
 
-        out = history_json(self.online, self.store)
+        out = history_json(self.online, self.store, windows=windows)
         out["site"] = {**out["site"], "store": None, "loop_id": self.loop_id}
         return out
+
+    def recent_events(self, limit: int) -> list[dict[str, Any]]:
+        """The newest ``limit`` events, oldest first (read newest first, by the time index)."""
+        rows = self._query(
+            "SELECT time, kind, detail FROM events ORDER BY time DESC, rowid DESC LIMIT ?",
+            (int(limit),),
+        )
+        return [{"time": t, "kind": k, "detail": d} for t, k, d in reversed(rows)]
 
     def window(self, window_id: int) -> dict[str, Any] | None:
         """One window's row with its ``detail`` parsed; None when absent."""

@@ -8,8 +8,11 @@ Browsers allow six HTTP/1.1 connections per site across all tabs, so a page open
   every ``POLL_S``;
 - ``status``: the loop's state (``link`` as ``online status`` gives it, the fleet chips), every
   ``STATUS_EVERY_S`` and at once on connecting;
-- ``history``: the counts of windows, proposals and writes changed (the page re-reads the
-  history it draws).
+- ``windows``, ``proposals``, ``writes``: that part of the store changed (a window judged, a
+  proposal filed, approved, written or superseded, a write made or verified); ``events``: the
+  link's or the service's state changed (a link event, a start or a stop). The data is the
+  store's counts; the page re-reads the parts it shows (:func:`changed_topics`);
+- ``history``: any of the above (kept for pages and tools written before the typed events).
 
 One ``Feed`` per loop reads the store for all its subscribers (three browsers cost the
 store what one does), in a worker thread so that the event loop never waits on SQLite, and only
@@ -26,7 +29,7 @@ from typing import Any
 from fuelid.dashboard.source import LoopReader
 from fuelid.io.jsonsafe import json_ready
 
-__all__ = ["MAX_BATCH", "POLL_S", "STATUS_EVERY_S", "Feed", "Feeds"]
+__all__ = ["MAX_BATCH", "POLL_S", "STATUS_EVERY_S", "TOPICS", "Feed", "Feeds", "changed_topics"]
 
 POLL_S = 0.2
 """Interval between reads of new samples [s] (the latency a sample adds beyond its commit)."""
@@ -36,6 +39,43 @@ MAX_BATCH = 5000
 """Samples per read at most (a page that connects late gets the backlog in pieces)."""
 QUEUE_EVENTS = 256
 """Events kept for a slow subscriber; beyond, the oldest are dropped (a tab in the background)."""
+TOPICS = ("windows", "proposals", "writes", "events")
+"""The typed change events, in the order they are sent."""
+
+
+def _state_of(status: dict[str, Any]) -> tuple[Any, Any]:
+    link = status.get("link") or {}
+    return link.get("state"), link.get("service")
+
+
+def changed_topics(before: dict[str, Any] | None, after: dict[str, Any]) -> list[str]:
+    """The :data:`TOPICS` whose part of the store differs between two status events' data.
+
+    ``before`` None (the first status): nothing changed.
+
+    >>> a = {"counts": {"windows": 1, "proposals_pending": 0}, "link": {"state": "up"}}
+    >>> b = {"counts": {"windows": 2, "proposals_pending": 1}, "link": {"state": "stopped"}}
+    >>> changed_topics(a, b)
+    ['windows', 'proposals', 'events']
+    >>> changed_topics(a, a), changed_topics(None, b)
+    ([], [])
+    """
+    if before is None:
+        return []
+    old, new = before.get("counts") or {}, after.get("counts") or {}
+
+    def moved(prefix: str) -> bool:
+        keys = {k for k in (*old, *new) if k.startswith(prefix)}
+        return any(old.get(k) != new.get(k) for k in keys)
+
+    out = [
+        t
+        for t, p in (("windows", "windows"), ("proposals", "proposals"), ("writes", "writes"))
+        if moved(p) or (t == "windows" and moved("accepted"))
+    ]
+    if _state_of(before) != _state_of(after):
+        out.append("events")
+    return out
 
 
 class Feed:
@@ -81,7 +121,7 @@ class Feed:
 
     async def _run(self) -> None:
         cursor = await asyncio.to_thread(self.loop.cursor)
-        counts: Any = None
+        previous: dict[str, Any] | None = None
         next_status = 0.0
         clock = asyncio.get_running_loop().time
         while self._queues:
@@ -104,9 +144,12 @@ class Feed:
                 status = await asyncio.to_thread(self._status)
                 self.last_status = status
                 self._publish("status", status)
-                if counts is not None and status.get("counts") != counts:
+                topics = changed_topics(previous, status)
+                for topic in topics:
+                    self._publish(topic, status.get("counts"))
+                if topics:
                     self._publish("history", status.get("counts"))
-                counts = status.get("counts")
+                previous = status
             if len(batch) < MAX_BATCH:
                 await asyncio.sleep(POLL_S)
 

@@ -1,11 +1,21 @@
 """The HTML report of one window, as ``fuelid report`` writes it for a log.
 
 The window's samples are analysed as a log (both identifications, the tuning, the check over
-fuel temperature) and rendered with the report's template, the figures embedded. The plant file
-is the one the service ran with (its path and SHA-256 are in the service's record), when it is
-still there with the same hash; otherwise the built-in reference plant stands in, and the report
-says so, as ``fuelid report`` does without ``--plant``. The last few analyses are kept in memory
-(an analysis takes seconds); the page is rendered afresh each time.
+fuel temperature) and rendered with the report's template, the figures embedded. The gains come
+from the estimator the service's gate judged the window with (its ``detail.method``: "oe" or
+"pem"), so the report names the model the window page names. The plant file is the one the
+service ran with (its path and SHA-256 are in the service's record), when it is still there with
+the same hash; otherwise the built-in reference plant stands in, and the report says so, as
+``fuelid report`` does without ``--plant``. The page names the plant file by its base name and
+SHA-256 prefix, never by its folder: no server path reaches a page.
+
+An analysis takes seconds (about 2.5 s on a quiet two-core machine for a 10-minute window at
+50 Hz, the figures most of it; docs/benchmarks/window_report.md), so the last
+:data:`CACHED_REPORTS` analyses are kept in memory, and a :class:`ReportPrefetcher` (which the
+dashboard's server starts, through :class:`~fuelid.dashboard.registry.Loops`) makes the newest
+windows' ahead, in the background, as soon as the service has judged them: their first request
+is then served from memory. A request for a window being made waits for it rather than making
+it twice. The page is rendered afresh each time.
 
 When the online service filed a proposal from this window (the proposal's ``model_id`` is the
 window's), the page's notices say so, with the proposal's gains in the same ideal form as the
@@ -18,13 +28,14 @@ recorded: :func:`fuelid.online.report.decision_json`).
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 from collections import OrderedDict
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 from fuelid.dashboard.source import LoopReader
 from fuelid.errors import FuelidError
@@ -34,19 +45,50 @@ if TYPE_CHECKING:
     from fuelid.htmlreport import ReportFigure
     from fuelid.model import ProcessModel
     from fuelid.tuning import PISettings
+    from fuelid.tuning.cases import CaseCache
     from fuelid.workflow import AnalysisSettings
 
-__all__ = ["CACHED_REPORTS", "SAME_GAINS", "proposal_notice", "window_report_html"]
+__all__ = [
+    "CACHED_PLANTS",
+    "CACHED_REPORTS",
+    "PREFETCH_EVERY_S",
+    "PREFETCH_MAX",
+    "PREFETCH_NEWEST",
+    "SAME_GAINS",
+    "ReportPrefetcher",
+    "plant_file_name",
+    "proposal_notice",
+    "report_method",
+    "window_report_html",
+]
 
-CACHED_REPORTS = 8
-"""Analyses kept in memory."""
+CACHED_REPORTS = 12
+"""Analyses kept in memory (about 3.3 MB each for a 10-minute window at 50 Hz)."""
+PREFETCH_EVERY_S = 5.0
+"""How often the prefetcher looks for a newly judged window [s]."""
+PREFETCH_NEWEST = 3
+"""Windows of each loop made ahead: the newest three (a proposal rests on two or three)."""
+PREFETCH_MAX = CACHED_REPORTS // 2
+"""Windows made ahead in all, the newest of every loop first: half the cache, the other half
+left to the windows opened on request."""
+CACHED_PLANTS = 4
+"""Plants whose linearisations are kept (one per plant file, a few hundred kB each)."""
 SAME_GAINS = 0.01
 """Gains within this of each other (relative, Kc and Ti each) are the same gains [-]."""
 
-_cache: OrderedDict[tuple[str, str, int], tuple[LogAnalysis, list[ReportFigure]] | str] = (
-    OrderedDict()
-)
+_Key = tuple[str, str, int]
+_Analysed = tuple[LogAnalysis, list["ReportFigure"]] | str
+_cache: OrderedDict[_Key, _Analysed] = OrderedDict()
+_running: dict[_Key, threading.Event] = {}
+"""The analyses being made now: a second request waits for the first one's."""
 _lock = threading.Lock()
+_plant_caches: OrderedDict[str, CaseCache] = OrderedDict()
+"""The plants' linearisations by plant file SHA-256: the check over temperature and the
+schedule of every report on one plant share them (each is the same plant at the same point)."""
+_asked: list[_Key] = []
+"""The analyses being made for a request now (not ahead): the prefetcher waits for them."""
+_no_request = threading.Event()
+_no_request.set()
 
 
 @dataclass
@@ -77,24 +119,67 @@ def _error_page(title: str, reason: str) -> str:
     )
 
 
-def _plant(loop: LoopReader) -> Any:
-    """The service's plant file when it is still there unchanged, else the reference plant."""
+def plant_file_name(path: str, digest: str | None) -> str:
+    """How a page names a plant file: its base name and SHA-256 prefix, never its folder.
+
+    Examples
+    --------
+    >>> plant_file_name("/srv/plants/tunnel2.toml", "9f86d081884c7d659a2feaa0c55ad015")
+    'tunnel2.toml (SHA-256 9f86d081884c)'
+    >>> plant_file_name("tunnel2.toml", None)
+    'tunnel2.toml'
+    """
+    name = path.replace("\\", "/").rsplit("/", 1)[-1]  # a Windows service's path too
+    return f"{name} (SHA-256 {digest[:12]})" if digest else name
+
+
+def _plant(loop: LoopReader) -> tuple[Any, CaseCache]:
+    """The service's plant file when it is still there unchanged, else the reference plant.
+
+    The plant source's ``path`` is what the page shows (:func:`plant_file_name`): the file is
+    loaded here, by its full path, and nothing later reads it again. With it, the plant's
+    linearisations kept from the reports before (one cache per plant file's SHA-256).
+    """
     from fuelid.online.liveness import plant_hash
     from fuelid.plant import load_plant_config
     from fuelid.workflow import PlantSource
 
     settings = (loop.status().get("service") or {}).get("settings") or {}
-    path, digest = settings.get("plant_file"), settings.get("plant_hash")
+    path, digest = loop.plant_file(), settings.get("plant_hash")
     if path and digest and Path(path).is_file() and plant_hash(path) == digest:
-        return PlantSource(load_plant_config(path), path=str(path))
-    return PlantSource(load_plant_config(None))
+        plant = PlantSource(load_plant_config(path), path=plant_file_name(str(path), digest))
+        return plant, _linearisations(str(digest))
+    return PlantSource(load_plant_config(None)), _linearisations("built-in reference plant")
 
 
-def _settings(loop: LoopReader) -> AnalysisSettings:
-    """The report's settings from the service's: its rule, PI period and the block's spans.
+def _linearisations(plant_key: str) -> CaseCache:
+    """The linearisations of one plant the reports share (a few plants at most are kept)."""
+    with _lock:
+        cache = _plant_caches.pop(plant_key, None)
+        _plant_caches[plant_key] = {} if cache is None else cache  # the newest last
+        while len(_plant_caches) > CACHED_PLANTS:
+            _plant_caches.popitem(last=False)
+        return _plant_caches[plant_key]
+
+
+def report_method(row: Mapping[str, Any]) -> Literal["oe", "pem"]:
+    """The estimator the service's gate judged the window with: "oe" or "pem" ("oe" unfitted).
+
+    >>> report_method({"detail": {"method": "pem"}})
+    'pem'
+    >>> report_method({"detail": {"reason": "too few samples"}})
+    'oe'
+    """
+    method = (row.get("detail") or {}).get("method")
+    return "pem" if method == "pem" else "oe"
+
+
+def _settings(loop: LoopReader, row: Mapping[str, Any]) -> AnalysisSettings:
+    """The report's settings from the service's: its rule, PI period, spans and estimator.
 
     The site file's control period and spans are the user's facts (none is assumed); a service
     that wrote no settings leaves the period unknown, and the page then says why it has none.
+    The gains come from the window's own estimator (:func:`report_method`).
     """
     from fuelid.workflow import AnalysisSettings
 
@@ -103,6 +188,7 @@ def _settings(loop: LoopReader) -> AnalysisSettings:
     controller = settings.get("controller") or {}
     rule = settings.get("rule")
     return AnalysisSettings(
+        tune_from=report_method(row),
         accept_signals=True,
         rule=rule if isinstance(rule, str) else AnalysisSettings.rule,
         control_period=sampling.get("control_period_s"),
@@ -111,35 +197,73 @@ def _settings(loop: LoopReader) -> AnalysisSettings:
     )
 
 
-def _analysed(
-    loop: LoopReader, row: dict[str, Any]
-) -> tuple[LogAnalysis, list[ReportFigure]] | str:
-    """The window's analysis and figures (kept in memory), or its explanation page."""
+def _key(loop: LoopReader, row: Mapping[str, Any]) -> _Key:
+    return (loop.loop_id, str(loop.identity().get("store_uuid")), int(row["id"]))
+
+
+def _analyse(loop: LoopReader, row: dict[str, Any]) -> _Analysed:
+    """The window's analysis and figures, or its explanation page (nothing kept)."""
     from fuelid.htmlreport import ReportFigure, _png, report_figures
     from fuelid.store.base import iodata_from_samples
     from fuelid.workflow import analyse_log
 
-    key = (loop.loop_id, str(loop.identity().get("store_uuid")), int(row["id"]))
-    with _lock:
-        if key in _cache:
-            _cache.move_to_end(key)
-            return _cache[key]
     samples = loop.samples(float(row["t_from"]), float(row["t_to"]))
     title = f"Window {row['id']} of loop {loop.loop_id}"
-    done: tuple[LogAnalysis, list[ReportFigure]] | str
     try:
         data = iodata_from_samples(samples, loop.identity().get("period_s"), source=title)
-        analysis = analyse_log(data, _plant(loop), _settings(loop))
+        plant, linearisations = _plant(loop)
+        analysis = analyse_log(data, plant, _settings(loop, row), cache=linearisations)
         drawn = report_figures(analysis)
         figures = [ReportFigure(k, caption, _png(fig)) for k, (fig, caption) in drawn.items()]
-        done = (analysis, figures)
     except FuelidError as error:
-        done = _error_page(title, f"the report could not be made: {error}")
-    with _lock:
-        _cache[key] = done
-        while len(_cache) > CACHED_REPORTS:
-            _cache.popitem(last=False)
+        return _error_page(title, f"the report could not be made: {error}")
+    return (analysis, figures)
+
+
+def _analysed(loop: LoopReader, row: dict[str, Any], ahead: bool = False) -> _Analysed:
+    """The window's analysis and figures (kept in memory), or its explanation page.
+
+    Made once: a request for a window another thread is making waits for that one. ``ahead``:
+    made by the prefetcher, which lets a request's analysis go first (:func:`_asking`).
+    """
+    key = _key(loop, row)
+    while True:
+        with _lock:
+            if key in _cache:
+                _cache.move_to_end(key)
+                return _cache[key]
+            running = _running.get(key)
+            if running is None:
+                running = _running[key] = threading.Event()
+                break
+        running.wait()  # then read it kept (or make it, if it failed or was dropped)
+    try:
+        with contextlib.nullcontext() if ahead else _asking(key):
+            done = _analyse(loop, row)
+        with _lock:
+            _cache[key] = done
+            while len(_cache) > CACHED_REPORTS:
+                _cache.popitem(last=False)
+    finally:
+        with _lock:
+            _running.pop(key, None)
+        running.set()
     return done
+
+
+@contextlib.contextmanager
+def _asking(key: _Key) -> Iterator[None]:
+    """A request's analysis under way: the prefetcher starts none meanwhile."""
+    with _lock:
+        _asked.append(key)
+        _no_request.clear()
+    try:
+        yield
+    finally:
+        with _lock:
+            _asked.remove(key)
+            if not _asked:
+                _no_request.set()
 
 
 def window_report_html(loop: LoopReader, row: dict[str, Any]) -> str:
@@ -155,6 +279,87 @@ def window_report_html(loop: LoopReader, row: dict[str, Any]) -> str:
         return analysed
     analysis, figures = analysed
     return render_report(_with_notices(analysis, _proposal_notices(loop, row, analysis)), figures)
+
+
+# --- made ahead -------------------------------------------------------------------------------
+
+
+class ReportPrefetcher:
+    """Makes the reports of the loops' newest windows ahead, in a background thread.
+
+    Every ``every_s`` seconds the newest :data:`PREFETCH_NEWEST` windows of each loop
+    ``loops()`` gives are looked at, the newest of every loop first, at most
+    :data:`PREFETCH_MAX` in all (the cache keeps them, :data:`CACHED_REPORTS`); one not made yet
+    is analysed and kept, so the first request of a window an operator opens after a proposal
+    (which rests on the newest few windows) is served from memory. A request's own analysis
+    goes first: none is started ahead while one runs. Each window is made once:
+    one dropped from the cache since is made again only on request. The cost is one analysis
+    per judged window (about 3 s of one core per window of the service's schedule, every 5
+    minutes by default), and a few at the dashboard's start, spent only on local stores (the
+    loops ``loops()`` gives: a central loop's samples may not be at hand).
+
+    Parameters
+    ----------
+    loops : callable
+        The loops to watch, called at every look (the local stores now).
+    every_s : float
+        How often to look [s].
+    """
+
+    def __init__(
+        self, loops: Callable[[], Sequence[LoopReader]], every_s: float = PREFETCH_EVERY_S
+    ) -> None:
+        self._loops = loops
+        self.every_s = every_s
+        self._made: set[_Key] = set()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def wanted(self) -> list[tuple[_Key, LoopReader, dict[str, Any]]]:
+        """The windows to have ready: the newest of every loop first, then the next newest."""
+        ranked = []
+        for loop in self._loops():
+            newest_first = reversed(loop.recent_windows(PREFETCH_NEWEST))
+            ranked += [(rank, loop, row) for rank, row in enumerate(newest_first)]
+        ranked.sort(key=lambda item: item[0])  # stable: the loops' order within a rank
+        return [(_key(loop, row), loop, row) for _, loop, row in ranked[:PREFETCH_MAX]]
+
+    def run_once(self) -> int:
+        """Make the reports of :meth:`wanted` not made yet; how many were made."""
+        wanted = self.wanted()
+        made = 0
+        for key, loop, row in wanted:
+            if self._stop.is_set():
+                break
+            if key in self._made:
+                continue
+            while not _no_request.wait(0.2):  # a request's analysis goes first
+                if self._stop.is_set():
+                    return made
+            self._made.add(key)
+            _analysed(loop, row, ahead=True)
+            made += 1
+        self._made &= {key for key, _, _ in wanted}  # what is no longer wanted is forgotten
+        return made
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            with contextlib.suppress(Exception):  # a store closed or replaced: look again
+                self.run_once()
+            self._stop.wait(self.every_s)
+
+    def start(self) -> ReportPrefetcher:
+        """Start looking, in a daemon thread; returns itself."""
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="report-prefetch", daemon=True)
+            self._thread.start()
+        return self
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        """Stop looking; waits up to ``timeout_s`` [s] for an analysis under way to end."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout_s)
 
 
 # --- the online proposals from the window ---------------------------------------------------

@@ -32,7 +32,9 @@ from fuelid.errors import FuelidError
 from fuelid.io.jsonsafe import json_ready
 from fuelid.online.context import TRACKER_OBSERVATIONS, observation_of
 from fuelid.online.liveness import LINK_FRESH_S, SERVICE_KEY, loop_state
+from fuelid.online.plc_gains import plc_gains_json
 from fuelid.online.tracking import KTracker, TrackingError
+from fuelid.plc.gain_reading import PLC_GAINS_KEY
 from fuelid.store.online import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
 from fuelid.tuning.block import BlockForm, block_units, to_block
@@ -65,6 +67,7 @@ ONLINE_UNITS: dict[str, str] = {
     "Kc": "the PLC block's units (see gain_units)",
     "Ti": "the PLC block's units (see gain_units)",
     "decision": "Kc V per L/min, Ti s (the ideal form, whatever the block's); control_period_s s",
+    "ideal": "Kc V per L/min, Ti s (the ideal form, whatever the block's)",
     "Ms": "-",
     "health": "units in the key names (_s, _Lpm, _percent); shares 0-1",
 }
@@ -409,9 +412,11 @@ def status_json(
         (each with ``target`` and ``gain_units``), ``requests`` (the waiting ones),
         ``loop_health``, ``counts``, ``write_back`` (``setting`` and ``setting_from``: "site
         file", "service" or None; ``current_gains`` and ``last_known_good`` in the ideal form
-        [V per L/min, s], ``current_gains_block`` in the block's units), ``last_write``,
-        ``gains_units``, ``units`` (see the module docstring), ``central`` (the sync to the
-        central store: :func:`central_json`).
+        [V per L/min, s], ``current_gains_block`` and ``last_known_good_block`` in the block's
+        units), ``last_write``, ``plc_gains`` (the PLC's kc and ti tags as the recorder last
+        read them: :func:`~fuelid.online.plc_gains.plc_gains_json`; None when the site reads
+        no such tags or nothing was read yet), ``gains_units``, ``units`` (see the module
+        docstring), ``central`` (the sync to the central store: :func:`central_json`).
     """
     last = history.last_window()
     last_window = None
@@ -432,11 +437,6 @@ def status_json(
         if record is None
         else {**record, "state": link["service"], "beat_age_s": link["beat_age_s"]}
     )
-    setting_from = None
-    if settings.get("write_back") is not None:
-        setting_from = "site file"
-    elif merged.get("write_back") is not None:
-        setting_from = "service"
     controller = merged.get("controller")
     out = {
         "site": _site(store),
@@ -452,24 +452,38 @@ def status_json(
         "requests": history.requests(status="waiting"),
         "loop_health": health,
         "counts": history.counts(),
-        "write_back": {
-            "setting": merged.get("write_back"),
-            "setting_from": setting_from,
-            "current_gains": history.state("current_gains"),
-            # the same gains as the PLC's block holds them (None when the controller is unknown)
-            "current_gains_block": _target(history.state("current_gains"), _controller(controller))[
-                0
-            ],
-            "last_known_good": history.state("last_known_good"),
-            "write_held": history.state("write_held"),
-            "revert_requested": history.state("revert_requested"),
-        },
+        "write_back": _write_back_json(history, settings, merged),
         "last_write": write_json(writes[0]) if writes else None,
+        "plc_gains": plc_gains_json(history.state(PLC_GAINS_KEY), _controller(controller)),
         "central": central_json(store, now),
         "gains_units": merged.get("gains_units"),
         "units": ONLINE_UNITS,
     }
     return json_ready(out)  # type: ignore[no-any-return]
+
+
+def _write_back_json(
+    history: OnlineHistory, given: dict[str, Any], merged: dict[str, Any]
+) -> dict[str, Any]:
+    """The status' ``write_back``: the setting and where it comes from, the gains it keeps."""
+    setting_from = None
+    if given.get("write_back") is not None:
+        setting_from = "site file"
+    elif merged.get("write_back") is not None:
+        setting_from = "service"
+    controller = _controller(merged.get("controller"))
+    current, good = history.state("current_gains"), history.state("last_known_good")
+    return {
+        "setting": merged.get("write_back"),
+        "setting_from": setting_from,
+        "current_gains": current,
+        # the same gains as the PLC's block holds them (None when the controller is unknown)
+        "current_gains_block": _target(current, controller)[0],
+        "last_known_good": good,
+        "last_known_good_block": _target(good, controller)[0],
+        "write_held": history.state("write_held"),
+        "revert_requested": history.state("revert_requested"),
+    }
 
 
 def central_json(store: SQLiteStore, now: float | None = None) -> dict[str, Any] | None:
@@ -524,8 +538,12 @@ def history_json(
     store: SQLiteStore,
     *,
     settings: dict[str, Any] | None = None,
+    windows: int | None = None,
 ) -> dict[str, Any]:
     """Everything the service did, oldest first (``fuelid online history --json``).
+
+    ``windows``: only the newest this many windows (the dashboard's charts page a year of them);
+    every window by default. ``counts`` always counts them all.
 
     Returns
     -------
@@ -543,7 +561,7 @@ def history_json(
     out = {
         "site": _site(store),
         "timezone": merged.get("timezone") or "UTC",
-        "windows": [window_json(row) for row in history.windows()],
+        "windows": [window_json(row) for row in history.windows(limit=windows)],
         "proposals": [proposal_json(row, controller) for row in history.proposals()],
         "events": store.read_event_rows(),
         "requests": history.requests(),

@@ -33,6 +33,9 @@ IAE_BASELINE_WINDOWS = 6
 """Windows before a write whose median IAE per unit step is the revert rule's baseline."""
 LIMIT_MARGIN_V = 0.01
 """A command within this of a limit counts as at the limit [V]."""
+GOOD_TUNED_FOR = "last_known_good_tuned_for"
+"""The ``online_state`` key of the model the last-known-good gains were tuned for (None:
+unknown, e.g. the commissioning gains): what a revert makes ``tuned_for`` again."""
 
 
 class WriteBack:
@@ -177,6 +180,7 @@ class WriteBack:
         ideal = detail.get("ideal") or {}
         old = ideal.get("old")
         if old is not None:
+            self.history.set_state(GOOD_TUNED_FOR, self._tuned_for_gains(old))
             self.history.set_state("last_known_good", old)
         self.history.set_state("current_gains", ideal.get("new"))
         self.history.set_state("tuned_for", detail.get("target_model"))
@@ -190,6 +194,21 @@ class WriteBack:
                 "judged": False,
             },
         )
+
+    def _tuned_for_gains(self, gains: dict[str, Any]) -> Any:
+        """The model ``gains`` [ideal form] were tuned for, if they are the current ones.
+
+        ``tuned_for`` belongs to ``current_gains`` (both set by the last write); gains other
+        than those (the commissioning gains, gains changed at the panel) have no known model.
+        """
+        current = self.history.state("current_gains")
+        same = isinstance(current, dict) and all(
+            isinstance(current.get(k), int | float)
+            and isinstance(gains.get(k), int | float)
+            and math.isclose(float(current[k]), float(gains[k]), rel_tol=1e-6)
+            for k in ("Kc", "Ti")
+        )
+        return self.history.state("tuned_for") if same else None
 
     def _iae_before(self) -> float | None:
         """Median IAE per unit setpoint step of the last windows before a write [s]."""
@@ -205,11 +224,16 @@ class WriteBack:
 
         Not written when the PLC already reads those gains, unless ``force`` (after a write
         whose echo was lost the PLC's state is not known for sure: the block is written).
+        Either way ``tuned_for`` becomes the model the gains back in force were tuned for
+        (:data:`GOOD_TUNED_FOR`, kept when they became the last-known-good; None for the
+        commissioning gains or when unknown), so the drift is judged against their model.
         """
         controller = self.context.site.controller
         if self.gain_writer is None or controller is None:
             return False
         good = self.history.state("last_known_good")
+        # the model the gains written back were tuned for: the drift chip compares K with it
+        tuned_for = self.history.state(GOOD_TUNED_FOR) if good else None
         gains = (
             Gains(
                 float(good["Kc"]),
@@ -229,6 +253,7 @@ class WriteBack:
             self.context.event(
                 "revert", f"nothing to write: the PLC holds those gains ({why}, by {who})"
             )
+            self.history.set_state("tuned_for", tuned_for)
             return True
         kc, ti = gains.to_block(BlockForm.of(controller))
         apply_seq = await self._next_apply()
@@ -243,6 +268,7 @@ class WriteBack:
             for applied in self.history.proposals("applied")[-1:]:
                 self.history.set_proposal_status(applied["id"], "reverted", who=who, why=why)
             self.history.set_state("current_gains", gains.to_json())
+            self.history.set_state("tuned_for", tuned_for)
             self.history.set_state("last_write", None)
         self.context.event("revert" if echoed else "revert_failed", f"{why} (by {who})")
         return echoed
@@ -324,4 +350,4 @@ class WriteBack:
                 await asyncio.wait_for(stopping.wait(), every_s)
 
 
-__all__ = ["AUTO", "IAE_BASELINE_WINDOWS", "LIMIT_MARGIN_V", "WriteBack"]
+__all__ = ["AUTO", "GOOD_TUNED_FOR", "IAE_BASELINE_WINDOWS", "LIMIT_MARGIN_V", "WriteBack"]

@@ -4,7 +4,11 @@ Protocol-agnostic and asyncio-based; it owns the connect loop and never dies on 
 
 **Link.** One connect attempt after another with exponential backoff (0.2 s doubling to 5 s);
 a message goes to ``on_message`` when the link state or the reason changes, not per attempt.
-``link_down`` (with the reason) and ``link_up`` (with the outage's length) events are stored.
+``link_down`` (with the reason) and ``link_up`` (with the outage's length and what the ring gave
+back) events are stored; a link back at the first reconnect attempt (the next poll) is a blip,
+and its ``link_up`` says so: "link blip of 0.09 s; 5 samples back-filled"
+(:func:`link_up_detail`). The events' wall time is their stored ``wall_time``, not text in
+their detail: a detail carries no second clock.
 ``give_up_after_s`` makes the recorder raise :class:`LinkError` after that long without a link.
 
 **Time base and restarts** (:mod:`fuelid.plc.timebase`): with a ``[ring]`` its records are read
@@ -30,6 +34,11 @@ temperature or mode is stored as NaN (None) and the sample stays ``OK``. Each ba
 one ``bad_value`` event; a stuck flow a ``stuck_sensor`` event and its samples ``BAD_VALUE``.
 Applied gains that change write ``gain_change``, MAN/AUTO ``mode_change``.
 
+**The PLC's gains as read** (:mod:`fuelid.plc.gain_reading`): with ``[tags.kc]`` and
+``[tags.ti]`` the first reading and each change go to the store's state (key ``plc_gains``),
+in the block's units, with the reading's plant time (the sample it was taken at) and wall time,
+for the processes that do not run the recorder (the dashboard, ``online status``).
+
 **Nothing is held back.** Every sample goes to the writer as soon as it is read, so a crash
 (kill -9) loses at most the batch not yet committed (the commit interval, 1 s). A stuck flow is
 recognised :data:`~fuelid.plc.quality.STUCK_AFTER_S` after its stretch began: from then on its
@@ -53,6 +62,7 @@ from typing import TYPE_CHECKING, Any
 
 from fuelid.plc.adapters.base import EndOfSource, LinkError, PlcSource, Reading, RingRecord
 from fuelid.plc.first_read import RingTagCheck, probe_first_read
+from fuelid.plc.gain_reading import PLC_GAINS_KEY, GainReadings, gain_change_text, stamped
 from fuelid.plc.quality import STUCK_AFTER_S, RangeChecks, StuckDetector
 from fuelid.plc.record_status import RecorderStats
 from fuelid.plc.site import SiteConfig
@@ -70,6 +80,7 @@ __all__ = [
     "RING_POLL_S",
     "Recorder",
     "RecorderStats",
+    "link_up_detail",
     "record_error",
     "record_site",
     "site_identity",
@@ -85,6 +96,38 @@ RING_MARGIN = 8
 """Fraction 1/RING_MARGIN of the ring left alone when back-filling: the PLC overwrites the
 oldest records while they are read."""
 _CORE = ("command", "flow", "setpoint")
+
+
+def link_up_detail(outage_s: float, attempts: int, filled: int | None) -> str:
+    """The ``link_up`` event's detail: how long the link was lost, and what the ring gave back.
+
+    Parameters
+    ----------
+    outage_s : float
+        Wall time from the loss to the link back [s].
+    attempts : int
+        Connect attempts it took; 1 (back at the next poll) makes the outage a blip.
+    filled : int or None
+        Samples the ring still held for the hole (read back now); None without a ring (the
+        samples of the hole are lost: a ``gap`` event counts them).
+
+    Examples
+    --------
+    >>> link_up_detail(0.0912, 1, 5)
+    'link blip of 0.09 s; 5 samples back-filled'
+    >>> link_up_detail(0.0912, 1, None)
+    'link blip of 0.09 s; no ring to back-fill from'
+    >>> link_up_detail(12.34567, 4, 120)
+    'after 12.346 s without a link (4 attempts); 120 samples back-filled'
+    """
+    head = (
+        f"link blip of {outage_s:.2f} s"
+        if attempts == 1
+        else f"after {outage_s:.3f} s without a link ({attempts} attempts)"
+    )
+    if filled is None:
+        return f"{head}; no ring to back-fill from"
+    return f"{head}; {filled} sample{'' if filled == 1 else 's'} back-filled"
 
 
 def site_identity(site: SiteConfig) -> dict[str, Any]:
@@ -151,6 +194,7 @@ class Recorder:
             self.site.tags.get("flow"), self._event_at, stuck_after_s, self._reflag
         )
         self._aux: dict[str, float] = {}  # last finite kc, ti, mode (change events)
+        self._gains = GainReadings(self.site)  # the PLC's kc and ti as read, for the store
         self._aux_values: dict[str, float] = {}  # setpoint, temperature, mode attached, checked
         self._next_u: int | None = None  # ring: the next record to read (unwrapped)
         self._last_receipt = math.nan
@@ -161,6 +205,7 @@ class Recorder:
         self._seq_base = ring is not None or "seq" in self.site.tags
         """Sample times are data times (ring or counter): events are put on them too."""
         self._pending: list[tuple[str, str]] = []  # events waiting for the next sample's time
+        self._back: tuple[float, int] | None = None  # the link back: (outage [s], attempts)
         self._probed = False
         self._head_record: dict[str, float] | None = None  # ring: this poll's head record
         self._ring_check = RingTagCheck(self.site)
@@ -219,15 +264,12 @@ class Recorder:
         pending, self._pending = self._pending, []
         for kind, detail in pending:
             self.writer.event(kind, detail, time=t)
-
-    def _wall(self) -> str:
-        """`` (at 12:22:26 UTC wall clock)`` for events on a data time base, else nothing."""
-        if not self._seq_base:
-            return ""
-        return f" (at {time.strftime('%H:%M:%S', time.gmtime())} UTC wall clock)"
+        gains, self._gains.pending = self._gains.pending, None
+        if gains is not None:
+            self.writer.set_state(PLC_GAINS_KEY, stamped(gains, t))
 
     def _take(self, sample: Sample) -> None:
-        if self._pending:
+        if self._pending or self._gains.pending is not None:
             self._flush_pending(sample.time)
         if sample.seq is not None:
             self._seq.mark(sample.seq, sample.time)
@@ -268,7 +310,7 @@ class Recorder:
                 if self.stats.link != "down" or reason != self.stats.last_error:
                     self._say(f"link down: {reason}; retrying (backoff up to {longest:g} s)")
                     if self.stats.link == "connecting" and attempts == 1:
-                        self._event_at("link_down", reason + self._wall(), self._after_last())
+                        self._event_at("link_down", reason, self._after_last())
                 self.stats.link, self.stats.last_error = "down", reason
                 waited = time.monotonic() - self._down_since
                 if self.give_up_after_s is not None and waited >= self.give_up_after_s:
@@ -282,10 +324,9 @@ class Recorder:
             self._connected = True
             outage = time.monotonic() - self._down_since
             if self.stats.link == "down":
-                self._event(
-                    "link_up",
-                    f"after {outage:.3f} s without a link ({attempts} attempts){self._wall()}",
-                )
+                self._back = (outage, attempts)
+                if self.site.ring is None:  # nothing to read back: said now
+                    self._link_up(None)
                 self._say(f"link up: {self.source.where} after {outage:.1f} s")
             else:
                 self._say(f"connected to {self.source.where}")
@@ -301,10 +342,20 @@ class Recorder:
         self.stats.link, self.stats.last_error = "down", reason
         self.stats.drops += 1
         self._missing_after_outage = True
-        self._event_at("link_down", reason + self._wall(), self._after_last())
+        if self._back is not None:  # lost again before the ring was read: nothing came back
+            (outage, attempts), self._back = self._back, None
+            self._event_at("link_up", link_up_detail(outage, attempts, 0), self._after_last())
+        self._event_at("link_down", reason, self._after_last())
         self._say(f"link down: {reason}; reconnecting")
         self._stuck.reset()  # an outage breaks any stuck run
         await self.source.close()
+
+    def _link_up(self, filled: int | None) -> None:
+        """The ``link_up`` event of the outage just ended (at the next sample's time)."""
+        if self._back is None:
+            return
+        (outage, attempts), self._back = self._back, None
+        self._event("link_up", link_up_detail(outage, attempts, filled))
 
     # --- main loop ------------------------------------------------------------------------
 
@@ -346,7 +397,8 @@ class Recorder:
         finally:
             await self.source.close()
             self._connected = False
-            if self._pending:
+            self._link_up(0)  # stopped before the ring was read again: nothing came back
+            if self._pending or self._gains.pending is not None:
                 self._flush_pending(self._after_last())
             self.writer.flush()
         return self.stats
@@ -377,16 +429,11 @@ class Recorder:
         values = reading.values
         self._last_seen = reading.received
         old = self._aux
-        changes = []
-        for role, unit in (("kc", "V per L/min"), ("ti", "s")):
-            new = values.get(role)
-            before = old.get(role)
-            if new is None or before is None or not math.isfinite(new):
-                continue
-            if not math.isclose(new, before, rel_tol=1e-6, abs_tol=0.0):
-                changes.append(f"{role} {before:.6g} → {new:.6g} {unit}")
+        # the block's units, as the tags give them (not necessarily V per L/min and s)
+        changes = gain_change_text(values, old, self._gains.units)
         if changes:
-            self._event("gain_change", ", ".join(changes), t)
+            self._event("gain_change", changes, t)
+        self._gains_read(reading, t)
         mode, before_mode = values.get("mode"), old.get("mode")
         if (
             mode is not None
@@ -404,6 +451,18 @@ class Recorder:
             for role, v in values.items()
             if role in ("setpoint", "fuel_temperature", "mode")
         }
+
+    def _gains_read(self, reading: Reading, t: float | None) -> None:
+        """Keep a new reading of the PLC's gains (the first, or a change) in the store's state.
+
+        At ``t`` when given, else at the next sample's time on a data time base (as the
+        events, :meth:`_event`), else at its receipt time.
+        """
+        new = self._gains.new(reading.values, reading.received)
+        if new is not None and t is None and self._seq_base:
+            self._gains.pending = new
+        elif new is not None:
+            self.writer.set_state(PLC_GAINS_KEY, stamped(new, t))
 
     def _sample(
         self, t: float, seq: int | None, core: dict[str, float], quality: int = Quality.OK
@@ -516,6 +575,8 @@ class Recorder:
                     self._restart(f"the ring's head {why}")
                     next_u = 0  # the new run from its start, as far as the ring holds it
             assert next_u is not None
+            # the records since the last read, which the failed read and the outage missed
+            self._link_up(max(seq.u - max(next_u, self._oldest_held(seq.u)) + 1, 0))
             self._watch(reading, seq.time(seq.u))  # seen at the head's sample
             self._head_record = None
             next_u = await self._read_records(next_u, seq.u, reading)
@@ -525,6 +586,12 @@ class Recorder:
             self.stats._tick(time.monotonic())
             await self._wait(self.ring_poll_s - (time.monotonic() - started))
 
+    def _oldest_held(self, head_u: int) -> int:
+        """The oldest record (unwrapped) safe to read from the ring behind ``head_u``."""
+        ring = self.site.ring
+        assert ring is not None
+        return head_u - ring.size + 1 + ring.size // RING_MARGIN
+
     async def _read_records(self, first_u: int, head_u: int, reading: Reading) -> int:
         """Read records ``first_u … head_u`` (unwrapped) and store them; the next to read."""
         ring = self.site.ring
@@ -532,7 +599,7 @@ class Recorder:
         seq = self._seq
         if head_u < first_u:
             return first_u
-        oldest = head_u - ring.size + 1 + ring.size // RING_MARGIN
+        oldest = self._oldest_held(head_u)
         if first_u < oldest:
             self._gap(oldest - first_u, f"the ring ({ring.size} records) no longer held them")
             first_u = oldest

@@ -50,9 +50,10 @@ time, which runs X times faster than the wall clock on a PLC at X times real tim
 at the last sample stored before the outage + one period; ``link_up``, ``restart`` and ``gap`` at
 the first sample stored after (they wait for it; at the end of a recording, the last + one
 period); gain and mode changes and bad values at the sample where they were seen. So a
-``link_down``/``link_up`` pair brackets the hole in the samples. The link events keep the wall
-clock in their detail (``at 12:22:26 UTC wall clock``). Without either, events are at the
-receipt time (the wall clock), as the samples are.
+``link_down``/``link_up`` pair brackets the hole in the samples. The wall clock of an event is
+its stored ``wall_time`` (when it was written), never text in its detail: a detail carries no
+second clock. Without either, events are at the receipt time (the wall clock), as the samples
+are.
 """
 
 from __future__ import annotations

@@ -34,6 +34,7 @@ from fuelid.store.records import (
     Requalify,
     Sample,
     SampleArrays,
+    StateValue,
     StoreError,
     StoreInfo,
     tag_map_hash,
@@ -53,6 +54,7 @@ __all__ = [
     "SampleArrays",
     "SampleStore",
     "SampleWriter",
+    "StateValue",
     "StoreError",
     "StoreInfo",
     "iodata_from_samples",
@@ -79,12 +81,14 @@ class SampleStore(ABC):
         samples: Iterable[Sample] = (),
         events: Iterable[Event] = (),
         requalify: Iterable[Requalify] = (),
+        state: Iterable[StateValue] = (),
     ) -> int:
         """Store samples and events, then re-flag stretches, in one transaction (committed).
 
         Samples whose ``seq`` (or, without one, ``time``) is already stored are ignored. The
         :class:`Requalify` changes are applied after the inserts, so they reach the samples of
-        this same call too.
+        this same call too. Each :class:`StateValue` replaces its key's value in the store's
+        state (``online_state``, read with :meth:`fuelid.store.OnlineHistory.state`).
 
         Returns
         -------

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
+from fuelid.io.jsonsafe import json_ready
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -108,6 +109,49 @@ class Requalify(NamedTuple):
     t_from: float
     t_to: float
     quality: int = Quality.BAD_VALUE
+
+
+class StateValue(NamedTuple):
+    """A value for the store's ``online_state`` table, written in the writer's order.
+
+    The recorder keeps the PLC's gains as read there (:mod:`fuelid.plc.gain_reading`), so that
+    another process (the dashboard, ``fuelid online status``) can read them. The row's ``time``
+    is the wall clock of the commit; put any plant time inside the value.
+
+    Parameters
+    ----------
+    key : str
+        The ``online_state`` key (non-empty); a later value replaces an earlier one.
+    text : str
+        The value as JSON text (:meth:`of` encodes it, NaN and ±inf as null).
+    """
+
+    key: str
+    text: str
+
+    @classmethod
+    def of(cls, key: str, value: Any) -> StateValue:
+        """``value`` under ``key``, encoded now: a value without a JSON form fails the caller.
+
+        Not the writer's thread, whose error would only surface at its next call.
+
+        Raises
+        ------
+        StoreError
+            An empty key or a value without a JSON form.
+
+        Examples
+        --------
+        >>> StateValue.of("plc_gains", {"kc": 0.05, "ti": float("nan")})
+        StateValue(key='plc_gains', text='{"kc":0.05,"ti":null}')
+        """
+        if not isinstance(key, str) or not key:
+            raise StoreError(f"a state key is a non-empty string, got {key!r}")
+        try:
+            plain = json_ready(value)
+        except TypeError as error:
+            raise StoreError(f"state {key!r} cannot be stored as JSON: {error}") from None
+        return cls(key, json.dumps(plain, allow_nan=False, separators=(",", ":")))
 
 
 class Event(NamedTuple):

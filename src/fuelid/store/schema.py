@@ -102,9 +102,11 @@ versions, so that an older fuelid never writes into a schema it does not know.
         plant time of the intent, ``finished`` of the outcome
     online_state(key TEXT PRIMARY KEY, value TEXT NOT NULL,  -- JSON
                  time REAL NOT NULL)                         -- last set [wall s UTC]
-        what the online service needs after a restart (last-known-good gains, …) and the
+        what the online service needs after a restart (last-known-good gains, …), the
         ``service`` record (pid, host, version, started, beat, beat_every_s, stopped: wall
-        clock; settings), refreshed every 2 s of wall time while the service runs
+        clock; settings), refreshed every 2 s of wall time while the service runs, and
+        ``plc_gains``, the PLC's kc and ti as the recorder last read them (written by the
+        store's writer on a change: :mod:`fuelid.plc.gain_reading`)
     requests(id INTEGER PRIMARY KEY, time REAL NOT NULL,    -- plant time when filed
              wall_time REAL NOT NULL,                       -- wall clock when filed
              kind TEXT NOT NULL,                            -- approve, reject, revert

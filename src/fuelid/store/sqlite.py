@@ -41,6 +41,7 @@ from fuelid.store.base import (
     Sample,
     SampleArrays,
     SampleStore,
+    StateValue,
     StoreError,
     StoreInfo,
 )
@@ -68,6 +69,11 @@ _INSERT_SAMPLE = (
 _INSERT_EVENT = "INSERT INTO events(time, kind, detail, wall_time) VALUES (?, ?, ?, ?)"
 # only samples still OK: a stale or link-down flag says more than "bad value"
 _REQUALIFY = "UPDATE samples SET quality = ?3 WHERE time >= ?1 AND time <= ?2 AND quality = 0"
+# the same statement as OnlineHistory.set_state: the row's time is the wall clock of the commit
+_UPSERT_STATE = (
+    "INSERT INTO online_state(key, value, time) VALUES (?, ?, ?) "
+    "ON CONFLICT(key) DO UPDATE SET value = excluded.value, time = excluded.time"
+)
 
 
 _LOOP_ID = re.compile(r"[a-z0-9-]{1,40}")
@@ -236,6 +242,7 @@ class SQLiteStore(PruneMixin, SampleStore):
         samples: Iterable[Sample],
         events: Iterable[Event],
         requalify: Iterable[Requalify] = (),
+        state: Iterable[StateValue] = (),
     ) -> tuple[int, int]:
         """One transaction; (samples added, samples re-flagged).
 
@@ -267,6 +274,7 @@ class SQLiteStore(PruneMixin, SampleStore):
                         changed += con.total_changes - before
                         for level in LOD_LEVELS:
                             con.execute(RECOUNT_BAD, (*change[:2], level))
+                con.executemany(_UPSERT_STATE, ((key, text, wall) for key, text in state))
                 con.execute("COMMIT")
             except BaseException:
                 con.execute("ROLLBACK")
@@ -278,26 +286,32 @@ class SQLiteStore(PruneMixin, SampleStore):
         samples: Iterable[Sample] = (),
         events: Iterable[Event] = (),
         requalify: Iterable[Requalify] = (),
+        state: Iterable[StateValue] = (),
     ) -> int:
-        """Store samples and events, then re-flag, in one committed transaction.
+        """Store samples and events, then re-flag and set state, in one committed transaction.
 
-        See :class:`SampleStore`; the re-flag is an indexed ``UPDATE`` (module docstring).
+        See :class:`SampleStore`; the re-flag is an indexed ``UPDATE`` (module docstring), the
+        state an upsert of ``online_state``.
         """
-        return self._write(samples, events, requalify)[0]
+        return self._write(samples, events, requalify, state)[0]
 
     def requalify(self, changes: Iterable[Requalify]) -> int:
         """Apply re-flags in one committed transaction; the number of samples changed."""
         return self._write((), (), changes)[1]
 
     def _write(
-        self, samples: Iterable[Sample], events: Iterable[Event], requalify: Iterable[Requalify]
+        self,
+        samples: Iterable[Sample],
+        events: Iterable[Event],
+        requalify: Iterable[Requalify],
+        state: Iterable[StateValue] = (),
     ) -> tuple[int, int]:
         if not self._writable:
             raise StoreError(
                 f"{self.path}: opened without the site's identity, so it cannot be written"
             )
         try:
-            return self._raw_append(samples, events, requalify)
+            return self._raw_append(samples, events, requalify, state)
         except sqlite3.IntegrityError as error:
             raise StoreError(f"{self.path}: a sample was refused ({error})") from None
         except sqlite3.ProgrammingError as error:

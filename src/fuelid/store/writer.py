@@ -9,7 +9,7 @@ from collections.abc import Callable, Iterable, Sequence
 from types import TracebackType
 from typing import TYPE_CHECKING, Any, Self
 
-from fuelid.store.records import Event, Quality, Requalify, Sample, StoreError
+from fuelid.store.records import Event, Quality, Requalify, Sample, StateValue, StoreError
 
 if TYPE_CHECKING:
     from fuelid.store.base import SampleStore
@@ -27,9 +27,11 @@ class SampleWriter:
     ``commit_interval_s``; :meth:`flush` and :meth:`close` commit what is pending and wait for it.
     :meth:`set_quality` re-flags a stretch of samples in queue order: it is applied after the
     inserts of the batch it joins, in the same transaction, so it reaches every sample queued
-    before it (whether already committed or not) and never races an insert.
-    A crash loses at most the uncommitted batch. An error of the store (a full disk) stops the
-    writer and is raised by the next :meth:`put`, :meth:`flush` or :meth:`close`.
+    before it (whether already committed or not) and never races an insert. :meth:`set_state`
+    sets a value of the store's state (``online_state``) in the batch's transaction too, the
+    newest of a key in a batch winning. A crash loses at most the uncommitted batch. An error
+    of the store (a full disk) stops the writer and is raised by the next :meth:`put`,
+    :meth:`flush` or :meth:`close`.
 
     Parameters
     ----------
@@ -105,6 +107,21 @@ class SampleWriter:
         self._check()
         self._queue.put(Requalify(float(t_from), float(t_to), int(quality)))
 
+    def set_state(self, key: str, value: Any) -> None:
+        """Queue ``value`` (JSON; NaN as null) for the store's state under ``key``.
+
+        Committed with the next batch, in its transaction; it replaces the key's value (read
+        with :meth:`fuelid.store.OnlineHistory.state`). For values written seldom (on a
+        change), not every sample.
+
+        Raises
+        ------
+        StoreError
+            An empty key or a value without a JSON form (refused here, in the caller).
+        """
+        self._check()
+        self._queue.put(StateValue.of(key, value))
+
     def flush(self, timeout: float | None = 30.0) -> None:
         """Commit everything queued so far and wait for it [timeout in s]."""
         self._check()
@@ -141,21 +158,29 @@ class SampleWriter:
         if self._closed:
             raise StoreError(f"{self.store.path}: the writer is closed")
 
-    def _commit(self, samples: list[Sample], events: list[Event], changes: list[Requalify]) -> None:
-        if not samples and not events and not changes:
+    def _commit(
+        self,
+        samples: list[Sample],
+        events: list[Event],
+        changes: list[Requalify],
+        state: dict[str, StateValue],
+    ) -> None:
+        if not samples and not events and not changes and not state:
             return
-        self.rows_written += self.store.append(samples, events, changes)
+        self.rows_written += self.store.append(samples, events, changes, state.values())
         self.commits += 1
         if self.on_commit is not None:
             self.on_commit(samples, events)
         samples.clear()
         events.clear()
         changes.clear()
+        state.clear()
 
     def _run(self) -> None:
         samples: list[Sample] = []
         events: list[Event] = []
         changes: list[Requalify] = []
+        state: dict[str, StateValue] = {}  # by key: the newest of the batch wins
         deadline = _time.monotonic() + self.commit_interval_s
         item: Any = None
         try:
@@ -170,14 +195,16 @@ class SampleWriter:
                     events.append(item)
                 elif isinstance(item, Requalify):
                     changes.append(item)  # applied after this batch's inserts: queue order
+                elif isinstance(item, StateValue):
+                    state[item.key] = item
                 elif item is _STOP:
-                    self._commit(samples, events, changes)
+                    self._commit(samples, events, changes, state)
                     return
                 elif isinstance(item, tuple) and item and item[0] is _FLUSH:
-                    self._commit(samples, events, changes)
+                    self._commit(samples, events, changes, state)
                     item[1].set()
                 if _time.monotonic() >= deadline:
-                    self._commit(samples, events, changes)
+                    self._commit(samples, events, changes, state)
                     deadline = _time.monotonic() + self.commit_interval_s
         except BaseException as error:  # handed to the caller by the next call
             self._error = error

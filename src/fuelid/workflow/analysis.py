@@ -331,6 +331,7 @@ def analyse_log(
     plant: PlantSource,
     settings: AnalysisSettings,
     progress: Progress | None = None,
+    cache: CaseCache | None = None,
 ) -> LogAnalysis:
     """Identify ``data`` with both methods, tune, check over temperature and build a schedule.
 
@@ -350,9 +351,14 @@ def analyse_log(
     :data:`~fuelid.workflow.progress.ANALYSIS_STAGES`. The work is many small matrices and long
     vectors, so BLAS runs on one thread throughout (:func:`~fuelid.blas.single_threaded_blas`):
     several times faster on a busy two-core machine.
+
+    ``cache``, when given, keeps the plant's linearisations (by fuel temperature and command)
+    for the next analysis on the same plant (the dashboard's window reports share one per plant
+    file): the check over temperature and the schedule then reuse them. Never share one between
+    plants.
     """
     with single_threaded_blas():
-        return _analyse(data, plant, settings, progress)
+        return _analyse(data, plant, settings, progress, {} if cache is None else cache)
 
 
 def _refuse_signals(findings: list[str]) -> None:
@@ -363,7 +369,11 @@ def _refuse_signals(findings: list[str]) -> None:
 
 
 def _analyse(
-    data: IOData, plant: PlantSource, settings: AnalysisSettings, progress: Progress | None
+    data: IOData,
+    plant: PlantSource,
+    settings: AnalysisSettings,
+    progress: Progress | None,
+    cache: CaseCache,
 ) -> LogAnalysis:
     """:func:`analyse_log`'s stages."""
     config = plant.config
@@ -436,7 +446,7 @@ def _analyse(
     request = replace(
         request, alternatives=tuple(ProcessModel(**item["model"]) for item in indistinct)
     )
-    cache: CaseCache = {}  # the check and the schedule share linearisations
+    # the check and the schedule share linearisations (and the next analysis, given a cache)
     outcome = tune_model(plant, request, progress, cache)
     warnings.extend(f"tuning: {w}" for w in outcome.warnings)
     cross_check = _cross_check(identifications, settings.tune_from, outcome)

@@ -159,12 +159,31 @@ def _virtual_tables(config: Path | None) -> dict[str, Any]:
     if not isinstance(site, dict):
         raise ConfigError(f"{config}: [site] must be a table")
     tables["site"] = {key: site[key] for key in VIRTUAL_SITE_KEYS if key in site}
+    _check_site_keys(config, tables["site"])
     folder = config.resolve().parent
     if "plant" in tables["site"]:
         tables["site"]["plant"] = str(folder / str(tables["site"]["plant"]))
     if "archive" in tables:
         tables["archive"]["dir"] = str(folder / str(tables["archive"]["dir"]))
     return tables
+
+
+def _check_site_keys(config: Path, site: dict[str, Any]) -> None:
+    """The ``[site]`` keys --virtual takes, checked here so that an error names the user's file.
+
+    They are merged into a site file of the command's own making (in a temporary folder), whose
+    name would mean nothing to the user (issue 39).
+    """
+    from pydantic import ValidationError
+
+    from fuelid.plc.site import SiteInfo
+
+    try:
+        SiteInfo.model_validate({"name": "virtual fuel loop", **site})
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first["loc"])
+        raise ConfigError(f"{config}: site.{where}: {validation_reason(first)}") from None
 
 
 def _virtual_site_text(base: str, tables: dict[str, Any]) -> str:

@@ -16,6 +16,8 @@ from fuelid.cli.online._app import ConfigFile, JsonFlag, StoreFile, _opened, _op
 
 RECENT_WINDOWS = 20
 """Windows listed by ``fuelid online history`` without ``--json``."""
+IDEAL_UNITS = {"Kc": "V per L/min", "Ti": "s"}
+"""The units of the ideal-form gains (what the block holds when its form is the default)."""
 
 
 def _stamp(t: float | None, tz: str | None = "UTC") -> str:
@@ -169,6 +171,7 @@ def status_lines(status: dict[str, Any]) -> list[str]:
         ("proposals", proposals_text),
         ("requests", _requests_text(status.get("requests") or [])),
         ("health", health_line(status.get("loop_health"))),
+        *_plc_gains_rows(status.get("plc_gains"), tz),
         ("writes", write_text),
         (
             "counts",
@@ -180,6 +183,29 @@ def status_lines(status: dict[str, Any]) -> list[str]:
     if central and (central.get("outbox") == "on" or central.get("last_ok")):
         rows.append(("central", _central_text(central, tz)))
     return [f"{name:<10} {text}" for name, text in rows]
+
+
+def _plc_gains_rows(gains: dict[str, Any] | None, tz: str) -> list[tuple[str, str]]:
+    """``PLC gains  Kc 1.25 %/%, Ti 0.5 min (ideal Kc 0.05 V per L/min, Ti 30 s), read at …``.
+
+    No row when the status has none (no kc and ti tags, or nothing read yet).
+    """
+    if not gains:
+        return []
+    units = gains.get("units") or {}
+
+    def pair(g: dict[str, Any], u: dict[str, Any]) -> str:
+        return ", ".join(
+            f"{key} {g[key]:.4g} {u.get(key) or ''}".rstrip()
+            for key in ("Kc", "Ti")
+            if g.get(key) is not None
+        )
+
+    text = pair(gains, units)
+    ideal = gains.get("ideal")
+    if ideal and units != IDEAL_UNITS:
+        text += f" (ideal {pair(ideal, IDEAL_UNITS)})"
+    return [("PLC gains", f"{text}, read at {_stamp(gains.get('time'), tz)} (the kc, ti tags)")]
 
 
 def _central_text(central: dict[str, Any], tz: str) -> str:

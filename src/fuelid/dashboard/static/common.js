@@ -69,4 +69,8 @@ function chips(container, list) {
   container.replaceChildren(...list.flatMap((c) => [el("span", { class: `chip ${c.level}`, title: c.name }, `${c.name}: ${c.text}`), " "]));
 }
 
-const PLOT_CONFIG = { displaylogo: false, responsive: true, modeBarButtonsToRemove: ["lasso2d", "select2d"] };
+// no button that sends data anywhere: the charts' toolbars keep zoom, pan, reset and the PNG download
+const PLOT_CONFIG = {
+  displaylogo: false, responsive: true, showLink: false, showSendToCloud: false, showEditInChartStudio: false,
+  modeBarButtonsToRemove: ["lasso2d", "select2d", "sendDataToCloud", "editInChartStudio"],
+};

@@ -1,8 +1,18 @@
 "use strict";
-// the fleet table, refreshed every 5 s from /api/loops (the same rows, the same order)
+// the fleet table, refreshed every 5 s from /api/loops (the same rows, the same order); a watchdog
+// (live.js) greys the table and says "disconnected" when the refreshes stop succeeding
+const FLEET_EVERY_MS = 5000;
+const fleetWatchdog = new Watchdog({
+  tz: document.body.dataset.tz || "UTC",
+  lateMs: 2.5 * FLEET_EVERY_MS,
+  onBack: () => {},
+});
+fleetWatchdog.arrived(); // the page itself was just served
+
 async function refreshFleet() {
   try {
     const data = await getJSON("/api/loops");
+    fleetWatchdog.arrived();
     const body = document.querySelector("#fleet tbody");
     const rows = data.loops.map((row) => {
       const tr = el("tr", { class: `level-${row.level}`, "data-loop": row.loop_id });
@@ -21,5 +31,5 @@ async function refreshFleet() {
     console.warn("fleet refresh failed", error);
   }
 }
-setInterval(refreshFleet, 5000);
+setInterval(refreshFleet, FLEET_EVERY_MS);
 document.body.dataset.ready = "1";

@@ -17,7 +17,9 @@ Errors (the recorder retries a :class:`~fuelid.plc.adapters.base.LinkError`; a
 :class:`~fuelid.errors.ConfigError` stops it, since retrying cannot help):
 
 * no TCP connection, a dropped link or no answer within the timeout → ``LinkError`` naming
-  ``host:port`` (and the device id, for a PLC that answers nothing for a wrong one);
+  ``host:port`` and the timeout; a timeout is a link's trouble (a blip the next poll recovers
+  from, as often as not), so it gives no advice about the device id: only a device that answers
+  says its unit is wrong (below);
 * Modbus exception 2 (illegal data address) → ``ConfigError`` naming the site-file key and
   address, e.g. ``tags.flow: ir:20 does not exist on the PLC (Modbus exception 2)``;
 * exceptions 4, 10 and 11 (device failure, gateway path unavailable, gateway target failed to
@@ -256,8 +258,7 @@ class ModbusSource(PlcSource):
             response = await call(address, count=count, device_id=self.device_id)
         except ModbusIOException as error:
             raise LinkError(
-                f"no answer from {self.where} within {self.timeout_s:g} s ({error}); "
-                f"is plc.device_id = {self.device_id} right?"
+                f"no answer from {self.where} within {self.timeout_s:g} s ({error})"
             ) from None
         except (ConnectionException, ModbusException, OSError) as error:
             raise LinkError(f"link to {self.where} lost ({error})") from None
