@@ -146,6 +146,7 @@ bench: $(BENCH_VENV)/.fuelid-installed
 	$(BENCH_VENV)/bin/python benchmarks/bench_virtual_plant.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_dashboard.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_window_report.py
+	$(BENCH_VENV)/bin/python benchmarks/bench_dashboard_page.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_central.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_acquisition.py --minutes 2
 	$(BENCH_VENV)/bin/python benchmarks/bench_online.py --minutes 2

@@ -91,6 +91,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
         "The dashboard's window report: first request, quiet and loaded",
         "benchmarks/bench_window_report.py",
     ),
+    "dashboard_page": (
+        "The loop page's first view with a year of windows",
+        "benchmarks/bench_dashboard_page.py",
+    ),
     "central": ("Central ingest from many senders", "benchmarks/bench_central.py"),
     "reidentify": ("Re-identification on Dask", "benchmarks/bench_reidentify.py"),
     "trust": (

@@ -116,6 +116,11 @@ def test_the_live_trend_gains_points_while_the_virtual_plc_runs(tmp_path: Path) 
         with dashboard(tmp_path, "--store", str(store)) as (_, base):
             (row,) = _get(f"{base}/api/loops")["loops"]
             with browser_page() as (page, errors):
+                encodings: dict[str, str | None] = {}
+                page.on(
+                    "response",
+                    lambda r: encodings.update({r.url: r.headers.get("content-encoding")}),
+                )
                 page.goto(f"{base}/loops/{row['loop_id']}")
                 wait_ready(page)
                 before = page.evaluate("window.fuelidShown.newest")
@@ -127,10 +132,19 @@ def test_the_live_trend_gains_points_while_the_virtual_plc_runs(tmp_path: Path) 
                 )
                 after = page.evaluate("window.fuelidShown.newest")
                 link = page.locator("#link").inner_text()
+                follows = page.evaluate("document.getElementById('trend').dataset.following")
     assert errors == []
     # 10 s of plant time more on the screen (at 10x: about a second of wall time)
     assert after > (before or 0) + 10
     assert link.startswith("link up"), link
+    assert follows == "1"
+    # static files compressed as sent; the event stream never (each event must arrive at once)
+    streams = [url for url in encodings if url.endswith("/stream")]
+    scripts = [url for url in encodings if "/static/" in url and ".js" in url]
+    assert streams, encodings
+    assert all(encodings[url] is None for url in streams)
+    assert scripts, encodings
+    assert all(encodings[url] == "gzip" for url in scripts), encodings
 
 
 # --- a page left open ----------------------------------------------------------------------------
