@@ -78,3 +78,21 @@ def test_a_stopped_service_is_an_events_event_and_a_window_a_windows_event(
 def test_nothing_changed_is_status_events_only(monkeypatch: pytest.MonkeyPatch) -> None:
     kinds = _run(FakeLoop(), lambda loop: None, 6, monkeypatch)
     assert kinds == ["status"] * 6
+
+
+def test_a_blip_between_two_status_events_is_an_events_event(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # a link blip shorter than the status interval leaves the state "up" at both ends: the
+    # newest stored event tells the page its events table has a new row
+    class WithEvents(FakeLoop):
+        newest: list[Any] | None = None
+
+        def status(self) -> dict[str, Any]:
+            return {**super().status(), "newest_event": self.newest}
+
+    def blip(loop: WithEvents) -> None:
+        loop.newest = [100.0, "link_up"]
+
+    kinds = _run(WithEvents(), blip, 8, monkeypatch)
+    assert [k for k in kinds if k != "status"] == ["events", "history"]

@@ -105,6 +105,8 @@ def loop_summary(loop: LoopReader, status: dict[str, Any] | None = None) -> dict
     row["link_text"] = link_text(status, row["timezone"])
     # the stream's typed events compare these between two status events (stream.changed_topics)
     row["counts"] = status.get("counts")
+    newest = loop.recent_events(1)
+    row["newest_event"] = [newest[0]["time"], newest[0]["kind"]] if newest else None
     return row
 
 

@@ -9,9 +9,10 @@ Browsers allow six HTTP/1.1 connections per site across all tabs, so a page open
 - ``status``: the loop's state (``link`` as ``online status`` gives it, the fleet chips), every
   ``STATUS_EVERY_S`` and at once on connecting;
 - ``windows``, ``proposals``, ``writes``: that part of the store changed (a window judged, a
-  proposal filed, approved, written or superseded, a write made or verified); ``events``: the
-  link's or the service's state changed (a link event, a start or a stop). The data is the
-  store's counts; the page re-reads the parts it shows (:func:`changed_topics`);
+  proposal filed, approved, written or superseded, a write made or verified); ``events``: a new
+  event was stored (a link blip too short to change the link's state between two status events)
+  or the link's or the service's state changed (a start, a stop). The data is the store's
+  counts; the page re-reads the parts it shows (:func:`changed_topics`);
 - ``history``: any of the above (kept for pages and tools written before the typed events).
 
 One ``Feed`` per loop reads the store for all its subscribers (three browsers cost the
@@ -43,9 +44,9 @@ TOPICS = ("windows", "proposals", "writes", "events")
 """The typed change events, in the order they are sent."""
 
 
-def _state_of(status: dict[str, Any]) -> tuple[Any, Any]:
+def _state_of(status: dict[str, Any]) -> tuple[Any, Any, Any]:
     link = status.get("link") or {}
-    return link.get("state"), link.get("service")
+    return link.get("state"), link.get("service"), status.get("newest_event")
 
 
 def changed_topics(before: dict[str, Any] | None, after: dict[str, Any]) -> list[str]:
