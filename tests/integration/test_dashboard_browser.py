@@ -335,7 +335,7 @@ _TRUTH_JS = """(() => {
 })()"""
 
 _CHIP_COUNTS = {
-    "waiting": r"(\d+) proposal\(s\) wait for approval",
+    "waiting": r"(\d+) waits? for approval",
     "approved": r"(\d+) approved, waiting for the write",
     "out_of_date": r"(\d+) out of date, not written",
 }

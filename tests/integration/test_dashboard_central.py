@@ -135,7 +135,7 @@ def test_the_fleet_rows_are_the_same_from_the_stores_and_from_the_centre(
     assert mode_b["level"] == "unknown"
     assert "(last: MAN" in mode_b["text"]
     waiting = next(c for c in central["line-a"]["chips"] if c["name"] == "proposals")
-    assert waiting["text"] == "1 proposal(s) wait for approval"
+    assert waiting["text"] == "1 waits for approval"
 
 
 def test_status_and_history_equal_the_stores_but_where_they_are_read(

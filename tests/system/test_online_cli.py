@@ -453,6 +453,26 @@ def test_approve_marks_the_proposal_and_a_second_approve_is_refused(
     assert all(r["done_wall"] is not None for r in requests)
 
 
+def test_status_says_why_no_proposal_comes_when_turned_down_gains_are_held(
+    populated: tuple[Path, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    # the service files no proposal whose gains a person rejected (or that were reverted): the
+    # status says so, with the proposal it points at, instead of "none"
+    _, db = populated
+    code, out, err = run(capsys, "online", "reject", "1", "--store", str(db), "--why", "no")
+    assert code == 0, err
+    with SQLiteStore(db) as store, OnlineHistory(store) as history:
+        history.set_state("held_proposal", {"id": 1, "status": "rejected", "Kc": 0.045, "Ti": 1.36})
+    code, out, err = run(capsys, "online", "status", "--store", str(db), "--json")
+    assert code == 0, err
+    held = json.loads(out)["held_proposal"]
+    assert held == {"id": 1, "status": "rejected", "Kc": 0.045, "Ti": 1.36}
+    code, out, err = run(capsys, "online", "status", "--store", str(db))
+    assert code == 0, err
+    (line,) = [line for line in out.splitlines() if line.startswith("proposals")]
+    assert "none filed: the newest evidence points at the gains of #1 (rejected)" in line
+
+
 def test_reject_then_approve_is_an_illegal_transition(
     populated: tuple[Path, Path], capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -184,6 +184,17 @@ def test_a_propose_only_loop_shows_its_waiting_proposal_as_info() -> None:
     assert levels(approve)["proposals"] == "warn"
 
 
+def test_held_back_gains_are_said_on_the_chip_until_a_proposal_waits() -> None:
+    # the newest evidence points at gains that were reverted: no proposal comes, and the chip
+    # says why instead of "none waiting" (a trial saw six hours of silence explained nowhere)
+    held = {"id": 1, "status": "reverted", "Kc": 0.03, "Ti": 3.0}
+    got = chip(with_changes(held_proposal=held), "proposals")
+    assert (got.level, got.text) == ("info", "none filed: the gains of #1 are held back")
+    waiting = with_changes(held_proposal=held, pending_proposals=[{"id": 2, "status": "pending"}])
+    assert chip(waiting, "proposals").text == "1 waits for approval"
+    assert chip(healthy(), "proposals").text == "none waiting"
+
+
 # --- a stopped service ---------------------------------------------------------------------
 
 
@@ -265,7 +276,7 @@ def test_a_proposal_just_inside_the_span_still_waits() -> None:
     fresh = proposal(4, "pending", NEWEST - SPAN + 1.0, model_id=7)
     windows = [{"id": 70, "model_id": 7, "t_to": NEWEST - SPAN + 1.0}]
     got = chip(with_changes(pending_proposals=[fresh]), "proposals", windows)
-    assert (got.level, got.text) == ("warn", "1 proposal(s) wait for approval")
+    assert (got.level, got.text) == ("warn", "1 waits for approval")
 
 
 def test_without_its_window_a_proposal_is_judged_on_its_filing_time() -> None:
@@ -287,7 +298,7 @@ def test_waiting_approved_and_out_of_date_are_counted_apart() -> None:
     got = chip(with_changes(pending_proposals=pending), "proposals", windows)
     assert got.level == "warn"
     assert got.text == (
-        "1 proposal(s) wait for approval; 1 approved, waiting for the write; "
+        "1 waits for approval; 1 approved, waiting for the write; "
         "1 out of date, not written"
     )
 

@@ -176,7 +176,7 @@ def test_the_chip_and_the_cards_classify_alike() -> None:
     (chip,) = [c for c in loop_chips(loop, [], windows) if c.name == "proposals"]
     assert chip.level == "warn"
     assert chip.text == (
-        "1 proposal(s) wait for approval; 1 approved, waiting for the write; "
+        "1 waits for approval; 1 approved, waiting for the write; "
         "1 out of date, not written"
     )
 
@@ -366,3 +366,22 @@ def test_link_up_is_said_only_with_a_fresh_sample() -> None:
     stopped = status(link={"state": "stopped", "text": "service stopped (no beat for 12 s)",
                            "sample_age_s": 14.0})  # fmt: skip
     assert link_text(stopped, TZ) == "service stopped (no beat for 12 s)"
+
+
+# --- the revert button ---------------------------------------------------------------------
+
+
+def test_revert_is_offered_only_when_it_would_change_the_gains() -> None:
+    from fuelid.dashboard.loop_page import revert_offer
+
+    good = {"Kc": 0.028, "Ti": 3.43}
+    status = {"write_back": {"last_known_good_block": good}}
+    offered, gains, _ = revert_offer(status, "approve", {"Kc": 0.035, "Ti": 3.1})
+    assert offered
+    assert gains == good
+    # after a revert the gains in force are the last-known-good ones: nothing to revert to
+    offered, _, why = revert_offer(status, "approve", {"Kc": 0.02800001, "Ti": 3.43})
+    assert not offered
+    assert why == "No revert: the gains in force are the last-known-good ones."
+    assert not revert_offer(status, "off", {"Kc": 0.035, "Ti": 3.1})[0]
+    assert not revert_offer({}, "approve", {"Kc": 0.035, "Ti": 3.1})[0]

@@ -225,6 +225,7 @@ def create_app(
             user=user,
             csrf=None if session is None else session.csrf,
             login_required=security.require_login,
+            here=request.url.path,  # "log in" comes back here
             **context,
         )
 
@@ -284,7 +285,9 @@ def create_app(
         context = loop_context(loop, engineer=is_engineer(request))
         context["relayed"] = central_request_rows(context["status"], context["tz"])
         html = {name: part(f"part_{name}.html.j2", request, context) for name in PARTS}
-        return {"html": html, "link_bands": context["link_bands"]}
+        # the chips from the same snapshot: after an action the page shows one state at once
+        status = loop_summary(loop, context["status"])
+        return {"html": html, "link_bands": context["link_bands"], "status": status}
 
     @app.get(
         "/loops/{loop_id}/windows/{window_id}",

@@ -137,6 +137,24 @@ class CentralHistory:
             out.append({"id": row["id"], "window_id": first.get(row["id"]), **row})
         return out
 
+    def model(self, model_id: int) -> dict[str, Any] | None:
+        """One model as :meth:`accepted_models` gives it (``window_id`` None); None when absent."""
+        rows = self.db.query(
+            "SELECT id, time, t_from, t_to, t_fuel, model, wall_time FROM models "
+            "WHERE store_uuid = %s AND id = %s",
+            (self.uuid, int(model_id)),
+        )
+        if not rows:
+            return None
+        keys = ("id", "time", "t_from", "t_to", "T_fuel", "model", "wall_time")
+        row = dict(zip(keys, rows[0], strict=True))
+        return {"window_id": None, **row}
+
+    def plant_now(self) -> float | None:
+        """Plant time at the site's last send: its newest sample's [s UTC]; None without one."""
+        t = self.liveness.get("newest_sample_time")
+        return None if t is None else float(t)
+
     def writes(self, limit: int | None = None) -> list[dict[str, Any]]:
         """Writes of gains, oldest first; the newest ``limit``."""
         sql = f"SELECT {_WRITE} FROM writes WHERE store_uuid = %s ORDER BY id DESC"

@@ -189,7 +189,7 @@ def _proposal_chip(status: dict[str, Any], windows: Sequence[dict[str, Any]]) ->
         parts.append(
             f"{count['waiting']} (propose only: nothing is written)"
             if propose_only
-            else f"{count['waiting']} proposal(s) wait for approval"
+            else f"{count['waiting']} {'waits' if count['waiting'] == 1 else 'wait'} for approval"
         )
     if count["approved"]:
         parts.append(
@@ -199,6 +199,11 @@ def _proposal_chip(status: dict[str, Any], windows: Sequence[dict[str, Any]]) ->
         )
     if late:
         parts.append(f"{late} out of date, not written")
+    held = (status.get("held_proposal") or {}).get("id")
+    if held is not None and not count["waiting"] and not count["approved"]:
+        # the evidence points at turned-down gains: nothing will come until it moves
+        parts.append(f"none filed: the gains of #{held} are held back")
+        return Chip("proposals", "info", "; ".join(parts))
     if not parts:
         return Chip("proposals", "ok", "none waiting")
     # the states' own levels: warn while one waits for a person or a write, info otherwise

@@ -11,6 +11,7 @@ whatever the store holds (a year of windows is no slower to show than a day).
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
@@ -25,7 +26,7 @@ from fuelid.dashboard.views import (
     write_back_of,
 )
 
-__all__ = ["PARTS", "PART_EVENTS", "PART_WINDOWS", "link_bands", "loop_context"]
+__all__ = ["PARTS", "PART_EVENTS", "PART_WINDOWS", "link_bands", "loop_context", "revert_offer"]
 
 PART_WINDOWS = 30
 """Windows in the page's table (the newest)."""
@@ -58,14 +59,30 @@ def link_bands(events: list[dict[str, Any]], newest: float | None) -> list[list[
     return bands
 
 
-def _revert(status: dict[str, Any], write_back: str | None) -> tuple[bool, dict[str, Any], str]:
+def revert_offer(
+    status: dict[str, Any], write_back: str | None, gains: dict[str, Any]
+) -> tuple[bool, dict[str, Any], str]:
     """Whether a revert can happen now, the gains it would write, and why not when it cannot."""
     good = (status.get("write_back") or {}).get("last_known_good_block") or {}
     if write_back in (None, "off"):
         return False, good, 'No revert: write-back is "off", the service writes nothing.'
     if not good:
         return False, good, "No revert yet: no verified write, so no last-known-good gains."
+    if _same(good, gains):
+        return False, good, "No revert: the gains in force are the last-known-good ones."
     return True, good, ""
+
+
+def _same(a: dict[str, Any], b: dict[str, Any]) -> bool:
+    """Both gains known and equal within 0.1 % (a PLC's scaled integer tags round them).
+
+    >>> _same({"Kc": 1.0, "Ti": 2.0}, {"Kc": 1.0004, "Ti": 2.0}), _same({"Kc": 1.0}, {})
+    (True, False)
+    """
+    try:
+        return all(math.isclose(float(a[k]), float(b[k]), rel_tol=1e-3) for k in ("Kc", "Ti"))
+    except (KeyError, TypeError, ValueError):
+        return False
 
 
 def _approve_effect(write_back: str | None) -> str:
@@ -76,7 +93,7 @@ def _approve_effect(write_back: str | None) -> str:
 
 def loop_context(loop: LoopReader, *, engineer: bool) -> dict[str, Any]:
     """The template context of the loop page and its parts (module docstring)."""
-    from fuelid.online.report import window_json
+    from fuelid.online.report import held_line, window_json
 
     status = loop.status()
     tz = status.get("timezone") or "UTC"
@@ -88,7 +105,7 @@ def loop_context(loop: LoopReader, *, engineer: bool) -> dict[str, Any]:
     # the proposals and writes (a handful a day): every one; the windows: none beyond these
     history = loop.history(windows=1)
     gains = gains_in_force(status, history["writes"])
-    can_revert, last_good, no_revert = _revert(status, write_back)
+    can_revert, last_good, no_revert = revert_offer(status, write_back, gains)
     events = loop.recent_events(BAND_EVENTS)
     newest = (status.get("link") or {}).get("newest_sample")
     return {
@@ -102,6 +119,7 @@ def loop_context(loop: LoopReader, *, engineer: bool) -> dict[str, Any]:
         "approve_effect": _approve_effect(write_back),
         "proposals": proposal_views(status, windows, history["writes"]),
         "written": [w for w in [last_written_view(status, history, windows)] if w is not None],
+        "held_text": held_line(status.get("held_proposal")),
         "gains": {"Kc": gains["Kc"], "Ti": gains["Ti"]},
         "gains_source": gains["text"],
         "can_revert": can_revert,

@@ -381,6 +381,8 @@ def proposal_stale(
     """
     from fuelid.online.context import stale_reason
 
+    if "stale" in proposal:  # the status' own answer (fuelid.online.requests.stale_of): one truth
+        return proposal["stale"]  # type: ignore[no-any-return]
     model_id = proposal.get("model_id")
     if model_id is None:  # no window to judge: the service writes it
         return None

@@ -127,8 +127,14 @@ class ProposalFiling:
             if same_gains(old, new_kc, new_ti, self.settings.hysteresis):
                 # a person rejected these gains, or they were reverted: do not ask again until
                 # the evidence moves them by more than the hysteresis
-                if self.history.state("held_proposal") != old["id"]:
-                    self.history.set_state("held_proposal", old["id"])
+                held = self.history.state("held_proposal") or {}
+                if not isinstance(held, dict) or held.get("id") != old["id"]:
+                    # kept for the status (the pages say why no proposal comes) until a new
+                    # proposal is filed
+                    self.history.set_state(
+                        "held_proposal",
+                        {"id": old["id"], "status": old["status"], "Kc": new_kc, "Ti": new_ti},
+                    )
                     self.context.say(
                         "proposal",
                         held=f"the gains of #{old['id']} ({old['status']}) are not proposed again",
@@ -140,6 +146,7 @@ class ProposalFiling:
             self.history.set_proposal_status(
                 old["id"], "superseded", who="service", why="a newer proposal"
             )
+        self.history.set_state("held_proposal", None)  # a new proposal: nothing held any more
         detail = json_ready(
             {
                 **decision.to_json(),

@@ -33,6 +33,7 @@ from fuelid.io.jsonsafe import json_ready
 from fuelid.online.context import TRACKER_OBSERVATIONS, observation_of
 from fuelid.online.liveness import LINK_FRESH_S, SERVICE_KEY, loop_state
 from fuelid.online.plc_gains import plc_gains_json
+from fuelid.online.requests import stale_of
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.plc.gain_reading import PLC_GAINS_KEY
 from fuelid.store.online import OnlineHistory
@@ -253,6 +254,21 @@ def _target(ideal: Any, controller: Any) -> tuple[dict[str, float] | None, str |
     return {"Kc": kc, "Ti": ti}, None
 
 
+def _held(value: Any) -> dict[str, Any] | None:
+    """The held proposal's record (``id``, ``status``, ``Kc``, ``Ti``); None when none is held.
+
+    A store from before the record had fields kept the id alone: that one is said as it is.
+
+    >>> _held(3), _held(None)
+    ({'id': 3, 'status': None, 'Kc': None, 'Ti': None}, None)
+    """
+    if value is None:
+        return None
+    if not isinstance(value, dict):
+        return {"id": value, "status": None, "Kc": None, "Ti": None}
+    return {key: value.get(key) for key in ("id", "status", "Kc", "Ti")}
+
+
 def _gains(value: Any) -> dict[str, Any] | None:
     if not isinstance(value, dict):
         return None
@@ -447,8 +463,11 @@ def status_json(
         "current_model": _current_model(models[0] if models else None),
         "k_trend": k_trend_json(history),
         "pending_proposals": [
-            proposal_json(p, controller) for p in history.proposals(list(ACTIVE_STATUSES))
+            {**proposal_json(p, controller), "stale": stale_of(history, p["id"])}
+            for p in history.proposals(list(ACTIVE_STATUSES))
         ],
+        # the service's newest proposal matched turned-down gains and was not filed
+        "held_proposal": _held(history.state("held_proposal")),
         "requests": history.requests(status="waiting"),
         "loop_health": health,
         "counts": history.counts(),
@@ -573,6 +592,23 @@ def history_json(
         "units": ONLINE_UNITS,
     }
     return json_ready(out)  # type: ignore[no-any-return]
+
+
+def held_line(held: dict[str, Any] | None) -> str | None:
+    """Why the service files no new proposal, in one line (``online status``, the dashboard).
+
+    >>> held_line({"id": 1, "status": "reverted", "Kc": 0.03, "Ti": 3.0})[:68]
+    'none filed: the newest evidence points at the gains of #1 (reverted)'
+    >>> held_line(None) is None
+    True
+    """
+    if not held:
+        return None
+    status = f" ({held['status']})" if held.get("status") else ""
+    return (
+        f"none filed: the newest evidence points at the gains of #{held['id']}{status}, which "
+        "are not proposed again until new evidence moves them by more than the hysteresis"
+    )
 
 
 def health_line(health: dict[str, Any] | None) -> str:

@@ -77,7 +77,7 @@ def apply_request(
         return "refused", f"unknown request kind {kind!r}"
     proposal_id = request["proposal_id"]
     if kind == "approve":
-        stale = _stale(history, proposal_id)
+        stale = stale_of(history, proposal_id)
         if stale is not None:  # the service would supersede it instead of writing it
             return "refused", f"proposal {proposal_id} is out of date ({stale})"
     try:
@@ -92,8 +92,12 @@ def apply_request(
     return "done", f"proposal {updated['id']} {updated['status']} by {who}"
 
 
-def _stale(history: OnlineHistory, proposal_id: Any) -> str | None:
-    """Why the proposal is too old to be written (the service's own rule); None when fresh."""
+def stale_of(history: OnlineHistory, proposal_id: Any) -> str | None:
+    """Why the proposal is too old to be written (the service's own rule); None when fresh.
+
+    The same answer for an approval (refused with it), the status (each open proposal's
+    ``stale``) and the dashboard's cards.
+    """
     from fuelid.online.context import stale_reason
     from fuelid.online.liveness import SERVICE_KEY
     from fuelid.plc.site import Online

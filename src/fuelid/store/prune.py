@@ -13,6 +13,7 @@ import sqlite3
 import threading
 import time as _time
 
+from fuelid.io.clock import format_time
 from fuelid.store.archived import prunable_spans
 from fuelid.store.records import PruneResult, StoreError
 
@@ -94,7 +95,11 @@ class PruneMixin:
                     con.execute(_DELETE_LOD, (a, min(b, plant_cut)))
             kept = int(con.execute(_COUNT, (-math.inf, plant_cut)).fetchone()[0])
             how = "none" if thin_to_period_s is None else f"one per {thin_to_period_s} s"
-            detail = f"before {cutoff:.3f}: {deleted} deleted, {kept} kept ({how})"
+            # the cut-off is a wall-clock time: said as a date, not as seconds since the epoch
+            detail = (
+                f"written before {format_time(cutoff, 'UTC')} (wall clock): {deleted} deleted, "
+                f"{kept} kept ({how})"
+            )
             unarchived = 0
             if archived_only:
                 unarchived = kept - sum(

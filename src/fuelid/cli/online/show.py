@@ -68,8 +68,11 @@ def _gains_text(p: dict[str, Any]) -> str:
         return text
 
     ms = p.get("Ms")
-    return f"#{p['id']} {p['status']}: {one('Kc')}, {one('Ti')}" + (
-        "" if ms is None else f" (Ms {ms:.2f})"
+    stale = f" — out of date, not written: {p['stale']}" if p.get("stale") else ""
+    return (
+        f"#{p['id']} {p['status']}: {one('Kc')}, {one('Ti')}"
+        + ("" if ms is None else f" (Ms {ms:.2f})")
+        + stale
     )
 
 
@@ -98,7 +101,10 @@ def _trend_text(trend: dict[str, Any]) -> str:
 
 def status_lines(status: dict[str, Any]) -> list[str]:
     """The human form of :func:`~fuelid.online.report.status_json`, a few aligned lines."""
-    from fuelid.online.report import health_line  # numpy behind it: not at `fuelid --help`
+    from fuelid.online.report import (  # numpy behind it: not at `fuelid --help`
+        health_line,
+        held_line,
+    )
 
     tz = status.get("timezone") or "UTC"
     link = status["link"]
@@ -126,7 +132,11 @@ def status_lines(status: dict[str, Any]) -> list[str]:
             + ")"
         )
     pending = status.get("pending_proposals") or []
-    proposals_text = "none" if not pending else "; ".join(_gains_text(p) for p in pending)
+    proposals_text = (
+        "; ".join(_gains_text(p) for p in pending)
+        if pending
+        else held_line(status.get("held_proposal")) or "none"
+    )
     wb = status.get("write_back") or {}
     last_write = status.get("last_write")
     write_text = f"write_back {wb.get('setting') or 'unknown (give --config)'}"

@@ -52,15 +52,23 @@ async function loadTrend() {
     trend = new LiveTrend(box, {
       tz: TZ, api: API, minutes: Number(box.dataset.minutes) || 10,
       period: Number(document.body.dataset.period) || 0.02,
-      onZoom: (following) => { document.getElementById("live").hidden = following; },
+      onZoom: (following, data) => showFollowing(following, data),
     });
     window.addEventListener("resize", () => trend.resize());
   }
   const width = Math.max(300, box.clientWidth || 1000);
   const data = await getJSON(`${API}/trend?width=${width}&minutes=${box.dataset.minutes || 10}`);
-  document.getElementById("trend-source").textContent = sourceText(data);
   trend.load(data);
+  showFollowing(trend.following, data);
   stampShown(trend.newest);
+}
+
+function showFollowing(following, data) {
+  document.getElementById("live").hidden = following;
+  const span = document.getElementById("trend-span");
+  if (span) span.textContent = following ? `the newest ${trend.span / 60} min, following` : "a stored range, not following";
+  if (following) document.getElementById("trend-source").textContent = "live: pushed as the samples are committed";
+  else if (data) document.getElementById("trend-source").textContent = sourceText(data);
 }
 
 function sourceText(data) {
@@ -135,6 +143,7 @@ async function loadParts() {
     if (box) box.innerHTML = html; // rendered by the server's templates, every value escaped
   }
   restoreForms(kept);
+  if (parts.status) showStatus(parts.status);
   if (trend) trend.setBands(parts.link_bands || []);
   bindActions();
   scheduleAnalysis();
@@ -157,6 +166,7 @@ function askToConfirm(button) {
     why.focus();
     return;
   }
+  outcome.textContent = ""; // "a reason is required" no longer holds
   const confirm = form.querySelector(".confirm");
   form.dataset.confirming = button.dataset.kind;
   confirm.querySelector(".question").textContent = button.dataset.confirm || `${button.dataset.kind}?`;
@@ -235,6 +245,16 @@ function watchAnalysis() {
   seen.observe(box);
 }
 
+async function checkSession() {
+  const who = document.querySelector("header.top .who");
+  const shown = who && who.querySelector("form.inline") !== null; // a user's name and "log out"
+  const me = await getJSON("/api/whoami");
+  if (shown && !me.user) {
+    const next = encodeURIComponent(window.location.pathname);
+    who.replaceChildren("your session ended (the dashboard restarted): ", el("a", { href: `/login?next=${next}` }, "log in again"));
+  }
+}
+
 // --- start ------------------------------------------------------------------------------------------
 
 function openStream() {
@@ -246,8 +266,9 @@ function openStream() {
       status: showStatus, samples: appendSamples,
       windows: refresh, proposals: refresh, writes: refresh, events: refresh,
     },
-    // back after a loss: the samples missed meanwhile come from the store, the parts afresh
-    onBack: () => { loadTrend().catch(console.warn); refreshParts(); },
+    // back after a loss: the samples missed meanwhile come from the store, the parts afresh,
+    // and a session the dashboard no longer knows (it restarted) is said, not shown as open
+    onBack: () => { loadTrend().catch(console.warn); refreshParts(); checkSession().catch(console.warn); },
   });
 }
 

@@ -232,6 +232,7 @@ class LiveTrend {
     const data = await getJSON(`${this.api}/trend?width=${width}&start=${start}&end=${end}`);
     if (this.following) return; // "follow live" was pressed meanwhile
     this.shown = data;
+    this.onZoom(false, data);
     this.redraw();
     return data;
   }
