@@ -564,7 +564,6 @@ def test_one_page_tells_one_truth_through_approval_write_revert_and_a_new_window
                         truth.step("approve without a reason", truth.look())
                         # what is typed into the form, across a re-read of the parts
                         page.fill(f"{form} input[name=why]", "typed, not sent")
-                        page.evaluate(f"document.querySelector(\"{form}\").dataset.probe = '1'")
                         window_before = truth.look()["newest_window"]
                         truth.until(
                             "a window while typing",
@@ -572,9 +571,10 @@ def test_one_page_tells_one_truth_through_approval_write_revert_and_a_new_window
                             timeout=60,
                         )
                         page.wait_for_timeout(1000)  # the part's re-read (300 ms after)
+                        # the form is rendered anew with the part; what was typed stays
                         kept_reason = page.evaluate(
                             f'(() => {{ const f = document.querySelector("{form}");'
-                            " return f !== null && f.dataset.probe === '1'"
+                            " return f !== null"
                             " && f.querySelector('input[name=why]').value === 'typed, not sent';"
                             " })()"
                         )
@@ -582,6 +582,7 @@ def test_one_page_tells_one_truth_through_approval_write_revert_and_a_new_window
                         if _card_of(truth.look(), proposal) is None:
                             passed.add(proposal)
                             continue  # superseded meanwhile
+                        assert kept_reason, "the reason typed was lost when the parts were re-read"
                     # --- approve with a reason, confirmed
                     truth.gains_of[proposal] = (card["Kc"]["new"], card["Ti"]["new"])
                     filed = len(_requests(base, loop_id))
