@@ -298,8 +298,7 @@ def test_waiting_approved_and_out_of_date_are_counted_apart() -> None:
     got = chip(with_changes(pending_proposals=pending), "proposals", windows)
     assert got.level == "warn"
     assert got.text == (
-        "1 waits for approval; 1 approved, waiting for the write; "
-        "1 out of date, not written"
+        "1 waits for approval; 1 approved, waiting for the write; 1 out of date, not written"
     )
 
 

@@ -176,8 +176,7 @@ def test_the_chip_and_the_cards_classify_alike() -> None:
     (chip,) = [c for c in loop_chips(loop, [], windows) if c.name == "proposals"]
     assert chip.level == "warn"
     assert chip.text == (
-        "1 waits for approval; 1 approved, waiting for the write; "
-        "1 out of date, not written"
+        "1 waits for approval; 1 approved, waiting for the write; 1 out of date, not written"
     )
 
 
