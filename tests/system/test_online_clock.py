@@ -105,6 +105,9 @@ def test_an_accelerated_run_files_everything_in_plant_time_order(
     assert " V per L/min" in out  # the gains in the block's units
 
 
+# the slow set: 15 s of a virtual run (the fast set's 6-min budget); the dashboard's slow browser
+# test kills a service with SIGKILL too and reads the stop on the page
+@pytest.mark.slow
 def test_a_service_killed_with_sigkill_reads_stopped_within_five_beats_and_two(
     tmp_path: Path,
 ) -> None:
