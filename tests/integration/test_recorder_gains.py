@@ -107,11 +107,10 @@ def gains(kc: float, ti: float) -> list[int]:
     return encode(kc, "float32") + encode(ti, "float32")
 
 
-# the ring's case in the slow set: 4 s of a PLC at speed (the fast set's 6-min budget); the
-# polled case reads the same tags the same way
-@pytest.mark.parametrize(
-    "ring", [False, pytest.param(True, marks=pytest.mark.slow)], ids=["polled", "ring"]
-)
+# the slow set: 4 s each of a PLC at speed (the fast set's 6-min budget); the status and the
+# pages' use of the reading are unit-tested (test_dashboard_views, test_online_cli)
+@pytest.mark.slow
+@pytest.mark.parametrize("ring", [False, True], ids=["polled", "ring"])
 def test_the_store_keeps_the_gains_as_read_and_follows_a_change(tmp_path: Path, ring: bool) -> None:
     from support.modbus import FakePlc
 
