@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -110,6 +111,106 @@ def loop_summary(loop: LoopReader, status: dict[str, Any] | None = None) -> dict
     return row
 
 
+@dataclass
+class _Dashboard:
+    """What the routes share: the loops, the logins, the templates, the static files, the feeds."""
+
+    app: FastAPI
+    loops: Loops
+    security: Security
+    env: Any
+    title: str
+    trend_minutes: float
+    static_files: StaticFiles
+    feeds: Feeds = field(default_factory=Feeds)
+    swagger: Path | None = field(default_factory=lambda: _swagger_ui())
+
+    @property
+    def viewer(self) -> Any:
+        """The dependency of every page and data route (a login where one is required)."""
+        return Depends(self.security.require_viewer)
+
+    @property
+    def engineer(self) -> Any:
+        """The dependency of every action (an engineer's session with its CSRF token)."""
+        return Depends(self.security.require_engineer)
+
+    def get_loop(self, loop_id: str) -> LoopReader:
+        loop = self.loops.get(loop_id)
+        if loop is None:
+            raise HTTPException(404, f"no loop {loop_id!r}")
+        return loop
+
+    def fleet_rows(self) -> tuple[list[dict[str, Any]], dict[str, str]]:
+        """The rows, most severe first, and the loops not shown with the reason."""
+        rows = []
+        not_shown = self.loops.not_shown()
+        for loop_id in self.loops.ids():
+            loop = self.loops.get(loop_id)
+            if loop is None:
+                continue
+            try:
+                rows.append(loop_summary(loop))
+            except CentralError as error:  # lost while listing: the local loops still show
+                not_shown[f"central loop {loop_id}"] = " ".join(str(error).split())
+        return sorted(rows, key=lambda r: r["sort_key"]), not_shown
+
+    def central_state(self) -> dict[str, Any] | None:
+        """The central store as the fleet page shows it (None without ``--central``)."""
+        if self.loops.central is None:
+            return None
+        url, error = self.loops.central.db.shown_url, self.loops.central.error
+        if error is not None:  # the banner names the store once
+            error = error.removeprefix(f"central store {url}: ")
+        return {"url": url, "error": error}
+
+    def is_engineer(self, request: Request) -> bool:
+        """The actions are offered to an engineer's session only (the others cannot act)."""
+        user = self.security.current_user(request)
+        return user is not None and user.role == "engineer"
+
+    def render(self, name: str, request: Request, context: dict[str, Any]) -> str:
+        """A template (a page or a part of one) for the request's session."""
+        session = self.security.session(request)
+        return str(
+            self.env.get_template(name).render(
+                title=self.title,
+                user=self.security.current_user(request),
+                csrf=None if session is None else session.csrf,
+                login_required=self.security.require_login,
+                here=request.url.path,  # "log in" comes back here
+                **context,
+            )
+        )
+
+    def page(self, name: str, request: Request, **context: Any) -> HTMLResponse:
+        return HTMLResponse(self.render(name, request, context))
+
+    def window_json(self, loop: LoopReader, window_id: int) -> dict[str, Any]:
+        from fuelid.dashboard.window_view import window_evidence
+        from fuelid.online.report import window_json as stored_window
+
+        row = loop.window(window_id)
+        if row is None:
+            raise HTTPException(404, f"no window {window_id} in loop {loop.loop_id!r}")
+        samples = loop.samples(float(row["t_from"]), float(row["t_to"]))
+        status = loop.status()
+        settings = ((status.get("service") or {}).get("settings")) or None
+        proposals = [
+            p
+            for p in loop.history()["proposals"]
+            if p.get("model_id") is not None and p["model_id"] == row.get("model_id")
+        ]
+        return {
+            "window": stored_window(row),
+            "gates_verdict": (row.get("detail") or {}).get("gates"),
+            "evidence": window_evidence(row, samples, loop.identity().get("period_s"), settings),
+            "proposals": proposals,
+            "timezone": status.get("timezone", "UTC"),
+            "gain_units": status.get("gain_units") or status.get("gains_units"),
+        }
+
+
 def create_app(
     loops: Loops,
     security: Security,
@@ -122,6 +223,8 @@ def create_app(
     ``trend_minutes``: the span the loop page's live trend follows [min].
     """
     import jinja2
+
+    from fuelid.dashboard.not_found import install_not_found  # a page's 404: an HTML page
 
     package = resources.files("fuelid.dashboard")
     env = jinja2.Environment(
@@ -142,25 +245,37 @@ def create_app(
     app.openapi_version = "3.0.3"
     app.state.loops = loops
     app.state.security = security
-    feeds = Feeds()
     static_files = StaticFiles(Path(str(package / STATIC)), {"plotly.min.js": _plotly_js()})
     env.globals["static"] = static_files.url
     # the event stream is never compressed (Starlette leaves text/event-stream alone)
     app.add_middleware(GZipMiddleware, minimum_size=GZIP_MIN_BYTES)
     add_security_headers(app)
     app.include_router(auth_router(security))
-    # --- static --------------------------------------------------------------------------
+    board = _Dashboard(app, loops, security, env, title, trend_minutes, static_files)
+
+    @app.exception_handler(CentralError)
+    def central_unreachable(request: Request, error: CentralError) -> JSONResponse:
+        """A central loop whose store cannot be read now: 503 with the reason."""
+        return JSONResponse({"detail": " ".join(str(error).split())}, status_code=503)
+
+    install_not_found(app, board.render)
+    _static_routes(board)
+    _page_routes(board)
+    _data_routes(board)
+    _action_routes(board)
+    return app
+
+
+def _static_routes(board: _Dashboard) -> None:
+    """The favicon, the OpenAPI page and the static files (compressed, cached)."""
+    app, viewer, page, swagger = board.app, board.viewer, board.page, board.swagger
+    static_files = board.static_files
+    if swagger is not None:
+        app.mount("/static/swagger", MountedFiles(directory=str(swagger)), name="swagger")
 
     @app.get("/favicon.ico", include_in_schema=False)
     def favicon() -> Response:
         return Response(status_code=204)  # no icon (a 404 would be a console error)
-
-    viewer = Depends(security.require_viewer)
-    engineer = Depends(security.require_engineer)
-
-    swagger = _swagger_ui()
-    if swagger is not None:
-        app.mount("/static/swagger", MountedFiles(directory=str(swagger)), name="swagger")
 
     @app.get(
         "/api/docs", response_class=HTMLResponse, include_in_schema=False, dependencies=[viewer]
@@ -178,66 +293,13 @@ def create_app(
             name, request.headers.get("accept-encoding", ""), request.headers.get("if-none-match")
         )
 
-    def get_loop(loop_id: str) -> LoopReader:
-        loop = loops.get(loop_id)
-        if loop is None:
-            raise HTTPException(404, f"no loop {loop_id!r}")
-        return loop
 
-    def fleet_rows() -> tuple[list[dict[str, Any]], dict[str, str]]:
-        """The rows, most severe first, and the loops not shown with the reason."""
-        rows = []
-        not_shown = loops.not_shown()
-        for loop_id in loops.ids():
-            loop = loops.get(loop_id)
-            if loop is None:
-                continue
-            try:
-                rows.append(loop_summary(loop))
-            except CentralError as error:  # lost while listing: the local loops still show
-                not_shown[f"central loop {loop_id}"] = " ".join(str(error).split())
-        return sorted(rows, key=lambda r: r["sort_key"]), not_shown
-
-    def central_state() -> dict[str, Any] | None:
-        """The central store as the fleet page shows it (None without ``--central``)."""
-        if loops.central is None:
-            return None
-        url, error = loops.central.db.shown_url, loops.central.error
-        if error is not None:  # the banner names the store once
-            error = error.removeprefix(f"central store {url}: ")
-        return {"url": url, "error": error}
-
-    @app.exception_handler(CentralError)
-    def central_unreachable(request: Request, error: CentralError) -> JSONResponse:
-        """A central loop whose store cannot be read now: 503 with the reason."""
-        return JSONResponse({"detail": " ".join(str(error).split())}, status_code=503)
-
-    def is_engineer(request: Request) -> bool:
-        """The actions are offered to an engineer's session only (the others cannot act)."""
-        user = security.current_user(request)
-        return user is not None and user.role == "engineer"
-
-    def render(name: str, request: Request, context: dict[str, Any]) -> str:
-        user = security.current_user(request)
-        session = security.session(request)
-        return env.get_template(name).render(
-            title=title,
-            user=user,
-            csrf=None if session is None else session.csrf,
-            login_required=security.require_login,
-            here=request.url.path,  # "log in" comes back here
-            **context,
-        )
-
-    def page(name: str, request: Request, **context: Any) -> HTMLResponse:
-        return HTMLResponse(render(name, request, context))
-
-    part = render  # a part of a page: the same rendering, without the page around it
-    from fuelid.dashboard.not_found import install_not_found  # a page's 404: an HTML page
-
-    install_not_found(app, render)
-
-    # --- pages ---------------------------------------------------------------------------
+def _page_routes(board: _Dashboard) -> None:
+    """The fleet, loop and window pages, the loop page's live parts, the window's report."""
+    app, viewer, page, part = board.app, board.viewer, board.page, board.render
+    get_loop, is_engineer, window_json = board.get_loop, board.is_engineer, board.window_json
+    fleet_rows, central_state = board.fleet_rows, board.central_state
+    trend_minutes = board.trend_minutes
 
     @app.get("/", response_class=HTMLResponse, include_in_schema=False, dependencies=[viewer])
     def fleet_page(request: Request) -> HTMLResponse:
@@ -325,7 +387,16 @@ def create_app(
             raise HTTPException(404, f"no window {window_id} in loop {loop_id!r}")
         return HTMLResponse(window_report_html(loop, row))
 
-    # --- API -----------------------------------------------------------------------------
+
+def _data_routes(board: _Dashboard) -> None:
+    """The JSON API's reads: loops, status, history, trend, window, the event stream."""
+    app, viewer, get_loop = board.app, board.viewer, board.get_loop
+    fleet_rows, central_state, window_json = (
+        board.fleet_rows,
+        board.central_state,
+        board.window_json,
+    )
+    feeds, trend_minutes = board.feeds, board.trend_minutes
 
     @app.get("/api/loops", dependencies=[viewer])
     def api_loops() -> dict[str, Any]:
@@ -382,30 +453,6 @@ def create_app(
             raise HTTPException(422, "start and end must be finite with end > start")
         return dict(trend(loop, begin, stop, width))
 
-    def window_json(loop: LoopReader, window_id: int) -> dict[str, Any]:
-        from fuelid.dashboard.window_view import window_evidence
-        from fuelid.online.report import window_json as stored_window
-
-        row = loop.window(window_id)
-        if row is None:
-            raise HTTPException(404, f"no window {window_id} in loop {loop.loop_id!r}")
-        samples = loop.samples(float(row["t_from"]), float(row["t_to"]))
-        status = loop.status()
-        settings = ((status.get("service") or {}).get("settings")) or None
-        proposals = [
-            p
-            for p in loop.history()["proposals"]
-            if p.get("model_id") is not None and p["model_id"] == row.get("model_id")
-        ]
-        return {
-            "window": stored_window(row),
-            "gates_verdict": (row.get("detail") or {}).get("gates"),
-            "evidence": window_evidence(row, samples, loop.identity().get("period_s"), settings),
-            "proposals": proposals,
-            "timezone": status.get("timezone", "UTC"),
-            "gain_units": status.get("gain_units") or status.get("gains_units"),
-        }
-
     @app.get("/api/loops/{loop_id}/windows/{window_id}", dependencies=[viewer])
     def api_window(loop_id: str, window_id: int) -> dict[str, Any]:
         """One window: its record, data against the model, residual ACF, gates, proposals."""
@@ -421,6 +468,12 @@ def create_app(
             if await request.is_disconnected():
                 break
             yield ServerSentEvent(event=kind, data=data)
+
+
+def _action_routes(board: _Dashboard) -> None:
+    """The actions (approve, reject, revert: requests an engineer files) and the requests."""
+    app, viewer, engineer, get_loop = board.app, board.viewer, board.engineer, board.get_loop
+    security = board.security
 
     async def _request(
         loop_id: str, kind: str, proposal_id: int | None, request: Request
@@ -461,8 +514,6 @@ def create_app(
     def api_requests(loop_id: str) -> dict[str, Any]:
         """The requests people filed, newest last, with their outcome."""
         return {"requests": get_loop(loop_id).requests()}
-
-    return app
 
 
 def stream_summary(loop: LoopReader) -> dict[str, Any]:
