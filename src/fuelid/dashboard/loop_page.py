@@ -11,13 +11,14 @@ whatever the store holds (a year of windows is no slower to show than a day).
 
 from __future__ import annotations
 
-import math
 import time
 from typing import Any
 
 from fuelid.dashboard.source import LoopReader
 from fuelid.dashboard.views import (
+    READ_BACK_RTOL,
     central_waiting,
+    gains_agree,
     gains_in_force,
     last_written_view,
     link_text,
@@ -68,21 +69,9 @@ def revert_offer(
         return False, good, 'No revert: write-back is "off", the service writes nothing.'
     if not good:
         return False, good, "No revert yet: no verified write, so no last-known-good gains."
-    if _same(good, gains):
+    if gains_agree(good, gains, READ_BACK_RTOL):  # the PLC's tags round the gains
         return False, good, "No revert: the gains in force are the last-known-good ones."
     return True, good, ""
-
-
-def _same(a: dict[str, Any], b: dict[str, Any]) -> bool:
-    """Both gains known and equal within 0.1 % (a PLC's scaled integer tags round them).
-
-    >>> _same({"Kc": 1.0, "Ti": 2.0}, {"Kc": 1.0004, "Ti": 2.0}), _same({"Kc": 1.0}, {})
-    (True, False)
-    """
-    try:
-        return all(math.isclose(float(a[k]), float(b[k]), rel_tol=1e-3) for k in ("Kc", "Ti"))
-    except (KeyError, TypeError, ValueError):
-        return False
 
 
 def _approve_effect(write_back: str | None) -> str:

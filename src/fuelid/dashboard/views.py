@@ -67,6 +67,7 @@ __all__ = [
     "central_waiting",
     "fmt_num",
     "fresh_bound_s",
+    "gains_agree",
     "gains_in_force",
     "is_waiting",
     "last_written_view",
@@ -536,7 +537,7 @@ def _versus_write(reading: dict[str, Any], write: dict[str, Any], status: dict[s
     what += f" at {format_time(at, tz)}"
     read_at = reading.get("time")
     older = isinstance(read_at, int | float) and isinstance(at, int | float) and read_at < at
-    if _same_gains(reading, write, READ_BACK_RTOL):
+    if gains_agree(reading, write, READ_BACK_RTOL):
         return f", before {what} (the same gains)" if older else ""
     written = f"Kc {fmt_num(write.get('Kc'))} {units['Kc'] or ''}".rstrip()
     written += f", Ti {fmt_num(write.get('Ti'))} {units['Ti'] or ''}".rstrip()
@@ -622,7 +623,7 @@ def gains_in_force(
     return _gains_json(status, None, None, "unknown", text)
 
 
-def _same_gains(a: dict[str, Any], b: dict[str, Any], rel_tol: float = 1e-6) -> bool:
+def gains_agree(a: dict[str, Any], b: dict[str, Any], rel_tol: float = 1e-6) -> bool:
     """True when both gains are known and equal to ``rel_tol`` (relative)."""
     try:
         return all(math.isclose(float(a[k]), float(b[k]), rel_tol=rel_tol) for k in ("Kc", "Ti"))
@@ -650,7 +651,7 @@ def _card(
         "from_text": start_text,
         "old": start,
         "filed_old": filed_old,
-        "from_changed": bool(start) and bool(filed_old) and not _same_gains(start, filed_old),
+        "from_changed": bool(start) and bool(filed_old) and not gains_agree(start, filed_old),
         "new": proposal.get("new") or {},
         "state": state.state,
         "state_label": STATE_LABELS.get(state.state, state.state),
