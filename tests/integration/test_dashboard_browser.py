@@ -496,7 +496,9 @@ def test_one_page_tells_one_truth_through_approval_write_revert_and_a_new_window
     config = tmp_path / "online.toml"
     config.write_text("[online]\n" + ONLINE_APPROVE)
     store = tmp_path / "loop.db"
-    args = ("--speed", "20", "--hours", "2", "--config", str(config))
+    # 4 h of plant time (12 min of wall) caps the run: the test stops it when done (about 1 min
+    # here), and a slower machine must not see the service end before the revert and a window
+    args = ("--speed", "20", "--hours", "4", "--config", str(config))
     kept_reason: bool | None = None
     with virtual_service(tmp_path, store, *args) as service:
         service.wait_for(lambda line: "link up" in line)
