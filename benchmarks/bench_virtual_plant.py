@@ -5,7 +5,7 @@ Target (issue 14): ≥ 50× real time. Two measurements:
 1. the engine alone (no sockets): plant seconds simulated per wall second, in AUTO on the
    wind-tunnel run (the PI at work, one LSODA call per 1 s control period);
 2. the engine on its Modbus TCP front end with a plain pymodbus client reading every ring record
-   in blocks of 15 (as a recorder does), for each speed X: whether plant time kept pace with
+   in blocks of 12 (as a recorder does), for each speed X: whether plant time kept pace with
    X × wall time (the largest lateness of a tick behind its absolute deadline, in wall and in
    plant time), the share of wall time the PLC's thread was busy, and whether the client got
    every sample (no gap, no duplicate in the sequence numbers).
@@ -25,7 +25,11 @@ import time
 
 from _docs_table import run_to_docs
 from fuelid.plc.virtual.engine import VirtualPLC
-from fuelid.plc.virtual.points import RING_FIRST_REGISTER, RING_HEAD_REGISTER
+from fuelid.plc.virtual.points import (
+    RING_FIRST_REGISTER,
+    RING_HEAD_REGISTER,
+    RING_RECORD_REGISTERS,
+)
 from fuelid.plc.virtual.runner import VirtualPlcThread
 
 TARGET = 50.0
@@ -72,12 +76,15 @@ async def read_ring(port: int, seconds: float, ring_size: int, speed: float) -> 
         seq = (last + 1) % SEQ_MODULUS
         while count > 0:
             slot = seq % ring_size
-            n = min(15, count, ring_size - slot)
+            n = min(12, count, ring_size - slot)
             rr = await client.read_input_registers(
-                RING_FIRST_REGISTER + 8 * slot, count=8 * n, device_id=1
+                RING_FIRST_REGISTER + RING_RECORD_REGISTERS * slot,
+                count=RING_RECORD_REGISTERS * n,
+                device_id=1,
             )
             for i in range(n):
-                got = (rr.registers[8 * i] << 16) | rr.registers[8 * i + 1]
+                first = RING_RECORD_REGISTERS * i
+                got = (rr.registers[first] << 16) | rr.registers[first + 1]
                 bad += got != seq
                 seq = (seq + 1) % SEQ_MODULUS
             received += n

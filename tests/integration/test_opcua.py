@@ -63,9 +63,9 @@ VALUES = {
 
 
 def ring_records(first: int, last: int) -> dict[int, np.ndarray]:
-    """Records of samples first…last: seq, command [V], flow and setpoint [L/min]."""
+    """Records of samples first…last: seq, command [V], flow and setpoint [L/min], excitation."""
     return {
-        seq % RING_SIZE: np.array([seq, 2.0 + 0.01 * seq, 40.0 + 0.1 * seq, 50.0])
+        seq % RING_SIZE: np.array([seq, 2.0 + 0.01 * seq, 40.0 + 0.1 * seq, 50.0, 0.125])
         for seq in range(first, last + 1)
     }
 
@@ -163,6 +163,7 @@ type = "uint16"
 head = "ns=2;s=FuelLoop.RingHead"
 address = "ns=2;s={OPCUA_RING}"
 size = {RING_SIZE}
+fields = ["seq", "command", "flow", "setpoint", "excitation"]
 """
 
 
@@ -185,6 +186,7 @@ def test_plain_client_sees_the_node_map(served: ServerThread) -> None:
         "staged_ti": 3.0,
         "apply": 7,
         "heartbeat": 12,
+        "excitation_request": -0.125,
     }
 
     async def body() -> None:
@@ -211,13 +213,15 @@ def test_plain_client_sees_the_node_map(served: ServerThread) -> None:
                     ua.Variant(1.0, ua.VariantType.Double)
                 )
             ring = await client.get_node(f"ns=2;s={OPCUA_RING}").read_value()
-            assert len(ring) == 4 * RING_SIZE
-            assert ring[4 * 9 : 4 * 10] == pytest.approx([9, 2.09, 40.9, 50.0])
+            assert len(ring) == 5 * RING_SIZE
+            assert ring[5 * 9 : 5 * 10] == pytest.approx([9, 2.09, 40.9, 50.0, 0.125])
             part = await client.get_node(f"ns=2;s={OPCUA_RING}").read_attribute(
-                ua.AttributeIds.Value, indexrange="12:19"
+                ua.AttributeIds.Value, indexrange="15:24"
             )
             assert part.Value is not None
-            assert part.Value.Value == pytest.approx([3, 2.03, 40.3, 50.0, 4, 2.04, 40.4, 50.0])
+            assert part.Value.Value == pytest.approx(
+                [3, 2.03, 40.3, 50.0, 0.125, 4, 2.04, 40.4, 50.0, 0.125]
+            )
 
     run(body())
     collected = served.call(frontend.collect)
@@ -236,7 +240,7 @@ def test_publish_writes_the_ring_before_the_head_and_restarts_keep_the_port(
         await frontend.publish({**VALUES, "ring_head": 70}, ring_records(65, 70))
         async with Client(frontend.url, timeout=2) as client:
             ring = await client.get_node(f"ns=2;s={OPCUA_RING}").read_value()
-            assert ring[4 * (70 % RING_SIZE)] == 70  # slot 6: wrapped around
+            assert ring[5 * (70 % RING_SIZE)] == 70  # slot 6: wrapped around
             assert await client.get_node("ns=2;s=FuelLoop.RingHead").read_value() == 70
         await frontend.stop()
         await frontend.start()
@@ -312,7 +316,9 @@ async def check_ring(url: str, tmp_path: Path) -> list[tuple[str, int]]:
         assert await source.read_ring_head() == 9
         records = await source.read_ring(3, 4)
         assert [record.seq for record in records] == [3, 4, 5, 6]
-        assert records[1].values == pytest.approx({"command": 2.04, "flow": 40.4, "setpoint": 50.0})
+        assert records[1].values == pytest.approx(
+            {"command": 2.04, "flow": 40.4, "setpoint": 50.0, "excitation": 0.125}
+        )
         assert await source.read_ring(5, 0) == []
         (last,) = await source.read_ring(RING_SIZE - 1, 1)
         assert last.seq == 0  # never written
@@ -323,7 +329,7 @@ async def check_ring(url: str, tmp_path: Path) -> list[tuple[str, int]]:
 
 def test_source_reads_ring_slices_by_index_range(served: ServerThread, tmp_path: Path) -> None:
     reads = run(check_ring(served.frontend.url, tmp_path))
-    assert reads == [("12:27", 16), (f"{4 * RING_SIZE - 4}:{4 * RING_SIZE - 1}", 4)]
+    assert reads == [("15:34", 20), (f"{5 * RING_SIZE - 5}:{5 * RING_SIZE - 1}", 5)]
 
 
 def test_source_slices_the_whole_ring_from_a_server_without_ranges(tmp_path: Path) -> None:
@@ -338,7 +344,7 @@ def test_source_slices_the_whole_ring_from_a_server_without_ranges(tmp_path: Pat
             await frontend.stop()
 
     reads = run(body())
-    assert [answered for _, answered in reads] == [4 * RING_SIZE, 4 * RING_SIZE]
+    assert [answered for _, answered in reads] == [5 * RING_SIZE, 5 * RING_SIZE]
 
 
 def test_source_writes_gains_and_apply_in_one_request(
@@ -670,7 +676,7 @@ async def ring_after(client: Client, first_seq: int, count: int) -> list[list[fl
         await asyncio.sleep(0.05)
     ring = await client.get_node(f"ns=2;s={OPCUA_RING}").read_value()
     records = [
-        ring[4 * (seq % size) : 4 * (seq % size) + 4] for seq in range(first_seq, first_seq + count)
+        ring[5 * (seq % size) : 5 * (seq % size) + 5] for seq in range(first_seq, first_seq + count)
     ]
     assert [int(record[0]) for record in records] == list(range(first_seq, first_seq + count))
     return records
@@ -730,7 +736,7 @@ def test_virtual_plc_site_file_works_with_the_adapter(tmp_path: Path) -> None:
                 head = await source.read_ring_head()
                 (record,) = await source.read_ring(head % virtual.plc.ring_size, 1)
                 assert record.seq == head
-                assert set(record.values) == {"command", "flow", "setpoint"}
+                assert set(record.values) == {"command", "flow", "setpoint", "excitation"}
                 await source.write({"heartbeat": 1})  # an advisor is alive
                 await source.write({"kc": kc, "ti": ti, "apply": 1, "heartbeat": 2})
                 while (await source.read()).values["kc"] == pytest.approx(kc0):

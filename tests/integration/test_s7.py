@@ -46,19 +46,22 @@ VALUES = {
     "echo": 42,  # DBD32 UDInt 00 00 00 2A
     "flow_counts": 13824,  # DBW36 Int 36 00 (half of 27648: 60 L/min)
     "fuel_temperature_counts": 27648,  # DBW38 Int 6C 00 (80 °C)
+    "excitation": 0.25,  # DBD40 REAL 3E 80 00 00
+    "run": 1,  # DBW44 UInt 00 01
     "ring_head": 39,  # DBD200 UDInt 00 00 00 27
     "ring_size": 64,  # DBW204 UInt 00 40
 }
 DB1_HEAD = bytes.fromhex(
     "075BCD15 40600000 40200000 BF800000 41A00000 0001 0005 3E000000 41000000 0000002A 3600 6C00"
+    "3E800000 0001"
 )
 RING_SIZE = 64
 
 
 def _ring(count: int = 40) -> dict[int, np.ndarray]:
-    """Slots 0..count-1: seq 1000+slot, command 1+slot/100 V, flow 2*slot, setpoint 50."""
+    """Slots 0..count-1: seq 1000+slot, command 1+slot/100 V, flow 2*slot, setpoint 50, −0.5 V."""
     return {
-        slot: np.array([1000.0 + slot, 1.0 + slot / 100.0, 2.0 * slot, 50.0])
+        slot: np.array([1000.0 + slot, 1.0 + slot / 100.0, 2.0 * slot, 50.0, -0.5])
         for slot in range(count)
     }
 
@@ -130,7 +133,12 @@ def _site(port: int, **tags: dict[str, Any]) -> SiteConfig:
                 "apply": {"address": "DB2.DBD28", "type": "uint32"},
                 "heartbeat": {"address": "DB2.DBW40", "type": "uint16"},
             },
-            "ring": {"head": "DB1.DBD200", "address": "DB1.DBD2000", "size": RING_SIZE},
+            "ring": {
+                "head": "DB1.DBD200",
+                "address": "DB1.DBD2000",
+                "size": RING_SIZE,
+                "fields": ["seq", "command", "flow", "setpoint", "excitation"],
+            },
         }
     )
 
@@ -159,12 +167,12 @@ def requests(monkeypatch: pytest.MonkeyPatch) -> list[int]:
 
 
 def test_db1_bytes_as_points_say(client: Client) -> None:
-    assert bytes(client.db_read(1, 0, 40)) == DB1_HEAD
+    assert bytes(client.db_read(1, 0, 46)) == DB1_HEAD
     assert client.db_read(1, 200, 6).hex() == "000000270040"
-    # ring slot 5 at 2000 + 16 x 5: seq 1005, 1.05 V, 10 L/min, 50 L/min
-    record = client.db_read(1, 2080, 16)
+    # ring slot 5 at 2000 + 20 x 5: seq 1005, 1.05 V, 10 L/min, 50 L/min, -0.5 V
+    record = client.db_read(1, 2100, 20)
     assert record[:4].hex() == "000003ed"
-    assert record[8:16].hex() == "4120000042480000"
+    assert record[8:20].hex() == "4120000042480000bf000000"
     assert struct.unpack(">f", record[4:8])[0] == pytest.approx(1.05, rel=1e-7)
 
 
@@ -174,6 +182,7 @@ def test_db2_writes_are_collected(frontend: S7Frontend, client: Client) -> None:
     # staged kc 0.25 @20, ti 6.0 @24, apply 7 @28: one request, as the adapter writes them
     client.db_write(2, 20, bytearray.fromhex("3E800000 40C00000 00000007"))
     client.db_write(2, 40, bytearray.fromhex("0009"))  # heartbeat
+    client.db_write(2, 44, bytearray.fromhex("BE000000"))  # excitation request -0.125 V
     got = _run(frontend.collect())
     assert got == {
         "mode_request": 1.0,
@@ -183,6 +192,7 @@ def test_db2_writes_are_collected(frontend: S7Frontend, client: Client) -> None:
         "staged_ti": 6.0,
         "apply": 7.0,
         "heartbeat": 9.0,
+        "excitation_request": -0.125,
     }
 
 
@@ -200,7 +210,7 @@ def test_unregistered_db_and_offset_are_refused(client: Client) -> None:
     with pytest.raises(snap7.error.S7ProtocolError, match="0x0a"):
         client.db_read(3, 0, 4)
     with pytest.raises(snap7.error.S7ProtocolError, match="0x05"):
-        client.db_read(1, 2000 + 16 * RING_SIZE - 2, 4)
+        client.db_read(1, 2000 + 20 * RING_SIZE - 2, 4)
 
 
 # (b) the adapter against the front end ------------------------------------------------------
@@ -250,10 +260,10 @@ def test_read_one_db_is_one_db_read(frontend: S7Frontend, requests: list[int]) -
 def test_spans_are_cut_to_the_pdu_and_still_read_in_one_request(
     frontend: S7Frontend, requests: list[int]
 ) -> None:
-    far = {"address": "DB1.DBD2084", "type": "uint32"}  # ring slot 5's command word, 2 kB on
+    far = {"address": "DB1.DBD2104", "type": "uint32"}  # ring slot 5's command word, 2 kB on
     source = S7Source(_site(frontend.port, seq=far))
     spans = plan_spans(source._read_items, 222)  # a 240-byte PDU
-    assert [(s.db, s.start, s.length) for s in spans] == [(1, 8, 32), (1, 2084, 4), (2, 4, 4)]
+    assert [(s.db, s.start, s.length) for s in spans] == [(1, 8, 32), (1, 2104, 4), (2, 4, 4)]
 
     async def main() -> Any:
         async with source:
@@ -289,10 +299,12 @@ def test_ring_head_and_slices(frontend: S7Frontend, requests: list[int]) -> None
 
     head, records, tail = _run(main())
     assert head == 39
-    # 1 (head) + 640 bytes in ceil(640 / 462) = 2 PDU-sized requests + 1 (tail)
+    # 1 (head) + 800 bytes in ceil(800 / 462) = 2 PDU-sized requests + 1 (tail)
     assert len(requests) == 4
     assert [r.seq for r in records] == list(range(1000, 1040))
-    assert records[7].values == pytest.approx({"command": 1.07, "flow": 14.0, "setpoint": 50.0})
+    assert records[7].values == pytest.approx(
+        {"command": 1.07, "flow": 14.0, "setpoint": 50.0, "excitation": -0.5}
+    )
     assert [r.seq for r in tail] == [0, 0, 0, 0]  # never written
 
 
@@ -408,10 +420,10 @@ def _wait_for(check: Any, what: str, timeout_s: float = 5.0) -> Any:
 
 def _ring_records(plain: Client, ring_size: int) -> dict[int, tuple[float, float, float]]:
     """Every ring record by sequence number: (command [V], flow, setpoint [L/min])."""
-    data = plain.db_read(1, RING_BYTE, 16 * ring_size)
+    data = plain.db_read(1, RING_BYTE, 20 * ring_size)
     records = {}
     for slot in range(ring_size):
-        seq, command, flow, setpoint = struct.unpack_from(">Ifff", data, 16 * slot)
+        seq, command, flow, setpoint, _excitation = struct.unpack_from(">Iffff", data, 20 * slot)
         records[seq] = (command, flow, setpoint)
     return records
 

@@ -38,7 +38,12 @@ from fuelid.plc.virtual.engine import (
     VirtualPLC,
     commissioning_gains,
 )
-from fuelid.plc.virtual.points import POINTS, RING_FIRST_REGISTER, RING_HEAD_REGISTER
+from fuelid.plc.virtual.points import (
+    POINTS,
+    RING_FIRST_REGISTER,
+    RING_HEAD_REGISTER,
+    RING_RECORD_REGISTERS,
+)
 from fuelid.plc.virtual.runner import site_text
 from fuelid.profiles.runs import Profile, load_profile, run_profile, steps_profile
 from fuelid.units import LPM_PER_M3S, celsius_to_kelvin
@@ -113,7 +118,8 @@ def test_ring_records_match_the_samples_and_wrap_the_sequence() -> None:
     assert plc.read_points()["ring_head"] == 70.0
     newest = plc.ring[70 % 64]
     points = plc.read_points()
-    assert list(newest) == [70.0, points["command"], points["flow"], points["setpoint"]]
+    fields = ("command", "flow", "setpoint", "excitation")
+    assert list(newest) == [70.0, *(points[name] for name in fields)]
 
 
 def test_man_command_takes_effect_at_the_next_scan_and_is_clamped() -> None:
@@ -307,7 +313,7 @@ def test_site_text_loads_for_every_protocol(protocol: str, tmp_path: Path) -> No
     assert site.plc.protocol == protocol
     assert site.plc.port == 15020
     assert site.missing() == []
-    assert set(site.write) == {"kc", "ti", "apply", "echo", "heartbeat"}
+    assert set(site.write) == {"kc", "ti", "apply", "echo", "heartbeat", "excitation"}
     assert site.ring is not None
     assert site.ring.size == 2048
     assert site.controller is not None
@@ -445,13 +451,14 @@ class Plain:
         seq = (self.last_seq + 1) % SEQ_MODULUS
         while len(new) < count:
             slot = seq % size
-            n = min(15, count - len(new), size - slot)  # ≤ 120 registers, not past the end
+            n = min(12, count - len(new), size - slot)  # ≤ 120 registers, not past the end
+            width = RING_RECORD_REGISTERS  # seq, command, flow, setpoint (kept), excitation
             rr = await self.client.read_input_registers(
-                RING_FIRST_REGISTER + 8 * slot, count=8 * n, device_id=DEVICE
+                RING_FIRST_REGISTER + width * slot, count=width * n, device_id=DEVICE
             )
             assert not rr.isError(), rr
             for i in range(n):
-                r = rr.registers[8 * i : 8 * i + 8]
+                r = rr.registers[width * i : width * i + width]
                 record = (self.u32(r[0:2]), self.f32(r[2:4]), self.f32(r[4:6]), self.f32(r[6:8]))
                 assert record[0] == seq, f"slot {slot}: seq {record[0]}, expected {seq}"
                 new.append(record)
@@ -727,8 +734,8 @@ def test_illegal_addresses_answer_an_exception_and_the_server_goes_on() -> None:
             answers: list[Any] = [
                 await plc.client.read_input_registers(500, count=2, device_id=DEVICE),
                 await plc.client.read_input_registers(101, count=4, device_id=DEVICE),
-                await plc.client.read_input_registers(1000 + 8 * 2048, count=1, device_id=DEVICE),
-                await plc.client.read_holding_registers(21, count=1, device_id=DEVICE),
+                await plc.client.read_input_registers(1000 + 10 * 2048, count=1, device_id=DEVICE),
+                await plc.client.read_holding_registers(24, count=1, device_id=DEVICE),
                 await plc.client.write_registers(30, [1, 2], device_id=DEVICE),
             ]
             good = await plc.points()

@@ -57,8 +57,8 @@ from support.online import open_history as _open
 REFERENCE_PLANT = str(resources.files("fuelid.data").joinpath("reference_plant.toml"))
 HEARTBEAT_S = 0.05
 """Heartbeat of an in-process service [s of wall time]: inside the PLC's 10 s at 20–60×."""
-RING = 8000
-"""The virtual PLC's largest ring (160 s of plant time at 50 Hz): at 50–60× it holds 3 s of
+RING = 6400
+"""The virtual PLC's largest ring (128 s of plant time at 50 Hz): at 50–60× it holds 2–2.5 s of
 wall time, so a busy machine (other test runs) does not make the recorder lose samples."""
 T_FUEL_C = 20.0
 """The fuel temperature of every run here [°C] (constant)."""

@@ -59,12 +59,13 @@ What is measured, after the run, from the store, the history and the engine (the
   asserted; the residual-correlation gate's default is set on other plants:
   docs/explanation/gate-study.md);
 - samples lost by the recorder are reported, not asserted (they depend on the machine's load;
-  the checks above stand on what was stored). The virtual PLC's ring holds 8000 records
-  (160 s of plant time, 3.2 s of wall time at 50×): the default 2048 records are 0.8 s of wall
+  the checks above stand on what was stored). The virtual PLC's ring holds 6400 records
+  (128 s of plant time, 2.56 s of wall time at 50×): the default 2048 records are 0.8 s of wall
   time at 50×, shorter than the recorder's worst stall on a loaded 2-core machine (~3750
-  samples, 1 %, were lost in a 2 h soak with it; with 8000, none). At 100× the 24 h soak lost
-  3 % of its samples on a loaded machine (Modbus answers later than the 1 s timeout, the link
-  dropped and the ring overran), so it runs at 50× (about 30 min).
+  samples, 1 %, were lost in a 2 h soak with it; with 8000, none; 6400 is the largest since
+  the ring record grew to 10 registers). At 100× the 24 h soak lost 3 % of its samples on a
+  loaded machine (Modbus answers later than the 1 s timeout, the link dropped and the ring
+  overran), so it runs at 50× (about 30 min).
 
 How to run: the soak is in the slow set and takes its plant time from ``FUELID_SOAK_HOURS``
 (default 6, 50× real time, about 8 min; ``make test-slow``, which CI runs, sets 4 h to keep CI
@@ -134,8 +135,8 @@ Z95 = 1.959963984540054
 MIN_ACCEPTED_SHARE = 0.75
 """Accepted windows, as a share of those not wholly inside a hold (the rest have excitation:
 the windows that straddle a hold's edge, or a test-point ramp)."""
-RING_SIZE = 8000
-"""The virtual PLC's ring [records]: 160 s of plant time, 3.2 s of wall time at 50x. The
+RING_SIZE = 6400
+"""The virtual PLC's ring [records]: 128 s of plant time, 2.56 s of wall time at 50x. The
 default 2048 records (41 s of plant time, ample at 1x) are 0.8 s of wall time at 50x, less
 than the recorder's worst stall on a loaded 2-core machine (samples were lost)."""
 

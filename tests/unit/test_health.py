@@ -353,7 +353,7 @@ def test_virtual_plc_run_end_to_end():
     # the run profile (fuelid.profiles.runs.run_profile): 18 L/min, a 30 s ramp from
     # 30 s to 40 L/min, then steps to 50, 35, 55, 45 every 30 s; flow noise σ = 0.1 L/min,
     # quantised to 120/27648 L/min
-    plc = VirtualPLC(setpoint_profile="run", seed=1, ring_size=8000)
+    plc = VirtualPLC(setpoint_profile="run", seed=1, ring_size=6400)
     records: list[np.ndarray] = []
     for _ in range(3):
         records += list(plc.advance(3500).values())

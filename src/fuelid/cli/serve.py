@@ -18,6 +18,7 @@ from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
 if TYPE_CHECKING:
     from fuelid.plc.codec import WordOrder
+    from fuelid.profiles.runs import Profile
 
 
 class ServeProtocol(StrEnum):
@@ -51,6 +52,36 @@ def is_loopback(host: str) -> bool:
         return ipaddress.ip_address(host.strip("[]")).is_loopback
     except ValueError:
         return False
+
+
+def parse_run_windows(texts: list[str]) -> list[tuple[float, float]]:
+    """The ``--run START:END`` options as (start, end) pairs [s].
+
+    Raises
+    ------
+    FuelidError
+        If one is not two finite numbers with START < END.
+
+    Examples
+    --------
+    >>> parse_run_windows(["60:180", "300.5:420"])
+    [(60.0, 180.0), (300.5, 420.0)]
+    """
+    import math
+
+    windows = []
+    for text in texts:
+        start_text, sep, end_text = text.partition(":")
+        try:
+            start, end = float(start_text), float(end_text)
+        except ValueError:
+            start = end = math.nan
+        if not (sep and math.isfinite(start) and math.isfinite(end) and start < end):
+            raise FuelidError(
+                f"--run {text}: give START:END in seconds of plant time, with START < END"
+            )
+        windows.append((start, end))
+    return windows
 
 
 @guarded
@@ -122,6 +153,26 @@ def serve_command(
             "cycle last 0.0204 s of real time; negative: fast. The plant runs in real time.",
         ),
     ] = 0.0,
+    excitation_limit: Annotated[
+        float,
+        typer.Option(
+            "--excitation-limit",
+            metavar="V",
+            help="The PLC's own clamp of the test signal a client writes to its excitation "
+            "request [V], > 0: it adds at most ±this to its PI output (0 while the heartbeat "
+            "is stale).",
+        ),
+    ] = 0.5,
+    run: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--run",
+            metavar="START:END",
+            help="A wind-tunnel run from START to END [s of plant time, on the PLC's clock]: "
+            "the read point run is 1 from START until END (repeatable).",
+            show_default=False,
+        ),
+    ] = None,
     reply_in_cycle: Annotated[
         bool,
         typer.Option(
@@ -182,8 +233,10 @@ def serve_command(
     The plant (reference plant or --config) runs in plant time, --speed times real time, with
     the PLC emulated: a PI at the control period (1 s) with 1–5 V limits and anti-windup,
     MAN/AUTO, staged gains with apply and echo, a heartbeat, flowmeter noise and quantisation,
-    and a ring buffer of (seq, u, flow, setpoint) every 0.02 s. Without a profile it starts in
-    MAN at 1 V; clients write the mode, setpoint and manual command. Ctrl-C or SIGTERM stops it.
+    and a ring buffer of (seq, u, flow, setpoint, excitation) every 0.02 s. Without a profile it
+    starts in MAN at 1 V; clients write the mode, setpoint and manual command, and a test signal
+    the PLC adds to its output (within ±--excitation-limit); --run marks wind-tunnel runs
+    (the read point run). Ctrl-C or SIGTERM stops it.
     --clock-slow makes the PLC's clock run slow (or fast); --reply-in-cycle, --reply-jitter and
     --late-reply-every/--late-reply make its Modbus server answer as a PLC's cyclic task does.
     """
@@ -199,12 +252,37 @@ def serve_command(
         command_profile=command_profile,
         seed=seed,
         clock_slow=clock_slow,
+        excitation_limit=excitation_limit,
+        run_windows=parse_run_windows(run or []),
         reply=(reply_in_cycle, reply_jitter, late_reply_every, late_reply),
         word_order=word_order.value,
         duration=duration,
         allow_remote=allow_remote,
         print_site=print_site,
     )
+
+
+def _profiles(
+    setpoint_profile: str | None, command_profile: str | None, fuel_temp_profile: Path | None
+) -> tuple[Profile | str | None, Profile | str | None, Profile | None]:
+    """The --setpoint-profile, --command-profile and --fuel-temp-profile as the engine takes them.
+
+    The built-ins ("run", "steps") by name, a CSV file loaded.
+    """
+    from fuelid.profiles.runs import load_profile
+
+    sp_profile = (
+        setpoint_profile
+        if setpoint_profile in (None, "run")
+        else load_profile(str(setpoint_profile), "setpoint")
+    )
+    u_profile = (
+        command_profile
+        if command_profile in (None, "steps")
+        else load_profile(str(command_profile), "u")
+    )
+    temperature = load_profile(fuel_temp_profile, "fuel_temperature") if fuel_temp_profile else None
+    return sp_profile, u_profile, temperature
 
 
 def _serve(
@@ -220,6 +298,8 @@ def _serve(
     command_profile: str | None,
     seed: int,
     clock_slow: float,
+    excitation_limit: float,
+    run_windows: list[tuple[float, float]],
     reply: tuple[bool, float, int, float],
     word_order: str,
     duration: float | None,
@@ -227,6 +307,7 @@ def _serve(
     print_site: bool,
 ) -> None:
     import asyncio
+    import math
 
     from fuelid.plant import load_plant_config
     from fuelid.plc.virtual.engine import VirtualPLC
@@ -238,7 +319,6 @@ def _serve(
         serve_until_stopped,
         site_text,
     )
-    from fuelid.profiles.runs import load_profile
 
     if not is_loopback(host) and not allow_remote:
         raise FuelidError(
@@ -249,26 +329,23 @@ def _serve(
         raise FuelidError("give --fuel-temp or --fuel-temp-profile, not both")
     if not 0.0 < speed <= 1000.0:
         raise FuelidError(f"--speed must be within (0, 1000], got {speed:g}")
-    sp_profile = (
-        setpoint_profile
-        if setpoint_profile in (None, "run")
-        else load_profile(str(setpoint_profile), "setpoint")
-    )
-    u_profile = (
-        command_profile
-        if command_profile in (None, "steps")
-        else load_profile(str(command_profile), "u")
+    if not (math.isfinite(excitation_limit) and excitation_limit > 0.0):
+        raise FuelidError(
+            f"--excitation-limit must be a positive voltage, got {excitation_limit:g}"
+        )
+    sp_profile, u_profile, temperature = _profiles(
+        setpoint_profile, command_profile, fuel_temp_profile
     )
     plc = VirtualPLC(
         load_plant_config(config),
         fuel_temp_C=DEFAULT_FUEL_TEMPERATURE_C if fuel_temp is None else fuel_temp,
-        fuel_temp_profile=(
-            load_profile(fuel_temp_profile, "fuel_temperature") if fuel_temp_profile else None
-        ),
+        fuel_temp_profile=temperature,
         setpoint_profile=sp_profile,
         command_profile=u_profile,
         seed=seed,
         clock_slow=clock_slow,
+        excitation_limit_V=excitation_limit,
+        run_windows=run_windows,
     )
     in_cycle, jitter_s, late_every, late_s = reply
     timing = ReplyTiming(in_cycle, jitter_s, late_every, late_s, seed=seed)

@@ -65,6 +65,28 @@ The PLC's rules (docs/tutorials/plc-link.md).
   ``restore_on_stale`` the commissioning gains are restored, bumplessly, and ``echo`` reset to 0.
 - Status (uint16): bit 0 the output at a limit, bit 1 heartbeat stale, bit 2 the last staged set
   refused.
+- Excitation on demand: at each scan the PLC reads ``excitation_request`` [V] (level-triggered,
+  as the setpoint) and applies it clamped to ±``excitation_limit_V`` (its own limit, 0.5 V by
+  default); it applies 0 when the request is not finite or the heartbeat is stale (the same
+  :meth:`VirtualPLC.heartbeat_stale` and ``heartbeat_timeout_s`` as the staged gains: a test
+  signal left behind by an advisor that died stops within the timeout), and it then clears the
+  request itself, so that an advisor whose heartbeat comes back does not find its old signal
+  applied again before it writes a new one. The applied signal is
+  added to the PI's output (AUTO) or to the manual command (MAN) and the sum clamped to the
+  drive's 1–5 V: ``command`` (the read point and the ring field) is the VFD command actually
+  applied, the sum after the clamp, held over the control period like any command, and
+  ``excitation`` (the read point and the ring field) the signal applied at that scan, held
+  likewise. The PI does not see the added signal: its integral, its anti-windup (which tracks
+  the PI's own limited output) and the bumpless MAN → AUTO start (from the last manual command
+  without the signal) are the PI's alone, because the signal is an external input added after
+  the PI, not part of its output; near a drive limit the sum is clipped and ``command`` moves
+  by less than ``excitation`` says (which is the signal after the PLC's own clamp and zeroing,
+  not after the drive's), so keeping the margin to the limits is fuelid's job. With
+  ``excitation_request`` never written (0) the samples are exactly those without the feature.
+- Run flag: ``run`` is 1 inside one of the ``run_windows`` ([start, end) on the PLC's clock [s])
+  or while :meth:`VirtualPLC.set_run` holds it, else 0. The virtual PLC does *not* zero the test
+  signal during a run: fuelid must stop exciting when ``run`` rises. A real PLC may add that
+  interlock (zero the signal while the tunnel runs); fuelid must not rely on it.
 
 Examples
 --------
@@ -73,13 +95,16 @@ Examples
 >>> records = plc.advance(500)          # 10 s of plant time
 >>> plc.seq, len(records), round(plc.read_points()["command"], 3)
 (500, 500, 3.0)
+>>> plc.write_points({"heartbeat": 1, "excitation_request": 0.8})   # clamped to 0.5 V
+>>> _ = plc.advance(50)                 # the next scan
+>>> plc.read_points()["excitation"], round(plc.read_points()["command"], 3)
+(0.5, 3.5)
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from typing import TypeAlias
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -91,6 +116,13 @@ from fuelid.plant.simulate import FuelTemperature, integrate_held
 from fuelid.plant.system import measured_state, plant_coefficients, steady_state
 from fuelid.plc.virtual.analog import from_counts, to_counts
 from fuelid.plc.virtual.commissioning import commissioning_gains as commissioning_gains
+from fuelid.plc.virtual.options import (
+    ProfileLike,
+    fuel_temperature_trajectory,
+    positive,
+    run_windows_checked,
+    setpoint_and_command_profiles,
+)
 from fuelid.plc.virtual.points import (
     DEFAULT_RING_SIZE,
     FLOW_COUNTS,
@@ -98,19 +130,17 @@ from fuelid.plc.virtual.points import (
     POINTS,
     RING_FIELDS,
 )
-from fuelid.profiles.runs import Profile, run_profile, steps_profile
+from fuelid.profiles.runs import Profile
 from fuelid.tuning.closedloop import steady_command
 from fuelid.tuning.controller import DiscretePI
 from fuelid.tuning.rules import PISettings
 from fuelid.units import (
     DEFAULT_FUEL_TEMPERATURE_C,
     LPM_PER_M3S,
-    celsius_to_kelvin,
     kelvin_to_celsius,
 )
 
 FloatArray = NDArray[np.float64]
-ProfileLike: TypeAlias = Profile | tuple[ArrayLike, ArrayLike]
 
 SEQ_MODULUS = 2**32
 """The sequence counter is a uint32: it wraps to 0 after 2**32 − 1."""
@@ -122,8 +152,10 @@ STATUS_REFUSED = 4
 """Status bit 2: the last staged set was refused."""
 GAIN_LIMITS = (0.1, 10.0)
 """The PLC clamps a staged Kc and Ti to these multiples of its commissioning values."""
-MAX_RING_SIZE = 8000
-"""Most records in the ring: 1000 + 8·8000 registers stay inside the Modbus address space."""
+MAX_RING_SIZE = 6400
+"""Most records in the ring: 1000 + 10·6400 registers stay inside the Modbus address space."""
+DEFAULT_EXCITATION_LIMIT_V = 0.5
+"""The PLC's own clamp of the test signal it adds to its PI output [V]."""
 TEMPERATURE_RESOLUTION_K = 0.01
 """The plant coefficients are re-evaluated when the fuel temperature has moved this much [K]."""
 MAX_CLOCK_SLOW = 0.5
@@ -132,29 +164,6 @@ MAN, AUTO = 0, 1
 
 READ_POINTS = tuple(name for name, point in POINTS.items() if point.access == "read")
 WRITE_POINTS = tuple(name for name, point in POINTS.items() if point.access == "write")
-
-
-def _as_profile(value: ProfileLike | None, repeat: bool, name: str) -> Profile | None:
-    if value is None or isinstance(value, Profile):
-        return value
-    try:
-        times, values = value
-    except (TypeError, ValueError):
-        raise ConfigError(f"{name}: give a Profile or a pair (times, values)") from None
-    return Profile(times, values, repeat=repeat)
-
-
-def _fuel_temperature(
-    fuel_temp_C: float, profile: Profile | FuelTemperature | tuple[ArrayLike, ArrayLike] | None
-) -> FuelTemperature:
-    """The trajectory in kelvin: a FuelTemperature is in K, a profile or a pair in °C."""
-    if profile is None:
-        return FuelTemperature.constant(celsius_to_kelvin(fuel_temp_C))
-    if isinstance(profile, FuelTemperature):
-        return profile
-    p = _as_profile(profile, repeat=False, name="fuel_temp_profile")
-    assert p is not None  # not None here
-    return FuelTemperature(p.times.copy(), p.values + celsius_to_kelvin(0.0))
 
 
 class VirtualPLC:
@@ -182,7 +191,7 @@ class VirtualPLC:
     seed : int, optional
         Seed of the measurement noise (None: fresh entropy).
     ring_size : int
-        Records in the ring buffer (2…8000).
+        Records in the ring buffer (2…6400).
     kc, ti : float, optional
         Commissioning gains, Kc [V per L/min] and Ti [s]; default cautious SIMC
         (:func:`commissioning_gains`, τc = 2θ) at the initial fuel temperature.
@@ -210,11 +219,18 @@ class VirtualPLC:
         (``period_s``) lasts ``period_s·(1 + clock_slow)`` of real (plant) time; 0.02 is a clock
         2 % slow (its 20 ms cycle 20.4 ms), negative a fast one; 0 (the default): exact (module
         docstring, "The PLC's clock").
+    excitation_limit_V : float
+        The PLC's own clamp of the test signal [V], finite and > 0: ``excitation_request`` is
+        applied within ±this (module docstring, "Excitation on demand").
+    run_windows : sequence of (float, float)
+        Wind-tunnel runs, [start, end) on the PLC's clock [s] (finite, start < end): the read
+        point ``run`` is 1 inside one (or while :meth:`set_run` holds it).
 
     Raises
     ------
     ConfigError
-        If a period, the ring size, a profile or a gain is not acceptable.
+        If a period, the ring size, a profile, a gain, the excitation limit or a run window is
+        not acceptable.
     """
 
     def __init__(
@@ -240,6 +256,8 @@ class VirtualPLC:
         disturbance_sd_Lpm: float = 0.0,
         disturbance_time_s: float = 60.0,
         clock_slow: float = 0.0,
+        excitation_limit_V: float = DEFAULT_EXCITATION_LIMIT_V,
+        run_windows: Sequence[tuple[float, float]] = (),
     ) -> None:
         self.config = config if config is not None else load_plant_config()
         if not (math.isfinite(period_s) and period_s > 0.0):
@@ -254,13 +272,16 @@ class VirtualPLC:
             raise ConfigError(f"ring_size must be 2…{MAX_RING_SIZE}, got {ring_size}")
         if not (math.isfinite(heartbeat_timeout_s) and heartbeat_timeout_s > 0.0):
             raise ConfigError("heartbeat_timeout_s must be positive")
-        if setpoint_profile is not None and command_profile is not None:
-            raise ConfigError("give a setpoint profile (AUTO) or a command profile (MAN), not both")
         if not (math.isfinite(clock_slow) and abs(clock_slow) < MAX_CLOCK_SLOW):
             raise ConfigError(
                 f"clock_slow must be within (−{MAX_CLOCK_SLOW:g}, {MAX_CLOCK_SLOW:g}), "
                 f"got {clock_slow!r}"
             )
+        self.excitation_limit_V = positive("excitation_limit_V", excitation_limit_V)
+        """The PLC's own clamp of the test signal [V]."""
+        self.run_windows = run_windows_checked(run_windows)
+        """The wind-tunnel runs, ((start, end), …) on the PLC's clock [s]."""
+        self._run_by_hand = False
         self.period_s = float(period_s)
         self.clock_slow = float(clock_slow)
         self.plant_period_s = self.period_s * (1.0 + self.clock_slow)
@@ -284,17 +305,10 @@ class VirtualPLC:
         self._disturbance_phi = math.exp(-self.plant_period_s / self.disturbance_time_s)
         self._disturbance = 0.0  # d of the last sample read [L/min]
         self._rng = np.random.default_rng(seed)
-        self._temperature = _fuel_temperature(fuel_temp_C, fuel_temp_profile)
-        if isinstance(setpoint_profile, str):
-            if setpoint_profile != "run":
-                raise ConfigError(f"setpoint_profile: {setpoint_profile!r}; the built-in is 'run'")
-            setpoint_profile = run_profile()
-        if isinstance(command_profile, str):
-            if command_profile != "steps":
-                raise ConfigError(f"command_profile: {command_profile!r}; the built-in is 'steps'")
-            command_profile = steps_profile()
-        self._sp_profile = _as_profile(setpoint_profile, True, "setpoint_profile")
-        self._u_profile = _as_profile(command_profile, True, "command_profile")
+        self._temperature = fuel_temperature_trajectory(fuel_temp_C, fuel_temp_profile)
+        self._sp_profile, self._u_profile = setpoint_and_command_profiles(
+            setpoint_profile, command_profile
+        )
         for T in (float(np.min(self._temperature.values)), float(np.max(self._temperature.values))):
             plant_coefficients(self.config, T)  # refuses a temperature outside the fuel's range
         T0 = float(self._temperature.at(0.0))
@@ -320,6 +334,7 @@ class VirtualPLC:
         self._echo = 0.0
         self._setpoint = 0.0
         self._manual = self.u_min
+        self._excitation = 0.0  # the test signal applied at the last scan [V]
 
         if self._sp_profile is not None:
             self._mode = AUTO
@@ -331,7 +346,12 @@ class VirtualPLC:
         else:
             self._mode = MAN  # mode_request 0 in a fresh write area
             u0 = self.u_min  # manual_command 0, clamped to the range
-        self._u = u0
+        self._start_plant(u0, seq0, keep_clean_readings)
+
+    def _start_plant(self, u0: float, seq0: int, keep_clean_readings: bool) -> None:
+        """The PI, the plant at steady state at ``u0`` [V], the ring and sample 0."""
+        self._u = u0  # the VFD command applied: the PI's or manual command plus the test signal
+        self._u_base = u0  # the same without the test signal (the PI's own output in AUTO)
         self._pi = DiscretePI(
             PISettings("commissioning", self.kc0, self.ti0, self.control_period_s),
             self.u_min,
@@ -398,6 +418,22 @@ class VirtualPLC:
         self.config = config
         self._coefficients = coefficients
 
+    @property
+    def run(self) -> bool:
+        """True during a wind-tunnel run: inside a run window, or while :meth:`set_run` holds it."""
+        if self._run_by_hand:
+            return True
+        t = self.time_s
+        return any(start <= t < end for start, end in self.run_windows)
+
+    def set_run(self, flag: bool) -> None:
+        """Raise (True) or lower (False) the run flag by hand, as a tunnel's operator would.
+
+        The read point ``run`` is 1 while it is raised, and inside the ``run_windows`` whatever
+        it is; it changes nothing else (the PLC goes on adding the test signal).
+        """
+        self._run_by_hand = bool(flag)
+
     def heartbeat_stale(self) -> bool:
         """True when no heartbeat change came within the timeout (or none ever came)."""
         if self._heartbeat_at is None:
@@ -448,6 +484,8 @@ class VirtualPLC:
             "echo": self._echo,
             "flow_counts": float(self._span_counts[i]),
             "fuel_temperature_counts": float(to_counts(T_C, FUEL_TEMPERATURE_COUNTS)),
+            "excitation": self._excitation,
+            "run": 1.0 if self.run else 0.0,
             "ring_head": float(self.seq),
             "ring_size": float(self.ring_size),
         }
@@ -459,8 +497,8 @@ class VirtualPLC:
         -------
         dict
             The new ring records by slot (``seq % ring_size``), each ``[seq, command [V],
-            flow [L/min], setpoint [L/min]]``, oldest first; with more than ``ring_size`` samples
-            only the newest record of each slot is there.
+            flow [L/min], setpoint [L/min], excitation [V]]``, oldest first; with more than
+            ``ring_size`` samples only the newest record of each slot is there.
         """
         records: dict[int, FloatArray] = {}
         for _ in range(int(n_samples)):
@@ -562,16 +600,33 @@ class VirtualPLC:
         pi = self._pi
         if mode == AUTO:
             if self._mode == MAN:
-                pi.integral = self._u - pi.Kc * e  # bumpless: the first output is the last one
+                # bumpless: the first output is the last manual one (without the test signal)
+                pi.integral = self._u_base - pi.Kc * e
             if pending is not None:
                 pi.integral += (pi.Kc - pending[0]) * e  # bumpless: the P term's change absorbed
                 self._set_gains(pending)
-            self._u = pi.update(self._setpoint, y)
+            self._u_base = pi.update(self._setpoint, y)
         else:
             if pending is not None:
                 self._set_gains(pending)
-            self._u = float(np.clip(self._manual, self.u_min, self.u_max))
+            self._u_base = float(np.clip(self._manual, self.u_min, self.u_max))
         self._mode = mode
+        if stale:  # the request dies with the advisor: a new one starts from 0, not from it
+            w["excitation_request"] = 0.0
+        self._excitation = self._applied_excitation(w["excitation_request"], stale)
+        # the test signal goes after the PI (which never sees it), the sum within the drive's
+        # range; nothing is added without one, so the samples are those without the feature
+        self._u = self._u_base
+        if self._excitation != 0.0:
+            self._u = float(np.clip(self._u_base + self._excitation, self.u_min, self.u_max))
+
+    def _applied_excitation(self, request: float, stale: bool) -> float:
+        """The test signal applied for ``request`` [V]: clamped, 0 if not finite or stale."""
+        if stale or not math.isfinite(request):
+            return 0.0
+        limit = self.excitation_limit_V
+        applied = min(max(float(request), -limit), limit)
+        return applied if applied != 0.0 else 0.0  # no −0.0
 
     def _set_gains(self, gains: tuple[float, float, float]) -> None:
         self._pi.Kc, self._pi.Ti, self._echo = gains
@@ -606,5 +661,6 @@ class VirtualPLC:
         """Write the record of sample ``k`` into the ring; its slot."""
         seq = (self._seq0 + k) % SEQ_MODULUS
         slot = seq % self.ring_size
-        self.ring[slot] = (seq, self._u, self._span_y[k - self._span_k0], self._setpoint)
+        y = self._span_y[k - self._span_k0]
+        self.ring[slot] = (seq, self._u, y, self._setpoint, self._excitation)
         return slot

@@ -137,7 +137,7 @@ class Frontend(ABC):
     ) -> None:
         """Write the read points (name → engineering value) and new ring records.
 
-        ``ring`` maps a slot to its record ``[seq, command, flow, setpoint]``; the head
+        ``ring`` maps a slot to its record ``[seq, command, flow, setpoint, excitation]``; the head
         (``ring_head`` in ``values``) is published after the records, so a client never sees a
         head that points at a record not yet written.
         """

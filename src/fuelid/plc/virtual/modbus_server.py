@@ -4,11 +4,11 @@ A pymodbus (≥3.15, <3.17) :class:`~pymodbus.server.ModbusTcpServer` with one d
 whose holding and input registers are separate blocks (``SimDevice`` with a 4-tuple,
 ../shared/docs/online.md §1):
 
-- input registers 0…102: the read points (``ir:0`` seq … ``ir:19``, ``ir:100`` ring head,
+- input registers 0…102: the read points (``ir:0`` seq … ``ir:22`` run, ``ir:100`` ring head,
   ``ir:102`` ring size; unused registers in between read 0);
-- input registers 1000…1000 + 8·size − 1: the ring, record of sample ``seq`` in slot
-  ``seq % size``, each ``seq`` (uint32) then command, flow, setpoint (float32);
-- holding registers 0…20: the write points.
+- input registers 1000…1000 + 10·size − 1: the ring, record of sample ``seq`` in slot
+  ``seq % size``, each ``seq`` (uint32) then command, flow, setpoint, excitation (float32);
+- holding registers 0…23: the write points (``hr:22`` excitation request the last).
 
 Any other address answers with Modbus exception 2 (illegal data address); the server goes on.
 32-bit values follow the word order and byte swap asked for (:mod:`fuelid.plc.codec`).
@@ -41,6 +41,7 @@ from fuelid.plc.virtual.frontend import Frontend, ReplyTiming, bound_port
 from fuelid.plc.virtual.points import (
     DEFAULT_RING_SIZE,
     POINTS,
+    RING_FIELDS,
     RING_FIRST_REGISTER,
     RING_RECORD_REGISTERS,
 )
@@ -64,29 +65,30 @@ _SIZE = {"float32": 2, "uint32": 2, "int16": 1, "uint16": 1}
 IR_POINTS_COUNT = max(p.register + _SIZE[p.type] for p in _READ.values())
 """Input registers 0 … IR_POINTS_COUNT − 1 hold the read points (103)."""
 HR_COUNT = max(p.register + _SIZE[p.type] for p in _WRITE.values())
-"""Holding registers 0 … HR_COUNT − 1 hold the write points (21)."""
+"""Holding registers 0 … HR_COUNT − 1 hold the write points (24)."""
 
 
 def ring_registers(
     records: NDArray[np.float64], word_order: WordOrder = "big", byte_swap: bool = False
 ) -> NDArray[np.int64]:
-    """The registers of ring records ``[seq, command, flow, setpoint]``, shape (m, 8).
+    """The registers of ring records ``[seq, command, flow, setpoint, excitation]``, shape (m, 10).
 
     Vectorised: the same words :func:`fuelid.plc.codec.encode` gives field by field (a uint32,
-    then three float32), at thousands of records a second.
+    then four float32), at thousands of records a second.
 
     Examples
     --------
-    >>> ring_registers(np.array([[1.0, 3.5, 0.0, 0.0]]))[0].tolist()
-    [0, 1, 16480, 0, 0, 0, 0, 0]
-    >>> ring_registers(np.array([[1.0, 3.5, 0.0, 0.0]]), "little")[0, :4].tolist()
+    >>> ring_registers(np.array([[1.0, 3.5, 0.0, 0.0, -0.25]]))[0].tolist()
+    [0, 1, 16480, 0, 0, 0, 0, 0, 48768, 0]
+    >>> ring_registers(np.array([[1.0, 3.5, 0.0, 0.0, 0.0]]), "little")[0, :4].tolist()
     [1, 0, 0, 16480]
     """
     m = records.shape[0]
-    raw = np.empty((m, 4), dtype=">u4")
+    width = len(RING_FIELDS)
+    raw = np.empty((m, width), dtype=">u4")
     raw[:, 0] = records[:, 0].astype(np.uint64).astype(np.uint32)
-    raw[:, 1:] = records[:, 1:].astype(">f4").view(">u4")
-    words = raw.view(">u2").reshape(m, 4, 2).astype(np.int64)
+    raw[:, 1:] = records[:, 1:width].astype(">f4").view(">u4")
+    words = raw.view(">u2").reshape(m, width, 2).astype(np.int64)
     if word_order == "little":
         words = words[:, :, ::-1]
     if byte_swap:
@@ -271,7 +273,7 @@ class ModbusFrontend(Frontend):
             await server.async_setValues(DEVICE_ID, FC_INPUT, 0, self._ir[:head])
         if ring:
             slots = np.fromiter(ring.keys(), dtype=np.int64, count=len(ring))
-            records = np.array(list(ring.values()), dtype=float).reshape(-1, 4)
+            records = np.array(list(ring.values()), dtype=float).reshape(-1, len(RING_FIELDS))
             by_slot = np.argsort(slots, kind="stable")
             slots, records = slots[by_slot], records[by_slot]
             words = ring_registers(records, order, swap)

@@ -7,10 +7,11 @@ gets index 2 (index 1 is the server's application URI), so every point is the st
 * a variable per point of :data:`~.points.POINTS`, typed as the point is (float32 points as
   Double, the counters as UInt32, words as UInt16, analog-input counts as Int16); the write points
   (``ModeRequest``, ``SetpointRequest``, ``ManualCommand``, ``StagedKc``, ``StagedTi``, ``Apply``,
-  ``Heartbeat``) are writable, the others read-only;
-* ``FuelLoop.Ring``: the ring buffer, a Double array of ``ring_size × 4`` elements, the record of
-  sample ``seq`` at elements ``4·(seq % size) … 4·(seq % size) + 3`` as (seq, command [V], flow
-  [L/min], setpoint [L/min]); ``FuelLoop.RingHead`` (UInt32) is the newest record's seq.
+  ``Heartbeat``, ``ExcitationRequest``) are writable, the others read-only;
+* ``FuelLoop.Ring``: the ring buffer, a Double array of ``ring_size × 5`` elements, the record of
+  sample ``seq`` at elements ``5·(seq % size) … 5·(seq % size) + 4`` as (seq, command [V], flow
+  [L/min], setpoint [L/min], excitation [V]); ``FuelLoop.RingHead`` (UInt32) is the newest
+  record's seq.
 
 Reads of ``Ring`` honour the OPC UA ``IndexRange`` (``"a:b"``, elements a…b inclusive), as a real
 PLC's server does, so a client reads only the slots it needs (asyncua's own server ignores the
@@ -160,7 +161,7 @@ class OpcUaFrontend(Frontend):
     port : int
         TCP port; 0 picks a free one (then :attr:`port` says which, and restarts keep it).
     ring_size : int
-        Records in the ring buffer (the ``Ring`` array holds ``4 × ring_size`` Doubles).
+        Records in the ring buffer (the ``Ring`` array holds ``5 × ring_size`` Doubles).
     word_order, byte_swap
         Ignored (Modbus only): OPC UA carries typed values.
     certificate, private_key : str or Path, optional
@@ -301,7 +302,7 @@ class OpcUaFrontend(Frontend):
             Point name → engineering value (V, L/min, °C, s; counters as numbers); names that
             are not read points of :data:`~.points.POINTS` are ignored.
         ring : mapping of int to array
-            Slot → record ``[seq, command [V], flow [L/min], setpoint [L/min]]``.
+            Slot → record ``[seq, command [V], flow [L/min], setpoint [L/min], excitation [V]]``.
         """
         if self._server is None:
             return

@@ -11,7 +11,7 @@ Examples
 >>> POINTS["flow"].modbus, POINTS["flow"].opcua, POINTS["flow"].s7
 ('ir:2', 'FuelLoop.Flow', 'DB1.DBD4')
 >>> ring_slot_register(0), ring_slot_register(1)
-(1000, 1008)
+(1000, 1010)
 """
 
 from __future__ import annotations
@@ -35,12 +35,14 @@ RING_SIZE_REGISTER = 102
 """``ir:102`` uint16: the number of records in the ring."""
 RING_FIRST_REGISTER = 1000
 """``ir:1000``: slot 0 of the ring; the record of sample ``seq`` is in slot ``seq % size``."""
-RING_FIELDS = ("seq", "command", "flow", "setpoint")
-"""A record: seq (uint32), then the VFD command [V], the flow and the setpoint [L/min] (float32)."""
-RING_RECORD_REGISTERS = 8
-"""Registers per record (2 per field)."""
+RING_FIELDS = ("seq", "command", "flow", "setpoint", "excitation")
+"""A record: seq (uint32), then the VFD command [V], the flow and the setpoint [L/min] and the
+test signal applied [V] (float32)."""
+RING_RECORD_REGISTERS = 2 * len(RING_FIELDS)
+"""Registers per record (2 per field: 10)."""
 DEFAULT_RING_SIZE = 2048
-"""Records in the ring: 41 s at 50 Hz in real time (the S7 DB stays under 64 KiB)."""
+"""Records in the ring: 41 s at 50 Hz in real time (the S7 DB, 2000 + 20·2048 = 42 960 bytes,
+stays under 64 KiB)."""
 
 FLOW_COUNTS = (0.0, 27648.0, 0.0, 120.0)
 """The flow's Siemens-style analog input: 0…27648 counts = 0…120 L/min (raw0, raw1, eng0, eng1)."""
@@ -89,7 +91,15 @@ def _p(name: str, register: int, type_: PointType, access: Access, unit: str, op
 _TABLE = (
     _p("seq", 0, "uint32", "read", "", "Seq", "sample counter, one per period of plant time"),
     _p("flow", 2, "float32", "read", "L/min", "Flow", "flowmeter reading y (noise, quantisation)"),
-    _p("command", 4, "float32", "read", "V", "Command", "VFD command u applied (1–5 V)"),
+    _p(
+        "command",
+        4,
+        "float32",
+        "read",
+        "V",
+        "Command",
+        "VFD command u applied (1–5 V, test signal included)",
+    ),
     _p("setpoint", 6, "float32", "read", "L/min", "Setpoint", "flow setpoint in use"),
     _p("fuel_temperature", 8, "float32", "read", "degC", "FuelTemperature", "fuel temperature"),
     _p("mode", 10, "uint16", "read", "", "Mode", "0 = MAN, 1 = AUTO"),
@@ -123,6 +133,16 @@ _TABLE = (
         "FuelTemperatureCounts",
         "fuel temperature as an analog input: 0…27648 = −40…80 °C",
     ),
+    _p(
+        "excitation",
+        20,
+        "float32",
+        "read",
+        "V",
+        "Excitation",
+        "test signal applied (after the PLC's clamp and zeroing)",
+    ),
+    _p("run", 22, "uint16", "read", "", "Run", "1 during a wind-tunnel run, else 0"),
     _p(
         "ring_head",
         RING_HEAD_REGISTER,
@@ -164,13 +184,24 @@ _TABLE = (
         "Heartbeat",
         "incremented by a connected advisor; staged sets are ignored when it is stale",
     ),
+    _p(
+        "excitation_request",
+        22,
+        "float32",
+        "write",
+        "V",
+        "ExcitationRequest",
+        "test signal the PLC adds to its PI output (clamped to its own limit, zeroed while the "
+        "heartbeat is stale)",
+    ),
 )
 
 POINTS: dict[str, Point] = {point.name: point for point in _TABLE}
 """Every point by name."""
 
 OPCUA_RING = "FuelLoop.Ring"
-"""The OPC UA ring: a Double array of ``size × 4`` (seq, command, flow, setpoint per record)."""
+"""The OPC UA ring: a Double array of ``size × 5`` (seq, command, flow, setpoint, excitation per
+record)."""
 
 
 def ring_slot_register(slot: int) -> int:

@@ -322,7 +322,8 @@ class VirtualPlcThread:
         clock.
     **engine_kwargs
         Passed to :class:`~fuelid.plc.virtual.engine.VirtualPLC` (``ring_size`` to the front end
-        too).
+        too), e.g. ``excitation_limit_V`` (the PLC's clamp of the test signal [V]) and
+        ``run_windows`` (((start, end), …) [s] on the PLC's clock: the read point ``run`` is 1).
 
     Examples
     --------
@@ -498,6 +499,19 @@ class VirtualPlcThread:
             self._resume.set()
 
         self._call(restart())
+
+    def set_run(self, flag: bool) -> None:
+        """Raise or lower the engine's run flag by hand.
+
+        As :meth:`~fuelid.plc.virtual.engine.VirtualPLC.set_run`, on the clock's own thread,
+        between two ticks. A PLC restart (:meth:`restart_plc`) starts a new engine with the flag
+        lowered (its ``run_windows`` kept).
+        """
+
+        async def set_flag() -> None:
+            self.plc.set_run(flag)
+
+        self._call(set_flag())
 
     def site_text(self, store_url: str | None = None, plant: str | None = None) -> str:
         """The site file that points at this virtual PLC (``plant``: its ``[site] plant``)."""

@@ -1,8 +1,9 @@
 """The virtual PLC's S7 front end: a python-snap7 server with two data blocks.
 
 DB1 holds what the PC reads (the mirror of the input registers: byte offset = 2 × register) and
-the ring buffer from byte ``2 × RING_FIRST_REGISTER``, one 16-byte record per slot (the sequence
-number as a UDInt, then the command, flow and setpoint as REALs); DB2 holds what the PC writes
+the ring buffer from byte ``2 × RING_FIRST_REGISTER``, one 20-byte record per slot (the sequence
+number as a UDInt, then the command, flow, setpoint and excitation as REALs; the default ring of
+2048 records ends at byte 42 960, under 64 KiB); DB2 holds what the PC writes
 (the mirror of the holding registers). Values are big-endian as S7 stores them: REAL float32,
 UDInt uint32, Int int16, UInt/Word uint16. The DBs are not "optimised": every point has the
 absolute offset :mod:`fuelid.plc.virtual.points` gives it.
@@ -14,7 +15,7 @@ memory copy only, so a client never sees half an update.
 Examples
 --------
 >>> db1_size(4), db2_size()
-(2064, 42)
+(2080, 48)
 >>> encode_point(3.5, "float32").hex(), encode_point(27648, "int16").hex()
 ('40600000', '6c00')
 """
@@ -40,6 +41,7 @@ from fuelid.plc.virtual.frontend import Frontend
 from fuelid.plc.virtual.points import (
     DEFAULT_RING_SIZE,
     POINTS,
+    RING_FIELDS,
     RING_FIRST_REGISTER,
     RING_RECORD_REGISTERS,
     S7_READ_DB,
@@ -56,8 +58,8 @@ _INT_RANGE = {"int16": (-32768, 32767), "uint16": (0, 65535)}
 RING_FIRST_BYTE = 2 * RING_FIRST_REGISTER
 """Byte offset of ring slot 0 in DB1."""
 RECORD_BYTES = 2 * RING_RECORD_REGISTERS
-"""Bytes per ring record: seq UDInt + command, flow, setpoint REAL."""
-_RECORD = struct.Struct(">Ifff")
+"""Bytes per ring record: seq UDInt + command, flow, setpoint, excitation REAL."""
+_RECORD = struct.Struct(">I" + "f" * (len(RING_FIELDS) - 1))
 
 
 def _end(point: Point) -> int:
@@ -202,12 +204,13 @@ class S7Frontend(Frontend):
             Point name → engineering value (V, L/min, °C, s; counters as numbers); names that
             are not read points of :data:`~fuelid.plc.virtual.points.POINTS` are ignored.
         ring : mapping of int to array
-            Slot → record ``[seq, command [V], flow [L/min], setpoint [L/min]]``.
+            Slot → record ``[seq, command [V], flow [L/min], setpoint [L/min], excitation [V]]``.
         """
         updates: list[tuple[int, bytes]] = []
+        width = len(RING_FIELDS)
         for slot, record in ring.items():
-            seq, command, flow, setpoint = (float(x) for x in record[:4])
-            data = _RECORD.pack(int(seq) % 2**32, command, flow, setpoint)
+            seq, *fields = (float(x) for x in record[:width])
+            data = _RECORD.pack(int(seq) % 2**32, *fields)
             updates.append((RING_FIRST_BYTE + RECORD_BYTES * (int(slot) % self.ring_size), data))
         head: tuple[int, bytes] | None = None
         for name, value in values.items():

@@ -46,7 +46,9 @@ def site_text(
     ``plant`` is the plant TOML the virtual PLC runs (``[site] plant``), when not the reference.
 
     Every role the virtual PLC has: the read tags (with ``flow`` as the float32 reading), the
-    sequence counter, the ring, the write side (staged gains, apply, echo, heartbeat) and the
+    sequence counter, the test signal applied (``excitation``) and the run flag (``run``), the
+    ring (seq, command, flow, setpoint, excitation), the write side (staged gains, apply, echo,
+    heartbeat, the test signal ``excitation`` it adds to its PI output) and the
     ``[controller]`` table (ideal form, engineering units, Ti in s, the commissioning gains
     ``kc`` and ``ti`` when given).
 
@@ -103,6 +105,8 @@ def site_text(
         "kc": ("kc", "V per L/min"),
         "ti": ("ti", "s"),
         "seq": ("seq", ""),
+        "excitation": ("excitation", "V"),
+        "run": ("run", ""),
     }
     write_tags = {
         "kc": ("staged_kc", "V per L/min"),
@@ -110,6 +114,7 @@ def site_text(
         "apply": ("apply", ""),
         "echo": ("echo", ""),
         "heartbeat": ("heartbeat", ""),
+        "excitation": ("excitation_request", "V"),
     }
     for table, tags in (("tags", read_tags), ("write", write_tags)):
         for role, (point, unit) in tags.items():
