@@ -20,7 +20,9 @@ from fuelid.archive.writer import ArchiveReport, archive_store
 from fuelid.cli import main
 from fuelid.store import SQLiteStore
 
-SAMPLE_COLUMNS = "time, wall_time, seq, u, y, setpoint, fuel_temperature, mode, quality"
+SAMPLE_COLUMNS = (
+    "time, wall_time, seq, u, y, setpoint, fuel_temperature, mode, quality, excitation, run"
+)
 LOOPS = ("line-a", "line-b")
 
 

@@ -295,7 +295,7 @@ def test_a_store_of_the_previous_schema_is_migrated_and_shown(tmp_path: Path) ->
         for k in range(60_000)
     ]
     con = sqlite3.connect(db)
-    con.executemany("INSERT INTO samples VALUES (?, ?, ?, ?, ?, ?, ?, ?)", samples)
+    con.executemany("INSERT INTO samples VALUES (?, ?, ?, ?, ?, ?, ?, ?)", [r[:8] for r in samples])
     model = json.dumps({"model": {"K": 14.0, "T": 1.2, "delay": 0.2}})
     for k in (1, 2):
         wall, plant = wall0 + 30.0 * k, plant0 + 600.0 * (k - 1)

@@ -86,7 +86,9 @@ def test_schema_is_versioned_strict_and_in_wal_mode(tmp_path: Path) -> None:
         assert meta["site_name"] == SITE["site_name"]
         assert meta["tag_map_hash"] == SITE["tag_map_hash"]
         with pytest.raises(sqlite3.IntegrityError):  # STRICT: no text in a REAL column
-            con.execute("INSERT INTO samples VALUES (1.0, 1, 'x', 1.0, 1.0, 1.0, 1, 0, NULL)")
+            con.execute(
+                "INSERT INTO samples VALUES (1.0, 1, 'x', 1.0, 1.0, 1.0, 1, 0, NULL, NULL, NULL)"
+            )
     finally:
         con.close()
 

@@ -91,8 +91,9 @@ def test_store_written_by_fuelid_0_1_is_upgraded_without_losing_a_row(tmp_path: 
     # samples and events: value for value, in the same order, with wall_time NULL (unknown);
     # the online rows' wall times (the windows ran at real time: plant = wall − 1 s by the
     # anchors (601, 600) and (901, 900)) mapped onto plant time, the old value kept as wall_time
-    # (events gain a stable id in version 4: 1, 2, … in their stored order)
-    assert after["samples"] == [(*row, None) for row in before["samples"]]
+    # (events gain a stable id in version 4: 1, 2, … in their stored order; samples the
+    # columns excitation and run in version 5, NULL: not recorded)
+    assert after["samples"] == [(*row, None, None, None) for row in before["samples"]]
     assert after["events"] == [(k, *row, None) for k, row in enumerate(before["events"], start=1)]
     assert after["online_state"] == before["online_state"]
     assert after["models"] == [
@@ -161,7 +162,7 @@ def test_a_store_of_every_older_version_opens_upgraded(tmp_path: Path, version: 
     con.executemany(
         "INSERT INTO samples(time, seq, u, y, setpoint, fuel_temperature, mode, quality) "
         "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-        [Sample(T0 + 0.02 * k, k, 2.0, 40.0 + k) for k in range(5)],
+        [Sample(T0 + 0.02 * k, k, 2.0, 40.0 + k)[:8] for k in range(5)],  # the columns of v1
     )
     con.commit()
     con.close()
@@ -170,7 +171,8 @@ def test_a_store_of_every_older_version_opens_upgraded(tmp_path: Path, version: 
         assert store.info().schema_version == SCHEMA_VERSION
         assert store.read().y.tolist() == [40.0, 41.0, 42.0, 43.0, 44.0]
     wall = [None] if version < 3 else []  # the wall_time column version 3 adds
-    assert _tables(db)["samples"] == [(*row, *wall) for row in before["samples"]]
+    excitation_run = [None, None] if version < 5 else []  # the columns version 5 adds
+    assert _tables(db)["samples"] == [(*row, *wall, *excitation_run) for row in before["samples"]]
     assert _schema(db) == _schema(_new_store(tmp_path))
 
 
@@ -251,6 +253,31 @@ def test_the_outbox_logs_every_change_of_the_sent_tables_only_while_it_is_on(
     finally:
         con.close()
     assert rows == [("events", 2), ("proposals", 1), ("proposals", 1)]
+
+
+def test_every_sent_table_keeps_its_outbox_triggers_after_every_migration(tmp_path: Path) -> None:
+    """Migration 5 makes ``requests`` anew (a wider CHECK): its triggers must come back too.
+
+    Dropping a table drops its triggers; without them a central store would never hear of a
+    request again (a two-sender test found it).
+    """
+    from fuelid.store.schema_v4 import OUTBOX_TABLES
+
+    db = _new_store(tmp_path)
+    con = sqlite3.connect(db, isolation_level=None)
+    try:
+        names = {r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='trigger'")}
+        con.execute("INSERT INTO meta VALUES ('outbox', 'on')")
+        con.execute(
+            "INSERT INTO requests(time, wall_time, kind, who, why, origin, status, outcome) "
+            "VALUES (1.0, 1.0, 'excite_start', 'op', 'quiet loop', 'cli', 'waiting', '')"
+        )
+        rows = con.execute("SELECT tbl FROM outbox").fetchall()
+    finally:
+        con.close()
+    for table in OUTBOX_TABLES:
+        assert {f"outbox_{table}_insert", f"outbox_{table}_update"} <= names, table
+    assert rows == [("requests",)]
 
 
 def test_a_migration_with_a_data_step_fills_rows_in_its_transaction(
@@ -339,7 +366,9 @@ def test_a_v2_store_of_a_virtual_time_run_is_mapped_onto_plant_time(tmp_path: Pa
         for k in range(2_500)
     ]
     con = sqlite3.connect(db)
-    con.executemany("INSERT INTO samples VALUES (?, ?, ?, ?, ?, ?, ?, ?)", samples)
+    con.executemany(
+        "INSERT INTO samples VALUES (?, ?, ?, ?, ?, ?, ?, ?)", [row[:8] for row in samples]
+    )
     for k, (wall, plant) in enumerate(anchors, start=1):
         con.execute(
             "INSERT INTO models VALUES (?, ?, ?, ?, 21.0, '{}')", (k, wall, plant - 600.0, plant)

@@ -20,8 +20,11 @@ archiving the same day again rewrites that store's file instead of adding a seco
 ``wall_time`` (wall clock at commit [s UTC]), ``seq`` (the unwrapped sequence number, int64),
 ``u`` [V], ``y`` [L/min], ``setpoint`` [L/min], ``fuel_temperature`` [°C] (float64),
 ``mode`` (0 MAN, 1 AUTO, int64), ``quality`` (0 ok, 1 stale, 2 link_down, 3 bad_value; int64,
-never null). Every other column is nullable, and null where the store holds SQL NULL: a
-value the PLC did not give stays missing (it is not NaN). Sorted by ``time``.
+never null), ``excitation`` (the test signal applied [V], float64) and ``run`` (the wind-tunnel
+run flag, 0 or 1, int64), both since store schema 5. Every other column is nullable, and null
+where the store holds SQL NULL: a value the PLC did not give stays missing (it is not NaN).
+Sorted by ``time``. A file written before ``excitation`` and ``run`` reads with both null (its
+reader asks for :data:`SAMPLE_SCHEMA`, which fills a column the file lacks with nulls).
 
 **Events** (:data:`EVENT_SCHEMA`): ``time`` [plant s UTC], ``kind``, ``detail``, ``wall_time``.
 
@@ -75,6 +78,8 @@ SAMPLE_SCHEMA = pa.schema(
         pa.field("fuel_temperature", pa.float64()),
         pa.field("mode", pa.int64()),
         pa.field("quality", pa.int64(), nullable=False),
+        pa.field("excitation", pa.float64()),
+        pa.field("run", pa.int64()),
     ]
 )
 """The columns of a samples file, in order (module docstring)."""
@@ -235,6 +240,9 @@ def read_day(root: str | Path, loop_id: str, date: str) -> SampleArrays:
 def arrays_of(table: pa.Table) -> SampleArrays:
     """A samples table (:data:`SAMPLE_SCHEMA`) as arrays: nulls as NaN and −1, as a store reads.
 
+    ``run`` is a float array (NaN where null), as :class:`~fuelid.store.records.SampleArrays`
+    holds it.
+
     Examples
     --------
     >>> arrays_of(SAMPLE_SCHEMA.empty_table()).time.size
@@ -242,7 +250,7 @@ def arrays_of(table: pa.Table) -> SampleArrays:
     """
 
     def floats(name: str) -> np.ndarray[Any, Any]:
-        column = table.column(name).to_numpy(zero_copy_only=False)
+        column = table.column(name).cast(pa.float64()).to_numpy(zero_copy_only=False)
         return np.asarray(column, dtype=np.float64)  # nulls come back as NaN
 
     def ints(name: str) -> np.ndarray[Any, Any]:
@@ -257,6 +265,8 @@ def arrays_of(table: pa.Table) -> SampleArrays:
         fuel_temperature=floats("fuel_temperature"),
         mode=ints("mode"),
         quality=ints("quality"),
+        excitation=floats("excitation"),
+        run=floats("run"),
     )
 
 

@@ -263,16 +263,7 @@ def _previous_date(date: str) -> str:
 
 
 def _take(samples: SampleArrays, a: int, b: int) -> SampleArrays:
-    return SampleArrays(
-        time=samples.time[a:b],
-        seq=samples.seq[a:b],
-        u=samples.u[a:b],
-        y=samples.y[a:b],
-        setpoint=samples.setpoint[a:b],
-        fuel_temperature=samples.fuel_temperature[a:b],
-        mode=samples.mode[a:b],
-        quality=samples.quality[a:b],
-    )
+    return samples.take(slice(a, b))
 
 
 def _number(value: Any) -> float | None:

@@ -44,6 +44,10 @@ HUGE = 1e9
 """Above this magnitude a value is no engineering value of a fuel loop."""
 COMMAND_RANGE_V = (0.0, 10.5)
 """The VFD command's range [V] without a ``valid`` of its tag: no drive signal is outside it."""
+AUX_ROLES = ("setpoint", "fuel_temperature", "mode", "excitation", "run")
+"""Roles stored with every sample besides u and y: a bad value is stored as NaN (None), and
+the sample stays ``OK``."""
+_WITH_CORE = ("setpoint", "excitation")  # read with u and y when a poll or ring record has them
 
 
 def implausible(value: float) -> bool:
@@ -145,8 +149,9 @@ class RangeChecks:
     ) -> Sample:
         """A sample from u, y (and the setpoint) and the last auxiliary values, checked.
 
-        A bad u or y makes the sample ``BAD_VALUE`` (the values kept as read); a bad setpoint is
-        stored as NaN and the sample stays ``OK``.
+        A bad u or y makes the sample ``BAD_VALUE`` (the values kept as read); a bad setpoint or
+        excitation is stored as NaN and the sample stays ``OK``. The run flag is stored as 1
+        when it is not zero (a PLC's TRUE may read 1 or −1), else 0.
 
         Parameters
         ----------
@@ -155,21 +160,19 @@ class RangeChecks:
         seq : int or None
             Stored sequence number.
         core : dict of str to float
-            ``command`` [V], ``flow`` [L/min] and the ``setpoint`` [L/min] when read with them.
+            ``command`` [V], ``flow`` [L/min], and the ``setpoint`` [L/min] and ``excitation``
+            [V] when read with them (the same poll, or the same ring record).
         aux : dict of str to float
-            The last checked ``setpoint``, ``fuel_temperature`` [°C] and ``mode`` (NaN: bad).
+            The last checked ``setpoint``, ``fuel_temperature`` [°C], ``mode``, ``excitation``
+            [V] and ``run`` (NaN: bad; a role left out: not recorded).
         quality : int
             The quality before the checks (a :class:`~fuelid.store.Quality` code).
         """
         good = True
         for role in ("command", "flow"):
             good &= self.check(role, core.get(role, math.nan), t)
-        setpoint = core.get("setpoint")
-        if setpoint is None:
-            setpoint = aux.get("setpoint", math.nan)
-        elif not self.check("setpoint", setpoint, t):
-            setpoint = math.nan
-        mode = aux.get("mode", math.nan)
+        setpoint, excitation = (self._checked(role, core, aux, t) for role in _WITH_CORE)
+        mode, run = aux.get("mode", math.nan), aux.get("run", math.nan)
         if quality == Quality.OK and not good:
             quality = Quality.BAD_VALUE
         return Sample(
@@ -181,7 +184,16 @@ class RangeChecks:
             fuel_temperature=aux.get("fuel_temperature", math.nan),
             mode=round(mode) if math.isfinite(mode) else None,
             quality=int(quality),
+            excitation=excitation,
+            run=int(run != 0.0) if math.isfinite(run) else None,
         )
+
+    def _checked(self, role: str, core: dict[str, float], aux: dict[str, float], t: float) -> float:
+        """A role read with u and y (checked now, NaN when bad), else its last checked value."""
+        value = core.get(role)
+        if value is None:
+            return aux.get(role, math.nan)
+        return value if self.check(role, value, t) else math.nan
 
 
 class StuckDetector:

@@ -30,9 +30,16 @@ event.
 **Quality** (:mod:`fuelid.plc.quality`): u and y (and the ring's fields) that are NaN, infinite,
 implausible (tiny but not zero, or huge), out of range or, for u, outside 0…10.5 V without a
 ``valid`` make the sample ``BAD_VALUE`` (values kept as read); a bad setpoint, fuel
-temperature or mode is stored as NaN (None) and the sample stays ``OK``. Each bad episode writes
-one ``bad_value`` event; a stuck flow a ``stuck_sensor`` event and its samples ``BAD_VALUE``.
-Applied gains that change write ``gain_change``, MAN/AUTO ``mode_change``.
+temperature, mode, excitation or run flag is stored as NaN (None) and the sample stays ``OK``.
+Each bad episode writes one ``bad_value`` event; a stuck flow a ``stuck_sensor`` event and its
+samples ``BAD_VALUE``. Applied gains that change write ``gain_change``, MAN/AUTO
+``mode_change``.
+
+**Excitation and run** (issue 40): with ``[tags.excitation]`` (the test signal the PLC applied
+[V]) and ``[tags.run]`` (the wind-tunnel run flag) every sample carries them, read in the same
+poll as u and y; with a ring whose records have the field ``excitation`` the signal comes from
+the record (scan-consistent with u and y), else from the tag read at the poll, as the setpoint.
+The run flag is stored as 0 or 1. A site without them stores NULL in both columns.
 
 **The PLC's gains as read** (:mod:`fuelid.plc.gain_reading`): with ``[tags.kc]`` and
 ``[tags.ti]`` the first reading and each change go to the store's state (key ``plc_gains``),
@@ -63,7 +70,7 @@ from typing import TYPE_CHECKING, Any
 from fuelid.plc.adapters.base import EndOfSource, LinkError, PlcSource, Reading, RingRecord
 from fuelid.plc.first_read import RingTagCheck, probe_first_read
 from fuelid.plc.gain_reading import PLC_GAINS_KEY, GainReadings, gain_change_text, stamped
-from fuelid.plc.quality import STUCK_AFTER_S, RangeChecks, StuckDetector
+from fuelid.plc.quality import AUX_ROLES, STUCK_AFTER_S, RangeChecks, StuckDetector
 from fuelid.plc.record_status import RecorderStats
 from fuelid.plc.site import SiteConfig
 from fuelid.plc.timebase import UINT32, SampleSequence
@@ -95,7 +102,8 @@ RING_POLL_S = 0.2
 RING_MARGIN = 8
 """Fraction 1/RING_MARGIN of the ring left alone when back-filling: the PLC overwrites the
 oldest records while they are read."""
-_CORE = ("command", "flow", "setpoint")
+_CORE = ("command", "flow", "setpoint", "excitation")
+"""Roles a sample takes from the poll it is made of (or the ring record), not the last poll."""
 
 
 def link_up_detail(outage_s: float, attempts: int, filled: int | None) -> str:
@@ -195,7 +203,7 @@ class Recorder:
         )
         self._aux: dict[str, float] = {}  # last finite kc, ti, mode (change events)
         self._gains = GainReadings(self.site)  # the PLC's kc and ti as read, for the store
-        self._aux_values: dict[str, float] = {}  # setpoint, temperature, mode attached, checked
+        self._aux_values: dict[str, float] = {}  # AUX_ROLES attached to samples, checked
         self._next_u: int | None = None  # ring: the next record to read (unwrapped)
         self._last_receipt = math.nan
         self._last_seen = math.nan  # when any reading last arrived [s UTC]
@@ -449,7 +457,7 @@ class Recorder:
         self._aux_values = {
             role: (v if self._checks.check(role, v, t) else math.nan)
             for role, v in values.items()
-            if role in ("setpoint", "fuel_temperature", "mode")
+            if role in AUX_ROLES
         }
 
     def _gains_read(self, reading: Reading, t: float | None) -> None:
@@ -625,7 +633,7 @@ class Recorder:
 
 
 def _core(reading: Reading) -> dict[str, float]:
-    """u, y and the setpoint of a reading (those it has)."""
+    """u, y, the setpoint and the excitation of a reading (those it has)."""
     return {role: v for role, v in reading.values.items() if role in _CORE}
 
 

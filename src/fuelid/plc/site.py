@@ -61,11 +61,16 @@ READ_ROLES = (
     "kc",
     "ti",
     "seq",
+    "excitation",
+    "run",
 )
 """Roles of the read tags: y, u, the setpoint, the fuel temperature, MAN/AUTO (0/1), the PI's
-gains as applied, and the sample sequence counter (uint32)."""
-WRITE_ROLES = ("kc", "ti", "apply", "echo", "heartbeat")
-"""Roles of the write side: staged gains, the apply word and its echo, the advisor's heartbeat."""
+gains as applied, the sample sequence counter (uint32), the test signal the PLC actually added
+to its PI's output (after its clamp and zeroing, V) and the wind-tunnel run flag (1 during a
+run; any type)."""
+WRITE_ROLES = ("kc", "ti", "apply", "echo", "heartbeat", "excitation")
+"""Roles of the write side: staged gains, the apply word and its echo, the advisor's heartbeat,
+and the test signal the PLC adds to its PI's output (V; ``[excitation]``)."""
 REQUIRED_ROLES = ("flow", "command")
 
 ROLE_UNITS: dict[str, tuple[str, ...]] = {
@@ -73,8 +78,12 @@ ROLE_UNITS: dict[str, tuple[str, ...]] = {
     "flow": ("L/min",),
     "setpoint": ("L/min",),
     "fuel_temperature": ("degC",),
+    "excitation": ("V",),
 }
-"""The engineering unit a role must be in (after scaling): the gains are per V and L/min."""
+"""The engineering unit a read role must be in (after scaling): the gains are per V and L/min,
+and the test signal is a share of the command."""
+WRITE_ROLE_UNITS: dict[str, tuple[str, ...]] = {"excitation": ("V",)}
+"""The engineering unit a write role must be in: ``[excitation] amplitude`` is in V."""
 
 
 class _Table(BaseModel):
@@ -278,9 +287,11 @@ class Tag(_Table):
         return r0 + (float(value) - e0) * (r1 - r0) / (e1 - e0)
 
 
-RING_FIELDS = ("seq", "command", "flow", "setpoint")
+RING_FIELDS = ("seq", "command", "flow", "setpoint", "excitation")
 """Roles a ring-buffer record may hold; ``seq`` (uint32) first, the others float32 in engineering
-units (V, L/min)."""
+units (V, L/min; ``excitation``, the test signal applied, in V, optional and after the others)."""
+RING_DEFAULT_FIELDS = ("seq", "command", "flow", "setpoint")
+"""A record's fields when ``[ring] fields`` is not given (the layout before ``excitation``)."""
 
 
 class Ring(_Table):
@@ -290,13 +301,15 @@ class Ring(_Table):
     one scan, so a record is scan-consistent (u and y of the same instant), and ``head`` holds the
     sequence number of the newest record. A record is ``fields`` in order: the sequence number as
     a uint32, then each other field as a float32 in engineering units (V, L/min); 2 registers
-    each on Modbus, 4 bytes each in an S7 DB, one element each of an OPC UA Double array.
+    each on Modbus, 4 bytes each in an S7 DB, one element each of an OPC UA Double array. The
+    default is :data:`RING_DEFAULT_FIELDS`; ``excitation`` (the test signal applied, V) is
+    optional, usually the last field.
     """
 
     head: str = Field(min_length=1, description="address of the newest record's seq (uint32)")
     address: str = Field(min_length=1, description="address of slot 0 (the first record)")
     size: int = Field(ge=2, le=65536, description="records in the ring")
-    fields: list[str] = Field(default_factory=lambda: list(RING_FIELDS))
+    fields: list[str] = Field(default_factory=lambda: list(RING_DEFAULT_FIELDS))
 
     @model_validator(mode="after")
     def _layout(self) -> Ring:
@@ -412,6 +425,84 @@ class Online(_Table):
         return self
 
 
+class Excitation(_Table):
+    """``[excitation]``: a small test signal on the PI's output, to identify a loop that sits still.
+
+    The online service writes the signal to ``[write.excitation]``; the PLC adds it to its PI's
+    output after its own clamp, zeroes it when fuelid's heartbeat is stale or the loop is in MAN,
+    and reports what it applied in ``[tags.excitation]``. With ``mode`` other than ``"off"`` the
+    site file needs ``[write.excitation]``, ``[write.heartbeat]``, ``[tags.excitation]``,
+    ``[tags.mode]`` and ``amplitude`` (:class:`SiteConfig` checks them), and the service runs
+    the heartbeat whatever ``[online] write_back`` says.
+    """
+
+    mode: Literal["off", "when_unidentified", "always"] = Field(
+        "off", description="off; when_unidentified: only while no model is current; always"
+    )
+    target: Literal["output"] = Field(
+        "output", description="the signal is added to the PI's output (a setpoint may follow)"
+    )
+    amplitude: float | None = Field(
+        None,
+        gt=0.0,
+        allow_inf_nan=False,
+        description="the largest signal fuelid may ask for [V]; required unless mode is off",
+    )
+    max_share: float = Field(
+        0.3, gt=0.0, le=1.0, description="the largest share of time with a signal (0 < x <= 1)"
+    )
+    wait_after_move_s: float | None = Field(
+        None,
+        ge=0.0,
+        allow_inf_nan=False,
+        description="after a setpoint move, a mode change or a gain write, wait this long "
+        "before a signal [s]; None: one settling time of the current model",
+    )
+    margin_to_limits: float | None = Field(
+        None,
+        ge=0.0,
+        allow_inf_nan=False,
+        description="no signal while the command is within this of the drive's limits [V]; "
+        "None: twice the amplitude",
+    )
+
+    @model_validator(mode="after")
+    def _amplitude_when_on(self) -> Excitation:
+        if self.mode != "off" and self.amplitude is None:
+            raise ValueError(
+                f"amplitude is required with mode = {self.mode!r} (the largest signal fuelid "
+                "may ask for, in V)"
+            )
+        return self
+
+
+def _check_excitation(site: SiteConfig) -> None:
+    """With ``[excitation]`` on, the registers that carry and watch the signal must be mapped.
+
+    The PLC zeroes the signal on a stale heartbeat and in MAN, and reports what it applied.
+    """
+    mode = site.excitation.mode
+    if mode == "off":
+        return
+    on = f"with excitation on ([excitation] mode = {mode!r})"
+    if "excitation" not in site.write:
+        raise ValueError(
+            f"write.excitation is required {on} (the register the PLC adds to its PI's output)"
+        )
+    if "heartbeat" not in site.write:
+        raise ValueError(
+            "write.heartbeat: the PLC zeroes the signal when fuelid's heartbeat is stale: "
+            f"[write.heartbeat] is required {on}"
+        )
+    if "excitation" not in site.tags:
+        raise ValueError(
+            f"tags.excitation is required {on} (the signal the PLC applied, after its clamp "
+            "and zeroing)"
+        )
+    if "mode" not in site.tags:
+        raise ValueError(f"tags.mode is required {on} (no signal in MAN needs to know the mode)")
+
+
 ENGINEERING_GAIN_UNITS = ("V per L/min", "V/(L/min)")
 PERCENT_GAIN_UNITS = ("%/%", "% per %", "percent")
 
@@ -435,7 +526,15 @@ def _check_gain_units(site: SiteConfig) -> None:
 
 
 class SiteConfig(_Table):
-    """A whole site file."""
+    """A whole site file.
+
+    Cross-checks between tables, each refused with a one-line reason naming the key: the roles
+    known, flow and command present, addresses in the protocol's syntax, the units of the roles
+    that have one, the ring's layout, the write side of ``[online] write_back``, the gain units
+    of ``[controller]``, and what ``[excitation]`` on needs (``write.excitation``,
+    ``write.heartbeat``, ``tags.excitation``, ``tags.mode``). With excitation on, the heartbeat
+    runs whatever ``[online] write_back`` says (the PLC zeroes the signal when it is stale).
+    """
 
     site: SiteInfo
     plc: PlcEndpoint
@@ -446,6 +545,7 @@ class SiteConfig(_Table):
     controller: Controller | None = None
     store: Store = Field(default_factory=Store)
     online: Online = Field(default_factory=Online)
+    excitation: Excitation = Field(default_factory=Excitation)
     archive: Archive | None = None
     central: Central | None = None
 
@@ -466,14 +566,19 @@ class SiteConfig(_Table):
         for side, tags in (("tags", self.tags), ("write", self.write)):
             for role, tag in tags.items():
                 check_address(self.plc.protocol, tag, f"{side}.{role}")
-        for role, units in ROLE_UNITS.items():
-            found = self.tags.get(role)
-            if found is not None and found.unit not in units:
-                raise ValueError(
-                    f"tags.{role}.unit: {found.unit or 'none'!s}, but the gains are computed in "
-                    f"{units[0]}: scale the raw value with raw = [...] and eng = [...] and say "
-                    f'unit = "{units[0]}"'
-                )
+        for side, tags, role_units in (
+            ("tags", self.tags, ROLE_UNITS),
+            ("write", self.write, WRITE_ROLE_UNITS),
+        ):
+            for role, units in role_units.items():
+                found = tags.get(role)
+                if found is not None and found.unit not in units:
+                    why = "the test signal is" if role == "excitation" else "the gains are computed"
+                    raise ValueError(
+                        f"{side}.{role}.unit: {found.unit or 'none'!s}, but {why} in "
+                        f"{units[0]}: scale the raw value with raw = [...] and eng = [...] and "
+                        f'say unit = "{units[0]}"'
+                    )
         seq = self.tags.get("seq")
         if seq is not None and seq.type != "uint32":
             raise ValueError("tags.seq.type: the sequence counter is a uint32")
@@ -494,6 +599,7 @@ class SiteConfig(_Table):
         check_overlaps(self.plc.protocol, self.tags, "tags")
         check_overlaps(self.plc.protocol, self.write, "write")
         _check_gain_units(self)
+        _check_excitation(self)
         return self
 
     def missing(self) -> list[str]:
@@ -506,6 +612,8 @@ class SiteConfig(_Table):
             "ti": "the applied gains are unknown",
             "seq": "sample times are receipt times; a lost sample is a missed deadline",
         }
+        if self.excitation.mode != "off":  # without a signal, a run changes nothing
+            costs["run"] = "a wind-tunnel run cannot be told: no signal is held off during a run"
         exposed = set(self.tags) | set(self.ring.fields if self.ring is not None else ())
         return [f"{role}: {cost}" for role, cost in costs.items() if role not in exposed]
 

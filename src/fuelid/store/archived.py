@@ -42,6 +42,8 @@ ARCHIVE_COLUMNS = (
     "fuel_temperature",
     "mode",
     "quality",
+    "excitation",
+    "run",
 )
 """The ``samples`` columns in the order of the archive's files (``fuelid.archive.layout``)."""
 

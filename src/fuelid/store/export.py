@@ -3,8 +3,10 @@
 Columns: ``t_s`` (seconds from the first exported sample), ``u_V``, ``q_Lpm`` (the names
 ``identify`` reads by default), then ``sp_Lpm``, ``T_fuel_degC`` (only when every exported sample
 has a fuel temperature: ``identify`` reads that column when present and refuses empty cells),
-``mode`` (0 MAN, 1 AUTO, empty when not exposed), ``quality``, ``seq`` and ``time_utc`` (ISO 8601,
-the absolute time; a CSV keeps ten significant digits, too few for UTC seconds at 20 ms).
+``mode`` (0 MAN, 1 AUTO, empty when not exposed), then ``excitation_V`` (the test signal the PLC
+applied [V]) and ``run`` (1 during a wind-tunnel run, else 0) only when some exported sample has
+one (empty cells where a sample has none), ``quality``, ``seq`` and ``time_utc`` (ISO 8601, the
+absolute time; a CSV keeps ten significant digits, too few for UTC seconds at 20 ms).
 
 Only samples of quality ``ok`` with a finite u and y are written, so a stretch that was lost,
 flagged or recorded during an outage is a gap in the time column, never an interpolated value
@@ -132,6 +134,11 @@ def export_log(
     if np.all(np.isfinite(temperature)):
         frame["T_fuel_degC"] = temperature
     frame["mode"] = pd.array([None if m < 0 else int(m) for m in mode], dtype="Int64")
+    excitation, run = data.excitation[keep], data.run[keep]
+    if np.any(np.isfinite(excitation)):
+        frame["excitation_V"] = excitation
+    if np.any(np.isfinite(run)):
+        frame["run"] = pd.array([int(r) if np.isfinite(r) else None for r in run], dtype="Int64")
     frame["quality"] = "ok"
     seq = data.seq[keep]
     frame["seq"] = pd.array([None if s < 0 else int(s) for s in seq], dtype="Int64")

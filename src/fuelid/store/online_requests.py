@@ -60,7 +60,7 @@ class PersonRequests(HistoryConnection):
         """
         if kind not in REQUEST_KINDS:
             raise StoreError(f"unknown request kind {kind!r}; known: {', '.join(REQUEST_KINDS)}")
-        if kind != "revert" and proposal_id is None:
+        if kind in ("approve", "reject") and proposal_id is None:
             raise StoreError(f"a request to {kind} needs its proposal")
         wall = _time.time()
         with self._transaction() as con:

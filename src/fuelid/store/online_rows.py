@@ -72,8 +72,9 @@ _WRITE = (
 )
 _PROPOSAL = "id, time, model_id, status, detail, wall_time"
 _REQUEST = "id, time, wall_time, kind, proposal_id, who, why, origin, status, outcome, done_wall"
-REQUEST_KINDS = ("approve", "reject", "revert")
-"""What a request asks for: approve or reject a proposal, revert to the last-known-good gains."""
+REQUEST_KINDS = ("approve", "reject", "revert", "excite_start", "excite_stop")
+"""What a request asks for: approve or reject a proposal, revert to the last-known-good gains,
+start or stop a test signal (issue 40)."""
 REQUEST_STATUSES = ("waiting", "done", "refused", "expired")
 """``waiting`` until the service (or the CLI, when no service runs) applies it."""
 

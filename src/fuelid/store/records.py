@@ -78,6 +78,11 @@ class Sample(NamedTuple):
         0 = MAN, 1 = AUTO, None when not exposed.
     quality : int
         A :class:`Quality` code.
+    excitation : float
+        The test signal the PLC applied to its PI's output, read back [V] (NaN when not
+        recorded; since store schema 5).
+    run : int or None
+        1 during a wind-tunnel run, else 0; None when not recorded (since store schema 5).
     """
 
     time: float
@@ -88,6 +93,12 @@ class Sample(NamedTuple):
     fuel_temperature: float = math.nan
     mode: int | None = None
     quality: int = Quality.OK
+    excitation: float = math.nan
+    run: int | None = None
+
+
+_SAMPLE_COLUMNS = Sample._fields
+"""The columns of a sample, in order (those of :class:`SampleArrays` too)."""
 
 
 class Requalify(NamedTuple):
@@ -172,13 +183,20 @@ class Event(NamedTuple):
     detail: str = ""
 
 
+def _unknown() -> FloatArray:
+    """A column not given: filled with NaN to the samples' length by ``__post_init__``."""
+    return np.empty(0, dtype=np.float64)
+
+
 @dataclass(frozen=True)
 class SampleArrays:
     """Samples read back, one array per column, sorted by time.
 
     ``seq`` and ``mode`` are −1 where the sample has none; missing real values are NaN.
     ``time`` [s UTC], ``u`` [V], ``y`` and ``setpoint`` [L/min], ``fuel_temperature`` [°C],
-    ``quality`` the :class:`Quality` codes.
+    ``quality`` the :class:`Quality` codes; ``excitation`` the test signal applied [V] and
+    ``run`` the wind-tunnel run flag (0.0 or 1.0), both floats, NaN where not recorded (and
+    all NaN when not given: a caller that builds arrays without them need not know them).
     """
 
     time: FloatArray
@@ -189,9 +207,29 @@ class SampleArrays:
     fuel_temperature: FloatArray
     mode: IntArray
     quality: IntArray
+    excitation: FloatArray = field(default_factory=_unknown)
+    run: FloatArray = field(default_factory=_unknown)
+
+    def __post_init__(self) -> None:
+        n = int(np.size(self.time))
+        for name in ("excitation", "run"):
+            if np.size(getattr(self, name)) == 0 and n:
+                object.__setattr__(self, name, np.full(n, np.nan))
 
     def __len__(self) -> int:
         return int(self.time.size)
+
+    def take(self, index: slice | NDArray[Any]) -> SampleArrays:
+        """The samples at ``index`` (a slice, an index or a boolean array), every column.
+
+        Examples
+        --------
+        >>> a = SampleArrays.from_rows([(1.0, 0, 2.0, 40.0, None, None, 1, 0, 0.1, 1)] * 3)
+        >>> b = a.take(slice(1, 3))
+        >>> len(b), b.excitation.tolist(), b.run.tolist()
+        (2, [0.1, 0.1], [1.0, 1.0])
+        """
+        return type(self)(**{name: getattr(self, name)[index] for name in _SAMPLE_COLUMNS})
 
     @classmethod
     def from_rows(cls, rows: Sequence[Sequence[Any]]) -> SampleArrays:
@@ -212,6 +250,8 @@ class SampleArrays:
             fuel_temperature=floats(5),
             mode=ints(6),
             quality=ints(7),
+            excitation=floats(8),
+            run=floats(9),
         )
 
 

@@ -39,6 +39,10 @@ versions, so that an older fuelid never writes into a schema it does not know.
    keys every row by the store's UUID and its id); the change log ``outbox`` and the triggers
    that fill it; ``archived_days``. The outbox stays empty until a service with a ``[central]``
    table switches it on (``meta`` ``outbox`` = ``on``, :data:`OUTBOX_TABLES`).
+5. Excitation on demand (issue 40): ``samples`` gets ``excitation`` (the test signal the PLC
+   applied to its PI's output, read back [V]) and ``run`` (the wind-tunnel run flag, 0 or 1),
+   both NULL on the rows before it and whenever the site does not record them. No row changes;
+   ``samples_lod`` does not carry them.
 
 **Tables**::
 
@@ -60,10 +64,14 @@ versions, so that an older fuelid never writes into a schema it does not know.
             fuel_temperature REAL,       -- [°C]
             mode INTEGER,                -- 0 MAN, 1 AUTO
             quality INTEGER NOT NULL,    -- 0 ok, 1 stale, 2 link_down, 3 bad_value
-            wall_time REAL)              -- wall clock at commit [s UTC]
+            wall_time REAL,              -- wall clock at commit [s UTC]
+            excitation REAL,             -- the test signal applied, read back [V]
+            run INTEGER)                 -- 1 during a wind-tunnel run, else 0
         UNIQUE (seq) WHERE seq IS NOT NULL; UNIQUE (time) WHERE seq IS NULL; INDEX (time)
         (INSERT … ON CONFLICT DO NOTHING: a restart that re-sends samples adds no duplicates);
-        NaN is stored as NULL (SQLite has no NaN) and read back as NaN
+        NaN is stored as NULL (SQLite has no NaN) and read back as NaN; ``excitation`` and
+        ``run`` are NULL where the site does not record them (no ``[tags.excitation]``,
+        ``[tags.run]``) and on every row before version 5
     events(id INTEGER PRIMARY KEY, time REAL NOT NULL, kind TEXT NOT NULL,
            detail TEXT NOT NULL, wall_time REAL)                           INDEX (time)
         kinds: link_down, link_up, gap, gain_change, restart, site_mismatch, prune, …
@@ -109,7 +117,8 @@ versions, so that an older fuelid never writes into a schema it does not know.
         store's writer on a change: :mod:`fuelid.plc.gain_reading`)
     requests(id INTEGER PRIMARY KEY, time REAL NOT NULL,    -- plant time when filed
              wall_time REAL NOT NULL,                       -- wall clock when filed
-             kind TEXT NOT NULL,                            -- approve, reject, revert
+             kind TEXT NOT NULL,                            -- approve, reject, revert,
+                                                            -- excite_start, excite_stop (v5)
              proposal_id INTEGER,                           -- proposals(id); NULL for revert
              who TEXT NOT NULL, why TEXT NOT NULL,
              origin TEXT NOT NULL,                          -- cli, dashboard (later central)
@@ -171,7 +180,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 from fuelid.store.records import StoreError
-from fuelid.store.schema_v4 import OUTBOX_TABLES, V4_MANY_LOOPS
+from fuelid.store.schema_v4 import OUTBOX_TABLES, V4_MANY_LOOPS, outbox_triggers
 
 __all__ = [
     "APPLICATION_ID",
@@ -399,6 +408,27 @@ def _v3_data(con: sqlite3.Connection) -> None:
     )
 
 
+_V5_EXCITATION = (
+    "ALTER TABLE samples ADD COLUMN excitation REAL",
+    "ALTER TABLE samples ADD COLUMN run INTEGER CHECK (run IN (0, 1))",
+    # a person's start or stop of the signal is a request too: SQLite cannot widen a CHECK,
+    # so the table is made anew with its rows
+    """CREATE TABLE requests_v5(
+    id INTEGER PRIMARY KEY, time REAL NOT NULL, wall_time REAL NOT NULL,
+    kind TEXT NOT NULL
+        CHECK (kind IN ('approve', 'reject', 'revert', 'excite_start', 'excite_stop')),
+    proposal_id INTEGER REFERENCES proposals(id), who TEXT NOT NULL, why TEXT NOT NULL,
+    origin TEXT NOT NULL,
+    status TEXT NOT NULL CHECK (status IN ('waiting', 'done', 'refused', 'expired')),
+    outcome TEXT NOT NULL, done_wall REAL
+) STRICT""",
+    "INSERT INTO requests_v5 SELECT * FROM requests",
+    "DROP TABLE requests",
+    "ALTER TABLE requests_v5 RENAME TO requests",
+    "CREATE INDEX requests_status ON requests(status)",
+    *outbox_triggers(("requests",)),  # dropped with the old table
+)
+
 MIGRATIONS: tuple[Migration, ...] = (
     Migration(1, "samples, events, models and proposals (fuelid 0.1)", _V1_SAMPLES_AND_EVENTS),
     Migration(2, "the online service's windows, writes and state everywhere", _V2_ONLINE_TABLES),
@@ -412,6 +442,12 @@ MIGRATIONS: tuple[Migration, ...] = (
         4,
         "many loops: a stable id on events, the outbox for a central store, archived days",
         V4_MANY_LOOPS,
+    ),
+    Migration(
+        5,
+        "excitation on demand: the applied test signal and the run flag on every sample; "
+        "requests to start or stop a signal",
+        _V5_EXCITATION,
     ),
 )
 """Every migration, in order; ``MIGRATIONS[k]`` takes a store to version ``k + 1``."""

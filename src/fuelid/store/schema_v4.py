@@ -8,7 +8,7 @@ archived days. Kept apart from the migration list so that module stays readable.
 
 from __future__ import annotations
 
-__all__ = ["OUTBOX_TABLES", "V4_MANY_LOOPS"]
+__all__ = ["OUTBOX_TABLES", "V4_MANY_LOOPS", "outbox_triggers"]
 
 OUTBOX_TABLES = ("events", "windows", "models", "proposals", "writes", "requests")
 """The tables whose inserts and updates go to the outbox (a central store receives them)."""
@@ -16,9 +16,13 @@ OUTBOX_TABLES = ("events", "windows", "models", "proposals", "writes", "requests
 _WALL_NOW = "((julianday('now') - 2440587.5) * 86400.0)"  # SQLite 3.40 has no unixepoch('subsec')
 
 
-def _outbox_triggers() -> tuple[str, ...]:
+def outbox_triggers(tables: tuple[str, ...] = OUTBOX_TABLES) -> tuple[str, ...]:
+    """The outbox's triggers on ``tables``.
+
+    A table made anew by a later migration needs its own again: dropping a table drops them.
+    """
     statements = []
-    for table in OUTBOX_TABLES:
+    for table in tables:
         for op in ("INSERT", "UPDATE"):
             statements.append(
                 f"CREATE TRIGGER outbox_{table}_{op.lower()} AFTER {op} ON {table} "
@@ -45,6 +49,6 @@ V4_MANY_LOOPS = (
         loop_id TEXT NOT NULL, date TEXT NOT NULL, samples INTEGER NOT NULL, t_first REAL,
         t_last REAL, path TEXT NOT NULL, wall_time REAL NOT NULL,
         PRIMARY KEY (loop_id, date)) STRICT""",
-    *_outbox_triggers(),
+    *outbox_triggers(),
 )
 """The statements of migration 4, in order."""

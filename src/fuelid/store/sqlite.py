@@ -61,10 +61,10 @@ from fuelid.store.schema import (
 __all__ = ["APPLICATION_ID", "SCHEMA_VERSION", "SQLiteStore"]
 
 # DO NOTHING only on a duplicate key: a NULL time or a bad quality code still fails the batch
-_COLUMNS = "time, seq, u, y, setpoint, fuel_temperature, mode, quality"
+_COLUMNS = ", ".join(Sample._fields)  # time, seq, u, y, …, quality, excitation, run
 _INSERT_SAMPLE = (
-    f"INSERT INTO samples({_COLUMNS}, wall_time) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?) "
-    "ON CONFLICT DO NOTHING"
+    f"INSERT INTO samples({_COLUMNS}, wall_time) "
+    f"VALUES ({', '.join('?' * (len(Sample._fields) + 1))}) ON CONFLICT DO NOTHING"
 )
 _INSERT_EVENT = "INSERT INTO events(time, kind, detail, wall_time) VALUES (?, ?, ?, ?)"
 # only samples still OK: a stale or link-down flag says more than "bad value"
