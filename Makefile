@@ -157,6 +157,7 @@ bench: $(BENCH_VENV)/.fuelid-installed
 	$(BENCH_VENV)/bin/python benchmarks/bench_calibration.py --runs 200 --minutes 2
 	$(BENCH_VENV)/bin/python benchmarks/bench_reidentify.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_trust.py
+	$(BENCH_VENV)/bin/python benchmarks/bench_excitation.py
 
 # The documentation site (mkdocs.yml): the docs extra goes into .venv once (again when
 # pyproject.toml changes); the command reference is rendered from the CLI at build time.

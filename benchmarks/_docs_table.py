@@ -97,6 +97,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     ),
     "central": ("Central ingest from many senders", "benchmarks/bench_central.py"),
     "reidentify": ("Re-identification on Dask", "benchmarks/bench_reidentify.py"),
+    "excitation": (
+        "The designed test signal against a PRBS at the same standard error of K",
+        "benchmarks/bench_excitation.py",
+    ),
     "trust": (
         "What fuelid tune prints against the truth, on loops unlike the reference plant",
         "benchmarks/bench_trust.py",

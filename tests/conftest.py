@@ -53,6 +53,8 @@ REAL_TIME_MODULES = frozenset(
         "test_online_cli.py",
         "test_online_faults.py",
         "test_record_cli.py",
+        "test_excitation_service.py",
+        "test_virtual_excitation_protocols.py",
     }
 )
 

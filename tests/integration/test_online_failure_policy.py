@@ -89,6 +89,8 @@ def test_an_analysis_that_raises_leaves_the_recorder_recording(
         "tracks",
         "proposes",
         "writes",
+        "excites",
+        "excitation",
         "write_back",
         "missing_for_proposals",
         "plant",

@@ -80,7 +80,8 @@ def service_record(
     ``gain_units``, ``integral_unit``, ``u_span_V``, ``y_span_Lpm``, ``kc``, ``ti``; None
     without a ``[controller]``) and ``gain_units`` (``{"Kc", "Ti"}``, see
     :func:`fuelid.tuning.block.block_units`) and ``sampling`` (``period_s``,
-    ``control_period_s`` [s]).
+    ``control_period_s`` [s]) and ``excitation`` (the ``[excitation]`` table and ``possible``:
+    whether the site maps ``[write.excitation]`` and gives an amplitude).
     """
     import fuelid
     from fuelid.store.schema import default_loop_id
@@ -117,6 +118,9 @@ def service_record(
                 "period_s": site.sampling.period_s,
                 "control_period_s": site.sampling.control_period_s,
             },
+            # the test signal (issue 40): its settings, and whether the site can carry one
+            # (a [write.excitation] register and an amplitude; a request is refused without)
+            "excitation": _excitation_settings(site),
         }
     )
     return {
@@ -129,6 +133,15 @@ def service_record(
         "stopped": None,
         "settings": settings,
     }
+
+
+def _excitation_settings(site: Any) -> dict[str, Any] | None:
+    table = getattr(site, "excitation", None)
+    if table is None:
+        return None
+    settings: dict[str, Any] = table.model_dump(mode="json")
+    possible = "excitation" in getattr(site, "write", {}) and table.amplitude is not None
+    return settings | {"possible": possible}
 
 
 def loop_state(

@@ -31,6 +31,7 @@ from typing import Any
 from fuelid.errors import FuelidError
 from fuelid.io.jsonsafe import json_ready
 from fuelid.online.context import TRACKER_OBSERVATIONS, observation_of
+from fuelid.online.excitation.status import excitation_json
 from fuelid.online.liveness import LINK_FRESH_S, SERVICE_KEY, loop_state
 from fuelid.online.plc_gains import plc_gains_json
 from fuelid.online.requests import stale_of
@@ -95,7 +96,9 @@ def window_json(row: dict[str, Any]) -> dict[str, Any]:
         ``plant_K``, and ``model``, ``stderr``, ``ci95`` as ``identify --json`` (None when the
         window was not fitted), ``model_id``, ``method_reason`` (why that estimator) and
         ``step_ls`` (the article's step-ls model of the same samples, reported beside, never
-        gated on: ``model``, ``stderr``, ``fit_percent``, or ``reason`` when it failed).
+        gated on: ``model``, ``stderr``, ``fit_percent``, or ``reason`` when it failed) and
+        ``excitation`` (a test signal's cost measured on the window's samples:
+        :func:`~fuelid.online.excitation.cost.measured_cost`; None when none ran in it).
     """
     detail = row.get("detail") or {}
     out = {
@@ -115,6 +118,7 @@ def window_json(row: dict[str, Any]) -> dict[str, Any]:
         **_window_model(detail),
         "method_reason": detail.get("method_reason") or None,
         "step_ls": detail.get("step_ls"),
+        "excitation": detail.get("excitation"),
         "wall_time": row.get("wall_time"),
     }
     return out
@@ -432,7 +436,9 @@ def status_json(
         units), ``last_write``, ``plc_gains`` (the PLC's kc and ti tags as the recorder last
         read them: :func:`~fuelid.online.plc_gains.plc_gains_json`; None when the site reads
         no such tags or nothing was read yet), ``gains_units``, ``units`` (see the module
-        docstring), ``central`` (the sync to the central store: :func:`central_json`).
+        docstring), ``central`` (the sync to the central store: :func:`central_json`),
+        ``excitation`` (the test signal: :func:`~fuelid.online.excitation.status.
+        excitation_json`; None when no exciter ever ran on this store).
     """
     last = history.last_window()
     last_window = None
@@ -474,6 +480,7 @@ def status_json(
         "write_back": _write_back_json(history, settings, merged),
         "last_write": write_json(writes[0]) if writes else None,
         "plc_gains": plc_gains_json(history.state(PLC_GAINS_KEY), _controller(controller)),
+        "excitation": excitation_json(history),
         "central": central_json(store, now),
         "gains_units": merged.get("gains_units"),
         "units": ONLINE_UNITS,

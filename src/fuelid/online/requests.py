@@ -22,7 +22,7 @@ from typing import Any
 from fuelid.store.base import StoreError
 from fuelid.store.online import OnlineHistory
 
-__all__ = ["apply_request", "consume_requests", "file_request", "submit_request"]
+__all__ = ["EXCITE_KINDS", "apply_request", "consume_requests", "file_request", "submit_request"]
 
 _STATUS_OF = {"approve": "approved", "reject": "rejected"}
 
@@ -59,6 +59,8 @@ def apply_request(
     """
     kind = request["kind"]
     who, why = str(request["who"]), str(request["why"])
+    if kind in EXCITE_KINDS:
+        return _excite(history, request)
     if kind == "revert":
         if write_back_setting == "off":
             return "refused", 'write_back is "off": nothing writes the revert'
@@ -90,6 +92,46 @@ def apply_request(
             reason = f"{reason}; the open proposal now is #{pending[-1]['id']}"
         return "refused", reason
     return "done", f"proposal {updated['id']} {updated['status']} by {who}"
+
+
+EXCITE_KINDS = {"excite_start": "start", "excite_stop": "stop"}
+"""Request kinds of the test signal (``fuelid online excite``) and their action."""
+
+
+def _excite(history: OnlineHistory, request: dict[str, Any]) -> tuple[str, str]:
+    """Leave a start or stop of the test signal for the running service's exciter.
+
+    Refused when the site cannot carry a signal (no ``[write.excitation]`` or no amplitude)
+    or no service runs to carry it out (without one the PLC holds the signal at 0: its
+    heartbeat rule).
+    """
+    from fuelid.online.excitation.exciter import REQUEST_KEY
+    from fuelid.online.liveness import SERVICE_KEY
+
+    action = EXCITE_KINDS[request["kind"]]
+    record = history.state(SERVICE_KEY) or {}
+    settings = (record.get("settings") or {}).get("excitation") or {}
+    if record.get("stopped") is not None or not record:
+        if action == "stop":
+            return "done", "no service runs: the PLC holds the signal at 0 (its heartbeat rule)"
+        return "refused", "no service runs: nothing would carry the signal"
+    if not settings.get("possible"):
+        return "refused", (
+            "the site file gives no [write.excitation] register or no [excitation] amplitude"
+        )
+    history.set_state(
+        REQUEST_KEY,
+        {
+            "action": action,
+            "who": str(request["who"]),
+            "why": str(request["why"]),
+            "time": _time.time(),
+            "request_id": request["id"],
+        },
+    )
+    if action == "start":
+        return "done", "start requested: the service starts the signal when the loop allows"
+    return "done", "stop requested: the service writes 0 to the register"
 
 
 def stale_of(history: OnlineHistory, proposal_id: Any) -> str | None:

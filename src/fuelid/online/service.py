@@ -60,6 +60,7 @@ from fuelid.online.context import (
     model_of,
     observation_of,
 )
+from fuelid.online.excitation.exciter import Exciter, newest_model, plant_model_function
 from fuelid.online.gains import Gains
 from fuelid.online.liveness import SERVICE_BEAT_S, SERVICE_KEY, service_record
 from fuelid.online.logs import log_line
@@ -173,6 +174,10 @@ class OnlineService:
             self.write_back,
             proposes=bool(self.capabilities["proposes"]),
         )
+        self.link: GainWriter | None = None
+        """The write connection (gains, heartbeat, test signal); None when nothing writes."""
+        self.exciter: Exciter | None = None
+        """The test signal (issue 40); None when the site has no ``[write.excitation]``."""
         self._stopping = asyncio.Event()
         self._task_errors: list[BaseException] = []
         self._resume()
@@ -207,11 +212,15 @@ class OnlineService:
             missing.append("[controller] (the PI block's form and units)")
         proposes = not missing
         writes = proposes and self.settings.write_back != "off"
+        excitation = self.site.excitation
+        excites = "excitation" in self.site.write and excitation.amplitude is not None
         return {
             "identifies": True,
             "tracks": True,
             "proposes": proposes,
             "writes": writes,
+            "excites": excites,
+            "excitation": excitation.mode if excites else "off",
             "write_back": self.settings.write_back,
             "missing_for_proposals": missing,
             "plant": self.priors.source,
@@ -356,8 +365,8 @@ class OnlineService:
         finally:
             self._stopping.set()
             self._mark_stopped()
-            if self.gain_writer is not None:
-                await self.gain_writer.close()
+            if self.link is not None:
+                await self.link.close()
             writer.flush()
             for sig in bound:
                 loop.remove_signal_handler(sig)
@@ -378,15 +387,33 @@ class OnlineService:
         """Reconcile, say what the service does, start the supervised tasks."""
         from fuelid.plc.adapters import open_source
 
-        if self.capabilities["writes"]:
+        if self.capabilities["writes"] or self.capabilities["excites"]:
+            # one write connection: the heartbeat runs whenever anything is written (with a
+            # test signal on, the PLC zeroes it when the heartbeat stops)
             ws = self._write_source or open_source(self.site)
-            self.write_back.gain_writer = GainWriter(ws, self.settings.echo_timeout_s)
-            heartbeat = self.write_back.heartbeat(self._stopping, self.heartbeat_s)
+            self.link = GainWriter(ws, self.settings.echo_timeout_s)
+            if self.capabilities["excites"]:
+                await self._clear_signal()
+            heartbeat = self.link.heartbeat(self._stopping, self.heartbeat_s)
             tasks.create_task(self._supervised("heartbeat", heartbeat), name="heartbeat")
+        if self.capabilities["writes"]:
+            self.write_back.gain_writer = self.link
             try:
                 await self.write_back.reconcile()
             except LinkError as error:
                 self.context.say("event", kind="reconcile_deferred", detail=str(error))
+        if self.capabilities["excites"]:
+            assert self.link is not None
+            self.exciter = Exciter(
+                self.context,
+                self.link,
+                model=lambda: newest_model(self.context),
+                plant_model=plant_model_function(self.site.site.plant, self.context),
+                window_end=self.scheduler.next_window_end,
+                k_interval=self._k_interval,
+            )
+            excite = self.exciter.run(self._stopping)
+            tasks.create_task(self._supervised("excitation", excite), name="excitation")
         if self.gain_writer is None and self.history.state("revert_requested"):
             # nothing here can write: a request left waiting would fire, unseen, the day
             # write-back is switched on
@@ -436,6 +463,33 @@ class OnlineService:
                 )
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(self._stopping.wait(), SERVICE_BEAT_S)
+
+    async def _clear_signal(self) -> None:
+        """0 into the signal's register before the first heartbeat.
+
+        A service killed mid-burst left its last value there; the PLC zeroed what it applies
+        when the heartbeat stopped, and would apply that value again once the heartbeat comes
+        back (unless its own code clears the request, as the how-to's does).
+        """
+        assert self.link is not None
+        try:
+            await self.link.set_excitation(0.0)
+        except LinkError as error:
+            self.context.say(
+                "event", kind="excitation_held", detail=f"register not cleared: {error}"
+            )
+
+    def _k_interval(self) -> float | None:
+        """K's relative standard error the K(T) curve gives at the fuel and command now."""
+        latest = self.context.latest
+        T_C, u = latest.get("fuel_temperature"), latest.get("command")
+        if T_C is None or u is None:
+            return None
+        try:
+            K, se = self.tracker.predict(T_C, u)
+        except (TrackingError, FuelidError):
+            return None
+        return abs(se / K) if K else None
 
     def _recorder_message(self, message: str) -> None:
         self.context.say("recorder", message=message)

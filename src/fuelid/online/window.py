@@ -61,6 +61,7 @@ from fuelid.io.jsonsafe import json_ready
 from fuelid.io.timeseries import IOData
 from fuelid.lti import reference_numerics
 from fuelid.model import MODEL_KEYS, ProcessModel
+from fuelid.online.excitation.cost import measured_cost
 from fuelid.online.gates import (
     WindowVerdict,
     excitation_refusal,
@@ -76,6 +77,8 @@ from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
 MIN_GOOD_SAMPLES = 100
 """Fewer good samples than this in a window: nothing is fitted [-]."""
+DEFAULT_SIGNAL_TAIL_S = 10.0
+"""How long the loop answers after a test signal when no model gives its settling time [s]."""
 MIN_SEGMENT_SAMPLES = 50
 """A run of good samples between gaps shorter than this is left out of the fit [-]."""
 
@@ -153,6 +156,9 @@ class WindowResult:
     """The plant model's K at the window's mean command and fuel temperature [(L/min)/V]."""
     health: LoopHealth | None = None
     """The loop's health over the window."""
+    excitation: dict[str, Any] | None = None
+    """What a test signal in the window cost, measured on its samples
+    (:func:`~fuelid.online.excitation.cost.measured_cost`); None when no signal ran."""
     seconds: float = 0.0
     """Wall time of the analysis [s]."""
     warnings: list[str] = field(default_factory=list)
@@ -224,6 +230,7 @@ class WindowResult:
                 "gates": self.verdict.to_json(),
                 "step_ls": self.step_ls,
                 "health": None if self.health is None else self.health.to_json(),
+                "excitation": self.excitation,
                 "seconds": self.seconds,
                 "warnings": self.warnings,
             }
@@ -317,6 +324,16 @@ class WindowAnalyser:
         with reference_numerics():  # today's path, for the benchmark: the same numbers, slower
             return self._analyse(samples, t_from, t_to)
 
+    def _signal_cost(
+        self, samples: SampleArrays, good: np.ndarray[Any, Any]
+    ) -> dict[str, Any] | None:
+        """The test signal's cost on this window's samples (None: no signal ran)."""
+        last = getattr(self, "last_model_", None)
+        tail = last.settling_time() if last is not None else DEFAULT_SIGNAL_TAIL_S
+        return measured_cost(
+            samples.time, samples.y, samples.setpoint, samples.excitation, good, tail
+        )
+
     def _analyse(self, samples: SampleArrays, t_from: float, t_to: float) -> WindowResult:
         started = time.perf_counter()
         good = (samples.quality == Quality.OK) & np.isfinite(samples.u) & np.isfinite(samples.y)
@@ -345,6 +362,7 @@ class WindowAnalyser:
             except FuelidError as error:  # outside the plant's range: no ratio event
                 result.warnings.append(f"plant K not computed: {error}")
         result.health = self._health(samples, good)
+        result.excitation = self._signal_cost(samples, good)
         prefit = prefit_samples(
             samples, self.settings, sample_time=self.sample_time, u_limits=self.priors.u_limits
         )

@@ -11,15 +11,12 @@ anything else is written. The PLC handshake itself (the block, the echo, the hea
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
 import math
 import time
 from typing import Any
 
 import numpy as np
 
-from fuelid.errors import FuelidError
 from fuelid.online.context import ServiceContext, stale_reason
 from fuelid.online.gains import Gains
 from fuelid.online.window import WindowResult
@@ -339,15 +336,6 @@ class WriteBack:
                 f"write {write['id']} (apply {write['apply_seq']}): "
                 + ("applied" if applied else "not applied"),
             )
-
-    async def heartbeat(self, stopping: asyncio.Event, every_s: float) -> None:
-        """Beat every ``every_s`` of wall time until ``stopping`` is set (link errors pass)."""
-        assert self.gain_writer is not None
-        while not stopping.is_set():
-            with contextlib.suppress(LinkError, FuelidError):
-                await self.gain_writer.beat()
-            with contextlib.suppress(asyncio.TimeoutError):
-                await asyncio.wait_for(stopping.wait(), every_s)
 
 
 __all__ = ["AUTO", "GOOD_TUNED_FOR", "IAE_BASELINE_WINDOWS", "LIMIT_MARGIN_V", "WriteBack"]

@@ -1,4 +1,4 @@
-"""The PLC's side of a gain write: the heartbeat, the staged block and its echo.
+"""The PLC's side of fuelid's writes: the heartbeat, the staged block and its echo, the signal.
 
 A write is one request carrying the block (Kc, Ti, a new apply number) in the ``[controller]``
 form and units; the PLC takes the block when the apply number changes and echoes that number
@@ -17,6 +17,7 @@ import contextlib
 import math
 import time
 
+from fuelid.errors import FuelidError
 from fuelid.plc.adapters.base import LinkError, PlcSource
 
 HEARTBEAT_MODULUS = 65536
@@ -70,6 +71,14 @@ class GainWriter:
                 await self.close()
                 raise
 
+    async def heartbeat(self, stopping: asyncio.Event, every_s: float) -> None:
+        """Beat every ``every_s`` of wall time until ``stopping`` is set (link errors pass)."""
+        while not stopping.is_set():
+            with contextlib.suppress(LinkError, FuelidError):
+                await self.beat()
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(stopping.wait(), every_s)
+
     async def echo(self) -> int | None:
         """The PLC's echo of the last apply number taken; None when it cannot be read."""
         async with self._guard():
@@ -113,6 +122,25 @@ class GainWriter:
                 return True
             await asyncio.sleep(min(0.05, self.timeout_s / 20.0))
         return False
+
+    async def set_excitation(self, value: float) -> None:
+        """Write the test signal's register (``[write.excitation]``) [V].
+
+        No echo: the PLC's read-back of the applied signal (``tags.excitation``) comes with
+        every sample, and the PLC zeroes the signal itself when the heartbeat goes stale.
+
+        Raises
+        ------
+        LinkError
+            When the write did not go through (the connection is closed for the next try).
+        """
+        async with self._guard():
+            try:
+                await self._ensure()
+                await self.source.write({"excitation": float(value)})
+            except LinkError:
+                await self.close()
+                raise
 
 
 __all__ = ["HEARTBEAT_MODULUS", "GainWriter"]

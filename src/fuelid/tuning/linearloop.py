@@ -110,6 +110,39 @@ def _loop_polynomials(
     return r_to_u, d_to_u, char
 
 
+def input_sensitivity(model: ProcessModel, pi: PISettings) -> tuple[FloatArray, FloatArray]:
+    """S = 1/(1 + C·G) at the PLC's control instants: (numerator, denominator) in z⁻¹.
+
+    The plant input's response to a signal added to the PI's output (the PI sees the flow, not
+    the signal: u = C·(r − y) + s, y = G·u, so u = S·s). Exact ZOH and fractional delay, as
+    :func:`linear_closed_loop`; the denominator is the loop's characteristic polynomial.
+
+    Raises
+    ------
+    FuelidError
+        If the PI is continuous (``control_period`` 0): the signal is held per control period.
+
+    Examples
+    --------
+    The PI's integral rejects a constant signal: S(1) = 0.
+
+    >>> from fuelid.tuning.rules import simc
+    >>> model = ProcessModel(K=1.0, T=2.0, delay=1.0)
+    >>> num, den = input_sensitivity(model, simc(model, control_period=1.0))
+    >>> round(float(np.sum(num) / np.sum(den)), 12)
+    0.0
+    """
+    from fuelid.errors import FuelidError
+
+    if not pi.control_period > 0.0:
+        raise FuelidError("a signal added to the PI's output needs the PLC's control period")
+    h = pi.control_period
+    d = discretise(model.time_constants, model.delay, h)
+    gn = np.concatenate((np.zeros(d.shift), model.K * d.b))
+    _, _, char = _loop_polynomials(gn, d.a, pi, h)
+    return np.convolve([1.0, -1.0], d.a), char
+
+
 def linear_closed_loop(
     model: ProcessModel, pi: PISettings, duration: float | None = None, oversample: int = 10
 ) -> LinearResponse:

@@ -1,4 +1,4 @@
-"""``fuelid online approve | reject | revert``: a person's decisions, kept in the store.
+"""``fuelid online approve | reject | revert | excite``: a person's decisions, kept in the store.
 
 Each files a request (origin "cli", :mod:`fuelid.online.requests`). With a live service (per
 :func:`~fuelid.online.liveness.loop_state`) the service applies it at its next beat: the command
@@ -11,7 +11,7 @@ from __future__ import annotations
 import getpass
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -178,3 +178,38 @@ def revert_command(
     if settings.get("write_back") == "off":
         note = '; write_back is "off" in the site file: the service will not write'
     typer.echo(f"revert requested by {name}: the running service writes {target}{note}")
+
+
+@app.command("excite")
+@guarded
+def excite_command(
+    start: Annotated[
+        bool, typer.Option("--start", help="Start a test signal now (within the site's limits).")
+    ] = False,
+    stop: Annotated[bool, typer.Option("--stop", help="Stop the running test signal.")] = False,
+    config: ConfigFile = None,
+    store: StoreFile = None,
+    who: WhoOption = None,
+    why: WhyOption = "",
+) -> None:
+    """Ask the running service to start or stop a test signal on the PI's output (issue 40).
+
+    The service designs the signal from the loop's model within the site file's
+    ``[excitation]`` limits (amplitude, share of time) and starts it when the loop allows it
+    (AUTO, no run, off the drive's limits, link up); a stop writes 0 to the register at once.
+    """
+    from fuelid.errors import ConfigError
+    from fuelid.store.base import StoreError
+
+    if start == stop:
+        raise ConfigError("give one of --start and --stop")
+    kind = "excite_start" if start else "excite_stop"
+    name = who or _user()
+    with _opened(config, store) as (opened, history, _):
+        request = _submit(opened, history, kind, None, name, why, None)
+    if request["status"] == "waiting":
+        typer.echo(_waiting(request))
+        return
+    if request["status"] != "done":
+        raise StoreError(str(request["outcome"]))
+    typer.echo(f"{request['outcome']} (by {name})")

@@ -12,6 +12,8 @@ import logging
 import math
 import sys
 import time
+from dataclasses import dataclass
+from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -119,7 +121,7 @@ VIRTUAL_SITE_KEYS = ("name", "loop_id", "plant", "timezone")
 def _virtual_tables(config: Path | None) -> dict[str, Any]:
     """The tables --virtual takes from --config; without it, write_back "auto".
 
-    ``[online]``, ``[central]``, ``[archive]`` and the ``[site]`` keys of
+    ``[online]``, ``[central]``, ``[archive]``, ``[excitation]`` and the ``[site]`` keys of
     :data:`VIRTUAL_SITE_KEYS`, paths made absolute from the file's folder.
     """
     if config is None:
@@ -128,7 +130,7 @@ def _virtual_tables(config: Path | None) -> dict[str, Any]:
 
     from pydantic import ValidationError
 
-    from fuelid.plc.site import Online
+    from fuelid.plc.site import Excitation, Online
     from fuelid.plc.site_fleet import Archive, Central
 
     try:
@@ -140,7 +142,10 @@ def _virtual_tables(config: Path | None) -> dict[str, Any]:
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{config}: not valid TOML ({exc})") from None
     tables: dict[str, Any] = {}
-    for name, model in (("online", Online), ("central", Central), ("archive", Archive)):
+    tables_of = (
+        ("online", Online), ("central", Central), ("archive", Archive), ("excitation", Excitation)
+    )  # fmt: skip
+    for name, model in tables_of:
         table = data.get(name, {} if name == "online" else None)
         if table is None:
             continue
@@ -194,7 +199,7 @@ def _virtual_site_text(base: str, tables: dict[str, Any]) -> str:
 
     data = tomllib.loads(base)
     data["site"].update(tables.get("site", {}))
-    for name in ("online", "central", "archive"):
+    for name in ("online", "central", "archive", "excitation"):
         if name in tables:
             data[name] = tables[name]
     return tomlkit.dumps(data)
@@ -284,24 +289,61 @@ def _start(
     _summary(stats, wall, target)
 
 
+class SetpointScript(StrEnum):
+    """What the virtual PLC's operator does with the setpoint."""
+
+    runs = "runs"
+    steady = "steady"
+
+
+STEADY_COMMAND_V = 3.0
+"""``--setpoint steady`` holds the flow the plant gives at this command and 20 °C [V]."""
+
+
+@dataclass(frozen=True)
+class VirtualLoop:
+    """The virtual loop ``fuelid online --virtual`` runs against (its options)."""
+
+    speed: float = 50.0
+    hours: float = 24.0
+    protocol: ServeProtocol = ServeProtocol.modbus
+    seed: int = 1
+    setpoint: SetpointScript = SetpointScript.runs
+    excitation_limit_V: float = 0.5
+    runs: tuple[tuple[float, float], ...] = ()
+
+
+def _setpoint_profile(script: SetpointScript, plant_config: Any) -> Any:
+    """The demo's wind-tunnel runs, or one setpoint held (the flow at 3 V and 20 °C)."""
+    from fuelid.profiles.runs import demo_run_profile
+
+    if script is SetpointScript.runs:
+        return demo_run_profile()
+    from fuelid.plant import load_plant_config
+    from fuelid.tuning.closedloop import flow_at
+    from fuelid.units import celsius_to_kelvin
+
+    config = plant_config if plant_config is not None else load_plant_config()
+    flow = round(flow_at(config, STEADY_COMMAND_V, celsius_to_kelvin(20.0)), 1)
+    return ([0.0, 1.0], [flow, flow])
+
+
 def _run_virtual(
     config: Path | None,
     store: Path | None,
     duration: float | None,
     json_log: bool,
-    speed: float,
-    hours: float,
-    protocol: ServeProtocol,
+    loop: VirtualLoop,
     dashboard_port: int | None = None,
-    seed: int = 1,
 ) -> None:
     import tempfile
     from importlib import resources
 
     from fuelid.plc.site import load_site
     from fuelid.plc.virtual.runner import VirtualPlcThread
-    from fuelid.profiles.runs import demo_run_profile, demo_temperature
+    from fuelid.profiles.runs import demo_temperature
 
+    speed, hours, protocol = loop.speed, loop.hours, loop.protocol
     if not (math.isfinite(speed) and 0.0 < speed <= 1000.0):
         raise ConfigError(f"--speed must be within (0, 1000], got {speed:g}")
     if not (math.isfinite(hours) and hours > 0.0):
@@ -329,10 +371,12 @@ def _run_virtual(
         VirtualPlcThread(
             protocol.value,
             speed=speed,
-            seed=seed,
+            seed=loop.seed,
             config=plant_config,
-            setpoint_profile=demo_run_profile(),
+            setpoint_profile=_setpoint_profile(loop.setpoint, plant_config),
             fuel_temp_profile=(times, temperatures),
+            excitation_limit_V=loop.excitation_limit_V,
+            run_windows=list(loop.runs),
         ) as virtual,
         tempfile.TemporaryDirectory(prefix="fuelid-online-") as folder,
     ):
@@ -378,9 +422,9 @@ def online_command(
         typer.Option(
             "--virtual",
             help="Run against a virtual PLC started in the same command (AUTO wind-tunnel runs, "
-            "fuel −10…+45 °C over 24 h); --config then gives the [online], [central] and "
-            "[archive] tables and [site] name, loop_id, plant (the plant the virtual PLC "
-            "simulates) and timezone.",
+            "fuel −10…+45 °C over 24 h); --config then gives the [online], [central], "
+            "[archive] and [excitation] tables and [site] name, loop_id, plant (the plant the "
+            "virtual PLC simulates) and timezone.",
         ),
     ] = False,
     seed: Annotated[
@@ -397,6 +441,32 @@ def online_command(
     protocol: Annotated[
         ServeProtocol, typer.Option("--protocol", help="--virtual: the PLC's protocol.")
     ] = ServeProtocol.modbus,
+    setpoint: Annotated[
+        SetpointScript,
+        typer.Option(
+            "--setpoint",
+            help="--virtual: runs: the demo's wind-tunnel runs (setpoint moves); steady: AUTO "
+            "at one setpoint (the flow at 3 V), a loop that sits still (try [excitation]).",
+        ),
+    ] = SetpointScript.runs,
+    excitation_limit: Annotated[
+        float,
+        typer.Option(
+            "--excitation-limit",
+            metavar="V",
+            help="--virtual: the PLC's own clamp of the test signal [V].",
+        ),
+    ] = 0.5,
+    run: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--run",
+            metavar="START:END",
+            help="--virtual: the PLC raises its run flag (tags.run) over this span of plant "
+            "time [s]; repeatable.",
+            show_default=False,
+        ),
+    ] = None,
     dashboard: Annotated[
         bool,
         typer.Option(
@@ -427,7 +497,17 @@ def online_command(
         raise ConfigError(f"--duration must be a positive number of seconds, got {duration:g}")
     port = dashboard_port if dashboard else None
     if virtual:
-        _run_virtual(config, store, duration, json_log, speed, hours, protocol, port, seed)
+        from fuelid.cli.serve import parse_run_windows
+
+        if not (math.isfinite(excitation_limit) and excitation_limit > 0.0):
+            raise ConfigError(
+                f"--excitation-limit must be a positive number of V, got {excitation_limit:g}"
+            )
+        loop = VirtualLoop(
+            speed, hours, protocol, seed, setpoint, excitation_limit,
+            tuple(parse_run_windows(run or [])),
+        )  # fmt: skip
+        _run_virtual(config, store, duration, json_log, loop, port)
         return
     if config is None:
         raise ConfigError(

@@ -101,6 +101,7 @@ def _trend_text(trend: dict[str, Any]) -> str:
 
 def status_lines(status: dict[str, Any]) -> list[str]:
     """The human form of :func:`~fuelid.online.report.status_json`, a few aligned lines."""
+    from fuelid.online.excitation.status import excitation_line
     from fuelid.online.report import (  # numpy behind it: not at `fuelid --help`
         health_line,
         held_line,
@@ -181,6 +182,7 @@ def status_lines(status: dict[str, Any]) -> list[str]:
         ("proposals", proposals_text),
         ("requests", _requests_text(status.get("requests") or [])),
         ("health", health_line(status.get("loop_health"))),
+        *[("signal", line) for line in [excitation_line(status.get("excitation"))] if line],
         *_plc_gains_rows(status.get("plc_gains"), tz),
         ("writes", write_text),
         (

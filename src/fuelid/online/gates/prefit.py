@@ -218,6 +218,38 @@ def setpoint_moves(
     return [float(tt[m.first]) for m in moves if abs(m.size) > threshold]
 
 
+SIGNAL_SWITCH_SHARE = 0.5
+"""A change of the applied test signal larger than this share of its largest level is a switch."""
+
+
+def signal_switches(t: ArrayLike, signal: ArrayLike, mask: ArrayLike) -> list[float]:
+    """Times of the test signal's switches between successive samples in ``mask`` [s].
+
+    The signal is the one the PLC applied (``tags.excitation``, read back with every sample):
+    a change larger than :data:`SIGNAL_SWITCH_SHARE` of its largest level over the samples is a
+    switch, counted at the first sample with the new level; a signal that never left 0 has
+    none.
+
+    Examples
+    --------
+    >>> t = np.arange(8.0)
+    >>> s = np.array([0.0, 0.0, 0.1, 0.1, -0.1, -0.1, 0.0, 0.0])
+    >>> signal_switches(t, s, np.ones(8, dtype=bool))
+    [2.0, 4.0, 6.0]
+    """
+    tt = np.asarray(t, dtype=float)
+    ss = np.asarray(signal, dtype=float)
+    keep = np.asarray(mask, dtype=bool) & np.isfinite(ss)
+    tt, ss = tt[keep], ss[keep]
+    if ss.size < 2:
+        return []
+    level = float(np.max(np.abs(ss)))
+    if not level > 0.0:
+        return []
+    changes = np.flatnonzero(np.abs(np.diff(ss)) > SIGNAL_SWITCH_SHARE * level) + 1
+    return [float(x) for x in tt[changes]]
+
+
 def judged_mode(mode: ArrayLike, ok: ArrayLike) -> str:
     """The mode a window is judged in: the one the majority of its good samples is in.
 
@@ -259,6 +291,7 @@ def prefit_gates(
     seq: ArrayLike | None = None,
     sample_time: float | None = None,
     u_limits: tuple[float, float] = U_LIMITS_V,
+    excitation: ArrayLike | None = None,
 ) -> WindowVerdict:
     """Gates on one window's samples, before any fit.
 
@@ -272,7 +305,10 @@ def prefit_gates(
          without command moves";
        - AUTO: a setpoint move begun in AUTO larger than max(0.5 L/min, 3 × the flow's noise
          level) between good samples in AUTO (:func:`setpoint_moves`, a ramp merged into
-         one move); none: "no excitation: the setpoint did not move";
+         one move), or a switch of the test signal the PLC applied in AUTO
+         (:func:`signal_switches`: a designed signal is an external input, as a setpoint
+         move is; whether it carried enough is for the standard-error gates, since it is
+         designed to be small); none: "no excitation: the setpoint did not move";
        - unknown (no mode recorded): judged as MAN, by command steps.
 
     Parameters
@@ -297,11 +333,14 @@ def prefit_gates(
         h [s]; default the median time step.
     u_limits : (float, float)
         The command's limits [V].
+    excitation : array, optional
+        The test signal the PLC applied (``tags.excitation``) [V], NaN where not recorded.
 
     Returns
     -------
     WindowVerdict
-        With ``excitation_events`` (first sample with the new command or setpoint [s]).
+        With ``excitation_events`` (first sample with the new command, setpoint or signal
+        level [s]).
 
     Notes
     -----
@@ -361,6 +400,10 @@ def prefit_gates(
         measured["flow_noise_Lpm"] = flow_noise
         measured["setpoint_threshold_Lpm"] = threshold
         events = setpoint_moves(tt[auto], sp[auto], threshold)
+        if excitation is not None:
+            switches = signal_switches(tt, excitation, good & (md == AUTO))
+            measured["signal_switches"] = len(switches)
+            events = sorted(events + switches)
         if not events:
             if not np.any(auto):
                 reasons.append(
@@ -425,6 +468,7 @@ def prefit_samples(
         seq=samples.seq,
         sample_time=sample_time,
         u_limits=u_limits,
+        excitation=samples.excitation,
     )
 
 
@@ -441,4 +485,5 @@ __all__ = [
     "prefit_gates",
     "prefit_samples",
     "setpoint_moves",
+    "signal_switches",
 ]
