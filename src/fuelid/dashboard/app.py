@@ -21,12 +21,12 @@ status --json`` and ``history --json`` use (one shape, not two); FastAPI's OpenA
 charts by plotly.js served from the installed plotly package (``/static/plotly.min.js``), loaded
 only when they are scrolled into view: nothing comes from the internet, and no WebGL trace is
 used. Static files are compressed once and cached (:mod:`fuelid.dashboard.static_files`); pages
-and JSON answers are gzip-compressed when large; the event stream is not.
+and JSON answers are gzip-compressed when large; the event stream is not. The actions (approve,
+reject, revert, the test signal's start and stop) are :mod:`fuelid.dashboard.actions`.
 """
 
 from __future__ import annotations
 
-import asyncio
 import math
 from dataclasses import dataclass, field
 from importlib import resources
@@ -41,15 +41,16 @@ from starlette.middleware.gzip import GZipMiddleware
 
 from fuelid import __version__
 from fuelid.central.connect import CentralError
+from fuelid.dashboard.actions import action_routes
 from fuelid.dashboard.fleet import fleet_row
 from fuelid.dashboard.loop_page import PARTS, loop_context
 from fuelid.dashboard.registry import Loops
-from fuelid.dashboard.security import Security, add_security_headers, auth_router, form_fields
+from fuelid.dashboard.security import Security, add_security_headers, auth_router
 from fuelid.dashboard.source import LoopReader
 from fuelid.dashboard.static_files import StaticFiles
 from fuelid.dashboard.stream import Feeds
 from fuelid.dashboard.trend import trend
-from fuelid.dashboard.views import fmt_num, link_text, site_warning
+from fuelid.dashboard.views import fmt_num, link_text
 from fuelid.errors import FuelidError
 from fuelid.io.clock import format_time
 
@@ -104,7 +105,8 @@ def loop_summary(loop: LoopReader, status: dict[str, Any] | None = None) -> dict
     row["link"] = status.get("link")
     row["timezone"] = status.get("timezone", "UTC")
     row["link_text"] = link_text(status, row["timezone"])
-    # the stream's typed events compare these between two status events (stream.changed_topics)
+    # the stream's typed events compare these and the row's excitation note between two status
+    # events (stream.changed_topics)
     row["counts"] = status.get("counts")
     newest = loop.recent_events(1)
     row["newest_event"] = [newest[0]["time"], newest[0]["kind"]] if newest else None
@@ -112,7 +114,7 @@ def loop_summary(loop: LoopReader, status: dict[str, Any] | None = None) -> dict
 
 
 @dataclass
-class _Dashboard:
+class Dashboard:
     """What the routes share: the loops, the logins, the templates, the static files, the feeds."""
 
     app: FastAPI
@@ -251,7 +253,7 @@ def create_app(
     app.add_middleware(GZipMiddleware, minimum_size=GZIP_MIN_BYTES)
     add_security_headers(app)
     app.include_router(auth_router(security))
-    board = _Dashboard(app, loops, security, env, title, trend_minutes, static_files)
+    board = Dashboard(app, loops, security, env, title, trend_minutes, static_files)
 
     @app.exception_handler(CentralError)
     def central_unreachable(request: Request, error: CentralError) -> JSONResponse:
@@ -262,11 +264,11 @@ def create_app(
     _static_routes(board)
     _page_routes(board)
     _data_routes(board)
-    _action_routes(board)
+    action_routes(board)
     return app
 
 
-def _static_routes(board: _Dashboard) -> None:
+def _static_routes(board: Dashboard) -> None:
     """The favicon, the OpenAPI page and the static files (compressed, cached)."""
     app, viewer, page, swagger = board.app, board.viewer, board.page, board.swagger
     static_files = board.static_files
@@ -294,7 +296,7 @@ def _static_routes(board: _Dashboard) -> None:
         )
 
 
-def _page_routes(board: _Dashboard) -> None:
+def _page_routes(board: Dashboard) -> None:
     """The fleet, loop and window pages, the loop page's live parts, the window's report."""
     app, viewer, page, part = board.app, board.viewer, board.page, board.render
     get_loop, is_engineer, window_json = board.get_loop, board.is_engineer, board.window_json
@@ -388,7 +390,7 @@ def _page_routes(board: _Dashboard) -> None:
         return HTMLResponse(window_report_html(loop, row))
 
 
-def _data_routes(board: _Dashboard) -> None:
+def _data_routes(board: Dashboard) -> None:
     """The JSON API's reads: loops, status, history, trend, window, the event stream."""
     app, viewer, get_loop = board.app, board.viewer, board.get_loop
     fleet_rows, central_state, window_json = (
@@ -470,52 +472,6 @@ def _data_routes(board: _Dashboard) -> None:
             yield ServerSentEvent(event=kind, data=data)
 
 
-def _action_routes(board: _Dashboard) -> None:
-    """The actions (approve, reject, revert: requests an engineer files) and the requests."""
-    app, viewer, engineer, get_loop = board.app, board.viewer, board.engineer, board.get_loop
-    security = board.security
-
-    async def _request(
-        loop_id: str, kind: str, proposal_id: int | None, request: Request
-    ) -> JSONResponse:
-        user = security.current_user(request)
-        if user is None:  # require_engineer let it through: cannot happen
-            raise HTTPException(401, "an engineer's login is required")
-        loop = get_loop(loop_id)
-        fields = await form_fields(request)
-        why = fields.get("why", "").strip()[:500]
-        seen = seen_of(fields)
-        try:  # waits up to two of the service's beats for it: off the event loop
-            row = await asyncio.to_thread(
-                loop.file_request, kind, proposal_id, user.name, why or "(no reason given)", seen
-            )
-        except FuelidError as error:
-            return JSONResponse({"error": " ".join(str(error).split())}, status_code=409)
-        if row.get("status") == "refused":
-            return JSONResponse({"request": row, "error": row.get("outcome")}, status_code=409)
-        return JSONResponse({"request": row, "next": _next_step(loop, row)})
-
-    @app.post("/api/loops/{loop_id}/proposals/{proposal_id}/approve", dependencies=[engineer])
-    async def api_approve(loop_id: str, proposal_id: int, request: Request) -> JSONResponse:
-        """An engineer approves a pending proposal (form field ``why``): a request."""
-        return await _request(loop_id, "approve", proposal_id, request)
-
-    @app.post("/api/loops/{loop_id}/proposals/{proposal_id}/reject", dependencies=[engineer])
-    async def api_reject(loop_id: str, proposal_id: int, request: Request) -> JSONResponse:
-        """An engineer rejects a pending or approved proposal (form field ``why``)."""
-        return await _request(loop_id, "reject", proposal_id, request)
-
-    @app.post("/api/loops/{loop_id}/revert", dependencies=[engineer])
-    async def api_revert(loop_id: str, request: Request) -> JSONResponse:
-        """An engineer asks the service to write the last-known-good gains back (``why``)."""
-        return await _request(loop_id, "revert", None, request)
-
-    @app.get("/api/loops/{loop_id}/requests", dependencies=[viewer])
-    def api_requests(loop_id: str) -> dict[str, Any]:
-        """The requests people filed, newest last, with their outcome."""
-        return {"requests": get_loop(loop_id).requests()}
-
-
 def stream_summary(loop: LoopReader) -> dict[str, Any]:
     """The stream's ``status`` event; a central store lost meanwhile is said, not raised."""
     try:
@@ -523,22 +479,6 @@ def stream_summary(loop: LoopReader) -> dict[str, Any]:
     except CentralError as error:
         text = " ".join(str(error).split())
         return {"chips": [], "link": {"state": "no_contact", "text": text}, "link_text": text}
-
-
-def seen_of(fields: dict[str, str]) -> dict[str, Any] | None:
-    """The proposal as the page showed it (``seen_status``, ``seen_history_len`` form fields).
-
-    >>> seen_of({"seen_status": "pending", "seen_history_len": "1"})
-    {'status': 'pending', 'history_len': 1}
-    >>> seen_of({"why": "x"}) is None
-    True
-    """
-    status = fields.get("seen_status", "").strip()[:32] or None
-    length = fields.get("seen_history_len", "").strip()
-    history_len = int(length) if length.isdigit() and len(length) < 7 else None
-    if status is None and history_len is None:
-        return None
-    return {"status": status, "history_len": history_len}
 
 
 def central_request_rows(status: dict[str, Any], tz: str) -> list[dict[str, Any]]:
@@ -559,24 +499,3 @@ def central_request_rows(status: dict[str, Any], tz: str) -> list[dict[str, Any]
             state = f"{r['status']}: {r.get('outcome') or ''}".rstrip(": ")
         out.append({**r, "what": what, "state": state, "filed": format_time(r["created"], tz)})
     return out
-
-
-def _next_step(loop: LoopReader, request: dict[str, Any]) -> str:
-    """What happens to a request next, in one sentence."""
-    status = loop.status()
-    if request.get("relayed"):
-        text = (
-            "relayed through the central store: the site's service fetches it at its next sync "
-            "and carries it out (or refuses it if the proposal changed meanwhile); it expires "
-            f"unapplied at {format_time(request.get('expires'), 'UTC')} (wall clock) if the site "
-            "does not fetch it by then"
-        )
-        warning = site_warning(status, request.get("expires"), "UTC")
-        return text if warning is None else f"{text}. Warning: {warning}"
-    state = (status.get("link") or {}).get("state")
-    if request.get("status") == "done":
-        done = str(request.get("outcome") or "done")
-        if state == "stopped" and request.get("kind") == "approve":
-            return done + "; the service is stopped: written when it runs again"
-        return done
-    return "filed; the service carries it out at its next beat (a few seconds)"

@@ -30,6 +30,14 @@ nothing to do), ``ok``. The thresholds are the constants of this module.
 - **mode**: warn when the last window was in MAN or spent less than `AUTO_WARN` (90 %) of its
   time in AUTO.
 
+**The test signal** (issue 40) is a note, not a chip: while a loop's service runs a test signal,
+its row says so beside its chips ("exciting: ±0.15 V, 2 of 5 windows, cost +0.08 L/min sd", the
+line ``fuelid online status`` prints; ``excitation`` in the row, with ``state``, ``exciting``,
+``text`` and ``started``: :func:`fuelid.dashboard.excitation_view.excitation_note`). A signal
+is the service doing its work, nothing to act on: the note changes neither the loop's level
+nor its place in the order. A service stopped during a burst shows no "exciting": the PLC
+zeroes the signal when the service's heartbeat stops.
+
 **A stopped service** (state "stopped"): the chips about the running loop (oscillation, drift,
 limits, IAE, mode: `LIVE_CHIPS`) turn unknown, "unknown since the stop at 08:15:03 CET (last:
 …)", the time that of the newest sample (plant time, the pages' only clock, in the site's zone);
@@ -54,6 +62,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from fuelid.dashboard.excitation_view import excitation_note
 from fuelid.dashboard.views import link_text, proposal_state, quiet_sample_age, stop_time_text
 
 __all__ = [
@@ -300,4 +309,6 @@ def fleet_row(
         "level": worst,
         "chips": [c.to_json() for c in chips],
         "sort_key": list(severity_key(chips, loop_id)),
+        # the test signal: a note beside the chips, outside the severity (module docstring)
+        "excitation": excitation_note(status),
     }

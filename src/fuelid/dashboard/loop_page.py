@@ -1,9 +1,9 @@
 """What the loop page shows, computed once for its first view and for each live refresh.
 
-The page's live parts (proposals, "Now", the windows and events tables) are rendered by the same
-templates (``part_*.html.j2``) from the same context, on the first view and whenever the stream
-says the store changed (``GET /loops/{id}/parts``): a part never says something another part
-contradicts, and a refreshed page never differs from a reloaded one.
+The page's live parts (proposals, "Now" with the test signal, the windows and events tables) are
+rendered by the same templates (``part_*.html.j2``) from the same context, on the first view and
+whenever the stream says the store changed (``GET /loops/{id}/parts``): a part never says
+something another part contradicts, and a refreshed page never differs from a reloaded one.
 
 Only bounded reads: the newest :data:`PART_WINDOWS` windows and :data:`PART_EVENTS` events,
 whatever the store holds (a year of windows is no slower to show than a day).
@@ -14,6 +14,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from fuelid.dashboard.excitation_view import excitation_view
 from fuelid.dashboard.source import LoopReader
 from fuelid.dashboard.views import (
     READ_BACK_RTOL,
@@ -116,6 +117,10 @@ def loop_context(loop: LoopReader, *, engineer: bool) -> dict[str, Any]:
         "no_revert_reason": no_revert,
         "now_rows": now_rows(status, tz),
         "link_text": link_text(status, tz),
+        # the test signal (issue 40): in the "Now" part, so re-read and greyed with it
+        "excitation": excitation_view(
+            status, tz, engineer=engineer, central=identity.get("source") == "central"
+        ),
         "windows": [window_json(row) for row in reversed(windows)],
         "window_count": (status.get("counts") or {}).get("windows", len(windows)),
         "events": list(reversed(events[-PART_EVENTS:])),

@@ -13,6 +13,12 @@ Browsers allow six HTTP/1.1 connections per site across all tabs, so a page open
   event was stored (a link blip too short to change the link's state between two status events)
   or the link's or the service's state changed (a start, a stop). The data is the store's
   counts; the page re-reads the parts it shows (:func:`changed_topics`);
+- ``excitation``: the test signal's state changed (a burst started or ended, what holds one
+  off, the windows it reached, its measured cost): the fleet row's ``excitation`` note, which
+  the status event carries, differs from the previous one. The state lives in the service's
+  ``online_state`` record, not in the counts, so it has a topic of its own; the data is the
+  counts, as for the others, and the page re-reads its parts. How long a burst has run is not
+  a change: the page advances it from each status event's newest sample;
 - ``history``: any of the above (kept for pages and tools written before the typed events).
 
 One ``Feed`` per loop reads the store for all its subscribers (three browsers cost the
@@ -40,7 +46,7 @@ MAX_BATCH = 5000
 """Samples per read at most (a page that connects late gets the backlog in pieces)."""
 QUEUE_EVENTS = 256
 """Events kept for a slow subscriber; beyond, the oldest are dropped (a tab in the background)."""
-TOPICS = ("windows", "proposals", "writes", "events")
+TOPICS = ("windows", "proposals", "writes", "events", "excitation")
 """The typed change events, in the order they are sent."""
 
 
@@ -60,6 +66,8 @@ def changed_topics(before: dict[str, Any] | None, after: dict[str, Any]) -> list
     ['windows', 'proposals', 'events']
     >>> changed_topics(a, a), changed_topics(None, b)
     ([], [])
+    >>> changed_topics(a, {**a, "excitation": {"state": "running"}})
+    ['excitation']
     """
     if before is None:
         return []
@@ -76,6 +84,8 @@ def changed_topics(before: dict[str, Any] | None, after: dict[str, Any]) -> list
     ]
     if _state_of(before) != _state_of(after):
         out.append("events")
+    if before.get("excitation") != after.get("excitation"):
+        out.append("excitation")  # the exciter's record, not counted: compared as the note
     return out
 
 

@@ -65,8 +65,10 @@ async function postForm(url, fields) {
   return { ok: response.ok, status: response.status, data };
 }
 
-function chips(container, list) {
+function chips(container, list, note) {
   container.replaceChildren(...list.flatMap((c) => [el("span", { class: `chip ${c.level}`, title: c.name }, `${c.name}: ${c.text}`), " "]));
+  // the test signal while it runs: a note beside the chips, not one of them (it sets no level)
+  if (note && note.exciting) container.append(el("span", { class: "chip note exciting", title: "test signal" }, note.text));
 }
 
 // no button that sends data anywhere: the charts' toolbars keep zoom, pan, reset and the PNG download

@@ -17,7 +17,7 @@ async function refreshFleet() {
     const rows = data.loops.map((row) => {
       const tr = el("tr", { class: `level-${row.level}`, "data-loop": row.loop_id });
       const chipCell = el("td");
-      chips(chipCell, row.chips);
+      chips(chipCell, row.chips, row.excitation);
       tr.append(
         el("td", {}, el("a", { href: `/loops/${encodeURIComponent(row.loop_id)}` }, row.loop_id)),
         el("td", {}, row.site_name),

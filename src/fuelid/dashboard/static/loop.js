@@ -1,9 +1,10 @@
 "use strict";
 // The loop page: one event stream feeds every live part. `status` events redraw the chips and the
 // link line; `samples` extend the live trend (trend.js); `windows`, `proposals`, `writes` and
-// `events` (sent when the store's counts or the link's state change) re-read the page's parts
-// (proposals, "Now", the windows and events tables), which the server renders with the very
-// templates of the first view: one truth on the page. The analysis charts load plotly.js only when
+// `events` (sent when the store's counts or the link's state change) and `excitation` (the test
+// signal's state changed: it lives in the service's record, not in the counts) re-read the page's
+// parts (proposals, "Now" with the test signal, the windows and events tables), which the server
+// renders with the very templates of the first view: one truth on the page. The analysis charts load plotly.js only when
 // scrolled into view (analysis.js).
 const LOOP = document.body.dataset.loop;
 const TZ = document.body.dataset.tz || "UTC";
@@ -27,11 +28,32 @@ function trendNewest() {
 // --- status: chips and the link line --------------------------------------------------------------
 
 function showStatus(row) {
-  chips(document.getElementById("chips"), row.chips || []);
+  chips(document.getElementById("chips"), row.chips || [], row.excitation);
   const link = document.getElementById("link");
   link.textContent = row.link_text || "";
   link.className = `link live ${row.link_state || (row.link && row.link.state) || ""}`;
   document.body.dataset.service = (row.link && row.link.state) || "";
+  showExcitationElapsed(row.link && row.link.newest_sample);
+}
+
+// how long a burst has run, as format_age says it (fuelid.io.clock): advanced at every status
+// event from its newest sample (plant time), so the part is not re-read every 2 s for it
+function ageText(s) {
+  if (s === null || s === undefined || !Number.isFinite(s)) return "unknown";
+  if (s < 10) return `${s.toFixed(1)} s`;
+  if (s < 120) return `${s.toFixed(0)} s`;
+  if (s < 7200) return `${(s / 60).toFixed(0)} min`;
+  if (s < 172800) return `${(s / 3600).toFixed(1)} h`;
+  return `${(s / 86400).toFixed(1)} d`;
+}
+
+function showExcitationElapsed(newest) {
+  const box = document.getElementById("excitation-running");
+  const out = document.getElementById("excitation-elapsed");
+  if (!box || !out || newest === null || newest === undefined || box.dataset.started === "") return;
+  const elapsed = Math.max(0, newest - Number(box.dataset.started));
+  const burst = box.dataset.burst === "" ? null : Number(box.dataset.burst);
+  if (burst !== null) out.textContent = `${ageText(elapsed)} of ${ageText(burst)}`;
 }
 
 // --- the live trend --------------------------------------------------------------------------------
@@ -107,11 +129,16 @@ function refreshParts() {
 
 // what a person typed or was told in the action forms, kept across a refresh of the parts (a
 // window judged every few seconds must not wipe a reason half typed)
+function formKey(form) {
+  // a proposal's form by its id; revert and the test signal's start and stop by their kind
+  return form.dataset.proposal || form.dataset.kind || "revert";
+}
+
 function formsState() {
   const kept = {};
   document.querySelectorAll("form.action").forEach((form) => {
     const why = form.querySelector('input[name="why"]');
-    kept[form.dataset.proposal || "revert"] = {
+    kept[formKey(form)] = {
       why: why ? why.value : "",
       focused: why !== null && document.activeElement === why,
       outcome: (form.querySelector(".outcome") || {}).textContent || "",
@@ -123,7 +150,7 @@ function formsState() {
 
 function restoreForms(kept) {
   document.querySelectorAll("form.action").forEach((form) => {
-    const was = kept[form.dataset.proposal || "revert"];
+    const was = kept[formKey(form)];
     if (!was) return;
     const why = form.querySelector('input[name="why"]');
     if (why) why.value = was.why;
@@ -149,7 +176,14 @@ async function loadParts() {
   scheduleAnalysis();
 }
 
-// --- actions: approve needs a reason and a confirmation -------------------------------------------
+// --- actions: a reason (optional for a stop of the test signal) and a confirmation ----------------
+
+// the endpoint of each kind of action (a proposal's approve and reject: under its id)
+const ACTION_URLS = {
+  revert: () => `${API}/revert`,
+  excite_start: () => `${API}/excitation/start`,
+  excite_stop: () => `${API}/excitation/stop`,
+};
 
 function bindActions() {
   document.querySelectorAll("form.action button[data-kind]").forEach((button) => {
@@ -161,8 +195,9 @@ function askToConfirm(button) {
   const form = button.closest("form");
   const why = form.querySelector('input[name="why"]');
   const outcome = form.querySelector(".outcome");
-  if (!why.value.trim()) {
-    outcome.textContent = `a reason is required to ${button.dataset.kind}`;
+  const verb = button.dataset.verb || button.dataset.kind;
+  if (!why.value.trim() && !button.dataset.whyOptional) {
+    outcome.textContent = `a reason is required to ${verb}`;
     why.focus();
     return;
   }
@@ -172,13 +207,13 @@ function askToConfirm(button) {
   confirm.querySelector(".question").textContent = button.dataset.confirm || `${button.dataset.kind}?`;
   confirm.hidden = false;
   const yes = confirm.querySelector("button.yes");
-  yes.textContent = `yes, ${button.dataset.kind}`;
-  yes.onclick = () => send(form, button.dataset.kind, why.value.trim());
+  yes.textContent = `yes, ${verb}`;
+  yes.onclick = () => send(form, button.dataset.kind, why.value.trim(), verb);
   confirm.querySelector("button.no").onclick = () => { confirm.hidden = true; outcome.textContent = ""; };
 }
 
-async function send(form, kind, why) {
-  const url = kind === "revert" ? `${API}/revert` : `${API}/proposals/${form.dataset.proposal}/${kind}`;
+async function send(form, kind, why, verb) {
+  const url = Object.hasOwn(ACTION_URLS, kind) ? ACTION_URLS[kind]() : `${API}/proposals/${form.dataset.proposal}/${kind}`;
   const outcome = form.querySelector(".outcome");
   form.querySelector(".confirm").hidden = true;
   form.querySelectorAll("button").forEach((b) => { b.disabled = true; });
@@ -191,7 +226,7 @@ async function send(form, kind, why) {
   const answer = await postForm(url, fields);
   if (answer.ok) {
     const request = answer.data.request || {};
-    outcome.textContent = `${kind} ${request.status === "done" ? "done" : "filed"}: ${answer.data.next || ""}`;
+    outcome.textContent = `${verb || kind} ${request.status === "done" ? "done" : "filed"}: ${answer.data.next || ""}`;
   } else {
     outcome.textContent = answer.data.error || answer.data.detail || `refused (${answer.status})`;
     form.querySelectorAll("button").forEach((b) => { b.disabled = false; });
@@ -264,7 +299,7 @@ function openStream() {
     statusEveryMs: STATUS_EVERY_MS,
     handlers: {
       status: showStatus, samples: appendSamples,
-      windows: refresh, proposals: refresh, writes: refresh, events: refresh,
+      windows: refresh, proposals: refresh, writes: refresh, events: refresh, excitation: refresh,
     },
     // back after a loss: the samples missed meanwhile come from the store, the parts afresh,
     // and a session the dashboard no longer knows (it restarted) is said, not shown as open
