@@ -109,6 +109,7 @@ def test_every_page_loads_without_a_console_error(dashboard_store: Path, tmp_pat
     assert model_points == accepted
 
 
+@pytest.mark.slow  # 18 s of a virtual run (the fast set's 6-min budget); the left-open run too
 def test_the_live_trend_gains_points_while_the_virtual_plc_runs(tmp_path: Path) -> None:
     store = tmp_path / "live.db"
     with virtual_service(tmp_path, store, "--speed", "10", "--hours", "0.2") as service:

@@ -14,7 +14,8 @@ The convention (written for page authors in docs/reference/index.md, "Console ex
   ``examples/``, ``docs/examples/`` and ``reference_plant.toml`` (the packaged reference plant)
   are at hand; what a command starts in the background (``&``) is stopped when its line ends;
 - a block that must not run has ``<!-- illustrative: why -->`` on the line before its fence; a
-  long one (over 20 s) ``<!-- slow -->``: it runs in the slow set only (``make test-slow``).
+  long one ``<!-- slow -->`` (docs/reference/index.md says which): it runs in the slow set
+  only (``make test-slow``).
 
 A failure names the page, the line, the command and shows the difference.
 """

@@ -34,6 +34,7 @@ SERVICE_KEYS = {
 }
 
 
+@pytest.mark.slow  # 15 s of a virtual run at 50x (the fast set's 6-min budget)
 def test_an_accelerated_run_files_everything_in_plant_time_order(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
