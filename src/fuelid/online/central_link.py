@@ -10,9 +10,9 @@ shares the event loop and never waits on the network):
 2. :meth:`CentralLink.requests_cycle`: the central requests for the store
    (:mod:`fuelid.central.requests`) are claimed centrally, then filed locally with
    :func:`~fuelid.online.requests.file_request` (origin ``central:<id>``, who and why kept)
-   after checking that the proposal is still as its requester saw it; the service's beat
-   applies them like the CLI's and the dashboard's; their outcomes are reported back at the
-   next cycle.
+   after checking that the proposal is still as its requester saw it (a revert and the test
+   signal's start and stop refer to none); the service's beat applies them like the CLI's and
+   the dashboard's; their outcomes are reported back at the next cycle.
 
 A failure (the network, the database, a refused identity) is recorded as an event of the store
 once when it starts (``central_error``, with the reason) and once when it ends (``central_ok``),
@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from fuelid.central.sender import Sender, SyncResult
-from fuelid.online.requests import apply_request, file_request
+from fuelid.online.requests import EXCITE_KINDS, apply_request, file_request
 from fuelid.store.online import OnlineHistory
 from fuelid.store.records import StoreError
 
@@ -59,13 +59,17 @@ def origin_of(central_id: int) -> str:
 
 
 def changed_reason(history: OnlineHistory, request: dict[str, Any]) -> str | None:
-    """Why the proposal is no longer what the requester saw; None when unchanged (or a revert).
+    """Why the proposal is no longer what the requester saw; None when unchanged.
 
     Compares the proposal's status and the entries of its history now with the request's
-    ``seen_status`` and ``seen_history_len``.
+    ``seen_status`` and ``seen_history_len``. None for a request that refers to no proposal: a
+    revert and the test signal's start and stop (their site applies them as they come).
+
+    >>> changed_reason(None, {"kind": "excite_start", "proposal_id": None}) is None
+    True
     """
     pid = request.get("proposal_id")
-    if request.get("kind") == "revert" or pid is None:
+    if request.get("kind") in ("revert", *EXCITE_KINDS) or pid is None:
         return None
     proposal = history.proposal(int(pid))
     if proposal is None:
@@ -230,10 +234,18 @@ class CentralLink:
         """Apply a request with no service running (``fuelid central sync``).
 
         A revert needs a service that writes: recorded now, it would fire unseen at some later
-        start; so without one it is refused, and says so.
+        start; so without one it is refused, and says so. The test signal likewise: a start is
+        refused (nothing carries a signal; left for the exciter, it would start unseen at a
+        later start), a stop is done at once, as :func:`fuelid.online.requests.apply_request`
+        answers with no service: the PLC holds the signal at 0 (its heartbeat rule). Neither
+        reads the service record: a stale one (a service that died) must not count as running.
         """
         if local["kind"] == "revert":
             return "refused", "no service runs at the site to write a revert: start it first"
+        if local["kind"] == "excite_start":
+            return "refused", "no service runs at the site to carry a signal: start it first"
+        if local["kind"] == "excite_stop":
+            return "done", "no service runs: the PLC holds the signal at 0 (its heartbeat rule)"
         return apply_request(self.history, local, self.write_back_setting)
 
     def _log(self, result: CycleResult) -> None:

@@ -411,6 +411,7 @@ class OnlineService:
                 plant_model=plant_model_function(self.site.site.plant, self.context),
                 window_end=self.scheduler.next_window_end,
                 k_interval=self._k_interval,
+                evidence=self._evidence_since,
             )
             excite = self.exciter.run(self._stopping)
             tasks.create_task(self._supervised("excitation", excite), name="excitation")
@@ -463,6 +464,13 @@ class OnlineService:
                 )
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(self._stopping.wait(), SERVICE_BEAT_S)
+
+    def _evidence_since(self, t: float) -> int:
+        """Accepted windows on separate excitation events ending after ``t`` [s UTC]."""
+        from fuelid.online.evidence import independent_windows
+
+        recent = [w for w in self.scheduler.filing.windows_for_proposal() if w.t_to >= t]
+        return len(independent_windows(recent, self.settings.agree_windows))
 
     async def _clear_signal(self) -> None:
         """0 into the signal's register before the first heartbeat.

@@ -429,15 +429,18 @@ class Excitation(_Table):
     """``[excitation]``: a small test signal on the PI's output, to identify a loop that sits still.
 
     The online service writes the signal to ``[write.excitation]``; the PLC adds it to its PI's
-    output after its own clamp, zeroes it when fuelid's heartbeat is stale or the loop is in MAN,
-    and reports what it applied in ``[tags.excitation]``. With ``mode`` other than ``"off"`` the
+    output after its own clamp, zeroes it (and clears the request) when fuelid's heartbeat is
+    stale, best also in MAN and during a run, and reports what it applied in
+    ``[tags.excitation]``. With ``mode`` other than ``"off"`` the
     site file needs ``[write.excitation]``, ``[write.heartbeat]``, ``[tags.excitation]``,
     ``[tags.mode]`` and ``amplitude`` (:class:`SiteConfig` checks them), and the service runs
     the heartbeat whatever ``[online] write_back`` says.
     """
 
     mode: Literal["off", "when_unidentified", "always"] = Field(
-        "off", description="off; when_unidentified: only while no model is current; always"
+        "off",
+        description="off: on request only; when_unidentified: when the newest window could "
+        "not identify the loop and nothing else holds K now; always",
     )
     target: Literal["output"] = Field(
         "output", description="the signal is added to the PI's output (a setpoint may follow)"

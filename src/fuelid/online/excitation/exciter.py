@@ -102,6 +102,8 @@ class Exciter:
         starts there (:meth:`_boundary`); a person's request starts at once.
     k_interval : callable, optional
         The relative standard error of K the K(T) curve predicts now [-]; None when unknown.
+    evidence : callable, optional
+        How many accepted windows on separate excitation end after a data time [s UTC].
     """
 
     def __init__(
@@ -112,6 +114,7 @@ class Exciter:
         plant_model: Callable[[float], ProcessModel | None] | None = None,
         window_end: Callable[[], float | None] | None = None,
         k_interval: Callable[[], float | None] | None = None,
+        evidence: Callable[[float], int] | None = None,
     ) -> None:
         self.context = context
         self.link = link
@@ -120,6 +123,7 @@ class Exciter:
         self._plant_model = plant_model
         self._window_end = window_end
         self._k_interval = k_interval
+        self._evidence = evidence
         self._next_look = 0.0
         self._pending: tuple[float, str] | None = None  # (start at [plant s], why)
         self.burst: Burst | None = None
@@ -232,9 +236,10 @@ class Exciter:
 
         Not identified: the newest window could not identify it (rejected for lack of
         excitation, or K's relative standard error over ``max_rel_stderr_K``) *and* nothing
-        else holds K now: no window was accepted within the recent span (``RECENT_WINDOWS_SPAN``
-        window lengths, as for the evidence of a proposal), or the K(T) curve's interval at the
-        fuel's temperature now is wider than ``max_rel_stderr_K`` (the fuel moved away from
+        else holds K now: fewer than ``agree_windows`` accepted windows on separate excitation
+        within the recent span (``RECENT_WINDOWS_SPAN`` window lengths: the evidence a proposal
+        rests on, so that a drift of K can be proposed from), or the K(T) curve's interval at
+        the fuel's temperature now is wider than ``max_rel_stderr_K`` (the fuel moved away from
         the temperatures identified).
         """
         window = self.context.history.last_window()
@@ -255,9 +260,13 @@ class Exciter:
         else:
             return None
         span = RECENT_WINDOWS_SPAN * self.context.settings.window_s
-        accepted = self.context.history.accepted_models(limit=1)
-        if not accepted or float(accepted[0]["t_to"]) < now - span:
-            return f"{why}; no window accepted in the last {span:.0f} s"
+        agree = self.context.settings.agree_windows
+        found = self._evidence(now - span) if self._evidence is not None else 0
+        if found < agree:
+            return (
+                f"{why}; {found} of the {agree} windows on separate excitation a proposal "
+                f"needs in the last {span:.0f} s"
+            )
         interval = self._k_interval() if self._k_interval is not None else None
         if interval is None or interval > bound:
             shown = "not known" if interval is None else f"±{100.0 * interval:.1f} %"
