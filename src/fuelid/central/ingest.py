@@ -40,6 +40,9 @@ SITE_STATE_KEYS = (
     "tuned_for",
     "last_known_good_tuned_for",
     "plc_gains",  # the PLC's kc and ti as the recorder last read them: the gains in force
+    # the exciter's record (fuelid.online.excitation.status.STATE_KEY): a central loop page
+    # shows the test signal and offers its stop as the site's page does (issue 40)
+    "excitation",
 )
 """The site's ``online_state`` values the liveness row carries (``site_state``)."""
 

@@ -1,7 +1,8 @@
 """Actions taken centrally: requests the site's service fetches and carries out itself.
 
 The central store never talks to a PLC. The dashboard's fleet page files an approve, reject or
-revert with :func:`file_central_request` (a row of ``requests``, status ``waiting``, with an
+revert, or a start or stop of the test signal (``excite_start``, ``excite_stop``: schema
+version 4), with :func:`file_central_request` (a row of ``requests``, status ``waiting``, with an
 expiry, for the loop's current store: ``store_uuid``); the site's service fetches the waiting,
 unexpired requests of its store at every sync (:func:`fetch_waiting`), claims each
 (:func:`claim`: one atomic update, refused once it expired or another sender claimed it) and
@@ -35,7 +36,10 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DEFAULT_EXPIRY_S",
+    "EXCITE_KINDS",
+    "EXCITE_START_EXPIRY_S",
     "KINDS",
+    "NEEDS_PROPOSAL",
     "central_requests",
     "claim",
     "expire_requests",
@@ -46,10 +50,17 @@ __all__ = [
     "newest_store",
 ]
 
-KINDS = ("approve", "reject", "revert")
-"""What a central request asks for."""
+KINDS = ("approve", "reject", "revert", "excite_start", "excite_stop")
+"""What a central request asks for (the site's ``fuelid.store.online.REQUEST_KINDS``)."""
+EXCITE_KINDS = ("excite_start", "excite_stop")
+"""The test signal's kinds (issue 40; the site's ``fuelid.online.requests.EXCITE_KINDS``)."""
+NEEDS_PROPOSAL = ("approve", "reject")
+"""The kinds that act on a proposal; the others (a revert, the test signal's) refer to none."""
 DEFAULT_EXPIRY_S = 3600.0
 """A request waits this long for its site by default [s of wall time]."""
+EXCITE_START_EXPIRY_S = 300.0
+"""A start of the test signal waits at most this long [s of wall time]: a signal asked for now
+is not wanted when a site that was out of contact comes back an hour later."""
 
 _COLUMNS = (
     "id, loop_id, kind, proposal_id, seen_status, seen_history_len, who, why, origin, status, "
@@ -104,7 +115,8 @@ def file_central_request(
     loop_id : str
         The loop (``[site] loop_id``).
     kind : str
-        approve, reject or revert (a revert needs no proposal).
+        approve, reject, revert, excite_start or excite_stop (:data:`KINDS`); only approve and
+        reject need a proposal, and the test signal's refer to none.
     proposal_id : int or None
         The proposal's id in the loop's store (the central ``proposals.id``).
     who, why : str
@@ -130,12 +142,16 @@ def file_central_request(
     Raises
     ------
     CentralError
-        An unknown kind, a missing proposal, an unknown loop or store, a non-positive expiry.
+        An unknown kind, a missing proposal (one given to the test signal's kinds), an unknown
+        loop or store, a non-positive expiry.
     """
     if kind not in KINDS:
         raise CentralError(f"unknown request kind {kind!r}; known: {', '.join(KINDS)}")
-    if kind != "revert" and proposal_id is None:
+    if kind in NEEDS_PROPOSAL and proposal_id is None:
         raise CentralError(f"a request to {kind} needs its proposal")
+    if kind in EXCITE_KINDS and proposal_id is not None:
+        # the site files it with no proposal: a given one would be dropped unsaid
+        raise CentralError(f"a request {kind} refers to no proposal, got {proposal_id}")
     if not expires_s > 0.0:
         raise CentralError(f"expires_s must be positive, got {expires_s}")
     with con.transaction():

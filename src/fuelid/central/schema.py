@@ -65,6 +65,11 @@ and models by their window's end (``store_uuid, t_to DESC, id DESC``).
 **Version 3** adds the results of ``fuelid reidentify --central``: ``reidentify_runs`` and
 ``reidentified`` (:mod:`fuelid.central.reidentified`).
 
+**Version 4** widens ``requests.kind`` to the test signal's ``excite_start`` and ``excite_stop``
+(issue 40): the column's CHECK, named ``requests_kind_check`` by PostgreSQL in version 1, is
+dropped and added again with the five kinds (the rows are kept; a site of an older fuelid
+refuses version 4, so no site files a kind it does not know).
+
 **Versions.** :data:`MIGRATIONS` in order, each in one transaction with its row in
 ``central_schema`` (under an advisory lock: two migrators never apply one twice). A database
 whose version is newer than :data:`SCHEMA_VERSION` is refused with both versions (an older
@@ -392,6 +397,15 @@ _V2 = [
     "CREATE INDEX models_store_end ON models(store_uuid, t_to DESC, id DESC)",
 ]
 
+_V4 = [
+    # version 1's inline CHECK, which PostgreSQL named <table>_<column>_check: dropped by that
+    # name (a database whose constraint is named otherwise fails here, loudly, rather than
+    # keep the old CHECK that would refuse the new kinds beside the new one)
+    "ALTER TABLE requests DROP CONSTRAINT requests_kind_check",
+    "ALTER TABLE requests ADD CONSTRAINT requests_kind_check CHECK (kind IN "
+    "('approve', 'reject', 'revert', 'excite_start', 'excite_stop'))",
+]
+
 MIGRATIONS: tuple[Migration, ...] = (
     Migration(
         1,
@@ -404,6 +418,7 @@ MIGRATIONS: tuple[Migration, ...] = (
         tuple(_V2),
     ),
     Migration(3, "the results of fuelid reidentify: reidentify_runs, reidentified", REIDENTIFIED),
+    Migration(4, "requests: the test signal's kinds excite_start and excite_stop", tuple(_V4)),
 )
 """Every migration in order; ``MIGRATIONS[k]`` takes the database to version ``k + 1``."""
 
@@ -450,17 +465,22 @@ def check_schema(con: psycopg.Connection) -> int:
     return version
 
 
-def migrate(con: psycopg.Connection) -> tuple[int, int]:
+def migrate(con: psycopg.Connection, upto: int | None = None) -> tuple[int, int]:
     """Create or upgrade the schema; ``(version before, version after)``.
 
     Each migration runs in a transaction of its own, under an advisory lock, with its row in
-    ``central_schema``: a failure leaves the version before it.
+    ``central_schema``: a failure leaves the version before it. ``upto`` stops at that version
+    (the newest, :data:`SCHEMA_VERSION`, by default): a test builds an older database with it
+    to check the migrations after it.
 
     Raises
     ------
     CentralError
-        The database's schema is newer than this fuelid's.
+        The database's schema is newer than this fuelid's, or ``upto`` is not a version.
     """
+    target = SCHEMA_VERSION if upto is None else int(upto)
+    if not 1 <= target <= SCHEMA_VERSION:
+        raise CentralError(f"no central schema version {upto}: 1 to {SCHEMA_VERSION}")
     before = schema_version(con)
     if before > SCHEMA_VERSION:
         raise _newer(before)
@@ -477,7 +497,7 @@ def migrate(con: psycopg.Connection) -> tuple[int, int]:
             current = int(row[0]) if row else 0
             if current > SCHEMA_VERSION:
                 raise _newer(current)
-            if current >= migration.version:
+            if current >= migration.version or migration.version > target:
                 continue
             for statement in migration.statements:
                 con.execute(statement.encode())  # bytes: no client-side placeholders

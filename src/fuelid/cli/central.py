@@ -116,8 +116,9 @@ def sync_command(
 ) -> None:
     """Send a store's outbox now (switching it on; the first time, its whole history).
 
-    Also files and applies the store's central requests (a revert is refused: no service
-    writes it). A store whose service runs is refused: the service sends it.
+    Also files and applies the store's central requests (a revert and a start of the test
+    signal are refused: no service carries them out; a stop of the signal is done: without a
+    service the PLC holds it at 0). A store whose service runs is refused: the service sends it.
     """
     from fuelid.central.connect import CentralError
     from fuelid.online.central_link import CentralLink

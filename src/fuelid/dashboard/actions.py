@@ -26,15 +26,11 @@ from fuelid.io.clock import format_time
 if TYPE_CHECKING:
     from fuelid.dashboard.app import Dashboard
 
-__all__ = ["CENTRAL_EXCITE", "EXCITE_ACTIONS", "action_routes", "next_step", "seen_of"]
+__all__ = ["EXCITE_ACTIONS", "action_routes", "next_step", "seen_of"]
 
 EXCITE_ACTIONS = ("excite_start", "excite_stop")
-"""The test signal's requests (``fuelid.online.requests.EXCITE_KINDS``)."""
-CENTRAL_EXCITE = (
-    "a central loop's test signal is started and stopped at the site (its own dashboard, or "
-    "fuelid online excite): the central store does not relay it yet"
-)
-"""The answer to a start or stop on a central loop (409)."""
+"""The test signal's requests (``fuelid.online.requests.EXCITE_KINDS``); on a central loop
+relayed like a revert (central schema version 4)."""
 
 
 def action_routes(board: Dashboard) -> None:
@@ -58,9 +54,6 @@ def action_routes(board: Dashboard) -> None:
         why = fields.get("why", "").strip()[:500]
         if why_required and not why:
             raise HTTPException(422, f"a reason (form field why) is required for {kind}")
-        if kind in EXCITE_ACTIONS and loop.identity().get("source") == "central":
-            # the central store relays approve, reject and revert only: refused, not filed
-            return JSONResponse({"error": CENTRAL_EXCITE}, status_code=409)
         seen = seen_of(fields)
         try:  # waits up to two of the service's beats for it: off the event loop
             row = await asyncio.to_thread(
@@ -93,7 +86,9 @@ def action_routes(board: Dashboard) -> None:
 
         Refused (409, one line) when the site has no ``[write.excitation]`` register or no
         amplitude, or no service runs; the service may still hold it off (the loop not in
-        AUTO, a run on, …): the loop page's test-signal line says so.
+        AUTO, a run on, …): the loop page's test-signal line says so. On a central loop it is
+        relayed like a revert: the site's service fetches it at its next sync and starts the
+        signal or refuses it with the reason (the loop's central requests say which).
         """
         return await _request(loop_id, "excite_start", None, request, why_required=True)
 
@@ -102,7 +97,8 @@ def action_routes(board: Dashboard) -> None:
         """An engineer asks the service to stop the test signal at once (``why`` optional).
 
         A stop is never held up for want of a reason: the register goes to 0 at the service's
-        next look (with no service running, the PLC already holds it at 0).
+        next look (with no service running, the PLC already holds it at 0). On a central loop
+        it is relayed like a revert, at the site's next sync.
         """
         return await _request(loop_id, "excite_stop", None, request)
 

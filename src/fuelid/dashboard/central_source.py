@@ -28,10 +28,13 @@ live from a central loop: the status is re-read every few seconds.
 **Actions.** :meth:`CentralLoop.file_request` files a central request with what the page showed
 of the proposal (status and history length); the site's service fetches it at its next sync,
 files it locally and carries it out (:mod:`fuelid.online.central_link`), or refuses it when the
-proposal changed meanwhile; a request no site fetches before its expiry is never applied. One
-request per proposal (and one revert) waits at a time: a second is refused with a one-line
-reason while the first waits (unfetched and unexpired, or fetched and being carried out). The
-loop's central requests, with their expiry and outcome, are in ``status()["central"]
+proposal changed meanwhile; a request no site fetches before its expiry is never applied. The
+test signal's start and stop are relayed like a revert (central schema version 4): the site
+applies them as its own dashboard's (a start with no service running is refused, a stop is
+done: the PLC holds the signal at 0). One request per proposal (and one of each kind that
+refers to none: a revert, a start, a stop) waits at a time: a second is refused with a
+one-line reason while the first waits (unfetched and unexpired, or fetched and being carried
+out). The loop's central requests, with their expiry and outcome, are in ``status()["central"]
 ["requests"]``.
 """
 
@@ -47,6 +50,7 @@ import numpy as np
 from fuelid.central.connect import CentralError
 from fuelid.central.requests import (
     DEFAULT_EXPIRY_S,
+    EXCITE_START_EXPIRY_S,
     central_requests,
     file_central_request,
     newest_store,
@@ -372,7 +376,11 @@ class CentralLoop:
                 seen_status=seen.get("status"),
                 seen_history_len=seen.get("history_len"),
                 origin="dashboard",
-                expires_s=self.expires_s,
+                expires_s=(
+                    min(self.expires_s, EXCITE_START_EXPIRY_S)
+                    if kind == "excite_start"
+                    else self.expires_s
+                ),
             )
 
         return {**self.db.call(file), "relayed": True}
@@ -461,8 +469,16 @@ class CentralLoop:
         """Nothing of its own to close (the connection is the dashboard's)."""
 
 
+_WHAT = {
+    "revert": "a revert",
+    "excite_start": "a start of the test signal",
+    "excite_stop": "a stop of the test signal",
+}
+"""What a request that refers to no proposal is for, in the refusal of a second one."""
+
+
 def _refuse_a_second(con: Any, loop_id: str, kind: str, proposal_id: int | None) -> None:
-    """Refuse a request while one for the same proposal (or a revert) still waits for the site.
+    """Refuse a request while one for the same proposal (or kind) still waits for the site.
 
     Two requests for one proposal would both be carried out or refused in turn; the person who
     filed the second one most likely did not see the first (its buttons are disabled meanwhile).
@@ -477,7 +493,7 @@ def _refuse_a_second(con: Any, loop_id: str, kind: str, proposal_id: int | None)
     for r in central_requests(con, loop_id, "waiting"):
         same = r["proposal_id"] == proposal_id and (proposal_id is not None or r["kind"] == kind)
         if same and r.get("store_uuid") in (None, store) and is_waiting(r, now):
-            what = "a revert" if proposal_id is None else f"proposal #{proposal_id}"
+            what = _WHAT.get(kind, kind) if proposal_id is None else f"proposal #{proposal_id}"
             raise FuelidError(
                 f"request {r['id']} ({r['kind']} by {r['who']}) for {what} already waits for "
                 f"the site (expires {format_time(r['expires'], 'UTC')}, wall clock): one at a time"

@@ -12,11 +12,14 @@ prints, so the page, the fleet and the command say the same.
   the expected standard errors and fit, the expected cost, and the reason with who started it;
   the last bursts with how each ended. A service stopped mid-burst is said: the PLC's heartbeat
   rule zeroes the signal, whatever the record last said.
-- **The actions** (an engineer's session, a local loop): "start a test signal" while the site
-  can carry one (``settings.excitation.possible``: a ``[write.excitation]`` register and an
-  amplitude), the service runs and no signal runs; "stop the signal" while one runs. A central
-  loop offers neither yet (the central store does not relay them): the page says where to
-  start one.
+- **The actions** (an engineer's session): "start a test signal" while the site can carry one
+  (``settings.excitation.possible``: a ``[write.excitation]`` register and an amplitude), the
+  service runs and no signal runs; "stop the signal" while one runs. A central loop offers the
+  same, judged on what the site's last send told (its service record, and the exciter's record
+  in the liveness row's ``site_state``): the request is relayed like a revert (central schema
+  version 4), and while one of its kind waits for the site the button gives way to a line that
+  says so (one at a time, as :meth:`~fuelid.dashboard.central_source.CentralLoop.file_request`
+  enforces).
 - **The fleet's note** (:func:`excitation_note`): the line while a signal runs, on the loop's
   row beside its chips; it is not a chip, so it changes no loop's severity or order. Its value
   is also what the live stream compares between two status events (the ``excitation`` topic).
@@ -27,8 +30,10 @@ Times are plant time [s UTC]; amplitudes [V]; flows [L/min].
 from __future__ import annotations
 
 import math
+import time as _time
 from typing import Any
 
+from fuelid.dashboard.views import is_waiting
 from fuelid.io.clock import format_age, format_time
 from fuelid.online.excitation.status import excitation_line
 
@@ -166,8 +171,38 @@ def _no_start_reason(settings: dict[str, Any] | None, status: dict[str, Any]) ->
     return ""
 
 
+def _central_waiting(status: dict[str, Any], kind: str, tz: str, now: float) -> str:
+    """The line on a central request of ``kind`` still waiting for the site ("" when none).
+
+    >>> row = {"kind": "excite_start", "who": "eve", "status": "waiting", "fetched": None,
+    ...        "expires": 3600.0}
+    >>> line = _central_waiting({"central": {"requests": [row]}}, "excite_start", "UTC", 0.0)
+    >>> line.split(" (")[0]
+    "A start of the test signal filed by eve waits for the site's next sync"
+    >>> _central_waiting({"central": {"requests": [row]}}, "excite_stop", "UTC", 0.0)
+    ''
+    """
+    for r in reversed((status.get("central") or {}).get("requests") or []):
+        if r.get("kind") == kind and is_waiting(r, now):
+            what = "A start" if kind == "excite_start" else "A stop"
+            if r.get("fetched") is not None:
+                return (
+                    f"{what} of the test signal filed by {r.get('who')}: the site carries it out."
+                )
+            return (
+                f"{what} of the test signal filed by {r.get('who')} waits for the site's next "
+                f"sync (expires {format_time(r.get('expires'), tz)}, wall clock)."
+            )
+    return ""
+
+
 def excitation_view(
-    status: dict[str, Any], tz: str, *, engineer: bool, central: bool = False
+    status: dict[str, Any],
+    tz: str,
+    *,
+    engineer: bool,
+    central: bool = False,
+    now: float | None = None,
 ) -> dict[str, Any]:
     """The loop page's "Test signal" context (module docstring); ``central``: a central loop.
 
@@ -176,7 +211,8 @@ def excitation_view(
     it), ``cut`` (the service stopped during a burst), ``bursts`` (newest first), ``mode``,
     ``possible``, ``amplitude_V`` (the site's cap [V], None when unknown), ``can_start``,
     ``can_stop`` (the buttons an engineer sees), ``no_action`` (why an engineer sees no start
-    button, or "").
+    button, or a central request that waits for the site; else ""). ``now`` [wall s UTC]
+    judges whether a central request still waits (the clock by default).
     """
     excitation = status.get("excitation")
     excitation = excitation if isinstance(excitation, dict) else None
@@ -198,12 +234,12 @@ def excitation_view(
         )
     elif cut:  # the record still says running: the PLC's heartbeat rule zeroed it
         line = f"{CUT_TEXT} (last: {line})"
-    no_action = _no_start_reason(settings, status)
-    if central:
-        no_action = (
-            "A test signal is started and stopped at the site (its dashboard, or fuelid online "
-            "excite): the central store does not relay it yet."
-        )
+    no_action = _no_start_reason(settings, status) if not runs else ""
+    # a central loop: a start or stop relayed and still waiting is said instead of its button
+    # (a second one is refused while the first waits)
+    wall = _time.time() if now is None else float(now)
+    kind = "excite_stop" if runs else "excite_start"
+    pending = _central_waiting(status, kind, tz, wall) if central else ""
     return {
         "line": line,
         "state": "none" if excitation is None else ("running" if runs else "idle"),
@@ -217,7 +253,7 @@ def excitation_view(
         # the site's cap [V]: the confirmation names it (the design may stay below it)
         "amplitude_V": _number((excitation or {}).get("amplitude_V"))
         or _number((settings or {}).get("amplitude")),
-        "can_start": engineer and not central and not runs and not no_action,
-        "can_stop": engineer and not central and runs and not cut,
-        "no_action": no_action if engineer and not runs else "",
+        "can_start": engineer and not runs and not no_action and not pending,
+        "can_stop": engineer and runs and not cut and not pending,
+        "no_action": (pending or no_action) if engineer else "",
     }

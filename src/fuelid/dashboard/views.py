@@ -213,11 +213,13 @@ def central_waiting(status: dict[str, Any], tz: str, now: float) -> dict[Any, di
     """The loop's waiting central requests by proposal id (None: a revert), for the page.
 
     Each: ``text`` ("approve filed by ana, waiting for the site's next sync, expires …") and
-    ``warning`` (:func:`site_warning`, None when the site is in contact and running).
+    ``warning`` (:func:`site_warning`, None when the site is in contact and running). A start
+    or stop of the test signal is not among them: the signal's own part shows it
+    (:mod:`fuelid.dashboard.excitation_view`).
     """
     out: dict[Any, dict[str, Any]] = {}
     for r in (status.get("central") or {}).get("requests") or []:
-        if not is_waiting(r, now):
+        if not is_waiting(r, now) or r.get("kind") in ("excite_start", "excite_stop"):
             continue
         if r.get("fetched") is not None:
             text = f"{r['kind']} filed by {r.get('who')}, fetched by the site, being carried out"
