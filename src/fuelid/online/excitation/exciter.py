@@ -437,7 +437,9 @@ class Exciter:
         pi = PISettings("in force", gains.Kc, gains.Ti, site.sampling.control_period_s)
         window_s = self.context.settings.window_s
         samples = self.context.store.read(now - window_s, now + site.sampling.period_s)
-        ok = samples.quality == Quality.OK
+        ok = (samples.quality == Quality.OK) & ~_touched(
+            samples.excitation, model.settling_time(), site.sampling.period_s
+        )
         noise = LoopNoise.of_window(
             model,
             np.where(ok, samples.u, np.nan),
@@ -502,6 +504,25 @@ class Exciter:
             }
         )
         history.set_state(STATE_KEY, record)
+
+
+def _touched(signal: np.ndarray[Any, Any], tail_s: float, period_s: float) -> np.ndarray[Any, Any]:
+    """Samples a test signal moved: where it was not 0, and one settling time after.
+
+    The noise a design rests on is measured on the others: a window's earlier burst would
+    count as noise, and the next signal would be made larger than it needs to be.
+
+    Examples
+    --------
+    >>> _touched(np.array([0.0, 0.1, 0.0, 0.0, 0.0, np.nan]), 0.02, 0.01).tolist()
+    [False, True, True, True, False, False]
+    """
+    on: np.ndarray[Any, Any] = np.nan_to_num(np.asarray(signal, dtype=float)) != 0.0
+    tail = max(math.ceil(tail_s / period_s), 0)
+    if tail == 0 or not np.any(on):
+        return on
+    spread = np.convolve(on.astype(np.int8), np.ones(tail + 1, dtype=np.int8))[: on.size]
+    return np.asarray(spread > 0)
 
 
 def _burst_json(burst: Burst) -> dict[str, Any]:
