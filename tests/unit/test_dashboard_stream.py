@@ -96,3 +96,23 @@ def test_a_blip_between_two_status_events_is_an_events_event(
 
     kinds = _run(WithEvents(), blip, 8, monkeypatch)
     assert [k for k in kinds if k != "status"] == ["events", "history"]
+
+
+def test_a_read_that_fails_is_said_and_the_feed_goes_on(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A failing read must not end the feed: every page would read "disconnected" for good."""
+
+    class Failing(FakeLoop):
+        failures = 2
+
+        def samples_after(self, cursor: int, limit: int) -> tuple[int, SampleArrays]:
+            if self.failures:
+                self.failures -= 1
+                raise IndexError("a row shorter than the arrays expect")
+            return super().samples_after(cursor, limit)
+
+    kinds = _run(Failing(), lambda loop: None, 4, monkeypatch)
+    assert kinds == ["status"] * 4
+    failed = [r for r in caplog.records if "live feed of loop fake failed" in r.getMessage()]
+    assert len(failed) == 2

@@ -29,7 +29,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from fuelid.store.records import SampleArrays, StoreError
+from fuelid.store.records import SAMPLE_COLUMNS_SQL, SampleArrays, StoreError
 from fuelid.store.schema import default_loop_id
 
 __all__ = ["TREND_COLUMNS", "LoopReader", "SQLiteLoop", "Trend"]
@@ -333,8 +333,8 @@ class SQLiteLoop:
     def samples_after(self, cursor: int, limit: int) -> tuple[int, SampleArrays]:
         """Samples inserted after rowid ``cursor`` (at most ``limit``, oldest first)."""
         rows = self._query(
-            "SELECT rowid, time, seq, u, y, setpoint, fuel_temperature, mode, quality "
-            "FROM samples WHERE rowid > ? ORDER BY rowid LIMIT ?",
+            f"SELECT rowid, {SAMPLE_COLUMNS_SQL} FROM samples WHERE rowid > ? ORDER BY rowid "
+            "LIMIT ?",
             (int(cursor), int(limit)),
         )
         if not rows:

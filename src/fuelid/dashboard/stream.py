@@ -30,11 +30,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 from collections.abc import AsyncIterator, Callable
 from typing import Any
 
 from fuelid.dashboard.source import LoopReader
 from fuelid.io.jsonsafe import json_ready
+
+_LOGGER = logging.getLogger(__name__)
 
 __all__ = ["MAX_BATCH", "POLL_S", "STATUS_EVERY_S", "TOPICS", "Feed", "Feeds", "changed_topics"]
 
@@ -107,6 +110,8 @@ class Feed:
         self._task: asyncio.Task[None] | None = None
         self.last_status: dict[str, Any] | None = None
         self.reads = 0
+        self._previous: dict[str, Any] | None = None  # the last status, for its changes
+        self._next_status = 0.0  # the event loop's time of the next status event [s]
 
     def subscribe(self) -> asyncio.Queue[tuple[str, Any]]:
         """A queue of (event type, data) for a new subscriber; starts reading when needed."""
@@ -132,37 +137,45 @@ class Feed:
 
     async def _run(self) -> None:
         cursor = await asyncio.to_thread(self.loop.cursor)
-        previous: dict[str, Any] | None = None
-        next_status = 0.0
-        clock = asyncio.get_running_loop().time
         while self._queues:
-            cursor, batch = await asyncio.to_thread(self.loop.samples_after, cursor, MAX_BATCH)
-            self.reads += 1
-            if len(batch):
-                self._publish(
-                    "samples",
-                    {
-                        "t": json_ready(batch.time),
-                        "y": json_ready(batch.y),
-                        "setpoint": json_ready(batch.setpoint),
-                        "u": json_ready(batch.u),
-                        "fuel_temperature": json_ready(batch.fuel_temperature),
-                        "quality": batch.quality.tolist(),
-                    },
-                )
-            if clock() >= next_status:
-                next_status = clock() + STATUS_EVERY_S
-                status = await asyncio.to_thread(self._status)
-                self.last_status = status
-                self._publish("status", status)
-                topics = changed_topics(previous, status)
-                for topic in topics:
-                    self._publish(topic, status.get("counts"))
-                if topics:
-                    self._publish("history", status.get("counts"))
-                previous = status
-            if len(batch) < MAX_BATCH:
-                await asyncio.sleep(POLL_S)
+            try:
+                cursor = await self._step(cursor)
+            except Exception:  # any failure: said, then tried again; never a silent stop
+                # a feed that dies leaves every page "disconnected" with nothing in the log
+                _LOGGER.exception("the live feed of loop %s failed; retrying", self.loop.loop_id)
+                await asyncio.sleep(STATUS_EVERY_S)
+
+    async def _step(self, cursor: int) -> int:
+        """One read of the new samples, and the status when it is due; the new cursor."""
+        clock = asyncio.get_running_loop().time
+        cursor, batch = await asyncio.to_thread(self.loop.samples_after, cursor, MAX_BATCH)
+        self.reads += 1
+        if len(batch):
+            self._publish(
+                "samples",
+                {
+                    "t": json_ready(batch.time),
+                    "y": json_ready(batch.y),
+                    "setpoint": json_ready(batch.setpoint),
+                    "u": json_ready(batch.u),
+                    "fuel_temperature": json_ready(batch.fuel_temperature),
+                    "quality": batch.quality.tolist(),
+                },
+            )
+        if clock() >= self._next_status:
+            self._next_status = clock() + STATUS_EVERY_S
+            status = await asyncio.to_thread(self._status)
+            self.last_status = status
+            self._publish("status", status)
+            topics = changed_topics(self._previous, status)
+            for topic in topics:
+                self._publish(topic, status.get("counts"))
+            if topics:
+                self._publish("history", status.get("counts"))
+            self._previous = status
+        if len(batch) < MAX_BATCH:
+            await asyncio.sleep(POLL_S)
+        return cursor
 
 
 class Feeds:

@@ -98,6 +98,10 @@ class Sample(NamedTuple):
 
 
 _SAMPLE_COLUMNS = Sample._fields
+SAMPLE_COLUMNS_SQL = ", ".join(Sample._fields)
+"""The samples table's columns in :class:`Sample` order, for a ``SELECT`` whose rows
+:meth:`SampleArrays.from_rows` reads (time, seq, u, y, …, quality, excitation, run): one list,
+so a column added to the samples reaches every reader."""
 """The columns of a sample, in order (those of :class:`SampleArrays` too)."""
 
 

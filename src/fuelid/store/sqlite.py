@@ -47,6 +47,7 @@ from fuelid.store.base import (
 )
 from fuelid.store.lod import RECOUNT_BAD, UPSERT_LOD, lod_rows
 from fuelid.store.prune import PruneMixin
+from fuelid.store.records import SAMPLE_COLUMNS_SQL
 from fuelid.store.schema import (
     APPLICATION_ID,
     LOD_LEVELS,
@@ -61,7 +62,7 @@ from fuelid.store.schema import (
 __all__ = ["APPLICATION_ID", "SCHEMA_VERSION", "SQLiteStore"]
 
 # DO NOTHING only on a duplicate key: a NULL time or a bad quality code still fails the batch
-_COLUMNS = ", ".join(Sample._fields)  # time, seq, u, y, …, quality, excitation, run
+_COLUMNS = SAMPLE_COLUMNS_SQL  # time, seq, u, y, …, quality, excitation, run
 _INSERT_SAMPLE = (
     f"INSERT INTO samples({_COLUMNS}, wall_time) "
     f"VALUES ({', '.join('?' * (len(Sample._fields) + 1))}) ON CONFLICT DO NOTHING"
