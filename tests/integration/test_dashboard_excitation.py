@@ -250,7 +250,7 @@ def test_a_service_stopped_mid_burst_is_not_shown_exciting(tmp_path: Path) -> No
     with dashboard(db) as client:
         now = client.get(f"/loops/{LOOP}/parts").json()["html"]["now"]
         fleet = client.get("/").text
-    assert "the service stopped during a burst: the PLC zeroes the signal" in now
+    assert "the service stopped mid-burst: the PLC zeroes the signal" in now
     assert 'id="excitation-running"' not in now
     assert "exciting" not in fleet.replace('"exciting"', "")  # the hint names the word only
 

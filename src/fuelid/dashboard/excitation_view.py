@@ -35,12 +35,13 @@ from typing import Any
 
 from fuelid.dashboard.views import is_waiting
 from fuelid.io.clock import format_age, format_time
-from fuelid.online.excitation.status import excitation_line
+from fuelid.online.excitation.status import INTERRUPTED, excitation_line
 
 __all__ = ["CUT_TEXT", "LAST_BURSTS", "excitation_note", "excitation_view"]
 
-CUT_TEXT = "the service stopped during a burst: the PLC zeroes the signal (its heartbeat rule)"
-"""What a stopped service's burst is said to be (the record cannot say it ended)."""
+CUT_TEXT = INTERRUPTED
+"""What a stopped service's burst is said to be (the record cannot say it ended): the status's
+own words (:data:`fuelid.online.excitation.status.INTERRUPTED`)."""
 
 LAST_BURSTS = 5
 """Bursts listed on the loop page (the newest)."""

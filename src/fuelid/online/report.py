@@ -480,7 +480,7 @@ def status_json(
         "write_back": _write_back_json(history, settings, merged),
         "last_write": write_json(writes[0]) if writes else None,
         "plc_gains": plc_gains_json(history.state(PLC_GAINS_KEY), _controller(controller)),
-        "excitation": excitation_json(history),
+        "excitation": excitation_json(history, service_running=link["service"] == "running"),
         "central": central_json(store, now),
         "gains_units": merged.get("gains_units"),
         "units": ONLINE_UNITS,

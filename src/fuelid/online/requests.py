@@ -130,7 +130,10 @@ def _excite(history: OnlineHistory, request: dict[str, Any]) -> tuple[str, str]:
         },
     )
     if action == "start":
-        return "done", "start requested: the service starts the signal when the loop allows"
+        return "done", (
+            "start requested: the service starts the signal where the next window starts, if "
+            "the loop allows it then (fuelid online status shows it, or why not)"
+        )
     return "done", "stop requested: the service writes 0 to the register"
 
 

@@ -42,7 +42,7 @@ from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
 from fuelid.online.context import RECENT_WINDOWS_SPAN, ServiceContext, model_of
 from fuelid.online.excitation.design import DesignGoal, LoopNoise, SignalDesign, design_signal
-from fuelid.online.excitation.status import STATE_KEY
+from fuelid.online.excitation.status import INTERRUPTED, STATE_KEY
 from fuelid.online.writeback import AUTO
 from fuelid.plc.adapters.base import LinkError
 from fuelid.plc.gain_handshake import GainWriter
@@ -125,7 +125,8 @@ class Exciter:
         self._k_interval = k_interval
         self._evidence = evidence
         self._next_look = 0.0
-        self._pending: tuple[float, str] | None = None  # (start at [plant s], why)
+        # (start at [plant s UTC], why, the person's request or None)
+        self._pending: tuple[float, str, dict[str, Any] | None] | None = None
         self.burst: Burst | None = None
         record = context.history.state(STATE_KEY) or {}
         self.last_start: float | None = record.get("last_start")
@@ -133,7 +134,7 @@ class Exciter:
             cut = {
                 **(record.get("running") or {}),
                 "ended": None,
-                "end_reason": "the service stopped mid-burst (the PLC's heartbeat rule)",
+                "end_reason": INTERRUPTED,
             }
             bursts = [*(record.get("bursts") or []), cut][-KEPT_BURSTS:]
             context.history.set_state(
@@ -146,6 +147,7 @@ class Exciter:
                 "excitation_held", "a start or stop left from before the restart: dropped"
             )
         self.last_move: float | None = None
+        self.last_bad: float | None = None  # plant time of the newest sample flagged bad
         self._setpoint: float | None = None
         self._mode: float | None = None
         self._flagged = 0
@@ -175,8 +177,8 @@ class Exciter:
         model = self._model()
         return model.settling_time() if model is not None else DEFAULT_WAIT_S
 
-    def hold_reason(self, latest: dict[str, float]) -> str | None:
-        """Why no signal may run now; None when it may."""
+    def hold_reason(self, latest: dict[str, float], now: float) -> str | None:
+        """Why no signal may run now (plant time ``now`` [s UTC]); None when it may."""
         recorder = self.context.recorder
         if recorder is None or not recorder.connected:
             return "the link is down"
@@ -193,10 +195,8 @@ class Exciter:
         margin = self.margin()
         if not (math.isfinite(u) and low + margin < u < high - margin):
             return f"the command is within {margin:.3g} V of a drive limit"
-        flagged = recorder.stats.flagged
-        if flagged > self._flagged:
-            self._flagged = flagged
-            return "a bad sample"
+        if self.last_bad is not None and now - self.last_bad < self.wait_s():
+            return f"a bad sample {now - self.last_bad:.0f} s ago"
         return None
 
     def _watch(self, latest: dict[str, float], now: float) -> None:
@@ -207,6 +207,10 @@ class Exciter:
             self.last_move = now
         if mode is not None and self._mode is not None and round(mode) != round(self._mode):
             self.last_move = now
+        recorder = self.context.recorder
+        if recorder is not None and recorder.stats.flagged > self._flagged:
+            self._flagged = recorder.stats.flagged
+            self.last_bad = now  # a sample flagged bad: the wait starts again
         self._setpoint = setpoint if setpoint is not None else self._setpoint
         self._mode = mode if mode is not None else self._mode
 
@@ -303,21 +307,63 @@ class Exciter:
             await self._go_on(latest, now, request)
             return
         if request is not None:
-            if request["action"] == "stop":
-                self._finish_request(request, "done", "no signal runs")
-            else:
-                await self._start_now(latest, now, self._requested(request), request)
+            self._request_while_idle(latest, now, request)
             return
         if slow:
+            self._show_hold(latest, now)
             due = self.due(now)
-            if due is None:
+            if due is None and (self._pending is None or self._pending[2] is None):
                 self._pending = None
-            elif self._pending is None:
-                self._pending = (self._boundary(now), due)
+            elif due is not None and self._pending is None:
+                self._pending = (self._boundary(now), due, None)
         if self._pending is not None and now >= self._pending[0]:
-            due = self._pending[1]
+            _, due, asked = self._pending
             self._pending = None
-            await self._start_now(latest, now, due, None)
+            await self._start_now(latest, now, due, asked)
+
+    def _request_while_idle(
+        self, latest: dict[str, float], now: float, request: dict[str, Any]
+    ) -> None:
+        """A person's stop drops a start that waits; a start waits for the next window start.
+
+        A start is held to the site's limits as the schedule's are: at most one burst per
+        ``window_s`` (so no window holds more than ``max_share`` of signal), and it begins
+        where a window begins, so that the windows that hold it hold all of it.
+        """
+        if request["action"] == "stop":
+            waiting = self._pending is not None
+            self._pending = None
+            self._finish_request(
+                request, "done", "the start that waited is dropped" if waiting else "no signal runs"
+            )
+            return
+        window_s = self.context.settings.window_s
+        if self.last_start is not None and now - self.last_start < window_s:
+            self._finish_request(
+                request,
+                "refused",
+                f"a burst began {now - self.last_start:.0f} s ago: one per window_s "
+                f"({window_s:g} s) at most, so that no window holds more than max_share",
+            )
+            return
+        hold = self.hold_reason(latest, now)
+        if hold is not None:
+            self._finish_request(request, "refused", f"no signal now: {hold}")
+            return
+        start = self._boundary(now)
+        self._pending = (start, self._requested(request), request)
+        self._publish()
+        self.context.say(
+            "request", kind="excite_start", status="scheduled",
+            outcome=f"starts where the next window starts, in {start - now:.0f} s of data",
+        )  # fmt: skip
+
+    def _show_hold(self, latest: dict[str, float], now: float) -> None:
+        """Keep the record's ``held`` (why no signal may start now) up to date."""
+        hold = self.hold_reason(latest, now)
+        if hold != self._held:
+            self._held = hold
+            self._publish(held=hold)
 
     def _boundary(self, now: float) -> float:
         """The next start of a scheduled window [plant s UTC] (now when unknown).
@@ -337,7 +383,7 @@ class Exciter:
     async def _start_now(
         self, latest: dict[str, float], now: float, due: str, request: dict[str, Any] | None
     ) -> None:
-        hold = self.hold_reason(latest)
+        hold = self.hold_reason(latest, now)
         if hold is not None:
             if request is not None:
                 self._finish_request(request, "refused", f"no signal now: {hold}")
@@ -363,7 +409,7 @@ class Exciter:
             return
         if request is not None:
             self._finish_request(request, "refused", "a signal runs already")
-        hold = self.hold_reason(latest)
+        hold = self.hold_reason(latest, now)
         if hold is None and self.last_move is not None and self.last_move > burst.started:
             hold = "the setpoint, the mode or the gains changed"
         if hold is not None:
@@ -498,7 +544,8 @@ class Exciter:
                 "amplitude_V": self.amplitude,
                 "state": "running" if burst is not None else "idle",
                 "running": None if burst is None else _burst_json(burst),
-                "held": held,
+                "held": held if held is not None else self._held,
+                "next_start": None if self._pending is None else self._pending[0],
                 "last_start": self.last_start,
                 "bursts": bursts[-KEPT_BURSTS:],
             }

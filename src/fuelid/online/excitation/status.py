@@ -18,15 +18,24 @@ RECENT_WINDOWS = 5
 """Windows the status counts the signal over [-]."""
 
 
-def excitation_json(history: OnlineHistory) -> dict[str, Any] | None:
+INTERRUPTED = "the service stopped mid-burst: the PLC zeroes the signal (its heartbeat rule)"
+"""How a burst ends that a killed service left "running" in its record."""
+
+
+def excitation_json(history: OnlineHistory, service_running: bool = True) -> dict[str, Any] | None:
     """The signal's state; None when the service never ran an exciter on this store.
+
+    With ``service_running`` False a burst the record still calls running (a service killed
+    mid-burst writes nothing more) is reported as ended, with :data:`INTERRUPTED`: no fuelid
+    runs it, and the PLC's heartbeat rule has zeroed it.
 
     Returns
     -------
     dict or None
         ``mode``, ``amplitude_V`` (the site's cap), ``state`` ("running" or "idle"),
         ``running`` (the burst: ``started`` [plant s UTC], ``reason``, ``who``, ``design``),
-        ``held`` (why none may run now, or None), ``bursts`` (the last few, each with
+        ``held`` (why none may run now, or None), ``next_start`` (plant time [s UTC] a burst
+        waits for: the next window start; None), ``bursts`` (the last few, each with
         ``ended`` and ``end_reason``), ``windows_with_signal`` of ``windows_counted`` (the
         newest :data:`RECENT_WINDOWS`), ``measured`` (the newest window's measured cost:
         :func:`~fuelid.online.excitation.cost.measured_cost`, with its window ``id``).
@@ -41,12 +50,18 @@ def excitation_json(history: OnlineHistory) -> dict[str, Any] | None:
         newest = with_signal[-1]
         measured = {"id": newest["id"], **newest["detail"]["excitation"]}
     bursts = list(record.get("bursts") or [])
+    state, running = record.get("state", "idle"), record.get("running")
+    if state == "running" and not service_running:
+        if running:
+            bursts.append({**running, "ended": None, "end_reason": INTERRUPTED})
+        state, running = "idle", None
     return {
         "mode": record.get("mode"),
         "amplitude_V": record.get("amplitude_V"),
-        "state": record.get("state", "idle"),
-        "running": record.get("running"),
+        "state": state,
+        "running": running,
         "held": record.get("held"),
+        "next_start": record.get("next_start") if service_running else None,
         "bursts": bursts[-RECENT_WINDOWS:],
         "windows_with_signal": len(with_signal),
         "windows_counted": len(windows),
@@ -83,6 +98,8 @@ def excitation_line(excitation: dict[str, Any] | None) -> str | None:
     text = f"{excitation.get('mode') or 'off'}, idle"
     if excitation.get("held"):
         text += f" (held: {excitation['held']})"
+    elif excitation.get("next_start") is not None:
+        text += " (a burst starts where the next window starts)"
     bursts = excitation.get("bursts") or []
     if bursts:
         last = bursts[-1]
