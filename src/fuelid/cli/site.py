@@ -103,7 +103,7 @@ def check(
 
 
 def _summary(site: Any, settling: float | None) -> list[str]:
-    """The plant, controller and online lines under the tag table."""
+    """The plant, controller, online and test-signal lines under the tag table."""
     plant = (
         f"plant      {site.site.plant} (settling time {settling:.3g} s at mid-range, 20 °C)"
         if site.site.plant is not None
@@ -124,7 +124,26 @@ def _summary(site: Any, settling: float | None) -> list[str]:
         f"online     identify every {o.identify_every_s:g} s of data on the last {o.window_s:g} s, "
         f'write_back "{o.write_back}", rule {o.rule}, Ms ≤ {o.ms_target:g}'
     )
-    return [plant, controller, online]
+    return [plant, controller, online, _excitation_line(site)]
+
+
+def _excitation_line(site: Any) -> str:
+    """The test signal: its mode and limits, or why the site cannot carry one."""
+    e = site.excitation
+    if "excitation" not in site.write:
+        return "signal     none: no [write.excitation] register (a test signal needs one)"
+    if e.amplitude is None:
+        return (
+            "signal     off: [write.excitation] is mapped; an [excitation] table with an "
+            "amplitude would use it"
+        )
+    margin = e.margin_to_limits if e.margin_to_limits is not None else 2.0 * e.amplitude
+    wait = "one settling time" if e.wait_after_move_s is None else f"{e.wait_after_move_s:g} s"
+    return (
+        f'signal     mode "{e.mode}", at most ±{e.amplitude:g} V on the PI output for '
+        f"{100.0 * e.max_share:g} % of a window, {margin:g} V from the drive's limits, "
+        f"{wait} after a move"
+    )
 
 
 def _cells(*texts: str) -> list[Text]:

@@ -192,11 +192,13 @@ def excite_command(
     who: WhoOption = None,
     why: WhyOption = "",
 ) -> None:
-    """Ask the running service to start or stop a test signal on the PI's output (issue 40).
+    """Ask the running service to start or stop a test signal on the PI's output.
 
-    The service designs the signal from the loop's model within the site file's
-    ``[excitation]`` limits (amplitude, share of time) and starts it when the loop allows it
-    (AUTO, no run, off the drive's limits, link up); a stop writes 0 to the register at once.
+    The service designs the signal from the loop's model within the site file's [excitation]
+    limits (amplitude, one burst of max_share of a window per window) and starts it where the
+    next window starts, if the loop allows it then (AUTO, no run, off the drive's limits, link
+    up); a stop writes 0 to the register at once. fuelid online status shows the signal, or
+    why none began.
     """
     from fuelid.errors import ConfigError
     from fuelid.store.base import StoreError

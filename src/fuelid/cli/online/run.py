@@ -238,7 +238,8 @@ def _summary(stats: Any, wall_s: float, target: str) -> None:
         f"accepted), {stats.proposals} proposals, {stats.writes} writes, {stats.reverts} "
         f"reverts; {stored} samples stored"
     )
-    typer.echo(f"store: {target} (fuelid online status --store {target})")
+    path = target.removeprefix("sqlite:///")  # --store takes the file, not the site's URL
+    typer.echo(f"store: {path} (fuelid online status --store {path})")
 
 
 def _heartbeat_s(speed: float) -> float:
