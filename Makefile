@@ -88,10 +88,11 @@ postgres:
 # `make test` runs the short version of every test, on every core (pytest-xdist; the tests that
 # run a PLC at speed share one worker under --dist loadgroup: tests/conftest.py); budget 6 min
 # with lint and mypy on 2 cores (.ci/run). Every test has a deadline (pytest-timeout,
-# pyproject.toml). The long fault runs and the soak are marked slow.
+# pyproject.toml). The long fault runs and the soak are marked slow. The 20 slowest tests are
+# printed at the end, so that the suite's growth stays visible.
 PYTEST_WORKERS ?= auto
 pytest: $(STAMP) browser postgres
-	$(BIN)/python -m pytest -q -m "not slow" -n $(PYTEST_WORKERS) --dist loadgroup
+	$(BIN)/python -m pytest -q -m "not slow" -n $(PYTEST_WORKERS) --dist loadgroup --durations=20
 
 test: lint typecheck pytest
 

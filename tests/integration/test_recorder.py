@@ -212,8 +212,10 @@ def flapping(
     ("drops", "down_s", "up_s"),
     # up longer than the answer timeout (0.25 s) plus a ring poll (0.2 s): a request caught by
     # the server's shutdown waits out its timeout, and the recorder must be back before the next
-    # drop, or two drops are one outage to it
-    [(3, 0.15, 0.5), pytest.param(100, 0.1, 0.5, marks=pytest.mark.slow)],
+    # drop, or two drops are one outage to it; down longer than a ring poll (0.2 s) on a busy
+    # machine too, or no poll falls into a drop and the recorder never sees it (issue 41: a
+    # 0.15 s drop against the 0.2 s poll raced; the system test's twin uses 0.4 s as well)
+    [(3, 0.4, 0.5), pytest.param(100, 0.4, 0.5, marks=pytest.mark.slow)],
 )
 def test_link_drops_are_events_and_the_ring_back_fills_every_sample(
     modbus_plc: Any, tmp_path: Path, drops: int, down_s: float, up_s: float
