@@ -405,39 +405,50 @@ def needed_amplitudes(unit: UnitResponse, noise: LoopNoise, goal: DesignGoal) ->
     return need
 
 
-def _design(
-    kind: str,
-    levels: FloatArray,
-    hold_s: float,
-    seed: int,
-    unit: UnitResponse,
-    need: dict[str, float],
-    cap_V: float,
-    context: dict[str, float],
-    noise: LoopNoise,
-) -> SignalDesign:
-    bound = cast(Bound, max(need, key=need.__getitem__))
-    amplitude = need[bound]
-    if not amplitude <= cap_V:
-        amplitude, bound = cap_V, "amplitude"
-    variance = noise.flow_sd**2 + amplitude**2 * unit.added_variance
-    fit = 100.0 * (1.0 - noise.sd / math.sqrt(variance)) if variance > 0 else 0.0
-    return SignalDesign(
-        kind=kind,
-        amplitude_V=float(amplitude),
-        hold_s=hold_s,
-        control_period_s=context["h"],
-        burst_s=context["burst_s"],
-        window_s=context["window_s"],
-        seed=seed,
-        levels=levels,
-        expected_rel_stderr={k: v / amplitude for k, v in unit.rel_stderr.items()},
-        expected_fit_percent=fit,
-        added_flow_sd_Lpm=amplitude * math.sqrt(unit.added_variance),
-        iae_per_window=amplitude * unit.iae,
-        needed_V=dict(need),
-        bound=bound,
-    )
+@dataclass(frozen=True)
+class _Experiment:
+    """One loop, noise and window: the design's fixed inputs, against which sequences are tried."""
+
+    model: ProcessModel
+    pi: PISettings
+    noise: LoopNoise
+    goal: DesignGoal
+    period_s: float
+    window_s: float
+    delay_free: bool
+
+    def design(
+        self, kind: str, levels: FloatArray, hold_s: float, seed: int, cap_V: float
+    ) -> SignalDesign:
+        """The sequence ``levels`` at the smallest amplitude meeting every gate, capped."""
+        unit = unit_response(
+            self.model, self.pi, levels, self.noise, period_s=self.period_s,
+            window_s=self.window_s, delay_free=self.delay_free,
+        )  # fmt: skip
+        need = needed_amplitudes(unit, self.noise, self.goal)
+        bound = cast(Bound, max(need, key=need.__getitem__))
+        amplitude = need[bound]
+        if not amplitude <= cap_V:
+            amplitude, bound = cap_V, "amplitude"
+        variance = self.noise.flow_sd**2 + amplitude**2 * unit.added_variance
+        fit = 100.0 * (1.0 - self.noise.sd / math.sqrt(variance)) if variance > 0 else 0.0
+        h = self.pi.control_period
+        return SignalDesign(
+            kind=kind,
+            amplitude_V=float(amplitude),
+            hold_s=hold_s,
+            control_period_s=h,
+            burst_s=levels.size * h,
+            window_s=self.window_s,
+            seed=seed,
+            levels=levels,
+            expected_rel_stderr={k: v / amplitude for k, v in unit.rel_stderr.items()},
+            expected_fit_percent=fit,
+            added_flow_sd_Lpm=amplitude * math.sqrt(unit.added_variance),
+            iae_per_window=amplitude * unit.iae,
+            needed_V=dict(need),
+            bound=bound,
+        )
 
 
 def design_signal(
@@ -493,22 +504,16 @@ def design_signal(
     periods = int(burst_s // h)
     if periods < MIN_HOLDS_PER_BURST * HOLD_MULTIPLES[0]:
         raise FuelidError(f"a burst of {burst_s:g} s holds fewer than four control periods")
-    context = {"h": h, "burst_s": periods * h, "window_s": window_s}
+    experiment = _Experiment(model, pi, noise, goal, period_s, window_s, delay_free)
     best: SignalDesign | None = None
     for multiple in HOLD_MULTIPLES:
         if periods < MIN_HOLDS_PER_BURST * multiple:
             break
         for candidate_seed in range(seed, seed + SEEDS_PER_HOLD):
             levels = gbn_levels(periods, multiple, candidate_seed)
-            unit = unit_response(
-                model, pi, levels, noise, period_s=period_s, window_s=window_s,
-                delay_free=delay_free,
-            )  # fmt: skip
-            need = needed_amplitudes(unit, noise, goal)
-            candidate = _design(
-                "gbn", levels, multiple * h, candidate_seed, unit, need, amplitude_cap_V,
-                context, noise,
-            )  # fmt: skip
+            candidate = experiment.design(
+                "gbn", levels, multiple * h, candidate_seed, amplitude_cap_V
+            )
             if best is None or _cost(candidate) < _cost(best):
                 best = candidate
     assert best is not None  # the shortest hold is always tried
@@ -547,9 +552,5 @@ def prbs_design(
     h = pi.control_period
     periods = int(burst_s // h)
     levels = prbs_levels(periods, clock_periods)
-    unit = unit_response(
-        model, pi, levels, noise, period_s=period_s, window_s=window_s, delay_free=delay_free
-    )
-    need = needed_amplitudes(unit, noise, goal)
-    context = {"h": h, "burst_s": periods * h, "window_s": window_s}
-    return _design("prbs", levels, clock_periods * h, 0, unit, need, math.inf, context, noise)
+    experiment = _Experiment(model, pi, noise, goal, period_s, window_s, delay_free)
+    return experiment.design("prbs", levels, clock_periods * h, 0, math.inf)

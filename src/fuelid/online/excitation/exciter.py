@@ -148,6 +148,7 @@ class Exciter:
             )
         self.last_move: float | None = None
         self.last_bad: float | None = None  # plant time of the newest sample flagged bad
+        self._wait = DEFAULT_WAIT_S  # wait_s() as of the last look that read the store [s]
         self._setpoint: float | None = None
         self._mode: float | None = None
         self._flagged = 0
@@ -195,7 +196,7 @@ class Exciter:
         margin = self.margin()
         if not (math.isfinite(u) and low + margin < u < high - margin):
             return f"the command is within {margin:.3g} V of a drive limit"
-        if self.last_bad is not None and now - self.last_bad < self.wait_s():
+        if self.last_bad is not None and now - self.last_bad < self._wait:
             return f"a bad sample {now - self.last_bad:.0f} s ago"
         return None
 
@@ -229,7 +230,7 @@ class Exciter:
             return None
         if self.last_start is not None and now - self.last_start < self.context.settings.window_s:
             return None
-        if self.last_move is not None and now - self.last_move < self.wait_s():
+        if self.last_move is not None and now - self.last_move < self._wait:
             return None
         if mode == "always":
             return 'mode "always"'
@@ -302,6 +303,7 @@ class Exciter:
         if slow:  # what needs the store: at most every LOOK_EVERY_S
             self._next_look = time.monotonic() + LOOK_EVERY_S
             self._watch_writes()
+            self._wait = self.wait_s()  # reads the newest model: not at every poll
         request = self._take_request() if slow else None
         if self.burst is not None:
             await self._go_on(latest, now, request)
