@@ -149,6 +149,7 @@ class Exciter:
         self.last_move: float | None = None
         self.last_bad: float | None = None  # plant time of the newest sample flagged bad
         self._wait = DEFAULT_WAIT_S  # wait_s() as of the last look that read the store [s]
+        self._designed_on = ""  # what the newest design's model came from, for its event
         self._setpoint: float | None = None
         self._mode: float | None = None
         self._flagged = 0
@@ -452,7 +453,9 @@ class Exciter:
             self._publish()
             return why_not
         self.burst = Burst(design, now, reason, who)
-        self.context.event("excitation_start", f"{reason}; {describe(design)}")
+        self.context.event(
+            "excitation_start", f"{reason}; {describe(design)}; designed on {self._designed_on}"
+        )
         self._publish()
         return None
 
@@ -475,8 +478,10 @@ class Exciter:
         site = self.context.site
         latest = self.context.latest
         model = self._model()
+        self._designed_on = "the newest accepted window's model"
         if model is None and self._plant_model is not None:
             model = self._plant_model(latest.get("command", math.nan))
+            self._designed_on = "the plant file's model (no window accepted yet)"
         if model is None:
             raise FuelidError("no model to design it from (no accepted window, no plant file)")
         gains = self.context.current_gains()
