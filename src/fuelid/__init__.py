@@ -36,7 +36,7 @@ from __future__ import annotations
 
 from fuelid.errors import ConfigError, DataError, FuelidError, NotFittedError, OutOfRangeError
 
-__version__ = "0.2.0"
+__version__ = "0.3.0.dev0"
 """The one place the version is written: pyproject.toml reads it from here (setuptools' dynamic
 ``attr``), so no command pays for importlib.metadata at start-up."""
 
