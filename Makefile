@@ -99,12 +99,13 @@ test: lint typecheck pytest
 # The slow set runs in one process: the fault runs and the soak drive the virtual PLC at 20-50x
 # real time, and a second worker on a 2-core machine would starve their recorders. The soak
 # runs SLOW_SOAK_HOURS of plant time (3 h here: the CI budget, .ci/run; its bands are computed
-# for the hours run) with its own deadline; every other slow test gets 15 min. -rfEP: they print
+# for the hours run) with its own deadline; every other slow test gets 15 min; the 20 slowest are
+# printed, so the set's growth stays visible. -rfEP: they print
 # their measurements, and a failure's one-line reason comes last (CI shows the output's tail).
 SLOW_SOAK_HOURS ?= 3
 test-slow: $(STAMP) postgres
 	FUELID_SOAK_HOURS=$(SLOW_SOAK_HOURS) $(BIN)/python -m pytest -q -m slow -rfEP -p no:xdist \
-		--timeout=900
+		--timeout=900 --durations=20
 
 # The 24 h soak (tests/system/test_online_soak.py) on demand: about 30 min at 50x, prints its
 # table; SOAK_HOURS=… for another length (its bands are computed from the counts of the run).
