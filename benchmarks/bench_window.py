@@ -8,9 +8,10 @@ Both analysers run in this process on the same windows of the virtual PLC's engi
 (:class:`fuelid.plc.virtual.engine.VirtualPLC`, reference plant, 50 Hz, PI at 1 s), each
 warm-started from its own previous window as the service does (the first window of each run is
 the warm-up and is not timed): ``WindowAnalyser(fast=False)`` fits pem on every AUTO window
-with the numerics before issue 26 (:func:`fuelid.lti.reference_numerics`, the default search
-tolerances), ``fast=True`` skips pem when the noise screen says its noise pole would be nearly
-integrating (:mod:`fuelid.online.pem_screen`), with the faster numerics (exact ZOH coefficients
+with the numerics before issue 26 (:data:`fuelid.numerics_mode.REFERENCE_NUMERICS`, the
+default search tolerances), ``fast=True`` skips pem when the noise screen says its noise pole
+would be nearly integrating (:mod:`fuelid.online.pem_screen`), with the faster numerics
+(:data:`fuelid.numerics_mode.WINDOW_NUMERICS`: exact ZOH coefficients
 without scipy's conversions, FFT autocorrelations, statistical search tolerances, one SVD per
 stored fit, cached settling times; since the second pass: Levenberg–Marquardt searches with
 the lags' analytic sensitivities instead of scipy's trf with finite differences, the searches'
@@ -250,7 +251,7 @@ def report(mode: str, rows: list[dict[str, Any]], cores: int) -> None:
 
 
 PIECES = (
-    ("the whole window", "window.py", "_analyse"),
+    ("the whole window", "window.py", "analyse"),
     ("output-error fit (both orders)", "oe.py", "fit"),
     ("  its searches", "oe.py", "_fit_structure"),
     ("  its covariances, colour tests", "oe.py", "_store"),

@@ -26,10 +26,7 @@ import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid.errors import FuelidError
-
-# the switch's usual path is here (re-exported; its home is fuelid.numerics_mode)
-from fuelid.numerics_mode import reference_numerics as reference_numerics
-from fuelid.numerics_mode import reference_numerics_on as reference_numerics_on
+from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 
 FloatArray = NDArray[np.float64]
 
@@ -233,7 +230,9 @@ class DiscreteLagModel:
         return out
 
 
-def discretise(lags: Sequence[float], delay: float, h: float) -> DiscreteLagModel:
+def discretise(
+    lags: Sequence[float], delay: float, h: float, numerics: Numerics = DEFAULT_NUMERICS
+) -> DiscreteLagModel:
     """Exact ZOH discretisation of ``e^(−θs)/Π(T_i s + 1)`` at sample interval ``h``.
 
     Parameters
@@ -244,6 +243,9 @@ def discretise(lags: Sequence[float], delay: float, h: float) -> DiscreteLagMode
         Dead time θ [s], non-negative (fractional multiples of h are exact).
     h : float
         Sample interval [s].
+    numerics : Numerics
+        ``reference=True``: through scipy's ``cont2discrete`` and ``ss2tf``, as before issue 26
+        (:mod:`fuelid.numerics_mode`); the same coefficients to rounding, slower.
 
     Returns
     -------
@@ -259,7 +261,7 @@ def discretise(lags: Sequence[float], delay: float, h: float) -> DiscreteLagMode
     """
     A, B, C = lag_chain(lags)
     n = A.shape[0]
-    if reference_numerics_on():
+    if numerics.reference:
         return _discretise_reference(A, B, C, lags, delay, h)
     d = math.floor(delay / h + 1e-12)
     frac = max(delay - d * h, 0.0)
@@ -288,7 +290,7 @@ def discretise(lags: Sequence[float], delay: float, h: float) -> DiscreteLagMode
 def _discretise_reference(
     A: FloatArray, B: FloatArray, C: FloatArray, lags: Sequence[float], delay: float, h: float
 ) -> DiscreteLagModel:
-    """:func:`discretise` as before issue 26 (scipy's conversions; :func:`reference_numerics`)."""
+    """:func:`discretise` as before issue 26 (scipy's conversions; ``Numerics(reference=True)``)."""
     import scipy.signal
 
     n = A.shape[0]

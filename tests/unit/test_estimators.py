@@ -30,6 +30,7 @@ from fuelid.identify._base import Estimator
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel, nrmse_fit, simulate_model
+from fuelid.numerics_mode import DEFAULT_NUMERICS
 
 FloatArray = NDArray[np.float64]
 H = 0.05
@@ -142,6 +143,7 @@ def test_init_only_stores_settings_and_fit_checks_them():
         "max_delay": None,
         "covariance": "auto",
         "full_record": False,
+        "numerics": DEFAULT_NUMERICS,
     }
     with pytest.raises(FuelidError, match="order must be 1, 2 or 'auto'"):
         est.fit(_oe_record(2))

@@ -34,8 +34,8 @@ from fuelid.identify.variable_projection import (
     solve_linear,
 )
 from fuelid.io.timeseries import IOData
-from fuelid.lti import reference_numerics
 from fuelid.model import ProcessModel, _settling_time, simulate_model
+from fuelid.numerics_mode import REFERENCE_NUMERICS, WINDOW_NUMERICS
 
 H = 0.02
 U_REF = 3.0
@@ -165,14 +165,12 @@ def test_bread_through_qr_equals_the_svd():
     rng = np.random.default_rng(4)
     J = rng.normal(size=(3000, 5)) * np.array([1.0, 1e3, 1e-2, 5.0, 1.0])
     fast, none = bread(J)
-    with reference_numerics():
-        slow, none_slow = bread(J)
+    slow, none_slow = bread(J, REFERENCE_NUMERICS)
     assert none == none_slow == []
     assert np.allclose(fast, slow, rtol=1e-9, atol=0.0)
     J[:, 4] = 2.0 * J[:, 0] - J[:, 3]  # a combination: parameters 0, 3, 4 undetermined
     fast, unidentified = bread(J)
-    with reference_numerics():
-        slow, unidentified_slow = bread(J)
+    slow, unidentified_slow = bread(J, REFERENCE_NUMERICS)
     assert unidentified == unidentified_slow == [0, 3, 4]
     assert np.allclose(fast, slow, rtol=1e-9, atol=0.0, equal_nan=True)
 
@@ -182,8 +180,7 @@ def test_sandwich_as_a_gram_matrix_equals_the_product_and_stays_non_negative():
     noise = ResidualAR(a=np.array([1.0, -0.9]), sigma_e=0.3, bic={})
     J = rng.normal(size=(5000, 4))
     fast, _ = sandwich_covariance(J, noise)
-    with reference_numerics():
-        slow, _ = sandwich_covariance(J, noise)
+    slow, _ = sandwich_covariance(J, noise, numerics=REFERENCE_NUMERICS)
     assert np.allclose(fast, slow, rtol=1e-10, atol=0.0)
     # two columns 1e-7 apart (two lags that nearly coincide): variances of ~1e14 relative to
     # the others, which the product form can round below zero; a Gram matrix cannot
@@ -196,8 +193,7 @@ def test_autocovariance_by_dot_products_equals_the_fft():
     v = np.random.default_rng(5).normal(size=10_000)
     spans = [(0, 3000), (3000, 10_000)]
     fast = _autocovariance(v, spans, 20)
-    with reference_numerics():
-        slow = _autocovariance(v, spans, 20)
+    slow = _autocovariance(v, spans, 20, REFERENCE_NUMERICS)
     assert np.allclose(fast, slow, rtol=0.0, atol=1e-12 * float(slow[0]))
 
 
@@ -227,7 +223,6 @@ def test_window_search_reaches_the_reference_optimum(warm: bool):
     every estimate within 0.05 of its standard error (the tolerances leave 0.02).
     """
     from fuelid.identify import OutputError
-    from fuelid.identify.variable_projection import statistical_tolerances
 
     u = np.repeat([3.0, 3.3, 2.9, 3.25, 3.0, 2.8, 3.1, 2.95], 600)
     truth = ProcessModel(K=12.0, T=1.2, T2=0.25, T_f=0.3, delay=0.2)
@@ -237,8 +232,7 @@ def test_window_search_reaches_the_reference_optimum(warm: bool):
     init = ProcessModel(K=11.0, T=1.0, T2=0.3, T_f=0.3, delay=0.2) if warm else None
     settings = {"order": "auto", "T_f": 0.3, "delay": 0.2}
     reference = OutputError(**settings).fit(data, init=init)
-    with statistical_tolerances():
-        fast = OutputError(**settings).fit(data, init=init)
+    fast = OutputError(**settings, numerics=WINDOW_NUMERICS).fit(data, init=init)
     assert fast.order_choice_.chosen == reference.order_choice_.chosen
     for name in ("K", "T", "T2"):
         se = reference.stderr_[name]

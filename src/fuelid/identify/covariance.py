@@ -39,7 +39,7 @@ import numpy as np
 import scipy.signal
 
 from fuelid.io.timeseries import FloatArray
-from fuelid.lti import reference_numerics_on
+from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 
 MAX_AR_ORDER = 20
 """Highest order of the residuals' autoregressive model [samples]."""
@@ -86,8 +86,16 @@ class ResidualAR:
         }
 
 
-def _autocovariance(v: FloatArray, bounds: Sequence[tuple[int, int]], max_lag: int) -> FloatArray:
-    """Biased autocovariance r(0…max_lag) of v, each lag summed within segments only."""
+def _autocovariance(
+    v: FloatArray,
+    bounds: Sequence[tuple[int, int]],
+    max_lag: int,
+    numerics: Numerics = DEFAULT_NUMERICS,
+) -> FloatArray:
+    """Biased autocovariance r(0…max_lag) of v, each lag summed within segments only.
+
+    A dot product per lag; by FFT with ``numerics.reference`` (as before issue 26).
+    """
     n = sum(b - a for a, b in bounds)
     r = np.zeros(max_lag + 1)
     for a, b in bounds:
@@ -95,7 +103,7 @@ def _autocovariance(v: FloatArray, bounds: Sequence[tuple[int, int]], max_lag: i
         m = x.size
         if m == 0:
             continue
-        if not reference_numerics_on():
+        if not numerics.reference:
             # a dot product per lag: twenty of them cost a twentieth of the FFT of a
             # 30,000-sample window padded to 65,536 (0.1 ms against 2 ms; the same sums to
             # rounding)
@@ -114,11 +122,13 @@ def residual_ar(
     residuals: FloatArray,
     bounds: Sequence[tuple[int, int]] | None = None,
     max_order: int = MAX_AR_ORDER,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> ResidualAR:
     """The autoregressive model of the residuals, its order chosen by BIC (Levinson–Durbin).
 
     BIC (n·ln σ_p² + p·ln n) rather than AIC: with tens of thousands of samples AIC keeps adding
-    coefficients that describe nothing but this record.
+    coefficients that describe nothing but this record. ``numerics``: how the autocovariance is
+    summed (:mod:`fuelid.numerics_mode`).
 
     Examples
     --------
@@ -134,7 +144,7 @@ def residual_ar(
     spans = list(bounds) if bounds else [(0, v.size)]
     n = sum(b - a for a, b in spans)
     max_order = max(0, min(max_order, n // 10))
-    r = _autocovariance(v, spans, max_order)
+    r = _autocovariance(v, spans, max_order, numerics)
     a = np.array([1.0])
     error = float(r[0])
     best = (a.copy(), error)
@@ -212,15 +222,16 @@ def least_squares(Phi: FloatArray, y: FloatArray) -> FloatArray:
     return np.asarray(beta / scale, dtype=float)
 
 
-def bread(J: FloatArray) -> tuple[FloatArray, list[int]]:
+def bread(J: FloatArray, numerics: Numerics = DEFAULT_NUMERICS) -> tuple[FloatArray, list[int]]:
     """(JᵀJ)⁻¹ through the SVD of the column-scaled J, and the parameters it cannot give.
 
     Directions whose singular value is below :data:`SINGULAR_INFORMATION` of the largest are
     not inverted; every parameter with weight in them gets a NaN row and column and is listed.
+    The SVD is of R of J = QR; of J itself with ``numerics.reference`` (as before issue 26).
     """
     scale = column_norms(J)
     scale[scale == 0.0] = 1.0
-    if not reference_numerics_on() and J.shape[0] > J.shape[1]:
+    if not numerics.reference and J.shape[0] > J.shape[1]:
         # the SVD of R of J = QR: the same singular values and right vectors, without forming
         # the tall left ones (0.6 ms against 2–5 ms for a 30,000 × 6 Jacobian)
         scaled = _r_factor(J, scale)
@@ -238,9 +249,11 @@ def bread(J: FloatArray) -> tuple[FloatArray, list[int]]:
     return np.asarray(inverse, dtype=float), unidentified
 
 
-def white_covariance(J: FloatArray, sigma: float) -> tuple[FloatArray, list[int]]:
-    """σ²·(JᵀJ)⁻¹: the covariance when the residuals are white."""
-    inverse, unidentified = bread(J)
+def white_covariance(
+    J: FloatArray, sigma: float, numerics: Numerics = DEFAULT_NUMERICS
+) -> tuple[FloatArray, list[int]]:
+    """σ²·(JᵀJ)⁻¹: the covariance when the residuals are white (:func:`bread`'s ``numerics``)."""
+    inverse, unidentified = bread(J, numerics)
     return sigma**2 * inverse, unidentified
 
 
@@ -260,11 +273,14 @@ def sandwich_covariance(
     bread_of_J: tuple[FloatArray, list[int]] | None = None,
     *,
     overwrite: bool = False,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> tuple[FloatArray, list[int]]:
     """(JᵀJ)⁻¹·σ_e²(ΨᵀJ)ᵀ(ΨᵀJ)·(JᵀJ)⁻¹: the covariance under the residuals' AR noise ``noise``.
 
     ``overwrite=True`` filters J in place (ΨᵀJ replaces it) instead of into a copy: the
-    caller's J is spent, and a day's N × k copy (240 MB) is not made.
+    caller's J is spent, and a day's N × k copy (240 MB) is not made. The product is formed as
+    a Gram matrix; as (JᵀJ)⁻¹·M·(JᵀJ)⁻¹ with ``numerics.reference`` (as before issue 26), whose
+    :func:`bread` ``numerics`` also sets when ``bread_of_J`` is not given.
 
     Examples
     --------
@@ -276,7 +292,7 @@ def sandwich_covariance(
     100.0
     """
     # ``bread_of_J``: bread(J) when the caller has it already (the same SVD, not done twice)
-    inverse, unidentified = bread(J) if bread_of_J is None else bread_of_J
+    inverse, unidentified = bread(J, numerics) if bread_of_J is None else bread_of_J
     spans = list(bounds) if bounds else [(0, J.shape[0])]
     filtered = J if overwrite else np.zeros_like(J)
     for a, b in spans:
@@ -291,7 +307,7 @@ def sandwich_covariance(
             filtered[stop:b, c] = 0.0
             filtered[a:stop, c] = scipy.signal.lfilter([1.0], noise.a, J[a:stop, c][::-1])[::-1]
     clean = np.nan_to_num(inverse)
-    if reference_numerics_on():
+    if numerics.reference:
         middle = noise.sigma_e**2 * (filtered.T @ filtered)
         cov = clean @ middle @ clean
     else:

@@ -25,7 +25,7 @@ import scipy.special
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid.blas import single_threaded_blas
-from fuelid.lti import reference_numerics_on
+from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 
 FloatArray = NDArray[np.float64]
 
@@ -71,16 +71,24 @@ FFT_LAGS = 64
 
 
 def _normalised_xcorr(
-    a: FloatArray, b: FloatArray, lags: FloatArray, segment_starts: Sequence[int] = ()
+    a: FloatArray,
+    b: FloatArray,
+    lags: FloatArray,
+    segment_starts: Sequence[int] = (),
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> FloatArray:
-    """r_ab(τ) = Σ_k a[k+τ]·b[k] / (N·σ_a·σ_b) for integer lags τ, k and k+τ in one segment."""
+    """r_ab(τ) = Σ_k a[k+τ]·b[k] / (N·σ_a·σ_b) for integer lags τ, k and k+τ in one segment.
+
+    An autocorrelation over more than :data:`FFT_LAGS` lags by FFT, anything else (and every
+    one with ``numerics.reference``, as before issue 26) by a dot product per lag.
+    """
     a_is_b = a is b
     a = a - a.mean()
     b = b - b.mean()
     n = a.size
     denom = n * a.std() * b.std()
     out = np.zeros(lags.size)
-    if a_is_b and lags.size > FFT_LAGS and not reference_numerics_on():
+    if a_is_b and lags.size > FFT_LAGS and not numerics.reference:
         # one FFT per segment instead of a dot product per lag: the residual-correlation gate
         # asks for ~1000 lags of 30,000 samples (0.02 s by dot products, 2 ms by FFT; the same
         # sums to rounding)
@@ -109,9 +117,15 @@ def _normalised_xcorr(
 
 
 def residual_whiteness(
-    residuals: ArrayLike, max_lag: int = 25, segment_starts: Sequence[int] = ()
+    residuals: ArrayLike,
+    max_lag: int = 25,
+    segment_starts: Sequence[int] = (),
+    *,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> CorrelationTest:
     """Autocorrelation of the residuals at lags 1…max_lag (within segments, see above).
+
+    ``numerics``: how a long one is summed (:func:`_normalised_xcorr`); the same to rounding.
 
     Examples
     --------
@@ -121,7 +135,7 @@ def residual_whiteness(
     """
     e = np.asarray(residuals, dtype=float)
     lags = np.arange(1, max_lag + 1, dtype=float)
-    r = _normalised_xcorr(e, e, lags, segment_starts)
+    r = _normalised_xcorr(e, e, lags, segment_starts, numerics)
     n = e.size
     stat = float(n * np.sum(r**2))
     return CorrelationTest(lags, r, 1.96 / math.sqrt(n), stat, _chi2_sf(stat, lags.size))

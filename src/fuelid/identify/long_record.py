@@ -85,6 +85,7 @@ from fuelid.identify.variable_projection import (
 )
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
+from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 
 FloatArray = NDArray[np.float64]
 
@@ -183,7 +184,14 @@ def search_copy(data: IOData, samples: int | None = None, stretches: int | None 
 
 
 def whole_record_fit(
-    st: Structure, K: float, T: float, T2: float, delay: float, data: IOData, u_ref: float
+    st: Structure,
+    K: float,
+    T: float,
+    T2: float,
+    delay: float,
+    data: IOData,
+    u_ref: float,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> tuple[FloatArray, FloatArray]:
     """(β, ŷ) of a model fitted on the copy over the whole record ``data``.
 
@@ -192,7 +200,9 @@ def whole_record_fit(
     (``initial="fitted"``) of the whole record, from which its fit % is scored and a held-out
     part continued. β is laid out as the whole record's own fit's (K first).
     """
-    Phi = regressors(st, T, T2, delay, data.u, data.sample_time, u_ref, data.segment_bounds())
+    Phi = regressors(
+        st, T, T2, delay, data.u, data.sample_time, u_ref, data.segment_bounds(), numerics=numerics
+    )
     rest = solve_linear(Phi[:, 1:], data.y - K * Phi[:, 0])
     return np.r_[K, rest.beta], data.y - rest.residual
 
@@ -217,6 +227,8 @@ def polish(
     z0: FloatArray,
     bounds: tuple[FloatArray, FloatArray],
     u_ref: float,
+    *,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> Polished:
     """Gauss–Newton on the whole record from ``z0`` until its step is negligible.
 
@@ -227,12 +239,12 @@ def polish(
     percent, which slows each step's contraction by as much, and forming it costs as much as
     the gradient). A step that does not lower Σε² is halved (up to four times);
     ``converged`` is False when the tolerance was not met within :data:`MAX_POLISH_STEPS`
-    steps or no halving helped.
+    steps or no halving helped. ``numerics``: how the model is discretised.
     """
     lo, hi = bounds
     z = np.clip(np.asarray(z0, dtype=float), lo, hi)
     fit = evaluate(z)
-    sens: FloatArray | None = _sensitivities(data, st, z, fit.beta, u_ref)
+    sens: FloatArray | None = _sensitivities(data, st, z, fit.beta, u_ref, numerics)
     assert sens is not None
     hessian = _projected_gram(fit.Phi, sens)
     try:
@@ -243,7 +255,7 @@ def polish(
     se = np.sqrt(np.maximum(variance, 1e-300))
     for steps in range(MAX_POLISH_STEPS + 1):
         if sens is None:  # at the point the last step reached
-            sens = _sensitivities(data, st, z, fit.beta, u_ref)
+            sens = _sensitivities(data, st, z, fit.beta, u_ref, numerics)
         # ∇(½Σε²) = −(∂Φβ/∂z)ᵀε at fixed β: exact, as ε ⊥ Φ
         step = -np.linalg.solve(hessian, -(sens.T @ fit.residual))
         if np.all(np.abs(step) <= POLISH_TOLERANCE * se):
@@ -292,7 +304,12 @@ def _per_parameter(sens: FloatArray, z: FloatArray, st: Structure) -> FloatArray
 
 
 def _sensitivities(
-    data: IOData, st: Structure, z: FloatArray, beta: FloatArray, u_ref: float
+    data: IOData,
+    st: Structure,
+    z: FloatArray,
+    beta: FloatArray,
+    u_ref: float,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> FloatArray:
     """∂(Φβ)/∂z at fixed β by central differences of the simulated output (N × len(z)).
 
@@ -325,7 +342,8 @@ def _sensitivities(
             trial = z.copy()
             trial[i] += sign * dz
             T, T2, delay = st.unpack(trial)
-            models.append((sign, discretise([tc for tc in (T, T2, st.T_f) if tc > 0.0], delay, h)))
+            lags = [tc for tc in (T, T2, st.T_f) if tc > 0.0]
+            models.append((sign, discretise(lags, delay, h, numerics)))
         col = 2
         for j, (a, b) in enumerate(bounds):
             m = n_modes(st, n_lags, j)

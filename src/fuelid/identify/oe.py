@@ -28,14 +28,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import TYPE_CHECKING, Literal, Self
+from typing import Literal, Self
 
 import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError, NotExcitingError
-from fuelid.identify._base import Estimator, Initial
+from fuelid.identify._base import Initial
+from fuelid.identify._process_estimator import ProcessModelEstimator
 from fuelid.identify.covariance import (
     ResidualAR,
     bread,
@@ -57,7 +58,7 @@ from fuelid.identify.long_record import (
 from fuelid.identify.order import Candidate, OrderChoice, bic, choose_order
 from fuelid.identify.progress import StageCallback, StepCounter
 from fuelid.identify.search import StepCallback, evaluate_structure, search_structure
-from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, offset_and_free_responses
+from fuelid.identify.segments import MIN_SEGMENT_SAMPLES
 from fuelid.identify.variable_projection import (
     GRID_SAMPLES,
     Bounds,
@@ -69,15 +70,11 @@ from fuelid.identify.variable_projection import (
     n_modes,
     regressors,
     solve_linear,
-    statistical_tolerances,
     subsample,
 )
 from fuelid.io.timeseries import IOData
-from fuelid.lti import discretise
 from fuelid.model import MODEL_KEYS, ProcessModel, nrmse_fit
-
-if TYPE_CHECKING:
-    import control
+from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 
 FloatArray = NDArray[np.float64]
 Order = Literal[1, 2, "auto"]
@@ -91,7 +88,7 @@ MIN_SETTLED_SAMPLES = 500
 WHITENESS_LAGS = 25
 
 
-class OutputError(Estimator):
+class OutputError(ProcessModelEstimator):
     """Output-error estimator of K·e^(−θs)/((T s+1)(T2 s+1)(T_f s+1)).
 
     Parameters
@@ -120,6 +117,13 @@ class OutputError(Estimator):
         misfit after command changes, a function of the input that is the same in every noise
         realisation, so the estimate does not scatter by it), the white covariance with the
         residual standard deviation there (``residual_colour_``).
+    full_record : bool
+        A long record (:mod:`fuelid.identify.long_record`): False fits a copy of spread-out
+        stretches, True searches on the copy and polishes on every sample.
+    numerics : Numerics
+        How the fit computes (:mod:`fuelid.numerics_mode`): the search's tolerances and
+        Jacobians, and the path before issue 26. The default is ``fuelid identify``'s; the
+        online windows pass :data:`~fuelid.numerics_mode.WINDOW_NUMERICS`.
 
     Attributes
     ----------
@@ -201,6 +205,7 @@ class OutputError(Estimator):
         "max_delay",
         "covariance",
         "full_record",
+        "numerics",
     )
 
     K_: float
@@ -248,6 +253,7 @@ class OutputError(Estimator):
         max_delay: float | None = None,
         covariance: Literal["auto", "white", "hac"] = "auto",
         full_record: bool = False,
+        numerics: Numerics = DEFAULT_NUMERICS,
     ) -> None:
         self.order = order
         self.delay = delay
@@ -257,6 +263,7 @@ class OutputError(Estimator):
         self.max_delay = max_delay
         self.covariance = covariance
         self.full_record = full_record
+        self.numerics = numerics
 
     # ------------------------------------------------------------------ public API
     def fit(
@@ -299,9 +306,11 @@ class OutputError(Estimator):
                 if is_long(data) and not self.full_record:
                     candidates = self._fit_copy(data, orders, init, progress)
                 elif is_long(data) and len(orders) > 1:
-                    candidates = self._fit_orders_lazily(data, orders, init, progress)
+                    candidates = self._fit_orders_lazily(
+                        data, orders, init, progress, self.numerics
+                    )
                 else:
-                    candidates = self._fit_orders(data, orders, init, progress)
+                    candidates = self._fit_orders(data, orders, init, progress, self.numerics)
                 self.order_choice_.misfit = self.residual_colour_ == "model"
                 self.bic_ = {c.order: c.bic for c in candidates}
             vars(self).pop("_sensitivities", None)
@@ -313,12 +322,14 @@ class OutputError(Estimator):
         orders: tuple[int, ...],
         init: ProcessModel | None,
         progress: StageCallback | None,
+        numerics: Numerics,
     ) -> list[Candidate]:
         """Every order searched and stored in turn, then the rule's choice put back.
 
         Each order's covariance is computed (the order rule needs them); what ``_store`` set
         is kept, so the chosen order's state is put back, not recomputed (its covariance,
-        colour test and Jacobian again).
+        colour test and Jacobian again). ``numerics``: the search's and the stored fit's
+        (``self.numerics``, or their statistical form on a long record's copy).
         """
         steps = StepCounter(progress, len(orders) * (3 if is_long(data) else 2))
         n = data.n_samples
@@ -327,10 +338,10 @@ class OutputError(Estimator):
         for order in orders:
             st = self._structure(order)
             steps.label = f"order {order}: "
-            z, ev = self._fit_structure(data, st, init, steps)
+            z, ev = self._fit_structure(data, st, init, numerics, steps)
             self.aic_[order] = _aic(ev, z, n)
             steps("standard errors")
-            self._store(data, st, z, ev)
+            self._store(data, st, z, ev, numerics)
             stored[order] = dict(vars(self))
             criterion = bic(ev.sse, n, ev.beta.size + z.size)
             candidates.append(Candidate.of_fit(self, order, criterion))
@@ -353,6 +364,7 @@ class OutputError(Estimator):
         orders: tuple[int, ...],
         init: ProcessModel | None,
         progress: StageCallback | None,
+        numerics: Numerics,
     ) -> list[Candidate]:
         """A long record's orders searched, then stored only as far as the order rule needs.
 
@@ -372,7 +384,7 @@ class OutputError(Estimator):
         for order in orders:
             st = self._structure(order)
             steps.label = f"order {order}: "
-            z, last = self._fit_structure(data, st, init, steps)
+            z, last = self._fit_structure(data, st, init, numerics, steps)
             self.aic_[order] = _aic(last, z, n)
             criterion = bic(last.sse, n, last.beta.size + z.size)
             found[order] = (st, z, last.beta.copy())
@@ -393,8 +405,8 @@ class OutputError(Estimator):
                 # the other order's regressors go before these are formed
                 last = None
                 vars(self)["_sensitivities"].pop(orders[-1], None)
-                last = evaluate_structure(data, st, z)
-            self._store(data, st, z, last)
+                last = evaluate_structure(data, st, z, numerics)
+            self._store(data, st, z, last, numerics)
             last = None
             candidates[need] = Candidate.of_fit(self, need, candidates[need].bic)
             self.order_choice_ = choose_order(
@@ -429,8 +441,8 @@ class OutputError(Estimator):
             # stopping within a few hundredths of a standard error): twice as fast as the
             # reference search on the copy, and what they leave moves no estimate by more than
             # a small fraction of the copy's standard error
-            with statistical_tolerances():
-                candidates = self._fit_orders(copy, orders, init, progress)
+            statistical = self.numerics.statistical()
+            candidates = self._fit_orders(copy, orders, init, progress, statistical)
             whole_fits = vars(self)["_whole_fits"]
         finally:
             for name in ("_on_copy", "_whole_record", "_whole_fits"):
@@ -444,7 +456,7 @@ class OutputError(Estimator):
             # the whole record's own segments: after a real gap, its initial condition setting
             st = replace(st, later=self.initial)
             beta, self.y_hat_ = whole_record_fit(
-                st, self.K_, self.T_, self.T2_, self.delay_, data, self.u_ref_
+                st, self.K_, self.T_, self.T2_, self.delay_, data, self.u_ref_, self.numerics
             )
         del whole_fits
         self._state = (st, beta)
@@ -470,78 +482,12 @@ class OutputError(Estimator):
         whole: IOData = vars(self)["_whole_record"]
         st = replace(st, later=self.initial)
         beta, y_hat = whole_record_fit(
-            st, self.K_, self.T_, self.T2_, self.delay_, whole, self.u_ref_
+            st, self.K_, self.T_, self.T2_, self.delay_, whole, self.u_ref_, self.numerics
         )
         vars(self)["_whole_fits"][st.order] = (st, beta, y_hat)
         judged = self._colour_source(whole, whole.y - y_hat)
         self.whole_record_settled_ = self.settled_whiteness_
         return judged
-
-    @property
-    def model_(self) -> ProcessModel:
-        """The fitted model (K in output unit per input unit, times in s)."""
-        return ProcessModel(K=self.K_, T=self.T_, T2=self.T2_, T_f=self.T_f_, delay=self.delay_)
-
-    def simulate(self, data: IOData, initial: Initial = "fitted") -> FloatArray:
-        """Free-run output of the fitted model for the input ``data.u`` [output unit].
-
-        Parameters
-        ----------
-        data : IOData
-            The record; any sample time (the model is continuous-time). ``data.y`` is used only
-            by ``initial="estimate"``.
-        initial : "fitted", "rest" or "estimate"
-            The state at the record's first sample:
-
-            - ``"fitted"`` (default): the initial state, offset and reference input estimated by
-              ``fit``. Valid only on the fitting record or on one that continues it (the whole
-              log after fitting its first part: the held-out rest is then scored honestly, as
-              ``fuelid identify --validate-split`` does); anything else is refused. This is
-              what ``fit_percent_`` scores.
-            - ``"rest"``: at rest at u[0] before the record, the output at the fitted offset
-              ``offset_ + K_·(u[0] − u_ref_)``. What a separate validation record is scored
-              with (``--validate-file``).
-            - ``"estimate"``: the offset and the free-response amplitudes of every lag
-              (c_i·e^(−k·h/T_i)) re-estimated by least squares on ``data``; for held-out
-              records that do not start at rest.
-
-        Returns
-        -------
-        ndarray
-            ŷ, one value per sample.
-        """
-        self._check_simulation(data, initial)
-        u, h = data.u, data.sample_time
-        bounds = data.segment_bounds()
-        if initial == "fitted":
-            return self._continue_fitted(data)
-        discrete = discretise(self.model_.time_constants, self.delay_, h)
-        # every segment from rest at its own first command: nothing runs across a gap
-        response = np.empty(u.size)
-        for a, b in bounds:
-            response[a:b] = self.K_ * discrete.response(u[a:b] - float(u[a]))
-            if initial == "rest":
-                response[a:b] += self.offset_ + self.K_ * (float(u[a]) - self.u_ref_)
-            elif a:  # a later segment's level relative to the first: one offset for all
-                response[a:b] += self.K_ * (float(u[a]) - float(u[0]))
-        if initial == "rest":
-            return response
-        # one offset for the record, one free response per segment
-        basis = offset_and_free_responses(discrete, bounds)
-        free = solve_linear(basis, data.y - response).beta
-        return np.asarray(response + basis @ free, dtype=float)
-
-    def _continue_fitted(self, data: IOData) -> FloatArray:
-        """``simulate(data, "fitted")``: the fitted states, and new ones after later gaps.
-
-        The segments of the fitting record (the last one continued to its end in ``data``) use
-        the offset and initial states the fit estimated. A segment that begins after the
-        fitting record (a gap in a held-out part) has no fitted state: it starts from rest at
-        its first command, plus a free response estimated by least squares on its own samples
-        (``initial="estimate"`` of the fit's settings; none for "rest"), the offset kept.
-        """
-        st, beta = self._state
-        return continue_fitted(st, beta, self.model_, self.u_ref_, self.n_samples_, data)
 
     def predict(self, data: IOData, horizon: int = 1, initial: Initial = "rest") -> FloatArray:
         """k-step-ahead prediction ŷ(t | t − k) of the output, k = ``horizon`` [output unit].
@@ -556,15 +502,8 @@ class OutputError(Estimator):
         self._check_horizon(horizon)
         return self.simulate(data, initial)
 
-    def to_control(self) -> control.TransferFunction:
-        """Delay-free part as a :class:`control.TransferFunction` (dead time in ``delay_``)."""
-        return self.model_.to_control()
-
-    @property
-    def correlation_(self) -> FloatArray:
-        """Correlation matrix of the estimated parameters (order of ``param_names_``)."""
-        sd = np.sqrt(np.diag(self.cov_))
-        return np.asarray(self.cov_ / np.outer(sd, sd), dtype=float)
+    def _fitted_regression(self) -> tuple[Structure, FloatArray]:
+        return self._state
 
     # ------------------------------------------------------------------ internals
     def _structure(self, order: int) -> Structure:
@@ -591,7 +530,7 @@ class OutputError(Estimator):
             settled samples), with None.
         """
         try:
-            settle = self.model_.settling_time()
+            settle = self.model_.settling_time(numerics=self.numerics)
         except (FuelidError, ValueError, ArithmeticError):
             return "unknown", None
         gain = abs(self.K_)
@@ -606,7 +545,7 @@ class OutputError(Estimator):
         parts, starts, removed = settled_residuals(residual, stretches, detrend=True)
         if parts.size < MIN_SETTLED_SAMPLES:
             return "unknown", None
-        test = residual_whiteness(parts, WHITENESS_LAGS, starts)
+        test = residual_whiteness(parts, WHITENESS_LAGS, starts, numerics=self.numerics)
         self.settled_whiteness_ = test
         if not test.passed:
             return "noise", None
@@ -656,18 +595,21 @@ class OutputError(Estimator):
         data: IOData,
         st: Structure,
         init: ProcessModel | None,
+        numerics: Numerics,
         step: StepCallback | None = None,
     ) -> tuple[FloatArray, LinearFit]:
         if step is not None and not is_long(data):
             step("search")
-        found = search_structure(data, st, init, self._delay_bound(data), step)
+        found = search_structure(data, st, init, self._delay_bound(data), step, numerics=numerics)
         if found.sensitivities is not None:  # the search's last, for the stored fit's Jacobian
             vars(self).setdefault("_sensitivities", {})[st.order] = found.sensitivities
         if found.long_record is not None:
             vars(self).setdefault("long_record_", {})[st.order] = found.long_record
         return found.z, found.fit
 
-    def _store(self, data: IOData, st: Structure, z: FloatArray, ev: LinearFit) -> None:
+    def _store(
+        self, data: IOData, st: Structure, z: FloatArray, ev: LinearFit, numerics: Numerics
+    ) -> None:
         T, T2, delay = st.unpack(z)
         h = data.sample_time
         u_ref = st.u_before if st.u_before is not None else float(data.u[0])
@@ -695,7 +637,9 @@ class OutputError(Estimator):
         known = vars(self).get("_sensitivities", {}).get(st.order)
         # the search's sensitivities at this very fit (its last Jacobian), not computed again
         sens = known[1] if known is not None and known[0] is ev else None
-        names, J = jacobian(st, values, ev.beta, data.u, h, u_ref, ev.Phi, bounds, sens)
+        names, J = jacobian(
+            st, values, ev.beta, data.u, h, u_ref, ev.Phi, bounds, sens, numerics=numerics
+        )
         # spent: J holds their columns now (a day's regressors and sensitivities are 140 and
         # 100 MB, not to be kept beside J's 240 through the covariances)
         vars(self).get("_sensitivities", {}).pop(st.order, None)
@@ -712,10 +656,12 @@ class OutputError(Estimator):
         # every noise realisation, so the estimate does not scatter by it, and the sandwich
         # would count its slow colour as noise (2-40 times too wide, median 7, on the soak)
         # one SVD of J for every covariance below (white, sandwich, white at the settled level)
-        inverse = bread(J)
+        inverse = bread(J, numerics)
         self.cov_white_, singular = self.sigma_**2 * inverse[0], inverse[1]
-        self.residual_ar_ = residual_ar(ev.residual, bounds)
-        coloured = not residual_whiteness(ev.residual, segment_starts=data.segment_starts).passed
+        self.residual_ar_ = residual_ar(ev.residual, bounds, numerics=numerics)
+        coloured = not residual_whiteness(
+            ev.residual, segment_starts=data.segment_starts, numerics=numerics
+        ).passed
         self.residual_colour_, self.settled_whiteness_ = None, None
         self.whole_record_settled_ = None
         noise_sigma: float | None = None
@@ -729,7 +675,7 @@ class OutputError(Estimator):
         if use_sandwich and self.residual_ar_.order > 0:
             # J is not needed after: filtered in place (a day's J is 240 MB)
             self.cov_, singular = sandwich_covariance(
-                J, self.residual_ar_, bounds, inverse, overwrite=True
+                J, self.residual_ar_, bounds, inverse, overwrite=True, numerics=numerics
             )
             self.covariance_ = "hac"
         elif noise_sigma is not None:

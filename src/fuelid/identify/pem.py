@@ -61,14 +61,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any, Literal, Self
+from typing import Any, Literal, Self
 
 import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
-from fuelid.identify._base import Estimator, Initial
+from fuelid.identify._base import Initial
+from fuelid.identify._process_estimator import ProcessModelEstimator
 from fuelid.identify.covariance import white_covariance
 from fuelid.identify.noise import (
     MAX_NOISE_DEGREE,
@@ -93,27 +94,22 @@ from fuelid.identify.prediction_errors import (
     predicted_noise,
     prediction_error_jacobian,
 )
-from fuelid.identify.segments import offset_and_free_responses
 from fuelid.identify.variable_projection import (
     Structure,
-    continue_fitted,
     jacobian,
     solve_linear,
     start_from_model,
 )
 from fuelid.io.timeseries import IOData
-from fuelid.lti import discretise
 from fuelid.model import MODEL_KEYS, ProcessModel, nrmse_fit
-
-if TYPE_CHECKING:
-    import control
+from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 
 FloatArray = NDArray[np.float64]
 Bounds = list[tuple[int, int]]
 Order = Literal[1, 2, "auto"]
 
 
-class PredictionError(Estimator):
+class PredictionError(ProcessModelEstimator):
     """Prediction-error (Box–Jenkins) estimator of K·e^(−θs)/((T s+1)(T2 s+1)(T_f s+1)).
 
     The process part and its settings are those of :class:`~fuelid.identify.oe.OutputError`;
@@ -140,6 +136,9 @@ class PredictionError(Estimator):
         ``noise_criterion``; (0, 0) is the output-error fit.
     noise_criterion : "bic" or "aic"
         Information criterion of the noise-order choice (BIC by default: module docstring).
+    numerics : Numerics
+        How the fit computes (:mod:`fuelid.numerics_mode`), as for OutputError; the joint
+        search is scipy's ``trf`` at its tolerances whatever its Jacobians.
 
     Attributes
     ----------
@@ -215,6 +214,7 @@ class PredictionError(Estimator):
         "max_delay",
         "noise_order",
         "noise_criterion",
+        "numerics",
     )
 
     K_: float
@@ -257,6 +257,7 @@ class PredictionError(Estimator):
         max_delay: float | None = None,
         noise_order: Literal["auto"] | NoiseOrder = "auto",
         noise_criterion: Literal["bic", "aic"] = "bic",
+        numerics: Numerics = DEFAULT_NUMERICS,
     ) -> None:
         self.order = order
         self.delay = delay
@@ -266,6 +267,7 @@ class PredictionError(Estimator):
         self.max_delay = max_delay
         self.noise_order = noise_order
         self.noise_criterion = noise_criterion
+        self.numerics = numerics
 
     # ------------------------------------------------------------------ public API
     def fit(
@@ -335,40 +337,6 @@ class PredictionError(Estimator):
                 self.bic_ = {c.order: c.bic for c in candidates}
         return self
 
-    @property
-    def model_(self) -> ProcessModel:
-        """The fitted process model (K in output unit per input unit, times in s)."""
-        return ProcessModel(K=self.K_, T=self.T_, T2=self.T2_, T_f=self.T_f_, delay=self.delay_)
-
-    def simulate(self, data: IOData, initial: Initial = "fitted") -> FloatArray:
-        """Free-run output of the process model for ``data.u`` [output unit].
-
-        The noise model plays no part: this is G·u plus the offset and initial state, with
-        ``initial`` exactly as for :meth:`OutputError.simulate` ("fitted": the offset and
-        initial states estimated by ``fit``, on the fitting record or one continuing it;
-        "rest": at rest at u[0] with the fitted offset; "estimate": offset and initial states
-        re-estimated by least squares on ``data``).
-        """
-        self._check_simulation(data, initial)
-        u, h = data.u, data.sample_time
-        bounds = data.segment_bounds()
-        if initial == "fitted":
-            return self._continue_fitted(data)
-        discrete = discretise(self.model_.time_constants, self.delay_, h)
-        response = np.empty(u.size)
-        for a, b in bounds:
-            response[a:b] = self.K_ * discrete.response(u[a:b] - float(u[a]))
-            if initial == "rest":
-                response[a:b] += self.offset_ + self.K_ * (float(u[a]) - self.u_ref_)
-            elif a:
-                response[a:b] += self.K_ * (float(u[a]) - float(u[0]))
-        if initial == "rest":
-            return response
-        basis = offset_and_free_responses(discrete, bounds)
-        return np.asarray(
-            response + basis @ solve_linear(basis, data.y - response).beta, dtype=float
-        )
-
     def predict(self, data: IOData, horizon: int = 1, initial: Initial = "rest") -> FloatArray:
         r"""k-step-ahead prediction ŷ(t | t − k), k = ``horizon`` [output unit].
 
@@ -392,16 +360,6 @@ class PredictionError(Estimator):
         v_hat = predicted_noise(data.y - y_p, C, D, k, data.segment_bounds())
         return np.asarray(y_p + v_hat, dtype=float)
 
-    def to_control(self) -> control.TransferFunction:
-        """Delay-free process part as a :class:`control.TransferFunction` (delay in ``delay_``)."""
-        return self.model_.to_control()
-
-    @property
-    def correlation_(self) -> FloatArray:
-        """Correlation matrix of the estimated parameters (order of ``param_names_``)."""
-        sd = np.sqrt(np.diag(self.cov_))
-        return np.asarray(self.cov_ / np.outer(sd, sd), dtype=float)
-
     # ------------------------------------------------------------------ internals
     def _oe(self, order: int) -> OutputError:
         return OutputError(
@@ -411,6 +369,7 @@ class PredictionError(Estimator):
             initial=self.initial,
             u_before=self.u_before,
             max_delay=self.max_delay,
+            numerics=self.numerics,
         )
 
     def _structure(self, order: int) -> Structure:
@@ -473,7 +432,7 @@ class PredictionError(Estimator):
             eta0 = noise.eta(*noise_start)
         else:
             # the output-error fit (its search only: no covariance, no diagnostics)
-            z0, ev = self._oe(order)._fit_structure(data, st, process)
+            z0, ev = self._oe(order)._fit_structure(data, st, process, self.numerics)
             r = ev.residual
             if self.noise_order == "auto":
                 candidates: tuple[NoiseOrder, ...] = NOISE_ORDERS
@@ -496,13 +455,19 @@ class PredictionError(Estimator):
             )
             noise = NoiseShape(*chosen)
             eta0 = etas[chosen][0]
+
+        def joint(z: FloatArray, search: bool = True) -> JointFit:
+            return joint_fit(
+                data, st, noise, z, eta0, criterion, self.max_delay, search, numerics=self.numerics
+            )
+
         if st.delay is not None or noise.size == 0:
-            return joint_fit(data, st, noise, z0, eta0, criterion, self.max_delay)
+            return joint(z0)
         # a free delay: the output-error start can sit in another basin (in closed loop oe's
         # delay is biased, by seconds with a fed-back disturbance); screen a grid of delays
         # with the cheap evaluation, then search from the best of them and from oe's start
         best = z0
-        best_sse = joint_fit(data, st, noise, z0, eta0, criterion, self.max_delay, search=False).sse
+        best_sse = joint(z0, search=False).sse
         # a second lag trades against the delay: screen its size too (a fraction of T)
         ratios = (None,) if st.order == 1 else (None, 0.1, 0.3, 0.6)
         for delay in np.linspace(0.0, 1.5 * max(float(z0[-1]), data.sample_time), 13):
@@ -511,14 +476,12 @@ class PredictionError(Estimator):
                 z[-1] = delay
                 if ratio is not None:
                     z[1] = z0[0] + math.log(ratio)
-                sse = joint_fit(
-                    data, st, noise, z, eta0, criterion, self.max_delay, search=False
-                ).sse
+                sse = joint(z, search=False).sse
                 if sse < best_sse:
                     best, best_sse = z, sse
-        fits = [joint_fit(data, st, noise, z0, eta0, criterion, self.max_delay)]
+        fits = [joint(z0)]
         if best is not z0:
-            fits.append(joint_fit(data, st, noise, best, eta0, criterion, self.max_delay))
+            fits.append(joint(best))
         return min(fits, key=lambda fit: fit.sse)
 
     def _store(self, data: IOData, fit: JointFit) -> None:
@@ -557,14 +520,16 @@ class PredictionError(Estimator):
 
         # Ψ = ∂ε/∂p: process columns −(D/C)·∂ŷ_p/∂p, noise columns exact (module docstring)
         values = {"T": T, "T2": T2, "delay": delay}
-        names, J = jacobian(st, values, beta, data.u, h, u_ref, fit.Phi, bounds)
+        names, J = jacobian(
+            st, values, beta, data.u, h, u_ref, fit.Phi, bounds, numerics=self.numerics
+        )
         Psi = prediction_error_jacobian(J, fit, data.y - fit.Phi @ beta, C, D, bounds)
         self.param_names_ = (*names, *noise.names)
         nl = st.nonlinear_names
         self.params_ = np.r_[self.K_, [values[name] for name in nl], beta[1:], D[1:], C[1:]]
         n_used = int(fit.used.sum())
         self.sigma_ = math.sqrt(fit.sse / max(n_used - Psi.shape[1], 1))
-        self.cov_, singular = white_covariance(Psi, self.sigma_)
+        self.cov_, singular = white_covariance(Psi, self.sigma_, self.numerics)
         self.covariance_method_ = "noise-model"
         sd = np.sqrt(np.diag(self.cov_))
         self.stderr_ = {"K": None, "T": None, "T2": None, "delay": None, "T_f": None}
@@ -586,7 +551,6 @@ class PredictionError(Estimator):
             )
         self.warnings_ += noise_model_warnings(C, D, noise)
 
-    def _continue_fitted(self, data: IOData) -> FloatArray:
-        """``simulate(data, "fitted")``, as :meth:`OutputError._continue_fitted`."""
-        st, beta, _, _ = self._state
-        return continue_fitted(st, beta, self.model_, self.u_ref_, self.n_samples_, data)
+    def _fitted_regression(self) -> tuple[Structure, FloatArray]:
+        st, free_run, _, _ = self._state
+        return st, free_run

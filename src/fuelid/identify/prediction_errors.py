@@ -29,10 +29,10 @@ from fuelid.identify.variable_projection import (
     Bounds,
     Structure,
     regressors,
-    search_tolerances,
     solve_linear,
 )
 from fuelid.io.timeseries import IOData
+from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 
 FloatArray = NDArray[np.float64]
 
@@ -67,13 +67,16 @@ def joint_fit(
     criterion: dict[str, float],
     max_delay: float | None,
     search: bool = True,
+    *,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> JointFit:
     """Minimise Σε² over (process nonlinear parameters, η); linear ones by projection.
 
     ``z0`` and ``eta0`` start the search; ``criterion`` (the noise orders' information
     criterion) is carried into the result; ``max_delay`` [s] bounds a free delay (None:
     a quarter of the record, at most 60 s). ``search=False`` only evaluates the start (to
-    screen starting points).
+    screen starting points). ``numerics``: the search's tolerances and how the model is
+    discretised (scipy's ``trf`` with finite differences whatever its Jacobians).
     """
     from scipy.optimize import least_squares  # slow to import: only when fitting
 
@@ -96,7 +99,7 @@ def joint_fit(
     def evaluate(x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         T, T2, delay = st.unpack(x[:n_z])
         C, D = noise.polys(x[n_z:])
-        Phi = regressors(st, T, T2, delay, u, h, u_ref, bounds)
+        Phi = regressors(st, T, T2, delay, u, h, u_ref, bounds, numerics=numerics)
         m = Phi.shape[1]
         stacked = np.empty((n, m + 1), order="F")
         stacked[:, :m] = Phi
@@ -117,7 +120,7 @@ def joint_fit(
             method="trf",
             x_scale=1.0,
             max_nfev=100,
-            **search_tolerances(),
+            **numerics.tolerances.as_kwargs(),
         )
         x = np.asarray(sol.x, dtype=float)
     Phi, beta, eps = evaluate(x)

@@ -9,11 +9,15 @@ with JᵀJ and Jᵀr (p × p and p) once they are formed.
 The method (Moré 1978): the step solves (JᵀJ + λ·diag JᵀJ)·δ = −Jᵀr, clipped to the bounds;
 a step that lowers Σr² is kept and λ shrinks (to 0, Gauss–Newton, near the optimum), one that
 does not is retried with λ grown. It stops by ``least_squares``'s ftol and xtol rules, with the
-same tolerances (:func:`~fuelid.identify.variable_projection.search_tolerances`): a kept step
-that lowered Σr² by under ``ftol`` of it, or a step under ``xtol``·(``xtol`` + ‖z‖); and when
-the gradient Jᵀr is under ``gtol``·Σr² in every component (scipy's gtol is on the scaled
-gradient without Σr²). So what is left to gain at the stop is what the tolerances bound
-(variable_projection's STATISTICAL_TOLERANCES says how many standard errors).
+same tolerances (the fit's :class:`~fuelid.numerics_mode.Numerics`): a kept step that lowered
+Σr² by under ``ftol`` of it, or a step under ``xtol``·(``xtol`` + ‖z‖); and when the gradient
+Jᵀr is under ``gtol``·Σr² in every component (scipy's gtol is on the scaled gradient without
+Σr²). So what is left to gain at the stop is what the tolerances bound
+(:data:`~fuelid.numerics_mode.STATISTICAL_TOLERANCES` says how many standard errors).
+
+Which search runs is the fit's ``numerics``: this one when it asks for analytic Jacobians (the
+online windows', :data:`~fuelid.numerics_mode.WINDOW_NUMERICS`), else scipy's ``trf`` with
+finite differences of the residual (``fuelid identify``'s, and the path before issue 26).
 
 Reference: J. J. Moré, "The Levenberg–Marquardt algorithm: implementation and theory",
 *Numerical Analysis*, Lecture Notes in Mathematics 630 (1978) 105–116.
@@ -33,19 +37,16 @@ from fuelid.identify.long_record import LongRecordSearch, is_long, polish, searc
 from fuelid.identify.variable_projection import (
     LinearFit,
     Structure,
-    filter_sensitivities_on,
     grid_starts,
     projected_jacobian,
     regressors,
-    search_tolerances,
     sensitivities,
     solve_linear,
     start_from_model,
-    statistical_tolerances,
 )
 from fuelid.io.timeseries import IOData
-from fuelid.lti import reference_numerics_on
 from fuelid.model import ProcessModel
+from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 
 FloatArray = NDArray[np.float64]
 #: the damping's growth after a step that did not lower Σr², and its shrinkage after one that did
@@ -208,6 +209,8 @@ def search_structure(
     init: ProcessModel | None,
     delay_bound: float,
     step: StepCallback | None = None,
+    *,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> StructureSearch:
     """The output-error fit's nonlinear search for one structure (oe's and pem's start).
 
@@ -216,7 +219,8 @@ def search_structure(
     (:func:`~fuelid.identify.long_record.is_long`) is searched on a copy of spread-out
     stretches and the optimum polished on the whole record (:mod:`fuelid.identify.long_record`,
     which says why the result is the whole record's optimum); ``step(what)``, when given, is
-    told as each of those phases starts.
+    told as each of those phases starts. ``numerics``: which local search, its tolerances, and
+    how the model is discretised (module docstring).
 
     Returns
     -------
@@ -230,19 +234,20 @@ def search_structure(
         lo.append(0.0)
         hi.append(max(delay_bound, 1e-9))
     if not is_long(data):
-        return StructureSearch(*_search(data, st, init, (lo, hi)))
+        return StructureSearch(*_search(data, st, init, (lo, hi), numerics))
     copy = search_copy(data)
     if step is not None:
         step(f"searching on {copy.n_samples:,} samples in {copy.n_segments} stretches")
     # the copy's optimum is only a start: the online windows' numerics find it to a few
     # hundredths of its own standard error, and every stretch starts where it finds itself
-    with statistical_tolerances():
-        z0, _, _ = _search(copy, replace(st, later="estimate"), init, (lo, hi))
+    z0, _, _ = _search(copy, replace(st, later="estimate"), init, (lo, hi), numerics.statistical())
     if step is not None:
         step(f"polishing on all {data.n_samples:,} samples")
     u_ref = st.u_before if st.u_before is not None else float(data.u[0])
-    problem = _problem(data, st)
-    polished = polish(data, st, problem.at, z0, (np.array(lo), np.array(hi)), u_ref)
+    problem = _problem(data, st, numerics)
+    polished = polish(
+        data, st, problem.at, z0, (np.array(lo), np.array(hi)), u_ref, numerics=numerics
+    )
     done = LongRecordSearch(
         data.n_samples, copy.n_samples, copy.n_segments, polished.steps, polished.converged
     )
@@ -251,29 +256,44 @@ def search_structure(
             polished.z, polished.fit, (polished.fit, polished.sensitivities), done
         )
     # outside the basin after all: the whole record's own local search from the copy's optimum
-    return StructureSearch(*_local_searches(problem, [polished.z], (lo, hi)), done)
+    return StructureSearch(*_local_searches(problem, [polished.z], (lo, hi), numerics), done)
 
 
-def evaluate_structure(data: IOData, st: Structure, z: FloatArray) -> LinearFit:
+def evaluate_structure(
+    data: IOData, st: Structure, z: FloatArray, numerics: Numerics = DEFAULT_NUMERICS
+) -> LinearFit:
     """The linear fit of ``st`` on ``data`` at the search vector ``z`` (a found optimum)."""
-    return _evaluate(st, st.u_before if st.u_before is not None else float(data.u[0]), z, data)
+    u_ref = st.u_before if st.u_before is not None else float(data.u[0])
+    return _evaluate(st, u_ref, numerics, z, data)
 
 
-def _evaluate(st: Structure, u_ref: float, z: FloatArray, record: IOData) -> LinearFit:
+def _evaluate(
+    st: Structure, u_ref: float, numerics: Numerics, z: FloatArray, record: IOData
+) -> LinearFit:
     T, T2, delay = st.unpack(z)
-    Phi = regressors(st, T, T2, delay, record.u, record.sample_time, u_ref, record.segment_bounds())
+    Phi = regressors(
+        st,
+        T,
+        T2,
+        delay,
+        record.u,
+        record.sample_time,
+        u_ref,
+        record.segment_bounds(),
+        numerics=numerics,
+    )
     return solve_linear(Phi, record.y)
 
 
-def _problem(data: IOData, st: Structure) -> ProjectedSearch:
+def _problem(data: IOData, st: Structure, numerics: Numerics) -> ProjectedSearch:
     """The projected residual and Jacobian of ``st`` on ``data``."""
     h = data.sample_time
     u_ref = st.u_before if st.u_before is not None else float(data.u[0])
     bounds = data.segment_bounds()
     return ProjectedSearch(
-        lambda z: _evaluate(st, u_ref, z, data),
+        lambda z: _evaluate(st, u_ref, numerics, z, data),
         lambda z, fit: sensitivities(
-            st, *st.unpack(z), fit.beta, data.u, h, u_ref, bounds, fit.Phi
+            st, *st.unpack(z), fit.beta, data.u, h, u_ref, bounds, fit.Phi, numerics=numerics
         ),
         st.order,
     )
@@ -284,41 +304,42 @@ def _search(
     st: Structure,
     init: ProcessModel | None,
     bounds: tuple[list[float], list[float]],
+    numerics: Numerics,
 ) -> tuple[FloatArray, LinearFit, tuple[LinearFit, FloatArray] | None]:
     """The grid (or the warm start) and the local searches from its best points, on ``data``."""
     u_ref = st.u_before if st.u_before is not None else float(data.u[0])
     starts = (
         [start_from_model(init, st)]
         if init is not None
-        else grid_starts(data, st, partial(_evaluate, st, u_ref), bounds[1][-1])
+        else grid_starts(data, st, partial(_evaluate, st, u_ref, numerics), bounds[1][-1])
     )
-    return _local_searches(_problem(data, st), starts, bounds)
+    return _local_searches(_problem(data, st, numerics), starts, bounds, numerics)
 
 
 def _local_searches(
-    problem: ProjectedSearch, starts: list[FloatArray], bounds: tuple[list[float], list[float]]
+    problem: ProjectedSearch,
+    starts: list[FloatArray],
+    bounds: tuple[list[float], list[float]],
+    numerics: Numerics,
 ) -> tuple[FloatArray, LinearFit, tuple[LinearFit, FloatArray] | None]:
     """The best of the local searches from ``starts``."""
     from scipy.optimize import least_squares  # slow to import: only when fitting
 
     lo, hi = bounds
-    # the online windows' numerics (statistical_tolerances): Levenberg–Marquardt with the
-    # analytic Jacobian; else (and before issue 26's second pass) scipy's trf with finite
-    # differences of the residual
-    fast = filter_sensitivities_on() and not reference_numerics_on()
+    # analytic Jacobians (the online windows' numerics): Levenberg–Marquardt with them; else
+    # (and before issue 26's second pass) scipy's trf with finite differences of the residual
     best: tuple[FloatArray, LinearFit] | None = None
     for z0 in starts:
         z0 = np.clip(z0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
-        if fast:
-            tol = search_tolerances()
+        if numerics.analytic_jacobians:
             x = levenberg_marquardt(
                 problem.residual,
                 problem.jacobian,
                 z0,
                 (lo, hi),
-                xtol=tol["xtol"],
-                ftol=tol["ftol"],
-                gtol=tol["gtol"],
+                xtol=numerics.tolerances.xtol,
+                ftol=numerics.tolerances.ftol,
+                gtol=numerics.tolerances.gtol,
             )
         else:
             x = least_squares(
@@ -328,7 +349,7 @@ def _local_searches(
                 method="trf",
                 x_scale=1.0,
                 max_nfev=100,
-                **search_tolerances(),
+                **numerics.tolerances.as_kwargs(),
             ).x
         ev = problem.at(x)  # the search's own evaluation when it ended there
         if best is None or ev.sse < best[1].sse:

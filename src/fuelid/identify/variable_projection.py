@@ -11,9 +11,7 @@ least-squares solution, so the nonlinear search runs over the time constants and
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
-from contextvars import ContextVar
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
@@ -22,52 +20,13 @@ import scipy.signal
 from numpy.typing import NDArray
 
 from fuelid.io.timeseries import IOData
-from fuelid.lti import discretise, reference_numerics_on
+from fuelid.lti import discretise
 from fuelid.model import ProcessModel
+from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 
 FloatArray = NDArray[np.float64]
 #: longest record used for the coarse grid of starting values (subsampled above this)
 GRID_SAMPLES = 20_000
-#: the nonlinear searches' stopping tolerances (scipy's least_squares: xtol, ftol, gtol)
-TOLERANCES = {"xtol": 1e-10, "ftol": 1e-12, "gtol": 1e-12}
-#: :func:`statistical_tolerances`: stop when a step lowers Σε² by under 1e-8 of it, or moves
-#: the search vector (log T, log T2, θ) by under 1e-6 of its size. At the optimum Σε² grows by
-#: σ²·δ² for a step of δ standard errors, and Σε² ≈ N·σ², so what is left to gain then moves
-#: the estimate by about √(1e-8·N) standard errors: 0.02 for a 10-minute window at 50 Hz
-#: (N = 30,000); a relative step of 1e-6 in T is 0.05 % of the smallest standard error seen on
-#: the windows (2·10⁻³ of T). The defaults (1e-12, 1e-10) sit at the rounding noise of Σε²,
-#: where the search spent about a third of its evaluations failing to improve (issue 26)
-STATISTICAL_TOLERANCES = {"xtol": 1e-6, "ftol": 1e-8, "gtol": 1e-10}
-_TOLERANCES: ContextVar[dict[str, float]] = ContextVar("fuelid_search_tolerances")
-_SENSITIVITIES: ContextVar[bool] = ContextVar("fuelid_filter_sensitivities", default=False)
-
-
-def search_tolerances() -> dict[str, float]:
-    """The stopping tolerances of the nonlinear searches (oe, pem) in this context."""
-    return dict(_TOLERANCES.get(TOLERANCES))
-
-
-def filter_sensitivities_on() -> bool:
-    """True inside :func:`statistical_tolerances`: the Jacobians from :func:`sensitivities`."""
-    return _SENSITIVITIES.get()
-
-
-@contextmanager
-def statistical_tolerances() -> Iterator[None]:
-    """The online windows' numerics: the searches' tolerances and Jacobians.
-
-    The searches stop at :data:`STATISTICAL_TOLERANCES`; their Jacobians (and the stored fits')
-    come from :func:`sensitivities`, not finite differences. Outside it (``fuelid identify``,
-    the reports) the searches and covariances are as before issue 26's second pass, to their
-    last printed digit.
-    """
-    token = _TOLERANCES.set(STATISTICAL_TOLERANCES)
-    sensitivity = _SENSITIVITIES.set(True)
-    try:
-        yield
-    finally:
-        _SENSITIVITIES.reset(sensitivity)
-        _TOLERANCES.reset(token)
 
 
 @dataclass(frozen=True)
@@ -127,16 +86,19 @@ def regressors(
     h: float,
     u_ref: float,
     bounds: Bounds | None = None,
+    *,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> FloatArray:
     """Φ = [response, 1, free responses of each segment] for one (T, T2, delay).
 
     Segment j (samples ``a:b`` of ``bounds``) is simulated on its own: from rest at u_ref for
     the first segment, from rest at its first command u[a] for a later one (its level
     K·(u[a] − u_ref) stays in the response column, so K and the common offset tie the
-    segments together); its free-response columns are zero outside it.
+    segments together); its free-response columns are zero outside it. ``numerics``: how the
+    model is discretised (:func:`fuelid.lti.discretise`).
     """
     lags = [tc for tc in (T, T2, st.T_f) if tc > 0.0]
-    model = discretise(lags, delay, h)
+    model = discretise(lags, delay, h, numerics)
     bounds = [(0, u.size)] if bounds is None else bounds
     counts = [n_modes(st, len(lags), j) for j in range(len(bounds))]
     # Fortran order: each regressor is one contiguous column
@@ -165,6 +127,8 @@ def fitted_output(
     h: float,
     u_ref: float,
     bounds: Bounds | None = None,
+    *,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> FloatArray:
     """Φ(T, T2, θ)·β without forming Φ: one vector of N, not N × (2 + free responses).
 
@@ -182,7 +146,7 @@ def fitted_output(
     True
     """
     lags = [tc for tc in (T, T2, st.T_f) if tc > 0.0]
-    model = discretise(lags, delay, h)
+    model = discretise(lags, delay, h, numerics)
     bounds = [(0, u.size)] if bounds is None else bounds
     counts = [n_modes(st, len(lags), j) for j in range(len(bounds))]
     out = np.zeros(u.size)
@@ -257,6 +221,7 @@ def continue_fitted(
     u_ref: float,
     n_fitted: int,
     data: IOData,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> FloatArray:
     """The fitted response on a record that continues the fitting one (``initial="fitted"``).
 
@@ -266,7 +231,9 @@ def continue_fitted(
     """
     h = data.sample_time
     bounds = data.segment_bounds()
-    Phi = regressors(st, model.T, model.T2, model.delay, data.u, h, u_ref, bounds)
+    Phi = regressors(
+        st, model.T, model.T2, model.delay, data.u, h, u_ref, bounds, numerics=numerics
+    )
     if Phi.shape[1] == beta.size:
         return np.asarray(Phi @ beta, dtype=float)
     y_hat = np.asarray(Phi[:, : beta.size] @ beta, dtype=float)
@@ -293,19 +260,24 @@ def jacobian(
     Phi: FloatArray | None = None,
     bounds: Bounds | None = None,
     sens: FloatArray | None = None,
+    *,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> tuple[tuple[str, ...], FloatArray]:
     """∂ŷ/∂p for p = (K, nonlinear parameters, offset, initial-state amplitudes).
 
     The linear parameters' columns are the regressors themselves; the time constants' and the
     delay's are ``sens`` when the caller has them (the search's last Jacobian at this fit, or
-    the long-record polish's), else :func:`sensitivities` inside :func:`statistical_tolerances`
-    (the online windows), else central differences of Φ(T, T2, θ)·β (two simulations each).
+    the long-record polish's), else :func:`sensitivities` when ``numerics`` asks for analytic
+    Jacobians (the online windows'), else central differences of Φ(T, T2, θ)·β (two
+    simulations each).
     With segments, every column runs over all of them (each segment's own simulation), so the
     covariance is that of the joint fit. The amplitudes are named ``c0, c1, …`` for the first
     segment and ``c0_seg2, …`` for the later ones.
     """
     if Phi is None:
-        Phi = regressors(st, values["T"], values["T2"], values["delay"], u, h, u_ref, bounds)
+        Phi = regressors(
+            st, values["T"], values["T2"], values["delay"], u, h, u_ref, bounds, numerics=numerics
+        )
     nl_names = st.nonlinear_names
     n_lags = sum(1 for tc in (values["T"], values["T2"], st.T_f) if tc > 0.0)
     amplitudes = [
@@ -320,11 +292,21 @@ def jacobian(
     J[:, len(nl_names) + 1 :] = Phi[:, 1:]
     if sens is not None:  # the caller's, at this very fit
         J[:, 1 : 1 + len(nl_names)] = sens
-    elif filter_sensitivities_on() and not reference_numerics_on():
+    elif numerics.analytic_jacobians:
         # the lags' columns as filters of the input (:func:`sensitivities`), not differences
         # of two simulations each
         J[:, 1 : 1 + len(nl_names)] = sensitivities(
-            st, values["T"], values["T2"], values["delay"], beta, u, h, u_ref, bounds, Phi
+            st,
+            values["T"],
+            values["T2"],
+            values["delay"],
+            beta,
+            u,
+            h,
+            u_ref,
+            bounds,
+            Phi,
+            numerics=numerics,
         )
     else:
         # the output offset is the same in both simulations: left out of the difference
@@ -337,9 +319,20 @@ def jacobian(
             down[name] = max(down[name] - step, 0.0) if name == "delay" else down[name] - step
             width = up[name] - down[name]
             # Φβ simulated, not Φ formed: a day's regressor matrices are 140 MB each
-            J[:, j] = fitted_output(st, up["T"], up["T2"], up["delay"], moving, u, h, u_ref, bounds)
+            J[:, j] = fitted_output(
+                st, up["T"], up["T2"], up["delay"], moving, u, h, u_ref, bounds, numerics=numerics
+            )
             J[:, j] -= fitted_output(
-                st, down["T"], down["T2"], down["delay"], moving, u, h, u_ref, bounds
+                st,
+                down["T"],
+                down["T2"],
+                down["delay"],
+                moving,
+                u,
+                h,
+                u_ref,
+                bounds,
+                numerics=numerics,
             )
             J[:, j] /= width
     return names, J
@@ -351,7 +344,11 @@ COEFFICIENT_STEP = 1e-5
 
 
 def _coefficient_derivatives(
-    lags: list[float], delay: float, h: float, index: list[int]
+    lags: list[float],
+    delay: float,
+    h: float,
+    index: list[int],
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> tuple[FloatArray, FloatArray]:
     """(∂b/∂T_i, ∂a/∂T_i) of the sampled lag chain for each lag ``i`` in ``index`` (rows).
 
@@ -363,7 +360,7 @@ def _coefficient_derivatives(
         up, down = list(lags), list(lags)
         up[i] += step
         down[i] -= step
-        hi, lo = discretise(up, delay, h), discretise(down, delay, h)
+        hi, lo = discretise(up, delay, h, numerics), discretise(down, delay, h, numerics)
         db.append((hi.b - lo.b) / (2.0 * step))
         da.append((hi.a - lo.a) / (2.0 * step))
     return np.array(db), np.array(da)
@@ -380,6 +377,8 @@ def sensitivities(
     u_ref: float,
     bounds: Bounds | None = None,
     Phi: FloatArray | None = None,
+    *,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> FloatArray:
     """∂(Φ·β)/∂p at fixed β for the nonlinear parameters p (``st.nonlinear_names``) [unit/s].
 
@@ -389,15 +388,15 @@ def sensitivities(
     took), all lags in one call; ∂b, ∂a are central differences of the few sampled coefficients.
     The free responses' sensitivity is k·h/T²·p^k. The delay's is the central difference of the
     response column alone (the free responses do not depend on it). ``Phi`` (the regressors at
-    these values) saves recomputing s.
+    these values) saves recomputing s. ``numerics``: how the model is discretised.
     """
     lags = [tc for tc in (T, T2, st.T_f) if tc > 0.0]
     bounds = [(0, u.size)] if bounds is None else bounds
     counts = [n_modes(st, len(lags), j) for j in range(len(bounds))]
     names = st.nonlinear_names
     index = [0 if name == "T" else 1 for name in names if name != "delay"]
-    model = discretise(lags, delay, h)
-    db, da = _coefficient_derivatives(lags, delay, h, index)
+    model = discretise(lags, delay, h, numerics)
+    db, da = _coefficient_derivatives(lags, delay, h, index, numerics)
     out = np.zeros((u.size, len(names)), order="F")
     col = 2
     for j, ((a, b), m) in enumerate(zip(bounds, counts, strict=True)):
@@ -420,8 +419,8 @@ def sensitivities(
             if name == "delay":
                 step = 1e-6 * max(delay, h)
                 lo_delay = max(delay - step, 0.0)
-                up = discretise(lags, delay + step, h).response(du)
-                down = discretise(lags, lo_delay, h).response(du)
+                up = discretise(lags, delay + step, h, numerics).response(du)
+                down = discretise(lags, lo_delay, h, numerics).response(du)
                 out[a:b, c] = beta[0] * (up - down) / (delay + step - lo_delay)
                 continue
             i = index[c]

@@ -50,8 +50,8 @@ from fuelid.identify.noise import (
 )
 from fuelid.identify.oe import OutputError
 from fuelid.identify.pem import PredictionError
-from fuelid.identify.variable_projection import search_tolerances
 from fuelid.io.timeseries import IOData
+from fuelid.numerics_mode import DEFAULT_NUMERICS, TIGHT_TOLERANCES, Numerics, SearchTolerances
 
 FloatArray = NDArray[np.float64]
 
@@ -93,6 +93,7 @@ def noise_screen(
     last_noise: Mapping[str, Any] | None,
     *,
     refine: bool = True,
+    tolerances: SearchTolerances = TIGHT_TOLERANCES,
 ) -> NoiseScreen:
     """Pem's noise model fitted to the output-error residuals alone (module docstring).
 
@@ -105,6 +106,9 @@ def noise_screen(
     last_noise : mapping or None
         The last window's pem noise model (its order is the one pem would keep); None: the
         order by BIC, as pem's cold start chooses it.
+    refine : bool
+        Refine the Hannan–Rissanen estimate by a search (stopped at ``tolerances``: the
+        window's numerics pass :data:`~fuelid.numerics_mode.STATISTICAL_TOLERANCES`).
 
     Returns
     -------
@@ -139,7 +143,7 @@ def noise_screen(
     shape = NoiseShape(*chosen)
     eta = etas[chosen][0]
     if refine and shape.size:
-        eta = _refine(residuals, spans, shape, eta)
+        eta = _refine(residuals, spans, shape, eta, tolerances)
     C, D = shape.polys(eta)
     roots = np.roots(D) if D.size > 1 else np.zeros(0)
     pole = float(np.max(np.abs(roots))) if roots.size else 0.0
@@ -147,7 +151,11 @@ def noise_screen(
 
 
 def _refine(
-    residuals: FloatArray, spans: list[tuple[int, int]], shape: NoiseShape, eta0: FloatArray
+    residuals: FloatArray,
+    spans: list[tuple[int, int]],
+    shape: NoiseShape,
+    eta0: FloatArray,
+    tolerances: SearchTolerances,
 ) -> FloatArray:
     """η minimising Σ(D/C·r)², the noise model alone, from the Hannan–Rissanen start."""
     from scipy.optimize import least_squares  # slow to import: only when screening
@@ -158,7 +166,7 @@ def _refine(
         C, D = shape.polys(eta)
         return filter_segments(D, C, residuals, spans)[used]
 
-    sol = least_squares(errors, eta0, method="trf", max_nfev=50, **search_tolerances())
+    sol = least_squares(errors, eta0, method="trf", max_nfev=50, **tolerances.as_kwargs())
     return np.asarray(sol.x, dtype=float)
 
 
@@ -183,6 +191,7 @@ def closed_loop_choice(
     last_noise: Mapping[str, Any] | None,
     *,
     screen: bool,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> ClosedLoopChoice:
     """The closed-loop window's estimator, oe or pem, by the rule above; ``screen``: cheaply first.
 
@@ -199,6 +208,9 @@ def closed_loop_choice(
     screen : bool
         Skip pem when :func:`noise_screen` says its noise pole would be nearly integrating;
         False runs pem on every window (the path before the screen existed).
+    numerics : Numerics
+        The screen's search tolerances and pem's numerics (:mod:`fuelid.numerics_mode`): the
+        window's.
 
     Returns
     -------
@@ -208,7 +220,9 @@ def closed_loop_choice(
     checked: NoiseScreen | None = None
     if screen:
         try:
-            checked = noise_screen(residuals, data.segment_bounds(), last_noise)
+            checked = noise_screen(
+                residuals, data.segment_bounds(), last_noise, tolerances=numerics.tolerances
+            )
         except (FuelidError, ValueError, np.linalg.LinAlgError):
             checked = None  # the screen cannot tell: the full decision decides
         if checked is not None and checked.skip_pem:
@@ -227,7 +241,9 @@ def closed_loop_choice(
             )
     try:
         # from oe's optimum and the last window's noise model: one joint search
-        pem = PredictionError(**settings).fit(data, init=oe.model_, noise_init=last_noise)
+        pem = PredictionError(**settings, numerics=numerics).fit(
+            data, init=oe.model_, noise_init=last_noise
+        )
     except FuelidError as error:
         return ClosedLoopChoice(
             oe,

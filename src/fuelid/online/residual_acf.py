@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fuelid.identify.covariance import MAX_AR_ORDER, ResidualAR, residual_ar
 from fuelid.identify.diagnostics import residual_whiteness, settled_stretches
+from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 
 FloatArray = NDArray[np.float64]
 
@@ -64,7 +65,11 @@ def acf_lags(n: int, settling_time: float, sample_time: float) -> int:
 
 
 def largest_residual_acf(
-    residuals: ArrayLike, max_lag: int, segment_starts: Sequence[int] = ()
+    residuals: ArrayLike,
+    max_lag: int,
+    segment_starts: Sequence[int] = (),
+    *,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> tuple[float, int]:
     """Largest |ρ(k)| of the residuals over lags 1…max_lag, and its lag.
 
@@ -79,6 +84,8 @@ def largest_residual_acf(
         L [samples].
     segment_starts : sequence of int
         Where each segment after a gap begins.
+    numerics : Numerics
+        How the autocorrelation is summed (:mod:`fuelid.numerics_mode`).
 
     Returns
     -------
@@ -92,7 +99,7 @@ def largest_residual_acf(
     >>> rho < 0.05
     True
     """
-    test = residual_whiteness(residuals, max_lag, segment_starts)
+    test = residual_whiteness(residuals, max_lag, segment_starts, numerics=numerics)
     k = int(np.argmax(np.abs(test.values)))
     return float(abs(test.values[k])), int(test.lags[k])
 
@@ -120,6 +127,7 @@ def prewhiten(
     *,
     max_order: int = MAX_AR_ORDER,
     min_samples: int = MIN_SETTLED_SAMPLES,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> Prewhitened | None:
     """The residuals prewhitened by the *noise's* model: colour of the meter, not of the model.
 
@@ -154,6 +162,8 @@ def prewhiten(
         Highest AR order [-].
     min_samples : int
         Fewest settled samples to fit the noise's model on [-].
+    numerics : Numerics
+        How the AR model's autocovariance is summed (:mod:`fuelid.numerics_mode`).
 
     Returns
     -------
@@ -179,7 +189,7 @@ def prewhiten(
         return None
     sizes = np.cumsum([part.size for part in settled])
     bounds = list(itertools.pairwise([0, *sizes.tolist()]))
-    noise = residual_ar(np.concatenate(settled), bounds, max_order)
+    noise = residual_ar(np.concatenate(settled), bounds, max_order, numerics)
     p = noise.order
     centred = e - e.mean()
     edges = [0, *(int(i) for i in segment_starts), e.size]

@@ -8,7 +8,7 @@ Every ``identify_every_s`` of data time the service hands the last ``window_s`` 
 2. fits the process model on the samples whose quality is ok, warm-started from the last
    accepted window (one local Levenberg–Marquardt search per order with the lags' analytic
    sensitivities, :mod:`fuelid.identify.search`, stopped at statistical tolerances:
-   :func:`~fuelid.identify.variable_projection.statistical_tolerances`):
+   :data:`~fuelid.numerics_mode.WINDOW_NUMERICS`):
 
    - judged in MAN (open loop, or no mode recorded): the output-error fit, whose estimate is
      consistent whatever the colour of the noise when the input does not depend on it (Ljung
@@ -56,11 +56,10 @@ from fuelid.errors import FuelidError, NotExcitingError
 from fuelid.identify.oe import OutputError
 from fuelid.identify.pem import PredictionError
 from fuelid.identify.procedure import POSITIVE_PARAMETERS, IdentifyOptions, interval95
-from fuelid.identify.variable_projection import statistical_tolerances
 from fuelid.io.jsonsafe import json_ready
 from fuelid.io.timeseries import IOData
-from fuelid.lti import reference_numerics
 from fuelid.model import MODEL_KEYS, ProcessModel
+from fuelid.numerics_mode import REFERENCE_NUMERICS, WINDOW_NUMERICS, Numerics
 from fuelid.online.excitation.cost import measured_cost
 from fuelid.online.gates import (
     WindowVerdict,
@@ -266,14 +265,17 @@ class WindowAnalyser:
         The PI's integral time [s], for the oscillation detector; updated by the service.
     fast : bool
         In AUTO, skip the pem fit when the noise screen shows its result would be discarded
-        (:mod:`fuelid.online.pem_screen`), with the faster numerics; False fits pem on every
-        AUTO window with the numerics before issue 26 (:func:`fuelid.lti.reference_numerics`),
+        (:mod:`fuelid.online.pem_screen`), with the faster numerics
+        (:data:`~fuelid.numerics_mode.WINDOW_NUMERICS`); False fits pem on every AUTO window
+        with the numerics before issue 26 (:data:`~fuelid.numerics_mode.REFERENCE_NUMERICS`),
         kept for the benchmark's and the tests' comparison.
 
     Attributes
     ----------
     last_model_ : ProcessModel or None
         The last accepted window's model (the warm start).
+    numerics : Numerics
+        What ``fast`` chose: the numerics every fit and gate of a window runs with.
     """
 
     def __init__(
@@ -310,31 +312,37 @@ class WindowAnalyser:
 
     # --- the window -----------------------------------------------------------------------
 
-    def analyse(self, samples: SampleArrays, t_from: float, t_to: float) -> WindowResult:
-        """Gate, fit and assess one window's samples (``t_from ≤ time < t_to``).
+    @property
+    def numerics(self) -> Numerics:
+        """The window's numerics: :data:`~fuelid.numerics_mode.WINDOW_NUMERICS` when ``fast``.
 
-        Never raises on data: a window that cannot be fitted is a rejected window with the
-        reason.
+        The searches stop where what is left to gain is under 0.02 standard errors
+        (:data:`~fuelid.numerics_mode.STATISTICAL_TOLERANCES`); ``fast=False`` runs today's path
+        for the benchmark (:data:`~fuelid.numerics_mode.REFERENCE_NUMERICS`): the same numbers,
+        slower.
         """
-        if self.fast:
-            # the searches stop where what is left to gain is under 0.02 standard errors
-            # (fuelid.identify.variable_projection.STATISTICAL_TOLERANCES)
-            with statistical_tolerances():
-                return self._analyse(samples, t_from, t_to)
-        with reference_numerics():  # today's path, for the benchmark: the same numbers, slower
-            return self._analyse(samples, t_from, t_to)
+        return WINDOW_NUMERICS if self.fast else REFERENCE_NUMERICS
 
     def _signal_cost(
         self, samples: SampleArrays, good: np.ndarray[Any, Any]
     ) -> dict[str, Any] | None:
         """The test signal's cost on this window's samples (None: no signal ran)."""
         last = getattr(self, "last_model_", None)
-        tail = last.settling_time() if last is not None else DEFAULT_SIGNAL_TAIL_S
+        tail = (
+            last.settling_time(numerics=self.numerics)
+            if last is not None
+            else DEFAULT_SIGNAL_TAIL_S
+        )
         return measured_cost(
             samples.time, samples.y, samples.setpoint, samples.excitation, good, tail
         )
 
-    def _analyse(self, samples: SampleArrays, t_from: float, t_to: float) -> WindowResult:
+    def analyse(self, samples: SampleArrays, t_from: float, t_to: float) -> WindowResult:
+        """Gate, fit and assess one window's samples (``t_from ≤ time < t_to``).
+
+        Never raises on data: a window that cannot be fitted is a rejected window with the
+        reason. Every fit and gate runs with :attr:`numerics`.
+        """
         started = time.perf_counter()
         good = (samples.quality == Quality.OK) & np.isfinite(samples.u) & np.isfinite(samples.y)
         temperature = samples.fuel_temperature[good]
@@ -397,6 +405,7 @@ class WindowAnalyser:
                 delay_s=max(delay, self.sample_time),
                 y_span=self.priors.y_span,
                 u_limits=self.priors.u_limits,
+                numerics=self.numerics,
             )
         except FuelidError:  # too few samples for any measure: the window says so elsewhere
             return None
@@ -409,7 +418,9 @@ class WindowAnalyser:
 
     def _fit(self, result: WindowResult, data: IOData, *, closed_loop: bool) -> None:
         kwargs = self._estimator_settings()
-        oe = OutputError(covariance="auto", **kwargs).fit(data, init=self.last_model_)
+        oe = OutputError(covariance="auto", numerics=self.numerics, **kwargs).fit(
+            data, init=self.last_model_
+        )
         chosen: OutputError | PredictionError = oe
         residuals = data.y - oe.y_hat_
         result.method, result.covariance = "oe", oe.covariance_
@@ -440,6 +451,7 @@ class WindowAnalyser:
             segment_starts=data.segment_starts,
             plant_K=result.plant_K,
             u=data.u if chosen is oe else None,  # output errors: prewhitened by the noise's AR
+            numerics=self.numerics,
         )
         result.verdict = result.verdict.combine(postfit)
         if self.step_ls:
@@ -448,7 +460,9 @@ class WindowAnalyser:
     def _fit_closed_loop(
         self, result: WindowResult, data: IOData, oe: OutputError, kwargs: dict[str, Any]
     ) -> tuple[OutputError | PredictionError, np.ndarray[Any, Any]]:
-        choice = closed_loop_choice(data, oe, kwargs, self._last_noise, screen=self.fast)
+        choice = closed_loop_choice(
+            data, oe, kwargs, self._last_noise, screen=self.fast, numerics=self.numerics
+        )
         if choice.noise is not None:
             self._last_noise = choice.noise
         result.method, result.covariance = choice.method, choice.covariance

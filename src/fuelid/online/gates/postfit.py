@@ -17,6 +17,7 @@ from fuelid.identify.oe import OutputError
 from fuelid.identify.procedure import IdentificationResult
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel
+from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 from fuelid.online.gates.verdict import WindowVerdict
 from fuelid.online.residual_acf import (
     MIN_SETTLED_SAMPLES,
@@ -47,6 +48,7 @@ def postfit_gates(
     segment_starts: Sequence[int] = (),
     plant_K: float | None = None,
     u: ArrayLike | None = None,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> WindowVerdict:
     """Gates on a fitted model of one window.
 
@@ -83,6 +85,9 @@ def postfit_gates(
         The command, one per residual [V], when the residuals are output errors y − ŷ: the
         residual correlation is then judged after prewhitening them by the noise's model. None
         for prediction errors (judged as they are).
+    numerics : Numerics
+        How the model's settling time and the residuals' correlation are computed
+        (:mod:`fuelid.numerics_mode`; the window's).
 
     Returns
     -------
@@ -154,13 +159,19 @@ def postfit_gates(
     elif fit_percent < settings.min_fit_percent:
         reasons.append(f"poor validation fit: {fit_percent:.1f} % < {settings.min_fit_percent:g} %")
     e = np.asarray(residuals, dtype=float)
-    settle = model.settling_time()
+    settle = model.settling_time(numerics=numerics)
     lags = acf_lags(e.size, settle, sample_time)
-    raw_rho, raw_lag = largest_residual_acf(e, lags, segment_starts)
+    raw_rho, raw_lag = largest_residual_acf(e, lags, segment_starts, numerics=numerics)
     rho, lag = raw_rho, raw_lag
-    white = None if u is None else prewhiten(e, u, sample_time, settle, segment_starts)
+    white = (
+        None
+        if u is None
+        else prewhiten(e, u, sample_time, settle, segment_starts, numerics=numerics)
+    )
     if white is not None:
-        rho, lag = largest_residual_acf(white.residuals, lags, white.segment_starts)
+        rho, lag = largest_residual_acf(
+            white.residuals, lags, white.segment_starts, numerics=numerics
+        )
         basis = "prewhitened"
         how = f", prewhitened by the noise's AR({white.noise.order})"
     elif u is None:

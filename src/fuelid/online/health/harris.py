@@ -16,6 +16,7 @@ import scipy.signal
 from numpy.typing import ArrayLike
 
 from fuelid.identify.covariance import residual_ar
+from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 from fuelid.online.health.shares import AUTO
 
 MAX_AR_ORDER = 30
@@ -57,6 +58,7 @@ def harris_index(
     max_order: int = MAX_AR_ORDER,
     mode: ArrayLike | None = None,
     setpoint: ArrayLike | None = None,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> HarrisIndex:
     """Harris's minimum-variance index of the control error of a regulatory stretch.
 
@@ -80,6 +82,8 @@ def harris_index(
         Highest order tried [-].
     mode, setpoint : arrays, optional
         When given, the stretch must be all AUTO with a constant setpoint (regulatory).
+    numerics : Numerics
+        How the AR model's autocovariance is summed (:mod:`fuelid.numerics_mode`).
 
     Returns
     -------
@@ -132,7 +136,7 @@ def harris_index(
     if not variance > 0.0:
         return harris_refusal("the error does not vary", b, n)
     if order is None:
-        model = residual_ar(v, max_order=max_order)
+        model = residual_ar(v, max_order=max_order, numerics=numerics)
         a, sigma2 = model.a, model.sigma_e**2
     elif order == 0:
         a, sigma2 = np.array([1.0]), variance

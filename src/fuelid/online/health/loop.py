@@ -11,6 +11,7 @@ from numpy.typing import ArrayLike
 
 from fuelid._deprecated import warn_renamed
 from fuelid.io.jsonsafe import json_ready
+from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 from fuelid.online.health._arrays import BoolArray, FloatArray
 from fuelid.online.health.harris import HarrisIndex, harris_index, harris_refusal
 from fuelid.online.health.oscillation import (
@@ -191,6 +192,7 @@ def loop_health(
     stuck_after_s: float = STUCK_AFTER_S,
     amplitude_fraction: float = OSCILLATION_AMPLITUDE_FRACTION,
     settling_fraction: float = SETTLING_FRACTION,
+    numerics: Numerics = DEFAULT_NUMERICS,
 ) -> LoopHealth:
     """Loop health of one window of PLC samples.
 
@@ -225,6 +227,8 @@ def loop_health(
         Hägglund's acceptable amplitude as a share of ``y_span`` [-].
     settling_fraction : float
         Settling band of setpoint steps as a share of the step [-].
+    numerics : Numerics
+        How the Harris index's AR model is computed (:mod:`fuelid.numerics_mode`).
 
     Returns
     -------
@@ -270,7 +274,7 @@ def loop_health(
     period = float(np.median(np.diff(tg))) if tg.size > 1 else math.nan
     delay = max(1, round(delay_s / period)) if period > 0.0 else 1
     harris = (
-        harris_index(spg[a:b] - yg[a:b], delay)
+        harris_index(spg[a:b] - yg[a:b], delay, numerics=numerics)
         if b > a
         else harris_refusal(
             "no regulatory stretch: no good AUTO samples at a settled setpoint", delay, 0
