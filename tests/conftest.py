@@ -35,66 +35,20 @@ def cfg() -> PlantConfig:
     return load_plant_config()
 
 
-# Tests that run a PLC (the virtual PLC, the Modbus test PLC, OPC UA and S7 servers) against a
-# recorder or the online service at 20-50x real time: their checks assume the recorder keeps up.
-# Under `pytest -n auto --dist loadgroup` they share one worker, one after another, so two of them
-# never compete for the same cores (two at once on a loaded 2-core machine lost samples and missed
-# restarts); the other workers run the rest meanwhile.
-REAL_TIME_MODULES = frozenset(
-    {
-        "test_modbus_adapter.py",
-        "test_opcua.py",
-        "test_s7.py",
-        "test_virtual_plc.py",
-        "test_write_side.py",
-        "test_recorder.py",
-        "test_recorder_guards.py",
-        "test_online_service.py",
-        "test_online_cli.py",
-        "test_online_faults.py",
-        "test_record_cli.py",
-        "test_excitation_service.py",
-        "test_virtual_excitation_protocols.py",
-    }
-)
-
-
-# The dashboard's tests share one store made by a short virtual run (the session fixture
-# `dashboard_store`): one worker runs them all, so the run is made once.
-DASHBOARD_MODULES = frozenset(
-    {
-        "test_dashboard_api.py",
-        "test_dashboard_browser.py",
-        "test_dashboard_cli.py",
-    }
-)
-
-
-@pytest.hookimpl(optionalhook=True)  # an xdist hook: unknown under -p no:xdist (the slow set)
-def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
-    """Under ``--dist loadgroup``: the real-time modules as one group, every other test alone.
-
-    Not by ``xdist_group`` marks: pytest-xdist 3.8 writes the group into ``item._nodeid``, which
-    pytest 9 no longer reads, so its ``loadgroup`` silently spread a group over the workers. The
-    scheduler below groups by the node id's file instead (and still honours an ``@group`` suffix,
-    should a later xdist write one).
-    """
-    if config.getvalue("dist") != "loadgroup":
-        return None
-    from xdist.scheduler import LoadGroupScheduling
-
-    class RealTimeGroup(LoadGroupScheduling):
-        def _split_scope(self, nodeid: str) -> str:
-            if "@" in nodeid:
-                return nodeid.rsplit("@", 1)[-1]
-            module = nodeid.split("::", 1)[0].rsplit("/", 1)[-1]
-            if module in REAL_TIME_MODULES:
-                return "real-time"
-            if module in DASHBOARD_MODULES:
-                return "dashboard"
-            return nodeid
-
-    return RealTimeGroup(config, log)
+# Two xdist groups, by pytest-xdist's public mark (`pytestmark =
+# pytest.mark.xdist_group(...)` in each module; `grep -rl xdist_group tests` lists them). Under
+# `pytest -n auto --dist loadgroup` (`make test`) one worker runs a group's tests one after
+# another while the other workers run the rest; tests/unit/test_xdist_grouping.py checks that the
+# installed pytest and pytest-xdist still group (pytest 9.2 with xdist 3.8 does not:
+# pytest-dev/pytest-xdist#1386, hence the pin in pyproject.toml).
+#
+# "real-time": the tests that run a PLC (the virtual PLC, the Modbus test PLC, OPC UA and S7
+# servers) against a recorder or the online service at 20-50x real time: their checks assume the
+# recorder keeps up, so two of them never compete for the same cores (two at once on a loaded
+# 2-core machine lost samples and missed restarts).
+#
+# "dashboard": the dashboard's tests share one store made by a short virtual run (the session
+# fixture `dashboard_store`): one worker runs them all, so the run is made once.
 
 
 DASHBOARD_ONLINE = 'identify_every_s = 60\nwindow_s = 120\nwrite_back = "approve"\n'

@@ -20,6 +20,7 @@ from fuelid.plc.recorder import record_site, site_identity
 from fuelid.store import Sample, SQLiteStore
 from support.archive import archived_rows
 from support.recorder import REPLAY, kinds, load, rows, write_log
+from support.waiting import await_until
 
 
 def _old_samples(db: Path, site_text: str) -> float:
@@ -100,10 +101,12 @@ def test_the_services_housekeeping_archives_then_prunes_archived_days_only(
         )
         task = asyncio.create_task(OnlineService._housekeeping(service))  # type: ignore[arg-type]
         try:
-            for _ in range(600):  # until its first round has pruned (at most 60 s)
-                await asyncio.sleep(0.1)
-                if service.store.last_event(["prune"]) is not None:
-                    break
+            await await_until(
+                lambda: service.store.last_event(["prune"]) is not None,
+                60.0,
+                "the housekeeping's first round to prune",
+                every=0.1,
+            )
         finally:
             service._stopping.set()
             await task

@@ -13,7 +13,6 @@ import contextlib
 import json
 import os
 import sqlite3
-import time
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +29,7 @@ from fuelid.plc.site_fleet import Central
 from fuelid.store import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
 from support.fleet import SimulatedLoop, copy_loop, with_proposal
+from support.waiting import wait_until
 
 
 class Site:
@@ -104,8 +104,13 @@ def test_expired_request_is_never_applied(site: Any, central_url: str) -> None:
     """A request its site fetched only after its expiry: marked expired, nothing done."""
     s, pid = site
     with connect(central_url) as con:
-        file_central_request(con, "line-a", "reject", pid, "alice", "late", expires_s=0.05)
-    time.sleep(0.2)
+        filed = file_central_request(con, "line-a", "reject", pid, "alice", "late", expires_s=0.05)
+
+        def expired() -> bool:  # on the central database's clock, which the fetch compares with
+            row = con.execute("SELECT extract(epoch FROM clock_timestamp())::float8").fetchone()
+            return row is not None and float(row[0]) > filed["expires"]
+
+        wait_until(expired, 10.0, "the request's expiry (0.05 s)")
     cycle = s.link.cycle(apply_now=True)
     assert cycle.error is None
     assert cycle.filed == []

@@ -34,6 +34,10 @@ from fuelid.store.records import StoreError
 from fuelid.store.schema import SCHEMA_VERSION
 from fuelid.store.sqlite import SQLiteStore
 
+# xdist: one worker runs the dashboard's modules, which share one store made once
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("dashboard")
+
 PROVENANCE = {"fuelid_version", "input_sha256", "options"}
 """Keys the CLI adds to its JSON (what it ran with), not part of the store's object."""
 

@@ -44,6 +44,7 @@ from fuelid.dashboard.fleet import LIVE_CHIPS
 from fuelid.dashboard.stream import STATUS_EVERY_S
 from fuelid.dashboard.users import UsersFile
 from fuelid.dashboard.views import FRESH_SAMPLE_S, fmt_num
+from support import waiting
 from support.browser import (
     LAG_BAND_S,
     NETWORK_FAILURES,
@@ -59,6 +60,10 @@ from support.browser import (
     wait_ready,
     wait_until,
 )
+
+# xdist: one worker runs the dashboard's modules, which share one store made once
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("dashboard")
 
 ONLINE_APPROVE = 'identify_every_s = 60\nwindow_s = 120\nwrite_back = "approve"\n'
 
@@ -595,9 +600,12 @@ def test_one_page_tells_one_truth_through_approval_write_revert_and_a_new_window
                         truth.step(f"approve lost ({type(error).__name__})", truth.look())
                         continue
                     assert question.startswith(f"approve #{proposal}: Kc "), question
-                    deadline = time.monotonic() + 20
-                    while len(_requests(base, loop_id)) == filed and time.monotonic() < deadline:
-                        time.sleep(0.3)
+                    waiting.wait_until(
+                        lambda: len(_requests(base, loop_id)) > filed,  # noqa: B023 (called here)
+                        20.0,
+                        f"the approve of #{proposal} filed",
+                        every=0.3,
+                    )
                     request = _requests(base, loop_id)[-1]
                     assert request["kind"] == "approve", request
                     assert request["who"] == "eve", request

@@ -35,6 +35,10 @@ from fuelid.online.service import OnlineService
 from fuelid.plc.virtual.runner import VirtualPlcThread
 from support.online import online_site
 
+# xdist: one worker runs every module that drives a PLC at speed, one after another
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("real-time")
+
 SPEED = 20.0
 HEARTBEAT_S = 0.05
 SETPOINT = 40.0

@@ -23,6 +23,10 @@ from fuelid.plc.adapters.modbus import ModbusSource, plan_reads
 from fuelid.plc.site import SiteConfig
 from support.modbus import FakePlc, free_port
 
+# xdist: one worker runs every module that drives a PLC at speed, one after another
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("real-time")
+
 
 def site_for(port: int, tags: str, *, word_order: str = "big", byte_swap: bool = False,
              device_id: int = 1, extra: str = "") -> SiteConfig:  # fmt: skip

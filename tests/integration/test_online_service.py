@@ -10,6 +10,7 @@ TCP on 127.0.0.1).
 from __future__ import annotations
 
 import asyncio
+import itertools
 import math
 import tomllib
 from collections.abc import Mapping
@@ -28,6 +29,11 @@ from fuelid.plc.virtual.runner import VirtualPlcThread
 from support.online import approve_directly as _approved_proposal
 from support.online import online_site as _site
 from support.online import open_history as _history
+from support.waiting import await_until, wait_until
+
+# xdist: one worker runs every module that drives a PLC at speed, one after another
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("real-time")
 
 SPEED = 20.0
 """Plant time per wall time: the PLC's 10 s heartbeat timeout is 0.5 s of wall time."""
@@ -72,7 +78,6 @@ def test_an_approve_filed_by_the_cli_is_applied_by_the_running_service(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     import threading
-    import time
 
     from fuelid.cli import main
 
@@ -94,11 +99,13 @@ def test_an_approve_filed_by_the_cli_is_applied_by_the_running_service(
         runner = threading.Thread(target=lambda: asyncio.run(service.run(6.0)))
         runner.start()
         try:
-            for _ in range(100):  # until the service beats
+
+            def beating() -> bool:
                 record = service.history.state("service")
-                if record and record["beat"] > record["started"]:
-                    break
-                time.sleep(0.05)
+                return bool(record and record["beat"] > record["started"])
+
+            # within the service's run (6 s)
+            wait_until(beating, 6.0, "the service's first beat")
             code = main(["online", "approve", str(pid), "--store", str(store), "--who", "anna"])
             out = capsys.readouterr().out
         finally:
@@ -198,15 +205,18 @@ def test_a_write_cut_short_is_reconciled_from_the_echo_and_never_repeated(
             async def write_block() -> None:
                 source = open_source(site)
                 async with source:
-                    for beat in (1.0, 2.0):
-                        await source.write({"heartbeat": beat})
-                        await asyncio.sleep(0.05)
+                    await source.write({"heartbeat": 1.0})  # an advisor is alive
+                    await await_until(
+                        lambda: not virtual.plc.heartbeat_stale(), 10.0, "a fresh heartbeat"
+                    )
                     await source.write({"kc": kc, "ti": ti0, "apply": 7.0})
-                    for _ in range(100):
-                        await source.write({"heartbeat": 3.0 + _})
-                        if (await source.read_write_side(["echo"]))["echo"] == 7:
-                            return
-                        await asyncio.sleep(0.02)
+                    beats = itertools.count(2)
+
+                    async def echoed() -> bool:
+                        await source.write({"heartbeat": float(next(beats))})  # kept fresh
+                        return bool((await source.read_write_side(["echo"]))["echo"] == 7)
+
+                    await await_until(echoed, 10.0, "the PLC's echo of apply 7")
 
             asyncio.run(write_block())
         service, _ = _run(site, 2.0)

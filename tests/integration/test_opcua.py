@@ -38,6 +38,11 @@ from fuelid.plc.site import SiteConfig, load_site
 from fuelid.plc.virtual.frontend import free_port
 from fuelid.plc.virtual.opcua_server import APPLICATION_URI, VARIANT_OF, OpcUaFrontend
 from fuelid.plc.virtual.points import OPCUA_NAMESPACE, OPCUA_RING, POINTS
+from support.waiting import await_until
+
+# xdist: one worker runs every module that drives a PLC at speed, one after another
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("real-time")
 
 T = TypeVar("T")
 RING_SIZE = 64
@@ -672,8 +677,12 @@ async def ring_after(client: Client, first_seq: int, count: int) -> list[list[fl
     head_node = client.get_node("ns=2;s=FuelLoop.RingHead")
     size = await client.get_node("ns=2;s=FuelLoop.RingSize").read_value()
     assert count <= size
-    while await head_node.read_value() < first_seq + count - 1:
-        await asyncio.sleep(0.05)
+
+    async def written() -> bool:
+        return bool(await head_node.read_value() >= first_seq + count - 1)
+
+    # half the body's bound (LIMIT_S, two steps), so that this message, not a bare timeout, says why
+    await await_until(written, 7.0, f"ring records up to {first_seq + count - 1}", every=0.05)
     ring = await client.get_node(f"ns=2;s={OPCUA_RING}").read_value()
     records = [
         ring[5 * (seq % size) : 5 * (seq % size) + 5] for seq in range(first_seq, first_seq + count)
@@ -739,8 +748,11 @@ def test_virtual_plc_site_file_works_with_the_adapter(tmp_path: Path) -> None:
                 assert set(record.values) == {"command", "flow", "setpoint", "excitation"}
                 await source.write({"heartbeat": 1})  # an advisor is alive
                 await source.write({"kc": kc, "ti": ti, "apply": 1, "heartbeat": 2})
-                while (await source.read()).values["kc"] == pytest.approx(kc0):
-                    await asyncio.sleep(0.05)  # applied at the next control period
+
+                async def applied() -> bool:  # at the next control period
+                    return bool((await source.read()).values["kc"] != pytest.approx(kc0))
+
+                await await_until(applied, 10.0, "the staged gains applied", every=0.05)
                 reading = await source.read()
                 assert (reading.values["kc"], reading.values["ti"]) == pytest.approx((kc, ti))
 

@@ -25,6 +25,10 @@ from fuelid.plc.site import SiteConfig
 from fuelid.store import Quality, SQLiteStore
 from support.recorder import REPLAY, RING_REPLAY, kinds, load, record, rows, write_log
 
+# xdist: one worker runs every module that drives a PLC at speed, one after another
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("real-time")
+
 UINT32 = 1 << 32
 
 
@@ -170,7 +174,7 @@ def modbus_plc() -> Iterator[Any]:
         plc = FakePlc(ir=1000 + 8 * size + 8, program=program)
         plc.ring = program
         servers.append(plc)
-        time.sleep(0.1)  # a few scans: the PLC is running when the recorder starts
+        plc.wait_scans(10)  # the PLC is running (its ring filling) when the recorder starts
         return plc
 
     yield make
@@ -191,6 +195,8 @@ def check_ring_values(data: Any, offset: int = 0) -> None:
 def flapping(
     plc: Any, drops: int, down_s: float, up_s: float, log: list[tuple[float, str]] | None = None
 ) -> threading.Thread:
+    # the sleeps are the behaviour under test: the link held up and down for the stated times
+    # (each longer than the recorder's ring poll, 0.2 s: see the test's parameters)
     def run() -> None:
         time.sleep(up_s)
         for i in range(drops):
@@ -271,7 +277,7 @@ def test_a_blip_is_said_as_one_with_the_samples_back_filled(
         async def read(self) -> Any:
             self.reads += 1
             if self.reads == 5:
-                await asyncio.sleep(0.09)
+                await asyncio.sleep(0.09)  # the behaviour: a read that gets no answer for 0.09 s
                 raise LinkError(f"no answer from {self.where} within 0.09 s (timed out)")
             return await super().read()
 
@@ -346,7 +352,7 @@ def test_a_recorder_restarted_on_the_store_back_fills_and_appends(
     site = ring_site(plc, size=512)
     db = tmp_path / "again.db"
     record(site, db, duration_s=0.7)
-    time.sleep(0.7)  # the recorder is down for 0.7 s: the ring (5 s) holds it
+    time.sleep(0.7)  # the behaviour: the recorder down for 0.7 s, which the ring (5 s) holds
     record(site, db, duration_s=0.7)
     data, _, info = rows(db)
     seqs = data.seq.tolist()

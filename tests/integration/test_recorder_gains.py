@@ -22,6 +22,7 @@ import pytest
 
 from fuelid.plc.codec import encode
 from support.recorder import load, record, rows
+from support.waiting import wait_until
 
 pytest.importorskip("pymodbus", reason="the [plc] extra (pymodbus) is not installed")
 
@@ -91,15 +92,25 @@ def stored(db: Path) -> tuple[dict[str, Any], float] | None:
     return None if row is None else (json.loads(row[0]), float(row[1]))
 
 
+def committed_samples(db: Path) -> int:
+    """The samples a reader sees (committed)."""
+    con = sqlite3.connect(db, timeout=5.0)
+    try:
+        return int(con.execute("SELECT count(*) FROM samples").fetchone()[0])
+    finally:
+        con.close()
+
+
 def wait_for(db: Path, ok: Callable[[dict[str, Any]], bool], seconds: float) -> Any:
     """The stored reading and its row time once ``ok`` holds; fails after ``seconds``."""
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        found = stored(db) if db.exists() else None
-        if found is not None and ok(found[0]):
-            return found
-        time.sleep(0.02)
-    pytest.fail(f"the store's plc_gains did not follow within {seconds} s: {stored(db)}")
+
+    def found() -> Any:
+        reading = stored(db) if db.exists() else None
+        return reading if reading is not None and ok(reading[0]) else None
+
+    return wait_until(
+        found, seconds, lambda: f"the store's plc_gains to follow (it holds {stored(db)})"
+    )
 
 
 def gains(kc: float, ti: float) -> list[int]:
@@ -118,13 +129,15 @@ def test_the_store_keeps_the_gains_as_read_and_follows_a_change(tmp_path: Path, 
     db = tmp_path / "g.db"
     try:
         plc.set_ir(12, gains(0.05, 2.0))
-        time.sleep(0.1)  # a few scans: the PLC runs when the recorder starts
+        plc.wait_scans(10)  # the PLC runs (its ring filling) when the recorder starts
         site = load(SITE.format(port=plc.port) + (RING if ring else ""))
         runner = threading.Thread(target=record, args=(site, db, 4.0))
         runner.start()
         try:
             first, written = wait_for(db, lambda v: True, 3.0)
-            time.sleep(0.6)  # polls (and three commits) with the same gains: no new write
+            # polls and three commits (0.2 s apart) with the same gains: no new write
+            seen = committed_samples(db)
+            wait_until(lambda: committed_samples(db) >= seen + 60, 10.0, "0.6 s more samples")
             again = stored(db)
             plc.set_ir(12, gains(0.08, 3.0))
             changed, _ = wait_for(db, lambda v: v["kc"] == pytest.approx(0.08), 1.5)

@@ -22,6 +22,10 @@ from fuelid.plc.site import Tag
 from fuelid.store import Event, Quality, Sample, SQLiteStore
 from support.recorder import REPLAY, RING_REPLAY, kinds, load, record, rows, write_log
 
+# xdist: one worker runs every module that drives a PLC at speed, one after another
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("real-time")
+
 
 def virtual_plc(**kw: Any) -> Any:
     runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
@@ -141,7 +145,9 @@ def test_at_speed_link_down_and_up_bracket_the_hole_in_the_samples(tmp_path: Pat
 
         def outage() -> None:
             srv.stop_link()
-            time.sleep(1.0)  # 500 samples of plant time: more than the ring holds
+            # the behaviour: the link down for 1 s (500 samples of plant time, more than the
+            # ring holds; five times the recorder's ring poll)
+            time.sleep(1.0)
             srv.start_link()
 
         threading.Timer(1.0, outage).start()

@@ -10,7 +10,6 @@ from __future__ import annotations
 import asyncio
 import socket
 import struct
-import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -28,6 +27,11 @@ from fuelid.plc.adapters import LinkError, open_source  # noqa: E402
 from fuelid.plc.adapters.s7 import S7Source, plan_spans  # noqa: E402
 from fuelid.plc.site import SiteConfig  # noqa: E402
 from fuelid.plc.virtual.s7_server import S7Frontend  # noqa: E402
+from support.waiting import wait_until  # noqa: E402
+
+# xdist: one worker runs every module that drives a PLC at speed, one after another
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("real-time")
 
 HOST = "127.0.0.1"
 
@@ -408,16 +412,6 @@ def test_server_restart_drops_then_reconnects(frontend: S7Frontend) -> None:
 RING_BYTE = 2000  # DB1.DBD2000: slot 0 (2 x RING_FIRST_REGISTER)
 
 
-def _wait_for(check: Any, what: str, timeout_s: float = 5.0) -> Any:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = check()
-        if value:
-            return value
-        time.sleep(0.02)
-    raise AssertionError(f"timed out waiting for {what}")
-
-
 def _ring_records(plain: Client, ring_size: int) -> dict[int, tuple[float, float, float]]:
     """Every ring record by sequence number: (command [V], flow, setpoint [L/min])."""
     data = plain.db_read(1, RING_BYTE, 20 * ring_size)
@@ -448,9 +442,11 @@ def test_virtual_plc_manual_step_gain_and_staged_gains() -> None:
             plain.db_write(2, 0, bytearray(struct.pack(">H", 0)))
             plain.db_write(2, 8, bytearray(struct.pack(">f", u0)))
             start = _head(plain)
-            step = _wait_for(lambda: (h := _head(plain)) >= start + settle and h, "u0 to settle")
+            step = wait_until(
+                lambda: (h := _head(plain)) >= start + settle and h, 5.0, "u0 to settle"
+            )
             plain.db_write(2, 8, bytearray(struct.pack(">f", u1)))
-            _wait_for(lambda: _head(plain) >= step + settle, "u1 to settle")
+            wait_until(lambda: _head(plain) >= step + settle, 5.0, "u1 to settle")
             records = _ring_records(plain, ring_size)
             fuel_C = struct.unpack(">f", plain.db_read(1, 16, 4))[0]
 
@@ -459,10 +455,11 @@ def test_virtual_plc_manual_step_gain_and_staged_gains() -> None:
             kc, ti = 1.2 * virtual.plc.kc0, 0.9 * virtual.plc.ti0
             plain.db_write(2, 40, bytearray(struct.pack(">H", 1)))
             plain.db_write(2, 20, bytearray(struct.pack(">ffI", kc, ti, 5)))
-            echo = _wait_for(
+            echo = wait_until(
                 lambda: (
                     struct.unpack(">I", plain.db_read(1, 32, 4))[0] == 5 and plain.db_read(1, 24, 8)
                 ),
+                5.0,
                 "the staged set's echo",
             )
             status = struct.unpack(">H", plain.db_read(1, 22, 2))[0]

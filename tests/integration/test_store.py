@@ -9,6 +9,7 @@ import sqlite3
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +27,7 @@ from fuelid.store import (
     open_store,
     tag_map_hash,
 )
+from support.waiting import wait_until
 
 T0 = 1_700_000_000.0  # UTC seconds
 H = 0.02  # s
@@ -167,7 +169,7 @@ def test_writer_batches_commits_and_flush_makes_them_visible(tmp_path: Path) -> 
     writer = SampleWriter(store, commit_interval_s=60.0, on_commit=lambda s, e: commits.append(1))
     writer.put_many(_samples(range(100)))
     writer.event("link_up", "connected", time=T0)
-    time.sleep(0.1)
+    time.sleep(0.1)  # a negative check's window: a commit of the rows put would come in it
     assert _rows_seen_by_another_connection(store._file) == 0  # nothing committed yet
     writer.flush()
     assert _rows_seen_by_another_connection(store._file) == 100
@@ -184,10 +186,11 @@ def test_writer_batches_commits_and_flush_makes_them_visible(tmp_path: Path) -> 
 def test_writer_commits_on_its_own_about_every_interval(tmp_path: Path) -> None:
     with _new(tmp_path) as store, SampleWriter(store, commit_interval_s=0.1) as writer:
         writer.put_many(_samples(range(10)))
-        deadline = time.monotonic() + 5.0
-        while _rows_seen_by_another_connection(store._file) < 10:
-            assert time.monotonic() < deadline, "the writer did not commit within 5 s"
-            time.sleep(0.02)
+        wait_until(
+            lambda: _rows_seen_by_another_connection(store._file) >= 10,
+            5.0,
+            "the writer's own commit (interval 0.1 s)",
+        )
 
 
 def test_prune_keeps_recent_samples_raw_and_thins_older_ones(tmp_path: Path) -> None:
@@ -256,13 +259,23 @@ while True:
     writer.put_many(Sample(1.7e9 + 0.02 * k, k, 1.0, 2.0, 3.0, 20.0, 1, 0)
                     for k in range(seq, seq + 20))
     seq += 20
-    time.sleep(0.005)
+    time.sleep(0.005)  # the producer's pace: 20 samples every 5 ms
 """
 
 
 def _last_reported(log: Path) -> int:
     lines = [line for line in log.read_text().splitlines() if line.strip()]
     return int(lines[-1]) if lines else -1
+
+
+def _reported_past(log: Path, seen: int, child: subprocess.Popen[bytes]) -> Callable[[], bool]:
+    """A condition: the child reported a commit past ``seen`` (and is still running)."""
+
+    def past() -> bool:
+        assert child.poll() is None, "the writer process died on its own"
+        return log.exists() and _last_reported(log) > seen
+
+    return past
 
 
 @pytest.mark.parametrize("kills", [5, pytest.param(20, marks=pytest.mark.slow)])
@@ -275,12 +288,11 @@ def test_kill_9_loses_nothing_committed_and_never_corrupts(tmp_path: Path, kills
         start = max(seen + 1 - 30, 0)  # re-send the last samples, as a ring buffer back-fill does
         child = subprocess.Popen([sys.executable, str(script), str(db), str(log), str(start)])
         try:
-            deadline = time.monotonic() + 30.0
-            while not log.exists() or _last_reported(log) <= seen:
-                assert child.poll() is None, "the writer process died on its own"
-                assert time.monotonic() < deadline, "the writer process never committed"
-                time.sleep(0.01)
-            time.sleep(rng.uniform(0.0, 0.15))
+            wait_until(
+                _reported_past(log, seen, child), 30.0, "the writer process's first commit",
+                every=0.01,
+            )  # fmt: skip
+            time.sleep(rng.uniform(0.0, 0.15))  # the behaviour: a kill at a random (seeded) point
             child.send_signal(signal.SIGKILL)
         finally:
             child.kill()

@@ -14,7 +14,6 @@ from __future__ import annotations
 import math
 import sqlite3
 import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -351,7 +350,7 @@ def excited_plc() -> Iterator[Any]:
     size = 256
     plc = FakePlc(ir=1000 + 10 * size + 10, program=_ExcitedRing(size))
     plc.size = size
-    time.sleep(0.1)  # a few scans: the PLC is running when the recorder starts
+    plc.wait_scans(10)  # the PLC is running (its ring filling) when the recorder starts
     try:
         yield plc
     finally:

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import asyncio
 import struct
-import time
-from collections.abc import Callable
 from typing import Any, TypeVar
 
 import pytest
@@ -25,6 +23,11 @@ from fuelid.plc.virtual.points import (
     RING_RECORD_REGISTERS,
 )
 from fuelid.plc.virtual.runner import VirtualPlcThread
+from support.waiting import await_until, wait_until
+
+# xdist: one worker runs every module that drives a PLC at speed, one after another
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("real-time")
 
 T = TypeVar("T")
 HOST = "127.0.0.1"
@@ -39,16 +42,6 @@ ENGINE = {
 EXCITATION = RING_FIELDS.index("excitation")
 COMMAND = RING_FIELDS.index("command")
 TIMEOUT_S = 10.0
-
-
-def _wait_for(check: Callable[[], T | None], what: str) -> T:
-    deadline = time.monotonic() + TIMEOUT_S
-    while time.monotonic() < deadline:
-        value = check()
-        if value is not None:
-            return value
-        time.sleep(0.02)
-    raise AssertionError(f"timed out waiting for {what}")
 
 
 def _f32(value: float) -> float:
@@ -95,10 +88,10 @@ def test_modbus_excitation_run_and_ring() -> None:
             hr(POINTS["heartbeat"].register, [1])
             hr(POINTS["manual_command"].register, _words(MANUAL_V))
             hr(POINTS["excitation_request"].register, _words(ASKED_V))
-            _wait_for(lambda: f32(ir(excitation, 2)) == _f32(LIMIT_V) or None, "the signal")
+            wait_until(lambda: f32(ir(excitation, 2)) == _f32(LIMIT_V), TIMEOUT_S, "the signal")
             assert f32(ir(POINTS["command"].register, 2)) == _f32(MANUAL_V + LIMIT_V)
             virtual.set_run(True)
-            _wait_for(lambda: ir(run, 1) == [1] or None, "the run flag")
+            wait_until(lambda: ir(run, 1) == [1], TIMEOUT_S, "the run flag")
 
             head = ir(RING_HEAD_REGISTER, 3)
             seq, size = (head[0] << 16) | head[1], head[2]
@@ -108,7 +101,7 @@ def test_modbus_excitation_run_and_ring() -> None:
             assert record[0] == seq
             _check_record(record)
             virtual.set_run(False)
-            _wait_for(lambda: ir(run, 1) == [0] or None, "the run flag lowered")
+            wait_until(lambda: ir(run, 1) == [0], TIMEOUT_S, "the run flag lowered")
         finally:
             client.close()  # type: ignore[no-untyped-call]
 
@@ -137,16 +130,16 @@ def test_opcua_excitation_run_and_ring() -> None:
             async def read(name: str) -> Any:
                 return await client.get_node(node_id(name)).read_value()
 
+            async def reads(name: str, value: float) -> bool:
+                return bool(await read(name) == value)
+
             run_before = await read("run")
             await write("heartbeat", 1)
             await write("manual_command", MANUAL_V)
             await write("excitation_request", ASKED_V)
-            for _ in range(int(TIMEOUT_S / 0.02)):
-                if await read("excitation") == LIMIT_V:
-                    break
-                await asyncio.sleep(0.02)
+            await await_until(lambda: reads("excitation", LIMIT_V), TIMEOUT_S, "the signal")
             await asyncio.to_thread(virtual.set_run, True)
-            await asyncio.sleep(0.05)  # a tick or two
+            await await_until(lambda: reads("run", 1), TIMEOUT_S, "the run flag")
             head = await read("ring_head")
             ring = await client.get_node("ns=2;s=FuelLoop.Ring").read_value()
             return {
@@ -198,10 +191,10 @@ def test_s7_excitation_run_and_ring() -> None:
             plain.db_write(2, offset("heartbeat"), bytearray(struct.pack(">H", 1)))
             plain.db_write(2, offset("manual_command"), bytearray(struct.pack(">f", MANUAL_V)))
             plain.db_write(2, offset("excitation_request"), bytearray(struct.pack(">f", ASKED_V)))
-            _wait_for(lambda: real("excitation") == _f32(LIMIT_V) or None, "the signal")
+            wait_until(lambda: real("excitation") == _f32(LIMIT_V), TIMEOUT_S, "the signal")
             assert real("command") == _f32(MANUAL_V + LIMIT_V)
             virtual.set_run(True)
-            _wait_for(lambda: word("run") == 1 or None, "the run flag")
+            wait_until(lambda: word("run") == 1, TIMEOUT_S, "the run flag")
 
             head = int(struct.unpack(">I", plain.db_read(1, offset("ring_head"), 4))[0])
             size = word("ring_size")

@@ -48,6 +48,11 @@ from fuelid.plc.virtual.runner import site_text
 from fuelid.profiles.runs import Profile, load_profile, run_profile, steps_profile
 from fuelid.units import LPM_PER_M3S, celsius_to_kelvin
 from fuelid.workflow.plant_info import plant_info
+from support.waiting import await_until, wait_until
+
+# xdist: one worker runs every module that drives a PLC at speed, one after another
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("real-time")
 
 HAS_PYMODBUS = importlib.util.find_spec("pymodbus") is not None
 needs_pymodbus = pytest.mark.skipif(
@@ -475,11 +480,16 @@ class Plain:
         assert self.last_seq is not None
         target = round(plant_s / period_s)
         got = 0
-        deadline = time.monotonic() + timeout
-        while got < target:
-            assert time.monotonic() < deadline, "the virtual PLC does not keep time"
-            await asyncio.sleep(0.05)
+
+        async def enough() -> bool:
+            nonlocal got
             got += len(await self.poll_ring())
+            return got >= target
+
+        await await_until(
+            enough, timeout, f"{plant_s:g} s of plant time (the virtual PLC keeping time)",
+            every=0.05,
+        )  # fmt: skip
 
     def window(self, last_s: float) -> np.ndarray:
         """The records of the last ``last_s`` seconds of plant time, as an array."""
@@ -766,7 +776,9 @@ def test_link_drop_keeps_the_ring_and_a_restart_starts_over() -> None:
     with _virtual(speed=20.0, seed=19) as virtual:
         last, first = asyncio.run(read(virtual.port, None))
         virtual.stop_link()
-        time.sleep(0.3)  # 6 s of plant time with no server: the ring keeps filling
+        # 6 s of plant time with no server: the ring keeps filling (it holds them all)
+        assert virtual.plc.ring_size > 300
+        wait_until(lambda: virtual.plc.seq >= last + 300, 10.0, "6 s of plant time unread")
         virtual.start_link()
         _head, backfill = asyncio.run(read(virtual.port, last))
         seqs = [r[0] for r in first + backfill]

@@ -166,8 +166,9 @@ def test_a_request_for_a_report_being_made_waits_for_it(monkeypatch: pytest.Monk
     assert started.wait(10.0)
     second = threading.Thread(target=lambda: pages.append(window_report_html(loop, window(5))))
     second.start()
-    time.sleep(0.1)
+    time.sleep(0.1)  # a negative check's window: a second analysis would start in it
     assert second.is_alive()  # waiting for the first, not making it again
+    assert made == [5]
     release.set()
     first.join(10.0)
     second.join(10.0)
@@ -196,7 +197,7 @@ def test_a_requests_analysis_goes_before_the_ones_made_ahead(
     prefetcher = ReportPrefetcher(lambda: [loop])
     ahead = threading.Thread(target=prefetcher.run_once)
     ahead.start()
-    time.sleep(0.5)
+    time.sleep(0.5)  # a negative check's window: an analysis made ahead would start in it
     assert made == [1]  # nothing started ahead while the request's analysis runs
     release.set()
     asked.join(10.0)

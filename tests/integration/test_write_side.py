@@ -27,6 +27,11 @@ import pytest
 from fuelid.errors import ConfigError
 from fuelid.plc.adapters import LinkError, PlcSource, open_source
 from fuelid.plc.site import SiteConfig
+from support.waiting import await_until
+
+# xdist: one worker runs every module that drives a PLC at speed, one after another
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("real-time")
 
 T = TypeVar("T")
 
@@ -93,8 +98,12 @@ async def _seq(source: PlcSource) -> int:
 async def _wait_samples(source: PlcSource, samples: int) -> None:
     """Wait until ``samples`` more samples of plant time have passed on the PLC."""
     start = await _seq(source)
-    while await _seq(source) < start + samples:
-        await asyncio.sleep(0.01)
+
+    async def passed() -> bool:
+        return await _seq(source) >= start + samples
+
+    # within the body's bound (LIMIT_S), so that this message, not a bare timeout, says why
+    await await_until(passed, 10.0, f"{samples} samples of plant time", every=0.01)
 
 
 @pytest.mark.parametrize(("protocol", "options"), LINKS)

@@ -16,6 +16,8 @@ from typing import Any
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
+from support.waiting import wait_until
+
 
 def free_port() -> int:
     """A loopback port that was free a moment ago.
@@ -52,6 +54,7 @@ class FakePlc:
         self.device_id = device_id
         self.period_s = period_s
         self.program = program
+        self.scans = 0  # the program's runs so far (see wait_scans)
         self.port = free_port()
         self.server: ModbusTcpServer | None = None
         self.loop = asyncio.new_event_loop()
@@ -68,13 +71,14 @@ class FakePlc:
 
     async def _run(self) -> None:
         while True:
-            await asyncio.sleep(self.period_s)
+            await asyncio.sleep(self.period_s)  # the PLC's scan period: its clock, not a wait
             if self.program is None:
                 continue
             for address, words in self.program(self):
                 self.ir[address : address + len(words)] = words
                 if self.server is not None:
                     await self.server.async_setValues(self.device_id, 4, address, words)
+            self.scans += 1
 
     async def _start(self) -> None:
         regs = [SimData(0, values=list(self.hr), datatype=DataType.REGISTERS)]
@@ -92,6 +96,11 @@ class FakePlc:
         if server is not None:
             self.hr = list(await server.async_getValues(self.device_id, 3, 0, len(self.hr)))
             await server.shutdown()
+
+    def wait_scans(self, scans: int, timeout: float = 10.0) -> None:
+        """Wait until the program has run ``scans`` more times (published to the server)."""
+        target = self.scans + scans
+        wait_until(lambda: self.scans >= target, timeout, f"{scans} scans of the test PLC")
 
     def start_link(self) -> None:
         self._call(self._start())

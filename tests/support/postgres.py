@@ -23,10 +23,11 @@ import shutil
 import socket
 import subprocess
 import tempfile
-import time
 from pathlib import Path
 
 import pytest
+
+from support.waiting import wait_until
 
 START_TIMEOUT_S = 60
 SERVER_USERS = ("postgres", "nobody")
@@ -109,9 +110,12 @@ class PgCluster:
 
     def restart_after_crash(self) -> None:
         """Start again after :meth:`stop` ``("immediate")`` (the server replays its WAL)."""
-        deadline = time.monotonic() + START_TIMEOUT_S
-        while (self.data / "postmaster.pid").exists() and time.monotonic() < deadline:
-            time.sleep(0.05)
+        wait_until(
+            lambda: not (self.data / "postmaster.pid").exists(),
+            START_TIMEOUT_S,
+            "the crashed server's postmaster.pid to go",
+            every=0.05,
+        )
         self.start()
 
     def url(self, dbname: str = "postgres", user: str = "fuelid") -> str:

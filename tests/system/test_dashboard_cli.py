@@ -23,6 +23,10 @@ from fuelid.cli import main
 from fuelid.store.schema import SCHEMA_VERSION
 from support.browser import Process
 
+# xdist: one worker runs the dashboard's modules, which share one store made once
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("dashboard")
+
 
 def _refused(capsys: pytest.CaptureFixture[str], *args: str) -> str:
     capsys.readouterr()

@@ -19,8 +19,6 @@ import signal
 import sqlite3
 import subprocess
 import sys
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -28,6 +26,7 @@ import pytest
 pytest.importorskip("pymodbus")
 
 from fuelid.plc.virtual.runner import VirtualPlcThread
+from support.waiting import wait_until
 
 SPEED = 5.0
 TIMEOUT_S = 10.0
@@ -60,14 +59,6 @@ def _fuelid(*args: str) -> list[str]:
     return [sys.executable, "-m", "fuelid", *args]
 
 
-def _until(condition: Callable[[], bool], timeout_s: float, what: str) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"no {what} within {timeout_s:g} s")
-        time.sleep(0.02)
-
-
 def _beating(db: Path) -> bool:
     if not db.exists():
         return False
@@ -87,14 +78,15 @@ def _start_with_a_signal(
             _fuelid("online", "--config", str(site), "--store", str(db), "--duration", "300"),
             stdout=subprocess.DEVNULL, stderr=stderr, text=True,
         )  # fmt: skip
-    _until(lambda: _beating(db) and service.poll() is None, 60.0, "beat of the service")
-    time.sleep(2.5)  # a few heartbeats: the PLC takes the advisor as alive
+    wait_until(lambda: _beating(db) and service.poll() is None, 60.0, "beat of the service")
+    # the service's heartbeats: the PLC takes the advisor as alive
+    wait_until(lambda: not virtual.plc.heartbeat_stale(), 60.0, "the PLC to see the heartbeat")
     asked = subprocess.run(
         _fuelid("online", "excite", "--start", "--store", str(db), "--why", "test"),
         capture_output=True, text=True, timeout=60,
     )  # fmt: skip
     assert asked.returncode == 0, asked.stderr
-    _until(lambda: virtual.plc.read_points()["excitation"] != 0.0, 60.0, "signal applied")
+    wait_until(lambda: virtual.plc.read_points()["excitation"] != 0.0, 60.0, "signal applied")
     return service
 
 
@@ -113,15 +105,15 @@ def test_kill_9_and_a_clean_stop_leave_no_signal_on_the_plc(tmp_path: Path) -> N
             killed_at = virtual.plc.time_s
             services[-1].send_signal(signal.SIGKILL)
             services[-1].wait(10.0)
-            _until(lambda: virtual.plc.read_points()["excitation"] == 0.0, 30.0, "zero (kill)")
+            wait_until(lambda: virtual.plc.read_points()["excitation"] == 0.0, 30.0, "zero (kill)")
             after_kill = virtual.plc.time_s - killed_at
             # one burst per window_s (120 s of plant time), across a restart too
-            _until(lambda: virtual.plc.time_s > first_burst + 125.0, 60.0, "the next window")
+            wait_until(lambda: virtual.plc.time_s > first_burst + 125.0, 60.0, "the next window")
             services.append(_start_with_a_signal(site, db, virtual, tmp_path / "stopped.log"))
             services[-1].send_signal(signal.SIGTERM)
             services[-1].wait(60.0)
             exited_at = virtual.plc.time_s
-            _until(lambda: virtual.plc.read_points()["excitation"] == 0.0, 10.0, "zero (stop)")
+            wait_until(lambda: virtual.plc.read_points()["excitation"] == 0.0, 10.0, "zero (stop)")
             after_stop = virtual.plc.time_s - exited_at
         finally:
             for service in services:

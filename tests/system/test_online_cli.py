@@ -18,6 +18,11 @@ from fuelid.cli import main
 from fuelid.plc.recorder import site_identity
 from fuelid.plc.site import load_site
 from fuelid.store import Event, OnlineHistory, Sample, SQLiteStore
+from support.waiting import wait_until
+
+# xdist: one worker runs every module that drives a PLC at speed, one after another
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("real-time")
 
 T0 = 1_790_000_000.0
 HEALTH = {
@@ -696,6 +701,21 @@ def test_a_short_virtual_run_fills_the_store_with_windows(
     assert json.loads(out)["last_window"] is not None
 
 
+def _committed_samples(db: Path) -> int:
+    """The samples a reader sees in a store being written (0 before its schema is committed)."""
+    import sqlite3
+
+    if not db.exists():
+        return 0
+    con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5.0)
+    try:
+        return int(con.execute("SELECT count(*) FROM samples").fetchone()[0])
+    except sqlite3.OperationalError:
+        return 0
+    finally:
+        con.close()
+
+
 def test_sigterm_stops_the_virtual_run_cleanly_with_a_summary(tmp_path: Path) -> None:
     import signal
     import subprocess
@@ -715,7 +735,8 @@ def test_sigterm_stops_the_virtual_run_cleanly_with_a_summary(tmp_path: Path) ->
         for line in child.stderr:  # wait until the service records
             if "connected to" in line:
                 break
-        time.sleep(1.0)
+        # the store's rows checked below, committed before the signal (a commit a second)
+        wait_until(lambda: _committed_samples(db) > 1000, 60.0, "1000 samples committed")
         child.send_signal(signal.SIGTERM)
         out, err = child.communicate(timeout=30)
     finally:

@@ -14,6 +14,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -21,6 +22,7 @@ from fuelid.cli import main
 from fuelid.online.liveness import SERVICE_BEAT_S, SERVICE_STALE_S
 from fuelid.online.report import status_json
 from fuelid.store import OnlineHistory, SQLiteStore
+from support.waiting import wait_until
 
 SERVICE_KEYS = {
     "pid",
@@ -127,30 +129,33 @@ def test_a_service_killed_with_sigkill_reads_stopped_within_five_beats_and_two(
         for line in child.stderr:  # wait until the service records
             if "connected to" in line:
                 break
-        time.sleep(2.5 * SERVICE_BEAT_S)
-        with SQLiteStore(db) as store, OnlineHistory(store) as history:
-            live = status_json(history, store)
-        assert live["link"]["state"] == "up", live["link"]
+
+        def read_status() -> dict[str, Any]:
+            with SQLiteStore(db) as store, OnlineHistory(store) as history:
+                return status_json(history, store)
+
+        # beats of the service: the status reads it running, the link up
+        live = wait_until(
+            lambda: (s := read_status())["link"]["state"] == "up" and s, 5 * SERVICE_BEAT_S,
+            lambda: f"the link up: {read_status()['link']}",
+        )  # fmt: skip
         assert live["service"]["state"] == "running"
         os.killpg(child.pid, signal.SIGKILL)
         child.wait(timeout=10)
-        killed = time.time()
-        state = "up"
-        while time.time() - killed < SERVICE_STALE_S + 2 * SERVICE_BEAT_S:
-            with SQLiteStore(db) as store, OnlineHistory(store) as history:
-                status = status_json(history, store)
-            state = status["link"]["state"]
-            if state == "stopped":
-                break
-            time.sleep(0.5)
+        # the behaviour: the status reads stopped within five beats and two (its deadline)
+        stopped = wait_until(
+            lambda: (s := read_status())["link"]["state"] == "stopped" and s,
+            SERVICE_STALE_S + 2 * SERVICE_BEAT_S,
+            lambda: f"the status to read stopped: {read_status()['link']}",
+            every=0.5,
+        )
     finally:
         if child.poll() is None:
             os.killpg(child.pid, signal.SIGKILL)
             child.wait()
         if child.stderr is not None:
             child.stderr.close()
-    assert state == "stopped"
-    assert status["service"]["stopped"] is None  # killed: never wrote its stop
-    assert status["service"]["state"] == "stopped"
-    assert "no beat for" in status["link"]["text"]
-    assert json.dumps(status)  # plain JSON
+    assert stopped["service"]["stopped"] is None  # killed: never wrote its stop
+    assert stopped["service"]["state"] == "stopped"
+    assert "no beat for" in stopped["link"]["text"]
+    assert json.dumps(stopped)  # plain JSON

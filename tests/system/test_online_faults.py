@@ -23,6 +23,7 @@ again (:func:`test_kill_9_during_a_window_s_revert_does_not_repeat_the_window`).
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 import random
 import signal
@@ -53,6 +54,11 @@ from fuelid.store.sqlite import SQLiteStore
 from support.online import approve_directly as _approve
 from support.online import online_site as _site
 from support.online import open_history as _open
+from support.waiting import wait_until
+
+# xdist: one worker runs every module that drives a PLC at speed, one after another
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("real-time")
 
 REFERENCE_PLANT = str(resources.files("fuelid.data").joinpath("reference_plant.toml"))
 HEARTBEAT_S = 0.05
@@ -107,13 +113,6 @@ def _run(
         service.close()
         raise failure[0]
     return service, lines
-
-
-def _poll(condition: Callable[[], bool], timeout_s: float, what: str) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        time.sleep(0.02)
 
 
 def _sql(db: Path, query: str, *args: Any) -> list[tuple[Any, ...]]:
@@ -352,7 +351,7 @@ def test_pump_wear_is_tracked_and_a_larger_gain_proposed_within_three_windows(
         def watch(service: OnlineService, stop: Callable[[], None]) -> None:
             opened, history = _open(site, store)
             try:
-                _poll(
+                wait_until(
                     lambda: sum(w["accepted"] for w in history.windows()) >= 3,
                     60.0,
                     "three accepted windows",
@@ -362,9 +361,9 @@ def test_pump_wear_is_tracked_and_a_larger_gain_proposed_within_three_windows(
                 change["seq"] = virtual.plc.seq
                 change["proposals_before"] = len(history.proposals())
                 virtual.plc.set_plant(worn)
-                _poll(lambda: opened.last_time() is not None and _seq_stored(), 30.0, "data")
+                wait_until(lambda: opened.last_time() is not None and _seq_stored(), 30.0, "data")
                 change["time"] = _time_of_seq(opened, change["seq"])
-                _poll(
+                wait_until(
                     lambda: len(history.windows(t_from=change["time"])) >= 5,
                     60.0,
                     "five windows after the change",
@@ -474,14 +473,17 @@ def test_an_applied_write_moves_the_command_no_more_than_the_pi_does(tmp_path: P
 
         def watch(service: OnlineService, stop: Callable[[], None]) -> None:
             # 40 s of data at the constant setpoint first, then approve: the service writes
-            _poll(lambda: virtual.plc.time_s > 45.0 and _count(store, "samples") > 2000, 30.0,
+            wait_until(lambda: virtual.plc.time_s > 45.0 and _count(store, "samples") > 2000, 30.0,
                   "40 s of samples")  # fmt: skip
             _approve(site, store, kc, ti)
-            _poll(lambda: virtual.plc.gains != (kc0, ti0), 30.0, "the apply")
+            wait_until(lambda: virtual.plc.gains != (kc0, ti0), 30.0, "the apply")
             applied["seq"] = virtual.plc.seq  # within a tick (1 ms of wall time) of the scan
             end = virtual.plc.seq + round(15.0 / virtual.plc.period_s)
-            _poll(lambda: virtual.plc.seq > end, 30.0, "15 s after the apply")
-            time.sleep(1.5)  # a commit of the recorder (1 s of wall time)
+            wait_until(lambda: virtual.plc.seq > end, 30.0, "15 s after the apply")
+            wait_until(
+                lambda: _sql(store, "SELECT max(seq) FROM samples")[0][0] >= end, 30.0,
+                "the samples up to 15 s after the apply committed",
+            )  # fmt: skip
             stop()
 
         service, _ = _run(site, 30.0, watch)
@@ -562,7 +564,7 @@ def test_link_drops_and_a_plc_restart_leave_the_schedule_going(tmp_path: Path, d
         site = _site(virtual, store, FAULT_ONLINE)
 
         def watch(service: OnlineService, stop: Callable[[], None]) -> None:
-            _poll(lambda: _count(store, "windows") >= 1, 30.0, "a first window")
+            wait_until(lambda: _count(store, "windows") >= 1, 30.0, "a first window")
 
             def reconnected() -> bool:
                 return service.recorder is not None and service.recorder.connected
@@ -570,7 +572,10 @@ def test_link_drops_and_a_plc_restart_leave_the_schedule_going(tmp_path: Path, d
             for i in range(drops):
                 # one fault at a time: the recorder's reconnect backoff grows to 5 s, so wait
                 # for its link_up before the next (else the faults merge into one outage)
-                _poll(reconnected, 20.0, "the recorder back on the link")
+                # the sleeps are the behaviour: faults at seeded random times, each drop 1–2 s
+                # (5–10 ring polls), and 0.5 s for the recorder to notice one before the wait
+                # for its reconnect
+                wait_until(reconnected, 20.0, "the recorder back on the link")
                 time.sleep(rng.uniform(0.5, 1.5))
                 if i == drops // 2:
                     virtual.restart_plc()
@@ -582,9 +587,11 @@ def test_link_drops_and_a_plc_restart_leave_the_schedule_going(tmp_path: Path, d
                 virtual.start_link()
                 faults.append("drop")
                 time.sleep(0.5)
-            _poll(reconnected, 20.0, "the recorder back on the link")
+            wait_until(reconnected, 20.0, "the recorder back on the link")
             after = _count(store, "windows")
-            _poll(lambda: _count(store, "windows") >= after + 2, 30.0, "windows after the faults")
+            wait_until(
+                lambda: _count(store, "windows") >= after + 2, 30.0, "windows after the faults"
+            )
             stop()
 
         started = time.monotonic()
@@ -647,9 +654,8 @@ def _kill_9(child: subprocess.Popen[str]) -> list[int]:
     workers = _children(child.pid)
     child.send_signal(signal.SIGKILL)
     child.wait(10.0)
-    deadline = time.monotonic() + 10.0
-    while any(_alive(p) for p in workers) and time.monotonic() < deadline:
-        time.sleep(0.05)
+    with contextlib.suppress(AssertionError):  # the ones left are returned, for the test to say
+        wait_until(lambda: not any(_alive(p) for p in workers), 10.0, "the workers' exit")
     orphans = [p for p in workers if _alive(p)]
     for p in orphans:  # ours (started by the service we started): do not leave them running
         _kill_quietly(p)
@@ -657,7 +663,6 @@ def _kill_9(child: subprocess.Popen[str]) -> list[int]:
 
 
 def _kill_quietly(pid: int) -> None:
-    import contextlib
     import os
 
     with contextlib.suppress(OSError):
@@ -726,9 +731,9 @@ def test_kill_9_mid_window_loses_nothing_committed_and_the_schedule_goes_on(
             seen = _count(db, "windows")
             child = _service(site_file, db)
             try:
-                _poll(_more_windows_or_exit(db, seen, child), 60.0, "a window of the service")
+                wait_until(_more_windows_or_exit(db, seen, child), 60.0, "a window of the service")
                 assert child.poll() is None, _stop(child, db)
-                time.sleep(rng.uniform(0.0, 1.5))
+                time.sleep(rng.uniform(0.0, 1.5))  # the behaviour: a kill at a seeded random point
                 samples_before, windows_before = _count(db, "samples"), _windows_in(db)
                 orphans += _kill_9(child)
             finally:
@@ -742,7 +747,7 @@ def test_kill_9_mid_window_loses_nothing_committed_and_the_schedule_goes_on(
         seen = _count(db, "windows")
         child = _service(site_file, db)
         try:
-            _poll(_more_windows_or_exit(db, seen + 1, child), 60.0, "two windows after it")
+            wait_until(_more_windows_or_exit(db, seen + 1, child), 60.0, "two windows after it")
         finally:
             err = _stop(child, db)
         wall = time.monotonic() - started
@@ -798,9 +803,10 @@ def test_kill_9_mid_write_is_reconciled_from_the_echo_and_never_written_twice(
             pids.append(pid)
             child = _service(site_file, db)
             try:
-                _poll(_intent_or_exit(db, pid, child), 60.0, "the write's intent")
+                wait_until(_intent_or_exit(db, pid, child), 60.0, "the write's intent")
                 assert child.poll() is None, _stop(child, db)
-                time.sleep(rng.uniform(0.2, 2.0))  # the echo is awaited for 30 s
+                # the behaviour: a kill at a seeded random point (the echo is awaited for 30 s)
+                time.sleep(rng.uniform(0.2, 2.0))
                 orphans += _kill_9(child)
             finally:
                 if child.poll() is None:
@@ -811,15 +817,19 @@ def test_kill_9_mid_write_is_reconciled_from_the_echo_and_never_written_twice(
             assert virtual.plc.gains == (kc0, ti0)
         child = _service(site_file, db)  # the last start reconciles the last write
         try:
-            _poll(
-                lambda: (
+
+            def reconciled() -> bool:  # every write closed, its proposal failed, its event
+                failed = {
+                    p for (p,) in _sql(db, "SELECT id FROM proposals WHERE status = 'failed'")
+                }
+                return child.poll() is not None or (
                     not _sql(db, "SELECT 1 FROM writes WHERE status = 'intent'")
-                    or child.poll() is not None
-                ),
-                60.0,
-                "the reconciliation",
-            )
-            time.sleep(0.5)
+                    and failed >= set(pids)
+                    and len(_sql(db, "SELECT 1 FROM events WHERE kind = 'write_reconciled'"))
+                    >= kills
+                )
+
+            wait_until(reconciled, 60.0, "the reconciliation")
         finally:
             err = _stop(child, db)
         wall = time.monotonic() - started
@@ -876,7 +886,7 @@ def test_kill_9_during_a_window_s_revert_does_not_repeat_the_window(tmp_path: Pa
         query = "SELECT 1 FROM writes WHERE kind = 'revert' AND status = 'intent'"
         child = _service(site_file, db)
         try:
-            _poll(lambda: bool(_sql(db, query)) or child.poll() is not None, 60.0, "a revert")
+            wait_until(lambda: bool(_sql(db, query)) or child.poll() is not None, 60.0, "a revert")
             assert child.poll() is None, _stop(child, db)
             windows_before = _windows_in(db)
             _kill_9(child)
@@ -887,7 +897,7 @@ def test_kill_9_during_a_window_s_revert_does_not_repeat_the_window(tmp_path: Pa
         child = _service(site_file, db)
         try:
             seen = len(windows_before)
-            _poll(_more_windows_or_exit(db, seen, child), 60.0, "a window after the restart")
+            wait_until(_more_windows_or_exit(db, seen, child), 60.0, "a window after the restart")
         finally:
             _kill_9(child)
     ends = [t for _, t in _windows_in(db)]

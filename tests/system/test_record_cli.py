@@ -6,6 +6,7 @@ on bad input: every failure one line on stderr, exit code 2, no traceback.
 
 from __future__ import annotations
 
+import asyncio
 import json
 import random
 import signal
@@ -14,7 +15,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +24,11 @@ import pytest
 
 from fuelid.cli import main
 from fuelid.store import SQLiteStore
+from support.waiting import wait_until
+
+# xdist: one worker runs every module that drives a PLC at speed, one after another
+# (tests/conftest.py says why)
+pytestmark = pytest.mark.xdist_group("real-time")
 
 pytest.importorskip("pymodbus", reason="the [plc] extra (pymodbus) is not installed")
 
@@ -116,7 +122,7 @@ def test_link_drops_on_the_virtual_plc_are_back_filled_from_its_ring(
     # a loaded 2-core machine saw 2 of 3 drops: no poll came while the link was down)
     down_s, up_s = 0.4, 0.5
 
-    def flap() -> None:
+    def flap() -> None:  # the sleeps are the behaviour: the link up and down for stated times
         time.sleep(up_s)
         for _ in range(drops):
             virtual.stop_link()
@@ -312,6 +318,16 @@ def committed(db: Path) -> int:
         con.close()
 
 
+def _committed_more(db: Path, seen: int, child: subprocess.Popen[Any]) -> Callable[[], bool]:
+    """A condition: more than ``seen`` samples committed (and ``fuelid record`` still running)."""
+
+    def more() -> bool:
+        assert child.poll() is None, f"fuelid record ended on its own ({child.returncode})"
+        return committed(db) > seen
+
+    return more
+
+
 # the slow set only (the fast set's 6-min budget: its 3-kill case took 7 s of it)
 @pytest.mark.slow
 @pytest.mark.parametrize("kills", [20])
@@ -332,12 +348,8 @@ def test_kill_9_of_fuelid_record_keeps_what_was_committed_and_restarts_append(
                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
             )  # fmt: skip
             try:
-                deadline = time.monotonic() + 60.0
-                while committed(db) <= seen:  # wait for its first commit
-                    assert child.poll() is None, "fuelid record died on its own"
-                    assert time.monotonic() < deadline, "fuelid record never committed"
-                    time.sleep(0.05)
-                time.sleep(rng.uniform(0.0, 1.5))
+                wait_until(_committed_more(db, seen, child), 60.0, "fuelid record's first commit")
+                time.sleep(rng.uniform(0.0, 1.5))  # the behaviour: a kill at a seeded random point
                 before_kill = committed(db)
                 child.send_signal(signal.SIGKILL)
             finally:
@@ -368,12 +380,8 @@ def test_sigterm_and_sigint_stop_after_a_final_commit(tmp_path: Path, sig: int) 
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         )  # fmt: skip
         try:
-            deadline = time.monotonic() + 60.0
-            while committed(db) == 0:
-                assert child.poll() is None, child.communicate()
-                assert time.monotonic() < deadline
-                time.sleep(0.05)
-            time.sleep(0.5)  # mid-batch: the commit interval is 1 s
+            wait_until(_committed_more(db, 0, child), 60.0, "fuelid record's first commit")
+            time.sleep(0.5)  # the behaviour: a signal mid-batch (the commit interval is 1 s)
             child.send_signal(sig)
             out, err = child.communicate(timeout=30.0)
         finally:
@@ -391,14 +399,28 @@ def _wait_port(port: int, timeout: float = 30.0) -> float:
     """Wait until something accepts on 127.0.0.1:port; the wall time it took [s]."""
     import socket
 
-    started = time.monotonic()
-    while True:
+    def serves() -> bool:
         try:
             with socket.create_connection(("127.0.0.1", port), timeout=0.2):
-                return time.monotonic() - started
+                return True
         except OSError:
-            assert time.monotonic() - started < timeout, f"nothing serves on port {port}"
-            time.sleep(0.05)
+            return False
+
+    started = time.monotonic()
+    wait_until(serves, timeout, f"a server on port {port}", every=0.05)
+    return time.monotonic() - started
+
+
+def _plc_seq(site: Path) -> int:
+    """The PLC's sample counter now, read by a client of its own."""
+    from fuelid.plc.adapters import open_source
+    from fuelid.plc.site import load_site
+
+    async def read() -> int:
+        async with open_source(load_site(site)) as source:
+            return int((await source.read()).values["seq"])
+
+    return asyncio.run(read())
 
 
 class _Lines:
@@ -416,10 +438,12 @@ class _Lines:
             self.lines.append((time.monotonic(), line.rstrip()))
 
     def wait_for(self, needle: str, count: int = 1, timeout: float = 30.0) -> None:
-        deadline = time.monotonic() + timeout
-        while sum(needle in line for _, line in self.lines) < count:
-            assert time.monotonic() < deadline, f"no {needle!r} in:\n{self.text()}"
-            time.sleep(0.05)
+        wait_until(
+            lambda: sum(needle in line for _, line in self.lines) >= count,
+            timeout,
+            lambda: f"{count} x {needle!r} in:\n{self.text()}",
+            every=0.05,
+        )
 
     def text(self) -> str:
         return "\n".join(line for _, line in self.lines)
@@ -474,18 +498,22 @@ def test_plc_server_process_killed_and_restarted_at_speed_is_two_restarts_in_the
         lines = _Lines(recorder)
         lines.wait_for("connected to")
         began = time.monotonic()
-        time.sleep(1.0)
+        time.sleep(1.0)  # the scenario: 1 s of recording before the first kill
         plc_down_s += kill_server()  # 1: the recorder reconnects with its backoff
         lines.wait_for("PLC restart", 1)
-        time.sleep(0.5)
+        time.sleep(0.5)  # the scenario: the new run recorded for 0.5 s
         recorder.send_signal(signal.SIGSTOP)  # 2: the recorder frozen through the restart
         try:
+            last = _plc_seq(site)  # the last number the frozen recorder saw, or above
             plc_down_s += kill_server()
-            time.sleep(3.5)  # the new server counts ~ 3.5 s x 250/s, past the old one's ~ 2 s
+            # the new server counts (250/s) past it, and a second more
+            wait_until(
+                lambda: _plc_seq(site) > last + 250, 30.0, f"the new server's counter past {last}"
+            )
         finally:
             recorder.send_signal(signal.SIGCONT)
         lines.wait_for("PLC restart", 2)
-        time.sleep(0.5)
+        time.sleep(0.5)  # the scenario: the newest run recorded for 0.5 s
         recorder.send_signal(signal.SIGTERM)
         out, _ = recorder.communicate(timeout=30.0)
         wall = time.monotonic() - began
@@ -565,12 +593,8 @@ def test_kill_9_without_a_ring_loses_at_most_the_uncommitted_second(
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         )  # fmt: skip
         try:
-            deadline = time.monotonic() + 60.0
-            while committed(db) <= seen:
-                assert child.poll() is None, "fuelid record died on its own"
-                assert time.monotonic() < deadline, "fuelid record never committed"
-                time.sleep(0.02)
-            time.sleep(rng.uniform(0.0, 1.0))
+            wait_until(_committed_more(db, seen, child), 60.0, "fuelid record's first commit")
+            time.sleep(rng.uniform(0.0, 1.0))  # the behaviour: a kill at a seeded random point
             read_until = time.time()  # it reads every 20 ms up to the kill
             child.send_signal(signal.SIGKILL)
         finally:

@@ -33,7 +33,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 import tomllib
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -57,6 +56,7 @@ from fuelid.online.tracking import plant_gain_function
 from fuelid.plant.config import plant_config_from_dict, reference_plant_text
 from support.archive_fixture import archive_store
 from support.fleet import T0, simulate_loop
+from support.waiting import wait_until
 
 pytestmark = pytest.mark.slow
 
@@ -198,11 +198,11 @@ def _command(root: Path, out: Path) -> subprocess.Popen[bytes]:
 
 
 def _wait_for_results(out: Path, count: int, process: subprocess.Popen[bytes]) -> None:
-    deadline = time.monotonic() + 120.0
-    while len(list((out / "windows").rglob("part.parquet"))) < count:
+    def written() -> bool:
         assert process.poll() is None, process.communicate()
-        assert time.monotonic() < deadline
-        time.sleep(0.05)
+        return len(list((out / "windows").rglob("part.parquet"))) >= count
+
+    wait_until(written, 120.0, f"{count} windows' results written", every=0.05)
 
 
 def test_kill_a_worker_mid_run_the_task_is_retried_whole(

@@ -26,6 +26,7 @@ from fuelid.plant.simulate import simulate
 from fuelid.profiles import step_sequence
 from fuelid.workflow.identification import identify_log
 from fuelid.workflow.progress import IDENTIFY_STAGES
+from support.waiting import wait_until
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +88,8 @@ def test_the_display_shows_the_stage_and_its_bar_on_a_terminal() -> None:
         assert isinstance(stage, StepDisplay)
         stage("fitting the model")
         stage.step(1, 4, "order 1: standard errors")  # type: ignore[attr-defined]
-        time.sleep(0.3)  # the display refreshes ten times a second
+        # the display refreshes ten times a second, in its own thread
+        wait_until(lambda: "1/4" in out.getvalue(), 10.0, "the stage's bar on the terminal")
     shown = out.getvalue()
     assert "fitting the model: order 1: standard errors" in shown
     assert "1/4" in shown
@@ -97,7 +99,7 @@ def test_the_display_waits_before_it_shows_a_stage() -> None:
     console, out = _terminal()
     with progress_display(console=console, show_after=60.0) as stage:
         stage("reading the log")
-        time.sleep(0.3)
+        time.sleep(0.3)  # a negative check's window: three refreshes (0.1 s) that show nothing
     assert "reading the log" not in out.getvalue()
 
 
@@ -109,7 +111,7 @@ def test_the_display_is_silent_with_quiet_or_off_a_terminal(quiet: bool) -> None
     with progress_display(quiet, console=console, show_after=0.0) as stage:
         assert not isinstance(stage, StepDisplay)  # the library then counts no steps
         stage("fitting the model")
-        time.sleep(0.2)
+        time.sleep(0.2)  # a negative check's window: two refreshes (0.1 s) that show nothing
     assert out.getvalue() == ""
 
 
