@@ -52,8 +52,9 @@ from _docs_table import run_to_docs
 from _timing import best_of
 from fuelid.blas import single_threaded_blas
 from fuelid.identify.diagnostics import residual_whiteness
-from fuelid.identify.oe import OutputError, _jacobian, _Structure
+from fuelid.identify.oe import OutputError
 from fuelid.identify.pem import PredictionError
+from fuelid.identify.variable_projection import Structure, jacobian
 from fuelid.io.logs import load_log
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
@@ -115,10 +116,10 @@ def closed_loop(rng: np.random.Generator) -> IOData:
 
 def bound(u: np.ndarray, pole: float) -> dict[str, float]:
     """Variance bound of K and T (white: Cramér–Rao; AR(1): Box–Jenkins) on this input."""
-    st = _Structure(1, TRUTH.T_f, TRUTH.delay, "estimate", None)
+    st = Structure(1, TRUTH.T_f, TRUTH.delay, "estimate", None)
     beta = np.r_[TRUTH.K, 0.0, np.zeros(2)]
     values = {"T": TRUTH.T, "T2": 0.0, "delay": TRUTH.delay}
-    names, J = _jacobian(st, values, beta, u, H, float(u[0]))
+    names, J = jacobian(st, values, beta, u, H, float(u[0]))
     sigma_e = SD * math.sqrt(1.0 - pole**2)
     if pole:
         J = scipy.signal.lfilter([1.0, -pole], [1.0], J, axis=0)[1:]

@@ -13,13 +13,12 @@ import functools
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid import lti
-from fuelid._deprecated import warn_renamed
 from fuelid.errors import DataError, FuelidError
 from fuelid.lti import discretise, lag_chain
 from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
@@ -152,11 +151,6 @@ class ProcessModel:
             parts.append(f"T_f = {self.T_f:.3g} s")
         parts.append(f"delay = {self.delay:.3g} s")
         return ", ".join(parts)
-
-    def as_dict(self, *args: Any, **kwargs: Any) -> dict[str, float]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "as_dict")
-        return self.to_json(*args, **kwargs)
 
     def to_json(self) -> dict[str, float]:
         """Parameters as a plain dictionary (for JSON)."""

@@ -16,7 +16,8 @@ import pytest
 
 from fuelid.archive.layout import list_loop_days, read_day_table
 from fuelid.cli import main
-from fuelid.plc.recorder import record_site, site_identity
+from fuelid.plc.record_runner import record_site
+from fuelid.plc.recorder import site_identity
 from fuelid.store import Sample, SQLiteStore
 from support.archive import archived_rows
 from support.recorder import REPLAY, kinds, load, rows, write_log

@@ -262,7 +262,7 @@ def test_a_central_loop_offers_the_start_and_relays_it_like_a_revert(
     from fastapi.testclient import TestClient
 
     from fuelid.dashboard.app import create_app
-    from fuelid.dashboard.central_db import CentralLoops
+    from fuelid.dashboard.central_loops import CentralLoops
     from fuelid.dashboard.registry import Loops
     from fuelid.dashboard.security import CSRF_HEADER, Security
     from fuelid.dashboard.users import UsersFile

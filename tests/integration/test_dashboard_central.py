@@ -27,7 +27,7 @@ from fastapi.testclient import TestClient
 from fuelid.central.connect import connect
 from fuelid.cli import main as cli_main
 from fuelid.dashboard.app import create_app
-from fuelid.dashboard.central_db import CentralLoops
+from fuelid.dashboard.central_loops import CentralLoops
 from fuelid.dashboard.registry import Loops
 from fuelid.dashboard.security import CSRF_HEADER, Security
 from fuelid.dashboard.users import UsersFile

@@ -588,7 +588,7 @@ def test_the_stuck_detector_holds_nothing_back_and_asks_for_the_stretch_to_be_re
 def test_record_site_applies_the_sites_retention_counting_back_from_the_newest_sample(
     tmp_path: Path,
 ) -> None:
-    from fuelid.plc.recorder import record_site
+    from fuelid.plc.record_runner import record_site
     from fuelid.store import Sample
 
     log, db = tmp_path / "log.csv", tmp_path / "s.db"

@@ -17,7 +17,7 @@ import pytest
 
 from fuelid.errors import ConfigError
 from fuelid.plc.quality import RangeChecks
-from fuelid.plc.recorder import RecorderStats
+from fuelid.plc.record_status import RecorderStats
 from fuelid.plc.site import Tag
 from fuelid.store import Event, Quality, Sample, SQLiteStore
 from support.recorder import REPLAY, RING_REPLAY, kinds, load, record, rows, write_log

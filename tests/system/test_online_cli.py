@@ -627,7 +627,8 @@ def test_a_bad_site_key_for_the_virtual_run_names_the_users_file(
 
 
 def test_log_records_are_json_objects() -> None:
-    from fuelid.cli.online import demo_run_profile, demo_temperature, log_record
+    from fuelid.online.logs import log_record
+    from fuelid.profiles.runs import demo_run_profile, demo_temperature
 
     record = log_record('event kind=revert detail="IAE 4.16 s > 1.5 × 2.58 s (by service)"')
     assert record["event"] == "event"
@@ -756,7 +757,7 @@ def test_the_link_state_follows_the_service_the_newest_link_event_and_the_wall_c
 ) -> None:
     # issue "one clock": the state is judged on the wall clock and the service record, never
     # on the samples' plant time (here T0, years away from the wall clock)
-    from fuelid.online.report import link_json
+    from fuelid.online.liveness import link_json
 
     site = site_file(tmp_path)
     identity = site_identity(load_site(site))

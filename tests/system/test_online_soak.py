@@ -405,13 +405,13 @@ def _clean_K(
     gave K_clean 9 % below the service's for one pem window).
     """
     from fuelid.identify.oe import OutputError
-    from fuelid.online.service import _model_of
+    from fuelid.online.context import model_of
     from fuelid.store.base import iodata_from_samples
 
     analyser = WindowAnalyser(
         service.settings, service.priors, site.sampling.period_s, k_plant=service.k_plant
     )
-    init = _model_of(warm) if warm is not None else None
+    init = model_of(warm) if warm is not None else None
     analyser.resume(init)
     noise_free = dataclasses.replace(samples, y=clean[samples.seq].astype(float))
     data = iodata_from_samples(noise_free, site.sampling.period_s, source="noise-free")

@@ -113,7 +113,7 @@ def test_link_drops_on_the_virtual_plc_are_back_filled_from_its_ring(
     virtual: Any, tmp_path: Path, drops: int
 ) -> None:
     from fuelid.plc.adapters.modbus import ModbusSource
-    from fuelid.plc.recorder import record_site
+    from fuelid.plc.record_runner import record_site
     from fuelid.plc.site import load_site
 
     site = load_site(site_file(tmp_path, virtual))

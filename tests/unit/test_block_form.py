@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable
 from types import SimpleNamespace
 from typing import Any
 
@@ -158,31 +157,3 @@ def test_the_online_gains_are_the_tuning_type() -> None:
     assert (back.Kc, back.Ti, back.rule) == (pytest.approx(0.05), pytest.approx(30.0), "plc")
     for name in ("to_block", "from_block", "plc_form"):
         assert name not in vars(Gains), name
-
-
-@pytest.mark.parametrize(
-    ("old", "call", "expected"),
-    [
-        ("controller_to_ideal", lambda f, c: f(1.25, 2.5, c).to_json(), {"Kc": 0.05, "Ti": 30.0}),
-        ("ideal_to_controller", lambda f, c: f(Gains(0.05, 30.0), c), (1.25, 2.5)),
-        ("gain_units", lambda f, c: f(c), {"Kc": "%/%", "Ti": "%/% per min"}),
-        ("gain_units", lambda f, c: f(None), None),
-    ],
-)
-def test_the_old_names_warn_and_delegate(
-    old: str, call: Callable[[Any, Controller], Any], expected: Any
-) -> None:
-    import fuelid.online.gains as gains
-
-    c = Controller(
-        form="parallel", gain_units="percent", integral_unit="min", u_span_V=4.0, y_span_Lpm=100.0
-    )
-    with pytest.warns(DeprecationWarning, match=rf"fuelid\.online\.gains\.{old} moved to"):
-        function = getattr(gains, old)
-    result = call(function, c)
-    if old == "gain_units":
-        assert result == expected
-    else:
-        assert result == pytest.approx(expected, rel=1e-12)
-    with pytest.warns(DeprecationWarning, match="moved to fuelid.tuning.block.SECONDS_PER_MINUTE"):
-        assert gains.SECONDS_PER_MINUTE == SECONDS_PER_MINUTE

@@ -24,7 +24,7 @@ from fuelid.greybox import (
     parameter_specs,
 )
 from fuelid.greybox.estimator import NotIdentifiableError
-from fuelid.greybox.identifiability import identifiability
+from fuelid.greybox.identifiability import describe_identifiability, identifiability
 from fuelid.greybox.parameters import ParameterMap
 from fuelid.greybox.sensitivity import Trajectory, simulate_record
 from fuelid.greybox.solvers import Solver
@@ -470,6 +470,14 @@ def test_collinearity_index_of_two_correlated_columns() -> None:
         assert bool(report.confounded_pairs) == (rho > 0.999)
         if report.confounded_pairs:
             assert report.confounded_pairs[0][2] == pytest.approx(rho)
+
+
+def test_identifiability_text_names_what_the_data_do_not_determine() -> None:
+    J = np.array([[1.0, 2.0], [2.0, 4.0], [3.0, 6.0]])
+    lines = describe_identifiability(identifiability(J, ["a", "b"]).to_json())
+    assert lines[0].startswith("identifiability: rank 1 of 2 (a, b)")
+    assert lines[1].startswith("undetermined combinations: a^")
+    assert lines[2].startswith("confounded pairs: a–b")
 
 
 # --- model functions ------------------------------------------------------------------------------

@@ -10,7 +10,6 @@ from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError, NotFittedError
 from fuelid.greybox import GreyBoxEstimator, OdeModel, ParameterSpec, Record
-from fuelid.greybox import fit_percent as deprecated_fit_percent
 from fuelid.model import nrmse_fit, nrmse_fit_columns
 
 FloatArray = NDArray[np.float64]
@@ -81,12 +80,6 @@ def test_nrmse_fit_columns_skips_each_columns_gaps() -> None:
     expected = [nrmse_fit(y[[0, 2, 3], 0], y_hat[[0, 2, 3], 0]), nrmse_fit(y[:3, 1], y_hat[:3, 1])]
     assert np.array_equal(nrmse_fit_columns(y, y_hat), expected)
     assert np.isnan(nrmse_fit_columns(np.full((3, 1), np.nan), np.zeros((3, 1)))[0])
-
-
-def test_greybox_fit_percent_still_works_and_warns() -> None:
-    y = np.array([[0.0], [1.0], [2.0]])
-    with pytest.warns(DeprecationWarning, match="fuelid.model.nrmse_fit_columns"):
-        assert deprecated_fit_percent(y, y)[0] == 100.0
 
 
 def test_settings_are_parameters_as_for_the_other_estimators() -> None:

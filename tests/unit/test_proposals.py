@@ -24,6 +24,7 @@ from fuelid.online.proposals import (
 )
 from fuelid.plc.site import Controller, Online
 from fuelid.tuning import PISettings, robustness
+from fuelid.tuning.block import BlockForm
 
 H = 1.0  # PLC period [s]
 K, T, THETA = 13.0, 1.0, 0.5
@@ -274,17 +275,16 @@ def test_controller_round_trip(
     block: tuple[float, float],
     ideal: tuple[float, float],
 ) -> None:
-    """The names that moved to fuelid.tuning.block still convert, with a DeprecationWarning."""
-    with pytest.warns(DeprecationWarning, match="moved to fuelid.tuning.block"):
-        from fuelid.online.proposals import controller_to_ideal, ideal_to_controller
+    """The site's [controller] converts the service's gains to the PLC block's and back."""
     spans = {"u_span_V": 4.0, "y_span_Lpm": 100.0} if units == "percent" else {}
     c = Controller.model_validate(
         {"form": form, "gain_units": units, "integral_unit": integral, **spans}
     )
-    g = controller_to_ideal(*block, c)
+    plc_block = BlockForm.of(c)
+    g = Gains.from_block(*block, plc_block, rule="plc", control_period=H)
     assert (g.Kc, g.Ti) == pytest.approx(ideal, rel=1e-12)
-    assert ideal_to_controller(g, c) == pytest.approx(block, rel=1e-12)
-    assert ideal_to_controller(Gains(*ideal), c) == pytest.approx(block, rel=1e-12)
+    assert g.to_block(plc_block) == pytest.approx(block, rel=1e-12)
+    assert Gains(*ideal).to_block(plc_block) == pytest.approx(block, rel=1e-12)
 
 
 def test_gains_refuse_non_positive():

@@ -1,9 +1,9 @@
-"""The public API: every promised name imports from its promised path, and every old path works.
+"""The public API: every promised name imports from its promised path, without a warning.
 
 What is promised is written in the packages' docstrings (``fuelid/__init__.py`` lists them) and
 ``__all__``; the table below repeats it on purpose, so that a split or a move that drops a name
-fails here rather than in a user's script. The modules that moved in 0.2.0 keep a shim at their
-old path that imports with exactly one DeprecationWarning (CHANGELOG.md).
+fails here rather than in a user's script. The old paths of 0.2.0's moves and their deprecated
+names were removed in 0.3.0 (CHANGELOG.md lists each with its replacement).
 """
 
 from __future__ import annotations
@@ -143,24 +143,6 @@ PACKAGES = (
 )
 """The packages whose docstring states their public API and whose ``__all__`` lists it."""
 
-MOVED = {
-    "fuelid.simulate": "fuelid.plant.simulate",
-    "fuelid.preprocess": "fuelid.identify.preprocess",
-    "fuelid.plots_greybox": "fuelid.plots.greybox",
-    "fuelid.plc.virtual.profiles": "fuelid.profiles.runs",
-    "fuelid.io.modelfile": "fuelid.io.fitted_model",
-}
-"""Old path → new path of every module moved in 0.2.0."""
-
-RENAMED = {
-    "fuelid.io.modelfile": {
-        "ModelFile": "fuelid.io.fitted_model.FittedModel",
-        "load_model_file": "fuelid.io.fitted_model.load_fitted_model",
-    },
-    "fuelid.plots_greybox": {"save_greybox_figure": "fuelid.plots.save_figure"},
-}
-"""Names a shim keeps under their old name: old module → {old name: where the object lives}."""
-
 
 @pytest.mark.parametrize("path", sorted(PROMISED))
 def test_every_promised_name_imports_from_its_promised_path(path: str) -> None:
@@ -189,37 +171,10 @@ def _fresh_import(path: str, monkeypatch: pytest.MonkeyPatch) -> ModuleType:
     return importlib.import_module(path)
 
 
-@pytest.mark.parametrize(("old", "new"), sorted(MOVED.items()))
-def test_an_old_path_imports_with_exactly_one_deprecation_warning(
-    old: str, new: str, monkeypatch: pytest.MonkeyPatch
+@pytest.mark.parametrize("path", sorted(path for path in PROMISED if "." in path))
+def test_a_promised_path_imports_without_a_warning(
+    path: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    with pytest.warns(DeprecationWarning, match=f"{old} moved to {new}") as caught:
-        shim = _fresh_import(old, monkeypatch)
-    deprecations = [w for w in caught if issubclass(w.category, DeprecationWarning)]
-    assert len(deprecations) == 1, [str(w.message) for w in deprecations]
-    # attributed to the importing line (here, importlib's caller in this file), not to the import
-    # machinery: Python's default filter then shows it to a script run as __main__
-    assert Path(deprecations[0].filename) == Path(__file__), deprecations[0].filename
-
-    for name in shim.__all__:
-        home, _, new_name = RENAMED.get(old, {}).get(name, f"{new}.{name}").rpartition(".")
-        assert getattr(shim, name) is getattr(importlib.import_module(home), new_name), name
-
-
-@pytest.mark.parametrize("old", sorted(MOVED))
-def test_an_old_path_still_reaches_names_it_does_not_list(
-    old: str, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    with pytest.warns(DeprecationWarning, match=f"{old} moved to"):
-        shim = _fresh_import(old, monkeypatch)
-    moved = importlib.import_module(MOVED[old])
-    private = sorted(name for name in vars(moved) if name.startswith("_") and "__" not in name)
-    for name in private:
-        assert getattr(shim, name) is getattr(moved, name), name
-
-
-@pytest.mark.parametrize("path", ["fuelid.plots", "fuelid.profiles", "fuelid.plant.simulate"])
-def test_a_new_home_imports_without_a_warning(path: str, monkeypatch: pytest.MonkeyPatch) -> None:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         _fresh_import(path, monkeypatch)

@@ -47,7 +47,8 @@ from fuelid.plant.config import (
     plant_config_from_dict,
     reference_plant_text,
 )
-from fuelid.plant.parameters import parameter_names, plant_parameters, with_parameters
+from fuelid.plant.parameter_specs import parameter_names
+from fuelid.plant.parameters import plant_parameters, with_parameters
 
 __all__ = [
     "TEMPERATURE_SPREAD_K",

@@ -25,7 +25,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.greybox import Record
-from fuelid.greybox.estimator import SUSPECT_NOISE_RATIO, noise_level
+from fuelid.greybox.fitting import noise_level
+from fuelid.greybox.multiple_shooting import SUSPECT_NOISE_RATIO
 
 MISFIT_NOISE_RATIO = SUSPECT_NOISE_RATIO
 """Flow residuals above this multiple of a log's own noise level mean the model does not fit."""

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from fuelid.store.records import StoreError
-from fuelid.store.schema import OUTBOX_TABLES
+from fuelid.store.schema_v4 import OUTBOX_TABLES
 
 __all__ = [
     "STATE_KEY",

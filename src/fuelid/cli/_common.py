@@ -522,7 +522,8 @@ def read_log(
     no fuel temperature. ``bad_values`` is ``--bad-values``' comma-separated text.
     """
     from fuelid.io.bad_values import parse_bad_values
-    from fuelid.io.logs import load_log, parse_scale
+    from fuelid.io.logs import load_log
+    from fuelid.io.tables import parse_scale
 
     return load_log(
         path,

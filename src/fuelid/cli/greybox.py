@@ -37,17 +37,6 @@ DEFAULT_INPUT = "u_V"
 """The input column without --input-col or the model file's inputs (for the help text)."""
 DEFAULT_OUTPUT = "q_Lpm"
 """The output column without --output-col or the model file's outputs (for the help text)."""
-_MOVED = ("VALIDATION_CONVENTIONS", "RELATIVE_STDERR_LIMIT")
-"""Constants that moved to :mod:`fuelid.workflow.greybox_fit` with the computation."""
-
-
-def __getattr__(name: str) -> Any:
-    # the moved constants, imported only when asked for: the command's --help stays light
-    if name in _MOVED:
-        import fuelid.workflow.greybox_fit as greybox_fit
-
-        return getattr(greybox_fit, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class SolverName(enum.StrEnum):

@@ -218,13 +218,13 @@ def identify_command(
     A flowmeter time constant or delay that is given is prior knowledge and stays fixed; what is
     not given is estimated. Non-exciting data are refused (exit code 2).
     """
-    from fuelid.identify.procedure import IdentifyOptions
+    from fuelid.identify.result import IdentifyOptions
     from fuelid.workflow.identification import identify_log
 
     check_figure_path(plot, overwrite=force)
     check_prior_times(flowmeter_T, flowmeter_delay)
     if control_period is not None:
-        from fuelid.tuning.limits import check_control_period
+        from fuelid.lti import check_control_period
 
         check_control_period(control_period, "control period (--control-period)")
     if fuel_temp is not None and not (math.isfinite(fuel_temp) and -60.0 <= fuel_temp <= 150.0):

@@ -19,7 +19,7 @@ from fuelid.cli._common import emit_json, guarded, provenance
 from fuelid.errors import DataError, FuelidError
 
 if TYPE_CHECKING:
-    from fuelid.plc.recorder import RecorderStats
+    from fuelid.plc.record_status import RecorderStats
 
 store_app = typer.Typer(help="The sample store: what it holds.", rich_markup_mode=None)
 
@@ -102,7 +102,7 @@ def record_command(
     them, else from the receipt time; lost samples, link drops, restarts, bad values and gain
     changes are stored as events. Ctrl-C or SIGTERM stops after a final commit.
     """
-    from fuelid.plc.recorder import record_site
+    from fuelid.plc.record_runner import record_site
     from fuelid.plc.site import load_site
 
     for name, value in (("--duration", duration), ("--give-up-after", give_up_after)):

@@ -184,7 +184,7 @@ def report_command(
     also written as PNG files beside the page (REPORT_overview.png, ...).
     """
     from fuelid.htmlreport import check_report_path, write_report
-    from fuelid.identify.procedure import IdentifyOptions
+    from fuelid.identify.result import IdentifyOptions
     from fuelid.plant import load_plant_config
     from fuelid.tuning.block import BlockForm
     from fuelid.workflow import AnalysisSettings, PlantSource, analyse_log

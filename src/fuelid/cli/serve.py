@@ -311,14 +311,14 @@ def _serve(
 
     from fuelid.plant import load_plant_config
     from fuelid.plc.virtual.engine import VirtualPLC
+    from fuelid.plc.virtual.frontend import ReplyTiming
     from fuelid.plc.virtual.runner import (
         DEFAULT_PORTS,
-        ReplyTiming,
         frontend_class,
         frontend_kwargs,
         serve_until_stopped,
-        site_text,
     )
+    from fuelid.plc.virtual.sitefile import site_text
 
     if not is_loopback(host) and not allow_remote:
         raise FuelidError(

@@ -46,7 +46,7 @@ def __getattr__(name: str) -> Any:
 
         return CentralLoop
     if name == "CentralLoops":
-        from fuelid.dashboard.central_db import CentralLoops
+        from fuelid.dashboard.central_loops import CentralLoops
 
         return CentralLoops
     if name == "serve":

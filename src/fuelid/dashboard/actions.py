@@ -12,19 +12,17 @@ viewer gets 403. ``GET /api/loops/{loop}/requests`` lists them with their outcom
 from __future__ import annotations
 
 import asyncio
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from fastapi import HTTPException, Request
 from fastapi.responses import JSONResponse
 
+from fuelid.dashboard.board import Dashboard
 from fuelid.dashboard.security import form_fields
 from fuelid.dashboard.source import LoopReader
 from fuelid.dashboard.views import site_warning
 from fuelid.errors import FuelidError
 from fuelid.io.clock import format_time
-
-if TYPE_CHECKING:
-    from fuelid.dashboard.app import Dashboard
 
 __all__ = ["EXCITE_ACTIONS", "action_routes", "next_step", "seen_of"]
 

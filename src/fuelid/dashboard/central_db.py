@@ -1,4 +1,4 @@
-"""The dashboard's connection to the central store, and the central loops it lists.
+"""The dashboard's connection to the central store.
 
 :class:`CentralDB` is one connection to the central PostgreSQL database shared by every central
 loop of a dashboard (:mod:`fuelid.central.connect`: libpq's own credentials, never a password
@@ -7,10 +7,7 @@ in the URL), behind one lock; a failure drops it and the next read reconnects, a
 reading` runs several reads in one read-only snapshot (``REPEATABLE READ``), so that a loop's
 status is one moment of the central store.
 
-:class:`CentralLoops` lists the loops of the central database (``loops``), polled every
-:data:`~fuelid.dashboard.registry.WATCH_EVERY_S` for new ones, each a
-:class:`~fuelid.dashboard.central_source.CentralLoop`. When the database is lost, ``error`` says
-why (the fleet page's banner) and the loops are listed as not shown until it is back.
+The loops it serves are listed by :class:`~fuelid.dashboard.central_loops.CentralLoops`.
 """
 
 from __future__ import annotations
@@ -19,19 +16,15 @@ import contextlib
 import threading
 import time as _time
 from collections.abc import Callable, Iterator, Sequence
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from fuelid.central.connect import CentralError, connect, one_line, redact
 from fuelid.central.schema import check_schema
-from fuelid.store.schema import default_loop_id
 
 if TYPE_CHECKING:
     import psycopg
 
-    from fuelid.dashboard.central_source import CentralLoop
-
-__all__ = ["RETRY_S", "CentralDB", "CentralLoops"]
+__all__ = ["RETRY_S", "CentralDB"]
 
 RETRY_S = 5.0
 """After a failure, reads fail at once with its reason for this long before reconnecting [s]."""
@@ -154,73 +147,3 @@ class CentralDB:
                 with contextlib.suppress(Exception):
                     self._con.close()
                 self._con = None
-
-
-class CentralLoops:
-    """The loops of the central store, by id (see the module docstring).
-
-    Parameters
-    ----------
-    url : str
-        The central store's libpq URL.
-    archive : Path, optional
-        The raw archive (the folder ``fuelid archive`` writes) the central loops' trends read.
-    every_s : float
-        How often the list of loops is read again [s].
-
-    Raises
-    ------
-    CentralError
-        The central store cannot be reached or used at start (one line).
-    """
-
-    def __init__(self, url: str, archive: Path | None = None, every_s: float = 5.0) -> None:
-        self.db = CentralDB(url)
-        self.archive = archive
-        self.every_s = float(every_s)
-        self._loops: dict[str, CentralLoop] = {}
-        self.skipped: dict[str, str] = {}
-        self._polled = -float("inf")
-        self._lock = threading.Lock()
-        self.db.check()
-        self.refresh(force=True)
-
-    @property
-    def error(self) -> str | None:
-        """Why the central store cannot be read now; None while it can."""
-        return self.db.error
-
-    def refresh(self, force: bool = False) -> None:
-        """Read the list of loops again (at most every ``every_s``); a failure sets ``error``."""
-        from fuelid.dashboard.central_source import CentralLoop
-
-        now = _time.monotonic()
-        with self._lock:
-            if not force and now - self._polled < self.every_s:
-                return
-            self._polled = now
-            try:
-                rows = self.db.query("SELECT loop_id FROM loops ORDER BY loop_id")
-            except CentralError:
-                return  # error set: the fleet page says so
-            for (loop_id,) in rows:
-                loop_id = str(loop_id)
-                if loop_id in self._loops or loop_id in self.skipped:
-                    continue
-                if default_loop_id(loop_id) != loop_id:  # a loop id is part of URLs
-                    self.skipped[loop_id] = "not a loop id of [a-z0-9-] (it is part of URLs)"
-                    continue
-                self._loops[loop_id] = CentralLoop(self.db, loop_id, archive=self.archive)
-
-    def ids(self) -> list[str]:
-        """The central loop ids, sorted (every loop known, reachable or not)."""
-        self.refresh()
-        return sorted(self._loops)
-
-    def get(self, loop_id: str) -> CentralLoop | None:
-        """The central loop with this id; None when there is none."""
-        return self._loops.get(loop_id)
-
-    def close(self) -> None:
-        """Close the connection."""
-        self.db.close()

@@ -103,7 +103,7 @@ def contact_link(
     Parameters
     ----------
     link : dict
-        :func:`fuelid.online.report.link_json` as of the site's clock at its last send.
+        :func:`fuelid.online.liveness.link_json` as of the site's clock at its last send.
     liveness : dict or None
         The liveness row (None: the site never told its liveness).
     service : dict or None

@@ -17,8 +17,7 @@ from typing import Any
 
 from fuelid.dashboard.central_db import CentralDB
 from fuelid.online.liveness import SERVICE_KEY
-from fuelid.store.online import PROPOSAL_STATUSES, WRITE_STATUSES
-from fuelid.store.online_rows import proposal_row
+from fuelid.store.online_rows import PROPOSAL_STATUSES, WRITE_STATUSES, proposal_row
 
 __all__ = ["CentralHistory", "CentralStoreView"]
 

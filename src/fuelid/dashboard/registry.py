@@ -31,7 +31,7 @@ from fuelid.dashboard.source import LoopReader, SQLiteLoop
 from fuelid.errors import ConfigError, FuelidError
 
 if TYPE_CHECKING:
-    from fuelid.dashboard.central_db import CentralLoops
+    from fuelid.dashboard.central_loops import CentralLoops
     from fuelid.dashboard.window_report import ReportPrefetcher
 
 __all__ = ["WATCH_EVERY_S", "Loops"]

@@ -139,7 +139,7 @@ def open_loops(
         A refused store, or a central store that cannot be reached or used (one line).
     """
     from fuelid.central.connect import CentralError
-    from fuelid.dashboard.central_db import CentralLoops
+    from fuelid.dashboard.central_loops import CentralLoops
     from fuelid.dashboard.registry import WATCH_EVERY_S
 
     fleet = None

@@ -53,7 +53,7 @@ from fuelid.errors import ConfigError, DataError, FuelidError
 from fuelid.model import MODEL_KEYS
 from fuelid.online.window import WindowAnalyser, WindowResult, window_priors
 from fuelid.plc.site import Controller, Online
-from fuelid.store.base import SampleArrays
+from fuelid.store.records import SampleArrays
 
 __all__ = [
     "RESULT_SCHEMA",

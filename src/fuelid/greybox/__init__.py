@@ -8,7 +8,7 @@ The estimator (:mod:`fuelid.greybox.estimator`) is built from :mod:`~fuelid.grey
 (single shooting, the least-squares driver, the covariance),
 :mod:`~fuelid.greybox.multiple_shooting` (the segmented start) and
 :mod:`~fuelid.greybox.profile` (identifiability at the estimate, profile likelihood). Its fit
-percentages are :func:`fuelid.model.nrmse_fit_columns`; ``fit_percent`` here is deprecated.
+percentages are :func:`fuelid.model.nrmse_fit_columns`.
 
 The public API
 --------------
@@ -19,13 +19,13 @@ model file (``fuelid greybox --model``): :func:`~fuelid.greybox.modelfile.load_m
 model saved as JSON is read by :mod:`fuelid.io.fitted_model` instead.
 """
 
-from fuelid.greybox.estimator import (
-    ConvergenceError,
-    GreyBoxEstimator,
+from fuelid.greybox.estimator import GreyBoxEstimator
+from fuelid.greybox.fitting import ConvergenceError
+from fuelid.greybox.identifiability import (
+    IdentifiabilityReport,
     NotIdentifiableError,
-    fit_percent,
+    identifiability,
 )
-from fuelid.greybox.identifiability import IdentifiabilityReport, identifiability
 from fuelid.greybox.odemodel import OdeModel
 from fuelid.greybox.parameters import ParameterSpec, parameter_specs
 from fuelid.greybox.system import GreyBoxModel, OdeSystem, Record
@@ -40,7 +40,6 @@ __all__ = [
     "OdeSystem",
     "ParameterSpec",
     "Record",
-    "fit_percent",
     "identifiability",
     "parameter_specs",
 ]

@@ -18,7 +18,6 @@ The names those modules define are importable from here too, as before the split
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -54,10 +53,10 @@ from fuelid.greybox.multiple_shooting import (
 )
 from fuelid.greybox.parameters import ParameterMap
 from fuelid.greybox.profile import CHI2_95, PROFILE_DOUBLINGS, ProfileLikelihood
-from fuelid.greybox.sensitivity import SimulationError, Trajectory, simulate_record
+from fuelid.greybox.sensitivity import Trajectory, simulate_record
 from fuelid.greybox.solver_choice import check_request, choose_solver
 from fuelid.greybox.solver_fit import SolverChecks
-from fuelid.greybox.solvers import Solver
+from fuelid.greybox.solvers import SimulationError, Solver
 from fuelid.greybox.system import GreyBoxModel, Record
 from fuelid.model import nrmse_fit_columns
 from fuelid.params import Params
@@ -82,27 +81,11 @@ __all__ = [
     "NotIdentifiableError",
     "correlation_warning",
     "first_outputs",
-    "fit_percent",
     "noise_level",
 ]
 
 VALIDATION_HEAD_SHARE = 0.1
 """A validation record's initial state is fitted to its first 10 % (at least 20 samples)."""
-
-
-def fit_percent(y: FloatArray, y_hat: FloatArray) -> FloatArray:
-    """NRMSE fit per output column, over the finite samples (deprecated).
-
-    .. deprecated:: 0.2
-        Use :func:`fuelid.model.nrmse_fit_columns`, the one home of the fit percentage.
-    """
-    warnings.warn(
-        "fuelid.greybox.fit_percent is deprecated since 0.2 and will be removed in 0.3; import "
-        "fuelid.model.nrmse_fit_columns",
-        DeprecationWarning,
-        stacklevel=2,
-    )
-    return nrmse_fit_columns(y, y_hat)
 
 
 class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):

@@ -32,8 +32,9 @@ from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError, NotFittedError
 from fuelid.greybox.parameters import ParameterMap
-from fuelid.greybox.sensitivity import SimulationError, Trajectory, simulate_record
+from fuelid.greybox.sensitivity import Trajectory, simulate_record
 from fuelid.greybox.solver_choice import SolverChoice
+from fuelid.greybox.solvers import SimulationError
 from fuelid.greybox.stopping import (
     GAUSS_NEWTON_LAST_STEP_SE,
     Step,

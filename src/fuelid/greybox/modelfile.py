@@ -52,8 +52,7 @@ from numpy.typing import NDArray
 from fuelid.errors import ConfigError, FuelidError
 from fuelid.greybox.odemodel import OdeModel
 from fuelid.greybox.parameters import ParameterSpec
-from fuelid.greybox.sensitivity import SimulationError
-from fuelid.greybox.solvers import CHOICES, check_max_step, check_substeps
+from fuelid.greybox.solvers import CHOICES, SimulationError, check_max_step, check_substeps
 
 __all__ = [
     "ModelArithmeticError",

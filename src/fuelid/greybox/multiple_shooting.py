@@ -22,7 +22,7 @@ from fuelid.greybox.fitting import (
     ShootingFit,
     ShootingResult,
 )
-from fuelid.greybox.sensitivity import SimulationError
+from fuelid.greybox.solvers import SimulationError
 from fuelid.greybox.system import Record
 
 SEGMENT_MIN_SAMPLES = 50

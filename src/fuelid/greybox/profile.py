@@ -28,7 +28,7 @@ from fuelid.greybox.identifiability import (
     structural_report,
 )
 from fuelid.greybox.parameters import ParameterMap
-from fuelid.greybox.sensitivity import SimulationError
+from fuelid.greybox.solvers import SimulationError
 from fuelid.greybox.system import Record
 
 CHI2_95 = float(scipy.special.chdtri(1, 0.05))

@@ -12,9 +12,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from fuelid.greybox.fitting import Evaluation, FloatArray, ShootingFit, ShootingResult
-from fuelid.greybox.sensitivity import SimulationError
 from fuelid.greybox.solver_choice import SolverChoice, verified
-from fuelid.greybox.solvers import RTOL, Solver
+from fuelid.greybox.solvers import RTOL, SimulationError, Solver
 from fuelid.greybox.system import Record
 
 

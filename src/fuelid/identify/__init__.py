@@ -71,8 +71,7 @@ The public API
 The names in ``__all__`` (the estimators, :func:`identify` and its result, the diagnostics), and
 :func:`~fuelid.identify.preprocess.select`, :func:`~fuelid.identify.preprocess.lowpass`,
 :func:`~fuelid.identify.preprocess.decimate`, :func:`~fuelid.identify.preprocess.join_segments`
-at :mod:`fuelid.identify.preprocess` (the old path ``fuelid.preprocess`` still imports, with a
-DeprecationWarning).
+at :mod:`fuelid.identify.preprocess` (its old path ``fuelid.preprocess`` was removed in 0.3.0).
 """
 
 from __future__ import annotations
@@ -88,17 +87,14 @@ from fuelid.identify.diagnostics import (
     steady_state_errors,
 )
 from fuelid.identify.nonlinearity import GainBand, NonlinearityCheck, gain_bands
-from fuelid.identify.oe import OutputError, cramer_rao_bound
+from fuelid.identify.oe import OutputError
 from fuelid.identify.pem import PredictionError
-from fuelid.identify.procedure import (
-    METHODS,
-    IdentificationResult,
-    IdentifyOptions,
-    identify,
-    interval95,
-)
+from fuelid.identify.procedure import identify
+from fuelid.identify.result import METHODS, IdentificationResult, IdentifyOptions, interval95
 from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, drop_short_segments
-from fuelid.identify.step_ls import StepResponseLS, step_shape
+from fuelid.identify.step_ls import StepResponseLS
+from fuelid.identify.step_shape_fit import step_shape
+from fuelid.identify.variable_projection import cramer_rao_bound
 
 __all__ = [
     "METHODS",

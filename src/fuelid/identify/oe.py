@@ -67,10 +67,6 @@ from fuelid.identify.variable_projection import (
     continue_fitted,
     cramer_rao_bound,
     jacobian,
-    n_modes,
-    regressors,
-    solve_linear,
-    subsample,
 )
 from fuelid.io.timeseries import IOData
 from fuelid.model import MODEL_KEYS, ProcessModel, nrmse_fit
@@ -710,15 +706,5 @@ def _aic(fit: LinearFit, z: FloatArray, n: int) -> float:
     """Akaike's criterion N·ln(SSE/N) + 2k of a fit with ``z`` searched and β linear."""
     return n * math.log(max(fit.sse, 1e-300) / n) + 2 * (fit.beta.size + z.size)
 
-
-# the names this module had before the variable-projection model moved out (benchmarks and
-# users' scripts import some of them from here)
-_Structure = Structure
-_Evaluation = LinearFit
-_n_modes = n_modes
-_regressors = regressors
-_subsample = subsample
-_solve = solve_linear
-_jacobian = jacobian
 
 __all__ = ["GRID_SAMPLES", "Bounds", "OutputError", "continue_fitted", "cramer_rao_bound"]

@@ -23,7 +23,7 @@ Promised at their submodules: :class:`~fuelid.io.timeseries.TimeSeries` and
 (:mod:`fuelid.io.tables`), :func:`~fuelid.io.files.write_table` (:mod:`fuelid.io.files`),
 :class:`~fuelid.io.fitted_model.FittedModel` and :func:`~fuelid.io.fitted_model.load_fitted_model`
 (:mod:`fuelid.io.fitted_model`; ``fuelid.io.modelfile``'s ``ModelFile`` and ``load_model_file``
-before 0.2.0, still importable with a DeprecationWarning), :func:`~fuelid.io.jsonsafe.json_ready`
+before 0.2.0, removed in 0.3.0), :func:`~fuelid.io.jsonsafe.json_ready`
 (:mod:`fuelid.io.jsonsafe`), :func:`~fuelid.io.plantfile.update_plant_file`
 (:mod:`fuelid.io.plantfile`).
 """

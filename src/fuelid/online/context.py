@@ -19,11 +19,12 @@ from fuelid.online.gains import Gains
 from fuelid.online.logs import LOGGER_NAME, log_event, log_line
 from fuelid.online.tracking import GainObservation
 from fuelid.online.window import WindowPriors
-from fuelid.plc.recorder import Recorder, RecorderStats
+from fuelid.plc.record_status import RecorderStats
+from fuelid.plc.recorder import Recorder
 from fuelid.plc.site import Online, SiteConfig
-from fuelid.store.base import SampleWriter
 from fuelid.store.online import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
+from fuelid.store.writer import SampleWriter
 from fuelid.tuning.block import BlockForm
 
 _LOGGER = logging.getLogger(LOGGER_NAME)

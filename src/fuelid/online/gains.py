@@ -6,21 +6,10 @@ block's form and units, and the one conversion to and from them, are
 :mod:`fuelid.tuning.block` (:class:`~fuelid.tuning.block.BlockForm`,
 :meth:`~fuelid.tuning.rules.PISettings.to_block`,
 :meth:`~fuelid.tuning.rules.PISettings.from_block`, :func:`~fuelid.tuning.block.block_units`).
-
-Moved in fuelid 0.2.0, kept here for one minor release with a DeprecationWarning on import:
-``controller_to_ideal`` (now :func:`fuelid.tuning.block.from_block`), ``ideal_to_controller``
-(:func:`fuelid.tuning.block.to_block`), ``gain_units`` (:func:`fuelid.tuning.block.block_units`)
-and ``SECONDS_PER_MINUTE`` (:data:`fuelid.tuning.block.SECONDS_PER_MINUTE`).
 """
 
 from __future__ import annotations
 
-import warnings
-from typing import Any
-
-from fuelid._deprecated import warn_renamed
-from fuelid.tuning.block import SECONDS_PER_MINUTE as _SECONDS_PER_MINUTE
-from fuelid.tuning.block import BlockForm, block_units, from_block, to_block
 from fuelid.tuning.rules import PISettings, ReducedModel
 
 HELD = "online"
@@ -71,11 +60,6 @@ class Gains(PISettings):
             reduced=reduced,
         )
 
-    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, float]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "to_dict")
-        return self.to_json(*args, **kwargs)
-
     def to_json(self) -> dict[str, float]:
         """``{"Kc": ..., "Ti": ...}`` [V per L/min, s]: what the store holds.
 
@@ -85,69 +69,6 @@ class Gains(PISettings):
         {'Kc': 0.05, 'Ti': 2.0}
         """
         return {"Kc": float(self.Kc), "Ti": float(self.Ti)}
-
-
-# --- the names that moved to fuelid.tuning.block (fuelid 0.2.0) -----------------------------------
-
-
-def _controller_to_ideal(kc: float, ti: float, controller: Any) -> Gains:
-    """Deprecated: ``Gains(*from_block(kc, ti, BlockForm.of(controller)))``."""
-    return Gains(*from_block(kc, ti, BlockForm.of(controller)))
-
-
-def _ideal_to_controller(gains: PISettings, controller: Any) -> tuple[float, float]:
-    """Deprecated: ``gains.to_block(BlockForm.of(controller))``."""
-    return to_block(gains.Kc, gains.Ti, BlockForm.of(controller))
-
-
-def _gain_units(controller: Any) -> dict[str, str] | None:
-    """Deprecated: ``block_units(BlockForm.of(controller))`` (None for None)."""
-    return None if controller is None else block_units(BlockForm.of(controller))
-
-
-MOVED: dict[str, tuple[Any, str]] = {
-    "controller_to_ideal": (
-        _controller_to_ideal,
-        "fuelid.tuning.block.from_block (or PISettings.from_block)",
-    ),
-    "ideal_to_controller": (
-        _ideal_to_controller,
-        "fuelid.tuning.block.to_block (or PISettings.to_block)",
-    ),
-    "gain_units": (_gain_units, "fuelid.tuning.block.block_units"),
-    "SECONDS_PER_MINUTE": (_SECONDS_PER_MINUTE, "fuelid.tuning.block.SECONDS_PER_MINUTE"),
-}
-"""Old name → (what it still gives, where it went)."""
-
-
-def moved_name(
-    module: str, name: str, only: tuple[str, ...] | None = None, stacklevel: int = 3
-) -> Any:
-    """The moved name ``name`` of ``module``, with its DeprecationWarning.
-
-    For a module's ``__getattr__`` (PEP 562): the warning is attributed to the line that imports
-    or reads the name (``stacklevel`` 3: this function, the module's ``__getattr__``, its caller).
-    ``only``: the names of :data:`MOVED` that ``module`` had (None: all of them).
-
-    Raises
-    ------
-    AttributeError
-        When ``name`` is not one of :data:`MOVED`.
-    """
-    if name not in MOVED or (only is not None and name not in only):
-        raise AttributeError(f"module {module!r} has no attribute {name!r}")
-    value, new = MOVED[name]
-    warnings.warn(
-        f"{module}.{name} moved to {new} in fuelid 0.2.0; use that instead "
-        f"(the old name will be removed in a future release)",
-        DeprecationWarning,
-        stacklevel=stacklevel,
-    )
-    return value
-
-
-def __getattr__(name: str) -> Any:
-    return moved_name(__name__, name)
 
 
 __all__ = ["HELD", "Gains"]

@@ -1,4 +1,4 @@
-"""Is the loop's service running, is its link up: one function, :func:`loop_state`.
+"""Is the loop's service running, is its link up: :func:`loop_state` (:func:`link_json` of a store).
 
 The running service keeps a record under the ``online_state`` key ``"service"`` (see
 :func:`service_record`): who it is (pid, host, version), when it started, its settings, and its
@@ -28,15 +28,19 @@ import time as _time
 from collections.abc import Mapping
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fuelid.io.clock import format_age
+
+if TYPE_CHECKING:
+    from fuelid.store.sqlite import SQLiteStore
 
 __all__ = [
     "LINK_FRESH_S",
     "SERVICE_BEAT_S",
     "SERVICE_KEY",
     "SERVICE_STALE_S",
+    "link_json",
     "loop_state",
     "plant_hash",
     "service_record",
@@ -50,6 +54,8 @@ SERVICE_STALE_S = 10.0
 """A beat older than this (five beats) means the service is not running [s of wall time]."""
 LINK_FRESH_S = 30.0
 """A sample written (wall clock) no longer ago than this means a live link [s]."""
+LINK_EVENTS = ("link_down", "link_up")
+"""The events that say the link's state."""
 
 
 def plant_hash(path: str | Path | None) -> str | None:
@@ -246,6 +252,46 @@ def loop_state(
         "state": "up",
         "since": None if last_link_event is None else float(last_link_event[1]),
         "text": f"up (newest sample {format_age(sample_age)} ago)",
+    }
+
+
+def link_json(
+    store: SQLiteStore,
+    now: float | None = None,
+    service: dict[str, Any] | None = None,
+    tz: str | None = "UTC",
+) -> dict[str, Any]:
+    """The loop's state: the service and its link, judged on the wall clock.
+
+    ``state`` is :func:`loop_state`'s ("stopped", "link_down", "up",
+    "no_data"), with its ``text``, ``service`` ("running", "stopped", "never started"),
+    ``beat_age_s``, ``sample_age_s`` and ``since``; ``newest_sample`` is the newest sample's
+    plant time, ``newest_sample_wall`` the wall clock it was written at (None before schema
+    3), ``age_s`` its wall age; ``last_event`` the newest link event.
+    """
+    now = _time.time() if now is None else float(now)
+    newest = store.newest_sample_clocks()
+    event = store.last_event(LINK_EVENTS)
+    event_wall = None
+    if event is not None:
+        event_wall = event[3] if event[3] is not None else event[0]
+    state = loop_state(
+        service,
+        None if newest is None else newest[1],
+        None if event is None or event_wall is None else (event[1], float(event_wall)),
+        now,
+        tz,
+    )
+    newest_wall = None if newest is None or math.isnan(newest[1]) else newest[1]
+    return {
+        **state,
+        "newest_sample": None if newest is None else newest[0],
+        "newest_sample_wall": newest_wall,
+        "age_s": None if newest_wall is None else now - newest_wall,
+        "last_event": None
+        if event is None
+        else {"time": event[0], "wall_time": event[3], "kind": event[1], "detail": event[2]},
+        "fresh_within_s": LINK_FRESH_S,
     }
 
 

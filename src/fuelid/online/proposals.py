@@ -41,9 +41,7 @@ Gains are in the ideal (ISA) form and engineering units throughout, Kc [V per L/
 :meth:`~fuelid.tuning.rules.PISettings.from_block` convert to and from the form and units of
 the PLC's block (:mod:`fuelid.tuning.block`, from the site's ``[controller]``). The windows'
 evidence (:class:`WindowModel`, :func:`independent_windows`, :func:`weighted_mean_model`) lives
-in :mod:`fuelid.online.evidence`; this module re-exports it and :class:`Gains`. The names
-``controller_to_ideal``, ``ideal_to_controller`` and ``SECONDS_PER_MINUTE`` moved to
-:mod:`fuelid.tuning.block` (fuelid 0.2.0) and import from here with a DeprecationWarning.
+in :mod:`fuelid.online.evidence`; this module re-exports it and :class:`Gains`.
 
 Units: time [s], K [(L/min)/V], Kc [V per L/min], Ti [s], Ms [-].
 
@@ -65,7 +63,6 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
 from fuelid.io.jsonsafe import json_ready
 from fuelid.lti import check_control_period
@@ -76,7 +73,7 @@ from fuelid.online.evidence import (
     independent_windows,
     weighted_mean_model,
 )
-from fuelid.online.gains import Gains, moved_name
+from fuelid.online.gains import Gains
 from fuelid.plc.site import Online
 from fuelid.tuning import PISettings, robustness, tune
 
@@ -128,11 +125,6 @@ class ProposalDecision:
     model_ids: tuple[int, ...]
     clipped: bool
     detail: dict[str, Any]
-
-    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "to_dict")
-        return self.to_json(*args, **kwargs)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dictionary (non-finite numbers as None)."""
@@ -457,13 +449,6 @@ def _detune(
         else:
             hi = mid
     return math.exp(lo), ms_low
-
-
-def __getattr__(name: str) -> Any:
-    # controller_to_ideal, ideal_to_controller, SECONDS_PER_MINUTE: moved to fuelid.tuning.block
-    return moved_name(
-        __name__, name, only=("controller_to_ideal", "ideal_to_controller", "SECONDS_PER_MINUTE")
-    )
 
 
 __all__ = [

@@ -25,14 +25,13 @@ site's ``[controller]`` table says its registers hold them; ``gain_units`` when 
 from __future__ import annotations
 
 import math
-import time as _time
 from typing import Any
 
 from fuelid.errors import FuelidError
 from fuelid.io.jsonsafe import json_ready
 from fuelid.online.context import TRACKER_OBSERVATIONS, observation_of
 from fuelid.online.excitation.status import excitation_json
-from fuelid.online.liveness import LINK_FRESH_S, SERVICE_KEY, loop_state
+from fuelid.online.liveness import LINK_FRESH_S, SERVICE_KEY, link_json
 from fuelid.online.plc_gains import plc_gains_json
 from fuelid.online.requests import stale_of
 from fuelid.online.tracking import KTracker, TrackingError
@@ -77,7 +76,6 @@ ONLINE_UNITS: dict[str, str] = {
 
 ACTIVE_STATUSES = ("pending", "approved")
 """Proposals that wait for a person or for the service's write."""
-LINK_EVENTS = ("link_down", "link_up")
 
 
 def _window_model(detail: dict[str, Any]) -> dict[str, Any]:
@@ -299,46 +297,6 @@ def write_json(row: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def link_json(
-    store: SQLiteStore,
-    now: float | None = None,
-    service: dict[str, Any] | None = None,
-    tz: str | None = "UTC",
-) -> dict[str, Any]:
-    """The loop's state: the service and its link, judged on the wall clock.
-
-    ``state`` is :func:`~fuelid.online.liveness.loop_state`'s ("stopped", "link_down", "up",
-    "no_data"), with its ``text``, ``service`` ("running", "stopped", "never started"),
-    ``beat_age_s``, ``sample_age_s`` and ``since``; ``newest_sample`` is the newest sample's
-    plant time, ``newest_sample_wall`` the wall clock it was written at (None before schema
-    3), ``age_s`` its wall age; ``last_event`` the newest link event.
-    """
-    now = _time.time() if now is None else float(now)
-    newest = store.newest_sample_clocks()
-    event = store.last_event(LINK_EVENTS)
-    event_wall = None
-    if event is not None:
-        event_wall = event[3] if event[3] is not None else event[0]
-    state = loop_state(
-        service,
-        None if newest is None else newest[1],
-        None if event is None or event_wall is None else (event[1], float(event_wall)),
-        now,
-        tz,
-    )
-    newest_wall = None if newest is None or math.isnan(newest[1]) else newest[1]
-    return {
-        **state,
-        "newest_sample": None if newest is None else newest[0],
-        "newest_sample_wall": newest_wall,
-        "age_s": None if newest_wall is None else now - newest_wall,
-        "last_event": None
-        if event is None
-        else {"time": event[0], "wall_time": event[3], "kind": event[1], "detail": event[2]},
-        "fresh_within_s": LINK_FRESH_S,
-    }
-
-
 def _current_model(row: dict[str, Any] | None) -> dict[str, Any] | None:
     if row is None:
         return None
@@ -426,8 +384,9 @@ def status_json(
     Returns
     -------
     dict
-        ``site``, ``link`` (:func:`link_json`), ``service`` (the service record with its
-        ``state`` and ``beat_age_s``; None when no service ever ran on this store),
+        ``site``, ``link`` (:func:`~fuelid.online.liveness.link_json`), ``service`` (the
+        service record with its ``state`` and ``beat_age_s``; None when no service ever ran on
+        this store),
         ``timezone``, ``last_window``, ``current_model``, ``k_trend``, ``pending_proposals``
         (each with ``target`` and ``gain_units``), ``requests`` (the waiting ones),
         ``loop_health``, ``counts``, ``write_back`` (``setting`` and ``setting_from``: "site
@@ -661,7 +620,6 @@ __all__ = [
     "health_line",
     "history_json",
     "k_trend_json",
-    "link_json",
     "proposal_json",
     "status_json",
     "window_json",

@@ -19,8 +19,8 @@ from __future__ import annotations
 import time as _time
 from typing import Any
 
-from fuelid.store.base import StoreError
 from fuelid.store.online import OnlineHistory
+from fuelid.store.records import StoreError
 
 __all__ = ["EXCITE_KINDS", "apply_request", "consume_requests", "file_request", "submit_request"]
 
@@ -205,8 +205,7 @@ def submit_request(
         The request's row after: ``status`` "done" or "refused" with its ``outcome``, or still
         "waiting" when the live service did not take it within ``wait_s``.
     """
-    from fuelid.online.liveness import SERVICE_BEAT_S, SERVICE_KEY
-    from fuelid.online.report import link_json
+    from fuelid.online.liveness import SERVICE_BEAT_S, SERVICE_KEY, link_json
 
     live = link_json(store, service=history.state(SERVICE_KEY))["service"] == "running"
     request = file_request(history, kind, proposal_id, who, why, origin)

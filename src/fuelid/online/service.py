@@ -63,7 +63,6 @@ from fuelid.online.context import (
 from fuelid.online.excitation.exciter import Exciter, newest_model, plant_model_function
 from fuelid.online.gains import Gains
 from fuelid.online.liveness import SERVICE_BEAT_S, SERVICE_KEY, service_record
-from fuelid.online.logs import log_line
 from fuelid.online.proposal_filing import TURNED_DOWN_MEMORY
 from fuelid.online.requests import consume_requests
 from fuelid.online.scheduler import MAX_CATCH_UP_WINDOWS, SCHEDULE_POLL_S, Scheduler
@@ -73,17 +72,13 @@ from fuelid.online.worker import AnalyserSpec, WindowWorker
 from fuelid.online.writeback import AUTO, IAE_BASELINE_WINDOWS, LIMIT_MARGIN_V, WriteBack
 from fuelid.plc.adapters.base import LinkError, PlcSource
 from fuelid.plc.gain_handshake import HEARTBEAT_MODULUS, GainWriter
-from fuelid.plc.recorder import PRUNE_EVERY_S, Recorder
+from fuelid.plc.record_runner import PRUNE_EVERY_S
+from fuelid.plc.recorder import Recorder
 from fuelid.plc.site import SiteConfig
-from fuelid.store.base import SampleWriter
 from fuelid.store.online import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
+from fuelid.store.writer import SampleWriter
 from fuelid.tuning.block import BlockForm
-
-# the names this module held before it was split (users' scripts import them from here)
-_log_line = log_line
-_model_of = model_of
-_observation = observation_of
 
 
 class OnlineService:

@@ -50,7 +50,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fuelid._deprecated import warn_renamed
 from fuelid.errors import DataError, NotFittedError
 from fuelid.params import Params
 from fuelid.plant.config import PlantConfig
@@ -147,11 +146,6 @@ class LineFit:
             return self.intercept, math.sqrt(float(self.cov[0, 0]))
         x = np.array([1.0, T_C - self.T_ref])
         return self.intercept + self.slope * (T_C - self.T_ref), math.sqrt(float(x @ self.cov @ x))
-
-    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "to_dict")
-        return self.to_json(*args, **kwargs)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dictionary (NaN as None)."""
@@ -500,11 +494,6 @@ class KTracker(Params):
             raise TrackingError(f"K_tuned must be > 0, got {K_tuned}")
         K, se = self.predict(T_C, u, K_plant)
         return K / K_tuned, se / K_tuned
-
-    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "to_dict")
-        return self.to_json(*args, **kwargs)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dictionary of the fit (settings, the line(s), units)."""

@@ -51,11 +51,10 @@ from typing import Any
 
 import numpy as np
 
-from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError, NotExcitingError
 from fuelid.identify.oe import OutputError
 from fuelid.identify.pem import PredictionError
-from fuelid.identify.procedure import POSITIVE_PARAMETERS, IdentifyOptions, interval95
+from fuelid.identify.result import POSITIVE_PARAMETERS, IdentifyOptions, interval95
 from fuelid.io.jsonsafe import json_ready
 from fuelid.io.timeseries import IOData
 from fuelid.model import MODEL_KEYS, ProcessModel
@@ -71,7 +70,8 @@ from fuelid.online.health import U_LIMITS_V, LoopHealth, loop_health
 from fuelid.online.pem_screen import NEAR_INTEGRATING_POLE, closed_loop_choice
 from fuelid.online.tracking import PlantGain
 from fuelid.plc.site import Online
-from fuelid.store.base import Quality, SampleArrays, iodata_from_samples
+from fuelid.store.base import iodata_from_samples
+from fuelid.store.records import Quality, SampleArrays
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
 MIN_GOOD_SAMPLES = 100
@@ -201,11 +201,6 @@ class WindowResult:
             }
         )
         return out
-
-    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "to_dict")
-        return self.to_json(*args, **kwargs)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready record of the window (what the model history stores as its detail)."""
@@ -554,7 +549,7 @@ def window_priors(
         )
     from fuelid.online.tracking import plant_gain_function
     from fuelid.plant.config import load_plant_config
-    from fuelid.workflow.identification import plant_knowledge
+    from fuelid.workflow.assumptions import plant_knowledge
 
     config = load_plant_config(plant_path)
     known = plant_knowledge(config)
@@ -598,7 +593,7 @@ def check_site_plant(plant_path: str | None, window_s: float) -> float | None:
 
     from fuelid.errors import ConfigError
     from fuelid.plant.config import load_plant_config
-    from fuelid.workflow.identification import plant_knowledge
+    from fuelid.workflow.assumptions import plant_knowledge
 
     if not Path(plant_path).is_file():
         raise ConfigError(f"[site] plant: no such plant file {plant_path}")

@@ -29,7 +29,7 @@ from fuelid.model import ProcessModel
 from fuelid.online.gates import WindowVerdict
 from fuelid.online.window import WindowAnalyser, WindowPriors, WindowResult, window_priors
 from fuelid.plc.site import Online
-from fuelid.store.base import SampleArrays
+from fuelid.store.records import SampleArrays
 
 
 @dataclass(frozen=True)

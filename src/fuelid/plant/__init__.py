@@ -4,7 +4,8 @@
   :mod:`~fuelid.plant.pump`, :mod:`~fuelid.plant.pipeline`, :mod:`~fuelid.plant.nozzle`,
   :mod:`~fuelid.plant.flowmeter`: physics functions (SI) and each component's config section;
 - :mod:`~fuelid.plant.config`: the whole plant's TOML file (and its ``[calibration]`` record);
-- :mod:`~fuelid.plant.parameters`: the registry of its numeric parameters by dotted name;
+- :mod:`~fuelid.plant.parameter_specs`: the registry of its numeric parameters by dotted name,
+  and :mod:`~fuelid.plant.parameters` their values in a config (read, and set in a new one);
 - :mod:`~fuelid.plant.system`: coefficients, nonlinear ODE, operating point;
 - :mod:`~fuelid.plant.linear`: linearisation and reduction to the model family;
 - :mod:`~fuelid.plant.uncertainty`: the calibration's covariance propagated to K, T, settling;
@@ -18,8 +19,8 @@ The public API
 The names in ``__all__``, and at :mod:`fuelid.plant.simulate`:
 :func:`~fuelid.plant.simulate.simulate`, :class:`~fuelid.plant.simulate.SimulationResult`,
 :class:`~fuelid.plant.simulate.FuelTemperature`, :func:`~fuelid.plant.simulate.integrate_held`
-(``fuelid.simulate`` before 0.2.0; that path still imports, with a DeprecationWarning). ``import
-fuelid.plant`` does not load the simulator.
+(``fuelid.simulate`` before 0.2.0; that path was removed in 0.3.0). ``import fuelid.plant``
+does not load the simulator.
 """
 
 from __future__ import annotations
@@ -33,13 +34,8 @@ from fuelid.plant.config import (
     plant_config_from_dict,
 )
 from fuelid.plant.linear import EquivalentModel, LinearPlant, linearise
-from fuelid.plant.parameters import (
-    PlantParameter,
-    get_parameter,
-    parameter_names,
-    plant_parameters,
-    with_parameters,
-)
+from fuelid.plant.parameter_specs import parameter_names
+from fuelid.plant.parameters import PlantParameter, get_parameter, plant_parameters, with_parameters
 from fuelid.plant.system import (
     OperatingPoint,
     PlantCoefficients,

@@ -29,7 +29,7 @@ from fuelid.plant._section import Section
 from fuelid.plant.flowmeter import FlowmeterConfig
 from fuelid.plant.motor import MotorConfig
 from fuelid.plant.nozzle import NozzleConfig
-from fuelid.plant.parameters import check_parameter_names
+from fuelid.plant.parameter_specs import check_parameter_names
 from fuelid.plant.pipeline import PipelineConfig
 from fuelid.plant.pump import PumpConfig
 from fuelid.plant.vfd import VFDConfig
@@ -90,7 +90,7 @@ class CalibrationRecord(Section):
 
     Every number is in the unit of the parameter's key (``pump.leakage_Lpm_per_MPa`` in
     (L/min)/MPa …), whatever space the estimator worked in. ``parameters`` lists the dotted
-    names (:func:`fuelid.plant.parameters.parameter_names`); ``values``, ``stderr``, ``ci95``
+    names (:func:`fuelid.plant.parameter_specs.parameter_names`); ``values``, ``stderr``, ``ci95``
     and the rows and columns of ``covariance`` follow that order.
     """
 

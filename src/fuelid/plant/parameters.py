@@ -1,12 +1,9 @@
-"""The registry of a plant's numeric parameters, by their dotted TOML name.
+"""A plant config's numeric parameters: read them, and set some in a new validated config.
 
-Every float key of the component sections of a plant file is a parameter: ``vfd.lag_s``,
-``motor.inertia_kg_m2``, ``pump.leakage_Lpm_per_MPa``, ``pipeline.roughness_mm``,
-``nozzle.discharge_coefficient``, ``flowmeter.time_constant_s`` … (integers such as
-``nozzle.count`` and ``motor.pole_pairs``, strings, booleans and optional keys such as
-``vfd.max_rate_Hz_per_s`` are not). Each is described by a :class:`PlantParameter`: its value in
-the file's (natural) unit, the unit, the bounds the config's validation imposes and whether it
-must be strictly positive (the calibration estimates those in log space).
+The parameters are the float keys of the plant file's component sections, by their dotted TOML
+name (the registry: :mod:`fuelid.plant.parameter_specs`). :func:`plant_parameters` gives each
+as a :class:`PlantParameter`: its value in the file's (natural) unit, the unit, the bounds the
+config's validation imposes and whether it must be strictly positive.
 
 :func:`with_parameters` returns a new, validated plant config with some parameters changed; it
 revalidates only the sections that changed, so it is cheap enough for an optimiser's inner loop
@@ -15,56 +12,18 @@ revalidates only the sections that changed, so it is cheap enough for an optimis
 
 from __future__ import annotations
 
-import functools
 import math
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
 
 from pydantic import ValidationError
 
 from fuelid.errors import ConfigError, validation_reason
 from fuelid.plant._section import Section
-from fuelid.plant.flowmeter import FlowmeterConfig
-from fuelid.plant.motor import MotorConfig
-from fuelid.plant.nozzle import NozzleConfig
-from fuelid.plant.pipeline import PipelineConfig
-from fuelid.plant.pump import PumpConfig
-from fuelid.plant.vfd import VFDConfig
+from fuelid.plant.config import PlantConfig
+from fuelid.plant.parameter_specs import parameter_spec, parameter_specs
 
-if TYPE_CHECKING:
-    from fuelid.plant.config import PlantConfig
-
-PARAMETER_SECTIONS: dict[str, type[Section]] = {
-    "vfd": VFDConfig,
-    "motor": MotorConfig,
-    "pump": PumpConfig,
-    "pipeline": PipelineConfig,
-    "nozzle": NozzleConfig,
-    "flowmeter": FlowmeterConfig,
-}
-"""The plant config's sections that hold numeric parameters, by their TOML table name."""
-
-#: units of the name suffixes, longest first where one suffix ends another
-_SUFFIX_UNITS = (
-    ("_N_m_s_per_rad", "N·m·s/rad"),
-    ("_cm3_per_rev", "cm³/rev"),
-    ("_Lpm_per_MPa", "(L/min)/MPa"),
-    ("_Hz_per_s", "Hz/s"),
-    ("_kg_m2", "kg·m²"),
-    ("_mPa_s", "mPa·s"),
-    ("_Lpm", "L/min"),
-    ("_MPa", "MPa"),
-    ("_rpm", "rpm"),
-    ("_kW", "kW"),
-    ("_Hz", "Hz"),
-    ("_mm", "mm"),
-    ("_V", "V"),
-    ("_m", "m"),
-    ("_s", "s"),
-)
-_TRAILING_UNIT = re.compile(r"\[([^\[\]]+)\]\s*$")
+__all__ = ["PlantParameter", "get_parameter", "plant_parameters", "with_parameters"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -95,106 +54,6 @@ class PlantParameter:
     """What the parameter is, from the config section's field description."""
 
 
-@dataclass(frozen=True, slots=True)
-class _Spec:
-    """The value-independent part of a :class:`PlantParameter`."""
-
-    section: str
-    key: str
-    unit: str
-    lower: float | None
-    upper: float | None
-    positive: bool
-    description: str
-
-    @property
-    def name(self) -> str:
-        return f"{self.section}.{self.key}"
-
-
-def _unit(key: str, description: str) -> str:
-    """The unit of a key: the description's trailing ``[unit]``, else the name's suffix, else -."""
-    match = _TRAILING_UNIT.search(description)
-    if match:
-        return match.group(1)
-    for suffix, unit in _SUFFIX_UNITS:
-        if key.endswith(suffix):
-            return unit
-    return "-"
-
-
-def _bounds(metadata: list[Any]) -> tuple[float | None, float | None, bool]:
-    """Lower and upper bound and strict positivity from a field's annotated-types constraints."""
-    lower: float | None = None
-    upper: float | None = None
-    positive = False
-    for item in metadata:  # annotated_types' Gt, Ge, Lt, Le (pydantic's constraint objects)
-        gt, ge = getattr(item, "gt", None), getattr(item, "ge", None)
-        lt, le = getattr(item, "lt", None), getattr(item, "le", None)
-        if gt is not None:
-            lower = float(gt)
-            positive = positive or lower >= 0.0
-        if ge is not None:
-            lower = float(ge)
-            positive = positive or lower > 0.0
-        if lt is not None:
-            upper = float(lt)
-        if le is not None:
-            upper = float(le)
-    return lower, upper, positive
-
-
-@functools.cache
-def _specs() -> dict[str, _Spec]:
-    """Every float field of every parameter section, by dotted name (computed once)."""
-    specs: dict[str, _Spec] = {}
-    for section, model in PARAMETER_SECTIONS.items():
-        for key, field in model.model_fields.items():
-            if field.annotation is not float:  # ints, strings, bools and optional keys
-                continue
-            description = field.description or ""
-            lower, upper, positive = _bounds(field.metadata)
-            spec = _Spec(section, key, _unit(key, description), lower, upper, positive, description)
-            specs[spec.name] = spec
-    return specs
-
-
-def parameter_names() -> tuple[str, ...]:
-    """The dotted names of all plant parameters, in the order of the plant file.
-
-    Examples
-    --------
-    >>> names = parameter_names()
-    >>> names[0], "pump.leakage_Lpm_per_MPa" in names, "nozzle.count" in names
-    ('vfd.u_min_V', True, False)
-    """
-    return tuple(_specs())
-
-
-def _spec(name: str) -> _Spec:
-    """The spec of a parameter, or a one-line :class:`ConfigError` listing the valid names."""
-    try:
-        return _specs()[name]
-    except KeyError:
-        valid = ", ".join(parameter_names())
-        raise ConfigError(f"unknown plant parameter {name!r}; valid: {valid}") from None
-
-
-def check_parameter_names(names: Any) -> None:
-    """Refuse any name that is not a plant parameter (:class:`ConfigError` listing the valid ones).
-
-    Examples
-    --------
-    >>> check_parameter_names(["pump.leakage_Lpm_per_MPa", "vfd.lag_s"])
-    >>> check_parameter_names(["pump.leak"])  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    fuelid.errors.ConfigError: unknown plant parameter 'pump.leak'; valid: vfd.u_min_V, ...
-    """
-    for name in names:
-        _spec(str(name))
-
-
 def plant_parameters(config: PlantConfig) -> dict[str, PlantParameter]:
     """All numeric parameters of a plant config, by dotted name, in the order of the file.
 
@@ -215,7 +74,7 @@ def plant_parameters(config: PlantConfig) -> dict[str, PlantParameter]:
     (1.2, 's', True)
     """
     out: dict[str, PlantParameter] = {}
-    for name, spec in _specs().items():
+    for name, spec in parameter_specs().items():
         value = float(getattr(getattr(config, spec.section), spec.key))
         out[name] = PlantParameter(
             name=name,
@@ -243,7 +102,7 @@ def get_parameter(config: PlantConfig, name: str) -> float:
     >>> get_parameter(load_plant_config(), "nozzle.discharge_coefficient")
     0.7
     """
-    spec = _spec(name)
+    spec = parameter_spec(name)
     return float(getattr(getattr(config, spec.section), spec.key))
 
 
@@ -284,7 +143,7 @@ def with_parameters(config: PlantConfig, values: Mapping[str, float]) -> PlantCo
     """
     updates: dict[str, dict[str, float]] = {}
     for name, value in values.items():
-        spec = _spec(name)
+        spec = parameter_spec(name)
         try:
             number = float(value)
         except (TypeError, ValueError):

@@ -17,7 +17,7 @@ The package itself exports no names (``__all__`` is empty): a protocol's library
 a site file names it. Promised at their modules: :func:`~fuelid.plc.site.load_site` and
 :class:`~fuelid.plc.site.SiteConfig` (:mod:`fuelid.plc.site`), and the names in
 :mod:`fuelid.plc.adapters`' ``__all__``. ``fuelid.plc.virtual.profiles`` moved to
-:mod:`fuelid.profiles.runs` in 0.2.0 (the old path imports with a DeprecationWarning).
+:mod:`fuelid.profiles.runs` in 0.2.0 (the old path was removed in 0.3.0).
 """
 
 __all__: list[str] = []

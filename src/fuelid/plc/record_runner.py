@@ -16,7 +16,8 @@ from typing import Any
 
 from fuelid.errors import FuelidError
 from fuelid.plc.adapters.base import PlcSource
-from fuelid.plc.recorder import Recorder, RecorderStats, site_identity
+from fuelid.plc.record_status import RecorderStats
+from fuelid.plc.recorder import Recorder, site_identity
 from fuelid.plc.site import SiteConfig
 from fuelid.store import SampleStore, SampleWriter
 

@@ -61,11 +61,10 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import importlib
 import math
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from fuelid.plc.adapters.base import EndOfSource, LinkError, PlcSource, Reading, RingRecord
 from fuelid.plc.first_read import RingTagCheck, probe_first_read
@@ -76,20 +75,13 @@ from fuelid.plc.site import SiteConfig
 from fuelid.plc.timebase import UINT32, SampleSequence
 from fuelid.store import Quality, Sample, SampleWriter, tag_map_hash
 
-if TYPE_CHECKING:  # re-exported lazily (see __getattr__): the runner imports this module
-    from fuelid.plc.record_runner import PRUNE_EVERY_S, record_error, record_site
-
 __all__ = [
     "BACKOFF_FIRST_S",
     "BACKOFF_MAX_S",
-    "PRUNE_EVERY_S",
     "RING_MARGIN",
     "RING_POLL_S",
     "Recorder",
-    "RecorderStats",
     "link_up_detail",
-    "record_error",
-    "record_site",
     "site_identity",
 ]
 
@@ -635,34 +627,3 @@ class Recorder:
 def _core(reading: Reading) -> dict[str, float]:
     """u, y, the setpoint and the excitation of a reading (those it has)."""
     return {role: v for role, v in reading.values.items() if role in _CORE}
-
-
-# names that lived here before the recorder was split (fuelid 0.2), by the module they are in now
-_MOVED = {
-    **dict.fromkeys(("PRUNE_EVERY_S", "record_error", "record_site"), "record_runner"),
-    **dict.fromkeys(("RATE_WINDOW_S", "STATUS_WIDTH"), "record_status"),
-    **dict.fromkeys(
-        ("UINT32", "HALF_RANGE", "RESTART_MIN_COUNTS", "RESTART_RATE_SLACK", "RESTART_SLACK_S"),
-        "timebase",
-    ),
-    **dict.fromkeys(
-        (
-            "PROBE_RECORDS",
-            "PROBE_WAIT_S",
-            "PROBE_JUMP_FACTOR",
-            "RING_CHECK_POLLS",
-            "RING_FLOW_TOLERANCE",
-            "RING_FLOW_TOLERANCE_LPM",
-            "RING_COMMAND_TOLERANCE_V",
-        ),
-        "first_read",
-    ),
-}
-
-
-def __getattr__(name: str) -> Any:
-    """A name that moved out of this module, from where it is now (no warning: same package)."""
-    module = _MOVED.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f"fuelid.plc.{module}"), name)

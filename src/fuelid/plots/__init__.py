@@ -19,7 +19,8 @@ Every name in ``__all__`` is promised at ``fuelid.plots`` itself (as when it was
 before 0.2.0): :func:`save_figure` saves any of the figures, the ``plot_*`` and ``*_figure``
 functions draw them, :class:`FitPanel` is one record's column of the gray-box figure,
 :data:`DRIVE_LIMITS`, :data:`NO_UNIT` and :data:`PROPOSAL_COLOURS` are the drawing's constants.
-The old module ``fuelid.plots_greybox`` still imports, with a DeprecationWarning.
+The old module ``fuelid.plots_greybox`` was removed in 0.3.0: the gray-box figure is
+:func:`plot_greybox_fit`, saved with :func:`save_figure`.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ The public API
 :func:`~fuelid.profiles.runs.load_profile`, :func:`~fuelid.profiles.runs.run_profile`,
 :func:`~fuelid.profiles.runs.steps_profile`, :func:`~fuelid.profiles.runs.demo_run_profile`,
 :func:`~fuelid.profiles.runs.demo_temperature` (their old path, ``fuelid.plc.virtual.profiles``,
-still imports with a DeprecationWarning).
+was removed in 0.3.0).
 """
 
 from __future__ import annotations

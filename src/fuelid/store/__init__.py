@@ -22,27 +22,28 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from fuelid.store.base import (
+from fuelid.store.base import SampleStore
+from fuelid.store.online import OnlineHistory
+from fuelid.store.online_rows import (
+    PROPOSAL_STATUSES,
+    PROPOSAL_TRANSITIONS,
+    WRITE_KINDS,
+    WRITE_STATUSES,
+)
+from fuelid.store.records import (
     EVENT_KINDS,
     Event,
     PruneResult,
     Quality,
     Sample,
     SampleArrays,
-    SampleStore,
-    SampleWriter,
     StoreError,
     StoreInfo,
     tag_map_hash,
 )
-from fuelid.store.online import (
-    PROPOSAL_STATUSES,
-    PROPOSAL_TRANSITIONS,
-    WRITE_KINDS,
-    WRITE_STATUSES,
-    OnlineHistory,
-)
-from fuelid.store.sqlite import SCHEMA_VERSION, SQLiteStore
+from fuelid.store.schema import SCHEMA_VERSION
+from fuelid.store.sqlite import SQLiteStore
+from fuelid.store.writer import SampleWriter
 
 __all__ = [
     "EVENT_KINDS",

@@ -4,9 +4,10 @@ A store holds the samples of one site (one fuel loop as its PLC exposes it) and 
 recording (link down/up, gaps, gain changes, restarts). :class:`SampleStore` is the interface the
 recorder and the readers use; :class:`~fuelid.store.sqlite.SQLiteStore` is the default, and a
 central PostgreSQL store can follow by implementing the same methods, without touching the
-recorder. :class:`SampleWriter` is the one writer: a thread fed by a queue that commits a batch
-about once a second (in :mod:`fuelid.store.writer`); the records (samples, events, the store's
-error) are in :mod:`fuelid.store.records`. Both are re-exported here.
+recorder. :class:`~fuelid.store.writer.SampleWriter` is the one writer: a thread fed by a queue
+that commits a batch about once a second (in :mod:`fuelid.store.writer`, which calls this
+interface); the records (samples, events, the store's error) are in :mod:`fuelid.store.records`
+and re-exported here.
 
 Times are UTC seconds since the Unix epoch [s]; u in V, y and the setpoint in L/min, the fuel
 temperature in °C (as the PLC gives it; :meth:`SampleStore.to_iodata` converts to K).
@@ -39,7 +40,6 @@ from fuelid.store.records import (
     StoreInfo,
     tag_map_hash,
 )
-from fuelid.store.writer import SampleWriter
 from fuelid.units import celsius_to_kelvin
 
 __all__ = [
@@ -53,7 +53,6 @@ __all__ = [
     "Sample",
     "SampleArrays",
     "SampleStore",
-    "SampleWriter",
     "StateValue",
     "StoreError",
     "StoreInfo",
@@ -99,8 +98,9 @@ class SampleStore(ABC):
     def set_quality(self, t_from: float, t_to: float, quality: int = Quality.BAD_VALUE) -> int:
         """Flag the OK samples with ``t_from <= time <= t_to`` [s UTC] (committed on return).
 
-        Samples already flagged keep their flag. Through a :class:`SampleWriter` use
-        :meth:`SampleWriter.set_quality`, which keeps the order of the queue.
+        Samples already flagged keep their flag. Through a
+        :class:`~fuelid.store.writer.SampleWriter` use
+        :meth:`~fuelid.store.writer.SampleWriter.set_quality`, which keeps the order of the queue.
 
         Returns
         -------

@@ -25,7 +25,7 @@ import numpy as np
 
 from fuelid.errors import DataError
 from fuelid.io.files import check_output_path, write_table
-from fuelid.store.base import Quality, SampleArrays
+from fuelid.store.records import Quality, SampleArrays
 
 
 class SampleSource(Protocol):

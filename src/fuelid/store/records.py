@@ -18,7 +18,6 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
 from fuelid.io.jsonsafe import json_ready
 
@@ -307,11 +306,6 @@ class StoreInfo:
     quality: dict[str, int] = field(default_factory=dict)
     events: dict[str, int] = field(default_factory=dict)
     size_bytes: int = 0
-
-    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "to_dict")
-        return self.to_json(*args, **kwargs)
 
     def to_json(self) -> dict[str, Any]:
         """Plain dictionary with a ``units`` map (for ``--json``)."""

@@ -34,20 +34,20 @@ import uuid
 from collections.abc import Iterable
 from pathlib import Path
 
-from fuelid.store.base import (
+from fuelid.store.base import SampleStore
+from fuelid.store.lod import RECOUNT_BAD, UPSERT_LOD, lod_rows
+from fuelid.store.prune import PruneMixin
+from fuelid.store.records import (
+    SAMPLE_COLUMNS_SQL,
     Event,
     Quality,
     Requalify,
     Sample,
     SampleArrays,
-    SampleStore,
     StateValue,
     StoreError,
     StoreInfo,
 )
-from fuelid.store.lod import RECOUNT_BAD, UPSERT_LOD, lod_rows
-from fuelid.store.prune import PruneMixin
-from fuelid.store.records import SAMPLE_COLUMNS_SQL
 from fuelid.store.schema import (
     APPLICATION_ID,
     LOD_LEVELS,

@@ -14,7 +14,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-from fuelid._deprecated import warn_renamed
 from fuelid.model import ProcessModel
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.linear import LinearPlant, linearise
@@ -204,11 +203,6 @@ class FixedPIEvaluation:
             }
             for c in self.cases
         ]
-
-    def as_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "as_dict")
-        return self.to_json(*args, **kwargs)
 
     def to_json(self, cases: bool = True) -> dict[str, Any]:
         """The documented ``temperature_check`` JSON: the worst case, and with ``cases`` the rows.

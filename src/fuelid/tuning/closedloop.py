@@ -28,7 +28,6 @@ import numpy as np
 import scipy.optimize
 from numpy.typing import NDArray
 
-from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.flowmeter import measure_flow
@@ -134,11 +133,6 @@ class ClosedLoopResult:
             "disturbance_settling_time": worst("disturbance", "settling_time"),
             "time_at_limits": self.time_at_limits,
         }
-
-    def as_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "as_dict")
-        return self.to_json(*args, **kwargs)
 
     def to_json(self, events: bool = True) -> dict[str, Any]:
         """The run as documented JSON: ``fuel_temperature`` [°C], ``start_flow``, ``summary``.

@@ -22,14 +22,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 import scipy.optimize
 import scipy.signal
 from numpy.typing import ArrayLike, NDArray
 
-from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
 from fuelid.lti import discretise, modified_z
 from fuelid.model import ProcessModel
@@ -216,11 +215,6 @@ class Robustness:
     """Where |S| peaks [rad/s]."""
     stable: bool
     """Closed-loop stability from the Nyquist winding number (open-loop stable plant)."""
-
-    def as_dict(self, *args: Any, **kwargs: Any) -> dict[str, float | bool]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "as_dict")
-        return self.to_json(*args, **kwargs)
 
     def to_json(self) -> dict[str, float | bool]:
         """Plain dictionary for JSON."""

@@ -10,14 +10,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import scipy.integrate
 from numpy.typing import NDArray
 
 from fuelid import lti
-from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
 
 FloatArray = NDArray[np.float64]
@@ -44,11 +42,6 @@ class StepMetrics:
     [s]; nan if not settled before the next event."""
     iae: float
     """Integral of |setpoint − measurement| over the event's window [(L/min)·s]."""
-
-    def as_dict(self, *args: Any, **kwargs: Any) -> dict[str, float | str]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "as_dict")
-        return self.to_json(*args, **kwargs)
 
     def to_json(self) -> dict[str, float | str]:
         """Plain dictionary for JSON."""

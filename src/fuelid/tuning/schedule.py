@@ -22,7 +22,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fuelid._deprecated import warn_renamed
 from fuelid.errors import FuelidError
 from fuelid.plant.config import PlantConfig
 from fuelid.tuning.block import BlockForm
@@ -93,11 +92,6 @@ class ScheduleBand:
     """The band holds the operating point of the anchoring model: its gains are designed on that
     model, as the headline gains are (equal to them unless ``detune`` < 1)."""
 
-    def as_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "as_dict")
-        return self.to_json(*args, **kwargs)
-
     def to_json(self) -> dict[str, Any]:
         """The band as documented JSON (``t_low``, ``t_high`` in °C)."""
         return {
@@ -166,11 +160,6 @@ class GainSchedule:
             candidates,
             key=lambda b: min(abs(T_fuel - b.T_low), abs(T_fuel - b.T_high)),
         )
-
-    def as_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "as_dict")
-        return self.to_json(*args, **kwargs)
 
     def to_json(self) -> dict[str, Any]:
         """The schedule as documented JSON (``fuelid tune --schedule --json``)."""

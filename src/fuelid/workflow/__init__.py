@@ -4,15 +4,15 @@ What the command line, the demo and (next) the online service run, with plain ar
 result objects whose ``to_json()`` is the documented JSON (docs/reference/json.md); nothing here
 prints, draws or writes files. Fuel temperatures are in kelvin throughout (``T_fuel``, ``T_range``).
 
-- :mod:`~fuelid.workflow.identification`: :func:`identify_log` (``fuelid identify``) and the plant
-  file's priors, :func:`plant_priors`;
+- :mod:`~fuelid.workflow.identification`: :func:`identify_log` (``fuelid identify``);
 - :mod:`~fuelid.workflow.tune`: :class:`TuneRequest`, :func:`tune_model` (``fuelid tune``) and
   :func:`schedule_gains` (``fuelid tune --schedule``);
 - :mod:`~fuelid.workflow.analysis`: :class:`AnalysisSettings`, :func:`analyse_log`
   (``fuelid report``);
 - :mod:`~fuelid.workflow.assumptions`: what every number rests on: :class:`PlantSource` (a
-  user's plant file or the built-in reference plant), :class:`OperatingPoint`, the priors and the
-  signal check :func:`check_signals`;
+  user's plant file or the built-in reference plant), :class:`OperatingPoint`, the plant file's
+  priors (:func:`plant_priors`, at :data:`T_REF` unless told) and the signal check
+  :func:`check_signals`;
 - :mod:`~fuelid.workflow.plant_info`: :func:`plant_info` (``fuelid plant info``);
 - :mod:`~fuelid.workflow.simulation`: :class:`SimulationRequest`, :func:`simulate_log`
   (``fuelid simulate``) and the profile-file reader :func:`read_profile`.
@@ -52,7 +52,7 @@ _EXPORTS = {
     "SimulationInputs": "simulation",
     "SimulationOutcome": "simulation",
     "SimulationRequest": "simulation",
-    "T_REF": "identification",
+    "T_REF": "assumptions",
     "TuneOutcome": "tune",
     "TuneRequest": "tune",
     "analyse_log": "analysis",
@@ -61,7 +61,7 @@ _EXPORTS = {
     "identify_log": "identification",
     "operating_command": "tune",
     "plant_info": "plant_info",
-    "plant_priors": "identification",
+    "plant_priors": "assumptions",
     "read_profile": "simulation",
     "schedule_gains": "tune",
     "simulate_log": "simulation",
@@ -73,17 +73,13 @@ if TYPE_CHECKING:
     from fuelid.workflow.analysis import METHODS, AnalysisSettings, LogAnalysis, analyse_log
     from fuelid.workflow.assumptions import (
         REFERENCE_PLANT_NOTICE,
+        T_REF,
         OperatingPoint,
         PlantSource,
         check_signals,
-    )
-    from fuelid.workflow.identification import (
-        IDENTIFY_UNITS,
-        T_REF,
-        IdentifyOutcome,
-        identify_log,
         plant_priors,
     )
+    from fuelid.workflow.identification import IDENTIFY_UNITS, IdentifyOutcome, identify_log
     from fuelid.workflow.plant_info import PLANT_INFO_UNITS, PlantInfo, plant_info
     from fuelid.workflow.simulation import (
         SIMULATION_UNITS,

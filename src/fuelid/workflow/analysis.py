@@ -1,7 +1,7 @@
 """From a PLC log to PI gains in one call: identify, tune, check, run, schedule.
 
 :func:`analyse_log` is what ``fuelid report`` and the demo run. It composes the same steps as the
-individual commands: :func:`~fuelid.workflow.identification.plant_priors` and
+individual commands: :func:`~fuelid.workflow.assumptions.plant_priors` and
 :func:`~fuelid.identify.procedure.identify` (``fuelid identify``), then
 :func:`~fuelid.workflow.tune.tune_model` with the nonlinear runs and
 :func:`~fuelid.workflow.tune.schedule_gains` (``fuelid tune --simulate``, ``--schedule``) on the
@@ -27,7 +27,9 @@ from fuelid.identify.diagnostics import (
 )
 from fuelid.identify.long_record import long_record_note
 from fuelid.identify.misfit import MisfitBound
-from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, identify
+from fuelid.identify.procedure import identify
+from fuelid.identify.progress import steps_only
+from fuelid.identify.result import IdentificationResult, IdentifyOptions
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, check_gain_identified
 from fuelid.tuning.bands import CommandBand
@@ -40,6 +42,7 @@ from fuelid.tuning.schedule import GainSchedule
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.workflow.assumptions import (
     REFERENCE_PLANT_NOTICE,
+    T_REF,
     OperatingPoint,
     PlantSource,
     check_gain_against_plant,
@@ -47,14 +50,8 @@ from fuelid.workflow.assumptions import (
     priors_json,
     resolve_priors,
 )
-from fuelid.workflow.identification import T_REF, identify_step_ls
-from fuelid.workflow.progress import (
-    DIAGNOSTICS,
-    IDENTIFICATION,
-    Progress,
-    announce,
-    steps_only,
-)
+from fuelid.workflow.identification import identify_step_ls
+from fuelid.workflow.progress import DIAGNOSTICS, IDENTIFICATION, Progress, announce
 from fuelid.workflow.trust import (
     LEADING_RESPONSE,
     NO_CONTROL_PERIOD,

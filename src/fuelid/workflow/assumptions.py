@@ -8,6 +8,8 @@ of the signals. This module records each one with where it came from, so the out
 and checks the signals against the spans the gains are computed for.
 
 - :class:`PlantSource`: the plant file given, or the built-in reference plant (then said loudly);
+- :class:`PlantKnowledge` / :func:`plant_knowledge`: what a plant file tells an identification
+  before it sees data, and :func:`plant_priors`: the options with it;
 - :func:`resolve_priors` / :func:`priors_json`: the identification's priors and their origin;
 - :class:`OperatingPoint`: mean command, mean flow and fuel temperature of the fitted samples;
 - :func:`check_signals`: command and flow against the drive's signal range, the meter span and the
@@ -18,17 +20,17 @@ and checks the signals against the spans the gains are computed for.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from fuelid.io.timeseries import INPUT_UNIT, OUTPUT_UNIT, IOData
 from fuelid.model import ProcessModel
-from fuelid.units import kelvin_to_celsius
+from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C, celsius_to_kelvin, kelvin_to_celsius
 
 if TYPE_CHECKING:
-    from fuelid.identify.procedure import IdentificationResult, IdentifyOptions
+    from fuelid.identify.result import IdentificationResult, IdentifyOptions
     from fuelid.plant.config import PlantConfig
 
 REFERENCE_PLANT_NOTICE = (
@@ -47,6 +49,83 @@ percent, not by a factor of two)."""
 SPAN_TOLERANCE = 0.05
 """How far a signal may leave its span before it is flagged, as a fraction of the span [-]
 (a drive command a little beyond 1…5 V is a calibration offset, not a unit mistake)."""
+
+
+T_REF = celsius_to_kelvin(DEFAULT_FUEL_TEMPERATURE_C)
+"""Fuel temperature assumed when none is given [K]: 20 °C."""
+
+
+@dataclass(frozen=True)
+class PlantKnowledge:
+    """What a plant file tells an identification before it sees data: the one home of priors.
+
+    ``fuelid identify --config``, ``fuelid report --config`` and the online service's windows
+    (:func:`fuelid.online.window.window_priors`) all take their priors from here.
+    """
+
+    flowmeter_T: float
+    """The flowmeter's lag [s], held fixed in the fit."""
+    flowmeter_delay: float
+    """The meter's dead time [s], held fixed (the model's whole delay)."""
+    settling_time: float
+    """The 98 % settling time of the plant's linearisation at mid-range [s] (step-ls's N, the
+    online window's length check)."""
+    u_limits: tuple[float, float]
+    """The drive's signal range [V]."""
+    y_span: float
+    """The meter's span [L/min]."""
+    middle: float
+    """The mid-range command the settling time is for [V]."""
+
+
+def plant_knowledge(config: PlantConfig, T_fuel: float = T_REF) -> PlantKnowledge:
+    """The prior knowledge of a plant file at fuel temperature ``T_fuel`` [K] (default 20 °C)."""
+    from fuelid.plant.linear import linearise  # the physics only when a plant file is given
+
+    meter, vfd = config.flowmeter, config.vfd
+    middle = 0.5 * (vfd.u_min_V + vfd.u_max_V)
+    return PlantKnowledge(
+        flowmeter_T=float(meter.time_constant_s),
+        flowmeter_delay=float(meter.delay_s),
+        settling_time=float(linearise(config, middle, T_fuel).settling_time()),
+        u_limits=(float(vfd.u_min_V), float(vfd.u_max_V)),
+        y_span=float(meter.span_Lpm),
+        middle=float(middle),
+    )
+
+
+def plant_priors(
+    options: IdentifyOptions, config: PlantConfig, T_fuel: float = T_REF
+) -> IdentifyOptions:
+    """``options`` with a plant file's prior knowledge wherever the options give none.
+
+    Parameters
+    ----------
+    options : IdentifyOptions
+        The identification's settings; a flowmeter lag, delay or settling time given there wins.
+    config : PlantConfig
+        The plant: its flowmeter's lag and dead time (held fixed in the fit), and the 98 %
+        settling time of its linearisation at the middle of the drive's range (which chooses
+        step-ls's N), as :func:`plant_knowledge` gives them.
+    T_fuel : float
+        Fuel temperature of the settling time [K].
+
+    Returns
+    -------
+    IdentifyOptions
+    """
+    meter = config.flowmeter
+    settling = options.settling_time
+    if settling is None:
+        settling = plant_knowledge(config, T_fuel).settling_time
+    return replace(
+        options,
+        flowmeter_T=meter.time_constant_s if options.flowmeter_T is None else options.flowmeter_T,
+        flowmeter_delay=meter.delay_s
+        if options.flowmeter_delay is None
+        else options.flowmeter_delay,
+        settling_time=settling,
+    )
 
 
 PriorSource = Literal[
@@ -104,8 +183,6 @@ def resolve_priors(
     }
     if plant.is_reference:
         return options, sources
-    from fuelid.workflow.identification import plant_priors
-
     for key in sources:
         if sources[key] == "not given":
             sources[key] = "plant file"

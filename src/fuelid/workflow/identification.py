@@ -1,8 +1,9 @@
 """Identification as the workflow runs it: the plant file's priors, the window, the JSON.
 
-:func:`identify_log` is what ``fuelid identify`` runs, and :func:`plant_priors` what both it and
-:func:`~fuelid.workflow.analysis.analyse_log` take from a plant file; the estimators and their
-diagnostics are :func:`fuelid.identify.procedure.identify`'s.
+:func:`identify_log` is what ``fuelid identify`` runs; the plant file's priors it takes, as
+:func:`~fuelid.workflow.analysis.analyse_log` does, are
+:func:`fuelid.workflow.assumptions.plant_priors`; the estimators and their diagnostics are
+:func:`fuelid.identify.procedure.identify`'s.
 """
 
 from __future__ import annotations
@@ -12,12 +13,13 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 from fuelid.identify.preprocess import select
-from fuelid.identify.procedure import IdentificationResult, IdentifyOptions, identify
+from fuelid.identify.procedure import identify
 from fuelid.identify.progress import StageCallback
+from fuelid.identify.result import IdentificationResult, IdentifyOptions
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel
-from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C, celsius_to_kelvin
 from fuelid.workflow.assumptions import (
+    T_REF,
     OperatingPoint,
     PlantSource,
     PriorSource,
@@ -28,10 +30,8 @@ from fuelid.workflow.assumptions import (
 )
 
 if TYPE_CHECKING:
-    from fuelid.plant.config import PlantConfig
+    pass
 
-T_REF = celsius_to_kelvin(DEFAULT_FUEL_TEMPERATURE_C)
-"""Fuel temperature assumed when none is given [K]: 20 °C."""
 
 IDENTIFY_UNITS: dict[str, str] = {
     "K": "output unit per input unit ((L/min)/V for the fuel loop)",
@@ -45,79 +45,6 @@ IDENTIFY_UNITS: dict[str, str] = {
     "noise_std": "output unit",
 }
 """Units of the numbers in the JSON of ``fuelid identify`` (by key name)."""
-
-
-@dataclass(frozen=True)
-class PlantKnowledge:
-    """What a plant file tells an identification before it sees data: the one home of priors.
-
-    ``fuelid identify --config``, ``fuelid report --config`` and the online service's windows
-    (:func:`fuelid.online.window.window_priors`) all take their priors from here.
-    """
-
-    flowmeter_T: float
-    """The flowmeter's lag [s], held fixed in the fit."""
-    flowmeter_delay: float
-    """The meter's dead time [s], held fixed (the model's whole delay)."""
-    settling_time: float
-    """The 98 % settling time of the plant's linearisation at mid-range [s] (step-ls's N, the
-    online window's length check)."""
-    u_limits: tuple[float, float]
-    """The drive's signal range [V]."""
-    y_span: float
-    """The meter's span [L/min]."""
-    middle: float
-    """The mid-range command the settling time is for [V]."""
-
-
-def plant_knowledge(config: PlantConfig, T_fuel: float = T_REF) -> PlantKnowledge:
-    """The prior knowledge of a plant file at fuel temperature ``T_fuel`` [K] (default 20 °C)."""
-    from fuelid.plant.linear import linearise  # the physics only when a plant file is given
-
-    meter, vfd = config.flowmeter, config.vfd
-    middle = 0.5 * (vfd.u_min_V + vfd.u_max_V)
-    return PlantKnowledge(
-        flowmeter_T=float(meter.time_constant_s),
-        flowmeter_delay=float(meter.delay_s),
-        settling_time=float(linearise(config, middle, T_fuel).settling_time()),
-        u_limits=(float(vfd.u_min_V), float(vfd.u_max_V)),
-        y_span=float(meter.span_Lpm),
-        middle=float(middle),
-    )
-
-
-def plant_priors(
-    options: IdentifyOptions, config: PlantConfig, T_fuel: float = T_REF
-) -> IdentifyOptions:
-    """``options`` with a plant file's prior knowledge wherever the options give none.
-
-    Parameters
-    ----------
-    options : IdentifyOptions
-        The identification's settings; a flowmeter lag, delay or settling time given there wins.
-    config : PlantConfig
-        The plant: its flowmeter's lag and dead time (held fixed in the fit), and the 98 %
-        settling time of its linearisation at the middle of the drive's range (which chooses
-        step-ls's N), as :func:`plant_knowledge` gives them.
-    T_fuel : float
-        Fuel temperature of the settling time [K].
-
-    Returns
-    -------
-    IdentifyOptions
-    """
-    meter = config.flowmeter
-    settling = options.settling_time
-    if settling is None:
-        settling = plant_knowledge(config, T_fuel).settling_time
-    return replace(
-        options,
-        flowmeter_T=meter.time_constant_s if options.flowmeter_T is None else options.flowmeter_T,
-        flowmeter_delay=meter.delay_s
-        if options.flowmeter_delay is None
-        else options.flowmeter_delay,
-        settling_time=settling,
-    )
 
 
 @dataclass(frozen=True)

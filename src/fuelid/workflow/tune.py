@@ -15,11 +15,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fuelid._deprecated import warn_renamed
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
 from fuelid.identify.misfit import MisfitBound
 from fuelid.io.fitted_model import FittedModel
+from fuelid.lti import check_control_period
 from fuelid.model import ProcessModel
 from fuelid.plant.config import PlantConfig
 from fuelid.tuning.bands import BandCheck, CommandBand, band_check
@@ -40,7 +40,7 @@ from fuelid.tuning.frequency import (
     robust_peak,
     robustness,
 )
-from fuelid.tuning.limits import check_control_period, check_sweep_size, check_tunable
+from fuelid.tuning.limits import check_sweep_size, check_tunable
 from fuelid.tuning.linearloop import (
     LinearResponse,
     full_order_closed_loop,
@@ -52,8 +52,7 @@ from fuelid.tuning.rules import PISettings
 from fuelid.tuning.schedule import GainSchedule, band_edges, gain_schedule
 from fuelid.tuning.sweep import SweepResult, uncertainty_sweep
 from fuelid.units import kelvin_to_celsius
-from fuelid.workflow.assumptions import REFERENCE_PLANT_NOTICE, PlantSource
-from fuelid.workflow.identification import T_REF
+from fuelid.workflow.assumptions import REFERENCE_PLANT_NOTICE, T_REF, PlantSource
 from fuelid.workflow.progress import (
     RUNS,
     SCHEDULE,
@@ -390,11 +389,6 @@ class StructureGains:
     """The rule's gains on it."""
     Ms_of_chosen_gains: float
     """Ms of the gains tuned on the kept model, if this structure is the true one [-]."""
-
-    def as_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "as_dict")
-        return self.to_json(*args, **kwargs)
 
     def to_json(self) -> dict[str, Any]:
         """JSON form: the model, its gains (Kc [V per L/min], Ti [s]) and the chosen gains' Ms."""

@@ -14,23 +14,10 @@ is one line on stderr and exit code 2.
 
 from __future__ import annotations
 
-from typing import Any
-
 from fuelid.cli.online import decide, run, show  # noqa: F401 - they register the commands
 from fuelid.cli.online._app import app
 from fuelid.cli.online.run import check_window_length
 from fuelid.cli.online.show import status_lines
 from fuelid.online.logs import log_record
-
-
-def __getattr__(name: str) -> Any:
-    # the virtual run's profiles live in fuelid.profiles.runs (numpy: imported on use,
-    # so `fuelid --help` stays light); kept importable from here
-    if name in ("demo_run_profile", "demo_temperature"):
-        from fuelid.profiles import runs as profiles
-
-        return getattr(profiles, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
 
 __all__ = ["app", "check_window_length", "log_record", "status_lines"]

@@ -62,8 +62,8 @@ def _opened(
     config: Path | None, store: Path | None
 ) -> Iterator[tuple[SQLiteStore, OnlineHistory, dict[str, Any]]]:
     """The store and its history (read from --store, or the site file's), and the settings."""
-    from fuelid.store.base import StoreError
     from fuelid.store.online import OnlineHistory
+    from fuelid.store.records import StoreError
     from fuelid.store.sqlite import SQLiteStore
 
     if config is None and store is None:

@@ -46,7 +46,7 @@ from fuelid.online.excitation.status import INTERRUPTED, STATE_KEY
 from fuelid.online.writeback import AUTO
 from fuelid.plc.adapters.base import LinkError
 from fuelid.plc.gain_handshake import GainWriter
-from fuelid.store.base import Quality
+from fuelid.store.records import Quality
 from fuelid.tuning.rules import PISettings
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C, celsius_to_kelvin
 

@@ -14,7 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fuelid.errors import NotExcitingError
 from fuelid.identify.oe import OutputError
-from fuelid.identify.procedure import IdentificationResult
+from fuelid.identify.result import IdentificationResult
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel
 from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics

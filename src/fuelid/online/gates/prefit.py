@@ -23,7 +23,7 @@ from fuelid.online.health import (
 )
 from fuelid.online.moves import MergeRule, detect_moves
 from fuelid.plc.site import Online
-from fuelid.store.base import Quality, SampleArrays
+from fuelid.store.records import Quality, SampleArrays
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

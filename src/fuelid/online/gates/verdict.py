@@ -6,7 +6,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from fuelid._deprecated import warn_renamed
 from fuelid.io.jsonsafe import json_ready
 
 
@@ -84,11 +83,6 @@ class WindowVerdict:
             events=[*self.events, *other.events],
             mode=self.mode or other.mode,
         )
-
-    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "to_dict")
-        return self.to_json(*args, **kwargs)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dictionary (non-finite numbers as None).

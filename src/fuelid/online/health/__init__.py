@@ -52,7 +52,6 @@ from fuelid.online.health.oscillation import (
 from fuelid.online.health.sensor import SensorHealth, noise_level, quantisation_step, sensor_health
 from fuelid.online.health.setpoint import (
     MIN_STEP_LPM,
-    RAMP_GAP_S,
     SETTLING_FRACTION,
     SETTLING_NOISE_LEVELS,
     SetpointResponse,
@@ -66,6 +65,7 @@ from fuelid.online.health.shares import (
     time_at_limits,
     time_in_auto,
 )
+from fuelid.online.moves import RAMP_GAP_S
 
 __all__ = [
     "AUTO",

@@ -9,7 +9,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from fuelid._deprecated import warn_renamed
 from fuelid.io.jsonsafe import json_ready
 from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 from fuelid.online.health._arrays import BoolArray, FloatArray
@@ -62,11 +61,6 @@ class LoopHealth:
         if not self.setpoint_changes:
             return math.nan
         return float(np.mean([r.iae / abs(r.step) for r in self.setpoint_changes]))
-
-    def to_dict(self, *args: Any, **kwargs: Any) -> dict[str, Any]:
-        """Deprecated name of :meth:`to_json` (fuelid 0.2.0)."""
-        warn_renamed(self, "to_dict")
-        return self.to_json(*args, **kwargs)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dictionary, the units in the key names, NaN as None.

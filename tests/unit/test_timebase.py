@@ -1,64 +1,10 @@
-"""The recorder's and the store's split modules (issue 24): old import paths, the time base."""
+"""The recorder's time base (fuelid.plc.timebase): the PLC's counter unwrapped, restarts told."""
 
 from __future__ import annotations
-
-import importlib
 
 import pytest
 
 from fuelid.plc.timebase import HALF_RANGE, UINT32, SampleSequence
-
-MOVED = {
-    "fuelid.plc.record_runner": ("PRUNE_EVERY_S", "record_error", "record_site"),
-    "fuelid.plc.record_status": ("RATE_WINDOW_S", "STATUS_WIDTH", "RecorderStats"),
-    "fuelid.plc.timebase": (
-        "UINT32",
-        "HALF_RANGE",
-        "RESTART_MIN_COUNTS",
-        "RESTART_RATE_SLACK",
-        "RESTART_SLACK_S",
-    ),
-    "fuelid.plc.first_read": (
-        "PROBE_RECORDS",
-        "PROBE_WAIT_S",
-        "PROBE_JUMP_FACTOR",
-        "RING_CHECK_POLLS",
-        "RING_FLOW_TOLERANCE",
-        "RING_FLOW_TOLERANCE_LPM",
-        "RING_COMMAND_TOLERANCE_V",
-    ),
-}
-
-
-@pytest.mark.parametrize(
-    ("module", "name"), [(module, name) for module, names in MOVED.items() for name in names]
-)
-def test_every_name_that_left_the_recorder_still_imports_from_it(module: str, name: str) -> None:
-    recorder = importlib.import_module("fuelid.plc.recorder")
-    assert getattr(recorder, name) is getattr(importlib.import_module(module), name)
-
-
-def test_the_recorder_module_refuses_names_it_never_had() -> None:
-    recorder = importlib.import_module("fuelid.plc.recorder")
-    with pytest.raises(AttributeError, match="no attribute 'nothing_here'"):
-        _ = recorder.nothing_here
-
-
-@pytest.mark.parametrize(
-    ("module", "names"),
-    [
-        ("fuelid.store.base", ("SampleWriter", "StoreError", "Sample", "iodata_from_samples")),
-        ("fuelid.store.online", ("PROPOSAL_TRANSITIONS", "WRITE_STATUSES", "json_ready")),
-        ("fuelid.store.sqlite", ("SCHEMA_VERSION", "APPLICATION_ID", "SQLiteStore")),
-        ("fuelid.plc.site", ("REGISTERS_OF",)),
-        ("fuelid.plc.virtual.engine", ("commissioning_gains",)),
-        ("fuelid.plc.virtual.runner", ("site_text", "free_port")),
-    ],
-)
-def test_split_modules_keep_their_public_names(module: str, names: tuple[str, ...]) -> None:
-    imported = importlib.import_module(module)
-    for name in names:
-        assert hasattr(imported, name), name
 
 
 def test_the_time_base_unwraps_the_counter_and_keeps_times_regular() -> None:
