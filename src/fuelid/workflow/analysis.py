@@ -396,10 +396,7 @@ def _analyse(
     identifications, step_sources = _identify_all(data, base, settings.tune_from, progress)
     if settings.tune_from == "step-ls":
         sources |= step_sources
-    # what the loader noticed is said once, not once per method
-    warnings: list[str] = [f"log: {note}" for note in data.notes]
-    for name, result in identifications.items():
-        warnings.extend(f"{name}: {w}" for w in result.warnings if w not in data.notes)
+    warnings = _identification_warnings(data, identifications)
     chosen = identifications[settings.tune_from]
     loose = _check_chosen(chosen, settings)
     mismatch = check_gain_against_plant(chosen.model, plant, point, T_fuel)
@@ -474,6 +471,17 @@ def _identify_all(
         identifications["pem"] = identify(data, replace(base, method="pem"))
     order = (*METHODS, "pem")
     return {m: identifications[m] for m in order if m in identifications}, step_sources
+
+
+def _identification_warnings(
+    data: IOData, identifications: dict[str, IdentificationResult]
+) -> list[str]:
+    """The loader's notes and each method's warnings, by source."""
+    # what the loader noticed is said once, not once per method
+    warnings: list[str] = [f"log: {note}" for note in data.notes]
+    for name, result in identifications.items():
+        warnings.extend(f"{name}: {w}" for w in result.warnings if w not in data.notes)
+    return warnings
 
 
 def _check_chosen(chosen: IdentificationResult, settings: AnalysisSettings) -> list[str]:

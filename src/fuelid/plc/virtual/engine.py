@@ -699,6 +699,7 @@ def _control_steps(period_s: float, control_period_s: float) -> int:
 def _check_ring_heartbeat_clock(
     ring_size: int, heartbeat_timeout_s: float, clock_slow: float
 ) -> None:
+    """Refuse a ring size outside 2…MAX_RING_SIZE, a heartbeat timeout ≤ 0, a clock ≥ 50 % off."""
     if not 2 <= ring_size <= MAX_RING_SIZE:
         raise ConfigError(f"ring_size must be 2…{MAX_RING_SIZE}, got {ring_size}")
     if not (math.isfinite(heartbeat_timeout_s) and heartbeat_timeout_s > 0.0):
