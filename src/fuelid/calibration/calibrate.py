@@ -381,14 +381,7 @@ def calibrate(
         If the fit does not converge (no numbers).
     """
     names = check_free_names(free)
-    if not logs:
-        raise DataError("give at least one log")
-    if not 0.0 <= holdout < 0.9:
-        raise ConfigError(f"--holdout must lie in [0, 0.9), got {holdout:g}")
-    n_outputs = {log.record.y.shape[1] for log in logs}
-    if len(n_outputs) > 1:
-        raise DataError("either every log has the pump pressure or none has")
-    pressure = n_outputs.pop() == 2
+    pressure = _check_logs(logs, holdout)
     registry = plant_parameters(config)
     model = PlantGreyBox(config, names, pressure)
     splits = [_split(log.record, holdout) for log in logs]
@@ -399,66 +392,21 @@ def calibrate(
     estimator = GreyBoxEstimator(
         model, initial_state="model", max_iterations=max_iterations, segments=None
     )
-    try:
-        estimator.fit([record for record, _ in splits])
-    except NotIdentifiableError as exc:
-        report = exc.report.with_advice(_advice(exc.report.undetermined_names, logs, pressure))
-        raise CalibrationRefused(report.message()) from None
+    records = [record for record, _ in splits]
+    _fit_or_refuse(estimator, records, config, registry, names, logs, pressure)
     wall = time.perf_counter() - started
-    report = estimator.identifiability_
-    if not report.identifiable:
-        # a plant file wrong elsewhere drives the free parameters to the edge (a leakage to
-        # nothing), where they lose their sensitivity: that is a misfit, not missing data
-        misfit = _misfit(config, registry, estimator, names)
-        if misfit is not None:
-            raise CalibrationRefused(misfit)
-        report = report.with_advice(_advice(report.undetermined_names, logs, pressure))
-        raise CalibrationRefused(report.message())
     values = {name: float(estimator.params_[name]) for name in names}
     calibrated = with_parameters(config, values)
     warnings = [note for log in logs for note in log.notes]
     warnings += _fit_warnings(config, names, estimator.sigma_[0], pressure, logs)
-    fits: list[dict[str, float | None]] = []
-    simulated: list[FloatArray] = []
-    for log, (_, n_fit), fitted in zip(logs, splits, estimator.fit_percent_, strict=True):
-        entry: dict[str, float | None] = {"flow": float(fitted[0])}
-        if pressure:
-            entry["pressure"] = float(fitted[1])
-        entry["heldout_flow"] = None
-        whole = estimator.simulate(log.record).outputs
-        simulated.append(whole)
-        if n_fit < log.record.n_samples:
-            tail = nrmse_fit_columns(log.record.y[n_fit:], whole[n_fit:])
-            entry["heldout_flow"] = float(tail[0])
-            if pressure:
-                entry["heldout_pressure"] = float(tail[1])
-        fits.append(entry)
-    for name in names:
-        error = estimator.stderr_[name]
-        if error is not None and abs(error) > 0.5 * abs(values[name]):
-            warnings.append(
-                f"{name} is poorly determined: standard error {error:.3g} is over half its "
-                f"value {values[name]:.3g}"
-            )
-        spec = next(spec for spec in model.parameters if spec.name == name)
-        for bound in (spec.lower, spec.upper):
-            if bound is not None and bound != 0.0 and abs(values[name] - bound) < 1e-6 * abs(bound):
-                warnings.append(f"{name} ended on its bound {bound:g}: the interval is not valid")
+    fits, simulated = _log_fits(estimator, logs, splits, pressure)
+    warnings += _estimate_warnings(estimator, model, values)
     warnings.extend(correlation_warning(*pair) for pair in estimator.correlated_pairs())
     fit_quality = judge_fit([log.record for log in logs], simulated, [n_fit for _, n_fit in splits])
     misfit = misfit_message(fit_quality, fits)
     if misfit:
         warnings.insert(0, misfit)
-    wanted = set(names) if "all" in profile else set(profile)
-    unknown = wanted - set(names)
-    if unknown:
-        raise ConfigError(f"--profile names {', '.join(sorted(unknown))}, which is not in --free")
-    profiles: dict[str, tuple[float, float]] = {}
-    for name in names:
-        error = estimator.stderr_[name]
-        shaky = error is not None and abs(error) > PROFILE_RELATIVE_STDERR * abs(values[name])
-        if name in wanted or shaky:
-            profiles[name] = estimator.profile_interval(name)
+    profiles = _profiles(estimator, values, profile)
     return CalibrationResult(
         fit_quality=fit_quality,
         misfit=misfit,
@@ -475,7 +423,7 @@ def calibrate(
         logs=list(logs),
         fit_percent=fits,
         noise_std=dict(zip(model.output_names, map(float, estimator.sigma_), strict=True)),
-        identifiability=report.to_json(),
+        identifiability=estimator.identifiability_.to_json(),
         warnings=warnings,
         iterations=int(estimator.n_iterations_),
         wall_time_s=wall,
@@ -483,6 +431,126 @@ def calibrate(
         simulated=simulated,
         fitted_samples=[n_fit for _, n_fit in splits],
     )
+
+
+def _check_logs(logs: Sequence[CalibrationLog], holdout: float) -> bool:
+    """Refuse no logs, a hold-out outside [0, 0.9) or logs mixed with and without pressure.
+
+    Returns whether the logs have the pump pressure.
+    """
+    if not logs:
+        raise DataError("give at least one log")
+    if not 0.0 <= holdout < 0.9:
+        raise ConfigError(f"--holdout must lie in [0, 0.9), got {holdout:g}")
+    n_outputs = {log.record.y.shape[1] for log in logs}
+    if len(n_outputs) > 1:
+        raise DataError("either every log has the pump pressure or none has")
+    return bool(n_outputs.pop() == 2)
+
+
+def _fit_or_refuse(
+    estimator: GreyBoxEstimator,
+    records: list[Record],
+    config: PlantConfig,
+    registry: dict[str, Any],
+    names: Sequence[str],
+    logs: Sequence[CalibrationLog],
+    pressure: bool,
+) -> None:
+    """Fit ``estimator`` to the records, or refuse with what the data cannot determine.
+
+    Raises
+    ------
+    CalibrationRefused
+        If the parameters are not identifiable from the logs, or the fit collapsed a free
+        parameter to make up for a plant file wrong elsewhere (a misfit, said so).
+    """
+    try:
+        estimator.fit(records)
+    except NotIdentifiableError as exc:
+        report = exc.report.with_advice(_advice(exc.report.undetermined_names, logs, pressure))
+        raise CalibrationRefused(report.message()) from None
+    report = estimator.identifiability_
+    if report.identifiable:
+        return
+    # a plant file wrong elsewhere drives the free parameters to the edge (a leakage to
+    # nothing), where they lose their sensitivity: that is a misfit, not missing data
+    misfit = _misfit(config, registry, estimator, names)
+    if misfit is not None:
+        raise CalibrationRefused(misfit)
+    report = report.with_advice(_advice(report.undetermined_names, logs, pressure))
+    raise CalibrationRefused(report.message())
+
+
+def _log_fits(
+    estimator: GreyBoxEstimator,
+    logs: Sequence[CalibrationLog],
+    splits: Sequence[tuple[Record, int]],
+    pressure: bool,
+) -> tuple[list[dict[str, float | None]], list[FloatArray]]:
+    """Each log's fit % (fitted part, and held-out part by simulating the whole log from its start).
+
+    Also returns each whole log simulated with the calibrated plant.
+    """
+    fits: list[dict[str, float | None]] = []
+    simulated: list[FloatArray] = []
+    for log, (_, n_fit), fitted in zip(logs, splits, estimator.fit_percent_, strict=True):
+        entry: dict[str, float | None] = {"flow": float(fitted[0])}
+        if pressure:
+            entry["pressure"] = float(fitted[1])
+        entry["heldout_flow"] = None
+        whole = estimator.simulate(log.record).outputs
+        simulated.append(whole)
+        if n_fit < log.record.n_samples:
+            tail = nrmse_fit_columns(log.record.y[n_fit:], whole[n_fit:])
+            entry["heldout_flow"] = float(tail[0])
+            if pressure:
+                entry["heldout_pressure"] = float(tail[1])
+        fits.append(entry)
+    return fits, simulated
+
+
+def _estimate_warnings(
+    estimator: GreyBoxEstimator, model: PlantGreyBox, values: dict[str, float]
+) -> list[str]:
+    """A parameter poorly determined (its error over half its value) or ended on a bound."""
+    warnings = []
+    for name, value in values.items():
+        error = estimator.stderr_[name]
+        if error is not None and abs(error) > 0.5 * abs(value):
+            warnings.append(
+                f"{name} is poorly determined: standard error {error:.3g} is over half its "
+                f"value {value:.3g}"
+            )
+        spec = next(spec for spec in model.parameters if spec.name == name)
+        for bound in (spec.lower, spec.upper):
+            if bound is not None and bound != 0.0 and abs(value - bound) < 1e-6 * abs(bound):
+                warnings.append(f"{name} ended on its bound {bound:g}: the interval is not valid")
+    return warnings
+
+
+def _profiles(
+    estimator: GreyBoxEstimator, values: dict[str, float], profile: Sequence[str]
+) -> dict[str, tuple[float, float]]:
+    """Profile-likelihood intervals: those asked for, and where the standard error is large.
+
+    Raises
+    ------
+    ConfigError
+        If ``profile`` names a parameter that was not free.
+    """
+    names = list(values)
+    wanted = set(names) if "all" in profile else set(profile)
+    unknown = wanted - set(names)
+    if unknown:
+        raise ConfigError(f"--profile names {', '.join(sorted(unknown))}, which is not in --free")
+    profiles: dict[str, tuple[float, float]] = {}
+    for name in names:
+        error = estimator.stderr_[name]
+        shaky = error is not None and abs(error) > PROFILE_RELATIVE_STDERR * abs(values[name])
+        if name in wanted or shaky:
+            profiles[name] = estimator.profile_interval(name)
+    return profiles
 
 
 def _significant(value: float, digits: int) -> float:

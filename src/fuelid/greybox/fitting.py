@@ -48,7 +48,7 @@ FloatArray = NDArray[np.float64]
 Z95 = float(scipy.special.ndtri(0.975))
 """The standard normal's 97.5 % quantile (scipy.stats costs 0.3 s to import: not here)."""
 COST_TOLERANCE = 1e-4
-"""The solver stops when an iteration lowers ½Σ(r/σ)² by less than this (see ``_solve``)."""
+"""The solver stops when an iteration lowers ½Σ(r/σ)² by less than this (see ``_cost_ftol``)."""
 MAX_RESTARTS = 3
 """Times a fit goes on from an extrapolated point (:mod:`fuelid.greybox.stopping`) before it
 stops at one."""
@@ -362,162 +362,32 @@ class ShootingFit:
             active[np.atleast_1d(np.asarray(hold, dtype=int))] = False
         if self._held_states:  # initial states the outputs do not depend on
             active[self._held_states] = False
-        clip_low, clip_high = lower[active], upper[active]
-        start = np.clip(phi0[active], clip_low + 1e-12, clip_high - 1e-12)
-        # evaluations by φ: the latest (for its Jacobian) and the best (the solver's answer)
-        latest: dict[bytes, Evaluation] = {}
-        best: list[tuple[float, bytes, Evaluation]] = []
+        run = _LeastSquaresRun(self, phi0, records, sigma, active, (lower[active], upper[active]))
+        start = np.clip(phi0[active], run.clip_low + 1e-12, run.clip_high - 1e-12)
         if seed is not None and np.array_equal(start, phi0[active]):
-            latest[start.tobytes()] = seed
-
-        def full(phi_active: FloatArray) -> FloatArray:
-            phi = phi0.copy()
-            phi[active] = phi_active
-            return phi
-
-        def remember(key: bytes, evaluation: Evaluation) -> None:
-            latest.clear()
-            latest[key] = evaluation
-            cost = float(evaluation.residuals @ evaluation.residuals)
-            if not best or cost <= best[0][0]:
-                best[:] = [(cost, key, evaluation)]
-
-        def fun(phi_active: FloatArray) -> FloatArray:
-            key = phi_active.tobytes()
-            evaluation = latest.get(key)
-            if evaluation is None:
-                try:
-                    evaluation = self._evaluate(full(phi_active), records, sigma, jacobian=True)
-                except (SimulationError, FloatingPointError, OverflowError):
-                    # a trial point where the ODE cannot be solved counts as a very poor fit,
-                    # so the trust region shrinks back towards the last good point
-                    if not best:
-                        raise
-                    return 1e3 * (np.abs(best[0][2].residuals) + 1.0)
-            remember(key, evaluation)
-            return evaluation.residuals
-
-        jac_calls = [0]
-        previous: list[Step | None] = [None]  # the Gauss–Newton step of the last Jacobian
-        restarts = [0]
-        restart_rate: list[float | None] = [None]  # the rate a restart was extrapolated with
-
-        def jac(phi_active: FloatArray) -> FloatArray:
-            evaluation = latest.get(phi_active.tobytes())
-            if evaluation is None:
-                evaluation = self._evaluate(full(phi_active), records, sigma, jacobian=True)
-            if evaluation.jacobian is None:
-                raise FuelidError("internal: an evaluation without its Jacobian")
-            jacobian = evaluation.jacobian[:, active]
-            jac_calls[0] += 1
-            residuals = evaluation.residuals
-            found = gauss_newton_step(jacobian, residuals, phi_active, clip_low, clip_high)
-            if found is None:
-                previous[0] = None
-                return jacobian
-            current = Step(phi_active, jacobian, *found)
-            if converged(previous[0], current, restart_rate[0]):
-                raise _Converged(phi_active, jac_calls[0])
-            ending = last_step(
-                previous[0], current, residuals, (clip_low, clip_high), restart_rate[0]
-            )
-            restart_rate[0] = None
-            previous[0] = current
-            if ending is None:
-                return jacobian
-            last, rate = ending.phi, ending.rate
-            try:
-                step_to = self._evaluate(full(last), records, sigma, True)
-            except (SimulationError, FloatingPointError, OverflowError):
-                if rate is not None:
-                    return jacobian  # an extrapolation too far: the trust region goes on
-                raise _Converged(phi_active, jac_calls[0]) from None
-            if ending.guarded and step_to.residuals @ step_to.residuals > residuals @ residuals:
-                if rate is not None:
-                    return jacobian  # the series did not hold: the trust region goes on
-                raise _Converged(phi_active, jac_calls[0])  # the floor: the better of the two
-            remember(last.tobytes(), step_to)
-            if rate is not None and restarts[0] < MAX_RESTARTS and step_to.jacobian is not None:
-                left = gauss_newton_step(
-                    step_to.jacobian[:, active], step_to.residuals, last, clip_low, clip_high
-                )
-                # still converging at that rate, what is left is the step over 1 − ρ (half
-                # the last-step threshold: the rate measured so far may still be drifting)
-                left_se = math.inf if left is None else left[1] / (1.0 - rate)
-                if left_se >= 0.5 * GAUSS_NEWTON_LAST_STEP_SE:
-                    raise _Restart(last, rate)  # not there: iterate on from the nearer point
-            raise _Converged(last, jac_calls[0])
-
-        # Stop when an iteration lowers the weighted cost ½Σr² by less than COST_TOLERANCE
-        # (at the optimum ½Σr² ≈ m/2): the step then moves φ by ~0.01 standard errors, and
-        # further iterations would chase the integrator's rounding rather than the data.
+            run.latest[start.tobytes()] = seed
         n_residuals = (
             len(seed.residuals)
             if seed is not None
             else sum(int(np.isfinite(record.y).sum()) for record in records)
         )
-        ftol = min(1e-6, max(1e-12, COST_TOLERANCE / (0.5 * max(n_residuals, 1))))
-        # the trust region in relative terms: log-space parameters already are, the others
-        # and the initial states at their size (not scipy's 'jac', which lets the least
-        # determined directions take the longest steps: a parameter near 0 runs off to 0)
+        x_scale = "jac" if jacobian_scaled else self._relative_scale(phi0)[active]
+        solution = run.minimise(start, x_scale, _cost_ftol(n_residuals))
+        return run.full(solution.x), solution, run.evaluation_at(solution.x)
+
+    def _relative_scale(self, phi0: FloatArray) -> FloatArray:
+        """The trust region's scale of each φ component: relative to its size.
+
+        Log-space parameters already are relative; the others and the initial states are
+        scaled by their size (not scipy's 'jac', which lets the least determined directions take
+        the longest steps: a parameter near 0 runs off to 0).
+        """
+        p = len(self.free_names_)
         theta_size = np.where(
             self.map_.log_mask, 1.0, np.maximum(np.abs(self.map_.to_theta(phi0[:p])), 1e-3)
         )
         state_size = np.maximum(np.abs(phi0[p:]), getattr(self, "state_scale_", 1.0))
-        scale_of_phi = np.concatenate([theta_size, state_size])[active]
-        evaluations_before = self._work[0]
-        try:
-            while True:
-                try:
-                    solution = scipy.optimize.least_squares(
-                        fun,
-                        start,
-                        jac=jac,
-                        bounds=(clip_low, clip_high),
-                        method="trf",
-                        x_scale="jac" if jacobian_scaled else scale_of_phi,
-                        xtol=XTOL,
-                        ftol=ftol,
-                        gtol=1e-10,
-                        # the allowance is the whole fit's, restarts included
-                        max_nfev=max(1, self.max_iterations - jac_calls[0]),
-                    )
-                    # scipy counts its own call only: the fit's, restarts included
-                    solution.nfev = self._work[0] - evaluations_before
-                    solution.njev = jac_calls[0]
-                    break
-                except _Restart as again:  # from an extrapolated point (its evaluation kept)
-                    start, previous[0], restart_rate[0] = again.phi, None, again.rate
-                    restarts[0] += 1
-        except OutOfBudget:
-            if not best:
-                raise
-            # the stage's best point so far: a start for what follows, not an estimate
-            phi_best = np.frombuffer(best[0][1], dtype=float).copy()
-            solution = scipy.optimize.OptimizeResult(
-                x=phi_best,
-                status=0,
-                success=False,
-                message="stopped: the stage's allowance of evaluations was spent",
-                nfev=self._work[0] - evaluations_before,
-                njev=jac_calls[0],
-            )
-        except _Converged as done:
-            solution = scipy.optimize.OptimizeResult(
-                x=done.phi,
-                status=5,
-                success=True,
-                message="the Gauss-Newton step left less than the tolerance to gain",
-                nfev=self._work[0] - evaluations_before,
-                njev=done.jacobians,
-            )
-        key = np.asarray(solution.x, dtype=float).tobytes()
-        found = latest.get(key)
-        if found is None and best and best[0][1] == key:
-            found = best[0][2]
-        if found is None:
-            found = self._evaluate(full(solution.x), records, sigma, jacobian=True)
-        return full(solution.x), solution, found
+        return np.concatenate([theta_size, state_size])
 
     def _single_shooting(
         self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, evaluation: Evaluation
@@ -548,3 +418,209 @@ class ShootingFit:
                 "values, fix a parameter, or give a longer or more exciting record"
             )
         return ShootingResult(phi, solution, evaluation, sigma, iterations)
+
+
+def _cost_ftol(n_residuals: int) -> float:
+    """The ``ftol`` that stops scipy when an iteration lowers ½Σr² by less than COST_TOLERANCE.
+
+    At the optimum ½Σr² ≈ m/2 for m weighted residuals: a smaller gain moves φ by ~0.01 standard
+    errors, and further iterations would chase the integrator's rounding rather than the data.
+    """
+    return min(1e-6, max(1e-12, COST_TOLERANCE / (0.5 * max(n_residuals, 1))))
+
+
+class _LeastSquaresRun:
+    """One trust-region least-squares run of :meth:`ShootingFit._solve` over the active φ.
+
+    scipy calls :meth:`residuals` and :meth:`jacobian`; both share the evaluations by φ (the
+    latest, whose Jacobian the next call wants, and the best, the answer when a stage's budget
+    runs out). :meth:`jacobian` also applies the Gauss–Newton stopping rule
+    (:mod:`fuelid.greybox.stopping`), ending the run by raising :class:`_Converged` or going on
+    from an extrapolated point by raising :class:`_Restart`; :meth:`minimise` turns either into
+    scipy's result.
+    """
+
+    def __init__(
+        self,
+        fit: ShootingFit,
+        phi0: FloatArray,
+        records: Sequence[Record],
+        sigma: FloatArray,
+        active: NDArray[np.bool_],
+        bounds: tuple[FloatArray, FloatArray],
+    ) -> None:
+        self.fit = fit
+        self.phi0 = phi0
+        self.records = records
+        self.sigma = sigma
+        self.active = active
+        self.clip_low, self.clip_high = bounds
+        self.latest: dict[bytes, Evaluation] = {}
+        self.best: tuple[float, bytes, Evaluation] | None = None
+        """(cost, φ's bytes, evaluation) of the lowest cost so far."""
+        self.jac_calls = 0
+        self.previous: Step | None = None
+        """The Gauss–Newton step of the last Jacobian."""
+        self.restarts = 0
+        self.restart_rate: float | None = None
+        """The rate the current restart was extrapolated with (None: not a restart)."""
+
+    def full(self, phi_active: FloatArray) -> FloatArray:
+        """φ with the active components from ``phi_active`` and the held ones from phi0."""
+        phi = self.phi0.copy()
+        phi[self.active] = phi_active
+        return phi
+
+    def _evaluate(self, phi_active: FloatArray) -> Evaluation:
+        return self.fit._evaluate(self.full(phi_active), self.records, self.sigma, jacobian=True)
+
+    def _remember(self, key: bytes, evaluation: Evaluation) -> None:
+        self.latest.clear()
+        self.latest[key] = evaluation
+        cost = float(evaluation.residuals @ evaluation.residuals)
+        if self.best is None or cost <= self.best[0]:
+            self.best = (cost, key, evaluation)
+
+    def residuals(self, phi_active: FloatArray) -> FloatArray:
+        """The weighted residuals at φ (scipy's ``fun``)."""
+        key = phi_active.tobytes()
+        evaluation = self.latest.get(key)
+        if evaluation is None:
+            try:
+                evaluation = self._evaluate(phi_active)
+            except (SimulationError, FloatingPointError, OverflowError):
+                # a trial point where the ODE cannot be solved counts as a very poor fit,
+                # so the trust region shrinks back towards the last good point
+                if self.best is None:
+                    raise
+                return 1e3 * (np.abs(self.best[2].residuals) + 1.0)
+        self._remember(key, evaluation)
+        return evaluation.residuals
+
+    def jacobian(self, phi_active: FloatArray) -> FloatArray:
+        """The Jacobian at φ (scipy's ``jac``): the stopping rule sees each Gauss–Newton step."""
+        evaluation = self.latest.get(phi_active.tobytes())
+        if evaluation is None:
+            evaluation = self._evaluate(phi_active)
+        if evaluation.jacobian is None:
+            raise FuelidError("internal: an evaluation without its Jacobian")
+        jacobian = evaluation.jacobian[:, self.active]
+        self.jac_calls += 1
+        residuals = evaluation.residuals
+        bounds = (self.clip_low, self.clip_high)
+        found = gauss_newton_step(jacobian, residuals, phi_active, *bounds)
+        if found is None:
+            self.previous = None
+            return jacobian
+        current = Step(phi_active, jacobian, *found)
+        if converged(self.previous, current, self.restart_rate):
+            raise _Converged(phi_active, self.jac_calls)
+        ending = last_step(self.previous, current, residuals, bounds, self.restart_rate)
+        self.restart_rate = None
+        self.previous = current
+        if ending is None:
+            return jacobian
+        self._take_last_step(phi_active, residuals, ending.phi, ending.rate, ending.guarded)
+        return jacobian
+
+    def _take_last_step(
+        self,
+        phi_active: FloatArray,
+        residuals: FloatArray,
+        last: FloatArray,
+        rate: float | None,
+        guarded: bool,
+    ) -> None:
+        """Try the last step to ``last``: end there, restart from it, or let scipy go on.
+
+        ``rate`` is the convergence rate the step was extrapolated with (None: the solver-error
+        floor's step); ``guarded``: the step ends only where it lowers the cost. Returns when the
+        trust region is to go on; raises :class:`_Converged` or :class:`_Restart` otherwise.
+        """
+        try:
+            step_to = self._evaluate(last)
+        except (SimulationError, FloatingPointError, OverflowError):
+            if rate is not None:
+                return  # an extrapolation too far: the trust region goes on
+            raise _Converged(phi_active, self.jac_calls) from None
+        if guarded and step_to.residuals @ step_to.residuals > residuals @ residuals:
+            if rate is not None:
+                return  # the series did not hold: the trust region goes on
+            raise _Converged(phi_active, self.jac_calls)  # the floor: the better of the two
+        self._remember(last.tobytes(), step_to)
+        if rate is not None and self.restarts < MAX_RESTARTS and step_to.jacobian is not None:
+            left = gauss_newton_step(
+                step_to.jacobian[:, self.active],
+                step_to.residuals,
+                last,
+                self.clip_low,
+                self.clip_high,
+            )
+            # still converging at that rate, what is left is the step over 1 − ρ (half
+            # the last-step threshold: the rate measured so far may still be drifting)
+            left_se = math.inf if left is None else left[1] / (1.0 - rate)
+            if left_se >= 0.5 * GAUSS_NEWTON_LAST_STEP_SE:
+                raise _Restart(last, rate)  # not there: iterate on from the nearer point
+        raise _Converged(last, self.jac_calls)
+
+    def minimise(self, start: FloatArray, x_scale: str | FloatArray, ftol: float) -> Any:
+        """Run scipy's trust region from ``start``, restarts included: its result, or one like it.
+
+        The run ends where scipy stops, where the stopping rule ends it (status 5), or where a
+        stage's allowance of evaluations is spent (status 0, at the best point so far).
+        """
+        evaluations_before = self.fit._work[0]
+        try:
+            while True:
+                try:
+                    solution = scipy.optimize.least_squares(
+                        self.residuals,
+                        start,
+                        jac=self.jacobian,
+                        bounds=(self.clip_low, self.clip_high),
+                        method="trf",
+                        x_scale=x_scale,
+                        xtol=XTOL,
+                        ftol=ftol,
+                        gtol=1e-10,
+                        # the allowance is the whole fit's, restarts included
+                        max_nfev=max(1, self.fit.max_iterations - self.jac_calls),
+                    )
+                    # scipy counts its own call only: the fit's, restarts included
+                    solution.nfev = self.fit._work[0] - evaluations_before
+                    solution.njev = self.jac_calls
+                    return solution
+                except _Restart as again:  # from an extrapolated point (its evaluation kept)
+                    start, self.previous, self.restart_rate = again.phi, None, again.rate
+                    self.restarts += 1
+        except OutOfBudget:
+            if self.best is None:
+                raise
+            # the stage's best point so far: a start for what follows, not an estimate
+            return scipy.optimize.OptimizeResult(
+                x=np.frombuffer(self.best[1], dtype=float).copy(),
+                status=0,
+                success=False,
+                message="stopped: the stage's allowance of evaluations was spent",
+                nfev=self.fit._work[0] - evaluations_before,
+                njev=self.jac_calls,
+            )
+        except _Converged as done:
+            return scipy.optimize.OptimizeResult(
+                x=done.phi,
+                status=5,
+                success=True,
+                message="the Gauss-Newton step left less than the tolerance to gain",
+                nfev=self.fit._work[0] - evaluations_before,
+                njev=done.jacobians,
+            )
+
+    def evaluation_at(self, phi_active: FloatArray) -> Evaluation:
+        """The evaluation at the run's answer: remembered (latest or best), or simulated."""
+        key = np.asarray(phi_active, dtype=float).tobytes()
+        found = self.latest.get(key)
+        if found is None and self.best is not None and self.best[1] == key:
+            found = self.best[2]
+        if found is None:
+            found = self._evaluate(phi_active)
+        return found

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError
-from fuelid.greybox.solvers import RTOL, Rhs, SimulationError, Solver, integrate_piece
+from fuelid.greybox.solvers import RTOL, Newton, Rhs, SimulationError, Solver, integrate_piece
 from fuelid.greybox.system import OdeSystem, Record
 
 __all__ = ["RTOL", "SimulationError", "Solver", "Trajectory", "input_changes", "simulate_record"]
@@ -102,40 +102,14 @@ def simulate_record(
     SimulationError
         If the solver fails or the state becomes non-finite.
     """
-    n = system.n_states
+    layout = _Layout.of(system.n_states, s0, theta_scale)
     t, u = record.t, record.u
-    n_samples = len(t)
-    with_sens = s0 is not None
-    q = 0 if s0 is None else s0.shape[1]
-    scale = np.ones(0) if theta_scale is None else np.asarray(theta_scale, dtype=float)
-    p = len(scale)
-    width = n * (1 + q)
     # each distinct output delay reads the state at its own times: integrate to all of them
     delays = np.atleast_1d(np.asarray(system.output_delay, dtype=float))
     distinct = np.unique(delays)
-    # (to the nanosecond: t − 0.2 and t − 0 for the next sample must be one output time, not
-    # two 1e-14 s apart, which LSODA refuses as illegal input)
-    eval_times, inverse = np.unique(
-        np.round(np.concatenate([t - delay for delay in distinct]), 9), return_inverse=True
-    )
-    z_at = np.empty((len(eval_times), width))
-    z = np.concatenate([x0, (s0 if s0 is not None else np.zeros((n, 0))).ravel()])
-    # samples read before the first time see the initial state (the plant was at rest there)
-    before = eval_times <= t[0]
-    z_at[before] = z
-    starts = input_changes(u)
-    ends = np.append(starts[1:], n_samples)
-    # the sensitivities are error-controlled, loosely: without any control LSODA's Adams mode
-    # takes the huge steps a state at rest allows and the sensitivity rows (which share the
-    # state's fast modes) go unstable, which the state's error test never sees
-    state_atol = np.broadcast_to(np.asarray(system.atol, dtype=float), (n,))
-    atol = np.concatenate([state_atol, np.tile(SENSITIVITY_ATOL_FACTOR * state_atol, q)])
-    state_rtol = solver.rtol if rtol is None else rtol
-    tolerance: float | FloatArray = state_rtol
-    if with_sens:
-        tolerance = np.full(width, SENSITIVITY_RTOL_FACTOR * state_rtol)
-        tolerance[:n] = state_rtol
-
+    eval_times, inverse = _output_times(t, distinct)
+    z0 = np.concatenate([x0, (s0 if s0 is not None else np.zeros((layout.n, 0))).ravel()])
+    atol, tolerance = _tolerances(system, layout, solver.rtol if rtol is None else rtol)
     if solver.method == "rk4" and hasattr(system, "jacobian_limit"):
         # RK4's stability limit on the real axis, h·|λ| ≤ 2.785: a steeper slope in ∂f/∂x is a
         # difference across a switch, not a mode of the model (the step was checked to resolve
@@ -143,13 +117,107 @@ def simulate_record(
         # (the samples' median interval: a delayed output's extra times are not RK4 steps)
         interval = float(np.median(np.diff(t)))
         system.jacobian_limit = 2.785 * solver.substeps / interval
+    pieces = _Pieces(
+        solver,
+        _right_hand_side(system, layout, float(t[0]), x0, u[0]),
+        _newton_matrix(system, layout),
+        tolerance,
+        atol,
+        max_evaluations,
+    )
+    z_at, evaluations = pieces.integrate(z0, t, u, eval_times)
+    parts = _outputs_by_delay(system, layout, t, u, eval_times, inverse, distinct, z_at)
+    if len(parts) == 1:
+        _, states, y, dy = parts[0]
+        return Trajectory(states, y, dy, evaluations)
+    # several delays: each output column from the states at its own delay
+    per_output = np.broadcast_to(delays, (parts[0][2].shape[1],))
+    states = next(states for delay, states, _, _ in parts if delay == per_output[0])
+    y = np.empty_like(parts[0][2])
+    dy = None if not layout.with_sens else np.empty_like(parts[0][3])
+    for delay, _, y_k, dy_k in parts:
+        columns = per_output == delay
+        y[:, columns] = y_k[:, columns]
+        if dy is not None and dy_k is not None:
+            dy[:, columns] = dy_k[:, columns]
+    return Trajectory(states, y, dy, evaluations)
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """z = [x, S raveled by rows]: n states, then q sensitivity columns per state.
+
+    The first p = len(scale) columns of S belong to the free θ (∂θ/∂φ = ``scale``), the rest to
+    the estimated initial state.
+    """
+
+    n: int
+    q: int
+    scale: FloatArray
+    with_sens: bool
+
+    @classmethod
+    def of(cls, n: int, s0: FloatArray | None, theta_scale: FloatArray | None) -> _Layout:
+        """The layout of a simulation from ∂x0/∂φ = ``s0`` (None: the state alone)."""
+        q = 0 if s0 is None else s0.shape[1]
+        scale = np.ones(0) if theta_scale is None else np.asarray(theta_scale, dtype=float)
+        return cls(n, q, scale, s0 is not None)
+
+    @property
+    def p(self) -> int:
+        """Columns of S that belong to θ."""
+        return len(self.scale)
+
+    @property
+    def width(self) -> int:
+        """Length of z."""
+        return self.n * (1 + self.q)
+
+
+def _output_times(t: FloatArray, distinct: FloatArray) -> tuple[FloatArray, NDArray[np.intp]]:
+    """The times the state is read at, t − delay for every distinct delay, sorted and unique.
+
+    Also the index of each (delay, sample) pair, delay-major, in them.
+    """
+    # (to the nanosecond: t − 0.2 and t − 0 for the next sample must be one output time, not
+    # two 1e-14 s apart, which LSODA refuses as illegal input)
+    eval_times, inverse = np.unique(
+        np.round(np.concatenate([t - delay for delay in distinct]), 9), return_inverse=True
+    )
+    return eval_times, inverse
+
+
+def _tolerances(
+    system: OdeSystem, layout: _Layout, state_rtol: float
+) -> tuple[FloatArray, float | FloatArray]:
+    """Absolute and relative tolerances of z: the state's, the sensitivity rows' looser.
+
+    The sensitivities are error-controlled, loosely: without any control LSODA's Adams mode
+    takes the huge steps a state at rest allows and the sensitivity rows (which share the
+    state's fast modes) go unstable, which the state's error test never sees.
+    """
+    n = layout.n
+    state_atol = np.broadcast_to(np.asarray(system.atol, dtype=float), (n,))
+    atol = np.concatenate([state_atol, np.tile(SENSITIVITY_ATOL_FACTOR * state_atol, layout.q)])
+    tolerance: float | FloatArray = state_rtol
+    if layout.with_sens:
+        tolerance = np.full(layout.width, SENSITIVITY_RTOL_FACTOR * state_rtol)
+        tolerance[:n] = state_rtol
+    return atol, tolerance
+
+
+def _right_hand_side(
+    system: OdeSystem, layout: _Layout, t0: float, x0: FloatArray, u0: FloatArray
+) -> Rhs:
+    """dz/dt: the system's fused one where it has one, else built from its derivatives."""
+    n, q, p, scale = layout.n, layout.q, layout.p, layout.scale
     # the system's own right-hand side of the state with its sensitivities, where it has one
-    fused_for = getattr(system, "sensitivity_rhs", None) if with_sens else None
-    fused = None if fused_for is None else fused_for(q, scale, float(t[0]), x0, u[0])
+    fused_for = getattr(system, "sensitivity_rhs", None) if layout.with_sens else None
+    fused: Rhs | None = None if fused_for is None else fused_for(q, scale, t0, x0, u0)
     if fused is not None:
-        rhs = fused
-    elif with_sens:
-        dz = np.empty(width)
+        return fused
+    if layout.with_sens:
+        dz = np.empty(layout.width)
         dsens = dz[n:].reshape(n, q)
 
         def rhs(t_now: float, z_now: FloatArray, u_now: FloatArray) -> FloatArray:
@@ -160,18 +228,23 @@ def simulate_record(
                 dsens[:, :p] += jac_theta * scale
             return dz
 
-    else:
-        # the state alone: f, without the Jacobians the sensitivities need
-        plain = getattr(system, "rhs", None)
-        if plain is not None:
-            rhs = plain
-        else:
+        return rhs
+    # the state alone: f, without the Jacobians the sensitivities need
+    plain: Rhs | None = getattr(system, "rhs", None)
+    if plain is not None:
+        return plain
 
-            def rhs(t_now: float, z_now: FloatArray, u_now: FloatArray) -> FloatArray:
-                return system.derivatives(t_now, z_now, u_now)[0]
+    def state_rhs(t_now: float, z_now: FloatArray, u_now: FloatArray) -> FloatArray:
+        return system.derivatives(t_now, z_now, u_now)[0]
 
-    newton_matrix = np.zeros((width, width))
-    identity_q = np.eye(q)
+    return state_rhs
+
+
+def _newton_matrix(system: OdeSystem, layout: _Layout) -> Newton:
+    """The implicit methods' Newton matrix of z: ∂f/∂x for x, ∂f/∂x ⊗ I_q for the rows of S."""
+    n, with_sens = layout.n, layout.with_sens
+    newton_matrix = np.zeros((layout.width, layout.width))
+    identity_q = np.eye(layout.q)
 
     def newton(t_now: float, z_now: FloatArray, u_now: FloatArray) -> FloatArray:
         jac_x = system.state_jacobian(t_now, z_now[:n], u_now)
@@ -182,50 +255,100 @@ def simulate_record(
         newton_matrix[n:, n:] = np.kron(jac_x, identity_q)
         return newton_matrix
 
-    evaluations = 0
-    with np.errstate(all="ignore"):
-        for start, end in zip(starts.tolist(), ends.tolist(), strict=True):
-            if max_evaluations is not None and evaluations > max_evaluations:
-                raise SimulationError(
-                    f"the ODE needed more than {max_evaluations} evaluations by {t[start]:g} s "
-                    "(the solution chatters or is very stiff at these parameters)"
-                )
-            t_start = t[start]
-            t_end = t[end] if end < n_samples else t[-1] + (t[-1] - t[-2])
-            inside = np.flatnonzero((eval_times > t_start) & (eval_times <= t_end))
-            if not len(inside) and end >= n_samples:
-                break
-            times = np.concatenate(([t_start], eval_times[inside]))
-            if times[-1] < t_end and end < n_samples:
-                times = np.append(times, t_end)
-            try:
-                solution, used = integrate_piece(
-                    solver,
-                    rhs,
-                    newton,
-                    z,
-                    times,
-                    u[start],
-                    tolerance,
-                    atol,
-                    None if max_evaluations is None else max_evaluations - evaluations,
-                )
-            except SimulationError as exc:
-                reason = _reason(exc, rhs, float(t_start), z, u[start])
-                raise SimulationError(f"on {t_start:g}…{t_end:g} s {reason}") from None
-            except FuelidError:
-                raise
-            except (ArithmeticError, ValueError) as exc:
-                # the model's own arithmetic failed (math.sqrt of a negative state, say): a
-                # point where it cannot be simulated, like a solver failure
-                raise SimulationError(
-                    f"the model raised {type(exc).__name__} ({exc}) on {t_start:g}…{t_end:g} s"
-                ) from exc
-            if not np.all(np.isfinite(solution)):
-                raise SimulationError(f"on {t_start:g}…{t_end:g} s {_NOT_FINITE}")
-            evaluations += used
-            z_at[inside] = solution[: len(inside)]
-            z = solution[-1]
+    return newton
+
+
+@dataclass(frozen=True)
+class _Pieces:
+    """The integration of z piece by piece, one piece per held input, with the solver's settings."""
+
+    solver: Solver
+    rhs: Rhs
+    newton: Newton
+    tolerance: float | FloatArray
+    atol: FloatArray
+    max_evaluations: int | None
+
+    def integrate(
+        self, z: FloatArray, t: FloatArray, u: FloatArray, eval_times: FloatArray
+    ) -> tuple[FloatArray, int]:
+        """Integrate from z(t[0]) = ``z``: z at ``eval_times`` and the evaluations used."""
+        n_samples = len(t)
+        z_at = np.empty((len(eval_times), len(z)))
+        # samples read before the first time see the initial state (the plant was at rest there)
+        before = eval_times <= t[0]
+        z_at[before] = z
+        starts = input_changes(u)
+        ends = np.append(starts[1:], n_samples)
+        evaluations = 0
+        with np.errstate(all="ignore"):
+            for start, end in zip(starts.tolist(), ends.tolist(), strict=True):
+                if self.max_evaluations is not None and evaluations > self.max_evaluations:
+                    raise SimulationError(
+                        f"the ODE needed more than {self.max_evaluations} evaluations by "
+                        f"{t[start]:g} s (the solution chatters or is very stiff at these "
+                        "parameters)"
+                    )
+                t_start = t[start]
+                t_end = t[end] if end < n_samples else t[-1] + (t[-1] - t[-2])
+                inside = np.flatnonzero((eval_times > t_start) & (eval_times <= t_end))
+                if not len(inside) and end >= n_samples:
+                    break
+                times = np.concatenate(([t_start], eval_times[inside]))
+                if times[-1] < t_end and end < n_samples:
+                    times = np.append(times, t_end)
+                solution, used = self._piece(z, times, u[start], evaluations, float(t_end))
+                evaluations += used
+                z_at[inside] = solution[: len(inside)]
+                z = solution[-1]
+        return z_at, evaluations
+
+    def _piece(
+        self, z: FloatArray, times: FloatArray, u: FloatArray, spent: int, t_end: float
+    ) -> tuple[FloatArray, int]:
+        """One piece from ``z`` at times[0] with ``u`` held; any failure a SimulationError."""
+        t_start = times[0]
+        try:
+            solution, used = integrate_piece(
+                self.solver,
+                self.rhs,
+                self.newton,
+                z,
+                times,
+                u,
+                self.tolerance,
+                self.atol,
+                None if self.max_evaluations is None else self.max_evaluations - spent,
+            )
+        except SimulationError as exc:
+            reason = _reason(exc, self.rhs, float(t_start), z, u)
+            raise SimulationError(f"on {t_start:g}…{t_end:g} s {reason}") from None
+        except FuelidError:
+            raise
+        except (ArithmeticError, ValueError) as exc:
+            # the model's own arithmetic failed (math.sqrt of a negative state, say): a
+            # point where it cannot be simulated, like a solver failure
+            raise SimulationError(
+                f"the model raised {type(exc).__name__} ({exc}) on {t_start:g}…{t_end:g} s"
+            ) from exc
+        if not np.all(np.isfinite(solution)):
+            raise SimulationError(f"on {t_start:g}…{t_end:g} s {_NOT_FINITE}")
+        return solution, used
+
+
+def _outputs_by_delay(
+    system: OdeSystem,
+    layout: _Layout,
+    t: FloatArray,
+    u: FloatArray,
+    eval_times: FloatArray,
+    inverse: NDArray[np.intp],
+    distinct: FloatArray,
+    z_at: FloatArray,
+) -> list[tuple[float, FloatArray, FloatArray, FloatArray | None]]:
+    """Per distinct delay: (delay, states, outputs, ∂y/∂φ or None) at the samples."""
+    n, q, p, scale = layout.n, layout.q, layout.p, layout.scale
+    n_samples = len(t)
     # the input in effect at each (delayed) output time
     held_at = np.clip(np.searchsorted(t, eval_times, side="right") - 1, 0, n_samples - 1)
     parts = []
@@ -235,26 +358,13 @@ def simulate_record(
         with np.errstate(all="ignore"):
             y_k, dy_dx, dy_dtheta = system.outputs(z_k[:, :n], u[held_at[rows]])
         dy_k = None
-        if with_sens:
+        if layout.with_sens:
             sens = z_k[:, n:].reshape(n_samples, n, q)
             dy_k = np.einsum("kyn,knq->kyq", dy_dx, sens)
             if p:
                 dy_k[:, :, :p] += dy_dtheta * scale
         parts.append((delay, z_k[:, :n], y_k, dy_k))
-    if len(parts) == 1:
-        _, states, y, dy = parts[0]
-        return Trajectory(states, y, dy, evaluations)
-    # several delays: each output column from the states at its own delay
-    per_output = np.broadcast_to(delays, (parts[0][2].shape[1],))
-    states = next(states for delay, states, _, _ in parts if delay == per_output[0])
-    y = np.empty_like(parts[0][2])
-    dy = None if not with_sens else np.empty_like(parts[0][3])
-    for delay, _, y_k, dy_k in parts:
-        columns = per_output == delay
-        y[:, columns] = y_k[:, columns]
-        if dy is not None and dy_k is not None:
-            dy[:, columns] = dy_k[:, columns]
-    return Trajectory(states, y, dy, evaluations)
+    return parts
 
 
 _NOT_FINITE = (

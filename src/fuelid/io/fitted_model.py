@@ -204,72 +204,13 @@ def load_fitted_model(path: str | Path) -> FittedModel:
         (``options.control_period`` with ``control_period_given``) that is not 0 … 10 s is.
     """
     file = Path(path)
-    try:
-        data = json.loads(file.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise DataError(f"model file {str(file)!r} does not exist") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataError(f"cannot read model file {str(file)!r}: {exc}") from None
-    except json.JSONDecodeError as exc:
-        msg = f"model file {str(file)!r} is not JSON ({exc.msg}, line {exc.lineno})"
-        raise DataError(msg) from None
-    if not isinstance(data, dict) or not isinstance(data.get("model"), dict):
-        raise DataError(
-            f"model file {str(file)!r} is not a fuelid identification result: it has no "
-            "'model' object (write one with fuelid identify --json > ident.json)"
-        )
-    data = in_default_units(data, file)  # an edited units map is converted or refused
-    raw = data["model"]
-    missing = [key for key in ("K", "T") if raw.get(key) is None]
-    if missing:
-        raise DataError(f"model file {str(file)!r}: the model lacks {', '.join(missing)}")
-    values: dict[str, float] = {}
-    for key in MODEL_KEYS:
-        value = raw.get(key, 0.0)
-        if value is None:
-            value = 0.0
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise DataError(f"model file {str(file)!r}: model {key} is not a number: {value!r}")
-        if not math.isfinite(value):
-            raise DataError(f"model file {str(file)!r}: model {key} is not finite")
-        values[key] = float(value)
-    try:
-        model = ProcessModel(**values)
-    except FuelidError as exc:
-        raise DataError(f"model file {str(file)!r}: {exc}") from None
+    data = in_default_units(_read_result(file), file)  # an edited units map: converted or refused
+    model = _process_model(data["model"], file)
     errors = data.get("stderr")
     se_K = errors.get("K") if isinstance(errors, dict) else None
     if isinstance(se_K, int | float) and not isinstance(se_K, bool):
         check_gain_identified(model.K, float(se_K), f"model file {str(file)!r}")
-    cov_names: tuple[str, ...] = ()
-    cov = None
-    # a covariance that cannot be used is noted, not fatal: the model alone still tunes, and
-    # only an uncertainty sweep needs it
-    cov_problem: str | None = None
-    block = data.get("cov")
-    if block is not None and not (isinstance(block, dict) and isinstance(block.get("names"), list)):
-        cov_problem = "its 'cov' is not an object with 'names' and 'matrix'"
-    elif block is not None:
-        names = [str(n) for n in block["names"]]
-        matrix = block.get("matrix")
-        full = None
-        if not (
-            names
-            and isinstance(matrix, list)
-            and len(matrix) == len(names)
-            and all(isinstance(r, list) and len(r) == len(names) for r in matrix)
-        ):
-            cov_problem = f"its covariance matrix is not {len(names)}×{len(names)} like its names"
-        else:
-            try:
-                full = [[_covariance_entry(v) for v in row] for row in matrix]
-            except TypeError:
-                cov_problem = "its covariance matrix holds entries that are not numbers"
-        if full is not None:
-            kept, model_block = model_covariance(names, full)
-            cov_problem = _covariance_problem(kept, model_block)
-            if cov_problem is None:
-                cov_names, cov = tuple(kept), model_block.tolist()
+    cov_names, cov, cov_problem = _covariance(data.get("cov"))
     u, fuel_temperature = _operating_point(data, file)
     findings = data.get("signal_check")
     alternatives, conditional = _structure(data.get("structure"), file)
@@ -294,6 +235,76 @@ def load_fitted_model(path: str | Path) -> FittedModel:
         fuel_temperature=fuel_temperature,
         signal_check=tuple(str(f) for f in findings) if isinstance(findings, list) else (),
     )
+
+
+def _read_result(file: Path) -> dict[str, Any]:
+    """The JSON object of a result file that has a ``model`` object, or a DataError saying why."""
+    try:
+        data = json.loads(file.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise DataError(f"model file {str(file)!r} does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(f"cannot read model file {str(file)!r}: {exc}") from None
+    except json.JSONDecodeError as exc:
+        msg = f"model file {str(file)!r} is not JSON ({exc.msg}, line {exc.lineno})"
+        raise DataError(msg) from None
+    if not isinstance(data, dict) or not isinstance(data.get("model"), dict):
+        raise DataError(
+            f"model file {str(file)!r} is not a fuelid identification result: it has no "
+            "'model' object (write one with fuelid identify --json > ident.json)"
+        )
+    return data
+
+
+def _process_model(raw: dict[str, Any], file: Path) -> ProcessModel:
+    """The ``model`` object as a ProcessModel: K and T given, every parameter a finite number."""
+    missing = [key for key in ("K", "T") if raw.get(key) is None]
+    if missing:
+        raise DataError(f"model file {str(file)!r}: the model lacks {', '.join(missing)}")
+    values: dict[str, float] = {}
+    for key in MODEL_KEYS:
+        value = raw.get(key, 0.0)
+        if value is None:
+            value = 0.0
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise DataError(f"model file {str(file)!r}: model {key} is not a number: {value!r}")
+        if not math.isfinite(value):
+            raise DataError(f"model file {str(file)!r}: model {key} is not finite")
+        values[key] = float(value)
+    try:
+        return ProcessModel(**values)
+    except FuelidError as exc:
+        raise DataError(f"model file {str(file)!r}: {exc}") from None
+
+
+def _covariance(block: Any) -> tuple[tuple[str, ...], list[list[float]] | None, str | None]:
+    """The model block of the file's ``cov``: (names, matrix, None), or ((), None, the problem).
+
+    A covariance that cannot be used is noted, not fatal: the model alone still tunes, and only
+    an uncertainty sweep needs it. No ``cov`` at all is ((), None, None).
+    """
+    if block is None:
+        return (), None, None
+    if not (isinstance(block, dict) and isinstance(block.get("names"), list)):
+        return (), None, "its 'cov' is not an object with 'names' and 'matrix'"
+    names = [str(n) for n in block["names"]]
+    matrix = block.get("matrix")
+    if not (
+        names
+        and isinstance(matrix, list)
+        and len(matrix) == len(names)
+        and all(isinstance(r, list) and len(r) == len(names) for r in matrix)
+    ):
+        return (), None, f"its covariance matrix is not {len(names)}×{len(names)} like its names"
+    try:
+        full = [[_covariance_entry(v) for v in row] for row in matrix]
+    except TypeError:
+        return (), None, "its covariance matrix holds entries that are not numbers"
+    kept, model_block = model_covariance(names, full)
+    problem = _covariance_problem(kept, model_block)
+    if problem is not None:
+        return (), None, problem
+    return tuple(kept), model_block.tolist(), None
 
 
 def _gain_bands(diagnostics: Any) -> tuple[tuple[float, float, float, float | None], ...]:

@@ -229,17 +229,119 @@ def propose(
         On a negative control period or a K_range with K_low > K_high or a non-finite end.
     """
     check_control_period(control_period)
-    if K_range is not None:
-        k_lo, k_hi = K_range
-        if not (math.isfinite(k_lo) and math.isfinite(k_hi) and k_lo <= k_hi and k_hi > 0.0):
-            raise FuelidError(f"K_range must be finite with K_low <= K_high, K_high > 0: {K_range}")
+    _check_K_range(K_range)
     n = settings.agree_windows
-    low, high = settings.gain_bounds
-    bounds = {
+    bounds = _gain_bounds(commissioning, settings.gain_bounds)
+    draft = _Draft(current, _settings_detail(settings, control_period, commissioning, bounds))
+    draft.detail["windows_available"] = len(windows)
+    if oscillating:
+        return draft.refuse("loop oscillating: no proposal while it oscillates")
+
+    # gates 2 and 3: separate evidence that agrees
+    chosen = independent_windows(windows, n)
+    draft.ids = tuple(w.model_id for w in chosen)
+    if len(chosen) < n:
+        plural = "" if len(chosen) == 1 else "s"
+        return draft.refuse(
+            f"only {len(chosen)} independent window{plural} of {n} "
+            f"({len(windows)} accepted; windows sharing an excitation event count once)"
+        )
+    disagreement = _disagreement(chosen, settings, control_period, draft.detail)
+    if disagreement is not None:
+        return draft.refuse(disagreement)
+
+    # gates 4 to 6: the target, within the bounds, outside the dead band
+    draft.target, draft.clipped = _target(chosen, settings, control_period, bounds, draft.detail)
+    change = _rel_change(draft.target, current)
+    draft.detail["change_to_target"] = change
+    largest = max(change.values())
+    if largest <= settings.hysteresis:
+        return draft.refuse(
+            f"change {_pct(largest)} ≤ hysteresis {100.0 * settings.hysteresis:g} %"
+        )
+
+    # gate 7: part of the way there
+    moved = _move(current, draft.target, settings.move_fraction)
+    new = _clip_gains(moved, bounds)
+    draft.clipped = draft.clipped or new != moved
+    draft.detail["undetuned"] = new.to_json()
+
+    # gate 8: robust on every model the evidence allows
+    checks, skipped = _robustness_checks(chosen[0], tuned_for, K_range)
+    draft.detail["skipped"] = skipped
+    robust = _Robustness(tuple(checks), settings, control_period)
+    return _robust_decision(draft, new, bounds["Kc"][0], robust, len(chosen))
+
+
+# --- the gates ------------------------------------------------------------------------------------
+
+
+@dataclass
+class _Draft:
+    """The decision as it is being made: what any outcome reports, filled in gate by gate."""
+
+    current: Gains
+    detail: dict[str, Any]
+    ids: tuple[int, ...] = ()
+    """The independent windows behind the decision, once chosen."""
+    target: Gains | None = None
+    """The rule's gains on the mean model (clipped), once computed."""
+    clipped: bool = False
+
+    def refuse(self, reason: str, Ms: Mapping[str, float] | None = None) -> ProposalDecision:
+        """No proposal, for ``reason``, with what the gates found so far."""
+        return ProposalDecision(
+            propose=False,
+            reason=reason,
+            old=self.current,
+            new=None,
+            target=self.target,
+            Ms=dict(Ms or {}),
+            model_ids=self.ids,
+            clipped=self.clipped,
+            detail=self.detail,
+        )
+
+    def accept(self, reason: str, new: Gains, Ms: dict[str, float]) -> ProposalDecision:
+        """The proposal of ``new``, which every gate passed."""
+        return ProposalDecision(
+            propose=True,
+            reason=reason,
+            old=self.current,
+            new=new,
+            target=self.target,
+            Ms=Ms,
+            model_ids=self.ids,
+            clipped=self.clipped,
+            detail=self.detail,
+        )
+
+
+def _check_K_range(K_range: tuple[float, float] | None) -> None:
+    if K_range is None:
+        return
+    k_lo, k_hi = K_range
+    if not (math.isfinite(k_lo) and math.isfinite(k_hi) and k_lo <= k_hi and k_hi > 0.0):
+        raise FuelidError(f"K_range must be finite with K_low <= K_high, K_high > 0: {K_range}")
+
+
+def _gain_bounds(commissioning: Gains, factors: Sequence[float]) -> dict[str, tuple[float, float]]:
+    """The hard bounds of Kc and Ti: ``gain_bounds`` × the commissioning gains."""
+    low, high = factors
+    return {
         "Kc": (low * commissioning.Kc, high * commissioning.Kc),
         "Ti": (low * commissioning.Ti, high * commissioning.Ti),
     }
-    detail: dict[str, Any] = {
+
+
+def _settings_detail(
+    settings: Online,
+    control_period: float,
+    commissioning: Gains,
+    bounds: Mapping[str, tuple[float, float]],
+) -> dict[str, Any]:
+    """The decision's detail as it starts: the settings every gate works with."""
+    return {
         "rule": settings.rule,
         "control_period_s": control_period,
         "ms_target": settings.ms_target,
@@ -248,46 +350,20 @@ def propose(
         "move": "geometric: new = current * (target / current) ** move_fraction",
         "commissioning": commissioning.to_json(),
         "bounds": {k: list(v) for k, v in bounds.items()},
-        "windows_available": len(windows),
     }
 
-    def refuse(
-        reason: str,
-        *,
-        ids: Sequence[int] = (),
-        target: Gains | None = None,
-        Ms: Mapping[str, float] | None = None,
-        clipped: bool = False,
-    ) -> ProposalDecision:
-        return ProposalDecision(
-            propose=False,
-            reason=reason,
-            old=current,
-            new=None,
-            target=target,
-            Ms=dict(Ms or {}),
-            model_ids=tuple(ids),
-            clipped=clipped,
-            detail=detail,
-        )
 
-    if oscillating:
-        return refuse("loop oscillating: no proposal while it oscillates")
+def _disagreement(
+    chosen: Sequence[WindowModel], settings: Online, control_period: float, detail: dict[str, Any]
+) -> str | None:
+    """Why the rule's gains on the windows' models disagree (gate 3), or None when they agree.
 
-    # --- separate evidence and agreement ----------------------------------------------------------
-    chosen = independent_windows(windows, n)
-    ids = tuple(w.model_id for w in chosen)
-    if len(chosen) < n:
-        plural = "" if len(chosen) == 1 else "s"
-        return refuse(
-            f"only {len(chosen)} independent window{plural} of {n} "
-            f"({len(windows)} accepted; windows sharing an excitation event count once)",
-            ids=ids,
-        )
+    The per-window gains and their spread go into ``detail``.
+    """
     try:
         per_window = [tune(w.model, settings.rule, control_period) for w in chosen]
     except FuelidError as error:
-        return refuse(f"rule {settings.rule} refused a window's model: {error}", ids=ids)
+        return f"rule {settings.rule} refused a window's model: {error}"
     detail["window_gains"] = [
         {"model_id": w.model_id, "Kc": pi.Kc, "Ti": pi.Ti, "events_s": list(w.events)}
         for w, pi in zip(chosen, per_window, strict=True)
@@ -305,40 +381,40 @@ def propose(
         )
         if spread[name] > settings.hysteresis
     ]
-    if disagree:
-        return refuse(
-            f"windows disagree: {', '.join(disagree)} "
-            f"(spread above hysteresis {100.0 * settings.hysteresis:g} %)",
-            ids=ids,
-        )
+    if not disagree:
+        return None
+    return (
+        f"windows disagree: {', '.join(disagree)} "
+        f"(spread above hysteresis {100.0 * settings.hysteresis:g} %)"
+    )
 
-    # --- target, bounds, dead band ----------------------------------------------------------------
+
+def _target(
+    chosen: Sequence[WindowModel],
+    settings: Online,
+    control_period: float,
+    bounds: Mapping[str, tuple[float, float]],
+    detail: dict[str, Any],
+) -> tuple[Gains, bool]:
+    """The rule's gains on the weighted mean model, clipped to the bounds (gates 4 and 5).
+
+    Returns the target and whether it was clipped; the weights, the mean model and the
+    unclipped target go into ``detail``.
+    """
     mean, weights = weighted_mean_model(chosen)
     detail["weights"] = weights
     detail["mean_model"] = mean.to_json()
     raw_pi = tune(mean, settings.rule, control_period)
     raw = Gains(Kc=raw_pi.Kc, Ti=raw_pi.Ti)
     target = _clip_gains(raw, bounds)
-    clipped = target != raw
     detail["target_unclipped"] = raw.to_json()
-    change = _rel_change(target, current)
-    detail["change_to_target"] = change
-    largest = max(change.values())
-    if largest <= settings.hysteresis:
-        return refuse(
-            f"change {_pct(largest)} ≤ hysteresis {100.0 * settings.hysteresis:g} %",
-            ids=ids,
-            target=target,
-            clipped=clipped,
-        )
+    return target, target != raw
 
-    moved = _move(current, target, settings.move_fraction)
-    new = _clip_gains(moved, bounds)
-    clipped = clipped or new != moved
-    detail["undetuned"] = new.to_json()
 
-    # --- robustness -------------------------------------------------------------------------------
-    newest = chosen[0]
+def _robustness_checks(
+    newest: WindowModel, tuned_for: ProcessModel | None, K_range: tuple[float, float] | None
+) -> tuple[list[_Check], dict[str, str]]:
+    """The models the new gains' Ms is checked on (gate 8), and the checks skipped and why."""
     checks = [_Check("newest", newest.model, newest.model_id)]
     skipped: dict[str, str] = {}
     if tuned_for is None:
@@ -347,79 +423,91 @@ def propose(
         checks.append(_Check("tuned_for", tuned_for, None))
     if K_range is None:
         skipped["K_low"] = skipped["K_high"] = "no K uncertainty given"
-    else:
-        for name, k in (("K_low", K_range[0]), ("K_high", K_range[1])):
-            if k > 0.0:
-                checks.append(_Check(name, replace(newest.model, K=k), newest.model_id))
-            else:
-                skipped[name] = f"K {k:g} ≤ 0"
-    detail["skipped"] = skipped
+        return checks, skipped
+    for name, k in (("K_low", K_range[0]), ("K_high", K_range[1])):
+        if k > 0.0:
+            checks.append(_Check(name, replace(newest.model, K=k), newest.model_id))
+        else:
+            skipped[name] = f"K {k:g} ≤ 0"
+    return checks, skipped
 
-    def ms_of(gains: Gains) -> dict[str, float]:
-        pi = PISettings(rule=settings.rule, Kc=gains.Kc, Ti=gains.Ti, control_period=control_period)
+
+@dataclass(frozen=True)
+class _Robustness:
+    """Gate 8's measure: the Ms of PI gains on every check model, and whether all pass."""
+
+    checks: tuple[_Check, ...]
+    settings: Online
+    control_period: float
+
+    def ms_of(self, gains: Gains) -> dict[str, float]:
+        """Check name → Ms of ``gains`` (sampled PI at h), ∞ for an unstable loop."""
+        pi = PISettings(
+            rule=self.settings.rule, Kc=gains.Kc, Ti=gains.Ti, control_period=self.control_period
+        )
         out = {}
-        for check in checks:
+        for check in self.checks:
             r = robustness(check.model, pi)
             out[check.name] = r.Ms if r.stable else math.inf
         return out
 
-    def passes(ms: Mapping[str, float]) -> bool:
-        return all(v <= settings.ms_target for v in ms.values())
+    def passes(self, ms: Mapping[str, float]) -> bool:
+        """Whether every Ms is within the target."""
+        return all(v <= self.settings.ms_target for v in ms.values())
 
-    ms_current = ms_of(current)
-    ms_undetuned = ms_of(new)
+
+def _robust_decision(
+    draft: _Draft, new: Gains, kc_floor: float, robust: _Robustness, n_windows: int
+) -> ProposalDecision:
+    """Gate 8: propose ``new`` if robust, else Kc detuned until it is, or nothing.
+
+    ``kc_floor`` is the Kc lower bound the detuning stops at; ``n_windows`` the independent
+    windows that agreed (for the reason).
+    """
+    current, detail, settings = draft.current, draft.detail, robust.settings
+    ms_current = robust.ms_of(current)
+    ms_undetuned = robust.ms_of(new)
     detail["Ms_current"] = ms_current
     detail["Ms_undetuned"] = ms_undetuned
     detail["checks"] = {
-        c.name: {"model_id": c.model_id, "model": c.model.to_json()} for c in checks
+        c.name: {"model_id": c.model_id, "model": c.model.to_json()} for c in robust.checks
     }
     factor, ms_final = _detune(
-        new, bounds["Kc"][0], lambda f: ms_of(Gains(new.Kc * f, new.Ti)), passes, ms_undetuned
+        new,
+        kc_floor,
+        lambda f: robust.ms_of(Gains(new.Kc * f, new.Ti)),
+        robust.passes,
+        ms_undetuned,
     )
     detail["detune_factor"] = factor
-    clip_note = " (target clipped to the bounds)" if clipped else ""
+    clip_note = " (target clipped to the bounds)" if draft.clipped else ""
     if factor is None:
         worst = max(ms_final, key=lambda k: ms_final[k])
-        return refuse(
+        return draft.refuse(
             f"Ms {ms_final[worst]:.2f} > {settings.ms_target:g} ({worst}) even at the Kc lower "
-            f"bound {bounds['Kc'][0]:.3g}{clip_note}",
-            ids=ids,
-            target=target,
+            f"bound {kc_floor:.3g}{clip_note}",
             Ms=ms_final,
-            clipped=clipped,
         )
     detuned = factor < 1.0
     final = Gains(new.Kc * factor, new.Ti) if detuned else new
     step = max(_rel_change(final, current).values())
     detail["change_proposed"] = _rel_change(final, current)
     min_step = (1.0 + settings.hysteresis) ** settings.move_fraction - 1.0
-    if detuned and step < min_step and passes(ms_current):
-        return refuse(
+    if detuned and step < min_step and robust.passes(ms_current):
+        # a detuned move this small is not worth making while the current gains are robust
+        return draft.refuse(
             f"detuned to Ms ≤ {settings.ms_target:g}, the change {_pct(step)} is below the "
             f"smallest step {_pct(min_step)}{clip_note}",
-            ids=ids,
-            target=target,
             Ms=ms_final,
-            clipped=clipped,
         )
     ms_worst = max(ms_final.values())
     how = f"Kc detuned ×{factor:.3f} for Ms" if detuned else "Ms"
     reason = (
-        f"{len(chosen)} independent windows agree: Kc {current.Kc:.4g} → {final.Kc:.4g}, "
+        f"{n_windows} independent windows agree: Kc {current.Kc:.4g} → {final.Kc:.4g}, "
         f"Ti {current.Ti:.4g} → {final.Ti:.4g} s ({100.0 * settings.move_fraction:g} % of the "
         f"way, geometric){clip_note}; {how} {ms_worst:.3f} ≤ {settings.ms_target:g}"
     )
-    return ProposalDecision(
-        propose=True,
-        reason=reason,
-        old=current,
-        new=final,
-        target=target,
-        Ms=ms_final,
-        model_ids=ids,
-        clipped=clipped,
-        detail=detail,
-    )
+    return draft.accept(reason, final, ms_final)
 
 
 def _detune(

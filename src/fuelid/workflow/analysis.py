@@ -45,6 +45,7 @@ from fuelid.workflow.assumptions import (
     T_REF,
     OperatingPoint,
     PlantSource,
+    PriorSource,
     check_gain_against_plant,
     check_signals,
     priors_json,
@@ -378,12 +379,7 @@ def _analyse(
         raise FuelidError(NO_CONTROL_PERIOD)
     point = OperatingPoint.of(data, settings.T_fuel)
     T_fuel = T_REF if point.T_fuel is None else point.T_fuel
-    findings = check_signals(data, plant)
-    # a flow that moves before its command first: the signal check's unit remedies would mislead
-    if lead_check(data.u, data.y, data.sample_time, segment_starts=data.segment_starts).leads:
-        raise FuelidError(LEADING_RESPONSE)
-    if findings and not settings.accept_signals:
-        _refuse_signals(findings)
+    findings = _checked_signals(data, plant, settings)
     announce(progress, IDENTIFICATION)
     base, sources = resolve_priors(
         replace(
@@ -394,33 +390,12 @@ def _analyse(
         plant,
         T_fuel,
     )
-    identifications: dict[str, IdentificationResult] = {}
-    # what the loader noticed is said once, not once per method
-    warnings: list[str] = [f"log: {note}" for note in data.notes]
-    # the output-error fit first: without a plant file its settling time is the data's own
-    # prior for step-ls's response length N
-    # the fit's own steps (its structures, a long record's search and polish) under this stage
-    identifications["oe"] = identify(
-        data, replace(base, method="oe"), progress=steps_only(progress)
-    )
-    identifications["step-ls"], step_sources = identify_step_ls(
-        data, replace(base, method="step-ls"), identifications["oe"].model
-    )
+    identifications, step_sources = _identify_all(data, base, settings.tune_from, progress)
     if settings.tune_from == "step-ls":
         sources |= step_sources
-    if settings.tune_from == "pem":  # the noise-model fit, beside the two always shown
-        identifications["pem"] = identify(data, replace(base, method="pem"))
-    order = (*METHODS, "pem")
-    identifications = {m: identifications[m] for m in order if m in identifications}
-    for name, result in identifications.items():
-        warnings.extend(f"{name}: {w}" for w in result.warnings if w not in data.notes)
+    warnings = _identification_warnings(data, identifications)
     chosen = identifications[settings.tune_from]
-    check_gain_identified(chosen.model.K, chosen.stderr.get("K"), f"{settings.tune_from} fit")
-    loose = undetermined(chosen.model.to_json(), _intervals(chosen), chosen.fixed)
-    if (chosen.diagnostics.get("lead") or {}).get("leads"):
-        raise FuelidError(LEADING_RESPONSE)
-    if loose and not settings.accept_undetermined:
-        raise FuelidError(undetermined_refusal_line(loose, f"the {settings.tune_from} model"))
+    loose = _check_chosen(chosen, settings)
     mismatch = check_gain_against_plant(chosen.model, plant, point, T_fuel)
     if mismatch is not None:
         findings.append(mismatch)
@@ -428,21 +403,7 @@ def _analyse(
             _refuse_signals([mismatch])
     warnings[:0] = [f"signals: {f}" for f in findings]
     u_op = float(np.clip(point.u, config.vfd.u_min_V, config.vfd.u_max_V))
-    request = settings.tune_request(
-        chosen.model,
-        u_op,
-        T_fuel,
-        simulate=not plant.is_reference,
-        command_bands=command_bands(chosen.diagnostics),
-    )
-    found_misfit = chosen.diagnostics.get("misfit")
-    if found_misfit is not None:
-        request = replace(request, misfit=MisfitBound.from_json(found_misfit))
-    # the structures the log could not tell from the chosen fit's: the gains on each are shown
-    indistinct = chosen.extra.get("structure", {}).get("indistinct", [])
-    request = replace(
-        request, alternatives=tuple(ProcessModel(**item["model"]) for item in indistinct)
-    )
+    request = _tune_request(settings, chosen, u_op, T_fuel, plant.is_reference)
     # the check and the schedule share linearisations (and the next analysis, given a cache)
     outcome = tune_model(plant, request, progress, cache)
     warnings.extend(f"tuning: {w}" for w in outcome.warnings)
@@ -453,19 +414,7 @@ def _analyse(
         None if plant.is_reference else schedule_gains(plant, request, progress, cache).schedule
     )
     announce(progress, DIAGNOSTICS)
-    fitted = chosen.time < (chosen.split_time if chosen.split_time is not None else math.inf)
-    residuals = (
-        chosen.prediction_errors  # pem: the tests are on its prediction errors
-        if chosen.prediction_errors is not None
-        else chosen.y[fitted] - chosen.y_hat[fitted]
-    )
-    u_model = data.u if chosen.time.size == data.n_samples else _held(data, chosen.time)
-    max_lag = min(
-        max(25, round(2.0 * settings.control_period / data.sample_time)), fitted.sum() // 4
-    )
-    # within segments only: a log with gaps is not correlated across them
-    times = chosen.time[fitted]
-    starts = tuple(int(i) for i in np.flatnonzero(np.diff(times) > 1.5 * chosen.sample_time) + 1)
+    whiteness, input_correlation = _residual_tests(data, chosen, settings.control_period)
     omega = frequency_grid(chosen.model, outcome.pi)
     return LogAnalysis(
         data=data,
@@ -473,8 +422,8 @@ def _analyse(
         identifications=identifications,
         outcome=outcome,
         schedule=schedule,
-        whiteness=residual_whiteness(residuals, segment_starts=starts),
-        input_correlation=input_residual_correlation(u_model[fitted], residuals, max_lag, starts),
+        whiteness=whiteness,
+        input_correlation=input_correlation,
         bode_frequency=omega,
         bode_loop=loop_function(chosen.model, outcome.pi)(omega),
         plant=plant,
@@ -483,6 +432,121 @@ def _analyse(
         signal_check=findings,
         warnings=warnings,
         undetermined=loose,
+    )
+
+
+def _checked_signals(data: IOData, plant: PlantSource, settings: AnalysisSettings) -> list[str]:
+    """The signal check's findings; refused (unless accepted) and on a flow leading its command."""
+    findings = check_signals(data, plant)
+    # a flow that moves before its command first: the signal check's unit remedies would mislead
+    if lead_check(data.u, data.y, data.sample_time, segment_starts=data.segment_starts).leads:
+        raise FuelidError(LEADING_RESPONSE)
+    if findings and not settings.accept_signals:
+        _refuse_signals(findings)
+    return findings
+
+
+def _identify_all(
+    data: IOData, base: IdentifyOptions, tune_from: str, progress: Progress | None
+) -> tuple[dict[str, IdentificationResult], dict[str, PriorSource]]:
+    """Both methods' fits (and pem's when the gains come from it), in the order shown.
+
+    Also returns where step-ls's priors came from (its response length may be the output-error
+    fit's settling time).
+    """
+    identifications: dict[str, IdentificationResult] = {}
+    # the output-error fit first: without a plant file its settling time is the data's own
+    # prior for step-ls's response length N
+    # the fit's own steps (its structures, a long record's search and polish) under this stage
+    identifications["oe"] = identify(
+        data, replace(base, method="oe"), progress=steps_only(progress)
+    )
+    identifications["step-ls"], step_sources = identify_step_ls(
+        data, replace(base, method="step-ls"), identifications["oe"].model
+    )
+    if tune_from == "pem":  # the noise-model fit, beside the two always shown
+        identifications["pem"] = identify(data, replace(base, method="pem"))
+    order = (*METHODS, "pem")
+    return {m: identifications[m] for m in order if m in identifications}, step_sources
+
+
+def _identification_warnings(
+    data: IOData, identifications: dict[str, IdentificationResult]
+) -> list[str]:
+    """The loader's notes and each method's warnings, by source."""
+    # what the loader noticed is said once, not once per method
+    warnings: list[str] = [f"log: {note}" for note in data.notes]
+    for name, result in identifications.items():
+        warnings.extend(f"{name}: {w}" for w in result.warnings if w not in data.notes)
+    return warnings
+
+
+def _check_chosen(chosen: IdentificationResult, settings: AnalysisSettings) -> list[str]:
+    """The chosen model's undetermined parameters, once it is fit to tune from.
+
+    Refused: a model whose gain the log does not determine, one with the flow leading its
+    command, and one with undetermined parameters (unless ``accept_undetermined``).
+    """
+    check_gain_identified(chosen.model.K, chosen.stderr.get("K"), f"{settings.tune_from} fit")
+    loose = undetermined(chosen.model.to_json(), _intervals(chosen), chosen.fixed)
+    if (chosen.diagnostics.get("lead") or {}).get("leads"):
+        raise FuelidError(LEADING_RESPONSE)
+    if loose and not settings.accept_undetermined:
+        raise FuelidError(undetermined_refusal_line(loose, f"the {settings.tune_from} model"))
+    return loose
+
+
+def _tune_request(
+    settings: AnalysisSettings,
+    chosen: IdentificationResult,
+    u_op: float,
+    T_fuel: float,
+    reference_plant: bool,
+) -> TuneRequest:
+    """What to tune on the chosen model, with its misfit bound and the rival structures.
+
+    The structures the log could not tell from the chosen one are tuned too (the gains on each
+    are shown).
+    """
+    request = settings.tune_request(
+        chosen.model,
+        u_op,
+        T_fuel,
+        simulate=not reference_plant,
+        command_bands=command_bands(chosen.diagnostics),
+    )
+    found_misfit = chosen.diagnostics.get("misfit")
+    if found_misfit is not None:
+        request = replace(request, misfit=MisfitBound.from_json(found_misfit))
+    # the structures the log could not tell from the chosen fit's: the gains on each are shown
+    indistinct = chosen.extra.get("structure", {}).get("indistinct", [])
+    return replace(
+        request, alternatives=tuple(ProcessModel(**item["model"]) for item in indistinct)
+    )
+
+
+def _residual_tests(
+    data: IOData, chosen: IdentificationResult, control_period: float
+) -> tuple[CorrelationTest, CorrelationTest]:
+    """The chosen fit's residuals: their whiteness and their correlation with the input.
+
+    On the fitted part only, and within segments (a log with gaps is not correlated across
+    them); pem's tests are on its prediction errors.
+    """
+    fitted = chosen.time < (chosen.split_time if chosen.split_time is not None else math.inf)
+    residuals = (
+        chosen.prediction_errors  # pem: the tests are on its prediction errors
+        if chosen.prediction_errors is not None
+        else chosen.y[fitted] - chosen.y_hat[fitted]
+    )
+    u_model = data.u if chosen.time.size == data.n_samples else _held(data, chosen.time)
+    max_lag = min(max(25, round(2.0 * control_period / data.sample_time)), fitted.sum() // 4)
+    # within segments only: a log with gaps is not correlated across them
+    times = chosen.time[fitted]
+    starts = tuple(int(i) for i in np.flatnonzero(np.diff(times) > 1.5 * chosen.sample_time) + 1)
+    return (
+        residual_whiteness(residuals, segment_starts=starts),
+        input_residual_correlation(u_model[fitted], residuals, max_lag, starts),
     )
 
 

@@ -260,23 +260,8 @@ class VirtualPLC:
         run_windows: Sequence[tuple[float, float]] = (),
     ) -> None:
         self.config = config if config is not None else load_plant_config()
-        if not (math.isfinite(period_s) and period_s > 0.0):
-            raise ConfigError(f"period_s must be positive, got {period_s!r}")
-        n_control = round(control_period_s / period_s)
-        if n_control < 1 or abs(n_control * period_s - control_period_s) > 1e-9 * control_period_s:
-            raise ConfigError(
-                f"control_period_s ({control_period_s:g} s) must be a whole multiple of "
-                f"period_s ({period_s:g} s)"
-            )
-        if not 2 <= ring_size <= MAX_RING_SIZE:
-            raise ConfigError(f"ring_size must be 2…{MAX_RING_SIZE}, got {ring_size}")
-        if not (math.isfinite(heartbeat_timeout_s) and heartbeat_timeout_s > 0.0):
-            raise ConfigError("heartbeat_timeout_s must be positive")
-        if not (math.isfinite(clock_slow) and abs(clock_slow) < MAX_CLOCK_SLOW):
-            raise ConfigError(
-                f"clock_slow must be within (−{MAX_CLOCK_SLOW:g}, {MAX_CLOCK_SLOW:g}), "
-                f"got {clock_slow!r}"
-            )
+        n_control = _control_steps(period_s, control_period_s)
+        _check_ring_heartbeat_clock(ring_size, heartbeat_timeout_s, clock_slow)
         self.excitation_limit_V = positive("excitation_limit_V", excitation_limit_V)
         """The PLC's own clamp of the test signal [V]."""
         self.run_windows = run_windows_checked(run_windows)
@@ -292,6 +277,26 @@ class VirtualPLC:
         self.heartbeat_timeout_s = float(heartbeat_timeout_s)
         self.restore_on_stale = restore_on_stale
         self.quantisation = quantisation
+        self._set_measurement(noise_sd_Lpm, disturbance_sd_Lpm, disturbance_time_s)
+        self._rng = np.random.default_rng(seed)
+        self._temperature = fuel_temperature_trajectory(fuel_temp_C, fuel_temp_profile)
+        self._sp_profile, self._u_profile = setpoint_and_command_profiles(
+            setpoint_profile, command_profile
+        )
+        for T in (float(np.min(self._temperature.values)), float(np.max(self._temperature.values))):
+            plant_coefficients(self.config, T)  # refuses a temperature outside the fuel's range
+        T0 = float(self._temperature.at(0.0))
+        self._coefficients = plant_coefficients(self.config, T0)
+        self.u_min = float(self.config.vfd.u_min_V)
+        self.u_max = float(self.config.vfd.u_max_V)
+        self.kc0, self.ti0 = self._commissioning(kc, ti, T0)
+        self._clear_write_area()
+        self._start_plant(self._initial_command(T0), seq0, keep_clean_readings)
+
+    def _set_measurement(
+        self, noise_sd_Lpm: float | None, disturbance_sd_Lpm: float, disturbance_time_s: float
+    ) -> None:
+        """The meter's white noise and the slow AR(1) disturbance (module docstring)."""
         meter = self.config.flowmeter
         self.noise_sd_Lpm = float(meter.noise_std_Lpm if noise_sd_Lpm is None else noise_sd_Lpm)
         if not (math.isfinite(self.noise_sd_Lpm) and self.noise_sd_Lpm >= 0.0):
@@ -304,18 +309,9 @@ class VirtualPLC:
         self.disturbance_time_s = float(disturbance_time_s)
         self._disturbance_phi = math.exp(-self.plant_period_s / self.disturbance_time_s)
         self._disturbance = 0.0  # d of the last sample read [L/min]
-        self._rng = np.random.default_rng(seed)
-        self._temperature = fuel_temperature_trajectory(fuel_temp_C, fuel_temp_profile)
-        self._sp_profile, self._u_profile = setpoint_and_command_profiles(
-            setpoint_profile, command_profile
-        )
-        for T in (float(np.min(self._temperature.values)), float(np.max(self._temperature.values))):
-            plant_coefficients(self.config, T)  # refuses a temperature outside the fuel's range
-        T0 = float(self._temperature.at(0.0))
-        self._coefficients = plant_coefficients(self.config, T0)
-        self.u_min = float(self.config.vfd.u_min_V)
-        self.u_max = float(self.config.vfd.u_max_V)
 
+    def _commissioning(self, kc: float | None, ti: float | None, T0: float) -> tuple[float, float]:
+        """The commissioning gains: those given, the others cautious SIMC at ``T0`` [K]."""
         if kc is None or ti is None:
             kc_simc, ti_simc = commissioning_gains(self.config, T0, self.control_period_s)
             kc = kc_simc if kc is None else kc
@@ -323,10 +319,14 @@ class VirtualPLC:
         for name, value in (("kc", kc), ("ti", ti)):
             if not (math.isfinite(value) and value > 0.0):
                 raise ConfigError(f"{name} must be finite and positive, got {value!r}")
-        self.kc0, self.ti0 = float(kc), float(ti)
+        return float(kc), float(ti)
 
-        # the write area as a fresh front end holds it (all zeros): level-triggered points are
-        # read from it at every scan, edge-triggered ones (apply, heartbeat) compared with it
+    def _clear_write_area(self) -> None:
+        """The write area as a fresh front end holds it (all zeros), and what the PLC made of it.
+
+        Level-triggered points are read from it at every scan, edge-triggered ones (apply,
+        heartbeat) compared with it.
+        """
         self._writes: dict[str, float] = dict.fromkeys(WRITE_POINTS, 0.0)
         self._apply_seen = 0.0
         self._heartbeat_at: float | None = None  # plant time of the last heartbeat change [s]
@@ -336,17 +336,16 @@ class VirtualPLC:
         self._manual = self.u_min
         self._excitation = 0.0  # the test signal applied at the last scan [V]
 
+    def _initial_command(self, T0: float) -> float:
+        """The command [V] the plant starts at rest with, and the mode the PLC starts in."""
         if self._sp_profile is not None:
             self._mode = AUTO
             self._setpoint = self._sp_profile.at(0.0)
-            u0 = self._steady_command(self._setpoint, T0)
-        elif self._u_profile is not None:
-            self._mode = MAN
-            u0 = float(np.clip(self._u_profile.at(0.0), self.u_min, self.u_max))
-        else:
-            self._mode = MAN  # mode_request 0 in a fresh write area
-            u0 = self.u_min  # manual_command 0, clamped to the range
-        self._start_plant(u0, seq0, keep_clean_readings)
+            return self._steady_command(self._setpoint, T0)
+        self._mode = MAN  # a command profile, or mode_request 0 in a fresh write area
+        if self._u_profile is not None:
+            return float(np.clip(self._u_profile.at(0.0), self.u_min, self.u_max))
+        return self.u_min  # manual_command 0, clamped to the range
 
     def _start_plant(self, u0: float, seq0: int, keep_clean_readings: bool) -> None:
         """The PI, the plant at steady state at ``u0`` [V], the ring and sample 0."""
@@ -559,43 +558,10 @@ class VirtualPLC:
 
     def _scan(self, k: int, y: float) -> None:
         """The PLC's control-period scan at sample ``k`` with the flow reading ``y`` [L/min]."""
-        t = k * self.period_s
         w = self._writes
         stale = self.heartbeat_stale()
-        pending: tuple[float, float, float] | None = None
-        if w["apply"] != self._apply_seen:
-            self._apply_seen = w["apply"]
-            kc, ti = w["staged_kc"], w["staged_ti"]
-            valid = all(math.isfinite(v) and v > 0.0 for v in (kc, ti))
-            if stale or not valid:
-                self._refused = True
-            else:
-                lo, hi = GAIN_LIMITS
-                pending = (
-                    float(np.clip(kc, lo * self.kc0, hi * self.kc0)),
-                    float(np.clip(ti, lo * self.ti0, hi * self.ti0)),
-                    self._apply_seen,
-                )
-        if (
-            pending is None
-            and stale
-            and self.restore_on_stale
-            and (self._pi.Kc, self._pi.Ti) != (self.kc0, self.ti0)
-        ):
-            pending = (self.kc0, self.ti0, 0.0)
-
-        if self._sp_profile is not None:
-            mode, self._setpoint = AUTO, self._sp_profile.at(t)
-        else:
-            request = w["mode_request"]
-            mode = int(request) if request in (MAN, AUTO) else self._mode
-            if math.isfinite(w["setpoint_request"]):
-                self._setpoint = w["setpoint_request"]
-        if self._u_profile is not None:
-            mode, self._manual = MAN, self._u_profile.at(t)
-        elif math.isfinite(w["manual_command"]):
-            self._manual = w["manual_command"]
-
+        pending = self._pending_gains(stale)
+        mode = self._operator_mode(k * self.period_s)
         e = self._setpoint - y
         pi = self._pi
         if mode == AUTO:
@@ -619,6 +585,57 @@ class VirtualPLC:
         self._u = self._u_base
         if self._excitation != 0.0:
             self._u = float(np.clip(self._u_base + self._excitation, self.u_min, self.u_max))
+
+    def _pending_gains(self, stale: bool) -> tuple[float, float, float] | None:
+        """The gains this scan applies, (Kc, Ti, echo), or None.
+
+        A new ``apply`` number takes the staged gains, clamped to the PLC's limits, when the
+        heartbeat is fresh and they are finite and positive (else the set is refused); a stale
+        heartbeat with ``restore_on_stale`` brings the commissioning gains back (echo 0).
+        """
+        w = self._writes
+        pending: tuple[float, float, float] | None = None
+        if w["apply"] != self._apply_seen:
+            self._apply_seen = w["apply"]
+            kc, ti = w["staged_kc"], w["staged_ti"]
+            valid = all(math.isfinite(v) and v > 0.0 for v in (kc, ti))
+            if stale or not valid:
+                self._refused = True
+            else:
+                lo, hi = GAIN_LIMITS
+                pending = (
+                    float(np.clip(kc, lo * self.kc0, hi * self.kc0)),
+                    float(np.clip(ti, lo * self.ti0, hi * self.ti0)),
+                    self._apply_seen,
+                )
+        if (
+            pending is None
+            and stale
+            and self.restore_on_stale
+            and (self._pi.Kc, self._pi.Ti) != (self.kc0, self.ti0)
+        ):
+            pending = (self.kc0, self.ti0, 0.0)
+        return pending
+
+    def _operator_mode(self, t: float) -> int:
+        """The mode of this scan at PLC time ``t`` [s]; the setpoint and manual command updated.
+
+        A setpoint profile forces AUTO and a command profile MAN; otherwise ``mode_request``
+        (0 or 1, other values ignored). Non-finite requests are ignored.
+        """
+        w = self._writes
+        if self._sp_profile is not None:
+            mode, self._setpoint = AUTO, self._sp_profile.at(t)
+        else:
+            request = w["mode_request"]
+            mode = int(request) if request in (MAN, AUTO) else self._mode
+            if math.isfinite(w["setpoint_request"]):
+                self._setpoint = w["setpoint_request"]
+        if self._u_profile is not None:
+            mode, self._manual = MAN, self._u_profile.at(t)
+        elif math.isfinite(w["manual_command"]):
+            self._manual = w["manual_command"]
+        return mode
 
     def _applied_excitation(self, request: float, stale: bool) -> float:
         """The test signal applied for ``request`` [V]: clamped, 0 if not finite or stale."""
@@ -664,3 +681,31 @@ class VirtualPLC:
         y = self._span_y[k - self._span_k0]
         self.ring[slot] = (seq, self._u, y, self._setpoint, self._excitation)
         return slot
+
+
+def _control_steps(period_s: float, control_period_s: float) -> int:
+    """Samples per control period, n = control_period_s/period_s: a whole number ≥ 1."""
+    if not (math.isfinite(period_s) and period_s > 0.0):
+        raise ConfigError(f"period_s must be positive, got {period_s!r}")
+    n_control = round(control_period_s / period_s)
+    if n_control < 1 or abs(n_control * period_s - control_period_s) > 1e-9 * control_period_s:
+        raise ConfigError(
+            f"control_period_s ({control_period_s:g} s) must be a whole multiple of "
+            f"period_s ({period_s:g} s)"
+        )
+    return n_control
+
+
+def _check_ring_heartbeat_clock(
+    ring_size: int, heartbeat_timeout_s: float, clock_slow: float
+) -> None:
+    """Refuse a ring size outside 2…MAX_RING_SIZE, a heartbeat timeout ≤ 0, a clock ≥ 50 % off."""
+    if not 2 <= ring_size <= MAX_RING_SIZE:
+        raise ConfigError(f"ring_size must be 2…{MAX_RING_SIZE}, got {ring_size}")
+    if not (math.isfinite(heartbeat_timeout_s) and heartbeat_timeout_s > 0.0):
+        raise ConfigError("heartbeat_timeout_s must be positive")
+    if not (math.isfinite(clock_slow) and abs(clock_slow) < MAX_CLOCK_SLOW):
+        raise ConfigError(
+            f"clock_slow must be within (−{MAX_CLOCK_SLOW:g}, {MAX_CLOCK_SLOW:g}), "
+            f"got {clock_slow!r}"
+        )
