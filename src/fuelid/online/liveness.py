@@ -35,15 +35,12 @@ from fuelid.io.clock import format_age
 __all__ = [
     "LINK_FRESH_S",
     "SERVICE_BEAT_S",
-    "SERVICE_KEY",
     "SERVICE_STALE_S",
     "loop_state",
     "plant_hash",
     "service_record",
 ]
 
-SERVICE_KEY = "service"
-"""The ``online_state`` key of the service record."""
 SERVICE_BEAT_S = 2.0
 """Wall time between two beats of the running service [s]."""
 SERVICE_STALE_S = 10.0

@@ -62,7 +62,7 @@ from fuelid.online.context import (
 )
 from fuelid.online.excitation.exciter import Exciter, newest_model, plant_model_function
 from fuelid.online.gains import Gains
-from fuelid.online.liveness import SERVICE_BEAT_S, SERVICE_KEY, service_record
+from fuelid.online.liveness import SERVICE_BEAT_S, service_record
 from fuelid.online.logs import log_line
 from fuelid.online.proposal_filing import TURNED_DOWN_MEMORY
 from fuelid.online.requests import consume_requests
@@ -77,6 +77,7 @@ from fuelid.plc.recorder import PRUNE_EVERY_S, Recorder
 from fuelid.plc.site import SiteConfig
 from fuelid.store.base import SampleWriter
 from fuelid.store.online import OnlineHistory
+from fuelid.store.online_rows import SERVICE_KEY
 from fuelid.store.sqlite import SQLiteStore
 from fuelid.tuning.block import BlockForm
 
