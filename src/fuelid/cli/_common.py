@@ -190,9 +190,9 @@ def site_facts(path: Path | None) -> SiteFacts | None:
     """Read ``--site``: the control period it sets and its controller block (None: no file)."""
     if path is None:
         return None
-    from fuelid.plc.site import load_site
+    from fuelid.online.settings import load_service_site
 
-    site = load_site(path)
+    site = load_service_site(path)
     sampling = site.sampling
     period = sampling.control_period_s if "control_period_s" in sampling.model_fields_set else None
     controller = site.controller

@@ -17,10 +17,10 @@ from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
 from fuelid.online.gains import Gains
 from fuelid.online.logs import LOGGER_NAME, log_event, log_line
+from fuelid.online.settings import Online, ServiceSite
 from fuelid.online.tracking import GainObservation
 from fuelid.online.window import WindowPriors
 from fuelid.plc.recorder import Recorder, RecorderStats
-from fuelid.plc.site import Online, SiteConfig
 from fuelid.store.base import SampleWriter
 from fuelid.store.online import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
@@ -67,7 +67,7 @@ class ServiceContext:
 
     Parameters
     ----------
-    site : SiteConfig
+    site : ServiceSite
         The site file.
     store : SQLiteStore
         The site's store.
@@ -81,7 +81,7 @@ class ServiceContext:
         Gets each structured log line.
     """
 
-    site: SiteConfig
+    site: ServiceSite
     store: SQLiteStore
     history: OnlineHistory
     priors: WindowPriors

@@ -145,7 +145,7 @@ def stale_of(history: LoopHistory, proposal_id: Any) -> str | None:
     ``stale``) and the dashboard's cards.
     """
     from fuelid.online.context import stale_reason
-    from fuelid.plc.site import Online
+    from fuelid.online.settings import Online
     from fuelid.store.online_rows import SERVICE_KEY
 
     proposal = history.proposal(int(proposal_id)) if proposal_id is not None else None

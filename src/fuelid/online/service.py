@@ -67,6 +67,7 @@ from fuelid.online.logs import log_line
 from fuelid.online.proposal_filing import TURNED_DOWN_MEMORY
 from fuelid.online.requests import consume_requests
 from fuelid.online.scheduler import MAX_CATCH_UP_WINDOWS, SCHEDULE_POLL_S, Scheduler
+from fuelid.online.settings import ServiceSite
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.online.window import WindowAnalyser, window_priors
 from fuelid.online.worker import AnalyserSpec, WindowWorker
@@ -74,7 +75,6 @@ from fuelid.online.writeback import AUTO, IAE_BASELINE_WINDOWS, LIMIT_MARGIN_V, 
 from fuelid.plc.adapters.base import LinkError, PlcSource
 from fuelid.plc.gain_handshake import HEARTBEAT_MODULUS, GainWriter
 from fuelid.plc.recorder import PRUNE_EVERY_S, Recorder
-from fuelid.plc.site import SiteConfig
 from fuelid.store.base import SampleWriter
 from fuelid.store.online import OnlineHistory
 from fuelid.store.online_rows import SERVICE_KEY
@@ -92,7 +92,7 @@ class OnlineService:
 
     Parameters
     ----------
-    site : SiteConfig
+    site : ServiceSite
         The site file.
     store_url : str, optional
         The store (default ``[store] url``).
@@ -112,7 +112,7 @@ class OnlineService:
 
     def __init__(
         self,
-        site: SiteConfig,
+        site: ServiceSite,
         store_url: str | None = None,
         *,
         source: PlcSource | None = None,

@@ -70,8 +70,8 @@ from fuelid.online.gates import (
 )
 from fuelid.online.health import U_LIMITS_V, LoopHealth, loop_health
 from fuelid.online.pem_screen import NEAR_INTEGRATING_POLE, closed_loop_choice
+from fuelid.online.settings import Online
 from fuelid.online.tracking import PlantGain
-from fuelid.plc.site import Online
 from fuelid.store.base import Quality, SampleArrays, iodata_from_samples
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
