@@ -30,6 +30,8 @@ Each conversion pair, there and back:
 (True, 0.5)
 >>> kelvin_to_celsius(celsius_to_kelvin(DEFAULT_FUEL_TEMPERATURE_C)) == DEFAULT_FUEL_TEMPERATURE_C
 True
+>>> FUEL_TEMPERATURE_RANGE_C[0] < DEFAULT_FUEL_TEMPERATURE_C < FUEL_TEMPERATURE_RANGE_C[1]
+True
 """
 
 from __future__ import annotations
@@ -44,6 +46,10 @@ DEFAULT_FUEL_TEMPERATURE_C: float = 20.0
 temperature column, no ``--fuel-temp``): every output that rests on it says it was assumed. The
 one home of this default (here, where the command line's help can read it without numpy);
 :data:`fuelid.workflow.T_REF` is the same in kelvin."""
+
+FUEL_TEMPERATURE_RANGE_C: tuple[float, float] = (-60.0, 150.0)
+"""Plausible fuel temperatures [°C]; outside is another unit (K, °F) or a broken sensor: a log's
+fuel-temperature column and ``fuelid identify --fuel-temp`` are refused outside it."""
 
 LPM_PER_M3S: float = 60_000.0
 """L/min in one m³/s: q_Lpm = q·LPM_PER_M3S, q = q_Lpm/LPM_PER_M3S."""

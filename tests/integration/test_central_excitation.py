@@ -29,9 +29,9 @@ from fuelid.central.schema import SCHEMA_VERSION, migrate, schema_version
 from fuelid.cli import main
 from fuelid.online.central_link import CentralLink
 from fuelid.online.excitation.exciter import REQUEST_KEY
-from fuelid.online.liveness import SERVICE_KEY
 from fuelid.online.requests import consume_requests
 from fuelid.plc.site_fleet import Central
+from fuelid.store import SERVICE_KEY
 from fuelid.store.online import REQUEST_KINDS, OnlineHistory
 from fuelid.store.records import Event, Sample
 from fuelid.store.sqlite import SQLiteStore

@@ -40,9 +40,8 @@ from fuelid.central.sender import Sender
 from fuelid.central.status import fleet_status
 from fuelid.cli import main
 from fuelid.online.central_link import CentralLink, origin_of
-from fuelid.online.liveness import SERVICE_KEY
 from fuelid.plc.site_fleet import Central
-from fuelid.store import OnlineHistory
+from fuelid.store import SERVICE_KEY, OnlineHistory
 from fuelid.store.records import StoreError
 from fuelid.store.sqlite import SQLiteStore
 from support.fleet import copy_loop, with_proposal

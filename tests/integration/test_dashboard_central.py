@@ -32,10 +32,9 @@ from fuelid.dashboard.registry import Loops
 from fuelid.dashboard.security import CSRF_HEADER, Security
 from fuelid.dashboard.users import UsersFile
 from fuelid.online.central_link import CentralLink
-from fuelid.online.liveness import SERVICE_KEY
 from fuelid.online.requests import consume_requests
 from fuelid.plc.site_fleet import Central
-from fuelid.store import OnlineHistory
+from fuelid.store import SERVICE_KEY, OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
 from support.fleet import SimulatedLoop, copy_loop
 
@@ -395,16 +394,14 @@ def test_a_stopped_service_says_when_it_stopped_and_how_long_ago_now(
 
 
 def test_a_central_store_lost_while_serving_leaves_the_local_loops(
-    sites: dict[str, Site], central_url: str, pg_cluster: Any, monkeypatch: pytest.MonkeyPatch
+    sites: dict[str, Site], central_url: str, pg_cluster: Any
 ) -> None:
     """The database goes (its connections cut, then renamed away) and comes back."""
-    from fuelid.dashboard import central_db
-
-    monkeypatch.setattr(central_db, "RETRY_S", 0.0)  # reconnect at the next read, not in 5 s
     dbname = central_url.rsplit("/", 1)[1].split("?")[0]
     with dashboard([sites["line-b"].loop.path], central_url) as (client, loops):
         assert loops.central is not None
         loops.central.every_s = 0.0  # the list of loops read at every request
+        loops.central.db.retry_s = 0.0  # reconnect at the next read, not in 5 s
         assert sorted(_rows(client)) == ["line-a", "line-b"]
         assert "central loop line-b" in loops.not_shown()  # shadowed by the local store
         with connect(pg_cluster.url()) as admin:
@@ -436,16 +433,14 @@ def test_a_central_store_lost_while_serving_leaves_the_local_loops(
 
 
 def test_the_fleet_page_of_an_unreachable_central_store_alone_says_so(
-    sites: dict[str, Site], central_url: str, pg_cluster: Any, monkeypatch: pytest.MonkeyPatch
+    sites: dict[str, Site], central_url: str, pg_cluster: Any
 ) -> None:
     """No local store: not "give --store or --central" but why the central loops are away."""
-    from fuelid.dashboard import central_db
-
-    monkeypatch.setattr(central_db, "RETRY_S", 0.0)  # reconnect at the next read, not in 5 s
     dbname = central_url.rsplit("/", 1)[1].split("?")[0]
     with dashboard([], central_url) as (client, loops):
         assert loops.central is not None
         loops.central.every_s = 0.0  # the list of loops read at every request
+        loops.central.db.retry_s = 0.0  # reconnect at the next read, not in 5 s
         assert sorted(_rows(client)) == ["line-a", "line-b"]
         with connect(pg_cluster.url()) as admin:
             admin.autocommit = True

@@ -35,8 +35,8 @@ from fuelid.dashboard.stream import changed_topics
 from fuelid.dashboard.users import UsersFile
 from fuelid.online.excitation.exciter import REQUEST_KEY
 from fuelid.online.excitation.status import STATE_KEY
-from fuelid.online.liveness import SERVICE_KEY
 from fuelid.online.requests import consume_requests
+from fuelid.store import SERVICE_KEY
 from fuelid.store.online import OnlineHistory
 from fuelid.store.records import Event, Sample
 from fuelid.store.sqlite import SQLiteStore

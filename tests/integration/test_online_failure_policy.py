@@ -20,7 +20,7 @@ pytest.importorskip("pymodbus")
 
 from fuelid.online.logs import LOGGER_NAME, JsonLineFormatter
 from fuelid.online.service import OnlineService
-from fuelid.plc.site import SiteConfig
+from fuelid.online.settings import ServiceSite
 from fuelid.plc.virtual.runner import VirtualPlcThread
 
 SPEED = 50.0
@@ -34,9 +34,9 @@ class AnalysisBroke(RuntimeError):
     """The analysis' failure in this test."""
 
 
-def _site(virtual: VirtualPlcThread, store: Path) -> SiteConfig:
+def _site(virtual: VirtualPlcThread, store: Path) -> ServiceSite:
     text = virtual.site_text(store_url=f"sqlite:///{store}")
-    return SiteConfig.model_validate(tomllib.loads(f"{text}\n[online]\n{ONLINE}"))
+    return ServiceSite.model_validate(tomllib.loads(f"{text}\n[online]\n{ONLINE}"))
 
 
 def test_an_analysis_that_raises_leaves_the_recorder_recording(

@@ -22,9 +22,9 @@ import pytest
 pytest.importorskip("pymodbus")
 
 from fuelid.online.service import OnlineService
+from fuelid.online.settings import ServiceSite
 from fuelid.plc.adapters import open_source
 from fuelid.plc.adapters.modbus import ModbusSource
-from fuelid.plc.site import SiteConfig
 from fuelid.plc.virtual.runner import VirtualPlcThread
 from support.online import approve_directly as _approved_proposal
 from support.online import online_site as _site
@@ -40,7 +40,7 @@ SPEED = 20.0
 HEARTBEAT_S = 0.05
 
 
-def _run(site: SiteConfig, seconds: float, **kwargs: Any) -> tuple[OnlineService, list[str]]:
+def _run(site: ServiceSite, seconds: float, **kwargs: Any) -> tuple[OnlineService, list[str]]:
     lines: list[str] = []
     service = OnlineService(site, on_message=lines.append, heartbeat_s=HEARTBEAT_S, **kwargs)
     asyncio.run(service.run(seconds))
@@ -254,7 +254,7 @@ def test_gains_in_the_plc_outside_the_bounds_stop_the_service_with_the_reason(
             f"kc = {3.0 * kc0!r}" if line.startswith("kc = ") else line
             for line in text.splitlines()
         ]
-        site = SiteConfig.model_validate(tomllib.loads("\n".join(lines)))
+        site = ServiceSite.model_validate(tomllib.loads("\n".join(lines)))
         service = OnlineService(site, heartbeat_s=HEARTBEAT_S, isolate=False)
         try:
             with pytest.raises(ConfigError, match=r"outside \[online\] gain_bounds"):

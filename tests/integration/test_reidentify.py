@@ -32,7 +32,7 @@ from fuelid.cli import main
 from fuelid.fleet import run as fleet_run
 from fuelid.fleet.run import reidentify
 from fuelid.fleet.task import RESULT_SCHEMA, TIMING_COLUMNS, day_windows
-from fuelid.plc.site import Online
+from fuelid.online.settings import Online
 from support.archive_fixture import archive_store
 from support.fleet import T0
 

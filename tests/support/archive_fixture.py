@@ -18,7 +18,7 @@ from typing import Any
 
 from fuelid.archive.layout import day_of
 from fuelid.archive.writer import archive_store as archive_days
-from fuelid.plc.site import Online
+from fuelid.online.settings import Online
 from fuelid.store import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
 

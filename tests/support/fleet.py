@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from fuelid.online.settings import Online
 from fuelid.online.window import WindowAnalyser, window_priors
-from fuelid.plc.site import Online
 from fuelid.plc.virtual.engine import VirtualPLC
 from fuelid.store import OnlineHistory
 from fuelid.store.base import Event, Quality, Sample

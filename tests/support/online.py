@@ -9,8 +9,8 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
+from fuelid.online.settings import ServiceSite
 from fuelid.plc.recorder import site_identity
-from fuelid.plc.site import SiteConfig
 from fuelid.plc.virtual.runner import VirtualPlcThread
 from fuelid.store import OnlineHistory, open_store
 from fuelid.store.sqlite import SQLiteStore
@@ -18,13 +18,13 @@ from fuelid.store.sqlite import SQLiteStore
 
 def online_site(
     virtual: VirtualPlcThread, store: Path, online: str, *, plant: str | None = None
-) -> SiteConfig:
+) -> ServiceSite:
     """The virtual PLC's site file with the store, an ``[online]`` table and ``[site] plant``."""
     text = virtual.site_text(store_url=f"sqlite:///{store}", plant=plant)
-    return SiteConfig.model_validate(tomllib.loads(text + "\n[online]\n" + online))
+    return ServiceSite.model_validate(tomllib.loads(text + "\n[online]\n" + online))
 
 
-def open_history(site: SiteConfig, store: Path) -> tuple[SQLiteStore, OnlineHistory]:
+def open_history(site: ServiceSite, store: Path) -> tuple[SQLiteStore, OnlineHistory]:
     """The site's store and its online history (close both)."""
     opened = open_store(
         f"sqlite:///{store}", period_s=site.sampling.period_s, **site_identity(site)
@@ -33,7 +33,7 @@ def open_history(site: SiteConfig, store: Path) -> tuple[SQLiteStore, OnlineHist
     return opened, OnlineHistory(opened)
 
 
-def approve_directly(site: SiteConfig, store: Path, kc: float, ti: float) -> int:
+def approve_directly(site: ServiceSite, store: Path, kc: float, ti: float) -> int:
     """An approved proposal from the commissioning gains to (kc, ti), put into the history."""
     opened, history = open_history(site, store)
     try:

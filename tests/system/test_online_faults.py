@@ -44,10 +44,10 @@ import pytest
 pytest.importorskip("pymodbus")
 
 from fuelid.online.service import OnlineService
+from fuelid.online.settings import ServiceSite
 from fuelid.plant import load_plant_config
 from fuelid.plant.config import PlantConfig
 from fuelid.plant.linear import linearise
-from fuelid.plc.site import SiteConfig
 from fuelid.plc.virtual.runner import VirtualPlcThread
 from fuelid.profiles.runs import Profile
 from fuelid.store.sqlite import SQLiteStore
@@ -74,7 +74,7 @@ T_FUEL_C = 20.0
 
 
 def _run(
-    site: SiteConfig,
+    site: ServiceSite,
     wall_s: float,
     watch: Callable[[OnlineService, Callable[[], None]], None] | None = None,
     **kwargs: Any,
@@ -278,8 +278,8 @@ def _tuned_gains(config: PlantConfig, settings: str) -> tuple[float, float]:
     Identifies one window of the engine alone (no server: ~1 s) with the service's analyser
     and its plant-file priors, so the PLC starts at gains the service has no reason to change.
     """
+    from fuelid.online.settings import Online
     from fuelid.online.window import WindowAnalyser, window_priors
-    from fuelid.plc.site import Online
     from fuelid.plc.virtual.engine import VirtualPLC
     from fuelid.store.base import SampleArrays
     from fuelid.tuning import tune
@@ -795,7 +795,7 @@ def test_kill_9_mid_write_is_reconciled_from_the_echo_and_never_written_twice(
         heartbeat_timeout_s=0.01,
     ) as virtual:  # fmt: skip
         site_file = _fault_site(virtual, tmp_path, db, online)
-        site = SiteConfig.model_validate(tomllib.loads(site_file.read_text(encoding="utf-8")))
+        site = ServiceSite.model_validate(tomllib.loads(site_file.read_text(encoding="utf-8")))
         kc0, ti0 = virtual.plc.gains
         started = time.monotonic()
         for k in range(kills):
@@ -868,7 +868,7 @@ def test_kill_9_during_a_window_s_revert_does_not_repeat_the_window(tmp_path: Pa
         heartbeat_timeout_s=0.01,
     ) as virtual:  # fmt: skip
         site_file = _fault_site(virtual, tmp_path, db, online)
-        site = SiteConfig.model_validate(tomllib.loads(site_file.read_text(encoding="utf-8")))
+        site = ServiceSite.model_validate(tomllib.loads(site_file.read_text(encoding="utf-8")))
         opened, history = _open(site, db)
         try:
             history.set_state(

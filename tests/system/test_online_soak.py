@@ -107,10 +107,10 @@ import pytest
 pytest.importorskip("pymodbus")
 
 from fuelid.online.service import OnlineService, observation_of
+from fuelid.online.settings import ServiceSite
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.online.window import WindowAnalyser
 from fuelid.plant.linear import linearise
-from fuelid.plc.site import SiteConfig
 from fuelid.plc.virtual.runner import VirtualPlcThread
 from fuelid.profiles.runs import Profile, demo_run_profile, demo_temperature
 from fuelid.store.base import SampleArrays
@@ -258,10 +258,10 @@ class SoakResult:
         return "\n".join(lines)
 
 
-def _site(virtual: VirtualPlcThread, store: Path) -> SiteConfig:
+def _site(virtual: VirtualPlcThread, store: Path) -> ServiceSite:
     plant = resources.files("fuelid.data").joinpath("reference_plant.toml")
     text = virtual.site_text(store_url=f"sqlite:///{store}", plant=str(plant))
-    return SiteConfig.model_validate(tomllib.loads(f"{text}\n[online]\n{ONLINE}"))
+    return ServiceSite.model_validate(tomllib.loads(f"{text}\n[online]\n{ONLINE}"))
 
 
 def run_soak(
@@ -330,7 +330,7 @@ def _plant_time(samples: SampleArrays, period_s: float) -> tuple[float, float]:
 def _measure(
     result: SoakResult,
     service: OnlineService,
-    site: SiteConfig,
+    site: ServiceSite,
     clean: np.ndarray[Any, Any],
     config: Any,
     commissioning: tuple[float, float],
@@ -389,7 +389,7 @@ def _measure(
 
 def _clean_K(
     service: OnlineService,
-    site: SiteConfig,
+    site: ServiceSite,
     samples: SampleArrays,
     clean: np.ndarray[Any, Any],
     warm: dict[str, Any] | None,

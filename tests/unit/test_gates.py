@@ -23,7 +23,7 @@ from fuelid.online.gates import (
     prefit_gates,
     prefit_samples,
 )
-from fuelid.plc.site import Online
+from fuelid.online.settings import Online
 from fuelid.store.base import Quality, SampleArrays
 
 H = 0.02  # 50 Hz [s]

@@ -28,8 +28,8 @@ import pytest
 
 from fuelid.identify.oe import OutputError
 from fuelid.online.pem_screen import closed_loop_choice, noise_screen
+from fuelid.online.settings import Online
 from fuelid.online.window import WindowAnalyser, window_priors
-from fuelid.plc.site import Online
 from fuelid.plc.virtual.engine import VirtualPLC
 from fuelid.profiles.runs import demo_run_profile
 from fuelid.store.base import iodata_from_samples

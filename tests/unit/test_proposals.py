@@ -22,7 +22,8 @@ from fuelid.online.proposals import (
     propose,
     weighted_mean_model,
 )
-from fuelid.plc.site import Controller, Online
+from fuelid.online.settings import Online
+from fuelid.plc.site import Controller
 from fuelid.tuning import PISettings, robustness
 from fuelid.tuning.block import BlockForm
 

@@ -10,6 +10,7 @@ from typer.testing import CliRunner
 
 from fuelid.cli import app
 from fuelid.errors import ConfigError, DataError
+from fuelid.online.settings import load_service_site
 from fuelid.plc.codec import decode, encode
 from fuelid.plc.site import load_site
 
@@ -58,7 +59,7 @@ def _write(tmp_path: Path, text: str) -> Path:
 
 
 def test_the_issues_example_loads_as_written(tmp_path: Path):
-    site = load_site(_write(tmp_path, EXAMPLE))
+    site = load_service_site(_write(tmp_path, EXAMPLE))
     assert site.site.name == "tunnel 2 fuel loop"
     assert (site.plc.protocol, site.plc.port, site.plc.word_order) == ("modbus", 5020, "little")
     assert (site.sampling.period_s, site.sampling.control_period_s) == (0.02, 1.0)
@@ -91,7 +92,7 @@ def test_bad_site_files_are_refused_with_the_key_and_the_reason(
     assert old in EXAMPLE
     path = _write(tmp_path, EXAMPLE.replace(old, new, 1))
     with pytest.raises(ConfigError) as caught:
-        load_site(path)
+        load_service_site(path)
     message = str(caught.value)
     assert key in message
     assert reason in message
@@ -104,11 +105,11 @@ def test_bad_site_files_are_refused_with_the_key_and_the_reason(
 
 def test_flow_and_command_are_the_only_required_tags(tmp_path: Path):
     text = EXAMPLE.split("[tags.fuel_temperature]")[0]
-    site = load_site(_write(tmp_path, text))
+    site = load_service_site(_write(tmp_path, text))
     assert set(site.tags) == {"command", "flow"}
     without_flow = text.split("[tags.flow]")[0]
     with pytest.raises(ConfigError, match=r"tags\.flow is required"):
-        load_site(_write(tmp_path, without_flow))
+        load_service_site(_write(tmp_path, without_flow))
 
 
 OPCUA = 'protocol = "opcua"\nendpoint = "opc.tcp://127.0.0.1:4840/fuel"'
@@ -140,10 +141,10 @@ def test_addresses_follow_each_protocols_syntax(
     )
     path = _write(tmp_path, text)
     if ok:
-        assert load_site(path).tags["kc"].address == address
+        assert load_service_site(path).tags["kc"].address == address
     else:
         with pytest.raises(ConfigError, match=r"tags\.kc\.(address|type)"):
-            load_site(path)
+            load_service_site(path)
 
 
 @pytest.mark.parametrize(
@@ -189,7 +190,7 @@ def test_site_check_prints_the_tag_map(tmp_path: Path):
 def test_the_docs_example_is_a_valid_site_file():
     # docs/examples/site.toml is the file the site-file how-to and the README's tour show
     example = Path(__file__).resolve().parents[2] / "docs" / "examples" / "site.toml"
-    site = load_site(example)
+    site = load_service_site(example)
     assert site.controller is not None
     assert site.controller.gain_units == "percent"
     assert set(site.write) == {"kc", "ti", "apply"}
@@ -204,7 +205,7 @@ size = 2048
 
 
 def test_a_ring_buffer_is_described_by_head_address_and_size(tmp_path: Path):
-    site = load_site(_write(tmp_path, EXAMPLE + RING))
+    site = load_service_site(_write(tmp_path, EXAMPLE + RING))
     assert site.ring is not None
     assert site.ring.fields == ["seq", "command", "flow", "setpoint"]
     # seq uint32 + three float32 = 8 registers: 2048 records end at register 1000 + 16383
@@ -224,12 +225,14 @@ def test_a_ring_buffer_is_described_by_head_address_and_size(tmp_path: Path):
 )
 def test_a_ring_that_cannot_be_read_is_refused(tmp_path: Path, ring: str, reason: str):
     with pytest.raises(ConfigError, match=reason):
-        load_site(_write(tmp_path, EXAMPLE + "[ring]\n" + ring + "\n"))
+        load_service_site(_write(tmp_path, EXAMPLE + "[ring]\n" + ring + "\n"))
 
 
 def test_site_check_shows_the_ring_and_what_it_exposes(tmp_path: Path):
-    assert [line for line in load_site(_write(tmp_path, EXAMPLE)).missing() if "seq" in line]
-    site = load_site(_write(tmp_path, EXAMPLE + RING))
+    assert [
+        line for line in load_service_site(_write(tmp_path, EXAMPLE)).missing() if "seq" in line
+    ]
+    site = load_service_site(_write(tmp_path, EXAMPLE + RING))
     # the ring carries the setpoint and the sequence number, so neither is missing
     assert not [line for line in site.missing() if line.startswith(("setpoint", "seq"))]
     result = runner.invoke(app, ["site", "check", "--config", str(tmp_path / "site.toml")])
@@ -248,11 +251,13 @@ def test_site_check_shows_the_ring_and_what_it_exposes(tmp_path: Path):
 )
 def test_two_roles_sharing_a_register_are_refused(tmp_path: Path, extra: str, reason: str):
     with pytest.raises(ConfigError, match=reason):
-        load_site(_write(tmp_path, EXAMPLE + extra))
+        load_service_site(_write(tmp_path, EXAMPLE + extra))
 
 
 def test_adjacent_registers_and_s7_bits_in_one_byte_are_accepted(tmp_path: Path):
-    load_site(_write(tmp_path, EXAMPLE + '[tags.kc]\naddress = "ir:31"\ntype = "float32"\n'))
+    load_service_site(
+        _write(tmp_path, EXAMPLE + '[tags.kc]\naddress = "ir:31"\ntype = "float32"\n')
+    )
     s7 = (
         '[site]\nname = "s7"\n[plc]\nprotocol = "s7"\n'
         '[tags.flow]\naddress = "DB1.DBD0"\nunit = "L/min"\n'
@@ -261,12 +266,12 @@ def test_adjacent_registers_and_s7_bits_in_one_byte_are_accepted(tmp_path: Path)
         '[tags.setpoint]\naddress = "DB1.DBD6"\nunit = "L/min"\n'
     )
     with pytest.raises(ConfigError, match=r"tags\.setpoint: DB1\.DBD6 overlaps tags\.command"):
-        load_site(_write(tmp_path, s7))
-    load_site(_write(tmp_path, s7.replace("DB1.DBD6", "DB1.DBD10")))
+        load_service_site(_write(tmp_path, s7))
+    load_service_site(_write(tmp_path, s7.replace("DB1.DBD6", "DB1.DBD10")))
 
 
 def test_the_online_table_has_documented_defaults(tmp_path: Path):
-    online = load_site(_write(tmp_path, EXAMPLE)).online
+    online = load_service_site(_write(tmp_path, EXAMPLE)).online
     assert (online.identify_every_s, online.window_s, online.write_back) == (300.0, 600.0, "off")
     assert (online.ms_target, online.gain_bounds, online.agree_windows) == (1.7, [0.5, 2.0], 2)
     assert (online.hysteresis, online.rule) == (0.1, "simc")
@@ -285,7 +290,7 @@ def test_the_online_table_has_documented_defaults(tmp_path: Path):
 )
 def test_bad_online_settings_are_refused(tmp_path: Path, online: str, reason: str):
     with pytest.raises(ConfigError, match=reason):
-        load_site(_write(tmp_path, EXAMPLE + "[online]\n" + online + "\n"))
+        load_service_site(_write(tmp_path, EXAMPLE + "[online]\n" + online + "\n"))
 
 
 def test_write_back_needs_the_write_side_and_the_controller_table(tmp_path: Path):
@@ -295,10 +300,18 @@ def test_write_back_needs_the_write_side_and_the_controller_table(tmp_path: Path
     )
     online = '[online]\nwrite_back = "approve"\n'
     with pytest.raises(ConfigError, match=r"\[controller\]"):
-        load_site(_write(tmp_path, EXAMPLE + write + online))
+        load_service_site(_write(tmp_path, EXAMPLE + write + online))
     controller = "[controller]\nkc = 0.05\nti = 1.4\n"
-    site = load_site(_write(tmp_path, EXAMPLE + write + controller + online))
+    site = load_service_site(_write(tmp_path, EXAMPLE + write + controller + online))
     assert site.online.write_back == "approve"
+
+
+def test_the_plc_side_passes_the_online_table_over(tmp_path: Path):
+    """[online] is the service's: the PLC side (fuelid.plc.site) neither reads nor checks it."""
+    path = _write(tmp_path, EXAMPLE + '[online]\nwrite_back = "sometimes"\n')
+    assert not hasattr(load_site(path), "online")
+    with pytest.raises(ConfigError, match=r"online\.write_back"):
+        load_service_site(path)
 
 
 def test_gain_units_that_contradict_the_controller_table_are_refused(tmp_path: Path) -> None:
@@ -308,7 +321,7 @@ def test_gain_units_that_contradict_the_controller_table_are_refused(tmp_path: P
         '[controller]\ngain_units = "percent"\nu_span_V = 4.0\ny_span_Lpm = 100.0\n'
     )
     with pytest.raises(ConfigError, match=r'tags.kc.unit: "V per L/min", but \[controller\]'):
-        load_site(_write(tmp_path, text))
+        load_service_site(_write(tmp_path, text))
 
 
 def test_relative_paths_are_taken_from_the_site_file_s_folder(
@@ -322,21 +335,21 @@ def test_relative_paths_are_taken_from_the_site_file_s_folder(
     path = folder / "site.toml"
     path.write_text(text, encoding="utf-8")
     monkeypatch.chdir(tmp_path)  # anywhere but the site file's folder
-    site = load_site(path)
+    site = load_service_site(path)
     assert site.site.plant == str(folder.resolve() / "worn.toml")
     assert site.store.url == f"sqlite:///{folder.resolve() / 'data' / 'loop.db'}"
 
 
 def test_the_site_time_zone_and_loop_id_are_checked(tmp_path: Path):
-    site = load_site(_write(tmp_path, EXAMPLE))
+    site = load_service_site(_write(tmp_path, EXAMPLE))
     assert (site.site.timezone, site.site.loop_id) == ("UTC", None)
     named = EXAMPLE.replace(
         'name = "tunnel 2 fuel loop"\n',
         'name = "tunnel 2 fuel loop"\ntimezone = "Europe/Zurich"\nloop_id = "t2-fuel"\n',
     )
-    site = load_site(_write(tmp_path, named))
+    site = load_service_site(_write(tmp_path, named))
     assert (site.site.timezone, site.site.loop_id) == ("Europe/Zurich", "t2-fuel")
     with pytest.raises(ConfigError, match=r"site\.timezone.*'Mars/Olympus'"):
-        load_site(_write(tmp_path, named.replace("Europe/Zurich", "Mars/Olympus")))
+        load_service_site(_write(tmp_path, named.replace("Europe/Zurich", "Mars/Olympus")))
     with pytest.raises(ConfigError, match=r"site\.loop_id"):
-        load_site(_write(tmp_path, named.replace("t2-fuel", "T2 fuel")))
+        load_service_site(_write(tmp_path, named.replace("t2-fuel", "T2 fuel")))

@@ -17,6 +17,7 @@ from typer.testing import CliRunner
 
 from fuelid.cli import app
 from fuelid.errors import ConfigError
+from fuelid.online.settings import ServiceSite, load_service_site
 from fuelid.plc.site import (
     READ_ROLES,
     RING_DEFAULT_FIELDS,
@@ -25,8 +26,6 @@ from fuelid.plc.site import (
     WRITE_ROLE_UNITS,
     WRITE_ROLES,
     Excitation,
-    SiteConfig,
-    load_site,
 )
 
 runner = CliRunner()
@@ -60,10 +59,10 @@ COMPLETE = BASE + MODE + TAG_EXCITATION + HEARTBEAT + WRITE_EXCITATION
 """Everything excitation on needs, without the table itself."""
 
 
-def _load(tmp_path: Path, text: str) -> SiteConfig:
+def _load(tmp_path: Path, text: str) -> ServiceSite:
     path = tmp_path / "site.toml"
     path.write_text(text, encoding="utf-8")
-    return load_site(path)
+    return load_service_site(path)
 
 
 def _refused(tmp_path: Path, text: str) -> str:

@@ -3,8 +3,9 @@
 :func:`archive_store` walks the store's UTC days (of plant time) before ``before`` — by default
 the day of the store's newest sample, so that only finished days are archived — and for each:
 
-1. reads the day's rows straight from SQL in one short read transaction (a NULL stays null;
-   WAL readers never block the recorder's commits), a batch of rows at a time;
+1. reads the day's rows straight from the store (:class:`~fuelid.store.archived.StoreDays`) in
+   one short read transaction (a NULL stays null; WAL readers never block the recorder's
+   commits), a batch of rows at a time;
 2. merges them with the file this store already has for the day (the store may have been
    thinned since: a re-archive never replaces raw rows by fewer — the union by ``seq``, or by
    ``time`` where ``seq`` is null, the store's values winning where both have a row);
@@ -26,7 +27,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import sqlite3
+import sqlite3  # its errors: the store could not be read
 import time as _time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,20 +45,12 @@ from fuelid.archive.layout import (
     partition_dir,
     write_table,
 )
-from fuelid.store.archived import (
-    ARCHIVE_COLUMNS,
-    archived_days,
-    days_with,
-    record_day,
-    sample_batches,
-)
+from fuelid.store.archived import ARCHIVE_COLUMNS, StoreDays
+from fuelid.store.online_rows import SERVICE_KEY
 from fuelid.store.records import StoreError
 from fuelid.store.sqlite import SQLiteStore
 
 __all__ = ["ArchiveReport", "DayReport", "archive_store"]
-
-SERVICE_KEY = "service"
-"""The ``online_state`` key of the service record (:mod:`fuelid.online.liveness`)."""
 
 
 @dataclass(frozen=True)
@@ -174,16 +167,10 @@ def _check_date(text: str) -> None:
         raise StoreError(f"--before {text!r} is not a date (YYYY-MM-DD, UTC)") from None
 
 
-def _connect(path: str) -> sqlite3.Connection:
-    con = sqlite3.connect(path, isolation_level=None, check_same_thread=False, timeout=5.0)
-    con.execute("PRAGMA busy_timeout=5000")
-    return con
-
-
-def _day_table(con: sqlite3.Connection, start: float, end: float) -> pa.Table:
+def _day_table(source: StoreDays, start: float, end: float) -> pa.Table:
     """The day's samples as a table of :data:`SAMPLE_SCHEMA` (NULL → null), in batches."""
     batches = []
-    for rows in sample_batches(con, start, end):
+    for rows in source.sample_batches(start, end):
         columns = list(zip(*rows, strict=True))
         arrays = [
             pa.array(columns[ARCHIVE_COLUMNS.index(f.name)], type=f.type) for f in SAMPLE_SCHEMA
@@ -192,12 +179,8 @@ def _day_table(con: sqlite3.Connection, start: float, end: float) -> pa.Table:
     return pa.Table.from_batches(batches, schema=SAMPLE_SCHEMA)  # no copy into one chunk
 
 
-def _event_table(con: sqlite3.Connection, start: float, end: float) -> pa.Table:
-    rows = con.execute(
-        "SELECT time, kind, detail, wall_time FROM events WHERE time >= ? AND time < ? "
-        "ORDER BY time, id",
-        (start, end),
-    ).fetchall()
+def _event_table(source: StoreDays, start: float, end: float) -> pa.Table:
+    rows = source.event_rows(start, end)
     columns: list[Any] = list(zip(*rows, strict=True)) if rows else [[] for _ in EVENT_SCHEMA]
     return pa.table(
         [pa.array(c, type=f.type) for c, f in zip(columns, EVENT_SCHEMA, strict=True)],
@@ -283,29 +266,29 @@ def archive_store(store: SQLiteStore, root: str | Path, before: str | None = Non
         _check_date(before)
     folder = Path(root).resolve()
     _check_folder(folder)
-    con = _connect(store.path)
+    source = StoreDays(store.path)
     try:
-        meta = dict(con.execute("SELECT key, value FROM meta").fetchall())
+        meta = source.meta()
         loop_id, store_uuid = meta.get("loop_id"), meta.get("store_uuid")
         if not loop_id or not store_uuid:
             raise StoreError(
                 f"{store.path}: the store has no loop id or store uuid (a store of fuelid "
                 "before schema 3 that was never opened by this fuelid)"
             )
-        newest = con.execute("SELECT max(time) FROM samples").fetchone()[0]
-        limit = before or (None if newest is None else day_of(float(newest)))
-        days = sorted(set(days_with(con, "samples")) | set(days_with(con, "events")))
-        total_rows = int(con.execute("SELECT count(*) FROM samples").fetchone()[0])
+        newest = source.newest_time()
+        limit = before or (None if newest is None else day_of(newest))
+        days = sorted(set(source.days_with("samples")) | set(source.days_with("events")))
+        total_rows = source.sample_count()
         file_bytes = sum(
             _size(Path(store.path + suffix)) for suffix in ("", "-wal")
         )  # the store's share per row, for the comparison
-        done = archived_days(con, loop_id)
+        done = source.archived_days(loop_id)
         reports = []
         for day in days:
             date = day_of(day * 86400.0)
             if limit is None or date >= limit:
                 continue
-            reports.append(_archive_day(con, folder, loop_id, store_uuid, date, done.get(date)))
+            reports.append(_archive_day(source, folder, loop_id, store_uuid, date, done.get(date)))
         reports = [
             DayReport(
                 **{
@@ -317,13 +300,13 @@ def archive_store(store: SQLiteStore, root: str | Path, before: str | None = Non
             )
             for r in reports
         ]
-        plant, note = _write_loop_info(con, folder, meta)
+        plant, note = _write_loop_info(source, folder, meta)
     except OSError as error:
         raise StoreError(f"archive {folder}: {error}") from None
     except sqlite3.Error as error:
         raise StoreError(f"{store.path}: cannot read the store for the archive ({error})") from None
     finally:
-        con.close()
+        source.close()
     return ArchiveReport(
         store=store.path,
         root=str(folder),
@@ -338,7 +321,7 @@ def archive_store(store: SQLiteStore, root: str | Path, before: str | None = Non
 
 
 def _archive_day(
-    con: sqlite3.Connection,
+    source: StoreDays,
     folder: Path,
     loop_id: str,
     store_uuid: str,
@@ -349,38 +332,27 @@ def _archive_day(
     start, end = day_bounds(date)
     sample_path = partition_dir(folder, "samples", loop_id, date) / f"{store_uuid}.parquet"
     event_path = partition_dir(folder, "events", loop_id, date) / f"{store_uuid}.parquet"
-    con.execute("BEGIN")  # one snapshot of the day
-    try:
+    with source.snapshot():  # one moment of the day
         wall = _time.time()
-        count, newer = con.execute(
-            "SELECT count(*), coalesce(sum(wall_time >= ?), 0) FROM samples "
-            "WHERE time >= ? AND time < ?",
-            (-1.0 if recorded is None else recorded[1], start, end),
-        ).fetchone()
-        new_events = con.execute(
-            "SELECT count(*) FROM events WHERE time >= ? AND time < ? AND wall_time >= ?",
-            (start, end, -1.0 if recorded is None else recorded[1]),
-        ).fetchone()[0]
+        since = -1.0 if recorded is None else recorded[1]
+        count, newer, new_events = source.day_counts(start, end, since)
         unchanged = (
             recorded is not None
-            and int(count) <= recorded[0]
-            and int(newer) == 0
-            and int(new_events) == 0
+            and count <= recorded[0]
+            and newer == 0
+            and new_events == 0
             and sample_path.exists()
         )
-        if unchanged:
-            con.execute("COMMIT")
-            assert recorded is not None
-            events = pq.read_metadata(event_path).num_rows if event_path.exists() else 0
-            return DayReport(
-                date, recorded[0], int(count), events, 0,
-                _size(sample_path) + _size(event_path), 0, False,
-            )  # fmt: skip
-        samples = _day_table(con, start, end)
-        events_table = _event_table(con, start, end)
-    finally:
-        if con.in_transaction:
-            con.execute("COMMIT")
+        if not unchanged:
+            samples = _day_table(source, start, end)
+            events_table = _event_table(source, start, end)
+    if unchanged:
+        assert recorded is not None
+        events = pq.read_metadata(event_path).num_rows if event_path.exists() else 0
+        return DayReport(
+            date, recorded[0], count, events, 0,
+            _size(sample_path) + _size(event_path), 0, False,
+        )  # fmt: skip
     old = (
         pq.read_table(sample_path, schema=SAMPLE_SCHEMA)
         if sample_path.exists()
@@ -402,7 +374,7 @@ def _archive_day(
     t_first = float(times[0].as_py()) if merged.num_rows else None
     t_last = float(times[-1].as_py()) if merged.num_rows else None
     path = sample_path if merged.num_rows else event_path
-    record_day(con, loop_id, date, merged.num_rows, t_first, t_last, str(path), wall)
+    source.record_day(loop_id, date, merged.num_rows, t_first, t_last, str(path), wall)
     return DayReport(
         date, merged.num_rows, samples.num_rows, merged_events.num_rows, written,
         _size(sample_path) + _size(event_path), 0, True,
@@ -431,19 +403,14 @@ def _write_bytes(path: Path, data: bytes) -> None:
 
 
 def _write_loop_info(
-    con: sqlite3.Connection, folder: Path, meta: dict[str, str]
+    source: StoreDays, folder: Path, meta: dict[str, str]
 ) -> tuple[str | None, str | None]:
     """``loops/<loop_id>/<store_uuid>.json`` and the plant file; (plant name, note)."""
     loop_id, store_uuid = meta["loop_id"], meta["store_uuid"]
-    row = con.execute("SELECT value FROM online_state WHERE key = ?", (SERVICE_KEY,)).fetchone()
+    record = source.state_value(SERVICE_KEY)
     settings: dict[str, Any] | None = None
-    if row is not None:
-        try:
-            record = json.loads(row[0])
-        except ValueError:
-            record = None
-        if isinstance(record, dict) and isinstance(record.get("settings"), dict):
-            settings = record["settings"]
+    if isinstance(record, dict) and isinstance(record.get("settings"), dict):
+        settings = record["settings"]
     plant, note = _copy_plant(folder / "loops" / loop_id, settings)
     info = {
         "loop_id": loop_id,

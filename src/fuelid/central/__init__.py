@@ -7,7 +7,10 @@ the durable buffer. :mod:`~fuelid.central.schema` is the schema and its versione
 URL; :mod:`~fuelid.central.outbox` the site's change log; :mod:`~fuelid.central.sender` the sync
 engine (:class:`Sender`: COPY into staging, upsert, exactly once);
 :mod:`~fuelid.central.requests` the actions taken centrally, which each site fetches and carries
-out itself; :mod:`~fuelid.central.status` the fleet's rows. The service's side is
+out itself; :mod:`~fuelid.central.status` the fleet's rows. A reader of the central store (the
+dashboard) holds one :class:`CentralDB` and reads a loop through :class:`CentralHistory` and
+:class:`CentralStoreView`, the central implementations of :class:`fuelid.store.LoopHistory`
+and :class:`fuelid.store.LoopStore`. The service's side is
 :mod:`fuelid.online.central_link`; the reference: docs/reference/central.md.
 
 psycopg (the ``fleet`` extra) is imported only when a connection is made.
@@ -19,6 +22,15 @@ The names in ``__all__``, at ``fuelid.central`` itself.
 
 from __future__ import annotations
 
+from fuelid.central._db import CentralDB
+from fuelid.central._history import (
+    LIVENESS_KEYS,
+    CentralHistory,
+    CentralStoreView,
+    central_loop_ids,
+    liveness_row,
+    shown_store,
+)
 from fuelid.central.connect import CentralError, connect
 from fuelid.central.outbox import enable_outbox, sync_status
 from fuelid.central.requests import file_central_request
@@ -27,16 +39,23 @@ from fuelid.central.sender import Sender, SyncResult
 from fuelid.central.status import fleet_status
 
 __all__ = [
+    "LIVENESS_KEYS",
     "SCHEMA_VERSION",
+    "CentralDB",
     "CentralError",
+    "CentralHistory",
+    "CentralStoreView",
     "Sender",
     "SyncResult",
+    "central_loop_ids",
     "check_schema",
     "connect",
     "drop_old_partitions",
     "enable_outbox",
     "file_central_request",
     "fleet_status",
+    "liveness_row",
     "migrate",
+    "shown_store",
     "sync_status",
 ]

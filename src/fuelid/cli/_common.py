@@ -26,7 +26,7 @@ import typer
 from fuelid import __version__
 from fuelid.errors import FuelidError
 from fuelid.io.jsonsafe import json_ready
-from fuelid.units import celsius_to_kelvin as _to_kelvin
+from fuelid.units import celsius_to_kelvin
 
 if TYPE_CHECKING:
     from fuelid.io.timeseries import IOData
@@ -163,11 +163,11 @@ def provenance(options: dict[str, Any], input_file: Path | None = None) -> dict[
     }
 
 
-def celsius_to_kelvin(t_degC: float, name: str = "fuel temperature") -> float:
-    """A fuel temperature at the edge [°C] in SI [K], refusing one that is not finite."""
+def checked_kelvin(t_degC: float, name: str = "fuel temperature") -> float:
+    """An option's temperature [°C], refused unless finite, in SI [K] (``celsius_to_kelvin``)."""
     if not math.isfinite(t_degC):
         raise FuelidError(f"{name} must be a finite temperature, got {t_degC}")
-    return _to_kelvin(t_degC)
+    return celsius_to_kelvin(t_degC)
 
 
 @dataclass(frozen=True)
@@ -190,9 +190,9 @@ def site_facts(path: Path | None) -> SiteFacts | None:
     """Read ``--site``: the control period it sets and its controller block (None: no file)."""
     if path is None:
         return None
-    from fuelid.plc.site import load_site
+    from fuelid.online.settings import load_service_site
 
-    site = load_site(path)
+    site = load_service_site(path)
     sampling = site.sampling
     period = sampling.control_period_s if "control_period_s" in sampling.model_fields_set else None
     controller = site.controller
@@ -214,9 +214,9 @@ def temperature_options(
     (T_fuel, (T_min, T_max)) : float, (float, float)
         [K]
     """
-    T_fuel = celsius_to_kelvin(fuel_temp, "--fuel-temp")
-    T_min = celsius_to_kelvin(t_min, "--t-min")
-    T_max = celsius_to_kelvin(t_max, "--t-max")
+    T_fuel = checked_kelvin(fuel_temp, "--fuel-temp")
+    T_min = checked_kelvin(t_min, "--t-min")
+    T_max = checked_kelvin(t_max, "--t-max")
     if not t_min < t_max:
         raise FuelidError(
             f"--t-min must be below --t-max (a range needs low < high), got {t_min:g} and "

@@ -122,9 +122,10 @@ def sync_command(
     """
     from fuelid.central.connect import CentralError
     from fuelid.online.central_link import CentralLink
-    from fuelid.online.liveness import SERVICE_KEY, link_json
+    from fuelid.online.liveness import link_json
     from fuelid.plc.site_fleet import Central
     from fuelid.store.online import OnlineHistory
+    from fuelid.store.online_rows import SERVICE_KEY
     from fuelid.store.sqlite import SQLiteStore
 
     with SQLiteStore(store) as opened, OnlineHistory(opened) as history:

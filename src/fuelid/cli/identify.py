@@ -57,7 +57,7 @@ from fuelid.cli._identify_options import (
     parse_order,
 )
 from fuelid.errors import FuelidError
-from fuelid.units import celsius_to_kelvin, format_celsius
+from fuelid.units import FUEL_TEMPERATURE_RANGE_C, celsius_to_kelvin, format_celsius
 
 if TYPE_CHECKING:
     from fuelid.io.timeseries import IOData
@@ -227,8 +227,9 @@ def identify_command(
         from fuelid.lti import check_control_period
 
         check_control_period(control_period, "control period (--control-period)")
-    if fuel_temp is not None and not (math.isfinite(fuel_temp) and -60.0 <= fuel_temp <= 150.0):
-        raise FuelidError(f"--fuel-temp must lie within -60…150 °C, got {fuel_temp:g}")
+    low, high = FUEL_TEMPERATURE_RANGE_C
+    if fuel_temp is not None and not (math.isfinite(fuel_temp) and low <= fuel_temp <= high):
+        raise FuelidError(f"--fuel-temp must lie within {low:g}…{high:g} °C, got {fuel_temp:g}")
     options = IdentifyOptions(
         method=method.value,
         order=parse_order(order),

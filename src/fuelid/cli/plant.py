@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from fuelid.cli._common import ConfigOption, celsius_to_kelvin, emit_json, guarded, provenance
+from fuelid.cli._common import ConfigOption, checked_kelvin, emit_json, guarded, provenance
 from fuelid.cli.serve import serve_command
 from fuelid.errors import FuelidError
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
@@ -169,7 +169,7 @@ def info(
     from fuelid.workflow.plant_info import plant_info
 
     plant = load_plant_config(config)
-    T_fuel = celsius_to_kelvin(fuel_temp)
+    T_fuel = checked_kelvin(fuel_temp)
     result = plant_info(plant, T_fuel, u)
     summary = result.to_json() | {"config": str(config) if config else "reference"}
     if plant.calibration is not None:

@@ -102,13 +102,13 @@ def record_command(
     them, else from the receipt time; lost samples, link drops, restarts, bad values and gain
     changes are stored as events. Ctrl-C or SIGTERM stops after a final commit.
     """
+    from fuelid.online.settings import load_service_site
     from fuelid.plc.record_runner import record_site
-    from fuelid.plc.site import load_site
 
     for name, value in (("--duration", duration), ("--give-up-after", give_up_after)):
         if value is not None and not value > 0.0:
             raise typer.BadParameter(f"{name} must be a positive number of seconds")
-    site = load_site(config)
+    site = load_service_site(config)
     for line in site.missing():
         typer.echo(f"record: the site file does not expose {line}", err=True)
     target = str(store) if store is not None else site.store.url

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from fuelid.cli._common import celsius_to_kelvin, emit_json, guarded, provenance
+from fuelid.cli._common import checked_kelvin, emit_json, guarded, provenance
 from fuelid.errors import FuelidError
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C, LPM_PER_M3S, PA_PER_MPA
 
@@ -201,9 +201,9 @@ def simulate_command(
         control_period=control_period,
         noise_std=None if noise_std is None else noise_std / LPM_PER_M3S,
         resolution=None if resolution is None else resolution / LPM_PER_M3S,
-        T_fuel=celsius_to_kelvin(fuel_temp, "--fuel-temp"),
+        T_fuel=checked_kelvin(fuel_temp, "--fuel-temp"),
         T_fuel_end=(
-            None if fuel_temp_end is None else celsius_to_kelvin(fuel_temp_end, "--fuel-temp-end")
+            None if fuel_temp_end is None else checked_kelvin(fuel_temp_end, "--fuel-temp-end")
         ),
         seed=seed,
         truth=truth,

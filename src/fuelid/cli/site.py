@@ -33,9 +33,9 @@ def check(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Validate a site file and show its protocol, sampling and tags with their scaling."""
-    from fuelid.plc.site import load_site
+    from fuelid.online.settings import load_service_site
 
-    site = load_site(config)
+    site = load_service_site(config)
     if as_json:
         from fuelid.online.window import check_site_plant
 

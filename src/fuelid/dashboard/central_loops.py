@@ -1,10 +1,14 @@
-"""The central loops a dashboard lists: :class:`CentralLoops`.
+"""The central loops a dashboard lists, on one connection to the central store.
+
+The connection is a :class:`fuelid.central.CentralDB`, shared by every central loop of a
+dashboard: one lock, a failure drops it and the next read reconnects, at most every
+``retry_s`` (a dead server must not cost every page a connect timeout); several reads run in
+one read-only snapshot, so that a loop's status is one moment of the central store.
 
 :class:`CentralLoops` lists the loops of the central database (``loops``), polled every
 :data:`~fuelid.dashboard.registry.WATCH_EVERY_S` for new ones, each a
-:class:`~fuelid.dashboard.central_source.CentralLoop` over the one shared
-:class:`~fuelid.dashboard.central_db.CentralDB`. When the database is lost, ``error`` says why
-(the fleet page's banner) and the loops are listed as not shown until it is back.
+:class:`~fuelid.dashboard.central_source.CentralLoop`. When the database is lost, ``error`` says
+why (the fleet page's banner) and the loops are listed as not shown until it is back.
 """
 
 from __future__ import annotations
@@ -12,11 +16,13 @@ from __future__ import annotations
 import threading
 import time as _time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from fuelid.central.connect import CentralError
-from fuelid.dashboard.central_db import CentralDB
-from fuelid.dashboard.central_source import CentralLoop
+from fuelid.central import CentralDB, CentralError, central_loop_ids
 from fuelid.store.schema import default_loop_id
+
+if TYPE_CHECKING:
+    from fuelid.dashboard.central_source import CentralLoop
 
 __all__ = ["CentralLoops"]
 
@@ -57,17 +63,18 @@ class CentralLoops:
 
     def refresh(self, force: bool = False) -> None:
         """Read the list of loops again (at most every ``every_s``); a failure sets ``error``."""
+        from fuelid.dashboard.central_source import CentralLoop
+
         now = _time.monotonic()
         with self._lock:
             if not force and now - self._polled < self.every_s:
                 return
             self._polled = now
             try:
-                rows = self.db.query("SELECT loop_id FROM loops ORDER BY loop_id")
+                listed = central_loop_ids(self.db)
             except CentralError:
                 return  # error set: the fleet page says so
-            for (loop_id,) in rows:
-                loop_id = str(loop_id)
+            for loop_id in listed:
                 if loop_id in self._loops or loop_id in self.skipped:
                     continue
                 if default_loop_id(loop_id) != loop_id:  # a loop id is part of URLs

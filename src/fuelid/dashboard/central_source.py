@@ -2,12 +2,14 @@
 
 The fleet page, the loop and window pages, the API and the stream read a central loop exactly as
 they read a store file: :class:`CentralLoop` runs the SAME report functions (``status_json``,
-``history_json``, ``window_json``, ``proposal_json`` of :mod:`fuelid.online.report`) over two
-small views of the central rows, :class:`CentralHistory` (what those functions ask of an
-:class:`~fuelid.store.online.OnlineHistory`) and :class:`CentralStoreView` (what they ask of a
-store), so the shapes cannot drift apart. A loop whose store file was replaced has several
-stores centrally; the newest one (by the central ``stores.last_seen``) is shown, as a central
-request is checked against it (:func:`fuelid.central.requests.file_central_request`).
+``history_json``, ``window_json``, ``proposal_json`` of :mod:`fuelid.online.report`, through
+:func:`~fuelid.dashboard.source.loop_status` and :func:`~fuelid.dashboard.source.loop_history`)
+over two small views of the central rows, :class:`fuelid.central.CentralHistory` (a
+:class:`~fuelid.store.LoopHistory`) and :class:`fuelid.central.CentralStoreView` (a
+:class:`~fuelid.store.LoopStore`), so the shapes cannot drift apart. A loop whose store file
+was replaced has several stores centrally; the newest one (by the central
+``stores.last_seen``) is shown, as a central request is checked against it
+(:func:`fuelid.central.requests.file_central_request`).
 
 **Liveness from the centre.** The site's service record arrives with every send (the liveness
 row), so its beat is as old as the last send. The loop's state is judged as of the site's own
@@ -47,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from fuelid.central.connect import CentralError
+from fuelid.central import CentralDB, CentralHistory, CentralStoreView, liveness_row, shown_store
 from fuelid.central.requests import (
     DEFAULT_EXPIRY_S,
     EXCITE_START_EXPIRY_S,
@@ -55,13 +57,16 @@ from fuelid.central.requests import (
     file_central_request,
     newest_store,
 )
-from fuelid.dashboard.central_db import CentralDB
-from fuelid.dashboard.central_views import CentralHistory, CentralStoreView
-from fuelid.dashboard.source import TREND_COLUMNS, service_plant_file, without_folders
+from fuelid.dashboard.source import (
+    TREND_COLUMNS,
+    loop_history,
+    loop_status,
+    service_plant_file,
+)
 from fuelid.dashboard.views import is_waiting
 from fuelid.errors import FuelidError
 from fuelid.io.clock import format_age, format_time
-from fuelid.online.liveness import SERVICE_KEY
+from fuelid.store.online_rows import SERVICE_KEY
 from fuelid.store.records import SampleArrays, StoreError
 
 __all__ = [
@@ -80,15 +85,6 @@ DEFAULT_SEND_EVERY_S = 5.0
 """The send interval assumed when the site did not tell it (``[central] send_every_s``) [s]."""
 CENTRAL_REQUESTS_SHOWN = 20
 """The newest central requests of a loop its status carries."""
-
-_LIVENESS = (
-    "service, backlog_rows, backlog_oldest_wall, last_send_wall, "
-    "extract(epoch FROM updated)::float8 AS updated, "
-    "extract(epoch FROM now() - updated)::float8 AS contact_age_s, site_wall, send_every_s, "
-    "newest_sample_time, newest_sample_wall, first_sample_time, period_s, schema_version, "
-    "site_state"
-)
-_LIVENESS_KEYS = tuple(c.split(" AS ")[-1].strip() for c in _LIVENESS.split(", "))
 
 
 def contact_link(
@@ -220,26 +216,9 @@ class CentralLoop:
 
     # --- the central rows ---------------------------------------------------------------
 
-    def _store(self) -> dict[str, Any]:
-        rows = self.db.query(
-            "SELECT store_uuid, loop_id, site_name, tag_map_hash FROM stores WHERE loop_id = %s "
-            "ORDER BY last_seen DESC LIMIT 1",
-            (self.loop_id,),
-        )
-        if not rows:
-            raise CentralError(f"the central store has no store of loop {self.loop_id!r}")
-        keys = ("store_uuid", "loop_id", "site_name", "tag_map_hash")
-        return dict(zip(keys, rows[0], strict=True))
-
-    def _liveness(self, store_uuid: str) -> dict[str, Any] | None:
-        rows = self.db.query(
-            f"SELECT {_LIVENESS} FROM liveness WHERE store_uuid = %s", (store_uuid,)
-        )
-        return dict(zip(_LIVENESS_KEYS, rows[0], strict=True)) if rows else None
-
     def _views(self) -> tuple[CentralHistory, CentralStoreView, dict[str, Any] | None]:
-        store = self._store()
-        live = self._liveness(store["store_uuid"])
+        store = shown_store(self.db, self.loop_id)
+        live = liveness_row(self.db, store["store_uuid"])
         history = CentralHistory(self.db, store["store_uuid"], live or {})
         return history, CentralStoreView(self.db, store, live or {}), live
 
@@ -252,8 +231,8 @@ class CentralLoop:
         ``source`` ("central") with ``samples_note`` (where the raw samples are).
         """
         with self.db.reading():
-            store = self._store()
-            live = self._liveness(store["store_uuid"]) or {}
+            store = shown_store(self.db, self.loop_id)
+            live = liveness_row(self.db, store["store_uuid"]) or {}
         period = live.get("period_s")
         if period is None:
             sampling = ((live.get("service") or {}).get("settings") or {}).get("sampling") or {}
@@ -269,23 +248,20 @@ class CentralLoop:
         }
 
     def status(self, now_wall: float | None = None) -> dict[str, Any]:
-        """The loop now, by :func:`fuelid.online.report.status_json` over the central rows.
+        """The loop now, by :func:`~fuelid.dashboard.source.loop_status` over the central rows.
 
         The state is judged as of the site's clock at its last send (:func:`contact_link`);
         ``central`` is the centre's view of the sync (the last contact, the backlog the site
         reported, the loop's central requests with their expiry and outcome).
         """
-        from fuelid.online.report import status_json
-
         with self.db.reading():
             history, view, live = self._views()
             as_of = _time.time() if now_wall is None else float(now_wall)
             if live is not None:
                 as_of = float(live.get("site_wall") or live["updated"])
-            out = status_json(history, view, as_of)  # type: ignore[arg-type]
+            out = loop_status(history, view, self.loop_id, as_of)
             requests = central_requests_of(self.db, self.loop_id)
         tz = str(out.get("timezone") or "UTC")
-        out["site"] = {**out["site"], "store": None, "loop_id": self.loop_id}
         now = None if now_wall is None else float(now_wall)
         out["link"] = contact_link(out["link"], live, history.state(SERVICE_KEY), now, tz)
         live = live or {}
@@ -299,23 +275,19 @@ class CentralLoop:
             "last_send_wall": live.get("last_send_wall"),
             "requests": requests,
         }
-        return without_folders(out)
+        return out
 
     def plant_file(self) -> str | None:
         """The plant file the site's service named (a path on the site's host, rarely here)."""
         with self.db.reading():
             history, _, _ = self._views()
-            return service_plant_file(history.state(SERVICE_KEY))
+            return service_plant_file(history)
 
     def history(self, windows: int | None = None) -> dict[str, Any]:
-        """Everything the service did, by :func:`fuelid.online.report.history_json`."""
-        from fuelid.online.report import history_json
-
+        """Everything the service did, by :func:`~fuelid.dashboard.source.loop_history`."""
         with self.db.reading():
             history, view, _ = self._views()
-            out = history_json(history, view, windows=windows)  # type: ignore[arg-type]
-        out["site"] = {**out["site"], "store": None, "loop_id": self.loop_id}
-        return out
+            return loop_history(history, view, self.loop_id, windows)
 
     def recent_events(self, limit: int) -> list[dict[str, Any]]:
         """The newest ``limit`` events the site sent, oldest first."""

@@ -7,7 +7,7 @@ folder is scanned at start and every :data:`WATCH_EVERY_S` seconds for new ``*.d
 found there that cannot be shown is listed among the refusals (the fleet page shows them) and not
 tried again until its file changes.
 
-``--central URL`` adds the loops of the central store (:class:`~fuelid.dashboard.central_db.
+``--central URL`` adds the loops of the central store (:class:`~fuelid.dashboard.central_loops.
 CentralLoops`, polled as often for new loops). A loop id both in a local store and centrally is
 shown from the local store (read live: its samples stream, an action is applied at once rather
 than relayed at the site's next sync); the central copy is listed among the loops not shown,

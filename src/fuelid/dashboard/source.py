@@ -10,9 +10,11 @@ these modules knows where the rows come from.
 
 :class:`SQLiteLoop` reads one store file (one loop). It opens the store once as fuelid opens any
 store (a store of an older schema is migrated then, as ``fuelid store info`` would; a store of a
-newer fuelid is refused with both versions) and afterwards reads on a connection opened
-read-only (``mode=ro``): the only rows the dashboard writes are the requests it files, through
-the store's own history API.
+newer fuelid is refused with both versions) and reads it through the store's own API
+(:class:`~fuelid.store.SQLiteStore`, :class:`~fuelid.store.OnlineHistory`): the only rows the
+dashboard writes are the requests it files, through the store's history. Both readers build
+their status and history with :func:`loop_status` and :func:`loop_history`, over a
+:class:`~fuelid.store.LoopHistory` and a :class:`~fuelid.store.LoopStore`.
 
 Times are plant time (the samples' time base) [s UTC] unless a key says ``wall``; flows in
 L/min, the command in V, fuel temperature in °C, the gains in the PLC block's units.
@@ -20,28 +22,33 @@ L/min, the command in V, fuel temperature in °C, the gains in the PLC block's u
 
 from __future__ import annotations
 
-import math
-import sqlite3
-import threading
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from fuelid.store.records import SAMPLE_COLUMNS_SQL, SampleArrays, StoreError
+from fuelid.store import LoopHistory, LoopStore
+from fuelid.store.online_rows import SERVICE_KEY
+from fuelid.store.records import SampleArrays, StoreError
 from fuelid.store.schema import default_loop_id
 
-__all__ = ["TREND_COLUMNS", "LoopReader", "SQLiteLoop", "Trend"]
+__all__ = [
+    "TREND_COLUMNS",
+    "LoopReader",
+    "SQLiteLoop",
+    "Trend",
+    "loop_history",
+    "loop_status",
+    "service_plant_file",
+]
 
 TREND_COLUMNS = ("y", "setpoint", "u", "fuel_temperature")
 """The trend's series: flow and setpoint [L/min], VFD command [V], fuel temperature [°C]."""
 
-_LOD_COLUMNS = {"y": "y", "setpoint": "sp", "u": "u", "fuel_temperature": "tf"}
 
-
-def service_plant_file(record: dict[str, Any] | None) -> str | None:
-    """The plant file a service record names (its ``settings.plant_file``), or None."""
+def service_plant_file(history: LoopHistory) -> str | None:
+    """The plant file the loop's service record names (its ``settings.plant_file``), or None."""
+    record = history.state(SERVICE_KEY)
     path = ((record or {}).get("settings") or {}).get("plant_file")
     return str(path) if path else None
 
@@ -59,6 +66,32 @@ def without_folders(status: dict[str, Any]) -> dict[str, Any]:
         return status
     name = str(path).replace("\\", "/").rsplit("/", 1)[-1]  # a Windows service's path too
     return {**status, "service": {**service, "settings": {**settings, "plant_file": name}}}
+
+
+def loop_status(
+    history: LoopHistory, store: LoopStore, loop_id: str, now_wall: float | None = None
+) -> dict[str, Any]:
+    """The loop now, by :func:`fuelid.online.report.status_json` (one shape with the CLI).
+
+    As the pages show it: the site names the loop by its id, no file path (nor the plant
+    file's folder).
+    """
+    from fuelid.online.report import status_json
+
+    out = status_json(history, store, now_wall)
+    out["site"] = {**out["site"], "store": None, "loop_id": loop_id}
+    return without_folders(out)
+
+
+def loop_history(
+    history: LoopHistory, store: LoopStore, loop_id: str, windows: int | None = None
+) -> dict[str, Any]:
+    """Everything the service did, by :func:`fuelid.online.report.history_json` (no file path)."""
+    from fuelid.online.report import history_json
+
+    out = history_json(history, store, windows=windows)
+    out["site"] = {**out["site"], "store": None, "loop_id": loop_id}
+    return out
 
 
 class Trend(dict[str, Any]):
@@ -155,15 +188,6 @@ class LoopReader(Protocol):
         ...
 
 
-def _read_only(path: Path) -> sqlite3.Connection:
-    con = sqlite3.connect(
-        f"{path.resolve().as_uri()}?mode=ro", uri=True, check_same_thread=False, timeout=5.0
-    )
-    con.execute("PRAGMA busy_timeout=5000")
-    con.execute("PRAGMA query_only=ON")
-    return con
-
-
 class SQLiteLoop:
     """One loop's store file behind :class:`LoopReader`.
 
@@ -186,29 +210,14 @@ class SQLiteLoop:
         self.store = SQLiteStore(self.path)  # migrates an older store; refuses a newer one
         try:
             self.online = OnlineHistory(self.store)
-            self._con = _read_only(self.path)
-        except (StoreError, sqlite3.Error) as error:
+        except StoreError as error:
             self.store.close()
             raise StoreError(f"{self.path}: cannot read the store ({error})") from None
-        self._lock = threading.Lock()
-        meta = dict(self._query("SELECT key, value FROM meta"))
-        self.meta = meta
         # a loop id is part of URLs: whatever a store holds, only [a-z0-9-] reaches them
-        self.loop_id = default_loop_id(meta.get("loop_id") or self.store.site_name)
-
-    # --- plumbing ------------------------------------------------------------------------
-
-    def _query(self, sql: str, args: Sequence[Any] = ()) -> list[Any]:
-        with self._lock:
-            try:
-                return self._con.execute(sql, tuple(args)).fetchall()
-            except sqlite3.Error as error:
-                raise StoreError(f"{self.path}: {error}") from None
+        self.loop_id = default_loop_id(self.store.loop_id)
 
     def close(self) -> None:
-        """Close the read connection, the history and the store."""
-        with self._lock:
-            self._con.close()
+        """Close the history and the store."""
         self.online.close()
         self.store.close()
 
@@ -220,50 +229,29 @@ class SQLiteLoop:
             "loop_id": self.loop_id,
             "site_name": self.store.site_name,
             "schema_version": self.store.schema_version,
-            "store_uuid": self.meta.get("store_uuid"),
+            "store_uuid": self.store.store_uuid,
             "period_s": self.store.period_s,
         }
 
     def status(self, now_wall: float | None = None) -> dict[str, Any]:
-        """The loop now, by :func:`fuelid.online.report.status_json` (one shape with the CLI)."""
-        from fuelid.online.report import status_json
-
-        out = status_json(self.online, self.store, now_wall)
-        out["site"] = {**out["site"], "store": None, "loop_id": self.loop_id}  # no file paths
-        return without_folders(out)
+        """The loop now (:func:`loop_status`)."""
+        return loop_status(self.online, self.store, self.loop_id, now_wall)
 
     def plant_file(self) -> str | None:
         """The service's plant file as its record names it (None: the reference plant)."""
-        from fuelid.online.liveness import SERVICE_KEY
-
-        return service_plant_file(self.online.state(SERVICE_KEY))
+        return service_plant_file(self.online)
 
     def history(self, windows: int | None = None) -> dict[str, Any]:
-        """Everything the service did, by :func:`fuelid.online.report.history_json`."""
-        from fuelid.online.report import history_json
-
-        out = history_json(self.online, self.store, windows=windows)
-        out["site"] = {**out["site"], "store": None, "loop_id": self.loop_id}
-        return out
+        """Everything the service did (:func:`loop_history`)."""
+        return loop_history(self.online, self.store, self.loop_id, windows)
 
     def recent_events(self, limit: int) -> list[dict[str, Any]]:
         """The newest ``limit`` events, oldest first (read newest first, by the time index)."""
-        rows = self._query(
-            "SELECT time, kind, detail FROM events ORDER BY time DESC, rowid DESC LIMIT ?",
-            (int(limit),),
-        )
-        return [{"time": t, "kind": k, "detail": d} for t, k, d in reversed(rows)]
+        return self.store.newest_events(limit)
 
     def window(self, window_id: int) -> dict[str, Any] | None:
         """One window's row with its ``detail`` parsed; None when absent."""
-        rows = self._query("SELECT t_to FROM windows WHERE id = ?", (int(window_id),))
-        if not rows:
-            return None
-        t_to = float(rows[0][0])
-        for row in self.online.windows(t_from=t_to, t_to=math.nextafter(t_to, math.inf)):
-            if int(row["id"]) == int(window_id):
-                return row
-        return None
+        return self.online.window(window_id)
 
     def recent_windows(self, limit: int) -> list[dict[str, Any]]:
         """The newest ``limit`` windows' stored rows (``detail`` parsed), oldest first."""
@@ -288,7 +276,6 @@ class SQLiteLoop:
         "refused" with its outcome, or "waiting"). ``seen`` is not needed here: the request is
         decided within a beat of the page, on the proposal's own transitions.
         """
-        from fuelid.online.liveness import SERVICE_KEY
         from fuelid.online.requests import submit_request
 
         record = self.online.state(SERVICE_KEY) or {}
@@ -310,33 +297,12 @@ class SQLiteLoop:
 
     def lod(self, level: int, t_from: float, t_to: float) -> dict[str, np.ndarray[Any, Any]]:
         """Level-of-detail rows (``samples_lod``) of ``level`` s in ``[t_from, t_to)``."""
-        cols = ", ".join(f"{c}_min, {c}_max" for c in _LOD_COLUMNS.values())
-        rows = self._query(
-            f"SELECT bucket, n, bad, {cols} FROM samples_lod "
-            "WHERE level = ? AND bucket >= ? AND bucket < ? ORDER BY bucket",
-            (int(level), math.floor(t_from / level) * level, float(t_to)),
-        )
-        data = np.array(
-            [[math.nan if v is None else v for v in row] for row in rows], dtype=np.float64
-        ).reshape(len(rows), 3 + 2 * len(_LOD_COLUMNS))
-        out = {"bucket": data[:, 0], "n": data[:, 1], "bad": data[:, 2]}
-        for k, name in enumerate(_LOD_COLUMNS):
-            out[f"{name}_min"] = data[:, 3 + 2 * k]
-            out[f"{name}_max"] = data[:, 4 + 2 * k]
-        return out
+        return self.store.read_lod(level, t_from, t_to)
 
     def cursor(self) -> int:
         """The rowid of the newest committed sample (0 without samples)."""
-        row = self._query("SELECT max(rowid) FROM samples")[0]
-        return int(row[0] or 0)
+        return self.store.newest_rowid()
 
     def samples_after(self, cursor: int, limit: int) -> tuple[int, SampleArrays]:
         """Samples inserted after rowid ``cursor`` (at most ``limit``, oldest first)."""
-        rows = self._query(
-            f"SELECT rowid, {SAMPLE_COLUMNS_SQL} FROM samples WHERE rowid > ? ORDER BY rowid "
-            "LIMIT ?",
-            (int(cursor), int(limit)),
-        )
-        if not rows:
-            return int(cursor), SampleArrays.from_rows([])
-        return int(rows[-1][0]), SampleArrays.from_rows([r[1:] for r in rows])
+        return self.store.samples_after(cursor, limit)

@@ -357,7 +357,7 @@ def proposal_next(proposal: dict[str, Any], status: dict[str, Any]) -> str:
 
 def _window_s(status: dict[str, Any]) -> float:
     """The service's window length [s] (``[online] window_s``, its default when unknown)."""
-    from fuelid.plc.site import Online
+    from fuelid.online.settings import Online
 
     settings = (status.get("service") or {}).get("settings") or {}
     return float(settings.get("window_s") or Online().window_s)

@@ -23,7 +23,7 @@ from fuelid.errors import FuelidError
 from fuelid.identify.diagnostics import residual_whiteness
 from fuelid.model import nrmse_fit, simulate_model
 from fuelid.online.context import model_of
-from fuelid.plc.site import Online
+from fuelid.online.settings import Online
 from fuelid.store.base import iodata_from_samples
 from fuelid.store.records import SampleArrays
 

@@ -25,7 +25,7 @@ from fuelid.archive.layout import LoopDay, day_bounds, list_loop_days
 from fuelid.errors import FuelidError
 from fuelid.fleet.summary import loop_summary, read_results, track_loop, write_tracking
 from fuelid.fleet.task import LoopSettings, loop_settings, reidentify_day, result_path
-from fuelid.plc.site import Online
+from fuelid.online.settings import Online
 
 __all__ = ["FleetError", "ReidentifyRun", "online_from_toml", "reidentify"]
 

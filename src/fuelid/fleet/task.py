@@ -51,8 +51,9 @@ from fuelid.archive.layout import (
 )
 from fuelid.errors import ConfigError, DataError, FuelidError
 from fuelid.model import MODEL_KEYS
+from fuelid.online.settings import Online
 from fuelid.online.window import WindowAnalyser, WindowResult, window_priors
-from fuelid.plc.site import Controller, Online
+from fuelid.plc.site import Controller
 from fuelid.store.records import SampleArrays
 
 __all__ = [

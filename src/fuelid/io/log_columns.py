@@ -21,7 +21,7 @@ from fuelid.io.bad_values import describe_bad_marks, find_bad_marks
 from fuelid.io.log_time import ANY_STAMPS, StampFormat, stamps_to_seconds
 from fuelid.io.tables import find_column, match_column, to_float
 from fuelid.io.timeseries import FUEL_TEMPERATURE_COLUMN, FloatArray
-from fuelid.units import celsius_to_kelvin
+from fuelid.units import FUEL_TEMPERATURE_RANGE_C, celsius_to_kelvin
 
 __all__ = [
     "MIN_SAMPLES",
@@ -43,8 +43,6 @@ MIN_SAMPLES = 10
 """Fewer samples than this are refused; a segment between gaps with fewer is dropped."""
 HUGE = 1e12
 """Input or output values larger than this in magnitude are refused."""
-FUEL_TEMPERATURE_RANGE = (-60.0, 150.0)
-"""Plausible fuel temperatures [°C]; outside is another unit (K, °F) or a broken sensor."""
 
 
 @dataclass
@@ -212,7 +210,7 @@ def _fuel_temperature_kelvin(
     T_degC: FloatArray, rows: IntArray, name: str, source: str
 ) -> FloatArray:
     """Fuel temperatures [°C] in kelvin, refusing implausible ones (another unit, a bad sensor)."""
-    low, high = FUEL_TEMPERATURE_RANGE
+    low, high = FUEL_TEMPERATURE_RANGE_C
     wrong = np.flatnonzero((T_degC < low) | (T_degC > high))
     if wrong.size:
         i = int(wrong[0])

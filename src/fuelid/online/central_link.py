@@ -224,11 +224,7 @@ class CentralLink:
 
     def _local(self, central_id: int) -> dict[str, Any] | None:
         """The local request filed for central request ``central_id`` (by its origin)."""
-        row = self.sender.lite.execute(
-            "SELECT id FROM requests WHERE origin = ? ORDER BY id LIMIT 1",
-            (origin_of(central_id),),
-        ).fetchone()
-        return None if row is None else self.history.request(int(row[0]))
+        return self.history.request_of_origin(origin_of(central_id))
 
     def _apply_now(self, local: dict[str, Any]) -> tuple[str, str]:
         """Apply a request with no service running (``fuelid central sync``).

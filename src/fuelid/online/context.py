@@ -17,11 +17,11 @@ from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
 from fuelid.online.gains import Gains
 from fuelid.online.logs import LOGGER_NAME, log_event, log_line
+from fuelid.online.settings import Online, ServiceSite
 from fuelid.online.tracking import GainObservation
 from fuelid.online.window import WindowPriors
 from fuelid.plc.record_status import RecorderStats
 from fuelid.plc.recorder import Recorder
-from fuelid.plc.site import Online, SiteConfig
 from fuelid.store.online import OnlineHistory
 from fuelid.store.sqlite import SQLiteStore
 from fuelid.store.writer import SampleWriter
@@ -68,7 +68,7 @@ class ServiceContext:
 
     Parameters
     ----------
-    site : SiteConfig
+    site : ServiceSite
         The site file.
     store : SQLiteStore
         The site's store.
@@ -82,7 +82,7 @@ class ServiceContext:
         Gets each structured log line.
     """
 
-    site: SiteConfig
+    site: ServiceSite
     store: SQLiteStore
     history: OnlineHistory
     priors: WindowPriors

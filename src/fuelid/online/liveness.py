@@ -33,12 +33,11 @@ from typing import TYPE_CHECKING, Any
 from fuelid.io.clock import format_age
 
 if TYPE_CHECKING:
-    from fuelid.store.sqlite import SQLiteStore
+    from fuelid.store import LoopStore
 
 __all__ = [
     "LINK_FRESH_S",
     "SERVICE_BEAT_S",
-    "SERVICE_KEY",
     "SERVICE_STALE_S",
     "link_json",
     "loop_state",
@@ -46,8 +45,6 @@ __all__ = [
     "service_record",
 ]
 
-SERVICE_KEY = "service"
-"""The ``online_state`` key of the service record."""
 SERVICE_BEAT_S = 2.0
 """Wall time between two beats of the running service [s]."""
 SERVICE_STALE_S = 10.0
@@ -256,7 +253,7 @@ def loop_state(
 
 
 def link_json(
-    store: SQLiteStore,
+    store: LoopStore,
     now: float | None = None,
     service: dict[str, Any] | None = None,
     tz: str | None = "UTC",

@@ -2,8 +2,8 @@
 
 No I/O, no store, no PLC: :func:`propose` takes the accepted identification windows, the
 current and the commissioning gains and the site's ``[online]`` table
-(:class:`fuelid.plc.site.Online`) and returns a :class:`ProposalDecision` that says yes or no,
-with one line of reason either way and every number behind it. The guards follow docs
+(:class:`fuelid.online.settings.Online`) and returns a :class:`ProposalDecision` that says yes or
+no, with one line of reason either way and every number behind it. The guards follow docs
 online.md §5 (an adaptive tuner that trusts every window bursts):
 
 1. **No proposal while the loop oscillates** (the caller's oscillation detector decides).
@@ -74,7 +74,7 @@ from fuelid.online.evidence import (
     weighted_mean_model,
 )
 from fuelid.online.gains import Gains
-from fuelid.plc.site import Online
+from fuelid.online.settings import Online
 from fuelid.tuning import PISettings, robustness, tune
 
 DETUNE_TOLERANCE = 1e-3

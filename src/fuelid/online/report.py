@@ -1,6 +1,8 @@
 """What ``fuelid online status`` and ``fuelid online history`` print: plain JSON from the store.
 
-Pure functions of an open store and its :class:`~fuelid.store.OnlineHistory`: they read, never
+Pure functions of a loop's history and store (:class:`~fuelid.store.LoopHistory` and
+:class:`~fuelid.store.LoopStore`: a store file's :class:`~fuelid.store.OnlineHistory` and
+:class:`~fuelid.store.SQLiteStore`, or a loop of the central database): they read, never
 write, and need no running service (the service commits every window, proposal and write before
 it goes on, so a reader sees what it did).
 
@@ -31,13 +33,13 @@ from fuelid.errors import FuelidError
 from fuelid.io.jsonsafe import json_ready
 from fuelid.online.context import TRACKER_OBSERVATIONS, observation_of
 from fuelid.online.excitation.status import excitation_json
-from fuelid.online.liveness import LINK_FRESH_S, SERVICE_KEY, link_json
+from fuelid.online.liveness import LINK_FRESH_S, link_json
 from fuelid.online.plc_gains import plc_gains_json
 from fuelid.online.requests import stale_of
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.plc.gain_reading import PLC_GAINS_KEY
-from fuelid.store.online import OnlineHistory
-from fuelid.store.sqlite import SQLiteStore
+from fuelid.store import LoopHistory, LoopStore
+from fuelid.store.online_rows import SERVICE_KEY
 from fuelid.tuning.block import BlockForm, block_units, to_block
 
 ONLINE_UNITS: dict[str, str] = {
@@ -318,7 +320,7 @@ def _current_model(row: dict[str, Any] | None) -> dict[str, Any] | None:
     }
 
 
-def k_trend_json(history: OnlineHistory) -> dict[str, Any]:
+def k_trend_json(history: LoopHistory) -> dict[str, Any]:
     """The K(T) tracker over the accepted models, with K predicted at the newest temperature.
 
     Returns
@@ -360,8 +362,8 @@ def k_trend_json(history: OnlineHistory) -> dict[str, Any]:
 
 
 def status_json(
-    history: OnlineHistory,
-    store: SQLiteStore,
+    history: LoopHistory,
+    store: LoopStore,
     now: float | None = None,
     *,
     settings: dict[str, Any] | None = None,
@@ -370,10 +372,10 @@ def status_json(
 
     Parameters
     ----------
-    history : OnlineHistory
-        The online history in ``store``'s file.
-    store : SQLiteStore
-        The store (samples and events).
+    history : LoopHistory
+        The loop's online history (a store file's :class:`~fuelid.store.OnlineHistory`).
+    store : LoopStore
+        Its store (identity, newest sample, events).
     now : float, optional
         Reference time for the link's age [s UTC]; the wall clock by default.
     settings : dict, optional
@@ -448,7 +450,7 @@ def status_json(
 
 
 def _write_back_json(
-    history: OnlineHistory, given: dict[str, Any], merged: dict[str, Any]
+    history: LoopHistory, given: dict[str, Any], merged: dict[str, Any]
 ) -> dict[str, Any]:
     """The status' ``write_back``: the setting and where it comes from, the gains it keeps."""
     setting_from = None
@@ -471,7 +473,7 @@ def _write_back_json(
     }
 
 
-def central_json(store: SQLiteStore, now: float | None = None) -> dict[str, Any] | None:
+def central_json(store: LoopStore, now: float | None = None) -> dict[str, Any] | None:
     """The sync to the central store (:func:`fuelid.central.outbox.sync_status`).
 
     None when the store cannot say (an older schema, a locked file, no file: a central reader's
@@ -481,7 +483,7 @@ def central_json(store: SQLiteStore, now: float | None = None) -> dict[str, Any]
 
     from fuelid.central.outbox import open_store_file, sync_status
 
-    if getattr(store, "path", None) is None:
+    if store.path is None:
         return None
     try:
         con = open_store_file(store.path)
@@ -495,7 +497,7 @@ def central_json(store: SQLiteStore, now: float | None = None) -> dict[str, Any]
         con.close()
 
 
-def _service(history: OnlineHistory) -> tuple[dict[str, Any] | None, dict[str, Any]]:
+def _service(history: LoopHistory) -> tuple[dict[str, Any] | None, dict[str, Any]]:
     """The service record (None when none) and its settings (empty when none)."""
     record = history.state(SERVICE_KEY)
     if not isinstance(record, dict):
@@ -519,8 +521,8 @@ def _merged_settings(given: dict[str, Any], running: dict[str, Any]) -> dict[str
 
 
 def history_json(
-    history: OnlineHistory,
-    store: SQLiteStore,
+    history: LoopHistory,
+    store: LoopStore,
     *,
     settings: dict[str, Any] | None = None,
     windows: int | None = None,
@@ -609,7 +611,7 @@ def health_line(health: dict[str, Any] | None) -> str:
     )
 
 
-def _site(store: SQLiteStore) -> dict[str, Any]:
+def _site(store: LoopStore) -> dict[str, Any]:
     return {"name": store.site_name, "tag_map_hash": store.tag_map_hash, "store": store.path}
 
 

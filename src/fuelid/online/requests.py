@@ -19,6 +19,7 @@ from __future__ import annotations
 import time as _time
 from typing import Any
 
+from fuelid.store import LoopHistory
 from fuelid.store.online import OnlineHistory
 from fuelid.store.records import StoreError
 
@@ -106,7 +107,7 @@ def _excite(history: OnlineHistory, request: dict[str, Any]) -> tuple[str, str]:
     heartbeat rule).
     """
     from fuelid.online.excitation.exciter import REQUEST_KEY
-    from fuelid.online.liveness import SERVICE_KEY
+    from fuelid.store.online_rows import SERVICE_KEY
 
     action = EXCITE_KINDS[request["kind"]]
     record = history.state(SERVICE_KEY) or {}
@@ -137,15 +138,15 @@ def _excite(history: OnlineHistory, request: dict[str, Any]) -> tuple[str, str]:
     return "done", "stop requested: the service writes 0 to the register"
 
 
-def stale_of(history: OnlineHistory, proposal_id: Any) -> str | None:
+def stale_of(history: LoopHistory, proposal_id: Any) -> str | None:
     """Why the proposal is too old to be written (the service's own rule); None when fresh.
 
     The same answer for an approval (refused with it), the status (each open proposal's
     ``stale``) and the dashboard's cards.
     """
     from fuelid.online.context import stale_reason
-    from fuelid.online.liveness import SERVICE_KEY
-    from fuelid.plc.site import Online
+    from fuelid.online.settings import Online
+    from fuelid.store.online_rows import SERVICE_KEY
 
     proposal = history.proposal(int(proposal_id)) if proposal_id is not None else None
     model_id = None if proposal is None else proposal.get("model_id")
@@ -205,7 +206,8 @@ def submit_request(
         The request's row after: ``status`` "done" or "refused" with its ``outcome``, or still
         "waiting" when the live service did not take it within ``wait_s``.
     """
-    from fuelid.online.liveness import SERVICE_BEAT_S, SERVICE_KEY, link_json
+    from fuelid.online.liveness import SERVICE_BEAT_S, link_json
+    from fuelid.store.online_rows import SERVICE_KEY
 
     live = link_json(store, service=history.state(SERVICE_KEY))["service"] == "running"
     request = file_request(history, kind, proposal_id, who, why, origin)

@@ -62,10 +62,11 @@ from fuelid.online.context import (
 )
 from fuelid.online.excitation.exciter import Exciter, newest_model, plant_model_function
 from fuelid.online.gains import Gains
-from fuelid.online.liveness import SERVICE_BEAT_S, SERVICE_KEY, service_record
+from fuelid.online.liveness import SERVICE_BEAT_S, service_record
 from fuelid.online.proposal_filing import TURNED_DOWN_MEMORY
 from fuelid.online.requests import consume_requests
 from fuelid.online.scheduler import MAX_CATCH_UP_WINDOWS, SCHEDULE_POLL_S, Scheduler
+from fuelid.online.settings import ServiceSite
 from fuelid.online.tracking import KTracker, TrackingError
 from fuelid.online.window import WindowAnalyser, window_priors
 from fuelid.online.worker import AnalyserSpec, WindowWorker
@@ -74,8 +75,8 @@ from fuelid.plc.adapters.base import LinkError, PlcSource
 from fuelid.plc.gain_handshake import HEARTBEAT_MODULUS, GainWriter
 from fuelid.plc.record_runner import PRUNE_EVERY_S
 from fuelid.plc.recorder import Recorder
-from fuelid.plc.site import SiteConfig
 from fuelid.store.online import OnlineHistory
+from fuelid.store.online_rows import SERVICE_KEY
 from fuelid.store.sqlite import SQLiteStore
 from fuelid.store.writer import SampleWriter
 from fuelid.tuning.block import BlockForm
@@ -86,7 +87,7 @@ class OnlineService:
 
     Parameters
     ----------
-    site : SiteConfig
+    site : ServiceSite
         The site file.
     store_url : str, optional
         The store (default ``[store] url``).
@@ -106,7 +107,7 @@ class OnlineService:
 
     def __init__(
         self,
-        site: SiteConfig,
+        site: ServiceSite,
         store_url: str | None = None,
         *,
         source: PlcSource | None = None,

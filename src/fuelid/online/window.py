@@ -68,8 +68,8 @@ from fuelid.online.gates import (
 )
 from fuelid.online.health import U_LIMITS_V, LoopHealth, loop_health
 from fuelid.online.pem_screen import NEAR_INTEGRATING_POLE, closed_loop_choice
+from fuelid.online.settings import Online
 from fuelid.online.tracking import PlantGain
-from fuelid.plc.site import Online
 from fuelid.store.base import iodata_from_samples
 from fuelid.store.records import Quality, SampleArrays
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C

@@ -27,8 +27,8 @@ from functools import partial
 
 from fuelid.model import ProcessModel
 from fuelid.online.gates import WindowVerdict
+from fuelid.online.settings import Online
 from fuelid.online.window import WindowAnalyser, WindowPriors, WindowResult, window_priors
-from fuelid.plc.site import Online
 from fuelid.store.records import SampleArrays
 
 

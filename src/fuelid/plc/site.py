@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import tomllib
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
@@ -362,69 +362,6 @@ class Store(_Table):
     )
 
 
-class Online(_Table):
-    """``[online]``: the online service's schedule, gates and proposal rules (issue 15).
-
-    Every threshold has its default here; docs/reference/site-file.md says what each does.
-    """
-
-    identify_every_s: float = Field(
-        300.0, ge=30.0, description="identify every this much data time [s] (at least 30)"
-    )
-    window_s: float = Field(600.0, ge=60.0, description="rolling window identified [s]")
-    write_back: Literal["off", "approve", "auto"] = Field(
-        "off", description="off: propose only; approve: write approved proposals; auto: write"
-    )
-    rule: Literal["simc", "isimc", "lambda", "amigo"] = Field("simc", description="PI rule")
-    ms_target: float = Field(1.7, gt=1.0, le=3.0, description="robustness target Ms")
-    gain_bounds: Pair = Field(
-        default_factory=lambda: [0.5, 2.0],
-        description="hard bounds of Kc and Ti as multiples of the commissioning gains",
-    )
-    agree_windows: int = Field(2, ge=1, le=10, description="accepted windows that must agree")
-    hysteresis: float = Field(0.1, ge=0.0, le=1.0, description="smallest relative gain change")
-    move_fraction: float = Field(
-        0.5, gt=0.0, le=1.0, description="share of the way toward the target gains per proposal"
-    )
-    max_limit_share: float = Field(
-        0.05, ge=0.0, le=1.0, description="gate: share of the window with u at a limit"
-    )
-    max_bad_share: float = Field(
-        0.05, ge=0.0, le=1.0, description="gate: share of lost or flagged samples"
-    )
-    max_rel_stderr_K: float = Field(0.05, gt=0.0, description="gate: relative std. error of K")
-    max_rel_stderr_T: float = Field(0.2, gt=0.0, description="gate: relative std. error of T")
-    min_fit_percent: float = Field(80.0, ge=0.0, le=100.0, description="gate: validation fit")
-    max_residual_acf: float = Field(
-        0.7, gt=0.0, lt=1.0, description="gate: largest |residual autocorrelation| over the lags"
-    )
-    plant_ratio_event: Pair = Field(
-        default_factory=lambda: [0.5, 2.0],
-        description="an identified K outside these multiples of the plant's K raises an event",
-    )
-    revert_iae_factor: float = Field(
-        1.5, gt=1.0, description="revert when the IAE per setpoint change worsens this much"
-    )
-    echo_timeout_s: float = Field(5.0, gt=0.0, description="wait this long for the PLC's echo")
-
-    @model_validator(mode="after")
-    def _schedule_covers_the_data(self) -> Online:
-        if self.identify_every_s > self.window_s:
-            raise ValueError(
-                f"identify_every_s ({self.identify_every_s:g} s) is longer than window_s "
-                f"({self.window_s:g} s): the data between windows would never be analysed"
-            )
-        return self
-
-    @model_validator(mode="after")
-    def _bounds(self) -> Online:
-        for key in ("gain_bounds", "plant_ratio_event"):
-            low, high = getattr(self, key)
-            if not 0.0 < low <= 1.0 <= high:
-                raise ValueError(f"{key}: [low, high] with 0 < low <= 1 <= high, got {low}, {high}")
-        return self
-
-
 class Excitation(_Table):
     """``[excitation]``: a small test signal on the PI's output, to identify a loop that sits still.
 
@@ -529,14 +466,18 @@ def _check_gain_units(site: SiteConfig) -> None:
 
 
 class SiteConfig(_Table):
-    """A whole site file.
+    """A whole site file as the PLC side reads it (every table but ``[online]``).
 
     Cross-checks between tables, each refused with a one-line reason naming the key: the roles
     known, flow and command present, addresses in the protocol's syntax, the units of the roles
-    that have one, the ring's layout, the write side of ``[online] write_back``, the gain units
-    of ``[controller]``, and what ``[excitation]`` on needs (``write.excitation``,
-    ``write.heartbeat``, ``tags.excitation``, ``tags.mode``). With excitation on, the heartbeat
-    runs whatever ``[online] write_back`` says (the PLC zeroes the signal when it is stale).
+    that have one, the ring's layout, the gain units of ``[controller]``, and what
+    ``[excitation]`` on needs (``write.excitation``, ``write.heartbeat``, ``tags.excitation``,
+    ``tags.mode``). With excitation on, the heartbeat runs whatever ``[online] write_back`` says
+    (the PLC zeroes the signal when it is stale).
+
+    ``[online]`` is the online service's table: :class:`fuelid.online.settings.ServiceSite`
+    (this class with ``online``) reads and checks it, the write side it needs included; here it
+    is passed over, so that the PLC side does not depend on the service's settings.
     """
 
     site: SiteInfo
@@ -547,10 +488,16 @@ class SiteConfig(_Table):
     ring: Ring | None = None
     controller: Controller | None = None
     store: Store = Field(default_factory=Store)
-    online: Online = Field(default_factory=Online)
     excitation: Excitation = Field(default_factory=Excitation)
     archive: Archive | None = None
     central: Central | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _online_is_the_services(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "online" in data and "online" not in cls.model_fields:
+            return {key: value for key, value in data.items() if key != "online"}
+        return data
 
     @model_validator(mode="after")
     def _tag_map(self) -> SiteConfig:
@@ -587,18 +534,6 @@ class SiteConfig(_Table):
             raise ValueError("tags.seq.type: the sequence counter is a uint32")
         if self.ring is not None:
             check_ring(self.plc.protocol, self.ring)
-        if self.online.write_back != "off":
-            needed = [role for role in ("kc", "ti", "apply", "echo") if role not in self.write]
-            if needed:
-                raise ValueError(
-                    f"online.write_back = {self.online.write_back!r} needs the write side: "
-                    f"write.{needed[0]} is missing (staged kc, ti, apply and its echo)"
-                )
-            if self.controller is None:
-                raise ValueError(
-                    f"online.write_back = {self.online.write_back!r} needs a [controller] table "
-                    "(the form and units the PLC reads its gains in)"
-                )
         check_overlaps(self.plc.protocol, self.tags, "tags")
         check_overlaps(self.plc.protocol, self.write, "write")
         _check_gain_units(self)
@@ -631,8 +566,25 @@ def _describe(error: Any) -> str:
     return f"{location}: {message}" if location else message
 
 
+SiteT = TypeVar("SiteT", bound=SiteConfig)
+
+
 def load_site(path: str | Path) -> SiteConfig:
-    """Read and validate a site file.
+    """Read and validate a site file (the PLC side: ``[online]`` is passed over).
+
+    The commands read it with :func:`fuelid.online.settings.load_service_site`, which checks
+    ``[online]`` too.
+
+    Raises
+    ------
+    ConfigError
+        One line: the file, the key and the reason.
+    """
+    return load_site_as(path, SiteConfig)
+
+
+def load_site_as(path: str | Path, model: type[SiteT]) -> SiteT:
+    """Read a site file and validate it as ``model`` (:class:`SiteConfig` or a subclass).
 
     Raises
     ------
@@ -653,14 +605,14 @@ def load_site(path: str | Path) -> SiteConfig:
             f"{source} is a plant file (it has a [vfd] table); --config takes a site file"
         )
     try:
-        site = SiteConfig.model_validate(data)
+        site = model.model_validate(data)
     except ValidationError as exc:
         details = "; ".join(_describe(err) for err in exc.errors())
         raise ConfigError(f"{source}: {details}") from None
     return _relative_to(site, Path(path).resolve().parent, data)
 
 
-def _relative_to(site: SiteConfig, folder: Path, data: dict[str, Any]) -> SiteConfig:
+def _relative_to(site: SiteT, folder: Path, data: dict[str, Any]) -> SiteT:
     """Relative paths written in the file, taken from the file's folder.
 
     ``[site] plant``, ``[store] url`` and ``[archive] dir`` must not depend on where the

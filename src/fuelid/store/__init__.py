@@ -6,7 +6,10 @@ second). :func:`open_store` opens a store by URL (``sqlite:///path.db``, as ``[s
 site file); a PostgreSQL store is one more entry in :data:`STORES`.
 
 :class:`OnlineHistory` keeps the online service's history (windows, models, proposals, writes of
-gains, a little state) in the same SQLite file, on a connection of its own.
+gains, a little state) in the same SQLite file, on a connection of its own. :class:`LoopHistory`
+and :class:`LoopStore` are what the readers of a loop (the reports, the dashboard) read of a
+history and of its store: the site's file and the central database (:mod:`fuelid.central`)
+both implement them.
 
 Every table, the schema's versions and the migrations that upgrade an older store are in
 :mod:`fuelid.store.schema`.
@@ -22,11 +25,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from fuelid.store._loop_history import LoopHistory, LoopStore
 from fuelid.store.base import SampleStore
 from fuelid.store.online import OnlineHistory
 from fuelid.store.online_rows import (
     PROPOSAL_STATUSES,
     PROPOSAL_TRANSITIONS,
+    SERVICE_KEY,
     WRITE_KINDS,
     WRITE_STATUSES,
 )
@@ -50,10 +55,13 @@ __all__ = [
     "PROPOSAL_STATUSES",
     "PROPOSAL_TRANSITIONS",
     "SCHEMA_VERSION",
+    "SERVICE_KEY",
     "STORES",
     "WRITE_KINDS",
     "WRITE_STATUSES",
     "Event",
+    "LoopHistory",
+    "LoopStore",
     "OnlineHistory",
     "PruneResult",
     "Quality",

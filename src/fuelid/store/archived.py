@@ -9,18 +9,24 @@ archived with at least as many rows as the store now holds for them and no sampl
 since (a row that arrived after the day was archived is kept until it is archived too).
 
 Every function takes a connection of the caller's and runs short statements on it: reads use
-the time index, one day at a time; a write is one small transaction.
+the time index, one day at a time; a write is one small transaction. :class:`StoreDays` is the
+archive's connection of its own to a store's file, with the reads it needs (a day's counts in
+one snapshot, its raw rows and events, the store's identity and service record).
 """
 
 from __future__ import annotations
 
+import json
 import math
 import sqlite3
 from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
 
 __all__ = [
     "ARCHIVE_COLUMNS",
     "DAY_S",
+    "StoreDays",
     "archived_days",
     "day_start",
     "days_with",
@@ -157,3 +163,114 @@ def prunable_spans(
         if int(count) <= samples and int(newer) == 0:
             spans.append((start, end, float(wall)))
     return spans
+
+
+class StoreDays:
+    """A store's file read for the archive, one UTC day at a time, on a connection of its own.
+
+    Autocommit: each read is a statement of its own unless inside :meth:`snapshot`, so that a
+    recorder writing the store meanwhile is never held up for long (WAL readers never block
+    its commits). SQLite's errors pass through (:class:`sqlite3.Error`): the archive says which
+    store it could not read.
+
+    Parameters
+    ----------
+    path : str
+        The store's file (opened by :class:`~fuelid.store.sqlite.SQLiteStore` before: its
+        tables are the current schema's).
+    """
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self._con = sqlite3.connect(
+            path, isolation_level=None, check_same_thread=False, timeout=5.0
+        )
+        self._con.execute("PRAGMA busy_timeout=5000")
+
+    def close(self) -> None:
+        """Close the connection."""
+        self._con.close()
+
+    @contextmanager
+    def snapshot(self) -> Iterator[None]:
+        """Every read inside sees one moment of the store (one read transaction)."""
+        self._con.execute("BEGIN")
+        try:
+            yield
+        finally:
+            if self._con.in_transaction:
+                self._con.execute("COMMIT")
+
+    def meta(self) -> dict[str, str]:
+        """The store's ``meta`` table (``loop_id``, ``store_uuid``, ``site_name``, …)."""
+        return dict(self._con.execute("SELECT key, value FROM meta").fetchall())
+
+    def newest_time(self) -> float | None:
+        """The newest sample's time [plant s UTC]; None without samples."""
+        value = self._con.execute("SELECT max(time) FROM samples").fetchone()[0]
+        return None if value is None else float(value)
+
+    def sample_count(self) -> int:
+        """The samples the store holds."""
+        return int(self._con.execute("SELECT count(*) FROM samples").fetchone()[0])
+
+    def days_with(self, table: str) -> list[int]:
+        """The UTC day numbers with rows in ``table`` (:func:`days_with`)."""
+        return days_with(self._con, table)
+
+    def archived_days(self, loop_id: str) -> dict[str, tuple[int, float, str]]:
+        """The days recorded as archived (:func:`archived_days`)."""
+        return archived_days(self._con, loop_id)
+
+    def day_counts(self, start: float, end: float, since: float) -> tuple[int, int, int]:
+        """(samples, samples written since, events written since) of one day.
+
+        The day is ``start <= time < end`` [plant s UTC]; "since" is at or after ``since``
+        [wall s UTC].
+        """
+        count, newer = self._con.execute(
+            "SELECT count(*), coalesce(sum(wall_time >= ?), 0) FROM samples "
+            "WHERE time >= ? AND time < ?",
+            (since, start, end),
+        ).fetchone()
+        new_events = self._con.execute(
+            "SELECT count(*) FROM events WHERE time >= ? AND time < ? AND wall_time >= ?",
+            (start, end, since),
+        ).fetchone()[0]
+        return int(count), int(newer), int(new_events)
+
+    def sample_batches(self, start: float, end: float) -> Iterator[list[tuple[object, ...]]]:
+        """The raw sample rows of ``start <= time < end`` in batches (:func:`sample_batches`)."""
+        return sample_batches(self._con, start, end)
+
+    def event_rows(self, start: float, end: float) -> list[tuple[Any, ...]]:
+        """The events of ``start <= time < end`` [plant s UTC]: (time, kind, detail, wall_time)."""
+        rows: list[tuple[Any, ...]] = self._con.execute(
+            "SELECT time, kind, detail, wall_time FROM events WHERE time >= ? AND time < ? "
+            "ORDER BY time, id",
+            (start, end),
+        ).fetchall()
+        return rows
+
+    def record_day(
+        self,
+        loop_id: str,
+        date: str,
+        samples: int,
+        t_first: float | None,
+        t_last: float | None,
+        path: str,
+        wall_time: float,
+    ) -> None:
+        """Record one archived day (:func:`record_day`)."""
+        record_day(self._con, loop_id, date, samples, t_first, t_last, path, wall_time)
+
+    def state_value(self, key: str) -> Any:
+        """The ``online_state`` value of ``key`` decoded; None when absent or not JSON."""
+        row = self._con.execute("SELECT value FROM online_state WHERE key = ?", (key,)).fetchone()
+        if row is None:
+            return None
+        try:
+            return json.loads(row[0])
+        except ValueError:
+            return None

@@ -4,20 +4,25 @@
 the count, the minimum and maximum of u, flow, setpoint and fuel temperature, and the number of
 samples not ok. :func:`lod_rows` summarises a batch; :data:`UPSERT_LOD` merges those rows into
 the table in the batch's transaction; :data:`RECOUNT_BAD` recounts a bucket's bad samples after
-a re-flag.
+a re-flag; :func:`read_lod` reads a level's buckets back as arrays (the dashboard's trend).
 """
 
 from __future__ import annotations
 
+import math
+import sqlite3
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
 from fuelid.store.records import Sample
 
-__all__ = ["RECOUNT_BAD", "UPSERT_LOD", "lod_rows"]
+__all__ = ["LOD_SERIES", "RECOUNT_BAD", "UPSERT_LOD", "lod_rows", "read_lod"]
 
 _LOD_VALUES = ("u", "y", "sp", "tf")
+LOD_SERIES = {"y": "y", "setpoint": "sp", "u": "u", "fuel_temperature": "tf"}
+"""The series ``samples_lod`` keeps, by the samples' field name: its column's short name."""
 
 
 def _lod_merge(name: str) -> str:
@@ -79,3 +84,28 @@ def lod_rows(samples: Sequence[Sample], level: int) -> list[tuple[object, ...]]:
         row.append(int(bads[k]))
         rows.append(tuple(row))
     return rows
+
+
+def read_lod(
+    con: sqlite3.Connection, level: int, t_from: float, t_to: float
+) -> dict[str, np.ndarray[Any, Any]]:
+    """The buckets of ``level`` s that start in ``[t_from, t_to)`` [plant s], as arrays.
+
+    From the bucket that holds ``t_from``. Keys ``bucket`` (its start [plant s]), ``n``,
+    ``bad``, and ``<series>_min`` / ``<series>_max`` for each of :data:`LOD_SERIES` (NaN where
+    a bucket has no value).
+    """
+    cols = ", ".join(f"{c}_min, {c}_max" for c in LOD_SERIES.values())
+    rows = con.execute(
+        f"SELECT bucket, n, bad, {cols} FROM samples_lod "
+        "WHERE level = ? AND bucket >= ? AND bucket < ? ORDER BY bucket",
+        (int(level), math.floor(t_from / level) * level, float(t_to)),
+    ).fetchall()
+    data = np.array(
+        [[math.nan if v is None else v for v in row] for row in rows], dtype=np.float64
+    ).reshape(len(rows), 3 + 2 * len(LOD_SERIES))
+    out = {"bucket": data[:, 0], "n": data[:, 1], "bad": data[:, 2]}
+    for k, name in enumerate(LOD_SERIES):
+        out[f"{name}_min"] = data[:, 3 + 2 * k]
+        out[f"{name}_max"] = data[:, 4 + 2 * k]
+    return out

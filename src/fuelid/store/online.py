@@ -37,12 +37,13 @@ from fuelid.io.jsonsafe import json_ready
 from fuelid.store.online_requests import PersonRequests
 from fuelid.store.online_rows import (
     _MODEL,
-    _PROPOSAL,
-    _WINDOW,
+    PROPOSAL_COLUMNS,
     PROPOSAL_STATUSES,
     PROPOSAL_TRANSITIONS,
     REQUEST_KINDS,
     REQUEST_STATUSES,
+    SERVICE_KEY,
+    WINDOW_COLUMNS,
     WRITE_KINDS,
     WRITE_STATUSES,
     _check_status,
@@ -55,8 +56,9 @@ from fuelid.store.online_rows import (
     _model,
     _newest,
     _proposal_by_id,
-    _window,
+    history_counts,
     proposal_row,
+    window_row,
 )
 from fuelid.store.online_writes import GainWrites
 from fuelid.store.records import StoreError
@@ -175,7 +177,7 @@ class OnlineHistory(GainWrites, PersonRequests):
                 )
                 model_id = int(cursor.lastrowid or 0)
             cursor = con.execute(
-                f"INSERT INTO windows({_WINDOW.removeprefix('id, ')}) "
+                f"INSERT INTO windows({WINDOW_COLUMNS.removeprefix('id, ')}) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (
                     t0,
@@ -219,13 +221,21 @@ class OnlineHistory(GainWrites, PersonRequests):
         if t_to is not None:
             where.append("t_to < ?")
             args.append(float(t_to))
-        query = f"SELECT {_WINDOW} FROM windows" + (
+        query = f"SELECT {WINDOW_COLUMNS} FROM windows" + (
             " WHERE " + " AND ".join(where) if where else ""
         )
         sql, more = _newest(query, "t_to, id", limit)
         with self._transaction(write=False) as con:
             rows = con.execute(sql, [*args, *more]).fetchall()
-        return [_window(row) for row in rows]
+        return [window_row(row) for row in rows]
+
+    def window(self, window_id: int) -> dict[str, Any] | None:
+        """One window as :meth:`windows` gives it; None when there is no such id."""
+        with self._transaction(write=False) as con:
+            row = con.execute(
+                f"SELECT {WINDOW_COLUMNS} FROM windows WHERE id = ?", (int(window_id),)
+            ).fetchone()
+        return None if row is None else window_row(row)
 
     def last_window(self) -> dict[str, Any] | None:
         """The newest window (largest ``t_to``), as :meth:`windows` gives it; None when none."""
@@ -345,7 +355,7 @@ class OnlineHistory(GainWrites, PersonRequests):
         list of dict
             As :meth:`proposal` gives them.
         """
-        query = f"SELECT {_PROPOSAL} FROM proposals"
+        query = f"SELECT {PROPOSAL_COLUMNS} FROM proposals"
         args: list[str] = []
         if status is not None:
             args = [status] if isinstance(status, str) else [str(s) for s in status]
@@ -446,7 +456,7 @@ class OnlineHistory(GainWrites, PersonRequests):
                 (key, text, _time.time()),
             )
 
-    def beat(self, now: float | None = None, key: str = "service") -> None:
+    def beat(self, now: float | None = None, key: str = SERVICE_KEY) -> None:
         """Refresh the ``beat`` [wall s UTC] of the service record, one small transaction.
 
         Only that field changes (``json_set`` in SQL); nothing happens when the record is
@@ -488,11 +498,4 @@ class OnlineHistory(GainWrites, PersonRequests):
             models = con.execute("SELECT count(*) FROM models").fetchone()[0]
             proposals = dict(con.execute("SELECT status, count(*) FROM proposals GROUP BY 1"))
             writes = dict(con.execute("SELECT status, count(*) FROM writes GROUP BY 1"))
-        out = {"windows": int(windows), "accepted": int(accepted), "models": int(models)}
-        out["proposals"] = int(sum(proposals.values()))
-        for status in (*PROPOSAL_STATUSES, *(s for s in proposals if s not in PROPOSAL_STATUSES)):
-            out[f"proposals_{status}"] = int(proposals.get(status, 0))
-        out["writes"] = int(sum(writes.values()))
-        for status in (*WRITE_STATUSES, *(s for s in writes if s not in WRITE_STATUSES)):
-            out[f"writes_{status}"] = int(writes.get(status, 0))
-        return out
+        return history_counts(windows, accepted, models, proposals, writes)

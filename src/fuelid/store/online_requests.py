@@ -13,14 +13,14 @@ import time as _time
 from typing import Any
 
 from fuelid.store.online_rows import (
-    _REQUEST,
+    REQUEST_COLUMNS,
     REQUEST_KINDS,
     REQUEST_STATUSES,
     HistoryConnection,
     _exists,
     _newest,
     _plant,
-    _request,
+    request_row,
 )
 from fuelid.store.records import StoreError
 
@@ -67,7 +67,7 @@ class PersonRequests(HistoryConnection):
             if proposal_id is not None and not _exists(con, "proposals", proposal_id):
                 raise StoreError(f"no proposal {proposal_id}")
             cursor = con.execute(
-                f"INSERT INTO requests({_REQUEST.removeprefix('id, ')}) "
+                f"INSERT INTO requests({REQUEST_COLUMNS.removeprefix('id, ')}) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?, 'waiting', '', NULL)",
                 (
                     _plant(con, None),
@@ -80,13 +80,13 @@ class PersonRequests(HistoryConnection):
                 ),
             )
             row = con.execute(
-                f"SELECT {_REQUEST} FROM requests WHERE id = ?", (cursor.lastrowid,)
+                f"SELECT {REQUEST_COLUMNS} FROM requests WHERE id = ?", (cursor.lastrowid,)
             ).fetchone()
-        return _request(row)
+        return request_row(row)
 
     def requests(self, status: str | None = None, limit: int | None = None) -> list[dict[str, Any]]:
         """Requests, oldest first, all or those with ``status``; ``limit`` keeps the newest."""
-        query = f"SELECT {_REQUEST} FROM requests"
+        query = f"SELECT {REQUEST_COLUMNS} FROM requests"
         args: list[Any] = []
         if status is not None:
             query += " WHERE status = ?"
@@ -94,15 +94,24 @@ class PersonRequests(HistoryConnection):
         sql, more = _newest(query, "id", limit)
         with self._transaction(write=False) as con:
             rows = con.execute(sql, [*args, *more]).fetchall()
-        return [_request(row) for row in rows]
+        return [request_row(row) for row in rows]
 
     def request(self, request_id: int) -> dict[str, Any] | None:
         """One request as :meth:`requests` gives it; None when there is no such id."""
         with self._transaction(write=False) as con:
             row = con.execute(
-                f"SELECT {_REQUEST} FROM requests WHERE id = ?", (int(request_id),)
+                f"SELECT {REQUEST_COLUMNS} FROM requests WHERE id = ?", (int(request_id),)
             ).fetchone()
-        return None if row is None else _request(row)
+        return None if row is None else request_row(row)
+
+    def request_of_origin(self, origin: str) -> dict[str, Any] | None:
+        """The first request filed with ``origin`` (a relay's ``central:<id>``); None when none."""
+        with self._transaction(write=False) as con:
+            row = con.execute(
+                f"SELECT {REQUEST_COLUMNS} FROM requests WHERE origin = ? ORDER BY id LIMIT 1",
+                (str(origin),),
+            ).fetchone()
+        return None if row is None else request_row(row)
 
     def finish_request(self, request_id: int, status: str, outcome: str) -> dict[str, Any]:
         """Record what became of a waiting request (``done_wall`` = now, wall clock).
@@ -129,6 +138,6 @@ class PersonRequests(HistoryConnection):
                 (status, str(outcome), _time.time(), int(request_id)),
             )
             updated = con.execute(
-                f"SELECT {_REQUEST} FROM requests WHERE id = ?", (int(request_id),)
+                f"SELECT {REQUEST_COLUMNS} FROM requests WHERE id = ?", (int(request_id),)
             ).fetchone()
-        return _request(updated)
+        return request_row(updated)

@@ -25,14 +25,23 @@ if TYPE_CHECKING:
     from fuelid.store.sqlite import SQLiteStore
 
 __all__ = [
+    "PROPOSAL_COLUMNS",
     "PROPOSAL_STATUSES",
     "PROPOSAL_TRANSITIONS",
+    "REQUEST_COLUMNS",
     "REQUEST_KINDS",
     "REQUEST_STATUSES",
+    "SERVICE_KEY",
+    "WINDOW_COLUMNS",
+    "WRITE_COLUMNS",
     "WRITE_KINDS",
     "WRITE_STATUSES",
     "HistoryConnection",
+    "history_counts",
     "proposal_row",
+    "request_row",
+    "window_row",
+    "write_row",
 ]
 
 PROPOSAL_TRANSITIONS: Mapping[str, frozenset[str]] = MappingProxyType(
@@ -61,17 +70,31 @@ WRITE_STATUSES = ("intent", "verified", "failed", "not_applied")
 echoes the gains), ``failed`` (the write failed or the echo disagrees), ``not_applied`` (the PLC
 never saw it, found when reconciling after a crash)."""
 
-_WINDOW = "id, t_from, t_to, time, accepted, reason, T_fuel, u_mean, model_id, detail, wall_time"
+WINDOW_COLUMNS = (
+    "id, t_from, t_to, time, accepted, reason, T_fuel, u_mean, model_id, detail, wall_time"
+)
+"""The columns of a window row, in the order :func:`window_row` decodes (the site's SQLite table
+and the central store's ``windows`` have them alike: an unquoted ``T_fuel`` is ``t_fuel`` in
+PostgreSQL)."""
 _MODEL = (
     "m.id, (SELECT w.id FROM windows w WHERE w.model_id = m.id ORDER BY w.id LIMIT 1) "
     "AS window_id, m.time, m.t_from, m.t_to, m.T_fuel, m.model, m.wall_time"
 )
-_WRITE = (
+WRITE_COLUMNS = (
     "id, time, proposal_id, kind, kc, ti, apply_seq, status, who, why, detail, finished, "
     "wall_time, finished_wall"
 )
-_PROPOSAL = "id, time, model_id, status, detail, wall_time"
-_REQUEST = "id, time, wall_time, kind, proposal_id, who, why, origin, status, outcome, done_wall"
+"""The columns of a write of gains, in the order :func:`write_row` decodes (site and centre)."""
+PROPOSAL_COLUMNS = "id, time, model_id, status, detail, wall_time"
+"""The columns of a proposal, in the order :func:`proposal_row` decodes (site and centre)."""
+REQUEST_COLUMNS = (
+    "id, time, wall_time, kind, proposal_id, who, why, origin, status, outcome, done_wall"
+)
+"""The columns of a person's request, in the order :func:`request_row` decodes (the site's
+``requests``, the central store's ``site_requests``)."""
+SERVICE_KEY = "service"
+"""The ``online_state`` key of the service record (written by :mod:`fuelid.online.liveness`,
+read by every reader of a loop: the reports, the dashboard, the archive, the central store)."""
 REQUEST_KINDS = ("approve", "reject", "revert", "excite_start", "excite_stop")
 """What a request asks for: approve or reject a proposal, revert to the last-known-good gains,
 start or stop a test signal (issue 40)."""
@@ -89,6 +112,11 @@ def _dumps(value: Any) -> str:
 
 def _loads(text: str | None) -> Any:
     return None if text is None else json.loads(text)
+
+
+def _parsed(value: Any) -> Any:
+    """A JSON column's value: SQLite's text parsed; PostgreSQL's jsonb comes parsed already."""
+    return _loads(value) if isinstance(value, str) else value
 
 
 def _finite_or_none(value: float | None) -> float | None:
@@ -234,11 +262,12 @@ def _exists(con: sqlite3.Connection, table: str, row_id: int) -> bool:
     return con.execute(f"SELECT 1 FROM {table} WHERE id = ?", (int(row_id),)).fetchone() is not None
 
 
-def _window(row: Sequence[Any]) -> dict[str, Any]:
+def window_row(row: Sequence[Any]) -> dict[str, Any]:
+    """A window row (:data:`WINDOW_COLUMNS`) as a dict, ``accepted`` a bool, ``detail`` parsed."""
     keys = ("id", "t_from", "t_to", "time", "accepted", "reason", "T_fuel", "u_mean", "model_id")
     out = dict(zip(keys, row, strict=False))
     out["accepted"] = bool(out["accepted"])
-    out["detail"] = _loads(row[9])
+    out["detail"] = _parsed(row[9])
     out["wall_time"] = row[10]
     return out
 
@@ -256,7 +285,7 @@ def proposal_row(row: Sequence[Any]) -> dict[str, Any]:
 
     ``detail`` is JSON text (SQLite) or already parsed (PostgreSQL's jsonb, the central store).
     """
-    stored = (row[4] if isinstance(row[4], dict) else _loads(row[4])) or {}
+    stored = _parsed(row[4]) or {}
     return {
         "id": row[0],
         "time": row[1],
@@ -270,24 +299,52 @@ def proposal_row(row: Sequence[Any]) -> dict[str, Any]:
     }
 
 
+def history_counts(
+    windows: int,
+    accepted: int,
+    models: int,
+    proposals: Mapping[str, int],
+    writes: Mapping[str, int],
+) -> dict[str, int]:
+    """The counts of a loop's history, as :meth:`OnlineHistory.counts` gives them.
+
+    ``proposals`` and ``writes`` are counts by status: every known status is listed (0 when
+    none), then any other the rows hold.
+
+    >>> history_counts(3, 2, 2, {"pending": 1}, {})["proposals_pending"]
+    1
+    """
+    out = {"windows": int(windows), "accepted": int(accepted), "models": int(models)}
+    out["proposals"] = int(sum(proposals.values()))
+    for status in (*PROPOSAL_STATUSES, *(s for s in proposals if s not in PROPOSAL_STATUSES)):
+        out[f"proposals_{status}"] = int(proposals.get(status, 0))
+    out["writes"] = int(sum(writes.values()))
+    for status in (*WRITE_STATUSES, *(s for s in writes if s not in WRITE_STATUSES)):
+        out[f"writes_{status}"] = int(writes.get(status, 0))
+    return out
+
+
 def _proposal_by_id(con: sqlite3.Connection, proposal_id: int) -> dict[str, Any] | None:
     row = con.execute(
-        f"SELECT {_PROPOSAL} FROM proposals WHERE id = ?", (int(proposal_id),)
+        f"SELECT {PROPOSAL_COLUMNS} FROM proposals WHERE id = ?", (int(proposal_id),)
     ).fetchone()
     return None if row is None else proposal_row(row)
 
 
-def _write(row: Sequence[Any]) -> dict[str, Any]:
-    keys = _WRITE.split(", ")
-    out = dict(zip(keys, row, strict=True))
-    out["detail"] = _loads(out["detail"])
+def write_row(row: Sequence[Any]) -> dict[str, Any]:
+    """A write of gains (:data:`WRITE_COLUMNS`) as a dict, ``detail`` parsed."""
+    out = dict(zip(WRITE_COLUMNS.split(", "), row, strict=True))
+    out["detail"] = _parsed(out["detail"])
     return out
 
 
 def _write_by_id(con: sqlite3.Connection, write_id: int) -> dict[str, Any] | None:
-    row = con.execute(f"SELECT {_WRITE} FROM writes WHERE id = ?", (int(write_id),)).fetchone()
-    return None if row is None else _write(row)
+    row = con.execute(
+        f"SELECT {WRITE_COLUMNS} FROM writes WHERE id = ?", (int(write_id),)
+    ).fetchone()
+    return None if row is None else write_row(row)
 
 
-def _request(row: Sequence[Any]) -> dict[str, Any]:
-    return dict(zip(_REQUEST.split(", "), row, strict=True))
+def request_row(row: Sequence[Any]) -> dict[str, Any]:
+    """A person's request (:data:`REQUEST_COLUMNS`) as a dict."""
+    return dict(zip(REQUEST_COLUMNS.split(", "), row, strict=True))

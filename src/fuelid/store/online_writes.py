@@ -16,7 +16,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from fuelid.store.online_rows import (
-    _WRITE,
+    WRITE_COLUMNS,
     WRITE_KINDS,
     WRITE_STATUSES,
     HistoryConnection,
@@ -24,8 +24,8 @@ from fuelid.store.online_rows import (
     _exists,
     _finite,
     _newest,
-    _write,
     _write_by_id,
+    write_row,
 )
 from fuelid.store.records import StoreError
 
@@ -107,7 +107,7 @@ class GainWrites(HistoryConnection):
             if row is not None:
                 raise StoreError(f"apply_seq {apply_seq} was already used by write {row[0]}")
             cursor = con.execute(
-                f"INSERT INTO writes({_WRITE.removeprefix('id, ')}) "
+                f"INSERT INTO writes({WRITE_COLUMNS.removeprefix('id, ')}) "
                 "VALUES (?, ?, ?, ?, ?, ?, 'intent', ?, ?, '{}', NULL, ?, NULL)",
                 (
                     now,
@@ -189,18 +189,18 @@ class GainWrites(HistoryConnection):
 
     def writes(self, limit: int | None = None) -> list[dict[str, Any]]:
         """Writes, oldest first; ``limit`` keeps the newest ``limit``."""
-        sql, args = _newest(f"SELECT {_WRITE} FROM writes", "id", limit)
+        sql, args = _newest(f"SELECT {WRITE_COLUMNS} FROM writes", "id", limit)
         with self._transaction(write=False) as con:
             rows = con.execute(sql, args).fetchall()
-        return [_write(row) for row in rows]
+        return [write_row(row) for row in rows]
 
     def unfinished_writes(self) -> list[dict[str, Any]]:
         """Writes still an ``intent`` (a crash between the intent and its outcome), oldest first."""
         with self._transaction(write=False) as con:
             rows = con.execute(
-                f"SELECT {_WRITE} FROM writes WHERE status = 'intent' ORDER BY id"
+                f"SELECT {WRITE_COLUMNS} FROM writes WHERE status = 'intent' ORDER BY id"
             ).fetchall()
-        return [_write(row) for row in rows]
+        return [write_row(row) for row in rows]
 
     def last_apply_seq(self) -> int | None:
         """The largest ``apply_seq`` ever recorded (intents included); None before any write."""

@@ -31,11 +31,15 @@ import sqlite3
 import threading
 import time as _time
 import uuid
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from fuelid.store.base import SampleStore
-from fuelid.store.lod import RECOUNT_BAD, UPSERT_LOD, lod_rows
+from fuelid.store.lod import RECOUNT_BAD, UPSERT_LOD, lod_rows, read_lod
 from fuelid.store.prune import PruneMixin
 from fuelid.store.records import (
     SAMPLE_COLUMNS_SQL,
@@ -400,6 +404,57 @@ class SQLiteStore(PruneMixin, SampleStore):
                 names,
             ).fetchone()
         return None if row is None else (float(row[0]), str(row[1]), str(row[2]), row[3])
+
+    # -- what a live reader reads (the dashboard: newest events, trend, stream) -----------
+
+    @contextmanager
+    def _reading(self) -> Iterator[sqlite3.Connection]:
+        """The reader connection, locked; an SQLite failure as a one-line StoreError."""
+        with self._read_lock:
+            try:
+                yield self._read_con
+            except sqlite3.Error as error:
+                raise StoreError(f"{self.path}: {error}") from None
+
+    def newest_events(self, limit: int) -> list[dict[str, object]]:
+        """The newest ``limit`` events, oldest first: ``time`` [plant s UTC], ``kind``, ``detail``.
+
+        Read newest first, by the time index (a long store's events are never all read).
+        """
+        with self._reading() as con:
+            rows = con.execute(
+                "SELECT time, kind, detail FROM events ORDER BY time DESC, rowid DESC LIMIT ?",
+                (int(limit),),
+            ).fetchall()
+        return [{"time": t, "kind": k, "detail": d} for t, k, d in reversed(rows)]
+
+    def read_lod(self, level: int, t_from: float, t_to: float) -> dict[str, np.ndarray[Any, Any]]:
+        """``samples_lod``'s buckets of ``level`` s in ``[t_from, t_to)`` [plant s] as arrays.
+
+        See :func:`fuelid.store.lod.read_lod` (min and max of each series per bucket).
+        """
+        with self._reading() as con:
+            return read_lod(con, level, t_from, t_to)
+
+    def newest_rowid(self) -> int:
+        """The insertion mark (rowid) of the newest committed sample; 0 without samples."""
+        with self._reading() as con:
+            value = con.execute("SELECT max(rowid) FROM samples").fetchone()[0]
+        return int(value or 0)
+
+    def samples_after(self, rowid: int, limit: int) -> tuple[int, SampleArrays]:
+        """Samples inserted after ``rowid`` (at most ``limit``, in insertion order), new mark.
+
+        The mark comes back unchanged when there are none (see :meth:`newest_rowid`).
+        """
+        with self._reading() as con:
+            rows = con.execute(
+                f"SELECT rowid, {_COLUMNS} FROM samples WHERE rowid > ? ORDER BY rowid LIMIT ?",
+                (int(rowid), int(limit)),
+            ).fetchall()
+        if not rows:
+            return int(rowid), SampleArrays.from_rows([])
+        return int(rows[-1][0]), SampleArrays.from_rows([r[1:] for r in rows])
 
     def info(self) -> StoreInfo:
         """Rows, time span, gaps, link events and size on disk."""

@@ -12,7 +12,7 @@ import typer
 from fuelid.errors import ConfigError
 
 if TYPE_CHECKING:
-    from fuelid.plc.site import SiteConfig
+    from fuelid.online.settings import ServiceSite
     from fuelid.store.online import OnlineHistory
     from fuelid.store.sqlite import SQLiteStore
 
@@ -72,10 +72,10 @@ def _opened(
     identity: dict[str, Any] | None = None
     path = store
     if config is not None:
+        from fuelid.online.settings import load_service_site
         from fuelid.plc.recorder import site_identity
-        from fuelid.plc.site import load_site
 
-        site = load_site(config)
+        site = load_service_site(config)
         identity = site_identity(site)
         settings = _settings(site)
         if path is None:
@@ -100,7 +100,7 @@ def _opened(
         opened.close()
 
 
-def _settings(site: SiteConfig) -> dict[str, Any]:
+def _settings(site: ServiceSite) -> dict[str, Any]:
     from fuelid.tuning.block import BlockForm, block_units
 
     out: dict[str, Any] = {"write_back": site.online.write_back, "timezone": site.site.timezone}

@@ -25,7 +25,7 @@ from fuelid.errors import ConfigError, validation_reason
 
 if TYPE_CHECKING:
     from fuelid.online.service import OnlineService
-    from fuelid.plc.site import SiteConfig
+    from fuelid.online.settings import ServiceSite
 
 from fuelid.cli.online._app import ConfigFile, StoreFile, app
 from fuelid.online.logs import (
@@ -130,7 +130,8 @@ def _virtual_tables(config: Path | None) -> dict[str, Any]:
 
     from pydantic import ValidationError
 
-    from fuelid.plc.site import Excitation, Online
+    from fuelid.online.settings import Online
+    from fuelid.plc.site import Excitation
     from fuelid.plc.site_fleet import Archive, Central
 
     try:
@@ -205,7 +206,7 @@ def _virtual_site_text(base: str, tables: dict[str, Any]) -> str:
     return tomlkit.dumps(data)
 
 
-def check_window_length(site: SiteConfig) -> None:
+def check_window_length(site: ServiceSite) -> None:
     """Refuse a missing plant file or an ``[online] window_s`` shorter than its settling time."""
     from fuelid.online.window import check_site_plant
 
@@ -248,7 +249,7 @@ def _heartbeat_s(speed: float) -> float:
 
 
 def _start(
-    site: SiteConfig,
+    site: ServiceSite,
     target: str,
     duration: float | None,
     json_log: bool,
@@ -340,7 +341,7 @@ def _run_virtual(
     import tempfile
     from importlib import resources
 
-    from fuelid.plc.site import load_site
+    from fuelid.online.settings import load_service_site
     from fuelid.plc.virtual.runner import VirtualPlcThread
     from fuelid.profiles.runs import demo_temperature
 
@@ -384,7 +385,7 @@ def _run_virtual(
         text = virtual.site_text(store_url=f"sqlite:///{target}", plant=plant_path)
         site_path = Path(folder) / "virtual-site.toml"
         site_path.write_text(_virtual_site_text(text, tables), encoding="utf-8")
-        site = load_site(site_path)
+        site = load_service_site(site_path)
         typer.echo(
             f"online: virtual PLC ({protocol.value} on {virtual.host}:{virtual.port}), "
             f"{speed:g}x real time, {hours:g} h of plant time in {wall:.1f} s",
@@ -515,9 +516,9 @@ def online_command(
             "give --config SITE.toml (the site file of the loop), or --virtual for the demo; "
             "subcommands: status, history, approve, reject, revert"
         )
-    from fuelid.plc.site import load_site
+    from fuelid.online.settings import load_service_site
 
-    site = load_site(config)
+    site = load_service_site(config)
     target = str(store) if store is not None else site.store.url
     _start(site, target, duration, json_log, dashboard_port=port)
 

@@ -94,7 +94,7 @@ class DesignGoal:
 
     @classmethod
     def of(cls, online: Any) -> DesignGoal:
-        """The goal of an ``[online]`` table (:class:`fuelid.plc.site.Online`)."""
+        """The goal of an ``[online]`` table (:class:`fuelid.online.settings.Online`)."""
         return cls(online.max_rel_stderr_K, online.max_rel_stderr_T, online.min_fit_percent)
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from fuelid.store.online import OnlineHistory
+from fuelid.store import LoopHistory
 
 STATE_KEY = "excitation"
 """``online_state`` key of the exciter's record (:mod:`fuelid.online.excitation.exciter`)."""
@@ -22,7 +22,7 @@ INTERRUPTED = "the service stopped mid-burst: the PLC zeroes the signal (its hea
 """How a burst ends that a killed service left "running" in its record."""
 
 
-def excitation_json(history: OnlineHistory, service_running: bool = True) -> dict[str, Any] | None:
+def excitation_json(history: LoopHistory, service_running: bool = True) -> dict[str, Any] | None:
     """The signal's state; None when the service never ran an exciter on this store.
 
     With ``service_running`` False a burst the record still calls running (a service killed

@@ -3,7 +3,7 @@
 The online service identifies the loop on a rolling window every few minutes; a window it
 should not trust is skipped, and why is recorded (docs online.md §5: adaptive tuning that trusts
 every window bursts). Two sets of gates, both judged against the site's ``[online]`` table
-(:class:`fuelid.plc.site.Online`), both returning a :class:`WindowVerdict`:
+(:class:`fuelid.online.settings.Online`), both returning a :class:`WindowVerdict`:
 
 - :func:`prefit_gates`, on the window's samples before any fit: the share of lost or flagged
   samples, the share of the command at an output limit, and excitation (command steps in MAN,

@@ -25,7 +25,7 @@ from fuelid.online.residual_acf import (
     largest_residual_acf,
     prewhiten,
 )
-from fuelid.plc.site import Online
+from fuelid.online.settings import Online
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

@@ -22,7 +22,7 @@ from fuelid.online.health import (
     time_at_limits,
 )
 from fuelid.online.moves import MergeRule, detect_moves
-from fuelid.plc.site import Online
+from fuelid.online.settings import Online
 from fuelid.store.records import Quality, SampleArrays
 
 FloatArray = NDArray[np.float64]

@@ -1,12 +1,16 @@
-"""What the report functions read of a loop, from the central store's rows.
+"""One loop's history as the central store holds it, read as the site's own is.
 
-:class:`CentralHistory` offers the methods of :class:`~fuelid.store.online.OnlineHistory` that
-:func:`fuelid.online.report.status_json` and :func:`~fuelid.online.report.history_json` call
-(windows, models, proposals, writes, the site's requests, counts, the ``online_state`` values)
-and :class:`CentralStoreView` those of a store (site name, tag-map hash, the newest sample's
-clocks, link events, events), both over the rows of one store of the central database, decoded
-into the dictionaries the site's own history gives (the same keys, the JSON columns parsed): the
-report functions then build the same objects from either source.
+:class:`CentralHistory` implements :class:`~fuelid.store.LoopHistory` (windows, models,
+proposals, writes, the site's requests, counts, the ``online_state`` values) and
+:class:`CentralStoreView` :class:`~fuelid.store.LoopStore` (site name, tag-map hash, the newest
+sample's clocks, link events, events), both over the rows of one store of the central database,
+decoded into the dictionaries the site's own history gives (the same keys, the JSON columns
+parsed, the column lists and decoders of :mod:`fuelid.store.online_rows`): the report functions
+(:mod:`fuelid.online.report`) then build the same objects from either source.
+
+Which store of a loop is shown (:func:`shown_store`), its liveness row (:func:`liveness_row`)
+and the loops there are (:func:`central_loop_ids`) are read here too: every statement a central
+reader runs is in this package.
 """
 
 from __future__ import annotations
@@ -15,28 +19,43 @@ import math
 from collections.abc import Iterable, Sequence
 from typing import Any
 
-from fuelid.dashboard.central_db import CentralDB
-from fuelid.online.liveness import SERVICE_KEY
-from fuelid.store.online_rows import PROPOSAL_STATUSES, WRITE_STATUSES, proposal_row
-
-__all__ = ["CentralHistory", "CentralStoreView"]
-
-_WINDOW = "id, t_from, t_to, time, accepted, reason, t_fuel, u_mean, model_id, detail, wall_time"
-_WRITE = (
-    "id, time, proposal_id, kind, kc, ti, apply_seq, status, who, why, detail, finished, "
-    "wall_time, finished_wall"
+from fuelid.central._db import CentralDB
+from fuelid.central.connect import CentralError
+from fuelid.store.online_rows import (
+    PROPOSAL_COLUMNS,
+    REQUEST_COLUMNS,
+    SERVICE_KEY,
+    WINDOW_COLUMNS,
+    WRITE_COLUMNS,
+    history_counts,
+    proposal_row,
+    request_row,
+    window_row,
+    write_row,
 )
-_REQUEST = "id, time, wall_time, kind, proposal_id, who, why, origin, status, outcome, done_wall"
 
+__all__ = [
+    "LIVENESS_KEYS",
+    "CentralHistory",
+    "CentralStoreView",
+    "central_loop_ids",
+    "liveness_row",
+    "shown_store",
+]
 
-def _window(row: Sequence[Any]) -> dict[str, Any]:
-    """A central window row as :meth:`OnlineHistory.windows` gives a site's."""
-    keys = ("id", "t_from", "t_to", "time", "accepted", "reason", "T_fuel", "u_mean", "model_id")
-    out = dict(zip(keys, row, strict=False))
-    out["accepted"] = bool(out["accepted"])
-    out["detail"] = row[9]
-    out["wall_time"] = row[10]
-    return out
+_MODEL = "id, time, t_from, t_to, t_fuel, model, wall_time"
+_MODEL_KEYS = ("id", "time", "t_from", "t_to", "T_fuel", "model", "wall_time")
+
+_LIVENESS = (
+    "service, backlog_rows, backlog_oldest_wall, last_send_wall, "
+    "extract(epoch FROM updated)::float8 AS updated, "
+    "extract(epoch FROM now() - updated)::float8 AS contact_age_s, site_wall, send_every_s, "
+    "newest_sample_time, newest_sample_wall, first_sample_time, period_s, schema_version, "
+    "site_state"
+)
+LIVENESS_KEYS = tuple(c.split(" AS ")[-1].strip() for c in _LIVENESS.split(", "))
+"""The keys of :func:`liveness_row`'s dict (times [s UTC]; ``contact_age_s`` by the centre's
+clock)."""
 
 
 def _limit(limit: int) -> str:
@@ -56,8 +75,40 @@ def _newest_first(rows: list[Any]) -> list[Any]:
     return rows
 
 
+def central_loop_ids(db: CentralDB) -> list[str]:
+    """The loops of the central store (``loops``), sorted."""
+    return [str(loop_id) for (loop_id,) in db.query("SELECT loop_id FROM loops ORDER BY loop_id")]
+
+
+def shown_store(db: CentralDB, loop_id: str) -> dict[str, Any]:
+    """The loop's store shown: the one seen last.
+
+    A dict of ``store_uuid``, ``loop_id``, ``site_name`` and ``tag_map_hash``.
+
+    Raises
+    ------
+    CentralError
+        The central store has no store of the loop.
+    """
+    rows = db.query(
+        "SELECT store_uuid, loop_id, site_name, tag_map_hash FROM stores WHERE loop_id = %s "
+        "ORDER BY last_seen DESC LIMIT 1",
+        (loop_id,),
+    )
+    if not rows:
+        raise CentralError(f"the central store has no store of loop {loop_id!r}")
+    keys = ("store_uuid", "loop_id", "site_name", "tag_map_hash")
+    return dict(zip(keys, rows[0], strict=True))
+
+
+def liveness_row(db: CentralDB, store_uuid: str) -> dict[str, Any] | None:
+    """The store's liveness row (:data:`LIVENESS_KEYS`); None when the site never sent one."""
+    rows = db.query(f"SELECT {_LIVENESS} FROM liveness WHERE store_uuid = %s", (store_uuid,))
+    return dict(zip(LIVENESS_KEYS, rows[0], strict=True)) if rows else None
+
+
 class CentralHistory:
-    """What the report functions read of a loop's history, from the central rows of one store.
+    """A loop's :class:`~fuelid.store.LoopHistory` from the central rows of one store.
 
     Parameters
     ----------
@@ -78,7 +129,7 @@ class CentralHistory:
         self, t_from: float | None = None, t_to: float | None = None, limit: int | None = None
     ) -> list[dict[str, Any]]:
         """Windows ending in ``[t_from, t_to)`` [plant s], oldest first; the newest ``limit``."""
-        sql = f"SELECT {_WINDOW} FROM windows WHERE store_uuid = %s"
+        sql = f"SELECT {WINDOW_COLUMNS} FROM windows WHERE store_uuid = %s"
         args: list[Any] = [self.uuid]
         if t_from is not None:
             sql += " AND t_to >= %s"
@@ -87,17 +138,17 @@ class CentralHistory:
             sql += " AND t_to < %s"
             args.append(float(t_to))
         if limit is None:
-            return [_window(r) for r in self.db.query(sql + " ORDER BY t_to, id", args)]
+            return [window_row(r) for r in self.db.query(sql + " ORDER BY t_to, id", args)]
         rows = self.db.query(sql + f" ORDER BY t_to DESC, id DESC {_limit(limit)}", args)
-        return [_window(r) for r in _newest_first(rows)]
+        return [window_row(r) for r in _newest_first(rows)]
 
     def window(self, window_id: int) -> dict[str, Any] | None:
         """One window by its id; None when absent."""
         rows = self.db.query(
-            f"SELECT {_WINDOW} FROM windows WHERE store_uuid = %s AND id = %s",
+            f"SELECT {WINDOW_COLUMNS} FROM windows WHERE store_uuid = %s AND id = %s",
             (self.uuid, int(window_id)),
         )
-        return _window(rows[0]) if rows else None
+        return window_row(rows[0]) if rows else None
 
     def last_window(self) -> dict[str, Any] | None:
         """The newest window; None when none."""
@@ -111,10 +162,7 @@ class CentralHistory:
         one query over the models read (a subquery per model would probe every monthly
         partition for each of the K(T) tracker's 2,000 models).
         """
-        sql = (
-            "SELECT id, time, t_from, t_to, t_fuel, model, wall_time FROM models "
-            "WHERE store_uuid = %s ORDER BY t_to DESC, id DESC"
-        )
+        sql = f"SELECT {_MODEL} FROM models WHERE store_uuid = %s ORDER BY t_to DESC, id DESC"
         if limit is not None:
             sql += f" {_limit(limit)}"
         rows = _newest_first(self.db.query(sql, (self.uuid,)))
@@ -129,25 +177,21 @@ class CentralHistory:
             if rows
             else {}
         )
-        keys = ("id", "time", "t_from", "t_to", "T_fuel", "model", "wall_time")
         out = []
         for r in rows:
-            row = dict(zip(keys, r, strict=True))
+            row = dict(zip(_MODEL_KEYS, r, strict=True))
             out.append({"id": row["id"], "window_id": first.get(row["id"]), **row})
         return out
 
     def model(self, model_id: int) -> dict[str, Any] | None:
         """One model as :meth:`accepted_models` gives it (``window_id`` None); None when absent."""
         rows = self.db.query(
-            "SELECT id, time, t_from, t_to, t_fuel, model, wall_time FROM models "
-            "WHERE store_uuid = %s AND id = %s",
+            f"SELECT {_MODEL} FROM models WHERE store_uuid = %s AND id = %s",
             (self.uuid, int(model_id)),
         )
         if not rows:
             return None
-        keys = ("id", "time", "t_from", "t_to", "T_fuel", "model", "wall_time")
-        row = dict(zip(keys, rows[0], strict=True))
-        return {"window_id": None, **row}
+        return {"window_id": None, **dict(zip(_MODEL_KEYS, rows[0], strict=True))}
 
     def plant_now(self) -> float | None:
         """Plant time at the site's last send: its newest sample's [s UTC]; None without one."""
@@ -156,17 +200,14 @@ class CentralHistory:
 
     def writes(self, limit: int | None = None) -> list[dict[str, Any]]:
         """Writes of gains, oldest first; the newest ``limit``."""
-        sql = f"SELECT {_WRITE} FROM writes WHERE store_uuid = %s ORDER BY id DESC"
-        args: list[Any] = [self.uuid]
+        sql = f"SELECT {WRITE_COLUMNS} FROM writes WHERE store_uuid = %s ORDER BY id DESC"
         if limit is not None:
             sql += f" {_limit(limit)}"
-        keys = _WRITE.split(", ")
-        return [dict(zip(keys, r, strict=True)) for r in _newest_first(self.db.query(sql, args))]
+        return [write_row(r) for r in _newest_first(self.db.query(sql, (self.uuid,)))]
 
     def proposals(self, status: str | Sequence[str] | None = None) -> list[dict[str, Any]]:
         """Proposals, oldest first, all or those of ``status``."""
-        sql = "SELECT id, time, model_id, status, detail, wall_time FROM proposals "
-        sql += "WHERE store_uuid = %s"
+        sql = f"SELECT {PROPOSAL_COLUMNS} FROM proposals WHERE store_uuid = %s"
         args: list[Any] = [self.uuid]
         if status is not None:
             wanted = [status] if isinstance(status, str) else [str(s) for s in status]
@@ -177,15 +218,14 @@ class CentralHistory:
     def proposal(self, proposal_id: int) -> dict[str, Any] | None:
         """One proposal; None when absent."""
         rows = self.db.query(
-            "SELECT id, time, model_id, status, detail, wall_time FROM proposals "
-            "WHERE store_uuid = %s AND id = %s",
+            f"SELECT {PROPOSAL_COLUMNS} FROM proposals WHERE store_uuid = %s AND id = %s",
             (self.uuid, int(proposal_id)),
         )
         return proposal_row(rows[0]) if rows else None
 
     def requests(self, status: str | None = None, limit: int | None = None) -> list[dict[str, Any]]:
         """The site's requests (its ``requests`` table), oldest first."""
-        sql = f"SELECT {_REQUEST} FROM site_requests WHERE store_uuid = %s"
+        sql = f"SELECT {REQUEST_COLUMNS} FROM site_requests WHERE store_uuid = %s"
         args: list[Any] = [self.uuid]
         if status is not None:
             sql += " AND status = %s"
@@ -193,11 +233,10 @@ class CentralHistory:
         sql += " ORDER BY id DESC"
         if limit is not None:
             sql += f" {_limit(limit)}"
-        keys = _REQUEST.split(", ")
-        return [dict(zip(keys, r, strict=True)) for r in _newest_first(self.db.query(sql, args))]
+        return [request_row(r) for r in _newest_first(self.db.query(sql, args))]
 
     def counts(self) -> dict[str, int]:
-        """Counts as :meth:`OnlineHistory.counts` gives them."""
+        """Counts as :meth:`OnlineHistory.counts <fuelid.store.OnlineHistory.counts>` gives them."""
         uuid = (self.uuid,)
         ((windows, accepted),) = self.db.query(
             "SELECT count(*), coalesce(sum(accepted), 0) FROM windows WHERE store_uuid = %s", uuid
@@ -213,14 +252,7 @@ class CentralHistory:
                 "SELECT status, count(*) FROM writes WHERE store_uuid = %s GROUP BY 1", uuid
             )
         )
-        out = {"windows": int(windows), "accepted": int(accepted), "models": int(models)}
-        out["proposals"] = int(sum(proposals.values()))
-        for s in (*PROPOSAL_STATUSES, *(s for s in proposals if s not in PROPOSAL_STATUSES)):
-            out[f"proposals_{s}"] = int(proposals.get(s, 0))
-        out["writes"] = int(sum(writes.values()))
-        for s in (*WRITE_STATUSES, *(s for s in writes if s not in WRITE_STATUSES)):
-            out[f"writes_{s}"] = int(writes.get(s, 0))
-        return out
+        return history_counts(windows, accepted, models, proposals, writes)
 
     def state(self, key: str, default: Any = None) -> Any:
         """The site's ``online_state`` value as its last send told it (``default`` when not)."""
@@ -232,10 +264,10 @@ class CentralHistory:
 
 
 class CentralStoreView:
-    """What the report functions read of a loop's store, from the central rows.
+    """A loop's :class:`~fuelid.store.LoopStore` from the central rows.
 
     ``path`` is None: there is no file here (the report's sync block is the site's own; the
-    central reader gives its own, see :meth:`CentralLoop.status`).
+    central reader gives its own, see :meth:`fuelid.dashboard.CentralLoop.status`).
     """
 
     path = None

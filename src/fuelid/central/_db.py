@@ -1,13 +1,11 @@
-"""The dashboard's connection to the central store.
+"""A reader's connection to the central store: one, shared, locked, reconnecting.
 
 :class:`CentralDB` is one connection to the central PostgreSQL database shared by every central
-loop of a dashboard (:mod:`fuelid.central.connect`: libpq's own credentials, never a password
-in the URL), behind one lock; a failure drops it and the next read reconnects, at most every
-:data:`RETRY_S` (a dead server must not cost every page a connect timeout). :meth:`CentralDB.
-reading` runs several reads in one read-only snapshot (``REPEATABLE READ``), so that a loop's
-status is one moment of the central store.
-
-The loops it serves are listed by :class:`~fuelid.dashboard.central_loops.CentralLoops`.
+loop a reader shows (the dashboard's; :mod:`fuelid.central.connect`: libpq's own credentials,
+never a password in the URL), behind one lock; a failure drops it and the next read
+reconnects, at most every ``retry_s`` (:data:`RETRY_S` by default: a dead server must not cost
+every page a connect timeout). :meth:`CentralDB.reading` runs several reads in one read-only
+snapshot (``REPEATABLE READ``), so that a loop's status is one moment of the central store.
 """
 
 from __future__ import annotations
@@ -27,7 +25,7 @@ if TYPE_CHECKING:
 __all__ = ["RETRY_S", "CentralDB"]
 
 RETRY_S = 5.0
-"""After a failure, reads fail at once with its reason for this long before reconnecting [s]."""
+"""The default ``retry_s`` of :class:`CentralDB` [s]."""
 
 T = TypeVar("T")
 
@@ -39,10 +37,14 @@ class CentralDB:
     ----------
     url : str
         The central store's libpq URL (``postgresql://dashboard@central.example/fuelid``).
+    retry_s : float
+        After a failure, reads fail at once with its reason for this long before reconnecting
+        [s].
     """
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, retry_s: float = RETRY_S) -> None:
         self.url = url
+        self.retry_s = float(retry_s)
         self.shown_url = redact(url)
         self._con: psycopg.Connection | None = None
         self._lock = threading.RLock()
@@ -53,7 +55,7 @@ class CentralDB:
     def _connection(self) -> psycopg.Connection:
         if self._con is not None and not self._con.closed:
             return self._con
-        if self.error is not None and _time.monotonic() - self._failed_at < RETRY_S:
+        if self.error is not None and _time.monotonic() - self._failed_at < self.retry_s:
             raise CentralError(self.error)
         try:
             con = connect(self.url, autocommit=True, application_name="fuelid dashboard")
