@@ -116,3 +116,46 @@ def modal_gain(Ad: np.ndarray, C: np.ndarray) -> float:
         raise ValueError(f"poles {poles} not all inside the unit circle: the error is unbounded")
     weights = np.abs((C @ V).reshape(-1, 1) * np.linalg.inv(V))  # (C·V)_l·(V⁻¹)_(l,i)
     return float(np.max(np.sum(weights / (1.0 - np.abs(poles)).reshape(-1, 1), axis=0)))
+
+
+def least_squares_budget(X: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Per coefficient: how far two routes' least-squares solutions of X·β ≈ y may differ.
+
+    X (n × p, rows already weighted) is scaled to unit columns, X_s = X/d, of condition κ, and
+    β_s = d·β. Both routes are bounded in the scaled problem (Higham §20.1, §20.4), each to
+    first order with γ_(np) standing for the bounds' c·n·p·u: the normal equations, forming
+    XᵀX and solving or inverting it, by γ_(np)·κ²·‖β_s‖₂; an orthogonal or SVD solve (lstsq)
+    by γ_(np)·(κ + κ²·‖r‖₂/(‖X_s‖₂‖β_s‖₂))·‖β_s‖₂. The sum of the two, unscaled by d_j.
+
+    Examples
+    --------
+    A line through three points, the slope's column 10⁴ times the intercept's:
+
+    >>> X = np.array([[1.0, 0.0], [1.0, 1e4], [1.0, 2e4]])
+    >>> budget = least_squares_budget(X, np.array([1.0, 2.0, 3.1]))
+    >>> bool(budget[1] < 1e-4 * budget[0])
+    True
+    """
+    d = np.linalg.norm(X, axis=0)
+    Xs = X / d
+    beta_s, *_ = np.linalg.lstsq(Xs, y, rcond=None)
+    singular = np.linalg.svd(Xs, compute_uv=False)
+    kappa = singular[0] / singular[-1]
+    size = float(np.linalg.norm(beta_s))
+    misfit = float(np.linalg.norm(y - Xs @ beta_s)) / (singular[0] * size)
+    relative = gamma(X.size) * (kappa**2 + kappa + kappa**2 * misfit)
+    return relative * size / d
+
+
+def inverse_gram_budget(X: np.ndarray) -> np.ndarray:
+    """Per entry: how far two routes' (XᵀX)⁻¹ may differ (inverse against pseudo-inverse).
+
+    In the scaled problem (:func:`least_squares_budget`) each route forms X_sᵀX_s within
+    γ_n·|X_s|ᵀ|X_s| (at most γ_n·p in the 2-norm, unit columns) and inverts a matrix of
+    condition κ², so each is within γ_(np)·κ²·‖(X_sᵀX_s)⁻¹‖₂ = γ_(np)·κ²/σ_min² of the exact
+    inverse: twice that apart, unscaled by d_i·d_j.
+    """
+    d = np.linalg.norm(X, axis=0)
+    singular = np.linalg.svd(X / d, compute_uv=False)
+    kappa = singular[0] / singular[-1]
+    return 2.0 * gamma(X.size) * kappa**2 / singular[-1] ** 2 / np.outer(d, d)
