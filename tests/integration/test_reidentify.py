@@ -35,6 +35,7 @@ from fuelid.fleet.task import RESULT_SCHEMA, TIMING_COLUMNS, day_windows
 from fuelid.online.settings import Online
 from support.archive_fixture import archive_store
 from support.fleet import T0
+from support.rounding import gamma, inverse_gram_budget, least_squares_budget
 
 ROOT = Path(__file__).resolve().parents[2]
 DATE = "2026-01-01"
@@ -206,7 +207,8 @@ def test_summary_numbers_recomputed_from_the_parquet(two_workers: Path, archive:
     t = (t - t.mean()) / 86400.0
     w = 1.0 / se**2
     T_ref = float(np.sum(w * T) / np.sum(w))
-    beta, cov, birge_fit = _wls(np.column_stack([np.ones_like(T), T - T_ref, t]), K, se)
+    X = np.column_stack([np.ones_like(T), T - T_ref, t])
+    beta, cov, birge_fit = _wls(X, K, se)
     b, se_b = beta[1], math.sqrt(birge_fit * cov[1, 1])
     q = K - b * (T - T_ref)
     birge = _wls(np.column_stack([np.ones_like(t), t]), q, se)[2]
@@ -215,12 +217,30 @@ def test_summary_numbers_recomputed_from_the_parquet(two_workers: Path, archive:
     last = float(np.sum(w[-n:] * q[-n:]) / np.sum(w[-n:]))
     se_first = math.sqrt(birge / np.sum(w[:n]))
     se_last = math.sqrt(birge / np.sum(w[-n:]))
-    assert summary["k_drift"] == pytest.approx(last / first - 1.0, rel=1e-9, abs=1e-12)
+    # the summary solves these weighted fits by lstsq, this test by the normal equations: with
+    # T and t moving together (the fuel warms over the day) they round b apart by up to its
+    # least-squares budget, which moves each mean by Δb·max|T − T_ref|
+    dq = least_squares_budget(X / se[:, None], K / se)[1] * float(np.max(np.abs(T - T_ref)))
+    ratio = abs(last / first)
+    drift_budget = dq * (1.0 + ratio) / abs(first) + gamma(4 * len(q)) * ratio
+    assert summary["k_drift"] == pytest.approx(last / first - 1.0, rel=0.0, abs=drift_budget)
     dT = float(np.mean(T[-n:]) - np.mean(T[:n]))
     se_drift = math.sqrt(
         (se_last / first) ** 2 + (last * se_first / first**2) ** 2 + (dT * se_b / first) ** 2
     )
-    assert summary["k_drift_se"] == pytest.approx(se_drift, rel=1e-9)
+    # b's variance by an inverse here, a pseudo-inverse there; the means as above; the Birge
+    # ratios are sums of squared residuals r about the fit, to which b's rounding adds nothing
+    # to first order: each residual rounds by γ·|K|, so χ² by 2γ·max|K/se|·Σ|r|/Σr² relative
+    # and its root by half that
+    dse_b = 0.5 * se_b * inverse_gram_budget(X / se[:, None])[1, 1] / cov[1, 1]
+    r = (K - X @ beta) / se
+    birge_rounding = (
+        gamma(len(K)) * float(np.max(np.abs(K) / se)) * np.sum(np.abs(r)) / np.sum(r**2)
+    )
+    se_budget = (dT / first) ** 2 * se_b * dse_b / se_drift + se_drift * (
+        3.0 * dq / abs(first) + birge_rounding
+    )
+    assert summary["k_drift_se"] == pytest.approx(se_drift, rel=0.0, abs=se_budget)
     # K(T) slope: the command band with the most windows (1 V bands; all accepted windows, as
     # the service's tracker), 95 % = Student's t with the line's degrees of freedom
     T, K, se = (ok[c].to_numpy(float) for c in ("T_fuel", "K", "se_K"))
