@@ -1,8 +1,9 @@
 """``fuelid greybox``: fit the parameters of your own ODE model (a Python file) to logged data.
 
 The command reads the model file (:mod:`fuelid.greybox.modelfile`) and the data files, applies
-``--fix``/``--free``/``--set``, fits with :class:`~fuelid.greybox.GreyBoxEstimator`, validates on
-``--validate-file`` and prints the parameters with their uncertainty and what the data determine.
+``--fix``/``--free``/``--set``, sets up the :class:`~fuelid.greybox.GreyBoxEstimator` and calls
+:func:`~fuelid.workflow.greybox_fit.fit_greybox` (the fit, the validation on ``--validate-file``,
+the profiles), then prints the parameters with their uncertainty and what the data determine.
 The library is imported when the command runs (matplotlib only with ``--plot``).
 """
 
