@@ -41,6 +41,12 @@ from fuelid.workflow.assumptions import gain_unit
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
+    from fuelid.tuning.bands import BandCheck
+    from fuelid.tuning.cases import FixedPIEvaluation
+    from fuelid.tuning.closedloop import ClosedLoopResult
+    from fuelid.tuning.frequency import RobustPeak
+    from fuelid.tuning.schedule import GainSchedule
+
 TEMPLATE = "report.html.j2"
 
 
@@ -62,29 +68,66 @@ FIGURE_KEYS = ("overview", "comparison", "residuals", "bode", "closed_loop", "sc
 """Every report has these figures, in this order (also the PNG file suffixes)."""
 
 
+_CAPTIONS = {
+    "overview": "The log: VFD command and measured flow.",
+    "comparison": "Measured flow against the free-run simulation of each identified model (as in "
+    "the article's comparison figure), and the residuals; the shaded part was held out.",
+    "residuals": "Residual tests of the model the gains come from: inside the band means "
+    "consistent with white noise (autocorrelation) and no unmodelled dynamics "
+    "(cross-correlation at positive lags).",
+    "bode": "Bode plot of the loop with the gain margin (in dB, at the phase crossover) and the "
+    "phase margin (at the crossover) marked, and the sensitivity |S| whose peak is Ms.",
+    "runs": "The same gains on the nonlinear plant of the plant file at the coldest and the "
+    "warmest fuel; the dashed lines are the drive's signal limits, the dash-dotted line the load "
+    "step.",
+    "linear": "The gains on the identified model (linear closed loop): unit setpoint step and "
+    "unit load step. No plant file was given, so no run on a nonlinear plant: the built-in "
+    "reference plant is not your loop.",
+    "schedule": "Gains per fuel-temperature band (one line per flow band).",
+}
+"""The figures' captions (``runs`` or ``linear`` is the closed loop's, as the page has runs)."""
+
+
 def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
     """The report's figures with their captions, keyed as :data:`FIGURE_KEYS`."""
+    figures = {
+        "overview": (_overview_figure(analysis), _CAPTIONS["overview"]),
+        "comparison": (_comparison_figure(analysis), _CAPTIONS["comparison"]),
+        "residuals": (_residuals_figure(analysis), _CAPTIONS["residuals"]),
+        "bode": (_bode_figure(analysis), _CAPTIONS["bode"]),
+        "closed_loop": (
+            _closed_loop_figure(analysis),
+            _CAPTIONS["runs" if analysis.runs else "linear"],
+        ),
+    }
+    # no plant file of the user's: no schedule (it would not be theirs)
+    if analysis.schedule is not None:
+        figures["schedule"] = (schedule_figure(analysis.schedule), _CAPTIONS["schedule"])
+    return figures
+
+
+def _overview_figure(analysis: LogAnalysis) -> Figure:
+    """The log's command and flow (and fuel temperature), titled with where its fuel came from."""
     data = analysis.data
-    s = analysis.settings
-    chosen = analysis.model_result
-    overview = plot_log(
+    fuel_origin = {"log": "from the log", "option": "as given"}.get(
+        str(analysis.operating_point.T_fuel_source), "assumed"
+    )
+    return plot_log(
         _overview_series(data),
         f"{data.source or 'log'}: {data.n_samples} samples every {data.sample_time:g} s "
-        f"(fuel at {format_celsius(analysis.T_fuel)} °C, "
-        + {"log": "from the log", "option": "as given"}.get(
-            str(analysis.operating_point.T_fuel_source), "assumed"
-        )
-        + ")",
+        f"(fuel at {format_celsius(analysis.T_fuel)} °C, {fuel_origin})",
     )
+
+
+def _comparison_figure(analysis: LogAnalysis) -> Figure:
+    """The measured flow against every identified model's free run, on oe's time axis."""
+    data = analysis.data
     oe = analysis.identifications["oe"]
     curves = [
-        (
-            f"{method} model ({r.model.describe(gain_unit(data))})",
-            r.y_hat_at(oe.time),
-        )
+        (f"{method} model ({r.model.describe(gain_unit(data))})", r.y_hat_at(oe.time))
         for method, r in analysis.identifications.items()
     ]
-    comparison = plot_identification(
+    return plot_identification(
         oe.time,
         oe.y,
         curves,
@@ -93,28 +136,39 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
         ylabel="flow q",
         unit=data.y_unit,
     )
-    residuals = plot_correlation_tests(
+
+
+def _residuals_figure(analysis: LogAnalysis) -> Figure:
+    """The chosen model's residual autocorrelation and input-residual cross-correlation."""
+    chosen = analysis.model_result
+    whiteness, crossed = analysis.whiteness, analysis.input_correlation
+    errors = "prediction-error" if chosen.prediction_errors is not None else "residual"
+    return plot_correlation_tests(
         [
             (
-                f"{'prediction-error' if chosen.prediction_errors is not None else 'residual'} "
-                f"autocorrelation ({chosen.method}, fitted samples; "
-                f"p = {analysis.whiteness.p_value:.2g})",
-                analysis.whiteness.lags,
-                analysis.whiteness.values,
-                analysis.whiteness.bound,
+                f"{errors} autocorrelation ({chosen.method}, fitted samples; "
+                f"p = {whiteness.p_value:.2g})",
+                whiteness.lags,
+                whiteness.values,
+                whiteness.bound,
             ),
             (
                 "input-residual cross-correlation (positive lag: residual after input change; "
-                f"p = {analysis.input_correlation.p_value:.2g})",
-                analysis.input_correlation.lags,
-                analysis.input_correlation.values,
-                analysis.input_correlation.bound,
+                f"p = {crossed.p_value:.2g})",
+                crossed.lags,
+                crossed.values,
+                crossed.bound,
             ),
         ],
-        sample_time=data.sample_time,
+        sample_time=analysis.data.sample_time,
     )
+
+
+def _bode_figure(analysis: LogAnalysis) -> Figure:
+    """The loop's frequency response with its margins and the sensitivity's peak."""
     rob = analysis.tuning.robustness
-    bode = plot_bode(
+    period = analysis.settings.control_period
+    return plot_bode(
         analysis.bode_frequency,
         analysis.bode_loop,
         rob.gain_margin,
@@ -122,65 +176,34 @@ def report_figures(analysis: LogAnalysis) -> dict[str, tuple[Figure, str]]:
         rob.Ms,
         rob.crossover_frequency,
         rob.phase_crossover_frequency,
-        f"loop L = C·G on the {chosen.method} model, "
+        f"loop L = C·G on the {analysis.model_result.method} model, "
         + (
-            f"PI sampled every {s.control_period:g} s"
-            if s.control_period  # None only before analyse_log, which refuses it
+            f"PI sampled every {period:g} s"
+            if period  # None only before analyse_log, which refuses it
             else "continuous PI"
         ),
     )
+
+
+def _closed_loop_figure(analysis: LogAnalysis) -> Figure:
+    """The runs on the user's nonlinear plant, or without a plant file the linear closed loop."""
+    pi = analysis.tuning.pi
     if analysis.runs:
-        closed = runs_figure(
+        return runs_figure(
             analysis.runs,
-            f"{analysis.tuning.pi.rule} gains on the nonlinear plant: setpoint step, then a "
+            f"{pi.rule} gains on the nonlinear plant: setpoint step, then a "
             "0.2 V load step at the drive input",
             label="fuel at {} °C",
         )
-        closed_caption = (
-            "The same gains on the nonlinear plant of the plant file at the coldest and the "
-            "warmest fuel; the dashed lines are the drive's signal limits, the dash-dotted line "
-            "the load step."
-        )
-    else:
-        cl = analysis.tuning.closed_loop
-        pi = analysis.tuning.pi
-        closed = plot_linear_closed_loop(
-            cl.time,
-            cl.setpoint_response,
-            cl.setpoint_command,
-            cl.disturbance_response,
-            f"{pi.rule}: Kc = {pi.Kc:.4g} V/(L/min), Ti = {pi.Ti:.3g} s, Ms = {rob.Ms:.2f} on "
-            f"the identified {chosen.method} model",
-        )
-        closed_caption = (
-            "The gains on the identified model (linear closed loop): unit setpoint step and unit "
-            "load step. No plant file was given, so no run on a nonlinear plant: the built-in "
-            "reference plant is not your loop."
-        )
-    schedule = None if analysis.schedule is None else schedule_figure(analysis.schedule)
-    return {
-        "overview": (overview, "The log: VFD command and measured flow."),
-        "comparison": (
-            comparison,
-            "Measured flow against the free-run simulation of each identified model (as in the "
-            "article's comparison figure), and the residuals; the shaded part was held out.",
-        ),
-        "residuals": (
-            residuals,
-            "Residual tests of the model the gains come from: inside the band means "
-            "consistent with white noise (autocorrelation) and no unmodelled dynamics "
-            "(cross-correlation at positive lags).",
-        ),
-        "bode": (
-            bode,
-            "Bode plot of the loop with the gain margin (in dB, at the phase crossover) and the "
-            "phase margin (at the crossover) marked, and the sensitivity |S| whose peak is Ms.",
-        ),
-        "closed_loop": (closed, closed_caption),
-    } | (
-        {}
-        if schedule is None  # no plant file of the user's: no schedule (it would not be theirs)
-        else {"schedule": (schedule, "Gains per fuel-temperature band (one line per flow band).")}
+    cl = analysis.tuning.closed_loop
+    return plot_linear_closed_loop(
+        cl.time,
+        cl.setpoint_response,
+        cl.setpoint_command,
+        cl.disturbance_response,
+        f"{pi.rule}: Kc = {pi.Kc:.4g} V/(L/min), Ti = {pi.Ti:.3g} s, "
+        f"Ms = {analysis.tuning.robustness.Ms:.2f} on the identified "
+        f"{analysis.model_result.method} model",
     )
 
 
@@ -252,14 +275,64 @@ def _fmt(value: float | None, spec: str = ".4g") -> str:
 def _context(
     analysis: LogAnalysis, figures: list[ReportFigure], source_sha256: str | None
 ) -> dict[str, Any]:
+    """What the template is filled with: every number as the page prints it."""
     s = analysis.settings
     data = analysis.data
-    tuning = analysis.tuning.to_json()
-    plc = tuning["plc"]
-    rows_ident = []
+    return {
+        "title": f"fuelid report: {data.source or 'log'}",
+        "generated": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        "version": __version__,
+        "source": data.source or "log",
+        "sha256": source_sha256,
+        "data": _data_context(analysis),
+        "notices": analysis.notices,
+        "plant": analysis.plant.to_json(),
+        "priors": _priors_rows(analysis.priors),
+        "gain_unit": gain_unit(data),
+        "flow_header": "flow L/min",
+        "settings": s,
+        "t_range": f"{kelvin_to_celsius(s.T_range[0]):g}…{kelvin_to_celsius(s.T_range[1]):g}",
+        "identifications": _identification_rows(analysis),
+        "warnings": analysis.warnings,
+        "pi": _pi_context(analysis),
+        "check": _check_context(analysis.check),
+        "misfit": _misfit_context(analysis.outcome.misfit_peak),
+        "band_check": _band_check_context(analysis.outcome.bands),
+        "runs": [_run_row(run) for run in analysis.runs],
+        "schedule": _schedule_context(analysis.schedule),
+        "figures": figures,
+    }
+
+
+def _formatted(row: dict[str, Any], spec: str) -> dict[str, Any]:
+    """A table row with its floats formatted (:func:`_fmt`), its other cells as they are."""
+    return {k: _fmt(v, spec) if isinstance(v, float) else v for k, v in row.items()}
+
+
+def _data_context(analysis: LogAnalysis) -> dict[str, Any]:
+    """The log: its samples, ranges, units and notes, the operating point and its fuel."""
+    data = analysis.data
+    return {
+        "n": data.n_samples,
+        "h": _fmt(data.sample_time, "g"),
+        "duration": _fmt(data.n_samples * data.sample_time, ".4g"),
+        "u_range": f"{np.min(data.u):.3g}…{np.max(data.u):.3g}",
+        "y_range": f"{np.min(data.y):.4g}…{np.max(data.y):.4g}",
+        "u_unit": data.u_unit,
+        "y_unit": data.y_unit,
+        "notes": list(data.notes),
+        "u_operating": _fmt(analysis.u_operating, ".3g"),
+        "fuel_temperature": format_celsius(analysis.T_fuel),
+        "fuel_temperature_origin": _fuel_temperature_origin(analysis),
+    }
+
+
+def _identification_rows(analysis: LogAnalysis) -> list[dict[str, Any]]:
+    """One row per estimator: the model, its standard errors, fits and whiteness test."""
+    rows = []
     for method, r in analysis.identifications.items():
         d = r.to_json()
-        rows_ident.append(
+        rows.append(
             {
                 "method": method,
                 "K": _fmt(r.model.K),
@@ -272,142 +345,115 @@ def _context(
                 "fit": _fmt(r.fit_percent, ".2f"),
                 "validation": _fmt(r.validation_fit_percent, ".2f"),
                 "white_p": _fmt(d["diagnostics"]["residual_whiteness"]["p_value"], ".2g"),
-                "chosen": method == s.tune_from,
+                "chosen": method == analysis.settings.tune_from,
             }
         )
-    check = analysis.check
-    cases = [
-        {k: _fmt(v, ".3g") if isinstance(v, float) else v for k, v in row.items()}
-        for row in ([] if check is None else check.rows())
-    ]
-    band_check = analysis.outcome.bands
-    runs = []
-    for run in analysis.runs:
-        summary = run.summary()
-        runs.append(
-            {
-                "fuel_temperature": format_celsius(run.T_fuel),
-                "setpoint": f"{run.setpoint[0]:.1f} → {run.setpoint[-1]:.1f}",
-                "overshoot": _fmt(summary["overshoot_percent"], ".1f"),
-                "settling": _fmt(summary["settling_time"], ".1f"),
-                "load_peak": _fmt(summary["disturbance_peak"], ".2f"),
-                "load_settling": _fmt(summary["disturbance_settling_time"], ".1f"),
-                "iae": _fmt(summary["iae"], ".3g"),
-                "at_limits": _fmt(summary["time_at_limits"], "g"),
-            }
-        )
-    schedule = analysis.schedule
-    bands = (
-        []
-        if schedule is None
-        else [
-            {k: _fmt(v, ".4g") if isinstance(v, float) else v for k, v in b.to_json().items()}
-            | {"Kc_percent": _fmt(schedule.percent_of_span(b.pi), ".4g")}
-            for b in schedule.bands
-        ]
-    )
+    return rows
+
+
+def _pi_context(analysis: LogAnalysis) -> dict[str, Any]:
+    """The gains in every form, their margins, linear step response and the other structures'."""
+    tuning = analysis.tuning.to_json()
+    plc = tuning["plc"]
     span = plc["percent_of_span"]
     rob = analysis.tuning.robustness
-    linear = tuning["closed_loop"]
+    step = tuning["closed_loop"]["setpoint_step"]
     return {
-        "title": f"fuelid report: {data.source or 'log'}",
-        "generated": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
-        "version": __version__,
-        "source": data.source or "log",
-        "sha256": source_sha256,
-        "data": {
-            "n": data.n_samples,
-            "h": _fmt(data.sample_time, "g"),
-            "duration": _fmt(data.n_samples * data.sample_time, ".4g"),
-            "u_range": f"{np.min(data.u):.3g}…{np.max(data.u):.3g}",
-            "y_range": f"{np.min(data.y):.4g}…{np.max(data.y):.4g}",
-            "u_unit": data.u_unit,
-            "y_unit": data.y_unit,
-            "notes": list(data.notes),
-            "u_operating": _fmt(analysis.u_operating, ".3g"),
-            "fuel_temperature": format_celsius(analysis.T_fuel),
-            "fuel_temperature_origin": _fuel_temperature_origin(analysis),
-        },
-        "notices": analysis.notices,
-        "plant": analysis.plant.to_json(),
-        "priors": _priors_rows(analysis.priors),
-        "gain_unit": gain_unit(data),
-        "flow_header": "flow L/min",
-        "settings": s,
-        "t_range": f"{kelvin_to_celsius(s.T_range[0]):g}…{kelvin_to_celsius(s.T_range[1]):g}",
-        "identifications": rows_ident,
-        "warnings": analysis.warnings,
-        "pi": {
-            "rule": tuning["rule"],
-            "Kc": _fmt(tuning["Kc"], ".5g"),
-            "Ti": _fmt(tuning["Ti"], ".4g"),
-            "Ki": _fmt(tuning["Ki"], ".5g"),
-            "h": _fmt(tuning["control_period"], "g"),
-            "h_basis": s.control_period_basis,
-            "span_Kc": None if span is None else _fmt(span["Kc"], ".4g"),
-            "span_Ti_min": None if span is None else _fmt(span["Ti_min"], ".4g"),
-            "span_note": analysis.span_note,
-            "block": _block_row(analysis),
-            "discrete": None
-            if plc["discrete"] is None
-            else {
-                k: _fmt(v, ".5g") if isinstance(v, float) else v for k, v in plc["discrete"].items()
-            },
-            "gain_margin": _fmt(rob.gain_margin, ".2f"),
-            "phase_margin": _fmt(rob.phase_margin_deg, ".1f"),
-            "Ms": _fmt(rob.Ms, ".2f"),
-            "crossover": _fmt(rob.crossover_frequency, ".3g"),
-            "overshoot": _fmt(linear["setpoint_step"]["overshoot_percent"], ".1f"),
-            "settling": _fmt(linear["setpoint_step"]["settling_time"], ".1f"),
-            "structures": [
-                {
-                    "model": _describe_model(item.model),
-                    "Kc": _fmt(item.pi.Kc, ".5g"),
-                    "Ti": _fmt(item.pi.Ti, ".4g"),
-                    "Ms": _fmt(item.Ms_of_chosen_gains, ".2f"),
-                }
-                for item in analysis.outcome.structures
-            ],
-        },
-        "check": None
-        if check is None
-        else {
-            "worst_Ms": _fmt(check.worst_Ms, ".2f"),
-            "worst_overshoot": _fmt(check.worst_overshoot, ".1f"),
-            "worst_gain_margin": _fmt(check.worst_gain_margin, ".2f"),
-            "worst_phase_margin": _fmt(check.worst_phase_margin, ".1f"),
-            "all_stable": check.all_stable,
-            "cases": cases,
-        },
-        "misfit": None
-        if analysis.outcome.misfit_peak is None
-        else {
-            "Ms": _fmt(analysis.outcome.misfit_peak.Ms, ".2f"),
-            "up_to": _fmt(analysis.outcome.misfit_peak.up_to, ".3g"),
-            "bounded": math.isfinite(analysis.outcome.misfit_peak.Ms),
-        },
-        "band_check": None
-        if band_check is None
-        else {
-            "u_range": f"{band_check.u_range[0]:.3g}…{band_check.u_range[1]:.3g}",
-            "worst_Ms": _fmt(band_check.worst_Ms, ".2f"),
-            "worst_overshoot": _fmt(band_check.worst_overshoot, ".1f"),
-            "worst_gain_margin": _fmt(band_check.worst_gain_margin, ".2f"),
-            "all_stable": band_check.all_stable,
-            "cases": [
-                {k: _fmt(v, ".3g") if isinstance(v, float) else v for k, v in c.to_json().items()}
-                for c in band_check.cases
-            ],
-        },
-        "runs": runs,
-        "schedule": None
-        if analysis.schedule is None
-        else {
-            "ms_target": _fmt(analysis.schedule.ms_target, "g"),
-            "worst_Ms": _fmt(analysis.schedule.worst_Ms, ".2f"),
-            "bands": bands,
-        },
-        "figures": figures,
+        "rule": tuning["rule"],
+        "Kc": _fmt(tuning["Kc"], ".5g"),
+        "Ti": _fmt(tuning["Ti"], ".4g"),
+        "Ki": _fmt(tuning["Ki"], ".5g"),
+        "h": _fmt(tuning["control_period"], "g"),
+        "h_basis": analysis.settings.control_period_basis,
+        "span_Kc": None if span is None else _fmt(span["Kc"], ".4g"),
+        "span_Ti_min": None if span is None else _fmt(span["Ti_min"], ".4g"),
+        "span_note": analysis.span_note,
+        "block": _block_row(analysis),
+        "discrete": None if plc["discrete"] is None else _formatted(plc["discrete"], ".5g"),
+        "gain_margin": _fmt(rob.gain_margin, ".2f"),
+        "phase_margin": _fmt(rob.phase_margin_deg, ".1f"),
+        "Ms": _fmt(rob.Ms, ".2f"),
+        "crossover": _fmt(rob.crossover_frequency, ".3g"),
+        "overshoot": _fmt(step["overshoot_percent"], ".1f"),
+        "settling": _fmt(step["settling_time"], ".1f"),
+        "structures": [
+            {
+                "model": _describe_model(item.model),
+                "Kc": _fmt(item.pi.Kc, ".5g"),
+                "Ti": _fmt(item.pi.Ti, ".4g"),
+                "Ms": _fmt(item.Ms_of_chosen_gains, ".2f"),
+            }
+            for item in analysis.outcome.structures
+        ],
+    }
+
+
+def _check_context(check: FixedPIEvaluation | None) -> dict[str, Any] | None:
+    """The gains over fuel temperature on the user's plant file (None: no plant file)."""
+    if check is None:
+        return None
+    return {
+        "worst_Ms": _fmt(check.worst_Ms, ".2f"),
+        "worst_overshoot": _fmt(check.worst_overshoot, ".1f"),
+        "worst_gain_margin": _fmt(check.worst_gain_margin, ".2f"),
+        "worst_phase_margin": _fmt(check.worst_phase_margin, ".1f"),
+        "all_stable": check.all_stable,
+        "cases": [_formatted(row, ".3g") for row in check.rows()],
+    }
+
+
+def _misfit_context(peak: RobustPeak | None) -> dict[str, Any] | None:
+    """The Ms bound allowing for the misfit the log shows (None: none computed)."""
+    if peak is None:
+        return None
+    return {
+        "Ms": _fmt(peak.Ms, ".2f"),
+        "up_to": _fmt(peak.up_to, ".3g"),
+        "bounded": math.isfinite(peak.Ms),
+    }
+
+
+def _band_check_context(bands: BandCheck | None) -> dict[str, Any] | None:
+    """The gains over the log's command bands, K per band (None: not checked)."""
+    if bands is None:
+        return None
+    return {
+        "u_range": f"{bands.u_range[0]:.3g}…{bands.u_range[1]:.3g}",
+        "worst_Ms": _fmt(bands.worst_Ms, ".2f"),
+        "worst_overshoot": _fmt(bands.worst_overshoot, ".1f"),
+        "worst_gain_margin": _fmt(bands.worst_gain_margin, ".2f"),
+        "all_stable": bands.all_stable,
+        "cases": [_formatted(case.to_json(), ".3g") for case in bands.cases],
+    }
+
+
+def _run_row(run: ClosedLoopResult) -> dict[str, str]:
+    """One closed-loop run on the nonlinear plant: its setpoint step and load step."""
+    summary = run.summary()
+    return {
+        "fuel_temperature": format_celsius(run.T_fuel),
+        "setpoint": f"{run.setpoint[0]:.1f} → {run.setpoint[-1]:.1f}",
+        "overshoot": _fmt(summary["overshoot_percent"], ".1f"),
+        "settling": _fmt(summary["settling_time"], ".1f"),
+        "load_peak": _fmt(summary["disturbance_peak"], ".2f"),
+        "load_settling": _fmt(summary["disturbance_settling_time"], ".1f"),
+        "iae": _fmt(summary["iae"], ".3g"),
+        "at_limits": _fmt(summary["time_at_limits"], "g"),
+    }
+
+
+def _schedule_context(schedule: GainSchedule | None) -> dict[str, Any] | None:
+    """The gain schedule's bands with their %/% gain (None: no plant file, no schedule)."""
+    if schedule is None:
+        return None
+    return {
+        "ms_target": _fmt(schedule.ms_target, "g"),
+        "worst_Ms": _fmt(schedule.worst_Ms, ".2f"),
+        "bands": [
+            _formatted(b.to_json(), ".4g")
+            | {"Kc_percent": _fmt(schedule.percent_of_span(b.pi), ".4g")}
+            for b in schedule.bands
+        ],
     }
 
 

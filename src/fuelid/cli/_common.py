@@ -545,6 +545,71 @@ def read_log(
     )
 
 
+@dataclass(frozen=True)
+class LogReadOptions:
+    """The log-reading options of ``identify`` and ``report``, gathered once per command.
+
+    Each field is the option of the same name (``--time-col``, ``--fuel-temp-col``, ...) as
+    given. :meth:`read` loads a log with them (:func:`read_log`), :meth:`to_json` is their part
+    of the provenance's ``options``.
+    """
+
+    time_col: str = "t_s"
+    input_col: str = "u_V"
+    output_col: str = "q_Lpm"
+    sample_time: float | None = None
+    input_scale: str | None = None
+    output_scale: str | None = None
+    fuel_temp_col: str = "T_fuel_degC"
+    fill_gaps: float | None = None
+    max_gap: float | None = None
+    bad_values: str | None = None
+    flow_unit: str | None = None
+    timezone: str | None = None
+    time_format: str | None = None
+    skip_rows: int | None = None
+
+    def read(self, path: Path, progress: Callable[[str], None] | None = None) -> IOData:
+        """The log at ``path``, read with these options; ``progress`` is told each stage."""
+        return read_log(
+            path,
+            self.time_col,
+            self.input_col,
+            self.output_col,
+            self.sample_time,
+            self.input_scale,
+            self.output_scale,
+            fuel_temperature_col=self.fuel_temp_col,
+            fill_gaps=self.fill_gaps,
+            max_gap=self.max_gap,
+            bad_values=self.bad_values,
+            flow_unit=self.flow_unit,
+            timezone=self.timezone,
+            time_format=self.time_format,
+            skip_rows=self.skip_rows,
+            progress=progress,
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        """The options as the JSON's provenance records them (in 0.2.0's keys and order).
+
+        ``timezone``, ``time_format`` and ``skip_rows`` are not among them, as in 0.2.0.
+        """
+        return {
+            "time_col": self.time_col,
+            "input_col": self.input_col,
+            "output_col": self.output_col,
+            "sample_time": self.sample_time,
+            "input_scale": self.input_scale,
+            "output_scale": self.output_scale,
+            "fuel_temp_col": self.fuel_temp_col,
+            "fill_gaps": self.fill_gaps,
+            "max_gap": self.max_gap,
+            "bad_values": self.bad_values,
+            "flow_unit": self.flow_unit,
+        }
+
+
 def flow_unit_warning(data: IOData, output_col: str) -> str | None:
     """The warning for a flow column whose unit nothing says (its name, a units row, an option).
 

@@ -2,18 +2,23 @@
 
 Both commands identify the same way: no flowmeter prior unless given (by option or ``--config``),
 the dead time estimated unless given, the order chosen by the information criterion. The option
-types here keep their names, help and defaults the same in both.
+types here keep their names, help and defaults the same in both, and :class:`FitOptions` gathers
+their values once, to parse them into the library's settings and to record them in the JSON.
 """
 
 from __future__ import annotations
 
 import enum
 import math
-from typing import Annotated, Literal
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import typer
 
 from fuelid.errors import FuelidError
+
+if TYPE_CHECKING:
+    from fuelid.identify import IdentifyOptions
 
 OrderOption = Annotated[
     str,
@@ -117,3 +122,52 @@ def check_prior_times(flowmeter_T: float | None, flowmeter_delay: float | None) 
     for name, value in (("--flowmeter-T", flowmeter_T), ("--flowmeter-delay", flowmeter_delay)):
         if value is not None and not (math.isfinite(value) and value >= 0.0):
             raise FuelidError(f"{name} must be a non-negative number of seconds")
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """How the model is fitted, as ``identify`` and ``report`` both take it: one home for both.
+
+    Each field is the option as given (``--order``, ``--delay``, ``--flowmeter-T``,
+    ``--flowmeter-delay``, ``--N``, ``--covariance``, ``--full-record``). The meter's prior
+    times are checked on construction; the order and the delay when
+    :meth:`identify_options` parses them.
+    """
+
+    order: str = DEFAULT_ORDER
+    delay: str | None = None
+    flowmeter_T: float | None = None
+    flowmeter_delay: float | None = None
+    n_steps: int | None = None
+    covariance: CovarianceChoice = CovarianceChoice.auto
+    full_record: bool = False
+
+    def __post_init__(self) -> None:
+        check_prior_times(self.flowmeter_T, self.flowmeter_delay)
+
+    def identify_options(self, **settings: Any) -> IdentifyOptions:
+        """The library's settings: these options parsed, with the command's own ``settings``."""
+        from fuelid.identify import IdentifyOptions
+
+        return IdentifyOptions(
+            order=parse_order(self.order),
+            delay=parse_delay(self.delay),
+            flowmeter_T=self.flowmeter_T,
+            flowmeter_delay=self.flowmeter_delay,
+            N=self.n_steps,
+            covariance=self.covariance.value,
+            full_record=self.full_record,
+            **settings,
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        """The options as the JSON's provenance records them (in 0.2.0's keys and order)."""
+        return {
+            "order": self.order,
+            "delay": self.delay,
+            "flowmeter_T": self.flowmeter_T,
+            "flowmeter_delay": self.flowmeter_delay,
+            "N": self.n_steps,
+            "covariance": self.covariance.value,
+            "full_record": self.full_record,
+        }

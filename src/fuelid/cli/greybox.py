@@ -1,8 +1,9 @@
 """``fuelid greybox``: fit the parameters of your own ODE model (a Python file) to logged data.
 
 The command reads the model file (:mod:`fuelid.greybox.modelfile`) and the data files, applies
-``--fix``/``--free``/``--set``, fits with :class:`~fuelid.greybox.GreyBoxEstimator`, validates on
-``--validate-file`` and prints the parameters with their uncertainty and what the data determine.
+``--fix``/``--free``/``--set``, sets up the :class:`~fuelid.greybox.GreyBoxEstimator` and calls
+:func:`~fuelid.workflow.greybox_fit.fit_greybox` (the fit, the validation on ``--validate-file``,
+the profiles), then prints the parameters with their uncertainty and what the data determine.
 The library is imported when the command runs (matplotlib only with ``--plot``).
 """
 
@@ -10,7 +11,6 @@ from __future__ import annotations
 
 import enum
 import math
-import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -31,7 +31,11 @@ from fuelid.cli._common import (
 from fuelid.errors import ConfigError, FuelidError
 
 if TYPE_CHECKING:
+    from rich.table import Table
+
     from fuelid.greybox import GreyBoxEstimator, Record
+    from fuelid.greybox.modelfile import ModelFile
+    from fuelid.workflow.greybox_fit import GreyBoxFit
 
 DEFAULT_INPUT = "u_V"
 """The input column without --input-col or the model file's inputs (for the help text)."""
@@ -263,18 +267,13 @@ def greybox_command(
     identifiability report. Parameters the data cannot tell apart are refused before fitting
     (exit code 2): fix one of them with --fix (and --set its known value).
     """
-    from fuelid.greybox import GreyBoxEstimator
-    from fuelid.greybox.fitting import ConvergenceError
-    from fuelid.greybox.identifiability import NotIdentifiableError, describe_identifiability
+    from fuelid.greybox.identifiability import describe_identifiability
     from fuelid.greybox.modelfile import read_model_file
-    from fuelid.greybox.solver_choice import check_request as check_solver_request
     from fuelid.workflow.greybox_fit import (
-        data_columns,
         fit_warnings,
+        greybox_estimator,
         greybox_model,
         greybox_result,
-        read_record,
-        validate_fit,
     )
 
     check_figure_path(plot, overwrite=force)
@@ -284,81 +283,36 @@ def greybox_command(
     mf = read_model_file(model_file)
     model = greybox_model(mf, fixed_names, free_names, values)
     specs = model.parameters
-    estimated = [spec.name for spec in specs if not spec.fixed]
-    profiled = _profiled(profile, estimated)
+    profiled = _profiled(profile, [spec.name for spec in specs if not spec.fixed])
     if initial_state is InitialState.model and not mf.has_x0:
         raise ConfigError(
             f"--initial-state model, but {model_file} defines no x0(p, u0, y0); use estimate"
         )
-    inputs, outputs = data_columns(
-        mf, _names(input_col, "--input-col"), _names(output_col, "--output-col")
+    columns = (_names(input_col, "--input-col"), _names(output_col, "--output-col"))
+    inputs, outputs, records, validation = _read_records(
+        mf, columns, data_files, validate_file, time_col, sample_time
     )
-    records = [read_record(path, time_col, inputs, outputs, sample_time) for path in data_files]
-    validation = (
-        read_record(validate_file, time_col, inputs, outputs, sample_time)
-        if validate_file is not None
-        else None
-    )
-    mf.check(float(records[0].t[0]), records[0].u[0])
-
     start = _segments(segments)
-    solver_name = solver.value if solver is not None else (mf.solver or "auto")
-    estimator = GreyBoxEstimator(
+    estimator = greybox_estimator(
+        mf,
         model,
         initial_state=initial_state.value,
         max_iterations=max_iterations,
         segments=start,
-        solver=solver_name,
-        max_step=max_step if max_step is not None else mf.max_step,
-        # the file's substeps belong to rk4 (auto's too): another solver given drops them
-        substeps=substeps
-        if substeps is not None
-        else (mf.substeps if solver_name in {"rk4", "auto"} else None),
+        solver=None if solver is None else solver.value,
+        max_step=max_step,
+        substeps=substeps,
         hold_undetermined=hold_undetermined,
     )
-    check_solver_request(estimator.solver, estimator.max_step, estimator.substeps)
-    started = time.perf_counter()
-    with progress_display() as stage:
-        stage("fitting")
-        try:
-            estimator.fit(records)
-        except NotIdentifiableError as exc:
-            raise FuelidError(
-                _refusal(
-                    exc.report.message(),
-                    exc.report.undetermined_names,
-                    specs,
-                    exc.report.zero_sensitivity,
-                )
-            ) from None
-        except ConvergenceError as exc:
-            hint = "; --segments auto or N tries a segmented start" if start is None else ""
-            raise ConvergenceError(f"{exc}{hint}") from None
-        fit_seconds = time.perf_counter() - started
-        check = None
-        if validation is not None:
-            stage("validating")
-            check = validate_fit(estimator, validation)
-        intervals: dict[str, list[float]] = {}
-        for name in profiled:
-            stage(f"profiling {name}")
-            lo, hi = estimator.profile_interval(name)
-            intervals[name] = [lo, hi]
-    warnings = fit_warnings(estimator)
-    if validate_file is not None and any(
-        path.resolve() == validate_file.resolve() for path in data_files
-    ):
-        warnings.append(
-            f"{validate_file} is also fitted: its validation fit is not a test on unseen data"
-        )
+    fitted = _fit(estimator, records, validation, profiled, segmented=start is not None)
+    warnings = fit_warnings(estimator) + _also_fitted(validate_file, data_files)
     for message in warnings:
         warn(message)
     if plot is not None:
-        _plot(estimator, records, validation, check, plot, model_file, list(inputs))
-    result = greybox_result(
-        mf, estimator, records, validation, check, intervals if profiled else None, warnings
-    )
-    result["wall_time_s"] = fit_seconds
+        _plot(estimator, records, validation, fitted.check, plot, model_file, list(inputs))
+    profiles = fitted.profile if profiled else None
+    result = greybox_result(mf, estimator, records, validation, fitted.check, profiles, warnings)
+    result["wall_time_s"] = fitted.fit_seconds
     options = {
         "model_file": str(model_file),
         "data_files": [str(path) for path in data_files],
@@ -380,16 +334,92 @@ def greybox_command(
         "profile": profiled,
         "plot": None if plot is None else str(plot),
     }
-    files = [model_file, *data_files, *([validate_file] if validate_file is not None else [])]
-    block = provenance(options, data_files[0])
-    block["files_sha256"] = {str(path): file_sha256(path) for path in files}
     if as_json:
+        block = _provenance(options, model_file, data_files, validate_file)
         emit_json(result | {"provenance": block} | block)
         return
-    _print(result, model_file, fit_seconds, describe_identifiability(result["identifiability"]))
+    identifiability = describe_identifiability(result["identifiability"])
+    _print(result, model_file, fitted.fit_seconds, identifiability)
 
 
 # --- steps ----------------------------------------------------------------------------------------
+
+
+def _read_records(
+    mf: ModelFile,
+    columns: tuple[list[str], list[str]],
+    data_files: list[Path],
+    validate_file: Path | None,
+    time_col: str,
+    sample_time: float | None,
+) -> tuple[tuple[str, ...], tuple[str, ...], list[Record], Record | None]:
+    """(input columns, output columns, the records, the validation record) from the logs.
+
+    ``columns`` are ``--input-col`` and ``--output-col``'s names (empty: the model file's).
+    The model file is checked at the first record's start before any fit.
+    """
+    from fuelid.workflow.greybox_fit import data_columns, read_record
+
+    inputs, outputs = data_columns(mf, *columns)
+    records = [read_record(path, time_col, inputs, outputs, sample_time) for path in data_files]
+    validation = (
+        read_record(validate_file, time_col, inputs, outputs, sample_time)
+        if validate_file is not None
+        else None
+    )
+    mf.check(float(records[0].t[0]), records[0].u[0])
+    return inputs, outputs, records, validation
+
+
+def _fit(
+    estimator: GreyBoxEstimator,
+    records: list[Record],
+    validation: Record | None,
+    profiled: list[str],
+    segmented: bool,
+) -> GreyBoxFit:
+    """:func:`~fuelid.workflow.greybox_fit.fit_greybox` with its stages on stderr.
+
+    A refusal becomes a one-line reason that says what to type (``--fix``, ``--segments``).
+    """
+    from fuelid.greybox import ConvergenceError, NotIdentifiableError
+    from fuelid.workflow.greybox_fit import fit_greybox
+
+    with progress_display() as stage:
+        try:
+            return fit_greybox(estimator, records, validation, profiled, progress=stage)
+        except NotIdentifiableError as exc:
+            report = exc.report
+            raise FuelidError(
+                _refusal(
+                    report.message(),
+                    report.undetermined_names,
+                    estimator.model.parameters,
+                    report.zero_sensitivity,
+                )
+            ) from None
+        except ConvergenceError as exc:
+            hint = "" if segmented else "; --segments auto or N tries a segmented start"
+            raise ConvergenceError(f"{exc}{hint}") from None
+
+
+def _also_fitted(validate_file: Path | None, data_files: list[Path]) -> list[str]:
+    """The warning for a validation log that is also fitted (empty: none is)."""
+    if validate_file is None or all(
+        path.resolve() != validate_file.resolve() for path in data_files
+    ):
+        return []
+    return [f"{validate_file} is also fitted: its validation fit is not a test on unseen data"]
+
+
+def _provenance(
+    options: dict[str, Any], model_file: Path, data_files: list[Path], validate_file: Path | None
+) -> dict[str, Any]:
+    """The provenance block, with the SHA-256 of every file read (the model file's too)."""
+    files = [model_file, *data_files, *([validate_file] if validate_file is not None else [])]
+    block = provenance(options, data_files[0])
+    block["files_sha256"] = {str(path): file_sha256(path) for path in files}
+    return block
 
 
 def _profiled(profile: str | None, estimated: list[str]) -> list[str]:
@@ -479,11 +509,20 @@ def _plot(
 def _print(
     result: dict[str, Any], model_file: Path, seconds: float, identifiability: list[str]
 ) -> None:
+    """The text of ``fuelid greybox``: the parameter table, then the fit and what it rests on."""
     from rich.console import Console
+
+    console = Console()
+    console.print(_parameter_table(result, model_file))
+    for line in _summary_lines(result, seconds, identifiability):
+        console.print(line, highlight=False, markup=False)
+
+
+def _parameter_table(result: dict[str, Any], model_file: Path) -> Table:
+    """The parameters with their standard errors, 95 % intervals, status and units."""
     from rich.markup import escape
     from rich.table import Table
 
-    console = Console()
     units = result["units"].get("parameter_units", {})
     misfit = result["misfit"]
     # on a misfit the table itself says what its intervals rest on (the first screen)
@@ -517,7 +556,11 @@ def _print(
         if units:
             cells.append(units.get(name, ""))
         table.add_row(*(escape(cell) for cell in cells))
-    console.print(table)
+    return table
+
+
+def _summary_lines(result: dict[str, Any], seconds: float, identifiability: list[str]) -> list[str]:
+    """The lines below the table: fits, validation, noise, initial states, profiles, the run."""
     lines = [
         f"fit (NRMSE, free-run simulation) on {name}: "
         + ", ".join(f"{k} {v:.2f} %" for k, v in fits.items())
@@ -553,5 +596,4 @@ def _print(
         f"{result['n_iterations']} iterations, {result['start']}, solver "
         f"{result['solver_description']}, {seconds:.1f} s"
     )
-    for line in lines:
-        console.print(line, highlight=False, markup=False)
+    return lines

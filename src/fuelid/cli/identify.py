@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -24,6 +23,7 @@ from fuelid.cli._common import (
     FuelTemperatureColumn,
     InputColumn,
     InputScale,
+    LogReadOptions,
     MaxGap,
     OutputColumn,
     OutputScale,
@@ -40,7 +40,6 @@ from fuelid.cli._common import (
     guarded,
     progress_display,
     provenance,
-    read_log,
     warn,
 )
 from fuelid.cli._identify_options import (
@@ -48,19 +47,21 @@ from fuelid.cli._identify_options import (
     CovarianceChoice,
     CovarianceOption,
     DelayOption,
+    FitOptions,
     FlowmeterDelayOption,
     FlowmeterTOption,
     OrderOption,
     StepsOption,
-    check_prior_times,
-    parse_delay,
-    parse_order,
 )
 from fuelid.errors import FuelidError
 from fuelid.units import FUEL_TEMPERATURE_RANGE_C, celsius_to_kelvin, format_celsius
 
 if TYPE_CHECKING:
+    from rich.table import Table
+
+    from fuelid.identify import IdentificationResult
     from fuelid.io.timeseries import IOData
+    from fuelid.workflow.assumptions import PlantSource
 
 
 class ValidationStart(enum.StrEnum):
@@ -218,63 +219,39 @@ def identify_command(
     A flowmeter time constant or delay that is given is prior knowledge and stays fixed; what is
     not given is estimated. Non-exciting data are refused (exit code 2).
     """
-    from fuelid.identify.result import IdentifyOptions
     from fuelid.workflow.identification import identify_log
 
     check_figure_path(plot, overwrite=force)
-    check_prior_times(flowmeter_T, flowmeter_delay)
-    if control_period is not None:
-        from fuelid.lti import check_control_period
-
-        check_control_period(control_period, "control period (--control-period)")
-    low, high = FUEL_TEMPERATURE_RANGE_C
-    if fuel_temp is not None and not (math.isfinite(fuel_temp) and low <= fuel_temp <= high):
-        raise FuelidError(f"--fuel-temp must lie within {low:g}…{high:g} °C, got {fuel_temp:g}")
-    options = IdentifyOptions(
+    fit = FitOptions(order, delay, flowmeter_T, flowmeter_delay, n_steps, covariance, full_record)
+    _check_period_and_fuel(control_period, fuel_temp)
+    options = fit.identify_options(
         method=method.value,
-        order=parse_order(order),
-        delay=parse_delay(delay),
-        flowmeter_T=flowmeter_T,
-        flowmeter_delay=flowmeter_delay,
-        N=n_steps,
-        covariance=covariance.value,
         control_period=STEP_LS_PERIOD if control_period is None else control_period,
         validate_split=validate_split,
         u_before=u_before,
         validation_initial=validate_initial.value,
-        full_record=full_record,
     )
-    plant = None
-    if config is not None:
-        from fuelid.plant.config import load_plant_config
-        from fuelid.workflow.assumptions import PlantSource
-
-        plant = PlantSource(load_plant_config(config), str(config))
-
-    def read(path: Path, progress: Callable[[str], None] | None = None) -> IOData:
-        return read_log(
-            path,
-            time_col,
-            input_col,
-            output_col,
-            sample_time,
-            input_scale,
-            output_scale,
-            fuel_temperature_col=fuel_temp_col,
-            fill_gaps=fill_gaps,
-            max_gap=max_gap,
-            bad_values=bad_values,
-            flow_unit=flow_unit,
-            timezone=timezone,
-            time_format=time_format,
-            skip_rows=skip_rows,
-            progress=progress,
-        )
-
+    plant = _plant_source(config)
+    log = LogReadOptions(
+        time_col=time_col,
+        input_col=input_col,
+        output_col=output_col,
+        sample_time=sample_time,
+        input_scale=input_scale,
+        output_scale=output_scale,
+        fuel_temp_col=fuel_temp_col,
+        fill_gaps=fill_gaps,
+        max_gap=max_gap,
+        bad_values=bad_values,
+        flow_unit=flow_unit,
+        timezone=timezone,
+        time_format=time_format,
+        skip_rows=skip_rows,
+    )
     # reading, gridding, fitting and testing a day at 50 Hz take seconds each: shown on stderr
     with progress_display(quiet) as stage:
-        data = read(file, stage)
-        validation = read(validate_file) if validate_file is not None else None
+        data = log.read(file, stage)
+        validation = log.read(validate_file) if validate_file is not None else None
         outcome = identify_log(
             data,
             options,
@@ -285,33 +262,91 @@ def identify_command(
             fuel_temperature=None if fuel_temp is None else celsius_to_kelvin(fuel_temp),
             progress=stage,
         )
-    result = outcome.result
     unit_warning = flow_unit_warning(data, output_col)
     warnings = outcome.warnings + ([unit_warning] if unit_warning else [])
     for message in warnings:
         warn(message)
     if plot is not None:
-        from fuelid.plots import plot_identification, save_figure
+        _plot(outcome.result, data, file, plot, output_col)
+    data_json = outcome.to_json() | {"warnings": warnings}
+    if as_json:
+        given = {
+            "method": method.value,
+            **fit.to_json(),
+            "control_period": control_period,
+            "control_period_given": control_period is not None,
+            "validate_split": validate_split,
+            "validate_initial": validate_initial.value,
+            "config": str(config) if config else None,
+            "fuel_temp": fuel_temp,
+            "u_before": u_before,
+        }
+        emit_json(data_json | provenance(given | log.to_json(), file))
+        return
+    part = _fitted_part(data, outcome.result, (t_start, t_stop), validate_file)
+    gain_unit, units = _units(data, output_col)
+    _print_table(data_json, file, gain_unit, units, part)
 
-        fig = plot_identification(
-            result.time,
-            result.y,
-            [(f"{result.method} model", result.y_hat)],
-            result.split_time,
-            f"{file.name}: measured and {result.method} model output",
-            ylabel=output_col,
-            unit=data.y_unit or None,
-        )
-        save_figure(fig, plot)
-    log = (float(data.t[0]), float(data.t[-1]))
-    fitted = (
-        float(result.time[0]) if t_start is not None else log[0],
-        result.split_time
-        if result.split_time is not None
-        else float(result.time[-1])
-        if t_stop is not None
-        else log[1],
+
+def _check_period_and_fuel(control_period: float | None, fuel_temp: float | None) -> None:
+    """Refuse a ``--control-period`` no PLC runs and a ``--fuel-temp`` no fuel has."""
+    if control_period is not None:
+        from fuelid.lti import check_control_period
+
+        check_control_period(control_period, "control period (--control-period)")
+    low, high = FUEL_TEMPERATURE_RANGE_C
+    if fuel_temp is not None and not (math.isfinite(fuel_temp) and low <= fuel_temp <= high):
+        raise FuelidError(f"--fuel-temp must lie within {low:g}…{high:g} °C, got {fuel_temp:g}")
+
+
+def _plant_source(config: Path | None) -> PlantSource | None:
+    """The user's plant file of ``--config`` (None without one: no priors, no plant)."""
+    if config is None:
+        return None
+    from fuelid.plant.config import load_plant_config
+    from fuelid.workflow.assumptions import PlantSource
+
+    return PlantSource(load_plant_config(config), str(config))
+
+
+def _plot(
+    result: IdentificationResult, data: IOData, file: Path, plot: Path, output_col: str
+) -> None:
+    """``--plot``: the measured output against the model's free-run simulation."""
+    from fuelid.plots import plot_identification, save_figure
+
+    fig = plot_identification(
+        result.time,
+        result.y,
+        [(f"{result.method} model", result.y_hat)],
+        result.split_time,
+        f"{file.name}: measured and {result.method} model output",
+        ylabel=output_col,
+        unit=data.y_unit or None,
     )
+    save_figure(fig, plot)
+
+
+def _fitted_part(
+    data: IOData,
+    result: IdentificationResult,
+    window: tuple[float | None, float | None],
+    validate_file: Path | None,
+) -> str:
+    """The table's first line: the part of the log fitted (``window``: --t-start, --t-stop).
+
+    The fit ends where the held-out part starts, else at --t-stop's last sample, else at the
+    log's end; without a held-out part it says why ``fuelid report`` scores differently.
+    """
+    t_start, t_stop = window
+    log = (float(data.t[0]), float(data.t[-1]))
+    if result.split_time is not None:
+        end = result.split_time
+    elif t_stop is not None:
+        end = float(result.time[-1])
+    else:
+        end = log[1]
+    fitted = (float(result.time[0]) if t_start is not None else log[0], end)
     validated_on = (
         "the rest"
         if result.split_time is not None
@@ -322,57 +357,76 @@ def identify_command(
     part = fitted_part(log, fitted, validated_on)
     if validated_on is None:  # report holds out 30 % by default: say why the two differ
         part += " (fuelid report holds out the last 30 %: --validate-split 0.3 does so here)"
-    data_json = outcome.to_json() | {"warnings": warnings}
-    if as_json:
-        opts = {
-            "method": method.value,
-            "order": order,
-            "delay": delay,
-            "flowmeter_T": flowmeter_T,
-            "flowmeter_delay": flowmeter_delay,
-            "N": n_steps,
-            "covariance": covariance.value,
-            "full_record": full_record,
-            "control_period": control_period,
-            "control_period_given": control_period is not None,
-            "validate_split": validate_split,
-            "validate_initial": validate_initial.value,
-            "config": str(config) if config else None,
-            "fuel_temp": fuel_temp,
-            "u_before": u_before,
-            "time_col": time_col,
-            "input_col": input_col,
-            "output_col": output_col,
-            "sample_time": sample_time,
-            "input_scale": input_scale,
-            "output_scale": output_scale,
-            "fuel_temp_col": fuel_temp_col,
-            "fill_gaps": fill_gaps,
-            "max_gap": max_gap,
-            "bad_values": bad_values,
-            "flow_unit": flow_unit,
-        }
-        emit_json(data_json | provenance(opts, file))
-        return
+    return part
+
+
+def _units(data: IOData, output_col: str) -> tuple[str, tuple[str, str]]:
+    """The table's gain unit and the operating point's (input, output) units.
+
+    An unknown flow unit is named by its column (and said on stderr), not "output unit"; the
+    operating point names its units as the table's K does: an unknown one in words.
+    """
     from dataclasses import replace
 
     from fuelid.workflow.assumptions import gain_unit
 
-    # an unknown flow unit is named by its column (and said on stderr), not "output unit"
     named = data if data.y_unit else replace(data, y_unit=f"unit of {output_col}")
-    # the operating point names its units as the table's K does: an unknown one in words
-    units = (data.u_unit or "input unit", named.y_unit)
-    _print_table(data_json, file, gain_unit(named), units, part)
+    return gain_unit(named), (data.u_unit or "input unit", named.y_unit)
 
 
 def _print_table(
     data: dict[str, Any], file: Path, gain_unit: str, units: tuple[str, str], part: str
 ) -> None:
+    """The text of ``fuelid identify``: the part fitted, the parameters, the fit and its basis.
+
+    ``data`` is the command's JSON object; ``units`` the operating point's (input, output).
+    """
     from rich.console import Console
-    from rich.table import Table
+
+    from fuelid.identify.long_record import long_record_note
 
     console = Console(emoji=False)
     console.print(part, highlight=False, soft_wrap=True)  # first: which part was fitted
+    console.print(_parameter_table(data, file, gain_unit))
+    console.print(f"fit {data['fit_percent']:.2f} % (NRMSE, free-run simulation)")
+    if data["validation_fit_percent"] is not None:
+        console.print(f"validation fit {data['validation_fit_percent']:.2f} % (held-out data)")
+    point = data["operating_point"]
+    fuel = point["fuel_temperature"]
+    u_unit, y_unit = (f"({unit})" if " " in unit else unit for unit in units)
+    console.print(
+        f"operating point: u = {point['u']:.3g} {u_unit}, flow {point['y']:.4g} {y_unit}; fuel "
+        + (
+            f"{format_celsius(celsius_to_kelvin(fuel))} °C ({point['fuel_temperature_source']})"
+            if fuel is not None
+            else "unknown"
+        )
+    )
+    console.print(f"assumed: {_describe_priors(data['priors'])}", highlight=False)
+    console.print(f"standard errors: {_covariance_basis(data)}", highlight=False)
+    noise = data.get("noise_model")
+    if noise is not None:
+        console.print(
+            f"noise model C/D with nc = {noise['nc']}, nd = {noise['nd']}, poles "
+            f"{_poles(noise['poles'])}, σ_v {noise['sigma_v']:.3g}; one-step prediction fit "
+            f"{data['one_step_fit_percent']:.2f} %",
+            highlight=False,
+        )
+    structure = data.get("structure")
+    if structure is not None and len(structure["compared"]) > 1:
+        compared = ", ".join(f"{c['order']} (BIC {c['bic']:.1f})" for c in structure["compared"])
+        console.print(f"orders compared: {compared}; kept {structure['reason']}", highlight=False)
+    if "method_choice" in data:
+        console.print(data["method_choice"], highlight=False)
+    note = long_record_note(data.get("long_record"), data.get("sample_time"))
+    if note:  # a day fitted on a copy, or searched there and polished: say which
+        console.print(note, highlight=False)
+
+
+def _parameter_table(data: dict[str, Any], file: Path, gain_unit: str) -> Table:
+    """The model's parameters with their standard errors, 95 % intervals and units."""
+    from rich.table import Table
+
     from fuelid.model import MODEL_KEYS
 
     table = Table(
@@ -392,54 +446,27 @@ def _print_table(
             "" if ci is None else format_interval(ci[0], ci[1], minimum=5),
             gain_unit if key == "K" else "s",
         )
-    console.print(table)
-    console.print(f"fit {data['fit_percent']:.2f} % (NRMSE, free-run simulation)")
-    if data["validation_fit_percent"] is not None:
-        console.print(f"validation fit {data['validation_fit_percent']:.2f} % (held-out data)")
-    point = data["operating_point"]
-    fuel = point["fuel_temperature"]
-    u_unit, y_unit = (f"({unit})" if " " in unit else unit for unit in units)
-    console.print(
-        f"operating point: u = {point['u']:.3g} {u_unit}, flow {point['y']:.4g} {y_unit}; fuel "
-        + (
-            f"{format_celsius(celsius_to_kelvin(fuel))} °C ({point['fuel_temperature_source']})"
-            if fuel is not None
-            else "unknown"
-        )
-    )
-    console.print(f"assumed: {_describe_priors(data['priors'])}", highlight=False)
-    conventions = {
-        "white": "white residuals, σ²(JᵀJ)⁻¹",
-        "hac": "the sandwich with the coloured residuals' spectrum",
-        "noise-model": "the prediction-error fit's, with its noise model",
-    }
-    convention = conventions.get(data["covariance"], data["covariance"])
+    return table
+
+
+_COVARIANCE_BASES = {
+    "white": "white residuals, σ²(JᵀJ)⁻¹",
+    "hac": "the sandwich with the coloured residuals' spectrum",
+    "noise-model": "the prediction-error fit's, with its noise model",
+}
+"""What the standard errors rest on, by the JSON's ``covariance``."""
+
+
+def _covariance_basis(data: dict[str, Any]) -> str:
+    """What the standard errors rest on, in words."""
     if data.get("residual_colour") == "model":
         # coloured residuals whose colour is the model's misfit: the noise alone is counted
-        convention = (
+        return (
             "σ²(JᵀJ)⁻¹ with the noise's level where the output has settled (the residuals' "
             "colour is the model's misfit, not noise)"
         )
-    console.print(f"standard errors: {convention}", highlight=False)
-    noise = data.get("noise_model")
-    if noise is not None:
-        console.print(
-            f"noise model C/D with nc = {noise['nc']}, nd = {noise['nd']}, poles "
-            f"{_poles(noise['poles'])}, σ_v {noise['sigma_v']:.3g}; one-step prediction fit "
-            f"{data['one_step_fit_percent']:.2f} %",
-            highlight=False,
-        )
-    structure = data.get("structure")
-    if structure is not None and len(structure["compared"]) > 1:
-        compared = ", ".join(f"{c['order']} (BIC {c['bic']:.1f})" for c in structure["compared"])
-        console.print(f"orders compared: {compared}; kept {structure['reason']}", highlight=False)
-    if "method_choice" in data:
-        console.print(data["method_choice"], highlight=False)
-    from fuelid.identify.long_record import long_record_note
-
-    note = long_record_note(data.get("long_record"), data.get("sample_time"))
-    if note:  # a day fitted on a copy, or searched there and polished: say which
-        console.print(note, highlight=False)
+    covariance = str(data["covariance"])
+    return _COVARIANCE_BASES.get(covariance, covariance)
 
 
 def _describe_priors(priors: dict[str, Any]) -> str:

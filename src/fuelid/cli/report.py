@@ -29,6 +29,7 @@ from fuelid.cli._common import (
     InputColumn,
     InputScale,
     LambdaOption,
+    LogReadOptions,
     MaxGap,
     MsTargetOption,
     OutputColumn,
@@ -53,7 +54,6 @@ from fuelid.cli._common import (
     guarded,
     progress_display,
     provenance,
-    read_log,
     site_facts,
     temperature_options,
     warn,
@@ -63,19 +63,17 @@ from fuelid.cli._identify_options import (
     CovarianceChoice,
     CovarianceOption,
     DelayOption,
+    FitOptions,
     FlowmeterDelayOption,
     FlowmeterTOption,
     OrderOption,
     StepsOption,
-    check_prior_times,
-    parse_delay,
-    parse_order,
 )
 from fuelid.cli.identify import FullRecordOption
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
 if TYPE_CHECKING:
-    from fuelid.workflow import LogAnalysis
+    from fuelid.workflow import AnalysisSettings, LogAnalysis, PlantSource
 
 
 class TuneFrom(enum.StrEnum):
@@ -183,11 +181,10 @@ def report_command(
     coldest and warmest fuel, the gains in every PLC form and the gain schedule. The figures are
     also written as PNG files beside the page (REPORT_overview.png, ...).
     """
-    from fuelid.htmlreport import check_report_path, write_report
-    from fuelid.identify.result import IdentifyOptions
+    from fuelid.htmlreport import check_report_path
     from fuelid.plant import load_plant_config
     from fuelid.tuning.block import BlockForm
-    from fuelid.workflow import AnalysisSettings, PlantSource, analyse_log
+    from fuelid.workflow import AnalysisSettings, PlantSource
     from fuelid.workflow.trust import control_period_from
 
     check_report_path(out, force)  # before any work: a typo must not cost a minute
@@ -198,7 +195,7 @@ def report_command(
     T_fuel, T_range = temperature_options(
         DEFAULT_FUEL_TEMPERATURE_C if fuel_temp is None else fuel_temp, t_min, t_max
     )
-    check_prior_times(flowmeter_T, flowmeter_delay)
+    fit = FitOptions(order, delay, flowmeter_T, flowmeter_delay, n_steps, covariance, full_record)
     check_spans(flow_span, u_span)
     settings = AnalysisSettings(
         tune_from=method.value,
@@ -210,15 +207,7 @@ def report_command(
         site_spans=(None, None) if facts is None else facts.spans,
         block=None if facts is None or facts.controller is None else BlockForm.of(facts.controller),
         T_fuel=None if fuel_temp is None else T_fuel,
-        identify=IdentifyOptions(
-            order=parse_order(order),
-            delay=parse_delay(delay),
-            flowmeter_T=flowmeter_T,
-            flowmeter_delay=flowmeter_delay,
-            N=n_steps,
-            covariance=covariance.value,
-            full_record=full_record,
-        ),
+        identify=fit.identify_options(),
         accept_signals=accept_signals,
         T_range=T_range,
         band_width=band_width,
@@ -229,47 +218,29 @@ def report_command(
         u_span=u_span,
     )
     plant = PlantSource(load_plant_config(config), None if config is None else str(config))
-    # reading, gridding and the fits of a day at 50 Hz take seconds each: shown on stderr
-    with progress_display(quiet) as stage:
-        data = read_log(
-            file,
-            time_col,
-            input_col,
-            output_col,
-            sample_time,
-            input_scale,
-            output_scale,
-            fuel_temperature_col=fuel_temp_col,
-            fill_gaps=fill_gaps,
-            max_gap=max_gap,
-            bad_values=bad_values,
-            flow_unit=flow_unit,
-            timezone=timezone if timezone or facts is None else facts.timezone,
-            time_format=time_format,
-            skip_rows=skip_rows,
-            progress=stage,
-        )
-        analysis = analyse_log(data, plant, settings, progress=stage)
-    unit_warning = flow_unit_warning(data, output_col)
-    if unit_warning:  # the report's gains take the flow as L/min: the page says so too
-        analysis.warnings.append(unit_warning)
-    for message in analysis.notices + analysis.warnings:
-        warn(message)
-    digest = file_sha256(file)
-    with progress_display(quiet) as stage:
-        stage("figures")
-        written = write_report(analysis, out, overwrite=force, source_sha256=digest)
+    log = LogReadOptions(
+        time_col=time_col,
+        input_col=input_col,
+        output_col=output_col,
+        sample_time=sample_time,
+        input_scale=input_scale,
+        output_scale=output_scale,
+        fuel_temp_col=fuel_temp_col,
+        fill_gaps=fill_gaps,
+        max_gap=max_gap,
+        bad_values=bad_values,
+        flow_unit=flow_unit,
+        # a log's stamps without offsets are in the site's zone unless --timezone says otherwise
+        timezone=timezone if timezone or facts is None else facts.timezone,
+        time_format=time_format,
+        skip_rows=skip_rows,
+    )
+    analysis, written = _analyse_and_write(file, log, plant, settings, out, force, quiet)
     if as_json:
-        options = {
+        given = {
             "out": str(out),
             "config": str(config) if config else None,
-            "order": order,
-            "delay": delay,
-            "flowmeter_T": flowmeter_T,
-            "flowmeter_delay": flowmeter_delay,
-            "N": n_steps,
-            "covariance": covariance.value,
-            "full_record": full_record,
+            **fit.to_json(),
             "accept_signals": accept_signals,
             "method": settings.tune_from,
             "rule": rule.value,
@@ -287,22 +258,43 @@ def report_command(
             "flow_span": flow_span,
             "u_span": u_span,
             "validate_split": validate_split,
-            "time_col": time_col,
-            "input_col": input_col,
-            "output_col": output_col,
-            "sample_time": sample_time,
-            "input_scale": input_scale,
-            "output_scale": output_scale,
-            "fuel_temp_col": fuel_temp_col,
-            "fill_gaps": fill_gaps,
-            "max_gap": max_gap,
-            "bad_values": bad_values,
-            "flow_unit": flow_unit,
         }
         paths = {"report": str(written[0]), "figures": [str(p) for p in written[1:]]}
-        emit_json(paths | analysis.to_json() | provenance(options, file))
+        emit_json(paths | analysis.to_json() | provenance(given | log.to_json(), file))
         return
     _print_summary(analysis, written)
+
+
+def _analyse_and_write(
+    file: Path,
+    log: LogReadOptions,
+    plant: PlantSource,
+    settings: AnalysisSettings,
+    out: Path,
+    force: bool,
+    quiet: bool,
+) -> tuple[LogAnalysis, list[Path]]:
+    """Read and analyse the log, say its warnings, write the page: (the analysis, paths written).
+
+    The paths are the page's first, then its figures'.
+    """
+    from fuelid.htmlreport import write_report
+    from fuelid.workflow import analyse_log
+
+    # reading, gridding and the fits of a day at 50 Hz take seconds each: shown on stderr
+    with progress_display(quiet) as stage:
+        data = log.read(file, stage)
+        analysis = analyse_log(data, plant, settings, progress=stage)
+    unit_warning = flow_unit_warning(data, log.output_col)
+    if unit_warning:  # the report's gains take the flow as L/min: the page says so too
+        analysis.warnings.append(unit_warning)
+    for message in analysis.notices + analysis.warnings:
+        warn(message)
+    digest = file_sha256(file)
+    with progress_display(quiet) as stage:
+        stage("figures")
+        written = write_report(analysis, out, overwrite=force, source_sha256=digest)
+    return analysis, written
 
 
 def _fitted_part(analysis: LogAnalysis) -> str:

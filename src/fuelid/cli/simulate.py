@@ -11,17 +11,16 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import Annotated, Any
 
 import typer
 
 from fuelid.cli._common import checked_kelvin, emit_json, guarded, provenance
 from fuelid.errors import FuelidError
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C, LPM_PER_M3S, PA_PER_MPA
-
-if TYPE_CHECKING:
-    pass
 
 #: simulated time above which a progress bar is shown [s]
 PROGRESS_THRESHOLD = 600.0
@@ -152,38 +151,16 @@ def simulate_command(
     --input-file). The controller output is held for --control-period s (sample-and-hold).
     With --pressure the log also has p_pump_MPa, the pump outlet pressure a transmitter reads.
     """
-    from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
     from fuelid.io.files import check_output_path
-    from fuelid.io.timeseries import PRESSURE_COLUMN
     from fuelid.lti import check_control_period
     from fuelid.plant import load_plant_config
-    from fuelid.plant.simulate import PRESSURE_NOISE_STD, PRESSURE_RESOLUTION
     from fuelid.workflow.simulation import SimulationRequest, simulate_log, simulation_inputs
 
     out = check_output_path(output, overwrite=force)
     check_control_period(control_period, "control period (--control-period)")  # 0: changes at once
-    given = [
-        name
-        for name, value in (
-            ("--pressure-noise-std", pressure_noise_std),
-            ("--pressure-resolution", pressure_resolution),
-        )
-        if value is not None
-    ]
-    if given and not pressure:
-        raise FuelidError(f"{' and '.join(given)} set the logged pressure: add --pressure")
-    if pressure_noise_std is None:
-        pressure_noise_std = PRESSURE_NOISE_STD / PA_PER_MPA
-    if pressure_resolution is None:
-        pressure_resolution = PRESSURE_RESOLUTION / PA_PER_MPA
-    for name, value in (
-        ("--pressure-noise-std", pressure_noise_std),
-        ("--pressure-resolution", pressure_resolution),
-    ):
-        if not (math.isfinite(value) and value >= 0.0):
-            raise FuelidError(f"{name} must be zero or a positive number of MPa, got {value:g}")
+    pressure_noise_std, pressure_resolution = _pressure_options(
+        pressure, pressure_noise_std, pressure_resolution
+    )
     plant = load_plant_config(config)
     if profile is ProfileKind.file and input_file is None:
         raise FuelidError("--profile file needs --input-file")
@@ -212,6 +189,74 @@ def simulate_command(
         pressure_resolution=pressure_resolution * PA_PER_MPA,
     )
     inputs = simulation_inputs(request)
+    hidden = quiet or as_json or inputs.duration < PROGRESS_THRESHOLD
+    with _progress_bar(hidden) as progress:
+        outcome = simulate_log(plant, request, inputs=inputs, progress=progress)
+    outcome.to_log().write(out, overwrite=force)
+    summary = outcome.to_json(out)
+    if not as_json:
+        typer.echo(_summary_line(summary, out))
+        return
+    options: dict[str, Any] = {
+        "config": str(config) if config else None,
+        "profile": profile.value,
+        "u0": u0,
+        "u1": u1,
+        "t_step": t_step,
+        "levels": levels,
+        "dwell": dwell,
+        "hold": hold,
+        "input_file": str(input_file) if input_file else None,
+        "duration": duration,
+        "sample_time": sample_time,
+        "control_period": control_period,
+        "noise_std": noise_std,
+        "resolution": resolution,
+        "fuel_temp": fuel_temp,
+        "fuel_temp_end": fuel_temp_end,
+        "seed": seed,
+        "pressure": pressure,
+        "pressure_noise_std": pressure_noise_std,
+        "pressure_resolution": pressure_resolution,
+    }
+    emit_json(summary | provenance(options, input_file))
+
+
+def _pressure_options(
+    pressure: bool, noise_std: float | None, resolution: float | None
+) -> tuple[float, float]:
+    """``--pressure-noise-std`` and ``--pressure-resolution`` [MPa], defaults filled in.
+
+    Either given without ``--pressure`` is refused: it would set nothing the log has.
+    """
+    from fuelid.plant.simulate import PRESSURE_NOISE_STD, PRESSURE_RESOLUTION
+
+    given = [
+        name
+        for name, value in (
+            ("--pressure-noise-std", noise_std),
+            ("--pressure-resolution", resolution),
+        )
+        if value is not None
+    ]
+    if given and not pressure:
+        raise FuelidError(f"{' and '.join(given)} set the logged pressure: add --pressure")
+    if noise_std is None:
+        noise_std = PRESSURE_NOISE_STD / PA_PER_MPA
+    if resolution is None:
+        resolution = PRESSURE_RESOLUTION / PA_PER_MPA
+    for name, value in (("--pressure-noise-std", noise_std), ("--pressure-resolution", resolution)):
+        if not (math.isfinite(value) and value >= 0.0):
+            raise FuelidError(f"{name} must be zero or a positive number of MPa, got {value:g}")
+    return noise_std, resolution
+
+
+@contextmanager
+def _progress_bar(hidden: bool) -> Iterator[Callable[[float], None]]:
+    """A bar on stderr over the simulated time; yields the callback told the fraction done."""
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
     with Progress(
         TextColumn("simulating"),
         BarColumn(),
@@ -219,53 +264,25 @@ def simulate_command(
         TimeRemainingColumn(),
         console=Console(stderr=True),
         transient=True,
-        disable=quiet or as_json or inputs.duration < PROGRESS_THRESHOLD,
+        disable=hidden,
     ) as bar:
         task = bar.add_task("simulate", total=1.0)
 
         def progress(done: float) -> None:
             bar.update(task, completed=done)
 
-        outcome = simulate_log(plant, request, inputs=inputs, progress=progress)
-    log = outcome.to_log()
-    log.write(out, overwrite=force)
-    summary = outcome.to_json(out)
-    if pressure:
-        p = log[PRESSURE_COLUMN]
-        summary["p_range"] = [float(p.min()), float(p.max())]
-        summary["units"] = summary["units"] | {"p_range": "MPa"}
-    if as_json:
-        options: dict[str, Any] = {
-            "config": str(config) if config else None,
-            "profile": profile.value,
-            "u0": u0,
-            "u1": u1,
-            "t_step": t_step,
-            "levels": levels,
-            "dwell": dwell,
-            "hold": hold,
-            "input_file": str(input_file) if input_file else None,
-            "duration": duration,
-            "sample_time": sample_time,
-            "control_period": control_period,
-            "noise_std": noise_std,
-            "resolution": resolution,
-            "fuel_temp": fuel_temp,
-            "fuel_temp_end": fuel_temp_end,
-            "seed": seed,
-            "pressure": pressure,
-            "pressure_noise_std": pressure_noise_std,
-            "pressure_resolution": pressure_resolution,
-        }
-        emit_json(summary | provenance(options, input_file))
-    else:
-        u_range, q_range = summary["u_range"], summary["q_range"]
-        p_text = ""
-        if pressure:
-            p_lo, p_hi = summary["p_range"]
-            p_text = f", p {p_lo:.4f}…{p_hi:.4f} MPa"
-        typer.echo(
-            f"wrote {out}: {summary['n_samples']} samples every {sample_time:g} s over "
-            f"{summary['duration']:g} s, u {u_range[0]:g}…{u_range[1]:g} V, "
-            f"q {q_range[0]:.2f}…{q_range[1]:.2f} L/min{p_text}"
-        )
+        yield progress
+
+
+def _summary_line(summary: dict[str, Any], out: Path) -> str:
+    """The text of ``fuelid simulate``: the file written, its samples and its signals' ranges."""
+    u_range, q_range = summary["u_range"], summary["q_range"]
+    p_text = ""
+    if "p_range" in summary:
+        p_lo, p_hi = summary["p_range"]
+        p_text = f", p {p_lo:.4f}…{p_hi:.4f} MPa"
+    return (
+        f"wrote {out}: {summary['n_samples']} samples every {summary['sample_time']:g} s over "
+        f"{summary['duration']:g} s, u {u_range[0]:g}…{u_range[1]:g} V, "
+        f"q {q_range[0]:.2f}…{q_range[1]:.2f} L/min{p_text}"
+    )

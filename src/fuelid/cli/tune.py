@@ -46,9 +46,13 @@ from fuelid.errors import FuelidError
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C, format_celsius
 
 if TYPE_CHECKING:
+    from rich.console import Console
+    from rich.table import Table
+
     from fuelid.cli._common import SiteFacts
     from fuelid.io.fitted_model import FittedModel
     from fuelid.model import ProcessModel
+    from fuelid.tuning.block import BlockForm
     from fuelid.workflow import PlantSource, ScheduleOutcome, TuneOutcome, TuneRequest
 
 
@@ -503,11 +507,31 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
     figures about the user's loop are printed (:mod:`fuelid.workflow.trust`).
     """
     from rich.console import Console
-    from rich.table import Table
 
     data = outcome.to_json()
-    plc, h = data["plc"], data["control_period"]
     console = Console(emoji=False)
+    console.print(_gains_table(outcome, data, facts))
+    if data["plc"]["percent_of_span"] is None:
+        console.print(f"no %/% gains: {data['spans']['reason']}", highlight=False, markup=False)
+    _print_margins(console, data)
+    _print_ranges(console, outcome, data, fuel_source)
+    for result in outcome.runs:
+        run = result.to_json(events=False)
+        s = run["summary"]
+        console.print(
+            f"nonlinear plant at {run['fuel_temperature']:g} °C, setpoint "
+            f"{run['start_flow']:.1f} → {result.setpoint[-1]:.1f} L/min: overshoot "
+            f"{s['overshoot_percent']:.1f} %, settling {s['settling_time']:.1f} s, load peak "
+            f"{s['disturbance_peak']:.2f} L/min, at the limits {s['time_at_limits']:g} s"
+        )
+    _print_spread(console, data)
+
+
+def _gains_table(outcome: TuneOutcome, data: dict[str, Any], facts: SiteFacts | None) -> Table:
+    """The gains in every form: ideal, percent of span, parallel, velocity, the site's block."""
+    from rich.table import Table
+
+    plc, h = data["plc"], data["control_period"]
     period = (
         f"h = {h:g} s ({data['control_period_basis']})"
         if h > 0
@@ -546,9 +570,11 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
     block = _block_row(outcome, facts)
     if block is not None:
         gains.add_row(*block)
-    console.print(gains)
-    if span is None:
-        console.print(f"no %/% gains: {data['spans']['reason']}", highlight=False, markup=False)
+    return gains
+
+
+def _print_margins(console: Console, data: dict[str, Any]) -> None:
+    """The margins, Ms and step response on the model (and its full order), and the misfit's."""
     rob = data["robustness"]
     step = data["closed_loop"]["setpoint_step"]
     settle = step["settling_time"]
@@ -580,6 +606,12 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
             ),
             highlight=False,
         )
+
+
+def _print_ranges(
+    console: Console, outcome: TuneOutcome, data: dict[str, Any], fuel_source: str
+) -> None:
+    """The gains over fuel temperature (the user's plant file) and over the log's commands."""
     check = data["temperature_check"]
     if check is not None:
         fuel = format_celsius(outcome.request.T_fuel)
@@ -615,15 +647,10 @@ def _print_tuning(outcome: TuneOutcome, fuel_source: str, facts: SiteFacts | Non
             "the loop moves with it",
             highlight=False,
         )
-    for result in outcome.runs:
-        run = result.to_json(events=False)
-        s = run["summary"]
-        console.print(
-            f"nonlinear plant at {run['fuel_temperature']:g} °C, setpoint "
-            f"{run['start_flow']:.1f} → {result.setpoint[-1]:.1f} L/min: overshoot "
-            f"{s['overshoot_percent']:.1f} %, settling {s['settling_time']:.1f} s, load peak "
-            f"{s['disturbance_peak']:.2f} L/min, at the limits {s['time_at_limits']:g} s"
-        )
+
+
+def _print_spread(console: Console, data: dict[str, Any]) -> None:
+    """What the model's uncertainty leaves open: disagreements, other structures, the sweep."""
     for disagreement in data["disagreements"]:
         console.print(f"[bold]DISAGREE:[/bold] {disagreement}", highlight=False)
     spread = data["structure_spread"]
@@ -677,14 +704,58 @@ def _print_schedule(outcome: ScheduleOutcome, period_basis: str, facts: SiteFact
     V per L/min, %/% where the spans are known, and Ti in s. The band holding the model's
     operating point is marked ``*``; each band's design point is said below the table.
     """
-    from rich import box
     from rich.console import Console
-    from rich.table import Table
 
-    from fuelid.tuning.block import BlockForm, block_units
-    from fuelid.tuning.rules import PISettings
+    from fuelid.tuning.block import BlockForm
 
     data: dict[str, Any] = outcome.to_json()
+    block = None if facts is None or facts.controller is None else BlockForm.of(facts.controller)
+    console = Console(emoji=False)
+    console.print(_schedule_table(data, period_basis, block))
+    for row in data["bands"]:
+        if row["operating"]:
+            console.print(
+                f"* holds the model's operating point ({row['design_u']:.3g} V, "
+                f"{row['design_fuel_temperature']:g} °C): designed on the identified model, as "
+                "the headline gains are"
+                + (
+                    ""
+                    if row["detune"] == 1.0
+                    else f", detuned ×{row['detune']:.3g} to keep Ms ≤ {data['ms_target']:g} "
+                    "over the band"
+                ),
+                highlight=False,
+            )
+    if block is not None:
+        console.print(
+            f"gains as your block takes them ({block.form}, site file); Kc V/(L/min) for reference",
+            highlight=False,
+        )
+    console.print(_design_points(data["bands"]), highlight=False)
+    if data["y_span"] is None or data["u_span"] is None:
+        console.print("no %/% gains: spans not given (--u-span/--flow-span, --site)")
+    else:
+        console.print(
+            f"%/%: Kc·{data['y_span']:g} L/min / {data['u_span']:g} V (the spans of a PLC block)"
+        )
+    single = data["single_set"]
+    if single is not None:
+        percent = single["Kc_percent_of_span"]
+        console.print(
+            f"one set of gains suffices: Kc = {single['Kc']:.4g} V/(L/min)"
+            + ("" if percent is None else f" ({percent:.4g} %/%)")
+            + f", Ti = {single['Ti']:.3g} s (Ms ≤ {single['Ms']:.2f} over every band)"
+        )
+
+
+def _schedule_table(data: dict[str, Any], period_basis: str, block: BlockForm | None) -> Table:
+    """One row per band: its range, design gains (%/% or the block's), Ms and margins."""
+    from rich import box
+    from rich.table import Table
+
+    from fuelid.tuning.block import block_units
+    from fuelid.tuning.rules import PISettings
+
     anchored = data["anchored_to_model"] is not None
     out = Table(
         title=f"{data['rule']} gain schedule, h = {data['control_period']:g} s "
@@ -693,7 +764,6 @@ def _print_schedule(outcome: ScheduleOutcome, period_basis: str, facts: SiteFact
         box=box.SIMPLE_HEAD,  # nine columns: light rules keep them within 80 characters
         collapse_padding=True,
     )
-    block = None if facts is None or facts.controller is None else BlockForm.of(facts.controller)
     if block is None:
         gain_columns: tuple[str, str] = ("Kc %/%", "Ti s")
     else:
@@ -721,34 +791,18 @@ def _print_schedule(outcome: ScheduleOutcome, period_basis: str, facts: SiteFact
             f"{row['gain_margin']:.2f}",
             f"{row['phase_margin_deg']:.1f}",
         )
-    console = Console(emoji=False)
-    console.print(out)
-    for row in data["bands"]:
-        if row["operating"]:
-            console.print(
-                f"* holds the model's operating point ({row['design_u']:.3g} V, "
-                f"{row['design_fuel_temperature']:g} °C): designed on the identified model, as "
-                "the headline gains are"
-                + (
-                    ""
-                    if row["detune"] == 1.0
-                    else f", detuned ×{row['detune']:.3g} to keep Ms ≤ {data['ms_target']:g} "
-                    "over the band"
-                ),
-                highlight=False,
-            )
-    others = [row for row in data["bands"] if not row["operating"]]
-    if block is not None:
-        console.print(
-            f"gains as your block takes them ({block.form}, site file); Kc V/(L/min) for reference",
-            highlight=False,
-        )
+    return out
+
+
+def _design_points(bands: list[dict[str, Any]]) -> str:
+    """Where each band (but the operating point's) was designed: its most demanding case."""
+    others = [row for row in bands if not row["operating"]]
     corner = all(
         math.isclose(row["design_fuel_temperature"], row["t_low"], abs_tol=1e-9)
         and math.isclose(row["design_u"], row["u_low"], abs_tol=1e-9)
         for row in others
     )
-    console.print(
+    return (
         "each band is designed on its most demanding case (largest K/T)"
         + (
             ": its coldest fuel and lowest command"
@@ -760,20 +814,5 @@ def _print_schedule(outcome: ScheduleOutcome, period_basis: str, facts: SiteFact
                 for row in others
             )
         )
-        + " (JSON design_fuel_temperature, design_u)",
-        highlight=False,
+        + " (JSON design_fuel_temperature, design_u)"
     )
-    if data["y_span"] is None or data["u_span"] is None:
-        console.print("no %/% gains: spans not given (--u-span/--flow-span, --site)")
-    else:
-        console.print(
-            f"%/%: Kc·{data['y_span']:g} L/min / {data['u_span']:g} V (the spans of a PLC block)"
-        )
-    single = data["single_set"]
-    if single is not None:
-        percent = single["Kc_percent_of_span"]
-        console.print(
-            f"one set of gains suffices: Kc = {single['Kc']:.4g} V/(L/min)"
-            + ("" if percent is None else f" ({percent:.4g} %/%)")
-            + f", Ti = {single['Ti']:.3g} s (Ms ≤ {single['Ms']:.2f} over every band)"
-        )

@@ -2,16 +2,19 @@
 
 The model file (:mod:`fuelid.greybox.modelfile`) gives the model; :func:`greybox_model` applies
 the fixed, freed and set parameters, :func:`data_columns` and :func:`read_record` read the logs
-as :class:`~fuelid.greybox.Record` objects, the
-:class:`~fuelid.greybox.GreyBoxEstimator` fits them, :func:`validate_fit` simulates a
-validation log, :func:`fit_warnings` says what the fit should be read with, and
-:func:`greybox_result` is the command's JSON object (without provenance).
+as :class:`~fuelid.greybox.Record` objects, :func:`greybox_estimator` sets up the
+:class:`~fuelid.greybox.GreyBoxEstimator` with the model file's solver settings,
+:func:`fit_greybox` fits the records, validates (:func:`validate_fit`) and profiles,
+:func:`fit_warnings` says what the fit should be read with, and :func:`greybox_result` is the
+command's JSON object (without provenance).
 """
 
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -24,9 +27,11 @@ from fuelid.greybox.identifiability import correlation_warning
 from fuelid.greybox.modelfile import ModelFile
 from fuelid.greybox.multiple_shooting import SUSPECT_NOISE_RATIO
 from fuelid.greybox.profile import LINEARITY_LIMIT
+from fuelid.greybox.solver_choice import check_request
 from fuelid.io.tables import find_column, match_column, read_table, to_float
 from fuelid.io.timeseries import INPUT_COLUMN, OUTPUT_COLUMN
 from fuelid.model import nrmse_fit_columns
+from fuelid.workflow.progress import Progress, announce
 
 VALIDATION_CONVENTIONS = {
     "estimate": "fitted to the first 10 % of the validation record (at least 20 samples), "
@@ -152,6 +157,86 @@ def read_record(
                     f"{time_col!r} (median interval {period:g} s)"
                 )
     return Record.from_arrays(t, u, y, name=path.name)
+
+
+def greybox_estimator(
+    mf: ModelFile,
+    model: OdeModel,
+    *,
+    initial_state: str = "auto",
+    max_iterations: int = 60,
+    segments: int | str | None = "auto",
+    solver: str | None = None,
+    max_step: float | None = None,
+    substeps: int | None = None,
+    hold_undetermined: bool = False,
+) -> GreyBoxEstimator:
+    """The estimator of ``model``, its solver settings taken from the model file unless given.
+
+    ``solver``, ``max_step`` and ``substeps`` None take the model file's (its solver defaults
+    to ``auto``). The file's substeps belong to RK4 (``auto`` may end there): a solver given
+    that is neither drops them. A combination no solver runs is refused
+    (:func:`fuelid.greybox.solver_choice.check_request`) before any work.
+    """
+    solver_name = solver if solver is not None else (mf.solver or "auto")
+    if substeps is None and solver_name in {"rk4", "auto"}:
+        substeps = mf.substeps
+    estimator = GreyBoxEstimator(
+        model,
+        initial_state=initial_state,
+        max_iterations=max_iterations,
+        segments=segments,
+        solver=solver_name,
+        max_step=max_step if max_step is not None else mf.max_step,
+        substeps=substeps,
+        hold_undetermined=hold_undetermined,
+    )
+    check_request(estimator.solver, estimator.max_step, estimator.substeps)
+    return estimator
+
+
+@dataclass(frozen=True)
+class GreyBoxFit:
+    """What :func:`fit_greybox` did: the fitted estimator and the checks after the fit."""
+
+    estimator: GreyBoxEstimator
+    """Fitted (its ``params_``, ``stderr_``, ``ci95_``, ...)."""
+    fit_seconds: float
+    """Wall time of the fit alone [s] (not of the validation or the profiles)."""
+    check: dict[str, Any] | None = None
+    """:func:`validate_fit` on the validation record; None without one."""
+    profile: dict[str, list[float]] = field(default_factory=dict)
+    """Profile-likelihood 95 % interval [lower, upper] of each parameter asked for."""
+
+
+def fit_greybox(
+    estimator: GreyBoxEstimator,
+    records: list[Record],
+    validation: Record | None = None,
+    profiled: Sequence[str] = (),
+    progress: Progress | None = None,
+) -> GreyBoxFit:
+    """Fit ``records`` jointly, simulate ``validation``, profile the ``profiled`` parameters.
+
+    ``progress`` is told each stage as it starts: ``fitting``, ``validating``,
+    ``profiling NAME``. A fit the data do not determine raises
+    :class:`~fuelid.greybox.NotIdentifiableError`, one that does not converge
+    :class:`~fuelid.greybox.ConvergenceError`, both before anything else is done.
+    """
+    started = time.perf_counter()
+    announce(progress, "fitting")
+    estimator.fit(records)
+    fit_seconds = time.perf_counter() - started
+    check = None
+    if validation is not None:
+        announce(progress, "validating")
+        check = validate_fit(estimator, validation)
+    intervals: dict[str, list[float]] = {}
+    for name in profiled:
+        announce(progress, f"profiling {name}")
+        lo, hi = estimator.profile_interval(name)
+        intervals[name] = [lo, hi]
+    return GreyBoxFit(estimator, fit_seconds, check, intervals)
 
 
 def validate_fit(estimator: GreyBoxEstimator, record: Record) -> dict[str, Any]:

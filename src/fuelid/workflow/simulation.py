@@ -25,6 +25,7 @@ from fuelid.io.timeseries import (
     FUEL_TEMPERATURE_COLUMN,
     INPUT_COLUMN,
     OUTPUT_COLUMN,
+    PRESSURE_COLUMN,
     TIME_COLUMN,
     TimeSeries,
 )
@@ -268,10 +269,14 @@ class SimulationOutcome:
         ----------
         output : str or Path, optional
             Where the caller wrote the log (the ``output`` key; null when not written).
+
+        With ``request.pressure`` the summary ends with ``p_range``, the lowest and highest
+        logged pump pressure [MPa].
         """
-        q = self.to_log()[OUTPUT_COLUMN]
+        log = self.to_log()
+        q = log[OUTPUT_COLUMN]
         profile = self.inputs.profile
-        return {
+        summary: dict[str, Any] = {
             "output": None if output is None else str(output),
             "n_samples": int(self.result.time.size),
             "sample_time": self.request.sample_time,
@@ -281,6 +286,11 @@ class SimulationOutcome:
             "q_range": [float(q.min()), float(q.max())],
             "units": dict(SIMULATION_UNITS),
         }
+        if self.request.pressure:
+            p = log[PRESSURE_COLUMN]
+            summary["units"]["p_range"] = "MPa"
+            summary["p_range"] = [float(p.min()), float(p.max())]
+        return summary
 
 
 def simulate_log(
