@@ -98,7 +98,7 @@ SOURCE = Path(fuelid.__file__).parent
 CONVERTING_MODULES = [
     *(f"plant/{name}.py" for name in ("vfd", "motor", "shaft", "pump", "pipeline", "nozzle")),
     *(f"plant/{name}.py" for name in ("flowmeter", "system", "config", "_section")),
-    "simulate.py",
+    "plant/simulate.py",
     "tuning/closedloop.py",
 ]
 #: numbers that are unit factors (mm, MPa, cm³, mPa·s, kW, rpm, L/min, °C) wherever they appear
