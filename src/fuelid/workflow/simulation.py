@@ -265,13 +265,13 @@ class SimulationOutcome:
     def to_json(self, output: str | Path | None = None) -> dict[str, Any]:
         """The JSON summary of ``fuelid simulate --json`` (without provenance).
 
+        With ``request.pressure`` the summary ends with ``p_range``, the lowest and highest
+        logged pump pressure [MPa].
+
         Parameters
         ----------
         output : str or Path, optional
             Where the caller wrote the log (the ``output`` key; null when not written).
-
-        With ``request.pressure`` the summary ends with ``p_range``, the lowest and highest
-        logged pump pressure [MPa].
         """
         log = self.to_log()
         q = log[OUTPUT_COLUMN]
