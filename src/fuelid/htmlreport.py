@@ -36,16 +36,16 @@ from fuelid.plots import (
 )
 from fuelid.units import T0, format_celsius, kelvin_to_celsius
 from fuelid.workflow import LogAnalysis
-from fuelid.workflow.assumptions import gain_unit
+from fuelid.workflow._assumptions import gain_unit
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from fuelid.tuning.bands import BandCheck
-    from fuelid.tuning.cases import FixedPIEvaluation
+    from fuelid.tuning._bands import BandCheck
+    from fuelid.tuning._cases import FixedPIEvaluation
+    from fuelid.tuning._frequency import RobustPeak
+    from fuelid.tuning._schedule import GainSchedule
     from fuelid.tuning.closedloop import ClosedLoopResult
-    from fuelid.tuning.frequency import RobustPeak
-    from fuelid.tuning.schedule import GainSchedule
 
 TEMPLATE = "report.html.j2"
 
@@ -527,7 +527,7 @@ def _block_row(analysis: LogAnalysis) -> dict[str, str] | None:
     block = analysis.settings.block
     if block is None:
         return None
-    from fuelid.tuning.block import block_units
+    from fuelid.tuning._block import block_units
 
     kc, ti = analysis.tuning.pi.to_block(block)
     units = block_units(block)

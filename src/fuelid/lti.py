@@ -495,7 +495,7 @@ def step_measures(
     """Overshoot, settling time, rise time and IAE of a response y(t) to a step start → final.
 
     The one implementation of fuelid's step-response measures: the closed-loop simulations of
-    the tuning layer (:func:`fuelid.tuning.metrics.setpoint_step_metrics`) and the setpoint
+    the tuning layer (:func:`fuelid.tuning._metrics.setpoint_step_metrics`) and the setpoint
     moves the online service records (:func:`fuelid.online.health.step_response_measures`)
     both call it.
 

@@ -16,7 +16,7 @@ import pyarrow as pa
 import pyarrow.dataset as ds
 import pytest
 
-from fuelid.archive.writer import ArchiveReport, archive_store
+from fuelid.archive._writer import ArchiveReport, archive_store
 from fuelid.cli import main
 from fuelid.store import SQLiteStore
 
@@ -77,7 +77,7 @@ def test_every_sample_and_event_is_in_the_archive_value_for_value(
 def test_the_loop_file_holds_the_stores_identity(
     archived: tuple[Path, dict[str, Any], dict[str, ArchiveReport]],
 ) -> None:
-    from fuelid.archive.layout import read_loop_info
+    from fuelid.archive._layout import read_loop_info
 
     root, copies, reports = archived
     for loop_id in LOOPS:

@@ -14,10 +14,10 @@ from pathlib import Path
 import pyarrow.compute as pc
 import pytest
 
-from fuelid.archive import layout
-from fuelid.archive.layout import list_loop_days, read_day_table
-from fuelid.archive.retention import keep_store
-from fuelid.archive.writer import archive_store
+from fuelid.archive import _layout as layout
+from fuelid.archive._layout import list_loop_days, read_day_table
+from fuelid.archive._retention import keep_store
+from fuelid.archive._writer import archive_store
 from fuelid.store import Sample, SQLiteStore, StoreError
 from support.archive import DATES, T0, archived_rows, days_store, rows_per_day
 
@@ -216,7 +216,7 @@ def test_the_plant_file_is_copied_when_it_has_the_recorded_hash(
 ) -> None:
     import hashlib
 
-    from fuelid.archive.layout import read_loop_info
+    from fuelid.archive._layout import read_loop_info
 
     plant = tmp_path / "plant.toml"
     plant.write_text('[vfd]\nname = "test"\n', encoding="utf-8")
@@ -256,7 +256,7 @@ def test_a_row_that_arrives_between_the_check_and_the_delete_is_kept(
 ) -> None:
     # retention checks the archived days, then deletes window by window: a row of an archived
     # day written in between (after the day's archiving) is not in the file and must stay
-    import fuelid.store.prune as prune_module
+    import fuelid.store._prune as prune_module
 
     root = tmp_path / "archive"
     with _writable(store_path) as store:

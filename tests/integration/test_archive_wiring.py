@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fuelid.archive.layout import list_loop_days, read_day_table
+from fuelid.archive._layout import list_loop_days, read_day_table
 from fuelid.cli import main
-from fuelid.plc.record_runner import record_site
-from fuelid.plc.recorder import site_identity
+from fuelid.plc._record_runner import record_site
+from fuelid.plc._recorder import site_identity
 from fuelid.store import Sample, SQLiteStore
 from support.archive import archived_rows
 from support.recorder import REPLAY, kinds, load, rows, write_log
@@ -82,7 +82,7 @@ def test_the_services_housekeeping_archives_then_prunes_archived_days_only(
     import asyncio
     from types import SimpleNamespace
 
-    from fuelid.online.service import OnlineService
+    from fuelid.online._service import OnlineService
     from support.archive import DATES, days_store, rows_per_day
 
     db = days_store(tmp_path / "loop.db")

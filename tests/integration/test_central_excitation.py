@@ -23,18 +23,18 @@ from typing import Any
 
 import pytest
 
-from fuelid.central.connect import CentralError, connect
-from fuelid.central.requests import KINDS, central_requests, file_central_request
-from fuelid.central.schema import SCHEMA_VERSION, migrate, schema_version
+from fuelid.central._connect import CentralError, connect
+from fuelid.central._requests import KINDS, central_requests, file_central_request
+from fuelid.central._schema import SCHEMA_VERSION, migrate, schema_version
 from fuelid.cli import main
-from fuelid.online.central_link import CentralLink
-from fuelid.online.excitation.exciter import REQUEST_KEY
-from fuelid.online.requests import consume_requests
-from fuelid.plc.site_fleet import Central
+from fuelid.online._central_link import CentralLink
+from fuelid.online._requests import consume_requests
+from fuelid.online.excitation._exciter import REQUEST_KEY
+from fuelid.plc._site_fleet import Central
 from fuelid.store import SERVICE_KEY
-from fuelid.store.online import REQUEST_KINDS, OnlineHistory
-from fuelid.store.records import Event, Sample
-from fuelid.store.sqlite import SQLiteStore
+from fuelid.store._online import REQUEST_KINDS, OnlineHistory
+from fuelid.store._records import Event, Sample
+from fuelid.store._sqlite import SQLiteStore
 
 T0 = 1_767_225_600.0  # 2026-01-01T00:00:00Z, plant time
 PERIOD_S = 0.1
@@ -261,11 +261,11 @@ def test_a_central_loop_offers_the_start_and_relays_it_like_a_revert(
     pytest.importorskip("fastapi")
     from fastapi.testclient import TestClient
 
-    from fuelid.dashboard.app import create_app
-    from fuelid.dashboard.central_loops import CentralLoops
-    from fuelid.dashboard.registry import Loops
-    from fuelid.dashboard.security import CSRF_HEADER, Security
-    from fuelid.dashboard.users import UsersFile
+    from fuelid.dashboard._app import create_app
+    from fuelid.dashboard._central_loops import CentralLoops
+    from fuelid.dashboard._registry import Loops
+    from fuelid.dashboard._security import CSRF_HEADER, Security
+    from fuelid.dashboard._users import UsersFile
 
     users = UsersFile(tmp_path / "users.json")
     engineer, viewer = users.add("eve", "engineer"), users.add("vic", "viewer")

@@ -24,11 +24,11 @@ from typing import Any
 import psycopg
 import pytest
 
-from fuelid.central.connect import connect
-from fuelid.central.ingest import months_of, register_store, upsert_liveness
-from fuelid.central.outbox import Identity
-from fuelid.central.requests import central_requests, claim, file_central_request
-from fuelid.central.schema import (
+from fuelid.central._connect import connect
+from fuelid.central._ingest import months_of, register_store, upsert_liveness
+from fuelid.central._outbox import Identity
+from fuelid.central._requests import central_requests, claim, file_central_request
+from fuelid.central._schema import (
     SCHEMA_VERSION,
     drop_old_partitions,
     ensure_partitions,
@@ -36,14 +36,14 @@ from fuelid.central.schema import (
     month_start,
     schema_version,
 )
-from fuelid.central.sender import Sender
-from fuelid.central.status import fleet_status
+from fuelid.central._sender import Sender
+from fuelid.central._status import fleet_status
 from fuelid.cli import main
-from fuelid.online.central_link import CentralLink, origin_of
-from fuelid.plc.site_fleet import Central
+from fuelid.online._central_link import CentralLink, origin_of
+from fuelid.plc._site_fleet import Central
 from fuelid.store import SERVICE_KEY, OnlineHistory
-from fuelid.store.records import StoreError
-from fuelid.store.sqlite import SQLiteStore
+from fuelid.store._records import StoreError
+from fuelid.store._sqlite import SQLiteStore
 from support.fleet import copy_loop, with_proposal
 
 MONTH_S = 31 * 86400.0
@@ -140,7 +140,7 @@ def test_a_request_that_expires_between_fetch_and_claim_is_never_applied(
     site: tuple[Site, int], central_url: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The request expires after the site fetched it: the claim fails, nothing is filed."""
-    import fuelid.central.requests as requests_module
+    import fuelid.central._requests as requests_module
 
     s, pid = site
     with connect(central_url) as con:
@@ -173,7 +173,7 @@ def test_a_claimed_request_the_site_lost_is_refused(
     site: tuple[Site, int], central_url: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Claimed, then the site died (or failed to file it): refused, with the reason, not run."""
-    import fuelid.online.central_link as link_module
+    import fuelid.online._central_link as link_module
 
     s, pid = site
     with connect(central_url) as con:
@@ -327,7 +327,7 @@ def test_two_senders_of_one_store_never_send_an_older_value(
     Under the store's lock B waits for A's commit and reads after it: the centre ends with
     "done". Without it, A's late commit would put "waiting" back for good.
     """
-    import fuelid.central.sender as sender_module
+    import fuelid.central._sender as sender_module
 
     loop = copy_loop(fleet_loops["line-b"], tmp_path)
     a, b = Sender(loop.path, central_url), Sender(loop.path, central_url)

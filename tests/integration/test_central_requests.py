@@ -18,16 +18,16 @@ from typing import Any
 
 import pytest
 
-from fuelid.central.connect import connect
-from fuelid.central.ingest import SITE_STATE_KEYS
-from fuelid.central.requests import central_requests, file_central_request
-from fuelid.central.schema import SCHEMA_VERSION
+from fuelid.central._connect import connect
+from fuelid.central._ingest import SITE_STATE_KEYS
+from fuelid.central._requests import central_requests, file_central_request
+from fuelid.central._schema import SCHEMA_VERSION
 from fuelid.cli import main
-from fuelid.online.central_link import CentralLink
-from fuelid.online.requests import consume_requests
-from fuelid.plc.site_fleet import Central
+from fuelid.online._central_link import CentralLink
+from fuelid.online._requests import consume_requests
+from fuelid.plc._site_fleet import Central
 from fuelid.store import OnlineHistory
-from fuelid.store.sqlite import SQLiteStore
+from fuelid.store._sqlite import SQLiteStore
 from support.fleet import SimulatedLoop, copy_loop, with_proposal
 from support.waiting import wait_until
 
@@ -185,8 +185,8 @@ def test_a_running_service_syncs_and_carries_out_a_central_approve(
     import asyncio
 
     pytest.importorskip("pymodbus")
-    from fuelid.online.service import OnlineService
-    from fuelid.plc.virtual.runner import VirtualPlcThread
+    from fuelid.online._service import OnlineService
+    from fuelid.plc.virtual._runner import VirtualPlcThread
     from support.online import online_site, open_history
 
     store = tmp_path / "s.db"
@@ -256,7 +256,7 @@ def test_a_failure_is_one_event_when_it_starts_and_one_when_it_ends(
 
     ``online status`` says what is failing and since when, then that all was sent.
     """
-    from fuelid.store.base import Event
+    from fuelid.store._base import Event
 
     path = tmp_path / "loop.db"
     with SQLiteStore(path, site_name="tiny", tag_map_hash="t1") as store:
@@ -309,7 +309,7 @@ def test_concurrent_senders_of_a_new_month_create_its_partitions_once(
         con.commit()
         con.close()
         paths.append(loop.path)
-    from fuelid.central.sender import Sender
+    from fuelid.central._sender import Sender
 
     senders = [Sender(p, central_url, batch_rows=50) for p in paths]
     for sender in senders:

@@ -1,7 +1,7 @@
 """The central store on a real PostgreSQL: the sync of two loops' stores, through an outage.
 
 The two ``fleet_loops`` stores (3 h each, simulated; copied before any change) are sent by
-:class:`~fuelid.central.sender.Sender`; the central tables must then hold exactly the union of
+:class:`~fuelid.central._sender.Sender`; the central tables must then hold exactly the union of
 the site rows: the same ids, the same values, the same JSON (compared row by row), nothing
 lost and nothing twice. The server is killed (``pg_ctl stop -m immediate``) mid-sync and
 restarted; a crash between the central commit and the local delete is simulated; the backfill
@@ -20,9 +20,9 @@ from typing import Any
 
 import pytest
 
-from fuelid.central.connect import CentralError, connect
-from fuelid.central.outbox import enable_outbox, open_store_file, sync_status
-from fuelid.central.schema import (
+from fuelid.central._connect import CentralError, connect
+from fuelid.central._outbox import enable_outbox, open_store_file, sync_status
+from fuelid.central._schema import (
     SCHEMA_VERSION,
     SITE_TABLES,
     check_schema,
@@ -30,10 +30,10 @@ from fuelid.central.schema import (
     ensure_partitions,
     migrate,
 )
-from fuelid.central.sender import Sender
+from fuelid.central._sender import Sender
 from fuelid.store import OnlineHistory
-from fuelid.store.base import Event
-from fuelid.store.sqlite import SQLiteStore
+from fuelid.store._base import Event
+from fuelid.store._sqlite import SQLiteStore
 from support.fleet import copy_loop
 
 
@@ -229,7 +229,7 @@ def test_resend_after_a_crash_before_the_local_delete_changes_nothing(
     fleet_loops: Any, tmp_path: Path, central_url: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Central commit, then the site dies before deleting its entries: the resend is a no-op."""
-    import fuelid.central.sender as sender_module
+    import fuelid.central._sender as sender_module
 
     loop = copy_loop(fleet_loops["line-b"], tmp_path)
 

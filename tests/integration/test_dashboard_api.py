@@ -23,16 +23,16 @@ pytest.importorskip("fastapi")
 from fastapi.testclient import TestClient
 
 from fuelid.cli import main as cli_main
-from fuelid.dashboard.app import create_app
-from fuelid.dashboard.registry import Loops
-from fuelid.dashboard.security import CSRF_HEADER, Security
-from fuelid.dashboard.source import SQLiteLoop
-from fuelid.dashboard.users import UsersFile
+from fuelid.dashboard._app import create_app
+from fuelid.dashboard._registry import Loops
+from fuelid.dashboard._security import CSRF_HEADER, Security
+from fuelid.dashboard._source import SQLiteLoop
+from fuelid.dashboard._users import UsersFile
 from fuelid.errors import ConfigError
-from fuelid.store.base import Event
-from fuelid.store.records import StoreError
-from fuelid.store.schema import SCHEMA_VERSION
-from fuelid.store.sqlite import SQLiteStore
+from fuelid.store._base import Event
+from fuelid.store._records import StoreError
+from fuelid.store._schema import SCHEMA_VERSION
+from fuelid.store._sqlite import SQLiteStore
 
 # xdist: one worker runs the dashboard's modules, which share one store made once
 # (tests/conftest.py says why)
@@ -288,8 +288,8 @@ def test_a_store_of_a_newer_fuelid_is_refused_with_both_versions(loop_db: Path) 
 def test_a_store_of_the_previous_schema_is_migrated_and_shown(tmp_path: Path) -> None:
     # written the v2 way (fuelid 0.2): a virtual run at 20x, windows timed by the wall clock
     # while their data ran ahead in plant time; a proposal filed between two windows
-    from fuelid.store.records import Sample
-    from fuelid.store.schema import build_at
+    from fuelid.store._records import Sample
+    from fuelid.store._schema import build_at
 
     db = tmp_path / "v2.db"
     build_at(str(db), 2, {"site_name": "tunnel 2", "tag_map_hash": "ab12"})

@@ -40,10 +40,10 @@ import pytest
 pytest.importorskip("fastapi")
 pytest.importorskip("pymodbus")
 
-from fuelid.dashboard.fleet import LIVE_CHIPS
-from fuelid.dashboard.stream import STATUS_EVERY_S
-from fuelid.dashboard.users import UsersFile
-from fuelid.dashboard.views import FRESH_SAMPLE_S, fmt_num
+from fuelid.dashboard._fleet import LIVE_CHIPS
+from fuelid.dashboard._stream import STATUS_EVERY_S
+from fuelid.dashboard._users import UsersFile
+from fuelid.dashboard._views import FRESH_SAMPLE_S, fmt_num
 from support import waiting
 from support.browser import (
     LAG_BAND_S,

@@ -24,18 +24,18 @@ pytest.importorskip("fastapi")
 
 from fastapi.testclient import TestClient
 
-from fuelid.central.connect import connect
+from fuelid.central._connect import connect
 from fuelid.cli import main as cli_main
-from fuelid.dashboard.app import create_app
-from fuelid.dashboard.central_loops import CentralLoops
-from fuelid.dashboard.registry import Loops
-from fuelid.dashboard.security import CSRF_HEADER, Security
-from fuelid.dashboard.users import UsersFile
-from fuelid.online.central_link import CentralLink
-from fuelid.online.requests import consume_requests
-from fuelid.plc.site_fleet import Central
+from fuelid.dashboard._app import create_app
+from fuelid.dashboard._central_loops import CentralLoops
+from fuelid.dashboard._registry import Loops
+from fuelid.dashboard._security import CSRF_HEADER, Security
+from fuelid.dashboard._users import UsersFile
+from fuelid.online._central_link import CentralLink
+from fuelid.online._requests import consume_requests
+from fuelid.plc._site_fleet import Central
 from fuelid.store import SERVICE_KEY, OnlineHistory
-from fuelid.store.sqlite import SQLiteStore
+from fuelid.store._sqlite import SQLiteStore
 from support.fleet import SimulatedLoop, copy_loop
 
 LOCATION_KEYS = {"link", "central"}
@@ -197,7 +197,7 @@ def test_with_an_archive_the_trend_of_a_central_loop_is_the_stores(
 
     line-b: its NULL samples (599, quality bad) test the buckets' NaN rule and bad counts.
     """
-    from fuelid.archive.writer import archive_store
+    from fuelid.archive._writer import archive_store
 
     site = sites["line-b"]
     day_after = dt.datetime.fromtimestamp(site.loop.t_last, dt.UTC).date() + dt.timedelta(1)
@@ -276,7 +276,7 @@ def test_an_approve_on_a_central_loop_is_relayed_and_carried_out_by_the_site(
 def test_a_second_request_for_a_waiting_proposal_is_refused_and_a_stopped_site_warned(
     sites: dict[str, Site], central_url: str, tmp_path: Path
 ) -> None:
-    from fuelid.io.clock import format_time
+    from fuelid.io._clock import format_time
 
     users = UsersFile(tmp_path / "users.json")
     token = users.add("eve", "engineer")

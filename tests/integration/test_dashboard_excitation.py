@@ -4,7 +4,7 @@ Each store is made here with the store's own API (no virtual run: the tests take
 few samples, the service's record (``settings.excitation`` with ``possible``), the exciter's
 state record (``online_state`` key "excitation") and its events, as a service that ran a burst
 leaves them. A live service is played by a thread that beats and carries out the requests as
-the service's beat does (:func:`fuelid.online.requests.consume_requests`).
+the service's beat does (:func:`fuelid.online._requests.consume_requests`).
 
 The loop page and its re-read parts must show the same line (the one ``fuelid online status``
 prints), the running burst's note and the events' texts; a viewer gets no buttons and a 403;
@@ -28,18 +28,18 @@ pytest.importorskip("fastapi")
 
 from fastapi.testclient import TestClient
 
-from fuelid.dashboard.app import create_app
-from fuelid.dashboard.registry import Loops
-from fuelid.dashboard.security import CSRF_HEADER, Security
-from fuelid.dashboard.stream import changed_topics
-from fuelid.dashboard.users import UsersFile
-from fuelid.online.excitation.exciter import REQUEST_KEY
-from fuelid.online.excitation.status import STATE_KEY
-from fuelid.online.requests import consume_requests
+from fuelid.dashboard._app import create_app
+from fuelid.dashboard._registry import Loops
+from fuelid.dashboard._security import CSRF_HEADER, Security
+from fuelid.dashboard._stream import changed_topics
+from fuelid.dashboard._users import UsersFile
+from fuelid.online._requests import consume_requests
+from fuelid.online.excitation._exciter import REQUEST_KEY
+from fuelid.online.excitation._status import STATE_KEY
 from fuelid.store import SERVICE_KEY
-from fuelid.store.online import OnlineHistory
-from fuelid.store.records import Event, Sample
-from fuelid.store.sqlite import SQLiteStore
+from fuelid.store._online import OnlineHistory
+from fuelid.store._records import Event, Sample
+from fuelid.store._sqlite import SQLiteStore
 
 T0 = 1_767_225_600.0  # 2026-01-01T00:00:00Z, plant time
 PERIOD_S = 0.02

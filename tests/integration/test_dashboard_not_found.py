@@ -17,10 +17,10 @@ pytest.importorskip("fastapi")
 
 from fastapi.testclient import TestClient
 
-from fuelid.dashboard.app import create_app
-from fuelid.dashboard.registry import Loops
-from fuelid.dashboard.security import Security
-from fuelid.store.sqlite import SQLiteStore
+from fuelid.dashboard._app import create_app
+from fuelid.dashboard._registry import Loops
+from fuelid.dashboard._security import Security
+from fuelid.store._sqlite import SQLiteStore
 
 
 @pytest.fixture

@@ -4,14 +4,14 @@ The live stream reads the samples committed since its cursor (``SQLiteLoop.sampl
 with a column list of its own it read the rows of schema 4 only, the arrays' reader failed on
 them, and the stream stopped sending after its first status event (a trial at 5x saw the page
 "disconnected" within seconds while the service ran). Every reader now takes the one list
-(:data:`fuelid.store.records.SAMPLE_COLUMNS_SQL`).
+(:data:`fuelid.store._records.SAMPLE_COLUMNS_SQL`).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from fuelid.dashboard.source import SQLiteLoop
+from fuelid.dashboard._source import SQLiteLoop
 from fuelid.store import Sample, SQLiteStore
 
 T0 = 1.7e9

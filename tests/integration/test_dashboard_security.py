@@ -24,7 +24,7 @@ with warnings.catch_warnings():
     warnings.filterwarnings("ignore", message=".*install `httpx2` instead", category=Warning)
     from fastapi.testclient import TestClient
 
-from fuelid.dashboard.security import (
+from fuelid.dashboard._security import (
     CONTENT_SECURITY_POLICY,
     CSRF_HEADER,
     FORM_MAX_BYTES,
@@ -39,7 +39,7 @@ from fuelid.dashboard.security import (
     auth_router,
     check_bind,
 )
-from fuelid.dashboard.users import User, UsersFile
+from fuelid.dashboard._users import User, UsersFile
 from fuelid.errors import ConfigError
 
 

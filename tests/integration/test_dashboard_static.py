@@ -18,10 +18,10 @@ pytest.importorskip("fastapi")
 
 from fastapi.testclient import TestClient
 
-from fuelid.dashboard.app import create_app
-from fuelid.dashboard.registry import Loops
-from fuelid.dashboard.security import Security
-from fuelid.dashboard.static_files import CACHE_MAX_AGE_S, vendored
+from fuelid.dashboard._app import create_app
+from fuelid.dashboard._registry import Loops
+from fuelid.dashboard._security import Security
+from fuelid.dashboard._static_files import CACHE_MAX_AGE_S, vendored
 
 STATIC = Path(str(resources.files("fuelid.dashboard") / "static"))
 

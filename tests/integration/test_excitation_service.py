@@ -31,8 +31,8 @@ import pytest
 
 pytest.importorskip("pymodbus")
 
-from fuelid.online.service import OnlineService
-from fuelid.plc.virtual.runner import VirtualPlcThread
+from fuelid.online._service import OnlineService
+from fuelid.plc.virtual._runner import VirtualPlcThread
 from support.online import online_site
 
 # xdist: one worker runs every module that drives a PLC at speed, one after another

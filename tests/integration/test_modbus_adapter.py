@@ -19,7 +19,7 @@ pytest.importorskip("pymodbus", reason="the [plc] extra (pymodbus) is not instal
 
 from fuelid.errors import ConfigError
 from fuelid.plc.adapters import LinkError, open_source
-from fuelid.plc.adapters.modbus import ModbusSource, plan_reads
+from fuelid.plc.adapters._modbus import ModbusSource, plan_reads
 from fuelid.plc.site import SiteConfig
 from support.modbus import FakePlc, free_port
 
@@ -148,7 +148,7 @@ def test_word_order_byte_swap_and_scaling_against_hand_computed_registers(
 
 
 def test_negative_int16_counts_and_siemens_over_range_decode() -> None:
-    from fuelid.plc.codec import decode
+    from fuelid.plc._codec import decode
 
     assert decode([0xED00], "int16") == -4864  # Siemens under-range limit
     assert decode([0x7EFF], "int16") == 32511  # over-range limit

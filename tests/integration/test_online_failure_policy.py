@@ -18,10 +18,10 @@ import pytest
 
 pytest.importorskip("pymodbus")
 
-from fuelid.online.logs import LOGGER_NAME, JsonLineFormatter
-from fuelid.online.service import OnlineService
-from fuelid.online.settings import ServiceSite
-from fuelid.plc.virtual.runner import VirtualPlcThread
+from fuelid.online._logs import LOGGER_NAME, JsonLineFormatter
+from fuelid.online._service import OnlineService
+from fuelid.online._settings import ServiceSite
+from fuelid.plc.virtual._runner import VirtualPlcThread
 
 SPEED = 50.0
 """Plant time per wall time: a 60 s window of plant time is 1.2 s of wall time."""

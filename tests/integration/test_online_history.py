@@ -27,7 +27,7 @@ from fuelid.store import (
     StoreError,
     tag_map_hash,
 )
-from fuelid.store.schema import build_at
+from fuelid.store._schema import build_at
 
 T0 = 1_700_000_000.0  # UTC seconds
 SITE = {"site_name": "tunnel 2 fuel loop", "tag_map_hash": tag_map_hash({"flow": "ir:20"})}
@@ -514,7 +514,7 @@ def test_an_approval_of_a_stale_proposal_is_refused_with_the_services_reason(
     # the service supersedes an approved proposal whose newest window ended more than
     # RECENT_WINDOWS_SPAN (6) windows of data before the newest sample; approving one is refused
     # with that reason instead of reading "approved" and never being written
-    from fuelid.online.requests import submit_request
+    from fuelid.online._requests import submit_request
 
     with _store(tmp_path / "loop.db") as store, OnlineHistory(store) as history:
         _, model_id = _window(history, 0)  # ends at T0 + 600 s

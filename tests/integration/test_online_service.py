@@ -21,11 +21,11 @@ import pytest
 
 pytest.importorskip("pymodbus")
 
-from fuelid.online.service import OnlineService
-from fuelid.online.settings import ServiceSite
+from fuelid.online._service import OnlineService
+from fuelid.online._settings import ServiceSite
 from fuelid.plc.adapters import open_source
-from fuelid.plc.adapters.modbus import ModbusSource
-from fuelid.plc.virtual.runner import VirtualPlcThread
+from fuelid.plc.adapters._modbus import ModbusSource
+from fuelid.plc.virtual._runner import VirtualPlcThread
 from support.online import approve_directly as _approved_proposal
 from support.online import online_site as _site
 from support.online import open_history as _history
@@ -280,7 +280,7 @@ def test_a_revert_makes_tuned_for_the_model_of_the_gains_it_writes_back(
     The PLC runs gains an earlier write tuned for MODEL_BEFORE (or the commissioning gains, for
     no known model); a proposal tuned for MODEL_WRITTEN is written, then a revert is requested.
     """
-    from fuelid.online.writeback import GOOD_TUNED_FOR
+    from fuelid.online._writeback import GOOD_TUNED_FOR
 
     store = tmp_path / "s.db"
     with VirtualPlcThread(speed=SPEED, setpoint_profile="run") as virtual:

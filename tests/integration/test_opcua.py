@@ -33,11 +33,11 @@ from cryptography.x509.oid import ExtendedKeyUsageOID
 
 from fuelid.errors import ConfigError
 from fuelid.plc.adapters import LinkError, open_source
-from fuelid.plc.adapters.opcua import OpcUaSource
+from fuelid.plc.adapters._opcua import OpcUaSource
 from fuelid.plc.site import SiteConfig, load_site
-from fuelid.plc.virtual.frontend import free_port
-from fuelid.plc.virtual.opcua_server import APPLICATION_URI, VARIANT_OF, OpcUaFrontend
-from fuelid.plc.virtual.points import OPCUA_NAMESPACE, OPCUA_RING, POINTS
+from fuelid.plc.virtual._frontend import free_port
+from fuelid.plc.virtual._opcua_server import APPLICATION_URI, VARIANT_OF, OpcUaFrontend
+from fuelid.plc.virtual._points import OPCUA_NAMESPACE, OPCUA_RING, POINTS
 from support.waiting import await_until
 
 # xdist: one worker runs every module that drives a PLC at speed, one after another
@@ -693,9 +693,9 @@ async def ring_after(client: Client, first_seq: int, count: int) -> list[list[fl
 
 def test_virtual_plc_manual_step_gives_the_plant_info_gain() -> None:
     from fuelid.plant import load_plant_config
-    from fuelid.plc.virtual.runner import VirtualPlcThread
+    from fuelid.plc.virtual._runner import VirtualPlcThread
     from fuelid.units import celsius_to_kelvin
-    from fuelid.workflow.plant_info import plant_info
+    from fuelid.workflow._plant_info import plant_info
 
     u_mid, du = 3.0, 0.2
     K = plant_info(load_plant_config(), celsius_to_kelvin(20.0), u_mid).to_json()["model"]["K"]
@@ -728,7 +728,7 @@ def test_virtual_plc_manual_step_gives_the_plant_info_gain() -> None:
 
 
 def test_virtual_plc_site_file_works_with_the_adapter(tmp_path: Path) -> None:
-    from fuelid.plc.virtual.runner import VirtualPlcThread
+    from fuelid.plc.virtual._runner import VirtualPlcThread
 
     with VirtualPlcThread(protocol="opcua", port=None, speed=20.0, seed=1) as virtual:
         path = tmp_path / "site.toml"

@@ -7,14 +7,14 @@ to 2 ms and every 150th one sent 15 ms later still (a delayed poll: the next rep
 next cycle, a few ms after it, as in the issue's 37.6 ms, 1.8 ms; 17.2 ms plus the jitter would
 race the next cycle, and the recorder's next poll would often miss it); ``fuelid record`` (a
 process of its own) with the site's 20 ms period and neither ring nor ``seq`` tag, so every
-sample is timed by its receipt (time base (c) of :mod:`fuelid.plc.timebase`); ``fuelid export``
+sample is timed by its receipt (time base (c) of :mod:`fuelid.plc._timebase`); ``fuelid export``
 to CSV and Parquet; ``fuelid identify``.
 
 What must hold, from the plant's known numbers (``fuelid plant info`` at 20 °C):
 
 - the log's sample time as read is 0.0204 s (20 ms × 1.02), which the reader gives when the
   period fitted to the stamps lies within three standard errors of it (it rounds to the fewest
-  digits within them, :func:`fuelid.io.log_grid.round_period`);
+  digits within them, :func:`fuelid.io._log_grid.round_period`);
 - ``identify`` exits 0 and its K agrees with the plant's static gain at 3.0 V (the steps' middle,
   13.124 (L/min)/V) within its own 95 % interval widened by the model-structure error: the plant
   is nonlinear and the log's steps span 2.8–3.2 V, over which the tangent gain runs from
@@ -44,10 +44,10 @@ from fuelid.plant import load_plant_config
 from fuelid.plc.site import load_site
 from fuelid.profiles.runs import steps_profile
 from fuelid.units import celsius_to_kelvin
-from fuelid.workflow.plant_info import plant_info
+from fuelid.workflow._plant_info import plant_info
 
 pytest.importorskip("pymodbus", reason="the [plc] extra (pymodbus) is not installed")
-runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
+runner = pytest.importorskip("fuelid.plc.virtual._runner", reason="no virtual PLC")
 
 PERIOD_S = 0.02
 """The site file's (and the PLC's own) sample period [s]."""
@@ -174,7 +174,7 @@ def test_a_plc_clock_2_percent_slow_with_a_delayed_poll_records_exports_and_iden
     assert from_parquet.n_samples == data.n_samples
     assert from_parquet.n_segments == data.n_segments
     np.testing.assert_array_equal(from_parquet.t, data.t)
-    # the CSV keeps ten significant digits (fuelid.store.export): the float32 readings' last ones
+    # the CSV keeps ten significant digits (fuelid.store._export): the float32 readings' last ones
     np.testing.assert_allclose(from_parquet.u, data.u, rtol=1e-9, atol=0.0)
     np.testing.assert_allclose(from_parquet.y, data.y, rtol=1e-9, atol=0.0)
     raw_csv, raw_parquet = pd.read_csv(csv), pd.read_parquet(parquet)
@@ -187,7 +187,7 @@ def test_a_plc_clock_2_percent_slow_with_a_delayed_poll_records_exports_and_iden
 
 def test_a_slow_clock_stretches_real_time_only_and_bad_settings_are_refused() -> None:
     from fuelid.errors import ConfigError
-    from fuelid.plc.virtual.engine import VirtualPLC
+    from fuelid.plc.virtual._engine import VirtualPLC
 
     exact, slow = VirtualPLC(seed=1), VirtualPLC(seed=1, clock_slow=CLOCK_SLOW)
     assert exact.plant_period_s == exact.period_s == PERIOD_S  # the default: nothing changes

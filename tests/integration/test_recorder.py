@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fuelid.plc.codec import encode
-from fuelid.plc.recorder import site_identity
+from fuelid.plc._codec import encode
+from fuelid.plc._recorder import site_identity
 from fuelid.plc.site import SiteConfig
 from fuelid.store import Quality, SQLiteStore
 from support.recorder import REPLAY, RING_REPLAY, kinds, load, record, rows, write_log
@@ -226,7 +226,7 @@ def flapping(
 def test_link_drops_are_events_and_the_ring_back_fills_every_sample(
     modbus_plc: Any, tmp_path: Path, drops: int, down_s: float, up_s: float
 ) -> None:
-    from fuelid.plc.adapters.modbus import ModbusSource
+    from fuelid.plc.adapters._modbus import ModbusSource
 
     plc = modbus_plc()
     site = ring_site(plc)
@@ -267,7 +267,7 @@ def test_a_blip_is_said_as_one_with_the_samples_back_filled(
     import asyncio
 
     from fuelid.plc.adapters import LinkError
-    from fuelid.plc.adapters.modbus import ModbusSource
+    from fuelid.plc.adapters._modbus import ModbusSource
 
     class TimesOutOnce(ModbusSource):
         """One read of the tags gets no answer (the server stays up): a blip."""
@@ -478,8 +478,8 @@ def test_a_plc_restarted_during_a_long_outage_is_seen_though_its_counter_passed_
     advanced far less than the outage's wall time allows, read the new run from its first
     record, and store it strictly after the old run.
     """
-    runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
-    from fuelid.plc.adapters.modbus import ModbusSource
+    runner = pytest.importorskip("fuelid.plc.virtual._runner", reason="no virtual PLC")
+    from fuelid.plc.adapters._modbus import ModbusSource
 
     speed, period = 10.0, 0.02
     with runner.VirtualPlcThread("modbus", speed=speed, seed=4, command_profile="steps") as srv:
@@ -531,8 +531,8 @@ def test_a_plc_restart_after_a_short_outage_at_speed_keeps_times_increasing(
     tmp_path: Path,
 ) -> None:
     """VirtualPlcThread.restart_plc at 10x: the counter goes back; times never do."""
-    runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
-    from fuelid.plc.adapters.modbus import ModbusSource
+    runner = pytest.importorskip("fuelid.plc.virtual._runner", reason="no virtual PLC")
+    from fuelid.plc.adapters._modbus import ModbusSource
 
     with runner.VirtualPlcThread("modbus", speed=10.0, seed=5, command_profile="steps") as srv:
         site = load(srv.site_text())
@@ -555,7 +555,7 @@ def test_a_plc_restart_after_a_short_outage_at_speed_keeps_times_increasing(
 
 
 def test_the_stuck_detector_holds_nothing_back_and_asks_for_the_stretch_to_be_reflagged() -> None:
-    from fuelid.plc.quality import StuckDetector
+    from fuelid.plc._quality import StuckDetector
     from fuelid.store import Sample
 
     events: list[tuple[str, float]] = []
@@ -588,7 +588,7 @@ def test_the_stuck_detector_holds_nothing_back_and_asks_for_the_stretch_to_be_re
 def test_record_site_applies_the_sites_retention_counting_back_from_the_newest_sample(
     tmp_path: Path,
 ) -> None:
-    from fuelid.plc.record_runner import record_site
+    from fuelid.plc._record_runner import record_site
     from fuelid.store import Sample
 
     log, db = tmp_path / "log.csv", tmp_path / "s.db"

@@ -1,4 +1,4 @@
-"""The recorder keeps the PLC's gains as read in the store (fuelid.plc.gain_reading).
+"""The recorder keeps the PLC's gains as read in the store (fuelid.plc._gain_reading).
 
 A Modbus PLC written in the tests (support.modbus.FakePlc, loopback) runs a sample counter,
 u and y every 10 ms and holds kc and ti in two float32 tags; the test changes them at the PLC
@@ -20,7 +20,7 @@ from typing import Any
 
 import pytest
 
-from fuelid.plc.codec import encode
+from fuelid.plc._codec import encode
 from support.recorder import load, record, rows
 from support.waiting import wait_until
 

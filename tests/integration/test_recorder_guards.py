@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from fuelid.errors import ConfigError
-from fuelid.plc.quality import RangeChecks
-from fuelid.plc.record_status import RecorderStats
+from fuelid.plc._quality import RangeChecks
+from fuelid.plc._record_status import RecorderStats
 from fuelid.plc.site import Tag
 from fuelid.store import Event, Quality, Sample, SQLiteStore
 from support.recorder import REPLAY, RING_REPLAY, kinds, load, record, rows, write_log
@@ -28,7 +28,7 @@ pytestmark = pytest.mark.xdist_group("real-time")
 
 
 def virtual_plc(**kw: Any) -> Any:
-    runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
+    runner = pytest.importorskip("fuelid.plc.virtual._runner", reason="no virtual PLC")
     pytest.importorskip("pymodbus", reason="the [plc] extra (pymodbus) is not installed")
     return runner.VirtualPlcThread("modbus", seed=3, command_profile="steps", **kw)
 
@@ -137,7 +137,7 @@ def test_a_flow_tag_scaled_wrongly_disagrees_with_the_ring_and_says_so(tmp_path:
 
 
 def test_at_speed_link_down_and_up_bracket_the_hole_in_the_samples(tmp_path: Path) -> None:
-    from fuelid.plc.adapters.modbus import ModbusSource
+    from fuelid.plc.adapters._modbus import ModbusSource
 
     period = 0.02
     with virtual_plc(speed=10.0, ring_size=256) as srv:

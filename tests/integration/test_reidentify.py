@@ -27,12 +27,12 @@ pytest.importorskip("distributed")
 
 from distributed import Client, LocalCluster
 
-from fuelid.archive.layout import list_loop_days
+from fuelid.archive._layout import list_loop_days
 from fuelid.cli import main
-from fuelid.fleet import run as fleet_run
-from fuelid.fleet.run import reidentify
-from fuelid.fleet.task import RESULT_SCHEMA, TIMING_COLUMNS, day_windows
-from fuelid.online.settings import Online
+from fuelid.fleet import _run as fleet_run
+from fuelid.fleet._run import reidentify
+from fuelid.fleet._task import RESULT_SCHEMA, TIMING_COLUMNS, day_windows
+from fuelid.online._settings import Online
 from support.archive_fixture import archive_store
 from support.fleet import T0
 from support.rounding import gamma, inverse_gram_budget, least_squares_budget
@@ -369,9 +369,9 @@ def test_result_schema_has_every_window_column() -> None:
 def test_a_worker_that_does_not_see_the_archive_marks_nothing_done(
     archive: Path, tmp_path: Path
 ) -> None:
-    from fuelid.archive.layout import LoopDay
+    from fuelid.archive._layout import LoopDay
     from fuelid.errors import DataError
-    from fuelid.fleet.task import loop_settings, reidentify_day, result_path
+    from fuelid.fleet._task import loop_settings, reidentify_day, result_path
 
     settings, plant = loop_settings(archive, "line-a")
     elsewhere = tmp_path / "not-mounted"
@@ -388,8 +388,8 @@ def test_a_worker_that_does_not_see_the_archive_marks_nothing_done(
 def test_results_sent_to_the_central_store_whole_per_loop_day_and_again_unchanged(
     archive: Path, two_workers: Path, central_url: str, tmp_path: Path
 ) -> None:
-    from fuelid.central.connect import connect
-    from fuelid.fleet.to_central import send_results
+    from fuelid.central._connect import connect
+    from fuelid.fleet._to_central import send_results
 
     def central_rows() -> dict[tuple[str, float], tuple[Any, ...]]:
         with connect(central_url) as con:

@@ -24,9 +24,9 @@ from snap7.client import Client  # noqa: E402
 
 from fuelid.errors import ConfigError  # noqa: E402
 from fuelid.plc.adapters import LinkError, open_source  # noqa: E402
-from fuelid.plc.adapters.s7 import S7Source, plan_spans  # noqa: E402
+from fuelid.plc.adapters._s7 import S7Source, plan_spans  # noqa: E402
 from fuelid.plc.site import SiteConfig  # noqa: E402
-from fuelid.plc.virtual.s7_server import S7Frontend  # noqa: E402
+from fuelid.plc.virtual._s7_server import S7Frontend  # noqa: E402
 from support.waiting import wait_until  # noqa: E402
 
 # xdist: one worker runs every module that drives a PLC at speed, one after another
@@ -427,10 +427,10 @@ def _head(plain: Client) -> int:
 
 
 def test_virtual_plc_manual_step_gain_and_staged_gains() -> None:
-    runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="the virtual PLC runner")
+    runner = pytest.importorskip("fuelid.plc.virtual._runner", reason="the virtual PLC runner")
     from fuelid.plant import load_plant_config
     from fuelid.units import celsius_to_kelvin
-    from fuelid.workflow.plant_info import plant_info
+    from fuelid.workflow._plant_info import plant_info
 
     u0, u1, settle = 2.9, 3.1, 750  # V, V, samples (15 s of plant time, ~3 settling times)
     with runner.VirtualPlcThread(protocol="s7", port=None, speed=20.0, seed=1) as virtual:

@@ -23,10 +23,10 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from fuelid.plc.codec import encode
+from fuelid.plc._codec import encode
 from fuelid.store import SCHEMA_VERSION, Quality, Sample, SampleArrays, SQLiteStore, StoreError
-from fuelid.store.export import export_log
-from fuelid.store.schema import MIGRATIONS, build_at
+from fuelid.store._export import export_log
+from fuelid.store._schema import MIGRATIONS, build_at
 from support.recorder import REPLAY, kinds, load, record, rows, write_log
 
 T0 = 1_767_225_600.0  # 2026-01-01T00:00:00Z
@@ -393,9 +393,9 @@ def _two_days(db: Path) -> list[Sample]:
 
 
 def test_the_archive_carries_the_columns_and_reads_them_back(tmp_path: Path) -> None:
-    from fuelid.archive.layout import SAMPLE_SCHEMA, read_day, read_day_table
-    from fuelid.archive.reader import ArchiveLoop
-    from fuelid.archive.writer import archive_store
+    from fuelid.archive._layout import SAMPLE_SCHEMA, read_day, read_day_table
+    from fuelid.archive._reader import ArchiveLoop
+    from fuelid.archive._writer import archive_store
 
     db = tmp_path / "loop.db"
     samples = _two_days(db)[:20]
@@ -426,9 +426,9 @@ def test_the_archive_carries_the_columns_and_reads_them_back(tmp_path: Path) -> 
 
 
 def test_an_archive_file_written_before_the_columns_reads_them_as_nan(tmp_path: Path) -> None:
-    from fuelid.archive.layout import SAMPLE_SCHEMA, partition_dir, read_day
-    from fuelid.archive.reader import ArchiveLoop
-    from fuelid.archive.writer import archive_store
+    from fuelid.archive._layout import SAMPLE_SCHEMA, partition_dir, read_day
+    from fuelid.archive._reader import ArchiveLoop
+    from fuelid.archive._writer import archive_store
 
     old_schema = pa.schema([f for f in SAMPLE_SCHEMA if f.name not in ("excitation", "run")])
     n = 5
@@ -470,9 +470,9 @@ def test_an_archive_file_written_before_the_columns_reads_them_as_nan(tmp_path: 
 
 
 def test_a_schema_5_store_syncs_to_the_central_store(tmp_path: Path, central_url: str) -> None:
-    from fuelid.central.connect import connect
-    from fuelid.central.sender import Sender
-    from fuelid.store.base import Event
+    from fuelid.central._connect import connect
+    from fuelid.central._sender import Sender
+    from fuelid.store._base import Event
 
     db = tmp_path / "loop.db"
     _two_days(db)

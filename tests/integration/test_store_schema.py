@@ -1,7 +1,7 @@
 """The store's schema and its migrations (issue 24): older stores open and are upgraded.
 
 Pattern for the next migration: build a store at the version before with
-:func:`fuelid.store.schema.build_at` (or load a dump written by a released fuelid, as
+:func:`fuelid.store._schema.build_at` (or load a dump written by a released fuelid, as
 ``tests/data/store_v0_1.sql``), put rows in it, open it with :class:`SQLiteStore` and compare
 every row; :func:`test_a_store_of_every_older_version_opens_upgraded` does it for every version.
 """
@@ -18,8 +18,8 @@ import pytest
 
 from fuelid.cli import main
 from fuelid.store import SCHEMA_VERSION, OnlineHistory, Sample, SQLiteStore, StoreError
-from fuelid.store import schema as store_schema
-from fuelid.store.schema import MIGRATIONS, Migration, build_at, upgrade
+from fuelid.store import _schema as store_schema
+from fuelid.store._schema import MIGRATIONS, Migration, build_at, upgrade
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 T0 = 1_700_000_000.0
@@ -261,7 +261,7 @@ def test_every_sent_table_keeps_its_outbox_triggers_after_every_migration(tmp_pa
     Dropping a table drops its triggers; without them a central store would never hear of a
     request again (a two-sender test found it).
     """
-    from fuelid.store.schema_v4 import OUTBOX_TABLES
+    from fuelid.store._schema_v4 import OUTBOX_TABLES
 
     db = _new_store(tmp_path)
     con = sqlite3.connect(db, isolation_level=None)
@@ -506,7 +506,7 @@ def test_retention_ages_a_virtual_runs_samples_by_the_wall_clock(tmp_path: Path)
 
 
 def test_a_reflag_recounts_the_bad_samples_of_the_buckets_it_touches(tmp_path: Path) -> None:
-    from fuelid.store.base import Requalify
+    from fuelid.store._base import Requalify
 
     db = tmp_path / "reflag.db"
     samples = [Sample(T0 + 0.25 * k, k, 2.0, 40.0, 40.0, 21.0, 1, int(k == 3)) for k in range(80)]

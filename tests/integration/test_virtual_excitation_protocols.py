@@ -15,14 +15,14 @@ from typing import Any, TypeVar
 
 import pytest
 
-from fuelid.plc.virtual.points import (
+from fuelid.plc.virtual._points import (
     POINTS,
     RING_FIELDS,
     RING_FIRST_REGISTER,
     RING_HEAD_REGISTER,
     RING_RECORD_REGISTERS,
 )
-from fuelid.plc.virtual.runner import VirtualPlcThread
+from fuelid.plc.virtual._runner import VirtualPlcThread
 from support.waiting import await_until, wait_until
 
 # xdist: one worker runs every module that drives a PLC at speed, one after another
@@ -114,7 +114,7 @@ def test_opcua_excitation_run_and_ring() -> None:
     from asyncua import ua
     from asyncua.client.client import Client
 
-    from fuelid.plc.virtual.opcua_server import VARIANT_OF
+    from fuelid.plc.virtual._opcua_server import VARIANT_OF
 
     def node_id(name: str) -> str:
         return f"ns=2;s={POINTS[name].opcua}"
@@ -216,7 +216,7 @@ def test_plant_serve_takes_the_excitation_limit_and_run_windows() -> None:
     from typer.testing import CliRunner
 
     from fuelid.cli import app
-    from fuelid.cli.serve import parse_run_windows
+    from fuelid.cli._serve import parse_run_windows
 
     assert parse_run_windows(["0:3", "10.5:20"]) == [(0.0, 3.0), (10.5, 20.0)]
     runner = CliRunner()

@@ -28,9 +28,9 @@ from typer.testing import CliRunner
 from fuelid.cli import app
 from fuelid.errors import ConfigError, DataError
 from fuelid.plant import load_plant_config
-from fuelid.plant.system import operating_point
+from fuelid.plant._system import operating_point
 from fuelid.plc.site import SiteConfig, load_site
-from fuelid.plc.virtual.engine import (
+from fuelid.plc.virtual._engine import (
     GAIN_LIMITS,
     STATUS_AT_LIMIT,
     STATUS_REFUSED,
@@ -38,16 +38,16 @@ from fuelid.plc.virtual.engine import (
     VirtualPLC,
     commissioning_gains,
 )
-from fuelid.plc.virtual.points import (
+from fuelid.plc.virtual._points import (
     POINTS,
     RING_FIRST_REGISTER,
     RING_HEAD_REGISTER,
     RING_RECORD_REGISTERS,
 )
-from fuelid.plc.virtual.runner import site_text
+from fuelid.plc.virtual._runner import site_text
 from fuelid.profiles.runs import Profile, load_profile, run_profile, steps_profile
 from fuelid.units import LPM_PER_M3S, celsius_to_kelvin
-from fuelid.workflow.plant_info import plant_info
+from fuelid.workflow._plant_info import plant_info
 from support.waiting import await_until, wait_until
 
 # xdist: one worker runs every module that drives a PLC at speed, one after another
@@ -498,7 +498,7 @@ class Plain:
 
 
 def _virtual(**kwargs: Any) -> Any:
-    from fuelid.plc.virtual.runner import VirtualPlcThread
+    from fuelid.plc.virtual._runner import VirtualPlcThread
 
     return VirtualPlcThread(**kwargs)
 

@@ -12,7 +12,7 @@ import socket
 
 import pytest
 
-from fuelid.plc.virtual.runner import VirtualPlcThread
+from fuelid.plc.virtual._runner import VirtualPlcThread
 
 LIBRARIES = {"modbus": "pymodbus", "opcua": "asyncua", "s7": "snap7"}
 

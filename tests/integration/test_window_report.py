@@ -23,16 +23,16 @@ from typing import Any
 
 import pytest
 
-from fuelid.dashboard import window_report
-from fuelid.dashboard.registry import Loops
-from fuelid.dashboard.window_report import (
+from fuelid.dashboard import _window_report as window_report
+from fuelid.dashboard._registry import Loops
+from fuelid.dashboard._window_report import (
     PREFETCH_MAX,
     PREFETCH_NEWEST,
     ReportPrefetcher,
     window_report_html,
 )
 from fuelid.errors import FuelidError
-from fuelid.online.liveness import plant_hash
+from fuelid.online._liveness import plant_hash
 
 
 class FakeLoop:
@@ -88,7 +88,7 @@ def plant_file(folder: Path) -> Path:
 def test_the_report_tunes_from_the_gates_estimator_and_names_the_plant_file_without_its_folder(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import fuelid.store.base
+    import fuelid.store._base
     import fuelid.workflow
 
     path = plant_file(tmp_path)
@@ -102,7 +102,7 @@ def test_the_report_tunes_from_the_gates_estimator_and_names_the_plant_file_with
         raise FuelidError("stopped here")
 
     monkeypatch.setattr(fuelid.workflow, "analyse_log", analyse_log)
-    monkeypatch.setattr(fuelid.store.base, "iodata_from_samples", lambda *a, **k: None)
+    monkeypatch.setattr(fuelid.store._base, "iodata_from_samples", lambda *a, **k: None)
     page = window_report_html(FakeLoop(settings, []), window(3, "pem"))
     assert "stopped here" in page
     assert given["settings"].tune_from == "pem"  # the window page's name, not "oe"
@@ -233,7 +233,7 @@ def test_the_server_s_loops_make_the_reports_ahead_in_the_background(
 def test_the_report_of_a_stored_window_names_no_folder_and_the_gates_model(
     dashboard_store: Path, tmp_path: Path
 ) -> None:
-    from fuelid.dashboard.source import SQLiteLoop
+    from fuelid.dashboard._source import SQLiteLoop
 
     target = tmp_path / "loop.db"
     shutil.copy(dashboard_store, target)

@@ -9,7 +9,7 @@ windows' models, the bounds, the partial move, the detuning).
 
 The end-to-end case reads the store a virtual run wrote (the session fixture
 ``dashboard_store``: windows and a pending proposal); the others give
-:func:`~fuelid.dashboard.window_report.proposal_notice` what a proposal records.
+:func:`~fuelid.dashboard._window_report.proposal_notice` what a proposal records.
 """
 
 from __future__ import annotations
@@ -22,10 +22,10 @@ from typing import Any
 
 import pytest
 
-from fuelid.dashboard.source import SQLiteLoop
-from fuelid.dashboard.window_report import SAME_GAINS, proposal_notice, window_report_html
+from fuelid.dashboard._source import SQLiteLoop
+from fuelid.dashboard._window_report import SAME_GAINS, proposal_notice, window_report_html
 from fuelid.model import ProcessModel
-from fuelid.online.report import decision_json
+from fuelid.online._report import decision_json
 from fuelid.tuning import PISettings
 
 PAGE = PISettings(rule="simc", Kc=0.04, Ti=1.0, control_period=1.0)

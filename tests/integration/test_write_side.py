@@ -82,7 +82,7 @@ def f32(value: float) -> float:
 
 def _site(protocol: str, drop: tuple[str, ...] = ()) -> SiteConfig:
     """The virtual PLC's generated site file (for a port nobody serves), less write roles."""
-    from fuelid.plc.virtual.runner import site_text
+    from fuelid.plc.virtual._runner import site_text
 
     data = tomllib.loads(site_text(protocol, "127.0.0.1", 9))
     for role in drop:
@@ -108,7 +108,7 @@ async def _wait_samples(source: PlcSource, samples: int) -> None:
 
 @pytest.mark.parametrize(("protocol", "options"), LINKS)
 def test_the_echo_verifies_a_staged_gain_write(protocol: str, options: dict[str, Any]) -> None:
-    from fuelid.plc.virtual.runner import VirtualPlcThread
+    from fuelid.plc.virtual._runner import VirtualPlcThread
 
     with VirtualPlcThread(protocol=protocol, speed=SPEED, seed=31, **options) as virtual:
         site = SiteConfig.model_validate(tomllib.loads(virtual.site_text()))
@@ -165,8 +165,8 @@ def test_the_echo_verifies_a_staged_gain_write(protocol: str, options: dict[str,
 
 def test_modbus_reads_the_write_side_in_one_request_per_area() -> None:
     pytest.importorskip("pymodbus", reason="needs pymodbus: pip install 'fuelid[plc]'")
-    from fuelid.plc.adapters.modbus import ModbusSource
-    from fuelid.plc.virtual.runner import VirtualPlcThread
+    from fuelid.plc.adapters._modbus import ModbusSource
+    from fuelid.plc.virtual._runner import VirtualPlcThread
 
     with VirtualPlcThread(protocol="modbus", speed=SPEED, seed=32) as virtual:
         source = ModbusSource(SiteConfig.model_validate(tomllib.loads(virtual.site_text())))

@@ -9,11 +9,11 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
-from fuelid.online.settings import ServiceSite
-from fuelid.plc.recorder import site_identity
-from fuelid.plc.virtual.runner import VirtualPlcThread
+from fuelid.online._settings import ServiceSite
+from fuelid.plc._recorder import site_identity
+from fuelid.plc.virtual._runner import VirtualPlcThread
 from fuelid.store import OnlineHistory, open_store
-from fuelid.store.sqlite import SQLiteStore
+from fuelid.store._sqlite import SQLiteStore
 
 
 def online_site(

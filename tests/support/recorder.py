@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 
+from fuelid.plc._record_status import RecorderStats
+from fuelid.plc._recorder import Recorder, site_identity
 from fuelid.plc.adapters import PlcSource, open_source
-from fuelid.plc.record_status import RecorderStats
-from fuelid.plc.recorder import Recorder, site_identity
 from fuelid.plc.site import SiteConfig
 from fuelid.store import SampleWriter, SQLiteStore
 

@@ -74,9 +74,9 @@ def test_an_existing_figure_is_refused_without_force_before_any_work(
     capsys: pytest.CaptureFixture[str],
 ):
     import fuelid.workflow
-    import fuelid.workflow.identification
+    import fuelid.workflow._identification
 
-    monkeypatch.setattr(fuelid.workflow.identification, "identify_log", _refuse_work)
+    monkeypatch.setattr(fuelid.workflow._identification, "identify_log", _refuse_work)
     monkeypatch.setattr(fuelid.workflow, "tune_model", _refuse_work)
     fig = tmp_path / "fig.png"
     fig.write_bytes(b"an earlier figure")

@@ -18,7 +18,7 @@ import typer
 
 from fuelid import cli
 from fuelid.cli import main
-from fuelid.cli.dashboard_users import user_app
+from fuelid.cli._dashboard_users import user_app
 
 TOKEN = re.compile(r"^[A-Za-z0-9_-]{43}$")
 
@@ -96,7 +96,7 @@ def test_list_shows_names_and_roles_but_no_token(
 def test_rotate_prints_a_new_token_and_the_old_one_stops_working(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    from fuelid.dashboard.users import UsersFile
+    from fuelid.dashboard._users import UsersFile
 
     assert main(["dashboard", "user", "add", "ana", "--role", "viewer"]) == 0
     (old,) = tokens_in(capsys.readouterr().out)

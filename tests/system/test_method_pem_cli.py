@@ -77,7 +77,7 @@ def test_the_covariance_choice_is_refused_where_it_does_not_apply(tmp_path: Path
 
 def test_equal_lags_get_no_separate_intervals():
     # corr(T, T2) beyond ±0.999: only the response is determined, the intervals would lie
-    from fuelid.identify.procedure import _lags_not_separated
+    from fuelid.identify._procedure import _lags_not_separated
 
     names = ("K", "T", "T2", "offset")
     cov = np.diag([1.0, 4.0, 4.0, 1.0])

@@ -27,10 +27,10 @@ from fuelid.io.logs import load_log
 from fuelid.plant import linearise, load_plant_config
 from fuelid.plant.simulate import simulate
 from fuelid.profiles import step_sequence
-from fuelid.tuning.frequency import robustness
+from fuelid.tuning._frequency import robustness
 from fuelid.units import celsius_to_kelvin
 from fuelid.workflow import AnalysisSettings, LogAnalysis, PlantSource, analyse_log
-from fuelid.workflow.assumptions import REFERENCE_PLANT_NOTICE
+from fuelid.workflow._assumptions import REFERENCE_PLANT_NOTICE
 
 runner = CliRunner()
 LEVELS = [1.0, 1.5, 2.5, 2.0, 3.5, 3.0, 1.5]

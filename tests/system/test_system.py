@@ -30,7 +30,7 @@ from fuelid.plant import (
     plant_jacobian,
     plant_rhs,
 )
-from fuelid.plant.system import PlantCoefficients, input_jacobian
+from fuelid.plant._system import PlantCoefficients, input_jacobian
 
 T0 = 273.15
 TEMPS_K = [253.15, 293.15, 323.15]  # −20, 20, 50 °C

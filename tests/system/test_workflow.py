@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 from fuelid.cli import app
 from fuelid.cli._common import emit_json
 from fuelid.errors import FuelidError
-from fuelid.identify.procedure import IdentifyOptions
+from fuelid.identify._procedure import IdentifyOptions
 from fuelid.io.logs import load_log
 from fuelid.model import ProcessModel, simulate_model
 from fuelid.plant import load_plant_config

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pyarrow as pa
 
-from fuelid.archive.layout import write_table
+from fuelid.archive._layout import write_table
 
 
 def test_a_dead_writers_temporary_file_is_removed_and_a_live_ones_kept(tmp_path: Path) -> None:

@@ -9,12 +9,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fuelid.identify.procedure import IdentifyOptions
+from fuelid.identify._procedure import IdentifyOptions
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel
 from fuelid.plant import linearise, load_plant_config
 from fuelid.units import celsius_to_kelvin
-from fuelid.workflow.assumptions import (
+from fuelid.workflow._assumptions import (
     PLANT_GAIN_BOUND,
     OperatingPoint,
     PlantSource,

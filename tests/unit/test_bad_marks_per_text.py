@@ -10,7 +10,7 @@ from collections import Counter
 
 import pandas as pd
 
-from fuelid.io.bad_values import describe_bad_marks, find_bad_marks
+from fuelid.io._bad_values import describe_bad_marks, find_bad_marks
 
 
 def test_every_text_is_counted_by_itself() -> None:

@@ -1,4 +1,4 @@
-"""The PLC's PI block (fuelid.tuning.block): one home of the gains' form and units (issue 37).
+"""The PLC's PI block (fuelid.tuning._block): one home of the gains' form and units (issue 37).
 
 Worked numbers: with a 4 V drive span and a 100 L/min meter span, 1.25 %/% is
 1.25·4/100 = 0.05 V per L/min; a parallel block's Ki = 2.5 %/% per minute is Ti = Kp/Ki =
@@ -16,10 +16,10 @@ from typing import Any
 import pytest
 
 from fuelid.errors import FuelidError
-from fuelid.online.gains import Gains
+from fuelid.online._gains import Gains
 from fuelid.plc.site import Controller
 from fuelid.tuning import PISettings
-from fuelid.tuning.block import (
+from fuelid.tuning._block import (
     SECONDS_PER_MINUTE,
     BlockForm,
     block_units,

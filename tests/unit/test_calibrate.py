@@ -15,8 +15,8 @@ import pytest
 
 from fuelid.cli import main
 from fuelid.errors import FuelidError
-from fuelid.plant.config import load_plant_config
-from fuelid.plant.parameters import get_parameter, with_parameters
+from fuelid.plant._config import load_plant_config
+from fuelid.plant._parameters import get_parameter, with_parameters
 
 LEAK, LAG, CD = "pump.leakage_Lpm_per_MPa", "vfd.lag_s", "nozzle.discharge_coefficient"
 REFERENCE = load_plant_config()

@@ -31,12 +31,12 @@ import pytest
 import scipy.signal
 
 from fuelid.identify import IdentifyOptions, identify
-from fuelid.identify.causality import LEAD_Z, lead_check
+from fuelid.identify._causality import LEAD_Z, lead_check
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel
 from fuelid.plant import load_plant_config
-from fuelid.workflow.simulation import SimulationRequest, simulate_log
+from fuelid.workflow._simulation import SimulationRequest, simulate_log
 
 H = 0.02
 LPM_PER_M3S = 60_000.0

@@ -15,10 +15,11 @@ import fuelid.plant.simulate
 from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
 from fuelid.plant import PlantConfig, load_plant_config
+from fuelid.plant._system import operating_point
 from fuelid.plant.simulate import simulate
-from fuelid.plant.system import operating_point
 from fuelid.profiles import InputProfile
 from fuelid.tuning import PISettings, tune
+from fuelid.tuning._schedule import gain_schedule
 from fuelid.tuning.closedloop import (
     ClosedLoopResult,
     DiscretePI,
@@ -34,7 +35,6 @@ from fuelid.tuning.closedloop import (
     standard_scenario,
     steady_command,
 )
-from fuelid.tuning.schedule import gain_schedule
 from fuelid.units import LPM_PER_M3S, celsius_to_kelvin, kelvin_to_celsius
 
 CONFIG = load_plant_config()

@@ -15,13 +15,13 @@ import fluids.friction
 import numpy as np
 import pytest
 
-from fuelid.plant.flowmeter import (
+from fuelid.plant._flowmeter import (
     FlowmeterConfig,
     flowmeter_rate,
     flowmeter_rate_partials,
     measure_flow,
 )
-from fuelid.plant.motor import (
+from fuelid.plant._motor import (
     MAX_RATED_SLIP,
     MotorConfig,
     electromagnetic_torque,
@@ -30,14 +30,14 @@ from fuelid.plant.motor import (
     synchronous_speed,
     torque_constant_from_circuit,
 )
-from fuelid.plant.nozzle import (
+from fuelid.plant._nozzle import (
     NozzleConfig,
     nozzle_inlet_pressure,
     orifice_flow,
     orifice_pressure_drop,
     orifice_resistance,
 )
-from fuelid.plant.pipeline import (
+from fuelid.plant._pipeline import (
     ZERO_FLOW_RE,
     PipelineConfig,
     circle_area,
@@ -54,7 +54,7 @@ from fuelid.plant.pipeline import (
     pipe_pressure_rate_partials,
     reynolds_number,
 )
-from fuelid.plant.pump import (
+from fuelid.plant._pump import (
     LPM_PER_M3S,
     PumpConfig,
     leakage_coefficient,
@@ -63,8 +63,8 @@ from fuelid.plant.pump import (
     pump_torque,
     pump_torque_slope,
 )
-from fuelid.plant.shaft import shaft_acceleration, shaft_acceleration_partials
-from fuelid.plant.vfd import (
+from fuelid.plant._shaft import shaft_acceleration, shaft_acceleration_partials
+from fuelid.plant._vfd import (
     VFDConfig,
     vfd_command_slope,
     vfd_frequency_command,

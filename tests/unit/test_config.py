@@ -19,7 +19,7 @@ from fuelid.cli import app
 from fuelid.errors import ConfigError, FuelidError, OutOfRangeError
 from fuelid.fuel import fuel_properties
 from fuelid.plant import linearise, load_plant_config, operating_point, plant_coefficients
-from fuelid.plant.config import plant_config_from_dict
+from fuelid.plant._config import plant_config_from_dict
 
 REFERENCE_TEXT = resources.files("fuelid.data").joinpath("reference_plant.toml").read_text("utf-8")
 

@@ -13,7 +13,7 @@ import scipy.linalg
 import scipy.signal
 
 from fuelid.identify import OutputError
-from fuelid.identify.covariance import ResidualAR, residual_ar, sandwich_covariance
+from fuelid.identify._covariance import ResidualAR, residual_ar, sandwich_covariance
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, simulate_model
 from support.bands import coverage_band, rmse_ratio_band

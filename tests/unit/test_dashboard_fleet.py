@@ -1,4 +1,4 @@
-"""The fleet page's chips and its severity order (fuelid.dashboard.fleet's documented table).
+"""The fleet page's chips and its severity order (fuelid.dashboard._fleet's documented table).
 
 Each loop below differs from a healthy one in exactly one way (or two, for the worst), so the
 expected order follows from the documented rule alone: alarms first, more alarms before fewer,
@@ -16,7 +16,7 @@ import pytest
 
 pytest.importorskip("fastapi")
 
-from fuelid.dashboard.fleet import (
+from fuelid.dashboard._fleet import (
     AUTO_WARN,
     CHIP_ORDER,
     DRIFT_WARN,
@@ -26,8 +26,8 @@ from fuelid.dashboard.fleet import (
     fleet_row,
     loop_chips,
 )
-from fuelid.dashboard.views import FRESH_SAMPLE_S
-from fuelid.online.context import RECENT_WINDOWS_SPAN
+from fuelid.dashboard._views import FRESH_SAMPLE_S
+from fuelid.online._context import RECENT_WINDOWS_SPAN
 
 RECENT_IAE = [2.0, 2.2, 1.8, 2.1, 1.9]  # median 2.0 s
 NEWEST = 1_795_767_303.4  # plant time of the newest sample: 2026-11-27 08:15:03 UTC

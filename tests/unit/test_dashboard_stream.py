@@ -11,8 +11,8 @@ from typing import Any
 
 import pytest
 
-from fuelid.dashboard import stream
-from fuelid.store.records import SampleArrays
+from fuelid.dashboard import _stream as stream
+from fuelid.store._records import SampleArrays
 
 
 class FakeLoop:

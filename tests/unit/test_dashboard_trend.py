@@ -1,4 +1,4 @@
-"""The trend's choice of source and its thinning (fuelid.dashboard.trend)."""
+"""The trend's choice of source and its thinning (fuelid.dashboard._trend)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 pytest.importorskip("tsdownsample")
 pytest.importorskip("fastapi")
 
-from fuelid.dashboard.trend import LOD_MAX_BUCKETS, RAW_MAX_SAMPLES, choose_source, thin
+from fuelid.dashboard._trend import LOD_MAX_BUCKETS, RAW_MAX_SAMPLES, choose_source, thin
 
 
 @pytest.mark.parametrize(

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from fuelid.dashboard import users as users_module
-from fuelid.dashboard.users import User, UsersFile
+from fuelid.dashboard import _users as users_module
+from fuelid.dashboard._users import User, UsersFile
 from fuelid.errors import ConfigError
 
 URLSAFE = set("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_")

@@ -1,4 +1,4 @@
-"""What the loop page says of its proposals and of the gains in force (fuelid.dashboard.views).
+"""What the loop page says of its proposals and of the gains in force (fuelid.dashboard._views).
 
 The expected states, levels, actions and sentences follow from the rules in the module's
 docstring, not from what the code prints: a proposal the service would not write (the service's
@@ -17,8 +17,8 @@ import pytest
 
 pytest.importorskip("fastapi")
 
-from fuelid.dashboard.fleet import loop_chips
-from fuelid.dashboard.views import (
+from fuelid.dashboard._fleet import loop_chips
+from fuelid.dashboard._views import (
     FRESH_SAMPLE_S,
     PROPOSAL_STATES,
     gains_in_force,
@@ -28,7 +28,7 @@ from fuelid.dashboard.views import (
     proposal_state,
     proposal_views,
 )
-from fuelid.online.context import RECENT_WINDOWS_SPAN
+from fuelid.online._context import RECENT_WINDOWS_SPAN
 
 NEWEST = 1_795_767_303.4  # the newest sample [plant s]: 2026-11-27 09:15:03 CET
 NEWEST_TEXT = "2026-11-27 09:15:03 CET"
@@ -371,7 +371,7 @@ def test_link_up_is_said_only_with_a_fresh_sample() -> None:
 
 
 def test_revert_is_offered_only_when_it_would_change_the_gains() -> None:
-    from fuelid.dashboard.loop_page import revert_offer
+    from fuelid.dashboard._loop_page import revert_offer
 
     good = {"Kc": 0.028, "Ti": 3.43}
     status = {"write_back": {"last_known_good_block": good}}

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.signal
 
-from fuelid.identify.diagnostics import (
+from fuelid.identify._diagnostics import (
     feedback_suspected,
     input_residual_correlation,
     residual_whiteness,

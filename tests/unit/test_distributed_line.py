@@ -18,8 +18,8 @@ import scipy.optimize
 
 from fuelid.io.logs import load_log
 from fuelid.model import ProcessModel
-from fuelid.tuning.frequency import robustness
-from fuelid.tuning.rules import PISettings, amigo, simc
+from fuelid.tuning._frequency import robustness
+from fuelid.tuning._rules import PISettings, amigo, simc
 from support.distributed_line import (
     LPM,
     DistributedLoop,

@@ -3,7 +3,7 @@
 Numbers fixed by theory, not by a previous run:
 
 - the plant input's answer to a signal added to the PI's output is S = 1/(1 + C·G): the PLC's
-  own discrete PI (:class:`fuelid.tuning.controller.DiscretePI`) on the sampled plant gives the
+  own discrete PI (:class:`fuelid.tuning._controller.DiscretePI`) on the sampled plant gives the
   same sequence, to rounding;
 - the expected standard error of K is the Cramér–Rao bound of an output-error fit of that input
   (white noise, K, T, the dead time and the offset free): the spread of K over repeated noise
@@ -23,7 +23,7 @@ import scipy.signal
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel
-from fuelid.online.excitation.design import (
+from fuelid.online.excitation._design import (
     DESIGN_MARGIN,
     DesignGoal,
     LoopNoise,
@@ -33,9 +33,9 @@ from fuelid.online.excitation.design import (
     prbs_design,
     unit_response,
 )
-from fuelid.tuning.controller import DiscretePI
-from fuelid.tuning.linearloop import input_sensitivity
-from fuelid.tuning.rules import simc
+from fuelid.tuning._controller import DiscretePI
+from fuelid.tuning._linearloop import input_sensitivity
+from fuelid.tuning._rules import simc
 
 MODEL = ProcessModel(K=13.0, T=1.3, T_f=0.3, delay=0.2)
 """About the reference plant at 3 V and 20 °C ((L/min)/V, s)."""
@@ -66,7 +66,7 @@ def test_the_expected_stderr_of_K_is_the_spread_of_output_error_fits() -> None:
     Acceptance band, fixed before the run: with M = 60 the sample sd of K̂ has a relative
     standard error of 1/√120 = 9.1 %; the band is ±3 of those, 27 %, around the bound.
     """
-    from fuelid.identify.oe import OutputError
+    from fuelid.identify._oe import OutputError
 
     period_s, window_s, sigma = 0.02, 120.0, 0.1
     levels = gbn_levels(60, 8.0, seed=4)

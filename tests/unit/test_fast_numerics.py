@@ -27,9 +27,9 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from fuelid.identify.covariance import ResidualAR, _autocovariance, bread, sandwich_covariance
-from fuelid.identify.procedure import IdentifyOptions, identify
-from fuelid.identify.variable_projection import (
+from fuelid.identify._covariance import ResidualAR, _autocovariance, bread, sandwich_covariance
+from fuelid.identify._procedure import IdentifyOptions, identify
+from fuelid.identify._variable_projection import (
     Structure,
     _coefficient_derivatives,
     projected_jacobian,

@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from fuelid.errors import DataError
-from fuelid.identify.result import interval95
+from fuelid.identify._result import interval95
 from fuelid.io.fitted_model import FittedModel, LinearModelSpec, load_fitted_model
 from fuelid.io.jsonsafe import json_ready
 from fuelid.model import MODEL_KEYS

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from fuelid.model import ProcessModel
-from fuelid.tuning.frequency import TransferFunctionPlant
-from fuelid.tuning.linearloop import full_order_closed_loop, linear_closed_loop, step_duration
-from fuelid.tuning.rules import simc
+from fuelid.tuning._frequency import TransferFunctionPlant
+from fuelid.tuning._linearloop import full_order_closed_loop, linear_closed_loop, step_duration
+from fuelid.tuning._rules import simc
 
 MODEL = ProcessModel(K=2.0, T=1.3, T2=0.4, T_f=0.3, delay=0.27)
 PLANT = TransferFunctionPlant.from_coefficients(

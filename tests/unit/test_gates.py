@@ -9,9 +9,10 @@ import pytest
 import scipy.signal
 
 from fuelid.errors import NotExcitingError
-from fuelid.identify.oe import OutputError
+from fuelid.identify._oe import OutputError
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, simulate_model
+from fuelid.online._settings import Online
 from fuelid.online.gates import (
     WindowVerdict,
     bad_share,
@@ -23,8 +24,7 @@ from fuelid.online.gates import (
     prefit_gates,
     prefit_samples,
 )
-from fuelid.online.settings import Online
-from fuelid.store.base import Quality, SampleArrays
+from fuelid.store._base import Quality, SampleArrays
 
 H = 0.02  # 50 Hz [s]
 WINDOW_S = 600.0

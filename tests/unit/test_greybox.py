@@ -23,11 +23,11 @@ from fuelid.greybox import (
     Record,
     parameter_specs,
 )
-from fuelid.greybox.estimator import NotIdentifiableError
-from fuelid.greybox.identifiability import describe_identifiability, identifiability
-from fuelid.greybox.parameters import ParameterMap
-from fuelid.greybox.sensitivity import Trajectory, simulate_record
-from fuelid.greybox.solvers import Solver
+from fuelid.greybox._estimator import NotIdentifiableError
+from fuelid.greybox._identifiability import describe_identifiability, identifiability
+from fuelid.greybox._parameters import ParameterMap
+from fuelid.greybox._sensitivity import Trajectory, simulate_record
+from fuelid.greybox._solvers import Solver
 from support.bands import coverage_band, rmse_ratio_band
 
 FloatArray = NDArray[np.float64]

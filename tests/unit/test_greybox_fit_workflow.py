@@ -9,7 +9,7 @@ import pytest
 
 from fuelid.errors import ConfigError
 from fuelid.greybox.modelfile import read_model_file
-from fuelid.workflow.greybox_fit import data_columns, greybox_model, read_record
+from fuelid.workflow._greybox_fit import data_columns, greybox_model, read_record
 
 MODEL = Path(__file__).resolve().parents[2] / "examples" / "two_tanks.py"
 

@@ -19,11 +19,11 @@ from scipy.integrate import solve_ivp
 
 from fuelid.errors import FuelidError
 from fuelid.greybox import GreyBoxEstimator, OdeModel, ParameterSpec, Record
-from fuelid.greybox.estimator import NotIdentifiableError
-from fuelid.greybox.parameters import ParameterMap
-from fuelid.greybox.sensitivity import simulate_record
-from fuelid.greybox.solver_choice import RK4_AGREEMENT, choose_solver
-from fuelid.greybox.solvers import SimulationError, Solver
+from fuelid.greybox._estimator import NotIdentifiableError
+from fuelid.greybox._parameters import ParameterMap
+from fuelid.greybox._sensitivity import simulate_record
+from fuelid.greybox._solver_choice import RK4_AGREEMENT, choose_solver
+from fuelid.greybox._solvers import SimulationError, Solver
 from support.bands import coverage_band
 from support.kinked_models import (
     TRUTH,

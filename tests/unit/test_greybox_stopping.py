@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fuelid.greybox import stopping
-from fuelid.greybox.fitting import Evaluation, ShootingFit
-from fuelid.greybox.parameters import ParameterMap, ParameterSpec
-from fuelid.greybox.system import Record
+from fuelid.greybox import _stopping as stopping
+from fuelid.greybox._fitting import Evaluation, ShootingFit
+from fuelid.greybox._parameters import ParameterMap, ParameterSpec
+from fuelid.greybox._system import Record
 
 FloatArray = NDArray[np.float64]
 

@@ -22,7 +22,7 @@ from fuelid.online.health import (
     time_at_limits,
     time_in_auto,
 )
-from fuelid.plc.virtual.engine import VirtualPLC
+from fuelid.plc.virtual._engine import VirtualPLC
 
 H = 0.02  # 50 Hz, the PLC's sample period [s]
 

@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 
 from fuelid.cli import app
 from fuelid.errors import DataError
-from fuelid.io.log_grid import PeriodFit, fit_period, round_period
+from fuelid.io._log_grid import PeriodFit, fit_period, round_period
 from fuelid.io.logs import load_log
 
 runner = CliRunner()

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fuelid.cli.identify import _print_table
-from fuelid.identify.order import Candidate, choose_order, lags_told_apart
+from fuelid.cli._identify import _print_table
+from fuelid.identify._order import Candidate, choose_order, lags_told_apart
 from fuelid.model import ProcessModel
 
 

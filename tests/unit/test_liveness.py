@@ -10,10 +10,10 @@ import math
 
 import pytest
 
-from fuelid.io.clock import format_age, format_time
-from fuelid.online.liveness import LINK_FRESH_S, SERVICE_BEAT_S, SERVICE_STALE_S, loop_state
+from fuelid.io._clock import format_age, format_time
+from fuelid.online._liveness import LINK_FRESH_S, SERVICE_BEAT_S, SERVICE_STALE_S, loop_state
 from fuelid.plc.site import Controller
-from fuelid.tuning.block import BlockForm, block_units
+from fuelid.tuning._block import BlockForm, block_units
 
 NOW = 1_795_767_303.0
 LIVE = {"started": NOW - 600.0, "beat": NOW - 1.0, "stopped": None}
@@ -106,7 +106,7 @@ def test_times_and_ages_as_text() -> None:
 def test_the_history_plot_labels_the_gains_in_the_blocks_units_with_the_targets(
     tmp_path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from fuelid.plots import online as online_plots
+    from fuelid.plots import _online as online_plots
 
     figures = []
     monkeypatch.setattr(online_plots, "save_figure", lambda fig, path: figures.append(fig))

@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fuelid.identify import long_record
-from fuelid.identify.long_record import long_record_json, long_record_note, search_copy
-from fuelid.identify.oe import OutputError
+from fuelid.identify import _long_record as long_record
+from fuelid.identify._long_record import long_record_json, long_record_note, search_copy
+from fuelid.identify._oe import OutputError
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, simulate_model
 

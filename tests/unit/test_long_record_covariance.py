@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fuelid.identify import long_record
-from fuelid.identify.oe import OutputError
+from fuelid.identify import _long_record as long_record
+from fuelid.identify._oe import OutputError
 from fuelid.io.timeseries import IOData
 from fuelid.model import MODEL_KEYS, ProcessModel, simulate_model
 from fuelid.plots._common import MAX_LINE_POINTS, pixel_extremes

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from fuelid.model import ProcessModel
-from fuelid.tuning.frequency import robustness
-from fuelid.tuning.rules import PISettings
+from fuelid.tuning._frequency import robustness
+from fuelid.tuning._rules import PISettings
 
 CASES = [
     # (model, Kc, Ti, control period)

@@ -16,10 +16,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fuelid.identify.misfit import misfit_bound
+from fuelid.identify._misfit import misfit_bound
 from fuelid.model import ProcessModel, simulate_model
-from fuelid.tuning.frequency import robust_peak, robustness
-from fuelid.tuning.rules import tune
+from fuelid.tuning._frequency import robust_peak, robustness
+from fuelid.tuning._rules import tune
 
 H = 0.02
 TRUTH = ProcessModel(K=2.0, T=1.0, T2=0.3, delay=0.2)
@@ -81,7 +81,7 @@ def test_a_log_that_does_not_reach_the_crossover_bounds_nothing():
 def test_the_overshoot_with_the_misfit_is_the_loops():
     # the step on the model with the estimated error: the loop's own step at the instants,
     # within 10 % or 1 point (the estimate's bias, a few % of Δ); the model alone is far off
-    from fuelid.tuning.linearloop import linear_closed_loop, misfit_overshoot
+    from fuelid.tuning._linearloop import linear_closed_loop, misfit_overshoot
 
     u, y = _log()
     bound = misfit_bound(u, y - simulate_model(NOMINAL, u, H), H, NOMINAL)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from fuelid.identify import IdentifyOptions, identify
-from fuelid.identify.nonlinearity import VARIATION_THRESHOLD_PERCENT, gain_bands
+from fuelid.identify._nonlinearity import VARIATION_THRESHOLD_PERCENT, gain_bands
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, simulate_model
 from fuelid.plant import load_plant_config, operating_point

@@ -13,7 +13,7 @@ import pytest
 import scipy.signal
 
 from fuelid.errors import NotExcitingError
-from fuelid.identify.oe import OutputError, cramer_rao_bound
+from fuelid.identify._oe import OutputError, cramer_rao_bound
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel, nrmse_fit, simulate_model
@@ -189,7 +189,7 @@ def _closed_loop(seed: int, pole: float = 0.0, sigma: float = 0.1) -> IOData:
 
 
 def test_closed_loop_data_are_flagged_and_still_fitted():
-    from fuelid.identify.procedure import IdentifyOptions, identify
+    from fuelid.identify._procedure import IdentifyOptions, identify
 
     options = IdentifyOptions(flowmeter_T=0.3, flowmeter_delay=0.2)
     # white noise: output error stays consistent in closed loop (a few standard errors)
@@ -224,7 +224,7 @@ def test_default_options_find_an_unannounced_meter_lag_and_the_delay():
     # the meter's lag (1.0 s) and the dead time (0.6 s) are not the reference plant's and are
     # not given: the defaults (order "auto", delay estimated, no meter prior) must find them,
     # the meter lag as the second process lag (T2 and T_f are interchangeable in the model)
-    from fuelid.identify.procedure import IdentifyOptions, identify
+    from fuelid.identify._procedure import IdentifyOptions, identify
 
     truth = ProcessModel(K=13.0, T=2.6, T_f=1.0, delay=0.6)
     h = 0.05
@@ -254,7 +254,7 @@ def test_covariance_leaves_out_what_the_data_do_not_determine():
     # a plain inverse of a singular information matrix gives negative variances (seen with two
     # collinear initial-state modes after a gap on a command step): here two identical columns
     # are flagged and get no variance, and the determined parameter keeps σ²/‖column‖²
-    from fuelid.identify.covariance import white_covariance as _covariance
+    from fuelid.identify._covariance import white_covariance as _covariance
 
     rng = np.random.default_rng(1)
     a, b = rng.normal(size=200), rng.normal(size=200)

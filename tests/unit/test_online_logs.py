@@ -14,7 +14,7 @@ from typing import Any
 
 import pytest
 
-from fuelid.online.logs import (
+from fuelid.online._logs import (
     JsonLineFormatter,
     KeyValueFormatter,
     Quoted,

@@ -1,4 +1,4 @@
-"""The order rule (fuelid.identify.order) and structure-conditional intervals (issue 23, 1–2).
+"""The order rule (fuelid.identify._order) and structure-conditional intervals (issue 23, 1–2).
 
 Acceptance bands are stated with each test, before it ran, from the statistics.
 """
@@ -13,11 +13,11 @@ import pytest
 from typer.testing import CliRunner
 
 from fuelid.cli import app
-from fuelid.identify.order import Candidate, choose_order, second_lag_verdict
-from fuelid.identify.procedure import IdentifyOptions, identify
+from fuelid.identify._order import Candidate, choose_order, second_lag_verdict
+from fuelid.identify._procedure import IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, simulate_model
-from fuelid.tuning.rules import tune
+from fuelid.tuning._rules import tune
 
 H = 0.02
 

@@ -12,10 +12,10 @@ import pytest
 import scipy.signal
 
 from fuelid.errors import FuelidError, NotFittedError
-from fuelid.identify.diagnostics import residual_whiteness
-from fuelid.identify.noise import step_down, step_up
-from fuelid.identify.oe import OutputError
-from fuelid.identify.pem import PredictionError
+from fuelid.identify._diagnostics import residual_whiteness
+from fuelid.identify._noise import step_down, step_up
+from fuelid.identify._oe import OutputError
+from fuelid.identify._pem import PredictionError
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel, simulate_model

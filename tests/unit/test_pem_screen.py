@@ -1,6 +1,6 @@
 """The noise screen of the AUTO windows: the cheap decision against the full one (issue 26).
 
-The screen (:func:`fuelid.online.pem_screen.noise_screen`) skips pem when its noise pole would be
+The screen (:func:`fuelid.online._pem_screen.noise_screen`) skips pem when its noise pole would be
 nearly integrating. Its threshold was tuned on the virtual PLC with seeds 1–2, disturbances
 0.1, 0.3, 1.0 L/min, 20 °C, setpoint steps around 40 L/min and the demo's runs; the windows here
 are HELD OUT: other seeds, disturbances 0, 0.2 and 0.5 L/min, setpoints around 35 L/min and the
@@ -26,13 +26,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fuelid.identify.oe import OutputError
-from fuelid.online.pem_screen import closed_loop_choice, noise_screen
-from fuelid.online.settings import Online
-from fuelid.online.window import WindowAnalyser, window_priors
-from fuelid.plc.virtual.engine import VirtualPLC
+from fuelid.identify._oe import OutputError
+from fuelid.online._pem_screen import closed_loop_choice, noise_screen
+from fuelid.online._settings import Online
+from fuelid.online._window import WindowAnalyser, window_priors
+from fuelid.plc.virtual._engine import VirtualPLC
 from fuelid.profiles.runs import demo_run_profile
-from fuelid.store.base import iodata_from_samples
+from fuelid.store._base import iodata_from_samples
 from support.bands import most_failures
 from support.windows import engine_windows, local_setpoints
 

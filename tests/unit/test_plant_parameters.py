@@ -1,4 +1,4 @@
-"""The registry of a plant's numeric parameters (:mod:`fuelid.plant.parameters`).
+"""The registry of a plant's numeric parameters (:mod:`fuelid.plant._parameters`).
 
 Checks: the registry holds exactly the float keys of the component sections (found here
 independently from the config classes), with the values, units and bounds the sections declare;

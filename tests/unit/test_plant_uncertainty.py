@@ -24,8 +24,8 @@ from fuelid.cli import app
 from fuelid.errors import ConfigError
 from fuelid.io.plantfile import update_plant_toml
 from fuelid.plant import PlantConfig, linearise, load_plant_config, with_parameters
-from fuelid.plant.config import REFERENCE_PLANT, plant_config_from_dict
-from fuelid.plant.uncertainty import Z95, prediction_uncertainty
+from fuelid.plant._config import REFERENCE_PLANT, plant_config_from_dict
+from fuelid.plant._uncertainty import Z95, prediction_uncertainty
 
 U, T20 = 3.0, 293.15
 SHA = "ab" * 32
@@ -61,7 +61,7 @@ def _predict(cfg: PlantConfig) -> dict[str, float]:
 
 
 def _moved(cfg: PlantConfig, section: str, key: str, value: float) -> PlantConfig:
-    """The plant with one key changed, built without fuelid.plant.parameters."""
+    """The plant with one key changed, built without fuelid.plant._parameters."""
     part = getattr(cfg, section)
     return cfg.model_copy(update={section: part.model_copy(update={key: value})})
 

@@ -3,7 +3,7 @@
 :func:`fuelid.io.plantfile.update_plant_toml` must change only the values it is given (every
 comment, blank line and key order kept) and put a ``[calibration]`` table at the end that the
 plant loader reads back to the same numbers, bit for bit. The schema
-(:class:`fuelid.plant.config.CalibrationRecord`) refuses records whose sizes, symmetry or
+(:class:`fuelid.plant._config.CalibrationRecord`) refuses records whose sizes, symmetry or
 finiteness are wrong, unknown parameter names and unknown keys.
 """
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fuelid.errors import DataError
-from fuelid.plots.greybox import FitPanel, plot_greybox_fit
+from fuelid.plots._greybox import FitPanel, plot_greybox_fit
 
 
 def _panel(**extra: object) -> FitPanel:

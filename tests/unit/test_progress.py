@@ -1,7 +1,7 @@
 """Progress of the long calls: the workflow names each stage as it starts and prints nothing.
 
 ``analyse_log``, ``tune_model`` and ``schedule_gains`` call an optional callback with the stage's
-name (fuelid.workflow.progress); ``fuelid report`` shows it as a spinner on stderr only, so the
+name (fuelid.workflow._progress); ``fuelid report`` shows it as a spinner on stderr only, so the
 JSON on stdout stays exactly one object even when stderr is a terminal.
 """
 
@@ -28,7 +28,7 @@ from fuelid.workflow import (
     schedule_gains,
     tune_model,
 )
-from fuelid.workflow.progress import (
+from fuelid.workflow._progress import (
     ANALYSIS_STAGES,
     DIAGNOSTICS,
     IDENTIFICATION,

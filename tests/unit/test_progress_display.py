@@ -19,13 +19,13 @@ from typer.testing import CliRunner
 
 from fuelid.cli import app
 from fuelid.cli._common import progress_display, read_log
-from fuelid.identify.procedure import IdentifyOptions
-from fuelid.identify.progress import StepDisplay
+from fuelid.identify._procedure import IdentifyOptions
+from fuelid.identify._progress import StepDisplay
 from fuelid.plant import load_plant_config
 from fuelid.plant.simulate import simulate
 from fuelid.profiles import step_sequence
-from fuelid.workflow.identification import identify_log
-from fuelid.workflow.progress import IDENTIFY_STAGES
+from fuelid.workflow._identification import identify_log
+from fuelid.workflow._progress import IDENTIFY_STAGES
 from support.waiting import wait_until
 
 

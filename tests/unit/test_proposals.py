@@ -1,4 +1,4 @@
-"""Gain proposals of the online service (fuelid.online.proposals), against numbers theory fixes.
+"""Gain proposals of the online service (fuelid.online._proposals), against numbers theory fixes.
 
 Plant FOPDT K = 13 (L/min)/V, T = 1 s, θ = 0.5 s, PLC period h = 1 s. SIMC with the default
 τc = θ_eff works on θ_eff = θ + h/2 = 1 s (half rule plus the hold), so
@@ -14,7 +14,7 @@ import pytest
 
 from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
-from fuelid.online.proposals import (
+from fuelid.online._proposals import (
     Gains,
     ProposalDecision,
     WindowModel,
@@ -22,10 +22,10 @@ from fuelid.online.proposals import (
     propose,
     weighted_mean_model,
 )
-from fuelid.online.settings import Online
+from fuelid.online._settings import Online
 from fuelid.plc.site import Controller
 from fuelid.tuning import PISettings, robustness
-from fuelid.tuning.block import BlockForm
+from fuelid.tuning._block import BlockForm
 
 H = 1.0  # PLC period [s]
 K, T, THETA = 13.0, 1.0, 0.5

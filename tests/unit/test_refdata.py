@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from fuelid.identify.oe import OutputError
+from fuelid.identify._oe import OutputError
 from fuelid.io.logs import load_log
 from fuelid.model import nrmse_fit
 

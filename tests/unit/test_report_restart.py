@@ -23,7 +23,7 @@ from fuelid.identify import IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, simulate_model
 from fuelid.plant import load_plant_config
-from fuelid.plots.identification import broken_at_gaps
+from fuelid.plots._identification import broken_at_gaps
 from fuelid.workflow import AnalysisSettings, PlantSource, analyse_log
 
 H = 0.1

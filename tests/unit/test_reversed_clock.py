@@ -24,10 +24,10 @@ import pandas as pd
 import pytest
 
 from fuelid.errors import DataError
-from fuelid.io.log_grid import BACKWARDS_FRACTION
+from fuelid.io._log_grid import BACKWARDS_FRACTION
 from fuelid.io.logs import load_log
 from fuelid.plant import load_plant_config
-from fuelid.workflow.simulation import SimulationRequest, simulate_log
+from fuelid.workflow._simulation import SimulationRequest, simulate_log
 
 
 @pytest.fixture(scope="module")

@@ -12,9 +12,9 @@ from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel, model_covariance
 from fuelid.plant import load_plant_config
 from fuelid.tuning import robustness, tune
-from fuelid.tuning.cases import Anchor, evaluate_fixed, plant_cases
-from fuelid.tuning.schedule import band_edges, gain_schedule
-from fuelid.tuning.sweep import uncertainty_sweep
+from fuelid.tuning._cases import Anchor, evaluate_fixed, plant_cases
+from fuelid.tuning._schedule import band_edges, gain_schedule
+from fuelid.tuning._sweep import uncertainty_sweep
 from fuelid.units import celsius_to_kelvin, kelvin_to_celsius
 
 CONFIG = load_plant_config()

@@ -14,13 +14,13 @@ import pytest
 
 from fuelid.errors import FuelidError
 from fuelid.identify import IdentifyOptions, OutputError, StepResponseLS, identify
-from fuelid.identify.diagnostics import (
+from fuelid.identify._diagnostics import (
     _normalised_xcorr,
     input_residual_correlation,
     steady_state_errors,
 )
+from fuelid.identify._segments import MIN_SEGMENT_SAMPLES, drop_short_segments
 from fuelid.identify.preprocess import decimate, join_segments, lowpass, select
-from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, drop_short_segments
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, nrmse_fit, simulate_model
 

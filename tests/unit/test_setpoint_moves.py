@@ -1,13 +1,13 @@
-"""The one setpoint-move detector (fuelid.online.moves) and its merge rules."""
+"""The one setpoint-move detector (fuelid.online._moves) and its merge rules."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from fuelid.online._moves import MergeRule, detect_moves
 from fuelid.online.gates import setpoint_moves
 from fuelid.online.health import setpoint_responses
-from fuelid.online.moves import MergeRule, detect_moves
 
 
 def _staircase() -> tuple[np.ndarray, np.ndarray]:

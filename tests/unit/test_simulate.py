@@ -16,8 +16,8 @@ import pytest
 import fuelid.plant.simulate
 from fuelid.errors import FuelidError
 from fuelid.plant import PlantConfig, linearise, operating_point
+from fuelid.plant._system import plant_coefficients, steady_state
 from fuelid.plant.simulate import FuelTemperature, SimulationResult, integrate_held, simulate
-from fuelid.plant.system import plant_coefficients, steady_state
 from fuelid.profiles import InputProfile, step_profile
 
 LPM = 60_000.0  # L/min per m³/s

@@ -1,7 +1,7 @@
 """The pump outlet pressure in simulated logs (``fuelid simulate --pressure``).
 
 Numbers fixed by the physics: at rest the pressure is the operating point's
-(:func:`fuelid.plant.system.steady_state`); between, it is the state p of the ODE at the sample
+(:func:`fuelid.plant._system.steady_state`); between, it is the state p of the ODE at the sample
 time itself (no flowmeter dead time), which an independent integration of the same ODE gives;
 the logged value carries white noise of the asked standard deviation, quantised to the asked
 step.
@@ -21,8 +21,8 @@ from fuelid.cli import app
 from fuelid.errors import FuelidError
 from fuelid.io.timeseries import PRESSURE_COLUMN
 from fuelid.plant import PlantConfig
+from fuelid.plant._system import plant_coefficients, steady_state
 from fuelid.plant.simulate import SimulationResult, integrate_held, simulate
-from fuelid.plant.system import plant_coefficients, steady_state
 from fuelid.profiles import step_profile
 
 T20 = 293.15

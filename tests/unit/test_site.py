@@ -10,8 +10,8 @@ from typer.testing import CliRunner
 
 from fuelid.cli import app
 from fuelid.errors import ConfigError, DataError
-from fuelid.online.settings import load_service_site
-from fuelid.plc.codec import decode, encode
+from fuelid.online._settings import load_service_site
+from fuelid.plc._codec import decode, encode
 from fuelid.plc.site import load_site
 
 runner = CliRunner()

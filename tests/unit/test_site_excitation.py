@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 
 from fuelid.cli import app
 from fuelid.errors import ConfigError
-from fuelid.online.settings import ServiceSite, load_service_site
+from fuelid.online._settings import ServiceSite, load_service_site
 from fuelid.plc.site import (
     READ_ROLES,
     RING_DEFAULT_FIELDS,

@@ -13,7 +13,7 @@ import pytest
 from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError, NotExcitingError
-from fuelid.identify.step_ls import StepResponseLS, step_shape
+from fuelid.identify._step_ls import StepResponseLS, step_shape
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel
 

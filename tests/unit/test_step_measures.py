@@ -14,7 +14,7 @@ import pytest
 
 from fuelid import lti
 from fuelid.online.health import step_response_measures
-from fuelid.tuning.metrics import setpoint_step_metrics
+from fuelid.tuning._metrics import setpoint_step_metrics
 
 
 def _second_order(zeta: float) -> tuple[np.ndarray, np.ndarray]:

@@ -1,10 +1,10 @@
-"""The recorder's time base (fuelid.plc.timebase): the PLC's counter unwrapped, restarts told."""
+"""The recorder's time base (fuelid.plc._timebase): the PLC's counter unwrapped, restarts told."""
 
 from __future__ import annotations
 
 import pytest
 
-from fuelid.plc.timebase import HALF_RANGE, UINT32, SampleSequence
+from fuelid.plc._timebase import HALF_RANGE, UINT32, SampleSequence
 
 
 def test_the_time_base_unwraps_the_counter_and_keeps_times_regular() -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import pytest
 
 from fuelid.errors import NotFittedError
-from fuelid.online.tracking import GainObservation, KTracker, TrackingError
+from fuelid.online._tracking import GainObservation, KTracker, TrackingError
 
 FITTED = ("observations_", "mode_", "fit_", "bands_")
 

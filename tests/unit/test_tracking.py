@@ -11,16 +11,16 @@ import numpy as np
 import pytest
 
 from fuelid.errors import FuelidError, NotFittedError
-from fuelid.online.tracking import (
+from fuelid.online._tracking import (
     GainObservation,
     KTracker,
     PlantGain,
     TrackingError,
     plant_gain_function,
 )
-from fuelid.plant.config import load_plant_config
+from fuelid.plant._config import load_plant_config
 from fuelid.units import celsius_to_kelvin
-from fuelid.workflow.plant_info import plant_info
+from fuelid.workflow._plant_info import plant_info
 from support.bands import coverage_band, rmse_ratio_band
 
 RATIO = 0.85

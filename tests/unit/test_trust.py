@@ -14,11 +14,11 @@ import pytest
 from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
 from fuelid.plant import load_plant_config
-from fuelid.tuning.bands import CommandBand, band_check
-from fuelid.tuning.frequency import robustness
-from fuelid.tuning.rules import PISettings
+from fuelid.tuning._bands import CommandBand, band_check
+from fuelid.tuning._frequency import robustness
+from fuelid.tuning._rules import PISettings
 from fuelid.workflow import PlantSource, TuneRequest, tune_model
-from fuelid.workflow.trust import control_period_from, spans_from, undetermined
+from fuelid.workflow._trust import control_period_from, spans_from, undetermined
 
 MODEL = ProcessModel(K=13.66, T=1.22, T2=0.041, T_f=0.3, delay=0.2)
 

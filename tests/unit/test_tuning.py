@@ -18,8 +18,8 @@ import pytest
 from fuelid.errors import FuelidError
 from fuelid.model import ProcessModel
 from fuelid.tuning import TUNING_RULES, PISettings, list_rules, robustness, tune
-from fuelid.tuning.frequency import margins, process_response
-from fuelid.tuning.rules import half_rule
+from fuelid.tuning._frequency import margins, process_response
+from fuelid.tuning._rules import half_rule
 
 WORKED = ProcessModel(K=1.0, T=2.0, delay=1.0)
 
@@ -279,7 +279,7 @@ def test_borderline_design_is_flagged():
     y[k] = K·u[k−1] and u[k] = u[k−1] + e[k−1]/K give z² − z + 1 = 0: poles on the unit circle,
     gain margin 1. The result must say so, not only print the numbers.
     """
-    from fuelid.tuning.result import evaluate_tuning
+    from fuelid.tuning._result import evaluate_tuning
 
     res = evaluate_tuning(ProcessModel(K=13.5, T=1e-6), "simc", control_period=1.0)
     assert res.robustness.gain_margin == pytest.approx(1.0, abs=1e-3)

@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 
 from fuelid.cli import app
 from fuelid.errors import FuelidError
-from fuelid.identify.procedure import IdentifyOptions, identify
+from fuelid.identify._procedure import IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, simulate_model
 

@@ -16,18 +16,18 @@ import numpy as np
 import pytest
 
 from fuelid.errors import ConfigError
-from fuelid.plc.virtual.engine import STATUS_AT_LIMIT, VirtualPLC
-from fuelid.plc.virtual.modbus_server import HR_COUNT, IR_POINTS_COUNT
-from fuelid.plc.virtual.points import (
+from fuelid.plc.virtual._engine import STATUS_AT_LIMIT, VirtualPLC
+from fuelid.plc.virtual._modbus_server import HR_COUNT, IR_POINTS_COUNT
+from fuelid.plc.virtual._points import (
     POINTS,
     RING_FIELDS,
     RING_FIRST_REGISTER,
     RING_RECORD_REGISTERS,
     ring_slot_register,
 )
-from fuelid.plc.virtual.s7_server import RECORD_BYTES, db1_size, db2_size
-from fuelid.tuning.controller import DiscretePI
-from fuelid.tuning.rules import PISettings
+from fuelid.plc.virtual._s7_server import RECORD_BYTES, db1_size, db2_size
+from fuelid.tuning._controller import DiscretePI
+from fuelid.tuning._rules import PISettings
 
 N_CONTROL = 50  # samples per control period (1 s / 0.02 s)
 EXCITATION = RING_FIELDS.index("excitation")
@@ -115,7 +115,7 @@ def test_ring_record_has_excitation_last_and_fits_every_protocol() -> None:
     assert RING_FIELDS == ("seq", "command", "flow", "setpoint", "excitation")
     assert RING_RECORD_REGISTERS == 10
     assert ring_slot_register(1) - ring_slot_register(0) == 10
-    from fuelid.plc.virtual.engine import MAX_RING_SIZE
+    from fuelid.plc.virtual._engine import MAX_RING_SIZE
 
     assert ring_slot_register(MAX_RING_SIZE) <= 65536  # the last slot ends inside Modbus
     assert RECORD_BYTES == 20

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.signal
 
-from fuelid.identify.procedure import IdentifyOptions, identify
+from fuelid.identify._procedure import IdentifyOptions, identify
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, simulate_model
 

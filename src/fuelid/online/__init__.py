@@ -6,7 +6,7 @@
 - :mod:`~fuelid.online.gates`: the verdict on one identification window, every gate with its
   reason (gaps and bad quality, output at a limit, excitation by mode, standard errors,
   validation fit, residual correlation by size; the plant-ratio event).
-- :mod:`~fuelid.online.tracking`: the loop gain against fuel temperature from accepted windows
+- :mod:`~fuelid.online._tracking`: the loop gain against fuel temperature from accepted windows
   (the ratio to the plant model's K, or K per command band), with prediction intervals.
 
 The public API
@@ -21,24 +21,24 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from fuelid.online._tracking import GainObservation, KTracker, plant_gain_function
     from fuelid.online.gates import WindowVerdict, postfit_gates, prefit_gates
     from fuelid.online.health import LoopHealth, loop_health
-    from fuelid.online.tracking import GainObservation, KTracker, plant_gain_function
 
 _HOMES = {
-    "GainObservation": "fuelid.online.tracking",
-    "KTracker": "fuelid.online.tracking",
+    "GainObservation": "fuelid.online._tracking",
+    "KTracker": "fuelid.online._tracking",
     "LoopHealth": "fuelid.online.health",
     "WindowVerdict": "fuelid.online.gates",
     "loop_health": "fuelid.online.health",
-    "plant_gain_function": "fuelid.online.tracking",
+    "plant_gain_function": "fuelid.online._tracking",
     "postfit_gates": "fuelid.online.gates",
     "prefit_gates": "fuelid.online.gates",
 }
 
 
 def __getattr__(name: str) -> Any:
-    # imported on use: the CLI reads fuelid.online.logs without loading numpy and scipy
+    # imported on use: the CLI reads fuelid.online._logs without loading numpy and scipy
     if name in _HOMES:
         return getattr(importlib.import_module(_HOMES[name]), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

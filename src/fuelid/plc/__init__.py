@@ -1,11 +1,11 @@
 """The PLC link: the site file, the register codec, the adapters, the recorder, the virtual PLC.
 
 - :mod:`~fuelid.plc.site`: a site file read and validated (:func:`~fuelid.plc.site.load_site`);
-- :mod:`~fuelid.plc.codec`: values packed into 16-bit registers and back;
+- :mod:`~fuelid.plc._codec`: values packed into 16-bit registers and back;
 - :mod:`~fuelid.plc.adapters`: the protocol links behind one interface
   (:class:`~fuelid.plc.adapters.PlcSource`, :func:`~fuelid.plc.adapters.open_source`);
-- :mod:`~fuelid.plc.quality`: the quality checks of a sample (range, stuck readings);
-- :mod:`~fuelid.plc.recorder`: samples from a source into the store (``fuelid record``);
+- :mod:`~fuelid.plc._quality`: the quality checks of a sample (range, stuck readings);
+- :mod:`~fuelid.plc._recorder`: samples from a source into the store (``fuelid record``);
 - :mod:`~fuelid.plc.virtual`: the nonlinear fuel loop with its PLC emulated, on real protocol
   servers (``fuelid plant serve``); its run profiles are :mod:`fuelid.profiles.runs`.
 

@@ -12,7 +12,7 @@ history and of its store: the site's file and the central database (:mod:`fuelid
 both implement them.
 
 Every table, the schema's versions and the migrations that upgrade an older store are in
-:mod:`fuelid.store.schema`.
+:mod:`fuelid.store._schema`.
 
 The public API
 --------------
@@ -25,17 +25,17 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from fuelid.store._base import SampleStore
 from fuelid.store._loop_history import LoopHistory, LoopStore
-from fuelid.store.base import SampleStore
-from fuelid.store.online import OnlineHistory
-from fuelid.store.online_rows import (
+from fuelid.store._online import OnlineHistory
+from fuelid.store._online_rows import (
     PROPOSAL_STATUSES,
     PROPOSAL_TRANSITIONS,
     SERVICE_KEY,
     WRITE_KINDS,
     WRITE_STATUSES,
 )
-from fuelid.store.records import (
+from fuelid.store._records import (
     EVENT_KINDS,
     Event,
     PruneResult,
@@ -46,9 +46,9 @@ from fuelid.store.records import (
     StoreInfo,
     tag_map_hash,
 )
-from fuelid.store.schema import SCHEMA_VERSION
-from fuelid.store.sqlite import SQLiteStore
-from fuelid.store.writer import SampleWriter
+from fuelid.store._schema import SCHEMA_VERSION
+from fuelid.store._sqlite import SQLiteStore
+from fuelid.store._writer import SampleWriter
 
 __all__ = [
     "EVENT_KINDS",

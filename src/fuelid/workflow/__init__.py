@@ -4,19 +4,19 @@ What the command line, the demo and (next) the online service run, with plain ar
 result objects whose ``to_json()`` is the documented JSON (docs/reference/json.md); nothing here
 prints, draws or writes files. Fuel temperatures are in kelvin throughout (``T_fuel``, ``T_range``).
 
-- :mod:`~fuelid.workflow.identification`: :func:`identify_log` (``fuelid identify``);
-- :mod:`~fuelid.workflow.tune`: :class:`TuneRequest`, :func:`tune_model` (``fuelid tune``) and
+- :mod:`~fuelid.workflow._identification`: :func:`identify_log` (``fuelid identify``);
+- :mod:`~fuelid.workflow._tune`: :class:`TuneRequest`, :func:`tune_model` (``fuelid tune``) and
   :func:`schedule_gains` (``fuelid tune --schedule``);
-- :mod:`~fuelid.workflow.analysis`: :class:`AnalysisSettings`, :func:`analyse_log`
+- :mod:`~fuelid.workflow._analysis`: :class:`AnalysisSettings`, :func:`analyse_log`
   (``fuelid report``);
-- :mod:`~fuelid.workflow.assumptions`: what every number rests on: :class:`PlantSource` (a
+- :mod:`~fuelid.workflow._assumptions`: what every number rests on: :class:`PlantSource` (a
   user's plant file or the built-in reference plant), :class:`OperatingPoint`, the plant file's
   priors (:func:`plant_priors`, at :data:`T_REF` unless told) and the signal check
   :func:`check_signals`;
-- :mod:`~fuelid.workflow.plant_info`: :func:`plant_info` (``fuelid plant info``);
-- :mod:`~fuelid.workflow.simulation`: :class:`SimulationRequest`, :func:`simulate_log`
+- :mod:`~fuelid.workflow._plant_info`: :func:`plant_info` (``fuelid plant info``);
+- :mod:`~fuelid.workflow._simulation`: :class:`SimulationRequest`, :func:`simulate_log`
   (``fuelid simulate``) and the profile-file reader :func:`read_profile`.
-- :mod:`~fuelid.workflow.greybox_fit`: a user's ODE model file fitted to logs (``fuelid
+- :mod:`~fuelid.workflow._greybox_fit`: a user's ODE model file fitted to logs (``fuelid
   greybox``): the model with its fixed and free parameters, the logs as records, the validation,
   the warnings and the JSON object.
 
@@ -70,8 +70,8 @@ _EXPORTS = {
 }
 
 if TYPE_CHECKING:
-    from fuelid.workflow.analysis import METHODS, AnalysisSettings, LogAnalysis, analyse_log
-    from fuelid.workflow.assumptions import (
+    from fuelid.workflow._analysis import METHODS, AnalysisSettings, LogAnalysis, analyse_log
+    from fuelid.workflow._assumptions import (
         REFERENCE_PLANT_NOTICE,
         T_REF,
         OperatingPoint,
@@ -79,9 +79,9 @@ if TYPE_CHECKING:
         check_signals,
         plant_priors,
     )
-    from fuelid.workflow.identification import IDENTIFY_UNITS, IdentifyOutcome, identify_log
-    from fuelid.workflow.plant_info import PLANT_INFO_UNITS, PlantInfo, plant_info
-    from fuelid.workflow.simulation import (
+    from fuelid.workflow._identification import IDENTIFY_UNITS, IdentifyOutcome, identify_log
+    from fuelid.workflow._plant_info import PLANT_INFO_UNITS, PlantInfo, plant_info
+    from fuelid.workflow._simulation import (
         SIMULATION_UNITS,
         ProfileTable,
         SimulationInputs,
@@ -91,7 +91,7 @@ if TYPE_CHECKING:
         simulate_log,
         simulation_inputs,
     )
-    from fuelid.workflow.tune import (
+    from fuelid.workflow._tune import (
         ScheduleOutcome,
         TuneOutcome,
         TuneRequest,
@@ -140,6 +140,6 @@ def __getattr__(name: str) -> Any:
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'fuelid.workflow' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"fuelid.workflow.{module}"), name)
+    value = getattr(importlib.import_module(f"fuelid.workflow._{module}"), name)
     globals()[name] = value
     return value

@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib
 
 from fuelid.errors import ConfigError
-from fuelid.plc.adapters.base import EndOfSource, LinkError, PlcSource, Reading, RingRecord
+from fuelid.plc.adapters._base import EndOfSource, LinkError, PlcSource, Reading, RingRecord
 from fuelid.plc.site import SiteConfig
 
 __all__ = [
@@ -23,10 +23,10 @@ __all__ = [
 ]
 
 ADAPTERS = {
-    "modbus": ("fuelid.plc.adapters.modbus", "ModbusSource", "pymodbus"),
-    "opcua": ("fuelid.plc.adapters.opcua", "OpcUaSource", "asyncua"),
-    "s7": ("fuelid.plc.adapters.s7", "S7Source", "snap7"),
-    "replay": ("fuelid.plc.adapters.replay", "ReplaySource", None),
+    "modbus": ("fuelid.plc.adapters._modbus", "ModbusSource", "pymodbus"),
+    "opcua": ("fuelid.plc.adapters._opcua", "OpcUaSource", "asyncua"),
+    "s7": ("fuelid.plc.adapters._s7", "S7Source", "snap7"),
+    "replay": ("fuelid.plc.adapters._replay", "ReplaySource", None),
 }
 """Protocol → (module, class, the third-party package it needs)."""
 
