@@ -48,7 +48,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from fuelid.store._records import SampleArrays, StoreError
+from fuelid.store import SampleArrays, StoreError
 
 __all__ = [
     "EVENT_SCHEMA",

@@ -16,7 +16,7 @@ from fuelid.archive._layout import (
     read_day_table,
     read_range_table,
 )
-from fuelid.store._records import Event, SampleArrays, StoreError
+from fuelid.store import Event, SampleArrays, StoreError
 
 __all__ = ["ArchiveLoop", "archive_loops"]
 

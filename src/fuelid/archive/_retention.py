@@ -11,9 +11,7 @@ from dataclasses import dataclass
 
 from fuelid.archive._writer import ArchiveReport, archive_store
 from fuelid.errors import FuelidError
-from fuelid.store._base import SampleStore
-from fuelid.store._records import PruneResult, StoreError
-from fuelid.store._sqlite import SQLiteStore
+from fuelid.store import PruneResult, SampleStore, SQLiteStore, StoreError
 
 __all__ = ["Housekeeping", "archiver", "keep_store"]
 

@@ -45,10 +45,7 @@ from fuelid.archive._layout import (
     partition_dir,
     write_table,
 )
-from fuelid.store._archived import ARCHIVE_COLUMNS, StoreDays
-from fuelid.store._online_rows import SERVICE_KEY
-from fuelid.store._records import StoreError
-from fuelid.store._sqlite import SQLiteStore
+from fuelid.store import ARCHIVE_COLUMNS, SERVICE_KEY, SQLiteStore, StoreDays, StoreError
 
 __all__ = ["ArchiveReport", "DayReport", "archive_store"]
 

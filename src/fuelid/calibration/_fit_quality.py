@@ -24,9 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fuelid.greybox import Record
-from fuelid.greybox._fitting import noise_level
-from fuelid.greybox._multiple_shooting import SUSPECT_NOISE_RATIO
+from fuelid.greybox import SUSPECT_NOISE_RATIO, Record, noise_level
 
 MISFIT_NOISE_RATIO = SUSPECT_NOISE_RATIO
 """Flow residuals above this multiple of a log's own noise level mean the model does not fit."""

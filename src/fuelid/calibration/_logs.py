@@ -22,7 +22,7 @@ import numpy as np
 from fuelid.calibration.plant_model import FUEL_TEMPERATURE_KEY
 from fuelid.errors import DataError
 from fuelid.greybox import Record
-from fuelid.io._log_grid import FILL_GAPS_MAX_PERIODS
+from fuelid.io import FILL_GAPS_MAX_PERIODS
 from fuelid.io.logs import load_log
 from fuelid.io.timeseries import (
     FUEL_TEMPERATURE_COLUMN,

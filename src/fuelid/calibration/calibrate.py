@@ -37,18 +37,18 @@ from fuelid.calibration._logs import (
 )
 from fuelid.calibration.plant_model import NOT_CALIBRATABLE, PlantGreyBox
 from fuelid.errors import ConfigError, DataError, FuelidError
-from fuelid.greybox import GreyBoxEstimator, Record
-from fuelid.greybox._identifiability import NotIdentifiableError, correlation_warning
+from fuelid.greybox import GreyBoxEstimator, NotIdentifiableError, Record, correlation_warning
 from fuelid.io.plantfile import update_plant_toml
 from fuelid.model import nrmse_fit_columns
-from fuelid.plant._config import (
+from fuelid.plant import (
     PlantConfig,
     load_plant_config,
+    parameter_names,
     plant_config_from_dict,
+    plant_parameters,
     reference_plant_text,
+    with_parameters,
 )
-from fuelid.plant._parameter_specs import parameter_names
-from fuelid.plant._parameters import plant_parameters, with_parameters
 
 __all__ = [
     "TEMPERATURE_SPREAD_K",

@@ -21,19 +21,19 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from fuelid.greybox._parameters import ParameterSpec
-from fuelid.greybox._system import Record
-from fuelid.plant._config import PlantConfig
-from fuelid.plant._parameters import plant_parameters, with_parameters
-from fuelid.plant._system import (
+from fuelid.greybox import ParameterSpec, Record
+from fuelid.plant import (
     N_STATES,
     STATE_NAMES,
     PlantCoefficients,
+    PlantConfig,
     measured_state,
     plant_coefficients,
     plant_jacobian,
+    plant_parameters,
     plant_rhs,
     steady_state,
+    with_parameters,
 )
 from fuelid.plant.simulate import ATOL
 from fuelid.units import LPM_PER_M3S, PA_PER_MPA

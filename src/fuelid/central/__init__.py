@@ -22,7 +22,7 @@ The names in ``__all__``, at ``fuelid.central`` itself.
 
 from __future__ import annotations
 
-from fuelid.central._connect import CentralError, connect
+from fuelid.central._connect import CentralError, connect, redact
 from fuelid.central._db import CentralDB
 from fuelid.central._history import (
     LIVENESS_KEYS,
@@ -32,13 +32,26 @@ from fuelid.central._history import (
     liveness_row,
     shown_store,
 )
-from fuelid.central._outbox import enable_outbox, sync_status
-from fuelid.central._requests import file_central_request
+from fuelid.central._outbox import enable_outbox, open_store_file, sync_status
+from fuelid.central._reidentified import register_run, send_loop_day
+from fuelid.central._requests import (
+    DEFAULT_EXPIRY_S,
+    EXCITE_START_EXPIRY_S,
+    central_requests,
+    claim,
+    fetch_waiting,
+    file_central_request,
+    finish_central_request,
+    mark_fetched,
+    newest_store,
+)
 from fuelid.central._schema import SCHEMA_VERSION, check_schema, drop_old_partitions, migrate
 from fuelid.central._sender import Sender, SyncResult
 from fuelid.central._status import fleet_status
 
 __all__ = [
+    "DEFAULT_EXPIRY_S",
+    "EXCITE_START_EXPIRY_S",
     "LIVENESS_KEYS",
     "SCHEMA_VERSION",
     "CentralDB",
@@ -48,14 +61,24 @@ __all__ = [
     "Sender",
     "SyncResult",
     "central_loop_ids",
+    "central_requests",
     "check_schema",
+    "claim",
     "connect",
     "drop_old_partitions",
     "enable_outbox",
+    "fetch_waiting",
     "file_central_request",
+    "finish_central_request",
     "fleet_status",
     "liveness_row",
+    "mark_fetched",
     "migrate",
+    "newest_store",
+    "open_store_file",
+    "redact",
+    "register_run",
+    "send_loop_day",
     "shown_store",
     "sync_status",
 ]

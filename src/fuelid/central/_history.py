@@ -21,7 +21,7 @@ from typing import Any
 
 from fuelid.central._connect import CentralError
 from fuelid.central._db import CentralDB
-from fuelid.store._online_rows import (
+from fuelid.store import (
     PROPOSAL_COLUMNS,
     REQUEST_COLUMNS,
     SERVICE_KEY,

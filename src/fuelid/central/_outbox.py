@@ -27,8 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from fuelid.store._records import StoreError
-from fuelid.store._schema_v4 import OUTBOX_TABLES
+from fuelid.store import OUTBOX_TABLES, StoreError
 
 __all__ = [
     "STATE_KEY",

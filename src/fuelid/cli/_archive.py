@@ -50,7 +50,7 @@ def archive_command(
     the day recorded in the store, so retention with an [archive] table deletes only what
     is archived. Archiving again changes nothing; a day thinned since keeps its raw rows.
     """
-    from fuelid.archive._writer import archive_store
+    from fuelid.archive import archive_store
     from fuelid.store import SQLiteStore
 
     if not store.exists():

@@ -171,11 +171,11 @@ def calibrate_command(
     gap ends the part of the log that is calibrated. A model that does not fit the data as well
     as their noise allows is said to be untrustworthy, and --out is then refused.
     """
-    from fuelid.calibration._logs import calibration_log
+    from fuelid.calibration import calibration_log
     from fuelid.calibration.calibrate import calibrate, calibrated_plant_text, check_free_names
     from fuelid.io.plantfile import write_text_atomically
-    from fuelid.plant._config import load_plant_config
-    from fuelid.workflow._assumptions import PlantSource, check_signals
+    from fuelid.plant import load_plant_config
+    from fuelid.workflow import PlantSource, check_signals
 
     names = check_free_names(free.split(","))
     temps = _floats(fuel_temp, "--fuel-temp")

@@ -35,7 +35,7 @@ JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON object.
 
 def _shown(url: str) -> str:
     """The URL as printed: any password typed into it masked."""
-    from fuelid.central._connect import redact
+    from fuelid.central import redact
 
     return redact(url)
 
@@ -44,8 +44,7 @@ def _shown(url: str) -> str:
 @guarded
 def migrate_command(url: UrlOption, as_json: JsonOption = False) -> None:
     """Create or upgrade the central schema (run as the database's owner)."""
-    from fuelid.central._connect import connect
-    from fuelid.central._schema import migrate
+    from fuelid.central import connect, migrate
 
     with connect(url) as con:
         before, after = migrate(con)
@@ -67,10 +66,8 @@ def status_command(url: UrlOption, as_json: JsonOption = False) -> None:
     last_seen, last_seen_age_s, backlog_rows, backlog_oldest_wall, service_beat,
     service_stopped, last_window_time, open_proposals, waiting_requests).
     """
-    from fuelid.central._connect import connect
-    from fuelid.central._schema import check_schema
-    from fuelid.central._status import fleet_status
-    from fuelid.io._clock import format_age
+    from fuelid.central import check_schema, connect, fleet_status
+    from fuelid.io import format_age
 
     with connect(url) as con:
         version = check_schema(con)
@@ -120,13 +117,10 @@ def sync_command(
     signal are refused: no service carries them out; a stop of the signal is done: without a
     service the PLC holds it at 0). A store whose service runs is refused: the service sends it.
     """
-    from fuelid.central._connect import CentralError
-    from fuelid.online._central_link import CentralLink
-    from fuelid.online._liveness import link_json
-    from fuelid.plc._site_fleet import Central
-    from fuelid.store._online import OnlineHistory
-    from fuelid.store._online_rows import SERVICE_KEY
-    from fuelid.store._sqlite import SQLiteStore
+    from fuelid.central import CentralError
+    from fuelid.online import CentralLink, link_json
+    from fuelid.plc import Central
+    from fuelid.store import SERVICE_KEY, OnlineHistory, SQLiteStore
 
     with SQLiteStore(store) as opened, OnlineHistory(opened) as history:
         live = link_json(opened, service=history.state(SERVICE_KEY))["service"] == "running"
@@ -171,8 +165,7 @@ def retention_command(
     as_json: JsonOption = False,
 ) -> None:
     """Drop the monthly window and KPI partitions older than --months (a cron job)."""
-    from fuelid.central._connect import connect
-    from fuelid.central._schema import check_schema, drop_old_partitions
+    from fuelid.central import check_schema, connect, drop_old_partitions
 
     with connect(url) as con:
         check_schema(con)

@@ -190,7 +190,7 @@ def site_facts(path: Path | None) -> SiteFacts | None:
     """Read ``--site``: the control period it sets and its controller block (None: no file)."""
     if path is None:
         return None
-    from fuelid.online._settings import load_service_site
+    from fuelid.online import load_service_site
 
     site = load_service_site(path)
     sampling = site.sampling
@@ -521,7 +521,7 @@ def read_log(
     and the time column is used (so that gaps are seen). An empty ``fuel_temperature_col`` reads
     no fuel temperature. ``bad_values`` is ``--bad-values``' comma-separated text.
     """
-    from fuelid.io._bad_values import parse_bad_values
+    from fuelid.io import parse_bad_values
     from fuelid.io.logs import load_log
     from fuelid.io.tables import parse_scale
 

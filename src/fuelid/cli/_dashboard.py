@@ -104,7 +104,7 @@ def dashboard_command(
     """Serve the dashboard until Ctrl-C (fleet page, loop pages, window pages, the /api/ JSON)."""
     if ctx.invoked_subcommand is not None:
         return
-    from fuelid.dashboard._server import serve
+    from fuelid.dashboard import serve
 
     if users is None and DEFAULT_USERS_FILE.exists():
         users = DEFAULT_USERS_FILE

@@ -65,7 +65,7 @@ def add(
     users: UsersOption = DEFAULT_USERS_FILE,
 ) -> None:
     """Add a user with a new random token (the file is created if missing)."""
-    from fuelid.dashboard._users import UsersFile
+    from fuelid.dashboard import UsersFile
 
     token = UsersFile(users).add(name, role.value)
     _show_token(name, token, f"added {role.value}")
@@ -75,7 +75,7 @@ def add(
 @guarded
 def remove(name: NameArgument, users: UsersOption = DEFAULT_USERS_FILE) -> None:
     """Remove a user: their token stops working, their open sessions end."""
-    from fuelid.dashboard._users import UsersFile
+    from fuelid.dashboard import UsersFile
 
     UsersFile(users).remove(name)
     typer.echo(f"removed {name}")
@@ -85,7 +85,7 @@ def remove(name: NameArgument, users: UsersOption = DEFAULT_USERS_FILE) -> None:
 @guarded
 def rotate(name: NameArgument, users: UsersOption = DEFAULT_USERS_FILE) -> None:
     """Give a user a new token: the old one stops working, their open sessions end."""
-    from fuelid.dashboard._users import UsersFile
+    from fuelid.dashboard import UsersFile
 
     token = UsersFile(users).rotate(name)
     _show_token(name, token, "rotated the token of")
@@ -98,7 +98,7 @@ def list_users(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """List the users with their roles and when their token was made (never a token)."""
-    from fuelid.dashboard._users import UsersFile
+    from fuelid.dashboard import UsersFile
 
     records = UsersFile(users).records()
     if as_json:

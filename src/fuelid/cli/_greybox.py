@@ -35,7 +35,7 @@ if TYPE_CHECKING:
 
     from fuelid.greybox import GreyBoxEstimator, Record
     from fuelid.greybox.modelfile import ModelFile
-    from fuelid.workflow._greybox_fit import GreyBoxFit
+    from fuelid.workflow import GreyBoxFit
 
 DEFAULT_INPUT = "u_V"
 """The input column without --input-col or the model file's inputs (for the help text)."""
@@ -267,9 +267,9 @@ def greybox_command(
     identifiability report. Parameters the data cannot tell apart are refused before fitting
     (exit code 2): fix one of them with --fix (and --set its known value).
     """
-    from fuelid.greybox._identifiability import describe_identifiability
+    from fuelid.greybox import describe_identifiability
     from fuelid.greybox.modelfile import read_model_file
-    from fuelid.workflow._greybox_fit import (
+    from fuelid.workflow import (
         fit_warnings,
         greybox_estimator,
         greybox_model,
@@ -358,7 +358,7 @@ def _read_records(
     ``columns`` are ``--input-col`` and ``--output-col``'s names (empty: the model file's).
     The model file is checked at the first record's start before any fit.
     """
-    from fuelid.workflow._greybox_fit import data_columns, read_record
+    from fuelid.workflow import data_columns, read_record
 
     inputs, outputs = data_columns(mf, *columns)
     records = [read_record(path, time_col, inputs, outputs, sample_time) for path in data_files]
@@ -383,7 +383,7 @@ def _fit(
     A refusal becomes a one-line reason that says what to type (``--fix``, ``--segments``).
     """
     from fuelid.greybox import ConvergenceError, NotIdentifiableError
-    from fuelid.workflow._greybox_fit import fit_greybox
+    from fuelid.workflow import fit_greybox
 
     with progress_display() as stage:
         try:
@@ -481,7 +481,7 @@ def _plot(
             records, estimator.trajectories_, estimator.fit_percent_, strict=True
         )
     ]
-    from fuelid.workflow._greybox_fit import validation_head_end
+    from fuelid.workflow import validation_head_end
 
     if validation is not None and check is not None:
         head = validation_head_end(validation) if check["convention"] == "estimate" else None

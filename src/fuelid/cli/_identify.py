@@ -61,7 +61,7 @@ if TYPE_CHECKING:
 
     from fuelid.identify import IdentificationResult
     from fuelid.io.timeseries import IOData
-    from fuelid.workflow._assumptions import PlantSource
+    from fuelid.workflow import PlantSource
 
 
 class ValidationStart(enum.StrEnum):
@@ -219,7 +219,7 @@ def identify_command(
     A flowmeter time constant or delay that is given is prior knowledge and stays fixed; what is
     not given is estimated. Non-exciting data are refused (exit code 2).
     """
-    from fuelid.workflow._identification import identify_log
+    from fuelid.workflow import identify_log
 
     check_figure_path(plot, overwrite=force)
     fit = FitOptions(order, delay, flowmeter_T, flowmeter_delay, n_steps, covariance, full_record)
@@ -303,8 +303,8 @@ def _plant_source(config: Path | None) -> PlantSource | None:
     """The user's plant file of ``--config`` (None without one: no priors, no plant)."""
     if config is None:
         return None
-    from fuelid.plant._config import load_plant_config
-    from fuelid.workflow._assumptions import PlantSource
+    from fuelid.plant import load_plant_config
+    from fuelid.workflow import PlantSource
 
     return PlantSource(load_plant_config(config), str(config))
 
@@ -368,7 +368,7 @@ def _units(data: IOData, output_col: str) -> tuple[str, tuple[str, str]]:
     """
     from dataclasses import replace
 
-    from fuelid.workflow._assumptions import gain_unit
+    from fuelid.workflow import gain_unit
 
     named = data if data.y_unit else replace(data, y_unit=f"unit of {output_col}")
     return gain_unit(named), (data.u_unit or "input unit", named.y_unit)
@@ -383,7 +383,7 @@ def _print_table(
     """
     from rich.console import Console
 
-    from fuelid.identify._long_record import long_record_note
+    from fuelid.identify import long_record_note
 
     console = Console(emoji=False)
     console.print(part, highlight=False, soft_wrap=True)  # first: which part was fitted

@@ -18,7 +18,7 @@ from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 if TYPE_CHECKING:
     from rich.table import Table
 
-    from fuelid.plant._config import PlantConfig
+    from fuelid.plant import PlantConfig
 
 app = typer.Typer(
     help="The plant's physics model: operating point and linearised model; the virtual PLC.",
@@ -99,7 +99,7 @@ def _add_uncertainty(
 
     Without a covariance the ``calibration`` block is still given, ``uncertainty`` is null.
     """
-    from fuelid.plant._uncertainty import calibration_summary, prediction_uncertainty
+    from fuelid.plant import calibration_summary, prediction_uncertainty
 
     if plant.calibration is not None and plant.calibration.covariance is None:
         summary["calibration"], notes = calibration_summary(plant, T_fuel)
@@ -127,7 +127,7 @@ def init(
     (``fuelid calibrate``).
     """
     from fuelid.io.plantfile import write_text_atomically
-    from fuelid.plant._config import reference_plant_text
+    from fuelid.plant import reference_plant_text
 
     if out.exists() and not force:
         raise FuelidError(f"{out} exists: pass --force to overwrite it")
@@ -166,7 +166,7 @@ def info(
     a note on stderr says when the fuel temperature is outside the calibration logs' range.
     """
     from fuelid.plant import load_plant_config
-    from fuelid.workflow._plant_info import plant_info
+    from fuelid.workflow import plant_info
 
     plant = load_plant_config(config)
     T_fuel = checked_kelvin(fuel_temp)

@@ -19,7 +19,7 @@ from fuelid.cli._common import emit_json, guarded, provenance
 from fuelid.errors import DataError, FuelidError
 
 if TYPE_CHECKING:
-    from fuelid.plc._record_status import RecorderStats
+    from fuelid.plc import RecorderStats
 
 store_app = typer.Typer(help="The sample store: what it holds.", rich_markup_mode=None)
 
@@ -102,8 +102,8 @@ def record_command(
     them, else from the receipt time; lost samples, link drops, restarts, bad values and gain
     changes are stored as events. Ctrl-C or SIGTERM stops after a final commit.
     """
-    from fuelid.online._settings import load_service_site
-    from fuelid.plc._record_runner import record_site
+    from fuelid.online import load_service_site
+    from fuelid.plc import record_site
 
     for name, value in (("--duration", duration), ("--give-up-after", give_up_after)):
         if value is not None and not value > 0.0:
@@ -114,7 +114,7 @@ def record_command(
     target = str(store) if store is not None else site.store.url
     archiver = None
     if site.archive is not None and site.archive.auto:
-        from fuelid.archive._retention import archiver as site_archiver
+        from fuelid.archive import archiver as site_archiver
 
         archiver = site_archiver(site.archive.dir)
     status = _StatusLine()
@@ -197,15 +197,14 @@ def export_command(
     fuelid archive) the loop --loop ID is read from its Parquet days, with the same columns
     and the same rule: the archive exports as the store did before retention thinned it.
     """
-    from fuelid.store import SQLiteStore
-    from fuelid.store._export import export_log, parse_time
+    from fuelid.store import SQLiteStore, export_log, parse_time
 
     lo = None if t_from is None else parse_time(t_from)
     hi = None if t_to is None else parse_time(t_to)
     if lo is not None and hi is not None and lo >= hi:
         raise DataError(f"--from {t_from} is not before --to {t_to}: the range holds nothing")
     if store.is_dir():
-        from fuelid.archive._reader import ArchiveLoop
+        from fuelid.archive import ArchiveLoop
 
         result = export_log(ArchiveLoop(store, loop), out, lo, hi, overwrite=force)
     else:

@@ -156,7 +156,7 @@ def reidentify_command(
     accepted share, K drift over the period, K(T) slope with its 95 % interval.
     """
     from fuelid.errors import FuelidError
-    from fuelid.fleet._run import online_from_toml, reidentify
+    from fuelid.fleet import online_from_toml, reidentify
 
     if scheduler is not None and workers is not None:
         raise FuelidError("give --scheduler or --workers, not both")

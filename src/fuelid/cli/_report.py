@@ -183,9 +183,8 @@ def report_command(
     """
     from fuelid.htmlreport import check_report_path
     from fuelid.plant import load_plant_config
-    from fuelid.tuning._block import BlockForm
-    from fuelid.workflow import AnalysisSettings, PlantSource
-    from fuelid.workflow._trust import control_period_from
+    from fuelid.tuning import BlockForm
+    from fuelid.workflow import AnalysisSettings, PlantSource, control_period_from
 
     check_report_path(out, force)  # before any work: a typo must not cost a minute
     facts = site_facts(site)
@@ -312,7 +311,7 @@ def _print_summary(analysis: LogAnalysis, written: list[Path]) -> None:
 
     console = Console(emoji=False)  # ":100:" in a suggested --input-scale is not an emoji
     console.print(_fitted_part(analysis), highlight=False, soft_wrap=True)
-    from fuelid.workflow._assumptions import gain_unit
+    from fuelid.workflow import gain_unit
 
     pi = analysis.tuning.pi
     rob = analysis.tuning.robustness

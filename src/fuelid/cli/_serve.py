@@ -17,7 +17,7 @@ from fuelid.errors import FuelidError
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
 if TYPE_CHECKING:
-    from fuelid.plc._codec import WordOrder
+    from fuelid.plc import WordOrder
     from fuelid.profiles.runs import Profile
 
 
@@ -310,15 +310,15 @@ def _serve(
     import math
 
     from fuelid.plant import load_plant_config
-    from fuelid.plc.virtual._engine import VirtualPLC
-    from fuelid.plc.virtual._frontend import ReplyTiming
-    from fuelid.plc.virtual._runner import (
+    from fuelid.plc.virtual import (
         DEFAULT_PORTS,
+        ReplyTiming,
+        VirtualPLC,
         frontend_class,
         frontend_kwargs,
         serve_until_stopped,
+        site_text,
     )
-    from fuelid.plc.virtual._sitefile import site_text
 
     if not is_loopback(host) and not allow_remote:
         raise FuelidError(

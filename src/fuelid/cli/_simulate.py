@@ -154,7 +154,7 @@ def simulate_command(
     from fuelid.io.files import check_output_path
     from fuelid.lti import check_control_period
     from fuelid.plant import load_plant_config
-    from fuelid.workflow._simulation import SimulationRequest, simulate_log, simulation_inputs
+    from fuelid.workflow import SimulationRequest, simulate_log, simulation_inputs
 
     out = check_output_path(output, overwrite=force)
     check_control_period(control_period, "control period (--control-period)")  # 0: changes at once

@@ -33,11 +33,11 @@ def check(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Validate a site file and show its protocol, sampling and tags with their scaling."""
-    from fuelid.online._settings import load_service_site
+    from fuelid.online import load_service_site
 
     site = load_service_site(config)
     if as_json:
-        from fuelid.online._window import check_site_plant
+        from fuelid.online import check_site_plant
 
         check_site_plant(site.site.plant, site.online.window_s)
         data: dict[str, Any] = site.model_dump() | {"missing": site.missing()}
@@ -82,7 +82,7 @@ def check(
                 "",
             )
         )
-    from fuelid.online._window import check_site_plant
+    from fuelid.online import check_site_plant
 
     settling = check_site_plant(site.site.plant, site.online.window_s)
     console = Console()

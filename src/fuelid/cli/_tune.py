@@ -52,7 +52,7 @@ if TYPE_CHECKING:
     from fuelid.cli._common import SiteFacts
     from fuelid.io.fitted_model import FittedModel
     from fuelid.model import ProcessModel
-    from fuelid.tuning._block import BlockForm
+    from fuelid.tuning import BlockForm
     from fuelid.workflow import PlantSource, ScheduleOutcome, TuneOutcome, TuneRequest
 
 
@@ -184,10 +184,8 @@ def tune_command(
     if list_rules:
         _print_rules(as_json)
         return
+    from fuelid import workflow
     from fuelid.plant import load_plant_config
-    from fuelid.workflow import PlantSource, TuneRequest
-    from fuelid.workflow._trust import control_period_from, overridden
-    from fuelid.workflow._tune import model_file_fields
 
     # options checked at the edge, before any work is done
     check_figure_path(plot, overwrite=force)
@@ -209,15 +207,15 @@ def tune_command(
         "site file": None if facts is None else facts.control_period,
         "model file": None if loaded is None else loaded.control_period,
     }
-    period = control_period_from(*period_sources.values())
+    period = workflow.control_period_from(*period_sources.values())
     fuel_temp, fuel_source, u, clip_u = _operating_point(fuel_temp, u, loaded)
     if config is None and facts is not None and facts.plant is not None:
         config = facts.plant  # the plant file the site file names
     T_fuel, T_range = temperature_options(
         DEFAULT_FUEL_TEMPERATURE_C if fuel_temp is None else fuel_temp, t_min, t_max
     )
-    plant = PlantSource(load_plant_config(config), None if config is None else str(config))
-    request = TuneRequest(
+    plant = workflow.PlantSource(load_plant_config(config), None if config is None else str(config))
+    request = workflow.TuneRequest(
         model=model,
         rule=rule.value,
         closed_loop_time=tau,
@@ -235,10 +233,10 @@ def tune_command(
         flow_bands=flow_bands,
         simulate=simulate,
         sweep=sweep,
-        **model_file_fields(loaded),
+        **workflow.model_file_fields(loaded),
     )
     notices = _notices(plant, request, fuel_source, loaded, model_file, loose)
-    notices += overridden(period_sources, "s", period)
+    notices += workflow.overridden(period_sources, "s", period)
     extra = {
         "plant": plant.to_json() | _calibration_json(plant, T_fuel),
         "notices": notices,
@@ -333,7 +331,7 @@ def _run_tune(plant: PlantSource, request: TuneRequest, output: _Output, fuel_so
 
 def _check_run_options(schedule: bool, simulate: bool, sweep: int | None) -> None:
     """Refuse checks that --schedule does not run, and a sweep of a size out of range."""
-    from fuelid.tuning._limits import check_sweep_size
+    from fuelid.tuning import check_sweep_size
 
     unused = [n for n, given in (("--simulate", simulate), ("--sweep", sweep is not None)) if given]
     if schedule and unused:
@@ -373,7 +371,7 @@ def _check_model_file(
     A flow that moves before its command always; signal findings unless ``accept_signals``;
     a K, T or delay the log does not determine unless ``accept_undetermined``.
     """
-    from fuelid.workflow._trust import LEADING_RESPONSE, undetermined, undetermined_refusal_line
+    from fuelid.workflow import LEADING_RESPONSE, undetermined, undetermined_refusal_line
 
     if loaded is None:
         return []
@@ -400,8 +398,7 @@ def _notices(
     loose: list[str],
 ) -> list[str]:
     """The assumptions said first: the library's, the spans' conflicts, an accepted model."""
-    from fuelid.workflow._trust import undetermined_refusal
-    from fuelid.workflow._tune import tune_notices
+    from fuelid.workflow import tune_notices, undetermined_refusal
 
     notices = tune_notices(
         plant,
@@ -423,7 +420,7 @@ def _calibration_json(plant: PlantSource, T_fuel: float) -> dict[str, Any]:
     """``{"calibration": ...}`` for a calibrated plant file (empty otherwise)."""
     if plant.is_reference or plant.config.calibration is None:
         return {}
-    from fuelid.plant._uncertainty import calibration_summary
+    from fuelid.plant import calibration_summary
 
     return {"calibration": calibration_summary(plant.config, T_fuel)[0]}
 
@@ -471,7 +468,7 @@ def _model_from_options(
 
 
 def _print_rules(as_json: bool) -> None:
-    from fuelid.tuning._rules import TUNING_RULES
+    from fuelid.tuning import TUNING_RULES
 
     if as_json:
         emit_json(
@@ -682,7 +679,7 @@ def _block_row(outcome: TuneOutcome, facts: SiteFacts | None) -> tuple[str, str,
     """The gains as the site's PI block takes them ([controller]), or None without a site."""
     if facts is None or facts.controller is None:
         return None
-    from fuelid.tuning._block import BlockForm, block_units
+    from fuelid.tuning import BlockForm, block_units
 
     block = BlockForm.of(facts.controller)
     kc, ti = outcome.pi.to_block(block)
@@ -706,7 +703,7 @@ def _print_schedule(outcome: ScheduleOutcome, period_basis: str, facts: SiteFact
     """
     from rich.console import Console
 
-    from fuelid.tuning._block import BlockForm
+    from fuelid.tuning import BlockForm
 
     data: dict[str, Any] = outcome.to_json()
     block = None if facts is None or facts.controller is None else BlockForm.of(facts.controller)
@@ -753,8 +750,7 @@ def _schedule_table(data: dict[str, Any], period_basis: str, block: BlockForm | 
     from rich import box
     from rich.table import Table
 
-    from fuelid.tuning._block import block_units
-    from fuelid.tuning._rules import PISettings
+    from fuelid.tuning import PISettings, block_units
 
     anchored = data["anchored_to_model"] is not None
     out = Table(

@@ -19,38 +19,44 @@ dependencies and tsdownsample for the trend.
 
 from __future__ import annotations
 
-from typing import Any
+import importlib
+from typing import TYPE_CHECKING, Any
 
 from fuelid.dashboard._registry import Loops
 from fuelid.dashboard._source import LoopReader, SQLiteLoop
 
+if TYPE_CHECKING:
+    from fuelid.dashboard._app import create_app
+    from fuelid.dashboard._central_loops import CentralLoops
+    from fuelid.dashboard._central_source import CentralLoop
+    from fuelid.dashboard._server import Beside, serve
+    from fuelid.dashboard._users import UsersFile
+
+_HOMES = {
+    "Beside": "fuelid.dashboard._server",
+    "CentralLoop": "fuelid.dashboard._central_source",
+    "CentralLoops": "fuelid.dashboard._central_loops",
+    "UsersFile": "fuelid.dashboard._users",
+    "create_app": "fuelid.dashboard._app",
+    "serve": "fuelid.dashboard._server",
+}
+"""Names imported on first use: the web parts import FastAPI and uvicorn, the central ones
+psycopg (when they connect), so the readers work without the extras."""
+
 __all__ = [
+    "Beside",
     "CentralLoop",
     "CentralLoops",
     "LoopReader",
     "Loops",
     "SQLiteLoop",
+    "UsersFile",
     "create_app",
     "serve",
 ]
 
 
 def __getattr__(name: str) -> Any:
-    # the web parts import FastAPI: only when asked for, so the readers work without the extra
-    if name == "create_app":
-        from fuelid.dashboard._app import create_app
-
-        return create_app
-    if name == "CentralLoop":  # the central ones import psycopg only when they connect
-        from fuelid.dashboard._central_source import CentralLoop
-
-        return CentralLoop
-    if name == "CentralLoops":
-        from fuelid.dashboard._central_loops import CentralLoops
-
-        return CentralLoops
-    if name == "serve":
-        from fuelid.dashboard._server import serve
-
-        return serve
+    if name in _HOMES:
+        return getattr(importlib.import_module(_HOMES[name]), name)
     raise AttributeError(f"module 'fuelid.dashboard' has no attribute {name!r}")

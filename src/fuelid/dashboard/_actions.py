@@ -22,7 +22,7 @@ from fuelid.dashboard._security import form_fields
 from fuelid.dashboard._source import LoopReader
 from fuelid.dashboard._views import site_warning
 from fuelid.errors import FuelidError
-from fuelid.io._clock import format_time
+from fuelid.io import format_time
 
 __all__ = ["EXCITE_ACTIONS", "action_routes", "next_step", "seen_of"]
 

@@ -39,7 +39,7 @@ from fastapi.staticfiles import StaticFiles as MountedFiles
 from starlette.middleware.gzip import GZipMiddleware
 
 from fuelid import __version__
-from fuelid.central._connect import CentralError
+from fuelid.central import CentralError
 from fuelid.dashboard._actions import action_routes
 from fuelid.dashboard._board import Dashboard, loop_summary
 from fuelid.dashboard._loop_page import PARTS, loop_context
@@ -50,7 +50,7 @@ from fuelid.dashboard._static_files import StaticFiles
 from fuelid.dashboard._trend import trend
 from fuelid.dashboard._views import fmt_num
 from fuelid.errors import FuelidError
-from fuelid.io._clock import format_time
+from fuelid.io import format_time
 
 __all__ = ["GZIP_MIN_BYTES", "TREND_MINUTES", "create_app"]
 

@@ -18,7 +18,7 @@ from typing import Any
 from fastapi import Depends, FastAPI, HTTPException, Request
 from fastapi.responses import HTMLResponse
 
-from fuelid.central._connect import CentralError
+from fuelid.central import CentralError
 from fuelid.dashboard._fleet import fleet_row
 from fuelid.dashboard._registry import Loops
 from fuelid.dashboard._security import Security
@@ -150,7 +150,7 @@ class Dashboard:
     def window_json(self, loop: LoopReader, window_id: int) -> dict[str, Any]:
         """A window's page data: the stored window, its gates, evidence and proposals."""
         from fuelid.dashboard._window_view import window_evidence
-        from fuelid.online._report import window_json as stored_window
+        from fuelid.online import window_json as stored_window
 
         row = loop.window(window_id)
         if row is None:

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from fuelid.central import CentralDB, CentralError, central_loop_ids
-from fuelid.store._schema import default_loop_id
+from fuelid.store import default_loop_id
 
 if TYPE_CHECKING:
     from fuelid.dashboard._central_source import CentralLoop

@@ -49,13 +49,17 @@ from typing import Any
 
 import numpy as np
 
-from fuelid.central import CentralDB, CentralHistory, CentralStoreView, liveness_row, shown_store
-from fuelid.central._requests import (
+from fuelid.central import (
     DEFAULT_EXPIRY_S,
     EXCITE_START_EXPIRY_S,
+    CentralDB,
+    CentralHistory,
+    CentralStoreView,
     central_requests,
     file_central_request,
+    liveness_row,
     newest_store,
+    shown_store,
 )
 from fuelid.dashboard._source import (
     TREND_COLUMNS,
@@ -65,9 +69,8 @@ from fuelid.dashboard._source import (
 )
 from fuelid.dashboard._views import is_waiting
 from fuelid.errors import FuelidError
-from fuelid.io._clock import format_age, format_time
-from fuelid.store._online_rows import SERVICE_KEY
-from fuelid.store._records import SampleArrays, StoreError
+from fuelid.io import format_age, format_time
+from fuelid.store import SERVICE_KEY, SampleArrays, StoreError
 
 __all__ = [
     "DEFAULT_SEND_EVERY_S",
@@ -363,7 +366,7 @@ class CentralLoop:
         if self.archive_root is None:
             return None
         if self._archive is None:
-            from fuelid.archive._reader import ArchiveLoop
+            from fuelid.archive import ArchiveLoop
 
             try:
                 self._archive = ArchiveLoop(self.archive_root, self.loop_id)

@@ -34,8 +34,8 @@ import time as _time
 from typing import Any
 
 from fuelid.dashboard._views import is_waiting
-from fuelid.io._clock import format_age, format_time
-from fuelid.online.excitation._status import INTERRUPTED, excitation_line
+from fuelid.io import format_age, format_time
+from fuelid.online.excitation import INTERRUPTED, excitation_line
 
 __all__ = ["CUT_TEXT", "LAST_BURSTS", "excitation_note", "excitation_view"]
 

@@ -83,7 +83,7 @@ def _approve_effect(write_back: str | None) -> str:
 
 def loop_context(loop: LoopReader, *, engineer: bool) -> dict[str, Any]:
     """The template context of the loop page and its parts (module docstring)."""
-    from fuelid.online._report import held_line, window_json
+    from fuelid.online import held_line, window_json
 
     status = loop.status()
     tz = status.get("timezone") or "UTC"

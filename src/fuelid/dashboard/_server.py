@@ -138,7 +138,7 @@ def open_loops(
     ConfigError
         A refused store, or a central store that cannot be reached or used (one line).
     """
-    from fuelid.central._connect import CentralError
+    from fuelid.central import CentralError
     from fuelid.dashboard._central_loops import CentralLoops
     from fuelid.dashboard._registry import WATCH_EVERY_S
 

@@ -27,10 +27,14 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from fuelid.store import LoopHistory, LoopStore
-from fuelid.store._online_rows import SERVICE_KEY
-from fuelid.store._records import SampleArrays, StoreError
-from fuelid.store._schema import default_loop_id
+from fuelid.store import (
+    SERVICE_KEY,
+    LoopHistory,
+    LoopStore,
+    SampleArrays,
+    StoreError,
+    default_loop_id,
+)
 
 __all__ = [
     "TREND_COLUMNS",
@@ -76,7 +80,7 @@ def loop_status(
     As the pages show it: the site names the loop by its id, no file path (nor the plant
     file's folder).
     """
-    from fuelid.online._report import status_json
+    from fuelid.online import status_json
 
     out = status_json(history, store, now_wall)
     out["site"] = {**out["site"], "store": None, "loop_id": loop_id}
@@ -87,7 +91,7 @@ def loop_history(
     history: LoopHistory, store: LoopStore, loop_id: str, windows: int | None = None
 ) -> dict[str, Any]:
     """Everything the service did, by :func:`fuelid.online._report.history_json` (no file path)."""
-    from fuelid.online._report import history_json
+    from fuelid.online import history_json
 
     out = history_json(history, store, windows=windows)
     out["site"] = {**out["site"], "store": None, "loop_id": loop_id}
@@ -203,8 +207,7 @@ class SQLiteLoop:
     """
 
     def __init__(self, path: str | Path) -> None:
-        from fuelid.store._online import OnlineHistory
-        from fuelid.store._sqlite import SQLiteStore
+        from fuelid.store import OnlineHistory, SQLiteStore
 
         self.path = Path(path)
         self.store = SQLiteStore(self.path)  # migrates an older store; refuses a newer one
@@ -276,7 +279,7 @@ class SQLiteLoop:
         "refused" with its outcome, or "waiting"). ``seen`` is not needed here: the request is
         decided within a beat of the page, on the proposal's own transitions.
         """
-        from fuelid.online._requests import submit_request
+        from fuelid.online import submit_request
 
         record = self.online.state(SERVICE_KEY) or {}
         write_back = (record.get("settings") or {}).get("write_back") or record.get("write_back")

@@ -54,8 +54,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from fuelid.io._clock import format_age, format_time
-from fuelid.online._report import health_line
+from fuelid.io import format_age, format_time
+from fuelid.online import health_line
 
 __all__ = [
     "FRESH_PERIODS",
@@ -357,7 +357,7 @@ def proposal_next(proposal: dict[str, Any], status: dict[str, Any]) -> str:
 
 def _window_s(status: dict[str, Any]) -> float:
     """The service's window length [s] (``[online] window_s``, its default when unknown)."""
-    from fuelid.online._settings import Online
+    from fuelid.online import Online
 
     settings = (status.get("service") or {}).get("settings") or {}
     return float(settings.get("window_s") or Online().window_s)
@@ -382,7 +382,7 @@ def proposal_stale(
     windows : sequence of dict
         Stored windows (``model_id``, ``t_to`` [plant s]), e.g. the recent ones.
     """
-    from fuelid.online._context import stale_reason
+    from fuelid.online import stale_reason
 
     if "stale" in proposal:  # the status' own answer (fuelid.online._requests.stale_of): one truth
         return proposal["stale"]  # type: ignore[no-any-return]

@@ -39,13 +39,12 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from fuelid.dashboard._source import LoopReader
 from fuelid.errors import FuelidError
-from fuelid.workflow._analysis import LogAnalysis
+from fuelid.workflow import LogAnalysis
 
 if TYPE_CHECKING:
     from fuelid.htmlreport import ReportFigure
     from fuelid.model import ProcessModel
-    from fuelid.tuning import PISettings
-    from fuelid.tuning._cases import CaseCache
+    from fuelid.tuning import CaseCache, PISettings
     from fuelid.workflow import AnalysisSettings
 
 __all__ = [
@@ -140,7 +139,7 @@ def _plant(loop: LoopReader) -> tuple[Any, CaseCache]:
     loaded here, by its full path, and nothing later reads it again. With it, the plant's
     linearisations kept from the reports before (one cache per plant file's SHA-256).
     """
-    from fuelid.online._liveness import plant_hash
+    from fuelid.online import plant_hash
     from fuelid.plant import load_plant_config
     from fuelid.workflow import PlantSource
 
@@ -203,8 +202,8 @@ def _key(loop: LoopReader, row: Mapping[str, Any]) -> _Key:
 
 def _analyse(loop: LoopReader, row: dict[str, Any]) -> _Analysed:
     """The window's analysis and figures, or its explanation page (nothing kept)."""
-    from fuelid.htmlreport import ReportFigure, _png, report_figures
-    from fuelid.store._base import iodata_from_samples
+    from fuelid.htmlreport import ReportFigure, figure_png, report_figures
+    from fuelid.store import iodata_from_samples
     from fuelid.workflow import analyse_log
 
     samples = loop.samples(float(row["t_from"]), float(row["t_to"]))
@@ -214,7 +213,7 @@ def _analyse(loop: LoopReader, row: dict[str, Any]) -> _Analysed:
         plant, linearisations = _plant(loop)
         analysis = analyse_log(data, plant, _settings(loop, row), cache=linearisations)
         drawn = report_figures(analysis)
-        figures = [ReportFigure(k, caption, _png(fig)) for k, (fig, caption) in drawn.items()]
+        figures = [ReportFigure(k, caption, figure_png(fig)) for k, (fig, caption) in drawn.items()]
     except FuelidError as error:
         return _error_page(title, f"the report could not be made: {error}")
     return (analysis, figures)

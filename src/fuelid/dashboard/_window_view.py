@@ -20,12 +20,10 @@ from typing import Any
 import numpy as np
 
 from fuelid.errors import FuelidError
-from fuelid.identify._diagnostics import residual_whiteness
+from fuelid.identify import residual_whiteness
 from fuelid.model import nrmse_fit, simulate_model
-from fuelid.online._context import model_of
-from fuelid.online._settings import Online
-from fuelid.store._base import iodata_from_samples
-from fuelid.store._records import SampleArrays
+from fuelid.online import Online, model_of
+from fuelid.store import SampleArrays, iodata_from_samples
 
 __all__ = ["ACF_MAX_LAGS", "MAX_POINTS", "gate_table", "window_evidence"]
 

@@ -12,7 +12,7 @@ The public API: :func:`~fuelid.fleet._run.reidentify`, :class:`~fuelid.fleet._ru
 :data:`~fuelid.fleet._task.RESULT_SCHEMA`.
 """
 
-from fuelid.fleet._run import FleetError, ReidentifyRun, reidentify
+from fuelid.fleet._run import FleetError, ReidentifyRun, online_from_toml, reidentify
 from fuelid.fleet._task import RESULT_SCHEMA, LoopSettings, loop_settings, reidentify_day
 
 __all__ = [
@@ -21,6 +21,7 @@ __all__ = [
     "LoopSettings",
     "ReidentifyRun",
     "loop_settings",
+    "online_from_toml",
     "reidentify",
     "reidentify_day",
 ]

@@ -21,11 +21,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from fuelid.archive._layout import LoopDay, day_bounds, list_loop_days
+from fuelid.archive import LoopDay, day_bounds, list_loop_days
 from fuelid.errors import FuelidError
 from fuelid.fleet._summary import loop_summary, read_results, track_loop, write_tracking
 from fuelid.fleet._task import LoopSettings, loop_settings, reidentify_day, result_path
-from fuelid.online._settings import Online
+from fuelid.online import Online
 
 __all__ = ["FleetError", "ReidentifyRun", "online_from_toml", "reidentify"]
 
@@ -119,7 +119,7 @@ def select_loop_days(
     date_to: str | None,
 ) -> list[LoopDay]:
     """The archive's loop-days in the selection; :class:`FleetError` with the reason if none."""
-    from fuelid.store._records import StoreError
+    from fuelid.store import StoreError
 
     for name, date in (("--from", date_from), ("--to", date_to)):
         if date is not None:
@@ -353,7 +353,7 @@ def check_settings(out: Path, specs: dict[str, tuple[LoopSettings, str | None]])
 def _k_plant(plant_path: str | None, settings: LoopSettings) -> Any:
     if plant_path is None:
         return None
-    from fuelid.online._window import window_priors
+    from fuelid.online import window_priors
 
     return window_priors(plant_path, control_period=settings.control_period)[1]
 

@@ -43,8 +43,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from fuelid.online._context import observation_of
-from fuelid.online._tracking import KTracker, PlantGain, TrackingError
+from fuelid.online import KTracker, PlantGain, TrackingError, observation_of
 
 __all__ = ["SUMMARY_UNITS", "k_drift", "loop_summary", "read_results", "track_loop"]
 
@@ -235,7 +234,7 @@ def loop_summary(
 
 
 def _date(t_to: float) -> str:
-    from fuelid.archive._layout import day_of
+    from fuelid.archive import day_of
 
     return day_of(t_to - 1e-6)  # a window ending at midnight belongs to the day before
 

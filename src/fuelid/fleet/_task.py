@@ -40,7 +40,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from fuelid.archive._layout import (
+from fuelid.archive import (
     SAMPLE_SCHEMA,
     LoopDay,
     arrays_of,
@@ -51,10 +51,9 @@ from fuelid.archive._layout import (
 )
 from fuelid.errors import ConfigError, DataError, FuelidError
 from fuelid.model import MODEL_KEYS
-from fuelid.online._settings import Online
-from fuelid.online._window import WindowAnalyser, WindowResult, window_priors
+from fuelid.online import Online, WindowAnalyser, WindowResult, window_priors
 from fuelid.plc.site import Controller
-from fuelid.store._records import SampleArrays
+from fuelid.store import SampleArrays
 
 __all__ = [
     "RESULT_SCHEMA",
@@ -166,7 +165,7 @@ def loop_settings(
         The archived settings are not a valid ``[online]`` table, or the plant file named is
         missing.
     """
-    from fuelid.tuning._block import BlockForm, from_block
+    from fuelid.tuning import BlockForm, from_block
 
     info = read_loop_info(archive_root, loop_id)
     recorded: dict[str, Any] = info.get("settings") or {}

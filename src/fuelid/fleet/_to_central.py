@@ -19,7 +19,7 @@ from typing import Any
 
 import pyarrow.parquet as pq
 
-from fuelid.archive._layout import LoopDay
+from fuelid.archive import LoopDay
 from fuelid.fleet._task import result_path
 
 __all__ = ["run_id_of", "send_results"]
@@ -43,9 +43,7 @@ def send_results(url: str, out_root: str | Path, days: Iterable[LoopDay]) -> dic
         The store is unreachable, has another schema version, or refused a loop-day (the
         loop-days sent before it stay sent; run the command again).
     """
-    from fuelid.central._connect import connect, redact
-    from fuelid.central._reidentified import register_run, send_loop_day
-    from fuelid.central._schema import check_schema
+    from fuelid.central import check_schema, connect, redact, register_run, send_loop_day
 
     out = Path(out_root)
     by_loop: dict[str, list[LoopDay]] = {}

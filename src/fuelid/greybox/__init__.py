@@ -19,18 +19,26 @@ model file (``fuelid greybox --model``): :func:`~fuelid.greybox.modelfile.load_m
 model saved as JSON is read by :mod:`fuelid.io.fitted_model` instead.
 """
 
-from fuelid.greybox._estimator import GreyBoxEstimator
-from fuelid.greybox._fitting import ConvergenceError
+from fuelid.greybox._estimator import VALIDATION_HEAD_SHARE, GreyBoxEstimator
+from fuelid.greybox._fitting import ConvergenceError, noise_level
 from fuelid.greybox._identifiability import (
     IdentifiabilityReport,
     NotIdentifiableError,
+    correlation_warning,
+    describe_identifiability,
     identifiability,
 )
+from fuelid.greybox._multiple_shooting import SUSPECT_NOISE_RATIO
 from fuelid.greybox._odemodel import OdeModel
 from fuelid.greybox._parameters import ParameterSpec, parameter_specs
+from fuelid.greybox._profile import LINEARITY_LIMIT
+from fuelid.greybox._solver_choice import check_request
 from fuelid.greybox._system import GreyBoxModel, OdeSystem, Record
 
 __all__ = [
+    "LINEARITY_LIMIT",
+    "SUSPECT_NOISE_RATIO",
+    "VALIDATION_HEAD_SHARE",
     "ConvergenceError",
     "GreyBoxEstimator",
     "GreyBoxModel",
@@ -40,6 +48,10 @@ __all__ = [
     "OdeSystem",
     "ParameterSpec",
     "Record",
+    "check_request",
+    "correlation_warning",
+    "describe_identifiability",
     "identifiability",
+    "noise_level",
     "parameter_specs",
 ]

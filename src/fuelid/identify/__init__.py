@@ -76,6 +76,8 @@ at :mod:`fuelid.identify.preprocess` (its old path ``fuelid.preprocess`` was rem
 
 from __future__ import annotations
 
+from fuelid.identify._causality import lead_check
+from fuelid.identify._covariance import MAX_AR_ORDER, ResidualAR, residual_ar
 from fuelid.identify._diagnostics import (
     CorrelationTest,
     StepError,
@@ -83,41 +85,92 @@ from fuelid.identify._diagnostics import (
     input_residual_correlation,
     residual_whiteness,
     sample_time_advice,
+    settled_stretches,
     settled_whiteness,
     steady_state_errors,
+)
+from fuelid.identify._long_record import long_record_note
+from fuelid.identify._misfit import MisfitBound
+from fuelid.identify._noise import (
+    NOISE_ORDERS,
+    SELECTION_WARMUP,
+    NoiseOrder,
+    NoiseShape,
+    filter_segments,
+    hannan_rissanen,
+    information_criterion,
+    noise_coefficients,
+    used_samples,
 )
 from fuelid.identify._nonlinearity import GainBand, NonlinearityCheck, gain_bands
 from fuelid.identify._oe import OutputError
 from fuelid.identify._pem import PredictionError
 from fuelid.identify._procedure import identify
-from fuelid.identify._result import METHODS, IdentificationResult, IdentifyOptions, interval95
+from fuelid.identify._progress import (
+    DIAGNOSING,
+    FITTING,
+    StageCallback,
+    StepDisplay,
+    advance,
+    steps_only,
+)
+from fuelid.identify._result import (
+    METHODS,
+    POSITIVE_PARAMETERS,
+    IdentificationResult,
+    IdentifyOptions,
+    interval95,
+)
 from fuelid.identify._segments import MIN_SEGMENT_SAMPLES, drop_short_segments
 from fuelid.identify._step_ls import StepResponseLS
 from fuelid.identify._step_shape_fit import step_shape
 from fuelid.identify._variable_projection import cramer_rao_bound
 
 __all__ = [
+    "DIAGNOSING",
+    "FITTING",
+    "MAX_AR_ORDER",
     "METHODS",
     "MIN_SEGMENT_SAMPLES",
+    "NOISE_ORDERS",
+    "POSITIVE_PARAMETERS",
+    "SELECTION_WARMUP",
     "CorrelationTest",
     "GainBand",
     "IdentificationResult",
     "IdentifyOptions",
+    "MisfitBound",
+    "NoiseOrder",
+    "NoiseShape",
     "NonlinearityCheck",
     "OutputError",
     "PredictionError",
+    "ResidualAR",
+    "StageCallback",
+    "StepDisplay",
     "StepError",
     "StepResponseLS",
+    "advance",
     "cramer_rao_bound",
     "drop_short_segments",
     "feedback_suspected",
+    "filter_segments",
     "gain_bands",
+    "hannan_rissanen",
     "identify",
+    "information_criterion",
     "input_residual_correlation",
     "interval95",
+    "lead_check",
+    "long_record_note",
+    "noise_coefficients",
+    "residual_ar",
     "residual_whiteness",
     "sample_time_advice",
+    "settled_stretches",
     "settled_whiteness",
     "steady_state_errors",
     "step_shape",
+    "steps_only",
+    "used_samples",
 ]

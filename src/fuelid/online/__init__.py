@@ -21,19 +21,77 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from fuelid.online._tracking import GainObservation, KTracker, plant_gain_function
+    from fuelid.online._central_link import CentralLink
+    from fuelid.online._context import model_of, observation_of, stale_reason
+    from fuelid.online._liveness import link_json, plant_hash
+    from fuelid.online._logs import (
+        LOGGER_NAME,
+        JsonLineFormatter,
+        KeyValueFormatter,
+        Quoted,
+        log_event,
+        log_record,
+    )
+    from fuelid.online._report import (
+        health_line,
+        held_line,
+        history_json,
+        proposal_json,
+        status_json,
+        window_json,
+    )
+    from fuelid.online._requests import submit_request
+    from fuelid.online._service import OnlineService
+    from fuelid.online._settings import Online, ServiceSite, load_service_site
+    from fuelid.online._tracking import (
+        GainObservation,
+        KTracker,
+        PlantGain,
+        TrackingError,
+        plant_gain_function,
+    )
+    from fuelid.online._window import WindowAnalyser, WindowResult, check_site_plant, window_priors
     from fuelid.online.gates import WindowVerdict, postfit_gates, prefit_gates
     from fuelid.online.health import LoopHealth, loop_health
 
 _HOMES = {
+    "CentralLink": "fuelid.online._central_link",
+    "check_site_plant": "fuelid.online._window",
     "GainObservation": "fuelid.online._tracking",
+    "health_line": "fuelid.online._report",
+    "held_line": "fuelid.online._report",
+    "history_json": "fuelid.online._report",
+    "JsonLineFormatter": "fuelid.online._logs",
+    "KeyValueFormatter": "fuelid.online._logs",
     "KTracker": "fuelid.online._tracking",
-    "LoopHealth": "fuelid.online.health",
-    "WindowVerdict": "fuelid.online.gates",
+    "link_json": "fuelid.online._liveness",
+    "load_service_site": "fuelid.online._settings",
+    "log_event": "fuelid.online._logs",
+    "log_record": "fuelid.online._logs",
+    "LOGGER_NAME": "fuelid.online._logs",
     "loop_health": "fuelid.online.health",
+    "LoopHealth": "fuelid.online.health",
+    "model_of": "fuelid.online._context",
+    "observation_of": "fuelid.online._context",
+    "Online": "fuelid.online._settings",
+    "OnlineService": "fuelid.online._service",
     "plant_gain_function": "fuelid.online._tracking",
+    "plant_hash": "fuelid.online._liveness",
+    "PlantGain": "fuelid.online._tracking",
     "postfit_gates": "fuelid.online.gates",
     "prefit_gates": "fuelid.online.gates",
+    "proposal_json": "fuelid.online._report",
+    "Quoted": "fuelid.online._logs",
+    "ServiceSite": "fuelid.online._settings",
+    "stale_reason": "fuelid.online._context",
+    "status_json": "fuelid.online._report",
+    "submit_request": "fuelid.online._requests",
+    "TrackingError": "fuelid.online._tracking",
+    "window_json": "fuelid.online._report",
+    "window_priors": "fuelid.online._window",
+    "WindowAnalyser": "fuelid.online._window",
+    "WindowResult": "fuelid.online._window",
+    "WindowVerdict": "fuelid.online.gates",
 }
 
 
@@ -45,12 +103,41 @@ def __getattr__(name: str) -> Any:
 
 
 __all__ = [
+    "LOGGER_NAME",
+    "CentralLink",
     "GainObservation",
+    "JsonLineFormatter",
     "KTracker",
+    "KeyValueFormatter",
     "LoopHealth",
+    "Online",
+    "OnlineService",
+    "PlantGain",
+    "Quoted",
+    "ServiceSite",
+    "TrackingError",
+    "WindowAnalyser",
+    "WindowResult",
     "WindowVerdict",
+    "check_site_plant",
+    "health_line",
+    "held_line",
+    "history_json",
+    "link_json",
+    "load_service_site",
+    "log_event",
+    "log_record",
     "loop_health",
+    "model_of",
+    "observation_of",
     "plant_gain_function",
+    "plant_hash",
     "postfit_gates",
     "prefit_gates",
+    "proposal_json",
+    "stale_reason",
+    "status_json",
+    "submit_request",
+    "window_json",
+    "window_priors",
 ]

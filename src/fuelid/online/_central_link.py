@@ -30,10 +30,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from fuelid.central._sender import Sender, SyncResult
+from fuelid.central import Sender, SyncResult
 from fuelid.online._requests import EXCITE_KINDS, apply_request, file_request
-from fuelid.store._online import OnlineHistory
-from fuelid.store._records import StoreError
+from fuelid.store import OnlineHistory, StoreError
 
 __all__ = [
     "MAX_BATCHES_PER_CYCLE",
@@ -174,7 +173,7 @@ class CentralLink:
         claimed request the site has no record of (the filing failed, or the site died between
         the claim and the filing) is refused with that reason, never applied later unreported.
         """
-        from fuelid.central._requests import (
+        from fuelid.central import (
             claim,
             fetch_waiting,
             finish_central_request,

@@ -20,12 +20,9 @@ from fuelid.online._logs import LOGGER_NAME, log_event, log_line
 from fuelid.online._settings import Online, ServiceSite
 from fuelid.online._tracking import GainObservation
 from fuelid.online._window import WindowPriors
-from fuelid.plc._record_status import RecorderStats
-from fuelid.plc._recorder import Recorder
-from fuelid.store._online import OnlineHistory
-from fuelid.store._sqlite import SQLiteStore
-from fuelid.store._writer import SampleWriter
-from fuelid.tuning._block import BlockForm
+from fuelid.plc import Recorder, RecorderStats
+from fuelid.store import OnlineHistory, SampleWriter, SQLiteStore
+from fuelid.tuning import BlockForm
 
 _LOGGER = logging.getLogger(LOGGER_NAME)
 

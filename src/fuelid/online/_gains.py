@@ -10,7 +10,7 @@ block's form and units, and the one conversion to and from them, are
 
 from __future__ import annotations
 
-from fuelid.tuning._rules import PISettings, ReducedModel
+from fuelid.tuning import PISettings, ReducedModel
 
 HELD = "online"
 """The ``rule`` of a :class:`Gains` built from its two numbers: gains the service holds (read

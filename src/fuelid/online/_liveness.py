@@ -30,7 +30,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from fuelid.io._clock import format_age
+from fuelid.io import format_age
 
 if TYPE_CHECKING:
     from fuelid.store import LoopStore
@@ -65,7 +65,7 @@ def plant_hash(path: str | Path | None) -> str | None:
             return hashlib.sha256(Path(path).read_bytes()).hexdigest()
         except OSError:
             return None
-    from fuelid.plant._config import reference_plant_text
+    from fuelid.plant import reference_plant_text
 
     return hashlib.sha256(reference_plant_text().encode("utf-8")).hexdigest()
 
@@ -87,8 +87,8 @@ def service_record(
     whether the site maps ``[write.excitation]`` and gives an amplitude).
     """
     import fuelid
-    from fuelid.store._schema import default_loop_id
-    from fuelid.tuning._block import BlockForm, block_units
+    from fuelid.store import default_loop_id
+    from fuelid.tuning import BlockForm, block_units
 
     wall = _time.time() if now is None else float(now)
     c = site.controller

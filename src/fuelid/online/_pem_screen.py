@@ -37,19 +37,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError
-from fuelid.identify._noise import (
+from fuelid.identify import (
     NOISE_ORDERS,
     SELECTION_WARMUP,
     NoiseOrder,
     NoiseShape,
+    OutputError,
+    PredictionError,
     filter_segments,
     hannan_rissanen,
     information_criterion,
     noise_coefficients,
     used_samples,
 )
-from fuelid.identify._oe import OutputError
-from fuelid.identify._pem import PredictionError
 from fuelid.io.timeseries import IOData
 from fuelid.numerics_mode import DEFAULT_NUMERICS, TIGHT_TOLERANCES, Numerics, SearchTolerances
 

@@ -13,7 +13,7 @@ import math
 from typing import Any
 
 from fuelid.errors import FuelidError
-from fuelid.tuning._block import BlockForm, block_units, from_block
+from fuelid.tuning import BlockForm, block_units, from_block
 
 __all__ = ["plc_gains_json"]
 

@@ -20,7 +20,7 @@ from fuelid.online._evidence import WindowModel
 from fuelid.online._proposals import ProposalDecision, propose
 from fuelid.online._tracking import KTracker, TrackingError
 from fuelid.online._window import WindowResult
-from fuelid.tuning._block import BlockForm
+from fuelid.tuning import BlockForm
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
 TURNED_DOWN_MEMORY = 20

@@ -37,10 +37,9 @@ from fuelid.online._plc_gains import plc_gains_json
 from fuelid.online._requests import stale_of
 from fuelid.online._tracking import KTracker, TrackingError
 from fuelid.online.excitation._status import excitation_json
-from fuelid.plc._gain_reading import PLC_GAINS_KEY
-from fuelid.store import LoopHistory, LoopStore
-from fuelid.store._online_rows import SERVICE_KEY
-from fuelid.tuning._block import BlockForm, block_units, to_block
+from fuelid.plc import PLC_GAINS_KEY
+from fuelid.store import SERVICE_KEY, LoopHistory, LoopStore
+from fuelid.tuning import BlockForm, block_units, to_block
 
 ONLINE_UNITS: dict[str, str] = {
     "time": "s (plant time: the samples' time base, UTC since the epoch)",
@@ -481,7 +480,7 @@ def central_json(store: LoopStore, now: float | None = None) -> dict[str, Any] |
     """
     import sqlite3
 
-    from fuelid.central._outbox import open_store_file, sync_status
+    from fuelid.central import open_store_file, sync_status
 
     if store.path is None:
         return None

@@ -19,9 +19,7 @@ from __future__ import annotations
 import time as _time
 from typing import Any
 
-from fuelid.store import LoopHistory
-from fuelid.store._online import OnlineHistory
-from fuelid.store._records import StoreError
+from fuelid.store import LoopHistory, OnlineHistory, StoreError
 
 __all__ = ["EXCITE_KINDS", "apply_request", "consume_requests", "file_request", "submit_request"]
 
@@ -107,7 +105,7 @@ def _excite(history: OnlineHistory, request: dict[str, Any]) -> tuple[str, str]:
     heartbeat rule).
     """
     from fuelid.online.excitation._exciter import REQUEST_KEY
-    from fuelid.store._online_rows import SERVICE_KEY
+    from fuelid.store import SERVICE_KEY
 
     action = EXCITE_KINDS[request["kind"]]
     record = history.state(SERVICE_KEY) or {}
@@ -146,7 +144,7 @@ def stale_of(history: LoopHistory, proposal_id: Any) -> str | None:
     """
     from fuelid.online._context import stale_reason
     from fuelid.online._settings import Online
-    from fuelid.store._online_rows import SERVICE_KEY
+    from fuelid.store import SERVICE_KEY
 
     proposal = history.proposal(int(proposal_id)) if proposal_id is not None else None
     model_id = None if proposal is None else proposal.get("model_id")
@@ -207,7 +205,7 @@ def submit_request(
         "waiting" when the live service did not take it within ``wait_s``.
     """
     from fuelid.online._liveness import SERVICE_BEAT_S, link_json
-    from fuelid.store._online_rows import SERVICE_KEY
+    from fuelid.store import SERVICE_KEY
 
     live = link_json(store, service=history.state(SERVICE_KEY))["service"] == "running"
     request = file_request(history, kind, proposal_id, who, why, origin)

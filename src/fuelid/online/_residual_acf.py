@@ -20,8 +20,13 @@ import numpy as np
 import scipy.signal
 from numpy.typing import ArrayLike, NDArray
 
-from fuelid.identify._covariance import MAX_AR_ORDER, ResidualAR, residual_ar
-from fuelid.identify._diagnostics import residual_whiteness, settled_stretches
+from fuelid.identify import (
+    MAX_AR_ORDER,
+    ResidualAR,
+    residual_ar,
+    residual_whiteness,
+    settled_stretches,
+)
 from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 
 FloatArray = NDArray[np.float64]

@@ -25,7 +25,7 @@ from fuelid.online._tracking import KTracker, TrackingError
 from fuelid.online._window import WindowAnalyser, WindowResult
 from fuelid.online._worker import WindowWorker
 from fuelid.online._writeback import WriteBack
-from fuelid.tuning._block import BlockForm, from_block
+from fuelid.tuning import BlockForm, from_block
 
 SCHEDULE_POLL_S = 0.25
 """Wall time between looks at the store's newest sample [s]."""

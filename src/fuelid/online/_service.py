@@ -71,15 +71,10 @@ from fuelid.online._window import WindowAnalyser, window_priors
 from fuelid.online._worker import AnalyserSpec, WindowWorker
 from fuelid.online._writeback import AUTO, IAE_BASELINE_WINDOWS, LIMIT_MARGIN_V, WriteBack
 from fuelid.online.excitation._exciter import Exciter, newest_model, plant_model_function
-from fuelid.plc._gain_handshake import HEARTBEAT_MODULUS, GainWriter
-from fuelid.plc._record_runner import PRUNE_EVERY_S
-from fuelid.plc._recorder import Recorder
-from fuelid.plc.adapters._base import LinkError, PlcSource
-from fuelid.store._online import OnlineHistory
-from fuelid.store._online_rows import SERVICE_KEY
-from fuelid.store._sqlite import SQLiteStore
-from fuelid.store._writer import SampleWriter
-from fuelid.tuning._block import BlockForm
+from fuelid.plc import HEARTBEAT_MODULUS, PRUNE_EVERY_S, GainWriter, Recorder
+from fuelid.plc.adapters import LinkError, PlcSource
+from fuelid.store import SERVICE_KEY, OnlineHistory, SampleWriter, SQLiteStore
+from fuelid.tuning import BlockForm
 
 
 class OnlineService:
@@ -117,7 +112,7 @@ class OnlineService:
         step_ls: bool = True,
         isolate: bool = True,
     ) -> None:
-        from fuelid.plc._recorder import site_identity
+        from fuelid.plc import site_identity
         from fuelid.plc.adapters import open_source
         from fuelid.store import open_store
 
@@ -288,7 +283,7 @@ class OnlineService:
         With an ``[archive]`` table the finished days are archived first (``auto``) and
         retention deletes only archived days (:func:`fuelid.archive._retention.keep_store`).
         """
-        from fuelid.archive._retention import keep_store
+        from fuelid.archive import keep_store
 
         archive = self.site.archive
         while not self._stopping.is_set():

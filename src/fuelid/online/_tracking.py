@@ -52,8 +52,7 @@ from numpy.typing import NDArray
 
 from fuelid.errors import DataError, NotFittedError
 from fuelid.params import Params
-from fuelid.plant._config import PlantConfig
-from fuelid.plant._linear import linearise
+from fuelid.plant import PlantConfig, linearise
 from fuelid.units import celsius_to_kelvin
 
 FloatArray = NDArray[np.float64]

@@ -52,9 +52,13 @@ from typing import Any
 import numpy as np
 
 from fuelid.errors import FuelidError, NotExcitingError
-from fuelid.identify._oe import OutputError
-from fuelid.identify._pem import PredictionError
-from fuelid.identify._result import POSITIVE_PARAMETERS, IdentifyOptions, interval95
+from fuelid.identify import (
+    POSITIVE_PARAMETERS,
+    IdentifyOptions,
+    OutputError,
+    PredictionError,
+    interval95,
+)
 from fuelid.io.jsonsafe import json_ready
 from fuelid.io.timeseries import IOData
 from fuelid.model import MODEL_KEYS, ProcessModel
@@ -70,8 +74,7 @@ from fuelid.online.gates import (
     prefit_samples,
 )
 from fuelid.online.health import U_LIMITS_V, LoopHealth, loop_health
-from fuelid.store._base import iodata_from_samples
-from fuelid.store._records import Quality, SampleArrays
+from fuelid.store import Quality, SampleArrays, iodata_from_samples
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 
 MIN_GOOD_SAMPLES = 100
@@ -465,7 +468,7 @@ class WindowAnalyser:
         return choice.estimator, choice.residuals
 
     def _step_ls(self, data: IOData, oe_model: ProcessModel) -> dict[str, Any]:
-        from fuelid.workflow._identification import identify_step_ls
+        from fuelid.workflow import identify_step_ls
 
         options = IdentifyOptions(
             method="step-ls",
@@ -548,8 +551,8 @@ def window_priors(
             None,
         )
     from fuelid.online._tracking import plant_gain_function
-    from fuelid.plant._config import load_plant_config
-    from fuelid.workflow._assumptions import plant_knowledge
+    from fuelid.plant import load_plant_config
+    from fuelid.workflow import plant_knowledge
 
     config = load_plant_config(plant_path)
     known = plant_knowledge(config)
@@ -592,8 +595,8 @@ def check_site_plant(plant_path: str | None, window_s: float) -> float | None:
     from pathlib import Path
 
     from fuelid.errors import ConfigError
-    from fuelid.plant._config import load_plant_config
-    from fuelid.workflow._assumptions import plant_knowledge
+    from fuelid.plant import load_plant_config
+    from fuelid.workflow import plant_knowledge
 
     if not Path(plant_path).is_file():
         raise ConfigError(f"[site] plant: no such plant file {plant_path}")

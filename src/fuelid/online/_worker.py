@@ -29,7 +29,7 @@ from fuelid.model import ProcessModel
 from fuelid.online._settings import Online
 from fuelid.online._window import WindowAnalyser, WindowPriors, WindowResult, window_priors
 from fuelid.online.gates import WindowVerdict
-from fuelid.store._records import SampleArrays
+from fuelid.store import SampleArrays
 
 
 @dataclass(frozen=True)

@@ -20,9 +20,9 @@ import numpy as np
 from fuelid.online._context import ServiceContext, stale_reason
 from fuelid.online._gains import Gains
 from fuelid.online._window import WindowResult
-from fuelid.plc._gain_handshake import GainWriter
-from fuelid.plc.adapters._base import LinkError
-from fuelid.tuning._block import BlockForm
+from fuelid.plc import GainWriter
+from fuelid.plc.adapters import LinkError
+from fuelid.tuning import BlockForm
 
 AUTO = 1
 """The mode tag's value in AUTO."""

@@ -32,7 +32,9 @@ from fuelid.plant._config import (
     calibrated_temperature_range,
     load_plant_config,
     plant_config_from_dict,
+    reference_plant_text,
 )
+from fuelid.plant._flowmeter import measure_flow
 from fuelid.plant._linear import EquivalentModel, LinearPlant, linearise
 from fuelid.plant._parameter_specs import parameter_names
 from fuelid.plant._parameters import (
@@ -42,16 +44,26 @@ from fuelid.plant._parameters import (
     with_parameters,
 )
 from fuelid.plant._system import (
+    N_STATES,
+    STATE_NAMES,
     OperatingPoint,
     PlantCoefficients,
+    measured_state,
     operating_point,
     plant_coefficients,
     plant_jacobian,
     plant_rhs,
+    steady_state,
 )
-from fuelid.plant._uncertainty import PredictionUncertainty, prediction_uncertainty
+from fuelid.plant._uncertainty import (
+    PredictionUncertainty,
+    calibration_summary,
+    prediction_uncertainty,
+)
 
 __all__ = [
+    "N_STATES",
+    "STATE_NAMES",
     "CalibrationLog",
     "CalibrationRecord",
     "EquivalentModel",
@@ -62,9 +74,12 @@ __all__ = [
     "PlantParameter",
     "PredictionUncertainty",
     "calibrated_temperature_range",
+    "calibration_summary",
     "get_parameter",
     "linearise",
     "load_plant_config",
+    "measure_flow",
+    "measured_state",
     "operating_point",
     "parameter_names",
     "plant_coefficients",
@@ -73,5 +88,7 @@ __all__ = [
     "plant_parameters",
     "plant_rhs",
     "prediction_uncertainty",
+    "reference_plant_text",
+    "steady_state",
     "with_parameters",
 ]

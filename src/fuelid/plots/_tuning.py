@@ -19,9 +19,9 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from fuelid.tuning._schedule import GainSchedule
+    from fuelid.tuning import GainSchedule
     from fuelid.tuning.closedloop import ClosedLoopResult
-    from fuelid.workflow._tune import TuneOutcome
+    from fuelid.workflow import TuneOutcome
 
 
 def plot_bode(

@@ -13,7 +13,7 @@ import sqlite3
 import threading
 import time as _time
 
-from fuelid.io._clock import format_time
+from fuelid.io import format_time
 from fuelid.store._archived import prunable_spans
 from fuelid.store._records import PruneResult, StoreError
 

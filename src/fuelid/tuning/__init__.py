@@ -29,19 +29,91 @@ The names in ``__all__``, and :func:`~fuelid.tuning.closedloop.simulate_closed_l
 
 from __future__ import annotations
 
+from fuelid.tuning._bands import BandCheck, CommandBand, band_check
 from fuelid.tuning._block import BlockForm, block_units, from_block, to_block
-from fuelid.tuning._frequency import Robustness, robustness
-from fuelid.tuning._rules import TUNING_RULES, PISettings, list_rules, tune
+from fuelid.tuning._cases import (
+    DEFAULT_T_RANGE,
+    Anchor,
+    CaseCache,
+    FixedPIEvaluation,
+    evaluate_fixed,
+    plant_cases,
+)
+from fuelid.tuning._controller import DiscretePI
+from fuelid.tuning._frequency import (
+    Robustness,
+    RobustPeak,
+    StateSpacePlant,
+    TransferFunctionPlant,
+    frequency_grid,
+    loop_function,
+    robust_peak,
+    robustness,
+)
+from fuelid.tuning._limits import check_sweep_size, check_tunable
+from fuelid.tuning._linearloop import (
+    LinearResponse,
+    full_order_closed_loop,
+    input_sensitivity,
+    misfit_overshoot,
+    step_duration,
+)
+from fuelid.tuning._result import UNITS, TuningResult, evaluate_tuning
+from fuelid.tuning._rules import (
+    TUNING_RULES,
+    PISettings,
+    ReducedModel,
+    half_rule,
+    list_rules,
+    simc,
+    tune,
+)
+from fuelid.tuning._schedule import GainSchedule, band_edges, gain_schedule
+from fuelid.tuning._sweep import SweepResult, uncertainty_sweep
 
 __all__ = [
+    "DEFAULT_T_RANGE",
     "TUNING_RULES",
+    "UNITS",
+    "Anchor",
+    "BandCheck",
     "BlockForm",
+    "CaseCache",
+    "CommandBand",
+    "DiscretePI",
+    "FixedPIEvaluation",
+    "GainSchedule",
+    "LinearResponse",
     "PISettings",
+    "ReducedModel",
+    "RobustPeak",
     "Robustness",
+    "StateSpacePlant",
+    "SweepResult",
+    "TransferFunctionPlant",
+    "TuningResult",
+    "band_check",
+    "band_edges",
     "block_units",
+    "check_sweep_size",
+    "check_tunable",
+    "evaluate_fixed",
+    "evaluate_tuning",
+    "frequency_grid",
     "from_block",
+    "full_order_closed_loop",
+    "gain_schedule",
+    "half_rule",
+    "input_sensitivity",
     "list_rules",
+    "loop_function",
+    "misfit_overshoot",
+    "plant_cases",
+    "robust_peak",
     "robustness",
+    "simc",
+    "step_duration",
     "to_block",
     "tune",
+    "uncertainty_sweep",
 ]

@@ -15,8 +15,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from fuelid.model import ProcessModel
-from fuelid.plant._config import PlantConfig
-from fuelid.plant._linear import LinearPlant, linearise
+from fuelid.plant import LinearPlant, PlantConfig, linearise
 from fuelid.tuning._frequency import Robustness, robustness
 from fuelid.tuning._linearloop import full_order_closed_loop, linear_closed_loop, step_duration
 from fuelid.tuning._rules import PISettings

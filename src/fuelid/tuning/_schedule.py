@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError
-from fuelid.plant._config import PlantConfig
+from fuelid.plant import PlantConfig
 from fuelid.tuning._block import BlockForm
 from fuelid.tuning._cases import (
     DEFAULT_T_RANGE,

@@ -15,8 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.model import model_covariance
-from fuelid.plant._config import PlantConfig
-from fuelid.plant._linear import linearise
+from fuelid.plant import PlantConfig, linearise
 from fuelid.tuning._cases import DEFAULT_T_RANGE, Anchor
 from fuelid.tuning._frequency import robustness
 from fuelid.tuning._limits import check_sweep_size

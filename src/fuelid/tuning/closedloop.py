@@ -29,9 +29,9 @@ import scipy.optimize
 from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError
-from fuelid.plant._config import PlantConfig
-from fuelid.plant._flowmeter import measure_flow
-from fuelid.plant._system import (
+from fuelid.plant import (
+    PlantConfig,
+    measure_flow,
     measured_state,
     operating_point,
     plant_coefficients,

@@ -19,25 +19,33 @@ from numpy.typing import NDArray
 
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
-from fuelid.identify._causality import lead_check
-from fuelid.identify._diagnostics import (
+from fuelid.identify import (
     CorrelationTest,
+    IdentificationResult,
+    IdentifyOptions,
+    MisfitBound,
+    identify,
     input_residual_correlation,
+    lead_check,
+    long_record_note,
     residual_whiteness,
+    steps_only,
 )
-from fuelid.identify._long_record import long_record_note
-from fuelid.identify._misfit import MisfitBound
-from fuelid.identify._procedure import identify
-from fuelid.identify._progress import steps_only
-from fuelid.identify._result import IdentificationResult, IdentifyOptions
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, check_gain_identified
-from fuelid.tuning._bands import CommandBand
-from fuelid.tuning._block import BlockForm
-from fuelid.tuning._cases import DEFAULT_T_RANGE, CaseCache, FixedPIEvaluation
-from fuelid.tuning._frequency import frequency_grid, loop_function, robustness
-from fuelid.tuning._result import UNITS, TuningResult
-from fuelid.tuning._schedule import GainSchedule
+from fuelid.tuning import (
+    DEFAULT_T_RANGE,
+    UNITS,
+    BlockForm,
+    CaseCache,
+    CommandBand,
+    FixedPIEvaluation,
+    GainSchedule,
+    TuningResult,
+    frequency_grid,
+    loop_function,
+    robustness,
+)
 from fuelid.tuning.closedloop import ClosedLoopResult
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C
 from fuelid.workflow._assumptions import (

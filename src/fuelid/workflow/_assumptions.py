@@ -30,8 +30,8 @@ from fuelid.model import ProcessModel
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C, celsius_to_kelvin, kelvin_to_celsius
 
 if TYPE_CHECKING:
-    from fuelid.identify._result import IdentificationResult, IdentifyOptions
-    from fuelid.plant._config import PlantConfig
+    from fuelid.identify import IdentificationResult, IdentifyOptions
+    from fuelid.plant import PlantConfig
 
 REFERENCE_PLANT_NOTICE = (
     "no plant file given (--config): how your loop changes with fuel temperature is unknown, so "
@@ -80,7 +80,7 @@ class PlantKnowledge:
 
 def plant_knowledge(config: PlantConfig, T_fuel: float = T_REF) -> PlantKnowledge:
     """The prior knowledge of a plant file at fuel temperature ``T_fuel`` [K] (default 20 °C)."""
-    from fuelid.plant._linear import linearise  # the physics only when a plant file is given
+    from fuelid.plant import linearise  # the physics only when a plant file is given
 
     meter, vfd = config.flowmeter, config.vfd
     middle = 0.5 * (vfd.u_min_V + vfd.u_max_V)
@@ -367,7 +367,7 @@ def check_gain_against_plant(
     lo, hi = plant.config.vfd.u_min_V, plant.config.vfd.u_max_V
     if not lo <= point.u <= hi:
         return None  # the signal check has already said why
-    from fuelid.plant._linear import linearise
+    from fuelid.plant import linearise
 
     predicted = linearise(plant.config, point.u, T_fuel).static_gain
     if not (math.isfinite(predicted) and predicted > 0.0):

@@ -21,12 +21,17 @@ from typing import Any
 import numpy as np
 
 from fuelid.errors import ConfigError, DataError
-from fuelid.greybox import GreyBoxEstimator, OdeModel, Record, parameter_specs
-from fuelid.greybox._estimator import VALIDATION_HEAD_SHARE
-from fuelid.greybox._identifiability import correlation_warning
-from fuelid.greybox._multiple_shooting import SUSPECT_NOISE_RATIO
-from fuelid.greybox._profile import LINEARITY_LIMIT
-from fuelid.greybox._solver_choice import check_request
+from fuelid.greybox import (
+    LINEARITY_LIMIT,
+    SUSPECT_NOISE_RATIO,
+    VALIDATION_HEAD_SHARE,
+    GreyBoxEstimator,
+    OdeModel,
+    Record,
+    check_request,
+    correlation_warning,
+    parameter_specs,
+)
 from fuelid.greybox.modelfile import ModelFile
 from fuelid.io.tables import find_column, match_column, read_table, to_float
 from fuelid.io.timeseries import INPUT_COLUMN, OUTPUT_COLUMN

@@ -12,9 +12,7 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
-from fuelid.identify._procedure import identify
-from fuelid.identify._progress import StageCallback
-from fuelid.identify._result import IdentificationResult, IdentifyOptions
+from fuelid.identify import IdentificationResult, IdentifyOptions, StageCallback, identify
 from fuelid.identify.preprocess import select
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel
@@ -104,7 +102,7 @@ def identify_log(
     its diagnostics start, and the fit's steps when it can show them
     (:mod:`fuelid.workflow._progress`).
     """
-    from fuelid.plant._config import load_plant_config
+    from fuelid.plant import load_plant_config
 
     if t_start is not None or t_stop is not None:
         data = select(data, t_start, t_stop)

@@ -10,8 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from fuelid.plant._config import PlantConfig
-from fuelid.plant._linear import EquivalentModel, LinearPlant, linearise
+from fuelid.plant import EquivalentModel, LinearPlant, PlantConfig, linearise
 from fuelid.units import LPM_PER_M3S, PA_PER_MPA, kelvin_to_celsius
 
 PLANT_INFO_UNITS = {

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from fuelid.identify._progress import DIAGNOSING, FITTING, StepDisplay, advance, steps_only
+from fuelid.identify import DIAGNOSING, FITTING, StepDisplay, advance, steps_only
 from fuelid.io.logs import GRIDDING, READING
 
 Progress = Callable[[str], None]

@@ -29,7 +29,7 @@ from fuelid.io.timeseries import (
     TIME_COLUMN,
     TimeSeries,
 )
-from fuelid.plant._config import PlantConfig
+from fuelid.plant import PlantConfig
 from fuelid.plant.simulate import (
     PRESSURE_NOISE_STD,
     PRESSURE_RESOLUTION,

@@ -17,39 +17,43 @@ from numpy.typing import ArrayLike, NDArray
 
 from fuelid.blas import single_threaded_blas
 from fuelid.errors import FuelidError
-from fuelid.identify._misfit import MisfitBound
+from fuelid.identify import MisfitBound
 from fuelid.io.fitted_model import FittedModel
 from fuelid.lti import check_control_period
 from fuelid.model import ProcessModel
-from fuelid.plant._config import PlantConfig
-from fuelid.tuning._bands import BandCheck, CommandBand, band_check
-from fuelid.tuning._cases import (
+from fuelid.plant import PlantConfig
+from fuelid.tuning import (
     DEFAULT_T_RANGE,
+    UNITS,
     Anchor,
+    BandCheck,
     CaseCache,
+    CommandBand,
     FixedPIEvaluation,
-    evaluate_fixed,
-    plant_cases,
-)
-from fuelid.tuning._frequency import (
+    GainSchedule,
+    LinearResponse,
+    PISettings,
     Robustness,
     RobustPeak,
     StateSpacePlant,
+    SweepResult,
     TransferFunctionPlant,
+    TuningResult,
+    band_check,
+    band_edges,
+    check_sweep_size,
+    check_tunable,
+    evaluate_fixed,
+    evaluate_tuning,
+    full_order_closed_loop,
+    gain_schedule,
+    misfit_overshoot,
+    plant_cases,
     robust_peak,
     robustness,
-)
-from fuelid.tuning._limits import check_sweep_size, check_tunable
-from fuelid.tuning._linearloop import (
-    LinearResponse,
-    full_order_closed_loop,
-    misfit_overshoot,
     step_duration,
+    uncertainty_sweep,
 )
-from fuelid.tuning._result import UNITS, TuningResult, evaluate_tuning
-from fuelid.tuning._rules import PISettings
-from fuelid.tuning._schedule import GainSchedule, band_edges, gain_schedule
-from fuelid.tuning._sweep import SweepResult, uncertainty_sweep
 from fuelid.tuning.closedloop import ClosedLoopResult, flow_at, standard_runs
 from fuelid.units import kelvin_to_celsius
 from fuelid.workflow._assumptions import REFERENCE_PLANT_NOTICE, T_REF, PlantSource
@@ -252,7 +256,7 @@ def calibration_notices(plant: PlantSource, request: TuneRequest) -> list[str]:
     config = plant.config
     if plant.is_reference or config.calibration is None:
         return []
-    from fuelid.plant._uncertainty import calibration_summary
+    from fuelid.plant import calibration_summary
 
     summary, _ = calibration_summary(config, request.T_fuel)
     warned = summary["warnings"]

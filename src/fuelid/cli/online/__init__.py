@@ -18,6 +18,6 @@ from fuelid.cli.online import _decide, _run, _show  # noqa: F401 - they register
 from fuelid.cli.online._app import app
 from fuelid.cli.online._run import check_window_length
 from fuelid.cli.online._show import status_lines
-from fuelid.online._logs import log_record
+from fuelid.online import log_record
 
 __all__ = ["app", "check_window_length", "log_record", "status_lines"]

@@ -49,7 +49,7 @@ def _submit(
     write_back: str | None,
 ) -> dict[str, Any]:
     """File a request; applied here when no service is live, else by the service."""
-    from fuelid.online._requests import submit_request
+    from fuelid.online import submit_request
 
     return submit_request(opened, history, kind, proposal_id, name, why, "cli", write_back)
 
@@ -70,8 +70,8 @@ def _decide(
     why: str,
     after: Callable[[dict[str, Any], dict[str, Any]], str],
 ) -> None:
-    from fuelid.online._report import proposal_json
-    from fuelid.store._records import StoreError
+    from fuelid.online import proposal_json
+    from fuelid.store import StoreError
 
     name = who or _user()
     kind = {"approved": "approve", "rejected": "reject"}[status]
@@ -80,7 +80,7 @@ def _decide(
             raise StoreError(f"no proposal {proposal_id}")
         request = _submit(opened, history, kind, proposal_id, name, why, settings.get("write_back"))
         updated = history.proposal(proposal_id)
-        from fuelid.online._liveness import link_json
+        from fuelid.online import link_json
 
         record = history.state("service")
         running = link_json(opened, service=record)["service"] == "running"
@@ -156,7 +156,7 @@ def revert_command(
     The request is kept in the store; the service writes the last-known-good gains (the
     commissioning gains when it has none) at its next chance, and records who asked and why.
     """
-    from fuelid.store._records import StoreError
+    from fuelid.store import StoreError
 
     name = who or _user()
     with _opened(config, store) as (opened, history, settings):
@@ -201,7 +201,7 @@ def excite_command(
     why none began.
     """
     from fuelid.errors import ConfigError
-    from fuelid.store._records import StoreError
+    from fuelid.store import StoreError
 
     if start == stop:
         raise ConfigError("give one of --start and --stop")

@@ -24,11 +24,10 @@ from fuelid.cli._serve import ServeProtocol
 from fuelid.errors import ConfigError, validation_reason
 
 if TYPE_CHECKING:
-    from fuelid.online._service import OnlineService
-    from fuelid.online._settings import ServiceSite
+    from fuelid.online import OnlineService, ServiceSite
 
 from fuelid.cli.online._app import ConfigFile, StoreFile, app
-from fuelid.online._logs import (
+from fuelid.online import (
     LOGGER_NAME,
     JsonLineFormatter,
     KeyValueFormatter,
@@ -130,8 +129,8 @@ def _virtual_tables(config: Path | None) -> dict[str, Any]:
 
     from pydantic import ValidationError
 
-    from fuelid.online._settings import Online
-    from fuelid.plc._site_fleet import Archive, Central
+    from fuelid.online import Online
+    from fuelid.plc import Archive, Central
     from fuelid.plc.site import Excitation
 
     try:
@@ -208,7 +207,7 @@ def _virtual_site_text(base: str, tables: dict[str, Any]) -> str:
 
 def check_window_length(site: ServiceSite) -> None:
     """Refuse a missing plant file or an ``[online] window_s`` shorter than its settling time."""
-    from fuelid.online._window import check_site_plant
+    from fuelid.online import check_site_plant
 
     check_site_plant(site.site.plant, site.online.window_s)
 
@@ -258,7 +257,7 @@ def _start(
 ) -> None:
     import contextlib
 
-    from fuelid.online._service import OnlineService
+    from fuelid.online import OnlineService
 
     check_window_length(site)
     for line in site.missing():
@@ -281,7 +280,7 @@ def _start(
         )
         with contextlib.ExitStack() as beside:
             if dashboard_port is not None:
-                from fuelid.dashboard._server import Beside
+                from fuelid.dashboard import Beside
 
                 beside.enter_context(Beside(service.store.path, dashboard_port))
             stats, wall = _run_service(service, duration, console)
@@ -341,8 +340,8 @@ def _run_virtual(
     import tempfile
     from importlib import resources
 
-    from fuelid.online._settings import load_service_site
-    from fuelid.plc.virtual._runner import VirtualPlcThread
+    from fuelid.online import load_service_site
+    from fuelid.plc.virtual import VirtualPlcThread
     from fuelid.profiles.runs import demo_temperature
 
     speed, hours, protocol = loop.speed, loop.hours, loop.protocol
@@ -516,7 +515,7 @@ def online_command(
             "give --config SITE.toml (the site file of the loop), or --virtual for the demo; "
             "subcommands: status, history, approve, reject, revert"
         )
-    from fuelid.online._settings import load_service_site
+    from fuelid.online import load_service_site
 
     site = load_service_site(config)
     target = str(store) if store is not None else site.store.url

@@ -23,7 +23,7 @@ IDEAL_UNITS = {"Kc": "V per L/min", "Ti": "s"}
 def _stamp(t: float | None, tz: str | None = "UTC") -> str:
     if t is None:
         return "-"
-    from fuelid.io._clock import format_time
+    from fuelid.io import format_time
 
     return format_time(t, tz)
 
@@ -101,11 +101,11 @@ def _trend_text(trend: dict[str, Any]) -> str:
 
 def status_lines(status: dict[str, Any]) -> list[str]:
     """The human form of :func:`~fuelid.online._report.status_json`, a few aligned lines."""
-    from fuelid.online._report import (  # numpy behind it: not at `fuelid --help`
+    from fuelid.online import (  # numpy behind it: not at `fuelid --help`
         health_line,
         held_line,
     )
-    from fuelid.online.excitation._status import excitation_line
+    from fuelid.online.excitation import excitation_line
 
     tz = status.get("timezone") or "UTC"
     link = status["link"]
@@ -222,7 +222,7 @@ def _plc_gains_rows(gains: dict[str, Any] | None, tz: str) -> list[tuple[str, st
 
 def _central_text(central: dict[str, Any], tz: str) -> str:
     """``backlog 12 rows (oldest 4 s ago), last send …, last error …``."""
-    from fuelid.io._clock import format_age
+    from fuelid.io import format_age
 
     age = central.get("backlog_age_s")
     text = f"backlog {central.get('backlog_rows', 0)} rows" + (
@@ -270,7 +270,7 @@ def status_command(
     k_trend, pending_proposals, requests, loop_health, counts, write_back, last_write, central,
     units).
     """
-    from fuelid.online._report import status_json
+    from fuelid.online import status_json
 
     with _opened(config, store) as (opened, history, settings):
         status = status_json(history, opened, settings=settings)
@@ -304,7 +304,7 @@ def history_command(
     model, stderr, ci95 as fuelid identify's), proposals (id, time, status, old, new, Ms, reason,
     history), events, writes, k_trend.
     """
-    from fuelid.online._report import history_json
+    from fuelid.online import history_json
 
     check_figure_path(plot, overwrite=force)
     with _opened(config, store) as (opened, history, settings):

@@ -60,11 +60,10 @@ import scipy.signal
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid.errors import FuelidError
-from fuelid.identify._covariance import ResidualAR, residual_ar
+from fuelid.identify import ResidualAR, residual_ar
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel
-from fuelid.tuning._linearloop import input_sensitivity
-from fuelid.tuning._rules import PISettings
+from fuelid.tuning import PISettings, input_sensitivity
 
 FloatArray = NDArray[np.float64]
 

@@ -44,10 +44,10 @@ from fuelid.online._context import RECENT_WINDOWS_SPAN, ServiceContext, model_of
 from fuelid.online._writeback import AUTO
 from fuelid.online.excitation._design import DesignGoal, LoopNoise, SignalDesign, design_signal
 from fuelid.online.excitation._status import INTERRUPTED, STATE_KEY
-from fuelid.plc._gain_handshake import GainWriter
-from fuelid.plc.adapters._base import LinkError
-from fuelid.store._records import Quality
-from fuelid.tuning._rules import PISettings
+from fuelid.plc import GainWriter
+from fuelid.plc.adapters import LinkError
+from fuelid.store import Quality
+from fuelid.tuning import PISettings
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C, celsius_to_kelvin
 
 REQUEST_KEY = "excitation_requested"
@@ -628,8 +628,7 @@ def plant_model_function(
     """
     if plant is None:
         return None
-    from fuelid.plant import load_plant_config
-    from fuelid.plant._linear import linearise
+    from fuelid.plant import linearise, load_plant_config
 
     config = load_plant_config(plant)
 

@@ -13,8 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid.errors import NotExcitingError
-from fuelid.identify._oe import OutputError
-from fuelid.identify._result import IdentificationResult
+from fuelid.identify import IdentificationResult, OutputError
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel
 from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics

@@ -23,7 +23,7 @@ from fuelid.online.health import (
     noise_level,
     time_at_limits,
 )
-from fuelid.store._records import Quality, SampleArrays
+from fuelid.store import Quality, SampleArrays
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

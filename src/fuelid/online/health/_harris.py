@@ -15,7 +15,7 @@ import scipy.linalg
 import scipy.signal
 from numpy.typing import ArrayLike
 
-from fuelid.identify._covariance import residual_ar
+from fuelid.identify import residual_ar
 from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 from fuelid.online.health._shares import AUTO
 

@@ -27,7 +27,7 @@ from fuelid.online.health._setpoint import (
     setpoint_responses,
 )
 from fuelid.online.health._shares import AUTO, U_LIMITS_V, time_at_limits, time_in_auto
-from fuelid.plc._quality import LOW_END_FRACTION, STUCK_AFTER_S
+from fuelid.plc import LOW_END_FRACTION, STUCK_AFTER_S
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from fuelid.online.health._arrays import _ok_mask
-from fuelid.plc._quality import STUCK_AFTER_S
+from fuelid.plc import STUCK_AFTER_S
 
 _MAD_NORMAL = 0.6744897501960817
 """Median of |N(0, 1)|: the MAD of a normal sample is 0.6745 σ."""

@@ -6,9 +6,8 @@ heartbeat goes stale (``restore_on_stale``), as a PLC keeps its commissioned set
 
 from __future__ import annotations
 
-from fuelid.plant._config import PlantConfig
-from fuelid.plant._linear import linearise
-from fuelid.tuning._rules import half_rule, simc
+from fuelid.plant import PlantConfig, linearise
+from fuelid.tuning import half_rule, simc
 
 __all__ = ["commissioning_gains"]
 

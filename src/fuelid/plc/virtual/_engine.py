@@ -110,9 +110,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fuelid.errors import ConfigError, DataError
-from fuelid.plant import load_plant_config
-from fuelid.plant._config import PlantConfig
-from fuelid.plant._system import measured_state, plant_coefficients, steady_state
+from fuelid.plant import (
+    PlantConfig,
+    load_plant_config,
+    measured_state,
+    plant_coefficients,
+    steady_state,
+)
 from fuelid.plant.simulate import FuelTemperature, integrate_held
 from fuelid.plc.virtual._analog import from_counts, to_counts
 from fuelid.plc.virtual._commissioning import commissioning_gains as commissioning_gains
@@ -131,8 +135,7 @@ from fuelid.plc.virtual._points import (
     RING_FIELDS,
 )
 from fuelid.profiles.runs import Profile
-from fuelid.tuning._controller import DiscretePI
-from fuelid.tuning._rules import PISettings
+from fuelid.tuning import DiscretePI, PISettings
 from fuelid.tuning.closedloop import steady_command
 from fuelid.units import (
     DEFAULT_FUEL_TEMPERATURE_C,
