@@ -9,7 +9,7 @@ K to the same 4 % (0.8 × the 5 % gate; T and the fit not asked for, so that onl
 The cost is the flow variance the signal adds over the window, on the model with the PI in
 force (SIMC, τc = θ, at h = 1 s); the target is a ratio of at most 0.5. The expected standard
 errors are the Cramér–Rao bound of the window's fit (K, T, the dead time and the offset free),
-checked against output-error fits in tests/unit/test_excitation_design.py.
+checked against output-error fits in tests/unit/online/test_excitation_design.py.
 
 Loops: the reference plant at three commands and the fuel's extremes (its linearised model), and
 three held-out first-order-plus-delay loops slower and faster than it; noise white (0.1 L/min)

@@ -25,7 +25,7 @@ import numpy as np
 
 from _docs_table import run_to_docs
 
-# the Monte Carlo models of tests/unit/test_greybox.py (tests/ on the path for support.bands)
+# the Monte Carlo models of tests/unit/greybox/test_greybox.py (tests/ on the path for support.bands)
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 from fuelid.greybox import GreyBoxEstimator

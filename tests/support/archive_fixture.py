@@ -16,11 +16,10 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from fuelid.archive._layout import day_of
-from fuelid.archive._writer import archive_store as archive_days
-from fuelid.online._settings import Online
-from fuelid.store import OnlineHistory
-from fuelid.store._sqlite import SQLiteStore
+from fuelid.archive import archive_store as archive_days
+from fuelid.archive import day_of
+from fuelid.online import Online
+from fuelid.store import OnlineHistory, SQLiteStore
 
 
 def service_settings(

@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from fuelid.plc.virtual._engine import VirtualPLC
-from fuelid.store._base import Quality, SampleArrays
+from fuelid.plc.virtual import VirtualPLC
+from fuelid.store import Quality, SampleArrays
 
 T0 = 1.8e9
 """An epoch for the sample times [s UTC]."""

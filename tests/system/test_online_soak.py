@@ -106,16 +106,19 @@ import pytest
 
 pytest.importorskip("pymodbus")
 
-from fuelid.online._service import OnlineService, observation_of
-from fuelid.online._settings import ServiceSite
-from fuelid.online._tracking import KTracker, TrackingError
-from fuelid.online._window import WindowAnalyser
-from fuelid.plant._linear import linearise
-from fuelid.plc.virtual._runner import VirtualPlcThread
+from fuelid.online import (
+    KTracker,
+    OnlineService,
+    ServiceSite,
+    TrackingError,
+    WindowAnalyser,
+    observation_of,
+)
+from fuelid.plant import linearise
+from fuelid.plc.virtual import VirtualPlcThread
 from fuelid.profiles.runs import Profile, demo_run_profile, demo_temperature
-from fuelid.store._base import SampleArrays
-from fuelid.tuning._frequency import robustness
-from fuelid.tuning._rules import PISettings
+from fuelid.store import SampleArrays
+from fuelid.tuning import PISettings, robustness
 from fuelid.units import celsius_to_kelvin
 from support.bands import coverage_band, rmse_ratio_band, z_bound
 
@@ -404,9 +407,9 @@ def _clean_K(
     pem's noise model describes the model-structure error alone and its K wanders (a 24 h soak
     gave K_clean 9 % below the service's for one pem window).
     """
-    from fuelid.identify._oe import OutputError
-    from fuelid.online._context import model_of
-    from fuelid.store._base import iodata_from_samples
+    from fuelid.identify import OutputError
+    from fuelid.online import model_of
+    from fuelid.store import iodata_from_samples
 
     analyser = WindowAnalyser(
         service.settings, service.priors, site.sampling.period_s, k_plant=service.k_plant

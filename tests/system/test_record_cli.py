@@ -112,8 +112,8 @@ def test_record_export_identify_gives_the_plants_gain(
 def test_link_drops_on_the_virtual_plc_are_back_filled_from_its_ring(
     virtual: Any, tmp_path: Path, drops: int
 ) -> None:
-    from fuelid.plc._record_runner import record_site
-    from fuelid.plc.adapters._modbus import ModbusSource
+    from fuelid.plc import record_site
+    from fuelid.plc.adapters import ModbusSource
     from fuelid.plc.site import load_site
 
     site = load_site(site_file(tmp_path, virtual))

@@ -49,11 +49,10 @@ import psutil
 import tomlkit
 from distributed import Client, LocalCluster
 
-from fuelid.archive._layout import list_loop_days
-from fuelid.fleet._run import reidentify
-from fuelid.fleet._task import TIMING_COLUMNS
-from fuelid.online._tracking import plant_gain_function
-from fuelid.plant._config import plant_config_from_dict, reference_plant_text
+from fuelid.archive import list_loop_days
+from fuelid.fleet import TIMING_COLUMNS, reidentify
+from fuelid.online import plant_gain_function
+from fuelid.plant import plant_config_from_dict, reference_plant_text
 from support.archive_fixture import archive_store
 from support.fleet import T0, simulate_loop
 from support.waiting import wait_until

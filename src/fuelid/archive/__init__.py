@@ -23,6 +23,8 @@ if TYPE_CHECKING:
         day_of,
         list_loop_days,
         partition_dir,
+        read_day,
+        read_day_table,
         read_loop_info,
         write_table,
     )
@@ -31,18 +33,20 @@ if TYPE_CHECKING:
     from fuelid.archive._writer import archive_store
 
 _HOMES = {
-    "ArchiveLoop": "fuelid.archive._reader",
-    "LoopDay": "fuelid.archive._layout",
-    "SAMPLE_SCHEMA": "fuelid.archive._layout",
     "archive_store": "fuelid.archive._writer",
+    "ArchiveLoop": "fuelid.archive._reader",
     "archiver": "fuelid.archive._retention",
     "arrays_of": "fuelid.archive._layout",
     "day_bounds": "fuelid.archive._layout",
     "day_of": "fuelid.archive._layout",
     "keep_store": "fuelid.archive._retention",
     "list_loop_days": "fuelid.archive._layout",
+    "LoopDay": "fuelid.archive._layout",
     "partition_dir": "fuelid.archive._layout",
+    "read_day": "fuelid.archive._layout",
+    "read_day_table": "fuelid.archive._layout",
     "read_loop_info": "fuelid.archive._layout",
+    "SAMPLE_SCHEMA": "fuelid.archive._layout",
     "write_table": "fuelid.archive._layout",
 }
 """Exported name → the private module that defines it, imported on first use (PEP 562)."""
@@ -59,6 +63,8 @@ __all__ = [
     "keep_store",
     "list_loop_days",
     "partition_dir",
+    "read_day",
+    "read_day_table",
     "read_loop_info",
     "write_table",
 ]

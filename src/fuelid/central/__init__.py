@@ -37,6 +37,7 @@ from fuelid.central._reidentified import register_run, send_loop_day
 from fuelid.central._requests import (
     DEFAULT_EXPIRY_S,
     EXCITE_START_EXPIRY_S,
+    KINDS,
     central_requests,
     claim,
     fetch_waiting,
@@ -45,13 +46,20 @@ from fuelid.central._requests import (
     mark_fetched,
     newest_store,
 )
-from fuelid.central._schema import SCHEMA_VERSION, check_schema, drop_old_partitions, migrate
+from fuelid.central._schema import (
+    SCHEMA_VERSION,
+    check_schema,
+    drop_old_partitions,
+    migrate,
+    schema_version,
+)
 from fuelid.central._sender import Sender, SyncResult
 from fuelid.central._status import fleet_status
 
 __all__ = [
     "DEFAULT_EXPIRY_S",
     "EXCITE_START_EXPIRY_S",
+    "KINDS",
     "LIVENESS_KEYS",
     "SCHEMA_VERSION",
     "CentralDB",
@@ -78,6 +86,7 @@ __all__ = [
     "open_store_file",
     "redact",
     "register_run",
+    "schema_version",
     "send_loop_day",
     "shown_store",
     "sync_status",

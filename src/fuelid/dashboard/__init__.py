@@ -29,6 +29,7 @@ if TYPE_CHECKING:
     from fuelid.dashboard._app import create_app
     from fuelid.dashboard._central_loops import CentralLoops
     from fuelid.dashboard._central_source import CentralLoop
+    from fuelid.dashboard._security import CSRF_HEADER, Security
     from fuelid.dashboard._server import Beside, serve
     from fuelid.dashboard._users import UsersFile
 
@@ -36,20 +37,24 @@ _HOMES = {
     "Beside": "fuelid.dashboard._server",
     "CentralLoop": "fuelid.dashboard._central_source",
     "CentralLoops": "fuelid.dashboard._central_loops",
-    "UsersFile": "fuelid.dashboard._users",
     "create_app": "fuelid.dashboard._app",
+    "CSRF_HEADER": "fuelid.dashboard._security",
+    "Security": "fuelid.dashboard._security",
     "serve": "fuelid.dashboard._server",
+    "UsersFile": "fuelid.dashboard._users",
 }
 """Names imported on first use: the web parts import FastAPI and uvicorn, the central ones
 psycopg (when they connect), so the readers work without the extras."""
 
 __all__ = [
+    "CSRF_HEADER",
     "Beside",
     "CentralLoop",
     "CentralLoops",
     "LoopReader",
     "Loops",
     "SQLiteLoop",
+    "Security",
     "UsersFile",
     "create_app",
     "serve",

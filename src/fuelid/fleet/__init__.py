@@ -13,10 +13,17 @@ The public API: :func:`~fuelid.fleet._run.reidentify`, :class:`~fuelid.fleet._ru
 """
 
 from fuelid.fleet._run import FleetError, ReidentifyRun, online_from_toml, reidentify
-from fuelid.fleet._task import RESULT_SCHEMA, LoopSettings, loop_settings, reidentify_day
+from fuelid.fleet._task import (
+    RESULT_SCHEMA,
+    TIMING_COLUMNS,
+    LoopSettings,
+    loop_settings,
+    reidentify_day,
+)
 
 __all__ = [
     "RESULT_SCHEMA",
+    "TIMING_COLUMNS",
     "FleetError",
     "LoopSettings",
     "ReidentifyRun",

@@ -21,9 +21,10 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from fuelid.online._central_link import CentralLink
-    from fuelid.online._context import model_of, observation_of, stale_reason
-    from fuelid.online._liveness import link_json, plant_hash
+    from fuelid.online._central_link import CentralLink, origin_of
+    from fuelid.online._context import RECENT_WINDOWS_SPAN, model_of, observation_of, stale_reason
+    from fuelid.online._gains import Gains
+    from fuelid.online._liveness import SERVICE_BEAT_S, SERVICE_STALE_S, link_json, plant_hash
     from fuelid.online._logs import (
         LOGGER_NAME,
         JsonLineFormatter,
@@ -33,6 +34,7 @@ if TYPE_CHECKING:
         log_record,
     )
     from fuelid.online._report import (
+        decision_json,
         health_line,
         held_line,
         history_json,
@@ -40,7 +42,7 @@ if TYPE_CHECKING:
         status_json,
         window_json,
     )
-    from fuelid.online._requests import submit_request
+    from fuelid.online._requests import consume_requests, submit_request
     from fuelid.online._service import OnlineService
     from fuelid.online._settings import Online, ServiceSite, load_service_site
     from fuelid.online._tracking import (
@@ -51,13 +53,18 @@ if TYPE_CHECKING:
         plant_gain_function,
     )
     from fuelid.online._window import WindowAnalyser, WindowResult, check_site_plant, window_priors
+    from fuelid.online._writeback import GOOD_TUNED_FOR
     from fuelid.online.gates import WindowVerdict, postfit_gates, prefit_gates
     from fuelid.online.health import LoopHealth, loop_health
 
 _HOMES = {
     "CentralLink": "fuelid.online._central_link",
     "check_site_plant": "fuelid.online._window",
+    "consume_requests": "fuelid.online._requests",
+    "decision_json": "fuelid.online._report",
     "GainObservation": "fuelid.online._tracking",
+    "Gains": "fuelid.online._gains",
+    "GOOD_TUNED_FOR": "fuelid.online._writeback",
     "health_line": "fuelid.online._report",
     "held_line": "fuelid.online._report",
     "history_json": "fuelid.online._report",
@@ -75,6 +82,7 @@ _HOMES = {
     "observation_of": "fuelid.online._context",
     "Online": "fuelid.online._settings",
     "OnlineService": "fuelid.online._service",
+    "origin_of": "fuelid.online._central_link",
     "plant_gain_function": "fuelid.online._tracking",
     "plant_hash": "fuelid.online._liveness",
     "PlantGain": "fuelid.online._tracking",
@@ -82,6 +90,9 @@ _HOMES = {
     "prefit_gates": "fuelid.online.gates",
     "proposal_json": "fuelid.online._report",
     "Quoted": "fuelid.online._logs",
+    "RECENT_WINDOWS_SPAN": "fuelid.online._context",
+    "SERVICE_BEAT_S": "fuelid.online._liveness",
+    "SERVICE_STALE_S": "fuelid.online._liveness",
     "ServiceSite": "fuelid.online._settings",
     "stale_reason": "fuelid.online._context",
     "status_json": "fuelid.online._report",
@@ -103,9 +114,14 @@ def __getattr__(name: str) -> Any:
 
 
 __all__ = [
+    "GOOD_TUNED_FOR",
     "LOGGER_NAME",
+    "RECENT_WINDOWS_SPAN",
+    "SERVICE_BEAT_S",
+    "SERVICE_STALE_S",
     "CentralLink",
     "GainObservation",
+    "Gains",
     "JsonLineFormatter",
     "KTracker",
     "KeyValueFormatter",
@@ -120,6 +136,8 @@ __all__ = [
     "WindowResult",
     "WindowVerdict",
     "check_site_plant",
+    "consume_requests",
+    "decision_json",
     "health_line",
     "held_line",
     "history_json",
@@ -130,6 +148,7 @@ __all__ = [
     "loop_health",
     "model_of",
     "observation_of",
+    "origin_of",
     "plant_gain_function",
     "plant_hash",
     "postfit_gates",

@@ -22,7 +22,7 @@ errors, which changes the residual by a fast, small signal next to a drift whose
 :data:`NEAR_INTEGRATING_POLE`; below it pem runs and today's rule decides. So a disagreement
 with the full decision needs a screened pole above the margin and a fitted one at or below
 0.999. Measured on held-out windows (``benchmarks/bench_window.py``, and
-``tests/unit/test_pem_screen.py``): see docs/explanation/online.md.
+``tests/unit/online/test_pem_screen.py``): see docs/explanation/online.md.
 
 Units: residuals [L/min]; poles per sample [-].
 """

@@ -28,7 +28,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from fuelid.plc._codec import WordOrder
+    from fuelid.plc._codec import WordOrder, decode, encode
     from fuelid.plc._gain_handshake import HEARTBEAT_MODULUS, GainWriter
     from fuelid.plc._gain_reading import PLC_GAINS_KEY
     from fuelid.plc._quality import LOW_END_FRACTION, STUCK_AFTER_S
@@ -40,17 +40,19 @@ if TYPE_CHECKING:
 _HOMES = {
     "Archive": "fuelid.plc._site_fleet",
     "Central": "fuelid.plc._site_fleet",
+    "decode": "fuelid.plc._codec",
+    "encode": "fuelid.plc._codec",
     "GainWriter": "fuelid.plc._gain_handshake",
     "HEARTBEAT_MODULUS": "fuelid.plc._gain_handshake",
     "LOW_END_FRACTION": "fuelid.plc._quality",
     "PLC_GAINS_KEY": "fuelid.plc._gain_reading",
     "PRUNE_EVERY_S": "fuelid.plc._record_runner",
+    "record_site": "fuelid.plc._record_runner",
     "Recorder": "fuelid.plc._recorder",
     "RecorderStats": "fuelid.plc._record_status",
+    "site_identity": "fuelid.plc._recorder",
     "STUCK_AFTER_S": "fuelid.plc._quality",
     "WordOrder": "fuelid.plc._codec",
-    "record_site": "fuelid.plc._record_runner",
-    "site_identity": "fuelid.plc._recorder",
 }
 """Exported name → the private module that defines it, imported on first use (PEP 562)."""
 
@@ -66,6 +68,8 @@ __all__ = [
     "Recorder",
     "RecorderStats",
     "WordOrder",
+    "decode",
+    "encode",
     "record_site",
     "site_identity",
 ]

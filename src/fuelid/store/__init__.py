@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 from fuelid.store._archived import ARCHIVE_COLUMNS, StoreDays
 from fuelid.store._base import SampleStore, iodata_from_samples
 from fuelid.store._loop_history import LoopHistory, LoopStore
-from fuelid.store._online import OnlineHistory
+from fuelid.store._online import REQUEST_KINDS, OnlineHistory
 from fuelid.store._online_rows import (
     PROPOSAL_COLUMNS,
     PROPOSAL_STATUSES,
@@ -57,7 +57,7 @@ from fuelid.store._records import (
     StoreInfo,
     tag_map_hash,
 )
-from fuelid.store._schema import SCHEMA_VERSION, default_loop_id
+from fuelid.store._schema import MIGRATIONS, SCHEMA_VERSION, build_at, default_loop_id
 from fuelid.store._schema_v4 import OUTBOX_TABLES
 from fuelid.store._sqlite import SQLiteStore
 from fuelid.store._writer import SampleWriter
@@ -71,11 +71,13 @@ _HOMES = {"export_log": "fuelid.store._export", "parse_time": "fuelid.store._exp
 __all__ = [
     "ARCHIVE_COLUMNS",
     "EVENT_KINDS",
+    "MIGRATIONS",
     "OUTBOX_TABLES",
     "PROPOSAL_COLUMNS",
     "PROPOSAL_STATUSES",
     "PROPOSAL_TRANSITIONS",
     "REQUEST_COLUMNS",
+    "REQUEST_KINDS",
     "SCHEMA_VERSION",
     "SERVICE_KEY",
     "STORES",
@@ -97,6 +99,7 @@ __all__ = [
     "StoreDays",
     "StoreError",
     "StoreInfo",
+    "build_at",
     "default_loop_id",
     "export_log",
     "history_counts",

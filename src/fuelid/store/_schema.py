@@ -161,10 +161,10 @@ JSON is written with ``allow_nan=False``: NaN and ±inf are stored as ``null``.
 
 **Adding a migration.** Append a :class:`Migration` to :data:`MIGRATIONS` (its ``version`` is the
 next number; :data:`SCHEMA_VERSION` follows), describe it under **Versions** and change **Tables**
-above, and give the test of upgrades (``tests/integration/test_store_schema.py``) a case that builds
-a store at the version before with :func:`build_at` (or loads a dump written by the released fuelid,
-as ``tests/data/store_v0_1.sql``), opens it with the current code and checks every old row. Never
-edit a released migration: a store in the field has already applied it.
+above, and give the test of upgrades (``tests/integration/store/test_store_schema.py``) a case
+that builds a store at the version before with :func:`build_at` (or loads a dump written by the
+released fuelid, as ``tests/data/store_v0_1.sql``), opens it with the current code and checks
+every old row. Never edit a released migration: a store in the field has already applied it.
 
 A migration may carry a ``data`` step (a function of the connection, run in the migration's
 transaction after its statements) for rows that need computing, such as filling a new column.

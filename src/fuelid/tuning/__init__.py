@@ -55,6 +55,7 @@ from fuelid.tuning._linearloop import (
     LinearResponse,
     full_order_closed_loop,
     input_sensitivity,
+    linear_closed_loop,
     misfit_overshoot,
     step_duration,
 )
@@ -105,6 +106,7 @@ __all__ = [
     "gain_schedule",
     "half_rule",
     "input_sensitivity",
+    "linear_closed_loop",
     "list_rules",
     "loop_function",
     "misfit_overshoot",

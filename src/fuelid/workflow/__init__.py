@@ -50,6 +50,7 @@ _EXPORTS = {
     "greybox_result": "greybox_fit",
     "GreyBoxFit": "greybox_fit",
     "identify_log": "identification",
+    "IDENTIFY_STAGES": "progress",
     "identify_step_ls": "identification",
     "IDENTIFY_UNITS": "identification",
     "IdentifyOutcome": "identification",
@@ -119,6 +120,7 @@ if TYPE_CHECKING:
         identify_step_ls,
     )
     from fuelid.workflow._plant_info import PLANT_INFO_UNITS, PlantInfo, plant_info
+    from fuelid.workflow._progress import IDENTIFY_STAGES
     from fuelid.workflow._simulation import (
         SIMULATION_UNITS,
         ProfileTable,
@@ -150,6 +152,7 @@ if TYPE_CHECKING:
     )
 
 __all__ = [
+    "IDENTIFY_STAGES",
     "IDENTIFY_UNITS",
     "LEADING_RESPONSE",
     "METHODS",

@@ -11,9 +11,27 @@ The names in ``__all__``: what the dashboard shows of a run.
 
 from __future__ import annotations
 
-from fuelid.online.excitation._status import INTERRUPTED, excitation_line
+import importlib
+from typing import TYPE_CHECKING, Any
+
+from fuelid.online.excitation._status import INTERRUPTED, STATE_KEY, excitation_line
+
+if TYPE_CHECKING:
+    from fuelid.online.excitation._exciter import REQUEST_KEY
+
+_HOMES = {"REQUEST_KEY": "fuelid.online.excitation._exciter"}
+"""Names imported on first use: the exciter imports the service's context, which imports this
+package (the window reads the excitation's status)."""
 
 __all__ = [
     "INTERRUPTED",
+    "REQUEST_KEY",
+    "STATE_KEY",
     "excitation_line",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _HOMES:
+        return getattr(importlib.import_module(_HOMES[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
