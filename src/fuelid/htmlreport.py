@@ -37,6 +37,18 @@ from fuelid.plots import (
 from fuelid.units import T0, format_celsius, kelvin_to_celsius
 from fuelid.workflow import LogAnalysis, gain_unit
 
+__all__ = [
+    "FIGURE_KEYS",
+    "TEMPLATE",
+    "ReportFigure",
+    "check_report_path",
+    "figure_paths",
+    "figure_png",
+    "render_report",
+    "report_figures",
+    "write_report",
+]
+
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 

@@ -28,6 +28,24 @@ from numpy.typing import ArrayLike, NDArray
 from fuelid.errors import FuelidError
 from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 
+__all__ = [
+    "MAX_CONTROL_PERIOD",
+    "SETTLING_BAND",
+    "DiscreteLagModel",
+    "FloatArray",
+    "ModifiedZ",
+    "StepMeasures",
+    "check_control_period",
+    "discretise",
+    "lag_chain",
+    "modified_z",
+    "settling_time",
+    "step_measures",
+    "step_response",
+    "step_settling_time",
+    "zoh_discretise",
+]
+
 FloatArray = NDArray[np.float64]
 
 SETTLING_BAND = 0.02
