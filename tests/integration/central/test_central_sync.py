@@ -358,7 +358,7 @@ def test_a_site_role_with_the_documented_grants_can_sync(
 
     import psycopg
 
-    page = (Path(__file__).resolve().parents[2] / "docs/reference/central.md").read_text()
+    page = (Path(__file__).resolve().parents[3] / "docs/reference/central.md").read_text()
     section = page.split("### One database role per site", 1)[1]
     grants = re.search(r"```sql\n(.*?)```", section, re.DOTALL)
     assert grants is not None

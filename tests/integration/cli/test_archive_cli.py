@@ -19,7 +19,7 @@ import pytest
 from fuelid.cli import main
 from support.archive import DATES, days_store
 
-REFERENCE = Path(__file__).resolve().parents[2] / "docs" / "reference"
+REFERENCE = Path(__file__).resolve().parents[3] / "docs" / "reference"
 PER_DAY = 8640
 
 

@@ -37,7 +37,7 @@ from support.archive_fixture import archive_store
 from support.fleet import T0
 from support.rounding import gamma, inverse_gram_budget, least_squares_budget
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 DATE = "2026-01-01"
 
 

@@ -29,7 +29,7 @@ from fuelid.store import (
 from fuelid.store import _schema as store_schema
 from fuelid.store._schema import Migration, upgrade
 
-DATA = Path(__file__).resolve().parents[1] / "data"
+DATA = Path(__file__).resolve().parents[2] / "data"
 T0 = 1_700_000_000.0
 SITE = {"site_name": "tunnel 2 fuel loop", "tag_map_hash": "ab12"}
 

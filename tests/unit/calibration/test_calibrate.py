@@ -31,7 +31,7 @@ LEVELS = "1.5,3.0,2.0,4.5,2.5,4.0"
 def plant_file(path: Path, values: dict[str, float]) -> Path:
     from fuelid.io.plantfile import update_plant_toml
 
-    text = (Path(__file__).parents[2] / "src/fuelid/data/reference_plant.toml").read_text()
+    text = (Path(__file__).parents[3] / "src/fuelid/data/reference_plant.toml").read_text()
     path.write_text(update_plant_toml(text, values))
     return path
 
@@ -199,7 +199,7 @@ def test_tune_on_a_calibrated_plant_says_where_the_calibration_has_no_data(
 ) -> None:
     from fuelid.io.plantfile import update_plant_toml
 
-    text = (Path(__file__).parents[2] / "src/fuelid/data/reference_plant.toml").read_text()
+    text = (Path(__file__).parents[3] / "src/fuelid/data/reference_plant.toml").read_text()
     table = {
         "parameters": [LAG],
         "values": [get_parameter(REFERENCE, LAG)],

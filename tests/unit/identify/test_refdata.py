@@ -10,7 +10,7 @@ from fuelid.identify import OutputError
 from fuelid.io.logs import load_log
 from fuelid.model import nrmse_fit
 
-REF = Path(__file__).resolve().parents[3] / "shared" / "ref-data"
+REF = Path(__file__).resolve().parents[4] / "shared" / "ref-data"
 pytestmark = [
     pytest.mark.refdata,
     pytest.mark.skipif(not REF.is_dir(), reason="../shared/ref-data is absent"),

@@ -14,7 +14,7 @@ from fuelid.io.logs import load_log, parse_scale
 
 H = 0.02
 N = 200
-REF_DATA = Path(__file__).resolve().parents[3] / "shared" / "ref-data"
+REF_DATA = Path(__file__).resolve().parents[4] / "shared" / "ref-data"
 
 
 def step_response(n: int = N, h: float = H) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -189,7 +189,7 @@ def test_site_check_prints_the_tag_map(tmp_path: Path):
 
 def test_the_docs_example_is_a_valid_site_file():
     # docs/examples/site.toml is the file the site-file how-to and the README's tour show
-    example = Path(__file__).resolve().parents[2] / "docs" / "examples" / "site.toml"
+    example = Path(__file__).resolve().parents[3] / "docs" / "examples" / "site.toml"
     site = load_service_site(example)
     assert site.controller is not None
     assert site.controller.gain_units == "percent"

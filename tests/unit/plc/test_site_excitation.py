@@ -29,7 +29,7 @@ from fuelid.plc.site import (
 )
 
 runner = CliRunner()
-DOCS = Path(__file__).resolve().parents[2] / "docs" / "reference" / "site-file.md"
+DOCS = Path(__file__).resolve().parents[3] / "docs" / "reference" / "site-file.md"
 
 BASE = """\
 [site]

@@ -11,7 +11,7 @@ from fuelid.errors import ConfigError
 from fuelid.greybox.modelfile import read_model_file
 from fuelid.workflow import data_columns, greybox_model, read_record
 
-MODEL = Path(__file__).resolve().parents[2] / "examples" / "two_tanks.py"
+MODEL = Path(__file__).resolve().parents[3] / "examples" / "two_tanks.py"
 
 
 def test_the_fixed_and_freed_parameters_reach_the_model() -> None:
