@@ -58,7 +58,7 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
-# The browser test (tests/integration/test_report_browser.py) opens the HTML report in headless
+# The browser test (tests/integration/htmlreport/test_report_browser.py) opens the HTML report in headless
 # Chromium. As root (CI, a container) Chromium is installed from Debian when missing; otherwise
 # the test skips and says why (under CI, with CI set, it fails instead).
 browser:

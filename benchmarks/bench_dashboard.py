@@ -11,7 +11,7 @@ running service under 5 % of one core.
     which fills the level-of-detail table at ingest): setpoint steps every minute, a first-order
     flow response with noise, the fuel temperature drifting; a window every 5 minutes with a
     model, as the service leaves them.
-(b) The server's time of the 24-hour trend (:func:`fuelid.dashboard.trend.trend`, 10 s buckets
+(b) The server's time of the 24-hour trend (:func:`fuelid.dashboard._trend.trend`, 10 s buckets
     thinned to 1,500 px), in this process: the median of ``--repeat`` calls.
 (c) ``fuelid dashboard`` on that store, headless Chromium (Playwright, Debian's Chromium): the
     loop page from navigation to drawn (the page's own ``data-ready``), the median of
@@ -59,9 +59,9 @@ T0 = 1.8e9  # 2027-01-15: any fixed plant time
 
 def build_store(path: Path, hours: float) -> tuple[int, float]:
     """The synthetic 24-hour store; (samples, seconds to write)."""
-    from fuelid.store.base import Event, Sample
-    from fuelid.store.online import OnlineHistory
-    from fuelid.store.sqlite import SQLiteStore
+    from fuelid.store._base import Event, Sample
+    from fuelid.store._online import OnlineHistory
+    from fuelid.store._sqlite import SQLiteStore
 
     rng = np.random.default_rng(25)
     n = int(hours * 3600.0 / PERIOD_S)
@@ -112,8 +112,8 @@ def build_store(path: Path, hours: float) -> tuple[int, float]:
 
 def trend_query(path: Path, repeat: int) -> tuple[float, int, int]:
     """Median server time of the 24-hour trend [s], the points read, the points sent."""
-    from fuelid.dashboard.source import SQLiteLoop
-    from fuelid.dashboard.trend import trend
+    from fuelid.dashboard._source import SQLiteLoop
+    from fuelid.dashboard._trend import trend
 
     loop = SQLiteLoop(path)
     try:

@@ -1,7 +1,7 @@
 """Benchmark: the designed test signal against a PRBS at the same standard error of K.
 
 Issue 40, item 5: for each loop, the signal the service designs
-(:func:`fuelid.online.excitation.design.design_signal`: a generalized binary noise whose hold
+(:func:`fuelid.online.excitation._design.design_signal`: a generalized binary noise whose hold
 and sequence are chosen on the loop's model in closed loop) and a maximum-length PRBS clocked at
 the PLC's control period (the usual default), both over the same burst (``max_share`` 0.3 of a
 10-minute window) and each at the smallest amplitude that brings the expected standard error of
@@ -9,7 +9,7 @@ K to the same 4 % (0.8 × the 5 % gate; T and the fit not asked for, so that onl
 The cost is the flow variance the signal adds over the window, on the model with the PI in
 force (SIMC, τc = θ, at h = 1 s); the target is a ratio of at most 0.5. The expected standard
 errors are the Cramér–Rao bound of the window's fit (K, T, the dead time and the offset free),
-checked against output-error fits in tests/unit/test_excitation_design.py.
+checked against output-error fits in tests/unit/online/test_excitation_design.py.
 
 Loops: the reference plant at three commands and the fuel's extremes (its linearised model), and
 three held-out first-order-plus-delay loops slower and faster than it; noise white (0.1 L/min)
@@ -27,10 +27,10 @@ import time
 import numpy as np
 
 from _docs_table import run_to_docs
-from fuelid.identify.covariance import ResidualAR
+from fuelid.identify._covariance import ResidualAR
 from fuelid.model import ProcessModel
-from fuelid.online.excitation.design import DesignGoal, LoopNoise, design_signal, prbs_design
-from fuelid.tuning.rules import simc
+from fuelid.online.excitation._design import DesignGoal, LoopNoise, design_signal, prbs_design
+from fuelid.tuning._rules import simc
 
 PERIOD_S = 0.02
 WINDOW_S = 600.0
@@ -41,7 +41,7 @@ TARGET_RATIO = 0.5
 
 def _reference_loops() -> list[tuple[str, ProcessModel]]:
     from fuelid.plant import load_plant_config
-    from fuelid.plant.linear import linearise
+    from fuelid.plant._linear import linearise
     from fuelid.units import celsius_to_kelvin
 
     config = load_plant_config()

@@ -51,10 +51,10 @@ import scipy.signal
 from _docs_table import run_to_docs
 from _timing import best_of
 from fuelid.blas import single_threaded_blas
-from fuelid.identify.diagnostics import residual_whiteness
-from fuelid.identify.oe import OutputError
-from fuelid.identify.pem import PredictionError
-from fuelid.identify.variable_projection import Structure, jacobian
+from fuelid.identify._diagnostics import residual_whiteness
+from fuelid.identify._oe import OutputError
+from fuelid.identify._pem import PredictionError
+from fuelid.identify._variable_projection import Structure, jacobian
 from fuelid.io.logs import load_log
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise

@@ -5,12 +5,12 @@ AUTO than the analysis before issue 26, measured as ratios in one run on the sam
 decisions unchanged.
 
 Both analysers run in this process on the same windows of the virtual PLC's engine
-(:class:`fuelid.plc.virtual.engine.VirtualPLC`, reference plant, 50 Hz, PI at 1 s), each
+(:class:`fuelid.plc.virtual._engine.VirtualPLC`, reference plant, 50 Hz, PI at 1 s), each
 warm-started from its own previous window as the service does (the first window of each run is
 the warm-up and is not timed): ``WindowAnalyser(fast=False)`` fits pem on every AUTO window
 with the numerics before issue 26 (:data:`fuelid.numerics_mode.REFERENCE_NUMERICS`, the
 default search tolerances), ``fast=True`` skips pem when the noise screen says its noise pole
-would be nearly integrating (:mod:`fuelid.online.pem_screen`), with the faster numerics
+would be nearly integrating (:mod:`fuelid.online._pem_screen`), with the faster numerics
 (:data:`fuelid.numerics_mode.WINDOW_NUMERICS`: exact ZOH coefficients
 without scipy's conversions, FFT autocorrelations, statistical search tolerances, one SVD per
 stored fit, cached settling times; since the second pass: Levenberg–Marquardt searches with
@@ -50,11 +50,11 @@ from typing import Any
 import numpy as np
 
 from _docs_table import run_to_docs
-from fuelid.online.window import WindowAnalyser, WindowResult, window_priors
+from fuelid.online._window import WindowAnalyser, WindowResult, window_priors
 from fuelid.plc.site import Online
-from fuelid.plc.virtual.engine import VirtualPLC
+from fuelid.plc.virtual._engine import VirtualPLC
 from fuelid.profiles.runs import demo_run_profile
-from fuelid.store.base import Quality, SampleArrays
+from fuelid.store._base import Quality, SampleArrays
 
 PERIOD_S = 0.02
 WINDOW_S = 600.0
@@ -251,16 +251,16 @@ def report(mode: str, rows: list[dict[str, Any]], cores: int) -> None:
 
 
 PIECES = (
-    ("the whole window", "window.py", "analyse"),
-    ("output-error fit (both orders)", "oe.py", "fit"),
-    ("  its searches", "oe.py", "_fit_structure"),
-    ("  its covariances, colour tests", "oe.py", "_store"),
+    ("the whole window", "_window.py", "analyse"),
+    ("output-error fit (both orders)", "_oe.py", "fit"),
+    ("  its searches", "_oe.py", "_fit_structure"),
+    ("  its covariances, colour tests", "_oe.py", "_store"),
     ("noise screen", "pem_screen.py", "noise_screen"),
-    ("prediction-error fit", "pem.py", "fit"),
-    ("step-ls alongside", "window.py", "_step_ls"),
-    ("post-fit gates (residual ACF)", "postfit.py", "postfit_gates"),
-    ("pre-fit gates", "prefit.py", "prefit_samples"),
-    ("loop health", "window.py", "_health"),
+    ("prediction-error fit", "_pem.py", "fit"),
+    ("step-ls alongside", "_window.py", "_step_ls"),
+    ("post-fit gates (residual ACF)", "_postfit.py", "postfit_gates"),
+    ("pre-fit gates", "_prefit.py", "prefit_samples"),
+    ("loop health", "_window.py", "_health"),
 )
 
 

@@ -15,7 +15,7 @@ from typing import Any
 # multi-threaded OpenBLAS on a loaded 2-core machine spends its time waiting for its other
 # thread: measured 0.14 ms an 8×8 expm on one thread against 28 ms with the default threads while
 # a second worker ran (200×); the gain-schedule tests went from 2 min to seconds. The commands
-# limit BLAS themselves (fuelid.blas); tests/system/test_cli_consistency.py checks that with the
+# limit BLAS themselves (fuelid.blas); tests/unit/cli/test_guarded_blas.py checks that with the
 # limit lifted. A developer's own setting wins.
 for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")

@@ -20,7 +20,7 @@ from typing import Any
 
 MARKER = "<!-- fuelid-cli-reference -->"
 PAGE = "reference/cli.md"
-#: ``<!-- fuelid-module-doc: fuelid.store.schema -->`` on any page is replaced by that module's
+#: ``<!-- fuelid-module-doc: fuelid.store._schema -->`` on any page is replaced by that module's
 #: docstring (Markdown), so a fact documented in the code (the store's schema) lives there once
 MODULE_DOC = re.compile(r"<!-- fuelid-module-doc: (?P<module>[\w.]+) -->")
 

@@ -213,7 +213,7 @@ def _shoot_approval(page: Any, out: Path) -> None:
 
 def _shoot_service_stopped(page: Any, service: Any, out: Path) -> None:
     """After ``kill -9`` of the service: its chip red, the live chips grey "unknown since …"."""
-    from fuelid.dashboard.fleet import LIVE_CHIPS
+    from fuelid.dashboard._fleet import LIVE_CHIPS
     from support.browser import page_chips
 
     if service.proc.poll() is not None:
@@ -260,7 +260,7 @@ def dashboard_screenshots(work: Path, out: Path) -> None:
     service's kill -9 and the dashboard's; a second browser photographs the fleet and a window.
     """
     sys.path.insert(0, str(ROOT / "tests"))
-    from fuelid.dashboard.users import UsersFile
+    from fuelid.dashboard._users import UsersFile
     from support.browser import browser_pages, dashboard, virtual_service, wait_ready
 
     users = UsersFile(work / "users.json")

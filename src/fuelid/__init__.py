@@ -7,10 +7,15 @@ logged data and tunes its PI controller.
 
 The public API
 --------------
-A user's script may rely on the names each package lists in its ``__all__`` and on the module
-paths below; a module or name that starts with an underscore is not promised. A module that
-moves keeps its old path for at least one minor release, importing with a DeprecationWarning
-(CHANGELOG.md lists every move).
+A user's script may rely on the names each package lists in its ``__all__``, on the top-level
+modules (:mod:`fuelid.model`, :mod:`fuelid.units`, :mod:`fuelid.errors`, :mod:`fuelid.lti`,
+:mod:`fuelid.params`, :mod:`fuelid.blas`, :mod:`fuelid.numerics_mode`, :mod:`fuelid.htmlreport`,
+each with its ``__all__``) and on the module paths below. Every other module is an
+implementation module whose name starts with an underscore (``fuelid/identify/_oe.py``): it is
+not promised and may move without notice, so import its names from the package
+(``from fuelid.identify import OutputError``). A promised path that moves keeps its old path
+for at least one minor release, importing with a DeprecationWarning (CHANGELOG.md lists every
+move).
 
 - ``fuelid``: the errors (:class:`FuelidError` and its kinds :class:`ConfigError`,
   :class:`DataError`, :class:`NotFittedError`, :class:`OutOfRangeError`) and ``__version__``.

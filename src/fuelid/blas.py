@@ -14,6 +14,10 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
+__all__ = [
+    "single_threaded_blas",
+]
+
 
 @functools.cache
 def _blas_controller() -> Any:

@@ -11,6 +11,18 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
+__all__ = [
+    "VALUE_ERROR_PREFIX",
+    "ConfigError",
+    "DataError",
+    "FuelidError",
+    "NotExcitingError",
+    "NotFittedError",
+    "OutOfRangeError",
+    "plain_reason",
+    "validation_reason",
+]
+
 
 class FuelidError(ValueError):
     """Base class of every error fuelid raises on bad input or refused data."""

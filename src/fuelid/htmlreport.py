@@ -35,17 +35,25 @@ from fuelid.plots import (
     schedule_figure,
 )
 from fuelid.units import T0, format_celsius, kelvin_to_celsius
-from fuelid.workflow import LogAnalysis
-from fuelid.workflow.assumptions import gain_unit
+from fuelid.workflow import LogAnalysis, gain_unit
+
+__all__ = [
+    "FIGURE_KEYS",
+    "TEMPLATE",
+    "ReportFigure",
+    "check_report_path",
+    "figure_paths",
+    "figure_png",
+    "render_report",
+    "report_figures",
+    "write_report",
+]
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from fuelid.tuning.bands import BandCheck
-    from fuelid.tuning.cases import FixedPIEvaluation
+    from fuelid.tuning import BandCheck, FixedPIEvaluation, GainSchedule, RobustPeak
     from fuelid.tuning.closedloop import ClosedLoopResult
-    from fuelid.tuning.frequency import RobustPeak
-    from fuelid.tuning.schedule import GainSchedule
 
 TEMPLATE = "report.html.j2"
 
@@ -257,7 +265,8 @@ def _priors_rows(priors: dict[str, Any]) -> list[dict[str, str]]:
     return rows
 
 
-def _png(fig: Figure) -> bytes:
+def figure_png(fig: Figure) -> bytes:
+    """A figure as PNG bytes, at the report's resolution (110 dpi)."""
     # every figure of plots.py lays itself out (layout="constrained"): a "tight" bounding box
     # would draw each one twice for nothing
     buffer = io.BytesIO()
@@ -512,7 +521,7 @@ def write_report(
     """
     out = check_report_path(path, overwrite)
     drawn = report_figures(analysis)
-    figures = [ReportFigure(key, caption, _png(fig)) for key, (fig, caption) in drawn.items()]
+    figures = [ReportFigure(key, caption, figure_png(fig)) for key, (fig, caption) in drawn.items()]
     written = []
     targets = figure_paths(out)
     for figure in figures:
@@ -527,7 +536,7 @@ def _block_row(analysis: LogAnalysis) -> dict[str, str] | None:
     block = analysis.settings.block
     if block is None:
         return None
-    from fuelid.tuning.block import block_units
+    from fuelid.tuning import block_units
 
     kc, ti = analysis.tuning.pi.to_block(block)
     units = block_units(block)

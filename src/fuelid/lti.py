@@ -28,6 +28,24 @@ from numpy.typing import ArrayLike, NDArray
 from fuelid.errors import FuelidError
 from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 
+__all__ = [
+    "MAX_CONTROL_PERIOD",
+    "SETTLING_BAND",
+    "DiscreteLagModel",
+    "FloatArray",
+    "ModifiedZ",
+    "StepMeasures",
+    "check_control_period",
+    "discretise",
+    "lag_chain",
+    "modified_z",
+    "settling_time",
+    "step_measures",
+    "step_response",
+    "step_settling_time",
+    "zoh_discretise",
+]
+
 FloatArray = NDArray[np.float64]
 
 SETTLING_BAND = 0.02
@@ -495,7 +513,7 @@ def step_measures(
     """Overshoot, settling time, rise time and IAE of a response y(t) to a step start → final.
 
     The one implementation of fuelid's step-response measures: the closed-loop simulations of
-    the tuning layer (:func:`fuelid.tuning.metrics.setpoint_step_metrics`) and the setpoint
+    the tuning layer (:func:`fuelid.tuning._metrics.setpoint_step_metrics`) and the setpoint
     moves the online service records (:func:`fuelid.online.health.step_response_measures`)
     both call it.
 

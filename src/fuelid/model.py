@@ -23,6 +23,20 @@ from fuelid.errors import DataError, FuelidError
 from fuelid.lti import discretise, lag_chain
 from fuelid.numerics_mode import DEFAULT_NUMERICS, Numerics
 
+__all__ = [
+    "DISTINCT_LAGS",
+    "MODEL_KEYS",
+    "Z95",
+    "FloatArray",
+    "ProcessModel",
+    "check_gain_identified",
+    "gain_not_identified",
+    "model_covariance",
+    "nrmse_fit",
+    "nrmse_fit_columns",
+    "simulate_model",
+]
+
 if TYPE_CHECKING:
     import control
 

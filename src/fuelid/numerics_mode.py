@@ -8,8 +8,8 @@ small fraction of a standard error, and differ in speed:
   with scipy's ``least_squares`` and finite-difference Jacobians;
 - :data:`WINDOW_NUMERICS`, the online windows' (issue 26): the searches stop at statistical
   tolerances (:data:`STATISTICAL_TOLERANCES`) and their Jacobians are the lags' analytic
-  sensitivities (:func:`fuelid.identify.variable_projection.sensitivities`), in a
-  Levenberg–Marquardt search (:mod:`fuelid.identify.search`);
+  sensitivities (:func:`fuelid.identify._variable_projection.sensitivities`), in a
+  Levenberg–Marquardt search (:mod:`fuelid.identify._search`);
 - :data:`REFERENCE_NUMERICS`, the numerics as they were before issue 26, for the window
   benchmark's "today" path and ``WindowAnalyser(fast=False)``: :func:`fuelid.lti.discretise`
   through scipy's ``cont2discrete`` and ``ss2tf``, autocorrelations by one dot product per lag
@@ -82,7 +82,7 @@ class Numerics:
         The Jacobians of the lags and the delay, in the searches and in the stored fits'
         covariances: central differences of the simulated response (with scipy's
         ``least_squares``), or the lags' analytic sensitivities (with the Levenberg–Marquardt
-        search of :mod:`fuelid.identify.search`).
+        search of :mod:`fuelid.identify._search`).
     reference : bool
         The numerics before issue 26 (module docstring); it also keeps the differences and
         scipy's search, whatever ``jacobian`` says.
@@ -113,7 +113,7 @@ class Numerics:
     def statistical(self) -> Numerics:
         """These numerics with the windows' search: statistical tolerances, analytic Jacobians.
 
-        What a long record's search on its copy runs (:mod:`fuelid.identify.long_record`); the
+        What a long record's search on its copy runs (:mod:`fuelid.identify._long_record`); the
         ``reference`` choice is kept.
         """
         return replace(self, tolerances=STATISTICAL_TOLERANCES, jacobian="sensitivities")

@@ -38,6 +38,23 @@ from __future__ import annotations
 
 import math
 
+__all__ = [
+    "DEFAULT_FUEL_TEMPERATURE_C",
+    "FUEL_TEMPERATURE_RANGE_C",
+    "LPM_PER_M3S",
+    "M3_PER_CM3",
+    "M_PER_MM",
+    "PA_PER_MPA",
+    "PA_S_PER_MPA_S",
+    "RAD_S_PER_RPM",
+    "T0",
+    "TWO_PI",
+    "W_PER_KW",
+    "celsius_to_kelvin",
+    "format_celsius",
+    "kelvin_to_celsius",
+]
+
 T0: float = 273.15
 """0 °C in kelvin [K]; a Celsius temperature t is T = t + T0."""
 

@@ -41,8 +41,7 @@ def pg_cluster() -> Iterator[object]:
 @pytest.fixture
 def central_url(pg_cluster: object) -> str:
     """A fresh database of ``pg_cluster`` with the central schema; its URL."""
-    from fuelid.central.connect import connect
-    from fuelid.central.schema import migrate
+    from fuelid.central import connect, migrate
     from support.postgres import PgCluster
 
     assert isinstance(pg_cluster, PgCluster)

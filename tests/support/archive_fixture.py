@@ -3,7 +3,7 @@
 The store is copied (the shared ``fleet_loops`` stores stay as they are), given the service
 record a live service would have left (its ``settings``: every ``[online]`` setting,
 ``sampling``, ``plant_hash``, ``plant_file``, ``controller``), and archived by the real
-archiver, :func:`fuelid.archive.writer.archive_store`, every day of it (``before`` the day
+archiver, :func:`fuelid.archive._writer.archive_store`, every day of it (``before`` the day
 after the newest sample).
 """
 
@@ -16,11 +16,10 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from fuelid.archive.layout import day_of
-from fuelid.archive.writer import archive_store as archive_days
-from fuelid.online.settings import Online
-from fuelid.store import OnlineHistory
-from fuelid.store.sqlite import SQLiteStore
+from fuelid.archive import archive_store as archive_days
+from fuelid.archive import day_of
+from fuelid.online import Online
+from fuelid.store import OnlineHistory, SQLiteStore
 
 
 def service_settings(
@@ -31,7 +30,7 @@ def service_settings(
     plant_hash: str | None = None,
     controller: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """The ``settings`` of a service record (:func:`fuelid.online.liveness.service_record`)."""
+    """The ``settings`` of a service record (:func:`fuelid.online._liveness.service_record`)."""
     settings: dict[str, Any] = (online or Online()).model_dump(mode="json")
     settings.update(
         {

@@ -36,7 +36,7 @@ START_TIMEOUT_S = 60.0
 STREAM_ALLOWANCE_S = 0.5
 """Wall time a committed sample may take to reach the page's trend [s].
 
-The dashboard's feed reads the store every 0.2 s (``fuelid.dashboard.stream.POLL_S``); the event
+The dashboard's feed reads the store every 0.2 s (``fuelid.dashboard._stream.POLL_S``); the event
 then crosses the loopback and is drawn. A sample committed longer ago than this must be on the
 page (:func:`look_at_trend`).
 """

@@ -306,7 +306,7 @@ def zoh_response(
 ) -> ComplexArray:
     r"""Exact zero-order-hold equivalent G_d(e^(jωh)) of the distributed plant, sampled at h.
 
-    fuelid's convention for a sampled loop (fuelid.tuning.frequency): the plant seen from the
+    fuelid's convention for a sampled loop (fuelid.tuning._frequency): the plant seen from the
     PLC, a zero-order hold on u and the output sampled at the same instants, i.e.
     G_d(z) = (1 − z⁻¹)·Z{G(s)/s}. For a rational plant fuelid computes it in closed form (the
     modified z-transform); for the distributed plant it is the aliasing (Poisson) sum
@@ -378,7 +378,7 @@ def sensitivity_peak(
 
     The PI is the ideal C(s) = Kc·(1 + 1/(Ti·s)) [Kc in V per L/min, Ti in s]. For h = 0 it is
     continuous and L = C(jω)·G(jω) with the exact G of :func:`frequency_response`. For h > 0
-    it is fuelid's convention (fuelid.tuning.frequency.robustness): the PLC's forward-Euler PI
+    it is fuelid's convention (fuelid.tuning._frequency.robustness): the PLC's forward-Euler PI
     C(z) = Kc·(1 + (h/Ti)·z⁻¹/(1 − z⁻¹)) on the plant's exact zero-order-hold equivalent
     G_d(z) (:func:`zoh_response`), evaluated on z = e^(jωh) for ω up to the Nyquist frequency
     π/h: the sensitivity at the sampling instants (the ripple between samples is not counted,
@@ -426,7 +426,7 @@ def closed_loop_stable(
 ) -> bool:
     """Nyquist test: 1 + L turns by +π/2 from ω → 0+ to the top of the grid (stable plant, PI).
 
-    The same winding criterion as fuelid.tuning.frequency.margins.
+    The same winding criterion as fuelid.tuning._frequency.margins.
     """
     w = _grid(loop, Ti, h, n)
     one_plus = 1.0 + loop_response(loop, u, Kc, Ti, h, w)

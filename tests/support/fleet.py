@@ -18,12 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from fuelid.online.settings import Online
-from fuelid.online.window import WindowAnalyser, window_priors
-from fuelid.plc.virtual.engine import VirtualPLC
-from fuelid.store import OnlineHistory
-from fuelid.store.base import Event, Quality, Sample
-from fuelid.store.sqlite import SQLiteStore
+from fuelid.online import Online, WindowAnalyser, window_priors
+from fuelid.plc.virtual import VirtualPLC
+from fuelid.store import Event, OnlineHistory, Quality, Sample, SQLiteStore
 
 T0 = 1_767_225_600.0
 """2026-01-01 00:00:00 UTC [s]: the first sample's plant time unless told otherwise."""

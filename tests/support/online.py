@@ -9,11 +9,10 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
-from fuelid.online.settings import ServiceSite
-from fuelid.plc.recorder import site_identity
-from fuelid.plc.virtual.runner import VirtualPlcThread
-from fuelid.store import OnlineHistory, open_store
-from fuelid.store.sqlite import SQLiteStore
+from fuelid.online import ServiceSite
+from fuelid.plc import site_identity
+from fuelid.plc.virtual import VirtualPlcThread
+from fuelid.store import OnlineHistory, SQLiteStore, open_store
 
 
 def online_site(

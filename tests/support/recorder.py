@@ -1,6 +1,6 @@
 """The recorder tests' site files, logs and readers (replayed CSV logs into SQLite stores).
 
-Shared by tests/integration/test_recorder.py and test_recorder_guards.py.
+Shared by tests/integration/plc/test_recorder.py and test_recorder_guards.py.
 """
 
 from __future__ import annotations
@@ -12,9 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from fuelid.plc import Recorder, RecorderStats, site_identity
 from fuelid.plc.adapters import PlcSource, open_source
-from fuelid.plc.record_status import RecorderStats
-from fuelid.plc.recorder import Recorder, site_identity
 from fuelid.plc.site import SiteConfig
 from fuelid.store import SampleWriter, SQLiteStore
 

@@ -1,6 +1,6 @@
 """Windows of the virtual PLC's engine for the online window's tests (no Modbus, no store).
 
-The engine (:class:`fuelid.plc.virtual.engine.VirtualPLC`) is advanced in chunks shorter than
+The engine (:class:`fuelid.plc.virtual._engine.VirtualPLC`) is advanced in chunks shorter than
 its ring, and its ring records (seq, command, flow, setpoint) become the samples the recorder
 would store, all of quality OK; the fuel temperature and the mode are read once per chunk (they
 change slowly or not at all). Units: time [s UTC], u [V], y and setpoint [L/min], [°C].
@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from fuelid.plc.virtual.engine import VirtualPLC
-from fuelid.store.base import Quality, SampleArrays
+from fuelid.plc.virtual import VirtualPLC
+from fuelid.store import Quality, SampleArrays
 
 T0 = 1.8e9
 """An epoch for the sample times [s UTC]."""

@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from fuelid.cli import main
-from fuelid.plant.config import load_plant_config
+from fuelid.plant import load_plant_config
 
 LEAK = "pump.leakage_Lpm_per_MPa"
 TRUE_LEAK = 9.8

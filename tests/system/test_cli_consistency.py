@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
-from threadpoolctl import threadpool_info, threadpool_limits
 from typer.testing import CliRunner
 
 from fuelid.cli import app, main
@@ -74,9 +71,8 @@ def test_an_existing_figure_is_refused_without_force_before_any_work(
     capsys: pytest.CaptureFixture[str],
 ):
     import fuelid.workflow
-    import fuelid.workflow.identification
 
-    monkeypatch.setattr(fuelid.workflow.identification, "identify_log", _refuse_work)
+    monkeypatch.setattr(fuelid.workflow, "identify_log", _refuse_work)
     monkeypatch.setattr(fuelid.workflow, "tune_model", _refuse_work)
     fig = tmp_path / "fig.png"
     fig.write_bytes(b"an earlier figure")
@@ -161,36 +157,6 @@ def test_identify_prints_the_gain_unit_the_columns_name(log_csv: Path, tmp_path:
 
 
 # f. BLAS on one thread for the whole of every command
-
-
-def test_guarded_commands_run_with_blas_on_one_thread(monkeypatch: pytest.MonkeyPatch):
-    import fuelid.blas
-    from fuelid.cli._common import guarded
-
-    entered: list[str] = []
-    real = fuelid.blas.single_threaded_blas
-
-    @contextmanager
-    def spy() -> Iterator[None]:
-        entered.append("in")
-        with real():
-            yield
-        entered.append("out")
-
-    monkeypatch.setattr(fuelid.blas, "single_threaded_blas", spy)
-
-    @guarded
-    def command() -> list[int]:
-        assert entered == ["in"]
-        return [info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"]
-
-    # the suite runs BLAS on one thread (tests/conftest.py): lift that here, so the one thread
-    # seen inside the command is the command's own doing
-    with threadpool_limits(limits=2, user_api="blas"):
-        threads = command()
-    assert entered == ["in", "out"]
-    assert threads
-    assert set(threads) == {1}
 
 
 @pytest.mark.parametrize("command", ["report", "simulate"])

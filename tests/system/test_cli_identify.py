@@ -313,7 +313,7 @@ def test_messy_logs_are_refused_with_the_place(tmp_path: Path, damage: str, expe
         extra = frame.iloc[[700]].copy()
         extra["q_Lpm"] = 99.0
         frame = pd.concat([frame, extra])
-    else:  # an empty or NaN cell is a missing sample (tests/unit/test_newcomer_bad_values.py)
+    else:  # an empty or NaN cell is a missing sample (tests/unit/cli/test_newcomer_bad_values.py)
         frame.loc[1234, "q_Lpm"] = "E#07"
     path = tmp_path / "messy.csv"
     frame.to_csv(path, index=False)

@@ -20,7 +20,7 @@ import pytest
 pytest.importorskip("fastapi")
 
 from fuelid.cli import main
-from fuelid.store.schema import SCHEMA_VERSION
+from fuelid.store import SCHEMA_VERSION
 from support.browser import Process
 
 # xdist: one worker runs the dashboard's modules, which share one store made once

@@ -14,37 +14,16 @@ import sys
 from pathlib import Path
 
 import pytest
-import typer
 
-from fuelid import cli
 from fuelid.cli import main
-from fuelid.cli.dashboard_users import user_app
 
 TOKEN = re.compile(r"^[A-Za-z0-9_-]{43}$")
 
 
-def _has_user_command() -> bool:
-    group = typer.main.get_command(cli.app)
-    dashboard = getattr(group, "commands", {}).get("dashboard")
-    return "user" in getattr(dashboard, "commands", {})
-
-
 @pytest.fixture(autouse=True)
-def mounted(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    """``fuelid dashboard user``; mounted here for the test until the dashboard command is wired.
-
-    Runs in a fresh folder, where the default users file lands.
-    """
+def in_a_fresh_folder(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """``fuelid dashboard user`` runs in a fresh folder, where the default users file lands."""
     monkeypatch.chdir(tmp_path)
-    if _has_user_command():
-        return
-    dashboard = typer.Typer(no_args_is_help=True, rich_markup_mode=None)
-    dashboard.add_typer(user_app, name="user")
-    monkeypatch.setattr(
-        cli.app,
-        "registered_groups",
-        [*cli.app.registered_groups, typer.models.TyperInfo(dashboard, name="dashboard")],
-    )
 
 
 def tokens_in(text: str) -> list[str]:
@@ -96,7 +75,7 @@ def test_list_shows_names_and_roles_but_no_token(
 def test_rotate_prints_a_new_token_and_the_old_one_stops_working(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    from fuelid.dashboard.users import UsersFile
+    from fuelid.dashboard import UsersFile
 
     assert main(["dashboard", "user", "add", "ana", "--role", "viewer"]) == 0
     (old,) = tokens_in(capsys.readouterr().out)

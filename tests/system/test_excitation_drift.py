@@ -29,13 +29,10 @@ import pytest
 
 pytest.importorskip("pymodbus")
 
-from fuelid.online.service import OnlineService
-from fuelid.plant import load_plant_config
-from fuelid.plant.config import PlantConfig
-from fuelid.plant.linear import linearise
-from fuelid.plc.virtual.runner import VirtualPlcThread
-from fuelid.tuning.frequency import robustness
-from fuelid.tuning.rules import PISettings
+from fuelid.online import OnlineService
+from fuelid.plant import PlantConfig, linearise, load_plant_config
+from fuelid.plc.virtual import VirtualPlcThread
+from fuelid.tuning import PISettings, robustness
 from fuelid.units import DEFAULT_FUEL_TEMPERATURE_C, celsius_to_kelvin
 from support.online import online_site
 
@@ -67,7 +64,7 @@ def _plant_path() -> str:
 
 def _bigger_pump(config: PlantConfig) -> PlantConfig:
     """A pump with 20 % more displacement: K at 40 L/min about 1.2 × today's."""
-    from fuelid.plant.parameters import get_parameter, with_parameters
+    from fuelid.plant import get_parameter, with_parameters
 
     name = "pump.displacement_cm3_per_rev"
     return with_parameters(config, {name: 1.2 * get_parameter(config, name)})

@@ -25,7 +25,7 @@ import pytest
 
 pytest.importorskip("pymodbus")
 
-from fuelid.plc.virtual.runner import VirtualPlcThread
+from fuelid.plc.virtual import VirtualPlcThread
 from support.waiting import wait_until
 
 SPEED = 5.0

@@ -75,18 +75,6 @@ def test_the_covariance_choice_is_refused_where_it_does_not_apply(tmp_path: Path
         assert "the covariance choice is oe's" in result.stderr
 
 
-def test_equal_lags_get_no_separate_intervals():
-    # corr(T, T2) beyond ±0.999: only the response is determined, the intervals would lie
-    from fuelid.identify.procedure import _lags_not_separated
-
-    names = ("K", "T", "T2", "offset")
-    cov = np.diag([1.0, 4.0, 4.0, 1.0])
-    assert _lags_not_separated(names, cov) is None
-    cov[1, 2] = cov[2, 1] = -3.999
-    assert _lags_not_separated(names, cov) == pytest.approx(-0.99975)
-    assert _lags_not_separated(("K", "T"), np.eye(2)) is None
-
-
 def test_pems_report_tests_its_prediction_errors(tmp_path: Path):
     from fuelid.io.logs import load_log
     from fuelid.plant import load_plant_config

@@ -25,8 +25,7 @@ from typer.testing import CliRunner
 
 from fuelid.cli import app
 from fuelid.plant import linearise, load_plant_config
-from fuelid.tuning.frequency import robustness
-from fuelid.tuning.rules import PISettings
+from fuelid.tuning import PISettings, robustness
 from fuelid.units import celsius_to_kelvin
 
 runner = CliRunner()

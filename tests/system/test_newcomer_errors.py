@@ -17,7 +17,7 @@ import pytest
 from typer.testing import CliRunner
 
 from fuelid.cli import app
-from fuelid.plant.config import load_plant_config
+from fuelid.plant import load_plant_config
 
 runner = CliRunner()
 

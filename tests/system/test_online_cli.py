@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from fuelid.cli import main
-from fuelid.plc.recorder import site_identity
+from fuelid.plc import site_identity
 from fuelid.plc.site import load_site
 from fuelid.store import Event, OnlineHistory, Sample, SQLiteStore
 from support.waiting import wait_until
@@ -53,7 +53,7 @@ def assert_one_line_error(code: int, err: str, *needles: str) -> None:
 
 def site_file(tmp_path: Path, filename: str = "site.toml", *, extra: str = "", **kw: Any) -> Path:
     """A site file of a virtual PLC (no server needed to read a store)."""
-    from fuelid.plc.virtual.runner import site_text
+    from fuelid.plc.virtual import site_text
 
     path = tmp_path / filename
     text = site_text(
@@ -248,7 +248,7 @@ def test_status_json_has_the_documented_keys_and_values(
 
 def _beating(db: Path, **settings: Any) -> None:
     """Write a service record as a running service would (a beat now)."""
-    from fuelid.tuning.block import BlockForm, block_units
+    from fuelid.tuning import BlockForm, block_units
 
     wall = time.time()
     controller = {"form": "ideal", "gain_units": "engineering", "integral_unit": "s"}
@@ -306,7 +306,7 @@ def test_status_gives_the_plcs_gains_as_the_recorder_kept_them(
     populated: tuple[Path, Path], capsys: pytest.CaptureFixture[str]
 ) -> None:
     """``plc_gains``: null until the recorder keeps a reading, then in both units, timed."""
-    from fuelid.plc.gain_reading import PLC_GAINS_KEY
+    from fuelid.plc import PLC_GAINS_KEY
     from fuelid.store import SampleWriter
 
     site, db = populated
@@ -565,7 +565,7 @@ def test_a_window_shorter_than_the_settling_time_is_refused(
 ) -> None:
     from importlib import resources
 
-    from fuelid.plant.linear import LinearPlant
+    from fuelid.plant import LinearPlant
 
     plant = str(resources.files("fuelid.data").joinpath("reference_plant.toml"))
     site = site_file(
@@ -627,7 +627,7 @@ def test_a_bad_site_key_for_the_virtual_run_names_the_users_file(
 
 
 def test_log_records_are_json_objects() -> None:
-    from fuelid.online.logs import log_record
+    from fuelid.online import log_record
     from fuelid.profiles.runs import demo_run_profile, demo_temperature
 
     record = log_record('event kind=revert detail="IAE 4.16 s > 1.5 × 2.58 s (by service)"')
@@ -757,7 +757,7 @@ def test_the_link_state_follows_the_service_the_newest_link_event_and_the_wall_c
 ) -> None:
     # issue "one clock": the state is judged on the wall clock and the service record, never
     # on the samples' plant time (here T0, years away from the wall clock)
-    from fuelid.online.liveness import link_json
+    from fuelid.online import link_json
 
     site = site_file(tmp_path)
     identity = site_identity(load_site(site))

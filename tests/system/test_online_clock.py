@@ -19,8 +19,7 @@ from typing import Any
 import pytest
 
 from fuelid.cli import main
-from fuelid.online.liveness import SERVICE_BEAT_S, SERVICE_STALE_S
-from fuelid.online.report import status_json
+from fuelid.online import SERVICE_BEAT_S, SERVICE_STALE_S, status_json
 from fuelid.store import OnlineHistory, SQLiteStore
 from support.waiting import wait_until
 

@@ -43,14 +43,11 @@ import pytest
 
 pytest.importorskip("pymodbus")
 
-from fuelid.online.service import OnlineService
-from fuelid.online.settings import ServiceSite
-from fuelid.plant import load_plant_config
-from fuelid.plant.config import PlantConfig
-from fuelid.plant.linear import linearise
-from fuelid.plc.virtual.runner import VirtualPlcThread
+from fuelid.online import OnlineService, ServiceSite
+from fuelid.plant import PlantConfig, linearise, load_plant_config
+from fuelid.plc.virtual import VirtualPlcThread
 from fuelid.profiles.runs import Profile
-from fuelid.store.sqlite import SQLiteStore
+from fuelid.store import SQLiteStore
 from support.online import approve_directly as _approve
 from support.online import online_site as _site
 from support.online import open_history as _open
@@ -155,7 +152,7 @@ def _assert_on_schedule(ends: list[float], every: float) -> None:
 
 def test_the_engine_disturbance_is_ar1_of_the_given_size_and_off_by_default() -> None:
     """σ and correlation time as asked (MAN, so the PI does not act on it); σ = 0: no change."""
-    from fuelid.plc.virtual.engine import VirtualPLC
+    from fuelid.plc.virtual import VirtualPLC
 
     def flows(**kwargs: Any) -> np.ndarray:
         plc = VirtualPLC(command_profile=([0.0, 10.0], [3.0, 3.0]), seed=2, **kwargs)
@@ -278,10 +275,9 @@ def _tuned_gains(config: PlantConfig, settings: str) -> tuple[float, float]:
     Identifies one window of the engine alone (no server: ~1 s) with the service's analyser
     and its plant-file priors, so the PLC starts at gains the service has no reason to change.
     """
-    from fuelid.online.settings import Online
-    from fuelid.online.window import WindowAnalyser, window_priors
-    from fuelid.plc.virtual.engine import VirtualPLC
-    from fuelid.store.base import SampleArrays
+    from fuelid.online import Online, WindowAnalyser, window_priors
+    from fuelid.plc.virtual import VirtualPLC
+    from fuelid.store import SampleArrays
     from fuelid.tuning import tune
 
     online = Online.model_validate(tomllib.loads(settings))

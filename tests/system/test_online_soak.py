@@ -1,6 +1,6 @@
 """The online service's soak against the virtual PLC (issue 15, "Tests and evidence", first item).
 
-The service (:class:`~fuelid.online.service.OnlineService`, in this process) records the virtual
+The service (:class:`~fuelid.online._service.OnlineService`, in this process) records the virtual
 PLC over Modbus TCP on 127.0.0.1 into an SQLite store, identifies a 10 min window every 5 min of
 data time, tracks K(T), proposes PI gains and writes them itself (``write_back = "auto"`` with
 the site's ``[controller]``). The plant runs the wind-tunnel day of ``fuelid online --virtual``
@@ -18,7 +18,7 @@ What is measured, after the run, from the store, the history and the engine (the
   K ± 1.96·se covers the K the output-error fit gets from the window's noise-free reading
   (the samples read back from the store with y replaced by the engine's clean reading of the
   same sequence number, fitted with the settings of a
-  :class:`~fuelid.online.window.WindowAnalyser` set up as the service's, warm-started from the
+  :class:`~fuelid.online._window.WindowAnalyser` set up as the service's, warm-started from the
   model the service warm-started from, i.e. the previous accepted window's; output error also
   for the few windows the service fitted with pem: on a noise-free reading pem's noise model
   has only the model-structure error to describe and its K wanders, 9 % once). The best
@@ -32,7 +32,7 @@ What is measured, after the run, from the store, the history and the engine (the
   noise realisation) as noise;
 - **no excitation**: every window lying wholly inside a hold (from 30 s after the step into
   it) is rejected with a reason starting "no excitation";
-- **K(T) held out**: a :class:`~fuelid.online.tracking.KTracker` fitted on the accepted windows
+- **K(T) held out**: a :class:`~fuelid.online._tracking.KTracker` fitted on the accepted windows
   except those within ±3 °C of T* (the accepted window temperature nearest the median) predicts
   the ratio K/K_plant at each held-out window's temperature; z = (K/K_plant − r̂)/
   √(se(r̂)² + b·(se_K/K_plant)²), the standard error of a new observation under the tracker's
@@ -106,16 +106,19 @@ import pytest
 
 pytest.importorskip("pymodbus")
 
-from fuelid.online.service import OnlineService, observation_of
-from fuelid.online.settings import ServiceSite
-from fuelid.online.tracking import KTracker, TrackingError
-from fuelid.online.window import WindowAnalyser
-from fuelid.plant.linear import linearise
-from fuelid.plc.virtual.runner import VirtualPlcThread
+from fuelid.online import (
+    KTracker,
+    OnlineService,
+    ServiceSite,
+    TrackingError,
+    WindowAnalyser,
+    observation_of,
+)
+from fuelid.plant import linearise
+from fuelid.plc.virtual import VirtualPlcThread
 from fuelid.profiles.runs import Profile, demo_run_profile, demo_temperature
-from fuelid.store.base import SampleArrays
-from fuelid.tuning.frequency import robustness
-from fuelid.tuning.rules import PISettings
+from fuelid.store import SampleArrays
+from fuelid.tuning import PISettings, robustness
 from fuelid.units import celsius_to_kelvin
 from support.bands import coverage_band, rmse_ratio_band, z_bound
 
@@ -404,9 +407,9 @@ def _clean_K(
     pem's noise model describes the model-structure error alone and its K wanders (a 24 h soak
     gave K_clean 9 % below the service's for one pem window).
     """
-    from fuelid.identify.oe import OutputError
-    from fuelid.online.context import model_of
-    from fuelid.store.base import iodata_from_samples
+    from fuelid.identify import OutputError
+    from fuelid.online import model_of
+    from fuelid.store import iodata_from_samples
 
     analyser = WindowAnalyser(
         service.settings, service.priors, site.sampling.period_s, k_plant=service.k_plant

@@ -23,7 +23,7 @@ from fuelid.model import MODEL_KEYS
 runner = CliRunner()
 
 #: How close the linear model's DC gain must be to the file's K. The reduction defines K as the
-#: exact static gain −C·A⁻¹·B + D of the full linearisation (fuelid.plant.linear), and
+#: exact static gain −C·A⁻¹·B + D of the full linearisation (fuelid.plant._linear), and
 #: ``linear_model`` is the same (A, B, C, D) converted by ss2tf, written and read back exactly
 #: (JSON keeps a float's repr): only rounding separates num[-1]/den[-1] from K, a few ulps times
 #: the conditioning of the pole spread (0.8 … 160 rad/s), 9e-15 relative measured. 1e-10 leaves

@@ -52,7 +52,7 @@ def assert_one_line_error(code: int, err: str, *needles: str) -> None:
 
 
 def start_virtual(ring_size: int | None = None) -> Any:
-    runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
+    runner = pytest.importorskip("fuelid.plc.virtual._runner", reason="no virtual PLC")
     from fuelid.profiles.runs import steps_profile
 
     # MAN steps of ±0.2 V around 3.0 V: the linearisation of `plant info --u 3` holds there
@@ -112,8 +112,8 @@ def test_record_export_identify_gives_the_plants_gain(
 def test_link_drops_on_the_virtual_plc_are_back_filled_from_its_ring(
     virtual: Any, tmp_path: Path, drops: int
 ) -> None:
-    from fuelid.plc.adapters.modbus import ModbusSource
-    from fuelid.plc.record_runner import record_site
+    from fuelid.plc import record_site
+    from fuelid.plc.adapters import ModbusSource
     from fuelid.plc.site import load_site
 
     site = load_site(site_file(tmp_path, virtual))
@@ -207,7 +207,7 @@ def test_a_wrong_device_id_or_register_is_one_line_and_exit_2(
 def test_the_wrong_word_order_is_refused_with_the_hint_and_exit_2(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
+    runner = pytest.importorskip("fuelid.plc.virtual._runner", reason="no virtual PLC")
     with runner.VirtualPlcThread("modbus", speed=1.0, seed=2, word_order="little") as server:
         site = site_file(tmp_path, server)
         site.write_text(site.read_text().replace('word_order = "little"', 'word_order = "big"'))
@@ -334,7 +334,7 @@ def _committed_more(db: Path, seen: int, child: subprocess.Popen[Any]) -> Callab
 def test_kill_9_of_fuelid_record_keeps_what_was_committed_and_restarts_append(
     tmp_path: Path, kills: int
 ) -> None:
-    runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
+    runner = pytest.importorskip("fuelid.plc.virtual._runner", reason="no virtual PLC")
     rng = random.Random(14)
     db = tmp_path / "k.db"
     # real time: the 2048-record ring holds 41 s, more than a restart of `fuelid record` takes
@@ -371,7 +371,7 @@ def test_kill_9_of_fuelid_record_keeps_what_was_committed_and_restarts_append(
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_sigterm_and_sigint_stop_after_a_final_commit(tmp_path: Path, sig: int) -> None:
-    runner = pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
+    runner = pytest.importorskip("fuelid.plc.virtual._runner", reason="no virtual PLC")
     db = tmp_path / "stop.db"
     with runner.VirtualPlcThread("modbus", speed=1.0, seed=3, command_profile="steps") as srv:
         site = site_file(tmp_path, srv)
@@ -459,7 +459,7 @@ def test_plc_server_process_killed_and_restarted_at_speed_is_two_restarts_in_the
     has counted past the last number it saw, as after a long outage. Both are restarts; the new
     runs are stored from their first record, strictly after the old ones in time.
     """
-    pytest.importorskip("fuelid.plc.virtual.runner", reason="no virtual PLC")
+    pytest.importorskip("fuelid.plc.virtual._runner", reason="no virtual PLC")
     from support.modbus import free_port
 
     speed, period = 5.0, 0.02

@@ -15,7 +15,7 @@ each loop records 12-minute runs at 02:00 and 10:00 of the first day, one across
 
 The band, stated before running: for each accepted window z = (K − K_plant(u, T)) / se_K with
 K_plant the plant model's linearised gain at the window's mean command and temperature
-(:func:`fuelid.online.tracking.plant_gain_function` of the loop's own plant). If the standard
+(:func:`fuelid.online._tracking.plant_gain_function` of the loop's own plant). If the standard
 errors were exact and the linearisation exact, |z| ≤ 3 would hold with probability 0.9973;
 the windows' standard errors may be optimistic by up to 1.5× (the nonlinear plant around its
 linearisation, coloured noise estimated by the HAC covariance), under which |z| ≤ 3 still holds
@@ -49,11 +49,10 @@ import psutil
 import tomlkit
 from distributed import Client, LocalCluster
 
-from fuelid.archive.layout import list_loop_days
-from fuelid.fleet.run import reidentify
-from fuelid.fleet.task import TIMING_COLUMNS
-from fuelid.online.tracking import plant_gain_function
-from fuelid.plant.config import plant_config_from_dict, reference_plant_text
+from fuelid.archive import list_loop_days
+from fuelid.fleet import TIMING_COLUMNS, reidentify
+from fuelid.online import plant_gain_function
+from fuelid.plant import plant_config_from_dict, reference_plant_text
 from support.archive_fixture import archive_store
 from support.fleet import T0, simulate_loop
 from support.waiting import wait_until

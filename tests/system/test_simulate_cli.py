@@ -1,4 +1,4 @@
-"""``fuelid simulate`` and the library behind it (:mod:`fuelid.workflow.simulation`).
+"""``fuelid simulate`` and the library behind it (:mod:`fuelid.workflow._simulation`).
 
 The command only parses, calls :func:`simulate_log`, writes the log and prints; the profile
 table is read by :func:`read_profile`. The numbers checked are fixed by the inputs: the times and

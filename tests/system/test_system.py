@@ -22,7 +22,9 @@ from fuelid.fuel import fuel_properties
 from fuelid.plant import (
     EquivalentModel,
     LinearPlant,
+    PlantCoefficients,
     PlantConfig,
+    input_jacobian,
     linearise,
     load_plant_config,
     operating_point,
@@ -30,7 +32,6 @@ from fuelid.plant import (
     plant_jacobian,
     plant_rhs,
 )
-from fuelid.plant.system import PlantCoefficients, input_jacobian
 
 T0 = 273.15
 TEMPS_K = [253.15, 293.15, 323.15]  # −20, 20, 50 °C

@@ -157,10 +157,8 @@ LONG_LINE = {  # the issue's long line: 350 m × 40 mm, 80 cm³/rev, 1.5 s drive
 
 
 def test_a_reduced_model_is_certified_on_its_full_order_model(tmp_path: Path):
-    from fuelid.plant import load_plant_config
-    from fuelid.plant.linear import linearise
-    from fuelid.tuning.frequency import robustness
-    from fuelid.tuning.rules import PISettings
+    from fuelid.plant import linearise, load_plant_config
+    from fuelid.tuning import PISettings, robustness
     from fuelid.units import celsius_to_kelvin
 
     text = Path(REFERENCE_FILE).read_text(encoding="utf-8")

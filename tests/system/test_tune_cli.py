@@ -14,7 +14,7 @@ from fuelid.cli import app, main
 from fuelid.plant import load_plant_config
 from fuelid.tuning.closedloop import flow_at
 from fuelid.units import celsius_to_kelvin
-from fuelid.workflow.assumptions import REFERENCE_PLANT_NOTICE
+from fuelid.workflow import REFERENCE_PLANT_NOTICE
 
 runner = CliRunner()
 CONFIG = load_plant_config()

@@ -16,9 +16,9 @@ import pytest
 from typer.testing import CliRunner
 
 from fuelid.cli import app
-from fuelid.cli._common import emit_json
 from fuelid.errors import FuelidError
-from fuelid.identify.procedure import IdentifyOptions
+from fuelid.identify import IdentifyOptions
+from fuelid.io.jsonsafe import json_ready
 from fuelid.io.logs import load_log
 from fuelid.model import ProcessModel, simulate_model
 from fuelid.plant import load_plant_config
@@ -59,9 +59,8 @@ def _cli(*args: str) -> dict:
 
 
 def _as_printed(payload: dict, capsys: pytest.CaptureFixture[str]) -> dict:
-    capsys.readouterr()
-    emit_json(payload)
-    return json.loads(capsys.readouterr().out)
+    # what the command prints of a payload: json_ready, then one JSON object
+    return json.loads(json.dumps(json_ready(payload), allow_nan=False))
 
 
 def test_tune_model_is_what_fuelid_tune_prints(capsys: pytest.CaptureFixture[str]):

@@ -96,8 +96,8 @@ def test_every_conversion_has_a_doctest() -> None:
 
 SOURCE = Path(fuelid.__file__).parent
 CONVERTING_MODULES = [
-    *(f"plant/{name}.py" for name in ("vfd", "motor", "shaft", "pump", "pipeline", "nozzle")),
-    *(f"plant/{name}.py" for name in ("flowmeter", "system", "config", "_section")),
+    *(f"plant/_{name}.py" for name in ("vfd", "motor", "shaft", "pump", "pipeline", "nozzle")),
+    *(f"plant/_{name}.py" for name in ("flowmeter", "system", "config", "section")),
     "plant/simulate.py",
     "tuning/closedloop.py",
 ]

@@ -5,7 +5,7 @@ named free; :mod:`fuelid.greybox` fits it to one or several logs at their fuel t
 
 The public API
 --------------
-The package itself exports no names (``__all__`` is empty), so that importing
+The names in ``__all__``, each loaded on first use, so that importing
 :mod:`~fuelid.calibration.plant_model` does not load the log readers. Promised at
 :mod:`fuelid.calibration.calibrate`: :func:`~fuelid.calibration.calibrate.calibrate`,
 :class:`~fuelid.calibration.calibrate.CalibrationResult`,
@@ -14,4 +14,26 @@ The package itself exports no names (``__all__`` is empty), so that importing
 :mod:`fuelid.calibration.plant_model`: :class:`~fuelid.calibration.plant_model.PlantGreyBox`.
 """
 
-__all__: list[str] = []
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from fuelid.calibration._logs import calibration_log
+
+_HOMES = {
+    "calibration_log": "fuelid.calibration._logs",
+}
+"""Exported name → the private module that defines it, imported on first use (PEP 562)."""
+
+__all__ = [
+    "calibration_log",
+]
+
+
+def __getattr__(name: str) -> Any:
+    # imported on use: importing the package loads none of its modules
+    if name in _HOMES:
+        return getattr(importlib.import_module(_HOMES[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -8,7 +8,7 @@ left out of the fit and predicted by simulating the whole log from its start: th
 A request the data cannot answer (a combination of parameters they leave undetermined, or two
 whose sensitivities correlate above 0.999) is refused with the names and what data would help.
 A fit that leaves residuals far above the logs' own noise is returned flagged as a misfit
-(:mod:`~fuelid.calibration.fit_quality`). The logs are read by :mod:`~fuelid.calibration.logs`
+(:mod:`~fuelid.calibration._fit_quality`). The logs are read by :mod:`~fuelid.calibration._logs`
 (their names are re-exported here).
 """
 
@@ -28,8 +28,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid import __version__
-from fuelid.calibration.fit_quality import LogFit, judge_fit, misfit_message
-from fuelid.calibration.logs import (
+from fuelid.calibration._fit_quality import LogFit, judge_fit, misfit_message
+from fuelid.calibration._logs import (
     TEMPERATURE_SPREAD_K,
     CalibrationLog,
     calibration_log,
@@ -37,18 +37,18 @@ from fuelid.calibration.logs import (
 )
 from fuelid.calibration.plant_model import NOT_CALIBRATABLE, PlantGreyBox
 from fuelid.errors import ConfigError, DataError, FuelidError
-from fuelid.greybox import GreyBoxEstimator, Record
-from fuelid.greybox.identifiability import NotIdentifiableError, correlation_warning
+from fuelid.greybox import GreyBoxEstimator, NotIdentifiableError, Record, correlation_warning
 from fuelid.io.plantfile import update_plant_toml
 from fuelid.model import nrmse_fit_columns
-from fuelid.plant.config import (
+from fuelid.plant import (
     PlantConfig,
     load_plant_config,
+    parameter_names,
     plant_config_from_dict,
+    plant_parameters,
     reference_plant_text,
+    with_parameters,
 )
-from fuelid.plant.parameter_specs import parameter_names
-from fuelid.plant.parameters import plant_parameters, with_parameters
 
 __all__ = [
     "TEMPERATURE_SPREAD_K",
@@ -108,7 +108,7 @@ class CalibrationResult:
     profile_ci95: dict[str, tuple[float, float]] = field(default_factory=dict)
     """Profile-likelihood 95 % intervals, where asked for or where the Gaussian one is shaky."""
     fit_quality: list[LogFit] = field(default_factory=list)
-    """Each log's flow residuals against its own noise (:mod:`~fuelid.calibration.fit_quality`)."""
+    """Each log's flow residuals against its own noise (:mod:`~fuelid.calibration._fit_quality`)."""
     misfit: str = ""
     """Why the model does not fit the data and its parameters are not to be trusted ("": it
     fits every log within the noise). Also the first of ``warnings``."""
@@ -369,7 +369,7 @@ def calibrate(
     -------
     CalibrationResult
         With ``misfit`` (and ``trusted`` False) when a log's flow residuals exceed
-        :data:`~fuelid.calibration.fit_quality.MISFIT_NOISE_RATIO` times its own noise: the
+        :data:`~fuelid.calibration._fit_quality.MISFIT_NOISE_RATIO` times its own noise: the
         model does not fit the data and the estimates are not to be trusted (the finding is
         also the first warning, so it travels into the plant file's ``[calibration]`` table).
 

@@ -1,7 +1,7 @@
 """The fuel plant's mechanism model as a gray-box model of its physical parameters.
 
 The state, the right-hand side and its state Jacobian are the plant's own
-(:func:`~fuelid.plant.system.plant_rhs`, :func:`~fuelid.plant.system.plant_jacobian`, analytic);
+(:func:`~fuelid.plant._system.plant_rhs`, :func:`~fuelid.plant._system.plant_jacobian`, analytic);
 ∂f/∂θ for a physical parameter θ (a dotted plant-file name such as ``pump.leakage_Lpm_per_MPa``)
 is a forward difference of the right-hand side between the plant's coefficients at θ and at
 θ·(1 + 10⁻⁶), both built once per record and parameter vector, so it costs one extra right-hand
@@ -21,21 +21,21 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from fuelid.greybox.parameters import ParameterSpec
-from fuelid.greybox.system import Record
-from fuelid.plant.config import PlantConfig
-from fuelid.plant.parameters import plant_parameters, with_parameters
-from fuelid.plant.simulate import ATOL
-from fuelid.plant.system import (
+from fuelid.greybox import ParameterSpec, Record
+from fuelid.plant import (
     N_STATES,
     STATE_NAMES,
     PlantCoefficients,
+    PlantConfig,
     measured_state,
     plant_coefficients,
     plant_jacobian,
+    plant_parameters,
     plant_rhs,
     steady_state,
+    with_parameters,
 )
+from fuelid.plant.simulate import ATOL
 from fuelid.units import LPM_PER_M3S, PA_PER_MPA
 
 FloatArray = NDArray[np.float64]

@@ -2,16 +2,16 @@
 
 One database shared by all loops holds their windows, KPIs, models, proposals, writes, events,
 requests and liveness, keyed by each site store's UUID and row id; the site's SQLite store stays
-the durable buffer. :mod:`~fuelid.central.schema` is the schema and its versioned migrations
-(monthly partitions, retention); :mod:`~fuelid.central.connect` the connection from a libpq
-URL; :mod:`~fuelid.central.outbox` the site's change log; :mod:`~fuelid.central.sender` the sync
+the durable buffer. :mod:`~fuelid.central._schema` is the schema and its versioned migrations
+(monthly partitions, retention); :mod:`~fuelid.central._connect` the connection from a libpq
+URL; :mod:`~fuelid.central._outbox` the site's change log; :mod:`~fuelid.central._sender` the sync
 engine (:class:`Sender`: COPY into staging, upsert, exactly once);
-:mod:`~fuelid.central.requests` the actions taken centrally, which each site fetches and carries
-out itself; :mod:`~fuelid.central.status` the fleet's rows. A reader of the central store (the
+:mod:`~fuelid.central._requests` the actions taken centrally, which each site fetches and carries
+out itself; :mod:`~fuelid.central._status` the fleet's rows. A reader of the central store (the
 dashboard) holds one :class:`CentralDB` and reads a loop through :class:`CentralHistory` and
 :class:`CentralStoreView`, the central implementations of :class:`fuelid.store.LoopHistory`
 and :class:`fuelid.store.LoopStore`. The service's side is
-:mod:`fuelid.online.central_link`; the reference: docs/reference/central.md.
+:mod:`fuelid.online._central_link`; the reference: docs/reference/central.md.
 
 psycopg (the ``fleet`` extra) is imported only when a connection is made.
 
@@ -22,6 +22,7 @@ The names in ``__all__``, at ``fuelid.central`` itself.
 
 from __future__ import annotations
 
+from fuelid.central._connect import CentralError, connect, redact
 from fuelid.central._db import CentralDB
 from fuelid.central._history import (
     LIVENESS_KEYS,
@@ -31,14 +32,34 @@ from fuelid.central._history import (
     liveness_row,
     shown_store,
 )
-from fuelid.central.connect import CentralError, connect
-from fuelid.central.outbox import enable_outbox, sync_status
-from fuelid.central.requests import file_central_request
-from fuelid.central.schema import SCHEMA_VERSION, check_schema, drop_old_partitions, migrate
-from fuelid.central.sender import Sender, SyncResult
-from fuelid.central.status import fleet_status
+from fuelid.central._outbox import enable_outbox, open_store_file, sync_status
+from fuelid.central._reidentified import register_run, send_loop_day
+from fuelid.central._requests import (
+    DEFAULT_EXPIRY_S,
+    EXCITE_START_EXPIRY_S,
+    KINDS,
+    central_requests,
+    claim,
+    fetch_waiting,
+    file_central_request,
+    finish_central_request,
+    mark_fetched,
+    newest_store,
+)
+from fuelid.central._schema import (
+    SCHEMA_VERSION,
+    check_schema,
+    drop_old_partitions,
+    migrate,
+    schema_version,
+)
+from fuelid.central._sender import Sender, SyncResult
+from fuelid.central._status import fleet_status
 
 __all__ = [
+    "DEFAULT_EXPIRY_S",
+    "EXCITE_START_EXPIRY_S",
+    "KINDS",
     "LIVENESS_KEYS",
     "SCHEMA_VERSION",
     "CentralDB",
@@ -48,14 +69,25 @@ __all__ = [
     "Sender",
     "SyncResult",
     "central_loop_ids",
+    "central_requests",
     "check_schema",
+    "claim",
     "connect",
     "drop_old_partitions",
     "enable_outbox",
+    "fetch_waiting",
     "file_central_request",
+    "finish_central_request",
     "fleet_status",
     "liveness_row",
+    "mark_fetched",
     "migrate",
+    "newest_store",
+    "open_store_file",
+    "redact",
+    "register_run",
+    "schema_version",
+    "send_loop_day",
     "shown_store",
     "sync_status",
 ]

@@ -5,8 +5,8 @@ proposals, writes, the site's requests, counts, the ``online_state`` values) and
 :class:`CentralStoreView` :class:`~fuelid.store.LoopStore` (site name, tag-map hash, the newest
 sample's clocks, link events, events), both over the rows of one store of the central database,
 decoded into the dictionaries the site's own history gives (the same keys, the JSON columns
-parsed, the column lists and decoders of :mod:`fuelid.store.online_rows`): the report functions
-(:mod:`fuelid.online.report`) then build the same objects from either source.
+parsed, the column lists and decoders of :mod:`fuelid.store._online_rows`): the report functions
+(:mod:`fuelid.online._report`) then build the same objects from either source.
 
 Which store of a loop is shown (:func:`shown_store`), its liveness row (:func:`liveness_row`)
 and the loops there are (:func:`central_loop_ids`) are read here too: every statement a central
@@ -19,9 +19,9 @@ import math
 from collections.abc import Iterable, Sequence
 from typing import Any
 
+from fuelid.central._connect import CentralError
 from fuelid.central._db import CentralDB
-from fuelid.central.connect import CentralError
-from fuelid.store.online_rows import (
+from fuelid.store import (
     PROPOSAL_COLUMNS,
     REQUEST_COLUMNS,
     SERVICE_KEY,

@@ -11,16 +11,16 @@ import sys
 import typer
 
 from fuelid import __version__
-from fuelid.cli import central, dashboard, online, plant, site
-from fuelid.cli.archive import archive_command
-from fuelid.cli.calibrate import calibrate_command
-from fuelid.cli.greybox import greybox_command
-from fuelid.cli.identify import identify_command
-from fuelid.cli.record import export_command, record_command, store_app
-from fuelid.cli.reidentify import reidentify_command
-from fuelid.cli.report import report_command
-from fuelid.cli.simulate import simulate_command
-from fuelid.cli.tune import tune_command
+from fuelid.cli import _central, _dashboard, _plant, _site, online
+from fuelid.cli._archive import archive_command
+from fuelid.cli._calibrate import calibrate_command
+from fuelid.cli._greybox import greybox_command
+from fuelid.cli._identify import identify_command
+from fuelid.cli._record import export_command, record_command, store_app
+from fuelid.cli._reidentify import reidentify_command
+from fuelid.cli._report import report_command
+from fuelid.cli._simulate import simulate_command
+from fuelid.cli._tune import tune_command
 from fuelid.errors import FuelidError, plain_reason
 
 app = typer.Typer(
@@ -31,8 +31,8 @@ app = typer.Typer(
     add_completion=False,
     rich_markup_mode=None,  # help texts carry units in brackets: [s], [V] are not markup
 )
-app.add_typer(plant.app, name="plant")
-app.add_typer(site.app, name="site")
+app.add_typer(_plant.app, name="plant")
+app.add_typer(_site.app, name="site")
 app.command("simulate")(simulate_command)
 app.command("identify")(identify_command)
 app.command("calibrate")(calibrate_command)
@@ -44,8 +44,8 @@ app.command("export")(export_command)
 app.command("archive")(archive_command)
 app.add_typer(store_app, name="store")
 app.add_typer(online.app, name="online")
-app.add_typer(dashboard.app, name="dashboard")
-app.add_typer(central.app, name="central")
+app.add_typer(_dashboard.app, name="dashboard")
+app.add_typer(_central.app, name="central")
 app.command("reidentify")(reidentify_command)
 
 

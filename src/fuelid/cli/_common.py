@@ -190,7 +190,7 @@ def site_facts(path: Path | None) -> SiteFacts | None:
     """Read ``--site``: the control period it sets and its controller block (None: no file)."""
     if path is None:
         return None
-    from fuelid.online.settings import load_service_site
+    from fuelid.online import load_service_site
 
     site = load_service_site(path)
     sampling = site.sampling
@@ -521,7 +521,7 @@ def read_log(
     and the time column is used (so that gaps are seen). An empty ``fuel_temperature_col`` reads
     no fuel temperature. ``bad_values`` is ``--bad-values``' comma-separated text.
     """
-    from fuelid.io.bad_values import parse_bad_values
+    from fuelid.io import parse_bad_values
     from fuelid.io.logs import load_log
     from fuelid.io.tables import parse_scale
 
@@ -634,7 +634,7 @@ def progress_display(
     Shown only when stderr is a terminal and not ``quiet`` (``--quiet``), once a stage has run
     a moment (:mod:`fuelid.cli._progress`), and gone when the block ends, so stdout (the JSON
     of ``--json``) and a redirected stderr see nothing of it. Yields the workflow's
-    ``progress`` callback (:mod:`fuelid.workflow.progress`), which also takes a stage's steps.
+    ``progress`` callback (:mod:`fuelid.workflow._progress`), which also takes a stage's steps.
     ``console`` (a rich console, for tests) and ``show_after`` [s] replace the defaults.
     """
     from rich.console import Console

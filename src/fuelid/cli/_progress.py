@@ -2,7 +2,7 @@
 
 :func:`~fuelid.cli._common.progress_display` yields a :class:`StageBar` while a command works.
 The library calls it with each stage's name as the stage starts (reading the log, gridding,
-fitting, testing the residuals, the report's tuning stages: :mod:`fuelid.workflow.progress`)
+fitting, testing the residuals, the report's tuning stages: :mod:`fuelid.workflow._progress`)
 and, for a stage whose steps it can count, ``step(done, total, what)``: the line then carries a
 bar with ``done/total`` and what runs now; a stage without a count shows a spinner. Either way
 the line shows the time the stage has taken, and appears only once the stage has run for
@@ -62,7 +62,7 @@ class _Delayed(Progress):
 
 
 class StageBar:
-    """The callback of :mod:`fuelid.workflow.progress`: one line for the stage running now."""
+    """The callback of :mod:`fuelid.workflow._progress`: one line for the stage running now."""
 
     def __init__(self, display: Progress) -> None:
         self._display = display

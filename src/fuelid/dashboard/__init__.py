@@ -2,7 +2,7 @@
 
 A process of its own (never the recorder's): it opens each loop's store, or the central store of
 many loops (``--central``), reads every loop through one interface,
-:class:`~fuelid.dashboard.source.LoopReader`, and serves the fleet, loop and window pages, the
+:class:`~fuelid.dashboard._source.LoopReader`, and serves the fleet, loop and window pages, the
 JSON API under ``/api/`` and one live stream per page. It writes nothing into a store but the
 requests people file (approve, reject, revert), which the running service carries out; on a
 central loop they are central requests, relayed to the site's service at its next sync.
@@ -11,46 +11,57 @@ The public API: :class:`LoopReader` and :class:`SQLiteLoop` (one loop's data),
 :class:`CentralLoop` (one loop of the central store) and :class:`CentralLoops` (its loops,
 polled), :class:`Loops` (the loops by id, a folder watched), :func:`create_app` (the FastAPI
 application) and :func:`serve` (uvicorn on a socket), and the modules
-:mod:`fuelid.dashboard.fleet` (chips and the severity order), :mod:`fuelid.dashboard.trend`,
-:mod:`fuelid.dashboard.security` and :mod:`fuelid.dashboard.users`. ``create_app`` and
+:mod:`fuelid.dashboard._fleet` (chips and the severity order), :mod:`fuelid.dashboard._trend`,
+:mod:`fuelid.dashboard._security` and :mod:`fuelid.dashboard._users`. ``create_app`` and
 ``serve`` need the ``dashboard`` extra (FastAPI, uvicorn); the rest only fuelid's own
 dependencies and tsdownsample for the trend.
 """
 
 from __future__ import annotations
 
-from typing import Any
+import importlib
+from typing import TYPE_CHECKING, Any
 
-from fuelid.dashboard.registry import Loops
-from fuelid.dashboard.source import LoopReader, SQLiteLoop
+from fuelid.dashboard._registry import Loops
+from fuelid.dashboard._source import LoopReader, SQLiteLoop
+
+if TYPE_CHECKING:
+    from fuelid.dashboard._app import create_app
+    from fuelid.dashboard._central_loops import CentralLoops
+    from fuelid.dashboard._central_source import CentralLoop
+    from fuelid.dashboard._security import CSRF_HEADER, Security
+    from fuelid.dashboard._server import Beside, serve
+    from fuelid.dashboard._users import UsersFile
+
+_HOMES = {
+    "Beside": "fuelid.dashboard._server",
+    "CentralLoop": "fuelid.dashboard._central_source",
+    "CentralLoops": "fuelid.dashboard._central_loops",
+    "create_app": "fuelid.dashboard._app",
+    "CSRF_HEADER": "fuelid.dashboard._security",
+    "Security": "fuelid.dashboard._security",
+    "serve": "fuelid.dashboard._server",
+    "UsersFile": "fuelid.dashboard._users",
+}
+"""Names imported on first use: the web parts import FastAPI and uvicorn, the central ones
+psycopg (when they connect), so the readers work without the extras."""
 
 __all__ = [
+    "CSRF_HEADER",
+    "Beside",
     "CentralLoop",
     "CentralLoops",
     "LoopReader",
     "Loops",
     "SQLiteLoop",
+    "Security",
+    "UsersFile",
     "create_app",
     "serve",
 ]
 
 
 def __getattr__(name: str) -> Any:
-    # the web parts import FastAPI: only when asked for, so the readers work without the extra
-    if name == "create_app":
-        from fuelid.dashboard.app import create_app
-
-        return create_app
-    if name == "CentralLoop":  # the central ones import psycopg only when they connect
-        from fuelid.dashboard.central_source import CentralLoop
-
-        return CentralLoop
-    if name == "CentralLoops":
-        from fuelid.dashboard.central_loops import CentralLoops
-
-        return CentralLoops
-    if name == "serve":
-        from fuelid.dashboard.server import serve
-
-        return serve
+    if name in _HOMES:
+        return getattr(importlib.import_module(_HOMES[name]), name)
     raise AttributeError(f"module 'fuelid.dashboard' has no attribute {name!r}")

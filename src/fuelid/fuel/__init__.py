@@ -15,8 +15,8 @@ module holds
   μ = ρ·ν exact;
 * :func:`fuel_properties`, the one-call state of a fuel at one temperature.
 
-The correlations live in :mod:`fuelid.fuel.correlations`, the registry and
-:func:`fuel_properties` in :mod:`fuelid.fuel.registry`; every name is importable from here.
+The correlations live in :mod:`fuelid.fuel._correlations`, the registry and
+:func:`fuel_properties` in :mod:`fuelid.fuel._registry`; every name is importable from here.
 
 Every correlation has a documented validity range and refuses to extrapolate silently: outside it
 raises :class:`~fuelid.errors.OutOfRangeError` unless ``allow_extrapolation=True`` is passed.
@@ -40,7 +40,7 @@ Sources
 * RP-3 specification: GB 6537 (No. 3 jet fuel).
 """
 
-from fuelid.fuel.correlations import (
+from fuelid.fuel._correlations import (
     mu_JP8_table,
     mu_RP3_Andrade,
     nu_JetA_CRC,
@@ -48,7 +48,7 @@ from fuelid.fuel.correlations import (
     rho_JetA,
     rho_TS1,
 )
-from fuelid.fuel.registry import (
+from fuelid.fuel._registry import (
     DEFAULT_FUEL,
     FUELS,
     Correlation,

@@ -2,12 +2,12 @@
 
 The user (or :mod:`fuelid.calibration` for the fuel plant) writes the model; the estimator
 integrates it with its forward sensitivities, fits one or several records at once, and says what
-the data determine (:mod:`fuelid.greybox.identifiability`).
+the data determine (:mod:`fuelid.greybox._identifiability`).
 
-The estimator (:mod:`fuelid.greybox.estimator`) is built from :mod:`~fuelid.greybox.fitting`
+The estimator (:mod:`fuelid.greybox._estimator`) is built from :mod:`~fuelid.greybox._fitting`
 (single shooting, the least-squares driver, the covariance),
-:mod:`~fuelid.greybox.multiple_shooting` (the segmented start) and
-:mod:`~fuelid.greybox.profile` (identifiability at the estimate, profile likelihood). Its fit
+:mod:`~fuelid.greybox._multiple_shooting` (the segmented start) and
+:mod:`~fuelid.greybox._profile` (identifiability at the estimate, profile likelihood). Its fit
 percentages are :func:`fuelid.model.nrmse_fit_columns`.
 
 The public API
@@ -19,18 +19,26 @@ model file (``fuelid greybox --model``): :func:`~fuelid.greybox.modelfile.load_m
 model saved as JSON is read by :mod:`fuelid.io.fitted_model` instead.
 """
 
-from fuelid.greybox.estimator import GreyBoxEstimator
-from fuelid.greybox.fitting import ConvergenceError
-from fuelid.greybox.identifiability import (
+from fuelid.greybox._estimator import VALIDATION_HEAD_SHARE, GreyBoxEstimator
+from fuelid.greybox._fitting import ConvergenceError, noise_level
+from fuelid.greybox._identifiability import (
     IdentifiabilityReport,
     NotIdentifiableError,
+    correlation_warning,
+    describe_identifiability,
     identifiability,
 )
-from fuelid.greybox.odemodel import OdeModel
-from fuelid.greybox.parameters import ParameterSpec, parameter_specs
-from fuelid.greybox.system import GreyBoxModel, OdeSystem, Record
+from fuelid.greybox._multiple_shooting import SUSPECT_NOISE_RATIO
+from fuelid.greybox._odemodel import OdeModel
+from fuelid.greybox._parameters import ParameterSpec, parameter_specs
+from fuelid.greybox._profile import LINEARITY_LIMIT
+from fuelid.greybox._solver_choice import check_request
+from fuelid.greybox._system import GreyBoxModel, OdeSystem, Record
 
 __all__ = [
+    "LINEARITY_LIMIT",
+    "SUSPECT_NOISE_RATIO",
+    "VALIDATION_HEAD_SHARE",
     "ConvergenceError",
     "GreyBoxEstimator",
     "GreyBoxModel",
@@ -40,6 +48,10 @@ __all__ = [
     "OdeSystem",
     "ParameterSpec",
     "Record",
+    "check_request",
+    "correlation_warning",
+    "describe_identifiability",
     "identifiability",
+    "noise_level",
     "parameter_specs",
 ]

@@ -30,7 +30,7 @@ Every error while loading the file becomes a one-line :class:`~fuelid.errors.Con
 naming the file and the line in it. An exception raised later inside ``f``, ``h`` or ``x0``
 (during a fit or a simulation) names the line too: a mistake (NameError, KeyError, ...) is a
 :class:`ModelFunctionError` (a ConfigError) that stops the fit; an arithmetic failure is a
-:class:`ModelArithmeticError` (a :class:`~fuelid.greybox.sensitivity.SimulationError`): the
+:class:`ModelArithmeticError` (a :class:`~fuelid.greybox._sensitivity.SimulationError`): the
 model cannot be evaluated at that trial point.
 """
 
@@ -50,9 +50,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.errors import ConfigError, FuelidError
-from fuelid.greybox.odemodel import OdeModel
-from fuelid.greybox.parameters import ParameterSpec
-from fuelid.greybox.solvers import CHOICES, SimulationError, check_max_step, check_substeps
+from fuelid.greybox._odemodel import OdeModel
+from fuelid.greybox._parameters import ParameterSpec
+from fuelid.greybox._solvers import CHOICES, SimulationError, check_max_step, check_substeps
 
 __all__ = [
     "ModelArithmeticError",
@@ -180,7 +180,7 @@ class ModelFile:
 
 
 def load_model_file(path: str | Path) -> OdeModel:
-    """Execute a model file and build its :class:`~fuelid.greybox.odemodel.OdeModel`.
+    """Execute a model file and build its :class:`~fuelid.greybox._odemodel.OdeModel`.
 
     Parameters
     ----------
@@ -332,7 +332,7 @@ def _located(function: Callable[..., Any], file: Path, shown: str, role: str) ->
 
     An arithmetic failure (ZeroDivisionError, ``math.sqrt`` of a negative: ArithmeticError or
     ValueError) becomes a :class:`ModelArithmeticError`, a
-    :class:`~fuelid.greybox.sensitivity.SimulationError`: the estimator treats the trial point
+    :class:`~fuelid.greybox._sensitivity.SimulationError`: the estimator treats the trial point
     as one where the model cannot be simulated (and reports it, line included, if that is the
     start). Any other exception (a NameError, KeyError, TypeError: a mistake in the file) is a
     :class:`ModelFunctionError` and stops the fit. Both are ValueErrors, so the estimator's

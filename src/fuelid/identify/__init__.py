@@ -1,29 +1,29 @@
 """Identification of the equivalent model from logged input/output data.
 
-- :mod:`~fuelid.identify.step_ls`: the source article's method (truncated step-response least
+- :mod:`~fuelid.identify._step_ls`: the source article's method (truncated step-response least
   squares, then K and T by Newton iteration with the flowmeter's T_f and τ known);
-- :mod:`~fuelid.identify.oe`: output-error (maximum-likelihood under white noise) fit of the
+- :mod:`~fuelid.identify._oe`: output-error (maximum-likelihood under white noise) fit of the
   continuous-time gray-box model on the raw samples, with exact ZOH discretisation and a
   fractional dead time;
-- :mod:`~fuelid.identify.diagnostics`: residual whiteness, input–residual correlation, feedback,
+- :mod:`~fuelid.identify._diagnostics`: residual whiteness, input–residual correlation, feedback,
   steady-state errors, sample-time advice;
-- :mod:`~fuelid.identify.nonlinearity`: the static gain per command band (does K change with
+- :mod:`~fuelid.identify._nonlinearity`: the static gain per command band (does K change with
   the operating point?);
-- :mod:`~fuelid.identify.segments`: how a log with gaps is fitted (one model, an initial state
+- :mod:`~fuelid.identify._segments`: how a log with gaps is fitted (one model, an initial state
   per segment);
-- :mod:`~fuelid.identify.procedure`: what ``fuelid identify`` runs (:func:`identify`); its
-  settings and result in :mod:`~fuelid.identify.result`, its warnings in
-  :mod:`~fuelid.identify.residual_warnings`;
+- :mod:`~fuelid.identify._procedure`: what ``fuelid identify`` runs (:func:`identify`); its
+  settings and result in :mod:`~fuelid.identify._result`, its warnings in
+  :mod:`~fuelid.identify._residual_warnings`;
 - :mod:`~fuelid.identify.preprocess`: the data made ready for a fit: a time window
   (:func:`~fuelid.identify.preprocess.select`), zero-phase low-pass filtering
   (:func:`~fuelid.identify.preprocess.lowpass`), decimation with its anti-alias filter
   (:func:`~fuelid.identify.preprocess.decimate`), records joined as segments
   (:func:`~fuelid.identify.preprocess.join_segments`). ``fuelid.preprocess`` before 0.2.0.
 
-Their building blocks: :mod:`~fuelid.identify.variable_projection` (the output-error model as a
+Their building blocks: :mod:`~fuelid.identify._variable_projection` (the output-error model as a
 regression for given time constants, shared by oe, pem and noise),
-:mod:`~fuelid.identify.prediction_errors` (pem's criterion and noise model) and
-:mod:`~fuelid.identify.step_shape_fit` (step-ls's second stage).
+:mod:`~fuelid.identify._prediction_errors` (pem's criterion and noise model) and
+:mod:`~fuelid.identify._step_shape_fit` (step-ls's second stage).
 
 The methods, their assumptions and references: docs/explanation/identification.md.
 
@@ -62,9 +62,9 @@ scikit-learn's conventions, through the common base ``fuelid.identify._base.Esti
 
 A record with gaps (``IOData.segment_starts``) is fitted as toolboxes merge experiments: one
 model for all segments, each segment simulated on its own with its own initial state, nothing
-simulated, filtered or correlated across a gap (:mod:`~fuelid.identify.segments`).
+simulated, filtered or correlated across a gap (:mod:`~fuelid.identify._segments`).
 
-Methods are named in one registry, :data:`~fuelid.identify.procedure.METHODS`.
+Methods are named in one registry, :data:`~fuelid.identify._procedure.METHODS`.
 
 The public API
 --------------
@@ -76,48 +76,101 @@ at :mod:`fuelid.identify.preprocess` (its old path ``fuelid.preprocess`` was rem
 
 from __future__ import annotations
 
-from fuelid.identify.diagnostics import (
+from fuelid.identify._causality import lead_check
+from fuelid.identify._covariance import MAX_AR_ORDER, ResidualAR, residual_ar
+from fuelid.identify._diagnostics import (
     CorrelationTest,
     StepError,
     feedback_suspected,
     input_residual_correlation,
     residual_whiteness,
     sample_time_advice,
+    settled_stretches,
     settled_whiteness,
     steady_state_errors,
 )
-from fuelid.identify.nonlinearity import GainBand, NonlinearityCheck, gain_bands
-from fuelid.identify.oe import OutputError
-from fuelid.identify.pem import PredictionError
-from fuelid.identify.procedure import identify
-from fuelid.identify.result import METHODS, IdentificationResult, IdentifyOptions, interval95
-from fuelid.identify.segments import MIN_SEGMENT_SAMPLES, drop_short_segments
-from fuelid.identify.step_ls import StepResponseLS
-from fuelid.identify.step_shape_fit import step_shape
-from fuelid.identify.variable_projection import cramer_rao_bound
+from fuelid.identify._long_record import long_record_note
+from fuelid.identify._misfit import MisfitBound
+from fuelid.identify._noise import (
+    NOISE_ORDERS,
+    SELECTION_WARMUP,
+    NoiseOrder,
+    NoiseShape,
+    filter_segments,
+    hannan_rissanen,
+    information_criterion,
+    noise_coefficients,
+    used_samples,
+)
+from fuelid.identify._nonlinearity import GainBand, NonlinearityCheck, gain_bands
+from fuelid.identify._oe import OutputError
+from fuelid.identify._pem import PredictionError
+from fuelid.identify._procedure import identify
+from fuelid.identify._progress import (
+    DIAGNOSING,
+    FITTING,
+    StageCallback,
+    StepDisplay,
+    advance,
+    steps_only,
+)
+from fuelid.identify._result import (
+    METHODS,
+    POSITIVE_PARAMETERS,
+    IdentificationResult,
+    IdentifyOptions,
+    interval95,
+)
+from fuelid.identify._segments import MIN_SEGMENT_SAMPLES, drop_short_segments
+from fuelid.identify._step_ls import StepResponseLS
+from fuelid.identify._step_shape_fit import step_shape
+from fuelid.identify._variable_projection import cramer_rao_bound
 
 __all__ = [
+    "DIAGNOSING",
+    "FITTING",
+    "MAX_AR_ORDER",
     "METHODS",
     "MIN_SEGMENT_SAMPLES",
+    "NOISE_ORDERS",
+    "POSITIVE_PARAMETERS",
+    "SELECTION_WARMUP",
     "CorrelationTest",
     "GainBand",
     "IdentificationResult",
     "IdentifyOptions",
+    "MisfitBound",
+    "NoiseOrder",
+    "NoiseShape",
     "NonlinearityCheck",
     "OutputError",
     "PredictionError",
+    "ResidualAR",
+    "StageCallback",
+    "StepDisplay",
     "StepError",
     "StepResponseLS",
+    "advance",
     "cramer_rao_bound",
     "drop_short_segments",
     "feedback_suspected",
+    "filter_segments",
     "gain_bands",
+    "hannan_rissanen",
     "identify",
+    "information_criterion",
     "input_residual_correlation",
     "interval95",
+    "lead_check",
+    "long_record_note",
+    "noise_coefficients",
+    "residual_ar",
     "residual_whiteness",
     "sample_time_advice",
+    "settled_stretches",
     "settled_whiteness",
     "steady_state_errors",
     "step_shape",
+    "steps_only",
+    "used_samples",
 ]

@@ -1,8 +1,8 @@
 """What the estimators fitted as the output-error regression share: oe's and pem's process part.
 
-:class:`~fuelid.identify.oe.OutputError` and :class:`~fuelid.identify.pem.PredictionError` fit
+:class:`~fuelid.identify._oe.OutputError` and :class:`~fuelid.identify._pem.PredictionError` fit
 the same process model, ŷ = b + K·s(T, T2, θ) + Σ c_i·p_i^k
-(:mod:`fuelid.identify.variable_projection`), pem with a noise model beside it. So the fitted
+(:mod:`fuelid.identify._variable_projection`), pem with a noise model beside it. So the fitted
 model, its free run, its python-control form and the parameters' correlation are the same code
 for both, here; what differs (the search, the covariance, pem's prediction) stays in each.
 """
@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fuelid.identify._base import Estimator, Initial
-from fuelid.identify.segments import offset_and_free_responses
-from fuelid.identify.variable_projection import Structure, continue_fitted, solve_linear
+from fuelid.identify._segments import offset_and_free_responses
+from fuelid.identify._variable_projection import Structure, continue_fitted, solve_linear
 from fuelid.io.timeseries import FloatArray, IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel

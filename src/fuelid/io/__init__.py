@@ -16,8 +16,9 @@ uniform grid. Import the submodule you need (pandas is loaded by the readers and
 
 The public API
 --------------
-The package itself exports no names (``__all__`` is empty), so that importing it loads no pandas.
-Promised at their submodules: :class:`~fuelid.io.timeseries.TimeSeries` and
+The names in ``__all__`` (the helpers other packages share: the log's grid and bad-value
+markers, clock formatting), each loaded on first use, so that importing the package loads no
+pandas. Promised at their submodules: :class:`~fuelid.io.timeseries.TimeSeries` and
 :class:`~fuelid.io.timeseries.IOData` (:mod:`fuelid.io.timeseries`),
 :func:`~fuelid.io.logs.load_log` (:mod:`fuelid.io.logs`), :func:`~fuelid.io.tables.read_table`
 (:mod:`fuelid.io.tables`), :func:`~fuelid.io.files.write_table` (:mod:`fuelid.io.files`),
@@ -28,4 +29,34 @@ before 0.2.0, removed in 0.3.0), :func:`~fuelid.io.jsonsafe.json_ready`
 (:mod:`fuelid.io.plantfile`).
 """
 
-__all__: list[str] = []
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from fuelid.io._bad_values import parse_bad_values
+    from fuelid.io._clock import format_age, format_time
+    from fuelid.io._log_grid import FILL_GAPS_MAX_PERIODS
+
+_HOMES = {
+    "FILL_GAPS_MAX_PERIODS": "fuelid.io._log_grid",
+    "format_age": "fuelid.io._clock",
+    "format_time": "fuelid.io._clock",
+    "parse_bad_values": "fuelid.io._bad_values",
+}
+"""Exported name → the private module that defines it, imported on first use (PEP 562)."""
+
+__all__ = [
+    "FILL_GAPS_MAX_PERIODS",
+    "format_age",
+    "format_time",
+    "parse_bad_values",
+]
+
+
+def __getattr__(name: str) -> Any:
+    # imported on use: importing the package loads none of its modules
+    if name in _HOMES:
+        return getattr(importlib.import_module(_HOMES[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

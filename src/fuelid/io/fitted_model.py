@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuelid.errors import DataError, FuelidError
-from fuelid.io.model_units import in_default_units
+from fuelid.io._model_units import in_default_units
 from fuelid.lti import check_control_period
 from fuelid.model import MODEL_KEYS, ProcessModel, check_gain_identified, model_covariance
 
@@ -198,7 +198,7 @@ def load_fitted_model(path: str | Path) -> FittedModel:
         physically impossible (non-positive T, negative delay); if its operating point is not
         finite numbers, or its ``linear_model`` is not a proper transfer function of finite
         coefficients with a finite delay ≥ 0 (the message names the key); if its ``units`` map
-        gives a unit fuelid neither writes nor converts (:mod:`fuelid.io.model_units`) for a
+        gives a unit fuelid neither writes nor converts (:mod:`fuelid.io._model_units`) for a
         number it reads. A malformed
         ``stderr`` or ``ci95`` entry is read as None, not refused; a recorded control period
         (``options.control_period`` with ``control_period_given``) that is not 0 … 10 s is.
@@ -445,7 +445,7 @@ def _interval(value: Any) -> tuple[float, float] | None:
     """(low, high) from a JSON [low, high]; None when absent or malformed.
 
     fuelid writes ±inf as null (:func:`fuelid.io.jsonsafe.json_ready`), and an interval's bound
-    is never NaN when its standard error is finite (:func:`fuelid.identify.result.interval95`):
+    is never NaN when its standard error is finite (:func:`fuelid.identify._result.interval95`):
     a null low is -inf, a null high +inf. Large finite bounds are kept as they are.
     """
     if not isinstance(value, list) or len(value) != 2:

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from fuelid.errors import DataError
-from fuelid.io.bad_values import DEFAULT_BAD_VALUES
-from fuelid.io.log_columns import (
+from fuelid.io._bad_values import DEFAULT_BAD_VALUES
+from fuelid.io._log_columns import (
     MIN_SAMPLES,
     check_count,
     check_varies,
@@ -28,7 +28,7 @@ from fuelid.io.log_columns import (
     require_columns,
     time_column,
 )
-from fuelid.io.log_grid import (
+from fuelid.io._log_grid import (
     FILL_GAPS_MAX_PERIODS,
     MAX_SAMPLE_TIME,
     ResampleMode,
@@ -36,7 +36,7 @@ from fuelid.io.log_grid import (
     regularise,
     sort_and_deduplicate,
 )
-from fuelid.io.log_time import StampFormat, check_timezone
+from fuelid.io._log_time import StampFormat, check_timezone
 from fuelid.io.tables import (
     HeaderSearch,
     Scale,
@@ -166,7 +166,7 @@ def load_log(
         marked bad (``bad_values``) is then bridged too instead of splitting the log.
     bad_values : sequence of str
         Site-specific texts a historian writes for a bad sample, besides the defaults
-        (:data:`~fuelid.io.bad_values.DEFAULT_BAD_VALUES`: ``#N/A``, ``Bad Input``, ``Bad``,
+        (:data:`~fuelid.io._bad_values.DEFAULT_BAD_VALUES`: ``#N/A``, ``Bad Input``, ``Bad``,
         ``I/O Timeout``, ``Comm Fail``, ``Shutdown``, ``NaN`` and empty cells; case and
         surrounding spaces ignored). A signal cell (u, y, fuel temperature) holding one is a
         missing sample: its row is taken out and the log has a gap there (segments, as for any

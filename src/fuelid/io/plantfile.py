@@ -5,7 +5,7 @@ user's: its comments, key order, blank lines and quoting must survive, so it is 
 tomlkit (a style-preserving TOML parser) rather than re-serialised from the validated config.
 This module takes plain data (dotted names and floats, a mapping for the calibration record) and
 knows nothing of the plant model; validating the result is the caller's business
-(:func:`fuelid.plant.config.plant_config_from_dict` on ``tomllib.loads(text)``).
+(:func:`fuelid.plant._config.plant_config_from_dict` on ``tomllib.loads(text)``).
 """
 
 from __future__ import annotations

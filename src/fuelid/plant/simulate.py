@@ -37,9 +37,9 @@ from fuelid.io.timeseries import (
     TimeSeries,
 )
 from fuelid.lti import check_control_period
-from fuelid.plant.config import PlantConfig
-from fuelid.plant.flowmeter import measure_flow
-from fuelid.plant.system import (
+from fuelid.plant._config import PlantConfig
+from fuelid.plant._flowmeter import measure_flow
+from fuelid.plant._system import (
     STATE_NAMES,
     PlantCoefficients,
     measured_state,
@@ -312,8 +312,8 @@ def simulate(
 def integrate_held(x0: FloatArray, times: FloatArray, u: float, c: PlantCoefficients) -> FloatArray:
     """Integrate the plant ODE with the command held, from ``x0`` at ``times[0]``.
 
-    LSODA (:func:`scipy.integrate.odeint`) on :func:`~fuelid.plant.system.plant_rhs` with the
-    analytic Jacobian :func:`~fuelid.plant.system.plant_jacobian`, to the tolerances
+    LSODA (:func:`scipy.integrate.odeint`) on :func:`~fuelid.plant._system.plant_rhs` with the
+    analytic Jacobian :func:`~fuelid.plant._system.plant_jacobian`, to the tolerances
     :data:`RTOL` and :data:`ATOL`, at most :data:`MAX_STEPS` steps between output times. This is
     the one place the nonlinear plant is integrated: :func:`simulate` calls it per segment and
     :func:`fuelid.tuning.closedloop.simulate_closed_loop` per control period.
@@ -344,7 +344,7 @@ def integrate_held(x0: FloatArray, times: FloatArray, u: float, c: PlantCoeffici
     From rest at 3 V nothing moves:
 
     >>> from fuelid.plant import load_plant_config
-    >>> from fuelid.plant.system import plant_coefficients, steady_state
+    >>> from fuelid.plant._system import plant_coefficients, steady_state
     >>> c = plant_coefficients(load_plant_config(), 293.15)
     >>> x0 = steady_state(3.0, c).state
     >>> states = integrate_held(x0, np.array([0.0, 0.5, 1.0]), 3.0, c)

@@ -45,9 +45,9 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from fuelid.errors import ConfigError, validation_reason
 from fuelid.lti import check_control_period
-from fuelid.plc.site_addresses import REGISTERS_OF as REGISTERS_OF  # re-exported
-from fuelid.plc.site_addresses import check_address, check_overlaps, check_ring
-from fuelid.plc.site_fleet import Archive, Central
+from fuelid.plc._site_addresses import REGISTERS_OF as REGISTERS_OF  # re-exported
+from fuelid.plc._site_addresses import check_address, check_overlaps, check_ring
+from fuelid.plc._site_fleet import Archive, Central
 
 TagType = Literal["float32", "int16", "uint16", "int32", "uint32", "bool"]
 Protocol = Literal["modbus", "opcua", "s7", "replay"]
@@ -475,7 +475,7 @@ class SiteConfig(_Table):
     ``tags.mode``). With excitation on, the heartbeat runs whatever ``[online] write_back`` says
     (the PLC zeroes the signal when it is stale).
 
-    ``[online]`` is the online service's table: :class:`fuelid.online.settings.ServiceSite`
+    ``[online]`` is the online service's table: :class:`fuelid.online._settings.ServiceSite`
     (this class with ``online``) reads and checks it, the write side it needs included; here it
     is passed over, so that the PLC side does not depend on the service's settings.
     """
@@ -572,7 +572,7 @@ SiteT = TypeVar("SiteT", bound=SiteConfig)
 def load_site(path: str | Path) -> SiteConfig:
     """Read and validate a site file (the PLC side: ``[online]`` is passed over).
 
-    The commands read it with :func:`fuelid.online.settings.load_service_site`, which checks
+    The commands read it with :func:`fuelid.online._settings.load_service_site`, which checks
     ``[online]`` too.
 
     Raises

@@ -6,12 +6,12 @@ backend), so they work on a headless machine. matplotlib is imported inside the 
 command that draws nothing never loads it (docs/explanation/architecture.md, "Rules"). Temperatures
 arrive in kelvin and are shown in °C.
 
-- :mod:`~fuelid.plots.identification`: a PLC log, step responses, the model against the data
+- :mod:`~fuelid.plots._identification`: a PLC log, step responses, the model against the data
   and the residual correlation tests;
-- :mod:`~fuelid.plots.tuning`: the loop's Bode plot, the linear closed loop, closed-loop runs on
+- :mod:`~fuelid.plots._tuning`: the loop's Bode plot, the linear closed loop, closed-loop runs on
   the plant, the gain schedule, and the figures of ``fuelid tune --plot``;
-- :mod:`~fuelid.plots.greybox`: a gray-box fit, measured against simulated, with residuals;
-- :mod:`~fuelid.plots.online`: the online service's history.
+- :mod:`~fuelid.plots._greybox`: a gray-box fit, measured against simulated, with residuals;
+- :mod:`~fuelid.plots._online`: the online service's history.
 
 The public API
 --------------
@@ -26,15 +26,15 @@ The old module ``fuelid.plots_greybox`` was removed in 0.3.0: the gray-box figur
 from __future__ import annotations
 
 from fuelid.plots._common import DRIVE_LIMITS, NO_UNIT, FloatArray, save_figure
-from fuelid.plots.greybox import FitPanel, plot_greybox_fit
-from fuelid.plots.identification import (
+from fuelid.plots._greybox import FitPanel, plot_greybox_fit
+from fuelid.plots._identification import (
     plot_correlation_tests,
     plot_identification,
     plot_log,
     plot_step_responses,
 )
-from fuelid.plots.online import PROPOSAL_COLOURS, plot_online_history
-from fuelid.plots.tuning import (
+from fuelid.plots._online import PROPOSAL_COLOURS, plot_online_history
+from fuelid.plots._tuning import (
     plot_bode,
     plot_closed_loop_runs,
     plot_linear_closed_loop,

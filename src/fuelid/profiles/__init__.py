@@ -1,6 +1,6 @@
 """What drives a run over time: the simulator's input profiles and the virtual PLC's run profiles.
 
-- :mod:`~fuelid.profiles.inputs`: the controller output as the PLC holds it (piecewise
+- :mod:`~fuelid.profiles._inputs`: the controller output as the PLC holds it (piecewise
   constant), the input of :func:`fuelid.plant.simulate.simulate` and of the closed loop;
 - :mod:`~fuelid.profiles.runs`: what the virtual PLC's operator does over time (setpoint,
   manual command and fuel-temperature breakpoint tables, linearly interpolated), read from CSV.
@@ -22,7 +22,7 @@ was removed in 0.3.0).
 
 from __future__ import annotations
 
-from fuelid.profiles.inputs import (
+from fuelid.profiles._inputs import (
     InputProfile,
     held_profile,
     random_levels,

@@ -12,7 +12,7 @@ history and of its store: the site's file and the central database (:mod:`fuelid
 both implement them.
 
 Every table, the schema's versions and the migrations that upgrade an older store are in
-:mod:`fuelid.store.schema`.
+:mod:`fuelid.store._schema`.
 
 The public API
 --------------
@@ -21,21 +21,32 @@ The names in ``__all__``, at ``fuelid.store`` itself.
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from fuelid.store._archived import ARCHIVE_COLUMNS, StoreDays
+from fuelid.store._base import SampleStore, iodata_from_samples
 from fuelid.store._loop_history import LoopHistory, LoopStore
-from fuelid.store.base import SampleStore
-from fuelid.store.online import OnlineHistory
-from fuelid.store.online_rows import (
+from fuelid.store._online import REQUEST_KINDS, OnlineHistory
+from fuelid.store._online_rows import (
+    PROPOSAL_COLUMNS,
     PROPOSAL_STATUSES,
     PROPOSAL_TRANSITIONS,
+    REQUEST_COLUMNS,
     SERVICE_KEY,
+    WINDOW_COLUMNS,
+    WRITE_COLUMNS,
     WRITE_KINDS,
     WRITE_STATUSES,
+    history_counts,
+    proposal_row,
+    request_row,
+    window_row,
+    write_row,
 )
-from fuelid.store.records import (
+from fuelid.store._records import (
     EVENT_KINDS,
     Event,
     PruneResult,
@@ -46,17 +57,32 @@ from fuelid.store.records import (
     StoreInfo,
     tag_map_hash,
 )
-from fuelid.store.schema import SCHEMA_VERSION
-from fuelid.store.sqlite import SQLiteStore
-from fuelid.store.writer import SampleWriter
+from fuelid.store._schema import MIGRATIONS, SCHEMA_VERSION, build_at, default_loop_id
+from fuelid.store._schema_v4 import OUTBOX_TABLES
+from fuelid.store._sqlite import SQLiteStore
+from fuelid.store._writer import SampleWriter
+
+if TYPE_CHECKING:
+    from fuelid.store._export import export_log, parse_time
+
+_HOMES = {"export_log": "fuelid.store._export", "parse_time": "fuelid.store._export"}
+"""Names imported on first use: a stretch written as a log needs pandas, the store does not."""
 
 __all__ = [
+    "ARCHIVE_COLUMNS",
     "EVENT_KINDS",
+    "MIGRATIONS",
+    "OUTBOX_TABLES",
+    "PROPOSAL_COLUMNS",
     "PROPOSAL_STATUSES",
     "PROPOSAL_TRANSITIONS",
+    "REQUEST_COLUMNS",
+    "REQUEST_KINDS",
     "SCHEMA_VERSION",
     "SERVICE_KEY",
     "STORES",
+    "WINDOW_COLUMNS",
+    "WRITE_COLUMNS",
     "WRITE_KINDS",
     "WRITE_STATUSES",
     "Event",
@@ -70,10 +96,21 @@ __all__ = [
     "SampleArrays",
     "SampleStore",
     "SampleWriter",
+    "StoreDays",
     "StoreError",
     "StoreInfo",
+    "build_at",
+    "default_loop_id",
+    "export_log",
+    "history_counts",
+    "iodata_from_samples",
     "open_store",
+    "parse_time",
+    "proposal_row",
+    "request_row",
     "tag_map_hash",
+    "window_row",
+    "write_row",
 ]
 
 STORES: dict[str, Callable[..., SampleStore]] = {"sqlite": SQLiteStore}
@@ -111,3 +148,9 @@ def open_store(url: str | Path, **kwargs: Any) -> SampleStore:
         known = ", ".join(f"{name}:///" for name in STORES)
         raise StoreError(f"{text}: unknown store kind {scheme!r}; known: {known}") from None
     return factory(location, **kwargs)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _HOMES:
+        return getattr(importlib.import_module(_HOMES[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,15 +1,15 @@
 """What a reader of one loop reads: its online history and the few facts of its store.
 
-Two places hold a loop's history: the site's store file (:class:`~fuelid.store.online.
-OnlineHistory` and :class:`~fuelid.store.sqlite.SQLiteStore`) and the central database
+Two places hold a loop's history: the site's store file (:class:`~fuelid.store._online.
+OnlineHistory` and :class:`~fuelid.store._sqlite.SQLiteStore`) and the central database
 (:class:`fuelid.central.CentralHistory` and :class:`fuelid.central.CentralStoreView`, the rows
 one site sent). The readers — the reports of ``fuelid online status|history``
-(:mod:`fuelid.online.report`), the dashboard's loop pages — take either through these two
+(:mod:`fuelid.online._report`), the dashboard's loop pages — take either through these two
 protocols, so that mypy checks that both sources offer the same methods with the same shapes.
 Only reads are here: writing the history is the online service's, on the site's file alone.
 
 Times are plant time [s UTC] unless a key says ``wall``; every row is a dict with the keys
-:class:`~fuelid.store.online.OnlineHistory` documents.
+:class:`~fuelid.store._online.OnlineHistory` documents.
 """
 
 from __future__ import annotations

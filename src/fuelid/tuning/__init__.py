@@ -1,21 +1,21 @@
 """PI tuning: rules, robustness margins, closed-loop simulation, fuel-temperature schedules.
 
-- :mod:`~fuelid.tuning.rules`: the tuning rules in a registry (SIMC, improved SIMC, lambda,
+- :mod:`~fuelid.tuning._rules`: the tuning rules in a registry (SIMC, improved SIMC, lambda,
   AMIGO) and the PLC forms of the gains;
-- :mod:`~fuelid.tuning.block`: the PLC's PI block (its form and units: :class:`BlockForm`)
+- :mod:`~fuelid.tuning._block`: the PLC's PI block (its form and units: :class:`BlockForm`)
   and the one conversion of the gains to and from it;
-- :mod:`~fuelid.tuning.limits`: what fuelid tunes, and the guards that refuse the rest;
-- :mod:`~fuelid.tuning.frequency`: loop frequency responses with the dead time exact and the
+- :mod:`~fuelid.tuning._limits`: what fuelid tunes, and the guards that refuse the rest;
+- :mod:`~fuelid.tuning._frequency`: loop frequency responses with the dead time exact and the
   sampled controller included; gain and phase margins, Ms;
-- :mod:`~fuelid.tuning.controller`: the PLC's discrete PI with limits and anti-windup;
-- :mod:`~fuelid.tuning.metrics`: overshoot, settling time, IAE of a step or a load disturbance;
-- :mod:`~fuelid.tuning.linearloop`: the sampled closed loop on the process model (fast, exact);
+- :mod:`~fuelid.tuning._controller`: the PLC's discrete PI with limits and anti-windup;
+- :mod:`~fuelid.tuning._metrics`: overshoot, settling time, IAE of a step or a load disturbance;
+- :mod:`~fuelid.tuning._linearloop`: the sampled closed loop on the process model (fast, exact);
 - :mod:`~fuelid.tuning.closedloop`: the closed loop on the nonlinear plant, the standard runs;
-- :mod:`~fuelid.tuning.result`: one tuning with its evidence and its JSON;
-- :mod:`~fuelid.tuning.cases`: plant models over fuel temperature and flow, one fixed PI over all
+- :mod:`~fuelid.tuning._result`: one tuning with its evidence and its JSON;
+- :mod:`~fuelid.tuning._cases`: plant models over fuel temperature and flow, one fixed PI over all
   of them;
-- :mod:`~fuelid.tuning.schedule`: the gain schedule;
-- :mod:`~fuelid.tuning.sweep`: the uncertainty sweep.
+- :mod:`~fuelid.tuning._schedule`: the gain schedule;
+- :mod:`~fuelid.tuning._sweep`: the uncertainty sweep.
 
 Inside, the fuel temperature is in kelvin (``T_fuel``); °C appears only in JSON and messages.
 The tuning parameter of the rules is the closed-loop time constant (τc or λ, ``closed_loop_time``
@@ -29,19 +29,93 @@ The names in ``__all__``, and :func:`~fuelid.tuning.closedloop.simulate_closed_l
 
 from __future__ import annotations
 
-from fuelid.tuning.block import BlockForm, block_units, from_block, to_block
-from fuelid.tuning.frequency import Robustness, robustness
-from fuelid.tuning.rules import TUNING_RULES, PISettings, list_rules, tune
+from fuelid.tuning._bands import BandCheck, CommandBand, band_check
+from fuelid.tuning._block import BlockForm, block_units, from_block, to_block
+from fuelid.tuning._cases import (
+    DEFAULT_T_RANGE,
+    Anchor,
+    CaseCache,
+    FixedPIEvaluation,
+    evaluate_fixed,
+    plant_cases,
+)
+from fuelid.tuning._controller import DiscretePI
+from fuelid.tuning._frequency import (
+    Robustness,
+    RobustPeak,
+    StateSpacePlant,
+    TransferFunctionPlant,
+    frequency_grid,
+    loop_function,
+    robust_peak,
+    robustness,
+)
+from fuelid.tuning._limits import check_sweep_size, check_tunable
+from fuelid.tuning._linearloop import (
+    LinearResponse,
+    full_order_closed_loop,
+    input_sensitivity,
+    linear_closed_loop,
+    misfit_overshoot,
+    step_duration,
+)
+from fuelid.tuning._result import UNITS, TuningResult, evaluate_tuning
+from fuelid.tuning._rules import (
+    TUNING_RULES,
+    PISettings,
+    ReducedModel,
+    half_rule,
+    list_rules,
+    simc,
+    tune,
+)
+from fuelid.tuning._schedule import GainSchedule, band_edges, gain_schedule
+from fuelid.tuning._sweep import SweepResult, uncertainty_sweep
 
 __all__ = [
+    "DEFAULT_T_RANGE",
     "TUNING_RULES",
+    "UNITS",
+    "Anchor",
+    "BandCheck",
     "BlockForm",
+    "CaseCache",
+    "CommandBand",
+    "DiscretePI",
+    "FixedPIEvaluation",
+    "GainSchedule",
+    "LinearResponse",
     "PISettings",
+    "ReducedModel",
+    "RobustPeak",
     "Robustness",
+    "StateSpacePlant",
+    "SweepResult",
+    "TransferFunctionPlant",
+    "TuningResult",
+    "band_check",
+    "band_edges",
     "block_units",
+    "check_sweep_size",
+    "check_tunable",
+    "evaluate_fixed",
+    "evaluate_tuning",
+    "frequency_grid",
     "from_block",
+    "full_order_closed_loop",
+    "gain_schedule",
+    "half_rule",
+    "input_sensitivity",
+    "linear_closed_loop",
     "list_rules",
+    "loop_function",
+    "misfit_overshoot",
+    "plant_cases",
+    "robust_peak",
     "robustness",
+    "simc",
+    "step_duration",
     "to_block",
     "tune",
+    "uncertainty_sweep",
 ]

@@ -12,7 +12,7 @@ absorbs the change of the proportional term so the output does not jump.
 output grid, the limits and anti-windup active, setpoint steps and load disturbances (a step at
 the plant input, in V: a drive offset, pump wear). :func:`standard_runs` is the test
 ``fuelid tune --simulate`` and ``fuelid report`` show. The fast linear loop on the process model
-lives in :mod:`fuelid.tuning.linearloop` and the step metrics in :mod:`fuelid.tuning.metrics`;
+lives in :mod:`fuelid.tuning._linearloop` and the step metrics in :mod:`fuelid.tuning._metrics`;
 both are re-exported here. Fuel temperatures are in kelvin (``T_fuel``), flows in L/min, commands
 in V (docs/explanation/tuning.md, section 6).
 """
@@ -29,31 +29,31 @@ import scipy.optimize
 from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError
-from fuelid.plant.config import PlantConfig
-from fuelid.plant.flowmeter import measure_flow
-from fuelid.plant.simulate import integrate_held
-from fuelid.plant.system import (
+from fuelid.plant import (
+    PlantConfig,
+    measure_flow,
     measured_state,
     operating_point,
     plant_coefficients,
     steady_state,
 )
+from fuelid.plant.simulate import integrate_held
 from fuelid.profiles import InputProfile
-from fuelid.tuning.controller import DiscretePI
-from fuelid.tuning.linearloop import (
+from fuelid.tuning._controller import DiscretePI
+from fuelid.tuning._linearloop import (
     CONTINUOUS_PERIOD,
     LinearResponse,
     closed_loop_poles,
     linear_closed_loop,
     linear_period,
 )
-from fuelid.tuning.metrics import (
+from fuelid.tuning._metrics import (
     SETTLING_BAND,
     StepMetrics,
     disturbance_metrics,
     setpoint_step_metrics,
 )
-from fuelid.tuning.rules import PISettings
+from fuelid.tuning._rules import PISettings
 from fuelid.units import LPM_PER_M3S, kelvin_to_celsius
 
 if TYPE_CHECKING:

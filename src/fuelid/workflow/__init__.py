@@ -4,19 +4,19 @@ What the command line, the demo and (next) the online service run, with plain ar
 result objects whose ``to_json()`` is the documented JSON (docs/reference/json.md); nothing here
 prints, draws or writes files. Fuel temperatures are in kelvin throughout (``T_fuel``, ``T_range``).
 
-- :mod:`~fuelid.workflow.identification`: :func:`identify_log` (``fuelid identify``);
-- :mod:`~fuelid.workflow.tune`: :class:`TuneRequest`, :func:`tune_model` (``fuelid tune``) and
+- :mod:`~fuelid.workflow._identification`: :func:`identify_log` (``fuelid identify``);
+- :mod:`~fuelid.workflow._tune`: :class:`TuneRequest`, :func:`tune_model` (``fuelid tune``) and
   :func:`schedule_gains` (``fuelid tune --schedule``);
-- :mod:`~fuelid.workflow.analysis`: :class:`AnalysisSettings`, :func:`analyse_log`
+- :mod:`~fuelid.workflow._analysis`: :class:`AnalysisSettings`, :func:`analyse_log`
   (``fuelid report``);
-- :mod:`~fuelid.workflow.assumptions`: what every number rests on: :class:`PlantSource` (a
+- :mod:`~fuelid.workflow._assumptions`: what every number rests on: :class:`PlantSource` (a
   user's plant file or the built-in reference plant), :class:`OperatingPoint`, the plant file's
   priors (:func:`plant_priors`, at :data:`T_REF` unless told) and the signal check
   :func:`check_signals`;
-- :mod:`~fuelid.workflow.plant_info`: :func:`plant_info` (``fuelid plant info``);
-- :mod:`~fuelid.workflow.simulation`: :class:`SimulationRequest`, :func:`simulate_log`
+- :mod:`~fuelid.workflow._plant_info`: :func:`plant_info` (``fuelid plant info``);
+- :mod:`~fuelid.workflow._simulation`: :class:`SimulationRequest`, :func:`simulate_log`
   (``fuelid simulate``) and the profile-file reader :func:`read_profile`.
-- :mod:`~fuelid.workflow.greybox_fit`: a user's ODE model file fitted to logs (``fuelid
+- :mod:`~fuelid.workflow._greybox_fit`: a user's ODE model file fitted to logs (``fuelid
   greybox``): the model with its fixed and free parameters, the logs as records, the validation,
   the warnings and the JSON object.
 
@@ -36,52 +36,92 @@ from typing import TYPE_CHECKING, Any
 # and `fuelid tune` does not load the log reader: see docs/explanation/architecture.md, lazy
 # imports.
 _EXPORTS = {
+    "analyse_log": "analysis",
     "AnalysisSettings": "analysis",
+    "check_over_temperature": "tune",
+    "check_signals": "assumptions",
+    "control_period_from": "trust",
+    "data_columns": "greybox_fit",
+    "fit_greybox": "greybox_fit",
+    "fit_warnings": "greybox_fit",
+    "gain_unit": "assumptions",
+    "greybox_estimator": "greybox_fit",
+    "greybox_model": "greybox_fit",
+    "greybox_result": "greybox_fit",
+    "GreyBoxFit": "greybox_fit",
+    "identify_log": "identification",
+    "IDENTIFY_STAGES": "progress",
+    "identify_step_ls": "identification",
     "IDENTIFY_UNITS": "identification",
     "IdentifyOutcome": "identification",
+    "LEADING_RESPONSE": "trust",
     "LogAnalysis": "analysis",
     "METHODS": "analysis",
+    "model_file_fields": "tune",
+    "operating_command": "tune",
     "OperatingPoint": "assumptions",
+    "overridden": "trust",
+    "plant_info": "plant_info",
     "PLANT_INFO_UNITS": "plant_info",
-    "PlantSource": "assumptions",
-    "REFERENCE_PLANT_NOTICE": "assumptions",
+    "plant_knowledge": "assumptions",
+    "plant_priors": "assumptions",
     "PlantInfo": "plant_info",
+    "PlantSource": "assumptions",
     "ProfileTable": "simulation",
-    "SIMULATION_UNITS": "simulation",
+    "read_profile": "simulation",
+    "read_record": "greybox_fit",
+    "REFERENCE_PLANT_NOTICE": "assumptions",
+    "schedule_gains": "tune",
     "ScheduleOutcome": "tune",
+    "simulate_log": "simulation",
+    "simulation_inputs": "simulation",
+    "SIMULATION_UNITS": "simulation",
     "SimulationInputs": "simulation",
     "SimulationOutcome": "simulation",
     "SimulationRequest": "simulation",
     "T_REF": "assumptions",
+    "tune_model": "tune",
+    "tune_notices": "tune",
     "TuneOutcome": "tune",
     "TuneRequest": "tune",
-    "analyse_log": "analysis",
-    "check_over_temperature": "tune",
-    "check_signals": "assumptions",
-    "identify_log": "identification",
-    "operating_command": "tune",
-    "plant_info": "plant_info",
-    "plant_priors": "assumptions",
-    "read_profile": "simulation",
-    "schedule_gains": "tune",
-    "simulate_log": "simulation",
-    "simulation_inputs": "simulation",
-    "tune_model": "tune",
+    "undetermined": "trust",
+    "undetermined_refusal": "trust",
+    "undetermined_refusal_line": "trust",
+    "validation_head_end": "greybox_fit",
 }
 
 if TYPE_CHECKING:
-    from fuelid.workflow.analysis import METHODS, AnalysisSettings, LogAnalysis, analyse_log
-    from fuelid.workflow.assumptions import (
+    from fuelid.workflow._analysis import METHODS, AnalysisSettings, LogAnalysis, analyse_log
+    from fuelid.workflow._assumptions import (
         REFERENCE_PLANT_NOTICE,
         T_REF,
         OperatingPoint,
         PlantSource,
         check_signals,
+        gain_unit,
+        plant_knowledge,
         plant_priors,
     )
-    from fuelid.workflow.identification import IDENTIFY_UNITS, IdentifyOutcome, identify_log
-    from fuelid.workflow.plant_info import PLANT_INFO_UNITS, PlantInfo, plant_info
-    from fuelid.workflow.simulation import (
+    from fuelid.workflow._greybox_fit import (
+        GreyBoxFit,
+        data_columns,
+        fit_greybox,
+        fit_warnings,
+        greybox_estimator,
+        greybox_model,
+        greybox_result,
+        read_record,
+        validation_head_end,
+    )
+    from fuelid.workflow._identification import (
+        IDENTIFY_UNITS,
+        IdentifyOutcome,
+        identify_log,
+        identify_step_ls,
+    )
+    from fuelid.workflow._plant_info import PLANT_INFO_UNITS, PlantInfo, plant_info
+    from fuelid.workflow._progress import IDENTIFY_STAGES
+    from fuelid.workflow._simulation import (
         SIMULATION_UNITS,
         ProfileTable,
         SimulationInputs,
@@ -91,24 +131,37 @@ if TYPE_CHECKING:
         simulate_log,
         simulation_inputs,
     )
-    from fuelid.workflow.tune import (
+    from fuelid.workflow._trust import (
+        LEADING_RESPONSE,
+        control_period_from,
+        overridden,
+        undetermined,
+        undetermined_refusal,
+        undetermined_refusal_line,
+    )
+    from fuelid.workflow._tune import (
         ScheduleOutcome,
         TuneOutcome,
         TuneRequest,
         check_over_temperature,
+        model_file_fields,
         operating_command,
         schedule_gains,
         tune_model,
+        tune_notices,
     )
 
 __all__ = [
+    "IDENTIFY_STAGES",
     "IDENTIFY_UNITS",
+    "LEADING_RESPONSE",
     "METHODS",
     "PLANT_INFO_UNITS",
     "REFERENCE_PLANT_NOTICE",
     "SIMULATION_UNITS",
     "T_REF",
     "AnalysisSettings",
+    "GreyBoxFit",
     "IdentifyOutcome",
     "LogAnalysis",
     "OperatingPoint",
@@ -124,15 +177,33 @@ __all__ = [
     "analyse_log",
     "check_over_temperature",
     "check_signals",
+    "control_period_from",
+    "data_columns",
+    "fit_greybox",
+    "fit_warnings",
+    "gain_unit",
+    "greybox_estimator",
+    "greybox_model",
+    "greybox_result",
     "identify_log",
+    "identify_step_ls",
+    "model_file_fields",
     "operating_command",
+    "overridden",
     "plant_info",
+    "plant_knowledge",
     "plant_priors",
     "read_profile",
+    "read_record",
     "schedule_gains",
     "simulate_log",
     "simulation_inputs",
     "tune_model",
+    "tune_notices",
+    "undetermined",
+    "undetermined_refusal",
+    "undetermined_refusal_line",
+    "validation_head_end",
 ]
 
 
@@ -140,6 +211,6 @@ def __getattr__(name: str) -> Any:
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'fuelid.workflow' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"fuelid.workflow.{module}"), name)
+    value = getattr(importlib.import_module(f"fuelid.workflow._{module}"), name)
     globals()[name] = value
     return value

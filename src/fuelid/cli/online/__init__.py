@@ -14,10 +14,10 @@ is one line on stderr and exit code 2.
 
 from __future__ import annotations
 
-from fuelid.cli.online import decide, run, show  # noqa: F401 - they register the commands
+from fuelid.cli.online import _decide, _run, _show  # noqa: F401 - they register the commands
 from fuelid.cli.online._app import app
-from fuelid.cli.online.run import check_window_length
-from fuelid.cli.online.show import status_lines
-from fuelid.online.logs import log_record
+from fuelid.cli.online._run import check_window_length
+from fuelid.cli.online._show import status_lines
+from fuelid.online import log_record
 
 __all__ = ["app", "check_window_length", "log_record", "status_lines"]

@@ -12,9 +12,8 @@ import typer
 from fuelid.errors import ConfigError
 
 if TYPE_CHECKING:
-    from fuelid.online.settings import ServiceSite
-    from fuelid.store.online import OnlineHistory
-    from fuelid.store.sqlite import SQLiteStore
+    from fuelid.online import ServiceSite
+    from fuelid.store import OnlineHistory, SQLiteStore
 
 app = typer.Typer(
     invoke_without_command=True,
@@ -62,9 +61,7 @@ def _opened(
     config: Path | None, store: Path | None
 ) -> Iterator[tuple[SQLiteStore, OnlineHistory, dict[str, Any]]]:
     """The store and its history (read from --store, or the site file's), and the settings."""
-    from fuelid.store.online import OnlineHistory
-    from fuelid.store.records import StoreError
-    from fuelid.store.sqlite import SQLiteStore
+    from fuelid.store import OnlineHistory, SQLiteStore, StoreError
 
     if config is None and store is None:
         raise ConfigError("give --config SITE.toml or --store FILE.db")
@@ -72,8 +69,8 @@ def _opened(
     identity: dict[str, Any] | None = None
     path = store
     if config is not None:
-        from fuelid.online.settings import load_service_site
-        from fuelid.plc.recorder import site_identity
+        from fuelid.online import load_service_site
+        from fuelid.plc import site_identity
 
         site = load_service_site(config)
         identity = site_identity(site)
@@ -101,7 +98,7 @@ def _opened(
 
 
 def _settings(site: ServiceSite) -> dict[str, Any]:
-    from fuelid.tuning.block import BlockForm, block_units
+    from fuelid.tuning import BlockForm, block_units
 
     out: dict[str, Any] = {"write_back": site.online.write_back, "timezone": site.site.timezone}
     c = site.controller

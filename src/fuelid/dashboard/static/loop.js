@@ -36,7 +36,7 @@ function showStatus(row) {
   showExcitationElapsed(row.link && row.link.newest_sample);
 }
 
-// how long a burst has run, as format_age says it (fuelid.io.clock): advanced at every status
+// how long a burst has run, as format_age says it (fuelid.io._clock): advanced at every status
 // event from its newest sample (plant time), so the part is not re-read every 2 s for it
 function ageText(s) {
   if (s === null || s === undefined || !Number.isFinite(s)) return "unknown";

@@ -3,22 +3,22 @@
 The online service identifies the loop on a rolling window every few minutes; a window it
 should not trust is skipped, and why is recorded (docs online.md §5: adaptive tuning that trusts
 every window bursts). Two sets of gates, both judged against the site's ``[online]`` table
-(:class:`fuelid.online.settings.Online`), both returning a :class:`WindowVerdict`:
+(:class:`fuelid.online._settings.Online`), both returning a :class:`WindowVerdict`:
 
 - :func:`prefit_gates`, on the window's samples before any fit: the share of lost or flagged
   samples, the share of the command at an output limit, and excitation (command steps in MAN,
   setpoint moves in AUTO), with the times of the excitation events;
 - :func:`postfit_gates`, on a fitted model: the relative standard errors of K and T, the
   validation fit, the size of the residual autocorrelation (of output errors prewhitened by
-  the noise's own model, :mod:`fuelid.online.residual_acf`); and the plant-ratio *event*,
+  the noise's own model, :mod:`fuelid.online._residual_acf`); and the plant-ratio *event*,
   which flags but never rejects. :func:`gate_estimator` and :func:`gate_result` feed it from a
   fitted estimator or an ``identify`` result; :func:`excitation_refusal` turns the estimator's own
   :class:`~fuelid.errors.NotExcitingError` into a rejection.
 
 :meth:`WindowVerdict.combine` joins the two; every failed gate is listed, not only the first.
 The verdict, the pre-fit and the post-fit gates are the modules
-:mod:`~fuelid.online.gates.verdict`, :mod:`~fuelid.online.gates.prefit` and
-:mod:`~fuelid.online.gates.postfit`; this package re-exports their public names.
+:mod:`~fuelid.online.gates._verdict`, :mod:`~fuelid.online.gates._prefit` and
+:mod:`~fuelid.online.gates._postfit`; this package re-exports their public names.
 
 Units: time [s], command u [V], flow y and setpoint [L/min], K [(L/min)/V], T [s].
 
@@ -32,13 +32,14 @@ systems, lack of persistency of excitation and bursting phenomena", Automatica 2
 
 from __future__ import annotations
 
-from fuelid.online.gates.postfit import (
+from fuelid.online._residual_acf import Prewhitened, acf_lags, largest_residual_acf, prewhiten
+from fuelid.online.gates._postfit import (
     excitation_refusal,
     gate_estimator,
     gate_result,
     postfit_gates,
 )
-from fuelid.online.gates.prefit import (
+from fuelid.online.gates._prefit import (
     GAP_PERIODS,
     MAN,
     MIN_COMMAND_STEP_V,
@@ -52,8 +53,7 @@ from fuelid.online.gates.prefit import (
     prefit_samples,
     setpoint_moves,
 )
-from fuelid.online.gates.verdict import WindowVerdict
-from fuelid.online.residual_acf import Prewhitened, acf_lags, largest_residual_acf, prewhiten
+from fuelid.online.gates._verdict import WindowVerdict
 
 __all__ = [
     "GAP_PERIODS",

@@ -17,10 +17,10 @@ e = setpoint − y [L/min].
 - :func:`loop_health`: all of the above for one window, in one :class:`LoopHealth` with a
   JSON-ready :meth:`~LoopHealth.to_json`.
 
-One module per metric family (:mod:`~fuelid.online.health.shares`,
-:mod:`~fuelid.online.health.oscillation`, :mod:`~fuelid.online.health.setpoint`,
-:mod:`~fuelid.online.health.harris`, :mod:`~fuelid.online.health.sensor`,
-:mod:`~fuelid.online.health.loop`); this package re-exports their public names.
+One module per metric family (:mod:`~fuelid.online.health._shares`,
+:mod:`~fuelid.online.health._oscillation`, :mod:`~fuelid.online.health._setpoint`,
+:mod:`~fuelid.online.health._harris`, :mod:`~fuelid.online.health._sensor`,
+:mod:`~fuelid.online.health._loop`); this package re-exports their public names.
 
 References
 ----------
@@ -34,14 +34,15 @@ median absolute deviation", J. Am. Stat. Assoc. 88 (1993) 1273–1283 (robust sc
 
 from __future__ import annotations
 
-from fuelid.online.health.harris import (
+from fuelid.online._moves import RAMP_GAP_S
+from fuelid.online.health._harris import (
     MAX_AR_ORDER,
     SAMPLES_PER_AR_ORDER,
     HarrisIndex,
     harris_index,
 )
-from fuelid.online.health.loop import LoopHealth, loop_health
-from fuelid.online.health.oscillation import (
+from fuelid.online.health._loop import LoopHealth, loop_health
+from fuelid.online.health._oscillation import (
     OSCILLATION_AMPLITUDE_FRACTION,
     OSCILLATION_COUNT_LIMIT,
     SUPERVISION_PERIODS,
@@ -49,8 +50,8 @@ from fuelid.online.health.oscillation import (
     hagglund_oscillation,
     half_period_iae,
 )
-from fuelid.online.health.sensor import SensorHealth, noise_level, quantisation_step, sensor_health
-from fuelid.online.health.setpoint import (
+from fuelid.online.health._sensor import SensorHealth, noise_level, quantisation_step, sensor_health
+from fuelid.online.health._setpoint import (
     MIN_STEP_LPM,
     SETTLING_FRACTION,
     SETTLING_NOISE_LEVELS,
@@ -58,14 +59,13 @@ from fuelid.online.health.setpoint import (
     setpoint_responses,
     step_response_measures,
 )
-from fuelid.online.health.shares import (
+from fuelid.online.health._shares import (
     AUTO,
     LIMIT_TOLERANCE_V,
     U_LIMITS_V,
     time_at_limits,
     time_in_auto,
 )
-from fuelid.online.moves import RAMP_GAP_S
 
 __all__ = [
     "AUTO",
