@@ -11,8 +11,9 @@ The names in ``__all__``, each loaded on first use (pyarrow loads with the first
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+import lazy_loader
 
 if TYPE_CHECKING:
     from fuelid.archive._layout import (
@@ -32,24 +33,29 @@ if TYPE_CHECKING:
     from fuelid.archive._retention import archiver, keep_store
     from fuelid.archive._writer import archive_store
 
-_HOMES = {
-    "archive_store": "fuelid.archive._writer",
-    "ArchiveLoop": "fuelid.archive._reader",
-    "archiver": "fuelid.archive._retention",
-    "arrays_of": "fuelid.archive._layout",
-    "day_bounds": "fuelid.archive._layout",
-    "day_of": "fuelid.archive._layout",
-    "keep_store": "fuelid.archive._retention",
-    "list_loop_days": "fuelid.archive._layout",
-    "LoopDay": "fuelid.archive._layout",
-    "partition_dir": "fuelid.archive._layout",
-    "read_day": "fuelid.archive._layout",
-    "read_day_table": "fuelid.archive._layout",
-    "read_loop_info": "fuelid.archive._layout",
-    "SAMPLE_SCHEMA": "fuelid.archive._layout",
-    "write_table": "fuelid.archive._layout",
-}
-"""Exported name → the private module that defines it, imported on first use (PEP 562)."""
+# Each name is imported from its private module on first use (lazy_loader, SPEC 1), so
+# that importing the package stays cheap.
+__getattr__ = lazy_loader.attach(
+    __name__,
+    submod_attrs={
+        "_layout": [
+            "LoopDay",
+            "SAMPLE_SCHEMA",
+            "arrays_of",
+            "day_bounds",
+            "day_of",
+            "list_loop_days",
+            "partition_dir",
+            "read_day",
+            "read_day_table",
+            "read_loop_info",
+            "write_table",
+        ],
+        "_reader": ["ArchiveLoop"],
+        "_retention": ["archiver", "keep_store"],
+        "_writer": ["archive_store"],
+    },
+)[0]
 
 __all__ = [
     "SAMPLE_SCHEMA",
@@ -68,10 +74,3 @@ __all__ = [
     "read_loop_info",
     "write_table",
 ]
-
-
-def __getattr__(name: str) -> Any:
-    # imported on use: importing the package loads none of its modules
-    if name in _HOMES:
-        return getattr(importlib.import_module(_HOMES[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -16,24 +16,22 @@ The names in ``__all__``, each loaded on first use, so that importing
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+import lazy_loader
 
 if TYPE_CHECKING:
     from fuelid.calibration._logs import calibration_log
 
-_HOMES = {
-    "calibration_log": "fuelid.calibration._logs",
-}
-"""Exported name → the private module that defines it, imported on first use (PEP 562)."""
+# Each name is imported from its private module on first use (lazy_loader, SPEC 1), so
+# that importing the package stays cheap.
+__getattr__ = lazy_loader.attach(
+    __name__,
+    submod_attrs={
+        "_logs": ["calibration_log"],
+    },
+)[0]
 
 __all__ = [
     "calibration_log",
 ]
-
-
-def __getattr__(name: str) -> Any:
-    # imported on use: importing the package loads none of its modules
-    if name in _HOMES:
-        return getattr(importlib.import_module(_HOMES[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

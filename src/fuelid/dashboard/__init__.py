@@ -19,8 +19,9 @@ dependencies and tsdownsample for the trend.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+import lazy_loader
 
 from fuelid.dashboard._registry import Loops
 from fuelid.dashboard._source import LoopReader, SQLiteLoop
@@ -33,18 +34,19 @@ if TYPE_CHECKING:
     from fuelid.dashboard._server import Beside, serve
     from fuelid.dashboard._users import UsersFile
 
-_HOMES = {
-    "Beside": "fuelid.dashboard._server",
-    "CentralLoop": "fuelid.dashboard._central_source",
-    "CentralLoops": "fuelid.dashboard._central_loops",
-    "create_app": "fuelid.dashboard._app",
-    "CSRF_HEADER": "fuelid.dashboard._security",
-    "Security": "fuelid.dashboard._security",
-    "serve": "fuelid.dashboard._server",
-    "UsersFile": "fuelid.dashboard._users",
-}
-"""Names imported on first use: the web parts import FastAPI and uvicorn, the central ones
-psycopg (when they connect), so the readers work without the extras."""
+# Each name is imported from its private module on first use (lazy_loader, SPEC 1), so
+# that importing the package stays cheap.
+__getattr__ = lazy_loader.attach(
+    __name__,
+    submod_attrs={
+        "_app": ["create_app"],
+        "_central_loops": ["CentralLoops"],
+        "_central_source": ["CentralLoop"],
+        "_security": ["CSRF_HEADER", "Security"],
+        "_server": ["Beside", "serve"],
+        "_users": ["UsersFile"],
+    },
+)[0]
 
 __all__ = [
     "CSRF_HEADER",
@@ -59,9 +61,3 @@ __all__ = [
     "create_app",
     "serve",
 ]
-
-
-def __getattr__(name: str) -> Any:
-    if name in _HOMES:
-        return getattr(importlib.import_module(_HOMES[name]), name)
-    raise AttributeError(f"module 'fuelid.dashboard' has no attribute {name!r}")

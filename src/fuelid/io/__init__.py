@@ -31,21 +31,25 @@ before 0.2.0, removed in 0.3.0), :func:`~fuelid.io.jsonsafe.json_ready`
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+import lazy_loader
 
 if TYPE_CHECKING:
     from fuelid.io._bad_values import parse_bad_values
     from fuelid.io._clock import format_age, format_time
     from fuelid.io._log_grid import FILL_GAPS_MAX_PERIODS
 
-_HOMES = {
-    "FILL_GAPS_MAX_PERIODS": "fuelid.io._log_grid",
-    "format_age": "fuelid.io._clock",
-    "format_time": "fuelid.io._clock",
-    "parse_bad_values": "fuelid.io._bad_values",
-}
-"""Exported name → the private module that defines it, imported on first use (PEP 562)."""
+# Each name is imported from its private module on first use (lazy_loader, SPEC 1), so
+# that importing the package stays cheap.
+__getattr__ = lazy_loader.attach(
+    __name__,
+    submod_attrs={
+        "_bad_values": ["parse_bad_values"],
+        "_clock": ["format_age", "format_time"],
+        "_log_grid": ["FILL_GAPS_MAX_PERIODS"],
+    },
+)[0]
 
 __all__ = [
     "FILL_GAPS_MAX_PERIODS",
@@ -53,10 +57,3 @@ __all__ = [
     "format_time",
     "parse_bad_values",
 ]
-
-
-def __getattr__(name: str) -> Any:
-    # imported on use: importing the package loads none of its modules
-    if name in _HOMES:
-        return getattr(importlib.import_module(_HOMES[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

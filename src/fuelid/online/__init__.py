@@ -17,8 +17,9 @@ command line; its modules' other names are not promised yet.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+import lazy_loader
 
 if TYPE_CHECKING:
     from fuelid.online._central_link import CentralLink, origin_of
@@ -57,60 +58,48 @@ if TYPE_CHECKING:
     from fuelid.online.gates import WindowVerdict, postfit_gates, prefit_gates
     from fuelid.online.health import LoopHealth, loop_health
 
-_HOMES = {
-    "CentralLink": "fuelid.online._central_link",
-    "check_site_plant": "fuelid.online._window",
-    "consume_requests": "fuelid.online._requests",
-    "decision_json": "fuelid.online._report",
-    "GainObservation": "fuelid.online._tracking",
-    "Gains": "fuelid.online._gains",
-    "GOOD_TUNED_FOR": "fuelid.online._writeback",
-    "health_line": "fuelid.online._report",
-    "held_line": "fuelid.online._report",
-    "history_json": "fuelid.online._report",
-    "JsonLineFormatter": "fuelid.online._logs",
-    "KeyValueFormatter": "fuelid.online._logs",
-    "KTracker": "fuelid.online._tracking",
-    "link_json": "fuelid.online._liveness",
-    "load_service_site": "fuelid.online._settings",
-    "log_event": "fuelid.online._logs",
-    "log_record": "fuelid.online._logs",
-    "LOGGER_NAME": "fuelid.online._logs",
-    "loop_health": "fuelid.online.health",
-    "LoopHealth": "fuelid.online.health",
-    "model_of": "fuelid.online._context",
-    "observation_of": "fuelid.online._context",
-    "Online": "fuelid.online._settings",
-    "OnlineService": "fuelid.online._service",
-    "origin_of": "fuelid.online._central_link",
-    "plant_gain_function": "fuelid.online._tracking",
-    "plant_hash": "fuelid.online._liveness",
-    "PlantGain": "fuelid.online._tracking",
-    "postfit_gates": "fuelid.online.gates",
-    "prefit_gates": "fuelid.online.gates",
-    "proposal_json": "fuelid.online._report",
-    "Quoted": "fuelid.online._logs",
-    "RECENT_WINDOWS_SPAN": "fuelid.online._context",
-    "SERVICE_BEAT_S": "fuelid.online._liveness",
-    "SERVICE_STALE_S": "fuelid.online._liveness",
-    "ServiceSite": "fuelid.online._settings",
-    "stale_reason": "fuelid.online._context",
-    "status_json": "fuelid.online._report",
-    "submit_request": "fuelid.online._requests",
-    "TrackingError": "fuelid.online._tracking",
-    "window_json": "fuelid.online._report",
-    "window_priors": "fuelid.online._window",
-    "WindowAnalyser": "fuelid.online._window",
-    "WindowResult": "fuelid.online._window",
-    "WindowVerdict": "fuelid.online.gates",
-}
-
-
-def __getattr__(name: str) -> Any:
-    # imported on use: the CLI reads fuelid.online._logs without loading numpy and scipy
-    if name in _HOMES:
-        return getattr(importlib.import_module(_HOMES[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+# Each name is imported from its private module on first use (lazy_loader, SPEC 1), so
+# that importing the package stays cheap.
+__getattr__ = lazy_loader.attach(
+    __name__,
+    submod_attrs={
+        "_central_link": ["CentralLink", "origin_of"],
+        "_context": ["RECENT_WINDOWS_SPAN", "model_of", "observation_of", "stale_reason"],
+        "_gains": ["Gains"],
+        "_liveness": ["SERVICE_BEAT_S", "SERVICE_STALE_S", "link_json", "plant_hash"],
+        "_logs": [
+            "JsonLineFormatter",
+            "KeyValueFormatter",
+            "LOGGER_NAME",
+            "Quoted",
+            "log_event",
+            "log_record",
+        ],
+        "_report": [
+            "decision_json",
+            "health_line",
+            "held_line",
+            "history_json",
+            "proposal_json",
+            "status_json",
+            "window_json",
+        ],
+        "_requests": ["consume_requests", "submit_request"],
+        "_service": ["OnlineService"],
+        "_settings": ["Online", "ServiceSite", "load_service_site"],
+        "_tracking": [
+            "GainObservation",
+            "KTracker",
+            "PlantGain",
+            "TrackingError",
+            "plant_gain_function",
+        ],
+        "_window": ["WindowAnalyser", "WindowResult", "check_site_plant", "window_priors"],
+        "_writeback": ["GOOD_TUNED_FOR"],
+        "gates": ["WindowVerdict", "postfit_gates", "prefit_gates"],
+        "health": ["LoopHealth", "loop_health"],
+    },
+)[0]
 
 
 __all__ = [

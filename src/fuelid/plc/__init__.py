@@ -24,8 +24,9 @@ their modules: :func:`~fuelid.plc.site.load_site` and
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+import lazy_loader
 
 if TYPE_CHECKING:
     from fuelid.plc._codec import WordOrder, decode, encode
@@ -37,24 +38,21 @@ if TYPE_CHECKING:
     from fuelid.plc._recorder import Recorder, site_identity
     from fuelid.plc._site_fleet import Archive, Central
 
-_HOMES = {
-    "Archive": "fuelid.plc._site_fleet",
-    "Central": "fuelid.plc._site_fleet",
-    "decode": "fuelid.plc._codec",
-    "encode": "fuelid.plc._codec",
-    "GainWriter": "fuelid.plc._gain_handshake",
-    "HEARTBEAT_MODULUS": "fuelid.plc._gain_handshake",
-    "LOW_END_FRACTION": "fuelid.plc._quality",
-    "PLC_GAINS_KEY": "fuelid.plc._gain_reading",
-    "PRUNE_EVERY_S": "fuelid.plc._record_runner",
-    "record_site": "fuelid.plc._record_runner",
-    "Recorder": "fuelid.plc._recorder",
-    "RecorderStats": "fuelid.plc._record_status",
-    "site_identity": "fuelid.plc._recorder",
-    "STUCK_AFTER_S": "fuelid.plc._quality",
-    "WordOrder": "fuelid.plc._codec",
-}
-"""Exported name → the private module that defines it, imported on first use (PEP 562)."""
+# Each name is imported from its private module on first use (lazy_loader, SPEC 1), so
+# that importing the package stays cheap.
+__getattr__ = lazy_loader.attach(
+    __name__,
+    submod_attrs={
+        "_codec": ["WordOrder", "decode", "encode"],
+        "_gain_handshake": ["GainWriter", "HEARTBEAT_MODULUS"],
+        "_gain_reading": ["PLC_GAINS_KEY"],
+        "_quality": ["LOW_END_FRACTION", "STUCK_AFTER_S"],
+        "_record_runner": ["PRUNE_EVERY_S", "record_site"],
+        "_record_status": ["RecorderStats"],
+        "_recorder": ["Recorder", "site_identity"],
+        "_site_fleet": ["Archive", "Central"],
+    },
+)[0]
 
 __all__ = [
     "HEARTBEAT_MODULUS",
@@ -73,10 +71,3 @@ __all__ = [
     "record_site",
     "site_identity",
 ]
-
-
-def __getattr__(name: str) -> Any:
-    # imported on use: importing the package loads none of its modules
-    if name in _HOMES:
-        return getattr(importlib.import_module(_HOMES[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

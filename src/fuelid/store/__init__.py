@@ -21,10 +21,11 @@ The names in ``__all__``, at ``fuelid.store`` itself.
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+import lazy_loader
 
 from fuelid.store._archived import ARCHIVE_COLUMNS, StoreDays
 from fuelid.store._base import SampleStore, iodata_from_samples
@@ -65,8 +66,14 @@ from fuelid.store._writer import SampleWriter
 if TYPE_CHECKING:
     from fuelid.store._export import export_log, parse_time
 
-_HOMES = {"export_log": "fuelid.store._export", "parse_time": "fuelid.store._export"}
-"""Names imported on first use: a stretch written as a log needs pandas, the store does not."""
+# Each name is imported from its private module on first use (lazy_loader, SPEC 1), so
+# that importing the package stays cheap.
+__getattr__ = lazy_loader.attach(
+    __name__,
+    submod_attrs={
+        "_export": ["export_log", "parse_time"],
+    },
+)[0]
 
 __all__ = [
     "ARCHIVE_COLUMNS",
@@ -148,9 +155,3 @@ def open_store(url: str | Path, **kwargs: Any) -> SampleStore:
         known = ", ".join(f"{name}:///" for name in STORES)
         raise StoreError(f"{text}: unknown store kind {scheme!r}; known: {known}") from None
     return factory(location, **kwargs)
-
-
-def __getattr__(name: str) -> Any:
-    if name in _HOMES:
-        return getattr(importlib.import_module(_HOMES[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

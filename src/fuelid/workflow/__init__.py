@@ -29,66 +29,79 @@ The names in ``__all__``, at ``fuelid.workflow`` itself (each loads its stage on
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+import lazy_loader
 
 # Each stage is imported when first used, so `fuelid identify` does not load the tuning layer
 # and `fuelid tune` does not load the log reader: see docs/explanation/architecture.md, lazy
 # imports.
-_EXPORTS = {
-    "analyse_log": "analysis",
-    "AnalysisSettings": "analysis",
-    "check_over_temperature": "tune",
-    "check_signals": "assumptions",
-    "control_period_from": "trust",
-    "data_columns": "greybox_fit",
-    "fit_greybox": "greybox_fit",
-    "fit_warnings": "greybox_fit",
-    "gain_unit": "assumptions",
-    "greybox_estimator": "greybox_fit",
-    "greybox_model": "greybox_fit",
-    "greybox_result": "greybox_fit",
-    "GreyBoxFit": "greybox_fit",
-    "identify_log": "identification",
-    "IDENTIFY_STAGES": "progress",
-    "identify_step_ls": "identification",
-    "IDENTIFY_UNITS": "identification",
-    "IdentifyOutcome": "identification",
-    "LEADING_RESPONSE": "trust",
-    "LogAnalysis": "analysis",
-    "METHODS": "analysis",
-    "model_file_fields": "tune",
-    "operating_command": "tune",
-    "OperatingPoint": "assumptions",
-    "overridden": "trust",
-    "plant_info": "plant_info",
-    "PLANT_INFO_UNITS": "plant_info",
-    "plant_knowledge": "assumptions",
-    "plant_priors": "assumptions",
-    "PlantInfo": "plant_info",
-    "PlantSource": "assumptions",
-    "ProfileTable": "simulation",
-    "read_profile": "simulation",
-    "read_record": "greybox_fit",
-    "REFERENCE_PLANT_NOTICE": "assumptions",
-    "schedule_gains": "tune",
-    "ScheduleOutcome": "tune",
-    "simulate_log": "simulation",
-    "simulation_inputs": "simulation",
-    "SIMULATION_UNITS": "simulation",
-    "SimulationInputs": "simulation",
-    "SimulationOutcome": "simulation",
-    "SimulationRequest": "simulation",
-    "T_REF": "assumptions",
-    "tune_model": "tune",
-    "tune_notices": "tune",
-    "TuneOutcome": "tune",
-    "TuneRequest": "tune",
-    "undetermined": "trust",
-    "undetermined_refusal": "trust",
-    "undetermined_refusal_line": "trust",
-    "validation_head_end": "greybox_fit",
-}
+# Each name is imported from its private module on first use (lazy_loader, SPEC 1), so
+# that importing the package stays cheap.
+__getattr__ = lazy_loader.attach(
+    __name__,
+    submod_attrs={
+        "_analysis": ["AnalysisSettings", "LogAnalysis", "METHODS", "analyse_log"],
+        "_assumptions": [
+            "OperatingPoint",
+            "PlantSource",
+            "REFERENCE_PLANT_NOTICE",
+            "T_REF",
+            "check_signals",
+            "gain_unit",
+            "plant_knowledge",
+            "plant_priors",
+        ],
+        "_greybox_fit": [
+            "GreyBoxFit",
+            "data_columns",
+            "fit_greybox",
+            "fit_warnings",
+            "greybox_estimator",
+            "greybox_model",
+            "greybox_result",
+            "read_record",
+            "validation_head_end",
+        ],
+        "_identification": [
+            "IDENTIFY_UNITS",
+            "IdentifyOutcome",
+            "identify_log",
+            "identify_step_ls",
+        ],
+        "_plant_info": ["PLANT_INFO_UNITS", "PlantInfo", "plant_info"],
+        "_progress": ["IDENTIFY_STAGES"],
+        "_simulation": [
+            "ProfileTable",
+            "SIMULATION_UNITS",
+            "SimulationInputs",
+            "SimulationOutcome",
+            "SimulationRequest",
+            "read_profile",
+            "simulate_log",
+            "simulation_inputs",
+        ],
+        "_trust": [
+            "LEADING_RESPONSE",
+            "control_period_from",
+            "overridden",
+            "undetermined",
+            "undetermined_refusal",
+            "undetermined_refusal_line",
+        ],
+        "_tune": [
+            "ScheduleOutcome",
+            "TuneOutcome",
+            "TuneRequest",
+            "check_over_temperature",
+            "model_file_fields",
+            "operating_command",
+            "schedule_gains",
+            "tune_model",
+            "tune_notices",
+        ],
+    },
+)[0]
 
 if TYPE_CHECKING:
     from fuelid.workflow._analysis import METHODS, AnalysisSettings, LogAnalysis, analyse_log
@@ -205,12 +218,3 @@ __all__ = [
     "undetermined_refusal_line",
     "validation_head_end",
 ]
-
-
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'fuelid.workflow' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"fuelid.workflow._{module}"), name)
-    globals()[name] = value
-    return value

@@ -11,17 +11,23 @@ The names in ``__all__``: what the dashboard shows of a run.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+import lazy_loader
 
 from fuelid.online.excitation._status import INTERRUPTED, STATE_KEY, excitation_line
 
 if TYPE_CHECKING:
     from fuelid.online.excitation._exciter import REQUEST_KEY
 
-_HOMES = {"REQUEST_KEY": "fuelid.online.excitation._exciter"}
-"""Names imported on first use: the exciter imports the service's context, which imports this
-package (the window reads the excitation's status)."""
+# Each name is imported from its private module on first use (lazy_loader, SPEC 1), so
+# that importing the package stays cheap.
+__getattr__ = lazy_loader.attach(
+    __name__,
+    submod_attrs={
+        "_exciter": ["REQUEST_KEY"],
+    },
+)[0]
 
 __all__ = [
     "INTERRUPTED",
@@ -29,9 +35,3 @@ __all__ = [
     "STATE_KEY",
     "excitation_line",
 ]
-
-
-def __getattr__(name: str) -> Any:
-    if name in _HOMES:
-        return getattr(importlib.import_module(_HOMES[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -8,8 +8,9 @@ first use: a protocol's server library loads only when that protocol is served.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+import lazy_loader
 
 if TYPE_CHECKING:
     from fuelid.plc.virtual._engine import VirtualPLC
@@ -23,17 +24,23 @@ if TYPE_CHECKING:
     )
     from fuelid.plc.virtual._sitefile import site_text
 
-_HOMES = {
-    "DEFAULT_PORTS": "fuelid.plc.virtual._runner",
-    "ReplyTiming": "fuelid.plc.virtual._frontend",
-    "VirtualPLC": "fuelid.plc.virtual._engine",
-    "VirtualPlcThread": "fuelid.plc.virtual._runner",
-    "frontend_class": "fuelid.plc.virtual._runner",
-    "frontend_kwargs": "fuelid.plc.virtual._runner",
-    "serve_until_stopped": "fuelid.plc.virtual._runner",
-    "site_text": "fuelid.plc.virtual._sitefile",
-}
-"""Exported name → the private module that defines it, imported on first use (PEP 562)."""
+# Each name is imported from its private module on first use (lazy_loader, SPEC 1), so
+# that importing the package stays cheap.
+__getattr__ = lazy_loader.attach(
+    __name__,
+    submod_attrs={
+        "_engine": ["VirtualPLC"],
+        "_frontend": ["ReplyTiming"],
+        "_runner": [
+            "DEFAULT_PORTS",
+            "VirtualPlcThread",
+            "frontend_class",
+            "frontend_kwargs",
+            "serve_until_stopped",
+        ],
+        "_sitefile": ["site_text"],
+    },
+)[0]
 
 __all__ = [
     "DEFAULT_PORTS",
@@ -45,10 +52,3 @@ __all__ = [
     "serve_until_stopped",
     "site_text",
 ]
-
-
-def __getattr__(name: str) -> Any:
-    # imported on use: importing the package loads none of its modules
-    if name in _HOMES:
-        return getattr(importlib.import_module(_HOMES[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
