@@ -25,14 +25,14 @@ import numpy as np
 
 from _docs_table import run_to_docs
 
-# the Monte Carlo models of tests/unit/greybox/test_greybox.py (tests/ on the path for support.bands)
+# the Monte Carlo models of tests/unit/greybox/test_greybox.py (tests/ on the path: support.bands)
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 from fuelid.greybox import GreyBoxEstimator
 from fuelid.greybox._estimator import ConvergenceError
 from fuelid.greybox._parameters import ParameterMap
 from fuelid.greybox._sensitivity import simulate_record
-from unit.test_greybox import (
+from unit.greybox.test_greybox import (
     TANK_X0,
     central_difference,
     linear_monte_carlo,

@@ -40,7 +40,7 @@ import numpy as np
 
 from _docs_table import run_to_docs
 
-# the records of tests/unit/greybox/test_greybox_kinks.py (tests/ on the path for support.kinked_models)
+# the records of tests/unit/greybox/test_greybox_kinks.py (tests/ on the path: support)
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 from fuelid.errors import FuelidError
