@@ -139,12 +139,12 @@ def test_a_request_that_expires_between_fetch_and_claim_is_never_applied(
     site: tuple[Site, int], central_url: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The request expires after the site fetched it: the claim fails, nothing is filed."""
-    import fuelid.central._requests as requests_module
+    import fuelid.central as central  # the service takes claim from the package at each cycle
 
     s, pid = site
     with connect(central_url) as con:
         request = file_central_request(con, "line-a", "reject", pid, "alice", "race")
-    real = requests_module.claim
+    real = central.claim
 
     def expiring_claim(con: psycopg.Connection, request_id: int, store: str | None = None) -> bool:
         with connect(central_url, autocommit=True) as other:
@@ -155,7 +155,7 @@ def test_a_request_that_expires_between_fetch_and_claim_is_never_applied(
         return real(con, request_id, store)
 
     with monkeypatch.context() as patch:
-        patch.setattr(requests_module, "claim", expiring_claim)
+        patch.setattr(central, "claim", expiring_claim)
         cycle = s.link.cycle(apply_now=True)
     assert cycle.error is None
     assert cycle.filed == []

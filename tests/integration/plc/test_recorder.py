@@ -23,6 +23,7 @@ from fuelid.plc import encode, site_identity
 from fuelid.plc.site import SiteConfig
 from fuelid.store import Quality, SQLiteStore
 from support.recorder import REPLAY, RING_REPLAY, kinds, load, record, rows, write_log
+from support.waiting import wait_until
 
 # xdist: one worker runs every module that drives a PLC at speed, one after another
 # (tests/conftest.py says why)
@@ -195,8 +196,16 @@ def flapping(
     plc: Any, drops: int, down_s: float, up_s: float, log: list[tuple[float, str]] | None = None
 ) -> threading.Thread:
     # the sleeps are the behaviour under test: the link held up and down for the stated times
-    # (each longer than the recorder's ring poll, 0.2 s: see the test's parameters)
+    # (each longer than the recorder's ring poll, 0.2 s: see the test's parameters). With a log,
+    # the first drop waits for the recorder's connection: a drop before it is a failed connect,
+    # not a drop (a loaded machine took over the first up_s to connect)
     def run() -> None:
+        if log is not None:
+            wait_until(
+                lambda: any(text.startswith("connected to") for _, text in list(log)),
+                10.0,
+                "the recorder's first connection",
+            )
         time.sleep(up_s)
         for i in range(drops):
             plc.stop_link()
