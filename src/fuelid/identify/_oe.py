@@ -204,16 +204,9 @@ class OutputError(ProcessModelEstimator):
         "numerics",
     )
 
-    K_: float
-    T_: float
-    T2_: float
-    delay_: float
-    T_f_: float
-    offset_: float
-    u_ref_: float
+    # K_, T_, T2_, delay_, T_f_, offset_, u_ref_, cov_: ProcessModelEstimator's
     param_names_: tuple[str, ...]
     params_: FloatArray
-    cov_: FloatArray
     cov_white_: FloatArray
     covariance_: Literal["white", "hac"]
     residual_ar_: ResidualAR
