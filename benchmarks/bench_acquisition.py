@@ -35,14 +35,14 @@ from pathlib import Path
 import numpy as np
 
 from _docs_table import run_to_docs
-from fuelid.plc._recorder import Recorder, site_identity
+from fuelid.plc import Recorder, site_identity
 from fuelid.plc.adapters import PlcSource, Reading, RingRecord, open_source
 from fuelid.plc.site import SiteConfig
 from fuelid.store import SampleWriter, SQLiteStore
 
 CHILD = """
 import json, sys
-from fuelid.plc.virtual._runner import VirtualPlcThread
+from fuelid.plc.virtual import VirtualPlcThread
 with VirtualPlcThread("modbus", speed=1.0, seed=1, command_profile="steps") as server:
     print(json.dumps(server.site_text()), flush=True)
     sys.stdin.read()  # until the parent closes it

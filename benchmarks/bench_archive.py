@@ -2,7 +2,7 @@
 
 One loop-day at 50 Hz (4.32 M samples: a command and a flow with noise around setpoint steps, a
 slowly warming fuel, 0.1 % of the samples with missing u and y) is written into an SQLite store
-through its ordinary append, then archived with ``fuelid.archive._writer.archive_store`` and read
+through its ordinary append, then archived with ``fuelid.archive.archive_store`` and read
 back whole with pyarrow, DuckDB and fuelid's own ``ArchiveLoop``. Rates are in MB of Parquet per
 second and in samples per second; sizes in bytes per sample (the store after a checkpoint, with
 its indexes and level-of-detail rows). The issue's question: what an archived day costs to write
@@ -24,8 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from _docs_table import run_to_docs
-from fuelid.archive._reader import ArchiveLoop
-from fuelid.archive._writer import archive_store
+from fuelid.archive import ArchiveLoop, archive_store
 from fuelid.store import Quality, Sample, SQLiteStore, tag_map_hash
 
 RATE_HZ = 50.0

@@ -44,8 +44,7 @@ from fuelid.errors import FuelidError
 from fuelid.greybox import GreyBoxEstimator, Record
 from fuelid.greybox._parameters import ParameterMap
 from fuelid.greybox._sensitivity import simulate_record
-from fuelid.plant._config import PlantConfig, load_plant_config
-from fuelid.plant._parameters import get_parameter, with_parameters
+from fuelid.plant import PlantConfig, get_parameter, load_plant_config, with_parameters
 from fuelid.plant.simulate import PRESSURE_NOISE_STD, PRESSURE_RESOLUTION, simulate
 from fuelid.profiles import InputProfile, step_sequence
 from fuelid.units import LPM_PER_M3S, PA_PER_MPA

@@ -4,7 +4,7 @@ Each sender is a process of its own (a site's service) with its own SQLite store
 holds a history to backfill: ``--windows`` windows (each with the detail JSON of a real
 window of the simulated loop, ~7 KB), one event per window and a model per second window;
 the central store derives a KPI row per window. Every sender runs :meth:`Sender.sync
-<fuelid.central._sender.Sender.sync>` (COPY into staging, upsert, commit, delete locally, in
+<fuelid.central.Sender.sync>` (COPY into staging, upsert, commit, delete locally, in
 batches of ``batch_rows``) from the same instant; the rate is the site rows committed centrally
 by all senders over the wall time from the first start to the last end. The cluster is a
 temporary one on loopback (``initdb``/``pg_ctl`` as the tests use, fsync on: durable commits),
@@ -31,12 +31,8 @@ from _docs_table import run_to_docs
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from fuelid.central._connect import connect
-from fuelid.central._schema import migrate
-from fuelid.central._sender import Sender
-from fuelid.store import OnlineHistory
-from fuelid.store._base import Event
-from fuelid.store._sqlite import SQLiteStore
+from fuelid.central import Sender, connect, migrate
+from fuelid.store import Event, OnlineHistory, SQLiteStore
 from support.fleet import analyse_loop, simulate_loop
 from support.postgres import PgCluster, find_pg_bin
 

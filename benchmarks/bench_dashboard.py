@@ -59,9 +59,7 @@ T0 = 1.8e9  # 2027-01-15: any fixed plant time
 
 def build_store(path: Path, hours: float) -> tuple[int, float]:
     """The synthetic 24-hour store; (samples, seconds to write)."""
-    from fuelid.store._base import Event, Sample
-    from fuelid.store._online import OnlineHistory
-    from fuelid.store._sqlite import SQLiteStore
+    from fuelid.store import Event, OnlineHistory, Sample, SQLiteStore
 
     rng = np.random.default_rng(25)
     n = int(hours * 3600.0 / PERIOD_S)
@@ -112,7 +110,7 @@ def build_store(path: Path, hours: float) -> tuple[int, float]:
 
 def trend_query(path: Path, repeat: int) -> tuple[float, int, int]:
     """Median server time of the 24-hour trend [s], the points read, the points sent."""
-    from fuelid.dashboard._source import SQLiteLoop
+    from fuelid.dashboard import SQLiteLoop
     from fuelid.dashboard._trend import trend
 
     loop = SQLiteLoop(path)

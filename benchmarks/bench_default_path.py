@@ -1,8 +1,8 @@
 """Benchmark: the default `fuelid identify` path against the Cramér–Rao bound (Monte Carlo).
 
-What a user gets with no option (the order chosen by the rule of fuelid.identify._order, the dead
+What a user gets with no option (the order chosen by the rule of identify/_order.py, the dead
 time estimated, no meter prior), with the meter's known lag and delay given (the order still
-chosen), and with the structure fixed, all through :func:`fuelid.identify._procedure.identify`,
+chosen), and with the structure fixed, all through :func:`fuelid.identify.identify`,
 the library call `fuelid identify` makes. Two true plants, both simulated from the model family
 with exact ZOH:
 
@@ -50,8 +50,7 @@ import scipy.stats
 
 from _docs_table import provenance, write_index
 from bench_identify_accuracy import closed_loop_log
-from fuelid.identify._oe import cramer_rao_bound
-from fuelid.identify._procedure import IdentifyOptions, identify
+from fuelid.identify import IdentifyOptions, cramer_rao_bound, identify
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, simulate_model
 

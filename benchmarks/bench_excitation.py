@@ -27,10 +27,10 @@ import time
 import numpy as np
 
 from _docs_table import run_to_docs
-from fuelid.identify._covariance import ResidualAR
+from fuelid.identify import ResidualAR
 from fuelid.model import ProcessModel
 from fuelid.online.excitation._design import DesignGoal, LoopNoise, design_signal, prbs_design
-from fuelid.tuning._rules import simc
+from fuelid.tuning import simc
 
 PERIOD_S = 0.02
 WINDOW_S = 600.0
@@ -40,8 +40,7 @@ TARGET_RATIO = 0.5
 
 
 def _reference_loops() -> list[tuple[str, ProcessModel]]:
-    from fuelid.plant import load_plant_config
-    from fuelid.plant._linear import linearise
+    from fuelid.plant import linearise, load_plant_config
     from fuelid.units import celsius_to_kelvin
 
     config = load_plant_config()

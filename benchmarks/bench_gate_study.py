@@ -26,16 +26,16 @@ The windows are simulated on the nonlinear plant by fuelid's own simulators
 (:func:`fuelid.plant.simulate.simulate` open loop,
 :func:`fuelid.tuning.closedloop.simulate_closed_loop` closed loop: the PI acts on the noisy,
 quantised reading, so in AUTO the command depends on the noise) and analysed by
-:class:`fuelid.online._window.WindowAnalyser` itself (pre-fit gates, the output-error fit in MAN,
+:class:`fuelid.online.WindowAnalyser` itself (pre-fit gates, the output-error fit in MAN,
 the prediction-error fit with its noise model in AUTO, the post-fit gates; a fresh analyser per
 window: its cold start; step-ls off) with the residual-correlation
 bound set to 0.999 so that the gate's statistic — max |ρ(k)|, k = 1…acf_lags, of the residuals
 the gate sees, prewhitened by the noise's own AR model when they are output errors
-(:func:`fuelid.online._residual_acf.prewhiten`), the prediction errors as they are — is recorded for
+(:func:`fuelid.online.gates.prewhiten`), the prediction errors as they are — is recorded for
 every fitted window, with the raw residuals' statistic (the gate before this study), and the
 bound applied afterwards. Each window's K error is the fitted K over the plant's linearised
 static gain at the window's mean command and fuel temperature
-(:func:`fuelid.plant._linear.linearise`), minus one; its step error is the largest difference of
+(:func:`fuelid.plant.linearise`), minus one; its step error is the largest difference of
 the fitted model's unit step response from the linearised plant's over three settling times,
 over the plant's K.
 
@@ -85,16 +85,13 @@ import numpy as np
 import scipy.signal
 
 from fuelid.blas import single_threaded_blas
-from fuelid.online._window import WindowAnalyser, window_priors
-from fuelid.plant._config import PlantConfig, load_plant_config
-from fuelid.plant._flowmeter import measure_flow
-from fuelid.plant._linear import linearise
+from fuelid.online import Online, WindowAnalyser, window_priors
+from fuelid.plant import PlantConfig, linearise, load_plant_config, measure_flow
 from fuelid.plant.simulate import simulate
-from fuelid.plc.site import Online
 from fuelid.plc.virtual._engine import commissioning_gains
 from fuelid.profiles import InputProfile
-from fuelid.store._base import Quality, SampleArrays
-from fuelid.tuning._rules import PISettings
+from fuelid.store import Quality, SampleArrays
+from fuelid.tuning import PISettings
 from fuelid.tuning.closedloop import flow_at, simulate_closed_loop
 from fuelid.units import LPM_PER_M3S, celsius_to_kelvin
 
@@ -893,7 +890,7 @@ def page(
         "the virtual reference plant the soak tests then ran on. This study sets it on two "
         "plants that were not used to tune it, with the gate's statistic computed on the "
         "residuals prewhitened by the noise's own AR model (fitted where the output has settled: "
-        "`fuelid.online._residual_acf.prewhiten`), so that it measures the model's error and not "
+        "`fuelid.online.gates.prewhiten`), so that it measures the model's error and not "
         "the meter noise's colour; the raw residuals' statistic (the gate before) is shown "
         "alongside. Written by `benchmarks/bench_gate_study.py` (its docstring has the whole "
         "setting); do not edit by hand.",

@@ -28,8 +28,7 @@ from _docs_table import run_to_docs
 # the Monte Carlo models of tests/unit/greybox/test_greybox.py (tests/ on the path: support.bands)
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
-from fuelid.greybox import GreyBoxEstimator
-from fuelid.greybox._estimator import ConvergenceError
+from fuelid.greybox import ConvergenceError, GreyBoxEstimator
 from fuelid.greybox._parameters import ParameterMap
 from fuelid.greybox._sensitivity import simulate_record
 from unit.greybox.test_greybox import (

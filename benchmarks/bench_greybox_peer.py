@@ -342,7 +342,7 @@ def run(cmd: list[str]) -> tuple[float, dict[str, Any] | None, str]:
 def fuelid_fit(model_path: Path, csv_path: Path) -> dict[str, Any]:
     from fuelid.greybox import GreyBoxEstimator
     from fuelid.greybox.modelfile import read_model_file
-    from fuelid.workflow._greybox_fit import data_columns, read_record
+    from fuelid.workflow import data_columns, read_record
 
     mf = read_model_file(model_path)
     inputs, outputs = data_columns(mf, (), ())

@@ -23,8 +23,7 @@ import numpy as np
 import scipy.signal
 
 from _docs_table import run_to_docs
-from fuelid.identify._oe import OutputError, cramer_rao_bound
-from fuelid.identify._step_ls import StepResponseLS
+from fuelid.identify import OutputError, StepResponseLS, cramer_rao_bound
 from fuelid.io.timeseries import IOData
 from fuelid.lti import discretise
 from fuelid.model import ProcessModel, simulate_model

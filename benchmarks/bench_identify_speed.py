@@ -21,7 +21,7 @@ import numpy as np
 
 from _docs_table import run_to_docs
 from _timing import best_of
-from fuelid.identify._oe import OutputError
+from fuelid.identify import OutputError
 from fuelid.io.logs import load_log
 from fuelid.model import nrmse_fit
 from fuelid.plant import load_plant_config

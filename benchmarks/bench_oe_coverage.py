@@ -33,9 +33,7 @@ import scipy.signal
 
 from _docs_table import run_to_docs
 from fuelid.blas import single_threaded_blas
-from fuelid.identify import OutputError
-from fuelid.identify._oe import cramer_rao_bound
-from fuelid.identify._procedure import interval95
+from fuelid.identify import OutputError, cramer_rao_bound, interval95
 from fuelid.io.timeseries import IOData
 from fuelid.model import ProcessModel, simulate_model
 

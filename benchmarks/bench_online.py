@@ -3,10 +3,10 @@
 Targets (issue 15): one identification window (10 min at 50 Hz, 30,000 samples) end to end in
 under 0.2 s; the service's CPU at 50 Hz with a window every 5 minutes under 5 % of one core.
 
-(a) One window end to end: :meth:`fuelid.online._window.WindowAnalyser.analyse` (pre-fit gates,
+(a) One window end to end: :meth:`fuelid.online.WindowAnalyser.analyse` (pre-fit gates,
     the fit, the post-fit gates, the loop's health, and with ``step_ls`` the article's step-ls
     alongside) on 10 minutes of samples from the virtual PLC's engine
-    (:class:`fuelid.plc.virtual._engine.VirtualPLC`, reference plant, 50 Hz, PI at 1 s):
+    (:class:`fuelid.plc.virtual.VirtualPLC`, reference plant, 50 Hz, PI at 1 s):
 
     - MAN, local: open loop, command steps of 0.1–0.4 V around 3 V held 15 s (output error);
     - MAN, 1.5–4.5 V: the engine's own command steps (``command_profile="steps"``), which span
@@ -23,7 +23,7 @@ under 0.2 s; the service's CPU at 50 Hz with a window every 5 minutes under 5 % 
     the median of ``--repeat`` runs, wall time and this process's CPU time (on a shared machine
     the CPU time is the steadier number). BLAS runs on one thread, as in every fuelid command.
 
-(b) The running service: :class:`fuelid.online._service.OnlineService` records the virtual PLC
+(b) The running service: :class:`fuelid.online.OnlineService` records the virtual PLC
     over Modbus TCP on 127.0.0.1 at real time (50 Hz, ring buffer) for ``--minutes`` and
     analyses a window every ``--every`` seconds of data time (``--window`` long; the short
     default run uses 60 s windows every 60 s so that windows fall in two minutes). The virtual
@@ -56,11 +56,11 @@ from importlib import resources
 from pathlib import Path
 
 from _docs_table import run_to_docs
-from fuelid.online._window import WindowAnalyser, WindowResult, window_priors
-from fuelid.plc.site import Online, SiteConfig
-from fuelid.plc.virtual._engine import VirtualPLC
+from fuelid.online import Online, WindowAnalyser, WindowResult, window_priors
+from fuelid.plc.site import SiteConfig
+from fuelid.plc.virtual import VirtualPLC
 from fuelid.profiles.runs import demo_run_profile
-from fuelid.store._base import Quality, SampleArrays
+from fuelid.store import Quality, SampleArrays
 
 PERIOD_S = 0.02
 WINDOW_S = 600.0
@@ -73,7 +73,7 @@ EVERY_TARGET_S = 300.0
 CHILD = """
 import json, sys
 from fuelid.profiles.runs import demo_run_profile
-from fuelid.plc.virtual._runner import VirtualPlcThread, site_text
+from fuelid.plc.virtual import VirtualPlcThread, site_text
 plant = sys.argv[1]
 with VirtualPlcThread("modbus", speed=1.0, seed=1, setpoint_profile=demo_run_profile()) as v:
     text = site_text(v.protocol, v.host, v.port, period_s=v.plc.period_s,
@@ -238,7 +238,7 @@ def service_rows(minutes: float, every_s: float, window_s: float) -> list[tuple[
     """Run the service against the virtual PLC; the table rows (measured and extrapolated)."""
     import tomllib
 
-    from fuelid.online._service import OnlineService
+    from fuelid.online import OnlineService
 
     child = subprocess.Popen(
         [sys.executable, "-c", CHILD, reference_plant()],

@@ -51,9 +51,7 @@ import scipy.signal
 from _docs_table import run_to_docs
 from _timing import best_of
 from fuelid.blas import single_threaded_blas
-from fuelid.identify._diagnostics import residual_whiteness
-from fuelid.identify._oe import OutputError
-from fuelid.identify._pem import PredictionError
+from fuelid.identify import OutputError, PredictionError, residual_whiteness
 from fuelid.identify._variable_projection import Structure, jacobian
 from fuelid.io.logs import load_log
 from fuelid.io.timeseries import IOData

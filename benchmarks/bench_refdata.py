@@ -14,7 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from _docs_table import run_to_docs
-from fuelid.identify._oe import OutputError
+from fuelid.identify import OutputError
 from fuelid.io.logs import load_log
 from fuelid.model import nrmse_fit
 

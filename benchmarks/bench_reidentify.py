@@ -4,7 +4,7 @@
     processes, 127.0.0.1): the round trip of one empty task submitted and awaited alone
     (latency), and the cost per task of ``--tasks`` empty tasks mapped at once (throughput).
 
-(b) Throughput of :func:`fuelid.fleet._run.reidentify` on an archive of ``--loops`` loop-days at
+(b) Throughput of :func:`fuelid.fleet.reidentify` on an archive of ``--loops`` loop-days at
     50 Hz, each holding ``--hours`` of a virtual loop (reference plant, AUTO and MAN alternating,
     the default ``[online]`` schedule: 10-minute windows every 5 minutes), on a local cluster of
     1 and of 2 workers (cluster start-up excluded: the run is timed from submission to the last
@@ -112,7 +112,7 @@ def make_archive(folder: Path, loops: int, hours: float, period_s: float) -> Pat
 
 
 def throughput(root: Path, folder: Path, workers: int) -> dict[str, float]:
-    from fuelid.fleet._run import reidentify
+    from fuelid.fleet import reidentify
 
     cluster, client = _cluster(workers)
     with cluster, client:
@@ -150,7 +150,7 @@ def _live_windows(store: Path) -> dict[float, dict[str, Any]]:
 def live_comparison(folder: Path, hours: float) -> list[str]:
     import pyarrow.parquet as pq
 
-    from fuelid.fleet._run import reidentify
+    from fuelid.fleet import reidentify
     from support.archive_fixture import archive_store
     from support.fleet import T0, analyse_loop, simulate_loop
 

@@ -18,8 +18,8 @@ what it prints is compared with the truth, which the benchmark computes by itsel
 3. The issue's long line (the reference plant file with 350 m × 40 mm, 80 cm³/rev, 1.5 s drive,
    0.8 s meter lag and 0.4 s dead time: ``tests/system/test_trust_cli.py``'s ``LONG_LINE``):
    ``plant info --json`` as the model file, ``tune --config --control-period 0.1 --simulate``.
-   The truth is the plant file's own linearisation (``fuelid.plant._linear.linearise`` with
-   ``fuelid.tuning._frequency.robustness``) and, for the overshoot, the benchmark's own sampled
+   The truth is the plant file's own linearisation (``fuelid.plant.linearise`` with
+   ``fuelid.tuning.robustness``) and, for the overshoot, the benchmark's own sampled
    closed loop on it (zero-order hold at 20 ms, the PLC's forward-Euler PI every 0.1 s, the
    dead time exact); the nonlinear runs are fuelid's.
 4. Undetermined models and missing facts: ``tune`` on a model file whose T interval is edited to
@@ -420,10 +420,8 @@ def closed_loop_overshoot(
 
 
 def case_long_line() -> CaseResult:
-    from fuelid.plant import load_plant_config
-    from fuelid.plant._linear import linearise
-    from fuelid.tuning._frequency import robustness
-    from fuelid.tuning._rules import PISettings
+    from fuelid.plant import linearise, load_plant_config
+    from fuelid.tuning import PISettings, robustness
     from fuelid.tuning.closedloop import steady_command
     from fuelid.units import celsius_to_kelvin
 

@@ -21,16 +21,21 @@ import numpy as np
 
 from _docs_table import run_to_docs
 from _timing import best_of
-from fuelid.identify._oe import OutputError
+from fuelid.identify import OutputError
 from fuelid.io.timeseries import IOData
 from fuelid.model import model_covariance
 from fuelid.plant import load_plant_config
 from fuelid.plant.simulate import simulate
 from fuelid.profiles import step_sequence
-from fuelid.tuning._cases import DEFAULT_T_RANGE, Anchor, evaluate_fixed, plant_cases
-from fuelid.tuning._rules import tune
-from fuelid.tuning._schedule import band_edges
-from fuelid.tuning._sweep import uncertainty_sweep
+from fuelid.tuning import (
+    DEFAULT_T_RANGE,
+    Anchor,
+    band_edges,
+    evaluate_fixed,
+    plant_cases,
+    tune,
+    uncertainty_sweep,
+)
 from fuelid.tuning.closedloop import flow_at, standard_runs
 from fuelid.units import LPM_PER_M3S, celsius_to_kelvin
 

@@ -24,13 +24,12 @@ import asyncio
 import time
 
 from _docs_table import run_to_docs
-from fuelid.plc.virtual._engine import VirtualPLC
+from fuelid.plc.virtual import VirtualPLC, VirtualPlcThread
 from fuelid.plc.virtual._points import (
     RING_FIRST_REGISTER,
     RING_HEAD_REGISTER,
     RING_RECORD_REGISTERS,
 )
-from fuelid.plc.virtual._runner import VirtualPlcThread
 
 TARGET = 50.0
 SEQ_MODULUS = 2**32

@@ -5,7 +5,7 @@ AUTO than the analysis before issue 26, measured as ratios in one run on the sam
 decisions unchanged.
 
 Both analysers run in this process on the same windows of the virtual PLC's engine
-(:class:`fuelid.plc.virtual._engine.VirtualPLC`, reference plant, 50 Hz, PI at 1 s), each
+(:class:`fuelid.plc.virtual.VirtualPLC`, reference plant, 50 Hz, PI at 1 s), each
 warm-started from its own previous window as the service does (the first window of each run is
 the warm-up and is not timed): ``WindowAnalyser(fast=False)`` fits pem on every AUTO window
 with the numerics before issue 26 (:data:`fuelid.numerics_mode.REFERENCE_NUMERICS`, the
@@ -50,11 +50,10 @@ from typing import Any
 import numpy as np
 
 from _docs_table import run_to_docs
-from fuelid.online._window import WindowAnalyser, WindowResult, window_priors
-from fuelid.plc.site import Online
-from fuelid.plc.virtual._engine import VirtualPLC
+from fuelid.online import Online, WindowAnalyser, WindowResult, window_priors
+from fuelid.plc.virtual import VirtualPLC
 from fuelid.profiles.runs import demo_run_profile
-from fuelid.store._base import Quality, SampleArrays
+from fuelid.store import Quality, SampleArrays
 
 PERIOD_S = 0.02
 WINDOW_S = 600.0

@@ -92,7 +92,7 @@ def window_ids(store: Path) -> list[int]:
 
 def loop_id(store: Path) -> str:
     """The store's loop id, as the dashboard names it."""
-    from fuelid.dashboard._source import SQLiteLoop
+    from fuelid.dashboard import SQLiteLoop
 
     loop = SQLiteLoop(store)
     try:

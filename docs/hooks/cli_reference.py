@@ -167,8 +167,12 @@ def plain_roles(html: str) -> str:
 
 
 def on_page_content(html: str, page: Any, **_: Any) -> str:
-    """MkDocs event: the API pages' docstrings without Sphinx role markup."""
-    return plain_roles(html) if page.file.src_uri.startswith("reference/api/") else html
+    """MkDocs event: docstrings without Sphinx role markup, wherever a page shows one.
+
+    The API pages, the module docstrings a ``fuelid-module-doc`` marker puts on a reference
+    page, and the benchmark pages' introductions (their scripts' docstrings).
+    """
+    return plain_roles(html)
 
 
 def on_page_markdown(markdown: str, page: Any, **_: Any) -> str:

@@ -88,7 +88,7 @@ def test_the_files_the_table_names_exist(package: str) -> None:
     rows = {m.group(1): m.group(2) for m in MODULE_ROW.finditer(_page())}
     assert package in rows, f"the module table has no row for {package}/"
     # a path (`virtual/engine.py`, `cli/_common.py`) from the package, a bare name anywhere in it
-    named = set(re.findall(r"`([a-z_/]+\.py)`", rows[package]))
+    named = set(re.findall(r"`([a-z0-9_/]+\.py)`", rows[package]))
     missing = sorted(
         name
         for name in named

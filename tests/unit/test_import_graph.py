@@ -42,5 +42,7 @@ def test_the_graph_holds_the_whole_package(graph: grimp.ImportGraph) -> None:
 
 def test_no_two_fuelid_modules_import_each_other(graph: grimp.ImportGraph) -> None:
     cycles = _cycles(graph)
-    chains = "\n".join(" -> ".join(chain) for chain in cycles.values())
-    assert not cycles, f"{len(cycles)} module pairs in import cycles:\n{chains}"
+    # one wrong import puts many pairs in cycles: the shortest chains show it first
+    shortest = sorted(cycles.values(), key=len)[:10]
+    chains = "\n".join(" -> ".join(chain) for chain in shortest)
+    assert not cycles, f"{len(cycles)} module pairs in import cycles; the shortest:\n{chains}"

@@ -1,8 +1,10 @@
 """The raw archive: a loop's samples and events as hive-partitioned Parquet (issue 26).
 
-``_layout.py`` is the format (paths, columns, atomic writes, readers), ``_writer.py`` the writer
-from a store, ``_reader.py`` a loop read back like a store (:class:`ArchiveLoop`),
-``_retention.py`` archive then prune.
+The format: a loop-day's partition (:class:`LoopDay`, :func:`partition_dir`,
+:func:`list_loop_days`), its columns (:data:`SAMPLE_SCHEMA`), atomic writes
+(:func:`write_table`) and readers (:func:`read_day`, :func:`read_day_table`). A store's finished
+days are written by :func:`archive_store`; :class:`ArchiveLoop` reads a loop back like a store;
+:func:`archiver` and :func:`keep_store` archive, then prune.
 
 The public API
 --------------

@@ -2,16 +2,16 @@
 
 One database shared by all loops holds their windows, KPIs, models, proposals, writes, events,
 requests and liveness, keyed by each site store's UUID and row id; the site's SQLite store stays
-the durable buffer. :mod:`~fuelid.central._schema` is the schema and its versioned migrations
-(monthly partitions, retention); :mod:`~fuelid.central._connect` the connection from a libpq
-URL; :mod:`~fuelid.central._outbox` the site's change log; :mod:`~fuelid.central._sender` the sync
-engine (:class:`Sender`: COPY into staging, upsert, exactly once);
-:mod:`~fuelid.central._requests` the actions taken centrally, which each site fetches and carries
-out itself; :mod:`~fuelid.central._status` the fleet's rows. A reader of the central store (the
-dashboard) holds one :class:`CentralDB` and reads a loop through :class:`CentralHistory` and
+the durable buffer. :func:`migrate` creates or upgrades the schema and its versioned migrations
+(monthly partitions, retention: :func:`drop_old_partitions`); :func:`connect` connects from a
+libpq URL; :func:`enable_outbox` switches on the site's change log; :class:`Sender` is the sync
+engine (COPY into staging, upsert, exactly once); :func:`file_central_request` files an action
+taken centrally, which each site fetches (:func:`fetch_waiting`) and carries out itself;
+:func:`fleet_status` gives the fleet's rows. A reader of the central store (the dashboard) holds
+one :class:`CentralDB` and reads a loop through :class:`CentralHistory` and
 :class:`CentralStoreView`, the central implementations of :class:`fuelid.store.LoopHistory`
-and :class:`fuelid.store.LoopStore`. The service's side is
-:mod:`fuelid.online._central_link`; the reference: docs/reference/central.md.
+and :class:`fuelid.store.LoopStore`. The service's side is :class:`fuelid.online.CentralLink`;
+the reference: docs/reference/central.md.
 
 psycopg (the ``fleet`` extra) is imported only when a connection is made.
 

@@ -1,7 +1,7 @@
 """A reader's connection to the central store: one, shared, locked, reconnecting.
 
 :class:`CentralDB` is one connection to the central PostgreSQL database shared by every central
-loop a reader shows (the dashboard's; :mod:`fuelid.central._connect`: libpq's own credentials,
+loop a reader shows (the dashboard's; :func:`fuelid.central.connect`: libpq's own credentials,
 never a password in the URL), behind one lock; a failure drops it and the next read
 reconnects, at most every ``retry_s`` (:data:`RETRY_S` by default: a dead server must not cost
 every page a connect timeout). :meth:`CentralDB.reading` runs several reads in one read-only

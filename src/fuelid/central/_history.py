@@ -6,7 +6,7 @@ proposals, writes, the site's requests, counts, the ``online_state`` values) and
 sample's clocks, link events, events), both over the rows of one store of the central database,
 decoded into the dictionaries the site's own history gives (the same keys, the JSON columns
 parsed, the column lists and decoders of :mod:`fuelid.store._online_rows`): the report functions
-(:mod:`fuelid.online._report`) then build the same objects from either source.
+(of :mod:`fuelid.online`) then build the same objects from either source.
 
 Which store of a loop is shown (:func:`shown_store`), its liveness row (:func:`liveness_row`)
 and the loops there are (:func:`central_loop_ids`) are read here too: every statement a central

@@ -51,7 +51,7 @@ __all__ = [
 ]
 
 KINDS = ("approve", "reject", "revert", "excite_start", "excite_stop")
-"""What a central request asks for (the site's ``fuelid.store._online.REQUEST_KINDS``)."""
+"""What a central request asks for (the site's ``fuelid.store.REQUEST_KINDS``)."""
 EXCITE_KINDS = ("excite_start", "excite_stop")
 """The test signal's kinds (issue 40; the site's ``fuelid.online._requests.EXCITE_KINDS``)."""
 NEEDS_PROPOSAL = ("approve", "reject")

@@ -1,20 +1,20 @@
 """The control-room dashboard (``fuelid dashboard``): FastAPI pages over the loops' stores.
 
 A process of its own (never the recorder's): it opens each loop's store, or the central store of
-many loops (``--central``), reads every loop through one interface,
-:class:`~fuelid.dashboard._source.LoopReader`, and serves the fleet, loop and window pages, the
-JSON API under ``/api/`` and one live stream per page. It writes nothing into a store but the
-requests people file (approve, reject, revert), which the running service carries out; on a
-central loop they are central requests, relayed to the site's service at its next sync.
+many loops (``--central``), reads every loop through one interface, :class:`LoopReader`, and
+serves the fleet, loop and window pages, the JSON API under ``/api/`` and one live stream per
+page. It writes nothing into a store but the requests people file (approve, reject, revert),
+which the running service carries out; on a central loop they are central requests, relayed to
+the site's service at its next sync.
 
 The public API: :class:`LoopReader` and :class:`SQLiteLoop` (one loop's data),
 :class:`CentralLoop` (one loop of the central store) and :class:`CentralLoops` (its loops,
 polled), :class:`Loops` (the loops by id, a folder watched), :func:`create_app` (the FastAPI
-application) and :func:`serve` (uvicorn on a socket), and the modules
-:mod:`fuelid.dashboard._fleet` (chips and the severity order), :mod:`fuelid.dashboard._trend`,
-:mod:`fuelid.dashboard._security` and :mod:`fuelid.dashboard._users`. ``create_app`` and
-``serve`` need the ``dashboard`` extra (FastAPI, uvicorn); the rest only fuelid's own
-dependencies and tsdownsample for the trend.
+application) and :func:`serve` (uvicorn on a socket), :class:`Beside` (the dashboard as a
+process beside the online service), and the logins: :class:`Security` (users, sessions, the
+login limit and the CSRF check, whose header is :data:`CSRF_HEADER`) over a
+:class:`UsersFile`. ``create_app`` and ``serve`` need the ``dashboard`` extra (FastAPI,
+uvicorn); the rest only fuelid's own dependencies and tsdownsample for the trend.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ one read-only snapshot, so that a loop's status is one moment of the central sto
 
 :class:`CentralLoops` lists the loops of the central database (``loops``), polled every
 :data:`~fuelid.dashboard._registry.WATCH_EVERY_S` for new ones, each a
-:class:`~fuelid.dashboard._central_source.CentralLoop`. When the database is lost, ``error`` says
+:class:`~fuelid.dashboard.CentralLoop`. When the database is lost, ``error`` says
 why (the fleet page's banner) and the loops are listed as not shown until it is back.
 """
 

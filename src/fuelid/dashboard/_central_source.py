@@ -2,14 +2,14 @@
 
 The fleet page, the loop and window pages, the API and the stream read a central loop exactly as
 they read a store file: :class:`CentralLoop` runs the SAME report functions (``status_json``,
-``history_json``, ``window_json``, ``proposal_json`` of :mod:`fuelid.online._report`, through
+``history_json``, ``window_json``, ``proposal_json`` of :mod:`fuelid.online`, through
 :func:`~fuelid.dashboard._source.loop_status` and :func:`~fuelid.dashboard._source.loop_history`)
 over two small views of the central rows, :class:`fuelid.central.CentralHistory` (a
 :class:`~fuelid.store.LoopHistory`) and :class:`fuelid.central.CentralStoreView` (a
 :class:`~fuelid.store.LoopStore`), so the shapes cannot drift apart. A loop whose store file
 was replaced has several stores centrally; the newest one (by the central
 ``stores.last_seen``) is shown, as a central request is checked against it
-(:func:`fuelid.central._requests.file_central_request`).
+(:func:`fuelid.central.file_central_request`).
 
 **Liveness from the centre.** The site's service record arrives with every send (the liveness
 row), so its beat is as old as the last send. The loop's state is judged as of the site's own
@@ -23,13 +23,13 @@ to its last send, then the contact's age on the centre's clock), not to the last
 
 **Samples.** The central store holds none: raw samples stay at the site. Without an archive
 :meth:`CentralLoop.span` is None and the trend empty; with ``--archive DIR`` the trend reads the
-loop's Parquet days (:class:`fuelid.archive._reader.ArchiveLoop`), the level of detail computed
+loop's Parquet days (:class:`fuelid.archive.ArchiveLoop`), the level of detail computed
 from them in numpy (min and max per bucket as the store's ``samples_lod``). Nothing is streamed
 live from a central loop: the status is re-read every few seconds.
 
 **Actions.** :meth:`CentralLoop.file_request` files a central request with what the page showed
 of the proposal (status and history length); the site's service fetches it at its next sync,
-files it locally and carries it out (:mod:`fuelid.online._central_link`), or refuses it when the
+files it locally and carries it out (:class:`fuelid.online.CentralLink`), or refuses it when the
 proposal changed meanwhile; a request no site fetches before its expiry is never applied. The
 test signal's start and stop are relayed like a revert (central schema version 4): the site
 applies them as its own dashboard's (a start with no service running is refused, a stop is

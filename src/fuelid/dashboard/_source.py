@@ -5,7 +5,7 @@ its state now (the shape ``fuelid online status --json`` prints), its history (t
 ``fuelid online history --json``), one window's record and samples, the trend of its samples at a
 level of detail, the samples committed after a point (for the live stream) and the requests
 people file. The central store implements the same protocol
-(:class:`fuelid.dashboard._central_source.CentralLoop`: one reader per loop of it); nothing above
+(:class:`fuelid.dashboard.CentralLoop`: one reader per loop of it); nothing above
 these modules knows where the rows come from.
 
 :class:`SQLiteLoop` reads one store file (one loop). It opens the store once as fuelid opens any
@@ -75,7 +75,7 @@ def without_folders(status: dict[str, Any]) -> dict[str, Any]:
 def loop_status(
     history: LoopHistory, store: LoopStore, loop_id: str, now_wall: float | None = None
 ) -> dict[str, Any]:
-    """The loop now, by :func:`fuelid.online._report.status_json` (one shape with the CLI).
+    """The loop now, by :func:`fuelid.online.status_json` (one shape with the CLI).
 
     As the pages show it: the site names the loop by its id, no file path (nor the plant
     file's folder).
@@ -90,7 +90,7 @@ def loop_status(
 def loop_history(
     history: LoopHistory, store: LoopStore, loop_id: str, windows: int | None = None
 ) -> dict[str, Any]:
-    """Everything the service did, by :func:`fuelid.online._report.history_json` (no file path)."""
+    """Everything the service did, by :func:`fuelid.online.history_json` (no file path)."""
     from fuelid.online import history_json
 
     out = history_json(history, store, windows=windows)

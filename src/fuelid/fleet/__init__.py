@@ -1,15 +1,14 @@
 """Fleet re-identification of archived history on Dask (issue 26).
 
-:mod:`fuelid.fleet._task` is one loop-day (the online service's window analysis over the
-archive's samples, written atomically as Parquet), :mod:`fuelid.fleet._run` the run (Dask
-distributed, resumable, the progress), :mod:`fuelid.fleet._summary` the per-loop pass (the K(T)
-tracker, K drift, the summary). ``fuelid reidentify`` is the command; docs/how-to/reidentify.md
-the guide. Dask (the ``fleet`` extra) is imported only when a run starts.
+:func:`reidentify_day` is one loop-day (the online service's window analysis over the archive's
+samples, with a loop's :class:`LoopSettings`, written atomically as Parquet in
+:data:`RESULT_SCHEMA`); :func:`reidentify` the run (Dask distributed, resumable, the progress),
+ending with the per-loop pass (the K(T) tracker, K drift, the summary); :class:`ReidentifyRun`
+what it did.
+``fuelid reidentify`` is the command; docs/how-to/reidentify.md the guide. Dask (the ``fleet``
+extra) is imported only when a run starts.
 
-The public API: :func:`~fuelid.fleet._run.reidentify`, :class:`~fuelid.fleet._run.ReidentifyRun`,
-:class:`~fuelid.fleet._run.FleetError`, :func:`~fuelid.fleet._task.reidentify_day`,
-:class:`~fuelid.fleet._task.LoopSettings`, :func:`~fuelid.fleet._task.loop_settings`,
-:data:`~fuelid.fleet._task.RESULT_SCHEMA`.
+The public API: the names in ``__all__``, at ``fuelid.fleet`` itself.
 """
 
 from fuelid.fleet._run import FleetError, ReidentifyRun, online_from_toml, reidentify

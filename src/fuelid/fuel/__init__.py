@@ -15,8 +15,8 @@ module holds
   μ = ρ·ν exact;
 * :func:`fuel_properties`, the one-call state of a fuel at one temperature.
 
-The correlations live in :mod:`fuelid.fuel._correlations`, the registry and
-:func:`fuel_properties` in :mod:`fuelid.fuel._registry`; every name is importable from here.
+Import every name from here (the correlations are implemented in ``fuel/_correlations.py``,
+the registry in ``fuel/_registry.py``).
 
 Every correlation has a documented validity range and refuses to extrapolate silently: outside it
 raises :class:`~fuelid.errors.OutOfRangeError` unless ``allow_extrapolation=True`` is passed.

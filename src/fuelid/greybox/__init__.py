@@ -2,13 +2,15 @@
 
 The user (or :mod:`fuelid.calibration` for the fuel plant) writes the model; the estimator
 integrates it with its forward sensitivities, fits one or several records at once, and says what
-the data determine (:mod:`fuelid.greybox._identifiability`).
+the data determine (:func:`identifiability`, :class:`IdentifiabilityReport`).
 
-The estimator (:mod:`fuelid.greybox._estimator`) is built from :mod:`~fuelid.greybox._fitting`
-(single shooting, the least-squares driver, the covariance),
-:mod:`~fuelid.greybox._multiple_shooting` (the segmented start) and
-:mod:`~fuelid.greybox._profile` (identifiability at the estimate, profile likelihood). Its fit
-percentages are :func:`fuelid.model.nrmse_fit_columns`.
+A model is an :class:`OdeModel` (or any :class:`GreyBoxModel`), its parameters
+:class:`ParameterSpec`, its data one or several :class:`Record`. The estimator,
+:class:`GreyBoxEstimator`, fits by single shooting (the least-squares driver and the
+covariance; :class:`ConvergenceError` when it does not converge), retried from a segmented
+start (multiple shooting) for long records and local minima, and judges identifiability at the
+estimate, by profile likelihood where the model is not linear enough (:data:`LINEARITY_LIMIT`).
+Its fit percentages are :func:`fuelid.model.nrmse_fit_columns`.
 
 The public API
 --------------

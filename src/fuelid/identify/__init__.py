@@ -1,29 +1,29 @@
 """Identification of the equivalent model from logged input/output data.
 
-- :mod:`~fuelid.identify._step_ls`: the source article's method (truncated step-response least
-  squares, then K and T by Newton iteration with the flowmeter's T_f and τ known);
-- :mod:`~fuelid.identify._oe`: output-error (maximum-likelihood under white noise) fit of the
+- :class:`StepResponseLS`: the source article's method (truncated step-response least squares,
+  then K and T by Newton iteration with the flowmeter's T_f and τ known);
+- :class:`OutputError`: output-error (maximum-likelihood under white noise) fit of the
   continuous-time gray-box model on the raw samples, with exact ZOH discretisation and a
-  fractional dead time;
-- :mod:`~fuelid.identify._diagnostics`: residual whiteness, input–residual correlation, feedback,
-  steady-state errors, sample-time advice;
-- :mod:`~fuelid.identify._nonlinearity`: the static gain per command band (does K change with
-  the operating point?);
-- :mod:`~fuelid.identify._segments`: how a log with gaps is fitted (one model, an initial state
-  per segment);
-- :mod:`~fuelid.identify._procedure`: what ``fuelid identify`` runs (:func:`identify`); its
-  settings and result in :mod:`~fuelid.identify._result`, its warnings in
-  :mod:`~fuelid.identify._residual_warnings`;
+  fractional dead time; :func:`cramer_rao_bound` its parameters' bound;
+- :class:`PredictionError`: the prediction-error fit with a noise model (its orders chosen
+  among :data:`NOISE_ORDERS` by :func:`information_criterion`);
+- the diagnostics: :func:`residual_whiteness`, :func:`input_residual_correlation`,
+  :func:`feedback_suspected`, :func:`steady_state_errors`, :func:`sample_time_advice`,
+  :func:`lead_check` (the output moving before its input), :class:`MisfitBound`;
+- :func:`gain_bands`: the static gain per command band (does K change with the operating
+  point?);
+- :func:`identify`: what ``fuelid identify`` runs, with its settings
+  (:class:`IdentifyOptions`) and its result (:class:`IdentificationResult`, its 95 % intervals
+  through :func:`interval95`);
 - :mod:`~fuelid.identify.preprocess`: the data made ready for a fit: a time window
   (:func:`~fuelid.identify.preprocess.select`), zero-phase low-pass filtering
   (:func:`~fuelid.identify.preprocess.lowpass`), decimation with its anti-alias filter
   (:func:`~fuelid.identify.preprocess.decimate`), records joined as segments
   (:func:`~fuelid.identify.preprocess.join_segments`). ``fuelid.preprocess`` before 0.2.0.
 
-Their building blocks: :mod:`~fuelid.identify._variable_projection` (the output-error model as a
-regression for given time constants, shared by oe, pem and noise),
-:mod:`~fuelid.identify._prediction_errors` (pem's criterion and noise model) and
-:mod:`~fuelid.identify._step_shape_fit` (step-ls's second stage).
+Underneath: the output-error model as a regression for given time constants, shared by oe, pem
+and the noise model (``identify/_variable_projection.py``), and step-ls's second stage,
+:func:`step_shape`.
 
 The methods, their assumptions and references: docs/explanation/identification.md.
 
@@ -31,7 +31,7 @@ The estimator convention
 ------------------------
 Every estimator (:class:`StepResponseLS`, :class:`OutputError`, :class:`PredictionError`, and
 the gray-box :class:`~fuelid.greybox.GreyBoxEstimator`) follows
-scikit-learn's conventions, through the common base ``fuelid.identify._base.Estimator``:
+scikit-learn's conventions, through a common base (``Estimator``, in ``identify/_base.py``):
 
 - ``__init__`` only stores its keyword settings, unchanged and unchecked; ``get_params()``
   returns them (``type(est)(**est.get_params())`` is an unfitted copy), ``set_params(**kw)``
@@ -62,9 +62,10 @@ scikit-learn's conventions, through the common base ``fuelid.identify._base.Esti
 
 A record with gaps (``IOData.segment_starts``) is fitted as toolboxes merge experiments: one
 model for all segments, each segment simulated on its own with its own initial state, nothing
-simulated, filtered or correlated across a gap (:mod:`~fuelid.identify._segments`).
+simulated, filtered or correlated across a gap (:data:`MIN_SEGMENT_SAMPLES`,
+:func:`drop_short_segments`).
 
-Methods are named in one registry, :data:`~fuelid.identify._procedure.METHODS`.
+Methods are named in one registry, :data:`METHODS`.
 
 The public API
 --------------

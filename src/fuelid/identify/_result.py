@@ -21,7 +21,7 @@ from fuelid.model import MODEL_KEYS, Z95, ProcessModel
 FloatArray = NDArray[np.float64]
 Method = Literal["oe", "step-ls", "pem", "auto"]
 METHODS: tuple[Method, ...] = get_args(Method)
-"""The identification methods, the one registry of their names: ``("oe", "step-ls")``."""
+"""The identification methods, the one registry of their names: oe, step-ls, pem and auto."""
 POSITIVE_PARAMETERS = frozenset({"T", "T2", "delay", "T_f"})
 """Model parameters that cannot be negative: their 95 % intervals respect the bound 0."""
 CiMethod = Literal["normal", "log", "clipped"]

@@ -6,8 +6,12 @@
 - :mod:`~fuelid.online.gates`: the verdict on one identification window, every gate with its
   reason (gaps and bad quality, output at a limit, excitation by mode, standard errors,
   validation fit, residual correlation by size; the plant-ratio event).
-- :mod:`~fuelid.online._tracking`: the loop gain against fuel temperature from accepted windows
-  (the ratio to the plant model's K, or K per command band), with prediction intervals.
+- :class:`KTracker`: the loop gain against fuel temperature from accepted windows (the ratio to
+  the plant model's K, or K per command band), with prediction intervals.
+- :class:`WindowAnalyser`: one window gated, fitted and assessed (:class:`WindowResult`).
+- :class:`OnlineService`: the service itself (recorder, schedule, history, tracker, proposals,
+  write-back), set up by the site file's ``[online]`` table (:class:`Online`, read with the rest
+  of the site by :func:`load_service_site`); :class:`Gains` the PI gains it proposes and writes.
 
 The public API
 --------------

@@ -250,7 +250,7 @@ def plant_gain_function(config: PlantConfig) -> PlantGain:
 
     Examples
     --------
-    >>> from fuelid.plant._config import load_plant_config
+    >>> from fuelid.plant import load_plant_config
     >>> k = plant_gain_function(load_plant_config())
     >>> k(1.25, 20.0) > k(4.75, 20.0) > 0.0
     True

@@ -1,14 +1,21 @@
-"""Mechanism (physics) model of the fuel supply: one module per component, then the assembly.
+"""Mechanism (physics) model of the fuel supply: the components, then the assembly.
 
-- :mod:`~fuelid.plant._vfd`, :mod:`~fuelid.plant._motor`, :mod:`~fuelid.plant._shaft`,
-  :mod:`~fuelid.plant._pump`, :mod:`~fuelid.plant._pipeline`, :mod:`~fuelid.plant._nozzle`,
-  :mod:`~fuelid.plant._flowmeter`: physics functions (SI) and each component's config section;
-- :mod:`~fuelid.plant._config`: the whole plant's TOML file (and its ``[calibration]`` record);
-- :mod:`~fuelid.plant._parameter_specs`: the registry of its numeric parameters by dotted name,
-  and :mod:`~fuelid.plant._parameters` their values in a config (read, and set in a new one);
-- :mod:`~fuelid.plant._system`: coefficients, nonlinear ODE, operating point;
-- :mod:`~fuelid.plant._linear`: linearisation and reduction to the model family;
-- :mod:`~fuelid.plant._uncertainty`: the calibration's covariance propagated to K, T, settling;
+Each component (drive, motor, shaft, pump, pipeline, nozzles, flowmeter) is a private module
+with its physics functions (SI) and its section of the plant file; the package exports:
+
+- :class:`PlantConfig`: the whole plant's TOML file (:func:`load_plant_config`,
+  :func:`plant_config_from_dict`, :func:`reference_plant_text`), with its ``[calibration]``
+  record (:class:`CalibrationLog`, :class:`CalibrationRecord`);
+- its numeric parameters by dotted name (:func:`parameter_names`, :func:`plant_parameters`,
+  :class:`PlantParameter`), read with :func:`get_parameter` and set in a new config with
+  :func:`with_parameters`;
+- the assembly: the temperature-dependent coefficients (:func:`plant_coefficients`), the
+  nonlinear ODE (:func:`plant_rhs`, :func:`plant_jacobian`) and its :func:`operating_point`;
+- :func:`linearise`: linearisation (:class:`LinearPlant`) and reduction to the model family
+  (:class:`EquivalentModel`);
+- :func:`prediction_uncertainty`: the calibration's covariance propagated to K, T, settling;
+- :func:`measure_flow`: what the PLC reads of the flow (the meter's lag and dead time, noise,
+  quantisation);
 - :mod:`~fuelid.plant.simulate`: the nonlinear plant in time as the PLC sees it (a held command,
   the meter's dead time, noise and quantisation). It fills an :class:`~fuelid.io.timeseries.IOData`
   from an :class:`~fuelid.profiles.InputProfile`, so ``io`` and ``profiles`` sit below this

@@ -90,7 +90,7 @@ class CalibrationRecord(Section):
 
     Every number is in the unit of the parameter's key (``pump.leakage_Lpm_per_MPa`` in
     (L/min)/MPa …), whatever space the estimator worked in. ``parameters`` lists the dotted
-    names (:func:`fuelid.plant._parameter_specs.parameter_names`); ``values``, ``stderr``, ``ci95``
+    names (:func:`fuelid.plant.parameter_names`); ``values``, ``stderr``, ``ci95``
     and the rows and columns of ``covariance`` follow that order.
     """
 

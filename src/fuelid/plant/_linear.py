@@ -184,7 +184,7 @@ def linearise(config: PlantConfig, u: float, T_fuel: float) -> LinearPlant:
 
     Examples
     --------
-    >>> from fuelid.plant._config import load_plant_config
+    >>> from fuelid.plant import load_plant_config
     >>> lin = linearise(load_plant_config(), u=1.25, T_fuel=293.15)
     >>> lin.static_gain > 0 and lin.delay == load_plant_config().flowmeter.delay_s
     True

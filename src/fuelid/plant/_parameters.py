@@ -32,7 +32,7 @@ class PlantParameter:
 
     Examples
     --------
-    >>> from fuelid.plant._config import load_plant_config
+    >>> from fuelid.plant import load_plant_config
     >>> p = plant_parameters(load_plant_config())["pump.leakage_Lpm_per_MPa"]
     >>> p.value, p.unit, p.lower, p.upper, p.positive
     (7.0, '(L/min)/MPa', 0.0, None, False)
@@ -68,7 +68,7 @@ def plant_parameters(config: PlantConfig) -> dict[str, PlantParameter]:
 
     Examples
     --------
-    >>> from fuelid.plant._config import load_plant_config
+    >>> from fuelid.plant import load_plant_config
     >>> params = plant_parameters(load_plant_config())
     >>> params["vfd.lag_s"].value, params["vfd.lag_s"].unit, params["vfd.lag_s"].positive
     (1.2, 's', True)
@@ -98,7 +98,7 @@ def get_parameter(config: PlantConfig, name: str) -> float:
 
     Examples
     --------
-    >>> from fuelid.plant._config import load_plant_config
+    >>> from fuelid.plant import load_plant_config
     >>> get_parameter(load_plant_config(), "nozzle.discharge_coefficient")
     0.7
     """
@@ -132,7 +132,7 @@ def with_parameters(config: PlantConfig, values: Mapping[str, float]) -> PlantCo
 
     Examples
     --------
-    >>> from fuelid.plant._config import load_plant_config
+    >>> from fuelid.plant import load_plant_config
     >>> cfg = with_parameters(load_plant_config(), {"vfd.lag_s": 2.0})
     >>> cfg.vfd.lag_s, get_parameter(cfg, "pump.leakage_Lpm_per_MPa")
     (2.0, 7.0)

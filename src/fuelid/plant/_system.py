@@ -419,7 +419,7 @@ def operating_point(config: PlantConfig, u: float, T_fuel: float) -> OperatingPo
 
     Examples
     --------
-    >>> from fuelid.plant._config import load_plant_config
+    >>> from fuelid.plant import load_plant_config
     >>> op = operating_point(load_plant_config(), u=5.0, T_fuel=293.15)
     >>> abs(op.mass_balance) < 1e-15 and abs(op.torque_balance) < 1e-9
     True

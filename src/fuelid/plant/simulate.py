@@ -344,7 +344,7 @@ def integrate_held(x0: FloatArray, times: FloatArray, u: float, c: PlantCoeffici
     From rest at 3 V nothing moves:
 
     >>> from fuelid.plant import load_plant_config
-    >>> from fuelid.plant._system import plant_coefficients, steady_state
+    >>> from fuelid.plant import plant_coefficients, steady_state
     >>> c = plant_coefficients(load_plant_config(), 293.15)
     >>> x0 = steady_state(3.0, c).state
     >>> states = integrate_held(x0, np.array([0.0, 0.5, 1.0]), 3.0, c)

@@ -1,11 +1,14 @@
 """The PLC link: the site file, the register codec, the adapters, the recorder, the virtual PLC.
 
-- :mod:`~fuelid.plc.site`: a site file read and validated (:func:`~fuelid.plc.site.load_site`);
-- :mod:`~fuelid.plc._codec`: values packed into 16-bit registers and back;
+- :mod:`~fuelid.plc.site`: a site file read and validated (:func:`~fuelid.plc.site.load_site`),
+  with its ``[archive]`` and ``[central]`` tables (:class:`Archive`, :class:`Central`);
+- :func:`encode`, :func:`decode`: values packed into 16-bit registers and back
+  (:class:`WordOrder`);
 - :mod:`~fuelid.plc.adapters`: the protocol links behind one interface
   (:class:`~fuelid.plc.adapters.PlcSource`, :func:`~fuelid.plc.adapters.open_source`);
-- :mod:`~fuelid.plc._quality`: the quality checks of a sample (range, stuck readings);
-- :mod:`~fuelid.plc._recorder`: samples from a source into the store (``fuelid record``);
+- :class:`Recorder`: samples from a source into the store, each checked (range, stuck
+  readings); :func:`record_site` runs it as ``fuelid record`` does;
+- :class:`GainWriter`: a block of gains written and the PLC's echo checked;
 - :mod:`~fuelid.plc.virtual`: the nonlinear fuel loop with its PLC emulated, on real protocol
   servers (``fuelid plant serve``); its run profiles are :mod:`fuelid.profiles.runs`.
 

@@ -71,7 +71,7 @@ def record_site(
         A source to use instead of the site's (tests).
     archiver : callable, optional
         Archives the store's finished days before each retention (the site's ``[archive]``
-        with ``auto``: :func:`fuelid.archive._retention.archiver`, passed in by the command, as
+        with ``auto``: :func:`fuelid.archive.archiver`, passed in by the command, as
         the recorder's layer does not import the archive's). With an ``[archive]`` table
         retention deletes only archived days, whether or not this archives them.
     **options

@@ -6,12 +6,15 @@ backend), so they work on a headless machine. matplotlib is imported inside the 
 command that draws nothing never loads it (docs/explanation/architecture.md, "Rules"). Temperatures
 arrive in kelvin and are shown in °C.
 
-- :mod:`~fuelid.plots._identification`: a PLC log, step responses, the model against the data
-  and the residual correlation tests;
-- :mod:`~fuelid.plots._tuning`: the loop's Bode plot, the linear closed loop, closed-loop runs on
-  the plant, the gain schedule, and the figures of ``fuelid tune --plot``;
-- :mod:`~fuelid.plots._greybox`: a gray-box fit, measured against simulated, with residuals;
-- :mod:`~fuelid.plots._online`: the online service's history.
+- identification: a PLC log (:func:`plot_log`), step responses (:func:`plot_step_responses`),
+  the model against the data (:func:`plot_identification`) and the residual correlation tests
+  (:func:`plot_correlation_tests`);
+- tuning: the loop's Bode plot (:func:`plot_bode`), the linear closed loop
+  (:func:`plot_linear_closed_loop`), closed-loop runs on the plant
+  (:func:`plot_closed_loop_runs`), the gain schedule (:func:`plot_schedule`), and the figures of
+  ``fuelid tune --plot`` (:func:`tune_figure`, :func:`runs_figure`, :func:`schedule_figure`);
+- :func:`plot_greybox_fit`: a gray-box fit, measured against simulated, with residuals;
+- :func:`plot_online_history`: the online service's history.
 
 The public API
 --------------

@@ -1,6 +1,6 @@
 """The figure of the online service's history (``fuelid online history --plot``).
 
-Presentation only (:mod:`fuelid.plots`): it draws :func:`fuelid.online._report.history_json`'s
+Presentation only (:mod:`fuelid.plots`): it draws :func:`fuelid.online.history_json`'s
 object: the identified gain over time and against fuel temperature, the PI gains and proposals.
 """
 
@@ -50,7 +50,7 @@ def plot_online_history(history: dict[str, Any], path: str | Path) -> Path:
     Parameters
     ----------
     history : dict
-        :func:`fuelid.online._report.history_json`'s object (``windows``, ``proposals`` with
+        :func:`fuelid.online.history_json`'s object (``windows``, ``proposals`` with
         their ``target``, ``writes``, ``gain_units``), every time in plant time.
     path : str or Path
         Where to save (the suffix picks the format).

@@ -1,7 +1,8 @@
 """What drives a run over time: the simulator's input profiles and the virtual PLC's run profiles.
 
-- :mod:`~fuelid.profiles._inputs`: the controller output as the PLC holds it (piecewise
-  constant), the input of :func:`fuelid.plant.simulate.simulate` and of the closed loop;
+- :class:`InputProfile` and the functions that make one: the controller output as the PLC holds
+  it (piecewise constant), the input of :func:`fuelid.plant.simulate.simulate` and of the closed
+  loop;
 - :mod:`~fuelid.profiles.runs`: what the virtual PLC's operator does over time (setpoint,
   manual command and fuel-temperature breakpoint tables, linearly interpolated), read from CSV.
 

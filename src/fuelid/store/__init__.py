@@ -11,8 +11,9 @@ and :class:`LoopStore` are what the readers of a loop (the reports, the dashboar
 history and of its store: the site's file and the central database (:mod:`fuelid.central`)
 both implement them.
 
-Every table, the schema's versions and the migrations that upgrade an older store are in
-:mod:`fuelid.store._schema`.
+Every table, the schema's version (:data:`SCHEMA_VERSION`) and the migrations that upgrade an
+older store (:data:`MIGRATIONS`) are written once, in the code that creates the tables
+(``store/_schema.py``; docs/reference/store.md quotes it).
 
 The public API
 --------------

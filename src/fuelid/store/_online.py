@@ -98,7 +98,7 @@ class OnlineHistory(GainWrites, PersonRequests):
     Examples
     --------
     >>> import tempfile, pathlib
-    >>> from fuelid.store._sqlite import SQLiteStore
+    >>> from fuelid.store import SQLiteStore
     >>> db = pathlib.Path(tempfile.mkdtemp()) / "loop.db"
     >>> with SQLiteStore(db, site_name="tunnel 2", tag_map_hash="ab12") as store:
     ...     with OnlineHistory(store) as history:

@@ -13,7 +13,7 @@ wall_time: wall clock. u in V, flows in L/min, temperatures in °C (as the PLC g
 each in one transaction of its own (the tables, the data and the new version number commit together,
 so a crash leaves the store at the version before or after a migration, never between). Opening a
 store applies the migrations it lacks (:func:`upgrade`); a store whose version is newer than
-:data:`SCHEMA_VERSION` is refused with a :class:`~fuelid.store._base.StoreError` that names both
+:data:`SCHEMA_VERSION` is refused with a :class:`~fuelid.store.StoreError` that names both
 versions, so that an older fuelid never writes into a schema it does not know.
 
 1. fuelid 0.1: ``meta``, ``samples``, ``events``, ``models``, ``proposals`` (the online

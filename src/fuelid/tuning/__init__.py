@@ -1,21 +1,28 @@
 """PI tuning: rules, robustness margins, closed-loop simulation, fuel-temperature schedules.
 
-- :mod:`~fuelid.tuning._rules`: the tuning rules in a registry (SIMC, improved SIMC, lambda,
-  AMIGO) and the PLC forms of the gains;
-- :mod:`~fuelid.tuning._block`: the PLC's PI block (its form and units: :class:`BlockForm`)
-  and the one conversion of the gains to and from it;
-- :mod:`~fuelid.tuning._limits`: what fuelid tunes, and the guards that refuse the rest;
-- :mod:`~fuelid.tuning._frequency`: loop frequency responses with the dead time exact and the
-  sampled controller included; gain and phase margins, Ms;
-- :mod:`~fuelid.tuning._controller`: the PLC's discrete PI with limits and anti-windup;
-- :mod:`~fuelid.tuning._metrics`: overshoot, settling time, IAE of a step or a load disturbance;
-- :mod:`~fuelid.tuning._linearloop`: the sampled closed loop on the process model (fast, exact);
-- :mod:`~fuelid.tuning.closedloop`: the closed loop on the nonlinear plant, the standard runs;
-- :mod:`~fuelid.tuning._result`: one tuning with its evidence and its JSON;
-- :mod:`~fuelid.tuning._cases`: plant models over fuel temperature and flow, one fixed PI over all
-  of them;
-- :mod:`~fuelid.tuning._schedule`: the gain schedule;
-- :mod:`~fuelid.tuning._sweep`: the uncertainty sweep.
+- the rules: :func:`tune` with a rule of the registry :data:`TUNING_RULES` (SIMC, improved
+  SIMC, lambda, AMIGO; :func:`list_rules`) on the model reduced by :func:`half_rule`, giving
+  :class:`PISettings`;
+- the PLC's PI block: its form and units (:class:`BlockForm`, :func:`block_units`) and the one
+  conversion of the gains to and from it (:func:`to_block`, :func:`from_block`);
+- :func:`check_tunable`, :func:`check_sweep_size`: what fuelid tunes, and the guards that refuse
+  the rest;
+- :func:`robustness`: gain and phase margins and Ms, from loop frequency responses with the dead
+  time exact and the sampled controller included (:func:`loop_function`,
+  :func:`frequency_grid`);
+- :class:`DiscretePI`: the PLC's discrete PI with limits and anti-windup;
+- :func:`linear_closed_loop`: the sampled closed loop on the process model (fast, exact): its
+  setpoint and load-disturbance steps with their overshoot, settling time and IAE
+  (:class:`LinearResponse`);
+- :func:`~fuelid.tuning.closedloop.simulate_closed_loop` (at :mod:`fuelid.tuning.closedloop`):
+  the closed loop on the nonlinear plant, the standard runs;
+- :func:`evaluate_tuning`: one tuning with its evidence and its JSON (:class:`TuningResult`);
+- :func:`plant_cases`, :func:`evaluate_fixed`: plant models over fuel temperature and flow, one
+  fixed PI over all of them; :func:`band_check` the gains with K at the 95 % interval ends of
+  each command band a log visited;
+- :func:`gain_schedule`: the gain schedule (:class:`GainSchedule`, its bands from
+  :func:`band_edges`);
+- :func:`uncertainty_sweep`: the uncertainty sweep.
 
 Inside, the fuel temperature is in kelvin (``T_fuel``); °C appears only in JSON and messages.
 The tuning parameter of the rules is the closed-loop time constant (τc or λ, ``closed_loop_time``

@@ -316,7 +316,7 @@ def robust_peak(
     """The worst Ms of ``pi`` on every plant G·(1 + Δ) with Δ within ρ(ω) of Δ̂(jω).
 
     ``misfit(ω)`` returns (Δ̂, ρ): the model's relative error as estimated, with its phase, and
-    the radius of its uncertainty (:class:`fuelid.identify._misfit.MisfitBound`). With
+    the radius of its uncertainty (:class:`fuelid.identify.MisfitBound`). With
     S = 1/(1 + L) and T = L·S on the nominal loop the perturbed sensitivity is S/(1 + T·Δ), so
 
         |S_Δ| ≤ |S|/(|1 + T·Δ̂| − |T|·ρ)

@@ -126,7 +126,7 @@ def input_sensitivity(model: ProcessModel, pi: PISettings) -> tuple[FloatArray, 
     --------
     The PI's integral rejects a constant signal: S(1) = 0.
 
-    >>> from fuelid.tuning._rules import simc
+    >>> from fuelid.tuning import simc
     >>> model = ProcessModel(K=1.0, T=2.0, delay=1.0)
     >>> num, den = input_sensitivity(model, simc(model, control_period=1.0))
     >>> round(float(np.sum(num) / np.sum(den)), 12)
@@ -155,7 +155,7 @@ def linear_closed_loop(
 
     Examples
     --------
-    >>> from fuelid.tuning._rules import simc
+    >>> from fuelid.tuning import simc
     >>> model = ProcessModel(K=1.0, T=2.0, delay=1.0)
     >>> res = linear_closed_loop(model, simc(model, control_period=1.0))
     >>> 0.0 <= res.setpoint.overshoot_percent < 20.0 and res.setpoint.settling_time < 15.0
@@ -257,7 +257,7 @@ def misfit_overshoot(
     --------
     No error: the model's own overshoot at the instants (the worked SIMC example, h = 1 s).
 
-    >>> from fuelid.tuning._rules import simc
+    >>> from fuelid.tuning import simc
     >>> model = ProcessModel(K=1.0, T=2.0, delay=1.0)
     >>> pi = simc(model, control_period=1.0)
     >>> none = lambda w: (0j * w, 0.0 * w)

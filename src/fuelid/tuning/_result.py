@@ -162,9 +162,12 @@ def evaluate_tuning(
     model : ProcessModel
         The process model (K [(L/min)/V], times [s]); refused by
         :func:`~fuelid.tuning._limits.check_tunable` when far outside any flow loop.
-    rule, control_period, closed_loop_time
-        As for :func:`~fuelid.tuning._rules.tune`: the rule's key, the PLC period h [s] and τc or
-        λ [s] (larger is slower; None for the rule's default).
+    rule : str
+        The rule's key in :data:`~fuelid.tuning.TUNING_RULES` (as for :func:`~fuelid.tuning.tune`).
+    control_period : float
+        The PLC's period h [s].
+    closed_loop_time : float, optional
+        τc or λ [s] (larger is slower; None for the rule's default).
     u_span, y_span : float, optional
         Drive span [V] and meter span [L/min] of the percent-of-span gain, from the user's
         facts; None: no %/% gain (no span is assumed).

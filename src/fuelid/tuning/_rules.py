@@ -119,7 +119,7 @@ class PISettings:
         )
 
     def to_block(self, block: BlockForm) -> tuple[float, float]:
-        """The (kc, ti) the PLC's block takes: :func:`fuelid.tuning._block.to_block`.
+        """The (kc, ti) the PLC's block takes: :func:`fuelid.tuning.to_block`.
 
         Parameters
         ----------
@@ -139,7 +139,7 @@ class PISettings:
     def from_block(
         cls, kc: float, ti: float, block: BlockForm, *, rule: str, control_period: float
     ) -> Self:
-        """The settings a PLC block holds as (kc, ti): :func:`fuelid.tuning._block.from_block`.
+        """The settings a PLC block holds as (kc, ti): :func:`fuelid.tuning.from_block`.
 
         Parameters
         ----------
@@ -203,7 +203,7 @@ class PISettings:
         dict
             ``percent_of_span``: Kc in %/% (= Kc·y_span/u_span,
             :func:`~fuelid.tuning._block.percent_of_span`), Ti [s] and Ti in minutes (the ideal
-            percent block of :func:`~fuelid.tuning._block.to_block`; None without the spans);
+            percent block of :func:`~fuelid.tuning.to_block`; None without the spans);
             ``parallel``: Kp, Ki;
             ``discrete``: for h > 0 the positional algorithm u[k] = Kc·e[k] + I[k] with the
             integral updated after the output, I[k+1] = I[k] + Kc·h/Ti·e[k] (forward Euler, as

@@ -244,9 +244,12 @@ def gain_schedule(
     ----------
     config : PlantConfig
         The plant whose physics gives the dependence on temperature and flow.
-    rule, control_period, closed_loop_time
-        As for :func:`~fuelid.tuning._rules.tune`: the rule's key, the PLC period h [s] and τc or
-        λ [s] (larger is slower; None for the rule's default).
+    rule : str
+        The rule's key in :data:`~fuelid.tuning.TUNING_RULES` (as for :func:`~fuelid.tuning.tune`).
+    control_period : float
+        The PLC's period h [s].
+    closed_loop_time : float, optional
+        τc or λ [s] (larger is slower; None for the rule's default).
     T_range : (float, float)
         Coldest and warmest fuel [K].
     band_width : float
@@ -273,6 +276,8 @@ def gain_schedule(
         Linearised plant cases by (T_fuel, u), shared with a temperature check of the same call
         so that no case is linearised twice.
 
+    Notes
+    -----
     When every band's Kc and Ti agree within :data:`SINGLE_SET_TOLERANCE`, the most cautious of
     them (the lowest Kc, with its Ti) is checked on every band's cases; if it meets the target
     everywhere, it is the schedule's ``single_set``: one set of gains suffices.

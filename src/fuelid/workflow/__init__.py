@@ -4,21 +4,21 @@ What the command line, the demo and (next) the online service run, with plain ar
 result objects whose ``to_json()`` is the documented JSON (docs/reference/json.md); nothing here
 prints, draws or writes files. Fuel temperatures are in kelvin throughout (``T_fuel``, ``T_range``).
 
-- :mod:`~fuelid.workflow._identification`: :func:`identify_log` (``fuelid identify``);
-- :mod:`~fuelid.workflow._tune`: :class:`TuneRequest`, :func:`tune_model` (``fuelid tune``) and
-  :func:`schedule_gains` (``fuelid tune --schedule``);
-- :mod:`~fuelid.workflow._analysis`: :class:`AnalysisSettings`, :func:`analyse_log`
-  (``fuelid report``);
-- :mod:`~fuelid.workflow._assumptions`: what every number rests on: :class:`PlantSource` (a
-  user's plant file or the built-in reference plant), :class:`OperatingPoint`, the plant file's
-  priors (:func:`plant_priors`, at :data:`T_REF` unless told) and the signal check
-  :func:`check_signals`;
-- :mod:`~fuelid.workflow._plant_info`: :func:`plant_info` (``fuelid plant info``);
-- :mod:`~fuelid.workflow._simulation`: :class:`SimulationRequest`, :func:`simulate_log`
-  (``fuelid simulate``) and the profile-file reader :func:`read_profile`.
-- :mod:`~fuelid.workflow._greybox_fit`: a user's ODE model file fitted to logs (``fuelid
-  greybox``): the model with its fixed and free parameters, the logs as records, the validation,
-  the warnings and the JSON object.
+- ``fuelid identify``: :func:`identify_log` (its outcome :class:`IdentifyOutcome`);
+- ``fuelid tune``: :class:`TuneRequest`, :func:`tune_model` (:class:`TuneOutcome`), the check
+  over temperature :func:`check_over_temperature` and, for ``--schedule``,
+  :func:`schedule_gains` (:class:`ScheduleOutcome`);
+- ``fuelid report``: :class:`AnalysisSettings`, :func:`analyse_log` (:class:`LogAnalysis`);
+- what every number rests on: :class:`PlantSource` (a user's plant file or the built-in
+  reference plant), :class:`OperatingPoint`, the plant file's priors (:func:`plant_priors`, at
+  :data:`T_REF` unless told), the signal check :func:`check_signals`, and the figures the data
+  leave undetermined (:func:`undetermined`);
+- ``fuelid plant info``: :func:`plant_info` (:class:`PlantInfo`);
+- ``fuelid simulate``: :class:`SimulationRequest`, :func:`simulate_log` and the profile-file
+  reader :func:`read_profile`;
+- ``fuelid greybox``: :func:`fit_greybox` (:class:`GreyBoxFit`), a user's ODE model file fitted
+  to logs: the model with its fixed and free parameters (:func:`greybox_model`), the logs as
+  records (:func:`read_record`), the validation, the warnings and the JSON object.
 
 See docs/explanation/architecture.md for where this layer sits.
 

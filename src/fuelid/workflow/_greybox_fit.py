@@ -181,7 +181,7 @@ def greybox_estimator(
     ``solver``, ``max_step`` and ``substeps`` None take the model file's (its solver defaults
     to ``auto``). The file's substeps belong to RK4 (``auto`` may end there): a solver given
     that is neither drops them. A combination no solver runs is refused
-    (:func:`fuelid.greybox._solver_choice.check_request`) before any work.
+    (:func:`fuelid.greybox.check_request`) before any work.
     """
     solver_name = solver if solver is not None else (mf.solver or "auto")
     if substeps is None and solver_name in {"rk4", "auto"}:

@@ -96,7 +96,7 @@ def plant_info(config: PlantConfig, T_fuel: float, u: float | None = None) -> Pl
 
     Examples
     --------
-    >>> from fuelid.plant._config import load_plant_config
+    >>> from fuelid.plant import load_plant_config
     >>> info = plant_info(load_plant_config(), 293.15, 1.25)
     >>> info.to_json()["fuel_temperature"], info.equivalent.model.K > 0
     (20.0, True)

@@ -323,7 +323,7 @@ def simulate_log(
 
     Examples
     --------
-    >>> from fuelid.plant._config import load_plant_config
+    >>> from fuelid.plant import load_plant_config
     >>> request = SimulationRequest(u0=1.0, u1=1.5, t_step=1.0, duration=2.0, T_fuel=273.15)
     >>> outcome = simulate_log(load_plant_config(), request)
     >>> summary = outcome.to_json()

@@ -86,7 +86,7 @@ class TuneRequest:
     cov: ArrayLike | None = field(default=None, compare=False)
     """The identification's covariance, drawn from by the sweep (None: temperature only)."""
     rule: str = "simc"
-    """A key of :data:`fuelid.tuning._rules.TUNING_RULES`."""
+    """A key of :data:`fuelid.tuning.TUNING_RULES`."""
     closed_loop_time: float | None = None
     """The rule's τc (SIMC) or λ (lambda) [s]: the desired closed-loop time constant, larger is
     slower and more robust; None for the rule's default."""

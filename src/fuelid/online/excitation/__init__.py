@@ -1,8 +1,11 @@
 """Excitation on demand (issue 40): a test signal the PLC adds to its PI output.
 
-``_design.py`` designs the signal from the loop's model and noise, with its expected standard
-errors and its cost (``_cost.py``); ``_exciter.py`` runs it beside the service; ``_status.py``
-says where a run stands.
+The online service designs the signal from the loop's model and noise, with its expected
+standard errors and its cost, and runs it (``_design.py``, ``_cost.py``, ``_exciter.py``).
+What a reader sees of a run: the exciter's record in the store's ``online_state`` under
+:data:`STATE_KEY`, a person's start or stop under :data:`REQUEST_KEY`, and
+:func:`excitation_line`, where the run stands in one line (:data:`INTERRUPTED` for a burst a
+killed service left running).
 
 The public API
 --------------

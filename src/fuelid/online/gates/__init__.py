@@ -3,22 +3,20 @@
 The online service identifies the loop on a rolling window every few minutes; a window it
 should not trust is skipped, and why is recorded (docs online.md §5: adaptive tuning that trusts
 every window bursts). Two sets of gates, both judged against the site's ``[online]`` table
-(:class:`fuelid.online._settings.Online`), both returning a :class:`WindowVerdict`:
+(:class:`fuelid.online.Online`), both returning a :class:`WindowVerdict`:
 
 - :func:`prefit_gates`, on the window's samples before any fit: the share of lost or flagged
   samples, the share of the command at an output limit, and excitation (command steps in MAN,
   setpoint moves in AUTO), with the times of the excitation events;
 - :func:`postfit_gates`, on a fitted model: the relative standard errors of K and T, the
   validation fit, the size of the residual autocorrelation (of output errors prewhitened by
-  the noise's own model, :mod:`fuelid.online._residual_acf`); and the plant-ratio *event*,
+  the noise's own model, :func:`prewhiten`); and the plant-ratio *event*,
   which flags but never rejects. :func:`gate_estimator` and :func:`gate_result` feed it from a
   fitted estimator or an ``identify`` result; :func:`excitation_refusal` turns the estimator's own
   :class:`~fuelid.errors.NotExcitingError` into a rejection.
 
 :meth:`WindowVerdict.combine` joins the two; every failed gate is listed, not only the first.
-The verdict, the pre-fit and the post-fit gates are the modules
-:mod:`~fuelid.online.gates._verdict`, :mod:`~fuelid.online.gates._prefit` and
-:mod:`~fuelid.online.gates._postfit`; this package re-exports their public names.
+(The verdict and the two sets live in ``_verdict.py``, ``_prefit.py`` and ``_postfit.py``.)
 
 Units: time [s], command u [V], flow y and setpoint [L/min], K [(L/min)/V], T [s].
 

@@ -17,10 +17,8 @@ e = setpoint − y [L/min].
 - :func:`loop_health`: all of the above for one window, in one :class:`LoopHealth` with a
   JSON-ready :meth:`~LoopHealth.to_json`.
 
-One module per metric family (:mod:`~fuelid.online.health._shares`,
-:mod:`~fuelid.online.health._oscillation`, :mod:`~fuelid.online.health._setpoint`,
-:mod:`~fuelid.online.health._harris`, :mod:`~fuelid.online.health._sensor`,
-:mod:`~fuelid.online.health._loop`); this package re-exports their public names.
+Each metric family is a private module of its own (``_shares.py``, ``_oscillation.py``,
+``_setpoint.py``, ``_harris.py``, ``_sensor.py``, ``_loop.py``); import the names from here.
 
 References
 ----------
