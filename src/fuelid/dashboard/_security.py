@@ -185,6 +185,9 @@ def check_bind(host: str, allow_remote: bool, users_file: Path | None = None) ->
 class Security:
     """The dashboard's users, sessions and login limiter, and its FastAPI dependencies.
 
+    Use the dependencies as ``Depends(security.require_viewer)`` on pages and data, and
+    ``Depends(security.require_engineer)`` on every action.
+
     Parameters
     ----------
     users
@@ -195,9 +198,6 @@ class Security:
         need an engineer's login.
     clock
         A monotonic clock [s] for sessions and the login limiter (tests give their own).
-
-    Use the dependencies as ``Depends(security.require_viewer)`` on pages and data, and
-    ``Depends(security.require_engineer)`` on every action.
     """
 
     def __init__(
