@@ -10,10 +10,7 @@ reference (docs/reference/cli.md, ``fuelid tune``) and in docs/explanation/tunin
 from __future__ import annotations
 
 from fuelid.errors import FuelidError
-
-# the control period's one check lives with the sampling tools; its usual path is here too
-from fuelid.lti import MAX_CONTROL_PERIOD as MAX_CONTROL_PERIOD
-from fuelid.lti import check_control_period as check_control_period
+from fuelid.lti import check_control_period
 from fuelid.model import ProcessModel
 
 MAX_TIME_SCALE = 1e5
