@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.fuelid-installed
 DEMO_DIR ?= demo-output
 
 .PHONY: help install demo plc-demo test test-slow soak dashboard-soak lint typecheck pytest \
-	browser postgres bench clean docs docs-serve docs-assets
+	browser postgres bench dashboard-soak-page clean docs docs-serve docs-assets
 
 help:
 	@echo "make demo   - install if needed, run the reference-plant demo (writes $(DEMO_DIR)/)"
@@ -122,6 +122,9 @@ DASHBOARD_SOAK_MINUTES ?= 30
 dashboard-soak: $(STAMP) browser
 	FUELID_DASHBOARD_SOAK_MINUTES=$(DASHBOARD_SOAK_MINUTES) $(BIN)/python -m pytest -q -rP \
 		-p no:xdist tests/system/test_dashboard_soak.py
+# The same run writing its table into docs/benchmarks/dashboard_soak.md (make bench runs it too).
+dashboard-soak-page: $(STAMP) browser
+	$(BIN)/python benchmarks/bench_dashboard_soak.py --minutes $(DASHBOARD_SOAK_MINUTES)
 
 # The benchmarks get their own environment: the peer (sysidentpy) pins an older numpy, which
 # must not replace the one the tests run with.
@@ -149,6 +152,7 @@ bench: $(BENCH_VENV)/.fuelid-installed
 	$(BENCH_VENV)/bin/python benchmarks/bench_dashboard.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_window_report.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_dashboard_page.py
+	$(BENCH_VENV)/bin/python benchmarks/bench_dashboard_soak.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_central.py
 	$(BENCH_VENV)/bin/python benchmarks/bench_acquisition.py --minutes 2
 	$(BENCH_VENV)/bin/python benchmarks/bench_online.py --minutes 2

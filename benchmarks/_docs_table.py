@@ -95,6 +95,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
         "The loop page's first view with a year of windows",
         "benchmarks/bench_dashboard_page.py",
     ),
+    "dashboard_soak": (
+        "A loop page left open for half an hour",
+        "benchmarks/bench_dashboard_soak.py",
+    ),
     "central": ("Central ingest from many senders", "benchmarks/bench_central.py"),
     "reidentify": ("Re-identification on Dask", "benchmarks/bench_reidentify.py"),
     "excitation": (
