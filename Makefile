@@ -16,6 +16,7 @@ help:
 	@echo "make test-slow - the long fault runs and a 3 h soak (CI runs them after make test)"
 	@echo "make soak   - the 24 h soak against the virtual PLC (on demand, about 30 min, prints its table)"
 	@echo "make dashboard-soak - a loop page open 30 min on a virtual loop at 20x (on demand; heap table)"
+	@echo "make dashboard-soak-page - the same, its table written to docs/benchmarks/dashboard_soak.md"
 	@echo "make bench  - run the benchmarks (on demand; prints tables, writes docs/benchmarks/)"
 	@echo "make docs   - build the documentation site into site/ (mkdocs build --strict)"
 	@echo "make docs-serve - serve the documentation with live reload on http://127.0.0.1:8000"
