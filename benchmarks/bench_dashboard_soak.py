@@ -36,7 +36,17 @@ def main() -> int:
     parser.add_argument("--minutes", type=float, default=30.0, help="wall time the page is open")
     args = parser.parse_args()
     env = {**os.environ, "FUELID_DASHBOARD_SOAK_MINUTES": f"{args.minutes:g}"}
-    command = [sys.executable, "-m", "pytest", "-q", "-s", "-p", "no:xdist", "-p", "no:cacheprovider"]
+    command = [
+        sys.executable,
+        "-m",
+        "pytest",
+        "-q",
+        "-s",
+        "-p",
+        "no:xdist",
+        "-p",
+        "no:cacheprovider",
+    ]
     done = subprocess.run(
         [*command, SOAK], cwd=ROOT, env=env, capture_output=True, text=True, check=False
     )
