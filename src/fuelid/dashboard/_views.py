@@ -26,12 +26,13 @@ written") at level info, never as a warning: nothing waits for anyone.
 
 1. the PLC's own kc and ti tags as the recorder last read them (the status' ``plc_gains``, when
    the site file reads ``[tags.kc]`` and ``[tags.ti]``): "the PLC's kc and ti tags as read at
-   …". When that reading is older than the last verified write, or its gains are not that
-   write's (to :data:`READ_BACK_RTOL`), the text says so: a reading older than the write that
-   disagrees has not seen the write yet (the recorder stopped?); a newer one that disagrees is
-   a change at the PLC (the panel, another tool) that no write explains;
+   …". A reading newer than the last verified write whose gains are not that write's (to
+   :data:`READ_BACK_RTOL`) is a change at the PLC (the panel, another tool) that no write
+   explains, and the text says so. A reading older than the write that disagrees has not seen
+   it yet: the PLC's echo of the write's apply number is its newer word, so 2. applies;
 2. the last write of gains the PLC's echo verified (a revert's included: a reverted proposal's
-   gains are never shown as current), said "last verified write #n at …";
+   gains are never shown as current), said "last verified write #n at …" (and, when the tags
+   were last read before it, that they do not show it yet);
 3. the gains the service found in the PLC when it filed its newest open proposal;
 4. the site file's ``[controller]`` kc and ti ("as commissioned");
 5. else not known.
@@ -517,6 +518,12 @@ def _from_write(
         what = f"write #{write['id']}" + (" (a revert)" if write.get("kind") == "revert" else "")
         when = format_time(write.get("finished") or write.get("time"), tz)
         text = f"last verified {what} at {when}{after}"
+        reading = status.get("plc_gains") or {}
+        if reading.get("Kc") is not None and _read_before_write(reading, write):
+            text += (
+                "; the PLC's kc and ti tags, last read at "
+                f"{format_time(reading.get('time'), tz)} before it, do not show it yet"
+            )
         return _gains_json(status, write.get("Kc"), write.get("Ti"), "write", text, write["id"])
     block = (status.get("write_back") or {}).get("current_gains_block")
     if block and block.get("Kc") is not None:  # verified, but not among the writes given
@@ -528,8 +535,9 @@ def _from_write(
 def _versus_write(reading: dict[str, Any], write: dict[str, Any], status: dict[str, Any]) -> str:
     """What the PLC's reading is to the last verified write: "" when newer and the same.
 
-    Older than the write (by plant time), or other gains than it wrote: said, with the write's
-    gains when they differ.
+    Read before the write with the same gains, or read after it with other gains (changed at the
+    PLC): said, with the write's gains when they differ. A reading before the write with other
+    gains never comes here: the write's echo is the newer word from the PLC (:func:`_from_plc`).
     """
     tz = status.get("timezone") or "UTC"
     units = _units(status)
@@ -537,15 +545,18 @@ def _versus_write(reading: dict[str, Any], write: dict[str, Any], status: dict[s
     what += " (a revert)" if write.get("kind") == "revert" else ""
     at = write.get("finished") or write.get("time")
     what += f" at {format_time(at, tz)}"
-    read_at = reading.get("time")
-    older = isinstance(read_at, int | float) and isinstance(at, int | float) and read_at < at
     if gains_agree(reading, write, READ_BACK_RTOL):
-        return f", before {what} (the same gains)" if older else ""
+        return f", before {what} (the same gains)" if _read_before_write(reading, write) else ""
     written = f"Kc {fmt_num(write.get('Kc'))} {units['Kc'] or ''}".rstrip()
     written += f", Ti {fmt_num(write.get('Ti'))} {units['Ti'] or ''}".rstrip()
-    if older:
-        return f", before {what} ({written}), which they do not show yet"
     return f"; not the gains of {what} ({written}): changed at the PLC, not by a write"
+
+
+def _read_before_write(reading: dict[str, Any], write: dict[str, Any]) -> bool:
+    """True when the PLC's gain tags were last read before the write finished (plant time)."""
+    read_at = reading.get("time")
+    at = write.get("finished") or write.get("time")
+    return isinstance(read_at, int | float) and isinstance(at, int | float) and read_at < at
 
 
 def _from_plc(
@@ -558,6 +569,11 @@ def _from_plc(
     tz = status.get("timezone") or "UTC"
     text = f"the PLC's kc and ti tags as read at {format_time(reading.get('time'), tz)}"
     write, _ = _verified_write(status, writes)
+    if write is not None and _read_before_write(reading, write):
+        if not gains_agree(reading, write, READ_BACK_RTOL):
+            # the PLC echoed the write's apply number after its tags were last read: the echo is
+            # the newer word from the PLC, so the write's gains are in force (said so)
+            return None
     if write is not None:
         text += _versus_write(reading, write, status)
     return _gains_json(status, reading["Kc"], reading["Ti"], "plc", text)

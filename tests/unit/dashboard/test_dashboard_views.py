@@ -280,14 +280,14 @@ def test_a_change_at_the_panel_no_write_explains_is_shown_as_the_plcs_gains() ->
 
 def test_a_reading_older_than_the_last_write_says_so() -> None:
     writes = [write(3, "proposal", "verified", 0.12, 2.2, NEWEST - 200.0)]
-    # read before the write and not its gains: the write has not been seen at the tags
+    # read before the write and not its gains: the tags have not been read since; the PLC's
+    # echo of the write's apply number is its newer word, so the written gains are in force
     stale = status(last_write=writes[-1], plc_gains=reading(0.1, 2.0, NEWEST - 500.0))
     got = gains_in_force(stale, writes)
-    assert (got["Kc"], got["Ti"], got["source"]) == (0.1, 2.0, "plc")
+    assert (got["Kc"], got["Ti"], got["source"], got["write_id"]) == (0.12, 2.2, "write", 3)
     assert got["text"] == (
-        "the PLC's kc and ti tags as read at 2026-11-27 09:06:43 CET, before the last verified "
-        "write #3 at 2026-11-27 09:11:44 CET (Kc 0.12 V per L/min, Ti 2.2 s), which they do "
-        "not show yet"
+        "last verified write #3 at 2026-11-27 09:11:44 CET; the PLC's kc and ti tags, last read "
+        "at 2026-11-27 09:06:43 CET before it, do not show it yet"
     )
     # read before a write of the very gains they hold (only changes are kept): said, no alarm
     same = status(last_write=writes[-1], plc_gains=reading(0.12, 2.2, NEWEST - 500.0))
@@ -384,3 +384,4 @@ def test_revert_is_offered_only_when_it_would_change_the_gains() -> None:
     assert why == "No revert: the gains in force are the last-known-good ones."
     assert not revert_offer(status, "off", {"Kc": 0.035, "Ti": 3.1})[0]
     assert not revert_offer({}, "approve", {"Kc": 0.035, "Ti": 3.1})[0]
+
