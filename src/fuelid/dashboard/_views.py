@@ -569,13 +569,13 @@ def _from_plc(
     tz = status.get("timezone") or "UTC"
     text = f"the PLC's kc and ti tags as read at {format_time(reading.get('time'), tz)}"
     write, _ = _verified_write(status, writes)
-    if write is not None and _read_before_write(reading, write):
-        if not gains_agree(reading, write, READ_BACK_RTOL):
-            # the PLC echoed the write's apply number after its tags were last read: the echo is
-            # the newer word from the PLC, so the write's gains are in force (said so)
-            return None
-    if write is not None:
-        text += _versus_write(reading, write, status)
+    if write is None:
+        return _gains_json(status, reading["Kc"], reading["Ti"], "plc", text)
+    if _read_before_write(reading, write) and not gains_agree(reading, write, READ_BACK_RTOL):
+        # the PLC echoed the write's apply number after its tags were last read: the echo is
+        # the newer word from the PLC, so the write's gains are in force (said so)
+        return None
+    text += _versus_write(reading, write, status)
     return _gains_json(status, reading["Kc"], reading["Ti"], "plc", text)
 
 

@@ -384,4 +384,3 @@ def test_revert_is_offered_only_when_it_would_change_the_gains() -> None:
     assert why == "No revert: the gains in force are the last-known-good ones."
     assert not revert_offer(status, "off", {"Kc": 0.035, "Ti": 3.1})[0]
     assert not revert_offer({}, "approve", {"Kc": 0.035, "Ti": 3.1})[0]
-
