@@ -104,7 +104,7 @@ def link_up_detail(outage_s: float, attempts: int, filled: int | None) -> str:
     Parameters
     ----------
     outage_s : float
-        Wall time from the loss to the link back [s].
+        Wall time from the last reading before the loss to the link back [s].
     attempts : int
         Connect attempts it took; 1 (back at the next poll) makes the outage a blip.
     filled : int or None
@@ -337,7 +337,10 @@ class Recorder:
 
     async def _link_lost(self, reason: str) -> None:
         self._connected = False
-        self._down_since = time.monotonic()
+        # the outage runs from the last reading that arrived, not from when a failed read said
+        # so (that read's timeout would hide most of a short blip)
+        quiet = time.time() - self._last_seen if math.isfinite(self._last_seen) else 0.0
+        self._down_since = time.monotonic() - max(quiet, 0.0)
         self._down_utc = time.time()
         self.stats.link, self.stats.last_error = "down", reason
         self.stats.drops += 1

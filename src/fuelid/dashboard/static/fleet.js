@@ -4,7 +4,8 @@
 const FLEET_EVERY_MS = 5000;
 const fleetWatchdog = new Watchdog({
   tz: document.body.dataset.tz || "UTC",
-  lateMs: 2.5 * FLEET_EVERY_MS,
+  // one refresh missed and most of the next: "disconnected" within 10 s of the last answer
+  lateMs: 1.6 * FLEET_EVERY_MS,
   onBack: () => {},
 });
 fleetWatchdog.arrived(); // the page itself was just served
