@@ -12,7 +12,7 @@ dashboard process' resident memory.
 
 Run on demand:
 
-    .venv/bin/python benchmarks/bench_dashboard_soak.py [--minutes 30]
+    .venv/bin/python benchmarks/bench_dashboard_soak.py [--minutes 30] [--from-output FILE]
 """
 
 from __future__ import annotations
@@ -27,37 +27,50 @@ from _docs_table import run_to_docs
 
 ROOT = Path(__file__).resolve().parent.parent
 SOAK = "tests/system/test_dashboard_soak.py"
-FIRST_LINE = "min "
-"""The soak's table starts with its header line, which starts so."""
+HEADER = ["min", "heap"]
+"""The soak's table starts with its header line, whose first words these are."""
+
+
+def _soak_output(minutes: float) -> str:
+    """Run the soak for ``minutes``; what it printed (its table), or exit when it failed."""
+    env = {**os.environ, "FUELID_DASHBOARD_SOAK_MINUTES": f"{minutes:g}"}
+    command = [sys.executable, "-m", "pytest", "-q", "-s", "-p", "no:xdist"]
+    command += ["-p", "no:cacheprovider", SOAK]
+    done = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        sys.stderr.write(done.stdout[-4000:] + done.stderr[-2000:])
+        raise SystemExit(f"the soak failed (exit {done.returncode}): no page written")
+    return done.stdout
+
+
+def _table(output: str) -> list[str]:
+    """The soak's table: from its header line to its summary line."""
+    lines = output.splitlines()
+    start = next((i for i, line in enumerate(lines) if line.split()[:2] == HEADER), None)
+    end = next((i for i, line in enumerate(lines) if "looks at the trend" in line), None)
+    if start is None or end is None or end < start:
+        raise SystemExit("no soak table in the output: no page written")
+    return lines[start : end + 1]
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--minutes", type=float, default=30.0, help="wall time the page is open")
-    args = parser.parse_args()
-    env = {**os.environ, "FUELID_DASHBOARD_SOAK_MINUTES": f"{args.minutes:g}"}
-    command = [
-        sys.executable,
-        "-m",
-        "pytest",
-        "-q",
-        "-s",
-        "-p",
-        "no:xdist",
-        "-p",
-        "no:cacheprovider",
-    ]
-    done = subprocess.run(
-        [*command, SOAK], cwd=ROOT, env=env, capture_output=True, text=True, check=False
+    parser.add_argument(
+        "--from-output",
+        type=Path,
+        help="the saved output of a soak run (make dashboard-soak) instead of a new run",
     )
-    lines = done.stdout.splitlines()
-    start = next((i for i, line in enumerate(lines) if line.startswith(FIRST_LINE)), None)
-    if done.returncode != 0 or start is None:
-        sys.stderr.write(done.stdout[-4000:] + done.stderr[-2000:])
-        raise SystemExit(f"the soak failed (exit {done.returncode}): no page written")
-    end = next(i for i in range(start, len(lines)) if "looks at the trend" in lines[i])
-    print(f"page open {args.minutes:g} min of wall time, virtual loop at 20x")
-    print("\n".join(lines[start : end + 1]))
+    args = parser.parse_args()
+    if args.from_output is not None:
+        output = args.from_output.read_text(encoding="utf-8")
+        print(f"from the saved output of a soak run ({args.from_output.name})")
+    else:
+        output = _soak_output(args.minutes)
+    table = _table(output)
+    minutes = table[-2].split()[0]
+    print(f"page open {minutes} min of wall time, virtual loop at 20x")
+    print("\n".join(table))
     print("bands met: follows at every look, heap growth < 50 MB, no console error")
     return 0
 
