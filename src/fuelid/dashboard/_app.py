@@ -334,10 +334,8 @@ def central_request_rows(status: dict[str, Any], tz: str) -> list[dict[str, Any]
             state = (
                 "fetched by the site, being carried out"
                 if r.get("fetched") is not None
-                else (
-                    "waiting for the site's next sync (expires "
-                    f"{format_time(r['expires'], tz)}, wall clock)"
-                )
+                # the table's header names the clock (the wall clock) and the zone
+                else f"waiting for the site's next sync (expires {format_time(r['expires'], tz)})"
             )
         else:
             state = f"{r['status']}: {r.get('outcome') or ''}".rstrip(": ")
