@@ -42,6 +42,7 @@ import sys
 import tempfile
 import time
 import urllib.request
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -128,6 +129,8 @@ def trend_query(path: Path, repeat: int) -> tuple[float, int, int]:
         loop.close()
 
 
+PLOTLY_JS = "static/vendor/plotly/plotly-basic.min.js"
+"""The plotly.js the dashboard serves (its analysis charts), under the package's folder."""
 STATIC_PAGE = """<!doctype html><html><head><meta charset="utf-8">
 <script src="{plotly}"></script></head><body><div id="c" style="width:1400px;height:560px"></div>
 <script>
@@ -142,8 +145,6 @@ Plotly.newPlot("c", [{{type: "scatter", mode: "lines", x, y}}]).then(() => {{
 
 def render_times(base: str, loop_id: str, repeat: int, work: Path) -> tuple[float, float, int]:
     """Median first render of the loop page [s], of a static page of as many points, points."""
-    import plotly
-
     from support.browser import browser_page, wait_ready
 
     loads, points = [], 0
@@ -156,7 +157,8 @@ def render_times(base: str, loop_id: str, repeat: int, work: Path) -> tuple[floa
             loads.append(time.perf_counter() - started)
             # the live trend's points (uPlot; the analysis charts wait until scrolled to)
             points = 4 * int(page.evaluate("document.getElementById('trend').dataset.points"))
-        plotly_js = Path(plotly.__file__).parent / "package_data" / "plotly.min.js"
+        # the dashboard's own plotly.js (vendored: its basic bundle)
+        plotly_js = Path(str(resources.files("fuelid.dashboard"))) / PLOTLY_JS
         static = work / "static.html"
         static.write_text(STATIC_PAGE.format(plotly=plotly_js.as_uri(), n=points))
         statics = []

@@ -12,9 +12,10 @@ libraries a live trend could be drawn with, as sent (gzip -9), so the choice is 
     fresh browser context per load (nothing cached): the navigation's timing
     (``loadEventEnd``), the scripts' bytes as sent (``transferSize`` of the script resources),
     every script named; the median of ``--repeat`` loads. Then the same page from the cache.
-(c) The live-trend libraries' sizes: the vendored uPlot, plotly.js as the plotly package carries
-    it, and a partial plotly bundle when ``--plotly-basic FILE`` names one (npm package
-    plotly.js-basic-dist-min, measured with ``npm pack``; not downloaded here).
+(c) The live-trend libraries' sizes: the vendored uPlot and plotly.js basic bundle (the analysis
+    charts'), and the full plotly.min.js when ``--plotly-full FILE`` names one (the plotly
+    Python package's ``package_data/plotly.min.js`` or npm's plotly.js-dist-min; not
+    downloaded here).
 
 Run on demand:
 
@@ -122,19 +123,18 @@ def loads(url: str, repeat: int) -> list[dict[str, Any]]:
             browser.close()
 
 
-def sizes(plotly_basic: Path | None) -> list[tuple[str, int, int]]:
+def sizes(plotly_full: Path | None) -> list[tuple[str, int, int]]:
     """(library, bytes, bytes gzipped) of what a live trend could be drawn with."""
-    import plotly
-
     static = Path(str(resources.files("fuelid.dashboard") / "static"))
     files = {
         "uPlot 1.6.32 (vendored)": static / "vendor" / "uplot" / "uPlot.iife.min.js",
-        f"plotly.js (plotly {plotly.__version__} package)": Path(plotly.__file__).parent
-        / "package_data"
-        / "plotly.min.js",
+        "plotly.js 4.1.1 basic bundle (vendored)": static
+        / "vendor"
+        / "plotly"
+        / "plotly-basic.min.js",
     }
-    if plotly_basic is not None:
-        files["plotly.js basic bundle (partial)"] = plotly_basic
+    if plotly_full is not None:
+        files["plotly.js full bundle"] = plotly_full
     out = []
     for name, path in files.items():
         data = path.read_bytes()
@@ -147,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--store", type=Path, help="a store (default: a short virtual run)")
     parser.add_argument("--windows", type=int, default=YEAR_OF_WINDOWS, help="windows to add")
     parser.add_argument("--repeat", type=int, default=5, help="fresh loads (median)")
-    parser.add_argument("--plotly-basic", type=Path, help="plotly-basic.min.js to size")
+    parser.add_argument("--plotly-full", type=Path, help="a full plotly.min.js to size")
     args = parser.parse_args(argv)
     from support.browser import dashboard
 
@@ -162,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
 
             loop = json.loads(urllib.request.urlopen(f"{base}/api/loops").read())["loops"][0]
             runs = loads(f"{base}/loops/{loop['loop_id']}", args.repeat)
-    return report(runs, count, args.repeat, sizes(args.plotly_basic))
+    return report(runs, count, args.repeat, sizes(args.plotly_full))
 
 
 def report(

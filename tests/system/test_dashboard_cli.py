@@ -1,7 +1,8 @@
 """``fuelid dashboard`` and ``fuelid online --dashboard`` as a user runs them.
 
 Refusals exit 2 with one line on stderr (a non-loopback address without --allow-remote, remote
-access without a users file, no store, a store of a newer fuelid, two stores with one loop id);
+access without a users file, no store, a store of a newer fuelid, two stores with one loop id, a
+live trend's span that is not 1 to 1440 minutes); ``--trend-minutes`` reaches the loop page;
 ``fuelid online --virtual --dashboard`` serves the store's loop from a second process while the
 service runs, and that process ends with the service.
 """
@@ -21,7 +22,7 @@ pytest.importorskip("fastapi")
 
 from fuelid.cli import main
 from fuelid.store import SCHEMA_VERSION
-from support.browser import Process
+from support.browser import Process, dashboard
 
 # xdist: one worker runs the dashboard's modules, which share one store made once
 # (tests/conftest.py says why)
@@ -56,6 +57,27 @@ def test_refusals_exit_2_with_one_line(
     with sqlite3.connect(store) as con:
         con.execute(f"PRAGMA user_version={SCHEMA_VERSION + 1}")
     assert "newer" in _refused(capsys, "--store", str(store))
+
+
+def test_the_trend_minutes_reach_the_page_and_a_bad_span_is_refused(
+    dashboard_store: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    store = tmp_path / "loop.db"
+    shutil.copy(dashboard_store, store)
+    for bad in ("0", "-5", "0.5", "1441", "inf", "nan", "ten"):
+        err = _refused(capsys, "--store", str(store), "--trend-minutes", bad)
+        assert "--trend-minutes" in err, (bad, err)
+        reason = "a valid number" if bad == "ten" else f"from 1 to 1440, got {bad}"
+        assert reason in err, (bad, err)
+    with dashboard(tmp_path, "--store", str(store), "--trend-minutes", "2.5") as (_, base):
+        (row,) = json.loads(urllib.request.urlopen(f"{base}/api/loops").read())["loops"]
+        page = urllib.request.urlopen(f"{base}/loops/{row['loop_id']}").read().decode()
+        trend = json.loads(
+            urllib.request.urlopen(f"{base}/api/loops/{row['loop_id']}/trend").read()
+        )
+    assert 'data-minutes="2.5"' in page  # the span the page's trend follows
+    assert "the newest 2.5 min, following" in page
+    assert trend["end"] - trend["start"] == pytest.approx(150.0, abs=1e-3)  # the API's default
 
 
 @pytest.mark.slow  # a 20 s virtual run: the slow set (CI runs it)

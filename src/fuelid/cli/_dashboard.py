@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -17,6 +18,18 @@ app = typer.Typer(
     invoke_without_command=True,
 )
 app.add_typer(user_app, name="user")
+
+
+TREND_MINUTES_RANGE = (1.0, 1440.0)
+"""The live trend's span a page may follow [min]: a minute to a day."""
+
+
+def _trend_minutes(value: float) -> float:
+    """``--trend-minutes``: a number of minutes in range (NaN said as what it is, not a bound)."""
+    low, high = TREND_MINUTES_RANGE
+    if not (math.isfinite(value) and low <= value <= high):
+        raise typer.BadParameter(f"a number of minutes from {low:g} to {high:g}, got {value:g}")
+    return value
 
 
 @app.callback()
@@ -94,10 +107,10 @@ def dashboard_command(
         float,
         typer.Option(
             "--trend-minutes",
-            min=1.0,
-            max=1440.0,
             metavar="MIN",
-            help="The span the loop page's live trend shows and follows [min].",
+            callback=_trend_minutes,
+            help=f"The span the loop page's live trend shows and follows [min] "
+            f"({TREND_MINUTES_RANGE[0]:g} to {TREND_MINUTES_RANGE[1]:g}).",
         ),
     ] = 10.0,
 ) -> None:

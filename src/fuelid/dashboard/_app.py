@@ -17,12 +17,13 @@ serving the local loops.
 
 The API under ``/api/`` returns the same data as JSON, built by the functions ``fuelid online
 status --json`` and ``history --json`` use (one shape, not two); FastAPI's OpenAPI page is
-``/api/docs``. The live trend is drawn by uPlot (vendored: ``static/vendor/``), the analysis
-charts by plotly.js served from the installed plotly package (``/static/plotly.min.js``), loaded
-only when they are scrolled into view: nothing comes from the internet, and no WebGL trace is
-used. Static files are compressed once and cached (:mod:`fuelid.dashboard._static_files`); pages
-and JSON answers are gzip-compressed when large; the event stream is not. The actions (approve,
-reject, revert, the test signal's start and stop) are :mod:`fuelid.dashboard._actions`.
+``/api/docs`` (Swagger UI). The live trend is drawn by uPlot, the analysis charts by plotly.js's
+basic bundle (scatter traces), loaded only when they are scrolled into view; uPlot, plotly.js and
+Swagger UI are vendored in ``static/vendor/`` (:func:`~fuelid.dashboard._static_files.vendored`):
+nothing comes from the internet, and no WebGL trace is used. Static files are compressed once
+and cached (:mod:`fuelid.dashboard._static_files`); pages and JSON answers are gzip-compressed
+when large; the event stream is not. The actions (approve, reject, revert, the test signal's
+start and stop) are :mod:`fuelid.dashboard._actions`.
 """
 
 from __future__ import annotations
@@ -35,7 +36,6 @@ from typing import Any
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 from fastapi.sse import EventSourceResponse, ServerSentEvent
-from fastapi.staticfiles import StaticFiles as MountedFiles
 from starlette.middleware.gzip import GZipMiddleware
 
 from fuelid import __version__
@@ -49,7 +49,6 @@ from fuelid.dashboard._source import LoopReader
 from fuelid.dashboard._static_files import StaticFiles
 from fuelid.dashboard._trend import trend
 from fuelid.dashboard._views import fmt_num
-from fuelid.errors import FuelidError
 from fuelid.io import format_time
 
 __all__ = ["GZIP_MIN_BYTES", "TREND_MINUTES", "create_app"]
@@ -60,16 +59,6 @@ TREND_MINUTES = 10
 GZIP_MIN_BYTES = 2048
 """Pages and JSON answers larger than this are gzip-compressed [bytes]."""
 TEMPLATES = "templates"
-
-
-def _plotly_js() -> Path:
-    """plotly.js as the installed plotly package carries it."""
-    import plotly
-
-    path = Path(plotly.__file__).parent / "package_data" / "plotly.min.js"
-    if not path.is_file():
-        raise FuelidError(f"plotly.js not found in the installed plotly package ({path})")
-    return path
 
 
 def create_app(
@@ -102,11 +91,11 @@ def create_app(
     )
     env.filters["when"] = format_time
     env.filters["num"] = fmt_num
-    # the Swagger UI that swagger-ui-bundle carries (4.x) reads OpenAPI 3.0 documents
+    # the vendored Swagger UI (4.x) reads OpenAPI 3.0 documents
     app.openapi_version = "3.0.3"
     app.state.loops = loops
     app.state.security = security
-    static_files = StaticFiles(Path(str(package / STATIC)), {"plotly.min.js": _plotly_js()})
+    static_files = StaticFiles(Path(str(package / STATIC)))
     env.globals["static"] = static_files.url
     # the event stream is never compressed (Starlette leaves text/event-stream alone)
     app.add_middleware(GZipMiddleware, minimum_size=GZIP_MIN_BYTES)
@@ -129,10 +118,8 @@ def create_app(
 
 def _static_routes(board: Dashboard) -> None:
     """The favicon, the OpenAPI page and the static files (compressed, cached)."""
-    app, viewer, page, swagger = board.app, board.viewer, board.page, board.swagger
+    app, viewer, page = board.app, board.viewer, board.page
     static_files = board.static_files
-    if swagger is not None:
-        app.mount("/static/swagger", MountedFiles(directory=str(swagger)), name="swagger")
 
     @app.get("/favicon.ico", include_in_schema=False)
     def favicon() -> Response:
@@ -142,9 +129,7 @@ def _static_routes(board: Dashboard) -> None:
         "/api/docs", response_class=HTMLResponse, include_in_schema=False, dependencies=[viewer]
     )
     def api_docs(request: Request) -> HTMLResponse:
-        """The OpenAPI page: Swagger UI from the installed swagger-ui-bundle, no CDN."""
-        if swagger is None:
-            raise HTTPException(404, "the API page needs swagger-ui-bundle (the dashboard extra)")
+        """The OpenAPI page: the vendored Swagger UI, no CDN."""
         return page("api_docs.html.j2", request, page_title="API", page="api", tz="UTC")
 
     @app.get("/static/{name:path}", include_in_schema=False)
@@ -349,10 +334,8 @@ def central_request_rows(status: dict[str, Any], tz: str) -> list[dict[str, Any]
             state = (
                 "fetched by the site, being carried out"
                 if r.get("fetched") is not None
-                else (
-                    "waiting for the site's next sync (expires "
-                    f"{format_time(r['expires'], tz)}, wall clock)"
-                )
+                # the table's header names the clock (the wall clock) and the zone
+                else f"waiting for the site's next sync (expires {format_time(r['expires'], tz)})"
             )
         else:
             state = f"{r['status']}: {r.get('outcome') or ''}".rstrip(": ")

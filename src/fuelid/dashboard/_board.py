@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from fastapi import Depends, FastAPI, HTTPException, Request
@@ -31,15 +30,6 @@ __all__ = ["RECENT_HEALTH", "Dashboard", "loop_summary"]
 
 RECENT_HEALTH = 30
 """Windows whose IAE per unit step form a loop's own median (fleet chip)."""
-
-
-def _swagger_ui() -> Path | None:
-    """Swagger UI's files as the installed swagger-ui-bundle carries them (None without it)."""
-    try:
-        import swagger_ui_bundle
-    except ImportError:
-        return None
-    return Path(swagger_ui_bundle.swagger_ui_path)
 
 
 def _recent_iae(windows: list[dict[str, Any]]) -> list[float]:
@@ -82,7 +72,6 @@ class Dashboard:
     trend_minutes: float
     static_files: StaticFiles
     feeds: Feeds = field(default_factory=Feeds)
-    swagger: Path | None = field(default_factory=lambda: _swagger_ui())
 
     @property
     def viewer(self) -> Any:

@@ -40,6 +40,21 @@ WATCH_EVERY_S = 5.0
 """How often the watched folders are scanned for new stores [s]."""
 
 
+def named_by_file(reason: str, path: Path) -> str:
+    """``reason`` on one line, the store named by its file's name: a page names no folder.
+
+    The fleet page lists it under the file's name, so a leading "<the file>: " goes.
+
+    >>> named_by_file("/srv/stores/a.db: not a fuelid store", Path("/srv/stores/a.db"))
+    'not a fuelid store'
+    >>> named_by_file("cannot read /srv/stores/a.db", Path("/srv/stores/a.db"))
+    'cannot read a.db'
+    """
+    for full in sorted({str(path.resolve()), str(path)}, key=len, reverse=True):  # longest first
+        reason = reason.replace(full, path.name)
+    return " ".join(reason.split()).removeprefix(f"{path.name}: ")
+
+
 class Loops:
     """The loops by id (see the module docstring).
 
@@ -129,7 +144,7 @@ class Loops:
                         self.refused.pop(path.name, None)
                     except FuelidError as error:
                         self._tried[key] = mtime
-                        self.refused[path.name] = " ".join(str(error).split())
+                        self.refused[path.name] = named_by_file(str(error), path)
 
     def local_loops(self) -> list[LoopReader]:
         """The loops of the local stores now (not the central store's)."""

@@ -501,7 +501,7 @@ def add_security_headers(app: Any) -> None:
     The Content-Security-Policy allows scripts, styles, images and connections from the
     dashboard itself only (``'self'``; images also as ``data:`` URLs), and no framing. Inline
     ``<script>`` blocks and ``on…=`` attributes are **not** allowed (``script-src 'self'``): pages
-    put their scripts in static files served by the dashboard (plotly.js included, served
-    locally, never from a CDN). Inline ``style`` attributes and ``<style>`` blocks are allowed.
+    put their scripts in static files served by the dashboard (the vendored libraries
+    included, never from a CDN). Inline ``style`` attributes and ``<style>`` blocks are allowed.
     """
     app.add_middleware(SecurityHeadersMiddleware)

@@ -9,9 +9,10 @@ is never asked for again.
 
 What runs in the browser is either fuelid's own (``static/*.js``, ``*.css``) or vendored under
 ``static/vendor/`` with its version, licence and hash in ``static/vendor/MANIFEST.json``
-(:func:`vendored`); plotly.js comes from the installed plotly package (its version is the
-package's). Nothing is loaded from the internet: the Content-Security-Policy allows scripts
-from the dashboard itself only.
+(:func:`vendored`): uPlot, plotly.js's basic bundle and Swagger UI, each file unchanged from its
+npm package, so a Python dependency's update cannot change what the browser runs. Nothing is
+loaded from the internet: the Content-Security-Policy allows scripts from the dashboard itself
+only.
 """
 
 from __future__ import annotations
@@ -58,25 +59,20 @@ def _load(path: Path) -> StaticFile:
 
 
 class StaticFiles:
-    """The files under the package's ``static/`` folder, plus named extra files.
+    """The files under the package's ``static/`` folder (and nothing from elsewhere).
 
     Parameters
     ----------
     root : Path
         The ``static`` folder.
-    extra : dict of str to Path
-        Files served under ``/static/<name>`` from elsewhere (plotly.js from its package).
     """
 
-    def __init__(self, root: Path, extra: dict[str, Path] | None = None) -> None:
+    def __init__(self, root: Path) -> None:
         self.root = root.resolve()
-        self.extra = dict(extra or {})
         self._files: dict[str, StaticFile] = {}
         self._lock = threading.Lock()
 
     def _path(self, name: str) -> Path | None:
-        if name in self.extra:
-            return self.extra[name]
         path = (self.root / name).resolve()
         # a name with ".." or an absolute path must not leave the folder
         if self.root not in path.parents or not path.is_file():

@@ -13,7 +13,6 @@ import sqlite3
 import threading
 import time as _time
 
-from fuelid.io import format_time
 from fuelid.store._archived import prunable_spans
 from fuelid.store._records import PruneResult, StoreError
 
@@ -95,10 +94,11 @@ class PruneMixin:
                     con.execute(_DELETE_LOD, (a, min(b, plant_cut)))
             kept = int(con.execute(_COUNT, (-math.inf, plant_cut)).fetchone()[0])
             how = "none" if thin_to_period_s is None else f"one per {thin_to_period_s} s"
-            # the cut-off is a wall-clock time: said as a date, not as seconds since the epoch
+            # the retention as an age, as the other events say a time (a blip's length, a time
+            # without a link): the event's row is dated in plant time in the site's zone, and a
+            # wall-clock date in UTC beside it would give the events table a second clock
             detail = (
-                f"written before {format_time(cutoff, 'UTC')} (wall clock): {deleted} deleted, "
-                f"{kept} kept ({how})"
+                f"samples older than {older_than_days:g} d: {deleted} deleted, {kept} kept ({how})"
             )
             unarchived = 0
             if archived_only:

@@ -155,7 +155,8 @@ def test_pages_load_and_an_unknown_loop_is_404(loop_db: Path) -> None:
     client, loops = _client([loop_db])
     try:
         (loop_id,) = loops.ids()
-        for url in ("/", f"/loops/{loop_id}", "/api/loops", "/api/docs", "/static/plotly.min.js"):
+        plotly_js = "/static/vendor/plotly/plotly-basic.min.js"
+        for url in ("/", f"/loops/{loop_id}", "/api/loops", "/api/docs", plotly_js):
             assert client.get(url).status_code == 200, url
         loop_page = client.get(f"/loops/{loop_id}").text
         assert client.get("/loops/no-such-loop").status_code == 404
@@ -388,7 +389,7 @@ def test_the_trend_spans_the_minutes_asked_for(loop_db: Path) -> None:
 
 
 def test_the_first_view_of_a_loop_page_sends_at_most_300_kb_of_scripts(loop_db: Path) -> None:
-    # the goal (at most 500 KB): plotly.js (4.8 MB) waits until the analysis charts show
+    # the goal (at most 500 KB): plotly.js (1.2 MB) waits until the analysis charts show
     import re
 
     client, loops = _client([loop_db])

@@ -108,7 +108,14 @@ def test_every_page_loads_without_a_console_error(dashboard_store: Path, tmp_pat
             wait_until(page, "document.getElementById('analysis').dataset.drawn")
             accepted = sum(w["accepted"] for w in history["windows"])
             model_points = page.evaluate("document.getElementById('models').data[0].x.length")
+            # the charts' toolbar as drawn: its buttons' titles (none uploads to a cloud)
+            toolbar = page.evaluate(
+                "Array.from(document.querySelectorAll('#analysis .modebar-btn'))"
+                ".map((b) => b.getAttribute('data-title') || '')"
+            )
     assert errors == []
+    assert len(toolbar) >= 3, toolbar  # zoom, pan, reset, ... per chart
+    assert not [t for t in toolbar if re.search(r"cloud|chart studio|share|edit in", t, re.I)]
     assert flow_points > 100
     assert not drawn_before_scroll  # plotly.js loads only for the analysis charts
     assert model_points == accepted

@@ -210,6 +210,14 @@ def test_prune_keeps_recent_samples_raw_and_thins_older_ones(tmp_path: Path) -> 
         gone = store.prune(older_than_days=2.0, thin_to_period_s=None, now=now)
         assert (gone.deleted, store.info().rows) == (10, 500)
         assert store.info().events == {"prune": 3}
+        details = [e.detail for e in store.read_events() if e.kind == "prune"]
+    # the retention said as an age: the events table dates each row in plant time in the
+    # site's zone, so a detail names no second clock (issue 39: "(at … UTC wall clock)")
+    assert details == [
+        "samples older than 2 d: 490 deleted, 10 kept (one per 1.0 s)",
+        "samples older than 2 d: 0 deleted, 10 kept (one per 1.0 s)",
+        "samples older than 2 d: 10 deleted, 0 kept (none)",
+    ]
 
 
 def test_to_iodata_makes_gaps_segments_and_drops_bad_samples(tmp_path: Path) -> None:

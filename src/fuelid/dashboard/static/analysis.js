@@ -1,7 +1,8 @@
 "use strict";
 // The loop page's analysis charts (model history, K against fuel temperature, gains over time),
 // drawn with plotly.js. Loaded only when the charts are scrolled into view: the first view of the
-// page (chips, live trend, proposals) does not wait for plotly's 4.8 MB (loop.js loads both).
+// page (chips, live trend, proposals) does not wait for plotly.js (its basic bundle, 1.2 MB;
+// loop.js loads both).
 // Reads LOOP, TZ and PLOT_CONFIG (loop.js, common.js) and the page's newest sample (trendNewest).
 
 function ci(w, key) {
