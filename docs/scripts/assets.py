@@ -3,8 +3,12 @@
 The dashboard's pages (``dashboard_*.png``) are photographed the same way, live: ``fuelid online
 --virtual`` runs (write_back "approve", so proposals wait), ``fuelid dashboard`` serves its store,
 and headless Chromium (Playwright, given Debian's executable) follows the loop page as an engineer
-through every state an operator meets: a proposal waiting, its confirmation, its write verified,
-the service killed (kill -9), the dashboard killed; a second browser takes the fleet and a window.
+through every state an operator meets: a proposal waiting, the trend showing a stored range (not
+following), the confirmation, the write verified, a revert, the dashboard killed (kill -9) and
+started again on the same port, the service killed; a second browser takes the fleet, a window
+and the 404 page. A second run, a virtual PLC in this process whose link is dropped, photographs
+a proposal gone out of date and the link down, then back with the outage on the trend and in the
+events.
 
 The demo's HTML report is made the way a user makes it, by the command line: a simulated step
 sequence of the reference plant (``fuelid simulate``), then ``fuelid report`` on it. Headless
@@ -76,8 +80,9 @@ def screenshot(page: Path, png: Path) -> None:
 
 
 DASHBOARD_ONLINE = 'identify_every_s = 120\nwindow_s = 240\nwrite_back = "approve"\n'
-#: the live virtual loop photographed: 1 h of plant time at 20x, 3 min of wall time
-DASHBOARD_RUN = ("--speed", "20", "--hours", "1")
+#: the live virtual loop photographed: at most 2 h of plant time at 20x, 6 min of wall time (the
+#: service is killed before: about 3 min)
+DASHBOARD_RUN = ("--speed", "20", "--hours", "2")
 DASHBOARD_VIEWPORT = (1400, 900)
 PROPOSAL_WAIT_S = 120.0
 """Wall time a waiting proposal may take to appear on the loop page [s]."""
@@ -89,6 +94,13 @@ LOOP_WINDOWS = 8
 """Windows judged before the loop page is photographed: its model history has a history."""
 APPROVE_ATTEMPTS = 4
 """Proposals tried: one superseded by a newer window before its write is tried again."""
+LINK_ONLINE = 'identify_every_s = 60\nwindow_s = 120\nwrite_back = "approve"\n'
+"""The link run's [online] table: short windows, so that a proposal goes out of date soon (its
+window older than 6 window lengths while the newer ones say the same)."""
+LINK_SPEED = 40.0
+"""The link run's speed-up: a proposal out of date within about 30 s of wall time."""
+OUT_OF_DATE_WAIT_S = 150.0
+"""Wall time a proposal may take to appear and go out of date in the link run [s]."""
 KILLED_MID_ANSWER = ("ERR_EMPTY_RESPONSE",)
 """A request the dashboard was answering when it was killed: expected then, as the stream's
 retries (``support.browser.NETWORK_FAILURES``)."""
@@ -164,6 +176,32 @@ def _shoot_fleet_and_window(page: Any, base: str, loop: str, out: Path) -> None:
     page.screenshot(path=str(out / "dashboard_window.png"), full_page=True)
 
 
+def _shoot_not_following(page: Any, out: Path) -> None:
+    """The trend after "1 h": a stored range, "follow live" offered; then following again."""
+    page.click("button[data-range-minutes='60']")
+    _wait(
+        page,
+        "document.getElementById('trend').dataset.following === '0'"
+        " && !document.getElementById('live').hidden"
+        " && document.getElementById('trend-source').textContent.includes('thinned')",
+        "the trend showing a stored range",
+        30,
+    )
+    page.wait_for_timeout(500)
+    page.locator("section:has(#trend)").screenshot(path=str(out / "dashboard_not_following.png"))
+    page.click("#live")
+    _wait(page, "document.getElementById('trend').dataset.following === '1'", "following", 10)
+
+
+def _shoot_not_found(page: Any, base: str, out: Path) -> None:
+    """The HTML 404 of a page route (an unknown loop)."""
+    response = page.goto(f"{base}/loops/no-such-loop")
+    if response is None or response.status != 404:
+        raise SystemExit(f"dashboard screenshots: /loops/no-such-loop answered {response}")
+    page.wait_for_timeout(500)
+    _clip_top(page, "footer", out / "dashboard_not_found.png")
+
+
 def _approve_one(page: Any, out: Path) -> bool:
     """Approve the waiting proposal (a reason, its confirmation photographed) and wait for it.
 
@@ -209,6 +247,32 @@ def _shoot_approval(page: Any, out: Path) -> None:
         if _approve_one(page, out):
             return
     raise SystemExit(f"dashboard screenshots: {APPROVE_ATTEMPTS} proposals superseded unwritten")
+
+
+def _shoot_reverted(page: Any, out: Path) -> None:
+    """A revert asked for (a reason, confirmed): the card reverted, the old gains in force."""
+    page.fill("form.revert input[name=why]", "the loop rings more than before")
+    page.click("form.revert button[data-kind=revert]")
+    page.locator("form.revert .confirm").wait_for(state="visible", timeout=5000)
+    page.click("form.revert .confirm button.yes", timeout=5000)
+    _wait(
+        page,
+        "document.querySelector('#proposals-part div.proposal[data-state=reverted]') !== null"
+        " && !document.getElementById('gains-in-force').textContent.includes('do not show yet')",
+        "a reverted card",
+        WRITTEN_WAIT_S,
+    )
+    page.wait_for_timeout(500)
+    page.locator("#proposals-part").screenshot(path=str(out / "dashboard_proposal_reverted.png"))
+
+
+def _shoot_reconnected(page: Any, out: Path) -> None:
+    """The dashboard started again: the banner says "reconnected at …", nothing greyed."""
+    _wait(page, "document.body.dataset.connection === 'reconnected'", "reconnected", STOP_WAIT_S)
+    page.wait_for_timeout(500)
+    if page.evaluate("document.body.classList.contains('stale')"):
+        raise SystemExit("dashboard screenshots: the page stayed greyed after reconnecting")
+    _clip_top(page, "#proposals-part", out / "dashboard_reconnected.png")
 
 
 def _shoot_service_stopped(page: Any, service: Any, out: Path) -> None:
@@ -261,7 +325,7 @@ def dashboard_screenshots(work: Path, out: Path) -> None:
     """
     sys.path.insert(0, str(ROOT / "tests"))
     from fuelid.dashboard._users import UsersFile
-    from support.browser import browser_pages, dashboard, virtual_service, wait_ready
+    from support.browser import browser_pages, dashboard, port_of, virtual_service, wait_ready
 
     users = UsersFile(work / "users.json")
     token = users.add("eve", "engineer")
@@ -278,10 +342,110 @@ def dashboard_screenshots(work: Path, out: Path) -> None:
                 _login(page, base, token, f"/loops/{loop}")
                 wait_ready(page)
                 _shoot_loop(page, out)
+                _shoot_not_following(page, out)
                 _shoot_fleet_and_window(other, base, loop, out)
                 _shoot_approval(page, out)
-                _shoot_service_stopped(page, service, out)
+                _shoot_reverted(page, out)
                 _shoot_disconnected(page, board, errors, out)
+                again = ("--store", str(store), "--users", str(users.path))
+                with dashboard(work, *again, port=port_of(base)):
+                    _shoot_reconnected(page, out)
+                    _login(page, base, token, f"/loops/{loop}")  # its sessions died with it
+                    wait_ready(page)
+                    _shoot_service_stopped(page, service, out)
+                    _shoot_not_found(other, base, out)  # its console error: after the checks
+
+
+def _shoot_out_of_date(page: Any, out: Path) -> None:
+    """A proposal left waiting until its window is too old to write: "out of date"."""
+    _wait(
+        page,
+        "document.querySelector('#proposals-part div.proposal[data-state=out_of_date]')",
+        "an out-of-date proposal",
+        OUT_OF_DATE_WAIT_S,
+    )
+    page.wait_for_timeout(500)
+    page.locator("#proposals-part").screenshot(path=str(out / "dashboard_proposal_out_of_date.png"))
+
+
+def _shoot_link(page: Any, virtual: Any, out: Path) -> None:
+    """The PLC's link dropped (the page says it), then back: the outage on the trend and events."""
+    virtual.stop_link()
+    try:
+        _wait(
+            page,
+            "['down', 'link_down'].includes(document.body.dataset.service)",
+            "the link down",
+            STOP_WAIT_S,
+        )
+        page.wait_for_timeout(500)
+        _clip_top(page, "#link", out / "dashboard_link_down.png")
+    finally:
+        virtual.start_link()
+    _wait(
+        page,
+        "document.querySelector('#events').textContent.includes('without a link')",
+        "the link back in the events",
+        STOP_WAIT_S,
+    )
+    page.wait_for_timeout(1500)
+    page.locator("section:has(#trend)").screenshot(path=str(out / "dashboard_link_gap.png"))
+    # the events' heading and table (the part is as tall as the windows beside it)
+    top = page.locator("#events-part h2").bounding_box()
+    table = page.locator("#events").bounding_box()
+    if top is None or table is None:
+        raise SystemExit("dashboard screenshots: no events table on the loop page")
+    left = min(top["x"], table["x"]) - 8
+    scrolled = float(page.evaluate("window.scrollY"))  # the boxes are the viewport's
+    page.screenshot(
+        path=str(out / "dashboard_link_events.png"),
+        full_page=True,
+        clip={
+            "x": left,
+            "y": top["y"] + scrolled - 8,
+            "width": table["x"] + table["width"] - left + 8,
+            "height": table["y"] + table["height"] - top["y"] + 16,
+        },
+    )
+
+
+def link_screenshots(work: Path, out: Path) -> None:
+    """A proposal out of date and the PLC's link dropped, from a second live run.
+
+    The virtual PLC runs in this process (its link can be dropped), ``fuelid online --config``
+    on it (write_back "approve", short windows) and ``fuelid dashboard`` on its store.
+    """
+    from importlib import resources
+
+    from fuelid.plc.virtual import VirtualPlcThread
+    from support.browser import Process, browser_page, dashboard, wait_ready
+
+    plant = str(resources.files("fuelid.data").joinpath("reference_plant.toml"))
+    store = work / "link.db"
+    site = work / "link-site.toml"
+    # the service beats once a wall second: many of the PLC's heartbeat timeouts at 40x
+    with VirtualPlcThread(
+        speed=LINK_SPEED, setpoint_profile="run", heartbeat_timeout_s=1e6
+    ) as virtual:
+        text = virtual.site_text(store_url=f"sqlite:///{store}", plant=plant)
+        site.write_text(text + "\n[online]\n" + LINK_ONLINE, encoding="utf-8")
+        print(
+            f"$ fuelid online --config {site.name} (a virtual PLC at {LINK_SPEED:g}x)", flush=True
+        )
+        service = Process(["online", "--config", str(site)], work)
+        try:
+            service.wait_for(lambda line: "link up" in line)
+            with dashboard(work, "--store", str(store)) as (_, base):
+                loops = json.loads(urllib.request.urlopen(f"{base}/api/loops").read())["loops"]
+                with browser_page(*DASHBOARD_VIEWPORT) as (page, errors):
+                    page.goto(f"{base}/loops/{loops[0]['loop_id']}")
+                    wait_ready(page)
+                    _shoot_out_of_date(page, out)
+                    _shoot_link(page, virtual, out)
+                    if errors:
+                        raise SystemExit(f"the link run's page logged errors: {errors}")
+        finally:
+            service.stop(signal.SIGINT)
 
 
 def main() -> None:
@@ -302,6 +466,7 @@ def main() -> None:
         for key in FIGURES:
             shutil.copyfile(work / f"report_{key}.png", args.out / f"report_{key}.png")
         dashboard_screenshots(work, args.out)
+        link_screenshots(work, args.out)
     for path in sorted([*args.out.glob("report*.png"), *args.out.glob("dashboard_*.png")]):
         print(f"wrote {path.relative_to(ROOT) if path.is_relative_to(ROOT) else path}")
 

@@ -22,6 +22,7 @@ import subprocess
 import sys
 import threading
 import time
+import urllib.parse
 from collections.abc import Iterator, Sequence
 from contextlib import closing, contextmanager, suppress
 from dataclasses import dataclass
@@ -136,14 +137,26 @@ class Process:
 
 
 @contextmanager
-def dashboard(cwd: Path, *args: str) -> Iterator[tuple[Process, str]]:
-    """``fuelid dashboard --port 0 ARGS`` running; yields the process and its base URL."""
-    proc = Process(["dashboard", "--port", "0", *args], cwd)
+def dashboard(cwd: Path, *args: str, port: int = 0) -> Iterator[tuple[Process, str]]:
+    """``fuelid dashboard --port PORT ARGS`` running; yields the process and its base URL.
+
+    ``port`` 0 (the default) lets the dashboard bind a free one; a port a killed dashboard had
+    (:func:`port_of` its URL) starts it again on the same address, as a control room's restart
+    does (it binds with ``SO_REUSEADDR``: the killed one's connections do not hold the port).
+    """
+    proc = Process(["dashboard", "--port", str(port), *args], cwd)
     try:
         line = proc.wait_for(lambda s: s.startswith("dashboard: http"))
         yield proc, line.split()[1].rstrip("/")
     finally:
         proc.stop(signal.SIGINT)
+
+
+def port_of(base: str) -> int:
+    """The port of a dashboard's base URL (``http://127.0.0.1:41234``)."""
+    port = urllib.parse.urlsplit(base).port
+    assert port is not None, base
+    return port
 
 
 @contextmanager

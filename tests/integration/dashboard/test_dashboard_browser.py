@@ -14,7 +14,11 @@ sample. Slow (issue 39, "a dashboard the control room can leave open"):
   and an anonymous client 401), an approval that needs a reason and a confirmation, the card
   written and verified with the gains the PLC echoed, a revert, and a new window. The
   proposals chip and the cards may disagree at most ``AGREE_BAND_S`` (the chip comes with the
-  status event, the cards with the re-read it triggers).
+  status event, the cards with the re-read it triggers); a written card never stands beside
+  other gains in force unless the page says the PLC's reading predates the write (at most
+  ``READING_BAND_S``); the windows table's newest row is the store's newest window (id and end)
+  at every look, within ``WINDOW_BAND_S`` of its commit, and the model history, once scrolled
+  into view, within ``MODEL_BAND_S``.
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ import time
 import urllib.error
 import urllib.parse
 import urllib.request
+from contextlib import closing
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +49,7 @@ from fuelid.dashboard import UsersFile
 from fuelid.dashboard._fleet import LIVE_CHIPS
 from fuelid.dashboard._stream import STATUS_EVERY_S
 from fuelid.dashboard._views import FRESH_SAMPLE_S, fmt_num
+from fuelid.io import format_time
 from support import waiting
 from support.browser import (
     LAG_BAND_S,
@@ -318,6 +324,20 @@ def test_a_page_left_open_keeps_following_and_says_when_the_service_and_the_dash
 AGREE_BAND_S = 5.0
 """The proposals chip and the cards may disagree this long [s]: the chip comes with the status
 event (every 2 s), the cards with the part re-read it triggers."""
+READING_BAND_S = AGREE_BAND_S
+"""A written card beside gains in force the page says predate the write ("… which they do not
+show yet": the PLC's kc and ti tags as last read) may last this long [s]: the recorder's next
+reading comes with a ``gain_change`` event and the part re-read it triggers. Beside other gains
+without that word, never."""
+WINDOW_BAND_S = AGREE_BAND_S
+"""A window committed this long before a look is in the windows table [s of wall time]: its
+``windows`` event (the feed reads the store every 0.2 s) makes the page re-read the part."""
+ANALYSIS_EVERY_S = 10.0
+"""The model history is redrawn at most this often [s] (``ANALYSIS_EVERY_MS`` in loop.js)."""
+MODEL_BAND_S = ANALYSIS_EVERY_S + WINDOW_BAND_S
+"""A window committed this long before a look is on the model history chart [s of wall time]."""
+MODEL_WATCH_S = 2 * ANALYSIS_EVERY_S
+"""Wall time the model history is watched once drawn: it is redrawn meanwhile [s]."""
 
 _TRUTH_JS = """(() => {
   const cell = (card, name) => {
@@ -335,13 +355,16 @@ _TRUTH_JS = """(() => {
   }));
   const chip = Array.from(document.querySelectorAll('#chips .chip'))
     .find((c) => c.title === 'proposals');
-  const windows = Array.from(document.querySelectorAll('#windows tr[data-window]'))
-    .map((r) => Number(r.dataset.window));
+  const rows = Array.from(document.querySelectorAll('#windows tr[data-window]'));
+  const windows = rows.map((r) => Number(r.dataset.window));
+  const newest = windows.length ? Math.max(...windows) : 0;
+  const newestRow = rows.find((r) => Number(r.dataset.window) === newest);
   return {
     cards,
     chip: chip ? [chip.className.replace('chip', '').trim(), chip.textContent] : ['', ''],
     gains: document.getElementById('gains-in-force').textContent,
-    newest_window: windows.length ? Math.max(...windows) : 0,
+    newest_window: newest,
+    newest_window_end: newestRow ? newestRow.cells[1].textContent : '',
     connection: document.body.dataset.connection,
     not_reloaded: window.fuelidNotReloaded === true,
   };
@@ -373,11 +396,35 @@ def _gains_text(truth: dict[str, Any]) -> tuple[str, str]:
     return found.group(1), found.group(2)
 
 
-class _Truth:
-    """Looks at the engineer's page: each look checks the proposals chip against the cards."""
+def _store_windows(store: Path, committed_before: float) -> tuple[int, int]:
+    """The store's newest window committed by then [wall s UTC], and its newest (0: none)."""
+    uri = f"file:{store}?mode=ro"
+    with closing(sqlite3.connect(uri, uri=True, timeout=10.0)) as con:
+        (settled,) = con.execute(
+            "SELECT max(id) FROM windows WHERE wall_time <= ?", (committed_before,)
+        ).fetchone()
+        (newest,) = con.execute("SELECT max(id) FROM windows").fetchone()
+    return int(settled or 0), int(newest or 0)
 
-    def __init__(self, page: Any) -> None:
+
+def _window_end(store: Path, window: int) -> float:
+    """A stored window's end [plant s UTC]."""
+    with closing(sqlite3.connect(f"file:{store}?mode=ro", uri=True, timeout=10.0)) as con:
+        (end,) = con.execute("SELECT t_to FROM windows WHERE id = ?", (window,)).fetchone()
+    return float(end)
+
+
+class _Truth:
+    """Looks at the engineer's page, each look checked.
+
+    The proposals chip against the cards, a written card against the gains in force, the windows
+    table against the store.
+    """
+
+    def __init__(self, page: Any, store: Path) -> None:
         self.page = page
+        self.store = store
+        self.tz = str(page.evaluate("document.body.dataset.tz"))
         self.started = time.monotonic()
         self.steps: list[tuple[float, str, str, str, str, int]] = []
         self.disagreeing_since: float | None = None
@@ -385,10 +432,14 @@ class _Truth:
         self.states: dict[int, list[tuple[float, str]]] = {}  # each card's states as they change
         self.gains_of: dict[int, tuple[str, str]] = {}  # an approved proposal's gains
         self.contradictions: list[tuple[float, str, str]] = []  # (at, card, gains in force)
+        # the gains in force said to predate a written card's write: (at, card, gains, for)
+        self.reading_lags: list[tuple[float, str, str, float]] = []
+        self.reading_since: float | None = None
 
     def look(self) -> dict[str, Any]:
         truth: dict[str, Any] = self.page.evaluate(_TRUTH_JS)
         now = time.monotonic()
+        self.check_windows(truth, time.time())
         chip, cards = _chip_counts(truth["chip"][1]), _card_counts(truth["cards"])
         if chip != cards:
             self.disagreeing_since = self.disagreeing_since or now
@@ -400,16 +451,49 @@ class _Truth:
         else:
             self.disagreeing_since = None
         assert truth["not_reloaded"], "the page was reloaded"
-        for proposal, gains in self.gains_of.items():  # one part: its card and the gains agree
-            card = _card_of(truth, proposal)
-            if card is not None and card["state"] == "written" and _gains_text(truth) != gains:
-                self.contradictions.append((now - self.started, card["text"], truth["gains"]))
+        self.check_gains(truth, now)
         for proposal in {c["id"] for c in truth["cards"]} | set(self.states):
             seen = self.states.setdefault(proposal, [])
             state = self.state_of(truth, proposal)
             if not seen or seen[-1][1] != state:
                 seen.append((now - self.started, state))
         return truth
+
+    def check_gains(self, truth: dict[str, Any], now: float) -> None:
+        """A written card and the gains in force agree (one part), or the page says why not.
+
+        The PLC's reading older than the write is said ("which they do not show yet") and may
+        last :data:`READING_BAND_S`; any other difference is a contradiction.
+        """
+        lagging = False
+        for proposal, gains in self.gains_of.items():
+            card = _card_of(truth, proposal)
+            if card is None or card["state"] != "written" or _gains_text(truth) == gains:
+                continue
+            seen = (now - self.started, card["text"], truth["gains"])
+            if "which they do not show yet" in truth["gains"]:
+                lagging = True
+                self.reading_since = self.reading_since or now
+                self.reading_lags.append((*seen, now - self.reading_since))
+                assert now - self.reading_since <= READING_BAND_S, self.reading_lags[-1]
+            else:
+                self.contradictions.append(seen)
+        if not lagging:
+            self.reading_since = None
+        assert self.contradictions == [], self.contradictions
+
+    def check_windows(self, truth: dict[str, Any], wall: float) -> None:
+        """The windows table's newest row is a stored window, its end as stored.
+
+        It is the store's newest, or newer than every window committed :data:`WINDOW_BAND_S`
+        before the look (``wall``).
+        """
+        shown = int(truth["newest_window"])
+        settled, newest = _store_windows(self.store, wall - WINDOW_BAND_S)
+        assert settled <= shown <= newest, (shown, settled, newest)
+        if shown:
+            end = format_time(_window_end(self.store, shown), self.tz)
+            assert truth["newest_window_end"] == end, (shown, truth["newest_window_end"], end)
 
     @staticmethod
     def state_of(truth: dict[str, Any], proposal: int) -> str:
@@ -444,6 +528,32 @@ class _Truth:
         for at, what, chip, cards, gains, window in self.steps:
             lines.append(f"{at:6.1f}  {what:<28} {chip:<44} {gains:<22} {window:>13}  {cards}")
         return "\n".join(lines)
+
+
+_MODELS_JS = """(() => {
+  const box = document.getElementById('models');
+  const ids = (box.data || []).flatMap((trace) => Array.from(trace.customdata || []));
+  const drawn = document.getElementById('analysis').dataset.drawn || '';
+  return [drawn, ids.length ? Math.max(...ids) : 0];
+})()"""
+
+
+def _watch_model_history(page: Any, store: Path) -> list[tuple[str, int, int, int]]:
+    """Scroll the model history into view and look at it every second for MODEL_WATCH_S.
+
+    Each look: (when it was drawn, the newest window on the chart, the store's newest window
+    committed :data:`MODEL_BAND_S` before the look, the store's newest).
+    """
+    page.locator("#models").scroll_into_view_if_needed()
+    wait_until(page, "document.getElementById('analysis').dataset.drawn", timeout=60)
+    looks = []
+    watched = time.monotonic()
+    while time.monotonic() - watched < MODEL_WATCH_S:
+        drawn, shown = page.evaluate(_MODELS_JS)
+        settled, newest = _store_windows(store, time.time() - MODEL_BAND_S)
+        looks.append((str(drawn), int(shown), settled, newest))
+        page.wait_for_timeout(1000)
+    return looks
 
 
 def _card_of(truth: dict[str, Any], proposal: int) -> dict[str, Any] | None:
@@ -527,7 +637,7 @@ def test_one_page_tells_one_truth_through_approval_write_revert_and_a_new_window
                 page.evaluate("window.fuelidNotReloaded = true")  # gone if the page reloads
                 _login(viewer_page, base, "vic", viewer, path)
                 wait_ready(viewer_page)
-                truth = _Truth(page)
+                truth = _Truth(page, store)
                 truth.until("page ready", lambda t: True, 5)
                 written: tuple[float, float] | None = None
                 card: dict[str, Any] = {}
@@ -682,6 +792,8 @@ def test_one_page_tells_one_truth_through_approval_write_revert_and_a_new_window
                 window = reverted_view["newest_window"]
                 truth.until("a new window", lambda t: t["newest_window"] > window, timeout=60)
                 history = _get(f"{api}/history")
+                # --- the model history, once scrolled into view, has the store's newest windows
+                models = _watch_model_history(page, store)
 
     print(truth.table())
     print("each card's states on the page (absent: no card):")
@@ -691,10 +803,25 @@ def test_one_page_tells_one_truth_through_approval_write_revert_and_a_new_window
     print(f"a written card beside other gains in force at {len(truth.contradictions)} looks:")
     for at, card_text, gains_text in truth.contradictions:
         print(f"  {at:6.1f} s: card {card_text!r}; {gains_text!r}")
+    print(
+        "a written card beside a PLC reading said to predate its write at "
+        f"{len(truth.reading_lags)} looks:"
+    )
+    for at, card_text, gains_text, lasted in truth.reading_lags:
+        print(f"  {at:6.1f} s (for {lasted:.1f} s): card {card_text!r}; {gains_text!r}")
+    print(
+        "model history's newest window against the store's (committed before the look - "
+        f"{MODEL_BAND_S} s, newest): {models}"
+    )
     print(f"chip and cards disagreed at {len(truth.disagreements)} looks:")
     for at, lasted, chip, cards in truth.disagreements:
         print(f"  {at:6.1f} s (for {lasted:.1f} s): {chip} / {cards}")
     assert errors == []
+    assert truth.contradictions == []
+    # drawn at least twice while watched, each look within the band of the store
+    assert len({drawn for drawn, _, _, _ in models}) >= 2, models
+    for _, shown, settled, newest in models:
+        assert settled <= shown <= newest, models
     assert reverted is not None
     assert (fmt_num(reverted[0]), fmt_num(reverted[1])) == old
     approved = next(p for p in history["proposals"] if p["id"] == proposal)
