@@ -15,10 +15,9 @@ sample. Slow (issue 39, "a dashboard the control room can leave open"):
   written and verified with the gains the PLC echoed, a revert, and a new window. The
   proposals chip and the cards may disagree at most ``AGREE_BAND_S`` (the chip comes with the
   status event, the cards with the re-read it triggers); a written card never stands beside
-  other gains in force unless the page says the PLC's reading predates the write (at most
-  ``READING_BAND_S``); the windows table's newest row is the store's newest window (id and end)
-  at every look, within ``WINDOW_BAND_S`` of its commit, and the model history, once scrolled
-  into view, within ``MODEL_BAND_S``.
+  other gains in force (one part renders both); the windows table's newest row is the store's
+  newest window (id and end) at every look, within ``WINDOW_BAND_S`` of its commit, and the
+  model history, once scrolled into view, within ``MODEL_BAND_S``.
 """
 
 from __future__ import annotations
@@ -324,11 +323,6 @@ def test_a_page_left_open_keeps_following_and_says_when_the_service_and_the_dash
 AGREE_BAND_S = 5.0
 """The proposals chip and the cards may disagree this long [s]: the chip comes with the status
 event (every 2 s), the cards with the part re-read it triggers."""
-READING_BAND_S = AGREE_BAND_S
-"""A written card beside gains in force the page says predate the write ("… which they do not
-show yet": the PLC's kc and ti tags as last read) may last this long [s]: the recorder's next
-reading comes with a ``gain_change`` event and the part re-read it triggers. Beside other gains
-without that word, never."""
 WINDOW_BAND_S = AGREE_BAND_S
 """A window committed this long before a look is in the windows table [s of wall time]: its
 ``windows`` event (the feed reads the store every 0.2 s) makes the page re-read the part."""
@@ -432,9 +426,6 @@ class _Truth:
         self.states: dict[int, list[tuple[float, str]]] = {}  # each card's states as they change
         self.gains_of: dict[int, tuple[str, str]] = {}  # an approved proposal's gains
         self.contradictions: list[tuple[float, str, str]] = []  # (at, card, gains in force)
-        # the gains in force said to predate a written card's write: (at, card, gains, for)
-        self.reading_lags: list[tuple[float, str, str, float]] = []
-        self.reading_since: float | None = None
 
     def look(self) -> dict[str, Any]:
         truth: dict[str, Any] = self.page.evaluate(_TRUTH_JS)
@@ -460,26 +451,16 @@ class _Truth:
         return truth
 
     def check_gains(self, truth: dict[str, Any], now: float) -> None:
-        """A written card and the gains in force agree (one part), or the page says why not.
+        """A written card and the gains in force agree at every look (one part renders both).
 
-        The PLC's reading older than the write is said ("which they do not show yet") and may
-        last :data:`READING_BAND_S`; any other difference is a contradiction.
+        A verified write is the PLC's echo of its apply number, newer than any tag reading
+        before it, so its gains are in force from the moment the card says "written".
         """
-        lagging = False
         for proposal, gains in self.gains_of.items():
             card = _card_of(truth, proposal)
             if card is None or card["state"] != "written" or _gains_text(truth) == gains:
                 continue
-            seen = (now - self.started, card["text"], truth["gains"])
-            if "which they do not show yet" in truth["gains"]:
-                lagging = True
-                self.reading_since = self.reading_since or now
-                self.reading_lags.append((*seen, now - self.reading_since))
-                assert now - self.reading_since <= READING_BAND_S, self.reading_lags[-1]
-            else:
-                self.contradictions.append(seen)
-        if not lagging:
-            self.reading_since = None
+            self.contradictions.append((now - self.started, card["text"], truth["gains"]))
         assert self.contradictions == [], self.contradictions
 
     def check_windows(self, truth: dict[str, Any], wall: float) -> None:
@@ -803,12 +784,6 @@ def test_one_page_tells_one_truth_through_approval_write_revert_and_a_new_window
     print(f"a written card beside other gains in force at {len(truth.contradictions)} looks:")
     for at, card_text, gains_text in truth.contradictions:
         print(f"  {at:6.1f} s: card {card_text!r}; {gains_text!r}")
-    print(
-        "a written card beside a PLC reading said to predate its write at "
-        f"{len(truth.reading_lags)} looks:"
-    )
-    for at, card_text, gains_text, lasted in truth.reading_lags:
-        print(f"  {at:6.1f} s (for {lasted:.1f} s): card {card_text!r}; {gains_text!r}")
     print(
         "model history's newest window against the store's (committed before the look - "
         f"{MODEL_BAND_S} s, newest): {models}"

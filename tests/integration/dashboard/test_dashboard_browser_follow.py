@@ -253,8 +253,9 @@ WATCH_EVERY_S = 0.5
 """Wall time between two looks at a page's banner [s]."""
 LOOP_STOP_BAND_S = 10.0
 """A killed dashboard: the loop page says "disconnected" within [s] (issue 39)."""
-FLEET_STOP_BAND_S = 2.5 * FLEET_EVERY_S + WATCHDOG_TICK_S
-"""… and the fleet page within [s]: its watchdog's own bound (late after 2.5 refreshes)."""
+FLEET_STOP_BAND_S = LOOP_STOP_BAND_S
+"""… and the fleet page within the same [s]: its watchdog says so 1.6 refreshes (8 s) after the
+last answer, looked at every second, and the last answer came before the kill."""
 LOOP_BACK_BAND_S = 5 * STATUS_EVERY_S + 2.0 + WATCHDOG_TICK_S
 """The dashboard back: the loop page says "reconnected" within [s] of its start: live.js
 reopens a stream silent for 5 status periods, looked at every 2 s (the browser's own retry,
