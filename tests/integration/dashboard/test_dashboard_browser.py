@@ -548,6 +548,12 @@ def _store_status(store: Path, proposal: int) -> str:
     return str(status)
 
 
+REFUSED_CONSOLE_ERROR = (
+    "Failed to load resource: the server responded with a status of 409 (Conflict)"
+)
+"""What Chromium's console says of a request the service refused (HTTP 409)."""
+
+
 def _requests(base: str, loop_id: str) -> list[dict[str, Any]]:
     return list(_get(f"{base}/api/loops/{loop_id}/requests")["requests"])
 
@@ -775,6 +781,7 @@ def test_one_page_tells_one_truth_through_approval_write_revert_and_a_new_window
                 history = _get(f"{api}/history")
                 # --- the model history, once scrolled into view, has the store's newest windows
                 models = _watch_model_history(page, store)
+                refused = [r for r in _requests(base, loop_id) if r["status"] == "refused"]
 
     print(truth.table())
     print("each card's states on the page (absent: no card):")
@@ -791,7 +798,12 @@ def test_one_page_tells_one_truth_through_approval_write_revert_and_a_new_window
     print(f"chip and cards disagreed at {len(truth.disagreements)} looks:")
     for at, lasted, chip, cards in truth.disagreements:
         print(f"  {at:6.1f} s (for {lasted:.1f} s): {chip} / {cards}")
-    assert errors == []
+    # Chromium logs every 409 answer as a console error: one per approval the service refused
+    # (its proposal superseded between the click and the service's next beat), said on the card
+    # and kept in the store; any other console error is a defect
+    conflicts = [e for e in errors if e == REFUSED_CONSOLE_ERROR]
+    assert [e for e in errors if e != REFUSED_CONSOLE_ERROR] == []
+    assert len(conflicts) <= len(refused), (conflicts, refused)
     assert truth.contradictions == []
     # drawn at least twice while watched, each look within the band of the store
     assert len({drawn for drawn, _, _, _ in models}) >= 2, models
