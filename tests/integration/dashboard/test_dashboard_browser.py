@@ -135,9 +135,13 @@ def test_the_live_trend_gains_points_while_the_virtual_plc_runs(tmp_path: Path) 
             (row,) = _get(f"{base}/api/loops")["loops"]
             with browser_page() as (page, errors):
                 encodings: dict[str, str | None] = {}
+                caching: dict[str, str | None] = {}
                 page.on(
                     "response",
-                    lambda r: encodings.update({r.url: r.headers.get("content-encoding")}),
+                    lambda r: (
+                        encodings.update({r.url: r.headers.get("content-encoding")}),
+                        caching.update({r.url: r.headers.get("cache-control")}),
+                    ),
                 )
                 page.goto(f"{base}/loops/{row['loop_id']}")
                 wait_ready(page)
@@ -161,7 +165,9 @@ def test_the_live_trend_gains_points_while_the_virtual_plc_runs(tmp_path: Path) 
     scripts = [url for url in encodings if "/static/" in url and ".js" in url]
     assert streams, encodings
     assert all(encodings[url] is None for url in streams)
+    assert all(caching[url] in ("no-cache", "no-store") for url in streams), caching
     assert scripts, encodings
+    assert all("max-age=" in (caching[url] or "") for url in scripts), caching
     assert all(encodings[url] == "gzip" for url in scripts), encodings
 
 
