@@ -21,8 +21,8 @@ nothing to do), ``ok``. The thresholds are the constants of this module.
   (``fuelid.dashboard._views.proposal_state``), so the chip and the cards say the same.
 - **drift**: warn when K now / K the gains were tuned for is off 1 by more than `DRIFT_WARN`
   (10 %) and by more than two standard errors; info while K is tracked but the gains in force
-  have no model of their own (as commissioned: the model is known once a proposal's gains are
-  written and verified).
+  have no model of their own (as commissioned, or reverted to them: the model is known once a
+  proposal's gains are written and verified).
 - **limits**: warn when the drive sat at its limits more than `LIMITS_WARN` (5 %) of the last
   window.
 - **IAE**: warn when the IAE per unit setpoint step is more than `IAE_WARN` (2) times its own
@@ -177,8 +177,8 @@ def _drift_chip(status: dict[str, Any]) -> Chip:
     if not isinstance(drift, dict) or drift.get("ratio") is None:
         if trend.get("available"):  # the drift's reference is set when a proposal is written
             text = (
-                "K tracked; no model yet for the gains in force (known once a proposal's gains "
-                "are written and verified)"
+                "K tracked; the gains in force have no model of their own (as commissioned, or "
+                "reverted to): drift is measured from the next proposal written and verified"
             )
             return Chip("drift", "info", text)
         return Chip("drift", "unknown", "K not tracked yet")

@@ -319,8 +319,8 @@ def test_drift_without_a_model_for_the_gains_in_force_is_info() -> None:
     got = chip(status, "drift")
     assert got.level == "info"
     assert got.text == (
-        "K tracked; no model yet for the gains in force (known once a proposal's gains are "
-        "written and verified)"
+        "K tracked; the gains in force have no model of their own (as commissioned, or "
+        "reverted to): drift is measured from the next proposal written and verified"
     )
     # info sorts after unknown and before healthy
     rows = [
