@@ -86,6 +86,8 @@ __all__ = [
 
 VALIDATION_HEAD_SHARE = 0.1
 """A validation record's initial state is fitted to its first 10 % (at least 20 samples)."""
+RELEASE_ROUNDS = 3
+"""Times held parameters are re-examined at the estimate and the fit redone, at most."""
 
 
 class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
@@ -367,8 +369,12 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
         if result is None:
             assert failure is not None
             raise failure
-        if "_all_free" in vars(self):  # parameters were held: do they act at the estimate?
+        # parameters were held: do they act at the estimate? (a release may idle another)
+        for _ in range(RELEASE_ROUNDS if "_all_free" in vars(self) else 0):
+            held = set(self.not_determined_)
             result = self._release_held(result, records)
+            if set(self.not_determined_) == held:
+                break
         result = self._recheck_solver(result, records)
         self.phi_ = result.phi
         self.sigma_ = result.sigma

@@ -180,18 +180,29 @@ class ProfileLikelihood(ShootingFit):
         self._use_map(full)
         shift = len(full.free_names) - p
         self._held_states = [k + shift for k in held_states]
-        evaluation = self._evaluate(phi_full, records, result.sigma, jacobian=True)
+        evaluation = self._evaluate_or_fall_back(phi_full, records, result.sigma, "the estimate")
         assert evaluation.jacobian is not None
         report = self._report(phi_full, evaluation.jacobian)
         alone = {
             c.names[0] for c in report.undetermined if len(c.names) == 1 and np.isinf(c.uncertainty)
         }
-        acting = [name for name in held if name not in set(report.zero_sensitivity) | alone]
+        idle = set(report.zero_sensitivity) | alone
+        acting = [name for name in held if name not in idle]
         if not acting:
             self._use_map(current)
             self._held_states = held_states
             return result
-        still = {name for name in held if name not in acting}
+        # this point is where the held fit ended, not where the fit will: a free parameter the
+        # outputs stop depending on here (its limit left behind) is held for the refit, not
+        # refused; what the data determine is judged at the refit's estimate (_finish)
+        newly = [name for name in full.free_names if name in idle and name not in held]
+        for name in newly:
+            self.not_determined_[name] = (
+                "the outputs do not depend on it where the fit ended with the others held (it "
+                "acts only beyond a limit, kink or switch the simulation does not reach from "
+                f"there); held at {values[name]:.6g}, not estimated"
+            )
+        still = {name for name in held if name not in acting} | set(newly)
         for name in acting:
             del self.not_determined_[name]
         self._use_map(self._held_map(still))
@@ -200,8 +211,7 @@ class ProfileLikelihood(ShootingFit):
         phi = np.concatenate(
             [phi_full[: len(full.free_names)][keep], phi_full[len(full.free_names) :]]
         )
-        evaluation = self._evaluate(phi, records, result.sigma, jacobian=True)
-        self._refuse_structural(phi, evaluation)
+        evaluation = self._evaluate_or_fall_back(phi, records, result.sigma, "the estimate")
         refit = self._single_shooting(phi, records, result.sigma, evaluation)
         refit.iterations += result.iterations
         return refit
