@@ -328,13 +328,15 @@ def structural_report(
     free_names: Sequence[str],
     at: str = "",
     evidence: Mapping[tuple[str, ...], float] | None = None,
+    hidden: Mapping[str, float] | None = None,
 ) -> IdentifiabilityReport:
     """The report of what no data of this kind determine, with advice on what to fix.
 
     ``structural`` are the combinations of ``report`` whose sensitivity vanishes to rounding;
     ``free_names`` the free parameters (the advice names no initial state); ``at`` where they
     were judged and ``evidence`` the largest rise of the simulated weighted cost a step of
-    ±10 % along each made (the check that the sensitivities' claim holds).
+    ±10 % along each made (the check that the sensitivities' claim holds); ``hidden`` the
+    quantities without sensitivity whose simulated step does move the cost (by that much).
     """
     advice = []
     for combination in structural:
@@ -355,11 +357,19 @@ def structural_report(
                 f"weighted cost by {evidence[combination.names]:.2g} (a change under "
                 f"{CHI2_95:.2f} is not seen)"
             )
-    if report.zero_sensitivity:
+    hidden = hidden or {}
+    idle = [name for name in report.zero_sensitivity if name not in hidden]
+    if idle:
         advice.append(
-            f"fix {', '.join(report.zero_sensitivity)} or drop it from the model, or start it "
+            f"fix {', '.join(idle)} or drop it from the model, or start it "
             "where the records reach what it describes (a limit or kink the simulation does not "
             "reach from the start values)"
+        )
+    for name, rise in hidden.items():
+        advice.append(
+            f"yet the simulation does depend on {name} (a step of ±10 % moves the simulated "
+            f"weighted cost by {rise:.3g}): a switch (an if on a state) hides it from the "
+            "sensitivities the fit steers by; write the switch as a kink (see the gray-box guide)"
         )
     return IdentifiabilityReport(
         report.names,

@@ -87,8 +87,17 @@ class ProfileLikelihood(ShootingFit):
         confirmed = [c for c in structural if rises[c.names] <= CHI2_95]
         if confirmed or report.zero_sensitivity:
             evidence = {c.names: rises[c.names] for c in confirmed}
+            # a quantity without sensitivity that the simulation does depend on is hidden by a
+            # switch: the refusal says so instead of blaming the records
+            alone = [
+                UndeterminedCombination((n,), (1.0,), math.inf) for n in report.zero_sensitivity
+            ]
+            moved = self._simulated_rises(phi, records, sigma, start, alone)
+            hidden = {n[0]: rise for n, rise in moved.items() if not rise <= CHI2_95}
             raise NotIdentifiableError(
-                structural_report(report, confirmed, self.free_names_, "the start values", evidence)
+                structural_report(
+                    report, confirmed, self.free_names_, "the start values", evidence, hidden
+                )
             )
 
     def _simulated_rises(
