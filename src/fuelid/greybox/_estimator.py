@@ -86,6 +86,8 @@ __all__ = [
 
 VALIDATION_HEAD_SHARE = 0.1
 """A validation record's initial state is fitted to its first 10 % (at least 20 samples)."""
+RELEASE_ROUNDS = 3
+"""Times held parameters are re-examined at the estimate and the fit redone, at most."""
 
 
 class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
@@ -337,7 +339,7 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
             self._hold_idle_states(phi, evaluation)
             phi, evaluation = self._settle_initial_states(phi, records, sigma, evaluation)
         phi, evaluation = self._hold_unused(phi, records, sigma, evaluation)
-        self._refuse_structural(phi, evaluation)
+        self._refuse_structural(phi, evaluation, records, sigma)
         start_phi, start_sigma, start_evaluation = phi, sigma, evaluation
         self.start_ = "single shooting"
         if self.segments not in (None, "auto"):
@@ -367,8 +369,12 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
         if result is None:
             assert failure is not None
             raise failure
-        if "_all_free" in vars(self):  # parameters were held: do they act at the estimate?
+        # parameters were held: do they act at the estimate? (a release may idle another)
+        for _ in range(RELEASE_ROUNDS if "_all_free" in vars(self) else 0):
+            held = set(self.not_determined_)
             result = self._release_held(result, records)
+            if set(self.not_determined_) == held:
+                break
         result = self._recheck_solver(result, records)
         self.phi_ = result.phi
         self.sigma_ = result.sigma
@@ -412,12 +418,14 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
         if jac is None:
             raise FuelidError("internal: the final evaluation has no Jacobian")
         self.sensitivities_ = jac
-        self.identifiability_ = self._report(phi, jac)
+        self.identifiability_ = self._judged_at_estimate(phi, records, evaluation)
         # no interval for a parameter in an undetermined combination; a confounded pair keeps
         # its (wide) intervals and is warned about
         unknown = {
             name for combination in self.identifiability_.undetermined for name in combination.names
         } | set(self.identifiability_.zero_sensitivity)
+        # where the sensitivities are contradicted by the simulation, their covariance is too
+        unknown |= {name for names, _ in self.identifiability_.unconfirmed for name in names}
         estimated = jac.copy()
         estimated[:, self._held_states] = 0.0  # held initial states carry no uncertainty
         uncertainty = parameter_uncertainty(self.map_, phi, estimated, unknown)
@@ -450,6 +458,23 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
         self.n_residuals_ = len(evaluation.residuals)
         self.n_simulations_ = self._work[0]
         self.n_evaluations_ = self._work[1]
+
+    def _judged_at_estimate(
+        self, phi: FloatArray, records: Sequence[Record], evaluation: Evaluation
+    ) -> IdentifiabilityReport:
+        """The identifiability report at the estimate, its claims checked by simulation.
+
+        A combination the sensitivities say no data determine, along which the simulated fit
+        does change (:meth:`_simulated_rises`), is where the sensitivities miss a switch or a
+        clip: it is reported as such (``unconfirmed``), not as the model's.
+        """
+        assert evaluation.jacobian is not None
+        report = self._report(phi, evaluation.jacobian)
+        _, structural = self._structural(phi, evaluation)
+        rises = self._simulated_rises(phi, records, self.sigma_, evaluation, structural)
+        return report.contradicted(
+            {names: rise for names, rise in rises.items() if not rise <= CHI2_95}
+        )
 
     # --- use ------------------------------------------------------------------------------------
     def simulate(self, record: Record, x0: FloatArray | None = None) -> Trajectory:

@@ -33,8 +33,8 @@ from numpy.typing import NDArray
 from fuelid.errors import FuelidError, NotFittedError
 from fuelid.greybox._parameters import ParameterMap
 from fuelid.greybox._sensitivity import Trajectory, simulate_record
-from fuelid.greybox._solver_choice import SolverChoice
-from fuelid.greybox._solvers import SimulationError
+from fuelid.greybox._solver_choice import SolverChoice, choose_solver
+from fuelid.greybox._solvers import SimulationError, Solver
 from fuelid.greybox._stopping import (
     GAUSS_NEWTON_LAST_STEP_SE,
     Step,
@@ -240,6 +240,8 @@ class ShootingFit:
     segmented start's allowance); None: no limit."""
     solver_: SolverChoice
     records_: list[Record]
+    max_step: float | None
+    substeps: int | None
 
     def _check_fitted(self) -> None:
         if "params_" not in vars(self):
@@ -266,6 +268,53 @@ class ShootingFit:
             raise OutOfBudget(f"{self._work[1]} right-hand-side evaluations spent")
         trajectories = self._simulate_all(phi, records, jacobian)
         return self._assemble(trajectories, records, sigma, jacobian)
+
+    def _evaluate_or_fall_back(
+        self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, where: str
+    ) -> Evaluation:
+        """The evaluation (with sensitivities) at φ; where the solver fails, the next one.
+
+        A point the fit itself reaches (a released parameter's refit, the solver check's
+        refit) is not a trial point the trust region can step back from: an ODE solver that
+        fails there (LSODA's "Excess work" at a switch) must not end the fit. With ``auto`` the
+        solver is chosen again at φ as at the start values (LSODA, BDF, RK4 by doubling, each
+        with bounded work) and the fit's solver line says why; a solver the user asked for, or
+        a point no solver simulates, is a ConvergenceError that gives the reasons.
+        """
+        try:
+            return self._evaluate(phi, records, sigma, jacobian=True)
+        except (SimulationError, FloatingPointError, OverflowError) as exc:
+            failure = f"{self.solver_.solver.method} failed at {where}: {exc}"
+        choice = self.solver_
+        if choice.requested != "auto":
+            raise ConvergenceError(
+                f"the fit did not converge: {failure} (--solver auto falls back to another solver)"
+            )
+
+        def outputs(solver: Solver) -> list[FloatArray]:
+            if solver.method == choice.solver.method:
+                # it just failed here with sensitivities: the trial without them proves nothing
+                raise SimulationError(failure)
+            self.solver_ = SolverChoice(solver, choice.requested, "")
+            try:
+                return [t.outputs for t in self._simulate_all(phi, records)]
+            finally:
+                self.solver_ = choice
+
+        substeps = self.substeps if choice.solver.method == "rk4" else None
+        try:
+            fallback = choose_solver("auto", self.max_step, substeps, outputs, records, sigma)
+            # its reason repeats the failure: the solver it chose is what is new
+            to = fallback.solver.describe()
+            reason = "; ".join(
+                text for text in (choice.reason, failure, f"fell back to {to}") if text
+            )
+            self.solver_ = SolverChoice(fallback.solver, "auto", reason)
+            return self._evaluate(phi, records, sigma, jacobian=True)
+        except (SimulationError, FloatingPointError, OverflowError) as exc:
+            raise ConvergenceError(
+                f"the fit did not converge: {failure}; no fallback solver simulates it ({exc})"
+            ) from None
 
     def _simulate_all(
         self, phi: FloatArray, records: Sequence[Record], jacobian: bool = False

@@ -20,7 +20,7 @@ the data may pin them down only through the noise model's exactness, which real 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -39,6 +39,8 @@ SENSITIVITY_CORRELATION_LIMIT = 0.999
 COMPONENT_SHARE = 0.15
 """A parameter belongs to an undetermined combination when its share of the null vector exceeds
 this (components of a unit vector)."""
+CHI2_95 = 3.841458820694124
+"""χ²₁'s 95 % quantile: a rise of the weighted cost below it is not seen in the data."""
 ESTIMATE_CORRELATION_LIMIT = 0.999
 """Estimates correlated beyond this are named: the data determine mostly their combination."""
 
@@ -79,6 +81,10 @@ class IdentifiabilityReport:
     zero_sensitivity: tuple[str, ...]
     """Quantities the outputs do not depend on at all."""
     advice: tuple[str, ...] = field(default=())
+    unconfirmed: tuple[tuple[tuple[str, ...], float], ...] = field(default=())
+    """Combinations the sensitivities say no data determine but the simulation contradicts
+    (names, the simulated cost's rise over a step of ±10 % along it): a switch or a clip the
+    sensitivities do not follow at this point, not a property of the model."""
 
     @property
     def identifiable(self) -> bool:
@@ -97,16 +103,40 @@ class IdentifiabilityReport:
 
     def with_advice(self, advice: Sequence[str]) -> IdentifiabilityReport:
         """The same report with advice on what data would determine the rest."""
-        return IdentifiabilityReport(
-            self.names,
-            self.singular_values,
-            self.rank,
-            self.condition_number,
-            self.collinearity_index,
-            self.undetermined,
-            self.confounded_pairs,
-            self.zero_sensitivity,
-            tuple(advice),
+        return replace(self, advice=tuple(advice))
+
+    def contradicted(self, rises: Mapping[tuple[str, ...], float]) -> IdentifiabilityReport:
+        """The report without the combinations the simulation contradicts (``rises``).
+
+        They move to ``unconfirmed``; confounded pairs inside one go with it.
+        """
+        if not rises:
+            return self
+        gone = [set(names) for names in rises]
+        return replace(
+            self,
+            undetermined=tuple(c for c in self.undetermined if c.names not in rises),
+            confounded_pairs=tuple(
+                pair for pair in self.confounded_pairs if not any(set(pair[:2]) <= g for g in gone)
+            ),
+            unconfirmed=tuple((names, float(rise)) for names, rise in rises.items()),
+        )
+
+    def unconfirmed_message(self) -> str:
+        """One line on the combinations the simulation contradicts (empty when none)."""
+        if not self.unconfirmed:
+            return ""
+        parts = [
+            f"{', '.join(names)} (a step of ±10 % along it moves the simulated weighted cost by "
+            f"{rise:.3g})"
+            for names, rise in self.unconfirmed
+        ]
+        return (
+            "the sensitivities at the estimate say the data do not determine "
+            + "; ".join(parts)
+            + ", but the simulated fit does change along it: they miss a switch or a clip here "
+            "(not a property of the model), so these parameters get no standard error; "
+            "--profile NAME gives an interval from simulations alone"
         )
 
     def message(self) -> str:
@@ -171,6 +201,10 @@ class IdentifiabilityReport:
             "zero_sensitivity": list(self.zero_sensitivity),
             "undetermined_parameters": list(self.undetermined_names),
             "advice": list(self.advice),
+            "unconfirmed": [
+                {"parameters": list(names), "simulated_cost_rise": _finite_or_none(rise)}
+                for names, rise in self.unconfirmed
+            ],
         }
 
 
@@ -292,11 +326,17 @@ def structural_report(
     report: IdentifiabilityReport,
     structural: Sequence[UndeterminedCombination],
     free_names: Sequence[str],
+    at: str = "",
+    evidence: Mapping[tuple[str, ...], float] | None = None,
+    hidden: Mapping[str, float] | None = None,
 ) -> IdentifiabilityReport:
     """The report of what no data of this kind determine, with advice on what to fix.
 
     ``structural`` are the combinations of ``report`` whose sensitivity vanishes to rounding;
-    ``free_names`` the free parameters (the advice names no initial state).
+    ``free_names`` the free parameters (the advice names no initial state); ``at`` where they
+    were judged and ``evidence`` the largest rise of the simulated weighted cost a step of
+    ±10 % along each made (the check that the sensitivities' claim holds); ``hidden`` the
+    quantities without sensitivity whose simulated step does move the cost (by that much).
     """
     advice = []
     for combination in structural:
@@ -311,11 +351,25 @@ def structural_report(
                 f"no data of this kind determine {', '.join(parameters)} together: fix "
                 f"one of them (e.g. {parameters[0]}) at a known value"
             )
-    if report.zero_sensitivity:
+        if parameters and evidence is not None and combination.names in evidence:
+            advice[-1] += (
+                f"; at {at or 'these values'} a step of ±10 % along it moves the simulated "
+                f"weighted cost by {evidence[combination.names]:.2g} (a change under "
+                f"{CHI2_95:.2f} is not seen)"
+            )
+    hidden = hidden or {}
+    idle = [name for name in report.zero_sensitivity if name not in hidden]
+    if idle:
         advice.append(
-            f"fix {', '.join(report.zero_sensitivity)} or drop it from the model, or start it "
+            f"fix {', '.join(idle)} or drop it from the model, or start it "
             "where the records reach what it describes (a limit or kink the simulation does not "
             "reach from the start values)"
+        )
+    for name, rise in hidden.items():
+        advice.append(
+            f"yet the simulation does depend on {name} (a step of ±10 % moves the simulated "
+            f"weighted cost by {rise:.3g}): a switch (an if on a state) hides it from the "
+            "sensitivities the fit steers by; write the switch as a kink (see the gray-box guide)"
         )
     return IdentifiabilityReport(
         report.names,
@@ -366,4 +420,10 @@ def describe_identifiability(report: Mapping[str, Any]) -> list[str]:
     )
     if report["zero_sensitivity"]:
         lines.append(f"no effect on the outputs: {', '.join(report['zero_sensitivity'])}")
+    for item in report.get("unconfirmed", []):
+        rise = item["simulated_cost_rise"]
+        lines.append(
+            f"undetermined by the sensitivities only: {', '.join(item['parameters'])} (the "
+            f"simulated cost moves by {'inf' if rise is None else f'{rise:.3g}'} along it)"
+        )
     return lines

@@ -39,6 +39,9 @@ exceeds ten times the states' size (or that no data of this kind determine) is h
 LINEARITY_LIMIT = 0.2
 """A sensitivity that misses the simulated change over one standard error by more than this share
 makes the parameter's Gaussian interval untrustworthy (:meth:`ProfileLikelihood._linearity`)."""
+EVIDENCE_STEP = 0.1
+"""A combination the sensitivities say no data determine is checked by simulating the model a
+step of ±0.1 along it (relative units: 10 % of each parameter, or of each state's size)."""
 PROFILE_DOUBLINGS = 8
 """A profile steps out 2, 4, … 256 standard errors looking for the crossing."""
 
@@ -55,6 +58,7 @@ class ProfileLikelihood(ShootingFit):
     cost_: float
     identifiability_: IdentifiabilityReport
     not_determined_: dict[str, str]
+    stderr_: dict[str, float | None]
     hold_undetermined: bool
     _all_free: ParameterMap
 
@@ -66,16 +70,74 @@ class ProfileLikelihood(ShootingFit):
         report = self._report(phi, start.jacobian)
         return report, [c for c in report.undetermined if not np.isfinite(c.uncertainty)]
 
-    def _refuse_structural(self, phi: FloatArray, start: Evaluation) -> None:
+    def _refuse_structural(
+        self, phi: FloatArray, start: Evaluation, records: Sequence[Record], sigma: FloatArray
+    ) -> None:
         """Refuse before fitting when the parameters cannot be determined whatever the values.
 
         A combination whose sensitivity vanishes at the start values to rounding (a scale the
         outputs cannot see, a parameter they do not depend on) is not determined by any data of
-        this kind: fitting would only wander along it.
+        this kind: fitting would only wander along it. The sensitivities' claim is checked by
+        simulation (:meth:`_unconfirmed`): a combination along which the simulated fit does
+        change is a point where the sensitivities miss a switch or a clip, not a property of the
+        model, and is left for the fit's end point to judge.
         """
         report, structural = self._structural(phi, start)
-        if structural or report.zero_sensitivity:
-            raise NotIdentifiableError(structural_report(report, structural, self.free_names_))
+        rises = self._simulated_rises(phi, records, sigma, start, structural)
+        confirmed = [c for c in structural if rises[c.names] <= CHI2_95]
+        if confirmed or report.zero_sensitivity:
+            evidence = {c.names: rises[c.names] for c in confirmed}
+            # a quantity without sensitivity that the simulation does depend on is hidden by a
+            # switch: the refusal says so instead of blaming the records
+            alone = [
+                UndeterminedCombination((n,), (1.0,), math.inf) for n in report.zero_sensitivity
+            ]
+            moved = self._simulated_rises(phi, records, sigma, start, alone)
+            hidden = {n[0]: rise for n, rise in moved.items() if not rise <= CHI2_95}
+            raise NotIdentifiableError(
+                structural_report(
+                    report, confirmed, self.free_names_, "the start values", evidence, hidden
+                )
+            )
+
+    def _simulated_rises(
+        self,
+        phi: FloatArray,
+        records: Sequence[Record],
+        sigma: FloatArray,
+        evaluation: Evaluation,
+        combinations: Sequence[UndeterminedCombination],
+    ) -> dict[tuple[str, ...], float]:
+        """Per combination, the largest rise of the simulated weighted cost a step along it makes.
+
+        Each is stepped ±EVIDENCE_STEP along its direction (within the bounds) and simulated
+        without sensitivities: where the cost rises by more than χ²₁'s 95 % quantile either way,
+        the data do determine it, and the sensitivities that said otherwise are wrong here (a
+        switch or a clip they do not follow). A step that cannot be simulated counts as a
+        change (inf).
+        """
+        names, scale = self._report_columns(phi)
+        lower, upper = self.map_.bounds()
+        p = len(self.free_names_)
+        cost = float(evaluation.residuals @ evaluation.residuals)
+        out: dict[tuple[str, ...], float] = {}
+        for combination in combinations:
+            direction = np.zeros(len(phi))
+            for name, weight in zip(combination.names, combination.weights, strict=True):
+                j = names[name]
+                direction[j] = EVIDENCE_STEP * weight * scale[j]
+            rise = 0.0
+            for sign in (1.0, -1.0):
+                trial = phi + sign * direction
+                if np.any(trial[:p] <= lower) or np.any(trial[:p] >= upper):
+                    continue
+                try:
+                    moved = self._evaluate(trial, records, sigma, jacobian=False).residuals
+                    rise = max(rise, float(moved @ moved) - cost)
+                except (SimulationError, FloatingPointError, OverflowError):
+                    rise = math.inf
+            out[combination.names] = rise
+        return out
 
     # --- parameters the outputs do not depend on (hold_undetermined) ----------------------------
     def _hold_unused(
@@ -180,18 +242,29 @@ class ProfileLikelihood(ShootingFit):
         self._use_map(full)
         shift = len(full.free_names) - p
         self._held_states = [k + shift for k in held_states]
-        evaluation = self._evaluate(phi_full, records, result.sigma, jacobian=True)
+        evaluation = self._evaluate_or_fall_back(phi_full, records, result.sigma, "the estimate")
         assert evaluation.jacobian is not None
         report = self._report(phi_full, evaluation.jacobian)
         alone = {
             c.names[0] for c in report.undetermined if len(c.names) == 1 and np.isinf(c.uncertainty)
         }
-        acting = [name for name in held if name not in set(report.zero_sensitivity) | alone]
+        idle = set(report.zero_sensitivity) | alone
+        acting = [name for name in held if name not in idle]
         if not acting:
             self._use_map(current)
             self._held_states = held_states
             return result
-        still = {name for name in held if name not in acting}
+        # this point is where the held fit ended, not where the fit will: a free parameter the
+        # outputs stop depending on here (its limit left behind) is held for the refit, not
+        # refused; what the data determine is judged at the refit's estimate (_finish)
+        newly = [name for name in full.free_names if name in idle and name not in held]
+        for name in newly:
+            self.not_determined_[name] = (
+                "the outputs do not depend on it where the fit ended with the others held (it "
+                "acts only beyond a limit, kink or switch the simulation does not reach from "
+                f"there); held at {values[name]:.6g}, not estimated"
+            )
+        still = {name for name in held if name not in acting} | set(newly)
         for name in acting:
             del self.not_determined_[name]
         self._use_map(self._held_map(still))
@@ -200,8 +273,7 @@ class ProfileLikelihood(ShootingFit):
         phi = np.concatenate(
             [phi_full[: len(full.free_names)][keep], phi_full[len(full.free_names) :]]
         )
-        evaluation = self._evaluate(phi, records, result.sigma, jacobian=True)
-        self._refuse_structural(phi, evaluation)
+        evaluation = self._evaluate_or_fall_back(phi, records, result.sigma, "the estimate")
         refit = self._single_shooting(phi, records, result.sigma, evaluation)
         refit.iterations += result.iterations
         return refit
@@ -250,7 +322,8 @@ class ProfileLikelihood(ShootingFit):
                 out[name] = float(np.linalg.norm(actual - predicted)) / size
         return out
 
-    def _report(self, phi: FloatArray, jac: FloatArray) -> IdentifiabilityReport:
+    def _report_columns(self, phi: FloatArray) -> tuple[dict[str, int], FloatArray]:
+        """Each estimated quantity's index in φ, and the scale that makes its column relative."""
         p = len(self.free_names_)
         names = [*self.free_names_, *self._x0_names()]
         theta = self.map_.to_theta(phi[:p])
@@ -261,6 +334,11 @@ class ProfileLikelihood(ShootingFit):
                 np.maximum(np.abs(phi[p:]), self.state_scale_),
             ]
         )
+        return {name: j for j, name in enumerate(names)}, column_scale
+
+    def _report(self, phi: FloatArray, jac: FloatArray) -> IdentifiabilityReport:
+        index, column_scale = self._report_columns(phi)
+        names = list(index)
         # held initial states are not estimated: not part of what the data must determine
         kept = [j for j in range(len(names)) if j not in set(self._held_states)]
         return identifiability(
@@ -290,6 +368,9 @@ class ProfileLikelihood(ShootingFit):
                 if (
                     math.isfinite(rho)
                     and abs(rho) > limit
+                    # no standard error: the report says why, a correlation would add nothing
+                    and self.stderr_.get(names[i]) is not None
+                    and self.stderr_.get(names[j]) is not None
                     and frozenset((names[i], names[j])) not in named
                 ):
                     pairs.append((names[i], names[j], rho))

@@ -60,8 +60,9 @@ class SolverChecks(ShootingFit):
             return result
         reason = "; ".join(text for text in (choice.reason, f"at the estimate: {note}") if text)
         self.solver_ = SolverChoice(solver, choice.requested, reason)
-        self._budgets = []
-        evaluation = self._evaluate(result.phi, records, result.sigma, jacobian=True)
+        # the finer solver's work is bounded as the start's was (8× its evaluations, ≥ 2000),
+        # and where it still fails the refit falls back as auto does at the start values
+        evaluation = self._evaluate_or_fall_back(result.phi, records, result.sigma, "the estimate")
         refit = self._single_shooting(result.phi, records, result.sigma, evaluation)
         refit.iterations += result.iterations
         return refit

@@ -273,6 +273,8 @@ def fit_warnings(estimator: GreyBoxEstimator) -> list[str]:
     report = estimator.identifiability_
     if not report.identifiable:
         out.append(report.message())
+    if report.unconfirmed:
+        out.append(report.unconfirmed_message())
     out.extend(correlation_warning(*pair) for pair in estimator.correlated_pairs())
     for name, ratio in zip(
         estimator.model.output_names, estimator.sigma_ / estimator.noise_floor_, strict=True

@@ -7,7 +7,9 @@ Cramér–Rao bound and a closed-form steady-state formula, identifiability agai
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -26,6 +28,7 @@ from fuelid.greybox import (
     identifiability,
     parameter_specs,
 )
+from fuelid.greybox._identifiability import UndeterminedCombination
 from fuelid.greybox._parameters import ParameterMap
 from fuelid.greybox._sensitivity import Trajectory, simulate_record
 from fuelid.greybox._solvers import Solver
@@ -402,6 +405,45 @@ def test_tank_with_every_k_free_is_refused_naming_the_symmetry() -> None:
     assert np.allclose(got * np.sign(got[2] / expected[2]), expected, atol=1e-3)
     for name in ("k1", "k2", "k4"):
         assert name in str(caught.value)
+
+
+def test_the_symmetry_refusal_carries_its_simulated_evidence() -> None:
+    """An exact symmetry: a step of ±10 % along it leaves the simulated outputs unchanged.
+
+    Only the integrator's error (relative 1e-6) moves the weighted cost; a change under χ²₁'s
+    3.84 is what the data cannot see, and an exact symmetry stays far under it (< 0.01).
+    """
+    record, _ = tank_record()
+    with pytest.raises(NotIdentifiableError) as caught:
+        GreyBoxEstimator(tank_model(fixed=())).fit(record)
+    found = re.search(r"moves the simulated weighted cost by ([0-9.e+-]+)", str(caught.value))
+    assert found is not None, str(caught.value)
+    assert float(found.group(1)) < 0.01
+    assert "at the start values" in str(caught.value)
+
+
+def test_a_combination_the_simulation_contradicts_is_not_reported_as_undetermined() -> None:
+    """k2/k1 sets the steady gain, determined to about 1 %: a 10 % step along it is plainly seen.
+
+    Offered as if the sensitivities had called (k1, k2) undetermined, the simulated check must
+    contradict it: the weighted cost rises by ~(0.1/0.01)² ≫ 3.84 (band: above 50), and the
+    report then lists it as unconfirmed, not among the undetermined combinations.
+    """
+    record, _ = tank_record()
+    est = GreyBoxEstimator(tank_model()).fit(record)
+    claim = UndeterminedCombination(("k1", "k2"), (math.sqrt(0.5), -math.sqrt(0.5)), math.inf)
+    rises = est._simulated_rises(est.phi_, [record], est.sigma_, _evaluation(est, record), [claim])
+    assert rises[claim.names] > 50.0
+    report = replace(est.identifiability_, undetermined=(claim,)).contradicted(rises)
+    assert report.undetermined == ()
+    assert report.unconfirmed == ((("k1", "k2"), rises[claim.names]),)
+    assert "trade against each other" not in report.message()
+    assert "k1, k2" in report.unconfirmed_message()
+
+
+def _evaluation(est: GreyBoxEstimator, record: Record) -> Any:
+    """The fitted estimator's evaluation at its estimate (residuals weighted by its σ)."""
+    return est._evaluate(est.phi_, [record], est.sigma_, jacobian=False)
 
 
 def test_tank_with_k4_fixed_is_recovered() -> None:

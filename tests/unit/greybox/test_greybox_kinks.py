@@ -10,6 +10,7 @@ tolerances or from the statistics of one fit.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping
 from typing import Any
 
@@ -25,6 +26,7 @@ from fuelid.greybox._solver_choice import RK4_AGREEMENT, choose_solver
 from fuelid.greybox._solvers import SimulationError, Solver
 from support.bands import coverage_band
 from support.kinked_models import (
+    H_RIM,
     TRUTH,
     X0,
     held_steps,
@@ -367,3 +369,45 @@ def test_a_slower_mode_s_initial_state_is_estimated_with_its_uncertainty() -> No
     estimator = _fast_pump_fit(1e-2)
     assert estimator.not_determined_ == {}
     assert "x0[flow] is not determined" in estimator.identifiability_.message()
+
+
+def _clamped_f(t: float, x: Any, u: Any, p: Mapping[str, Any]) -> Any:
+    """The overflow tank as a switch a user writes: full and filling, the level stays."""
+    rate = p["a"] * u[0] - p["b"] * math.sqrt(max(x[0], 0.0))
+    if x[0] >= p["xmax"] and rate > 0:
+        rate = 0.0
+    return [rate]
+
+
+def test_a_switch_level_the_sensitivities_cannot_see_is_refused_naming_the_switch() -> None:
+    """A switch level hides from the sensitivities; the refusal says the simulation sees it.
+
+    The forward sensitivities differentiate f on one branch: the switch level xmax is in
+    neither, so they see no effect of it, while the simulated level is clamped at xmax.
+    Refused as before (no sensitivity to steer by), but the refusal must say the simulation
+    does depend on xmax. Band from theory: a 10 % step of the clamp (0.2 m) against 0.01 m
+    noise costs (0.2/0.01)² = 400 per sample at the rim; the record has tens of them, so the
+    quoted rise exceeds 1000.
+    """
+    record, clean = kinked_record("overflow", seed=7)
+    assert np.sum(clean > H_RIM) > 20
+    model = OdeModel(
+        _clamped_f,
+        [
+            ParameterSpec("a", 0.2, 0.0),
+            ParameterSpec("b", 0.1, 0.0),
+            ParameterSpec("xmax", 2.0, 0.0),
+        ],
+        ["level"],
+        x0=lambda p, u0, y0: [1.0],
+    )
+    with pytest.raises(NotIdentifiableError) as caught:
+        GreyBoxEstimator(model).fit(record)
+    found = re.search(
+        r"simulation does depend on xmax \(a step of ±10 % moves the simulated "
+        r"weighted cost by ([0-9.e+]+)\)",
+        str(caught.value),
+    )
+    assert found is not None, str(caught.value)
+    assert float(found.group(1)) > 1000.0
+    assert "a switch (an if on a state)" in str(caught.value)
