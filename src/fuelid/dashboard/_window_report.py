@@ -65,6 +65,7 @@ __all__ = [
     "plant_file_name",
     "proposal_notice",
     "report_method",
+    "warm_up",
     "window_report_html",
 ]
 
@@ -418,6 +419,25 @@ def window_report_html(loop: LoopReader, row: dict[str, Any]) -> str:
 # --- made ahead -------------------------------------------------------------------------------
 
 
+def warm_up() -> None:
+    """Load what a report's figures are drawn with: one small figure drawn as the report's are.
+
+    matplotlib, its Agg canvas, PIL and the fonts take about a second to load the first time,
+    which a restarted dashboard whose reports were kept would otherwise pay at the first report
+    it makes on request. The prefetcher does it first, in the background.
+    """
+    from matplotlib.figure import Figure
+
+    from fuelid.htmlreport import figure_png
+
+    fig = Figure(figsize=(2.0, 1.5), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot([0.0, 1.0], [0.0, 1.0], label="flow [L/min]")
+    ax.set_xlabel("time [s]")
+    ax.legend()
+    figure_png(fig)
+
+
 class ReportPrefetcher:
     """Makes the reports of the loops' newest windows ahead, in a background thread.
 
@@ -425,7 +445,8 @@ class ReportPrefetcher:
     ``loops()`` gives are looked at, the newest of every loop first, at most
     :data:`PREFETCH_MAX` in all (the cache keeps them, :data:`CACHED_REPORTS`); one not made yet
     is analysed and kept, so the first request of a window an operator opens after a proposal
-    (which rests on the newest few windows) is served from memory. A request's own analysis
+    (which rests on the newest few windows) is served from memory. Before the first look, what
+    the figures are drawn with is loaded (:func:`warm_up`). A request's own analysis
     goes first: none is started ahead while one runs. Each window is made once:
     one dropped from the cache since is made again only on request. The cost is one analysis
     per judged window (about 3 s of one core per window of the service's schedule, every 5
@@ -477,6 +498,8 @@ class ReportPrefetcher:
         return made
 
     def _run(self) -> None:
+        with contextlib.suppress(Exception):  # only sooner: a report draws without it
+            warm_up()
         while not self._stop.is_set():
             with contextlib.suppress(Exception):  # a store closed or replaced: look again
                 self.run_once()

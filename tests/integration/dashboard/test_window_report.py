@@ -271,6 +271,32 @@ def test_the_server_s_loops_make_the_reports_ahead_in_the_background(
     assert fake.closed
 
 
+def test_the_prefetcher_loads_what_the_figures_are_drawn_with_before_its_first_look(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    order: list[str] = []
+    real_warm_up = window_report.warm_up
+
+    def warm_up() -> None:
+        real_warm_up()  # a small figure drawn as the report's are: nothing raised
+        order.append("warmed up")
+
+    def analyse(loop: Any, row: dict[str, Any]) -> str:
+        order.append(f"window {row['id']}")
+        return "<p>made</p>"
+
+    monkeypatch.setattr(window_report, "warm_up", warm_up)
+    monkeypatch.setattr(window_report, "_analyse", analyse)
+    prefetcher = ReportPrefetcher(lambda: [FakeLoop({}, [window(1)])]).start()
+    try:
+        deadline = time.monotonic() + 20.0
+        while len(order) < 2 and time.monotonic() < deadline:
+            time.sleep(0.05)
+    finally:
+        prefetcher.stop()
+    assert order == ["warmed up", "window 1"]
+
+
 def test_a_report_made_ahead_gives_way_to_a_requests_between_its_steps(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
