@@ -5,7 +5,8 @@ many loops (``--central``), reads every loop through one interface, :class:`Loop
 serves the fleet, loop and window pages, the JSON API under ``/api/`` and one live stream per
 page. It writes nothing into a store but the requests people file (approve, reject, revert),
 which the running service carries out; on a central loop they are central requests, relayed to
-the site's service at its next sync.
+the site's service at its next sync. Beside a store file, in ``<store>.reports/``, it keeps the
+windows' HTML reports it made, for its next run (a cache: safe to delete at any time).
 
 The public API: :class:`LoopReader` and :class:`SQLiteLoop` (one loop's data),
 :class:`CentralLoop` (one loop of the central store) and :class:`CentralLoops` (its loops,

@@ -9,13 +9,19 @@ the same hash; otherwise the built-in reference plant stands in, and the report 
 ``fuelid report`` does without ``--plant``. The page names the plant file by its base name and
 SHA-256 prefix, never by its folder: no server path reaches a page.
 
-An analysis takes seconds (about 2.5 s on a quiet two-core machine for a 10-minute window at
-50 Hz, the figures most of it; docs/benchmarks/window_report.md), so the last
-:data:`CACHED_REPORTS` analyses are kept in memory, and a :class:`ReportPrefetcher` (which the
-dashboard's server starts, through :class:`~fuelid.dashboard._registry.Loops`) makes the newest
-windows' ahead, in the background, as soon as the service has judged them: their first request
-is then served from memory. A request for a window being made waits for it rather than making
-it twice. The page is rendered afresh each time.
+An analysis takes seconds (about 3 s of one core for a 10-minute window at 50 Hz, the six
+figures two thirds of it, the plant's linearisations another second the first time;
+docs/benchmarks/window_report.md), so the last :data:`CACHED_REPORTS` analyses are kept in
+memory, and a :class:`ReportPrefetcher` (which the dashboard's server starts, through
+:class:`~fuelid.dashboard._registry.Loops`) makes the newest windows' ahead, in the background,
+as soon as the service has judged them: their first request is then served from memory. A
+report made ahead gives way, between its steps, to a request's own (the two would share one
+core). A request for a window being made waits for it rather than making it twice. The page is
+rendered afresh each time.
+
+The analyses of a store's loop and its plant's linearisations are also kept on disk, beside the
+store (:mod:`fuelid.dashboard._report_files`): a restarted dashboard serves the reports it made
+before at once, and makes a new one without linearising the plant again.
 
 When the online service filed a proposal from this window (the proposal's ``model_id`` is the
 window's), the page's notices say so, with the proposal's gains in the same ideal form as the
@@ -35,8 +41,9 @@ from collections import OrderedDict
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, TypeGuard
 
+from fuelid.dashboard import _report_files as report_files
 from fuelid.dashboard._source import LoopReader
 from fuelid.errors import FuelidError
 from fuelid.workflow import LogAnalysis
@@ -58,6 +65,7 @@ __all__ = [
     "plant_file_name",
     "proposal_notice",
     "report_method",
+    "warm_up",
     "window_report_html",
 ]
 
@@ -84,10 +92,16 @@ _lock = threading.Lock()
 _plant_caches: OrderedDict[str, CaseCache] = OrderedDict()
 """The plants' linearisations by plant file SHA-256: the check over temperature and the
 schedule of every report on one plant share them (each is the same plant at the same point)."""
+_plant_read: dict[tuple[Path, str], int] = {}
+"""Linearisations of a plant read from, or written to, a store's folder: how many."""
 _asked: list[_Key] = []
 """The analyses being made for a request now (not ahead): the prefetcher waits for them."""
 _no_request = threading.Event()
 _no_request.set()
+_this_thread = threading.local()
+"""``ahead``: this thread makes a report ahead (it gives way to requests: :func:`_give_way`)."""
+REFERENCE_PLANT = "built-in reference plant"
+"""The key of the reference plant's linearisations (a plant file's is its SHA-256)."""
 
 
 @dataclass
@@ -132,33 +146,83 @@ def plant_file_name(path: str, digest: str | None) -> str:
     return f"{name} (SHA-256 {digest[:12]})" if digest else name
 
 
-def _plant(loop: LoopReader) -> tuple[Any, CaseCache]:
-    """The service's plant file when it is still there unchanged, else the reference plant.
-
-    The plant source's ``path`` is what the page shows (:func:`plant_file_name`): the file is
-    loaded here, by its full path, and nothing later reads it again. With it, the plant's
-    linearisations kept from the reports before (one cache per plant file's SHA-256).
-    """
+def _plant_file(loop: LoopReader) -> tuple[str, str] | None:
+    """The service's plant file and its SHA-256, when it is still there unchanged."""
     from fuelid.online import plant_hash
-    from fuelid.plant import load_plant_config
-    from fuelid.workflow import PlantSource
 
     settings = (loop.status().get("service") or {}).get("settings") or {}
     path, digest = loop.plant_file(), settings.get("plant_hash")
     if path and digest and Path(path).is_file() and plant_hash(path) == digest:
-        plant = PlantSource(load_plant_config(path), path=plant_file_name(str(path), digest))
-        return plant, _linearisations(str(digest))
-    return PlantSource(load_plant_config(None)), _linearisations("built-in reference plant")
+        return str(path), str(digest)
+    return None
 
 
-def _linearisations(plant_key: str) -> CaseCache:
-    """The linearisations of one plant the reports share (a few plants at most are kept)."""
+def _plant(loop: LoopReader) -> tuple[Any, str]:
+    """The service's plant file when it is still there unchanged, else the reference plant.
+
+    The plant source's ``path`` is what the page shows (:func:`plant_file_name`): the file is
+    loaded here, by its full path, and nothing later reads it again. With it, the key of the
+    plant's linearisations (:func:`_linearisations`): the file's SHA-256.
+    """
+    from fuelid.plant import load_plant_config
+    from fuelid.workflow import PlantSource
+
+    found = _plant_file(loop)
+    if found is None:
+        return PlantSource(load_plant_config(None)), REFERENCE_PLANT
+    path, digest = found
+    return PlantSource(load_plant_config(path), path=plant_file_name(path, digest)), digest
+
+
+def _linearisations(plant_key: str, folder: Path | None = None) -> CaseCache:
+    """The linearisations of one plant the reports share (a few plants at most are kept).
+
+    The first time a store's ``folder`` is named, the ones a dashboard kept there are read.
+    """
     with _lock:
         cache = _plant_caches.pop(plant_key, None)
         _plant_caches[plant_key] = {} if cache is None else cache  # the newest last
         while len(_plant_caches) > CACHED_PLANTS:
             _plant_caches.popitem(last=False)
-        return _plant_caches[plant_key]
+        cache = _plant_caches[plant_key]
+        unread = folder is not None and (folder, plant_key) not in _plant_read
+        if folder is not None:
+            _plant_read.setdefault((folder, plant_key), 0)
+    if unread and folder is not None:
+        kept = report_files.load(folder, report_files.file_name("plant", [plant_key]))
+        if _are_linearisations(kept):
+            for case, found in kept.items():
+                cache.setdefault(case, found)
+            with _lock:
+                _plant_read[(folder, plant_key)] = len(kept)
+    return cache
+
+
+def _are_linearisations(kept: Any) -> TypeGuard[CaseCache]:
+    """``kept`` is a plant's linearisations as :func:`_keep_linearisations` wrote them."""
+    from fuelid.model import ProcessModel
+    from fuelid.plant import LinearPlant
+
+    return isinstance(kept, dict) and all(
+        isinstance(case, tuple)
+        and isinstance(found, tuple)
+        and len(found) == 2
+        and isinstance(found[0], LinearPlant)
+        and isinstance(found[1], ProcessModel)
+        for case, found in kept.items()
+    )
+
+
+def _keep_linearisations(folder: Path | None, plant_key: str, cache: CaseCache) -> None:
+    """Write the plant's linearisations to the store's folder when they grew since."""
+    if folder is None:
+        return
+    snapshot = dict(cache)  # one C call: another thread may add to it meanwhile
+    with _lock:
+        if _plant_read.get((folder, plant_key), 0) >= len(snapshot):
+            return
+        _plant_read[(folder, plant_key)] = len(snapshot)
+    report_files.save(folder, report_files.file_name("plant", [plant_key]), snapshot)
 
 
 def report_method(row: Mapping[str, Any]) -> Literal["oe", "pem"]:
@@ -200,6 +264,18 @@ def _key(loop: LoopReader, row: Mapping[str, Any]) -> _Key:
     return (loop.loop_id, str(loop.identity().get("store_uuid")), int(row["id"]))
 
 
+def _folder(loop: LoopReader) -> Path | None:
+    """Where a loop's reports are kept on disk: beside its store file (a central loop: none)."""
+    path = getattr(loop, "path", None)  # a store file's loop (SQLiteLoop) names its file
+    return report_files.report_folder(path) if isinstance(path, Path) else None
+
+
+def _give_way() -> None:
+    """In a report made ahead: wait while a request's report is being made (it goes first)."""
+    if getattr(_this_thread, "ahead", False):
+        _no_request.wait()
+
+
 def _analyse(loop: LoopReader, row: dict[str, Any]) -> _Analysed:
     """The window's analysis and figures, or its explanation page (nothing kept)."""
     from fuelid.htmlreport import ReportFigure, figure_png, report_figures
@@ -210,13 +286,63 @@ def _analyse(loop: LoopReader, row: dict[str, Any]) -> _Analysed:
     title = f"Window {row['id']} of loop {loop.loop_id}"
     try:
         data = iodata_from_samples(samples, loop.identity().get("period_s"), source=title)
-        plant, linearisations = _plant(loop)
+        plant, plant_key = _plant(loop)
+        linearisations = _linearisations(plant_key, _folder(loop))
+        _give_way()
         analysis = analyse_log(data, plant, _settings(loop, row), cache=linearisations)
-        drawn = report_figures(analysis)
-        figures = [ReportFigure(k, caption, figure_png(fig)) for k, (fig, caption) in drawn.items()]
+        _keep_linearisations(_folder(loop), plant_key, linearisations)
+        _give_way()
+        figures = []
+        for key, (fig, caption) in report_figures(analysis).items():
+            _give_way()  # a figure is a fraction of a second: a request waits no longer
+            figures.append(ReportFigure(key, caption, figure_png(fig)))
     except FuelidError as error:
         return _error_page(title, f"the report could not be made: {error}")
     return (analysis, figures)
+
+
+def _report_inputs(loop: LoopReader, row: Mapping[str, Any]) -> list[Any]:
+    """What a window's report is made from, to name its file (:func:`report_files.file_name`)."""
+    identity = loop.identity()
+    found = _plant_file(loop)
+    return [
+        loop.loop_id,
+        identity.get("store_uuid"),
+        identity.get("period_s"),
+        int(row["id"]),
+        float(row["t_from"]),
+        float(row["t_to"]),
+        repr(_settings(loop, row)),
+        None if found is None else [found[1], plant_file_name(*found)],
+    ]
+
+
+def _is_report(kept: Any) -> TypeGuard[tuple[LogAnalysis, list[ReportFigure]]]:
+    """``kept`` is an analysis and its figures, as :func:`_analyse` makes them."""
+    from fuelid.htmlreport import ReportFigure
+
+    return (
+        isinstance(kept, tuple)
+        and len(kept) == 2
+        and isinstance(kept[0], LogAnalysis)
+        and isinstance(kept[1], list)
+        and all(isinstance(figure, ReportFigure) for figure in kept[1])
+    )
+
+
+def _kept_or_made(loop: LoopReader, row: dict[str, Any]) -> _Analysed:
+    """The window's analysis a dashboard kept beside the store, else made now (and kept)."""
+    folder = _folder(loop)
+    if folder is None:
+        return _analyse(loop, row)
+    name = report_files.file_name("report", _report_inputs(loop, row))
+    kept = report_files.load(folder, name)
+    if _is_report(kept):
+        return kept
+    done = _analyse(loop, row)
+    if not isinstance(done, str):  # an explanation page is not kept: its reason may pass
+        report_files.save(folder, name, done)
+    return done
 
 
 def _analysed(loop: LoopReader, row: dict[str, Any], ahead: bool = False) -> _Analysed:
@@ -237,8 +363,8 @@ def _analysed(loop: LoopReader, row: dict[str, Any], ahead: bool = False) -> _An
                 break
         running.wait()  # then read it kept (or make it, if it failed or was dropped)
     try:
-        with contextlib.nullcontext() if ahead else _asking(key):
-            done = _analyse(loop, row)
+        with _making_ahead() if ahead else _asking(key):
+            done = _kept_or_made(loop, row)
         with _lock:
             _cache[key] = done
             while len(_cache) > CACHED_REPORTS:
@@ -248,6 +374,16 @@ def _analysed(loop: LoopReader, row: dict[str, Any], ahead: bool = False) -> _An
             _running.pop(key, None)
         running.set()
     return done
+
+
+@contextlib.contextmanager
+def _making_ahead() -> Iterator[None]:
+    """The calling thread makes a report ahead: it gives way to requests (:func:`_give_way`)."""
+    _this_thread.ahead = True
+    try:
+        yield
+    finally:
+        _this_thread.ahead = False
 
 
 @contextlib.contextmanager
@@ -283,6 +419,25 @@ def window_report_html(loop: LoopReader, row: dict[str, Any]) -> str:
 # --- made ahead -------------------------------------------------------------------------------
 
 
+def warm_up() -> None:
+    """Load what a report's figures are drawn with: one small figure drawn as the report's are.
+
+    matplotlib, its Agg canvas, PIL and the fonts take about a second to load the first time,
+    which a restarted dashboard whose reports were kept would otherwise pay at the first report
+    it makes on request. The prefetcher does it first, in the background.
+    """
+    from matplotlib.figure import Figure
+
+    from fuelid.htmlreport import figure_png
+
+    fig = Figure(figsize=(2.0, 1.5), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot([0.0, 1.0], [0.0, 1.0], label="flow [L/min]")
+    ax.set_xlabel("time [s]")
+    ax.legend()
+    figure_png(fig)
+
+
 class ReportPrefetcher:
     """Makes the reports of the loops' newest windows ahead, in a background thread.
 
@@ -290,7 +445,8 @@ class ReportPrefetcher:
     ``loops()`` gives are looked at, the newest of every loop first, at most
     :data:`PREFETCH_MAX` in all (the cache keeps them, :data:`CACHED_REPORTS`); one not made yet
     is analysed and kept, so the first request of a window an operator opens after a proposal
-    (which rests on the newest few windows) is served from memory. A request's own analysis
+    (which rests on the newest few windows) is served from memory. Before the first look, what
+    the figures are drawn with is loaded (:func:`warm_up`). A request's own analysis
     goes first: none is started ahead while one runs. Each window is made once:
     one dropped from the cache since is made again only on request. The cost is one analysis
     per judged window (about 3 s of one core per window of the service's schedule, every 5
@@ -342,6 +498,8 @@ class ReportPrefetcher:
         return made
 
     def _run(self) -> None:
+        with contextlib.suppress(Exception):  # only sooner: a report draws without it
+            warm_up()
         while not self._stop.is_set():
             with contextlib.suppress(Exception):  # a store closed or replaced: look again
                 self.run_once()
