@@ -206,6 +206,21 @@ class IdentificationResult:
             for key in MODEL_KEYS
         }
 
+    @property
+    def lags_merged(self) -> bool:
+        """Two lags the fit could not tell apart: T's and T2's intervals withheld.
+
+        Only their combination is determined (the model's response is); the identification's
+        warnings say so. True when T2 > 0 and the covariance's T and T2 rows are unknown (NaN)
+        while the gain's is known.
+        """
+        names = tuple(self.cov_names)
+        if not self.model.T2 > 0.0 or "T" not in names or "T2" not in names or "K" not in names:
+            return False
+        cov = np.asarray(self.cov, dtype=float)
+        i, j, k = names.index("T"), names.index("T2"), names.index("K")
+        return bool(np.all(np.isnan(cov[[i, j], :])) and math.isfinite(float(cov[k, k])))
+
     def ci95(self) -> dict[str, list[float] | None]:
         """95 % confidence intervals of the model parameters (:func:`interval95`).
 

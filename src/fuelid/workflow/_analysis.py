@@ -496,7 +496,10 @@ def _check_chosen(chosen: IdentificationResult, settings: AnalysisSettings) -> l
     command, and one with undetermined parameters (unless ``accept_undetermined``).
     """
     check_gain_identified(chosen.model.K, chosen.stderr.get("K"), f"{settings.tune_from} fit")
-    loose = undetermined(chosen.model.to_json(), _intervals(chosen), chosen.fixed)
+    # two lags not told apart have no intervals of their own, though the response they give is
+    # determined (the identification warns of the split): T is not judged alone then
+    judged_apart = ("T",) if chosen.lags_merged else ()
+    loose = undetermined(chosen.model.to_json(), _intervals(chosen), (*chosen.fixed, *judged_apart))
     if (chosen.diagnostics.get("lead") or {}).get("leads"):
         raise FuelidError(LEADING_RESPONSE)
     if loose and not settings.accept_undetermined:
