@@ -9,7 +9,7 @@ the same hash; otherwise the built-in reference plant stands in, and the report 
 ``fuelid report`` does without ``--plant``. The page names the plant file by its base name and
 SHA-256 prefix, never by its folder: no server path reaches a page.
 
-An analysis takes seconds (about 3 s of one core for a 10-minute window at 50 Hz, the six
+An analysis takes seconds (about 2.5 s of one core for a 10-minute window at 50 Hz, the six
 figures two thirds of it, the plant's linearisations another second the first time;
 docs/benchmarks/window_report.md), so the last :data:`CACHED_REPORTS` analyses are kept in
 memory, and a :class:`ReportPrefetcher` (which the dashboard's server starts, through
@@ -449,9 +449,10 @@ class ReportPrefetcher:
     with is loaded when it starts (:func:`warm_up`). A request's own analysis
     goes first: none is started ahead while one runs. Each window is made once:
     one dropped from the cache since is made again only on request. The cost is one analysis
-    per judged window (about 3 s of one core per window of the service's schedule, every 5
-    minutes by default), and a few at the dashboard's start, spent only on local stores (the
-    loops ``loops()`` gives: a central loop's samples may not be at hand).
+    per judged window (about 2.5 s of one core per window of the service's schedule, every 5
+    minutes by default), and a few at the dashboard's first start (a restart reads them back
+    from beside the store), spent only on local stores (the loops ``loops()`` gives: a central
+    loop's samples may not be at hand).
 
     Parameters
     ----------
