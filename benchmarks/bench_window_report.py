@@ -25,7 +25,7 @@ with one core's worth of numpy work (200×200 matrix products on one BLAS thread
 before the round and killed after it; they also stop by themselves after ``--load-limit``
 seconds. Run on demand:
 
-    .venv/bin/python benchmarks/bench_window_report.py [--runs 3] [--load 2] [--settle 30]
+    .venv/bin/python benchmarks/bench_window_report.py [--runs 5] [--load 2] [--settle 30]
 """
 
 from __future__ import annotations
@@ -196,19 +196,22 @@ def medians(store: Path, runs: int, settle_s: float) -> list[float]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--store", type=Path, help="a store (default: a short virtual run)")
-    parser.add_argument("--runs", type=int, default=3, help="fresh dashboards per set (median)")
+    parser.add_argument("--runs", type=int, default=5, help="fresh dashboards per set (median)")
     parser.add_argument("--load", type=int, default=2, help="busy children while loaded")
     parser.add_argument(
-        "--settle", type=float, default=30.0, help="the second dashboard runs this long first [s]"
+        "--settle", type=float, default=30.0, help="the third dashboard runs this long first [s]"
     )
     parser.add_argument("--load-limit", type=float, default=600.0, help="load stops after [s]")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="fuelid-bench-") as tmp:
         store = args.store or make_store(Path(tmp))
+        before = [os.getloadavg()[0]]  # others' work on a shared machine: said, not hidden
         quiet = medians(store, args.runs, args.settle)
+        before.append(os.getloadavg()[0])
         with competing_load(args.load, args.load_limit):
             loaded = medians(store, args.runs, args.settle)
     print(f"{os.cpu_count()} CPUs, {args.load} busy children while loaded; median of {args.runs}")
+    print(f"load average (1 min) before the quiet set {before[0]:.1f}, the loaded {before[1]:.1f}")
     print(f"{'request':<34} {'quiet':>7} {'loaded':>7} {'target (loaded)':>16}  met")
     met_all = True
     for i, case in enumerate(CASES):

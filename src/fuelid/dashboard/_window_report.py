@@ -9,7 +9,7 @@ the same hash; otherwise the built-in reference plant stands in, and the report 
 ``fuelid report`` does without ``--plant``. The page names the plant file by its base name and
 SHA-256 prefix, never by its folder: no server path reaches a page.
 
-An analysis takes seconds (about 3 s of one core for a 10-minute window at 50 Hz, the six
+An analysis takes seconds (about 2.5 s of one core for a 10-minute window at 50 Hz, the six
 figures two thirds of it, the plant's linearisations another second the first time;
 docs/benchmarks/window_report.md), so the last :data:`CACHED_REPORTS` analyses are kept in
 memory, and a :class:`ReportPrefetcher` (which the dashboard's server starts, through
@@ -424,7 +424,7 @@ def warm_up() -> None:
 
     matplotlib, its Agg canvas, PIL and the fonts take about a second to load the first time,
     which a restarted dashboard whose reports were kept would otherwise pay at the first report
-    it makes on request. The prefetcher does it first, in the background.
+    it makes on request. The prefetcher does it as it starts (:meth:`ReportPrefetcher.start`).
     """
     from matplotlib.figure import Figure
 
@@ -445,13 +445,14 @@ class ReportPrefetcher:
     ``loops()`` gives are looked at, the newest of every loop first, at most
     :data:`PREFETCH_MAX` in all (the cache keeps them, :data:`CACHED_REPORTS`); one not made yet
     is analysed and kept, so the first request of a window an operator opens after a proposal
-    (which rests on the newest few windows) is served from memory. Before the first look, what
-    the figures are drawn with is loaded (:func:`warm_up`). A request's own analysis
+    (which rests on the newest few windows) is served from memory. What the figures are drawn
+    with is loaded when it starts (:func:`warm_up`). A request's own analysis
     goes first: none is started ahead while one runs. Each window is made once:
     one dropped from the cache since is made again only on request. The cost is one analysis
-    per judged window (about 3 s of one core per window of the service's schedule, every 5
-    minutes by default), and a few at the dashboard's start, spent only on local stores (the
-    loops ``loops()`` gives: a central loop's samples may not be at hand).
+    per judged window (about 2.5 s of one core per window of the service's schedule, every 5
+    minutes by default), and a few at the dashboard's first start (a restart reads them back
+    from beside the store), spent only on local stores (the loops ``loops()`` gives: a central
+    loop's samples may not be at hand).
 
     Parameters
     ----------
@@ -498,16 +499,21 @@ class ReportPrefetcher:
         return made
 
     def _run(self) -> None:
-        with contextlib.suppress(Exception):  # only sooner: a report draws without it
-            warm_up()
         while not self._stop.is_set():
             with contextlib.suppress(Exception):  # a store closed or replaced: look again
                 self.run_once()
             self._stop.wait(self.every_s)
 
     def start(self) -> ReportPrefetcher:
-        """Start looking, in a daemon thread; returns itself."""
+        """Load what the figures are drawn with, then start looking in a daemon thread.
+
+        The loading (:func:`warm_up`) is done here, before the dashboard says it is ready: in
+        the background it would share the one core a first request's report has. Returns
+        itself.
+        """
         if self._thread is None:
+            with contextlib.suppress(Exception):  # only sooner: a report draws without it
+                warm_up()
             self._thread = threading.Thread(target=self._run, name="report-prefetch", daemon=True)
             self._thread.start()
         return self
