@@ -49,6 +49,7 @@ NETWORK_FAILURES = (
     "ERR_CONNECTION_REFUSED",
     "ERR_INCOMPLETE_CHUNKED_ENCODING",
     "ERR_EMPTY_RESPONSE",  # a request the dashboard was answering when it was killed
+    "ERR_CONNECTION_RESET",  # one sent as it was killed: the kernel resets the connection
 )
 """Console errors a page logs while its dashboard is gone (the stream's retries): expected then."""
 
@@ -190,10 +191,19 @@ def browser_pages(
                 page = context.new_page()
                 page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
                 page.on("pageerror", lambda e: errors.append(f"uncaught: {e}"))
+                page.on("requestfailed", _say_request_failed)
                 pages.append(page)
             yield pages, errors
         finally:
             browser.close()
+
+
+def _say_request_failed(request: Any) -> None:
+    # the console line names no request: a failure report shows which one, and when
+    print(
+        f"{time.strftime('%H:%M:%S')} request failed: {request.method} {request.url}: "
+        f"{request.failure}"
+    )
 
 
 @contextmanager
