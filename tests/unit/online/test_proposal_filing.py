@@ -43,9 +43,11 @@ class _Context:
 @pytest.fixture
 def context(tmp_path: Path) -> Iterator[_Context]:
     site = {"site_name": "tunnel 2 fuel loop", "tag_map_hash": tag_map_hash({"flow": "ir:20"})}
-    with SQLiteStore(tmp_path / "loop.db", period_s=0.02, **site) as store:
-        with OnlineHistory(store) as history:
-            yield _Context(history)
+    with (
+        SQLiteStore(tmp_path / "loop.db", period_s=0.02, **site) as store,
+        OnlineHistory(store) as history,
+    ):
+        yield _Context(history)
 
 
 def _decision(kc: float, ti: float = 2.0) -> ProposalDecision:
