@@ -68,27 +68,35 @@ def _reject_elsewhere(store: Path, proposal: int) -> None:
         history.set_proposal_status(proposal, "rejected", who="ana", why="decided at the panel")
 
 
+def _selector(proposal: int) -> str:
+    return f'#proposals-part div.proposal[data-proposal="{proposal}"]'
+
+
+_CARD_JS = """((selector) => {
+  const card = document.querySelector(selector);
+  if (!card) return null;
+  const form = card.querySelector('form.action');
+  const confirm = form && form.querySelector('.confirm');
+  const kinds = form ? Array.from(form.querySelectorAll('button[data-kind]')) : [];
+  return {
+    state: card.dataset.state,
+    text: card.querySelector('.state-text').textContent,
+    changed: Array.from(card.querySelectorAll('p.changed')).map((p) => p.textContent),
+    why: form ? form.querySelector('input[name=why]').value : null,
+    confirming: confirm ? !confirm.hidden : false,
+    buttons: kinds.map((b) => b.dataset.kind),
+  };
+})"""
+
+
 def _card(page: Any, proposal: int) -> dict[str, Any]:
-    script = f"""(() => {{
-      const card = document.querySelector('#proposals-part div.proposal[data-proposal="{proposal}"]');
-      if (!card) return null;
-      const form = card.querySelector('form.action');
-      const confirm = form && form.querySelector('.confirm');
-      return {{
-        state: card.dataset.state,
-        text: card.querySelector('.state-text').textContent,
-        changed: Array.from(card.querySelectorAll('p.changed')).map((p) => p.textContent),
-        why: form ? form.querySelector('input[name=why]').value : null,
-        confirming: confirm ? !confirm.hidden : false,
-        buttons: form ? Array.from(form.querySelectorAll('button[data-kind]')).map((b) => b.dataset.kind) : [],
-      }};
-    }})()"""
-    return page.evaluate(script)  # type: ignore[no-any-return]
+    """What the card of ``proposal`` shows (None when it has none)."""
+    return page.evaluate(_CARD_JS, _selector(proposal))  # type: ignore[no-any-return]
 
 
 def _state_is(proposal: int, state: str) -> str:
-    selector = f'#proposals-part div.proposal[data-proposal="{proposal}"]'
-    return f"(document.querySelector('{selector}') || {{dataset: {{}}}}).dataset.state === '{state}'"
+    card = f"document.querySelector('{_selector(proposal)}')"
+    return f"({card} || {{dataset: {{}}}}).dataset.state === '{state}'"
 
 
 def test_a_proposal_changing_under_a_typed_reason_or_a_question_is_said_and_nothing_sent(
@@ -99,30 +107,32 @@ def test_a_proposal_changing_under_a_typed_reason_or_a_question_is_said_and_noth
     users = UsersFile(tmp_path / "users.json")
     token = users.add("eve", "engineer")
     form = f"form.action[data-proposal='{proposal}']"
-    with dashboard(tmp_path, "--store", str(store), "--users", str(users.path)) as (_, base):
-        with browser_page() as (page, errors):
-            (row,) = page.context.request.get(f"{base}/api/loops").json()["loops"]
-            path = f"/loops/{row['loop_id']}"
-            page.goto(f"{base}/login?next={path}")
-            page.fill("input[name=name]", "eve")
-            page.fill("input[name=token]", token)
-            page.click("button[type=submit]")
-            page.wait_for_url(f"{base}{path}")
-            wait_ready(page)
-            wait_until(page, _state_is(proposal, "waiting"), timeout=15)
-            # 1. the approve question open over a typed reason; the proposal ages out of date
-            page.fill(f"{form} input[name=why]", "the windows agree")
-            page.click(f"{form} button[data-kind=approve]")
-            assert _card(page, proposal)["confirming"]
-            _age_out(store)
-            wait_until(page, _state_is(proposal, "out_of_date"), timeout=15)
-            aged = _card(page, proposal)
-            # 2. a reason typed for reject; the proposal is rejected elsewhere
-            page.fill(f"{form} input[name=why]", "not now")
-            _reject_elsewhere(store, proposal)
-            wait_until(page, _state_is(proposal, "rejected"), timeout=15)
-            rejected = _card(page, proposal)
-            requests = page.context.request.get(f"{base}/api{path}/requests").json()
+    with (
+        dashboard(tmp_path, "--store", str(store), "--users", str(users.path)) as (_, base),
+        browser_page() as (page, errors),
+    ):
+        (row,) = page.context.request.get(f"{base}/api/loops").json()["loops"]
+        path = f"/loops/{row['loop_id']}"
+        page.goto(f"{base}/login?next={path}")
+        page.fill("input[name=name]", "eve")
+        page.fill("input[name=token]", token)
+        page.click("button[type=submit]")
+        page.wait_for_url(f"{base}{path}")
+        wait_ready(page)
+        wait_until(page, _state_is(proposal, "waiting"), timeout=15)
+        # 1. the approve question open over a typed reason; the proposal ages out of date
+        page.fill(f"{form} input[name=why]", "the windows agree")
+        page.click(f"{form} button[data-kind=approve]")
+        assert _card(page, proposal)["confirming"]
+        _age_out(store)
+        wait_until(page, _state_is(proposal, "out_of_date"), timeout=15)
+        aged = _card(page, proposal)
+        # 2. a reason typed for reject; the proposal is rejected elsewhere
+        page.fill(f"{form} input[name=why]", "not now")
+        _reject_elsewhere(store, proposal)
+        wait_until(page, _state_is(proposal, "rejected"), timeout=15)
+        rejected = _card(page, proposal)
+        requests = page.context.request.get(f"{base}/api{path}/requests").json()
     assert errors == []
     label = STATE_LABELS["out_of_date"]
     assert aged["buttons"] == ["reject"]
