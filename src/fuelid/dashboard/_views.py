@@ -22,6 +22,15 @@ chip and the loop page's cards), from its stored status and the service's own ru
 The chip counts the waiting and approved ones; out-of-date ones are said ("1 out of date, not
 written") at level info, never as a warning: nothing waits for anyone.
 
+**Decided proposals** (``decided_views``): the newest :data:`DECIDED_CARDS` (3) proposals no one
+has to act on (being written, written, reverted, failed, rejected, superseded), newest first,
+and the last one sent to the PLC when it is older, each once, stay on the page as cards. Each
+says who approved it and why, then what became of it with who and why ("approved at T by ana:
+why; written and verified at T, reverted at T by bob: why", "rejected at T by ana: why",
+"superseded at T by service: why"), plant times in the site's zone. People's approvals,
+rejections and reverts are also rows of the events table (``decision_events``, kind
+"proposal"), read from the proposals' history: nothing more is stored.
+
 **The gains in force** (``gains_in_force``), the first of:
 
 1. the PLC's own kc and ti tags as the recorder last read them (the status' ``plc_gains``, when
@@ -59,6 +68,7 @@ from fuelid.io import format_age, format_time
 from fuelid.online import health_line
 
 __all__ = [
+    "DECIDED_CARDS",
     "FRESH_PERIODS",
     "FRESH_SAMPLE_S",
     "PROPOSAL_STATES",
@@ -66,6 +76,8 @@ __all__ = [
     "STATE_LABELS",
     "ProposalState",
     "central_waiting",
+    "decided_views",
+    "decision_events",
     "fmt_num",
     "fresh_bound_s",
     "gains_agree",
@@ -143,6 +155,14 @@ _CLOSED_LEVEL = {
     "superseded": "ok",
 }
 """The chip level of a proposal no one has to act on (the "last write" chip carries failures)."""
+DECIDED_CARDS = 3
+"""Decided proposals the loop page keeps as cards, the newest (:func:`decided_views`)."""
+_SENT = ("writing", "applied", "reverted", "failed")
+"""The stored statuses of a proposal sent to the PLC."""
+_DECIDED = (*_SENT, "rejected", "superseded")
+"""The stored statuses of a proposal no one has to act on."""
+_PERSON_STEPS = ("approved", "rejected", "reverted")
+"""The steps of a proposal's history a person takes (the events table shows them)."""
 
 
 @dataclass(frozen=True)
@@ -409,9 +429,27 @@ def _entry(proposal: dict[str, Any], status: str) -> dict[str, Any]:
     return {}
 
 
+def _step_text(entry: dict[str, Any], verb: str, tz: str) -> str:
+    """A person's (or the service's) step: "approved at T by NAME: why", plant time in ``tz``."""
+    why = f": {entry['why']}" if entry.get("why") else ""
+    return f"{verb} at {format_time(entry.get('time'), tz)} by {entry.get('who', 'unknown')}{why}"
+
+
 def _closed_text(proposal: dict[str, Any], status: dict[str, Any]) -> str:
-    """What happened to a proposal no one has to act on, with plant times in the site's zone."""
+    """What happened to a proposal no one has to act on, with plant times in the site's zone.
+
+    Who approved it and why comes first when it was approved ("approved at T by ana: why; "),
+    then what became of it: "written and verified at T", "reverted at T by NAME: why",
+    "rejected at T by NAME: why", "superseded at T by service: why", the write failed.
+    """
     tz = status.get("timezone") or "UTC"
+    approval = _entry(proposal, "approved")
+    approved = f"{_step_text(approval, 'approved', tz)}; " if approval else ""
+    return approved + _outcome_text(proposal, status, tz)
+
+
+def _outcome_text(proposal: dict[str, Any], status: dict[str, Any], tz: str) -> str:
+    """What became of a closed (or in-flight) proposal, its step's who and why included."""
     kind = proposal.get("status")
     entry = _entry(proposal, str(kind))
     at = format_time(entry.get("time"), tz)
@@ -426,12 +464,10 @@ def _closed_text(proposal: dict[str, Any], status: dict[str, Any]) -> str:
     if kind == "applied":
         return written
     if kind == "reverted":
-        return f"{written}, reverted at {at} by {entry.get('who', 'unknown')}{why}"
+        return f"{written}, {_step_text(entry, 'reverted', tz)}"
     if kind == "failed":
         return f"not written: the write failed at {at}{why}"
-    if kind == "rejected":
-        return f"rejected at {at} by {entry.get('who', 'unknown')}{why}"
-    return f"{kind} at {at}{why}"
+    return _step_text(entry, str(kind), tz)  # rejected, superseded
 
 
 def proposal_state(
@@ -744,6 +780,88 @@ def last_written_view(
         return None
     p = max(written, key=lambda q: (_entry(q, str(q["status"])).get("time") or 0.0, int(q["id"])))
     return _card(p, status, windows, p.get("old") or {}, "the gains before its write")
+
+
+def _decided_at(proposal: dict[str, Any]) -> tuple[float, int]:
+    """When a proposal took its status (the newest step that moved it there), and its id."""
+    return (_entry(proposal, str(proposal["status"])).get("time") or 0.0, int(proposal["id"]))
+
+
+def decided_views(
+    status: dict[str, Any],
+    history: dict[str, Any],
+    windows: Sequence[dict[str, Any]] = (),
+    shown: Sequence[Any] = (),
+    limit: int = DECIDED_CARDS,
+) -> list[dict[str, Any]]:
+    """The cards of the proposals decided last, newest first: what people decided stays shown.
+
+    The newest ``limit`` proposals no one has to act on (being written, written, reverted,
+    failed, rejected, superseded; by the time of the step that closed them), and the last one
+    sent to the PLC when it is older than those (a write stays on the page once it is made),
+    each once. Each card's ``state_text`` says who approved it and why, then what became of it
+    with who and why (:func:`proposal_state`), plant times in the site's zone; its ``from`` are
+    the gains it was filed against.
+
+    Parameters
+    ----------
+    status : dict
+        The loop's status (the time zone, the link's state).
+    history : dict
+        The loop's history (its ``proposals``, with their ``history``).
+    windows : sequence of dict
+        Stored windows, for the evidence link.
+    shown : sequence of int
+        Ids already shown as open cards (a status read a moment before the history): left out.
+    limit : int
+        How many of the newest decided proposals.
+    """
+    skip = {int(pid) for pid in shown}
+    closed = sorted(
+        (
+            p
+            for p in history.get("proposals") or []
+            if p.get("status") in _DECIDED and int(p["id"]) not in skip
+        ),
+        key=_decided_at,
+        reverse=True,
+    )
+    picked = closed[: max(int(limit), 0)]
+    sent = next((p for p in closed if p.get("status") in _SENT), None)
+    if sent is not None and all(p["id"] != sent["id"] for p in picked):
+        picked.append(sent)  # older than the newest decided ones: the last write stays
+    return [
+        _card(p, status, windows, p.get("old") or {}, "the gains it was filed against")
+        for p in picked
+    ]
+
+
+def _is_service(who: Any) -> bool:
+    """True for the service's own steps ("service", "online", "service (write_back = auto)")."""
+    name = str(who or "")
+    return name in ("service", "online") or name.startswith("service ")
+
+
+def decision_events(history: dict[str, Any]) -> list[dict[str, Any]]:
+    """People's decisions on proposals as rows of the events table, oldest first.
+
+    Each approval, rejection and revert a person made (the proposals' history entries whose
+    ``who`` is not the service): ``time`` [plant s], ``kind`` "proposal", ``detail`` ("#4
+    rejected by ana: not before the run"). Read from the proposals, not stored as events.
+
+    >>> decision_events({"proposals": [{"id": 4, "history": [
+    ...     {"time": 5.0, "status": "rejected", "who": "ana", "why": "not now"}]}]})
+    [{'time': 5.0, 'kind': 'proposal', 'detail': '#4 rejected by ana: not now'}]
+    """
+    rows = []
+    for proposal in history.get("proposals") or []:
+        for step in proposal.get("history") or []:
+            if step.get("status") not in _PERSON_STEPS or _is_service(step.get("who")):
+                continue
+            why = f": {step['why']}" if step.get("why") else ""
+            detail = f"#{proposal['id']} {step['status']} by {step.get('who')}{why}"
+            rows.append({"time": step.get("time"), "kind": "proposal", "detail": detail})
+    return sorted(rows, key=lambda row: float(row["time"] or 0.0))
 
 
 def now_rows(status: dict[str, Any], tz: str) -> list[tuple[str, str]]:

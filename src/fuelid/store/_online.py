@@ -237,6 +237,24 @@ class OnlineHistory(GainWrites, PersonRequests):
             ).fetchone()
         return None if row is None else window_row(row)
 
+    def windows_of_models(self, model_ids: Sequence[int]) -> list[dict[str, Any]]:
+        """The first window naming each of ``model_ids`` (as :meth:`windows` gives it), by id.
+
+        One row per model at most, whatever the windows since (the index on ``model_id``): a
+        proposal's evidence, however many windows came after it. Unknown ids give no row.
+        """
+        ids = sorted({int(i) for i in model_ids})
+        if not ids:
+            return []
+        marks = ", ".join("?" * len(ids))
+        sql = (
+            f"SELECT {WINDOW_COLUMNS} FROM windows WHERE id IN (SELECT min(id) FROM windows "
+            f"WHERE model_id IN ({marks}) GROUP BY model_id) ORDER BY id"
+        )
+        with self._transaction(write=False) as con:
+            rows = con.execute(sql, ids).fetchall()
+        return [window_row(row) for row in rows]
+
     def last_window(self) -> dict[str, Any] | None:
         """The newest window (largest ``t_to``), as :meth:`windows` gives it; None when none."""
         rows = self.windows(limit=1)
