@@ -228,3 +228,34 @@ def test_malformed_switches_are_refused_with_the_line(
     with pytest.raises(ConfigError, match=message) as caught:
         read_model_file(_write(tmp_path, body))
     assert "line" in str(caught.value)
+
+
+# --- a solver failing where the fit did not look ---------------------------------------------
+
+
+def test_a_solver_failing_on_a_validation_record_falls_back_and_says_so(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import fuelid.greybox._estimator as estimator_module
+
+    clean, _ = simulate(TRUTH)
+    y = clean + NOISE * np.random.default_rng(7).standard_normal(len(clean))
+    estimator = GreyBoxEstimator(tank(dict(TRUTH)))
+    estimator.fit([record(y=y)])
+    assert estimator.solver_.solver.method == "lsoda"
+    expected = estimator.simulate(record(y=y), np.array([X0])).outputs
+    real = estimator_module.simulate_record
+
+    def lsoda_fails(*args: Any, **kwargs: Any) -> Any:
+        if kwargs["solver"].method == "lsoda":
+            raise SimulationError("the ODE solver (lsoda) failed: Excess work done on this call.")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(estimator_module, "simulate_record", lsoda_fails)
+    validation = Record(record().t, record().u, y[:, None], name="validation")
+    predicted = estimator.simulate(validation, np.array([X0])).outputs
+    # BDF (auto's next) reproduces LSODA's outputs to the solvers' tolerances (1e-6 relative
+    # of a level of a few metres: 1e-4 m is 100× that and a hundredth of the noise)
+    assert np.max(np.abs(predicted - expected)) <= 1e-4
+    assert "lsoda failed at record validation" in estimator.solver_.reason
+    assert "fell back to bdf" in estimator.solver_.reason
