@@ -38,13 +38,18 @@ def dump_valve(t: float, x: Any, u: Any, p: Any, on: Any) -> list[Any]:
     return [rate]
 
 
+def dump_valve_numpy(t: float, x: Any, u: Any, p: Any, on: Any) -> list[Any]:
+    """The same f written with numpy: it takes a batch of states (one call per step)."""
+    return [p["a"] * u[0] - p["b"] * np.sqrt(np.maximum(x[0], 0.0)) - p["d"] * on["above_rim"]]
+
+
 def above_rim(t: float, x: Any, u: Any, p: Any) -> Any:
     return x[0] - p["rim"]
 
 
-def tank(start: dict[str, float]) -> OdeModel:
+def tank(start: dict[str, float], f: Any = dump_valve) -> OdeModel:
     specs = [ParameterSpec(name, value, 0.0) for name, value in start.items()]
-    return OdeModel(dump_valve, specs, ["level"], switches=[Switch("above_rim", above_rim)])
+    return OdeModel(f, specs, ["level"], switches=[Switch("above_rim", above_rim)])
 
 
 def record(seed: int = 3, y: np.ndarray | None = None) -> Record:
@@ -56,11 +61,14 @@ def record(seed: int = 3, y: np.ndarray | None = None) -> Record:
 
 
 def simulate(
-    values: dict[str, float], solver: Solver = FINE, sensitivities: bool = False
+    values: dict[str, float],
+    solver: Solver = FINE,
+    sensitivities: bool = False,
+    f: Any = dump_valve,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Outputs (and ∂y/∂[θ, x0], θ in natural units) over :func:`record` from X0."""
     free = list(values)
-    system = tank(values).bind(values, free, record())
+    system = tank(values, f).bind(values, free, record())
     s0 = np.zeros((1, len(free) + 1))
     s0[0, -1] = 1.0
     trajectory = simulate_record(
@@ -98,13 +106,14 @@ def test_the_record_crosses_the_rim_both_ways_and_slides_along_it() -> None:
     assert np.sum(at_rim) > 30
 
 
-def test_sensitivities_jump_as_central_differences_say() -> None:
+@pytest.mark.parametrize("f", [dump_valve, dump_valve_numpy], ids=["scalar", "numpy"])
+def test_sensitivities_jump_as_central_differences_say(f: Any) -> None:
     # band, stated before the run: at rtol 1e-10 the outputs' error is ≲ 1e-10·|y| ≈ 4e-10,
     # which a central difference of step h = 1e-5·θ turns into ≤ 4e-10/h ≤ 2e-4 (θ ≥ 0.05); its
     # truncation error is (h/θ)²·|y| ≈ 1e-10·4; the sensitivity rows carry 100× the state's
     # tolerance, 1e-8 relative per step. So |S − FD| ≤ 1e-4·max|FD| per parameter (≈ 3e-3
     # here) holds with room; a jump left out is an error of the jump's size, O(max|FD|)
-    _, sens = simulate(TRUTH, sensitivities=True)
+    _, sens = simulate(TRUTH, sensitivities=True, f=f)
     assert sens is not None
     differences = central_differences(TRUTH, 1e-5)
     for j, name in enumerate(TRUTH):
