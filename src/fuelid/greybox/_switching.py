@@ -77,7 +77,6 @@ class Modes:
     def __init__(self, names: Sequence[str]) -> None:
         self.on: dict[str, bool] = dict.fromkeys(names, False)
         self.sliding: int | None = None
-        self.settled = False
 
 
 class ModedRhs:
@@ -265,7 +264,6 @@ class _Switching:
                 modes.on[name] = True
             elif below < 0.0 or above < 0.0:
                 modes.on[name] = False
-        modes.settled = True
         self.system.forget()
 
     def f_now(self, t: float, x: FloatArray, u: FloatArray) -> FloatArray:
@@ -375,7 +373,6 @@ def switched_integrator(
     switching: _Switching | None = getattr(system, "switched", None)
     if switching is None:
         return None
-    switching.modes.settled = False  # a new record: the modes are decided at its start
 
     def integrate(
         solver: Solver,
@@ -440,6 +437,10 @@ def _piece(
         def jac(t: float, state: FloatArray) -> FloatArray:
             return np.array(newton(t, state, u), dtype=float)
 
+    # LSODA and RK45 take the sensitivity rows' looser tolerance; the implicit ones take one
+    tolerance: float | FloatArray = (
+        rtol if solver.method in {"lsoda", "rk45"} else float(np.min(rtol))
+    )
     out = np.empty((len(times) - 1, len(z)))
     filled = 0
     t_now, z_now = float(times[0]), np.array(z, dtype=float)
@@ -455,7 +456,7 @@ def _piece(
                 method=_METHODS[solver.method],
                 t_eval=remaining,
                 events=events or None,
-                rtol=float(np.min(rtol)),
+                rtol=tolerance,
                 atol=atol,
                 max_step=math.inf if solver.max_step is None else solver.max_step,
                 **({"jac": jac} if jac is not None else {}),
