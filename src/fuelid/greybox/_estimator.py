@@ -57,7 +57,7 @@ from fuelid.greybox._sensitivity import Trajectory, simulate_record
 from fuelid.greybox._solver_choice import SolverChoice, check_request, choose_solver, fall_back
 from fuelid.greybox._solver_fit import SolverChecks
 from fuelid.greybox._solvers import SimulationError, Solver
-from fuelid.greybox._system import GreyBoxModel, Record
+from fuelid.greybox._system import GreyBoxModel, OdeSystem, Record
 from fuelid.model import nrmse_fit_columns
 from fuelid.params import Params
 
@@ -493,12 +493,26 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
             x0 = (
                 init[0] if init is not None else self.model.steady_state_guess(self.params_, record)
             )
-        x0 = np.asarray(x0, dtype=float)
+        where = f"record {record.name}" if record.name else "a record it did not fit"
+        return self._simulate_or_fall_back(system, record, np.asarray(x0, dtype=float), None, where)
+
+    def _simulate_or_fall_back(
+        self,
+        system: OdeSystem,
+        record: Record,
+        x0: FloatArray,
+        s0: FloatArray | None,
+        where: str,
+    ) -> Trajectory:
+        """A record the fit did not see, with the fit's solver or, where it fails, auto's next.
+
+        LSODA's "Excess work" at an undeclared switch on a validation record ends nothing:
+        auto's chain, with bounded work, and the solver's reason says so (a solver the user
+        chose is not replaced: its failure is raised).
+        """
         try:
-            return simulate_record(system, record, x0, solver=self.solver_.solver)
+            return simulate_record(system, record, x0, s0, solver=self.solver_.solver)
         except SimulationError as exc:
-            # a record the fit did not see (a validation record) where the fit's solver fails
-            # (LSODA's "Excess work" at a switch): auto's chain, bounded, and the reason says so
             choice = fall_back(
                 self.solver_,
                 exc,
@@ -506,7 +520,7 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
                 [record],
                 self.sigma_,
                 self.max_step,
-                f"record {record.name}" if record.name else "a record it did not fit",
+                where,
             )
         if choice.reason not in self.solver_.reason:
             self.solver_ = SolverChoice(
@@ -514,7 +528,7 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
                 self.solver_.requested,
                 "; ".join(text for text in (self.solver_.reason, choice.reason) if text),
             )
-        return simulate_record(system, record, x0, solver=choice.solver)
+        return simulate_record(system, record, x0, s0, solver=choice.solver)
 
     def predict(self, record: Record) -> FloatArray:
         """Predicted outputs for a record (N × n_y).
@@ -541,10 +555,9 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
             key = x0.tobytes()
             if key not in last:
                 last.clear()
+                where = f"the head of record {record.name}" if record.name else "a record's head"
                 try:
-                    last[key] = simulate_record(
-                        system, head, x0, identity, solver=self.solver_.solver
-                    )
+                    last[key] = self._simulate_or_fall_back(system, head, x0, identity, where)
                 except SimulationError:
                     return None
             return last[key]

@@ -257,7 +257,7 @@ def test_a_solver_failing_on_a_validation_record_falls_back_and_says_so(
     estimator = GreyBoxEstimator(tank(dict(TRUTH)))
     estimator.fit([record(y=y)])
     assert estimator.solver_.solver.method == "lsoda"
-    expected = estimator.simulate(record(y=y), np.array([X0])).outputs
+    expected = estimator.predict(record(y=y))
     real = estimator_module.simulate_record
 
     def lsoda_fails(*args: Any, **kwargs: Any) -> Any:
@@ -267,9 +267,11 @@ def test_a_solver_failing_on_a_validation_record_falls_back_and_says_so(
 
     monkeypatch.setattr(estimator_module, "simulate_record", lsoda_fails)
     validation = Record(record().t, record().u, y[:, None], name="validation")
-    predicted = estimator.simulate(validation, np.array([X0])).outputs
-    # BDF (auto's next) reproduces LSODA's outputs to the solvers' tolerances (1e-6 relative
-    # of a level of a few metres: 1e-4 m is 100× that and a hundredth of the noise)
+    predicted = estimator.predict(validation)
+    # the initial state fitted to the record's head and the record simulated with BDF (auto's
+    # next): LSODA's outputs to the solvers' tolerances (1e-6 relative of a level of a few
+    # metres, and the head's fit to its own tolerance: 1e-4 m, a hundredth of the noise)
     assert np.max(np.abs(predicted - expected)) <= 1e-4
+    assert "lsoda failed at the head of record validation" in estimator.solver_.reason
     assert "lsoda failed at record validation" in estimator.solver_.reason
     assert "fell back to bdf" in estimator.solver_.reason
