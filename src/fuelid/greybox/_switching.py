@@ -192,6 +192,10 @@ def switched_system(
     modes = Modes([s.name for s in model.switches])
     view = copy.copy(model)
     moded = ModedRhs(model.moded_f, model.switches, modes, model.state_scale)
+    # the fused sensitivities call the user's f without the model file's line-naming wrapper
+    # (a failing call is repeated through it): the same modes around the bare function
+    raw = getattr(model.moded_f, "__wrapped__", model.moded_f)
+    moded.__wrapped__ = ModedRhs(raw, model.switches, modes, model.state_scale)  # type: ignore[attr-defined]
     view.f = moded
     system = FunctionSystem(view, values, free)
     system.switched = _Switching(system, moded, modes)  # type: ignore[attr-defined]
