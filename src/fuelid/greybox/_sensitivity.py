@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError
 from fuelid.greybox._solvers import RTOL, Newton, Rhs, SimulationError, Solver, integrate_piece
-from fuelid.greybox._switching import switched_integrator
+from fuelid.greybox._switching import UnlocatedSwitches, switched_integrator
 from fuelid.greybox._system import OdeSystem, Record
 
 __all__ = ["RTOL", "SimulationError", "Solver", "Trajectory", "input_changes", "simulate_record"]
@@ -325,6 +325,8 @@ class _Pieces:
                 self.atol,
                 None if self.max_evaluations is None else self.max_evaluations - spent,
             )
+        except UnlocatedSwitches:
+            raise  # the method, not this piece: the solver choice says so as it is
         except SimulationError as exc:
             reason = _reason(exc, self.rhs, float(t_start), z, u)
             raise SimulationError(f"on {t_start:g}…{t_end:g} s {reason}") from None

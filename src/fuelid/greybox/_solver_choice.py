@@ -42,6 +42,7 @@ from fuelid.greybox._solvers import (
     check_max_step,
     check_substeps,
 )
+from fuelid.greybox._switching import UnlocatedSwitches
 from fuelid.greybox._system import Record
 
 RK4_AGREEMENT = 0.05
@@ -221,7 +222,11 @@ def _rk4_by_doubling(
     """
     scale = np.asarray(noise, dtype=float)
     substeps = first
-    coarse = _outputs(simulate, Solver("rk4", max_step, substeps))
+    try:
+        coarse = _outputs(simulate, Solver("rk4", max_step, substeps))
+    except UnlocatedSwitches as exc:  # no number of steps helps: say so, not "too stiff"
+        tried = "; ".join(_short(text) for text in failures)
+        raise SimulationError((f"{tried}; " if tried else "") + str(exc)) from None
     differences: list[float] = []
     while substeps <= MAX_SUBSTEPS:
         fine = _outputs(simulate, Solver("rk4", max_step, 2 * substeps))
@@ -329,6 +334,8 @@ def _outputs(simulate: Simulate, solver: Solver) -> Sequence[FloatArray] | None:
     """The records' outputs with this solver, or None where it failed."""
     try:
         return simulate(solver)
+    except UnlocatedSwitches:
+        raise
     except SimulationError:
         return None
 

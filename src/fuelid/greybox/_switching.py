@@ -63,6 +63,10 @@ the sensitivities are exact for a switch at ±δ (the jump is taken where it fir
 _METHODS = {"lsoda": "LSODA", "bdf": "BDF", "radau": "Radau", "rk45": "RK45"}
 
 
+class UnlocatedSwitches(SimulationError):
+    """A fixed-step method asked to integrate a model with declared switches (it cannot)."""
+
+
 @dataclass(frozen=True)
 class Switch:
     """A declared switch: on where ``function(t, x, u, p)`` > 0."""
@@ -415,7 +419,7 @@ def _piece(
 ) -> tuple[FloatArray, int]:
     """One held-input piece: solve_ivp from switch to switch, S jumping at each."""
     if solver.method not in _METHODS:
-        raise SimulationError(
+        raise UnlocatedSwitches(
             "rk4 cannot locate the model's declared switches (solve_ivp events): use lsoda, bdf, "
             "radau or rk45"
         )

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from fuelid.errors import ConfigError
-from fuelid.greybox import GreyBoxEstimator, OdeModel, ParameterSpec, Record
+from fuelid.greybox import ConvergenceError, GreyBoxEstimator, OdeModel, ParameterSpec, Record
 from fuelid.greybox._sensitivity import simulate_record
 from fuelid.greybox._solvers import SimulationError, Solver
 from fuelid.greybox._switching import Switch, _Switching
@@ -275,3 +275,10 @@ def test_a_solver_failing_on_a_validation_record_falls_back_and_says_so(
     assert "lsoda failed at the head of record validation" in estimator.solver_.reason
     assert "lsoda failed at record validation" in estimator.solver_.reason
     assert "fell back to bdf" in estimator.solver_.reason
+
+
+def test_rk4_asked_for_is_refused_for_what_it_is(tmp_path: Path) -> None:
+    clean, _ = simulate(TRUTH)
+    estimator = GreyBoxEstimator(tank(dict(TRUTH)), solver="rk4")
+    with pytest.raises(ConvergenceError, match="rk4 cannot locate the model's declared switches"):
+        estimator.fit([record(y=clean)])
