@@ -16,9 +16,9 @@ Per model and parameter: the mean bias in per cent of the true value and in unit
 printed standard error, the share of runs whose printed 95 % interval covers the truth (a
 correct one: 95 % ± 1.96·√(0.95·0.05/runs)), and the median fit time.
 
-Run on demand (about 2 minutes at 20 runs on a shared 2-core machine):
+Run on demand (about 6 minutes at 50 runs on a shared 2-core machine):
 
-    python benchmarks/bench_greybox_switch_smoothing.py [--runs 20]
+    python benchmarks/bench_greybox_switch_smoothing.py [--runs 50]
 """
 
 from __future__ import annotations
@@ -84,7 +84,7 @@ def clean_record() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--runs", type=int, default=20)
+    parser.add_argument("--runs", type=int, default=50)
     runs = parser.parse_args().runs
     t, u, clean = clean_record()
     labels = {None: "declared switch", **{w: f"logistic w = {w:g} m" for w in WIDTHS}}

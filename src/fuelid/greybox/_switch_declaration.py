@@ -116,7 +116,7 @@ def undeclared_switches(file: Path, shown: str, f: Callable[..., Any]) -> tuple[
                 "do not depend on ...', wrong intervals, a solver's 'Excess work'): declare it "
                 "(a function g(t, x, u, p) positive where the branch is taken, switches = [g], "
                 f"and f(t, x, u, p, on) branching on on['g']: {_GUIDE}), or smooth it, which "
-                "biases the estimates (a dump valve smoothed over 1 % of its level: up to 7.5 "
+                "biases the estimates (a dump valve smoothed over 1 % of its level: up to 7.6 "
                 "standard errors, the guide's 'What smoothing costs')"
             )
     return tuple(found)
