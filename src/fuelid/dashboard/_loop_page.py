@@ -26,6 +26,7 @@ from fuelid.dashboard._views import (
     now_rows,
     proposal_views,
     write_back_of,
+    write_back_text,
 )
 
 __all__ = ["PARTS", "PART_EVENTS", "PART_WINDOWS", "link_bands", "loop_context", "revert_offer"]
@@ -75,9 +76,15 @@ def revert_offer(
     return True, good, ""
 
 
-def _approve_effect(write_back: str | None) -> str:
-    if write_back == "off":
+def _approve_effect(status: dict[str, Any]) -> str:
+    """What an approval leads to, as true now (a stopped service writes nothing until it runs)."""
+    if write_back_of(status) == "off":
         return 'write-back is "off": recorded, nothing is written'
+    if (status.get("link") or {}).get("state") == "stopped":
+        return (
+            "the service is stopped: written when it runs again, at its first write check, "
+            "verified by the PLC's echo"
+        )
     return "the service writes it at its next write check, verified by the PLC's echo"
 
 
@@ -105,8 +112,8 @@ def loop_context(loop: LoopReader, *, engineer: bool) -> dict[str, Any]:
         "engineer": engineer,
         "units": {"Kc": units.get("Kc", ""), "Ti": units.get("Ti", "")},
         "ms_target": settings.get("ms_target", "the site's ms_target"),
-        "write_back_text": f"Write-back: {write_back or 'unknown'}.",
-        "approve_effect": _approve_effect(write_back),
+        "write_back_text": write_back_text(status),
+        "approve_effect": _approve_effect(status),
         "proposals": proposal_views(status, windows, history["writes"]),
         "written": [w for w in [last_written_view(status, history, windows)] if w is not None],
         "held_text": held_line(status.get("held_proposal")),
