@@ -30,6 +30,7 @@ from fuelid.dashboard._views import (
     now_rows,
     proposal_views,
     write_back_of,
+    write_back_text,
 )
 
 __all__ = [
@@ -135,9 +136,15 @@ def _proposal_cards(
     )
 
 
-def _approve_effect(write_back: str | None) -> str:
-    if write_back == "off":
+def _approve_effect(status: dict[str, Any]) -> str:
+    """What an approval leads to, as true now (a stopped service writes nothing until it runs)."""
+    if write_back_of(status) == "off":
         return 'write-back is "off": recorded, nothing is written'
+    if (status.get("link") or {}).get("state") == "stopped":
+        return (
+            "the service is stopped: written when it runs again, at its first write check, "
+            "verified by the PLC's echo"
+        )
     return "the service writes it at its next write check, verified by the PLC's echo"
 
 
@@ -166,8 +173,8 @@ def loop_context(loop: LoopReader, *, engineer: bool) -> dict[str, Any]:
         "engineer": engineer,
         "units": {"Kc": units.get("Kc", ""), "Ti": units.get("Ti", "")},
         "ms_target": settings.get("ms_target", "the site's ms_target"),
-        "write_back_text": f"Write-back: {write_back or 'unknown'}.",
-        "approve_effect": _approve_effect(write_back),
+        "write_back_text": write_back_text(status),
+        "approve_effect": _approve_effect(status),
         "proposals": proposals,
         # the proposals decided last, newest first: what people decided stays on the page
         "decided": decided,

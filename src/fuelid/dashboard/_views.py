@@ -40,14 +40,25 @@ rejections and reverts are also rows of the events table (``decision_events``, k
    explains, and the text says so. A reading older than the write that disagrees has not seen
    it yet: the PLC's echo of the write's apply number is its newer word, so 2. applies;
 2. the last write of gains the PLC's echo verified (a revert's included: a reverted proposal's
-   gains are never shown as current), said "last verified write #n at …" (and, when the tags
-   were last read before it, that they do not show it yet);
+   gains are never shown as current), said "last verified write #n: issued at …, verified at
+   …" (and, when the tags were last read before it, that they do not show it yet);
 3. the gains the service found in the PLC when it filed its newest open proposal;
 4. the site file's ``[controller]`` kc and ti ("as commissioned");
 5. else not known.
 
 A card's "from" gains are these, not the gains the proposal was filed against (kept as
 ``filed_old``).
+
+**A stopped service** (link state "stopped") does nothing, so what it would do is said as of
+its last run (``write_back_text``): "Write-back: approve when the service last ran (stopped at
+08:15:03 CET); nothing is written while it is stopped." (the time: the newest sample's, plant
+time in the site's zone, as on the chips), in the "Now" table too; an out-of-date proposal's
+reason promises new windows "when the service runs again"
+(``fuelid.online._context.stale_while_stopped``).
+
+**A write's times** (``fuelid.online.write_times_text``, the same words as ``fuelid online
+status`` and ``history``): "issued at 2026-11-27 08:15:03 CET, verified at 08:15:07 CET", the
+write's intent and the PLC's echo, both plant time in the site's zone.
 
 **A fresh sample** (``FRESH_SAMPLE_S``, 5 s of wall time, or three sampling periods when
 longer): the link is said "up" only while the newest sample is younger than the bound; past it
@@ -65,7 +76,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from fuelid.io import format_age, format_time
-from fuelid.online import health_line
+from fuelid.online import health_line, stale_while_stopped, write_times_text
 
 __all__ = [
     "DECIDED_CARDS",
@@ -93,6 +104,8 @@ __all__ = [
     "quiet_sample_age",
     "stop_time_text",
     "write_back_of",
+    "write_back_state",
+    "write_back_text",
 ]
 
 FRESH_SAMPLE_S = 5.0
@@ -271,6 +284,33 @@ def write_back_of(status: dict[str, Any]) -> str | None:
     return (status.get("write_back") or {}).get("setting")
 
 
+def write_back_state(status: dict[str, Any]) -> str:
+    """The write-back setting as true now: while the service is stopped, as of its last run.
+
+    >>> write_back_state({"write_back": {"setting": "approve"}, "link": {"state": "up"}})
+    'approve'
+    >>> write_back_state({"write_back": {"setting": "approve"},
+    ...                   "link": {"state": "stopped", "service": "stopped",
+    ...                            "newest_sample": 1_795_767_303.4, "beat_age_s": 12.0}})[:59]
+    'approve when the service last ran (stopped at 08:15:03 UTC)'
+    """
+    setting = write_back_of(status) or "unknown"
+    link = status.get("link") or {}
+    if link.get("state") != "stopped":
+        return setting
+    if link.get("service") == "never started":
+        return f"{setting}; no service ran: nothing is written"
+    return (
+        f"{setting} when the service last ran (stopped at {stop_time_text(status)}); nothing is "
+        "written while it is stopped"
+    )
+
+
+def write_back_text(status: dict[str, Any]) -> str:
+    """The page's write-back line: "Write-back: approve." (:func:`write_back_state`)."""
+    return f"Write-back: {write_back_state(status)}."
+
+
 def fresh_bound_s(status: dict[str, Any]) -> float:
     """The freshness bound of the newest sample for this loop [s of wall time].
 
@@ -403,6 +443,16 @@ def proposal_stale(
     windows : sequence of dict
         Stored windows (``model_id``, ``t_to`` [plant s]), e.g. the recent ones.
     """
+    reason = _stale_reason(proposal, status, windows)
+    if (status.get("link") or {}).get("state") == "stopped":  # no new window while stopped
+        return stale_while_stopped(reason)
+    return reason
+
+
+def _stale_reason(
+    proposal: dict[str, Any], status: dict[str, Any], windows: Sequence[dict[str, Any]]
+) -> str | None:
+    """:func:`proposal_stale` as the service words it, running."""
     from fuelid.online import stale_reason
 
     if "stale" in proposal:  # the status' own answer (fuelid.online._requests.stale_of): one truth
@@ -552,8 +602,7 @@ def _from_write(
     )
     if write is not None:
         what = f"write #{write['id']}" + (" (a revert)" if write.get("kind") == "revert" else "")
-        when = format_time(write.get("finished") or write.get("time"), tz)
-        text = f"last verified {what} at {when}{after}"
+        text = f"last verified {what}: {write_times_text(write, tz)}{after}"
         reading = status.get("plc_gains") or {}
         if reading.get("Kc") is not None and _read_before_write(reading, write):
             text += (
@@ -640,17 +689,17 @@ def gains_in_force(
     dict
         ``Kc``, ``Ti`` (None each when not known), ``source`` ("plc", "write", "proposal",
         "commissioning", "unknown"), ``text`` (where they come from, in words: "the PLC's kc
-        and ti tags as read at …", "last verified write #3 at 2026-11-27 08:15:03 CET", "as
-        commissioned …"), ``write_id`` (None unless a write) and ``units`` (``{"Kc", "Ti"}``:
-        the block's).
+        and ti tags as read at …", "last verified write #3: issued at 2026-11-27 08:15:02 CET,
+        verified at 08:15:03 CET", "as commissioned …"), ``write_id`` (None unless a write) and
+        ``units`` (``{"Kc", "Ti"}``: the block's).
 
     Examples
     --------
     >>> status = {"last_write": {"id": 4, "kind": "revert", "status": "verified", "Kc": 0.04,
     ...                          "Ti": 1.5, "time": 0.0, "finished": 0.0}}
     >>> force = gains_in_force(status)
-    >>> force["Kc"], force["Ti"], force["text"]
-    (0.04, 1.5, 'last verified write #4 (a revert) at 1970-01-01 00:00:00 UTC')
+    >>> force["Kc"], force["Ti"], force["text"][:58]
+    (0.04, 1.5, 'last verified write #4 (a revert): issued at 1970-01-01 00')
     >>> status["plc_gains"] = {"Kc": 0.04, "Ti": 1.5, "time": 5.0}
     >>> gains_in_force(status)["text"]
     "the PLC's kc and ti tags as read at 1970-01-01 00:00:05 UTC"
@@ -903,15 +952,15 @@ def now_rows(status: dict[str, Any], tz: str) -> list[tuple[str, str]]:
     rows.append(
         (
             "write-back",
-            f"{write_back_of(status) or 'unknown'}; gains in force Kc {fmt_num(force['Kc'])} "
+            f"{write_back_state(status)}; gains in force Kc {fmt_num(force['Kc'])} "
             f"{units['Kc'] or ''}, Ti {fmt_num(force['Ti'])} {units['Ti'] or ''} "
             f"({force['text']})",
         )
     )
     last = status.get("last_write")
     if last:
-        when = format_time(last["time"], tz)
-        rows.append(("last write", f"#{last['id']} {last['kind']} {last['status']} at {when}"))
+        times = write_times_text(last, tz)
+        rows.append(("last write", f"#{last['id']} {last['kind']} {last['status']}: {times}"))
     else:
         rows.append(("last write", "none"))
     counts = status.get("counts") or {}

@@ -488,6 +488,25 @@ class OnlineHistory(GainWrites, PersonRequests):
                 (wall, key),
             )
 
+    def set_record_field(self, name: str, value: Any, key: str = SERVICE_KEY) -> None:
+        """Set one field of the service record (``json_set`` in SQL, as :meth:`beat`).
+
+        Nothing happens when the record is absent.
+        """
+        with self._transaction() as con:
+            con.execute(
+                "UPDATE online_state SET value = json_set(value, '$.' || ?1, json(?2)) "
+                "WHERE key = ?3",
+                (name, _dumps(value), key),
+            )
+
+    def first_sample_after(self, t: float | None) -> float | None:
+        """The plant time of the first sample newer than ``t`` [s UTC] (any, when None); None."""
+        query = "SELECT min(time) FROM samples" + ("" if t is None else " WHERE time > ?")
+        with self._transaction(write=False) as con:
+            value = con.execute(query, () if t is None else (float(t),)).fetchone()[0]
+        return None if value is None else float(value)
+
     def plant_now(self) -> float | None:
         """Plant time now: the newest committed sample's time [s UTC]; None in an empty store."""
         with self._transaction(write=False) as con:
