@@ -82,7 +82,7 @@ class _Converged(Exception):
 class _Restart(Exception):
     """Raised from the Jacobian callback to go on from an extrapolated point."""
 
-    def __init__(self, phi: FloatArray, rate: float | None) -> None:
+    def __init__(self, phi: FloatArray, rate: float) -> None:
         super().__init__("restart")
         self.phi = np.array(phi, dtype=float)
         self.rate = rate
@@ -469,18 +469,6 @@ class ShootingFit:
         return ShootingResult(phi, solution, evaluation, sigma, iterations)
 
 
-def _disagree(plain: Evaluation, with_sensitivities: Evaluation) -> bool:
-    """Whether two simulations of one point differ in ½Σr² by more than COST_TOLERANCE.
-
-    The sensitivity rows take part in the solver's step control: a model whose outputs follow
-    the steps (a switch, a kink) is simulated differently with them, and the trust region's
-    choices made on the simulation without them would not be the fit's.
-    """
-    plain_cost = 0.5 * float(plain.residuals @ plain.residuals)
-    cost = 0.5 * float(with_sensitivities.residuals @ with_sensitivities.residuals)
-    return abs(plain_cost - cost) > COST_TOLERANCE
-
-
 def _cost_ftol(n_residuals: int) -> float:
     """The ``ftol`` that stops scipy when an iteration lowers ½Σr² by less than COST_TOLERANCE.
 
@@ -528,10 +516,6 @@ class _LeastSquaresRun:
         self.awaiting: bytes | None = None
         """The last point scipy asked residuals at, until it asks the Jacobian there (a trial
         point it rejected never is asked: the next trial is simulated without sensitivities)."""
-        self.eager = False
-        """Every trial with its sensitivities (after they failed at a point accepted without)."""
-        self.last_good: FloatArray | None = None
-        """The last point whose Jacobian was computed."""
 
     def full(self, phi_active: FloatArray) -> FloatArray:
         """φ with the active components from ``phi_active`` and the held ones from phi0."""
@@ -553,7 +537,7 @@ class _LeastSquaresRun:
         plain simulation more). Not within a stage's allowance, where a second simulation of
         the answer might not be allowed.
         """
-        return not self.eager and self.awaiting is not None and self.fit._work_limit is None
+        return self.awaiting is not None and self.fit._work_limit is None
 
     def _remember(self, key: bytes, evaluation: Evaluation) -> None:
         self.latest.clear()
@@ -591,21 +575,7 @@ class _LeastSquaresRun:
     def jacobian(self, phi_active: FloatArray) -> FloatArray:
         """The Jacobian at φ (scipy's ``jac``): the stopping rule sees each Gauss–Newton step."""
         self.awaiting = None  # accepted: the next trial gets its sensitivities at once
-        remembered = self.latest.get(phi_active.tobytes())
-        try:
-            evaluation = self._with_jacobian(phi_active, remembered)
-        except (SimulationError, FloatingPointError, OverflowError):
-            if remembered is None or remembered.jacobian is not None or self.last_good is None:
-                raise
-            # accepted on a simulation without sensitivities, which fail with them (a switch
-            # the sensitivity rows chatter at): back to the last point with its Jacobian, on
-            # with every trial's sensitivities, where such a point is rejected as it was before
-            self.eager = True
-            raise _Restart(self.last_good, None) from None
-        if remembered is not None and remembered is not evaluation:
-            # the trust region's choices would rest on the other simulation: no more of them
-            self.eager = self.eager or _disagree(remembered, evaluation)
-        self.last_good = phi_active.copy()
+        evaluation = self._with_jacobian(phi_active, self.latest.get(phi_active.tobytes()))
         if evaluation.jacobian is None:
             raise FuelidError("internal: an evaluation without its Jacobian")
         jacobian = evaluation.jacobian[:, self.active]
@@ -690,7 +660,6 @@ class _LeastSquaresRun:
                         # the allowance is the whole fit's, restarts included
                         max_nfev=max(1, self.fit.max_iterations - self.jac_calls),
                     )
-                    solution.x = self._answer(solution.x)
                     # scipy counts its own call only: the fit's, restarts included
                     solution.nfev = self.fit._work[0] - evaluations_before
                     solution.njev = self.jac_calls
@@ -719,21 +688,6 @@ class _LeastSquaresRun:
                 nfev=self.fit._work[0] - evaluations_before,
                 njev=done.jacobians,
             )
-
-    def _answer(self, phi_active: FloatArray) -> FloatArray:
-        """The answer scipy gave, or the last point with a Jacobian where its sensitivities fail.
-
-        scipy stops on its tolerances at a point it accepted without asking its Jacobian: one
-        simulated without sensitivities (after a rejection) gets them here.
-        """
-        found = self.latest.get(phi_active.tobytes())
-        if found is None or found.jacobian is not None or self.last_good is None:
-            return phi_active
-        try:
-            self._with_jacobian(phi_active, found)
-        except (SimulationError, FloatingPointError, OverflowError):
-            return self.last_good.copy()
-        return phi_active
 
     def evaluation_at(self, phi_active: FloatArray) -> Evaluation:
         """The evaluation at the run's answer: remembered (latest or best), or simulated."""
