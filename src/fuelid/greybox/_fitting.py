@@ -513,9 +513,6 @@ class _LeastSquaresRun:
         self.restarts = 0
         self.restart_rate: float | None = None
         """The rate the current restart was extrapolated with (None: not a restart)."""
-        self.awaiting: bytes | None = None
-        """The last point scipy asked residuals at, until it asks the Jacobian there (a trial
-        point it rejected never is asked: the next trial is simulated without sensitivities)."""
 
     def full(self, phi_active: FloatArray) -> FloatArray:
         """φ with the active components from ``phi_active`` and the held ones from phi0."""
@@ -523,21 +520,8 @@ class _LeastSquaresRun:
         phi[self.active] = phi_active
         return phi
 
-    def _evaluate(self, phi_active: FloatArray, jacobian: bool = True) -> Evaluation:
-        return self.fit._evaluate(
-            self.full(phi_active), self.records, self.sigma, jacobian=jacobian
-        )
-
-    def _lazy(self) -> bool:
-        """Whether the next trial point is simulated without its sensitivities.
-
-        After a rejected trial the trust region shrinks and the next trial is rejected about
-        as often as not (on a real record's model error, half the time): its sensitivities,
-        several simulations' worth, are then computed only if scipy asks for its Jacobian (one
-        plain simulation more). Not within a stage's allowance, where a second simulation of
-        the answer might not be allowed.
-        """
-        return self.awaiting is not None and self.fit._work_limit is None
+    def _evaluate(self, phi_active: FloatArray) -> Evaluation:
+        return self.fit._evaluate(self.full(phi_active), self.records, self.sigma, jacobian=True)
 
     def _remember(self, key: bytes, evaluation: Evaluation) -> None:
         self.latest.clear()
@@ -550,11 +534,9 @@ class _LeastSquaresRun:
         """The weighted residuals at φ (scipy's ``fun``)."""
         key = phi_active.tobytes()
         evaluation = self.latest.get(key)
-        lazy = self._lazy()
-        self.awaiting = key
         if evaluation is None:
             try:
-                evaluation = self._evaluate(phi_active, jacobian=not lazy)
+                evaluation = self._evaluate(phi_active)
             except (SimulationError, FloatingPointError, OverflowError):
                 # a trial point where the ODE cannot be solved counts as a very poor fit,
                 # so the trust region shrinks back towards the last good point
@@ -564,18 +546,11 @@ class _LeastSquaresRun:
         self._remember(key, evaluation)
         return evaluation.residuals
 
-    def _with_jacobian(self, phi_active: FloatArray, evaluation: Evaluation | None) -> Evaluation:
-        """The evaluation at φ with its Jacobian: the one given, or simulated with it."""
-        if evaluation is not None and evaluation.jacobian is not None:
-            return evaluation
-        evaluation = self._evaluate(phi_active)
-        self._remember(phi_active.tobytes(), evaluation)
-        return evaluation
-
     def jacobian(self, phi_active: FloatArray) -> FloatArray:
         """The Jacobian at φ (scipy's ``jac``): the stopping rule sees each Gauss–Newton step."""
-        self.awaiting = None  # accepted: the next trial gets its sensitivities at once
-        evaluation = self._with_jacobian(phi_active, self.latest.get(phi_active.tobytes()))
+        evaluation = self.latest.get(phi_active.tobytes())
+        if evaluation is None:
+            evaluation = self._evaluate(phi_active)
         if evaluation.jacobian is None:
             raise FuelidError("internal: an evaluation without its Jacobian")
         jacobian = evaluation.jacobian[:, self.active]
@@ -695,4 +670,6 @@ class _LeastSquaresRun:
         found = self.latest.get(key)
         if found is None and self.best is not None and self.best[1] == key:
             found = self.best[2]
-        return self._with_jacobian(np.asarray(phi_active, dtype=float), found)
+        if found is None:
+            found = self._evaluate(phi_active)
+        return found
