@@ -77,6 +77,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
         "Gray-box fit against a hand-written peer",
         "benchmarks/bench_greybox_peer.py",
     ),
+    "greybox_peer_real": (
+        "Gray-box fit against a hand-written peer: a real-like record",
+        "benchmarks/bench_greybox_peer.py --only real-like --repeats 1",
+    ),
     "greybox_smoothing": (
         "Gray-box: an exact kink against smoothed ones",
         "benchmarks/bench_greybox_smoothing.py --runs 100",

@@ -198,8 +198,9 @@ def greybox_command(
             metavar="auto|none|N",
             help="Robust start for long records: fit first with the records cut into N segments "
             "(each with its own initial state; stages of a quarter as many), then the whole "
-            "records. auto: only when the plain fit fails or leaves residuals over 3× the "
-            "records' sample-to-sample noise; none: never.",
+            "records. auto: only when the plain fit fails, or leaves residuals over 3× the "
+            "records' sample-to-sample noise that its parameters would take on the segments "
+            "(a local minimum, not a model error); none: never.",
         ),
     ] = "auto",
     solver: Annotated[

@@ -109,9 +109,12 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
         cut into this many segments each, every segment with its own initial state, and fitted
         in stages of a quarter as many segments; the whole records are then fitted from that
         start. "auto" (default): a single-shooting fit first, and a segmented start (segments of
-        ≥ 50 samples) only when that fit did not converge or its residuals exceed 3× the noise
-        level the records show; the better fit is kept, and the segmented start may use no more
-        right-hand-side evaluations than the fit it retries did. None: single shooting only.
+        ≥ 50 samples) only when that fit did not converge, or its residuals exceed 3× the noise
+        level the records show and the segments say the parameters, not the model, are wrong
+        (:mod:`fuelid.greybox._segment_trigger`: with each segment's state reset, the
+        parameters would remove at least half of the misfit above the noise); the better fit is
+        kept, and the segmented start may use no more right-hand-side evaluations than the fit
+        it retries did. None: single shooting only.
     solver : {"auto", "lsoda", "bdf", "radau", "rk45", "rk4"}
         The ODE solver (:mod:`fuelid.greybox._solvers`). "auto" (default): LSODA, or where it
         cannot simulate the start values BDF with a bounded step, then RK4 with its steps per
@@ -356,7 +359,13 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
             if self.segments != "auto":
                 raise
             failure, result = exc, None
-        if self.segments == "auto" and (result is None or self._suspect(result, self.noise_floor_)):
+        if self.segments == "auto" and (
+            result is None
+            or (
+                self._suspect(result, self.noise_floor_)
+                and self._segmented_start_pays(result, records)
+            )
+        ):
             # the segmented start may spend what the fit it retries spent, no more
             retried = self._retry_segmented(
                 start_phi,

@@ -4,7 +4,8 @@ Over a short segment a wrong parameter cannot drift the prediction far (an oscil
 say), so a fit of the records cut into segments, each with its own initial state, is nearly
 convex. :class:`SegmentedStart` fits in stages of a quarter as many segments, down to one, and
 hands the result to the single-shooting fit (:mod:`fuelid.greybox._fitting`) as its start; with
-``segments="auto"`` it is tried only when the single-shooting fit failed or is suspect.
+``segments="auto"`` it is tried only when the single-shooting fit failed, or is suspect and the
+segments say a local minimum rather than a model error (:mod:`fuelid.greybox._segment_trigger`).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from fuelid.greybox._fitting import (
     ShootingFit,
     ShootingResult,
 )
+from fuelid.greybox._segment_trigger import TriggerTest, cut, trigger_test
 from fuelid.greybox._solvers import SimulationError
 from fuelid.greybox._system import Record
 
@@ -33,7 +35,8 @@ SEGMENT_SHRINK = 4
 """Each stage of the segmented start has a quarter of the last stage's segments."""
 SUSPECT_NOISE_RATIO = 3.0
 """A fit whose residuals are this many times the first-difference noise level of an output is
-suspected of a local minimum (or model error): ``segments="auto"`` then tries a segmented start."""
+suspected of a local minimum (or model error): ``segments="auto"`` then asks the trigger test
+(:mod:`fuelid.greybox._segment_trigger`) whether a segmented start would pay."""
 
 
 def _stages(count: int) -> list[int]:
@@ -54,11 +57,53 @@ class SegmentedStart(ShootingFit):
 
     start_: str
     """How the fit was started (set by the estimator's ``fit``, refined here)."""
+    noise_floor_: FloatArray
 
     @staticmethod
     def _suspect(result: ShootingResult, floor: FloatArray) -> bool:
         """Residuals far above the noise the records show: a local minimum, or a wrong model."""
         return bool(np.any(result.sigma > SUSPECT_NOISE_RATIO * floor))
+
+    def _segmented_start_pays(self, result: ShootingResult, records: Sequence[Record]) -> bool:
+        """Whether a segmented start may find a better basin: a local minimum, not a model error.
+
+        The test is :mod:`fuelid.greybox._segment_trigger`'s, for one evaluation of the segments
+        at the estimate; where it says no, ``start_`` says why. Where the segments cannot be
+        simulated the segmented start is tried.
+        """
+        test = self._trigger_test(result, records)
+        if test is None or test.pays:
+            return True
+        self.start_ = f"single shooting (a segmented start would not pay: {test.describe()})"
+        return False
+
+    def _trigger_test(
+        self, result: ShootingResult, records: Sequence[Record]
+    ) -> TriggerTest | None:
+        """The trigger test at the plain estimate, on the first stage's segments."""
+        count = self._segment_count(records)
+        if count < 2:
+            return None
+        p = len(self.free_names_)
+        states = [trajectory.states for trajectory in result.evaluation.trajectories]
+        pieces = cut(records, states, count, self.n_states_)
+        if not pieces.records:
+            return None
+        saved = (self.estimate_x0_, self._budgets, self._held_states)
+        self.estimate_x0_, self._held_states = True, []
+        # a piece's share of its record's budget, as in the segmented start's stages
+        self._budgets = [
+            max(saved[1][i] * (b - a) // len(records[i].t), 2_000) for i, a, b in pieces.spans
+        ]
+        try:
+            phi = np.concatenate([result.phi[:p], *pieces.states])
+            evaluation = self._evaluate(phi, pieces.records, result.sigma, jacobian=True)
+        except (SimulationError, FloatingPointError, OverflowError):
+            return None
+        finally:
+            self.estimate_x0_, self._budgets, self._held_states = saved
+        weights = (self.noise_floor_ / result.sigma) ** 2
+        return trigger_test(evaluation, pieces, p, self.n_states_, weights)
 
     def _retry_segmented(
         self,

@@ -123,7 +123,9 @@ class ParameterMap:
         """φ from the free parameters' natural values."""
         mask = self.log_mask
         phi = np.array(theta, dtype=float)
-        phi[mask] = np.log(phi[mask])
+        # a φ far out in log space underflows to θ = 0 (to_theta): back to the smallest φ that
+        # gives a positive θ, not log 0 = −inf, which no fit can start from
+        phi[mask] = np.log(np.maximum(phi[mask], np.finfo(float).tiny))
         return phi
 
     def to_theta(self, phi: FloatArray) -> FloatArray:

@@ -8,6 +8,9 @@ same model from the same start reaches a validation RMSE of 0.438 V on this reco
 With --hold-undetermined the search holds xmax (the switch hides it from the sensitivities at
 the start), and releasing it at the held fit's end once refused the fit there ("kov is not
 determined") and, with that fixed, met LSODA's "Excess work" at a point no guard covered.
+That point was the end of the segmented start, which ``segments="auto"`` tried because the
+residuals exceed 3× the noise; the trigger test (greybox/_segment_trigger.py) now tells this
+model error from a local minimum and does not try it, so the fit does not go there.
 """
 
 from __future__ import annotations
@@ -54,10 +57,13 @@ def test_hold_undetermined_fits_the_user_model_where_the_held_fit_ended_in_a_sol
     estimation, validation = _records(tmp_path)
     model = load_model_file(EXAMPLES / "cascaded_tanks.py")
     estimator = GreyBoxEstimator(model, hold_undetermined=True)
-    # bands stated before the run: no refusal and no solver error escapes; the fallback is said
-    # in the solver's reason; the validation RMSE within 25 % of the reference script's
+    # bands stated before the run: no refusal and no solver error escapes; a model error, so no
+    # segmented start (with the states reset the parameters take under half the excess misfit);
+    # a solver that failed on the way is said in the solver's reason; the validation RMSE within
+    # 25 % of the reference script's
     estimator.fit([estimation])
-    assert "fell back" in estimator.solver_.reason
+    assert estimator.start_.startswith("single shooting (a segmented start would not pay")
+    assert estimator.solver_.reason == "" or "fell back" in estimator.solver_.reason
     # with k4 fixed the model has no exact symmetry (theory: k4 fixes the upper level's scale),
     # so no trade-off may be claimed at the end point: a claim the sensitivities make there
     # (the switch spikes xmax's column) must be contradicted by the simulated step, not printed
