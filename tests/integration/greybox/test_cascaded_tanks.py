@@ -16,45 +16,21 @@ model error from a local minimum and does not try it, so the fit does not go the
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pytest
 
-from fuelid.greybox import GreyBoxEstimator, Record
+from fuelid.greybox import GreyBoxEstimator
 from fuelid.greybox.modelfile import load_model_file
-
-EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
-REFERENCE_VALIDATION_RMSE = 0.438
-"""The least_squares + odeint script's validation RMSE on this record [V], same model and start."""
-
-
-def _records(tmp_path: Path) -> list[Record]:
-    subprocess.run(
-        [sys.executable, str(EXAMPLES / "cascaded_tanks_data.py"), str(tmp_path)], check=True
-    )
-    out = []
-    for name in ("estimation", "validation"):
-        frame = pd.read_csv(tmp_path / f"cascaded_tanks_{name}.csv")
-        out.append(
-            Record(
-                t=frame["t_s"].to_numpy(float),
-                u=frame[["u_V"]].to_numpy(float),
-                y=frame[["y_V"]].to_numpy(float),
-                name=name,
-            )
-        )
-    return out
+from support.cascaded_tanks import EXAMPLES, REFERENCE_VALIDATION_RMSE, cascaded_tanks_records
 
 
 @pytest.mark.slow
 def test_hold_undetermined_fits_the_user_model_where_the_held_fit_ended_in_a_solver_failure(
     tmp_path: Path,
 ) -> None:
-    estimation, validation = _records(tmp_path)
+    estimation, validation = cascaded_tanks_records(tmp_path)
     model = load_model_file(EXAMPLES / "cascaded_tanks.py")
     estimator = GreyBoxEstimator(model, hold_undetermined=True)
     # bands stated before the run: no refusal and no solver error escapes; a model error, so no

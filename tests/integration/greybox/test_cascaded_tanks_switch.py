@@ -15,38 +15,14 @@ to trust is issue 42's item 4, not this file's.
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pytest
 
-from fuelid.greybox import GreyBoxEstimator, Record
+from fuelid.greybox import GreyBoxEstimator
 from fuelid.greybox.modelfile import read_model_file
-
-EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
-REFERENCE_VALIDATION_RMSE = 0.438
-"""The least_squares + odeint script's validation RMSE on this record [V], same start."""
-
-
-def _records(tmp_path: Path) -> list[Record]:
-    subprocess.run(
-        [sys.executable, str(EXAMPLES / "cascaded_tanks_data.py"), str(tmp_path)], check=True
-    )
-    out = []
-    for name in ("estimation", "validation"):
-        frame = pd.read_csv(tmp_path / f"cascaded_tanks_{name}.csv")
-        out.append(
-            Record(
-                t=frame["t_s"].to_numpy(float),
-                u=frame[["u_V"]].to_numpy(float),
-                y=frame[["y_V"]].to_numpy(float),
-                name=name,
-            )
-        )
-    return out
+from support.cascaded_tanks import EXAMPLES, REFERENCE_VALIDATION_RMSE, cascaded_tanks_records
 
 
 def test_the_user_model_names_its_undeclared_switch() -> None:
@@ -60,7 +36,7 @@ def test_the_user_model_names_its_undeclared_switch() -> None:
 def test_the_declared_switch_fits_from_the_guessed_start_with_the_overflow_in_use(
     tmp_path: Path,
 ) -> None:
-    estimation, validation = _records(tmp_path)
+    estimation, validation = cascaded_tanks_records(tmp_path)
     model = read_model_file(EXAMPLES / "cascaded_tanks_switch.py").model
     # the plain fit from the user's start (the segmented start is item 4's business)
     estimator = GreyBoxEstimator(model, segments=None)
