@@ -153,8 +153,26 @@ def check_substeps(value: int | None) -> None:
         )
 
 
-class _Budget(Exception):
+class BudgetSpent(Exception):
     """Raised inside a solve_ivp right-hand side when the piece's budget is spent."""
+
+
+def budgeted(
+    rhs: Rhs, u: FloatArray, limit: int
+) -> tuple[Callable[[float, FloatArray], FloatArray], list[int]]:
+    """``rhs`` with ``u`` held, for solve_ivp, and its count of calls (one cell).
+
+    Past ``limit`` calls it raises :class:`BudgetSpent`: solve_ivp has no step limit of its own.
+    """
+    count = [0]
+
+    def fun(t: float, state: FloatArray) -> FloatArray:
+        count[0] += 1
+        if count[0] > limit:
+            raise BudgetSpent
+        return np.array(rhs(t, state, u), dtype=float)
+
+    return fun, count
 
 
 def integrate_piece(
@@ -232,13 +250,7 @@ def _solve_ivp(
 ) -> tuple[FloatArray, int]:
     # a budget of evaluations rather than steps: solve_ivp has no step limit of its own
     budget = max_steps
-    count = [0]
-
-    def fun(t: float, state: FloatArray) -> FloatArray:
-        count[0] += 1
-        if count[0] > budget:
-            raise _Budget
-        return np.array(rhs(t, state, u), dtype=float)
+    fun, count = budgeted(rhs, u, budget)
 
     implicit = solver.method in {"bdf", "radau"}
     jac = None
@@ -263,7 +275,7 @@ def _solve_ivp(
             max_step=math.inf if solver.max_step is None else solver.max_step,
             **({"jac": jac} if jac is not None else {}),
         )
-    except _Budget:
+    except BudgetSpent:
         raise SimulationError(
             f"the ODE solver ({solver.method}) needed more than {budget} evaluations "
             f"on {times[0]:g}…{times[-1]:g} s"

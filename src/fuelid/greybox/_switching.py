@@ -42,7 +42,7 @@ import numpy as np
 import scipy.integrate
 from numpy.typing import NDArray
 
-from fuelid.greybox._solvers import Newton, Rhs, SimulationError, Solver
+from fuelid.greybox._solvers import BudgetSpent, Newton, Rhs, SimulationError, Solver, budgeted
 
 if TYPE_CHECKING:
     from fuelid.greybox._odemodel import FunctionSystem, OdeModel
@@ -398,10 +398,6 @@ def switched_integrator(
     return integrate
 
 
-class _Budget(Exception):
-    """The piece's right-hand-side evaluations are spent."""
-
-
 def _piece(
     switching: _Switching,
     solver: Solver,
@@ -431,13 +427,7 @@ def _piece(
     limit = solver.steps_per_sample * max(10, len(times) - 1)
     if budget is not None:
         limit = max(1, min(limit, budget))
-    count = [0]
-
-    def fun(t: float, state: FloatArray) -> FloatArray:
-        count[0] += 1
-        if count[0] > limit:
-            raise _Budget
-        return np.array(rhs(t, state, u), dtype=float)
+    fun, count = budgeted(rhs, u, limit)
 
     jac = None
     if newton is not None and solver.method in {"bdf", "radau", "lsoda"}:
@@ -469,7 +459,7 @@ def _piece(
                 max_step=math.inf if solver.max_step is None else solver.max_step,
                 **({"jac": jac} if jac is not None else {}),
             )
-        except _Budget:
+        except BudgetSpent:
             raise SimulationError(
                 f"the ODE solver ({solver.method}) needed more than {limit} evaluations on "
                 f"{times[0]:g}…{t_end:g} s between the model's switches"
