@@ -1,0 +1,673 @@
+"""A start off the flat spot: where the outputs do not depend on a parameter, search the bounds.
+
+A start can sit where the outputs do not depend on a parameter at all: a level that never reaches
+the rim the parameter describes, an output on its clip, a tank run empty. The sensitivities are
+then exactly zero and no fit can move the parameter. Before the estimator refuses,
+:class:`StartSearch` looks for a start where every free parameter acts:
+
+1. at the given start, each parameter without sensitivity is stepped ±10 % and simulated: one the
+   outputs do not follow (a change of the weighted outputs under χ²₁'s 95 % quantile) is flat
+   there; one they do follow is hidden by a switch, which no start cures (the refusal says so);
+2. a scrambled Sobol set of :data:`SEARCH_STARTS` starts fills a box in the bounds (log-scaled for
+   positive parameters; a factor :data:`SEARCH_SPAN` either side of the start where a bound is
+   open), each simulated coarsely (relative tolerance :data:`COARSE_RTOL`) with the flat
+   parameters stepped as in 1;
+3. of the starts where every flat parameter acts, the lowest-cost ones are simulated with their
+   sensitivities, until :data:`REFINED_STARTS` have a sensitivity to every free parameter (the fit
+   steers by them); these are refined by a short coarse fit (:data:`REFINE_ITERATIONS` iterations
+   of the normal least-squares fit) and the one of lowest cost where the sensitivities still see
+   every parameter is the start of the fit.
+
+The simulations run in worker processes over the cores (forked: a model file's functions cannot be
+pickled; where the platform cannot fork they run one after another and the report says why). The
+set is seeded, so the search is deterministic unless its time bound (:data:`SEARCH_SECONDS`) cuts
+it short, which the report says too. Where no start acts, or the fit from every refined start
+moves the parameter back to where nothing depends on it, the refusal stays and carries the
+evidence (:meth:`StartSearchReport.evidence`).
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import time
+from collections.abc import Iterable, Iterator, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from fuelid.greybox._fitting import Evaluation, FloatArray
+from fuelid.greybox._identifiability import (
+    CHI2_95,
+    IdentifiabilityReport,
+    NotIdentifiableError,
+)
+from fuelid.greybox._profile import EVIDENCE_STEP, ProfileLikelihood
+from fuelid.greybox._solver_choice import SolverChoice
+from fuelid.greybox._solvers import TRIAL_STEPS_PER_SAMPLE, SimulationError
+from fuelid.greybox._system import Record
+
+SEARCH_STARTS = 64
+"""Starts of the space-filling set (a power of two: a Sobol set is balanced at 2^m points)."""
+SEARCH_SEED = 42
+"""The Sobol set's scrambling seed: the same records and model give the same starts."""
+SEARCH_SPAN = 10.0
+"""Where a parameter's bound is open, the box reaches this factor either side of its start
+(positive parameters; others ± the start's size)."""
+COARSE_RTOL = 1e-3
+"""Relative tolerance of the search's simulations: a flat parameter's step changes nothing at any
+tolerance (the same arithmetic runs), and an acting one's change is far above this error."""
+REFINED_STARTS = 3
+"""Starts refined by a short fit; the best of them by cost is where the fit starts."""
+REFINE_ITERATIONS = 10
+"""Iterations (Jacobians) of each refinement: enough to leave a poor basin, not to converge."""
+SEARCH_SECONDS = 120.0
+"""Wall-clock bound of the search; where it cuts the search short, the report says so."""
+MAX_CHECKED = 16
+"""Starts whose sensitivities are checked (in order of cost) before the search gives up."""
+MAX_WORKERS = 8
+"""Most worker processes of the search."""
+
+_OWNER: Any = None
+"""The estimator whose search the forked workers run (set in the parent before the fork)."""
+
+
+def _run_in_worker(method: str, args: tuple[Any, ...]) -> Any:
+    """In a worker: the inherited estimator's ``method`` on ``args`` (both picklable, it not)."""
+    return getattr(_OWNER, method)(*args)
+
+
+@dataclass(frozen=True)
+class Probe:
+    """One start of the set, simulated coarsely: its cost and what its flat parameters do."""
+
+    index: int
+    phi: FloatArray
+    cost: float
+    """Σ of the squared weighted residuals (inf: it could not be simulated)."""
+    changes: dict[str, float]
+    """Per parameter checked: the largest change of the weighted outputs over a ±10 % step."""
+    outputs: FloatArray
+    """Each output's simulated (min, max) over the records, shape (n_y, 2) (NaN: failed)."""
+    evaluations: int
+    failure: str = ""
+
+    def acts(self, names: Sequence[str]) -> bool:
+        """The outputs depend on every one of ``names`` here."""
+        return not self.failure and all(self.changes[name] > CHI2_95 for name in names)
+
+
+@dataclass(frozen=True)
+class RefinedStart:
+    """A start after its short fit: its cost and the parameters the outputs stopped following."""
+
+    index: int
+    phi: FloatArray
+    cost: float
+    lost: tuple[str, ...]
+    """Free parameters the outputs do not depend on where the refinement ended."""
+    values: dict[str, float]
+    evaluations: int
+    failure: str = ""
+
+
+@dataclass(frozen=True)
+class StartSearchReport:
+    """What the search for a start off the flat spot did, and why its start was used (or none)."""
+
+    flat: dict[str, float]
+    """At the given start: each flat parameter's weighted output change over a ±10 % step."""
+    given_states: dict[str, tuple[float, float]]
+    """The given start's simulated states' range over the records, by state name."""
+    box: dict[str, tuple[float, float]]
+    """The box the starts fill, by searched parameter (natural units)."""
+    held: tuple[str, ...]
+    """Free parameters not varied (no bound and no size to scale a box by)."""
+    n_starts: int
+    n_simulated: int
+    n_failed: int
+    n_acting: int
+    """Starts where the outputs depend on every flat parameter."""
+    n_checked: int
+    """Of those, the lowest-cost ones whose sensitivities were checked."""
+    unseen: tuple[str, ...]
+    """Parameters the sensitivities did not see at some checked start."""
+    largest_change: dict[str, float]
+    """Per flat parameter, the largest weighted output change over the starts simulated."""
+    outputs_range: dict[str, tuple[float, float]]
+    """Each output's simulated range over every start simulated."""
+    refined: tuple[RefinedStart, ...]
+    chosen: int | None
+    """The start used (its index in the set, from 1), or None."""
+    workers: int
+    serial_reason: str
+    """Why the starts were simulated one after another ("" when in parallel)."""
+    seconds: float
+    truncated: bool
+    """The time bound cut the search short."""
+    values: dict[str, float] = field(default_factory=dict)
+    """The start used: every parameter's value (empty when none)."""
+
+    def _flat_words(self) -> str:
+        states = ", ".join(f"{n} {lo:.3g}…{hi:.3g}" for n, (lo, hi) in self.given_states.items())
+        changes = ", ".join(f"{n} {c:.3g}" for n, c in self.flat.items())
+        return (
+            f"the given start left {', '.join(self.flat)} without effect (a ±10 % step moved the "
+            f"weighted outputs by {changes}; {CHI2_95:.2f} is seen; its simulated states stayed "
+            f"within {states})"
+        )
+
+    def line(self) -> str:
+        """One line: which start was used and why, or what the search found."""
+        if self.chosen is None:
+            return f"start search: none used: {self._flat_words()}; {self.evidence()}"
+        shown = ", ".join(f"{n} = {self.values[n]:.4g}" for n in self.box)
+        best = next(r for r in self.refined if r.index == self.chosen)
+        return (
+            f"start search: start {self.chosen} of {self.n_starts}, refined to {shown}: "
+            f"{self._flat_words()}; in {self.n_acting} of {self.n_simulated} starts in the bounds "
+            f"{_act(self.flat)}, the best {len(self.refined)} by a coarse "
+            f"simulation were refined and this one fitted best (weighted cost {best.cost:.4g}); "
+            f"{self._how()}"
+        )
+
+    def _how(self) -> str:
+        where = "one after another" if self.serial_reason else f"on {self.workers} processes"
+        text = f"{self.seconds:.1f} s, {where}"
+        if self.serial_reason:
+            text += f" ({self.serial_reason})"
+        if self.truncated:
+            text += f"; cut short at its time bound of {SEARCH_SECONDS:g} s"
+        return text
+
+    def evidence(self) -> str:
+        """Why no start was used: how many starts, what the outputs did."""
+        if self.chosen is not None:
+            return ""
+        box = ", ".join(f"{n} {lo:.3g}…{hi:.3g}" for n, (lo, hi) in self.box.items())
+        outputs = ", ".join(f"{n} {lo:.4g}…{hi:.4g}" for n, (lo, hi) in self.outputs_range.items())
+        head = (
+            f"a search of {self.n_starts} starts in the bounds ({box}; {self.n_simulated} "
+            f"simulated, {self.n_failed} of them failed; simulated outputs {outputs})"
+        )
+        if self.n_acting == 0:
+            largest = ", ".join(f"{n} {c:.3g}" for n, c in self.largest_change.items())
+            text = (
+                f"{head} found none where the outputs depend on {', '.join(self.flat)}: a ±10 % "
+                f"step moved the weighted outputs by at most {largest} ({CHI2_95:.2f} is seen)"
+            )
+        elif not self.refined:
+            text = (
+                f"{head} found {self.n_acting} where {_act(self.flat)} in the "
+                f"simulation, but at none of the {self.n_checked} of lowest cost checked did the "
+                f"sensitivities the fit steers by see every parameter (zero for "
+                f"{', '.join(self.unseen)}: it acts only a step away from there, or a switch, an "
+                "if on a state, hides it from them)"
+            )
+        else:
+            moved = "; ".join(
+                f"start {r.index}: {r.failure}"
+                if r.failure
+                else f"start {r.index}: "
+                + ", ".join(f"{n} → {r.values[n]:.4g}" for n in r.lost if n in r.values)
+                for r in self.refined
+            )
+            text = (
+                f"{head} found {self.n_acting} where {_act(self.flat)}, but the fit from "
+                f"each of the best {len(self.refined)} moved a parameter to where the outputs do "
+                f"not depend on it ({moved}): the records do not determine it"
+            )
+        return f"{text}; {self._how()}"
+
+    def to_json(self) -> dict[str, Any]:
+        """The report as plain JSON types (``start_search`` of ``fuelid greybox --json``)."""
+        return {
+            "used": self.chosen is not None,
+            "start": self.chosen,
+            "n_starts": self.n_starts,
+            "n_simulated": self.n_simulated,
+            "n_failed": self.n_failed,
+            "n_acting": self.n_acting,
+            "n_checked": self.n_checked,
+            "unseen": list(self.unseen),
+            "flat_at_given_start": {n: _finite(c) for n, c in self.flat.items()},
+            "given_states_range": {n: list(r) for n, r in self.given_states.items()},
+            "box": {n: list(r) for n, r in self.box.items()},
+            "held": list(self.held),
+            "largest_change": {n: _finite(c) for n, c in self.largest_change.items()},
+            "outputs_range": {n: [_finite(v) for v in r] for n, r in self.outputs_range.items()},
+            "refined": [
+                {
+                    "start": r.index,
+                    "cost": _finite(r.cost),
+                    "lost": list(r.lost),
+                    "parameters": dict(r.values),
+                    "failure": r.failure or None,
+                }
+                for r in self.refined
+            ],
+            "values": dict(self.values) or None,
+            "change_seen": CHI2_95,
+            "workers": self.workers,
+            "serial_reason": self.serial_reason or None,
+            "wall_time_s": self.seconds,
+            "truncated": self.truncated,
+            "reason": self.line(),
+        }
+
+
+class NoStartFound(NotIdentifiableError):
+    """A refusal that stands after the start search; ``search`` is its evidence."""
+
+    def __init__(self, report: IdentifiabilityReport, search: StartSearchReport) -> None:
+        super().__init__(report)
+        self.search = search
+
+
+def _act(names: Iterable[str]) -> str:
+    """``c acts``, ``c, d act``."""
+    listed = list(names)
+    return f"{', '.join(listed)} act{'s' if len(listed) == 1 else ''}"
+
+
+def _finite(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+class _Pool:
+    """The search's simulations, on forked worker processes or one after another."""
+
+    def __init__(self, owner: Any, n_tasks: int, deadline: float) -> None:
+        self.deadline = deadline
+        self.truncated = False
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+        cores = cores or 1
+        self.workers = max(1, min(cores, MAX_WORKERS, n_tasks))
+        self.serial_reason = ""
+        if self.workers == 1:
+            self.serial_reason = "one core available" if cores == 1 else "one worker allowed"
+        elif "fork" not in multiprocessing.get_all_start_methods():
+            # spawned workers would need the model pickled, and a model file's functions are not
+            self.workers = 1
+            self.serial_reason = "no forked worker processes on this platform"
+        self.owner = owner
+        self.executor: ProcessPoolExecutor | None = None
+
+    def __enter__(self) -> _Pool:
+        if self.workers > 1:
+            global _OWNER
+            _OWNER = self.owner  # inherited by the forked workers: nothing of it is pickled
+            self.executor = ProcessPoolExecutor(
+                self.workers, mp_context=multiprocessing.get_context("fork")
+            )
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        global _OWNER
+        if self.executor is not None:
+            self.executor.shutdown(wait=True, cancel_futures=True)
+        _OWNER = None
+
+    def map(self, method: str, calls: Sequence[tuple[Any, ...]]) -> list[Any]:
+        """``owner.method(*args)`` per call, in order; calls the time bound cut are left out."""
+        if self.executor is None:
+            out = []
+            for args in calls:
+                if time.monotonic() > self.deadline:
+                    self.truncated = True
+                    break
+                out.append(getattr(self.owner, method)(*args))
+            return out
+        futures: list[Future[Any]] = [
+            self.executor.submit(_run_in_worker, method, args) for args in calls
+        ]
+        results = []
+        for future in futures:
+            try:
+                results.append(future.result(timeout=max(self.deadline - time.monotonic(), 0.0)))
+            except TimeoutError:
+                self.truncated = True
+                for rest in futures:
+                    rest.cancel()
+                break
+        return results
+
+
+class StartSearch(ProfileLikelihood):
+    """The search for a start off a flat spot (see the module's docstring)."""
+
+    start_search: bool
+    start_search_: StartSearchReport | None
+
+    # --- the hook -------------------------------------------------------------------------------
+    def _search_start(
+        self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, start: Evaluation
+    ) -> tuple[FloatArray, Evaluation]:
+        """A start where the outputs depend on every free parameter, if the given one is flat.
+
+        Returns φ and its evaluation (with sensitivities): the given ones when no parameter is
+        flat there or no start was found (``start_search_`` then says why), else the search's.
+        """
+        self.start_search_ = None
+        if not self.start_search:
+            return phi, start
+        report, _ = self._structural(phi, start)
+        idle = [name for name in self.free_names_ if name in report.zero_sensitivity]
+        if not idle:
+            return phi, start
+        began = time.monotonic()
+        # what is claimed about the given start is simulated as the fit simulates
+        given = self._probe(0, phi, idle, records, sigma)
+        flat = [name for name in idle if given.changes[name] <= CHI2_95]
+        if not flat:  # the simulation follows them: a switch hides them, no start cures that
+            return phi, start
+        box, held = self._search_box(phi)
+        starts = self._sobol_starts(phi, box, records)
+        with _Pool(self, len(starts), began + SEARCH_SECONDS) as pool:
+            probes = pool.map(
+                "_coarse_probe", [(i + 1, s, flat, records, sigma) for i, s in enumerate(starts)]
+            )
+            self._work[1] += sum(probe.evaluations for probe in probes)
+            chosen, checked, unseen = self._qualified(pool, probes, flat, records, sigma)
+            refined = pool.map("_coarse_refine", [(c.index, c.phi, records, sigma) for c in chosen])
+            self._work[1] += sum(r.evaluations for r in refined)
+            truncated, workers, serial = pool.truncated, pool.workers, pool.serial_reason
+        kept = [r for r in refined if not r.lost and not r.failure]
+        best = min(kept, key=lambda r: r.cost) if kept else None
+        self.start_search_ = StartSearchReport(
+            flat={name: given.changes[name] for name in flat},
+            given_states=self._state_ranges(start),
+            box=self._natural_box(box),
+            held=tuple(held),
+            n_starts=len(starts),
+            n_simulated=len(probes),
+            n_failed=sum(1 for probe in probes if probe.failure),
+            n_acting=sum(1 for probe in probes if probe.acts(flat)),
+            n_checked=checked,
+            unseen=tuple(name for name in self.free_names_ if name in unseen),
+            largest_change={
+                name: max((p.changes[name] for p in probes if not p.failure), default=0.0)
+                for name in flat
+            },
+            outputs_range=self._outputs_range(probes),
+            refined=tuple(refined),
+            chosen=None if best is None else best.index,
+            workers=workers,
+            serial_reason=serial,
+            seconds=time.monotonic() - began,
+            truncated=truncated,
+            values={} if best is None else best.values,
+        )
+        if best is None:
+            return phi, start
+        return best.phi, self._evaluate(best.phi, records, sigma, jacobian=True)
+
+    def _with_search_evidence(self, refusal: NotIdentifiableError) -> NotIdentifiableError:
+        """The refusal with the search's evidence in its advice (itself when no search ran)."""
+        search = vars(self).get("start_search_")
+        if search is None or search.chosen is not None:
+            return refusal
+        report = refusal.report
+        return NoStartFound(report.with_advice((*report.advice, search.evidence())), search)
+
+    # --- the steps ------------------------------------------------------------------------------
+    def _qualified(
+        self,
+        pool: _Pool,
+        probes: Sequence[Probe],
+        flat: Sequence[str],
+        records: Sequence[Record],
+        sigma: FloatArray,
+    ) -> tuple[list[Probe], int, set[str]]:
+        """The lowest-cost starts where the sensitivities see every free parameter.
+
+        The simulated step found where the flat parameters act; the fit steers by the
+        sensitivities, which must see them too (a start at the edge of where a limit acts has a
+        step that acts and a sensitivity that does not). They are checked in order of cost, a
+        worker's share at a time, until REFINED_STARTS qualify or MAX_CHECKED were checked.
+        Returns those starts, how many were checked and the parameters unseen at the others.
+        """
+        acting = sorted((p for p in probes if p.acts(flat)), key=lambda p: (p.cost, p.index))
+        out: list[Probe] = []
+        unseen: set[str] = set()
+        checked = 0
+        for begin in range(0, min(len(acting), MAX_CHECKED), pool.workers):
+            batch = acting[begin : min(begin + pool.workers, MAX_CHECKED)]
+            found = pool.map("_coarse_unseen", [(p.phi, records, sigma) for p in batch])
+            checked += len(found)
+            for probe, (missing, evaluations) in zip(batch, found, strict=False):
+                self._work[1] += evaluations
+                unseen.update(missing)
+                if not missing:
+                    out.append(probe)
+            if len(out) >= REFINED_STARTS or pool.truncated:
+                break
+        return out[:REFINED_STARTS], checked, unseen
+
+    def _coarse_unseen(
+        self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray
+    ) -> tuple[tuple[str, ...], int]:
+        """The free parameters whose sensitivity vanishes at φ (coarse), and the work it took."""
+        spent = self._work[1]
+        try:
+            with self._coarse():
+                evaluation = self._evaluate(phi, records, sigma, jacobian=True)
+        except (SimulationError, FloatingPointError, OverflowError):
+            return tuple(self.free_names_), self._work[1] - spent
+        return self._unseen(phi, evaluation), self._work[1] - spent
+
+    def _unseen(self, phi: FloatArray, evaluation: Evaluation) -> tuple[str, ...]:
+        report, _ = self._structural(phi, evaluation)
+        return tuple(name for name in self.free_names_ if name in report.zero_sensitivity)
+
+    def _coarse_probe(
+        self,
+        index: int,
+        phi: FloatArray,
+        names: Sequence[str],
+        records: Sequence[Record],
+        sigma: FloatArray,
+    ) -> Probe:
+        """:meth:`_probe` with the search's coarse solver (what a worker runs)."""
+        with self._coarse():
+            return self._probe(index, phi, names, records, sigma)
+
+    def _probe(
+        self,
+        index: int,
+        phi: FloatArray,
+        names: Sequence[str],
+        records: Sequence[Record],
+        sigma: FloatArray,
+    ) -> Probe:
+        """Simulate at φ and step each of ``names`` ±10 %: the weighted output change of each.
+
+        The change is Σ((ŷ(φ + step) − ŷ(φ))/σ)² over the samples fitted: above χ²₁'s 95 %
+        quantile the records would tell the two apart. The step goes up first, and down where
+        up changes nothing or leaves the bounds; a step that cannot be simulated counts as a
+        change (inf), as in :meth:`_simulated_rises`.
+        """
+        spent = self._work[1]
+        n_y = len(self.model.output_names)
+        try:
+            base = self._evaluate(phi, records, sigma, jacobian=False)
+        except (SimulationError, FloatingPointError, OverflowError) as exc:
+            return Probe(
+                index,
+                phi,
+                math.inf,
+                dict.fromkeys(names, 0.0),
+                np.full((n_y, 2), np.nan),
+                self._work[1] - spent,
+                str(exc) or type(exc).__name__,
+            )
+        changes = {name: self._output_change(phi, name, base, records, sigma) for name in names}
+        outputs = np.vstack([t.outputs for t in base.trajectories])
+        return Probe(
+            index,
+            phi,
+            float(base.residuals @ base.residuals),
+            changes,
+            np.column_stack([np.nanmin(outputs, axis=0), np.nanmax(outputs, axis=0)]),
+            self._work[1] - spent,
+        )
+
+    def _output_change(
+        self,
+        phi: FloatArray,
+        name: str,
+        base: Evaluation,
+        records: Sequence[Record],
+        sigma: FloatArray,
+    ) -> float:
+        """The largest weighted output change a ±10 % step in ``name`` makes at φ (see _probe)."""
+        names, scale = self._report_columns(phi)
+        j = names[name]
+        lower, upper = self.map_.bounds()
+        largest = 0.0
+        for sign in (1.0, -1.0):
+            trial = phi.copy()
+            trial[j] += sign * EVIDENCE_STEP * scale[j]
+            if not lower[j] < trial[j] < upper[j]:
+                continue
+            try:
+                moved = self._evaluate(trial, records, sigma, jacobian=False).residuals
+            except (SimulationError, FloatingPointError, OverflowError):
+                return math.inf
+            largest = max(largest, float(np.sum((moved - base.residuals) ** 2)))
+            if largest > CHI2_95:
+                break
+        return largest
+
+    def _coarse_refine(
+        self, index: int, phi: FloatArray, records: Sequence[Record], sigma: FloatArray
+    ) -> RefinedStart:
+        """A short coarse fit from a start, and the parameters the outputs stopped following.
+
+        A parameter is lost where the fit ended when its sensitivity vanishes there: the fit
+        carried it to where the records do not reach (a limit moved past the records' levels),
+        where nothing brings it back.
+        """
+        spent = self._work[1]
+        p = len(self.free_names_)
+        saved = self.max_iterations
+        self.max_iterations = REFINE_ITERATIONS
+        try:
+            with self._coarse():
+                fitted, _, evaluation = self._solve(phi, records, sigma)
+        except (SimulationError, FloatingPointError, OverflowError) as exc:
+            return RefinedStart(
+                index, phi, math.inf, (), {}, self._work[1] - spent, str(exc) or "failed"
+            )
+        finally:
+            self.max_iterations = saved
+        return RefinedStart(
+            index,
+            fitted,
+            float(evaluation.residuals @ evaluation.residuals),
+            self._unseen(fitted, evaluation),
+            self.map_.values(fitted[:p]),
+            self._work[1] - spent,
+        )
+
+    @contextmanager
+    def _coarse(self) -> Iterator[None]:
+        """The fit's solver at the search's loose tolerance and trial step limit, for a while."""
+        choice = self.solver_
+        solver = choice.solver
+        if solver.method != "rk4":
+            solver = replace(
+                solver,
+                rtol=max(solver.rtol, COARSE_RTOL),
+                steps_per_sample=TRIAL_STEPS_PER_SAMPLE,
+            )
+        self.solver_ = SolverChoice(solver, choice.requested, choice.reason)
+        try:
+            yield
+        finally:
+            self.solver_ = choice
+
+    # --- the set of starts ----------------------------------------------------------------------
+    def _search_box(self, phi: FloatArray) -> tuple[FloatArray, list[str]]:
+        """Per free parameter, (low, high) in φ the starts fill; the names held at their start.
+
+        Both bounds finite: the bounds (in log space for a positive parameter). A bound open:
+        a factor SEARCH_SPAN either side of the start for a positive parameter, ± the start's
+        size (or the distance to the finite bound) for another, within the bounds; a parameter
+        at 0 without any bound has no size to search over and is held.
+        """
+        lower, upper = self.map_.bounds()
+        p = len(self.free_names_)
+        box = np.empty((p, 2))
+        held = []
+        for j, spec in enumerate(self.map_.free):
+            if math.isfinite(lower[j]) and math.isfinite(upper[j]):
+                box[j] = lower[j], upper[j]
+                continue
+            if spec.log_scale:
+                width = math.log(SEARCH_SPAN)
+            else:
+                sizes = [abs(phi[j])] + [abs(b - phi[j]) for b in (lower[j], upper[j])]
+                width = max((s for s in sizes if math.isfinite(s)), default=0.0)
+            if width == 0.0:
+                held.append(spec.name)
+            box[j] = max(phi[j] - width, lower[j]), min(phi[j] + width, upper[j])
+        return box, held
+
+    def _sobol_starts(
+        self, phi: FloatArray, box: FloatArray, records: Sequence[Record]
+    ) -> list[FloatArray]:
+        """SEARCH_STARTS starts (φ) filling the box; initial states at each one's steady state."""
+        from scipy.stats import qmc  # 0.3 s to import: only when a search runs
+
+        p = len(self.free_names_)
+        points = qmc.Sobol(p, scramble=True, seed=SEARCH_SEED).random_base2(
+            int(math.log2(SEARCH_STARTS))
+        )
+        # strictly inside the bounds: the fit's trust region needs room on both sides
+        span = box[:, 1] - box[:, 0]
+        thetas = box[:, 0] + span * (1e-6 + (1.0 - 2e-6) * points)
+        out = []
+        for theta_phi in thetas:
+            if not self.estimate_x0_:
+                out.append(theta_phi)
+                continue
+            values = self.map_.values(theta_phi)
+            guesses = [self.model.steady_state_guess(values, record) for record in records]
+            start = np.concatenate([theta_phi, *guesses])
+            # held initial states stay where they are held
+            start[self._held_states] = phi[self._held_states]
+            out.append(start)
+        return out
+
+    # --- the report's numbers -------------------------------------------------------------------
+    def _natural_box(self, box: FloatArray) -> dict[str, tuple[float, float]]:
+        low = self.map_.to_theta(box[:, 0])
+        high = self.map_.to_theta(box[:, 1])
+        return {
+            name: (float(low[j]), float(high[j]))
+            for j, name in enumerate(self.free_names_)
+            if box[j, 1] > box[j, 0]
+        }
+
+    def _state_ranges(self, evaluation: Evaluation) -> dict[str, tuple[float, float]]:
+        states = np.vstack([t.states for t in evaluation.trajectories])
+        return {
+            name: (float(np.min(states[:, i])), float(np.max(states[:, i])))
+            for i, name in enumerate(self.model.state_names)
+        }
+
+    def _outputs_range(self, probes: Sequence[Probe]) -> dict[str, tuple[float, float]]:
+        ranges = [p.outputs for p in probes if not p.failure]
+        names = self.model.output_names
+        if not ranges:
+            return dict.fromkeys(names, (math.nan, math.nan))
+        stacked = np.stack(ranges)
+        return {
+            name: (float(np.min(stacked[:, i, 0])), float(np.max(stacked[:, i, 1])))
+            for i, name in enumerate(names)
+        }
