@@ -95,6 +95,8 @@ class Probe:
     """Each output's simulated (min, max) over the records, shape (n_y, 2) (NaN: failed)."""
     evaluations: int
     failure: str = ""
+    sides: dict[str, tuple[float, float]] = field(default_factory=dict)
+    """Per parameter checked: the change over the step up and down (NaN: not simulated)."""
 
     def acts(self, names: Sequence[str]) -> bool:
         """The outputs depend on every one of ``names`` here."""
@@ -119,8 +121,9 @@ class RefinedStart:
 class StartSearchReport:
     """What the search for a start off the flat spot did, and why its start was used (or none)."""
 
-    flat: dict[str, float]
-    """At the given start: each flat parameter's weighted output change over a ±10 % step."""
+    flat: dict[str, tuple[float, float]]
+    """At the given start: each parameter without sensitivity whose outputs do not follow a step
+    both ways, and its weighted output change over the step up and down (NaN: beyond a bound)."""
     given_states: dict[str, tuple[float, float]]
     """The given start's simulated states' range over the records, by state name."""
     box: dict[str, tuple[float, float]]
@@ -154,11 +157,11 @@ class StartSearchReport:
 
     def _flat_words(self) -> str:
         states = ", ".join(f"{n} {lo:.3g}…{hi:.3g}" for n, (lo, hi) in self.given_states.items())
-        changes = ", ".join(f"{n} {c:.3g}" for n, c in self.flat.items())
+        changes = ", ".join(_sides(name, pair) for name, pair in self.flat.items())
         return (
-            f"the given start left {', '.join(self.flat)} without effect (a ±10 % step moved the "
-            f"weighted outputs by {changes}; {CHI2_95:.2f} is seen; its simulated states stayed "
-            f"within {states})"
+            f"the given start left {', '.join(self.flat)} without sensitivity (a ±10 % step moved "
+            f"the weighted outputs by {changes}; {CHI2_95:.2f} is seen; its simulated states "
+            f"stayed within {states})"
         )
 
     def line(self) -> str:
@@ -234,7 +237,9 @@ class StartSearchReport:
             "n_acting": self.n_acting,
             "n_checked": self.n_checked,
             "unseen": list(self.unseen),
-            "flat_at_given_start": {n: _finite(c) for n, c in self.flat.items()},
+            "flat_at_given_start": {
+                n: {"up": _finite(up), "down": _finite(down)} for n, (up, down) in self.flat.items()
+            },
             "given_states_range": {n: list(r) for n, r in self.given_states.items()},
             "box": {n: list(r) for n, r in self.box.items()},
             "held": list(self.held),
@@ -268,6 +273,14 @@ class NoStartFound(NotIdentifiableError):
         self.search = search
 
 
+def _sides(name: str, pair: tuple[float, float]) -> str:
+    """``c 0`` (no change either way) or ``xmax 0 up, 1.2e+03 down``."""
+    up, down = (0.0 if math.isnan(c) else c for c in pair)
+    if up <= CHI2_95 and down <= CHI2_95:
+        return f"{name} {max(up, down):.3g}"
+    return f"{name} {up:.3g} up, {down:.3g} down"
+
+
 def _act(names: Iterable[str]) -> str:
     """``c acts``, ``c, d act``."""
     listed = list(names)
@@ -276,6 +289,24 @@ def _act(names: Iterable[str]) -> str:
 
 def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
+
+
+@dataclass(frozen=True)
+class _SearchRun:
+    """What the search's simulations found (before it is told as a report)."""
+
+    probes: list[Probe]
+    checked: int
+    unseen: set[str]
+    refined: list[RefinedStart]
+    workers: int
+    serial_reason: str
+    truncated: bool
+
+    def best(self) -> RefinedStart | None:
+        """The refined start of lowest cost where the sensitivities see every parameter."""
+        kept = [r for r in self.refined if not r.lost and not r.failure]
+        return min(kept, key=lambda r: (r.cost, r.index)) if kept else None
 
 
 class _Pool:
@@ -355,19 +386,75 @@ class StartSearch(ProfileLikelihood):
         self.start_search_ = None
         if not self.start_search:
             return phi, start
-        report, _ = self._structural(phi, start)
-        idle = [name for name in self.free_names_ if name in report.zero_sensitivity]
-        if not idle:
-            return phi, start
         began = time.monotonic()
-        # what is claimed about the given start is simulated as the fit simulates
-        given = self._probe(0, phi, idle, records, sigma)
-        flat = [name for name in idle if given.changes[name] <= CHI2_95]
-        if not flat:  # the simulation follows them: a switch hides them, no start cures that
+        given = self._flat_probe(phi, records, sigma, start)
+        if given.failure:  # not simulated as the fit simulates: nothing to claim about it
+            return phi, start
+        # a step that moves the outputs both ways while the sensitivity is 0: a switch hides the
+        # parameter from the sensitivities, which no start cures (the refusal says so); no
+        # change (a flat spot) or a change one way only (the edge of one) is searched away from
+        flat = [
+            name
+            for name, pair in given.sides.items()
+            if not all(change > CHI2_95 for change in pair)
+        ]
+        if not flat:
             return phi, start
         box, held = self._search_box(phi)
         starts = self._sobol_starts(phi, box, records)
-        with _Pool(self, len(starts), began + SEARCH_SECONDS) as pool:
+        run = self._run_search(starts, flat, records, sigma, began + SEARCH_SECONDS)
+        best = run.best()
+        self.start_search_ = StartSearchReport(
+            flat={name: given.sides[name] for name in flat},
+            given_states=self._state_ranges(start),
+            box=self._natural_box(box),
+            held=tuple(held),
+            n_starts=len(starts),
+            n_simulated=len(run.probes),
+            n_failed=sum(1 for probe in run.probes if probe.failure),
+            n_acting=sum(1 for probe in run.probes if probe.acts(flat)),
+            n_checked=run.checked,
+            unseen=tuple(name for name in self.free_names_ if name in run.unseen),
+            largest_change={
+                name: max((p.changes[name] for p in run.probes if not p.failure), default=0.0)
+                for name in flat
+            },
+            outputs_range=self._outputs_range(run.probes),
+            refined=tuple(run.refined),
+            chosen=None if best is None else best.index,
+            workers=run.workers,
+            serial_reason=run.serial_reason,
+            seconds=time.monotonic() - began,
+            truncated=run.truncated,
+            values={} if best is None else best.values,
+        )
+        if best is None:
+            return phi, start
+        return best.phi, self._evaluate(best.phi, records, sigma, jacobian=True)
+
+    def _flat_probe(
+        self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, start: Evaluation
+    ) -> Probe:
+        """The given start's probe of the free parameters without sensitivity there (maybe none).
+
+        What is claimed about the given start is simulated as the fit simulates (not coarsely).
+        """
+        report, _ = self._structural(phi, start)
+        idle = [name for name in self.free_names_ if name in report.zero_sensitivity]
+        if not idle:
+            return Probe(0, phi, math.nan, {}, np.empty((0, 2)), 0)
+        return self._probe(0, phi, idle, records, sigma, both=True)
+
+    def _run_search(
+        self,
+        starts: Sequence[FloatArray],
+        flat: Sequence[str],
+        records: Sequence[Record],
+        sigma: FloatArray,
+        deadline: float,
+    ) -> _SearchRun:
+        """Probe every start, check the best ones' sensitivities, refine those that qualify."""
+        with _Pool(self, len(starts), deadline) as pool:
             probes = pool.map(
                 "_coarse_probe", [(i + 1, s, flat, records, sigma) for i, s in enumerate(starts)]
             )
@@ -375,36 +462,9 @@ class StartSearch(ProfileLikelihood):
             chosen, checked, unseen = self._qualified(pool, probes, flat, records, sigma)
             refined = pool.map("_coarse_refine", [(c.index, c.phi, records, sigma) for c in chosen])
             self._work[1] += sum(r.evaluations for r in refined)
-            truncated, workers, serial = pool.truncated, pool.workers, pool.serial_reason
-        kept = [r for r in refined if not r.lost and not r.failure]
-        best = min(kept, key=lambda r: r.cost) if kept else None
-        self.start_search_ = StartSearchReport(
-            flat={name: given.changes[name] for name in flat},
-            given_states=self._state_ranges(start),
-            box=self._natural_box(box),
-            held=tuple(held),
-            n_starts=len(starts),
-            n_simulated=len(probes),
-            n_failed=sum(1 for probe in probes if probe.failure),
-            n_acting=sum(1 for probe in probes if probe.acts(flat)),
-            n_checked=checked,
-            unseen=tuple(name for name in self.free_names_ if name in unseen),
-            largest_change={
-                name: max((p.changes[name] for p in probes if not p.failure), default=0.0)
-                for name in flat
-            },
-            outputs_range=self._outputs_range(probes),
-            refined=tuple(refined),
-            chosen=None if best is None else best.index,
-            workers=workers,
-            serial_reason=serial,
-            seconds=time.monotonic() - began,
-            truncated=truncated,
-            values={} if best is None else best.values,
-        )
-        if best is None:
-            return phi, start
-        return best.phi, self._evaluate(best.phi, records, sigma, jacobian=True)
+            return _SearchRun(
+                probes, checked, unseen, refined, pool.workers, pool.serial_reason, pool.truncated
+            )
 
     def _with_search_evidence(self, refusal: NotIdentifiableError) -> NotIdentifiableError:
         """The refusal with the search's evidence in its advice (itself when no search ran)."""
@@ -483,13 +543,14 @@ class StartSearch(ProfileLikelihood):
         names: Sequence[str],
         records: Sequence[Record],
         sigma: FloatArray,
+        both: bool = False,
     ) -> Probe:
         """Simulate at φ and step each of ``names`` ±10 %: the weighted output change of each.
 
         The change is Σ((ŷ(φ + step) − ŷ(φ))/σ)² over the samples fitted: above χ²₁'s 95 %
         quantile the records would tell the two apart. The step goes up first, and down where
-        up changes nothing or leaves the bounds; a step that cannot be simulated counts as a
-        change (inf), as in :meth:`_simulated_rises`.
+        up changes nothing or leaves the bounds (or always, with ``both``); a step that cannot
+        be simulated counts as a change (inf), as in :meth:`_simulated_rises`.
         """
         spent = self._work[1]
         n_y = len(self.model.output_names)
@@ -505,7 +566,11 @@ class StartSearch(ProfileLikelihood):
                 self._work[1] - spent,
                 str(exc) or type(exc).__name__,
             )
-        changes = {name: self._output_change(phi, name, base, records, sigma) for name in names}
+        sides = {name: self._output_change(phi, name, base, records, sigma, both) for name in names}
+        changes = {
+            name: max((c for c in pair if not math.isnan(c)), default=0.0)
+            for name, pair in sides.items()
+        }
         outputs = np.vstack([t.outputs for t in base.trajectories])
         return Probe(
             index,
@@ -514,6 +579,7 @@ class StartSearch(ProfileLikelihood):
             changes,
             np.column_stack([np.nanmin(outputs, axis=0), np.nanmax(outputs, axis=0)]),
             self._work[1] - spent,
+            sides=sides,
         )
 
     def _output_change(
@@ -523,25 +589,30 @@ class StartSearch(ProfileLikelihood):
         base: Evaluation,
         records: Sequence[Record],
         sigma: FloatArray,
-    ) -> float:
-        """The largest weighted output change a ±10 % step in ``name`` makes at φ (see _probe)."""
+        both: bool,
+    ) -> tuple[float, float]:
+        """The weighted output change a step of +10 % and of −10 % in ``name`` makes at φ.
+
+        NaN for a side not simulated: beyond a bound, or (without ``both``) after the step up
+        already showed a change; inf for a step that cannot be simulated (see :meth:`_probe`).
+        """
         names, scale = self._report_columns(phi)
         j = names[name]
         lower, upper = self.map_.bounds()
-        largest = 0.0
-        for sign in (1.0, -1.0):
+        sides = [math.nan, math.nan]
+        for side, sign in enumerate((1.0, -1.0)):
             trial = phi.copy()
             trial[j] += sign * EVIDENCE_STEP * scale[j]
             if not lower[j] < trial[j] < upper[j]:
                 continue
             try:
                 moved = self._evaluate(trial, records, sigma, jacobian=False).residuals
+                sides[side] = float(np.sum((moved - base.residuals) ** 2))
             except (SimulationError, FloatingPointError, OverflowError):
-                return math.inf
-            largest = max(largest, float(np.sum((moved - base.residuals) ** 2)))
-            if largest > CHI2_95:
+                sides[side] = math.inf
+            if sides[side] > CHI2_95 and not both:
                 break
-        return largest
+        return sides[0], sides[1]
 
     def _coarse_refine(
         self, index: int, phi: FloatArray, records: Sequence[Record], sigma: FloatArray

@@ -36,15 +36,15 @@ def test_a_start_where_the_overflow_acts_is_found_and_the_fit_recovers_the_truth
     search = estimator.start_search_
     assert search is not None
     # at the given start the level stays under the rim: c changes no arithmetic, so its step
-    # moves the outputs by exactly 0
-    assert search.flat == {"c": 0.0}
+    # moves the outputs by exactly 0 either way
+    assert search.flat == {"c": (0.0, 0.0)}
     assert search.given_states["level"][1] < H_RIM
     assert search.chosen is not None
     assert search.n_starts == SEARCH_STARTS
     assert 0 < search.n_acting <= search.n_simulated == SEARCH_STARTS
     line = search.line()
     assert line.startswith(f"start search: start {search.chosen} of {SEARCH_STARTS}")
-    assert "the given start left c without effect" in line
+    assert "the given start left c without sensitivity" in line
     assert estimator.not_determined_ == {}
     for key, value in TRUTH["overflow"].items():
         se = estimator.stderr_[key]
@@ -127,3 +127,25 @@ def test_without_the_search_the_flat_start_is_refused_at_once() -> None:
     with pytest.raises(NotIdentifiableError, match="do not depend on c") as refused:
         estimator.fit(record)
     assert not isinstance(refused.value, NoStartFound)
+
+
+def test_a_limit_started_just_beyond_the_records_is_searched_not_blamed_on_a_switch() -> None:
+    # the stop at 0.45 clips the inputs' top (up to 0.503): the records determine u_max; started
+    # at 0.52 it clips nothing (sensitivity exactly 0), yet a step of −10 % does clip: the edge
+    # of the flat spot, not a switch the sensitivities miss
+    truth = {"K": 2.0, "T": 8.0, "u_max": 0.45}
+    record, _ = kinked_record("valve", seed=31, input_range=(0.0, 0.6), truth=truth)
+    start = {"K": 2.5, "T": 10.0, "u_max": 0.52}
+    assert float(np.max(record.u)) < start["u_max"] < float(np.max(record.u)) / 0.9
+    estimator = GreyBoxEstimator(kinked_model("valve", start)).fit(record)
+    search = estimator.start_search_
+    assert search is not None
+    assert search.chosen is not None
+    up, down = search.flat["u_max"]
+    assert up == 0.0
+    assert down > 3.84
+    for key, value in truth.items():
+        se = estimator.stderr_[key]
+        assert se is not None
+        # band: 4 standard errors, as above
+        assert abs(estimator.params_[key] - value) <= 4.0 * se, (key, estimator.params_[key])
