@@ -5,18 +5,19 @@ the rim the parameter describes, an output on its clip, a tank run empty. The se
 then exactly zero and no fit can move the parameter. Before the estimator refuses,
 :class:`StartSearch` looks for a start where every free parameter acts:
 
-1. at the given start, each parameter without sensitivity is stepped ±10 % and simulated: one the
-   outputs do not follow (a change of the weighted outputs under χ²₁'s 95 % quantile) is flat
-   there; one they do follow is hidden by a switch, which no start cures (the refusal says so);
+1. at the given start, each parameter without sensitivity is stepped +10 % and −10 % and
+   simulated: one the outputs follow neither way (a change of the weighted outputs under χ²₁'s
+   95 % quantile) is on a flat spot, one they follow one way only at its edge (a limit just
+   beyond the records' reach); one they follow both ways is hidden by a switch, which no start
+   cures (the refusal says so);
 2. a scrambled Sobol set of :data:`SEARCH_STARTS` starts fills a box in the bounds (log-scaled for
    positive parameters; a factor :data:`SEARCH_SPAN` either side of the start where a bound is
-   open), each simulated coarsely (relative tolerance :data:`COARSE_RTOL`) with the flat
-   parameters stepped as in 1;
-3. of the starts where every flat parameter acts, the lowest-cost ones are simulated with their
-   sensitivities, until :data:`REFINED_STARTS` have a sensitivity to every free parameter (the fit
-   steers by them); these are refined by a short coarse fit (:data:`REFINE_ITERATIONS` iterations
-   of the normal least-squares fit) and the one of lowest cost where the sensitivities still see
-   every parameter is the start of the fit.
+   open), each simulated coarsely (relative tolerance :data:`COARSE_RTOL`) with its
+   sensitivities, which the fit steers by: a start qualifies where they see every free
+   parameter (a column not exactly 0);
+3. the :data:`REFINED_STARTS` qualifying starts of lowest cost are refined by a short coarse fit
+   (:data:`REFINE_ITERATIONS` iterations of the normal least-squares fit), and the one of lowest
+   cost where the sensitivities still see every parameter is the start of the fit.
 
 The simulations run in worker processes over the cores (forked: a model file's functions cannot be
 pickled; where the platform cannot fork they run one after another and the report says why). The
@@ -59,16 +60,14 @@ SEARCH_SPAN = 10.0
 """Where a parameter's bound is open, the box reaches this factor either side of its start
 (positive parameters; others ± the start's size)."""
 COARSE_RTOL = 1e-3
-"""Relative tolerance of the search's simulations: a flat parameter's step changes nothing at any
-tolerance (the same arithmetic runs), and an acting one's change is far above this error."""
+"""Relative tolerance of the search's simulations: a sensitivity that is exactly 0 (a limit not
+reached: the same arithmetic runs) is 0 at any tolerance, and the costs only rank the starts."""
 REFINED_STARTS = 3
 """Starts refined by a short fit; the best of them by cost is where the fit starts."""
 REFINE_ITERATIONS = 10
 """Iterations (Jacobians) of each refinement: enough to leave a poor basin, not to converge."""
 SEARCH_SECONDS = 120.0
 """Wall-clock bound of the search; where it cuts the search short, the report says so."""
-MAX_CHECKED = 16
-"""Starts whose sensitivities are checked (in order of cost) before the search gives up."""
 MAX_WORKERS = 8
 """Most worker processes of the search."""
 
@@ -83,24 +82,22 @@ def _run_in_worker(method: str, args: tuple[Any, ...]) -> Any:
 
 @dataclass(frozen=True)
 class Probe:
-    """One start of the set, simulated coarsely: its cost and what its flat parameters do."""
+    """One start of the set, simulated coarsely with its sensitivities."""
 
     index: int
     phi: FloatArray
     cost: float
     """Σ of the squared weighted residuals (inf: it could not be simulated)."""
-    changes: dict[str, float]
-    """Per parameter checked: the largest change of the weighted outputs over a ±10 % step."""
+    unseen: tuple[str, ...]
+    """Free parameters whose sensitivity is exactly 0 here (all of them where it failed)."""
     outputs: FloatArray
     """Each output's simulated (min, max) over the records, shape (n_y, 2) (NaN: failed)."""
     evaluations: int
     failure: str = ""
-    sides: dict[str, tuple[float, float]] = field(default_factory=dict)
-    """Per parameter checked: the change over the step up and down (NaN: not simulated)."""
 
-    def acts(self, names: Sequence[str]) -> bool:
-        """The outputs depend on every one of ``names`` here."""
-        return not self.failure and all(self.changes[name] > CHI2_95 for name in names)
+    def sees(self, names: Iterable[str]) -> bool:
+        """The sensitivities see every one of ``names`` here."""
+        return not self.failure and not set(names) & set(self.unseen)
 
 
 @dataclass(frozen=True)
@@ -134,13 +131,11 @@ class StartSearchReport:
     n_simulated: int
     n_failed: int
     n_acting: int
-    """Starts where the outputs depend on every flat parameter."""
-    n_checked: int
-    """Of those, the lowest-cost ones whose sensitivities were checked."""
-    unseen: tuple[str, ...]
-    """Parameters the sensitivities did not see at some checked start."""
-    largest_change: dict[str, float]
-    """Per flat parameter, the largest weighted output change over the starts simulated."""
+    """Starts where the sensitivities see every flat parameter."""
+    n_qualified: int
+    """Starts where they see every free parameter."""
+    seen_in: dict[str, int]
+    """Per free parameter, the starts simulated whose sensitivities see it."""
     outputs_range: dict[str, tuple[float, float]]
     """Each output's simulated range over every start simulated."""
     refined: tuple[RefinedStart, ...]
@@ -173,8 +168,9 @@ class StartSearchReport:
         return (
             f"start search: start {self.chosen} of {self.n_starts}, refined to {shown}: "
             f"{self._flat_words()}; in {self.n_acting} of {self.n_simulated} starts in the bounds "
-            f"{_act(self.flat)}, the best {len(self.refined)} by a coarse "
-            f"simulation were refined and this one fitted best (weighted cost {best.cost:.4g}); "
+            f"{_act(self.flat)} (the sensitivities see {'it' if len(self.flat) == 1 else 'them'}),"
+            f" the best {len(self.refined)} of the {self.n_qualified} where every parameter does "
+            f"were refined and this one fitted best (weighted cost {best.cost:.4g}); "
             f"{self._how()}"
         )
 
@@ -197,19 +193,18 @@ class StartSearchReport:
             f"a search of {self.n_starts} starts in the bounds ({box}; {self.n_simulated} "
             f"simulated, {self.n_failed} of them failed; simulated outputs {outputs})"
         )
+        seen = ", ".join(f"{n} at {k}" for n, k in self.seen_in.items())
         if self.n_acting == 0:
-            largest = ", ".join(f"{n} {c:.3g}" for n, c in self.largest_change.items())
             text = (
-                f"{head} found none where the outputs depend on {', '.join(self.flat)}: a ±10 % "
-                f"step moved the weighted outputs by at most {largest} ({CHI2_95:.2f} is seen)"
+                f"{head} found none where the outputs depend on {', '.join(self.flat)}: the "
+                f"sensitivities saw {seen} of the {self.n_simulated - self.n_failed} starts "
+                "simulated"
             )
-        elif not self.refined:
+        elif self.n_qualified == 0:
             text = (
-                f"{head} found {self.n_acting} where {_act(self.flat)} in the "
-                f"simulation, but at none of the {self.n_checked} of lowest cost checked did the "
-                f"sensitivities the fit steers by see every parameter (zero for "
-                f"{', '.join(self.unseen)}: it acts only a step away from there, or a switch, an "
-                "if on a state, hides it from them)"
+                f"{head} found {self.n_acting} where {_act(self.flat)}, but none where the "
+                f"sensitivities the fit steers by see every parameter (they saw {seen} of the "
+                f"{self.n_simulated - self.n_failed} starts simulated)"
             )
         else:
             moved = "; ".join(
@@ -235,15 +230,14 @@ class StartSearchReport:
             "n_simulated": self.n_simulated,
             "n_failed": self.n_failed,
             "n_acting": self.n_acting,
-            "n_checked": self.n_checked,
-            "unseen": list(self.unseen),
+            "n_qualified": self.n_qualified,
+            "seen_in": dict(self.seen_in),
             "flat_at_given_start": {
                 n: {"up": _finite(up), "down": _finite(down)} for n, (up, down) in self.flat.items()
             },
             "given_states_range": {n: list(r) for n, r in self.given_states.items()},
             "box": {n: list(r) for n, r in self.box.items()},
             "held": list(self.held),
-            "largest_change": {n: _finite(c) for n, c in self.largest_change.items()},
             "outputs_range": {n: [_finite(v) for v in r] for n, r in self.outputs_range.items()},
             "refined": [
                 {
@@ -296,8 +290,6 @@ class _SearchRun:
     """What the search's simulations found (before it is told as a report)."""
 
     probes: list[Probe]
-    checked: int
-    unseen: set[str]
     refined: list[RefinedStart]
     workers: int
     serial_reason: str
@@ -387,37 +379,31 @@ class StartSearch(ProfileLikelihood):
         if not self.start_search:
             return phi, start
         began = time.monotonic()
-        given = self._flat_probe(phi, records, sigma, start)
-        if given.failure:  # not simulated as the fit simulates: nothing to claim about it
-            return phi, start
+        sides = self._given_sides(phi, records, sigma, start)
         # a step that moves the outputs both ways while the sensitivity is 0: a switch hides the
         # parameter from the sensitivities, which no start cures (the refusal says so); no
         # change (a flat spot) or a change one way only (the edge of one) is searched away from
-        flat = [
-            name
-            for name, pair in given.sides.items()
-            if not all(change > CHI2_95 for change in pair)
-        ]
+        flat = {name: pair for name, pair in sides.items() if not min(pair) > CHI2_95}
         if not flat:
             return phi, start
         box, held = self._search_box(phi)
         starts = self._sobol_starts(phi, box, records)
-        run = self._run_search(starts, flat, records, sigma, began + SEARCH_SECONDS)
+        run = self._run_search(starts, records, sigma, began + SEARCH_SECONDS)
         best = run.best()
+        simulated = [probe for probe in run.probes if not probe.failure]
         self.start_search_ = StartSearchReport(
-            flat={name: given.sides[name] for name in flat},
+            flat=flat,
             given_states=self._state_ranges(start),
             box=self._natural_box(box),
             held=tuple(held),
             n_starts=len(starts),
             n_simulated=len(run.probes),
-            n_failed=sum(1 for probe in run.probes if probe.failure),
-            n_acting=sum(1 for probe in run.probes if probe.acts(flat)),
-            n_checked=run.checked,
-            unseen=tuple(name for name in self.free_names_ if name in run.unseen),
-            largest_change={
-                name: max((p.changes[name] for p in run.probes if not p.failure), default=0.0)
-                for name in flat
+            n_failed=len(run.probes) - len(simulated),
+            n_acting=sum(1 for probe in simulated if probe.sees(flat)),
+            n_qualified=sum(1 for probe in simulated if probe.sees(self.free_names_)),
+            seen_in={
+                name: sum(1 for probe in simulated if probe.sees([name]))
+                for name in self.free_names_
             },
             outputs_range=self._outputs_range(run.probes),
             refined=tuple(run.refined),
@@ -432,39 +418,46 @@ class StartSearch(ProfileLikelihood):
             return phi, start
         return best.phi, self._evaluate(best.phi, records, sigma, jacobian=True)
 
-    def _flat_probe(
+    def _given_sides(
         self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray, start: Evaluation
-    ) -> Probe:
-        """The given start's probe of the free parameters without sensitivity there (maybe none).
+    ) -> dict[str, tuple[float, float]]:
+        """Per free parameter without sensitivity at φ: the output change of a step up and down.
 
         What is claimed about the given start is simulated as the fit simulates (not coarsely).
+        Empty where every parameter has a sensitivity, or the start cannot be simulated so.
         """
         report, _ = self._structural(phi, start)
         idle = [name for name in self.free_names_ if name in report.zero_sensitivity]
         if not idle:
-            return Probe(0, phi, math.nan, {}, np.empty((0, 2)), 0)
-        return self._probe(0, phi, idle, records, sigma, both=True)
+            return {}
+        try:
+            base = self._evaluate(phi, records, sigma, jacobian=False)
+        except (SimulationError, FloatingPointError, OverflowError):
+            return {}
+        return {name: self._output_change(phi, name, base, records, sigma) for name in idle}
 
     def _run_search(
         self,
         starts: Sequence[FloatArray],
-        flat: Sequence[str],
         records: Sequence[Record],
         sigma: FloatArray,
         deadline: float,
     ) -> _SearchRun:
-        """Probe every start, check the best ones' sensitivities, refine those that qualify."""
+        """Probe every start; refine the lowest-cost ones where the sensitivities see all."""
         with _Pool(self, len(starts), deadline) as pool:
             probes = pool.map(
-                "_coarse_probe", [(i + 1, s, flat, records, sigma) for i, s in enumerate(starts)]
+                "_probe_start", [(i + 1, start, records, sigma) for i, start in enumerate(starts)]
             )
             self._work[1] += sum(probe.evaluations for probe in probes)
-            chosen, checked, unseen = self._qualified(pool, probes, flat, records, sigma)
-            refined = pool.map("_coarse_refine", [(c.index, c.phi, records, sigma) for c in chosen])
-            self._work[1] += sum(r.evaluations for r in refined)
-            return _SearchRun(
-                probes, checked, unseen, refined, pool.workers, pool.serial_reason, pool.truncated
+            qualified = sorted(
+                (probe for probe in probes if probe.sees(self.free_names_)),
+                key=lambda probe: (probe.cost, probe.index),
+            )[:REFINED_STARTS]
+            refined = pool.map(
+                "_coarse_refine", [(p.index, p.phi, records, sigma) for p in qualified]
             )
+            self._work[1] += sum(r.evaluations for r in refined)
+            return _SearchRun(probes, refined, pool.workers, pool.serial_reason, pool.truncated)
 
     def _with_search_evidence(self, refusal: NotIdentifiableError) -> NotIdentifiableError:
         """The refusal with the search's evidence in its advice (itself when no search ran)."""
@@ -475,112 +468,38 @@ class StartSearch(ProfileLikelihood):
         return NoStartFound(report.with_advice((*report.advice, search.evidence())), search)
 
     # --- the steps ------------------------------------------------------------------------------
-    def _qualified(
-        self,
-        pool: _Pool,
-        probes: Sequence[Probe],
-        flat: Sequence[str],
-        records: Sequence[Record],
-        sigma: FloatArray,
-    ) -> tuple[list[Probe], int, set[str]]:
-        """The lowest-cost starts where the sensitivities see every free parameter.
-
-        The simulated step found where the flat parameters act; the fit steers by the
-        sensitivities, which must see them too (a start at the edge of where a limit acts has a
-        step that acts and a sensitivity that does not). They are checked in order of cost, a
-        worker's share at a time, until REFINED_STARTS qualify or MAX_CHECKED were checked.
-        Returns those starts, how many were checked and the parameters unseen at the others.
-        """
-        acting = sorted((p for p in probes if p.acts(flat)), key=lambda p: (p.cost, p.index))
-        out: list[Probe] = []
-        unseen: set[str] = set()
-        checked = 0
-        for begin in range(0, min(len(acting), MAX_CHECKED), pool.workers):
-            batch = acting[begin : min(begin + pool.workers, MAX_CHECKED)]
-            found = pool.map("_coarse_unseen", [(p.phi, records, sigma) for p in batch])
-            checked += len(found)
-            for probe, (missing, evaluations) in zip(batch, found, strict=False):
-                self._work[1] += evaluations
-                unseen.update(missing)
-                if not missing:
-                    out.append(probe)
-            if len(out) >= REFINED_STARTS or pool.truncated:
-                break
-        return out[:REFINED_STARTS], checked, unseen
-
-    def _coarse_unseen(
-        self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray
-    ) -> tuple[tuple[str, ...], int]:
-        """The free parameters whose sensitivity vanishes at φ (coarse), and the work it took."""
+    def _probe_start(
+        self, index: int, phi: FloatArray, records: Sequence[Record], sigma: FloatArray
+    ) -> Probe:
+        """One start simulated coarsely with its sensitivities (what a worker runs)."""
         spent = self._work[1]
         try:
             with self._coarse():
                 evaluation = self._evaluate(phi, records, sigma, jacobian=True)
-        except (SimulationError, FloatingPointError, OverflowError):
-            return tuple(self.free_names_), self._work[1] - spent
-        return self._unseen(phi, evaluation), self._work[1] - spent
-
-    def _unseen(self, phi: FloatArray, evaluation: Evaluation) -> tuple[str, ...]:
-        report, _ = self._structural(phi, evaluation)
-        return tuple(name for name in self.free_names_ if name in report.zero_sensitivity)
-
-    def _coarse_probe(
-        self,
-        index: int,
-        phi: FloatArray,
-        names: Sequence[str],
-        records: Sequence[Record],
-        sigma: FloatArray,
-    ) -> Probe:
-        """:meth:`_probe` with the search's coarse solver (what a worker runs)."""
-        with self._coarse():
-            return self._probe(index, phi, names, records, sigma)
-
-    def _probe(
-        self,
-        index: int,
-        phi: FloatArray,
-        names: Sequence[str],
-        records: Sequence[Record],
-        sigma: FloatArray,
-        both: bool = False,
-    ) -> Probe:
-        """Simulate at φ and step each of ``names`` ±10 %: the weighted output change of each.
-
-        The change is Σ((ŷ(φ + step) − ŷ(φ))/σ)² over the samples fitted: above χ²₁'s 95 %
-        quantile the records would tell the two apart. The step goes up first, and down where
-        up changes nothing or leaves the bounds (or always, with ``both``); a step that cannot
-        be simulated counts as a change (inf), as in :meth:`_simulated_rises`.
-        """
-        spent = self._work[1]
-        n_y = len(self.model.output_names)
-        try:
-            base = self._evaluate(phi, records, sigma, jacobian=False)
         except (SimulationError, FloatingPointError, OverflowError) as exc:
+            n_y = len(self.model.output_names)
             return Probe(
                 index,
                 phi,
                 math.inf,
-                dict.fromkeys(names, 0.0),
+                tuple(self.free_names_),
                 np.full((n_y, 2), np.nan),
                 self._work[1] - spent,
                 str(exc) or type(exc).__name__,
             )
-        sides = {name: self._output_change(phi, name, base, records, sigma, both) for name in names}
-        changes = {
-            name: max((c for c in pair if not math.isnan(c)), default=0.0)
-            for name, pair in sides.items()
-        }
-        outputs = np.vstack([t.outputs for t in base.trajectories])
+        outputs = np.vstack([t.outputs for t in evaluation.trajectories])
         return Probe(
             index,
             phi,
-            float(base.residuals @ base.residuals),
-            changes,
+            float(evaluation.residuals @ evaluation.residuals),
+            self._unseen(phi, evaluation),
             np.column_stack([np.nanmin(outputs, axis=0), np.nanmax(outputs, axis=0)]),
             self._work[1] - spent,
-            sides=sides,
         )
+
+    def _unseen(self, phi: FloatArray, evaluation: Evaluation) -> tuple[str, ...]:
+        report, _ = self._structural(phi, evaluation)
+        return tuple(name for name in self.free_names_ if name in report.zero_sensitivity)
 
     def _output_change(
         self,
@@ -589,12 +508,12 @@ class StartSearch(ProfileLikelihood):
         base: Evaluation,
         records: Sequence[Record],
         sigma: FloatArray,
-        both: bool,
     ) -> tuple[float, float]:
         """The weighted output change a step of +10 % and of −10 % in ``name`` makes at φ.
 
-        NaN for a side not simulated: beyond a bound, or (without ``both``) after the step up
-        already showed a change; inf for a step that cannot be simulated (see :meth:`_probe`).
+        The change is Σ((ŷ(φ + step) − ŷ(φ))/σ)² over the samples fitted: above χ²₁'s 95 %
+        quantile the records would tell the two apart. NaN for a side beyond a bound; inf for a
+        step that cannot be simulated (a change, as in :meth:`_simulated_rises`).
         """
         names, scale = self._report_columns(phi)
         j = names[name]
@@ -610,8 +529,6 @@ class StartSearch(ProfileLikelihood):
                 sides[side] = float(np.sum((moved - base.residuals) ** 2))
             except (SimulationError, FloatingPointError, OverflowError):
                 sides[side] = math.inf
-            if sides[side] > CHI2_95 and not both:
-                break
         return sides[0], sides[1]
 
     def _coarse_refine(

@@ -97,7 +97,7 @@ def test_a_limit_no_start_in_the_bounds_reaches_is_refused_with_the_evidence() -
     assert search.n_starts == search.n_simulated == SEARCH_STARTS
     assert search.n_failed == 0
     assert search.n_acting == 0
-    assert search.largest_change == {"u_max": 0.0}
+    assert search.seen_in["u_max"] == 0
     assert search.box["u_max"] == pytest.approx((0.7, 2.0), rel=1e-12)
     message = str(refused.value)
     assert "the outputs do not depend on u_max" in message
