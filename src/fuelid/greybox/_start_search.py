@@ -64,8 +64,11 @@ COARSE_RTOL = 1e-3
 reached: the same arithmetic runs) is 0 at any tolerance, and the costs only rank the starts."""
 REFINED_STARTS = 3
 """Starts refined by a short fit; the best of them by cost is where the fit starts."""
-REFINE_ITERATIONS = 10
+REFINE_ITERATIONS = 5
 """Iterations (Jacobians) of each refinement: enough to leave a poor basin, not to converge."""
+CHECK_BATCH = 4
+"""Starts whose sensitivities are checked at a time, in order of cost (a constant, not the
+number of workers: the search is the same on any machine)."""
 SEARCH_SECONDS = 120.0
 """Wall-clock bound of the search; where it cuts the search short, the report says so."""
 MAX_WORKERS = 8
@@ -88,16 +91,16 @@ class Probe:
     phi: FloatArray
     cost: float
     """Σ of the squared weighted residuals (inf: it could not be simulated)."""
-    unseen: tuple[str, ...]
-    """Free parameters whose sensitivity is exactly 0 here (all of them where it failed)."""
+    unseen: tuple[str, ...] | None
+    """Free parameters whose sensitivity is exactly 0 here (None: not checked)."""
     outputs: FloatArray
     """Each output's simulated (min, max) over the records, shape (n_y, 2) (NaN: failed)."""
     evaluations: int
     failure: str = ""
 
     def sees(self, names: Iterable[str]) -> bool:
-        """The sensitivities see every one of ``names`` here."""
-        return not self.failure and not set(names) & set(self.unseen)
+        """The sensitivities were checked here and see every one of ``names``."""
+        return self.unseen is not None and not set(names) & set(self.unseen)
 
 
 @dataclass(frozen=True)
@@ -130,12 +133,14 @@ class StartSearchReport:
     n_starts: int
     n_simulated: int
     n_failed: int
+    n_checked: int
+    """Starts whose sensitivities were checked (in order of cost, until enough qualified)."""
     n_acting: int
     """Starts where the sensitivities see every flat parameter."""
     n_qualified: int
     """Starts where they see every free parameter."""
     seen_in: dict[str, int]
-    """Per free parameter, the starts simulated whose sensitivities see it."""
+    """Per free parameter, the starts checked whose sensitivities see it."""
     outputs_range: dict[str, tuple[float, float]]
     """Each output's simulated range over every start simulated."""
     refined: tuple[RefinedStart, ...]
@@ -167,10 +172,11 @@ class StartSearchReport:
         best = next(r for r in self.refined if r.index == self.chosen)
         return (
             f"start search: start {self.chosen} of {self.n_starts}, refined to {shown}: "
-            f"{self._flat_words()}; in {self.n_acting} of {self.n_simulated} starts in the bounds "
-            f"{_act(self.flat)} (the sensitivities see {'it' if len(self.flat) == 1 else 'them'}),"
-            f" the best {len(self.refined)} of the {self.n_qualified} where every parameter does "
-            f"were refined and this one fitted best (weighted cost {best.cost:.4g}); "
+            f"{self._flat_words()}; of {self.n_starts} starts in the bounds the "
+            f"{self.n_checked} of lowest cost were checked, in {self.n_acting} {_act(self.flat)} "
+            f"(the sensitivities see {'it' if len(self.flat) == 1 else 'them'}), the best "
+            f"{len(self.refined)} where every parameter does were refined and this one fitted "
+            f"best (weighted cost {best.cost:.4g}); "
             f"{self._how()}"
         )
 
@@ -197,14 +203,13 @@ class StartSearchReport:
         if self.n_acting == 0:
             text = (
                 f"{head} found none where the outputs depend on {', '.join(self.flat)}: the "
-                f"sensitivities saw {seen} of the {self.n_simulated - self.n_failed} starts "
-                "simulated"
+                f"sensitivities saw {seen} of the {self.n_checked} starts checked"
             )
         elif self.n_qualified == 0:
             text = (
                 f"{head} found {self.n_acting} where {_act(self.flat)}, but none where the "
                 f"sensitivities the fit steers by see every parameter (they saw {seen} of the "
-                f"{self.n_simulated - self.n_failed} starts simulated)"
+                f"{self.n_checked} starts checked)"
             )
         else:
             moved = "; ".join(
@@ -229,6 +234,7 @@ class StartSearchReport:
             "n_starts": self.n_starts,
             "n_simulated": self.n_simulated,
             "n_failed": self.n_failed,
+            "n_checked": self.n_checked,
             "n_acting": self.n_acting,
             "n_qualified": self.n_qualified,
             "seen_in": dict(self.seen_in),
@@ -399,6 +405,7 @@ class StartSearch(ProfileLikelihood):
             n_starts=len(starts),
             n_simulated=len(run.probes),
             n_failed=len(run.probes) - len(simulated),
+            n_checked=sum(1 for probe in simulated if probe.unseen is not None),
             n_acting=sum(1 for probe in simulated if probe.sees(flat)),
             n_qualified=sum(1 for probe in simulated if probe.sees(self.free_names_)),
             seen_in={
@@ -443,20 +450,42 @@ class StartSearch(ProfileLikelihood):
         sigma: FloatArray,
         deadline: float,
     ) -> _SearchRun:
-        """Probe every start; refine the lowest-cost ones where the sensitivities see all."""
+        """Simulate every start; check the sensitivities in order of cost; refine the best.
+
+        A simulation with sensitivities costs several plain ones (more where a start is stiff),
+        so only the cheap plain simulation runs at every start, and the sensitivities at the
+        lowest-cost starts, CHECK_BATCH at a time, until REFINED_STARTS qualify (at every
+        start where none does: the refusal's evidence).
+        """
         with _Pool(self, len(starts), deadline) as pool:
             probes = pool.map(
                 "_probe_start", [(i + 1, start, records, sigma) for i, start in enumerate(starts)]
             )
             self._work[1] += sum(probe.evaluations for probe in probes)
-            qualified = sorted(
-                (probe for probe in probes if probe.sees(self.free_names_)),
+            ranked = sorted(
+                (probe for probe in probes if not probe.failure),
                 key=lambda probe: (probe.cost, probe.index),
-            )[:REFINED_STARTS]
+            )
+            checked: dict[int, Probe] = {}
+            for begin in range(0, len(ranked), CHECK_BATCH):
+                batch = ranked[begin : begin + CHECK_BATCH]
+                for probe, (unseen, spent) in zip(
+                    batch,
+                    pool.map("_coarse_unseen", [(p.phi, records, sigma) for p in batch]),
+                    strict=False,
+                ):
+                    self._work[1] += spent
+                    checked[probe.index] = replace(probe, unseen=unseen)
+                qualified = [p for p in checked.values() if p.sees(self.free_names_)]
+                if len(qualified) >= REFINED_STARTS or pool.truncated:
+                    break
+            qualified = [p for p in checked.values() if p.sees(self.free_names_)]
             refined = pool.map(
-                "_coarse_refine", [(p.index, p.phi, records, sigma) for p in qualified]
+                "_coarse_refine",
+                [(p.index, p.phi, records, sigma) for p in qualified[:REFINED_STARTS]],
             )
             self._work[1] += sum(r.evaluations for r in refined)
+            probes = [checked.get(probe.index, probe) for probe in probes]
             return _SearchRun(probes, refined, pool.workers, pool.serial_reason, pool.truncated)
 
     def _with_search_evidence(self, refusal: NotIdentifiableError) -> NotIdentifiableError:
@@ -471,18 +500,18 @@ class StartSearch(ProfileLikelihood):
     def _probe_start(
         self, index: int, phi: FloatArray, records: Sequence[Record], sigma: FloatArray
     ) -> Probe:
-        """One start simulated coarsely with its sensitivities (what a worker runs)."""
+        """One start simulated coarsely, without sensitivities (what a worker runs)."""
         spent = self._work[1]
         try:
             with self._coarse():
-                evaluation = self._evaluate(phi, records, sigma, jacobian=True)
+                evaluation = self._evaluate(phi, records, sigma, jacobian=False)
         except (SimulationError, FloatingPointError, OverflowError) as exc:
             n_y = len(self.model.output_names)
             return Probe(
                 index,
                 phi,
                 math.inf,
-                tuple(self.free_names_),
+                None,
                 np.full((n_y, 2), np.nan),
                 self._work[1] - spent,
                 str(exc) or type(exc).__name__,
@@ -492,10 +521,25 @@ class StartSearch(ProfileLikelihood):
             index,
             phi,
             float(evaluation.residuals @ evaluation.residuals),
-            self._unseen(phi, evaluation),
+            None,
             np.column_stack([np.nanmin(outputs, axis=0), np.nanmax(outputs, axis=0)]),
             self._work[1] - spent,
         )
+
+    def _coarse_unseen(
+        self, phi: FloatArray, records: Sequence[Record], sigma: FloatArray
+    ) -> tuple[tuple[str, ...], int]:
+        """The free parameters whose sensitivity vanishes at φ (coarse), and the work it took.
+
+        A start whose simulation with sensitivities fails sees none of them.
+        """
+        spent = self._work[1]
+        try:
+            with self._coarse():
+                evaluation = self._evaluate(phi, records, sigma, jacobian=True)
+        except (SimulationError, FloatingPointError, OverflowError):
+            return tuple(self.free_names_), self._work[1] - spent
+        return self._unseen(phi, evaluation), self._work[1] - spent
 
     def _unseen(self, phi: FloatArray, evaluation: Evaluation) -> tuple[str, ...]:
         report, _ = self._structural(phi, evaluation)

@@ -96,6 +96,8 @@ def test_a_limit_no_start_in_the_bounds_reaches_is_refused_with_the_evidence() -
     assert search.chosen is None
     assert search.n_starts == search.n_simulated == SEARCH_STARTS
     assert search.n_failed == 0
+    # none qualifies, so every start's sensitivities were checked: u_max's was 0 at each
+    assert search.n_checked == SEARCH_STARTS
     assert search.n_acting == 0
     assert search.seen_in["u_max"] == 0
     assert search.box["u_max"] == pytest.approx((0.7, 2.0), rel=1e-12)
