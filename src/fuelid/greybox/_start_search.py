@@ -207,7 +207,8 @@ class StartSearchReport:
             )
         elif self.n_qualified == 0:
             text = (
-                f"{head} found {self.n_acting} where {_act(self.flat)}, but none where the "
+                f"{head}: of the {self.n_checked} checked, {_act(self.flat)} in {self.n_acting}, "
+                "but in none do the "
                 f"sensitivities the fit steers by see every parameter (they saw {seen} of the "
                 f"{self.n_checked} starts checked)"
             )
@@ -220,7 +221,8 @@ class StartSearchReport:
                 for r in self.refined
             )
             text = (
-                f"{head} found {self.n_acting} where {_act(self.flat)}, but the fit from "
+                f"{head}: of the {self.n_checked} of lowest cost checked, {_act(self.flat)} in "
+                f"{self.n_acting}, but the fit from "
                 f"each of the best {len(self.refined)} moved a parameter to where the outputs do "
                 f"not depend on it ({moved}): the records do not determine it"
             )
