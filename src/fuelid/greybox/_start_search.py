@@ -111,7 +111,8 @@ class RefinedStart:
     phi: FloatArray
     cost: float
     lost: tuple[str, ...]
-    """Free parameters the outputs do not depend on where the refinement ended."""
+    """Free parameters without sensitivity where the refinement ended, and flat ones at the edge
+    of their flat spot there (a ±10 % step moves the outputs one way only)."""
     values: dict[str, float]
     evaluations: int
     failure: str = ""
@@ -217,14 +218,16 @@ class StartSearchReport:
                 f"start {r.index}: {r.failure}"
                 if r.failure
                 else f"start {r.index}: "
-                + ", ".join(f"{n} → {r.values[n]:.4g}" for n in r.lost if n in r.values)
-                for r in self.refined
+                + (", ".join(f"{n} → {r.values[n]:.4g}" for n in r.lost) or "none lost")
+                + f", weighted cost {r.cost:.4g}"
+                for r in sorted(self.refined, key=lambda r: (r.cost, r.index))
             )
             text = (
                 f"{head}: of the {self.n_checked} of lowest cost checked, {_act(self.flat)} in "
-                f"{self.n_acting}, but the fit from "
-                f"each of the best {len(self.refined)} moved a parameter to where the outputs do "
-                f"not depend on it ({moved}): the records do not determine it"
+                f"{self.n_acting}, but the fit from the best of the {len(self.refined)} refined "
+                "moved a parameter to where the outputs do not depend on it, or follow a ±10 % "
+                f"step of it one way only, the edge of what the records reach ({moved}): the "
+                "records do not determine it"
             )
         return f"{text}; {self._how()}"
 
@@ -283,6 +286,12 @@ def _sides(name: str, pair: tuple[float, float]) -> str:
     return f"{name} {up:.3g} up, {down:.3g} down"
 
 
+def _one_way(sides: tuple[float, float]) -> bool:
+    """A step moves the outputs one way and not the other: the edge of a flat spot."""
+    changes = [0.0 if math.isnan(c) else c for c in sides]
+    return min(changes) <= CHI2_95 < max(changes)
+
+
 def _act(names: Iterable[str]) -> str:
     """``c acts``, ``c, d act``."""
     listed = list(names)
@@ -304,9 +313,16 @@ class _SearchRun:
     truncated: bool
 
     def best(self) -> RefinedStart | None:
-        """The refined start of lowest cost where the sensitivities see every parameter."""
-        kept = [r for r in self.refined if not r.lost and not r.failure]
-        return min(kept, key=lambda r: (r.cost, r.index)) if kept else None
+        """The refined start of lowest cost, if the sensitivities see every parameter there.
+
+        Where the one that fits best lost a parameter, the fit would go where it went: a start
+        that kept it only because its short fit had not got as far is no answer.
+        """
+        fitted = [r for r in self.refined if not r.failure]
+        if not fitted:
+            return None
+        best = min(fitted, key=lambda r: (r.cost, r.index))
+        return None if best.lost else best
 
 
 class _Pool:
@@ -396,7 +412,7 @@ class StartSearch(ProfileLikelihood):
             return phi, start
         box, held = self._search_box(phi)
         starts = self._sobol_starts(phi, box, records)
-        run = self._run_search(starts, records, sigma, began + SEARCH_SECONDS)
+        run = self._run_search(starts, list(flat), records, sigma, began + SEARCH_SECONDS)
         best = run.best()
         simulated = [probe for probe in run.probes if not probe.failure]
         self.start_search_ = StartSearchReport(
@@ -448,6 +464,7 @@ class StartSearch(ProfileLikelihood):
     def _run_search(
         self,
         starts: Sequence[FloatArray],
+        flat: Sequence[str],
         records: Sequence[Record],
         sigma: FloatArray,
         deadline: float,
@@ -484,7 +501,7 @@ class StartSearch(ProfileLikelihood):
             qualified = [p for p in checked.values() if p.sees(self.free_names_)]
             refined = pool.map(
                 "_coarse_refine",
-                [(p.index, p.phi, records, sigma) for p in qualified[:REFINED_STARTS]],
+                [(p.index, p.phi, flat, records, sigma) for p in qualified[:REFINED_STARTS]],
             )
             self._work[1] += sum(r.evaluations for r in refined)
             probes = [checked.get(probe.index, probe) for probe in probes]
@@ -578,13 +595,20 @@ class StartSearch(ProfileLikelihood):
         return sides[0], sides[1]
 
     def _coarse_refine(
-        self, index: int, phi: FloatArray, records: Sequence[Record], sigma: FloatArray
+        self,
+        index: int,
+        phi: FloatArray,
+        flat: Sequence[str],
+        records: Sequence[Record],
+        sigma: FloatArray,
     ) -> RefinedStart:
         """A short coarse fit from a start, and the parameters the outputs stopped following.
 
-        A parameter is lost where the fit ended when its sensitivity vanishes there: the fit
-        carried it to where the records do not reach (a limit moved past the records' levels),
-        where nothing brings it back.
+        A parameter is lost where the fit ended when its sensitivity vanishes there (the fit
+        carried it past the records' reach, where nothing brings it back), or, for one that was
+        flat at the given start, when it sits at the edge of that flat spot: a ±10 % step moves
+        the outputs one way only. A limit fitted to the records' extreme sample is such an
+        edge: the records bound it on one side and say nothing on the other.
         """
         spent = self._work[1]
         p = len(self.free_names_)
@@ -593,6 +617,13 @@ class StartSearch(ProfileLikelihood):
         try:
             with self._coarse():
                 fitted, _, evaluation = self._solve(phi, records, sigma)
+                unseen = self._unseen(fitted, evaluation)
+                edges = [
+                    name
+                    for name in flat
+                    if name not in unseen
+                    and _one_way(self._output_change(fitted, name, evaluation, records, sigma))
+                ]
         except (SimulationError, FloatingPointError, OverflowError) as exc:
             return RefinedStart(
                 index, phi, math.inf, (), {}, self._work[1] - spent, str(exc) or "failed"
@@ -603,7 +634,7 @@ class StartSearch(ProfileLikelihood):
             index,
             fitted,
             float(evaluation.residuals @ evaluation.residuals),
-            self._unseen(fitted, evaluation),
+            tuple(name for name in self.free_names_ if name in unseen or name in edges),
             self.map_.values(fitted[:p]),
             self._work[1] - spent,
         )
