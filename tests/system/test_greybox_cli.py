@@ -664,3 +664,23 @@ def test_a_wrong_fixed_value_is_warned_about_by_the_size_of_the_residuals(
     # single-shooting fit is kept and the start says so
     assert result["start"].startswith("single shooting (a segmented start ")
     assert "sample-to-sample noise" in err
+
+
+def test_an_undeclared_switch_is_named_before_the_fit_and_in_the_json(
+    tank_logs: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # the example with an `if` on the lower level that these logs never reach: the fit runs as
+    # before, and the if is named (file and line) on stderr and in the JSON's warnings
+    source = MODEL.read_text(encoding="utf-8").replace(
+        "    return [dx1, dx2]",
+        "    if x[1] > 100.0:  # never reached by these logs\n        dx2 = dx2 - 1.0\n"
+        "    return [dx1, dx2]",
+    )
+    model = tmp_path / "two_tanks_if.py"
+    model.write_text(source, encoding="utf-8")
+    line = source.splitlines().index("    if x[1] > 100.0:  # never reached by these logs") + 1
+    code, out, err = _run(capsys, str(model), str(tank_logs[0]), "--fix", "k4", "--json")
+    assert code == 0
+    named = f"{model} line {line}: f switches on the state (x[1] > 100.0)"
+    assert named in err
+    assert any(message.startswith(named) for message in json.loads(out)["warnings"])

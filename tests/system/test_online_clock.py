@@ -99,7 +99,9 @@ def test_an_accelerated_run_files_everything_in_plant_time_order(
     out = capsys.readouterr().out
     assert code == 0
     assert "service stopped (" in out
-    assert " ago)" in out
+    # the stop's wall age and the newest sample's plant time, each labelled (issue 39)
+    assert " ago in wall time; newest sample at " in out
+    assert " plant time)" in out
     assert "write_back auto (from the last service's settings)" in out
     code = main(["online", "history", "--store", str(db)])
     out = capsys.readouterr().out
@@ -157,4 +159,5 @@ def test_a_service_killed_with_sigkill_reads_stopped_within_five_beats_and_two(
     assert stopped["service"]["stopped"] is None  # killed: never wrote its stop
     assert stopped["service"]["state"] == "stopped"
     assert "no beat for" in stopped["link"]["text"]
+    assert " of wall time; newest sample at " in stopped["link"]["text"]
     assert json.dumps(stopped)  # plain JSON

@@ -150,6 +150,19 @@ class CentralHistory:
         )
         return window_row(rows[0]) if rows else None
 
+    def windows_of_models(self, model_ids: Sequence[int]) -> list[dict[str, Any]]:
+        """The first window naming each of ``model_ids``, by id (one per model, its index)."""
+        ids = sorted({int(i) for i in model_ids})
+        if not ids:
+            return []
+        rows = self.db.query(
+            f"SELECT {WINDOW_COLUMNS} FROM windows WHERE store_uuid = %s AND id IN "
+            "(SELECT min(id) FROM windows WHERE store_uuid = %s AND model_id = ANY(%s) "
+            "GROUP BY model_id) ORDER BY id",
+            (self.uuid, self.uuid, ids),
+        )
+        return [window_row(r) for r in rows]
+
     def last_window(self) -> dict[str, Any] | None:
         """The newest window; None when none."""
         rows = self.windows(limit=1)

@@ -281,6 +281,8 @@ def greybox_command(
     free_names = _names(free, "--free")
     values = _assignments(set_values)
     mf = read_model_file(model_file)
+    for message in mf.undeclared_switches:  # before the fit, which they may well end
+        warn(message)
     model = greybox_model(mf, fixed_names, free_names, values)
     specs = model.parameters
     profiled = _profiled(profile, [spec.name for spec in specs if not spec.fixed])
@@ -308,6 +310,7 @@ def greybox_command(
     warnings = fit_warnings(estimator) + _also_fitted(validate_file, data_files)
     for message in warnings:
         warn(message)
+    warnings = [*mf.undeclared_switches, *warnings]
     if plot is not None:
         _plot(estimator, records, validation, fitted.check, plot, model_file, list(inputs))
     profiles = fitted.profile if profiled else None

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import math
 import time as _time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -313,6 +314,12 @@ class CentralLoop:
         with self.db.reading():
             history, _, _ = self._views()
             return history.windows(limit=int(limit))
+
+    def windows_of_models(self, model_ids: Sequence[int]) -> list[dict[str, Any]]:
+        """The first window naming each of ``model_ids`` (one row per model), by id."""
+        with self.db.reading():
+            history, _, _ = self._views()
+            return history.windows_of_models(model_ids)
 
     def requests(self) -> list[dict[str, Any]]:
         """The site's requests as its last send told them, oldest first.

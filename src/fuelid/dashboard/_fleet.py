@@ -44,6 +44,20 @@ limits, IAE, mode: `LIVE_CHIPS`) turn unknown, "unknown since the stop at 08:15:
 the service chip stays an alarm. What the store still proves keeps its colour: the last write
 and the proposals.
 
+**A restarted service**: the same chips stay unknown until the service has judged a window
+since its start, "unknown since the restart at 08:25:10 CET: no window judged yet (last
+before: …)": until then the newest window (whose health they show) is the previous run's. The
+rule compares plant times, like with like: the newest window's analysis time (``last_window``
+``time``, the newest sample when it was judged) against the service record's
+``started_plant`` (the plant time of the running service's first sample, newer than every
+sample the store held at its start and than its newest window's analysis time; null until that
+sample is committed, and then no window was judged since either). So the window judged before
+the restart is always older; the restart's time shown is ``started_plant`` in the site's
+zone. The record's ``started`` is wall time, never compared with a plant time (an
+accelerated virtual PLC runs its plant clock hours ahead); only a record written before
+``started_plant`` existed is judged on its ``started`` against the window's ``wall_time``,
+the service host's two wall stamps.
+
 **Severity order** (``severity_key``): loops with an alarm first, then with a warning, then
 those with something unknown, then those with only something to know (a propose-only loop's
 waiting proposals, an out-of-date proposal, a drift not measurable yet), then the healthy ones;
@@ -64,6 +78,7 @@ from typing import Any
 
 from fuelid.dashboard._excitation_view import excitation_note
 from fuelid.dashboard._views import link_text, proposal_state, quiet_sample_age, stop_time_text
+from fuelid.io import format_time
 
 __all__ = [
     "AUTO_WARN",
@@ -93,7 +108,8 @@ CHIP_ORDER = (
 )
 """Ties within a level are broken by the first chip at that level in this order."""
 LIVE_CHIPS = ("oscillation", "drift", "limits", "IAE", "mode")
-"""Chips about the running loop: unknown while the service is stopped (module docstring)."""
+"""Chips about the running loop: unknown while the service is stopped, and after a restart until
+it judged a window (module docstring)."""
 AUTO_WARN = 0.9
 """A window with less than this share of its time in AUTO warns [0-1]."""
 LIMITS_WARN = 0.05
@@ -255,6 +271,52 @@ def _grey_when_stopped(chips: list[Chip], status: dict[str, Any]) -> list[Chip]:
     ]
 
 
+def _since_the_restart(status: dict[str, Any]) -> str | None:
+    """Why the live chips are unknown after a restart, or None once a window was judged since.
+
+    "unknown since the restart at …" while the running service has judged no window since its
+    start (the module docstring's rule).
+    """
+    service = status.get("service") or {}
+    window = status.get("last_window") or {}
+    if not service or not window:  # no restart, or nothing judged to grey
+        return None
+    if "started_plant" not in service:  # a record from before started_plant: its wall stamps
+        started, written = service.get("started"), window.get("wall_time")
+        if not isinstance(started, int | float) or not isinstance(written, int | float):
+            return None
+        return None if written >= started else "unknown since the restart"
+    start, judged = service.get("started_plant"), window.get("time")
+    if not isinstance(start, int | float):
+        return "unknown since the restart"  # no sample of its own yet: nothing judged since
+    if isinstance(judged, int | float) and judged >= start:
+        return None
+    return f"unknown since the restart at {_restart_time(status, float(start))}"
+
+
+def _restart_time(status: dict[str, Any], start: float) -> str:
+    """The restart's plant time in the site's zone, with its date when the run is a day old."""
+    text = format_time(start, status.get("timezone") or "UTC")
+    service = status.get("service") or {}
+    ran = (service.get("beat") or 0.0) - (service.get("started") or 0.0)
+    return text if ran >= 86_400.0 else text.split(" ", 1)[1]
+
+
+def _grey_after_restart(chips: list[Chip], status: dict[str, Any]) -> list[Chip]:
+    """The :data:`LIVE_CHIPS` unknown until a restarted service judged a window, last text kept."""
+    if (status.get("link") or {}).get("state") == "stopped":
+        return chips  # the stop's own words (_grey_when_stopped)
+    since = _since_the_restart(status)
+    if since is None:
+        return chips
+    return [
+        Chip(c.name, "unknown", f"{since}: no window judged yet (last before: {c.text})")
+        if c.name in LIVE_CHIPS
+        else c
+        for c in chips
+    ]
+
+
 def loop_chips(
     status: dict[str, Any], recent_iae: list[float], windows: Sequence[dict[str, Any]] = ()
 ) -> list[Chip]:
@@ -280,6 +342,7 @@ def loop_chips(
         _write_chip(status),
     ]
     chips = _grey_when_stopped(chips, status)
+    chips = _grey_after_restart(chips, status)
     return sorted(chips, key=lambda c: CHIP_ORDER.index(c.name))
 
 

@@ -6,7 +6,10 @@ whenever the stream says the store changed (``GET /loops/{id}/parts``): a part n
 something another part contradicts, and a refreshed page never differs from a reloaded one.
 
 Only bounded reads: the newest :data:`PART_WINDOWS` windows and :data:`PART_EVENTS` events,
-whatever the store holds (a year of windows is no slower to show than a day).
+whatever the store holds (a year of windows is no slower to show than a day), and the window of
+each proposal shown, looked up by its model (:func:`with_evidence`). The events table shows the
+store's events and, among them in time order, people's decisions on proposals (approve, reject,
+revert, with who and why), read from the proposals' history: nothing more is stored.
 """
 
 from __future__ import annotations
@@ -19,16 +22,27 @@ from fuelid.dashboard._source import LoopReader
 from fuelid.dashboard._views import (
     READ_BACK_RTOL,
     central_waiting,
+    decided_views,
+    decision_events,
     gains_agree,
     gains_in_force,
-    last_written_view,
     link_text,
     now_rows,
     proposal_views,
     write_back_of,
+    write_back_text,
 )
 
-__all__ = ["PARTS", "PART_EVENTS", "PART_WINDOWS", "link_bands", "loop_context", "revert_offer"]
+__all__ = [
+    "PARTS",
+    "PART_EVENTS",
+    "PART_WINDOWS",
+    "events_table",
+    "link_bands",
+    "loop_context",
+    "revert_offer",
+    "with_evidence",
+]
 
 PART_WINDOWS = 30
 """Windows in the page's table (the newest)."""
@@ -75,9 +89,62 @@ def revert_offer(
     return True, good, ""
 
 
-def _approve_effect(write_back: str | None) -> str:
-    if write_back == "off":
+def with_evidence(
+    loop: LoopReader, windows: list[dict[str, Any]], proposals: list[dict[str, Any]]
+) -> list[dict[str, Any]]:
+    """``windows`` and the window of each proposal's model that is not among them.
+
+    Looked up by model id (one bounded read, a row per proposal at most): a card's evidence
+    row and its age rule do not depend on how many windows came since it was filed.
+    """
+    have = {w.get("model_id") for w in windows}
+    wanted = {
+        int(p["model_id"])
+        for p in proposals
+        if p.get("model_id") is not None and p["model_id"] not in have
+    }
+    return [*windows, *loop.windows_of_models(sorted(wanted))] if wanted else windows
+
+
+def events_table(
+    events: list[dict[str, Any]], decisions: list[dict[str, Any]]
+) -> list[dict[str, Any]]:
+    """The events table's rows, newest first: the store's events and people's decisions.
+
+    Both oldest first; merged in time order, the newest :data:`PART_EVENTS` kept.
+
+    >>> events_table([{"time": 1.0, "kind": "restart"}], [{"time": 2.0, "kind": "proposal"}])
+    [{'time': 2.0, 'kind': 'proposal'}, {'time': 1.0, 'kind': 'restart'}]
+    """
+    merged = sorted([*events, *decisions], key=lambda row: float(row.get("time") or 0.0))
+    return list(reversed(merged[-PART_EVENTS:]))
+
+
+def _proposal_cards(
+    loop: LoopReader,
+    status: dict[str, Any],
+    history: dict[str, Any],
+    windows: list[dict[str, Any]],
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """The open proposals' cards and the recently decided ones', their windows looked up."""
+    shown = [p["id"] for p in status.get("pending_proposals") or []]
+    decided = decided_views(status, history, windows, shown)
+    evidence = with_evidence(loop, windows, [*(status.get("pending_proposals") or []), *decided])
+    return (
+        proposal_views(status, evidence, history["writes"]),
+        decided_views(status, history, evidence, shown),
+    )
+
+
+def _approve_effect(status: dict[str, Any]) -> str:
+    """What an approval leads to, as true now (a stopped service writes nothing until it runs)."""
+    if write_back_of(status) == "off":
         return 'write-back is "off": recorded, nothing is written'
+    if (status.get("link") or {}).get("state") == "stopped":
+        return (
+            "the service is stopped: written when it runs again, at its first write check, "
+            "verified by the PLC's echo"
+        )
     return "the service writes it at its next write check, verified by the PLC's echo"
 
 
@@ -97,6 +164,7 @@ def loop_context(loop: LoopReader, *, engineer: bool) -> dict[str, Any]:
     gains = gains_in_force(status, history["writes"])
     can_revert, last_good, no_revert = revert_offer(status, write_back, gains)
     events = loop.recent_events(BAND_EVENTS)
+    proposals, decided = _proposal_cards(loop, status, history, windows)
     newest = (status.get("link") or {}).get("newest_sample")
     return {
         "tz": tz,
@@ -105,10 +173,11 @@ def loop_context(loop: LoopReader, *, engineer: bool) -> dict[str, Any]:
         "engineer": engineer,
         "units": {"Kc": units.get("Kc", ""), "Ti": units.get("Ti", "")},
         "ms_target": settings.get("ms_target", "the site's ms_target"),
-        "write_back_text": f"Write-back: {write_back or 'unknown'}.",
-        "approve_effect": _approve_effect(write_back),
-        "proposals": proposal_views(status, windows, history["writes"]),
-        "written": [w for w in [last_written_view(status, history, windows)] if w is not None],
+        "write_back_text": write_back_text(status),
+        "approve_effect": _approve_effect(status),
+        "proposals": proposals,
+        # the proposals decided last, newest first: what people decided stays on the page
+        "decided": decided,
         "held_text": held_line(status.get("held_proposal")),
         "gains": {"Kc": gains["Kc"], "Ti": gains["Ti"]},
         "gains_source": gains["text"],
@@ -123,7 +192,8 @@ def loop_context(loop: LoopReader, *, engineer: bool) -> dict[str, Any]:
         ),
         "windows": [window_json(row) for row in reversed(windows)],
         "window_count": (status.get("counts") or {}).get("windows", len(windows)),
-        "events": list(reversed(events[-PART_EVENTS:])),
+        # the store's events and people's decisions on proposals (read from the proposals)
+        "events": events_table(events, decision_events(history)),
         "link_bands": link_bands(events, newest),
         # a proposal with a central request waiting: said on it, its buttons disabled
         "waiting": (

@@ -22,6 +22,7 @@ L/min, the command in V, fuel temperature in °C, the gains in the PLC block's u
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
@@ -149,6 +150,13 @@ class LoopReader(Protocol):
         """The newest ``limit`` windows' stored rows (``detail`` parsed), oldest first."""
         ...
 
+    def windows_of_models(self, model_ids: Sequence[int]) -> list[dict[str, Any]]:
+        """The first stored window naming each of ``model_ids`` (a proposal's evidence), by id.
+
+        One bounded read (one row per model at most) however many windows came since.
+        """
+        ...
+
     def requests(self) -> list[dict[str, Any]]:
         """The requests people filed (approve, reject, revert), oldest first."""
         ...
@@ -259,6 +267,10 @@ class SQLiteLoop:
     def recent_windows(self, limit: int) -> list[dict[str, Any]]:
         """The newest ``limit`` windows' stored rows (``detail`` parsed), oldest first."""
         return self.online.windows(limit=int(limit))
+
+    def windows_of_models(self, model_ids: Sequence[int]) -> list[dict[str, Any]]:
+        """The first window naming each of ``model_ids`` (its index on ``model_id``), by id."""
+        return self.online.windows_of_models(model_ids)
 
     def requests(self) -> list[dict[str, Any]]:
         """The requests people filed (approve, reject, revert), oldest first."""

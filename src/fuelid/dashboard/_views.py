@@ -22,6 +22,15 @@ chip and the loop page's cards), from its stored status and the service's own ru
 The chip counts the waiting and approved ones; out-of-date ones are said ("1 out of date, not
 written") at level info, never as a warning: nothing waits for anyone.
 
+**Decided proposals** (``decided_views``): the newest :data:`DECIDED_CARDS` (3) proposals no one
+has to act on (being written, written, reverted, failed, rejected, superseded), newest first,
+and the last one sent to the PLC when it is older, each once, stay on the page as cards. Each
+says who approved it and why, then what became of it with who and why ("approved at T by ana:
+why; written and verified at T, reverted at T by bob: why", "rejected at T by ana: why",
+"superseded at T by service: why"), plant times in the site's zone. People's approvals,
+rejections and reverts are also rows of the events table (``decision_events``, kind
+"proposal"), read from the proposals' history: nothing more is stored.
+
 **The gains in force** (``gains_in_force``), the first of:
 
 1. the PLC's own kc and ti tags as the recorder last read them (the status' ``plc_gains``, when
@@ -31,14 +40,25 @@ written") at level info, never as a warning: nothing waits for anyone.
    explains, and the text says so. A reading older than the write that disagrees has not seen
    it yet: the PLC's echo of the write's apply number is its newer word, so 2. applies;
 2. the last write of gains the PLC's echo verified (a revert's included: a reverted proposal's
-   gains are never shown as current), said "last verified write #n at …" (and, when the tags
-   were last read before it, that they do not show it yet);
+   gains are never shown as current), said "last verified write #n: issued at …, verified at
+   …" (and, when the tags were last read before it, that they do not show it yet);
 3. the gains the service found in the PLC when it filed its newest open proposal;
 4. the site file's ``[controller]`` kc and ti ("as commissioned");
 5. else not known.
 
 A card's "from" gains are these, not the gains the proposal was filed against (kept as
 ``filed_old``).
+
+**A stopped service** (link state "stopped") does nothing, so what it would do is said as of
+its last run (``write_back_text``): "Write-back: approve when the service last ran (stopped at
+08:15:03 CET); nothing is written while it is stopped." (the time: the newest sample's, plant
+time in the site's zone, as on the chips), in the "Now" table too; an out-of-date proposal's
+reason promises new windows "when the service runs again"
+(``fuelid.online._context.stale_while_stopped``).
+
+**A write's times** (``fuelid.online.write_times_text``, the same words as ``fuelid online
+status`` and ``history``): "issued at 2026-11-27 08:15:03 CET, verified at 08:15:07 CET", the
+write's intent and the PLC's echo, both plant time in the site's zone.
 
 **A fresh sample** (``FRESH_SAMPLE_S``, 5 s of wall time, or three sampling periods when
 longer): the link is said "up" only while the newest sample is younger than the bound; past it
@@ -56,9 +76,10 @@ from dataclasses import dataclass
 from typing import Any
 
 from fuelid.io import format_age, format_time
-from fuelid.online import health_line
+from fuelid.online import health_line, stale_while_stopped, write_times_text
 
 __all__ = [
+    "DECIDED_CARDS",
     "FRESH_PERIODS",
     "FRESH_SAMPLE_S",
     "PROPOSAL_STATES",
@@ -66,6 +87,8 @@ __all__ = [
     "STATE_LABELS",
     "ProposalState",
     "central_waiting",
+    "decided_views",
+    "decision_events",
     "fmt_num",
     "fresh_bound_s",
     "gains_agree",
@@ -81,6 +104,8 @@ __all__ = [
     "quiet_sample_age",
     "stop_time_text",
     "write_back_of",
+    "write_back_state",
+    "write_back_text",
 ]
 
 FRESH_SAMPLE_S = 5.0
@@ -143,6 +168,14 @@ _CLOSED_LEVEL = {
     "superseded": "ok",
 }
 """The chip level of a proposal no one has to act on (the "last write" chip carries failures)."""
+DECIDED_CARDS = 3
+"""Decided proposals the loop page keeps as cards, the newest (:func:`decided_views`)."""
+_SENT = ("writing", "applied", "reverted", "failed")
+"""The stored statuses of a proposal sent to the PLC."""
+_DECIDED = (*_SENT, "rejected", "superseded")
+"""The stored statuses of a proposal no one has to act on."""
+_PERSON_STEPS = ("approved", "rejected", "reverted")
+"""The steps of a proposal's history a person takes (the events table shows them)."""
 
 
 @dataclass(frozen=True)
@@ -249,6 +282,33 @@ def fmt_num(value: Any, digits: int = 4) -> str:
 def write_back_of(status: dict[str, Any]) -> str | None:
     """The write-back setting in force (``status`` already takes the running service's)."""
     return (status.get("write_back") or {}).get("setting")
+
+
+def write_back_state(status: dict[str, Any]) -> str:
+    """The write-back setting as true now: while the service is stopped, as of its last run.
+
+    >>> write_back_state({"write_back": {"setting": "approve"}, "link": {"state": "up"}})
+    'approve'
+    >>> write_back_state({"write_back": {"setting": "approve"},
+    ...                   "link": {"state": "stopped", "service": "stopped",
+    ...                            "newest_sample": 1_795_767_303.4, "beat_age_s": 12.0}})[:59]
+    'approve when the service last ran (stopped at 08:15:03 UTC)'
+    """
+    setting = write_back_of(status) or "unknown"
+    link = status.get("link") or {}
+    if link.get("state") != "stopped":
+        return setting
+    if link.get("service") == "never started":
+        return f"{setting}; no service ran: nothing is written"
+    return (
+        f"{setting} when the service last ran (stopped at {stop_time_text(status)}); nothing is "
+        "written while it is stopped"
+    )
+
+
+def write_back_text(status: dict[str, Any]) -> str:
+    """The page's write-back line: "Write-back: approve." (:func:`write_back_state`)."""
+    return f"Write-back: {write_back_state(status)}."
 
 
 def fresh_bound_s(status: dict[str, Any]) -> float:
@@ -383,6 +443,16 @@ def proposal_stale(
     windows : sequence of dict
         Stored windows (``model_id``, ``t_to`` [plant s]), e.g. the recent ones.
     """
+    reason = _stale_reason(proposal, status, windows)
+    if (status.get("link") or {}).get("state") == "stopped":  # no new window while stopped
+        return stale_while_stopped(reason)
+    return reason
+
+
+def _stale_reason(
+    proposal: dict[str, Any], status: dict[str, Any], windows: Sequence[dict[str, Any]]
+) -> str | None:
+    """:func:`proposal_stale` as the service words it, running."""
     from fuelid.online import stale_reason
 
     if "stale" in proposal:  # the status' own answer (fuelid.online._requests.stale_of): one truth
@@ -409,9 +479,27 @@ def _entry(proposal: dict[str, Any], status: str) -> dict[str, Any]:
     return {}
 
 
+def _step_text(entry: dict[str, Any], verb: str, tz: str) -> str:
+    """A person's (or the service's) step: "approved at T by NAME: why", plant time in ``tz``."""
+    why = f": {entry['why']}" if entry.get("why") else ""
+    return f"{verb} at {format_time(entry.get('time'), tz)} by {entry.get('who', 'unknown')}{why}"
+
+
 def _closed_text(proposal: dict[str, Any], status: dict[str, Any]) -> str:
-    """What happened to a proposal no one has to act on, with plant times in the site's zone."""
+    """What happened to a proposal no one has to act on, with plant times in the site's zone.
+
+    Who approved it and why comes first when it was approved ("approved at T by ana: why; "),
+    then what became of it: "written and verified at T", "reverted at T by NAME: why",
+    "rejected at T by NAME: why", "superseded at T by service: why", the write failed.
+    """
     tz = status.get("timezone") or "UTC"
+    approval = _entry(proposal, "approved")
+    approved = f"{_step_text(approval, 'approved', tz)}; " if approval else ""
+    return approved + _outcome_text(proposal, status, tz)
+
+
+def _outcome_text(proposal: dict[str, Any], status: dict[str, Any], tz: str) -> str:
+    """What became of a closed (or in-flight) proposal, its step's who and why included."""
     kind = proposal.get("status")
     entry = _entry(proposal, str(kind))
     at = format_time(entry.get("time"), tz)
@@ -426,12 +514,10 @@ def _closed_text(proposal: dict[str, Any], status: dict[str, Any]) -> str:
     if kind == "applied":
         return written
     if kind == "reverted":
-        return f"{written}, reverted at {at} by {entry.get('who', 'unknown')}{why}"
+        return f"{written}, {_step_text(entry, 'reverted', tz)}"
     if kind == "failed":
         return f"not written: the write failed at {at}{why}"
-    if kind == "rejected":
-        return f"rejected at {at} by {entry.get('who', 'unknown')}{why}"
-    return f"{kind} at {at}{why}"
+    return _step_text(entry, str(kind), tz)  # rejected, superseded
 
 
 def proposal_state(
@@ -516,8 +602,7 @@ def _from_write(
     )
     if write is not None:
         what = f"write #{write['id']}" + (" (a revert)" if write.get("kind") == "revert" else "")
-        when = format_time(write.get("finished") or write.get("time"), tz)
-        text = f"last verified {what} at {when}{after}"
+        text = f"last verified {what}: {write_times_text(write, tz)}{after}"
         reading = status.get("plc_gains") or {}
         if reading.get("Kc") is not None and _read_before_write(reading, write):
             text += (
@@ -604,17 +689,17 @@ def gains_in_force(
     dict
         ``Kc``, ``Ti`` (None each when not known), ``source`` ("plc", "write", "proposal",
         "commissioning", "unknown"), ``text`` (where they come from, in words: "the PLC's kc
-        and ti tags as read at …", "last verified write #3 at 2026-11-27 08:15:03 CET", "as
-        commissioned …"), ``write_id`` (None unless a write) and ``units`` (``{"Kc", "Ti"}``:
-        the block's).
+        and ti tags as read at …", "last verified write #3: issued at 2026-11-27 08:15:02 CET,
+        verified at 08:15:03 CET", "as commissioned …"), ``write_id`` (None unless a write) and
+        ``units`` (``{"Kc", "Ti"}``: the block's).
 
     Examples
     --------
     >>> status = {"last_write": {"id": 4, "kind": "revert", "status": "verified", "Kc": 0.04,
     ...                          "Ti": 1.5, "time": 0.0, "finished": 0.0}}
     >>> force = gains_in_force(status)
-    >>> force["Kc"], force["Ti"], force["text"]
-    (0.04, 1.5, 'last verified write #4 (a revert) at 1970-01-01 00:00:00 UTC')
+    >>> force["Kc"], force["Ti"], force["text"][:58]
+    (0.04, 1.5, 'last verified write #4 (a revert): issued at 1970-01-01 00')
     >>> status["plc_gains"] = {"Kc": 0.04, "Ti": 1.5, "time": 5.0}
     >>> gains_in_force(status)["text"]
     "the PLC's kc and ti tags as read at 1970-01-01 00:00:05 UTC"
@@ -746,6 +831,88 @@ def last_written_view(
     return _card(p, status, windows, p.get("old") or {}, "the gains before its write")
 
 
+def _decided_at(proposal: dict[str, Any]) -> tuple[float, int]:
+    """When a proposal took its status (the newest step that moved it there), and its id."""
+    return (_entry(proposal, str(proposal["status"])).get("time") or 0.0, int(proposal["id"]))
+
+
+def decided_views(
+    status: dict[str, Any],
+    history: dict[str, Any],
+    windows: Sequence[dict[str, Any]] = (),
+    shown: Sequence[Any] = (),
+    limit: int = DECIDED_CARDS,
+) -> list[dict[str, Any]]:
+    """The cards of the proposals decided last, newest first: what people decided stays shown.
+
+    The newest ``limit`` proposals no one has to act on (being written, written, reverted,
+    failed, rejected, superseded; by the time of the step that closed them), and the last one
+    sent to the PLC when it is older than those (a write stays on the page once it is made),
+    each once. Each card's ``state_text`` says who approved it and why, then what became of it
+    with who and why (:func:`proposal_state`), plant times in the site's zone; its ``from`` are
+    the gains it was filed against.
+
+    Parameters
+    ----------
+    status : dict
+        The loop's status (the time zone, the link's state).
+    history : dict
+        The loop's history (its ``proposals``, with their ``history``).
+    windows : sequence of dict
+        Stored windows, for the evidence link.
+    shown : sequence of int
+        Ids already shown as open cards (a status read a moment before the history): left out.
+    limit : int
+        How many of the newest decided proposals.
+    """
+    skip = {int(pid) for pid in shown}
+    closed = sorted(
+        (
+            p
+            for p in history.get("proposals") or []
+            if p.get("status") in _DECIDED and int(p["id"]) not in skip
+        ),
+        key=_decided_at,
+        reverse=True,
+    )
+    picked = closed[: max(int(limit), 0)]
+    sent = next((p for p in closed if p.get("status") in _SENT), None)
+    if sent is not None and all(p["id"] != sent["id"] for p in picked):
+        picked.append(sent)  # older than the newest decided ones: the last write stays
+    return [
+        _card(p, status, windows, p.get("old") or {}, "the gains it was filed against")
+        for p in picked
+    ]
+
+
+def _is_service(who: Any) -> bool:
+    """True for the service's own steps ("service", "online", "service (write_back = auto)")."""
+    name = str(who or "")
+    return name in ("service", "online") or name.startswith("service ")
+
+
+def decision_events(history: dict[str, Any]) -> list[dict[str, Any]]:
+    """People's decisions on proposals as rows of the events table, oldest first.
+
+    Each approval, rejection and revert a person made (the proposals' history entries whose
+    ``who`` is not the service): ``time`` [plant s], ``kind`` "proposal", ``detail`` ("#4
+    rejected by ana: not before the run"). Read from the proposals, not stored as events.
+
+    >>> decision_events({"proposals": [{"id": 4, "history": [
+    ...     {"time": 5.0, "status": "rejected", "who": "ana", "why": "not now"}]}]})
+    [{'time': 5.0, 'kind': 'proposal', 'detail': '#4 rejected by ana: not now'}]
+    """
+    rows = []
+    for proposal in history.get("proposals") or []:
+        for step in proposal.get("history") or []:
+            if step.get("status") not in _PERSON_STEPS or _is_service(step.get("who")):
+                continue
+            why = f": {step['why']}" if step.get("why") else ""
+            detail = f"#{proposal['id']} {step['status']} by {step.get('who')}{why}"
+            rows.append({"time": step.get("time"), "kind": "proposal", "detail": detail})
+    return sorted(rows, key=lambda row: float(row["time"] or 0.0))
+
+
 def now_rows(status: dict[str, Any], tz: str) -> list[tuple[str, str]]:
     """The "Now" table: the model, K(T), health, write-back, counts."""
     rows: list[tuple[str, str]] = []
@@ -785,15 +952,15 @@ def now_rows(status: dict[str, Any], tz: str) -> list[tuple[str, str]]:
     rows.append(
         (
             "write-back",
-            f"{write_back_of(status) or 'unknown'}; gains in force Kc {fmt_num(force['Kc'])} "
+            f"{write_back_state(status)}; gains in force Kc {fmt_num(force['Kc'])} "
             f"{units['Kc'] or ''}, Ti {fmt_num(force['Ti'])} {units['Ti'] or ''} "
             f"({force['text']})",
         )
     )
     last = status.get("last_write")
     if last:
-        when = format_time(last["time"], tz)
-        rows.append(("last write", f"#{last['id']} {last['kind']} {last['status']} at {when}"))
+        times = write_times_text(last, tz)
+        rows.append(("last write", f"#{last['id']} {last['kind']} {last['status']}: {times}"))
     else:
         rows.append(("last write", "none"))
     counts = status.get("counts") or {}

@@ -79,7 +79,11 @@ PREFETCH_MAX = CACHED_REPORTS // 2
 """Windows made ahead in all, the newest of every loop first: half the cache, the other half
 left to the windows opened on request."""
 CACHED_PLANTS = 4
-"""Plants whose linearisations are kept (one per plant file, a few hundred kB each)."""
+"""Plants whose linearisations are kept (one per plant file)."""
+CACHED_CASES = 2048
+"""Linearisations kept per plant (about 4 kB each in memory): each window's report adds a few,
+at its own fuel temperature and command, so a dashboard left open for months would otherwise
+grow by them without end; the oldest go first."""
 SAME_GAINS = 0.01
 """Gains within this of each other (relative, Kc and Ti each) are the same gains [-]."""
 
@@ -185,6 +189,7 @@ def _linearisations(plant_key: str, folder: Path | None = None) -> CaseCache:
         while len(_plant_caches) > CACHED_PLANTS:
             _plant_caches.popitem(last=False)
         cache = _plant_caches[plant_key]
+        _drop_oldest(cache, CACHED_CASES)
         unread = folder is not None and (folder, plant_key) not in _plant_read
         if folder is not None:
             _plant_read.setdefault((folder, plant_key), 0)
@@ -196,6 +201,18 @@ def _linearisations(plant_key: str, folder: Path | None = None) -> CaseCache:
             with _lock:
                 _plant_read[(folder, plant_key)] = len(kept)
     return cache
+
+
+def _drop_oldest(cache: CaseCache, keep: int) -> None:
+    """Drop the oldest entries of ``cache`` (a dict keeps insertion order) beyond ``keep``.
+
+    >>> cache = {(float(i), 1.0): i for i in range(5)}
+    >>> _drop_oldest(cache, 2)  # type: ignore[arg-type]
+    >>> sorted(cache)
+    [(3.0, 1.0), (4.0, 1.0)]
+    """
+    for case in list(cache)[: max(len(cache) - keep, 0)]:
+        cache.pop(case, None)
 
 
 def _are_linearisations(kept: Any) -> TypeGuard[CaseCache]:

@@ -5,7 +5,8 @@ integrates it with its forward sensitivities, fits one or several records at onc
 the data determine (:func:`identifiability`, :class:`IdentifiabilityReport`).
 
 A model is an :class:`OdeModel` (or any :class:`GreyBoxModel`), its parameters
-:class:`ParameterSpec`, its data one or several :class:`Record`. The estimator,
+:class:`ParameterSpec`, its declared switches :class:`Switch` (located as solver events, the
+sensitivities jumping there), its data one or several :class:`Record`. The estimator,
 :class:`GreyBoxEstimator`, fits by single shooting (the least-squares driver and the
 covariance; :class:`ConvergenceError` when it does not converge), retried from a segmented
 start (multiple shooting) for long records and local minima, and judges identifiability at the
@@ -35,6 +36,7 @@ from fuelid.greybox._odemodel import OdeModel
 from fuelid.greybox._parameters import ParameterSpec, parameter_specs
 from fuelid.greybox._profile import LINEARITY_LIMIT
 from fuelid.greybox._solver_choice import check_request
+from fuelid.greybox._switching import Switch
 from fuelid.greybox._system import GreyBoxModel, OdeSystem, Record
 
 __all__ = [
@@ -50,6 +52,7 @@ __all__ = [
     "OdeSystem",
     "ParameterSpec",
     "Record",
+    "Switch",
     "check_request",
     "correlation_warning",
     "describe_identifiability",

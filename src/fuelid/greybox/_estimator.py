@@ -56,11 +56,11 @@ from fuelid.greybox._multiple_shooting import (
 from fuelid.greybox._parameters import ParameterMap
 from fuelid.greybox._profile import CHI2_95, PROFILE_DOUBLINGS, ProfileLikelihood
 from fuelid.greybox._sensitivity import Trajectory, simulate_record
-from fuelid.greybox._solver_choice import check_request, choose_solver
+from fuelid.greybox._solver_choice import SolverChoice, check_request, choose_solver, fall_back
 from fuelid.greybox._solver_fit import SolverChecks
 from fuelid.greybox._solvers import SimulationError, Solver
 from fuelid.greybox._start_search import StartSearch
-from fuelid.greybox._system import GreyBoxModel, Record
+from fuelid.greybox._system import GreyBoxModel, OdeSystem, Record
 from fuelid.model import nrmse_fit_columns
 from fuelid.params import Params
 
@@ -364,7 +364,10 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, StartSearch, Profil
         self.start_ = "single shooting"
         if self.segments not in (None, "auto"):
             phi = self._segmented_start(phi, records, sigma, evaluation, int(self.segments))
-            evaluation = self._evaluate(phi, records, sigma, jacobian=True)
+            # a point the fit reached: a solver failing there falls back, it does not end the fit
+            evaluation = self._evaluate_or_fall_back(
+                phi, records, sigma, "the segmented start's end"
+            )
         failure: ConvergenceError | None = None
         plain_work = self._work[1]
         try:
@@ -510,9 +513,42 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, StartSearch, Profil
             x0 = (
                 init[0] if init is not None else self.model.steady_state_guess(self.params_, record)
             )
-        return simulate_record(
-            system, record, np.asarray(x0, dtype=float), solver=self.solver_.solver
-        )
+        where = f"record {record.name}" if record.name else "a record it did not fit"
+        return self._simulate_or_fall_back(system, record, np.asarray(x0, dtype=float), None, where)
+
+    def _simulate_or_fall_back(
+        self,
+        system: OdeSystem,
+        record: Record,
+        x0: FloatArray,
+        s0: FloatArray | None,
+        where: str,
+    ) -> Trajectory:
+        """A record the fit did not see, with the fit's solver or, where it fails, auto's next.
+
+        LSODA's "Excess work" at an undeclared switch on a validation record ends nothing:
+        auto's chain, with bounded work, and the solver's reason says so (a solver the user
+        chose is not replaced: its failure is raised).
+        """
+        try:
+            return simulate_record(system, record, x0, s0, solver=self.solver_.solver)
+        except SimulationError as exc:
+            choice = fall_back(
+                self.solver_,
+                exc,
+                lambda solver: [simulate_record(system, record, x0, solver=solver).outputs],
+                [record],
+                self.sigma_,
+                self.max_step,
+                where,
+            )
+        if choice.reason not in self.solver_.reason:
+            self.solver_ = SolverChoice(
+                self.solver_.solver,
+                self.solver_.requested,
+                "; ".join(text for text in (self.solver_.reason, choice.reason) if text),
+            )
+        return simulate_record(system, record, x0, s0, solver=choice.solver)
 
     def predict(self, record: Record) -> FloatArray:
         """Predicted outputs for a record (N × n_y).
@@ -539,10 +575,9 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, StartSearch, Profil
             key = x0.tobytes()
             if key not in last:
                 last.clear()
+                where = f"the head of record {record.name}" if record.name else "a record's head"
                 try:
-                    last[key] = simulate_record(
-                        system, head, x0, identity, solver=self.solver_.solver
-                    )
+                    last[key] = self._simulate_or_fall_back(system, head, x0, identity, where)
                 except SimulationError:
                     return None
             return last[key]

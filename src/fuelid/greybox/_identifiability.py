@@ -369,7 +369,8 @@ def structural_report(
         advice.append(
             f"yet the simulation does depend on {name} (a step of ±10 % moves the simulated "
             f"weighted cost by {rise:.3g}): a switch (an if on a state) hides it from the "
-            "sensitivities the fit steers by; write the switch as a kink (see the gray-box guide)"
+            "sensitivities the fit steers by; declare the switch (switches = [g]) or write it as a "
+            "kink (see the gray-box guide)"
         )
     return IdentifiabilityReport(
         report.names,

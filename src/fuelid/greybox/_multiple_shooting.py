@@ -84,7 +84,9 @@ class SegmentedStart(ShootingFit):
                 phi = self._segmented_start(phi, records, sigma, evaluation, count)
             finally:
                 self._work_limit = None
-            evaluation = self._evaluate(phi, records, sigma, jacobian=True)
+            evaluation = self._evaluate_or_fall_back(
+                phi, records, sigma, "the segmented start's end"
+            )
             second = self._single_shooting(phi, records, sigma, evaluation)
         except (ConvergenceError, SimulationError, FloatingPointError, OverflowError):
             if first is not None:

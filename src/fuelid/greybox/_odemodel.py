@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from fuelid.errors import ConfigError
 from fuelid.greybox._parameters import ParameterSpec
+from fuelid.greybox._switching import ModedRhs, Switch, switched_system
 from fuelid.greybox._system import Record
 
 FloatArray = NDArray[np.float64]
@@ -119,6 +120,11 @@ class FunctionSystem:
 
     def _perturbed_values(self, j: int) -> dict[str, float]:
         return self._perturbed[j]
+
+    def forget(self) -> None:
+        """Drop the Jacobians kept for the Newton matrix (a declared switch changed f's mode)."""
+        self._last = None
+        self._fused_at = None
 
     def _f(self, t: float, x: FloatArray, u: FloatArray, values: Mapping[str, Any]) -> FloatArray:
         # no np.errstate here: it costs a microsecond a call, and every caller (the simulation,
@@ -450,6 +456,10 @@ class OdeModel:
         One per output (default ``y1, y2, …``; ``y`` for one).
     state_scale : float
         Typical size of a state (finite-difference steps and tolerances scale with it).
+    switches : sequence of Switch, optional
+        Declared switches (:mod:`fuelid.greybox._switching`): ``f`` then takes a fifth argument,
+        ``on`` (switch name → True where its function is positive), and each switch is located
+        as a solver event, the sensitivities jumping there.
 
     Examples
     --------
@@ -472,7 +482,15 @@ class OdeModel:
         output_names: Sequence[str] | None = None,
         n_outputs: int = 1,
         state_scale: float = 1.0,
+        switches: Sequence[Switch] = (),
     ) -> None:
+        self.switches = tuple(switches)
+        self.moded_f: Callable[..., Any] | None = None
+        if self.switches:
+            # f(t, x, u, p, on): unbound (loading checks, steady state) it takes the modes from
+            # the signs of the switches at its own state; bound, from the events (bind)
+            self.moded_f = f
+            f = ModedRhs(f, self.switches, None, float(state_scale))
         self.f = f
         self.h = h if h is not None else _identity_output
         self.x0 = x0
@@ -494,6 +512,8 @@ class OdeModel:
         self, values: Mapping[str, float], free: Sequence[str], record: Record
     ) -> FunctionSystem:
         """The model at ``values`` (θ = the ``free`` ones) for ``record``."""
+        if self.switches:
+            return switched_system(self, values, free)
         return FunctionSystem(self, values, free)
 
     def steady_state_guess(self, values: Mapping[str, float], record: Record) -> FloatArray:

@@ -16,6 +16,7 @@ terms, which only speed the corrector up and do not change the solution).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,6 +24,7 @@ from numpy.typing import NDArray
 
 from fuelid.errors import FuelidError
 from fuelid.greybox._solvers import RTOL, Newton, Rhs, SimulationError, Solver, integrate_piece
+from fuelid.greybox._switching import UnlocatedSwitches, switched_integrator
 from fuelid.greybox._system import OdeSystem, Record
 
 __all__ = ["RTOL", "SimulationError", "Solver", "Trajectory", "input_changes", "simulate_record"]
@@ -124,6 +126,8 @@ def simulate_record(
         tolerance,
         atol,
         max_evaluations,
+        # a model with declared switches: solve_ivp from switch to switch, S jumping at each
+        switched_integrator(system, layout.n, layout.q, layout.scale) or integrate_piece,
     )
     z_at, evaluations = pieces.integrate(z0, t, u, eval_times)
     parts = _outputs_by_delay(system, layout, t, u, eval_times, inverse, distinct, z_at)
@@ -268,6 +272,7 @@ class _Pieces:
     tolerance: float | FloatArray
     atol: FloatArray
     max_evaluations: int | None
+    integrator: Callable[..., tuple[FloatArray, int]] = integrate_piece
 
     def integrate(
         self, z: FloatArray, t: FloatArray, u: FloatArray, eval_times: FloatArray
@@ -309,7 +314,7 @@ class _Pieces:
         """One piece from ``z`` at times[0] with ``u`` held; any failure a SimulationError."""
         t_start = times[0]
         try:
-            solution, used = integrate_piece(
+            solution, used = self.integrator(
                 self.solver,
                 self.rhs,
                 self.newton,
@@ -320,6 +325,8 @@ class _Pieces:
                 self.atol,
                 None if self.max_evaluations is None else self.max_evaluations - spent,
             )
+        except UnlocatedSwitches:
+            raise  # the method, not this piece: the solver choice says so as it is
         except SimulationError as exc:
             reason = _reason(exc, self.rhs, float(t_start), z, u)
             raise SimulationError(f"on {t_start:g}…{t_end:g} s {reason}") from None

@@ -42,6 +42,7 @@ from fuelid.greybox._solvers import (
     check_max_step,
     check_substeps,
 )
+from fuelid.greybox._switching import UnlocatedSwitches
 from fuelid.greybox._system import Record
 
 RK4_AGREEMENT = 0.05
@@ -165,6 +166,44 @@ def choose_solver(
     )
 
 
+def fall_back(
+    choice: SolverChoice,
+    failure: SimulationError,
+    simulate: Simulate,
+    records: Sequence[Record],
+    noise: FloatArray,
+    max_step: float | None,
+    where: str,
+) -> SolverChoice:
+    """The solver ``auto`` chooses where the fit's own solver failed (a validation record, say).
+
+    The chain of :func:`choose_solver` (LSODA, BDF, RK4 by doubling, each with bounded work)
+    without the solver that just failed; the reason says what failed where and what it fell
+    back to. A solver the user asked for is not replaced: its failure is raised again.
+
+    Raises
+    ------
+    SimulationError
+        When the user chose the solver, or no solver simulates the records.
+    """
+    if choice.requested != "auto":
+        raise failure
+
+    def others(solver: Solver) -> Sequence[FloatArray]:
+        if solver.method == choice.solver.method:
+            raise failure  # it just failed here: its trial proves nothing
+        return simulate(solver)
+
+    text = f"{choice.solver.method} failed at {where}: {_short(str(failure))}"
+    try:
+        fallback = choose_solver("auto", max_step, None, others, records, noise)
+    except SimulationError as exc:
+        raise SimulationError(f"{text}; no fallback solver simulates it ({exc})") from None
+    return SolverChoice(
+        fallback.solver, "auto", f"{text}; fell back to {fallback.solver.describe()}"
+    )
+
+
 def _model_failed(failure: str) -> bool:
     """Whether a solver's failure was the model's own (an exception in f, a NaN), not stiffness."""
     return any(mark in failure for mark in ("NaN or infinite", "(raised in f)", "model raised"))
@@ -183,7 +222,11 @@ def _rk4_by_doubling(
     """
     scale = np.asarray(noise, dtype=float)
     substeps = first
-    coarse = _outputs(simulate, Solver("rk4", max_step, substeps))
+    try:
+        coarse = _outputs(simulate, Solver("rk4", max_step, substeps))
+    except UnlocatedSwitches as exc:  # no number of steps helps: say so, not "too stiff"
+        tried = "; ".join(_short(text) for text in failures)
+        raise SimulationError((f"{tried}; " if tried else "") + str(exc)) from None
     differences: list[float] = []
     while substeps <= MAX_SUBSTEPS:
         fine = _outputs(simulate, Solver("rk4", max_step, 2 * substeps))
@@ -205,11 +248,11 @@ def _rk4_by_doubling(
         # halving the step only halves the difference: first order, the mark of a state held
         # at a switch (or at a kink so steep it acts as one), not of a smooth stiff mode
         remedy = (
-            "write a switch as a kink (max(level - rim, 0) times a coefficient: see the "
-            "gray-box guide)"
+            "declare a switch (switches = [g], see the gray-box guide) or write it as a kink "
+            "(max(level - rim, 0) times a coefficient)"
             if implicit_failed
-            else "use an implicit solver (--solver bdf or radau) for a steep kink, write a "
-            "switch as a kink (see the gray-box guide)"
+            else "use an implicit solver (--solver bdf or radau) for a steep kink, declare a "
+            "switch (switches = [g]) or write it as a kink (see the gray-box guide)"
         )
         reason = (
             f"rk4 converges only at first order here (with {MAX_SUBSTEPS} steps per sample it "
@@ -291,6 +334,8 @@ def _outputs(simulate: Simulate, solver: Solver) -> Sequence[FloatArray] | None:
     """The records' outputs with this solver, or None where it failed."""
     try:
         return simulate(solver)
+    except UnlocatedSwitches:
+        raise
     except SimulationError:
         return None
 

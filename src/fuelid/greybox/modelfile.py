@@ -18,6 +18,21 @@ The file is ordinary Python and is *executed* to read it (only load files you tr
     def x0(p, u0, y0):                               # optional: initial state (or a list
         ...                                          # of numbers, one per state)
 
+A model whose right-hand side jumps where a function of the state changes sign (a valve that
+opens above a level) declares that function, and ``f`` takes the switches' modes::
+
+    def above_rim(t, x, u, p):                       # the switch: on where it is > 0
+        return x[0] - RIM
+
+    switches = [above_rim]                           # or a dict name -> function
+
+    def f(t, x, u, p, on):                           # on["above_rim"]: True above the rim
+        ...
+
+Each switch is then located as a solver event and the sensitivities jump there
+(:mod:`fuelid.greybox._switching`). An ``if`` in ``f`` whose test reads the state, undeclared,
+is found by reading the file and named with its line (:attr:`ModelFile.undeclared_switches`).
+
 A parameter entry is a number (start, unbounded), a 2-tuple ``(start, lower)``, a 3-tuple
 ``(start, lower, upper)`` or a dict with ``value`` and optionally ``lower``, ``upper``, ``fixed``
 (and ``unit``, ``description``, shown but not used). ``state_scale`` (a typical state size) is
@@ -53,6 +68,8 @@ from fuelid.errors import ConfigError, FuelidError
 from fuelid.greybox._odemodel import OdeModel
 from fuelid.greybox._parameters import ParameterSpec
 from fuelid.greybox._solvers import CHOICES, SimulationError, check_max_step, check_substeps
+from fuelid.greybox._switch_declaration import declared_switches, undeclared_switches
+from fuelid.greybox._switching import Switch
 
 __all__ = [
     "ModelArithmeticError",
@@ -102,6 +119,9 @@ class ModelFile:
         ``max_step`` of the file [s].
     substeps : int or None
         ``substeps`` of the file (RK4 steps per sample).
+    undeclared_switches : tuple of str
+        One warning per ``if`` in ``f`` whose test reads the state, naming its line and the
+        choice (declare it as a switch, or smooth it at the cost the guide measured).
     """
 
     def __init__(
@@ -115,8 +135,10 @@ class ModelFile:
         solver: str | None = None,
         max_step: float | None = None,
         substeps: int | None = None,
+        undeclared_switches: tuple[str, ...] = (),
     ) -> None:
         self.path = path
+        self.undeclared_switches = undeclared_switches
         self.model = model
         self.input_names = input_names
         self.output_names = output_names
@@ -240,6 +262,7 @@ def read_model_file(path: str | Path) -> ModelFile:
             f"{at('state_scale')}: state_scale must be a positive number, got {state_scale!r}"
         )
     solver, max_step, substeps = _solver_settings(namespace, at)
+    switches = declared_switches(namespace.get("switches"), f, at)
     try:
         model = OdeModel(
             f=_located(f, file, shown, "f"),
@@ -250,11 +273,24 @@ def read_model_file(path: str | Path) -> ModelFile:
             output_names=outputs,
             n_outputs=1 if outputs is None else len(outputs),
             state_scale=float(state_scale),
+            switches=[
+                Switch(s.name, _located(s.function, file, shown, f"switch {s.name}"))
+                for s in switches
+            ],
         )
     except ConfigError as exc:
         raise ConfigError(f"{shown}: {exc}") from None
     return ModelFile(
-        file, model, inputs, outputs, units, x0 is not None, solver, max_step, substeps
+        file,
+        model,
+        inputs,
+        outputs,
+        units,
+        x0 is not None,
+        solver,
+        max_step,
+        substeps,
+        undeclared_switches(file, shown, f),
     )
 
 

@@ -27,7 +27,13 @@ import lazy_loader
 
 if TYPE_CHECKING:
     from fuelid.online._central_link import CentralLink, origin_of
-    from fuelid.online._context import RECENT_WINDOWS_SPAN, model_of, observation_of, stale_reason
+    from fuelid.online._context import (
+        RECENT_WINDOWS_SPAN,
+        model_of,
+        observation_of,
+        stale_reason,
+        stale_while_stopped,
+    )
     from fuelid.online._gains import Gains
     from fuelid.online._liveness import SERVICE_BEAT_S, SERVICE_STALE_S, link_json, plant_hash
     from fuelid.online._logs import (
@@ -46,6 +52,7 @@ if TYPE_CHECKING:
         proposal_json,
         status_json,
         window_json,
+        write_times_text,
     )
     from fuelid.online._requests import consume_requests, submit_request
     from fuelid.online._service import OnlineService
@@ -68,7 +75,13 @@ __getattr__ = lazy_loader.attach(
     __name__,
     submod_attrs={
         "_central_link": ["CentralLink", "origin_of"],
-        "_context": ["RECENT_WINDOWS_SPAN", "model_of", "observation_of", "stale_reason"],
+        "_context": [
+            "RECENT_WINDOWS_SPAN",
+            "model_of",
+            "observation_of",
+            "stale_reason",
+            "stale_while_stopped",
+        ],
         "_gains": ["Gains"],
         "_liveness": ["SERVICE_BEAT_S", "SERVICE_STALE_S", "link_json", "plant_hash"],
         "_logs": [
@@ -87,6 +100,7 @@ __getattr__ = lazy_loader.attach(
             "proposal_json",
             "status_json",
             "window_json",
+            "write_times_text",
         ],
         "_requests": ["consume_requests", "submit_request"],
         "_service": ["OnlineService"],
@@ -148,8 +162,10 @@ __all__ = [
     "prefit_gates",
     "proposal_json",
     "stale_reason",
+    "stale_while_stopped",
     "status_json",
     "submit_request",
     "window_json",
     "window_priors",
+    "write_times_text",
 ]

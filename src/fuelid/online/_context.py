@@ -32,6 +32,10 @@ PLC = "plc"
 """The ``rule`` of the gains read from the PLC's block (:meth:`ServiceContext.current_gains`)."""
 COMMISSIONING = "commissioning"
 """The ``rule`` of the ``[controller]`` kc and ti (the commissioning gains)."""
+STALE_NEXT = "new windows will propose afresh"
+"""What follows a proposal too old to write (:func:`stale_reason`), said of a running service."""
+STALE_NEXT_STOPPED = STALE_NEXT + " when the service runs again"
+"""The same while no service runs (:func:`stale_while_stopped`): a stopped one proposes nothing."""
 RECENT_WINDOWS_SPAN = 6.0
 """Windows for a proposal end within this many window lengths (or agree_windows × the
 schedule, if longer) of the newest: a model from before an outage of days does not vote."""
@@ -213,9 +217,28 @@ def stale_reason(window_end: float | None, newest: float | None, window_s: float
     if float(window_end) < newest - span:
         return (
             f"stale: its newest window ended {newest - float(window_end):.0f} s of data "
-            f"before the newest sample (> {span:.0f} s); new windows will propose afresh"
+            f"before the newest sample (> {span:.0f} s); {STALE_NEXT}"
         )
     return None
+
+
+def stale_while_stopped(reason: str | None) -> str | None:
+    """A :func:`stale_reason` as said while no service runs: new windows wait for it.
+
+    The reason itself (how old the proposal's evidence is) holds whether a service runs or
+    not; only its promise depends on one.
+
+    >>> stale_while_stopped("stale: …; new windows will propose afresh")
+    'stale: …; new windows will propose afresh when the service runs again'
+    >>> once = stale_while_stopped("…; new windows will propose afresh")
+    >>> stale_while_stopped(once) == once
+    True
+    >>> stale_while_stopped(None) is None
+    True
+    """
+    if reason is None or STALE_NEXT_STOPPED in reason:
+        return reason
+    return reason.replace(STALE_NEXT, STALE_NEXT_STOPPED)
 
 
 __all__ = [
@@ -226,4 +249,5 @@ __all__ = [
     "model_of",
     "observation_of",
     "stale_reason",
+    "stale_while_stopped",
 ]

@@ -30,7 +30,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from fuelid.io import format_age
+from fuelid.io import format_age, format_time
 
 if TYPE_CHECKING:
     from fuelid.store import LoopStore
@@ -76,8 +76,11 @@ def service_record(
     """The record a starting service writes under :data:`SERVICE_KEY`.
 
     Keys: ``pid``, ``host``, ``version`` (fuelid's), ``started`` and ``beat`` [wall s UTC],
-    ``beat_every_s`` [s], ``stopped`` (None while running) and ``settings``: every ``[online]``
-    setting (``write_back``, ``rule``, ``ms_target``, ``move_fraction``, ``hysteresis``,
+    ``started_plant`` [plant s UTC: the plant time of this run's first sample, newer than any the
+    store held at the start and than its newest window's analysis time; None until the service
+    records it, at its first beat after that sample is committed], ``beat_every_s`` [s],
+    ``stopped`` (None while running) and ``settings``: every ``[online]`` setting
+    (``write_back``, ``rule``, ``ms_target``, ``move_fraction``, ``hysteresis``,
     ``gain_bounds``, the gates' thresholds, …), ``timezone``, ``loop_id``, ``plant_hash``,
     ``plant_file`` (absolute path; None for the reference plant), ``controller`` (``form``,
     ``gain_units``, ``integral_unit``, ``u_span_V``, ``y_span_Lpm``, ``kc``, ``ti``; None
@@ -131,6 +134,7 @@ def service_record(
         "host": socket.gethostname(),
         "version": fuelid.__version__,
         "started": wall,
+        "started_plant": None,
         "beat": wall,
         "beat_every_s": SERVICE_BEAT_S,
         "stopped": None,
@@ -153,6 +157,7 @@ def loop_state(
     last_link_event: tuple[str, float] | None,
     now_wall: float,
     tz: str | None = "UTC",
+    newest_sample: float | None = None,
 ) -> dict[str, Any]:
     """The loop's state now, from the service record and the wall clock (module docstring).
 
@@ -169,11 +174,15 @@ def loop_state(
         The wall clock now [s UTC].
     tz : str, optional
         The time zone of the times in ``text``.
+    newest_sample : float, optional
+        The newest sample's plant time [s UTC]: a stopped service's ``text`` names it, labelled
+        plant time beside the stop's wall age (never used to judge the state).
 
     Returns
     -------
     dict
-        ``state`` ("stopped", "link_down", "up", "no_data"), ``text`` (one line),
+        ``state`` ("stopped", "link_down", "up", "no_data"), ``text`` (one line: "service
+        stopped (no beat for 12 s of wall time; newest sample at 08:15:03 UTC plant time)"),
         ``service`` ("running", "stopped", "never started"), ``beat_age_s`` and
         ``sample_age_s`` [s] (None when unknown), ``since`` [wall s UTC]: since when the state
         holds, as far as known (the stop, the last beat, the link event, the newest sample).
@@ -208,19 +217,12 @@ def loop_state(
     stopped = _number(service.get("stopped"))
     if stopped is not None or beat_age is None or beat_age > SERVICE_STALE_S:
         since = stopped if stopped is not None else beat
-        # ages, not wall-clock stamps: the pages and the commands show plant time, which a PLC
-        # at X times real time runs ahead of the wall clock
-        how = (
-            f"{format_age(now - stopped)} ago"
-            if stopped is not None
-            else f"no beat for {format_age(beat_age)}"
-        )
         return {
             **out,
             "state": "stopped",
             "service": "stopped",
             "since": since,
-            "text": f"service stopped ({how})",
+            "text": _stopped_text(now, stopped, beat_age, newest_sample, tz),
         }
     out["service"] = "running"
     if last_link_event is not None and last_link_event[0] == "link_down":
@@ -252,6 +254,35 @@ def loop_state(
     }
 
 
+def _stopped_text(
+    now: float,
+    stopped: float | None,
+    beat_age: float | None,
+    newest_sample: float | None,
+    tz: str | None,
+) -> str:
+    """A stopped service's line: "service stopped (no beat for 12 s of wall time; …)".
+
+    The stop as an age on the wall clock (the pages and the commands show plant time, which a PLC
+    at X times real time runs ahead of the wall clock: a wall-clock stamp beside them would read
+    as one of theirs), the newest sample as a plant time in the site's zone, each labelled; its
+    date only when the stop is a day old or more.
+    """
+    age = now - stopped if stopped is not None else beat_age
+    how = (
+        f"{format_age(age)} ago in wall time"
+        if stopped is not None
+        else f"no beat for {format_age(beat_age)} of wall time"
+    )
+    sample = _number(newest_sample)
+    if sample is None or not math.isfinite(sample):
+        return f"service stopped ({how})"
+    stamp = format_time(sample, tz)
+    if age is not None and age < 86_400.0:
+        stamp = stamp.split(" ", 1)[1]
+    return f"service stopped ({how}; newest sample at {stamp} plant time)"
+
+
 def link_json(
     store: LoopStore,
     now: float | None = None,
@@ -278,6 +309,7 @@ def link_json(
         None if event is None or event_wall is None else (event[1], float(event_wall)),
         now,
         tz,
+        None if newest is None else newest[0],
     )
     newest_wall = None if newest is None or math.isnan(newest[1]) else newest[1]
     return {

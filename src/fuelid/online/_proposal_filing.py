@@ -5,7 +5,9 @@ evidence from the history (the recent accepted windows, the K(T) tracker's band,
 current gains were tuned for) and keeps the history tidy: an open proposal that says the same is
 kept (and its approval with it), gains a person rejected or that were reverted are not proposed
 again until the evidence moves them by more than the hysteresis, older open proposals are
-superseded. With ``write_back = "auto"`` a new proposal is approved at once.
+superseded: by a new proposal, and when the evidence points at turned-down gains (the open ones
+no longer say what it says: "the newest evidence points at the gains of #1 (reverted)"). With
+``write_back = "auto"`` a new proposal is approved at once.
 """
 
 from __future__ import annotations
@@ -127,25 +129,8 @@ class ProposalFiling:
             if same_gains(old, new_kc, new_ti, self.settings.hysteresis):
                 # a person rejected these gains, or they were reverted: do not ask again until
                 # the evidence moves them by more than the hysteresis
-                held = self.history.state("held_proposal") or {}
-                if not isinstance(held, dict) or held.get("id") != old["id"]:
-                    # kept for the status (the pages say why no proposal comes) until a new
-                    # proposal is filed
-                    self.history.set_state(
-                        "held_proposal",
-                        {"id": old["id"], "status": old["status"], "Kc": new_kc, "Ti": new_ti},
-                    )
-                    self.context.say(
-                        "proposal",
-                        held=f"the gains of #{old['id']} ({old['status']}) are not proposed again",
-                        Kc=new_kc,
-                        Ti=new_ti,
-                    )
-                return int(old["id"])
-        for old in open_ones:
-            self.history.set_proposal_status(
-                old["id"], "superseded", who="service", why="a newer proposal"
-            )
+                return self._hold(old, open_ones, new_kc, new_ti)
+        self._supersede(open_ones, "a newer proposal")
         self.history.set_state("held_proposal", None)  # a new proposal: nothing held any more
         detail = json_ready(
             {
@@ -169,6 +154,44 @@ class ProposalFiling:
                 pid, "approved", who="service (write_back = auto)", why="passed every rule"
             )
         return pid
+
+    def _hold(
+        self, turned_down: dict[str, Any], open_ones: list[dict[str, Any]], kc: float, ti: float
+    ) -> int:
+        """File nothing: the evidence points at ``turned_down``'s gains; its id.
+
+        The open proposals left here differ from the evidence by more than half the hysteresis
+        (one that says the same was kept before): the newest evidence no longer says what they
+        say, so they are superseded, as a new proposal would supersede them, and the pages
+        never say "none filed" above a proposal that waits. The hold is kept for the status
+        (the pages say why no proposal comes) until a new proposal is filed, and logged once,
+        when it begins or closes an open proposal.
+        """
+        what = f"#{turned_down['id']} ({turned_down['status']})"
+        superseded = self._supersede(
+            open_ones, f"the newest evidence points at the gains of {what}"
+        )
+        held = self.history.state("held_proposal") or {}
+        if superseded or not isinstance(held, dict) or held.get("id") != turned_down["id"]:
+            self.history.set_state(
+                "held_proposal",
+                {"id": turned_down["id"], "status": turned_down["status"], "Kc": kc, "Ti": ti},
+            )
+            closed = {"superseded": ", ".join(f"#{pid}" for pid in superseded)}
+            self.context.say(
+                "proposal",
+                held=f"the gains of {what} are not proposed again",
+                **(closed if superseded else {}),
+                Kc=kc,
+                Ti=ti,
+            )
+        return int(turned_down["id"])
+
+    def _supersede(self, open_ones: list[dict[str, Any]], why: str) -> list[int]:
+        """Supersede the open proposals (pending, approved), saying why; their ids."""
+        for old in open_ones:
+            self.history.set_proposal_status(old["id"], "superseded", who="service", why=why)
+        return [int(old["id"]) for old in open_ones]
 
     def _target_model(self, decision: ProposalDecision) -> dict[str, Any] | None:
         if not decision.model_ids:

@@ -30,8 +30,9 @@ import math
 from typing import Any
 
 from fuelid.errors import FuelidError
+from fuelid.io import format_time
 from fuelid.io.jsonsafe import json_ready
-from fuelid.online._context import TRACKER_OBSERVATIONS, observation_of
+from fuelid.online._context import TRACKER_OBSERVATIONS, observation_of, stale_while_stopped
 from fuelid.online._liveness import LINK_FRESH_S, link_json
 from fuelid.online._plc_gains import plc_gains_json
 from fuelid.online._requests import stale_of
@@ -53,6 +54,7 @@ ONLINE_UNITS: dict[str, str] = {
     "newest_sample_wall": "s (wall clock when written, UTC since the epoch)",
     "since": "s (wall clock, UTC since the epoch)",
     "started": "s (wall clock, UTC since the epoch)",
+    "started_plant": "s (plant time, UTC since the epoch)",
     "beat": "s (wall clock, UTC since the epoch)",
     "stopped": "s (wall clock, UTC since the epoch)",
     "age_s": "s (wall clock)",
@@ -298,6 +300,39 @@ def write_json(row: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+_OUTCOME_WORDS = {"verified": "verified", "failed": "failed", "not_applied": "found not applied"}
+"""A finished write's status as said before its time (:func:`write_times_text`)."""
+
+
+def write_times_text(write: dict[str, Any], tz: str | None = "UTC") -> str:
+    """A write's two instants, each labelled: issued (its intent) and its outcome.
+
+    ``time`` is when the service issued the write (its intent, committed just before the PLC is
+    written), ``finished`` when the PLC's echo verified it (or it failed, or was found not
+    applied); both plant time in the zone ``tz``. The outcome's date is left out when it is the
+    issue's. ``fuelid online status`` and ``history`` and the dashboard say a write's times with
+    this one function, so the command and the page name the same instants.
+
+    Examples
+    --------
+    >>> write_times_text({"status": "verified", "time": 1_795_767_203.4,
+    ...                   "finished": 1_795_767_207.4}, "Europe/Zurich")
+    'issued at 2026-11-27 09:13:23 CET, verified at 09:13:27 CET'
+    >>> write_times_text({"status": "intent", "time": 1_795_767_203.4, "finished": None})
+    'issued at 2026-11-27 08:13:23 UTC, no echo yet'
+    """
+    issued = format_time(write.get("time"), tz)
+    text = f"issued at {issued}"
+    outcome = _OUTCOME_WORDS.get(str(write.get("status")))
+    if outcome is None or write.get("finished") is None:
+        return text + ", no echo yet"
+    finished = format_time(write.get("finished"), tz)
+    day, _, clock = finished.partition(" ")
+    if issued.startswith(day + " "):
+        finished = clock
+    return f"{text}, {outcome} at {finished}"
+
+
 def _current_model(row: dict[str, Any] | None) -> dict[str, Any] | None:
     if row is None:
         return None
@@ -389,7 +424,9 @@ def status_json(
         service record with its ``state`` and ``beat_age_s``; None when no service ever ran on
         this store),
         ``timezone``, ``last_window``, ``current_model``, ``k_trend``, ``pending_proposals``
-        (each with ``target`` and ``gain_units``), ``requests`` (the waiting ones),
+        (each with ``target``, ``gain_units`` and ``stale``: why the service would not write it,
+        its promise of new windows said "when the service runs again" while none runs),
+        ``requests`` (the waiting ones),
         ``loop_health``, ``counts``, ``write_back`` (``setting`` and ``setting_from``: "site
         file", "service" or None; ``current_gains`` and ``last_known_good`` in the ideal form
         [V per L/min, s], ``current_gains_block`` and ``last_known_good_block`` in the block's
@@ -429,7 +466,7 @@ def status_json(
         "current_model": _current_model(models[0] if models else None),
         "k_trend": k_trend_json(history),
         "pending_proposals": [
-            {**proposal_json(p, controller), "stale": stale_of(history, p["id"])}
+            {**proposal_json(p, controller), "stale": _stale(history, p["id"], link)}
             for p in history.proposals(list(ACTIVE_STATUSES))
         ],
         # the service's newest proposal matched turned-down gains and was not filed
@@ -446,6 +483,16 @@ def status_json(
         "units": ONLINE_UNITS,
     }
     return json_ready(out)  # type: ignore[no-any-return]
+
+
+def _stale(history: LoopHistory, proposal_id: Any, link: dict[str, Any]) -> str | None:
+    """Why an open proposal is too old to write, said as true now.
+
+    Its promise of new windows holds only while a service runs
+    (:func:`~fuelid.online._context.stale_while_stopped`).
+    """
+    reason = stale_of(history, proposal_id)
+    return reason if link.get("service") == "running" else stale_while_stopped(reason)
 
 
 def _write_back_json(
@@ -625,4 +672,5 @@ __all__ = [
     "status_json",
     "window_json",
     "write_json",
+    "write_times_text",
 ]

@@ -171,6 +171,8 @@ class OnlineService:
         """The test signal (issue 40); None when the site has no ``[write.excitation]``."""
         self._stopping = asyncio.Event()
         self._task_errors: list[BaseException] = []
+        self._plant_at_start: float | None = None
+        """Plant time the store had reached when this run wrote its record [s UTC]; None: empty."""
         self._resume()
 
     # --- set-up -----------------------------------------------------------------------------
@@ -413,6 +415,8 @@ class OnlineService:
             self.context.event("revert_refused", "write_back is off: the revert request is dropped")
         record = service_record(self.site, self.site.site.plant)
         record["write_back"] = self.settings.write_back  # where readers before 0.3 look
+        # the record's started_plant is set by the beat once this run's first sample is in
+        self._plant_at_start = self._plant_reached()
         self.history.set_state(SERVICE_KEY, record)
         tasks.create_task(self._supervised("beat", self._beat()), name="beat")
         self.context.say("start", **self.capabilities)
@@ -442,8 +446,11 @@ class OnlineService:
         """
         can_write = self.gain_writer is not None
         setting = self.settings.write_back if can_write else "off"
+        started_plant = None
         while not self._stopping.is_set():
             await asyncio.to_thread(self.history.beat)
+            if started_plant is None:
+                started_plant = await asyncio.to_thread(self._record_started_plant)
             for row in await asyncio.to_thread(consume_requests, self.history, setting):
                 self.context.say(
                     "request",
@@ -455,6 +462,29 @@ class OnlineService:
                 )
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(self._stopping.wait(), SERVICE_BEAT_S)
+
+    def _plant_reached(self) -> float | None:
+        """The plant time the store has reached [s UTC]; None when it is empty.
+
+        Its newest sample, or its newest window's analysis time when later (a window judged on
+        samples a kill -9 lost before their commit).
+        """
+        reached = [self.history.plant_now(), (self.history.last_window() or {}).get("time")]
+        known = [float(t) for t in reached if isinstance(t, int | float)]
+        return max(known) if known else None
+
+    def _record_started_plant(self) -> float | None:
+        """Write this run's first sample's plant time into its record (``started_plant``).
+
+        The first sample newer than the plant time the store had reached at the start
+        (:meth:`_plant_reached`), once committed; None before. Readers compare it with a
+        window's analysis time (plant time) to tell a window judged by this run from one judged
+        before its restart (``fuelid.dashboard._fleet``).
+        """
+        first = self.history.first_sample_after(self._plant_at_start)
+        if first is not None:
+            self.history.set_record_field("started_plant", first)
+        return first
 
     def _evidence_since(self, t: float) -> int:
         """Accepted windows on separate excitation events ending after ``t`` [s UTC]."""

@@ -33,6 +33,10 @@ class LoopHistory(Protocol):
         """One window as :meth:`windows` gives it; None when absent."""
         ...
 
+    def windows_of_models(self, model_ids: Sequence[int]) -> list[dict[str, Any]]:
+        """The first window naming each of ``model_ids``, as :meth:`windows` gives it, by id."""
+        ...
+
     def last_window(self) -> dict[str, Any] | None:
         """The newest window; None when none."""
         ...

@@ -237,6 +237,24 @@ class OnlineHistory(GainWrites, PersonRequests):
             ).fetchone()
         return None if row is None else window_row(row)
 
+    def windows_of_models(self, model_ids: Sequence[int]) -> list[dict[str, Any]]:
+        """The first window naming each of ``model_ids`` (as :meth:`windows` gives it), by id.
+
+        One row per model at most, whatever the windows since (the index on ``model_id``): a
+        proposal's evidence, however many windows came after it. Unknown ids give no row.
+        """
+        ids = sorted({int(i) for i in model_ids})
+        if not ids:
+            return []
+        marks = ", ".join("?" * len(ids))
+        sql = (
+            f"SELECT {WINDOW_COLUMNS} FROM windows WHERE id IN (SELECT min(id) FROM windows "
+            f"WHERE model_id IN ({marks}) GROUP BY model_id) ORDER BY id"
+        )
+        with self._transaction(write=False) as con:
+            rows = con.execute(sql, ids).fetchall()
+        return [window_row(row) for row in rows]
+
     def last_window(self) -> dict[str, Any] | None:
         """The newest window (largest ``t_to``), as :meth:`windows` gives it; None when none."""
         rows = self.windows(limit=1)
@@ -469,6 +487,25 @@ class OnlineHistory(GainWrites, PersonRequests):
                 "WHERE key = ?2",
                 (wall, key),
             )
+
+    def set_record_field(self, name: str, value: Any, key: str = SERVICE_KEY) -> None:
+        """Set one field of the service record (``json_set`` in SQL, as :meth:`beat`).
+
+        Nothing happens when the record is absent.
+        """
+        with self._transaction() as con:
+            con.execute(
+                "UPDATE online_state SET value = json_set(value, '$.' || ?1, json(?2)) "
+                "WHERE key = ?3",
+                (name, _dumps(value), key),
+            )
+
+    def first_sample_after(self, t: float | None) -> float | None:
+        """The plant time of the first sample newer than ``t`` [s UTC] (any, when None); None."""
+        query = "SELECT min(time) FROM samples" + ("" if t is None else " WHERE time > ?")
+        with self._transaction(write=False) as con:
+            value = con.execute(query, () if t is None else (float(t),)).fetchone()[0]
+        return None if value is None else float(value)
 
     def plant_now(self) -> float | None:
         """Plant time now: the newest committed sample's time [s UTC]; None in an empty store."""

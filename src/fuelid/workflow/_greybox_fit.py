@@ -62,7 +62,7 @@ def greybox_model(
     base = mf.model
     specs = parameter_specs(base.parameters, fixed=fixed, free=free, values=values)
     model = OdeModel(
-        base.f,
+        base.f if base.moded_f is None else base.moded_f,  # (a switched f takes the modes)
         specs,
         base.state_names,
         h=base.h,
@@ -70,6 +70,7 @@ def greybox_model(
         output_names=base.output_names,
         n_outputs=len(base.output_names),
         state_scale=base.state_scale,
+        switches=base.switches,
     )
     if all(spec.fixed for spec in specs):
         raise ConfigError(

@@ -697,9 +697,11 @@ def test_one_page_tells_one_truth_through_approval_write_revert_and_a_new_window
                             " })()"
                         )
                         assert _requests(base, loop_id) == []
-                        if _card_of(truth.look(), proposal) is None:
+                        if truth.state_of(truth.look(), proposal) != "waiting":
+                            # superseded (a decided card now) or out of date meanwhile: the
+                            # reason typed for it is cleared, and the card says so
                             passed.add(proposal)
-                            continue  # superseded meanwhile
+                            continue
                         assert kept_reason, "the reason typed was lost when the parts were re-read"
                     # --- approve with a reason, confirmed
                     truth.gains_of[proposal] = (card["Kc"]["new"], card["Ti"]["new"])
@@ -750,7 +752,9 @@ def test_one_page_tells_one_truth_through_approval_write_revert_and_a_new_window
                 )
                 done = _card_of(after_write, proposal)
                 assert done is not None
-                assert done["text"].startswith("written and verified at")
+                # who approved it and why, then the write
+                assert done["text"].startswith("approved at "), done
+                assert "by eve: looks safe; written and verified at" in done["text"], done
                 assert done["buttons"] == []
                 assert _chip_counts(after_write["chip"][1]) == _card_counts(after_write["cards"])
                 # the PLC's echo equals the gains the card proposed (as the page prints them)

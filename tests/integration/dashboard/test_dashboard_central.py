@@ -157,6 +157,27 @@ def test_status_and_history_equal_the_stores_but_where_they_are_read(
     assert answers["central line-a history"]["counts"]["windows"] >= 30  # 3 h of 5 min steps
 
 
+def test_a_proposals_window_is_found_by_its_model_from_the_centre_as_from_the_store(
+    sites: dict[str, Site], central_url: str
+) -> None:
+    # the card's evidence row and age rule look the window up by the proposal's model, not
+    # among the newest windows: both readers give the same row, one per model
+    with dashboard([sites["line-a"].loop.path], None) as (_, loops):
+        local = loops.get("line-a")
+        assert local is not None
+        (proposal,) = local.status()["pending_proposals"]
+        model_id = int(proposal["model_id"])
+        mine = local.windows_of_models([model_id, model_id, 10**9])
+    with dashboard([], central_url) as (_, loops):
+        central = loops.get("line-a")
+        assert central is not None
+        theirs = central.windows_of_models([model_id, 10**9])
+    assert [w["model_id"] for w in mine] == [model_id]
+    assert [(w["id"], w["t_to"], w["model_id"]) for w in theirs] == [
+        (w["id"], w["t_to"], w["model_id"]) for w in mine
+    ]
+
+
 def test_a_window_page_from_the_centre(sites: dict[str, Site], central_url: str) -> None:
     with dashboard([sites["line-a"].loop.path], None) as (client, _):
         history = client.get("/api/loops/line-a/history").json()

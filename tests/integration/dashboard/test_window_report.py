@@ -473,6 +473,24 @@ def test_a_plants_linearisations_are_kept_beside_the_store_for_the_next_run(
     assert window_report._linearisations("plant-b", folder) == {}  # another plant's: its own
 
 
+def test_a_plants_linearisations_stay_bounded_however_many_windows_add_theirs(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # each window's report linearises the plant at its own fuel temperature and command: a
+    # dashboard left open adds a few a window; the cache keeps the newest CACHED_CASES
+    from fuelid.plant import load_plant_config
+    from fuelid.tuning import plant_cases
+
+    config = load_plant_config(None)
+    monkeypatch.setattr(window_report, "CACHED_CASES", 8)
+    for window_id in range(20):
+        cache = window_report._linearisations("plant-a")
+        plant_cases(config, (283.15 + 0.1 * window_id,), (3.0,), cache=cache)
+    cache = window_report._linearisations("plant-a")
+    assert len(cache) == 8
+    assert min(T for T, _ in cache) == pytest.approx(283.15 + 0.1 * 12)  # the newest kept
+
+
 @pytest.mark.slow  # a whole report of a window of the virtual run: the slow set
 def test_the_report_of_a_stored_window_names_no_folder_and_the_gates_model(
     dashboard_store: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch

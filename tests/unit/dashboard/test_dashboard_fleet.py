@@ -202,14 +202,14 @@ def test_a_stopped_service_greys_the_chips_about_the_running_loop() -> None:
     # stopped, with a failed last write and a proposal waiting: what the store proves stays
     status = with_changes(
         link__state="stopped",
-        link__text="service stopped (no beat for 12 s)",
+        link__text="service stopped (no beat for 12 s of wall time)",
         last_write__status="failed",
         pending_proposals=[{"id": 4, "status": "pending", "time": NEWEST - 60.0}],
         timezone="Europe/Zurich",  # the newest sample's plant time in the site's zone: 09:15:03
     )
     chips = {c.name: c for c in loop_chips(status, RECENT_IAE)}
     assert chips["service"].level == "alarm"
-    assert chips["service"].text == "service stopped (no beat for 12 s)"
+    assert chips["service"].text == "service stopped (no beat for 12 s of wall time)"
     for name in LIVE_CHIPS:
         assert chips[name].level == "unknown", name
         assert chips[name].text.startswith("unknown since the stop at 09:15:03 CET (last: ")

@@ -195,7 +195,10 @@ def test_after_a_revert_the_reverts_gains_are_in_force() -> None:
     ]
     got = gains_in_force(status(last_write=writes[-1]), writes)
     assert (got["Kc"], got["Ti"], got["source"], got["write_id"]) == (0.1, 2.0, "write", 4)
-    assert got["text"] == "last verified write #4 (a revert) at 2026-11-27 09:13:24 CET"
+    assert got["text"] == (  # its two instants, as fuelid online status says them
+        "last verified write #4 (a revert): issued at 2026-11-27 09:13:23 CET, verified at "
+        "09:13:24 CET"
+    )
     assert got["units"] == {"Kc": "V per L/min", "Ti": "s"}
     # the status alone says the same (its last write is the revert)
     assert gains_in_force(status(last_write=writes[-1]))["Kc"] == 0.1
@@ -257,7 +260,9 @@ def test_without_a_reading_the_last_verified_write_is_in_force_labelled_as_such(
     for loop in (status(last_write=writes[-1]), status(last_write=writes[-1], plc_gains=None)):
         got = gains_in_force(loop, writes)
         assert (got["Kc"], got["Ti"], got["source"], got["write_id"]) == (0.12, 2.2, "write", 3)
-        assert got["text"] == "last verified write #3 at 2026-11-27 09:11:44 CET"
+        assert got["text"] == (
+            "last verified write #3: issued at 2026-11-27 09:11:43 CET, verified at 09:11:44 CET"
+        )
 
 
 def test_a_change_at_the_panel_no_write_explains_is_shown_as_the_plcs_gains() -> None:
@@ -286,8 +291,9 @@ def test_a_reading_older_than_the_last_write_says_so() -> None:
     got = gains_in_force(stale, writes)
     assert (got["Kc"], got["Ti"], got["source"], got["write_id"]) == (0.12, 2.2, "write", 3)
     assert got["text"] == (
-        "last verified write #3 at 2026-11-27 09:11:44 CET; the PLC's kc and ti tags, last read "
-        "at 2026-11-27 09:06:43 CET before it, do not show it yet"
+        "last verified write #3: issued at 2026-11-27 09:11:43 CET, verified at 09:11:44 CET; "
+        "the PLC's kc and ti tags, last read at 2026-11-27 09:06:43 CET before it, do not show "
+        "it yet"
     )
     # read before a write of the very gains they hold (only changes are kept): said, no alarm
     same = status(last_write=writes[-1], plc_gains=reading(0.12, 2.2, NEWEST - 500.0))
@@ -362,9 +368,10 @@ def test_link_up_is_said_only_with_a_fresh_sample() -> None:
     assert link_text(quiet, TZ) == "no new sample for 9.3 s"
     central = status(link={**quiet["link"], "contact_age_s": 12.0})
     assert link_text(central, TZ) == "no new sample for 9.3 s, as of the site's last sync 12 s ago"
-    stopped = status(link={"state": "stopped", "text": "service stopped (no beat for 12 s)",
+    stopped = status(link={"state": "stopped",
+                           "text": "service stopped (no beat for 12 s of wall time)",
                            "sample_age_s": 14.0})  # fmt: skip
-    assert link_text(stopped, TZ) == "service stopped (no beat for 12 s)"
+    assert link_text(stopped, TZ) == "service stopped (no beat for 12 s of wall time)"
 
 
 # --- the revert button ---------------------------------------------------------------------

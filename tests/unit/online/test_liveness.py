@@ -52,7 +52,24 @@ def test_a_killed_service_reads_stopped_with_its_last_beat() -> None:
     assert out["state"] == "stopped"
     assert out["beat_age_s"] == pytest.approx(11.0)
     assert out["since"] == NOW - 11.0
-    assert out["text"] == "service stopped (no beat for 11 s)"
+    assert out["text"] == "service stopped (no beat for 11 s of wall time)"
+
+
+def test_a_stop_says_its_wall_age_and_the_newest_samples_plant_time_each_labelled() -> None:
+    # issue 39: "no beat for 12 s" stood beside plant times, unlabelled; an accelerated PLC's
+    # plant time runs ahead of the wall clock, so each figure says its clock
+    plant = NOW + 7000.0  # 2026-11-27 10:11:43 UTC
+    killed = loop_state({**LIVE, "beat": NOW - 12.0}, NOW - 13.0, None, NOW, "UTC", plant)
+    assert killed["text"] == (
+        "service stopped (no beat for 12 s of wall time; newest sample at 10:11:43 UTC plant time)"
+    )
+    clean = loop_state({**LIVE, "stopped": NOW - 5.0}, NOW - 6.0, None, NOW, "Europe/Zurich", plant)
+    assert clean["text"] == (
+        "service stopped (5.0 s ago in wall time; newest sample at 11:11:43 CET plant time)"
+    )
+    # a stop a day old or more: the sample's date too
+    old = loop_state({**LIVE, "beat": NOW - 2e5}, NOW - 2e5, None, NOW, "UTC", plant)
+    assert old["text"].endswith("; newest sample at 2026-11-27 10:11:43 UTC plant time)")
 
 
 def test_plant_time_running_ahead_is_never_used() -> None:

@@ -104,6 +104,7 @@ def status_lines(status: dict[str, Any]) -> list[str]:
     from fuelid.online import (  # numpy behind it: not at `fuelid --help`
         health_line,
         held_line,
+        write_times_text,
     )
     from fuelid.online.excitation import excitation_line
 
@@ -156,8 +157,8 @@ def status_lines(status: dict[str, Any]) -> list[str]:
         "none"
         if last_write is None
         else f"#{last_write['id']} {last_write['kind']} {last_write['status']} "
-        f"(Kc {last_write['Kc']:.4g}, Ti {last_write['Ti']:.4g}) at "
-        f"{_stamp(last_write['time'], tz)}"
+        f"(Kc {last_write['Kc']:.4g}, Ti {last_write['Ti']:.4g}): "
+        f"{write_times_text(last_write, tz)}"
     )
     c = status.get("counts") or {}
     last = status.get("last_window") or {}
@@ -304,7 +305,7 @@ def history_command(
     model, stderr, ci95 as fuelid identify's), proposals (id, time, status, old, new, Ms, reason,
     history), events, writes, k_trend.
     """
-    from fuelid.online import history_json
+    from fuelid.online import history_json, write_times_text
 
     check_figure_path(plot, overwrite=force)
     with _opened(config, store) as (opened, history, settings):
@@ -343,7 +344,8 @@ def history_command(
     )
     lines.append(f"{len(data['writes'])} writes")
     lines += [
-        f"  #{w['id']} {w['kind']} {w['status']} Kc {w['Kc']:.4g} Ti {w['Ti']:.4g} by {w['who']}"
+        f"  #{w['id']} {w['kind']} {w['status']} Kc {w['Kc']:.4g} Ti {w['Ti']:.4g} by {w['who']}: "
+        + write_times_text(w, tz)
         for w in data["writes"]
     ]
     if plot is not None:

@@ -134,11 +134,26 @@ function formKey(form) {
   return form.dataset.proposal || form.dataset.kind || "revert";
 }
 
+function cardOf(proposal) {
+  return document.querySelector(`#proposals-part div.proposal[data-proposal="${proposal}"]`);
+}
+
+// what a proposal's card offers: its state and its actions ("" for a card without a form)
+function cardSeen(proposal) {
+  const card = cardOf(proposal);
+  const form = card && card.querySelector("form.action");
+  const kinds = form ? Array.from(form.querySelectorAll("button[data-kind]")).map((b) => b.dataset.kind) : [];
+  return { state: card ? card.dataset.state : "", actions: kinds.join(",") };
+}
+
 function formsState() {
   const kept = {};
   document.querySelectorAll("form.action").forEach((form) => {
     const why = form.querySelector('input[name="why"]');
     kept[formKey(form)] = {
+      proposal: form.dataset.proposal || null,
+      seen: form.dataset.proposal ? cardSeen(form.dataset.proposal) : null,
+      sent: form.dataset.sent || "",
       why: why ? why.value : "",
       focused: why !== null && document.activeElement === why,
       outcome: (form.querySelector(".outcome") || {}).textContent || "",
@@ -148,18 +163,68 @@ function formsState() {
   return kept;
 }
 
+// a proposal whose state or actions changed under a typed reason or an open question: what was
+// typed was meant for the proposal as it was, so it is not kept next to other buttons
+function changedUnder(was) {
+  if (!was.proposal || (!was.why.trim() && !was.confirming)) return false;
+  const now = cardSeen(was.proposal);
+  return now.state !== was.seen.state || now.actions !== was.seen.actions;
+}
+
+// said on a card until it changes again or the person acts on it: "nothing was sent"
+const changedNotes = new Map();
+
+function noteChange(was) {
+  const card = cardOf(was.proposal);
+  const label = card ? card.querySelector("h3 .state").textContent : "no longer shown";
+  changedNotes.set(was.proposal, {
+    state: card ? card.dataset.state : "",
+    text: `the proposal changed (now: ${label}): nothing was sent`,
+  });
+}
+
+function showNotes() {
+  for (const [proposal, note] of changedNotes) {
+    const card = cardOf(proposal);
+    if (!card) { // its card is no longer on the page: said once, above the cards
+      const line = el("p", { class: "changed warn", role: "status" }, `#${proposal}: ${note.text}`);
+      document.querySelector("#proposals-part h2").after(line);
+      changedNotes.delete(proposal);
+      continue;
+    }
+    if (card.dataset.state !== note.state) { changedNotes.delete(proposal); continue; }
+    const line = el("p", { class: "changed warn", role: "status" }, note.text);
+    const form = card.querySelector("form.action");
+    if (form) form.before(line); else card.append(line);
+  }
+}
+
+function restoreForm(form, was) {
+  const why = form.querySelector('input[name="why"]');
+  if (why) why.value = was.why;
+  if (why && was.focused) why.focus();
+  const outcome = form.querySelector(".outcome");
+  if (outcome) outcome.textContent = was.outcome;
+  if (was.sent) form.dataset.sent = was.sent;
+  const button = was.confirming && form.querySelector(`button[data-kind="${was.confirming}"]`);
+  if (button && !button.disabled) askToConfirm(button); // the question stays open
+}
+
 function restoreForms(kept) {
+  for (const was of Object.values(kept)) {
+    if (!changedUnder(was)) continue;
+    // the question is not asked again and the reason not kept; said on the card unless this
+    // page sent something (its outcome says what became of it)
+    delete kept[was.proposal];
+    const form = cardOf(was.proposal) && cardOf(was.proposal).querySelector("form.action");
+    if (form && was.sent) form.querySelector(".outcome").textContent = was.outcome;
+    if (!was.sent) noteChange(was);
+  }
   document.querySelectorAll("form.action").forEach((form) => {
     const was = kept[formKey(form)];
-    if (!was) return;
-    const why = form.querySelector('input[name="why"]');
-    if (why) why.value = was.why;
-    if (why && was.focused) why.focus();
-    const outcome = form.querySelector(".outcome");
-    if (outcome) outcome.textContent = was.outcome;
-    const button = was.confirming && form.querySelector(`button[data-kind="${was.confirming}"]`);
-    if (button && !button.disabled) askToConfirm(button); // the question stays open
+    if (was) restoreForm(form, was);
   });
+  showNotes();
 }
 
 async function loadParts() {
@@ -189,6 +254,16 @@ function bindActions() {
   document.querySelectorAll("form.action button[data-kind]").forEach((button) => {
     button.addEventListener("click", () => askToConfirm(button));
   });
+  // the person acts on the card again: "the proposal changed" has been read
+  document.querySelectorAll("form.action[data-proposal] input[name=why]").forEach((input) => {
+    input.addEventListener("input", () => forgetChange(input.closest("form")));
+  });
+}
+
+function forgetChange(form) {
+  if (!changedNotes.delete(form.dataset.proposal)) return;
+  const line = cardOf(form.dataset.proposal).querySelector("p.changed");
+  if (line) line.remove();
 }
 
 function askToConfirm(button) {
@@ -202,6 +277,7 @@ function askToConfirm(button) {
     return;
   }
   outcome.textContent = ""; // "a reason is required" no longer holds
+  if (form.dataset.proposal) forgetChange(form);
   const confirm = form.querySelector(".confirm");
   form.dataset.confirming = button.dataset.kind;
   confirm.querySelector(".question").textContent = button.dataset.confirm || `${button.dataset.kind}?`;
@@ -215,6 +291,7 @@ function askToConfirm(button) {
 async function send(form, kind, why, verb) {
   const url = Object.hasOwn(ACTION_URLS, kind) ? ACTION_URLS[kind]() : `${API}/proposals/${form.dataset.proposal}/${kind}`;
   const outcome = form.querySelector(".outcome");
+  form.dataset.sent = kind; // what follows on the card is this page's doing
   form.querySelector(".confirm").hidden = true;
   form.querySelectorAll("button").forEach((b) => { b.disabled = true; });
   outcome.textContent = "sending…";
