@@ -593,6 +593,8 @@ def _summary_lines(result: dict[str, Any], seconds: float, identifiability: list
                 f"profile-likelihood 95 % interval of {name}: "
                 f"{format_estimate(lo, se)} … {format_estimate(hi, se)}"
             )
+    if result["start_search"] is not None:
+        lines.append(result["start_search"]["reason"])
     for name, reason in result["not_determined"].items():
         lines.append(f"{name} not determined: {reason}")
     lines.extend(identifiability)

@@ -9,6 +9,8 @@ and the fitted attributes (ending in ``_``) exist only after ``fit``: reading on
   the covariance (the Cramér–Rao bound (JᵀJ)⁻¹; positive parameters are estimated as log θ, so
   their 95 % interval is asymmetric);
 - :mod:`fuelid.greybox._multiple_shooting`: the segmented start for long records and local minima;
+- :mod:`fuelid.greybox._start_search`: a start off the flat spot, where the outputs do not depend
+  on a parameter at the start values;
 - :mod:`fuelid.greybox._profile`: what the data determine at the estimate, and the
   profile-likelihood interval (:meth:`GreyBoxEstimator.profile_interval`) where the Gaussian
   one is not to be trusted.
@@ -57,6 +59,7 @@ from fuelid.greybox._sensitivity import Trajectory, simulate_record
 from fuelid.greybox._solver_choice import SolverChoice, check_request, choose_solver, fall_back
 from fuelid.greybox._solver_fit import SolverChecks
 from fuelid.greybox._solvers import SimulationError, Solver
+from fuelid.greybox._start_search import StartSearch
 from fuelid.greybox._system import GreyBoxModel, OdeSystem, Record
 from fuelid.model import nrmse_fit_columns
 from fuelid.params import Params
@@ -90,7 +93,7 @@ RELEASE_ROUNDS = 3
 """Times held parameters are re-examined at the estimate and the fit redone, at most."""
 
 
-class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
+class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, StartSearch, ProfileLikelihood):
     """Fit a :class:`~fuelid.greybox._system.GreyBoxModel` to records by output error.
 
     Parameters
@@ -127,7 +130,13 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
         A free parameter the outputs do not depend on at all (one acting only beyond a limit
         or kink the records never reach) is held at its value and reported in
         ``not_determined_`` instead of refusing the fit; it is freed again if it acts at the
-        estimate. Default False: such a fit is refused, naming the parameter.
+        estimate. Default False: such a fit is refused, naming the parameter. Either way a start
+        where it acts is searched for first (``start_search_``): held or refused is only what
+        no start in the bounds cures.
+    start_search : bool
+        Where the outputs do not depend on some free parameter at the start values, search the
+        bounds for a start where they do (default True; :mod:`fuelid.greybox._start_search`).
+        False: refuse (or hold) at once, as from the start values.
 
     Attributes
     ----------
@@ -170,6 +179,10 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
         What was held because the outputs do not depend on it, name → reason: estimated initial
         states always (``x0[state]``: a mode that settles before the first sample, say), and
         parameters with ``hold_undetermined``; empty otherwise.
+    start_search_ : StartSearchReport or None
+        Where the outputs did not depend on some free parameter at the start values, the search
+        for a start where they do (:mod:`fuelid.greybox._start_search`): which start was used
+        and why, or the evidence that none was; None when the start values were not flat.
     """
 
     _SETTINGS = (
@@ -181,6 +194,7 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
         "max_step",
         "substeps",
         "hold_undetermined",
+        "start_search",
     )
     """The constructor's parameters: what ``get_params`` returns and a refit keeps."""
 
@@ -194,6 +208,7 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
         max_step: float | None = None,
         substeps: int | None = None,
         hold_undetermined: bool = False,
+        start_search: bool = True,
     ) -> None:
         self.model = model
         self.initial_state = initial_state
@@ -203,6 +218,7 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
         self.max_step = max_step
         self.substeps = substeps
         self.hold_undetermined = hold_undetermined
+        self.start_search = start_search
 
     if not TYPE_CHECKING:  # hidden from mypy, which would otherwise accept any attribute name
 
@@ -341,8 +357,12 @@ class GreyBoxEstimator(Params, SolverChecks, SegmentedStart, ProfileLikelihood):
         if self.estimate_x0_:
             self._hold_idle_states(phi, evaluation)
             phi, evaluation = self._settle_initial_states(phi, records, sigma, evaluation)
+        phi, evaluation = self._search_start(phi, records, sigma, evaluation)
         phi, evaluation = self._hold_unused(phi, records, sigma, evaluation)
-        self._refuse_structural(phi, evaluation, records, sigma)
+        try:
+            self._refuse_structural(phi, evaluation, records, sigma)
+        except NotIdentifiableError as refusal:
+            raise self._with_search_evidence(refusal) from None
         start_phi, start_sigma, start_evaluation = phi, sigma, evaluation
         self.start_ = "single shooting"
         if self.segments not in (None, "auto"):

@@ -384,6 +384,9 @@ def greybox_result(
         "solver": estimator.solver_.to_json(),
         "solver_description": estimator.solver_.describe(),
         "not_determined": dict(estimator.not_determined_),
+        "start_search": None
+        if estimator.start_search_ is None
+        else estimator.start_search_.to_json(),
         "linearity": dict(estimator.linearity_),
         "misfit": misfit(estimator, check),
         "identifiability": estimator.identifiability_.to_json(),

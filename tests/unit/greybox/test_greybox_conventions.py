@@ -94,6 +94,7 @@ def test_settings_are_parameters_as_for_the_other_estimators() -> None:
         "max_step": None,
         "substeps": None,
         "hold_undetermined": False,
+        "start_search": True,
     }
     assert estimator.set_params(max_iterations=5) is estimator
     assert estimator.max_iterations == 5

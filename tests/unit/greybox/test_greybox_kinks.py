@@ -134,12 +134,14 @@ def test_hold_undetermined_holds_it_and_fits_the_rest() -> None:
 
 def test_a_held_parameter_that_acts_at_the_estimate_is_freed_again() -> None:
     # at the start (a 40 % low) the level never reaches the rim, so the overflow's c does not
-    # act; at the estimate it does, and c must be estimated, not left at its start
+    # act; at the estimate it does, and c must be estimated, not left at its start (without the
+    # start search, which would start c where it acts: test_greybox_start_search.py)
     record, _ = kinked_record("overflow", seed=41)
     start = {"a": 0.12, "b": 0.1, "c": 0.5}
+    model = kinked_model("overflow", start)
     with pytest.raises(NotIdentifiableError, match="do not depend on c"):
-        GreyBoxEstimator(kinked_model("overflow", start)).fit(record)  # c idle at the start
-    estimator = GreyBoxEstimator(kinked_model("overflow", start), hold_undetermined=True)
+        GreyBoxEstimator(model, start_search=False).fit(record)  # c idle at the start
+    estimator = GreyBoxEstimator(model, hold_undetermined=True, start_search=False)
     estimator.fit(record)
     assert estimator.not_determined_ == {}
     for key, value in TRUTH["overflow"].items():
