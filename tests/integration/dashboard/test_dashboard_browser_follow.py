@@ -210,9 +210,10 @@ def test_the_trend_stops_following_on_a_zoom_resumes_on_follow_live_and_follows_
                 looks += _still_looks(page, store, "dragged")
                 dragged_end = looks[-1][1].range_end
                 # --- the 1 h button: another stored range, ending at the newest sample then
-                page.click("button[data-range-minutes='60']")
                 end = "document.getElementById('trend').dataset.rangeEnd"
-                wait_until(page, f"{end} !== {json.dumps(page.evaluate(end))}", 10)
+                before = page.evaluate(end)  # read before the click: its redraw may come first
+                page.click("button[data-range-minutes='60']")
+                wait_until(page, f"{end} !== {json.dumps(before)}", 10)
                 looks += _still_looks(page, store, "1 h shown")
                 hour_spans = _spans(page)
                 # --- "follow live": following again, the span of --trend-minutes
