@@ -45,14 +45,15 @@ the service chip stays an alarm. What the store still proves keeps its colour: t
 and the proposals.
 
 **A restarted service**: the same chips stay unknown until the service has judged a window
-since its start, "unknown since the restart at 08:25:10 CET: no window judged yet (last
-before: …)": until then the newest window (whose health they show) is the previous run's. The
-rule compares plant times, like with like: the newest window's analysis time (``last_window``
-``time``, the newest sample when it was judged) against the service record's
+of its own, one that starts at or after its start, "unknown since the restart at 08:25:10 CET:
+no window of its own yet (last before: …)": until then the newest window (whose health they
+show) holds the previous run's samples and the outage. The rule compares plant times, like with
+like: the newest window's start (``last_window`` ``start``) against the service record's
 ``started_plant`` (the plant time of the running service's first sample, newer than every
-sample the store held at its start and than its newest window's analysis time; null until that
-sample is committed, and then no window was judged since either). So the window judged before
-the restart is always older; the restart's time shown is ``started_plant`` in the site's
+sample the store held at its start; null until that sample is committed, and then no window
+of its own was judged either). A window judged after the restart but opened before it (a
+10-minute window judged 2 minutes after the restart) keeps the chips grey; the restart's time
+shown is ``started_plant`` in the site's
 zone. The record's ``started`` is wall time, never compared with a plant time (an
 accelerated virtual PLC runs its plant clock hours ahead); only a record written before
 ``started_plant`` existed is judged on its ``started`` against the window's ``wall_time``,
@@ -286,10 +287,12 @@ def _since_the_restart(status: dict[str, Any]) -> str | None:
         if not isinstance(started, int | float) or not isinstance(written, int | float):
             return None
         return None if written >= started else "unknown since the restart"
-    start, judged = service.get("started_plant"), window.get("time")
+    start, opened = service.get("started_plant"), window.get("start")
     if not isinstance(start, int | float):
         return "unknown since the restart"  # no sample of its own yet: nothing judged since
-    if isinstance(judged, int | float) and judged >= start:
+    # a window judged after the restart but opened before it holds the previous run's samples
+    # and the outage: its health is not what the restarted service measured
+    if isinstance(opened, int | float) and opened >= start:
         return None
     return f"unknown since the restart at {_restart_time(status, float(start))}"
 
@@ -310,7 +313,7 @@ def _grey_after_restart(chips: list[Chip], status: dict[str, Any]) -> list[Chip]
     if since is None:
         return chips
     return [
-        Chip(c.name, "unknown", f"{since}: no window judged yet (last before: {c.text})")
+        Chip(c.name, "unknown", f"{since}: no window of its own yet (last before: {c.text})")
         if c.name in LIVE_CHIPS
         else c
         for c in chips

@@ -151,17 +151,36 @@ def test_a_restarted_service_greys_the_live_chips_until_its_first_window(
         since = f"unknown since the restart at {format_time(restart, tz).split(' ', 1)[1]}"
         for name in LIVE_CHIPS:
             assert chips[name]["level"] == "unknown", chips[name]
-            assert chips[name]["text"].startswith(f"{since}: no window judged yet (last before: ")
-        # its first window: judged on a sample of its own (analysis time after its start)
+            assert chips[name]["text"].startswith(
+                f"{since}: no window of its own yet (last before: "
+            )
+        # a window judged after the restart but opened before it: the previous run's samples
+        # and the outage (the held-out trial's #102): still not the restarted service's health
         history.add_window(
             t_from=newest - 60.0,
             t_to=newest,
             accepted=False,
-            reason="test: judged after the restart",
+            reason="test: judged after the restart, opened before it",
             detail=dict(last.get("detail") or {}),
             T_fuel=last.get("T_fuel"),
             u_mean=last.get("u_mean"),
             time=restart + 1.0,
+        )
+        history.beat()
+        chips = _chips(client)
+        for name in LIVE_CHIPS:
+            assert chips[name]["level"] == "unknown", chips[name]
+            assert chips[name]["text"].startswith(f"{since}: no window of its own yet"), chips
+        # its first window of its own: opened at the restart, on its own samples
+        history.add_window(
+            t_from=restart,
+            t_to=restart + 60.0,
+            accepted=False,
+            reason="test: the restarted service's own window",
+            detail=dict(last.get("detail") or {}),
+            T_fuel=last.get("T_fuel"),
+            u_mean=last.get("u_mean"),
+            time=restart + 61.0,
         )
         history.beat()
         chips = _chips(client)

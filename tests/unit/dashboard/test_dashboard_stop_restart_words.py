@@ -105,12 +105,19 @@ def test_an_out_of_date_proposal_promises_new_windows_only_from_a_running_servic
 # --- 2. a restarted service: unknown until it judged a window ---------------------------------
 
 
-def restarted(started_plant: Any, window_time: float, **changes: Any) -> dict[str, Any]:
-    """Running again since plant time ``started_plant``, its newest window judged at another."""
+def restarted(
+    started_plant: Any, window_time: float, opened: float | None = None, **changes: Any
+) -> dict[str, Any]:
+    """Running again since plant time ``started_plant``, its newest window judged at another.
+
+    The window opened at ``opened``, a window length before ``window_time`` unless given.
+    """
     status = running(**changes)
     status["service"] = {"started": 5000.0, "started_plant": started_plant,
                          "settings": {"window_s": WINDOW_S}}  # fmt: skip
-    status["last_window"] = {**status["last_window"], "time": window_time, "wall_time": 4990.0}
+    start = window_time - WINDOW_S if opened is None else opened
+    status["last_window"] = {**status["last_window"], "start": start, "time": window_time,
+                             "wall_time": 4990.0}  # fmt: skip
     return status
 
 
@@ -120,17 +127,21 @@ def test_a_restarted_service_greys_the_live_chips_until_it_judged_a_window() -> 
     for name in LIVE_CHIPS:
         assert before[name].level == "unknown", name
         assert before[name].text.startswith(
-            "unknown since the restart at 09:14:33 CET: no window judged yet (last before: "
+            "unknown since the restart at 09:14:33 CET: no window of its own yet (last before: "
         ), before[name].text
     assert before["oscillation"].text.endswith("(last before: none)")
     assert before["service"].level == "ok"  # the service chip is about now: running, link up
-    # the first window judged after the restart: its health, coloured again
-    after = chips(restarted(NEWEST - 30.0, NEWEST - 30.0))
+    # judged after the restart but opened before it (the held-out trial's window #102, 78 %
+    # the previous run's samples, the outage within): still not the restarted service's health
+    mixed = chips(restarted(NEWEST - 30.0, NEWEST - 20.0))
+    assert {mixed[name].level for name in LIVE_CHIPS} == {"unknown"}
+    # the first window of its own (opened at the restart): its health, coloured again
+    after = chips(restarted(NEWEST - 630.0, NEWEST - 20.0, opened=NEWEST - 630.0))
     assert {after[name].level for name in LIVE_CHIPS} == {"ok"}
     # running again, but no sample of its own yet: nothing judged since either
     waiting = chips(restarted(None, NEWEST - 90.0))
     assert waiting["mode"].level == "unknown"
-    assert waiting["mode"].text.startswith("unknown since the restart: no window judged yet")
+    assert waiting["mode"].text.startswith("unknown since the restart: no window of its own yet")
 
 
 def test_a_record_without_its_plant_start_compares_the_two_wall_stamps_of_the_site() -> None:
