@@ -24,7 +24,7 @@ from fuelid.dashboard._security import Security
 from fuelid.dashboard._source import LoopReader
 from fuelid.dashboard._static_files import StaticFiles
 from fuelid.dashboard._stream import Feeds
-from fuelid.dashboard._views import link_text
+from fuelid.dashboard._views import link_line_state, link_text
 
 __all__ = ["RECENT_HEALTH", "Dashboard", "loop_summary"]
 
@@ -52,6 +52,7 @@ def loop_summary(loop: LoopReader, status: dict[str, Any] | None = None) -> dict
     row["link"] = status.get("link")
     row["timezone"] = status.get("timezone", "UTC")
     row["link_text"] = link_text(status, row["timezone"])
+    row["link_state"] = link_line_state(status)  # the line's colour: grey once it is not fresh
     # the stream's typed events compare these and the row's excitation note between two status
     # events (stream.changed_topics)
     row["counts"] = status.get("counts")

@@ -95,6 +95,7 @@ __all__ = [
     "gains_in_force",
     "is_waiting",
     "last_written_view",
+    "link_line_state",
     "link_text",
     "now_rows",
     "proposal_next",
@@ -343,6 +344,22 @@ def quiet_sample_age(status: dict[str, Any]) -> float | None:
     if link.get("state") != "up" or not isinstance(age, int | float) or not math.isfinite(age):
         return None
     return float(age) if age > fresh_bound_s(status) else None
+
+
+def link_line_state(status: dict[str, Any]) -> str:
+    """The link line's state (its colour): "unknown" while :func:`link_text` says no new sample.
+
+    A link "up" whose newest sample is past the freshness bound is not shown in the colour of a
+    healthy link (the chip beside it is grey then too).
+
+    >>> link_line_state({"link": {"state": "up", "sample_age_s": 0.4}})
+    'up'
+    >>> link_line_state({"link": {"state": "up", "sample_age_s": 9.3}})
+    'unknown'
+    """
+    if quiet_sample_age(status) is not None:
+        return "unknown"
+    return str((status.get("link") or {}).get("state") or "unknown")
 
 
 def link_text(status: dict[str, Any], tz: str) -> str:

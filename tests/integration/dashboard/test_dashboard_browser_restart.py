@@ -3,7 +3,7 @@
 A held-out trial saw the mode, limits and oscillation chips turn green within 3 s of the
 service's restart, from the health of the window judged before the kill. The rule
 (``fuelid.dashboard._fleet``): the chips about the running loop stay unknown, "unknown since
-the restart at …", until the service has judged a window of its own (analysed at or after the
+the restart at …", until the service has judged a window of its own (opened at or after the
 plant time of its first sample, the record's ``started_plant``). Slow: a virtual run at 20x,
 a kill -9, the stop read on the page, the restart on the same store, until its first window.
 """
@@ -49,12 +49,12 @@ def _one(store: Path, sql: str, args: tuple[Any, ...] = ()) -> Any:
 
 
 def _judged_since(store: Path) -> tuple[float | None, int]:
-    """The record's ``started_plant`` and the windows analysed at or after it."""
+    """The record's ``started_plant`` and the windows opened at or after it."""
     (value,) = _one(store, "SELECT value FROM online_state WHERE key = 'service'")
     started = json.loads(value).get("started_plant")
     if started is None:
         return None, 0
-    (count,) = _one(store, "SELECT count(*) FROM windows WHERE time >= ?", (started,))
+    (count,) = _one(store, "SELECT count(*) FROM windows WHERE t_from >= ?", (started,))
     return float(started), int(count)
 
 

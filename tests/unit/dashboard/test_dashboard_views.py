@@ -23,6 +23,7 @@ from fuelid.dashboard._views import (
     PROPOSAL_STATES,
     gains_in_force,
     last_written_view,
+    link_line_state,
     link_text,
     proposal_stale,
     proposal_state,
@@ -372,6 +373,15 @@ def test_link_up_is_said_only_with_a_fresh_sample() -> None:
                            "text": "service stopped (no beat for 12 s of wall time)",
                            "sample_age_s": 14.0})  # fmt: skip
     assert link_text(stopped, TZ) == "service stopped (no beat for 12 s of wall time)"
+
+
+def test_a_link_line_past_the_freshness_bound_is_not_in_the_colour_of_a_healthy_link() -> None:
+    # the held-out trial saw "no new sample for 5.7 s" in the green of "up" (F7)
+    assert link_line_state(status()) == "up"
+    quiet = status(link={"state": "up", "text": "up (newest sample 9.3 s ago)",
+                         "sample_age_s": 9.3, "newest_sample": NEWEST})  # fmt: skip
+    assert link_line_state(quiet) == "unknown"
+    assert link_line_state(status(link={"state": "stopped", "sample_age_s": 14.0})) == "stopped"
 
 
 # --- the revert button ---------------------------------------------------------------------
