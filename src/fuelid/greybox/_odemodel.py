@@ -513,7 +513,7 @@ class OdeModel:
     ) -> FunctionSystem:
         """The model at ``values`` (θ = the ``free`` ones) for ``record``."""
         if self.switches:
-            return switched_system(self, values, free)
+            return switched_system(self, values, free, FunctionSystem)  # type: ignore[no-any-return]
         return FunctionSystem(self, values, free)
 
     def steady_state_guess(self, values: Mapping[str, float], record: Record) -> FloatArray:

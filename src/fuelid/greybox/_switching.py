@@ -36,16 +36,13 @@ import copy
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import scipy.integrate
 from numpy.typing import NDArray
 
 from fuelid.greybox._solvers import BudgetSpent, Newton, Rhs, SimulationError, Solver, budgeted
-
-if TYPE_CHECKING:
-    from fuelid.greybox._odemodel import FunctionSystem, OdeModel
 
 FloatArray = NDArray[np.float64]
 SwitchFunction = Callable[[float, Any, Any, Mapping[str, Any]], Any]
@@ -187,11 +184,16 @@ def time_derivative(g: SwitchFunction, t: float, x: Any, u: Any, p: Mapping[str,
 
 
 def switched_system(
-    model: OdeModel, values: Mapping[str, float], free: Sequence[str]
-) -> FunctionSystem:
-    """The model at ``values`` with modes of its own, carried from piece to piece of a record."""
-    from fuelid.greybox._odemodel import FunctionSystem
+    model: Any,
+    values: Mapping[str, float],
+    free: Sequence[str],
+    bound: Callable[[Any, Mapping[str, float], Sequence[str]], Any],
+) -> Any:
+    """The model at ``values`` with modes of its own, carried from piece to piece of a record.
 
+    ``model`` is an ``OdeModel`` with switches and ``bound`` its ``FunctionSystem`` class,
+    passed in (not imported: the model module imports this one); the bound system is returned.
+    """
     assert model.moded_f is not None  # a model with switches keeps the user's f(t, x, u, p, on)
     modes = Modes([s.name for s in model.switches])
     view = copy.copy(model)
@@ -201,15 +203,16 @@ def switched_system(
     raw = getattr(model.moded_f, "__wrapped__", model.moded_f)
     moded.__wrapped__ = ModedRhs(raw, model.switches, modes, model.state_scale)  # type: ignore[attr-defined]
     view.f = moded
-    system = FunctionSystem(view, values, free)
-    system.switched = _Switching(system, moded, modes)  # type: ignore[attr-defined]
+    system = bound(view, values, free)
+    system.switched = _Switching(system, moded, modes)
     return system
 
 
 class _Switching:
     """A bound system's switches: deciding modes, the jump of S, the events of a segment."""
 
-    def __init__(self, system: FunctionSystem, moded: ModedRhs, modes: Modes) -> None:
+    def __init__(self, system: Any, moded: ModedRhs, modes: Modes) -> None:
+        # system: the bound FunctionSystem (greybox._odemodel, which imports this module)
         self.system = system
         self.moded = moded
         self.modes = modes
