@@ -11,46 +11,22 @@ undeclared model from the file's start reaches a validation RMSE of 0.438 V.
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pytest
 
-from fuelid.greybox import GreyBoxEstimator, Record
+from fuelid.greybox import GreyBoxEstimator
 from fuelid.greybox.modelfile import read_model_file
 from fuelid.workflow import greybox_model
-
-EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
-REFERENCE_VALIDATION_RMSE = 0.438
-"""The least_squares + odeint script's validation RMSE on this record [V]."""
-
-
-def _records(tmp_path: Path) -> list[Record]:
-    subprocess.run(
-        [sys.executable, str(EXAMPLES / "cascaded_tanks_data.py"), str(tmp_path)], check=True
-    )
-    out = []
-    for name in ("estimation", "validation"):
-        frame = pd.read_csv(tmp_path / f"cascaded_tanks_{name}.csv")
-        out.append(
-            Record(
-                t=frame["t_s"].to_numpy(float),
-                u=frame[["u_V"]].to_numpy(float),
-                y=frame[["y_V"]].to_numpy(float),
-                name=name,
-            )
-        )
-    return out
+from support.cascaded_tanks import EXAMPLES, REFERENCE_VALIDATION_RMSE, cascaded_tanks_records
 
 
 @pytest.mark.slow
 def test_a_rim_above_the_start_s_levels_is_searched_away_from_and_the_fit_validates(
     tmp_path: Path,
 ) -> None:
-    estimation, validation = _records(tmp_path)
+    estimation, validation = cascaded_tanks_records(tmp_path)
     model = greybox_model(
         read_model_file(EXAMPLES / "cascaded_tanks_switch.py"), values={"xmax": 20.0}
     )
