@@ -18,6 +18,7 @@ import sqlite3
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -128,6 +129,23 @@ def test_a_stopped_service_is_said_as_of_its_last_run(
     assert stale in _cli(capsys, "online", "status", "--store", str(loop_db))
 
 
+def _judge_like(
+    history: OnlineHistory, last: dict[str, Any], t_from: float, t_to: float, judged: float
+) -> None:
+    """A window over ``t_from``…``t_to`` judged at plant time ``judged``, else like ``last``."""
+    history.add_window(
+        t_from=t_from,
+        t_to=t_to,
+        accepted=False,
+        reason="test: judged after the restart",
+        detail=dict(last.get("detail") or {}),
+        T_fuel=last.get("T_fuel"),
+        u_mean=last.get("u_mean"),
+        time=judged,
+    )
+    history.beat()
+
+
 def test_a_restarted_service_greys_the_live_chips_until_its_first_window(
     loop_db: Path, served: tuple[TestClient, str]
 ) -> None:
@@ -156,33 +174,13 @@ def test_a_restarted_service_greys_the_live_chips_until_its_first_window(
             )
         # a window judged after the restart but opened before it: the previous run's samples
         # and the outage (the held-out trial's #102): still not the restarted service's health
-        history.add_window(
-            t_from=newest - 60.0,
-            t_to=newest,
-            accepted=False,
-            reason="test: judged after the restart, opened before it",
-            detail=dict(last.get("detail") or {}),
-            T_fuel=last.get("T_fuel"),
-            u_mean=last.get("u_mean"),
-            time=restart + 1.0,
-        )
-        history.beat()
+        _judge_like(history, last, newest - 60.0, newest, restart + 1.0)
         chips = _chips(client)
         for name in LIVE_CHIPS:
             assert chips[name]["level"] == "unknown", chips[name]
             assert chips[name]["text"].startswith(f"{since}: no window of its own yet"), chips
         # its first window of its own: opened at the restart, on its own samples
-        history.add_window(
-            t_from=restart,
-            t_to=restart + 60.0,
-            accepted=False,
-            reason="test: the restarted service's own window",
-            detail=dict(last.get("detail") or {}),
-            T_fuel=last.get("T_fuel"),
-            u_mean=last.get("u_mean"),
-            time=restart + 61.0,
-        )
-        history.beat()
+        _judge_like(history, last, restart, restart + 60.0, restart + 61.0)
         chips = _chips(client)
     for name in LIVE_CHIPS:
         assert "since the restart" not in chips[name]["text"], chips[name]
