@@ -22,7 +22,8 @@ from fuelid.dashboard._source import LoopReader
 from fuelid.dashboard._views import (
     READ_BACK_RTOL,
     central_waiting,
-    decided_views,
+    decided_cards,
+    decided_proposals,
     decision_events,
     gains_agree,
     gains_in_force,
@@ -127,12 +128,12 @@ def _proposal_cards(
     windows: list[dict[str, Any]],
 ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """The open proposals' cards and the recently decided ones', their windows looked up."""
-    shown = [p["id"] for p in status.get("pending_proposals") or []]
-    decided = decided_views(status, history, windows, shown)
-    evidence = with_evidence(loop, windows, [*(status.get("pending_proposals") or []), *decided])
+    pending = status.get("pending_proposals") or []
+    decided = decided_proposals(history, [p["id"] for p in pending])
+    evidence = with_evidence(loop, windows, [*pending, *decided])
     return (
         proposal_views(status, evidence, history["writes"]),
-        decided_views(status, history, evidence, shown),
+        decided_cards(status, decided, evidence),
     )
 
 

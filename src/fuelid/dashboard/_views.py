@@ -87,6 +87,8 @@ __all__ = [
     "STATE_LABELS",
     "ProposalState",
     "central_waiting",
+    "decided_cards",
+    "decided_proposals",
     "decided_views",
     "decision_events",
     "fmt_num",
@@ -882,6 +884,13 @@ def decided_views(
     limit : int
         How many of the newest decided proposals.
     """
+    return decided_cards(status, decided_proposals(history, shown, limit), windows)
+
+
+def decided_proposals(
+    history: dict[str, Any], shown: Sequence[Any] = (), limit: int = DECIDED_CARDS
+) -> list[dict[str, Any]]:
+    """The proposals :func:`decided_views` shows, newest first (its parameters)."""
     skip = {int(pid) for pid in shown}
     closed = sorted(
         (
@@ -896,9 +905,16 @@ def decided_views(
     sent = next((p for p in closed if p.get("status") in _SENT), None)
     if sent is not None and all(p["id"] != sent["id"] for p in picked):
         picked.append(sent)  # older than the newest decided ones: the last write stays
+    return picked
+
+
+def decided_cards(
+    status: dict[str, Any], decided: Sequence[dict[str, Any]], windows: Sequence[dict[str, Any]]
+) -> list[dict[str, Any]]:
+    """The cards of ``decided`` (:func:`decided_proposals`), each from its filed-against gains."""
     return [
         _card(p, status, windows, p.get("old") or {}, "the gains it was filed against")
-        for p in picked
+        for p in decided
     ]
 
 
